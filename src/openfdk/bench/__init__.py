@@ -1,0 +1,13 @@
+"""Benchmarks behind ``openfdk bench``.
+
+Each benchmark module exposes ``run(quick: bool) -> list[dict]`` returning records
+``{"name": str, "value": float, "unit": str}`` (medians over repeats). Modules are
+listed in :data:`BENCHMARK_MODULES` and imported lazily so that one broken benchmark
+does not hide the others.
+"""
+
+BENCHMARK_MODULES = [
+    "openfdk.bench.kinematics",
+    "openfdk.bench.recruitment",
+    "openfdk.bench.contact",
+]

@@ -1,0 +1,87 @@
+"""Determinate kinematic analysis (paper Eqs. 1–3).
+
+Positions: Newton–Raphson on Φ(q, t) = 0 with the update applied on the manifold;
+velocities: Φ_q̂ v = ν (Eq. 2); accelerations: Φ_q̂ v̇ = γ (Eq. 3).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from .system import ConstraintSystem, KinematicsError, dependent_rows, undetermined_coordinates
+
+
+@dataclass(frozen=True)
+class FrameSolve:
+    """Outcome of one frame's position (and velocity/acceleration) solve.
+
+    converged : bool; iterations : int; residual : max |Φ| (m or rad) at the end;
+    message : str ('' when converged).
+    """
+
+    converged: bool
+    iterations: int
+    residual: float
+    message: str = ""
+
+
+def check_square(system: ConstraintSystem):
+    """Raise KinematicsError unless the constraints number 6 n_moving rows."""
+    m, n = system.n_rows, system.n_coords
+    if m != n:
+        model = system.model
+        kind = "too few" if m < n else "too many"
+        raise KinematicsError(
+            f"determinate kinematics of model {model.name!r} needs {n} constraint rows "
+            f"(6 per moving body), the model has {m} ({kind}); add drivers/joints or use "
+            f"marker tracking. Rows: {system.row_names}"
+        )
+
+
+def diagnose_singular(system: ConstraintSystem, Phi_q):
+    """A message naming redundant rows and undetermined coordinates of Φ_q̂."""
+    rank, rows = dependent_rows(Phi_q, system.row_names)
+    coords = undetermined_coordinates(Phi_q, system.model.coordinate_names())
+    return (
+        f"constraint Jacobian is singular (rank {rank} of {Phi_q.shape[0]} rows): "
+        f"redundant or inconsistent rows {rows}; coordinates not determined {coords}"
+    )
+
+
+def solve_positions(system: ConstraintSystem, state, t, alpha=None, tol=1e-10, max_iter=50):
+    """Newton–Raphson on Φ(q, t) = 0 starting from ``state`` (modified in place).
+
+    tol : max |Φ| (SI) and max |Δq̂| for convergence. Returns FrameSolve.
+    """
+    Phi_q = None
+    for it in range(1, max_iter + 1):
+        Phi, Phi_q, _, _ = system.evaluate(state, t, alpha, order=1)
+        try:
+            dq = np.linalg.solve(Phi_q, -Phi)
+        except np.linalg.LinAlgError:
+            return FrameSolve(False, it, float(np.max(np.abs(Phi))), diagnose_singular(system, Phi_q))
+        state.displace(dq)
+        if np.max(np.abs(dq)) < tol:
+            Phi = system.evaluate(state, t, alpha, order=0)[0]
+            res = float(np.max(np.abs(Phi))) if Phi.size else 0.0
+            if res < max(tol * 10, 1e-9):
+                return FrameSolve(True, it, res)
+    Phi = system.evaluate(state, t, alpha, order=0)[0]
+    res = float(np.max(np.abs(Phi)))
+    msg = f"Newton–Raphson did not converge in {max_iter} iterations (max |Φ| = {res:.3g})"
+    worst = system.row_names[int(np.argmax(np.abs(Phi)))]
+    return FrameSolve(False, max_iter, res, msg + f"; largest violation in row {worst!r}")
+
+
+def solve_velocities_accelerations(system: ConstraintSystem, state, t, alpha=None):
+    """Eqs. 2–3: set state velocities; returns (v (n,), v̇ (n,)) [m/s, rad/s, m/s², rad/s²]."""
+    _, Phi_q, nu, _ = system.evaluate(state, t, alpha, order=1)
+    lu = sla.lu_factor(Phi_q, check_finite=False)
+    v = sla.lu_solve(lu, nu, check_finite=False)
+    state.set_v(v)
+    _, _, _, gamma = system.evaluate(state, t, alpha, order=2)
+    vdot = sla.lu_solve(lu, gamma, check_finite=False)
+    return v, vdot

@@ -1,0 +1,191 @@
+"""Over-determinate kinematics: marker tracking under hard constraints (paper Eqs. 4–10).
+
+Positions (Eqs. 4–5): min_q ½ Ψᵀ W Ψ  s.t. Φ(q, t) = 0, Φ^FDK(q) = α, with
+Ψ = p_WM(q) − x_M(t) the marker residuals, solved by Gauss–Newton SQP on the KKT system
+
+    [ Ψ_q̂ᵀ W Ψ_q̂   Φ_q̂ᵀ ] [ Δq̂ ]   [ −Ψ_q̂ᵀ W Ψ ]
+    [ Φ_q̂           0    ] [ λ  ] = [ −Φ        ]
+
+with Δq̂ applied on the manifold. Velocities (Eqs. 6–9) and accelerations (Eq. 10):
+the same KKT matrix with right-hand sides Ψ_q̂ᵀ W (ẋ + δ̇), ν and
+Ψ_q̂ᵀ W (ẍ + δ̈ − b_Ψ), γ, where δ = Ψ(q(t), t) is the residual history.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from ..spatial import quat_from_matrix
+from .determinate import FrameSolve
+from .system import ConstraintSystem, undetermined_coordinates
+
+
+@dataclass(frozen=True)
+class TrackingSettings:
+    """tol_step : max |Δq̂| (m, rad) to stop; tol_constraint : max |Φ| (m, rad);
+    max_iter : Gauss–Newton iterations per frame."""
+
+    tol_step: float = 1e-10
+    tol_constraint: float = 1e-10
+    max_iter: int = 30
+
+
+class MarkerTracker:
+    """Per-frame marker-tracking solver for a model's markers (in model order).
+
+    system : ConstraintSystem (with FDK rows if α is to be imposed).
+    """
+
+    def __init__(self, system: ConstraintSystem, settings: TrackingSettings | None = None):
+        self.system = system
+        self.markers = system.model.markers
+        self.settings = settings or TrackingSettings()
+        self._observable_cache = {}
+        self.coord_names = system.model.coordinate_names()
+
+    # -- helpers ------------------------------------------------------------------
+    def _weights(self, visible):
+        """Per-row weights (3 n_markers,) from marker weights and visibility."""
+        w = np.where(visible, self.markers.weight, 0.0)
+        return np.repeat(w, 3)
+
+    def observability_message(self, state, t, visible, alpha=None):
+        """'' if the visible markers plus constraints fix the pose, else a message
+        naming the bodies whose coordinates are undetermined. Cached per visibility
+        pattern (the rank depends on the pattern, not on the pose, away from
+        degenerate poses)."""
+        key = visible.tobytes()
+        if key in self._observable_cache:
+            return self._observable_cache[key]
+        _, J, _ = self.markers.evaluate(state, 1)
+        _, A, _, _ = self.system.evaluate(state, t, alpha, order=1)
+        sw = np.sqrt(self._weights(visible))
+        stacked = np.vstack([sw[:, None] * J, A])
+        free = undetermined_coordinates(stacked, self.coord_names, tol=1e-8)
+        msg = ""
+        if free:
+            bodies = sorted({c.rsplit(".", 1)[0] for c in free})
+            seen = [
+                f"{b}: visible markers {[n for n, bi, v in zip(self.markers.names, self.markers.body, visible) if v and self.system.model.bodies[bi].name == b]}"
+                for b in bodies
+            ]
+            msg = (
+                f"the pose cannot be determined: visible markers and constraints leave "
+                f"{free} free ({'; '.join(seen)})"
+            )
+        self._observable_cache[key] = msg
+        return msg
+
+    def initial_guess(self, state, x_WM, visible):
+        """Set each moving body's pose from a rigid least-squares fit (Kabsch) of its
+        visible markers (≥ 3 non-collinear); bodies with fewer keep their pose."""
+        m = self.markers
+        for i in state.moving:
+            sel = np.flatnonzero((m.body == i) & visible)
+            if len(sel) < 3:
+                continue
+            P, X = m.p_BM[sel], x_WM[sel]
+            Pc, Xc = P - P.mean(0), X - X.mean(0)
+            H = Pc.T @ Xc
+            if np.linalg.matrix_rank(H, tol=1e-12 * max(1.0, np.abs(H).max())) < 2:
+                continue
+            U, _, Vt = np.linalg.svd(H)
+            D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))])
+            R = Vt.T @ D @ U.T
+            state.quat_WB[i] = quat_from_matrix(R)
+            state.R_WB[i] = R
+            state.p_WB[i] = X.mean(0) - R @ P.mean(0)
+
+    # -- Eqs. 4-5 -----------------------------------------------------------------
+    def solve_positions(self, state, t, x_WM, visible, alpha=None):
+        """Gauss–Newton SQP from ``state`` (modified in place).
+
+        x_WM : (n_markers, 3) m measured positions (NaN where not visible);
+        visible : (n_markers,) bool. Returns (FrameSolve, kkt_lu) where kkt_lu factors
+        the final KKT matrix for the velocity and acceleration solves.
+        """
+        s = self.settings
+        msg = self.observability_message(state, t, visible, alpha)
+        if msg:
+            return FrameSolve(False, 0, np.nan, msg), None
+        w = self._weights(visible)
+        x = np.where(visible[:, None], x_WM, 0.0).ravel()
+        n, m = self.system.n_coords, self.system.n_rows
+        K = np.zeros((n + m, n + m))
+        rhs = np.zeros(n + m)
+        lu = None
+        for it in range(1, s.max_iter + 1):
+            p, J, _ = self.markers.evaluate(state, 1)
+            Phi, A, _, _ = self.system.evaluate(state, t, alpha, order=1)
+            WJ = J * w[:, None]
+            K[:n, :n] = J.T @ WJ
+            K[:n, n:] = A.T
+            K[n:, :n] = A
+            rhs[:n] = -WJ.T @ (p - x)
+            rhs[n:] = -Phi
+            try:
+                lu = sla.lu_factor(K, check_finite=False)
+            except (np.linalg.LinAlgError, ValueError) as exc:
+                return FrameSolve(False, it, np.nan, f"KKT system singular: {exc}"), None
+            sol = sla.lu_solve(lu, rhs, check_finite=False)
+            dq = sol[:n]
+            if not np.all(np.isfinite(dq)):
+                return FrameSolve(False, it, np.nan, "KKT system singular (non-finite step)"), None
+            state.displace(dq)
+            step = np.max(np.abs(dq)) if n else 0.0
+            if step < s.tol_step:
+                Phi = self.system.evaluate(state, t, alpha, order=0)[0]
+                res = float(np.max(np.abs(Phi))) if m else 0.0
+                if res <= s.tol_constraint:
+                    return FrameSolve(True, it, res), lu
+        Phi = self.system.evaluate(state, t, alpha, order=0)[0]
+        res = float(np.max(np.abs(Phi))) if m else 0.0
+        return (
+            FrameSolve(False, s.max_iter, res, f"Gauss–Newton did not converge in {s.max_iter} iterations "
+                       f"(last step {step:.3g}, max |Φ| = {res:.3g})"),
+            lu,
+        )
+
+    def kkt_factor(self, state, t, visible, alpha=None):
+        """LU factors of the KKT matrix at the current pose (for Eqs. 8–10)."""
+        n, m = self.system.n_coords, self.system.n_rows
+        _, J, _ = self.markers.evaluate(state, 1)
+        _, A, _, _ = self.system.evaluate(state, t, alpha, order=1)
+        w = self._weights(visible)
+        K = np.zeros((n + m, n + m))
+        K[:n, :n] = J.T @ (J * w[:, None])
+        K[:n, n:] = A.T
+        K[n:, :n] = A
+        return sla.lu_factor(K, check_finite=False)
+
+    def residuals(self, state, x_WM):
+        """δ = Ψ = p_WM(q) − x_M (n_markers, 3) m (NaN where x is NaN)."""
+        return self.markers.positions(state) - x_WM
+
+    # -- Eqs. 6-10 ----------------------------------------------------------------
+    def solve_velocities_accelerations(self, state, t, lu, visible, xdot, xddot, d_delta, dd_delta, alpha=None):
+        """Velocities (Eqs. 8–9) and accelerations (Eq. 10); sets state velocities.
+
+        xdot, xddot : (n_markers, 3) measured marker velocity (m/s) and acceleration (m/s²);
+        d_delta, dd_delta : (n_markers, 3) residual rates δ̇ (m/s) and δ̈ (m/s²) (Eq. 7).
+        Returns v, v̇ (6 n_moving,) each.
+        """
+        n = self.system.n_coords
+        w = self._weights(visible)
+        vis3 = np.repeat(visible, 3)
+        _, J, _ = self.markers.evaluate(state, 1)
+        _, _, nu, _ = self.system.evaluate(state, t, alpha, order=1)
+        WJ = J * w[:, None]
+        target_v = np.where(vis3, (xdot + d_delta).ravel(), 0.0)
+        rhs = np.concatenate([WJ.T @ target_v, nu])
+        v = sla.lu_solve(lu, rhs, check_finite=False)[:n]
+        state.set_v(v)
+        _, _, b = self.markers.evaluate(state, 2)
+        _, _, _, gamma = self.system.evaluate(state, t, alpha, order=2)
+        target_a = np.where(vis3, (xddot + dd_delta).ravel() - b, 0.0)
+        rhs = np.concatenate([WJ.T @ target_a, gamma])
+        vdot = sla.lu_solve(lu, rhs, check_finite=False)[:n]
+        return v, vdot

@@ -1,0 +1,103 @@
+"""The validated, immutable model (Pinocchio's *Model*: never modified by an analysis)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .components import GROUND, Body, Frame
+from .constraints import Constraint, FDKDof, MarkerSet
+from .state import BodyStates
+
+
+class ModelError(ValueError):
+    """A model description is invalid; the message names the offending entry."""
+
+
+@dataclass(frozen=True, eq=False)
+class Model:
+    """A complete model. Build it with :class:`~openfdk.model.builder.ModelBuilder` or
+    :func:`~openfdk.model.modelfile.load_model`.
+
+    Attributes
+    ----------
+    name : str
+    bodies : tuple of Body, ``bodies[0]`` is the ground
+    frames : dict qualified name "body.frame" -> Frame
+    markers : MarkerSet
+    measures : dict name -> Measure (user-named measures)
+    constraints : tuple of Constraint (joints and drivers)
+    fdk_dofs : tuple of FDKDof
+    gravity_W : (3,) m/s²
+    elements : dict of further sections added by later layers (force elements, settings)
+    """
+
+    name: str
+    bodies: tuple
+    frames: dict
+    markers: MarkerSet
+    measures: dict
+    constraints: tuple
+    fdk_dofs: tuple
+    gravity_W: np.ndarray
+    elements: dict = field(default_factory=dict)
+    source: str = ""
+
+    # -- look-ups -------------------------------------------------------------------
+    def body(self, name) -> Body:
+        for b in self.bodies:
+            if b.name == name:
+                return b
+        raise ModelError(f"unknown body {name!r}; bodies are {[b.name for b in self.bodies]}")
+
+    def frame(self, qualified) -> Frame:
+        try:
+            return self.frames[qualified]
+        except KeyError:
+            raise ModelError(f"unknown frame/point {qualified!r}") from None
+
+    @property
+    def moving_bodies(self):
+        return tuple(b for b in self.bodies if b.column >= 0)
+
+    @property
+    def n_coords(self):
+        """Number of virtual displacements, 6 per moving body."""
+        return 6 * len(self.moving_bodies)
+
+    @property
+    def n_constraint_rows(self):
+        return sum(c.size for c in self.constraints)
+
+    def coordinate_names(self):
+        """Names of the 6 n_moving q̂/v components, e.g. 'mandible.vx', 'mandible.wz'."""
+        out = []
+        for b in self.moving_bodies:
+            out += [f"{b.name}.{c}" for c in ("x", "y", "z", "rx", "ry", "rz")]
+        return out
+
+    def constraint_row_names(self):
+        return [r for c in self.constraints for r in c.row_names]
+
+    def initial_state(self) -> BodyStates:
+        """A new workspace at the model's reference pose with zero velocities."""
+        return BodyStates(
+            [b.p_WB0 for b in self.bodies],
+            [b.quat_WB0 for b in self.bodies],
+            [b.column for b in self.bodies],
+        )
+
+    def describe(self):
+        """A short multi-line text summary."""
+        lines = [
+            f"model {self.name!r}: {len(self.moving_bodies)} moving bodies, "
+            f"{self.n_coords} coordinates, {self.n_constraint_rows} constraint rows, "
+            f"{self.markers.size} markers, {len(self.fdk_dofs)} FDK DOFs"
+        ]
+        for c in self.constraints:
+            lines.append(f"  {c.kind:6s} {c.name} ({c.joint_type}, {c.size} rows)")
+        return "\n".join(lines)
+
+
+__all__ = ["Model", "ModelError", "GROUND", "Constraint", "FDKDof"]

@@ -1,0 +1,89 @@
+"""The pose/velocity workspace of all bodies (Pinocchio's *Data*; the model stays const).
+
+``BodyStates`` holds, for every body of a model (fixed ones and ground included):
+``p_WB`` (nb, 3) m centre-of-mass positions, ``quat_WB`` (nb, 4) Euler parameters,
+``R_WB`` (nb, 3, 3) rotation matrices (kept in sync), ``w_BB`` (nb, 3) rad/s angular
+velocities in the body frame (ω'), ``v_WB`` (nb, 3) m/s centre-of-mass velocities, and
+the column offset of each body's virtual displacement in q̂ (``column``, -1 if fixed).
+
+The generalised velocity vector is ``v = [ṙ_1; ω'_1; ṙ_2; ω'_2; …]`` (6 n_moving,).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..spatial import manifold_update, normalize_quat, rotation_matrix
+
+
+class BodyStates:
+    """Mutable workspace: poses and velocities of every body. See module docstring."""
+
+    __slots__ = ("p_WB", "quat_WB", "R_WB", "w_BB", "v_WB", "column", "n_coords", "moving")
+
+    def __init__(self, p_WB, quat_WB, column):
+        self.p_WB = np.array(p_WB, dtype=float)
+        self.quat_WB = np.array(quat_WB, dtype=float)
+        self.column = np.asarray(column, dtype=int)
+        self.moving = np.flatnonzero(self.column >= 0)
+        self.n_coords = 6 * len(self.moving)
+        self.R_WB = np.empty((len(self.column), 3, 3))
+        for i in range(len(self.column)):
+            self.R_WB[i] = rotation_matrix(self.quat_WB[i])
+        nb = len(self.column)
+        self.w_BB = np.zeros((nb, 3))
+        self.v_WB = np.zeros((nb, 3))
+
+    def copy(self):
+        """Deep copy of the workspace."""
+        other = BodyStates.__new__(BodyStates)
+        other.p_WB = self.p_WB.copy()
+        other.quat_WB = self.quat_WB.copy()
+        other.R_WB = self.R_WB.copy()
+        other.w_BB = self.w_BB.copy()
+        other.v_WB = self.v_WB.copy()
+        other.column = self.column
+        other.moving = self.moving
+        other.n_coords = self.n_coords
+        return other
+
+    # -- coordinates --------------------------------------------------------------
+    def get_q(self):
+        """Positions as a flat vector [r_1, p_1, r_2, p_2, …] (7 n_moving,) (m, -)."""
+        m = self.moving
+        return np.concatenate([self.p_WB[m], self.quat_WB[m]], axis=1).ravel()
+
+    def set_q(self, q):
+        """Inverse of :meth:`get_q`; q (7 n_moving,)."""
+        q = np.asarray(q, dtype=float).reshape(-1, 7)
+        for k, i in enumerate(self.moving):
+            self.p_WB[i] = q[k, :3]
+            self.quat_WB[i] = normalize_quat(q[k, 3:])
+            self.R_WB[i] = rotation_matrix(self.quat_WB[i])
+
+    def displace(self, dq_hat):
+        """Finite displacement on the manifold: r ← r + δr, p ← p ⊗ exp(½ δπ').
+
+        dq_hat : (6 n_moving,) [m, rad] in the q̂ convention of DESIGN.md §1.
+        """
+        for i in self.moving:
+            c = self.column[i]
+            self.p_WB[i] += dq_hat[c : c + 3]
+            self.quat_WB[i] = manifold_update(self.quat_WB[i], dq_hat[c + 3 : c + 6])
+            self.R_WB[i] = rotation_matrix(self.quat_WB[i])
+
+    def get_v(self):
+        """Generalised velocity (6 n_moving,) [m/s, rad/s]."""
+        v = np.empty(self.n_coords)
+        for i in self.moving:
+            c = self.column[i]
+            v[c : c + 3] = self.v_WB[i]
+            v[c + 3 : c + 6] = self.w_BB[i]
+        return v
+
+    def set_v(self, v):
+        """Set body velocities from a generalised velocity (6 n_moving,)."""
+        for i in self.moving:
+            c = self.column[i]
+            self.v_WB[i] = v[c : c + 3]
+            self.w_BB[i] = v[c + 3 : c + 6]

@@ -1,0 +1,188 @@
+"""Result object, errors and input checks shared by the recruitment solvers.
+
+The recruitment problem (paper Eq. 11, DESIGN.md §1) is
+
+    minimise G(f_B)   subject to   C f = d,   0 ≤ f_B ≤ s,
+
+with the unknown forces ``f = [f_B; f_F]`` ordered by column: first the ``n_bounded``
+*bounded* forces f_B (muscles and unilateral reactions, N) with strengths ``s`` (N), then
+the *free* forces f_F (joint reactions, FDK residual forces; N or N·m), which are
+unbounded and not in the objective.
+
+Sign convention of the equality multipliers: ``multipliers`` is the vector λ (n_eq,) with
+``∇_f G = Cᵀ λ + ν_upper − ν_lower`` (ν ≥ 0 the multipliers of the bounds). By the envelope
+theorem λ_k = ∂G*/∂d_k, the change of the optimal objective per unit change of the
+right-hand side of equilibrium row k.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = [
+    "RecruitmentResult",
+    "RecruitmentInputError",
+    "RankDeficientFreeColumnsError",
+    "STATUS_OPTIMAL",
+    "STATUS_INFEASIBLE",
+    "STATUS_NOT_CONVERGED",
+]
+
+STATUS_OPTIMAL = "optimal"
+STATUS_INFEASIBLE = "infeasible"
+STATUS_NOT_CONVERGED = "not_converged"
+
+
+class RecruitmentInputError(ValueError):
+    """An argument of a recruitment solver has the wrong shape, sign or value."""
+
+
+class RankDeficientFreeColumnsError(RecruitmentInputError):
+    """The free (unbounded) columns of C are linearly dependent.
+
+    Their forces are then not determined by equilibrium and the objective does not
+    penalise them; the model must be fixed (remove a redundant reaction) rather than
+    regularised silently. ``columns`` holds the indices of the columns involved.
+    """
+
+    def __init__(self, message: str, columns: tuple[int, ...]):
+        super().__init__(message)
+        self.columns = columns
+
+
+@dataclass(frozen=True)
+class RecruitmentResult:
+    """Solution of one recruitment problem (one time frame).
+
+    Attributes
+    ----------
+    f : (n_var,) N (N·m for moment-type free columns)
+        Forces ordered like the columns of C. When ``converged`` is False and the frame is
+        infeasible, ``f`` is the phase-1 force set that minimises the ℓ1 equilibrium
+        residual within the bounds — it does *not* satisfy equilibrium and is not optimal.
+    converged : bool
+        True only when ``f`` satisfies equilibrium and the optimality conditions to ``tol``.
+    status : str
+        ``"optimal"``, ``"infeasible"`` or ``"not_converged"``.
+    message : str
+        Human-readable summary; names the equilibrium rows that cannot be balanced.
+    iterations : int
+        Iterations of the solver (interior-point + dual Newton, or simplex/IPM of HiGHS).
+    objective : float
+        G(f) = Σ (f_i/s_i)^p for the polynomial criterion, β = max f_i/s_i for min/max
+        (dimensionless).
+    multipliers : (n_eq,) objective units per row unit (e.g. 1/N)
+        λ with ∇_f G = Cᵀλ + bound multipliers; λ_k = ∂G*/∂d_k. NaN when not converged.
+    active_upper : (n_var,) bool
+        Bounded forces at their strength, f_i = s_i (False for free columns).
+    active_lower : (n_var,) bool
+        Bounded forces at zero, f_i = 0 (False for free columns).
+    infeasible_rows : tuple of int
+        Equilibrium rows with a residual that no admissible f can remove (empty when
+        feasible).
+    residual : (n_eq,) row units (N or N·m)
+        C f − d.
+    n_bounded : int
+        Number of bounded columns (the first ``n_bounded`` columns of C).
+    criterion : str
+        ``"polynomial"``, ``"quadratic_daqp"`` or ``"minmax"``.
+    p : float
+        Exponent of the polynomial criterion (``inf`` for min/max).
+    """
+
+    f: np.ndarray
+    converged: bool
+    status: str
+    message: str
+    iterations: int
+    objective: float
+    multipliers: np.ndarray
+    active_upper: np.ndarray
+    active_lower: np.ndarray
+    infeasible_rows: tuple[int, ...] = ()
+    residual: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    n_bounded: int = 0
+    criterion: str = "polynomial"
+    p: float = 3.0
+
+    @property
+    def success(self) -> bool:
+        """Alias of ``converged`` (scipy's name)."""
+        return self.converged
+
+
+def row_label(k: int, row_names) -> str:
+    """Name of equilibrium row k for messages (``'name'`` or ``row 3``)."""
+    if row_names is not None and k < len(row_names):
+        return f"row '{row_names[k]}'"
+    return f"row {k}"
+
+
+def column_label(j: int, column_names) -> str:
+    """Name of column j for messages (``'name'`` or ``column 3``)."""
+    if column_names is not None and j < len(column_names):
+        return f"column '{column_names[j]}'"
+    return f"column {j}"
+
+
+def check_problem(C, d, n_bounded, s, row_names=None, column_names=None):
+    """Validate and convert the arrays of a recruitment problem.
+
+    Parameters
+    ----------
+    C : (n_eq, n_var) equilibrium matrix (row units per column units, e.g. 1 or m).
+    d : (n_eq,) right-hand side (N or N·m per row).
+    n_bounded : int, number of leading bounded columns.
+    s : (n_bounded,) N, strengths, all > 0 and finite.
+
+    Returns ``(C, d, s)`` as C-contiguous float64 arrays.
+    Raises RecruitmentInputError naming the offending argument or column.
+    """
+    C = np.ascontiguousarray(C, dtype=np.float64)
+    d = np.ascontiguousarray(d, dtype=np.float64)
+    s = np.ascontiguousarray(s, dtype=np.float64)
+    if C.ndim != 2:
+        raise RecruitmentInputError(f"C must be a 2-D array (n_eq, n_var); got shape {C.shape}")
+    n_eq, n_var = C.shape
+    if d.shape != (n_eq,):
+        raise RecruitmentInputError(f"d must have shape ({n_eq},) to match C; got {d.shape}")
+    n_bounded = int(n_bounded)
+    if not 0 <= n_bounded <= n_var:
+        raise RecruitmentInputError(f"n_bounded must lie in [0, {n_var}]; got {n_bounded}")
+    if s.shape != (n_bounded,):
+        raise RecruitmentInputError(
+            f"s (strengths) must have shape ({n_bounded},) = (n_bounded,); got {s.shape}"
+        )
+    if not (np.all(np.isfinite(C)) and np.all(np.isfinite(d))):
+        raise RecruitmentInputError("C and d must be finite (found NaN or inf)")
+    bad = np.flatnonzero(~(np.isfinite(s) & (s > 0.0)))
+    if bad.size:
+        j = int(bad[0])
+        raise RecruitmentInputError(
+            f"strength of {column_label(j, column_names)} must be finite and > 0 N; got {s[j]!r}"
+        )
+    if row_names is not None and len(row_names) != n_eq:
+        raise RecruitmentInputError(f"row_names must have {n_eq} entries; got {len(row_names)}")
+    if column_names is not None and len(column_names) != n_var:
+        raise RecruitmentInputError(
+            f"column_names must have {n_var} entries; got {len(column_names)}"
+        )
+    return C, d, s
+
+
+def rank_deficiency_error(null_vectors, n_bounded, column_names):
+    """Build the RankDeficientFreeColumnsError for null vectors of the free columns.
+
+    null_vectors : (n_free, k) right null vectors of C_F (columns), dimensionless.
+    """
+    weight = np.max(np.abs(null_vectors), axis=1)
+    involved = tuple(int(n_bounded + j) for j in np.flatnonzero(weight > 1e-6 * weight.max()))
+    names = ", ".join(column_label(j, column_names) for j in involved)
+    return RankDeficientFreeColumnsError(
+        f"the free (unbounded) columns of C are linearly dependent ({names}); their forces "
+        "are not determined by equilibrium. Remove a redundant reaction or make it bounded; "
+        "openfdk does not regularise free forces silently.",
+        involved,
+    )
