@@ -30,6 +30,7 @@ is 16 bits:
 from __future__ import annotations
 
 import difflib
+import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -261,9 +262,11 @@ def _parse_parameters(buf: bytes, processor: int, name: str) -> dict:
             n_dims = buf[head + 1]
             if data_type not in (-1, 1, 2, 4):
                 raise corrupt(pos, f"parameter {item_name} has unknown data type {data_type}")
+            if n_dims > 7:                                 # the C3D limit
+                raise corrupt(pos, f"parameter {item_name} declares {n_dims} dimensions")
             dims = list(buf[head + 2:head + 2 + n_dims])
             data_pos = head + 2 + n_dims
-            n_values = int(np.prod(dims)) if n_dims else 1
+            n_values = math.prod(dims)                     # 1 for a scalar (no dims)
             data_end = data_pos + abs(data_type) * n_values
             if data_end > len(buf):
                 raise corrupt(pos, f"parameter {item_name} data runs past the end of the file")
@@ -293,6 +296,19 @@ def _parse_parameters(buf: bytes, processor: int, name: str) -> dict:
         group = group_names.get(group_id, f"GROUP{group_id}")
         parameters[f"{group}:{param_name}"] = value
     return parameters
+
+
+_SCALAR_NUMERIC_PARAMETERS = (
+    "POINT:USED", "POINT:FRAMES", "POINT:RATE", "POINT:SCALE", "POINT:DATA_START",
+    "ANALOG:USED", "ANALOG:RATE", "ANALOG:GEN_SCALE", "FORCE_PLATFORM:USED",
+    "ROTATION:USED", "ROTATION:DATA_START", "ROTATION:RATE", "ROTATION:RATIO",
+)
+_TEXT_PARAMETERS = ("POINT:UNITS", "EZC3D:VERSION")
+
+
+def _is_continuation(key: str, base: str) -> bool:
+    """``key`` is ``base`` or one of its continuations ``base2``, ``base3``, …"""
+    return key == base or (key.startswith(base) and key[len(base):].isdigit())
 
 
 def _first_number(parameters: dict, key: str) -> float | None:
@@ -368,6 +384,18 @@ def inspect_c3d(path: str | os.PathLike) -> C3DLayout:
     is_float = scale_factor < 0
 
     parameters = _parse_parameters(section, processor, name)
+    # ezc3d dereferences the first value of these parameters without a check: they
+    # must hold at least one value of the right kind when present
+    for key in _SCALAR_NUMERIC_PARAMETERS:
+        value = parameters.get(key)
+        if value is not None and (isinstance(value, list) or len(value) == 0):
+            raise C3DError(f"{name}: parameter {key} must hold a number, found "
+                           f"{value!r}")
+    for key in _TEXT_PARAMETERS:
+        value = parameters.get(key)
+        if value is not None and not (isinstance(value, list) and len(value)):
+            raise C3DError(f"{name}: parameter {key} must hold text, found {value!r}")
+
     # the parameters describe the data too (and win where they differ, C3D User Guide);
     # where one is absent, the header value stands
     param_points = _as_count(_first_number(parameters, "POINT:USED"))
@@ -382,6 +410,12 @@ def inspect_c3d(path: str | os.PathLike) -> C3DLayout:
                        f"{param_scale:g} disagree on float vs integer storage")
     if param_points and not (np.isfinite(param_rate) and param_rate > 0):
         raise C3DError(f"{name}: point rate is {param_rate}, expected a positive rate in Hz")
+
+    labels = [lab for key, value in parameters.items() if _is_continuation(key, "POINT:LABELS")
+              and isinstance(value, list) for lab in value]
+    if max(n_points, param_points) > len(labels):
+        raise C3DError(f"{name}: POINT:LABELS lists {len(labels)} labels for "
+                       f"{max(n_points, param_points)} points")
 
     # analog channels: ezc3d indexes ANALOG:SCALE/OFFSET per channel, so short arrays
     # would make it read out of bounds (a crash, not an exception)
@@ -399,7 +433,7 @@ def inspect_c3d(path: str | os.PathLike) -> C3DLayout:
                            f"is missing")
         for key in ("ANALOG:SCALE", "ANALOG:OFFSET"):
             n_values = sum(len(v) for k, v in parameters.items()
-                           if k == key or (k.startswith(key) and k[len(key):].isdigit()))
+                           if _is_continuation(k, key))
             if n_values < channels_needed:
                 raise C3DError(f"{name}: {key} has {n_values} values for "
                                f"{channels_needed} analog channels")

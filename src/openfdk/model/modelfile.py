@@ -1,0 +1,390 @@
+"""YAML model files -> :class:`~openfdk.model.model.Model` (format: docs/model-file.md).
+
+The file is data: it is read with ``yaml.safe_load`` and nothing in it is evaluated.
+Lengths are in the file's declared unit (``units.length``: m, cm or mm) and angles in
+``units.angle`` (rad or deg); they are converted to SI once, here. Every error names
+the file and the entry, e.g. ``model.yaml: bodies.jaw.mass: expected a number``.
+
+Later layers add sections (muscles, ligaments, contacts, ...) by registering a loader in
+:data:`SECTION_LOADERS`: ``loader(builder, data, ctx)``.
+"""
+
+from __future__ import annotations
+
+import difflib
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from ..spatial import quat_from_rotvec, rotation_matrix_xyz
+from .builder import ModelBuilder
+from .components import GROUND
+from .measures import Linear
+from .model import Model, ModelError
+from .timefunctions import Constant, Fourier, Polynomial, SplineThroughData
+
+LENGTH_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
+ANGLE_UNITS = {"rad": 1.0, "deg": np.pi / 180.0}
+FORMAT_VERSION = 1
+
+#: section name -> loader(builder, data, ctx); filled by later layers
+SECTION_LOADERS: dict = {}
+
+CORE_SECTIONS = (
+    "openfdk", "name", "units", "gravity", "bodies", "measures", "joints",
+    "constraints", "drivers", "fdk_dofs", "analysis", "description",
+)
+
+
+class Ctx:
+    """Where we are in the file (for messages) and the unit scales."""
+
+    def __init__(self, source, length=1.0, angle=1.0, base_dir=None):
+        self.source = source
+        self.length = length
+        self.angle = angle
+        self.base_dir = Path(base_dir) if base_dir else Path(".")
+
+    def error(self, path, msg):
+        return ModelError(f"{self.source}: {path}: {msg}")
+
+    # -- typed getters ----------------------------------------------------------------
+    def mapping(self, value, path):
+        if not isinstance(value, dict):
+            raise self.error(path, f"expected a mapping of keys, got {type(value).__name__}")
+        return value
+
+    def keys(self, value, path, allowed, required=()):
+        self.mapping(value, path)
+        for k in value:
+            if k not in allowed:
+                hint = difflib.get_close_matches(str(k), allowed, n=1)
+                extra = f"; did you mean {hint[0]!r}?" if hint else f"; allowed: {sorted(allowed)}"
+                raise self.error(f"{path}.{k}", f"unknown key{extra}")
+        for k in required:
+            if k not in value:
+                raise self.error(path, f"missing required key {k!r}")
+        return value
+
+    def number(self, value, path, positive=False, nonnegative=False):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.error(path, f"expected a number, got {value!r}")
+        v = float(value)
+        if not np.isfinite(v):
+            raise self.error(path, f"expected a finite number, got {value!r}")
+        if positive and v <= 0:
+            raise self.error(path, f"must be > 0, got {v}")
+        if nonnegative and v < 0:
+            raise self.error(path, f"must be >= 0, got {v}")
+        return v
+
+    def vector(self, value, path, n=None, shape=None):
+        try:
+            arr = np.array(value, dtype=float)
+        except (TypeError, ValueError):
+            raise self.error(path, f"expected a list of numbers, got {value!r}") from None
+        if shape is not None and arr.shape != shape:
+            raise self.error(path, f"expected shape {shape}, got {arr.shape}")
+        if n is not None and arr.shape != (n,):
+            raise self.error(path, f"expected {n} numbers, got {value!r}")
+        if not np.all(np.isfinite(arr)):
+            raise self.error(path, f"expected finite numbers, got {value!r}")
+        return arr
+
+    def position(self, value, path):
+        """A length triple in the file unit -> (3,) m."""
+        return self.vector(value, path, n=3) * self.length
+
+
+def load_model(path) -> Model:
+    """Read, validate and build a model file. Raises ModelError naming the entry."""
+    path = Path(path)
+    if not path.is_file():
+        raise ModelError(f"model file {str(path)!r} does not exist")
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        raise ModelError(f"{path.name}: malformed YAML{where}: {getattr(exc, 'problem', exc)}") from None
+    return model_from_dict(data, source=path.name, base_dir=path.parent)
+
+
+def model_from_dict(data, source="<dict>", base_dir=None) -> Model:
+    """Build a model from the parsed YAML mapping (see docs/model-file.md)."""
+    ctx = Ctx(source, base_dir=base_dir)
+    if not isinstance(data, dict):
+        raise ModelError(f"{source}: the file must contain a mapping with sections {list(CORE_SECTIONS)}")
+    ctx.keys(data, "(top level)", list(CORE_SECTIONS) + list(SECTION_LOADERS), required=("bodies",))
+    version = data.get("openfdk", FORMAT_VERSION)
+    if version != FORMAT_VERSION:
+        raise ctx.error("openfdk", f"unsupported format version {version!r}; this openfdk reads version {FORMAT_VERSION}")
+    units = ctx.keys(data.get("units", {}) or {}, "units", ["length", "angle"])
+    lu, au = units.get("length", "m"), units.get("angle", "rad")
+    if lu not in LENGTH_UNITS:
+        raise ctx.error("units.length", f"unknown length unit {lu!r}; expected one of {list(LENGTH_UNITS)}")
+    if au not in ANGLE_UNITS:
+        raise ctx.error("units.angle", f"unknown angle unit {au!r}; expected one of {list(ANGLE_UNITS)}")
+    ctx.length, ctx.angle = LENGTH_UNITS[lu], ANGLE_UNITS[au]
+    gravity = ctx.vector(data.get("gravity", [0, 0, -9.81]), "gravity", n=3)
+    b = ModelBuilder(str(data.get("name", source)), gravity=gravity)
+    b.source = source
+    _load_bodies(b, data["bodies"], ctx)
+    for name, spec in (ctx.mapping(data.get("measures") or {}, "measures")).items():
+        _wrap(ctx, f"measures.{name}", lambda: b.add_measure(name, _measure(b, spec, f"measures.{name}", ctx)))
+    for name, spec in (ctx.mapping(data.get("joints") or {}, "joints")).items():
+        _load_joint(b, name, spec, ctx)
+    for name, spec in (ctx.mapping(data.get("constraints") or {}, "constraints")).items():
+        _load_constraint(b, name, spec, ctx)
+    for name, spec in (ctx.mapping(data.get("drivers") or {}, "drivers")).items():
+        _load_driver(b, name, spec, ctx)
+    for name, spec in (ctx.mapping(data.get("fdk_dofs") or {}, "fdk_dofs")).items():
+        _load_fdk(b, name, spec, ctx)
+    b.elements["analysis"] = dict(ctx.mapping(data.get("analysis") or {}, "analysis"))
+    b.elements["units"] = {"length": lu, "angle": au}
+    for section, loader in SECTION_LOADERS.items():
+        if section in data:
+            loader(b, data[section], ctx)
+    return _wrap(ctx, "(model)", b.build)
+
+
+def _wrap(ctx, path, fn):
+    """Run fn, re-raising builder errors with the file and entry path."""
+    try:
+        return fn()
+    except ModelError as exc:
+        msg = str(exc)
+        if msg.startswith(ctx.source):
+            raise
+        raise ctx.error(path, msg) from None
+
+
+def _orientation(value, path, ctx):
+    """Cardan x-y-z angles (file angle unit), or {quaternion: [...]}, {matrix: [[...]]},
+    {rotation_vector: [...]} -> rotation matrix (3, 3)."""
+    if value is None:
+        return np.eye(3)
+    if isinstance(value, dict):
+        ctx.keys(value, path, ["xyz", "quaternion", "matrix", "rotation_vector"])
+        if len(value) != 1:
+            raise ctx.error(path, "give exactly one of xyz, quaternion, matrix, rotation_vector")
+        kind, v = next(iter(value.items()))
+        if kind == "xyz":
+            return rotation_matrix_xyz(ctx.vector(v, f"{path}.xyz", n=3) * ctx.angle)
+        if kind == "rotation_vector":
+            from ..spatial import rotation_matrix
+
+            return rotation_matrix(quat_from_rotvec(ctx.vector(v, f"{path}.{kind}", n=3) * ctx.angle))
+        if kind == "quaternion":
+            from ..spatial import normalize_quat, rotation_matrix
+
+            return rotation_matrix(normalize_quat(ctx.vector(v, f"{path}.quaternion", n=4)))
+        M = ctx.vector(v, f"{path}.matrix", shape=(3, 3))
+        if not np.allclose(M @ M.T, np.eye(3), atol=1e-6) or np.linalg.det(M) <= 0:
+            raise ctx.error(f"{path}.matrix", "is not a rotation matrix")
+        return M
+    return rotation_matrix_xyz(ctx.vector(value, path, n=3) * ctx.angle)
+
+
+def _load_bodies(b, bodies, ctx):
+    ctx.mapping(bodies, "bodies")
+    if not bodies:
+        raise ctx.error("bodies", "at least one body is needed")
+    for name, spec in bodies.items():
+        p = f"bodies.{name}"
+        ctx.keys(spec, p, ["mass", "inertia", "position", "orientation", "fixed", "equilibrium", "frames", "points", "markers"])
+        if name == GROUND:
+            ctx.keys(spec, p, ["fixed", "frames", "points"])
+            if spec.get("fixed", True) is not True:
+                raise ctx.error(f"{p}.fixed", "the ground is always fixed")
+            spec = {k: v for k, v in spec.items() if k != "fixed"}
+        fixed = bool(spec.get("fixed", False)) or name == GROUND
+        if not fixed and name != GROUND and "mass" not in spec:
+            raise ctx.error(p, "missing required key 'mass' (kg)")
+        mass = ctx.number(spec.get("mass", 0.0), f"{p}.mass", positive=not fixed, nonnegative=True)
+        inertia = spec.get("inertia", [0, 0, 0] if (fixed or name == GROUND) else None)
+        if inertia is None:
+            raise ctx.error(p, "missing required key 'inertia' (kg m², 3 principal moments or a 3x3 matrix)")
+        inertia = ctx.vector(inertia, f"{p}.inertia")
+        R = _orientation(spec.get("orientation"), f"{p}.orientation", ctx)
+        if name != GROUND:
+            _wrap(ctx, p, lambda: b.add_body(
+                name, mass, inertia, ctx.position(spec.get("position", [0, 0, 0]), f"{p}.position"), R,
+                fixed=fixed, equilibrium=bool(spec.get("equilibrium", not fixed))))
+        for section in ("frames", "points"):
+            for fname, fspec in (ctx.mapping(spec.get(section) or {}, f"{p}.{section}")).items():
+                fp = f"{p}.{section}.{fname}"
+                if isinstance(fspec, dict):
+                    ctx.keys(fspec, fp, ["position", "orientation"], required=("position",))
+                    pos, ori = fspec["position"], _orientation(fspec.get("orientation"), f"{fp}.orientation", ctx)
+                else:
+                    pos, ori = fspec, None
+                _wrap(ctx, fp, lambda: b.add_frame(name, fname, ctx.position(pos, f"{fp}.position" if isinstance(fspec, dict) else fp), ori))
+        for mname, mspec in (ctx.mapping(spec.get("markers") or {}, f"{p}.markers")).items():
+            mp = f"{p}.markers.{mname}"
+            if isinstance(mspec, dict):
+                ctx.keys(mspec, mp, ["position", "weight", "label"], required=("position",))
+                pos = ctx.position(mspec["position"], f"{mp}.position")
+                weight = ctx.number(mspec.get("weight", 1.0), f"{mp}.weight", nonnegative=True)
+                label = mspec.get("label")
+            else:
+                pos, weight, label = ctx.position(mspec, mp), 1.0, None
+            _wrap(ctx, mp, lambda: b.add_marker(mname, name, pos, weight, label))
+
+
+MEASURE_KEYS = {
+    "point": ["point"],
+    "vector": ["from", "to", "expressed_in"],
+    "distance": ["from", "to"],
+    "angles": ["frame", "of"],
+    "axis_dot": ["frame_a", "axis_a", "frame_b", "axis_b"],
+    "plane_distance": ["plane", "point"],
+    "linear": ["terms", "offset"],
+}
+
+
+def _measure(b, spec, path, ctx):
+    """A measure from its spec, or a reference to a named measure (a string)."""
+    if isinstance(spec, str):
+        return _wrap(ctx, path, lambda: b.measure(spec))
+    ctx.mapping(spec, path)
+    kind = spec.get("type")
+    if kind not in MEASURE_KEYS:
+        raise ctx.error(f"{path}.type", f"unknown measure type {kind!r}; expected one of {list(MEASURE_KEYS)}")
+    ctx.keys(spec, path, ["type"] + MEASURE_KEYS[kind], required=[k for k in MEASURE_KEYS[kind] if k not in ("expressed_in", "offset")])
+    if kind == "point":
+        return _wrap(ctx, path, lambda: b.point(spec["point"]))
+    if kind == "vector":
+        return _wrap(ctx, path, lambda: b.vector(spec["from"], spec["to"], spec.get("expressed_in")))
+    if kind == "distance":
+        return _wrap(ctx, path, lambda: b.distance(spec["from"], spec["to"]))
+    if kind == "angles":
+        return _wrap(ctx, path, lambda: b.angles(spec["frame"], spec["of"]))
+    if kind == "axis_dot":
+        return _wrap(ctx, path, lambda: b.axis_dot(
+            spec["frame_a"], ctx.vector(spec["axis_a"], f"{path}.axis_a", n=3),
+            spec["frame_b"], ctx.vector(spec["axis_b"], f"{path}.axis_b", n=3)))
+    if kind == "plane_distance":
+        return _wrap(ctx, path, lambda: b.plane_distance(spec["plane"], spec["point"]))
+    terms = []
+    if not isinstance(spec["terms"], list) or not spec["terms"]:
+        raise ctx.error(f"{path}.terms", "expected a non-empty list of {measure, coefficients}")
+    for k, term in enumerate(spec["terms"]):
+        tp = f"{path}.terms[{k}]"
+        ctx.keys(term, tp, ["measure", "coefficients"], required=("measure", "coefficients"))
+        m = _measure(b, term["measure"], f"{tp}.measure", ctx)
+        C = np.atleast_2d(ctx.vector(term["coefficients"], f"{tp}.coefficients"))
+        if C.shape[1] != m.size:
+            raise ctx.error(f"{tp}.coefficients", f"needs {m.size} columns (the measure's size), got {C.shape[1]}")
+        terms.append((C, m))
+    lin = _wrap(ctx, path, lambda: Linear(terms))
+    if "offset" in spec:
+        off = ctx.vector(spec["offset"], f"{path}.offset", n=lin.size)
+        lin.offset = off * np.array([_unit_scale(u, ctx) for u in lin.units])
+    return lin
+
+
+def _unit_scale(unit, ctx):
+    return ctx.length if unit == "length" else ctx.angle if unit == "angle" else 1.0
+
+
+def _components(spec, m, path, ctx):
+    comps = spec.get("components")
+    if comps is None:
+        return None, m.units
+    if not isinstance(comps, list) or not all(isinstance(c, int) and not isinstance(c, bool) for c in comps):
+        raise ctx.error(f"{path}.components", f"expected a list of component indices, got {comps!r}")
+    bad = [c for c in comps if not 0 <= c < m.size]
+    if bad:
+        raise ctx.error(f"{path}.components", f"indices {bad} out of range for a measure of size {m.size}")
+    return comps, tuple(m.units[c] for c in comps)
+
+
+def _load_joint(b, name, spec, ctx):
+    p = f"joints.{name}"
+    ctx.keys(spec, p, ["type", "parent", "child", "normal"], required=("type", "parent", "child"))
+    normal = ctx.vector(spec["normal"], f"{p}.normal", n=3) if "normal" in spec else None
+    _wrap(ctx, p, lambda: b.add_joint(name, spec["type"], spec["parent"], spec["child"], normal=normal))
+
+
+def _load_constraint(b, name, spec, ctx):
+    p = f"constraints.{name}"
+    ctx.keys(spec, p, ["measure", "components", "value", "reaction"], required=("measure",))
+    m = _measure(b, spec["measure"], f"{p}.measure", ctx)
+    comps, units = _components(spec, m, p, ctx)
+    value = None
+    if "value" in spec:
+        value = np.atleast_1d(ctx.vector(spec["value"], f"{p}.value"))
+        if value.shape != (len(units),):
+            raise ctx.error(f"{p}.value", f"expected {len(units)} values, got {value.size}")
+        value = value * np.array([_unit_scale(u, ctx) for u in units])
+    _wrap(ctx, p, lambda: b.add_constraint(name, m, value, comps, reaction=bool(spec.get("reaction", True))))
+
+
+FUNCTION_KEYS = {
+    "constant": ["value"],
+    "polynomial": ["coefficients"],
+    "fourier": ["frequency", "a", "b"],
+    "spline": ["times", "values"],
+}
+
+
+def _function(spec, units, path, ctx):
+    """Time function from its spec; values in the file's units of the driven measure."""
+    ctx.mapping(spec, path)
+    kind = spec.get("type")
+    if kind not in FUNCTION_KEYS:
+        raise ctx.error(f"{path}.type", f"unknown function type {kind!r}; expected one of {list(FUNCTION_KEYS)}")
+    ctx.keys(spec, path, ["type"] + FUNCTION_KEYS[kind], required=["type"] + FUNCTION_KEYS[kind])
+    scale = np.array([_unit_scale(u, ctx) for u in units])
+    n = len(units)
+
+    def rows(key):
+        arr = ctx.vector(spec[key], f"{path}.{key}")
+        if arr.ndim == 1:
+            arr = arr[:, None] if n == 1 else arr[None, :]
+        if arr.shape[1] != n:
+            raise ctx.error(f"{path}.{key}", f"each entry needs {n} values (one per driven component), got {arr.shape[1]}")
+        return arr * scale
+
+    try:
+        if kind == "constant":
+            return Constant(rows("value")[0])
+        if kind == "polynomial":
+            return Polynomial(rows("coefficients"))
+        if kind == "fourier":
+            return Fourier(ctx.number(spec["frequency"], f"{path}.frequency", positive=True), rows("a"), rows("b"))
+        times = ctx.vector(spec["times"], f"{path}.times")
+        return SplineThroughData(times, rows("values"))
+    except ValueError as exc:
+        if isinstance(exc, ModelError):
+            raise
+        raise ctx.error(path, str(exc)) from None
+
+
+def _load_driver(b, name, spec, ctx):
+    p = f"drivers.{name}"
+    ctx.keys(spec, p, ["measure", "components", "function", "reaction"], required=("measure", "function"))
+    m = _measure(b, spec["measure"], f"{p}.measure", ctx)
+    comps, units = _components(spec, m, p, ctx)
+    f = _function(spec["function"], units, f"{p}.function", ctx)
+    _wrap(ctx, p, lambda: b.add_driver(name, m, f, comps, reaction=bool(spec.get("reaction", False))))
+
+
+FDK_SETTING_KEYS = ["max_step", "perturbation", "spring"]
+
+
+def _load_fdk(b, name, spec, ctx):
+    p = f"fdk_dofs.{name}"
+    ctx.keys(spec, p, ["measure", "component", "initial"] + FDK_SETTING_KEYS, required=("measure",))
+    m = _measure(b, spec["measure"], f"{p}.measure", ctx)
+    comp = spec.get("component")
+    unit = m.units[comp if comp is not None else 0]
+    scale = _unit_scale(unit, ctx)
+    initial = ctx.number(spec.get("initial", 0.0), f"{p}.initial") * scale
+    settings = {k: spec[k] for k in FDK_SETTING_KEYS if k in spec}
+    for k in ("max_step", "perturbation"):
+        if k in settings:
+            settings[k] = ctx.number(settings[k], f"{p}.{k}", positive=True) * scale
+    _wrap(ctx, p, lambda: b.add_fdk_dof(name, m, initial, component=comp, **settings))

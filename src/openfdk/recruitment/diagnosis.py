@@ -1,0 +1,94 @@
+"""Phase-1 diagnosis of infeasible recruitment frames (HiGHS linear programme).
+
+Called only when a fast solver fails. It finds the forces within the bounds that come
+closest to equilibrium in the ℓ1 sense,
+
+    minimise Σ_k (ρ⁺_k + ρ⁻_k)   s.t.   C f + ρ⁺ − ρ⁻ = d,   0 ≤ f_B ≤ s,   ρ± ≥ 0,
+
+(the standard phase-1 problem of the simplex method, Nocedal & Wright, "Numerical
+Optimization", 2nd ed., §13.5), solved with HiGHS through ``scipy.optimize.linprog``.
+Rows with a non-zero residual ρ⁺ − ρ⁻ at the optimum are the rows the admissible forces
+cannot balance; their names go into the message.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import linprog
+
+from openfdk.recruitment.result import row_label
+
+__all__ = ["InfeasibilityDiagnosis", "diagnose_infeasibility"]
+
+
+@dataclass(frozen=True)
+class InfeasibilityDiagnosis:
+    """Outcome of the phase-1 LP.
+
+    feasible : bool — a force set within the bounds meets equilibrium (to tolerance).
+    f : (n_var,) N — the least-ℓ1-residual forces.
+    residual : (n_eq,) row units — C f − d at those forces.
+    rows : tuple of int — rows with a residual above tolerance.
+    message : str — names the rows (empty when feasible).
+    iterations : int — HiGHS iterations.
+    """
+
+    feasible: bool
+    f: np.ndarray
+    residual: np.ndarray
+    rows: tuple[int, ...]
+    message: str
+    iterations: int
+
+
+def diagnose_infeasibility(C, d, n_bounded, s, row_names=None, rtol=1e-7):
+    """Solve the phase-1 LP and name the rows that cannot be balanced.
+
+    Parameters
+    ----------
+    C : (n_eq, n_var); d : (n_eq,) N or N·m; n_bounded : int; s : (n_bounded,) N;
+    row_names : optional sequence of n_eq names; rtol : a row counts as unbalanced when
+    |residual| > rtol · (‖d‖∞ + max_kj |C_kj s_j|).
+
+    Returns InfeasibilityDiagnosis.
+    """
+    n_eq, n_var = C.shape
+    n_free = n_var - n_bounded
+    scaled = np.hstack([C[:, :n_bounded] * s, C[:, n_bounded:]])
+    threshold = rtol * (np.max(np.abs(d), initial=0.0) + np.max(np.abs(scaled), initial=0.0))
+
+    # variables [x = f_B/s (n_bounded), f_F (n_free), ρ⁺ (n_eq), ρ⁻ (n_eq)]
+    cost = np.concatenate([np.zeros(n_var), np.ones(2 * n_eq)])
+    A_eq = np.hstack([scaled, np.eye(n_eq), -np.eye(n_eq)])
+    bounds = [(0.0, 1.0)] * n_bounded + [(None, None)] * n_free + [(0.0, None)] * (2 * n_eq)
+    lp = linprog(cost, A_eq=A_eq, b_eq=d, bounds=bounds, method="highs")
+    if lp.status != 0:  # pragma: no cover - the phase-1 LP is always feasible and bounded
+        raise RuntimeError(f"phase-1 LP failed unexpectedly: {lp.message}")
+    f = np.concatenate([lp.x[:n_bounded] * s, lp.x[n_bounded:n_var]])
+    residual = C @ f - d
+    rows = tuple(int(k) for k in np.flatnonzero(np.abs(residual) > threshold))
+
+    # rows on which no column acts at all (zero row of C, d ≠ 0)
+    empty_rows = {k for k in rows if np.max(np.abs(scaled[k]), initial=0.0) == 0.0}
+    parts = []
+    for k in rows:
+        if k in empty_rows:
+            parts.append(
+                f"{row_label(k, row_names)} cannot be balanced: no force in C acts on it "
+                f"(d = {d[k]:.6g})"
+            )
+        else:
+            parts.append(
+                f"not enough strength for {row_label(k, row_names)} "
+                f"(residual {residual[k]:.6g})"
+            )
+    message = ""
+    if rows:
+        message = "equilibrium cannot be met: " + "; ".join(parts)
+    iterations = int(getattr(lp, "nit", 0))
+    return InfeasibilityDiagnosis(
+        feasible=not rows, f=f, residual=residual, rows=rows, message=message,
+        iterations=iterations,
+    )

@@ -1,0 +1,240 @@
+"""Polynomial muscle recruitment (paper Eq. 11): min Σ (f_i/s_i)^p s.t. C f = d, 0 ≤ f_B ≤ s.
+
+Pipeline (all numerical work in one numba call):
+
+1. :func:`~openfdk.recruitment.reduction.reduce_problem` eliminates the free forces
+   (joint reactions, FDK residual forces) and redundant rows, leaving
+   min Σ x^p s.t. A_r x = b_r, 0 ≤ x ≤ 1 in the activities x = f_B/s.
+2. Cold start: Mehrotra predictor–corrector primal–dual interior-point method
+   (:mod:`~openfdk.recruitment.interior_point`; Wright 1997, ch. 10; Nocedal & Wright
+   2006, Alg. 16.4 / §19.3) to a moderate tolerance, then
+3. a dual Newton polish (:mod:`~openfdk.recruitment.dual_newton`) to ``tol``, which makes
+   the active set exact (bounded forces exactly 0 or s).
+   Warm start (``x0`` = previous result or forces): the dual Newton method starts from the
+   previous multipliers; it falls back to step 2 if it does not converge in 20 iterations.
+4. Back-substitution of the free forces and of the multipliers λ of C f = d.
+
+Infeasible frames (not enough strength, or a row nothing can balance) are diagnosed with a
+phase-1 LP (:mod:`~openfdk.recruitment.diagnosis`) and returned with ``converged=False``;
+rank-deficient free columns raise :class:`RankDeficientFreeColumnsError`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from openfdk.recruitment.diagnosis import diagnose_infeasibility
+from openfdk.recruitment.dual_newton import (
+    DUAL_CONVERGED,
+    multipliers_from_primal,
+    power_box_dual_newton,
+)
+from openfdk.recruitment.interior_point import IPM_FAILED, power_box_ipm
+from openfdk.recruitment.reduction import (
+    REDUCE_INCONSISTENT_ROWS,
+    REDUCE_RANK_DEFICIENT_FREE,
+    multiplier_to_reduced,
+    reduce_problem,
+)
+from openfdk.recruitment.result import (
+    STATUS_INFEASIBLE,
+    STATUS_NOT_CONVERGED,
+    STATUS_OPTIMAL,
+    RecruitmentInputError,
+    RecruitmentResult,
+    check_problem,
+    rank_deficiency_error,
+)
+
+__all__ = ["solve_polynomial"]
+
+# kernel status codes
+_OPTIMAL = 0
+_MAX_ITER = 1
+_RANK_DEFICIENT_FREE = 2
+_INCONSISTENT_ROWS = 3
+_NUMERICAL_FAILURE = 4
+
+_RANK_RTOL = 1e-11  # singular values below this × max|C s| count as zero
+_CONSISTENCY_RTOL = 1e-9  # unbalanceable part of d above this × (‖d‖ + max|C s|) is infeasible
+_IPM_TOL = 1e-8  # interior point stops here; the dual Newton polish goes on to ``tol``
+_WARM_MAX_ITER = 20
+
+
+@njit(cache=True)
+def _solve_polynomial_kernel(C, d, n_bounded, s, p, warm_mode, lam_start, x_start, tol,
+                             max_iter):
+    """Numba driver; warm_mode 0 cold, 1 from multipliers λ (m,), 2 from activities x (n_B,).
+
+    Returns f (n,), λ (m,), x (n_B,), status code, iterations.
+    """
+    m, n = C.shape
+    status_r, A_full, A_r, b_r, L, free_back, Sigma_r, Q2U_r = reduce_problem(
+        C, d, n_bounded, s, _RANK_RTOL, _CONSISTENCY_RTOL
+    )
+    f = np.full(n, np.nan)
+    lam = np.full(m, np.nan)
+    if status_r == REDUCE_RANK_DEFICIENT_FREE:
+        return f, lam, np.full(n_bounded, np.nan), _RANK_DEFICIENT_FREE, 0
+    if status_r == REDUCE_INCONSISTENT_ROWS:
+        return f, lam, np.full(n_bounded, np.nan), _INCONSISTENT_ROWS, 0
+
+    r = A_r.shape[0]
+    iterations = 0
+    status = _OPTIMAL
+    if r == 0:
+        # the free forces balance everything: all bounded forces rest at zero
+        x = np.zeros(n_bounded)
+        mu = np.zeros(0)
+    else:
+        solved = False
+        x = np.zeros(n_bounded)
+        mu = np.zeros(r)
+        if warm_mode > 0:
+            if warm_mode == 1:
+                mu_start = multiplier_to_reduced(lam_start, Sigma_r, Q2U_r)
+            else:
+                mu_start = multipliers_from_primal(A_r, x_start, p)
+            x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, mu_start, tol,
+                                                           _WARM_MAX_ITER)
+            iterations += it
+            solved = dual_status == DUAL_CONVERGED
+        if not solved:
+            x_ipm, mu_ipm, ipm_status, it = power_box_ipm(A_r, b_r, p, max(tol, _IPM_TOL),
+                                                          max_iter)
+            iterations += it
+            x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, mu_ipm, tol,
+                                                           _WARM_MAX_ITER)
+            iterations += it
+            solved = dual_status == DUAL_CONVERGED
+            if not solved:
+                status = _NUMERICAL_FAILURE if ipm_status == IPM_FAILED else _MAX_ITER
+    if status != _OPTIMAL:
+        return f, lam, x, status, iterations
+
+    # f_B = s x; f_F = V_F Σ_F⁻¹ Q1ᵀ (d − A x); λ = L μ
+    for j in range(n_bounded):
+        f[j] = s[j] * x[j]
+    rhs = d - A_full @ x
+    for a in range(n - n_bounded):
+        acc = 0.0
+        for i in range(m):
+            acc += free_back[a, i] * rhs[i]
+        f[n_bounded + a] = acc
+    for i in range(m):
+        acc = 0.0
+        for a in range(r):
+            acc += L[i, a] * mu[a]
+        lam[i] = acc
+    return f, lam, x, status, iterations
+
+
+def _warm_start(x0, n_eq, n_var, n_bounded, s):
+    """Translate ``x0`` into (warm_mode, λ_start (m,), x_start (n_B,))."""
+    if x0 is None:
+        return 0, np.zeros(n_eq), np.zeros(n_bounded)
+    if isinstance(x0, RecruitmentResult):
+        lam = np.asarray(x0.multipliers, dtype=np.float64)
+        if x0.converged and lam.shape == (n_eq,) and np.all(np.isfinite(lam)):
+            return 1, np.ascontiguousarray(lam), np.zeros(n_bounded)
+        x0 = x0.f
+    x0 = np.asarray(x0, dtype=np.float64)
+    if x0.shape != (n_var,):
+        raise RecruitmentInputError(f"x0 must have shape ({n_var},) = (n_var,); got {x0.shape}")
+    if not np.all(np.isfinite(x0[:n_bounded])):
+        return 0, np.zeros(n_eq), np.zeros(n_bounded)
+    return 2, np.zeros(n_eq), np.ascontiguousarray(x0[:n_bounded] / s)
+
+
+def solve_polynomial(C, d, n_bounded, s, p=3.0, *, x0=None, tol=1e-10, max_iter=100,
+                     row_names=None, column_names=None) -> RecruitmentResult:
+    """Polynomial recruitment: minimise G = Σ_{i<n_bounded} (f_i/s_i)^p s.t. C f = d, 0 ≤ f_B ≤ s.
+
+    Parameters
+    ----------
+    C : (n_eq, n_var) equilibrium matrix, columns ordered [bounded..., free...]
+        (row units per column unit: 1 for force rows, m for moment rows of force columns).
+    d : (n_eq,) N (force rows) or N·m (moment rows).
+    n_bounded : int, number of bounded columns (muscles, unilateral reactions).
+    s : (n_bounded,) N, strengths > 0.
+    p : float ≥ 2, exponent (3 = the paper's cubic criterion, 2 = quadratic).
+    x0 : optional warm start — a previous :class:`RecruitmentResult` (its multipliers are
+        used; best) or forces (n_var,) N.
+    tol : tolerance on the equilibrium residual in scaled units (activity, dimensionless)
+        after the free forces are eliminated; optimality and bounds hold exactly.
+    max_iter : maximal interior-point iterations.
+    row_names : optional (n_eq,) names used in messages; column_names : optional (n_var,).
+
+    Returns
+    -------
+    RecruitmentResult (``criterion="polynomial"``). Infeasible frames return
+    ``converged=False``, ``status="infeasible"`` and a message naming the rows.
+
+    Raises
+    ------
+    RecruitmentInputError for malformed input, RankDeficientFreeColumnsError when the free
+    columns are linearly dependent.
+    """
+    C, d, s = check_problem(C, d, n_bounded, s, row_names, column_names)
+    p = float(p)
+    if not (np.isfinite(p) and p >= 2.0):
+        raise RecruitmentInputError(f"exponent p must be a finite number ≥ 2; got {p!r}")
+    n_eq, n_var = C.shape
+    n_bounded = int(n_bounded)
+    warm_mode, lam_start, x_start = _warm_start(x0, n_eq, n_var, n_bounded, s)
+    f, lam, x, code, iterations = _solve_polynomial_kernel(
+        C, d, n_bounded, s, p, warm_mode, lam_start, x_start, float(tol), int(max_iter)
+    )
+    if code == _RANK_DEFICIENT_FREE:
+        _, sigma, VT = np.linalg.svd(C[:, n_bounded:])
+        scale = max(np.max(np.abs(C[:, :n_bounded] * s), initial=0.0), np.max(np.abs(C)))
+        rank = int(np.sum(sigma > _RANK_RTOL * scale))
+        raise rank_deficiency_error(VT[rank:].T, n_bounded, column_names)
+    if code == _OPTIMAL:
+        return _optimal_result(C, d, n_bounded, p, f, lam, x, iterations, "polynomial")
+    return failed_result(C, d, n_bounded, s, p, iterations, row_names, "polynomial",
+                         f"polynomial recruitment (p = {p:g})")
+
+
+def _optimal_result(C, d, n_bounded, p, f, lam, x, iterations, criterion):
+    """Build the converged RecruitmentResult from the kernel output (x = f_B/s)."""
+    n_var = C.shape[1]
+    active_upper = np.zeros(n_var, dtype=bool)
+    active_lower = np.zeros(n_var, dtype=bool)
+    active_upper[:n_bounded] = x >= 1.0
+    active_lower[:n_bounded] = x <= 0.0
+    residual = C @ f - d
+    return RecruitmentResult(
+        f=f, converged=True, status=STATUS_OPTIMAL, message="optimal",
+        iterations=int(iterations), objective=float(np.sum(x**p)), multipliers=lam,
+        active_upper=active_upper, active_lower=active_lower, infeasible_rows=(),
+        residual=residual, n_bounded=n_bounded, criterion=criterion, p=p,
+    )
+
+
+def failed_result(C, d, n_bounded, s, p, iterations, row_names, criterion, what):
+    """Result for a frame the solver could not solve: diagnose with the phase-1 LP.
+
+    Returns RecruitmentResult with converged=False; status ``infeasible`` (rows named) or
+    ``not_converged`` (the problem is feasible but the solver failed).
+    """
+    n_eq, n_var = C.shape
+    diagnosis = diagnose_infeasibility(C, d, n_bounded, s, row_names)
+    nan_lam = np.full(n_eq, np.nan)
+    no_mask = np.zeros(n_var, dtype=bool)
+    if diagnosis.feasible:
+        status = STATUS_NOT_CONVERGED
+        message = (f"{what} did not converge after {iterations} iterations although a "
+                   "force set within the bounds meets equilibrium (phase-1 LP); "
+                   "the forces returned are that feasible point, not the optimum")
+    else:
+        status = STATUS_INFEASIBLE
+        message = diagnosis.message
+    return RecruitmentResult(
+        f=diagnosis.f, converged=False, status=status, message=message,
+        iterations=int(iterations + diagnosis.iterations), objective=float("nan"),
+        multipliers=nan_lam, active_upper=no_mask, active_lower=no_mask.copy(),
+        infeasible_rows=diagnosis.rows, residual=diagnosis.residual, n_bounded=n_bounded,
+        criterion=criterion, p=p,
+    )
