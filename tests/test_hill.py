@@ -67,7 +67,8 @@ def doc_f_t(eps, eps0=EPS0_T):
 
 def doc_forces(muscle, l_f, l_mt, v_mt, activation):
     """(tendon force, fibre force along the tendon) in N for fibre length l_f."""
-    f0, lf0, lt0 = muscle.max_isometric_force, muscle.optimal_fibre_length, muscle.tendon_slack_length
+    f0, lf0 = muscle.max_isometric_force, muscle.optimal_fibre_length
+    lt0 = muscle.tendon_slack_length
     h = lf0 * math.sin(muscle.pennation_angle_at_optimal)
     x = math.sqrt(l_f**2 - h**2)
     cos_a = x / l_f
@@ -88,7 +89,7 @@ def doc_equilibrium_tendon_force(muscle, l_mt, v_mt, activation, x_max):
 
     x_min = 1e-6 * muscle.optimal_fibre_length
     if residual(x_max) >= 0.0:
-        return residual(x_max) + doc_forces(muscle, math.hypot(x_max, h), l_mt, v_mt, activation)[1], x_max
+        return doc_forces(muscle, math.hypot(x_max, h), l_mt, v_mt, activation)[0], x_max
     x = brentq(residual, x_min, x_max, xtol=1e-15, rtol=1e-15)
     return doc_forces(muscle, math.hypot(x, h), l_mt, v_mt, activation)[0], x
 
@@ -106,7 +107,8 @@ JAW = [
 
 @pytest.fixture(scope="module")
 def masseter():
-    return Hill3ElementMuscle(272.8, 0.0226, 0.0258, pennation_angle_at_optimal=0.2, name="masseter")
+    return Hill3ElementMuscle(272.8, 0.0226, 0.0258, pennation_angle_at_optimal=0.2,
+                              name="masseter")
 
 
 # ---- curves ----------------------------------------------------------------------------
@@ -215,6 +217,20 @@ def test_passive_force_zero_below_slack_and_f0_at_documented_stretch():
     np.testing.assert_array_equal(states.strength[:2], 0.0)
 
 
+def test_collapsed_state_is_flagged():
+    # α0 = 0 and l_MT = Lt0 + 1 % Lf0: even a vanishing fibre out-pulls the barely
+    # stretched tendon (strain ≤ 0.0088 → f_T ≤ 0.03, f_L ≥ f_L(0) = e^(−1/γ) ≈ 0.108).
+    # (With pennation, cos α → 0 as the fibre shortens, so an equilibrium always exists.)
+    masseter = Hill3ElementMuscle(272.8, 0.0226, 0.0258, name="unpennate")
+    l_mt = masseter.tendon_slack_length + 0.01 * masseter.optimal_fibre_length
+    st = masseter.evaluate_states(l_mt, 0.0)
+    assert st.status[0] == 2
+    assert st.passive_force[0] == 0.0
+    lf0 = masseter.optimal_fibre_length
+    eps_t = (l_mt - 1e-6 * lf0 - masseter.tendon_slack_length) / masseter.tendon_slack_length
+    assert st.strength[0] == pytest.approx(272.8 * doc_f_t(eps_t), rel=1e-9)
+
+
 @pytest.mark.parametrize("name, f0, lf0, lt0", JAW)
 @pytest.mark.parametrize("stretch, v_mt", [(0.85, 0.0), (1.0, -0.05), (1.15, 0.03), (1.3, 0.0)])
 def test_tendon_fibre_equilibrium_at_returned_states(name, f0, lf0, lt0, stretch, v_mt):
@@ -319,10 +335,8 @@ def test_bad_parameters_raise_naming_the_muscle(kwargs, message):
 
 
 def test_muscle_set_evaluate_time_for_24_hill_muscles():
-    muscles = [Hill3ElementMuscle(f0, lf0, lt0, name=f"{side}_{n}")
-               for side in "rl" for n, f0, lf0, lt0 in JAW * 2 if True]
-    muscles = [Hill3ElementMuscle(m.max_isometric_force, m.optimal_fibre_length,
-                                  m.tendon_slack_length, name=f"m{i}") for i, m in enumerate(muscles)]
+    muscles = [Hill3ElementMuscle(f0, lf0, lt0, name=f"{n}_{copy}")
+               for copy in range(4) for n, f0, lf0, lt0 in JAW]
     assert len(muscles) == 24
     muscle_set = MuscleSet(muscles)
     rng = np.random.default_rng(3)

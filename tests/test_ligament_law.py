@@ -26,7 +26,8 @@ def reference_force(eps, k=K, l0=L0, eps_l=EPS_L):
 
 @pytest.fixture
 def ligament():
-    return Blankevoort1991Ligament(stiffness=K, slack_length=L0, transition_strain=EPS_L, name="tmj_1")
+    return Blankevoort1991Ligament(stiffness=K, slack_length=L0, transition_strain=EPS_L,
+                                   name="tmj_1")
 
 
 def test_force_matches_formula_at_chosen_strains(ligament):
@@ -94,7 +95,8 @@ def test_hanging_mass_equilibrium(mass):
     k, l0 = 500.0, 0.02
     lig = Blankevoort1991Ligament(k, l0, EPS_L, damping=2.0, name="hanger")
     weight = mass * G
-    # closed-form equilibrium strain: toe ε = sqrt(4 ε_l m g/(k l0)), linear ε = m g/(k l0) + ε_l
+    # closed-form equilibrium strain:
+    # toe ε = sqrt(4 ε_l m g/(k l0)), linear ε = m g/(k l0) + ε_l
     eps_toe = math.sqrt(4.0 * EPS_L * weight / (k * l0))
     eps_eq = eps_toe if eps_toe <= 2.0 * EPS_L else weight / (k * l0) + EPS_L
     expected_region = "toe" if mass < 0.05 else "linear"  # toe ends at k l0 ε_l = 0.3 N
@@ -126,7 +128,8 @@ def test_damping_only_when_taut_and_never_pushes(ligament):
     [
         (dict(stiffness=-1.0, slack_length=0.02), "'bad'.*stiffness"),
         (dict(stiffness=10.0, slack_length=0.0), "'bad'.*slack_length"),
-        (dict(stiffness=10.0, slack_length=0.02, transition_strain=0.0), "'bad'.*transition_strain"),
+        (dict(stiffness=10.0, slack_length=0.02, transition_strain=0.0),
+         "'bad'.*transition_strain"),
         (dict(stiffness=10.0, slack_length=0.02, damping=-0.1), "'bad'.*damping"),
         (dict(stiffness=float("nan"), slack_length=0.02), "'bad'.*stiffness"),
     ],

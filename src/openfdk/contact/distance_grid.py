@@ -7,11 +7,13 @@ marking each triangle's inflated bounding box) are evaluated, with the exact met
 ``[φ, ∂φ/∂x, ∂φ/∂y, ∂φ/∂z]`` (float32). Nodes outside the band, and nodes whose closest
 point is on the boundary rim, hold φ = NaN.
 
-Query: trilinear interpolation of φ and of the stored gradient field; a point whose cell
-has any NaN corner is "not in contact" (this trims about one cell from the rim). The
-interpolated gradient is normalised to give the outward unit normal. Interpolation error
-of φ is ≈ (h²/8)·Σ|∂²φ/∂x_k²| ≈ h²/(4ρ) for a surface with curvature radius ρ, plus the
-kinks of the faceted surface's distance field (see docs/contact.md for measurements).
+Query (:func:`trilinear_sample`): trilinear weights applied to the corner values
+corrected by half their tangent-plane step, which cancels the h²-term of plain trilinear
+interpolation (plain trilinear errs by ≈ (h²/8)·Σ|∂²φ/∂x_k²| ≈ h²/(4ρ) for curvature
+radius ρ); the stored gradients are interpolated trilinearly and normalised to give the
+outward unit normal. A point whose cell has any NaN corner is "not in contact" (this
+trims about one cell from the rim). The faceted surface's distance field has kinks
+behind the mesh edges; they limit the accuracy (docs/contact.md has measurements).
 
 Memory: 16 bytes per node over the box, ∝ box volume / h³.
 """
@@ -76,32 +78,54 @@ class SignedDistanceGrid:
 
 
 @njit(cache=True)
-def _mark_band(V, F, origin, inv_h, width, mark):
-    """mark[i, j, k] = True for nodes inside any triangle's bounding box inflated by width."""
+def _mark_boxes(box_lo, box_hi, origin, inv_h, mark):
+    """mark[i, j, k] = True for nodes inside any of the boxes (box_lo, box_hi) (m, 3) m."""
     nx, ny, nz = mark.shape
-    for f in range(F.shape[0]):
-        lo = np.empty(3, np.int64)
-        hi = np.empty(3, np.int64)
-        for d in range(3):
-            a = min(V[F[f, 0], d], V[F[f, 1], d], V[F[f, 2], d]) - width
-            b = max(V[F[f, 0], d], V[F[f, 1], d], V[F[f, 2], d]) + width
-            lo[d] = max(int(np.ceil((a - origin[d]) * inv_h)), 0)
-            hi[d] = int(np.floor((b - origin[d]) * inv_h))
-        hi[0] = min(hi[0], nx - 1)
-        hi[1] = min(hi[1], ny - 1)
-        hi[2] = min(hi[2], nz - 1)
-        for i in range(lo[0], hi[0] + 1):
-            for j in range(lo[1], hi[1] + 1):
-                for k in range(lo[2], hi[2] + 1):
+    for f in range(box_lo.shape[0]):
+        i0 = max(int(np.ceil((box_lo[f, 0] - origin[0]) * inv_h)), 0)
+        j0 = max(int(np.ceil((box_lo[f, 1] - origin[1]) * inv_h)), 0)
+        k0 = max(int(np.ceil((box_lo[f, 2] - origin[2]) * inv_h)), 0)
+        i1 = min(int(np.floor((box_hi[f, 0] - origin[0]) * inv_h)), nx - 1)
+        j1 = min(int(np.floor((box_hi[f, 1] - origin[1]) * inv_h)), ny - 1)
+        k1 = min(int(np.floor((box_hi[f, 2] - origin[2]) * inv_h)), nz - 1)
+        for i in range(i0, i1 + 1):
+            for j in range(j0, j1 + 1):
+                for k in range(k0, k1 + 1):
                     mark[i, j, k] = True
+
+
+def _swept_face_boxes(mesh, depth_behind, margin):
+    """Per-triangle boxes (lo, hi) (m, 3) m enclosing the region within the band.
+
+    Each box bounds the triangle swept ``depth_behind`` backwards along its face normal
+    and along its three vertex normals, inflated by ``margin`` plus
+    ``depth_behind·2 sin(angle between the face normal and its vertex normals)`` so that
+    points behind edges and vertices (whose closest-point direction lies between the
+    normals of adjacent faces) are covered too.
+    """
+    V, F = mesh.vertices_B, mesh.faces
+    n_f = mesh.face_normals_B
+    corners = V[F]  # (m, 3, 3)
+    n_v = mesh.vertex_normals_B[F]  # (m, 3, 3)
+    swept = np.concatenate(
+        [corners, corners - depth_behind * n_f[:, None, :], corners - depth_behind * n_v], axis=1
+    )
+    cos_spread = np.clip(np.einsum("fkd,fd->fk", n_v, n_f).min(axis=1), -1.0, 1.0)
+    spread = margin + 2.0 * depth_behind * np.sqrt(1.0 - cos_spread**2)
+    return swept.min(axis=1) - spread[:, None], swept.max(axis=1) + spread[:, None]
 
 
 @njit(cache=True)
 def trilinear_sample(values, origin, inv_h, y0, y1, y2, out):
-    """Trilinear interpolation of [φ, ∇φ] at one point (y0, y1, y2) m in B.
+    """Gradient-corrected trilinear interpolation of φ and ∇φ at one point (m, in B).
 
-    Writes out[0] = φ (m), out[1:4] = interpolated gradient (not normalised); returns
-    False when the point is outside the grid or its cell has a NaN corner.
+    With trilinear weights w_c of the 8 corners x_c of the cell holding y,
+        φ̂(y) = Σ_c w_c [φ_c + ½ ∇φ_c · (y − x_c)],      ∇̂φ(y) = Σ_c w_c ∇φ_c.
+    Plain trilinear interpolation overestimates a convex φ by ½ Σ_k φ_kk t_k(1−t_k)h²;
+    the blend of corner tangent planes Σ w_c [φ_c + ∇φ_c·(y − x_c)] underestimates it by
+    the same amount, so their average (above) is exact for quadratic φ (error O(h³)).
+    Writes out[0] = φ̂ (m), out[1:4] = ∇̂φ (not normalised); returns False when the
+    point is outside the grid or a corner of its cell is NaN (outside the band / rim).
     """
     nx, ny, nz = values.shape[0], values.shape[1], values.shape[2]
     u0 = (y0 - origin[0]) * inv_h
@@ -114,23 +138,44 @@ def trilinear_sample(values, origin, inv_h, y0, y1, y2, out):
     k = int(u2)
     if i >= nx - 1 or j >= ny - 1 or k >= nz - 1:
         return False
+    flat = values.reshape(-1)
+    sk = 4
+    sj = 4 * nz
+    si = 4 * nz * ny
+    base = i * si + j * sj + k * sk
+    # any NaN corner → no value
+    for di in range(2):
+        for dj in range(2):
+            for dk in range(2):
+                if np.isnan(flat[base + di * si + dj * sj + dk * sk]):
+                    return False
     f0 = u0 - i
     f1 = u1 - j
     f2 = u2 - k
-    for c in range(4):
-        out[c] = 0.0
-    # out = Σ_corners w_corner · values[corner],  w = Π (f or 1 − f)
+    half_h = 0.5 / inv_h
+    phi = 0.0
+    g0 = 0.0
+    g1 = 0.0
+    g2 = 0.0
     for di in range(2):
         w0 = f0 if di == 1 else 1.0 - f0
         for dj in range(2):
             w01 = w0 * (f1 if dj == 1 else 1.0 - f1)
             for dk in range(2):
                 w = w01 * (f2 if dk == 1 else 1.0 - f2)
-                node = values[i + di, j + dj, k + dk]
-                if np.isnan(node[0]):
-                    return False
-                for c in range(4):
-                    out[c] += w * node[c]
+                q = base + di * si + dj * sj + dk * sk
+                n0 = flat[q + 1]
+                n1 = flat[q + 2]
+                n2 = flat[q + 3]
+                # φ_c + ½ ∇φ_c·(y − x_c), (y − x_c) = h (f − corner offset)
+                phi += w * (flat[q] + half_h * (n0 * (f0 - di) + n1 * (f1 - dj) + n2 * (f2 - dk)))
+                g0 += w * n0
+                g1 += w * n1
+                g2 += w * n2
+    out[0] = phi
+    out[1] = g0
+    out[2] = g1
+    out[3] = g2
     return True
 
 
@@ -178,8 +223,12 @@ def build_distance_grid(mesh: SurfaceMesh, spacing: float, max_depth: float,
             f"distance grid for mesh '{mesh.name}' would need {n_nodes:.3g} nodes at "
             f"spacing {h * 1e3:g} mm; use a larger spacing or a smaller mesh region"
         )
+    # narrow band: nodes with −(max_depth + 2h) ≤ φ ≤ 2h are needed (a cell touching a
+    # point with φ ≤ 0 has corners within √3·h of it)
+    front = 2.0 * h
     mark = np.zeros(shape, dtype=np.bool_)
-    _mark_band(V, F, lo, 1.0 / h, width, mark)
+    box_lo, box_hi = _swept_face_boxes(mesh, width, front)
+    _mark_boxes(box_lo, box_hi, lo, 1.0 / h, mark)
     flat = np.flatnonzero(mark.ravel())
     values = np.full((n_nodes, 4), np.nan, dtype=np.float32)
     exact = OpenSurfaceDistance(mesh)
@@ -188,7 +237,7 @@ def build_distance_grid(mesh: SurfaceMesh, spacing: float, max_depth: float,
         ijk = np.stack(np.unravel_index(ids, shape), axis=1)
         p_BN = lo + h * ijk
         phi, normal_B, valid, _ = exact.query(p_BN)
-        keep = valid & (phi >= -width) & (phi <= width)
+        keep = valid & (phi >= -width) & (phi <= front)
         values[ids[keep], 0] = phi[keep]
         values[ids[keep], 1:] = normal_B[keep]
     values = values.reshape(shape + (4,))

@@ -8,13 +8,15 @@ parameter and its source are in docs/muscles.md; the equations in brief:
 
 Normalised variables: ``l̃ = l_f/Lf0``, ``ṽ = v_f/(V_max·Lf0)``, ``ε_T = (l_T − Lt0)/Lt0``.
 
-* Active force–length, Gaussian (Thelen 2003 Eq. 2): ``f_L = exp(−(l̃ − 1)²/γ)``, γ = 0.45.
+* Active force–length, Gaussian (Thelen 2003 Eq. 2): ``f_L = exp(−(l̃ − 1)²/γ)``,
+  γ = 0.45.
 * Force–velocity, Hill hyperbola (Hill 1938; Thelen 2003 Eqs. 6–7 at a = 1) with the
   curvature ``A = 0.1 + 0.4·ff`` from the fast-fibre fraction (Umberger et al. 2003)::
 
       f_V = 0                            ṽ ≤ −1
       f_V = (1 + ṽ)/(1 − ṽ/A)            −1 < ṽ ≤ 0   (concentric)
-      f_V = (1 + c·F_len·ṽ)/(1 + c·ṽ)    ṽ > 0        (eccentric), c = (1 + 1/A)/(F_len − 1)
+      f_V = (1 + c·F_len·ṽ)/(1 + c·ṽ)    ṽ > 0        (eccentric)
+      c = (1 + 1/A)/(F_len − 1)
 
   ``c`` makes f_V C¹ at ṽ = 0 (Thelen uses twice this slope, a kink; see docs).
 * Parallel elastic (Thelen 2003 Eq. 3), shape factor ``k_PE`` and strain ``ε0_M`` at F0::
@@ -136,7 +138,8 @@ def tendon_toe_constants(strain_at_max_force):
     """``(ε_toe, k_lin)`` that make the tendon curve C¹ with ``f_T(ε0_T) = 1``.
 
     With ``S = F_toe k_toe e^k_toe/(e^k_toe − 1)`` (the toe slope at ε_toe times ε_toe):
-    ``ε_toe = r ε0_T`` with ``r = S/(S + 1 − F_toe)``, and ``k_lin = (1 − F_toe)/(ε0_T − ε_toe)``.
+    ``ε_toe = r ε0_T`` with ``r = S/(S + 1 − F_toe)``, and
+    ``k_lin = (1 − F_toe)/(ε0_T − ε_toe)``.
     strain_at_max_force : ε0_T, dimensionless. Returns (ε_toe, k_lin), dimensionless.
     """
     s_toe = TENDON_TOE_FORCE * TENDON_TOE_SHAPE / -math.expm1(-TENDON_TOE_SHAPE)
@@ -163,7 +166,8 @@ def force_velocity(v_norm, curvature=0.26, max_eccentric_force=1.4):
 
 def passive_force_length(l_norm, shape_factor=3.0, strain_at_max_force=0.6):
     """Parallel-elastic ``f_PE(l̃)`` and ``df_PE/dl̃``; ``l_norm`` any shape (l_f/Lf0)."""
-    return _vectorised(_passive_force_length, l_norm, float(shape_factor), float(strain_at_max_force))
+    return _vectorised(_passive_force_length, l_norm, float(shape_factor),
+                       float(strain_at_max_force))
 
 
 def tendon_force_strain(strain, strain_at_max_force=0.053):
@@ -231,22 +235,22 @@ def _solve_equilibrium(activation, x_lo, x_hi, x_start, l_mt, v_mt, p):
 
 @njit(cache=True)
 def _evaluate_kernel(params, index, l_mt, v_mt, out):
-    """Fill out[i] = (s, f_P, ds/dl, ds/dv, df_P/dl, l_f1, l_f0, T1, status) per state i."""
+    """Fill out[:, i] = (s, f_P, ds/dl, ds/dv, df_P/dl, l_f1, l_f0, T1, status) per state i."""
     for i in range(l_mt.shape[0]):
         p = params[index[i]]
         for j in range(_N_OUT):
-            out[i, j] = 0.0
+            out[j, i] = 0.0
         if p[0] == _KIND_CONSTANT:
-            out[i, 0] = p[1]
-            out[i, 5] = np.nan
-            out[i, 6] = np.nan
+            out[0, i] = p[1]
+            out[5, i] = np.nan
+            out[6, i] = np.nan
             continue
         lf0, lt0, h = p[2], p[3], p[4]
         x_lo = 1e-6 * lf0  # shortest along-tendon fibre length considered
         x_hi = l_mt[i] - lt0  # tendon exactly at slack length
         if x_hi <= x_lo:  # the unit is shorter than its tendon: slack, no force
-            out[i, 5] = out[i, 6] = math.sqrt(x_lo * x_lo + h * h)
-            out[i, 8] = STATUS_SLACK
+            out[5, i] = out[6, i] = math.sqrt(x_lo * x_lo + h * h)
+            out[8, i] = STATUS_SLACK
             continue
         # passive state (a = 0): F0 f_T = F0 f_PE cos α; zero force while l_f ≤ Lf0
         x_opt = math.sqrt(max(lf0 * lf0 - h * h, 0.0))
@@ -256,29 +260,30 @@ def _evaluate_kernel(params, index, l_mt, v_mt, out):
             x0 = _solve_equilibrium(0.0, x_opt, x_hi, x_hi - lt0 * p[12], l_mt[i], 0.0, p)
             _r, dr_dx, k_t, _dv, t0 = _equilibrium_residual(x0, 0.0, l_mt[i], 0.0, p)
             # implicit function: dx/dl = −R_l/R_x, dT/dl = k_T (1 − dx/dl)
-            dt0_dl = k_t * (1.0 + k_t / dr_dx)
-        out[i, 1] = t0
-        out[i, 4] = dt0_dl
-        out[i, 6] = math.sqrt(x0 * x0 + h * h)
+            dt0_dl = k_t * (1.0 + k_t / dr_dx) if dr_dx != 0.0 else 0.0
+        out[1, i] = t0
+        out[4, i] = dt0_dl
+        out[6, i] = math.sqrt(x0 * x0 + h * h)
         # maximal state (a = 1), bracketed by [x_lo, passive root] so that T1 ≥ T0
-        r_lo, _dx, _k, _dv, _t = _equilibrium_residual(x_lo, 1.0, l_mt[i], v_mt[i], p)
+        r_lo, _dx, k_lo, _dv, t_lo = _equilibrium_residual(x_lo, 1.0, l_mt[i], v_mt[i], p)
         if r_lo <= 0.0:  # the fibre out-pulls the tendon at every length: collapsed
-            _r, _dx, k_t, _dv, t1 = _equilibrium_residual(x_lo, 1.0, l_mt[i], v_mt[i], p)
-            x1, dt1_dl, dt1_dv = x_lo, k_t, 0.0
-            out[i, 8] = STATUS_COLLAPSED
+            x1, t1, dt1_dl, dt1_dv = x_lo, t_lo, k_lo, 0.0
+            out[8, i] = STATUS_COLLAPSED
         else:
             x_start = x_hi - lt0 * (p[12] + (1.0 - TENDON_TOE_FORCE) / p[13])  # ε_T = ε0_T
             x1 = _solve_equilibrium(1.0, x_lo, x0, x_start, l_mt[i], v_mt[i], p)
             _r, dr_dx, k_t, dr_dv, t1 = _equilibrium_residual(x1, 1.0, l_mt[i], v_mt[i], p)
-            dt1_dl = k_t * (1.0 + k_t / dr_dx)  # dT/dl = k_T (1 − dx/dl)
-            dt1_dv = k_t * dr_dv / dr_dx  # dT/dv = −k_T dx/dv, dx/dv = −R_v/R_x
+            dt1_dl, dt1_dv = 0.0, 0.0  # R_x = 0 only with a slack tendon and no fibre force
+            if dr_dx != 0.0:
+                dt1_dl = k_t * (1.0 + k_t / dr_dx)  # dT/dl = k_T (1 − dx/dl)
+                dt1_dv = k_t * dr_dv / dr_dx  # dT/dv = −k_T dx/dv, dx/dv = −R_v/R_x
         # s = T1 − T0 (never negative)
         if t1 > t0:
-            out[i, 0] = t1 - t0
-            out[i, 2] = dt1_dl - dt0_dl
-            out[i, 3] = dt1_dv
-        out[i, 5] = math.sqrt(x1 * x1 + h * h)
-        out[i, 7] = t1
+            out[0, i] = t1 - t0
+            out[2, i] = dt1_dl - dt0_dl
+            out[3, i] = dt1_dv
+        out[5, i] = math.sqrt(x1 * x1 + h * h)
+        out[7, i] = t1
 
 
 # ------------------------------------------------------------------------- models
@@ -289,7 +294,8 @@ def _label(kind, name):
 def _check(label, field, value, unit, ok, expected):
     value_f = float(value)
     if not (math.isfinite(value_f) and ok(value_f)):
-        raise MuscleParameterError(f"{label}: {field} must be finite and {expected} {unit}, got {value!r}")
+        raise MuscleParameterError(
+            f"{label}: {field} must be finite and {expected} {unit}, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -357,7 +363,8 @@ class Hill3ElementMuscle:
             ("optimal_fibre_length", "m", positive),
             ("tendon_slack_length", "m", positive),
             ("tendon_strain_at_max_force", "", positive),
-            ("pennation_angle_at_optimal", "rad", (lambda x: 0.0 <= x < 0.5 * math.pi, "in [0, π/2)")),
+            ("pennation_angle_at_optimal", "rad",
+             (lambda x: 0.0 <= x < 0.5 * math.pi, "in [0, π/2)")),
             ("fast_fibre_fraction", "", (lambda x: 0.0 <= x <= 1.0, "in [0, 1]")),
             ("passive_shape_factor", "", positive),
             ("passive_strain_at_max_force", "", positive),
@@ -386,13 +393,16 @@ class Hill3ElementMuscle:
 
     def evaluate_states(self, l_MT, v_MT):
         """Full :class:`MuscleStates` for n states of this muscle (l_MT (n,) m, v_MT (n,) m/s)."""
-        return MuscleSet([self]).evaluate_states(
-            *np.broadcast_arrays(np.atleast_1d(l_MT), np.atleast_1d(v_MT)), _single=True)
+        return _single_states(self, l_MT, v_MT)
+
+
+def _single_states(muscle, l_MT, v_MT):
+    l_MT, v_MT = np.broadcast_arrays(np.atleast_1d(l_MT), np.atleast_1d(v_MT))
+    return MuscleSet([muscle])._states(l_MT, v_MT, True)
 
 
 def _evaluate_single(muscle, l_MT, v_MT):
-    states = MuscleSet([muscle]).evaluate_states(
-        *np.broadcast_arrays(np.atleast_1d(l_MT), np.atleast_1d(v_MT)), _single=True)
+    states = _single_states(muscle, l_MT, v_MT)
     if np.ndim(l_MT) == 0 and np.ndim(v_MT) == 0:
         return float(states.strength[0]), float(states.passive_force[0])
     return states.strength, states.passive_force
@@ -466,7 +476,7 @@ class MuscleSet:
             raise MuscleParameterError(
                 f"{self._who(index[k])}: non-finite muscle-tendon state l_MT={l_MT[k]!r} m, "
                 f"v_MT={v_MT[k]!r} m/s")
-        out = np.empty((l_MT.shape[0], _N_OUT))
+        out = np.empty((_N_OUT, l_MT.shape[0]))  # rows are contiguous (n,) results
         _evaluate_kernel(self._params, index, l_MT, v_MT, out)
         return out
 
@@ -481,13 +491,17 @@ class MuscleSet:
         speeds. Returns (strength (n_muscles,) N, passive_force (n_muscles,) N).
         """
         out = self._run(l_MT, v_MT, False)
-        return out[:, 0], out[:, 1]
+        return out[0], out[1]
 
-    def evaluate_states(self, l_MT, v_MT, _single=False):
-        """Strengths, passive forces, their derivatives and the fibre states (MuscleStates)."""
-        out = self._run(l_MT, v_MT, _single)
+    def evaluate_states(self, l_MT, v_MT):
+        """Like :meth:`evaluate` but returns the full :class:`MuscleStates` (derivatives,
+        fibre lengths, status); l_MT (n_muscles,) m, v_MT (n_muscles,) m/s."""
+        return self._states(l_MT, v_MT, False)
+
+    def _states(self, l_MT, v_MT, single):
+        out = self._run(l_MT, v_MT, single)
         return MuscleStates(
-            strength=out[:, 0], passive_force=out[:, 1], dstrength_dlength=out[:, 2],
-            dstrength_dspeed=out[:, 3], dpassive_dlength=out[:, 4],
-            fibre_length_active=out[:, 5], fibre_length_passive=out[:, 6],
-            tendon_force_active=out[:, 7], status=out[:, 8].astype(np.int64))
+            strength=out[0], passive_force=out[1], dstrength_dlength=out[2],
+            dstrength_dspeed=out[3], dpassive_dlength=out[4],
+            fibre_length_active=out[5], fibre_length_passive=out[6],
+            tendon_force_active=out[7], status=out[8].astype(np.int64))

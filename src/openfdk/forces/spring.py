@@ -49,7 +49,8 @@ class LinearSpring:
                 f"{label}: rest_value must be finite ({self.unit}), got {self.rest_value!r}"
             )
         if not isinstance(self.unit, str) or not self.unit:
-            raise SpringParameterError(f"{label}: unit must be a non-empty string, got {self.unit!r}")
+            raise SpringParameterError(
+                f"{label}: unit must be a non-empty string, got {self.unit!r}")
 
     def force(self, measure):
         """Generalized force ``f = −k (m − m_rest)``; ``measure`` any shape, <unit>.

@@ -144,6 +144,19 @@ def _alpha(model, alpha):
     return alpha
 
 
+def _extrapolate(state, q_prev):
+    """state ← state ⊕ (state ⊖ q_prev): first-order prediction of the next frame's pose
+    (translations linearly, rotations by the same body-frame increment)."""
+    from ..spatial import quat_conjugate, quat_multiply, normalize_quat, rotation_matrix
+
+    qp = np.asarray(q_prev).reshape(-1, 7)
+    for k, i in enumerate(state.moving):
+        state.p_WB[i] = 2 * state.p_WB[i] - qp[k, :3]
+        dq = quat_multiply(quat_conjugate(qp[k, 3:]), state.quat_WB[i])
+        state.quat_WB[i] = normalize_quat(quat_multiply(state.quat_WB[i], dq))
+        state.R_WB[i] = rotation_matrix(state.quat_WB[i])
+
+
 def _rates(delta, ok, dt):
     """δ̇ and δ̈ (nf, nm, 3) from the residual history δ (nf, nm, 3) by central
     differences (Eq. 7), one-sided where a neighbour is missing or failed."""
@@ -204,6 +217,8 @@ def run_tracking(model, trajectories, times=None, alpha=None, settings=None, pro
     bar = _progress(2 * nf, progress, "kinematics")
     guessed = False
     last_good = state.copy()
+    kkt = [None] * nf
+    q_prev = None
     # -- pass 1: positions (Eqs. 4-5) ------------------------------------------------
     for k, t in enumerate(times):
         x, xd, xdd, vis = trajectories.evaluate(t)
@@ -211,16 +226,22 @@ def run_tracking(model, trajectories, times=None, alpha=None, settings=None, pro
         if not guessed and np.any(vis):
             tracker.initial_guess(state, x, vis)
             guessed = True
-        res, _ = tracker.solve_positions(state, t, x, vis, alpha)
+        res, K = tracker.solve_positions(state, t, x, vis, alpha)
         iters[k], viol[k] = res.iterations, res.residual
         if res.converged:
             ok[k] = True
+            kkt[k] = K
             q[k] = state.get_q()
             delta[k] = np.where(vis[:, None], tracker.residuals(state, x), np.nan)
             last_good = state.copy()
+            # warm start of the next frame: linear extrapolation on the manifold
+            if q_prev is not None:
+                _extrapolate(state, q_prev)
+            q_prev = q[k]
         else:
             msgs[k] = f"frame {k} (t = {t:.4f} s): {res.message}"
             state = last_good.copy()
+            q_prev = None
         if bar:
             bar.update()
     # -- pass 2: velocities and accelerations (Eqs. 6-10) ---------------------------
@@ -229,9 +250,8 @@ def run_tracking(model, trajectories, times=None, alpha=None, settings=None, pro
         if ok[k]:
             state.set_q(q[k])
             x, xd, xdd, vis = meas[k]
-            lu = tracker.kkt_factor(state, t, vis, alpha)
             v[k], vd[k] = tracker.solve_velocities_accelerations(
-                state, t, lu, vis, np.nan_to_num(xd), np.nan_to_num(xdd), d1[k], d2[k], alpha
+                state, t, kkt[k], vis, np.nan_to_num(xd), np.nan_to_num(xdd), d1[k], d2[k], alpha
             )
         if bar:
             bar.update()

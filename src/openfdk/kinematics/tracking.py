@@ -16,7 +16,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as sla
 
 from ..spatial import quat_from_matrix
 from .determinate import FrameSolve
@@ -28,8 +27,8 @@ class TrackingSettings:
     """tol_step : max |Δq̂| (m, rad) to stop; tol_constraint : max |Φ| (m, rad);
     max_iter : Gauss–Newton iterations per frame."""
 
-    tol_step: float = 1e-10
-    tol_constraint: float = 1e-10
+    tol_step: float = 1e-9
+    tol_constraint: float = 1e-9
     max_iter: int = 30
 
 
@@ -104,8 +103,10 @@ class MarkerTracker:
         """Gauss–Newton SQP from ``state`` (modified in place).
 
         x_WM : (n_markers, 3) m measured positions (NaN where not visible);
-        visible : (n_markers,) bool. Returns (FrameSolve, kkt_lu) where kkt_lu factors
-        the final KKT matrix for the velocity and acceleration solves.
+        visible : (n_markers,) bool. Returns (FrameSolve, K) where K is the KKT matrix
+        (n + m, n + m) of the last iteration, reused by the velocity and acceleration
+        solves (Eqs. 8–10). Converged when max |Δq̂| < tol_step and max |Φ| <
+        tol_constraint at the start of that step (Φ only shrinks after it).
         """
         s = self.settings
         msg = self.observability_message(state, t, visible, alpha)
@@ -116,7 +117,7 @@ class MarkerTracker:
         n, m = self.system.n_coords, self.system.n_rows
         K = np.zeros((n + m, n + m))
         rhs = np.zeros(n + m)
-        lu = None
+        step = res = np.inf
         for it in range(1, s.max_iter + 1):
             p, J, _ = self.markers.evaluate(state, 1)
             Phi, A, _, _ = self.system.evaluate(state, t, alpha, order=1)
@@ -127,30 +128,24 @@ class MarkerTracker:
             rhs[:n] = -WJ.T @ (p - x)
             rhs[n:] = -Phi
             try:
-                lu = sla.lu_factor(K, check_finite=False)
-            except (np.linalg.LinAlgError, ValueError) as exc:
+                dq = np.linalg.solve(K, rhs)[:n]
+            except np.linalg.LinAlgError as exc:
                 return FrameSolve(False, it, np.nan, f"KKT system singular: {exc}"), None
-            sol = sla.lu_solve(lu, rhs, check_finite=False)
-            dq = sol[:n]
             if not np.all(np.isfinite(dq)):
                 return FrameSolve(False, it, np.nan, "KKT system singular (non-finite step)"), None
             state.displace(dq)
             step = np.max(np.abs(dq)) if n else 0.0
-            if step < s.tol_step:
-                Phi = self.system.evaluate(state, t, alpha, order=0)[0]
-                res = float(np.max(np.abs(Phi))) if m else 0.0
-                if res <= s.tol_constraint:
-                    return FrameSolve(True, it, res), lu
-        Phi = self.system.evaluate(state, t, alpha, order=0)[0]
-        res = float(np.max(np.abs(Phi))) if m else 0.0
+            res = float(np.max(np.abs(Phi))) if m else 0.0
+            if step < s.tol_step and res <= s.tol_constraint:
+                return FrameSolve(True, it, res), K
         return (
             FrameSolve(False, s.max_iter, res, f"Gauss–Newton did not converge in {s.max_iter} iterations "
                        f"(last step {step:.3g}, max |Φ| = {res:.3g})"),
-            lu,
+            K,
         )
 
-    def kkt_factor(self, state, t, visible, alpha=None):
-        """LU factors of the KKT matrix at the current pose (for Eqs. 8–10)."""
+    def kkt_matrix(self, state, t, visible, alpha=None):
+        """The KKT matrix (n + m, n + m) at the current pose (for Eqs. 8–10)."""
         n, m = self.system.n_coords, self.system.n_rows
         _, J, _ = self.markers.evaluate(state, 1)
         _, A, _, _ = self.system.evaluate(state, t, alpha, order=1)
@@ -159,16 +154,17 @@ class MarkerTracker:
         K[:n, :n] = J.T @ (J * w[:, None])
         K[:n, n:] = A.T
         K[n:, :n] = A
-        return sla.lu_factor(K, check_finite=False)
+        return K
 
     def residuals(self, state, x_WM):
         """δ = Ψ = p_WM(q) − x_M (n_markers, 3) m (NaN where x is NaN)."""
         return self.markers.positions(state) - x_WM
 
     # -- Eqs. 6-10 ----------------------------------------------------------------
-    def solve_velocities_accelerations(self, state, t, lu, visible, xdot, xddot, d_delta, dd_delta, alpha=None):
+    def solve_velocities_accelerations(self, state, t, K, visible, xdot, xddot, d_delta, dd_delta, alpha=None):
         """Velocities (Eqs. 8–9) and accelerations (Eq. 10); sets state velocities.
 
+        K : KKT matrix from :meth:`solve_positions` or :meth:`kkt_matrix`;
         xdot, xddot : (n_markers, 3) measured marker velocity (m/s) and acceleration (m/s²);
         d_delta, dd_delta : (n_markers, 3) residual rates δ̇ (m/s) and δ̈ (m/s²) (Eq. 7).
         Returns v, v̇ (6 n_moving,) each.
@@ -180,12 +176,10 @@ class MarkerTracker:
         _, _, nu, _ = self.system.evaluate(state, t, alpha, order=1)
         WJ = J * w[:, None]
         target_v = np.where(vis3, (xdot + d_delta).ravel(), 0.0)
-        rhs = np.concatenate([WJ.T @ target_v, nu])
-        v = sla.lu_solve(lu, rhs, check_finite=False)[:n]
+        v = np.linalg.solve(K, np.concatenate([WJ.T @ target_v, nu]))[:n]
         state.set_v(v)
         _, _, b = self.markers.evaluate(state, 2)
         _, _, _, gamma = self.system.evaluate(state, t, alpha, order=2)
         target_a = np.where(vis3, (xddot + dd_delta).ravel() - b, 0.0)
-        rhs = np.concatenate([WJ.T @ target_a, gamma])
-        vdot = sla.lu_solve(lu, rhs, check_finite=False)[:n]
+        vdot = np.linalg.solve(K, np.concatenate([WJ.T @ target_a, gamma]))[:n]
         return v, vdot

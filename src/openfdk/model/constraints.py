@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .kernels import marker_positions_jacobian
 from .measures import Measure
 from .timefunctions import TimeFunction
 
@@ -90,32 +91,12 @@ class MarkerSet:
         return state.p_WB[self.body] + np.einsum("nij,nj->ni", R, self.p_BM)
 
     def evaluate(self, state, order=1):
-        """(p_WM (3n,) m, M (3n, 6 n_moving), b (3n,)) for all markers, stacked by marker."""
-        R = state.R_WB[self.body]
-        s_W = np.einsum("nij,nj->ni", R, self.p_BM)
-        value = (state.p_WB[self.body] + s_W).ravel()
-        if order == 0:
-            return value, None, None
-        n = self.size
-        M = np.zeros((n, 3, state.n_coords))
-        cols = state.column[self.body]
-        # ∂p/∂δr = I, ∂p/∂δπ' = −R p̃_BM = −s̃_W R (DESIGN.md §1)
-        sx, sy, sz = s_W[:, 0], s_W[:, 1], s_W[:, 2]
-        skew_s = np.zeros((n, 3, 3))
-        skew_s[:, 0, 1], skew_s[:, 0, 2] = -sz, sy
-        skew_s[:, 1, 0], skew_s[:, 1, 2] = sz, -sx
-        skew_s[:, 2, 0], skew_s[:, 2, 1] = -sy, sx
-        rot = -np.einsum("nij,njk->nik", skew_s, R)
-        eye = np.eye(3)
-        for k in range(n):
-            c = cols[k]
-            if c >= 0:
-                M[k, :, c : c + 3] = eye
-                M[k, :, c + 3 : c + 6] = rot[k]
-        M = M.reshape(3 * n, state.n_coords)
-        if order == 1:
-            return value, M, None
-        w = state.w_BB[self.body]
-        wxs = np.cross(w, self.p_BM)
-        b = np.einsum("nij,nj->ni", R, np.cross(w, wxs)).ravel()
-        return value, M, b
+        """(p_WM (3n,) m, M (3n, 6 n_moving), b (3n,)) for all markers, stacked by marker.
+
+        ∂p/∂δr = I, ∂p/∂δπ' = −R_WB p̃_BM, b = R_WB ω̃' ω̃' p_BM (DESIGN.md §1); numba
+        kernel :func:`openfdk.model.kernels.marker_positions_jacobian`.
+        """
+        value, M, b = marker_positions_jacobian(
+            state.p_WB, state.R_WB, state.w_BB, state.column, self.body, self.p_BM, state.n_coords, order
+        )
+        return value, (M if order >= 1 else None), (b if order >= 2 else None)

@@ -71,6 +71,7 @@ class PointPosition(Measure):
     def __init__(self, body, p_BP, name=""):
         self.body = int(body)
         self.p_BP = np.asarray(p_BP, dtype=float)
+        self._skew_p = _skew(self.p_BP)
         self.name = name
 
     def bodies(self):
@@ -79,15 +80,14 @@ class PointPosition(Measure):
     def evaluate(self, state, order=1):
         i = self.body
         R = state.R_WB[i]
-        s_W = R @ self.p_BP
-        value = state.p_WB[i] + s_W
+        value = state.p_WB[i] + R @ self.p_BP
         if order == 0:
             return value, None, None
         M = np.zeros((3, state.n_coords))
         c = state.column[i]
         if c >= 0:
-            M[:, c : c + 3] = np.eye(3)
-            M[:, c + 3 : c + 6] = -R @ _skew(self.p_BP)
+            M[0, c] = M[1, c + 1] = M[2, c + 2] = 1.0
+            M[:, c + 3 : c + 6] = -(R @ self._skew_p)
         if order == 1:
             return value, M, None
         w = state.w_BB[i]

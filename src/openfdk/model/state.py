@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..spatial import manifold_update, normalize_quat, rotation_matrix
+from ..spatial import normalize_quat, rotation_matrix
+from .kernels import displace_poses
 
 
 class BodyStates:
@@ -66,11 +67,8 @@ class BodyStates:
 
         dq_hat : (6 n_moving,) [m, rad] in the q̂ convention of DESIGN.md §1.
         """
-        for i in self.moving:
-            c = self.column[i]
-            self.p_WB[i] += dq_hat[c : c + 3]
-            self.quat_WB[i] = manifold_update(self.quat_WB[i], dq_hat[c + 3 : c + 6])
-            self.R_WB[i] = rotation_matrix(self.quat_WB[i])
+        displace_poses(self.p_WB, self.quat_WB, self.R_WB, self.moving, self.column,
+                       np.ascontiguousarray(dq_hat, dtype=float))
 
     def get_v(self):
         """Generalised velocity (6 n_moving,) [m/s, rad/s]."""

@@ -1,0 +1,121 @@
+"""The ``openfdk`` command line.
+
+    openfdk kinematics MODEL.yaml TRIAL.c3d --out DIR   marker-tracking kinematics
+    openfdk kinematics MODEL.yaml --out DIR             determinate kinematics (drivers)
+    openfdk check MODEL.yaml                            validate a model file
+    openfdk bench [--quick] [--json]                    benchmarks
+
+Bad input ends with exit code 2 and a one-line reason on stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+
+class UserError(Exception):
+    """Bad input from the user: reported as one line, exit code 2."""
+
+
+def _cmd_check(args):
+    from .model.modelfile import load_model
+
+    model = load_model(args.model)
+    print(model.describe())
+    return 0
+
+
+def _cmd_kinematics(args):
+    from .io.results import write_kinematics
+    from .jobs import kinematics_job
+
+    result, info = kinematics_job(
+        args.model, args.trial, cutoff_hz=args.cutoff, progress=not args.no_progress,
+        start=args.start, end=args.end,
+    )
+    write_kinematics(args.out, result, {"input": info})
+    s = result.summary()
+    print(
+        f"kinematics: {s['converged_frames']}/{s['frames']} frames converged in {s['wall_time_s']:.2f} s "
+        f"({s['frames_per_second']:.0f} frames/s) -> {args.out}/kinematics.csv"
+    )
+    for i, t, msg in result.failed_frames()[:10]:
+        print(f"  failed: {msg}", file=sys.stderr)
+    if len(result.failed_frames()) > 10:
+        print(f"  ... and {len(result.failed_frames()) - 10} more failed frames (see summary.json)", file=sys.stderr)
+    return 0
+
+
+def _cmd_bench(args):
+    import importlib
+
+    from .bench import BENCHMARK_MODULES
+
+    failures = 0
+    for name in BENCHMARK_MODULES:
+        if args.only and not any(o in name for o in args.only):
+            continue
+        try:
+            mod = importlib.import_module(name)
+            t0 = time.perf_counter()
+            records = mod.run(quick=args.quick)
+        except Exception as exc:  # report and go on: one broken benchmark must not hide others
+            failures += 1
+            rec = {"name": name.rsplit(".", 1)[-1] + "_error", "value": None, "unit": "", "error": f"{type(exc).__name__}: {exc}"}
+            print(json.dumps(rec) if args.json else f"{rec['name']}: {rec['error']}", flush=True)
+            continue
+        for rec in records:
+            if args.json:
+                print(json.dumps(rec), flush=True)
+            else:
+                print(f"{rec['name']:50s} {rec['value']:12.4g} {rec['unit']}", flush=True)
+        if not args.json:
+            print(f"  ({name} took {time.perf_counter() - t0:.1f} s)", file=sys.stderr)
+    return 1 if failures else 0
+
+
+def build_parser():
+    p = argparse.ArgumentParser(prog="openfdk", description="Force-dependent kinematics and musculoskeletal analysis")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    c = sub.add_parser("check", help="validate a model file and print a summary")
+    c.add_argument("model")
+    c.set_defaults(func=_cmd_check)
+
+    k = sub.add_parser("kinematics", help="kinematic analysis: marker tracking (with a C3D trial) or determinate")
+    k.add_argument("model", help="model file (YAML)")
+    k.add_argument("trial", nargs="?", help="C3D file with the model's markers (omit for determinate kinematics)")
+    k.add_argument("--out", required=True, help="output directory")
+    k.add_argument("--cutoff", type=float, default=None, help="marker low-pass cutoff in Hz (default: model file, else 6 Hz; 0 = no filter)")
+    k.add_argument("--start", type=float, default=None, help="first analysed time (s)")
+    k.add_argument("--end", type=float, default=None, help="last analysed time (s)")
+    k.add_argument("--no-progress", action="store_true", help="no progress bar")
+    k.set_defaults(func=_cmd_kinematics)
+
+    b = sub.add_parser("bench", help="run the benchmarks")
+    b.add_argument("--quick", action="store_true", help="short runs (for tests)")
+    b.add_argument("--json", action="store_true", help="one JSON object per line")
+    b.add_argument("--only", nargs="*", help="substrings of benchmark module names to run")
+    b.set_defaults(func=_cmd_bench)
+    return p
+
+
+def main(argv=None):
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except KeyboardInterrupt:
+        print("openfdk: interrupted", file=sys.stderr)
+        return 130
+    except (UserError, ValueError, FileNotFoundError, OSError) as exc:
+        # ModelError, C3DError, MissingMarkerError, KinematicsError are ValueErrors
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        print(f"openfdk: error: {msg}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,330 @@
+"""Elastic-foundation contact between two triangle meshes (DESIGN.md §1; paper §2.3).
+
+A pair couples a *vertex surface* A on body a with an *opposite surface* B on body b.
+For every vertex i of A at p_W = r_Wa + R_Wa s_i (s_i in a's frame):
+
+    d_i = −φ_B(y_i),  y_i = R_Wbᵀ (p_W − r_Wb)       penetration depth behind B (m)
+    v_i = a_i d_i                                     penetration volume (a_i: tributary area)
+    f_i = p v_i n_i,  n_i = R_Wb ∇φ_B(y_i)            force on a, along B's outward normal
+
+with p the pressure modulus (N/m³; 10 GN/m³ in the paper). A vertex contributes only when
+0 < d_i ≤ max_depth and its closest point on B is not on B's boundary rim (meshes are
+open: a point beyond the rim is neither in front of nor behind B; a point deeper than
+max_depth is taken to be far behind B, e.g. behind the opposite side of a bone, and is
+ignored — choose max_depth well above the expected penetration). The force on b is −f_i
+along the same line of action (through p_W and its closest point on B), so the pair
+exerts no net moment. The field is conservative: f_i = −∂U/∂p_W with
+U = ½ Σ p a_i d_i² (neglecting the change of ∇φ_B, below).
+
+Generalized forces (common brief): Q = [F_a; M_a; F_b; M_b] with forces in world and
+moments about each body's centre of mass in its body frame:
+    Q_a = Σ p a_i d_i [n_i; s_i × (R_Waᵀ n_i)],   Q_b = Σ p a_i d_i [−n_i; −y_i × g_i],
+g_i = ∇φ_B(y_i) in b's frame. Equivalently Q = −Σ p a_i d_i (∂d_i/∂q̂)ᵀ.
+
+Stiffness K = ∂Q/∂q̂ (12×12) for q̂ = [δr_a, δπ_a, δr_b, δπ_b]: per vertex, with
+u_i = [n; s×n_A; −n; −y×g] (so ∂d_i/∂q̂ = −u_iᵀ exactly),
+    K_i = p a_i (−u_i u_iᵀ + d_i ∂u_i/∂q̂ |_{g fixed in b}),
+i.e. every term is kept (the normal turning with body b, the lever arms changing with
+both bodies' rotations) **except** ∂g_i/∂y_i, the Hessian of φ_B — the rate at which B's
+normal changes along B (curvature, magnitude κ/(1 − κ d) for a surface of curvature κ).
+The neglected part is p a_i d_i (∂u_i/∂g)(∂g/∂y)(∂y/∂q̂), of relative size ≈ d·κ against
+the retained p a_i u uᵀ; it vanishes for a flat B, and for a faceted B in exact mode
+whenever the closest point lies inside a triangle. Vertices entering or leaving contact
+make K one-sided there (Q is continuous, K jumps by p a_i u uᵀ).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from .distance_grid import cached_distance_grid, trilinear_sample
+from .mesh import SurfaceMesh
+from .signed_distance import OpenSurfaceDistance
+
+__all__ = [
+    "ElasticFoundation",
+    "ContactResult",
+    "DEFAULT_GRID_SPACING",
+    "DEFAULT_MAX_DEPTH",
+]
+
+#: default grid spacing h, m: depth error ≤ 0.01 mm in the contact band for surfaces
+#: with curvature radius ≥ 5 mm (measurements in docs/contact.md)
+DEFAULT_GRID_SPACING = 0.25e-3
+#: default band depth, m: vertices deeper than this behind B are ignored
+DEFAULT_MAX_DEPTH = 3e-3
+
+
+@dataclass(frozen=True, eq=False)
+class ContactResult:
+    """Loads of one contact evaluation.
+
+    Attributes
+    ----------
+    Q : (12,) — generalized forces on (a, b): [F_a N (world); M_a N·m (about a's COM,
+        a's frame); F_b N (world); M_b N·m (about b's COM, b's frame)].
+    force_W : (3,) N — resultant contact force on body a, world (−force_W acts on b).
+    moment_W : (3,) N·m — resultant moment on a about its centre of mass r_Wa, world.
+    cop_W : (3,) m — centre of pressure: Σ p_i a_i c_i / Σ p_i a_i over the contact points
+        c_i (closest points on B); NaN when there is no contact.
+    area : float, m² — Σ a_i over the vertices in contact.
+    peak_pressure : float, Pa — max p·d_i (0 without contact).
+    max_penetration : float, m — max d_i (0 without contact).
+    n_contact : int — vertices in contact.
+    energy : float, J — elastic energy ½ Σ p a_i d_i².
+    vertex_pressure : (n,) Pa or None — p·d_i for every vertex of A (0 out of contact).
+    K : (12, 12) or None — ∂Q/∂q̂, units N/m, N, N·m/rad blocks (see module docstring).
+    """
+
+    Q: np.ndarray
+    force_W: np.ndarray
+    moment_W: np.ndarray
+    cop_W: np.ndarray
+    area: float
+    peak_pressure: float
+    max_penetration: float
+    n_contact: int
+    energy: float
+    vertex_pressure: np.ndarray | None = None
+    K: np.ndarray | None = None
+
+
+class ElasticFoundation:
+    """Elastic-foundation contact pair: vertices of ``surface_A`` against ``surface_B``.
+
+    Parameters
+    ----------
+    surface_A : SurfaceMesh — vertex surface, fixed in body a (its frame, m).
+    surface_B : SurfaceMesh — opposite surface, fixed in body b; its normals point out of
+        b's bone toward the joint space.
+    pressure_modulus : float, N/m³ — p (the paper: 10e9).
+    mode : "grid" (default; precomputed signed-distance grid of B, numba kernel) or
+        "exact" (libigl AABB closest points on every call).
+    grid_spacing : float, m — grid node spacing (default :data:`DEFAULT_GRID_SPACING`).
+    max_depth : float, m — band depth (default :data:`DEFAULT_MAX_DEPTH`).
+    name : str — label for messages.
+
+    The grid (grid mode) or AABB tree (exact mode) is built once here; the grid is also
+    memoised per surface, spacing and depth (:func:`~.distance_grid.cached_distance_grid`).
+    The object is not modified by :meth:`evaluate`.
+    """
+
+    def __init__(self, surface_A: SurfaceMesh, surface_B: SurfaceMesh, pressure_modulus: float,
+                 mode: str = "grid", grid_spacing: float | None = None,
+                 max_depth: float = DEFAULT_MAX_DEPTH, name: str | None = None):
+        self.name = name or f"{surface_A.name} vs {surface_B.name}"
+        if not (isinstance(surface_A, SurfaceMesh) and isinstance(surface_B, SurfaceMesh)):
+            raise TypeError(f"contact '{self.name}': surfaces must be SurfaceMesh objects")
+        if not (np.isfinite(pressure_modulus) and pressure_modulus > 0.0):
+            raise ValueError(
+                f"contact '{self.name}': pressure_modulus must be > 0 N/m³, got {pressure_modulus!r}"
+            )
+        if not (np.isfinite(max_depth) and max_depth > 0.0):
+            raise ValueError(f"contact '{self.name}': max_depth must be > 0 m, got {max_depth!r}")
+        if mode not in ("grid", "exact"):
+            raise ValueError(f"contact '{self.name}': mode must be 'grid' or 'exact', got {mode!r}")
+        self.surface_A = surface_A
+        self.surface_B = surface_B
+        self.pressure_modulus = float(pressure_modulus)
+        self.mode = mode
+        self.max_depth = float(max_depth)
+        self.grid_spacing = float(DEFAULT_GRID_SPACING if grid_spacing is None else grid_spacing)
+        self._s_A = np.ascontiguousarray(surface_A.vertices_B, dtype=np.float64)
+        self._a_A = np.ascontiguousarray(surface_A.vertex_areas, dtype=np.float64)
+        n = self._s_A.shape[0]
+        # per-call scratch is allocated in evaluate (no hidden state between calls)
+        self._n = n
+        if mode == "grid":
+            self.grid = cached_distance_grid(surface_B, self.grid_spacing, self.max_depth)
+            self._exact = None
+        else:
+            self.grid = None
+            self._exact = OpenSurfaceDistance(surface_B)
+            V = surface_B.vertices_B
+            # cull box: B's bounding box in b's frame, inflated by the band depth
+            self._box_lo = V.min(axis=0) - self.max_depth
+            self._box_hi = V.max(axis=0) + self.max_depth
+
+    def __repr__(self) -> str:
+        return (
+            f"ElasticFoundation({self.name!r}, p={self.pressure_modulus:.3g} N/m³, "
+            f"mode={self.mode!r}, max_depth={self.max_depth * 1e3:g} mm"
+            + (f", h={self.grid_spacing * 1e3:g} mm)" if self.mode == "grid" else ")")
+        )
+
+    def penetration(self, r_Wa, R_Wa, r_Wb, R_Wb):
+        """Vertices of A in contact and their depths.
+
+        Parameters: r_Wa (3,) m, R_Wa (3, 3), r_Wb (3,) m, R_Wb (3, 3) — body poses.
+        Returns idx (k,) int vertex indices, depth (k,) m, g_B (k, 3) outward unit normals
+        of B at the vertices (b's frame), y_B (k, 3) m vertex positions in b's frame.
+        """
+        r_Wa, R_Wa, r_Wb, R_Wb = _pose(r_Wa, R_Wa, r_Wb, R_Wb)
+        # y = R_Wbᵀ (r_Wa + R_Wa s − r_Wb) = R_ba s + p_ba
+        R_ba = R_Wb.T @ R_Wa
+        p_ba = R_Wb.T @ (r_Wa - r_Wb)
+        if self.mode == "grid":
+            n = self._n
+            idx = np.empty(n, np.int64)
+            depth = np.empty(n)
+            g_B = np.empty((n, 3))
+            y_B = np.empty((n, 3))
+            g = self.grid
+            k = _grid_penetration(self._s_A, R_ba, p_ba, g.values, g.origin_B,
+                                  1.0 / g.spacing, self.max_depth, idx, depth, g_B, y_B)
+            return idx[:k], depth[:k], g_B[:k], y_B[:k]
+        y_all = self._s_A @ R_ba.T + p_ba
+        # cull vertices outside B's inflated box before any closest-point query
+        inside = np.all((y_all >= self._box_lo) & (y_all <= self._box_hi), axis=1)
+        cand = np.flatnonzero(inside)
+        phi, g_B, valid, _ = self._exact.query(y_all[cand])
+        depth = -phi
+        hit = valid & (depth > 0.0) & (depth <= self.max_depth)
+        return cand[hit], depth[hit], g_B[hit], y_all[cand[hit]]
+
+    def evaluate(self, r_Wa, R_Wa, r_Wb, R_Wb, want_stiffness: bool = False,
+                 want_vertex_pressure: bool = False) -> ContactResult:
+        """Contact loads at the given poses.
+
+        Parameters
+        ----------
+        r_Wa : (3,) m — centre of mass of body a in world. R_Wa : (3, 3) — orientation.
+        r_Wb : (3,) m, R_Wb : (3, 3) — the same for body b.
+        want_stiffness : bool — also compute K = ∂Q/∂q̂ (12, 12).
+        want_vertex_pressure : bool — also return the pressure of every vertex of A.
+
+        Returns a :class:`ContactResult`.
+        """
+        r_Wa, R_Wa, r_Wb, R_Wb = _pose(r_Wa, R_Wa, r_Wb, R_Wb)
+        idx, depth, g_B, y_B = self.penetration(r_Wa, R_Wa, r_Wb, R_Wb)
+        Q = np.zeros(12)
+        K = np.zeros((12, 12))
+        sums = np.zeros(7)  # [Σ w c (3), Σ w, area, max d, energy], w = p a d
+        _accumulate(self._s_A, self._a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb,
+                    self.pressure_modulus, want_stiffness, Q, K, sums)
+        p = self.pressure_modulus
+        weight = sums[3]
+        cop = sums[:3] / weight if weight > 0.0 else np.full(3, np.nan)
+        vertex_pressure = None
+        if want_vertex_pressure:
+            vertex_pressure = np.zeros(self._n)
+            vertex_pressure[idx] = p * depth
+        return ContactResult(
+            Q=Q,
+            force_W=Q[0:3].copy(),
+            moment_W=R_Wa @ Q[3:6],
+            cop_W=cop,
+            area=float(sums[4]),
+            peak_pressure=float(p * sums[5]),
+            max_penetration=float(sums[5]),
+            n_contact=int(idx.size),
+            energy=float(sums[6]),
+            vertex_pressure=vertex_pressure,
+            K=K if want_stiffness else None,
+        )
+
+
+def _pose(r_Wa, R_Wa, r_Wb, R_Wb):
+    return (np.asarray(r_Wa, dtype=np.float64).reshape(3),
+            np.ascontiguousarray(R_Wa, dtype=np.float64).reshape(3, 3),
+            np.asarray(r_Wb, dtype=np.float64).reshape(3),
+            np.ascontiguousarray(R_Wb, dtype=np.float64).reshape(3, 3))
+
+
+@njit(cache=True)
+def _grid_penetration(s_A, R_ba, p_ba, values, origin, inv_h, max_depth, idx, depth, g_B, y_B):
+    """Depths of A's vertices behind B from the grid; returns the number in contact.
+
+    Vertices outside the grid box (B's box inflated by the band) are culled by the
+    bounds test of the trilinear sampler before any interpolation.
+    """
+    out = np.empty(4)
+    count = 0
+    for i in range(s_A.shape[0]):
+        # y = R_ba s_i + p_ba: vertex in b's frame
+        y0 = R_ba[0, 0] * s_A[i, 0] + R_ba[0, 1] * s_A[i, 1] + R_ba[0, 2] * s_A[i, 2] + p_ba[0]
+        y1 = R_ba[1, 0] * s_A[i, 0] + R_ba[1, 1] * s_A[i, 1] + R_ba[1, 2] * s_A[i, 2] + p_ba[1]
+        y2 = R_ba[2, 0] * s_A[i, 0] + R_ba[2, 1] * s_A[i, 1] + R_ba[2, 2] * s_A[i, 2] + p_ba[2]
+        if not trilinear_sample(values, origin, inv_h, y0, y1, y2, out):
+            continue
+        d = -out[0]  # d_i = −φ_B(y_i)
+        if d <= 0.0 or d > max_depth:
+            continue
+        norm = np.sqrt(out[1] * out[1] + out[2] * out[2] + out[3] * out[3])
+        idx[count] = i
+        depth[count] = d
+        g_B[count, 0] = out[1] / norm
+        g_B[count, 1] = out[2] / norm
+        g_B[count, 2] = out[3] / norm
+        y_B[count, 0] = y0
+        y_B[count, 1] = y1
+        y_B[count, 2] = y2
+        count += 1
+    return count
+
+
+@njit(cache=True)
+def _skew(v):
+    S = np.zeros((3, 3))
+    S[0, 1] = -v[2]
+    S[0, 2] = v[1]
+    S[1, 0] = v[2]
+    S[1, 2] = -v[0]
+    S[2, 0] = -v[1]
+    S[2, 1] = v[0]
+    return S
+
+
+@njit(cache=True)
+def _accumulate(s_A, a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb, p, want_K, Q, K, sums):
+    """Sum Q (12,), K (12, 12) and [Σ w c, Σ w, area, max d, energy] over contact vertices."""
+    R_ab = R_Wa.T @ R_Wb
+    u = np.empty(12)
+    for m in range(idx.shape[0]):
+        i = idx[m]
+        d = depth[m]
+        k = p * a_A[i]  # p a_i, N/m
+        w = k * d  # |f_i| = p a_i d_i
+        g = g_B[m]
+        y = y_B[m]
+        s = s_A[i]
+        n_W = R_Wb @ g  # outward normal of B, world
+        n_A = R_ab @ g  # the same in a's frame
+        # u = [n; s × n_A; −n; −y × g]; Q_i = p a_i d_i u (Q = −Σ p a d ∂d/∂q̂ᵀ)
+        u[0:3] = n_W
+        u[3:6] = np.cross(s, n_A)
+        u[6:9] = -n_W
+        u[9:12] = -np.cross(y, g)
+        for c in range(12):
+            Q[c] += w * u[c]
+        # contact point on B: c_W = r_Wb + R_Wb (y + d g)
+        c_W = r_Wb + R_Wb @ (y + d * g)
+        for c in range(3):
+            sums[c] += w * c_W[c]
+        sums[3] += w
+        sums[4] += a_A[i]
+        if d > sums[5]:
+            sums[5] = d
+        sums[6] += 0.5 * w * d
+        if want_K:
+            # K_i = p a_i (−u uᵀ + d ∂u/∂q̂|_g)
+            for r in range(12):
+                for c in range(12):
+                    K[r, c] -= k * u[r] * u[c]
+            G = _skew(g)
+            S = _skew(s)
+            Rb_G = R_Wb @ G
+            GRbT = G @ R_Wb.T
+            wd = w  # k d
+            K[0:3, 9:12] -= wd * Rb_G  # ∂n/∂δπ_b = −R_Wb g̃
+            K[6:9, 9:12] += wd * Rb_G
+            K[3:6, 3:6] += wd * (S @ _skew(n_A))  # ∂(s×n_A)/∂δπ_a = s̃ ñ_A
+            K[3:6, 9:12] -= wd * (S @ R_ab @ G)  # ∂(s×n_A)/∂δπ_b = −s̃ R_ab g̃
+            # ∂(g̃ y)/∂q̂ with δy = R_Wbᵀ(δr_a − R_Wa s̃ δπ_a − δr_b) + ỹ δπ_b
+            K[9:12, 0:3] += wd * GRbT
+            K[9:12, 3:6] -= wd * (GRbT @ R_Wa @ S)
+            K[9:12, 6:9] -= wd * GRbT
+            K[9:12, 9:12] += wd * (G @ _skew(y))

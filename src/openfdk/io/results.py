@@ -1,0 +1,107 @@
+"""Writing analysis results: CSV tables (first column ``time``) and summary JSON.
+
+Files are written to a temporary name and renamed when complete, so an interrupted run
+never leaves a half-written file under the final name.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+
+def atomic_write_text(path, text):
+    """Write ``text`` to ``path`` atomically (temporary file + rename)."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def write_table(path, columns: dict, time_key="time"):
+    """CSV with one column per entry of ``columns`` (name -> (nf,) array or list of str);
+    ``time`` first. Floats written with 10 significant digits; NaN as 'nan'."""
+    path = Path(path)
+    names = [time_key] + [k for k in columns if k != time_key]
+    nf = len(columns[time_key])
+    for k in names:
+        if len(columns[k]) != nf:
+            raise ValueError(f"column {k!r} has {len(columns[k])} rows, expected {nf}")
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    with open(tmp, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(names)
+        cols = [columns[k] for k in names]
+        for i in range(nf):
+            w.writerow([_fmt(c[i]) for c in cols])
+    os.replace(tmp, path)
+
+
+def _fmt(x):
+    if isinstance(x, (str, bytes)):
+        return x
+    if isinstance(x, (bool, np.bool_)):
+        return int(x)
+    if isinstance(x, (int, np.integer)):
+        return int(x)
+    return f"{float(x):.10g}"
+
+
+def write_json(path, data):
+    atomic_write_text(path, json.dumps(data, indent=2, default=_json_default) + "\n")
+
+
+def _json_default(o):
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, np.bool_):
+        return bool(o)
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def kinematics_columns(result):
+    """Columns of kinematics.csv for a KinematicsResult (SI units, names say which)."""
+    cols = {"time": result.time}
+    cols["converged"] = result.converged.astype(int)
+    cols["iterations"] = result.iterations
+    cols["constraint_violation"] = result.constraint_violation
+    for k, b in enumerate(result.body_names):
+        q, v, a = result.q[:, 7 * k : 7 * k + 7], result.v[:, 6 * k : 6 * k + 6], result.vdot[:, 6 * k : 6 * k + 6]
+        for j, c in enumerate(("x", "y", "z")):
+            cols[f"{b}.{c}_m"] = q[:, j]
+        for j in range(4):
+            cols[f"{b}.e{j}"] = q[:, 3 + j]
+        for j, c in enumerate(("vx", "vy", "vz")):
+            cols[f"{b}.{c}_m_s"] = v[:, j]
+        for j, c in enumerate(("wx", "wy", "wz")):
+            cols[f"{b}.{c}_rad_s"] = v[:, 3 + j]
+        for j, c in enumerate(("ax", "ay", "az")):
+            cols[f"{b}.{c}_m_s2"] = a[:, j]
+        for j, c in enumerate(("dwx", "dwy", "dwz")):
+            cols[f"{b}.{c}_rad_s2"] = a[:, 3 + j]
+    res = result.marker_residual
+    for k, m in enumerate(result.marker_names):
+        if res.shape[1] == 0:
+            break
+        for j, c in enumerate("xyz"):
+            cols[f"{m}.residual_{c}_m"] = res[:, k, j]
+    cols["message"] = list(result.messages)
+    return cols
+
+
+def write_kinematics(out_dir, result, extra_summary=None):
+    """Write ``kinematics.csv`` and ``summary.json`` into ``out_dir`` (created)."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_table(out / "kinematics.csv", kinematics_columns(result))
+    summary = {"kinematics": result.summary()}
+    if extra_summary:
+        summary.update(extra_summary)
+    write_json(out / "summary.json", summary)
+    return out

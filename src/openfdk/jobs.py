@@ -1,0 +1,66 @@
+"""End-to-end jobs behind the CLI: load inputs, run an analysis, return results.
+
+These functions only use the public layers below them, so a user script can do the same.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .model.modelfile import load_model
+
+DEFAULT_CUTOFF_HZ = 6.0
+
+
+def load_trajectories(model, trial_path, cutoff_hz=None):
+    """Read a C3D trial, pick the model's markers (by label, in model order) and build
+    filtered, interpolated trajectories. A model marker absent from the file is an
+    error naming it (MissingMarkerError)."""
+    from .io.c3d import read_c3d
+    from .io.markers import MarkerTrajectories
+
+    trial = read_c3d(trial_path)
+    if model.markers.size == 0:
+        raise ValueError(f"model {model.name!r} has no markers; a trial cannot be tracked")
+    trial = trial.select(list(model.markers.labels))
+    if cutoff_hz is None:
+        cutoff_hz = model.elements.get("analysis", {}).get("marker_cutoff_hz", DEFAULT_CUTOFF_HZ)
+    cutoff = None if (cutoff_hz is None or float(cutoff_hz) <= 0) else float(cutoff_hz)
+    return trial, MarkerTrajectories(trial, cutoff_hz=cutoff)
+
+
+def analysis_window(model, times, start=None, end=None):
+    """Sample times within [start, end] (defaults: model file ``analysis.start/end``)."""
+    settings = model.elements.get("analysis", {})
+    start = settings.get("start") if start is None else start
+    end = settings.get("end") if end is None else end
+    keep = np.ones(len(times), dtype=bool)
+    if start is not None:
+        keep &= times >= float(start) - 1e-9
+    if end is not None:
+        keep &= times <= float(end) + 1e-9
+    if not keep.any():
+        raise ValueError(f"no trial samples within the analysis window [{start}, {end}] s")
+    return times[keep]
+
+
+def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=None, end=None, alpha=None):
+    """Kinematics of a model file over a C3D trial (marker tracking), or over the model
+    file's ``analysis`` interval (determinate) when ``trial_path`` is None.
+    Returns (KinematicsResult, info dict for the summary)."""
+    from .kinematics.analysis import analysis_times, run_determinate, run_tracking
+
+    model = load_model(model_path) if not hasattr(model_path, "bodies") else model_path
+    info = {"model": str(model_path) if not hasattr(model_path, "bodies") else model.name}
+    if trial_path is None:
+        a = model.elements.get("analysis", {})
+        t0 = float(a.get("start", 0.0) if start is None else start)
+        t1 = float(a.get("end", 1.0) if end is None else end)
+        times = analysis_times(t0, t1, int(a.get("frames", 101)))
+        return run_determinate(model, times, alpha=alpha, progress=progress), info
+    trial, traj = load_trajectories(model, trial_path, cutoff_hz)
+    times = analysis_window(model, np.asarray(trial.time, dtype=float), start, end)
+    info.update({"trial": str(Path(trial_path)), "rate_hz": trial.rate, "markers": list(trial.labels)})
+    return run_tracking(model, traj, times, alpha=alpha, progress=progress), info
