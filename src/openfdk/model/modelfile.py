@@ -342,7 +342,9 @@ def _function(spec, units, path, ctx):
 
     def rows(key):
         arr = ctx.vector(spec[key], f"{path}.{key}")
-        if arr.ndim == 1:
+        if arr.ndim == 0:
+            arr = arr.reshape(1, 1)
+        elif arr.ndim == 1:
             arr = arr[:, None] if n == 1 else arr[None, :]
         if arr.shape[1] != n:
             raise ctx.error(f"{path}.{key}", f"each entry needs {n} values (one per driven component), got {arr.shape[1]}")
