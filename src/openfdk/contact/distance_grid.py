@@ -15,7 +15,8 @@ outward unit normal. A point whose cell has any NaN corner is "not in contact" (
 trims about one cell from the rim). The faceted surface's distance field has kinks
 behind the mesh edges; they limit the accuracy (docs/contact.md has measurements).
 
-Memory: 16 bytes per node over the box, ∝ box volume / h³.
+Memory: 17 bytes per node over the box (16 for the node, 1 for the cell mask),
+∝ box volume / h³.
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ class SignedDistanceGrid:
     Attributes
     ----------
     values : (nx, ny, nz, 4) float32 — [φ m, ∇φ (3,)] at the nodes; φ = NaN where unused.
+    cell_valid : (nx−1, ny−1, nz−1) uint8 — 1 where all 8 corners of a cell hold values.
     origin_B : (3,) m — position of node (0, 0, 0) in B.
     spacing : float, m — node spacing h.
     max_depth : float, m — deepest penetration the band was built for.
@@ -49,6 +51,7 @@ class SignedDistanceGrid:
     """
 
     values: np.ndarray
+    cell_valid: np.ndarray
     origin_B: np.ndarray
     spacing: float
     max_depth: float
@@ -61,7 +64,7 @@ class SignedDistanceGrid:
 
     @property
     def nbytes(self) -> int:
-        return int(self.values.nbytes)
+        return int(self.values.nbytes + self.cell_valid.nbytes)
 
     def query(self, p_BQ):
         """Interpolated signed distance at points.
@@ -73,7 +76,10 @@ class SignedDistanceGrid:
         P = np.ascontiguousarray(p_BQ, dtype=np.float64).reshape(-1, 3)
         phi = np.empty(P.shape[0])
         normal = np.empty((P.shape[0], 3))
-        _query_points(P, self.values, self.origin_B, 1.0 / self.spacing, phi, normal)
+        nx, ny, nz = self.shape
+        _query_points(P, self.values.reshape(-1), self.cell_valid.reshape(-1), nx, ny, nz,
+                      self.origin_B,
+                      1.0 / self.spacing, phi, normal)
         return phi, normal
 
 
@@ -116,7 +122,7 @@ def _swept_face_boxes(mesh, depth_behind, margin):
 
 
 @njit(cache=True)
-def trilinear_sample(values, origin, inv_h, y0, y1, y2, out):
+def trilinear_sample(flat, cells, nx, ny, nz, origin, inv_h, y0, y1, y2, out):
     """Gradient-corrected trilinear interpolation of φ and ∇φ at one point (m, in B).
 
     With trilinear weights w_c of the 8 corners x_c of the cell holding y,
@@ -124,10 +130,12 @@ def trilinear_sample(values, origin, inv_h, y0, y1, y2, out):
     Plain trilinear interpolation overestimates a convex φ by ½ Σ_k φ_kk t_k(1−t_k)h²;
     the blend of corner tangent planes Σ w_c [φ_c + ∇φ_c·(y − x_c)] underestimates it by
     the same amount, so their average (above) is exact for quadratic φ (error O(h³)).
-    Writes out[0] = φ̂ (m), out[1:4] = ∇̂φ (not normalised); returns False when the
-    point is outside the grid or a corner of its cell is NaN (outside the band / rim).
+    ``flat`` is the grid's ``values`` (nx, ny, nz, 4) raveled (C order) and ``cells`` its
+    ``cell_valid`` (nx−1, ny−1, nz−1) raveled. Writes out[0] = φ̂ (m), out[1:4] = ∇̂φ
+    (not normalised); returns False when the point is outside the grid or its cell has
+    a NaN corner (outside the band / at the rim) — decided from the 1-byte cell mask
+    before the 16-byte nodes are touched.
     """
-    nx, ny, nz = values.shape[0], values.shape[1], values.shape[2]
     u0 = (y0 - origin[0]) * inv_h
     u1 = (y1 - origin[1]) * inv_h
     u2 = (y2 - origin[2]) * inv_h
@@ -138,17 +146,12 @@ def trilinear_sample(values, origin, inv_h, y0, y1, y2, out):
     k = int(u2)
     if i >= nx - 1 or j >= ny - 1 or k >= nz - 1:
         return False
-    flat = values.reshape(-1)
     sk = 4
     sj = 4 * nz
     si = 4 * nz * ny
     base = i * si + j * sj + k * sk
-    # any NaN corner → no value
-    for di in range(2):
-        for dj in range(2):
-            for dk in range(2):
-                if np.isnan(flat[base + di * si + dj * sj + dk * sk]):
-                    return False
+    if cells[(i * (ny - 1) + j) * (nz - 1) + k] == 0:
+        return False
     f0 = u0 - i
     f1 = u1 - j
     f2 = u2 - k
@@ -180,10 +183,10 @@ def trilinear_sample(values, origin, inv_h, y0, y1, y2, out):
 
 
 @njit(cache=True)
-def _query_points(P, values, origin, inv_h, phi, normal):
+def _query_points(P, flat, cells, nx, ny, nz, origin, inv_h, phi, normal):
     out = np.empty(4)
     for q in range(P.shape[0]):
-        if trilinear_sample(values, origin, inv_h, P[q, 0], P[q, 1], P[q, 2], out):
+        if trilinear_sample(flat, cells, nx, ny, nz, origin, inv_h, P[q, 0], P[q, 1], P[q, 2], out):
             phi[q] = out[0]
             norm = np.sqrt(out[1] ** 2 + out[2] ** 2 + out[3] ** 2)
             for c in range(3):
@@ -192,6 +195,35 @@ def _query_points(P, values, origin, inv_h, phi, normal):
             phi[q] = np.nan
             for c in range(3):
                 normal[q, c] = np.nan
+
+
+def _difference_gradient(phi, grad_exact, h):
+    """Node gradients (nx, ny, nz, 3) of φ by central differences of the node values.
+
+    The exact gradient of a faceted surface's distance field is piecewise constant (a
+    face normal per closest triangle); sampling it at nodes aliases with the triangle
+    size. Central differences average the slope over 2h instead, so that the interpolated
+    normals, like the interpolated depths, converge to the mesh's mean slope. Where a
+    neighbour is NaN a one-sided difference is used, and the exact gradient where both are.
+    """
+    grad = grad_exact.copy()
+    for axis in range(3):
+        ahead = np.full_like(phi, np.nan)
+        behind = np.full_like(phi, np.nan)
+        sl_a = [slice(None)] * 3
+        sl_b = [slice(None)] * 3
+        sl_a[axis] = slice(0, -1)
+        sl_b[axis] = slice(1, None)
+        ahead[tuple(sl_a)] = phi[tuple(sl_b)]  # φ at i + 1
+        behind[tuple(sl_b)] = phi[tuple(sl_a)]  # φ at i − 1
+        central = (ahead - behind) / (2.0 * h)
+        forward = (ahead - phi) / h
+        backward = (phi - behind) / h
+        g = np.where(np.isfinite(central), central,
+                     np.where(np.isfinite(forward), forward,
+                              np.where(np.isfinite(backward), backward, grad_exact[..., axis])))
+        grad[..., axis] = g
+    return grad
 
 
 def build_distance_grid(mesh: SurfaceMesh, spacing: float, max_depth: float,
@@ -230,7 +262,8 @@ def build_distance_grid(mesh: SurfaceMesh, spacing: float, max_depth: float,
     box_lo, box_hi = _swept_face_boxes(mesh, width, front)
     _mark_boxes(box_lo, box_hi, lo, 1.0 / h, mark)
     flat = np.flatnonzero(mark.ravel())
-    values = np.full((n_nodes, 4), np.nan, dtype=np.float32)
+    phi_nodes = np.full(n_nodes, np.nan)
+    grad_nodes = np.full((n_nodes, 3), np.nan)
     exact = OpenSurfaceDistance(mesh)
     for start in range(0, flat.size, chunk):
         ids = flat[start : start + chunk]
@@ -238,13 +271,25 @@ def build_distance_grid(mesh: SurfaceMesh, spacing: float, max_depth: float,
         p_BN = lo + h * ijk
         phi, normal_B, valid, _ = exact.query(p_BN)
         keep = valid & (phi >= -width) & (phi <= front)
-        values[ids[keep], 0] = phi[keep]
-        values[ids[keep], 1:] = normal_B[keep]
-    values = values.reshape(shape + (4,))
+        phi_nodes[ids[keep]] = phi[keep]
+        grad_nodes[ids[keep]] = normal_B[keep]
+    phi_nodes = phi_nodes.reshape(shape)
+    grad_nodes = _difference_gradient(phi_nodes, grad_nodes.reshape(shape + (3,)), h)
+    values = np.empty(shape + (4,), dtype=np.float32)
+    values[..., 0] = phi_nodes
+    values[..., 1:] = grad_nodes
     values.setflags(write=False)
+    finite = np.isfinite(phi_nodes)
+    cell_valid = np.ones((shape[0] - 1, shape[1] - 1, shape[2] - 1), dtype=np.uint8)
+    for di in (0, 1):
+        for dj in (0, 1):
+            for dk in (0, 1):
+                cell_valid &= finite[di : shape[0] - 1 + di, dj : shape[1] - 1 + dj,
+                                     dk : shape[2] - 1 + dk]
+    cell_valid.setflags(write=False)
     origin = lo.copy()
     origin.setflags(write=False)
-    return SignedDistanceGrid(values, origin, h, float(max_depth), mesh.name, int(flat.size))
+    return SignedDistanceGrid(values, cell_valid, origin, h, float(max_depth), mesh.name, int(flat.size))
 
 
 _CACHE: "OrderedDict[tuple, SignedDistanceGrid]" = OrderedDict()

@@ -53,7 +53,7 @@ __all__ = [
 
 #: default grid spacing h, m: depth error ≤ 0.01 mm in the contact band for surfaces
 #: with curvature radius ≥ 5 mm (measurements in docs/contact.md)
-DEFAULT_GRID_SPACING = 0.25e-3
+DEFAULT_GRID_SPACING = 0.3e-3
 #: default band depth, m: vertices deeper than this behind B are ignored
 DEFAULT_MAX_DEPTH = 3e-3
 
@@ -139,6 +139,11 @@ class ElasticFoundation:
         self._n = n
         if mode == "grid":
             self.grid = cached_distance_grid(surface_B, self.grid_spacing, self.max_depth)
+            self._flat = self.grid.values.reshape(-1)
+            self._cells = self.grid.cell_valid.reshape(-1)
+            self._grid_shape = tuple(int(v) for v in self.grid.shape)
+            self._origin = np.asarray(self.grid.origin_B, dtype=np.float64)
+            self._inv_h = 1.0 / self.grid.spacing
             self._exact = None
         else:
             self.grid = None
@@ -172,9 +177,10 @@ class ElasticFoundation:
             depth = np.empty(n)
             g_B = np.empty((n, 3))
             y_B = np.empty((n, 3))
-            g = self.grid
-            k = _grid_penetration(self._s_A, R_ba, p_ba, g.values, g.origin_B,
-                                  1.0 / g.spacing, self.max_depth, idx, depth, g_B, y_B)
+            k = _grid_penetration(self._s_A, R_ba, p_ba, self._flat, self._cells,
+                                  *self._grid_shape,
+                                  self._origin, self._inv_h, self.max_depth,
+                                  idx, depth, g_B, y_B)
             return idx[:k], depth[:k], g_B[:k], y_B[:k]
         y_all = self._s_A @ R_ba.T + p_ba
         # cull vertices outside B's inflated box before any closest-point query
@@ -235,7 +241,8 @@ def _pose(r_Wa, R_Wa, r_Wb, R_Wb):
 
 
 @njit(cache=True)
-def _grid_penetration(s_A, R_ba, p_ba, values, origin, inv_h, max_depth, idx, depth, g_B, y_B):
+def _grid_penetration(s_A, R_ba, p_ba, flat, cells, nx, ny, nz, origin, inv_h, max_depth,
+                      idx, depth, g_B, y_B):
     """Depths of A's vertices behind B from the grid; returns the number in contact.
 
     Vertices outside the grid box (B's box inflated by the band) are culled by the
@@ -248,7 +255,7 @@ def _grid_penetration(s_A, R_ba, p_ba, values, origin, inv_h, max_depth, idx, de
         y0 = R_ba[0, 0] * s_A[i, 0] + R_ba[0, 1] * s_A[i, 1] + R_ba[0, 2] * s_A[i, 2] + p_ba[0]
         y1 = R_ba[1, 0] * s_A[i, 0] + R_ba[1, 1] * s_A[i, 1] + R_ba[1, 2] * s_A[i, 2] + p_ba[1]
         y2 = R_ba[2, 0] * s_A[i, 0] + R_ba[2, 1] * s_A[i, 1] + R_ba[2, 2] * s_A[i, 2] + p_ba[2]
-        if not trilinear_sample(values, origin, inv_h, y0, y1, y2, out):
+        if not trilinear_sample(flat, cells, nx, ny, nz, origin, inv_h, y0, y1, y2, out):
             continue
         d = -out[0]  # d_i = −φ_B(y_i)
         if d <= 0.0 or d > max_depth:
@@ -280,51 +287,108 @@ def _skew(v):
 
 @njit(cache=True)
 def _accumulate(s_A, a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb, p, want_K, Q, K, sums):
-    """Sum Q (12,), K (12, 12) and [Σ w c, Σ w, area, max d, energy] over contact vertices."""
+    """Sum Q (12,), K (12, 12) and [Σ w c (3), Σ w, area, max d, energy] over contact vertices.
+
+    Per vertex (w = p a d): Q += w u with u = [n; s × n_A; −n; −y × g]. For K, besides
+    −Σ p a u uᵀ, the "d ∂u/∂q̂" blocks are sums of w g, w n_A sᵀ, w y gᵀ (identity
+    ã b̃ = b aᵀ − (a·b) I), assembled after the loop (module docstring).
+    """
     R_ab = R_Wa.T @ R_Wb
     u = np.empty(12)
+    UU = np.zeros((12, 12))
+    G_sum = np.zeros(3)  # Σ w g
+    M1 = np.zeros((3, 3))  # Σ w n_A sᵀ
+    M2 = np.zeros((3, 3))  # Σ w y gᵀ
+    sigma = 0.0  # Σ w s·n_A
+    tau = 0.0  # Σ w g·y
     for m in range(idx.shape[0]):
         i = idx[m]
         d = depth[m]
         k = p * a_A[i]  # p a_i, N/m
-        w = k * d  # |f_i| = p a_i d_i
-        g = g_B[m]
-        y = y_B[m]
-        s = s_A[i]
-        n_W = R_Wb @ g  # outward normal of B, world
-        n_A = R_ab @ g  # the same in a's frame
-        # u = [n; s × n_A; −n; −y × g]; Q_i = p a_i d_i u (Q = −Σ p a d ∂d/∂q̂ᵀ)
-        u[0:3] = n_W
-        u[3:6] = np.cross(s, n_A)
-        u[6:9] = -n_W
-        u[9:12] = -np.cross(y, g)
+        w = k * d  # |f_i| = p a_i d_i, N
+        g0, g1, g2 = g_B[m, 0], g_B[m, 1], g_B[m, 2]
+        y0, y1, y2 = y_B[m, 0], y_B[m, 1], y_B[m, 2]
+        s0, s1, s2 = s_A[i, 0], s_A[i, 1], s_A[i, 2]
+        # n = R_Wb g (world), n_A = R_ab g (a's frame)
+        n0 = R_Wb[0, 0] * g0 + R_Wb[0, 1] * g1 + R_Wb[0, 2] * g2
+        n1 = R_Wb[1, 0] * g0 + R_Wb[1, 1] * g1 + R_Wb[1, 2] * g2
+        n2 = R_Wb[2, 0] * g0 + R_Wb[2, 1] * g1 + R_Wb[2, 2] * g2
+        a0 = R_ab[0, 0] * g0 + R_ab[0, 1] * g1 + R_ab[0, 2] * g2
+        a1 = R_ab[1, 0] * g0 + R_ab[1, 1] * g1 + R_ab[1, 2] * g2
+        a2 = R_ab[2, 0] * g0 + R_ab[2, 1] * g1 + R_ab[2, 2] * g2
+        # u = [n; s × n_A; −n; −y × g]
+        u[0] = n0
+        u[1] = n1
+        u[2] = n2
+        u[3] = s1 * a2 - s2 * a1
+        u[4] = s2 * a0 - s0 * a2
+        u[5] = s0 * a1 - s1 * a0
+        u[6] = -n0
+        u[7] = -n1
+        u[8] = -n2
+        u[9] = -(y1 * g2 - y2 * g1)
+        u[10] = -(y2 * g0 - y0 * g2)
+        u[11] = -(y0 * g1 - y1 * g0)
+        # Q_i = p a_i d_i u (Q = −Σ p a d (∂d/∂q̂)ᵀ)
         for c in range(12):
             Q[c] += w * u[c]
         # contact point on B: c_W = r_Wb + R_Wb (y + d g)
-        c_W = r_Wb + R_Wb @ (y + d * g)
-        for c in range(3):
-            sums[c] += w * c_W[c]
+        c0 = y0 + d * g0
+        c1 = y1 + d * g1
+        c2 = y2 + d * g2
+        for r in range(3):
+            sums[r] += w * (r_Wb[r] + R_Wb[r, 0] * c0 + R_Wb[r, 1] * c1 + R_Wb[r, 2] * c2)
         sums[3] += w
         sums[4] += a_A[i]
         if d > sums[5]:
             sums[5] = d
-        sums[6] += 0.5 * w * d
+        sums[6] += 0.5 * w * d  # U = ½ p a d²
         if want_K:
-            # K_i = p a_i (−u uᵀ + d ∂u/∂q̂|_g)
             for r in range(12):
-                for c in range(12):
-                    K[r, c] -= k * u[r] * u[c]
-            G = _skew(g)
-            S = _skew(s)
-            Rb_G = R_Wb @ G
-            GRbT = G @ R_Wb.T
-            wd = w  # k d
-            K[0:3, 9:12] -= wd * Rb_G  # ∂n/∂δπ_b = −R_Wb g̃
-            K[6:9, 9:12] += wd * Rb_G
-            K[3:6, 3:6] += wd * (S @ _skew(n_A))  # ∂(s×n_A)/∂δπ_a = s̃ ñ_A
-            K[3:6, 9:12] -= wd * (S @ R_ab @ G)  # ∂(s×n_A)/∂δπ_b = −s̃ R_ab g̃
-            # ∂(g̃ y)/∂q̂ with δy = R_Wbᵀ(δr_a − R_Wa s̃ δπ_a − δr_b) + ỹ δπ_b
-            K[9:12, 0:3] += wd * GRbT
-            K[9:12, 3:6] -= wd * (GRbT @ R_Wa @ S)
-            K[9:12, 6:9] -= wd * GRbT
-            K[9:12, 9:12] += wd * (G @ _skew(y))
+                kur = k * u[r]
+                for c in range(r, 12):
+                    UU[r, c] += kur * u[c]
+            G_sum[0] += w * g0
+            G_sum[1] += w * g1
+            G_sum[2] += w * g2
+            M1[0, 0] += w * a0 * s0
+            M1[0, 1] += w * a0 * s1
+            M1[0, 2] += w * a0 * s2
+            M1[1, 0] += w * a1 * s0
+            M1[1, 1] += w * a1 * s1
+            M1[1, 2] += w * a1 * s2
+            M1[2, 0] += w * a2 * s0
+            M1[2, 1] += w * a2 * s1
+            M1[2, 2] += w * a2 * s2
+            sigma += w * (s0 * a0 + s1 * a1 + s2 * a2)
+            M2[0, 0] += w * y0 * g0
+            M2[0, 1] += w * y0 * g1
+            M2[0, 2] += w * y0 * g2
+            M2[1, 0] += w * y1 * g0
+            M2[1, 1] += w * y1 * g1
+            M2[1, 2] += w * y1 * g2
+            M2[2, 0] += w * y2 * g0
+            M2[2, 1] += w * y2 * g1
+            M2[2, 2] += w * y2 * g2
+            tau += w * (g0 * y0 + g1 * y1 + g2 * y2)
+    if want_K:
+        # −Σ p a u uᵀ (symmetric)
+        for r in range(12):
+            for c in range(r, 12):
+                K[r, c] -= UU[r, c]
+                if c != r:
+                    K[c, r] -= UU[r, c]
+        I3 = np.eye(3)
+        R_ba = R_ab.T
+        Rb_G = R_Wb @ _skew(G_sum)  # Σ w R_Wb g̃
+        G_RbT = _skew(G_sum) @ R_Wb.T  # Σ w g̃ R_Wbᵀ
+        A = M1 - sigma * I3  # Σ w s̃ ñ_A
+        K[0:3, 9:12] -= Rb_G  # ∂n/∂δπ_b = −R_Wb g̃
+        K[6:9, 9:12] += Rb_G
+        K[3:6, 3:6] += A  # ∂(s × n_A)/∂δπ_a = s̃ ñ_A
+        K[3:6, 9:12] -= A @ R_ab  # ∂(s × n_A)/∂δπ_b = −s̃ R_ab g̃ = −s̃ ñ_A R_ab
+        # ∂(g̃ y)/∂q̂ with δy = R_Wbᵀ(δr_a − R_Wa s̃ δπ_a − δr_b) + ỹ δπ_b
+        K[9:12, 0:3] += G_RbT
+        K[9:12, 3:6] -= R_ba @ (M1.T - sigma * I3)  # g̃ R_ba s̃ = R_ba ñ_A s̃
+        K[9:12, 6:9] -= G_RbT
+        K[9:12, 9:12] += M2 - tau * I3  # g̃ ỹ = y gᵀ − (g·y) I

@@ -225,51 +225,59 @@ def _parse_parameters(buf: bytes, processor: int, name: str) -> dict:
     format (C3D User Guide, "Group Format", "Parameter Format"): int8 name length
     (negative = locked, 0 = end), int8 id (negative = group, positive = parameter of
     group |id|), name, 16-bit offset to the next record counted from the offset field
-    (0 = last record), then for a parameter: int8 type (−1 char, 1 byte, 2 int16,
-    4 float), uint8 number of dimensions, the dimensions (uint8 each), the data.
-    """
-    def corrupt(pos, what):
-        return C3DError(f"{name}: parameter section is corrupt at byte "
-                        f"{pos} of the section: {what}")
+    (0 = last record), then for a group: uint8 description length, description; for a
+    parameter: int8 type (−1 char, 1 byte, 2 int16, 4 float), uint8 number of
+    dimensions (≤ 7), the dimensions (uint8 each), the data, the description.
 
+    Stricter than the format, as ezc3d is: records must be packed (each offset points
+    just past its record's description) and no group id may be defined twice.
+    """
     group_names: dict[int, str] = {}
     raw_params: list[tuple[int, str, object]] = []
-    pos = 4
     offset_dtype = _int_dtype(processor, signed=False)
-    seen = set()
+    pos = 4
     while True:
         if pos + 2 > len(buf):
-            raise corrupt(pos, "the record chain runs past the end of the file")
-        n_name = _int8(buf[pos])
-        item_id = _int8(buf[pos + 1])
+            raise C3DError(f"{name}: parameter section is corrupt: its records run past "
+                           f"the end of the file")
+        n_name, item_id = _int8(buf[pos]), _int8(buf[pos + 1])
         if n_name == 0:
             break
+        offset_pos = pos + 2 + abs(n_name)
+        item_name = bytes(buf[pos + 2:offset_pos]).decode("latin-1").strip().upper()
+        group = group_names.get(abs(item_id), f"group {abs(item_id)}")
+        label = f"group {item_name}" if item_id < 0 else f"parameter {group}:{item_name}"
+
+        def corrupt(what, label=label):
+            return C3DError(f"{name}: parameter section is corrupt at {label} (byte {pos} "
+                            f"of the section): {what}")
+
         if item_id == 0:
-            raise corrupt(pos, "record with group id 0")
-        name_end = pos + 2 + abs(n_name)
-        if name_end + 2 > len(buf):
-            raise corrupt(pos, "record name runs past the end of the file")
-        item_name = buf[pos + 2:name_end].decode("latin-1").strip().upper()
-        offset_pos = name_end
+            raise corrupt("group id 0")
+        if not item_name.isprintable():
+            raise corrupt("the name is not printable text")
+        if offset_pos + 3 > len(buf):
+            raise corrupt("the record runs past the end of the file")
         offset = int(np.frombuffer(buf, dtype=offset_dtype, count=1, offset=offset_pos)[0])
         if item_id < 0:
+            if -item_id in group_names:
+                raise corrupt(f"group id {-item_id} is already {group_names[-item_id]}")
             group_names[-item_id] = item_name
+            record_end = offset_pos + 3 + buf[offset_pos + 2]
         else:
             head = offset_pos + 2
-            if head + 2 > len(buf):
-                raise corrupt(pos, f"parameter {item_name} runs past the end of the file")
-            data_type = _int8(buf[head])
-            n_dims = buf[head + 1]
+            data_type, n_dims = _int8(buf[head]), buf[head + 1]
             if data_type not in (-1, 1, 2, 4):
-                raise corrupt(pos, f"parameter {item_name} has unknown data type {data_type}")
+                raise corrupt(f"unknown data type {data_type}")
             if n_dims > 7:                                 # the C3D limit
-                raise corrupt(pos, f"parameter {item_name} declares {n_dims} dimensions")
+                raise corrupt(f"{n_dims} dimensions (at most 7)")
             dims = list(buf[head + 2:head + 2 + n_dims])
             data_pos = head + 2 + n_dims
             n_values = math.prod(dims)                     # 1 for a scalar (no dims)
             data_end = data_pos + abs(data_type) * n_values
-            if data_end > len(buf):
-                raise corrupt(pos, f"parameter {item_name} data runs past the end of the file")
+            if data_end + 1 > len(buf):
+                raise corrupt("the data run past the end of the file")
+            record_end = data_end + 1 + buf[data_end]
             raw = bytes(buf[data_pos:data_end])
             if data_type == -1 and n_dims <= 1:
                 value = [raw.decode("latin-1").strip()]
@@ -284,13 +292,14 @@ def _parse_parameters(buf: bytes, processor: int, name: str) -> dict:
             else:
                 value = _decode_floats(raw, processor)
             raw_params.append((item_id, item_name, value))
+        if record_end > len(buf):
+            raise corrupt("the description runs past the end of the file")
         if offset == 0:
             break
-        next_pos = offset_pos + offset
-        if next_pos <= pos or next_pos in seen:
-            raise corrupt(pos, "record offsets do not move forward")
-        seen.add(next_pos)
-        pos = next_pos
+        if offset_pos + offset != record_end:
+            raise corrupt(f"the pointer to the next record ({offset_pos + offset}) is not "
+                          f"the end of this record ({record_end})")
+        pos = record_end
     parameters = {}
     for group_id, param_name, value in raw_params:
         group = group_names.get(group_id, f"GROUP{group_id}")
@@ -303,7 +312,6 @@ _SCALAR_NUMERIC_PARAMETERS = (
     "ANALOG:USED", "ANALOG:RATE", "ANALOG:GEN_SCALE", "FORCE_PLATFORM:USED",
     "ROTATION:USED", "ROTATION:DATA_START", "ROTATION:RATE", "ROTATION:RATIO",
 )
-_TEXT_PARAMETERS = ("POINT:UNITS", "EZC3D:VERSION")
 
 
 def _is_continuation(key: str, base: str) -> bool:
@@ -391,10 +399,6 @@ def inspect_c3d(path: str | os.PathLike) -> C3DLayout:
         if value is not None and (isinstance(value, list) or len(value) == 0):
             raise C3DError(f"{name}: parameter {key} must hold a number, found "
                            f"{value!r}")
-    for key in _TEXT_PARAMETERS:
-        value = parameters.get(key)
-        if value is not None and not (isinstance(value, list) and len(value)):
-            raise C3DError(f"{name}: parameter {key} must hold text, found {value!r}")
 
     # the parameters describe the data too (and win where they differ, C3D User Guide);
     # where one is absent, the header value stands
@@ -459,6 +463,22 @@ def inspect_c3d(path: str | os.PathLike) -> C3DLayout:
             raise C3DError(
                 f"{name} is truncated: {source} promises {frames} frames of {points} "
                 f"points{analog} ({data_bytes} bytes of data from block {start_block}) "
+                f"but the file ends after {file_size} bytes")
+
+    # ezc3d's ROTATION extension: 4×4 matrix + reliability (17 floats) per rotation per
+    # subframe from ROTATION:DATA_START; reading past the end aborts the process
+    n_rotations = _as_count(_first_number(parameters, "ROTATION:USED")) or 0
+    if n_rotations:
+        ratio = _first_number(parameters, "ROTATION:RATIO")
+        rotation_rate = _first_number(parameters, "ROTATION:RATE")
+        if not ratio and rotation_rate and param_rate:
+            ratio = rotation_rate / param_rate
+        start_block = _as_count(_first_number(parameters, "ROTATION:DATA_START")) or 0
+        rotation_bytes = param_frames * int(round(ratio or 0)) * n_rotations * 17 * 4
+        if start_block < 2 or (start_block - 1) * BLOCK_BYTES + rotation_bytes > file_size:
+            raise C3DError(
+                f"{name} is truncated: ROTATION parameters promise {param_frames} frames of "
+                f"{n_rotations} rotations ({rotation_bytes} bytes from block {start_block}) "
                 f"but the file ends after {file_size} bytes")
 
     return C3DLayout(

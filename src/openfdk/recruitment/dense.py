@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["cholesky_in_place", "cholesky_solve", "weighted_gram"]
+__all__ = ["cholesky_in_place", "cholesky_solve", "power", "weighted_gram"]
 
 
 @njit(cache=True)
@@ -81,3 +81,19 @@ def cholesky_solve(L, rhs, out):
         for k in range(i + 1, r):
             acc -= L[k, i] * out[k]
         out[i] = acc / L[i, i]
+
+
+@njit(cache=True)
+def power(x, e):
+    """x**e for x ≥ 0, with fast paths for the exponents of the p = 2 and p = 3 criteria."""
+    if e == 2.0:
+        return x * x
+    if e == 1.0:
+        return x
+    if e == 3.0:
+        return x * x * x
+    if e == 0.5:
+        return np.sqrt(x)
+    if e == 0.0:
+        return 1.0
+    return x**e

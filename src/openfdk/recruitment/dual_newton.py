@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from openfdk.recruitment.dense import cholesky_in_place, cholesky_solve
+from openfdk.recruitment.dense import cholesky_in_place, cholesky_solve, power
 
 __all__ = ["DUAL_CONVERGED", "DUAL_MAX_ITER", "DUAL_FAILED", "power_box_dual_newton",
            "multipliers_from_primal"]
@@ -55,9 +55,9 @@ def _primal_from_dual(A, mu, p, x, D):
             x[i] = 1.0
             D[i] = 0.0
         else:
-            x[i] = (u / p) ** exponent
+            x[i] = power(u / p, exponent)
             D[i] = x[i] * exponent / u
-        value += x[i] ** p - u * x[i]
+        value += power(x[i], p) - u * x[i]
     return value
 
 
@@ -173,7 +173,7 @@ def multipliers_from_primal(A, x0, p):
     rhs = np.zeros(r)
     for i in range(n):
         if 0.0 < x0[i] < 1.0:
-            g = p * x0[i] ** (p - 1.0)
+            g = p * power(x0[i], p - 1.0)
             for a in range(r):
                 rhs[a] += A[a, i] * g
                 for c in range(r):

@@ -31,9 +31,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from openfdk.recruitment.dense import cholesky_in_place, cholesky_solve, weighted_gram
+from openfdk.recruitment.dense import cholesky_in_place, cholesky_solve, power, weighted_gram
 
-__all__ = ["IPM_CONVERGED", "IPM_MAX_ITER", "IPM_FAILED", "power_box_ipm"]
+__all__ = ["IPM_CONVERGED", "IPM_MAX_ITER", "IPM_FAILED", "ipm_starting_point", "power_box_ipm"]
 
 IPM_CONVERGED = 0
 IPM_MAX_ITER = 1
@@ -84,23 +84,51 @@ def _newton_direction(A, L_K, Sigma, rho, r_p, dx, dmu, rhs_r):
 
 
 @njit(cache=True)
-def power_box_ipm(A, b, p, tol, max_iter):
+def ipm_starting_point(A, b, p):
+    """Starting point (x, z, w, μ) of :func:`power_box_ipm`.
+
+    x = least-norm solution Aᵀb of A x = b (A Aᵀ = I) clipped to [0.05, 0.5] — typical
+    activities are small, so this starts closer to the solution than the box centre;
+    z = w = 0.1; μ = A(∇G(x) − z + w), the least-squares fit of r_d = 0.
+    Returns x (n,), z (n,), w (n,), μ (r,).
+    """
+    r, n = A.shape
+    x = np.empty(n)
+    for i in range(n):
+        acc = 0.0
+        for a in range(r):
+            acc += A[a, i] * b[a]
+        x[i] = min(max(acc, 0.05), 0.5)
+    z = np.full(n, 0.1)
+    w = np.full(n, 0.1)
+    mu = np.zeros(r)
+    for a in range(r):
+        acc = 0.0
+        for i in range(n):
+            acc += A[a, i] * (p * power(x[i], p - 1.0) - z[i] + w[i])
+        mu[a] = acc
+    return x, z, w, mu
+
+
+@njit(cache=True)
+def power_box_ipm(A, b, p, x, z, w, mu, tol, max_iter):
     """Mehrotra predictor–corrector IPM for min Σ x^p s.t. A x = b, 0 ≤ x ≤ 1.
+
+    Iterates in place from (x, z, w, μ) — use :func:`ipm_starting_point`, or the state
+    left by a previous call with a looser tolerance to continue.
 
     Parameters
     ----------
     A : (r, n) dimensionless, orthonormal rows; b : (r,); p : float ≥ 2;
+    x, z, w : (n,) strictly inside their bounds; mu : (r,) (all modified in place);
     tol : tolerance on ‖r_p‖∞, ‖r_d‖∞/(1+‖∇G‖∞) and the mean complementarity;
     max_iter : int.
 
     Returns
     -------
-    x : (n,), mu : (r,), status : int (IPM_*), iterations : int
+    status : int (IPM_*), iterations : int
     """
     r, n = A.shape
-    x = np.full(n, 0.5)
-    z = np.ones(n)
-    w = np.ones(n)
     g = np.empty(n)
     hess = np.empty(n)
     r_d = np.empty(n)
@@ -114,19 +142,9 @@ def power_box_ipm(A, b, p, tol, max_iter):
     dx_aff = np.empty(n)
     dz_aff = np.empty(n)
     dw_aff = np.empty(n)
-    mu = np.zeros(r)
     dmu = np.empty(r)
     rhs_r = np.empty(r)
     K = np.empty((r, r))
-
-    # initial μ: least-squares fit of ∇G − z + w = Aᵀ μ (A Aᵀ = I)
-    for i in range(n):
-        g[i] = p * x[i] ** (p - 1.0)
-    for a in range(r):
-        acc = 0.0
-        for i in range(n):
-            acc += A[a, i] * (g[i] - z[i] + w[i])
-        mu[a] = acc
 
     status = IPM_MAX_ITER
     iteration = 0
@@ -134,8 +152,9 @@ def power_box_ipm(A, b, p, tol, max_iter):
         # gradient and Hessian of G = Σ x^p
         g_max = 0.0
         for i in range(n):
-            g[i] = p * x[i] ** (p - 1.0)
-            hess[i] = p * (p - 1.0) * x[i] ** (p - 2.0)
+            x_pow = power(x[i], p - 2.0)
+            g[i] = p * x_pow * x[i]
+            hess[i] = p * (p - 1.0) * x_pow
             if g[i] > g_max:
                 g_max = g[i]
         # residuals r_d = ∇G − Aᵀμ − z + w, r_p = A x − b, complementarity τ
@@ -226,7 +245,7 @@ def power_box_ipm(A, b, p, tol, max_iter):
             for _ in range(40):
                 worst = 0.0
                 for i in range(n):
-                    worst = max(worst, abs(p * (x[i] + alpha_p * dx[i]) ** (p - 1.0) + rho[i]))
+                    worst = max(worst, abs(p * power(x[i] + alpha_p * dx[i], p - 1.0) + rho[i]))
                 if worst <= limit:
                     break
                 alpha_p *= 0.5
@@ -235,4 +254,4 @@ def power_box_ipm(A, b, p, tol, max_iter):
         if max(alpha_p, alpha_d) < 1e-12:
             status = IPM_FAILED
             break
-    return x, mu, status, iteration
+    return status, iteration

@@ -25,12 +25,18 @@ import numpy as np
 from numba import njit
 
 from openfdk.recruitment.diagnosis import diagnose_infeasibility
+from openfdk.recruitment.dense import power
 from openfdk.recruitment.dual_newton import (
     DUAL_CONVERGED,
     multipliers_from_primal,
     power_box_dual_newton,
 )
-from openfdk.recruitment.interior_point import IPM_FAILED, power_box_ipm
+from openfdk.recruitment.interior_point import (
+    IPM_CONVERGED,
+    IPM_FAILED,
+    ipm_starting_point,
+    power_box_ipm,
+)
 from openfdk.recruitment.reduction import (
     REDUCE_INCONSISTENT_ROWS,
     REDUCE_RANK_DEFICIENT_FREE,
@@ -58,7 +64,8 @@ _NUMERICAL_FAILURE = 4
 
 _RANK_RTOL = 1e-11  # singular values below this × max|C s| count as zero
 _CONSISTENCY_RTOL = 1e-9  # unbalanceable part of d above this × (‖d‖ + max|C s|) is infeasible
-_IPM_TOL = 1e-8  # interior point stops here; the dual Newton polish goes on to ``tol``
+_IPM_LOOSE_TOL = 1e-6  # interior point stops here first; the dual Newton polish goes on
+_POLISH_MAX_ITER = 8
 _WARM_MAX_ITER = 20
 
 
@@ -67,7 +74,8 @@ def _solve_polynomial_kernel(C, d, n_bounded, s, p, warm_mode, lam_start, x_star
                              max_iter):
     """Numba driver; warm_mode 0 cold, 1 from multipliers λ (m,), 2 from activities x (n_B,).
 
-    Returns f (n,), λ (m,), x (n_B,), status code, iterations.
+    Returns f (n,) N, λ (m,), active_upper (n,) bool, active_lower (n,) bool,
+    residual C f − d (m,), objective G, status code, iterations.
     """
     m, n = C.shape
     status_r, A_full, A_r, b_r, L, free_back, Sigma_r, Q2U_r = reduce_problem(
@@ -75,22 +83,20 @@ def _solve_polynomial_kernel(C, d, n_bounded, s, p, warm_mode, lam_start, x_star
     )
     f = np.full(n, np.nan)
     lam = np.full(m, np.nan)
-    if status_r == REDUCE_RANK_DEFICIENT_FREE:
-        return f, lam, np.full(n_bounded, np.nan), _RANK_DEFICIENT_FREE, 0
-    if status_r == REDUCE_INCONSISTENT_ROWS:
-        return f, lam, np.full(n_bounded, np.nan), _INCONSISTENT_ROWS, 0
-
+    bound_state = np.zeros(n_bounded, dtype=np.int8)
     r = A_r.shape[0]
     iterations = 0
     status = _OPTIMAL
-    if r == 0:
-        # the free forces balance everything: all bounded forces rest at zero
-        x = np.zeros(n_bounded)
-        mu = np.zeros(0)
-    else:
+    if status_r == REDUCE_RANK_DEFICIENT_FREE:
+        status = _RANK_DEFICIENT_FREE
+    elif status_r == REDUCE_INCONSISTENT_ROWS:
+        status = _INCONSISTENT_ROWS
+    x = np.zeros(n_bounded)
+    mu = np.zeros(r)
+    from_dual = True  # x from the dual Newton method: bounds exactly 0 or 1
+    # (r = 0: the free forces balance everything, all bounded forces are zero)
+    if r > 0 and status == _OPTIMAL:
         solved = False
-        x = np.zeros(n_bounded)
-        mu = np.zeros(r)
         if warm_mode > 0:
             if warm_mode == 1:
                 mu_start = multiplier_to_reduced(lam_start, Sigma_r, Q2U_r)
@@ -101,17 +107,54 @@ def _solve_polynomial_kernel(C, d, n_bounded, s, p, warm_mode, lam_start, x_star
             iterations += it
             solved = dual_status == DUAL_CONVERGED
         if not solved:
-            x_ipm, mu_ipm, ipm_status, it = power_box_ipm(A_r, b_r, p, max(tol, _IPM_TOL),
-                                                          max_iter)
+            # interior point to a loose tolerance, then the dual Newton polish
+            x_ipm, z_ipm, w_ipm, mu_ipm = ipm_starting_point(A_r, b_r, p)
+            ipm_status, it = power_box_ipm(A_r, b_r, p, x_ipm, z_ipm, w_ipm, mu_ipm,
+                                           max(tol, _IPM_LOOSE_TOL), max_iter)
             iterations += it
-            x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, mu_ipm, tol,
-                                                           _WARM_MAX_ITER)
-            iterations += it
-            solved = dual_status == DUAL_CONVERGED
+            if ipm_status == IPM_CONVERGED:
+                x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, mu_ipm, tol,
+                                                               _POLISH_MAX_ITER)
+                iterations += it
+                solved = dual_status == DUAL_CONVERGED
+            if not solved and ipm_status == IPM_CONVERGED:
+                # continue the interior point to ``tol`` and polish again
+                ipm_status, it = power_box_ipm(A_r, b_r, p, x_ipm, z_ipm, w_ipm, mu_ipm,
+                                               tol, max(max_iter - iterations, 1))
+                iterations += it
+                if ipm_status == IPM_CONVERGED:
+                    x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, mu_ipm, tol,
+                                                                   _WARM_MAX_ITER)
+                    iterations += it
+                    solved = dual_status == DUAL_CONVERGED
+                    if not solved:
+                        # the interior-point solution itself meets ``tol``: accept it,
+                        # with the active set read from the bound multipliers
+                        x = x_ipm
+                        mu = mu_ipm
+                        from_dual = False
+                        solved = True
+                        for j in range(n_bounded):
+                            if z_ipm[j] > x_ipm[j]:
+                                bound_state[j] = -1
+                            elif w_ipm[j] > 1.0 - x_ipm[j]:
+                                bound_state[j] = 1
             if not solved:
                 status = _NUMERICAL_FAILURE if ipm_status == IPM_FAILED else _MAX_ITER
+    active_upper = np.zeros(n, dtype=np.bool_)
+    active_lower = np.zeros(n, dtype=np.bool_)
+    residual = np.full(m, np.nan)
     if status != _OPTIMAL:
-        return f, lam, x, status, iterations
+        return f, lam, active_upper, active_lower, residual, np.nan, status, iterations
+    objective = 0.0
+    for j in range(n_bounded):
+        objective += power(x[j], p)
+        if from_dual:
+            active_lower[j] = x[j] <= 0.0
+            active_upper[j] = x[j] >= 1.0
+        else:
+            active_lower[j] = bound_state[j] < 0
+            active_upper[j] = bound_state[j] > 0
 
     # f_B = s x; f_F = V_F Σ_F⁻¹ Q1ᵀ (d − A x); λ = L μ
     for j in range(n_bounded):
@@ -127,7 +170,13 @@ def _solve_polynomial_kernel(C, d, n_bounded, s, p, warm_mode, lam_start, x_star
         for a in range(r):
             acc += L[i, a] * mu[a]
         lam[i] = acc
-    return f, lam, x, status, iterations
+    # residual C f − d (N, N·m)
+    for i in range(m):
+        acc = -d[i]
+        for j in range(n):
+            acc += C[i, j] * f[j]
+        residual[i] = acc
+    return f, lam, active_upper, active_lower, residual, objective, status, iterations
 
 
 def _warm_start(x0, n_eq, n_var, n_bounded, s):
@@ -183,34 +232,24 @@ def solve_polynomial(C, d, n_bounded, s, p=3.0, *, x0=None, tol=1e-10, max_iter=
     n_eq, n_var = C.shape
     n_bounded = int(n_bounded)
     warm_mode, lam_start, x_start = _warm_start(x0, n_eq, n_var, n_bounded, s)
-    f, lam, x, code, iterations = _solve_polynomial_kernel(
-        C, d, n_bounded, s, p, warm_mode, lam_start, x_start, float(tol), int(max_iter)
-    )
+    f, lam, active_upper, active_lower, residual, objective, code, iterations = \
+        _solve_polynomial_kernel(
+            C, d, n_bounded, s, p, warm_mode, lam_start, x_start, float(tol), int(max_iter)
+        )
     if code == _RANK_DEFICIENT_FREE:
         _, sigma, VT = np.linalg.svd(C[:, n_bounded:])
         scale = max(np.max(np.abs(C[:, :n_bounded] * s), initial=0.0), np.max(np.abs(C)))
         rank = int(np.sum(sigma > _RANK_RTOL * scale))
         raise rank_deficiency_error(VT[rank:].T, n_bounded, column_names)
     if code == _OPTIMAL:
-        return _optimal_result(C, d, n_bounded, p, f, lam, x, iterations, "polynomial")
+        return RecruitmentResult(
+            f=f, converged=True, status=STATUS_OPTIMAL, message="optimal",
+            iterations=int(iterations), objective=float(objective), multipliers=lam,
+            active_upper=active_upper, active_lower=active_lower, infeasible_rows=(),
+            residual=residual, n_bounded=n_bounded, criterion="polynomial", p=p,
+        )
     return failed_result(C, d, n_bounded, s, p, iterations, row_names, "polynomial",
                          f"polynomial recruitment (p = {p:g})")
-
-
-def _optimal_result(C, d, n_bounded, p, f, lam, x, iterations, criterion):
-    """Build the converged RecruitmentResult from the kernel output (x = f_B/s)."""
-    n_var = C.shape[1]
-    active_upper = np.zeros(n_var, dtype=bool)
-    active_lower = np.zeros(n_var, dtype=bool)
-    active_upper[:n_bounded] = x >= 1.0
-    active_lower[:n_bounded] = x <= 0.0
-    residual = C @ f - d
-    return RecruitmentResult(
-        f=f, converged=True, status=STATUS_OPTIMAL, message="optimal",
-        iterations=int(iterations), objective=float(np.sum(x**p)), multipliers=lam,
-        active_upper=active_upper, active_lower=active_lower, infeasible_rows=(),
-        residual=residual, n_bounded=n_bounded, criterion=criterion, p=p,
-    )
 
 
 def failed_result(C, d, n_bounded, s, p, iterations, row_names, criterion, what):

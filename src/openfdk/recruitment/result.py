@@ -155,11 +155,11 @@ def check_problem(C, d, n_bounded, s, row_names=None, column_names=None):
         raise RecruitmentInputError(
             f"s (strengths) must have shape ({n_bounded},) = (n_bounded,); got {s.shape}"
         )
-    if not (np.all(np.isfinite(C)) and np.all(np.isfinite(d))):
+    # NaN and inf propagate through a sum (cheaper than an element-wise isfinite)
+    if not (np.isfinite(C.sum()) and np.isfinite(d.sum())):
         raise RecruitmentInputError("C and d must be finite (found NaN or inf)")
-    bad = np.flatnonzero(~(np.isfinite(s) & (s > 0.0)))
-    if bad.size:
-        j = int(bad[0])
+    if n_bounded and not (s.min() > 0.0 and np.isfinite(s.sum())):
+        j = int(np.flatnonzero(~(np.isfinite(s) & (s > 0.0)))[0])
         raise RecruitmentInputError(
             f"strength of {column_label(j, column_names)} must be finite and > 0 N; got {s[j]!r}"
         )

@@ -1,0 +1,200 @@
+"""Inverse dynamics with muscle recruitment over a trial (paper Eqs. 11–14).
+
+Per frame (DESIGN.md §3 data flow): kinematic state (q, v, v̇) → muscle lengths, speeds,
+strengths s and passive forces → passive elements and external loads → C f = d →
+recruitment (min G(f^M) s.t. C f = d, 0 ≤ f^M ≤ s) → muscle, reaction and FDK residual
+forces. Infeasible frames are flagged with the solver's message naming the rows that
+cannot be balanced; the analysis continues.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..dynamics.equilibrium import assemble, equilibrium_layout, inertial_minus_gravity
+from ..forces.elements import RECRUITMENT, RecruitmentSettings
+from ..forces.passive import PassiveElements
+from ..kinematics.system import ConstraintSystem
+
+#: strengths below this (N) are raised to it so that the recruitment stays defined; a
+#: muscle shorter than its tendon slack length thus delivers (numerically) nothing.
+MIN_STRENGTH = 1e-6
+
+
+@dataclass
+class FrameForces:
+    """Forces of one frame. f : (n_columns,) N (columns: layout.column_names);
+    muscle_* : (n_muscles,); converged, status, message, iterations; recruitment result."""
+
+    f: np.ndarray
+    muscle_length: np.ndarray
+    muscle_speed: np.ndarray
+    muscle_strength: np.ndarray
+    muscle_passive: np.ndarray
+    passive: object
+    converged: bool
+    status: str
+    message: str
+    iterations: int
+    recruitment: object = None
+
+
+class InverseDynamics:
+    """Per-frame inverse dynamics of a model (holds the layout and solver settings).
+
+    The model is not modified; all per-frame data live in the returned FrameForces.
+    """
+
+    def __init__(self, model, system=None):
+        from ..forces.hill import MuscleSet
+
+        self.model = model
+        self.system = system or ConstraintSystem(model)
+        self.layout = equilibrium_layout(model, self.system)
+        muscles = self.layout.muscles
+        self.muscle_set = MuscleSet([m.law for m in muscles]) if muscles else None
+        self.passive = PassiveElements(model)
+        self.settings = model.elements.get(RECRUITMENT, RecruitmentSettings())
+        self.unilateral_strength = np.array([u[2] for u in self.layout.unilateral], dtype=float)
+        if len(self.layout.eq_coords) == 0:
+            raise ValueError(f"model {model.name!r}: no body has equilibrium: true; nothing to solve")
+
+    def muscle_states(self, state):
+        """Muscle lengths l (nm,) m, path Jacobians L (nm, n), speeds L v (nm,) m/s."""
+        nm = self.layout.n_muscles
+        l = np.zeros(nm)
+        L = np.zeros((nm, state.n_coords))
+        for k, m in enumerate(self.layout.muscles):
+            val, M, _ = m.path.evaluate(state, 1)
+            l[k], L[k] = val[0], M[0]
+        return l, L, L @ state.get_v()
+
+    def equilibrium(self, state, vdot, t, alpha=None):
+        """C, d, strengths s (n_bounded,), and the muscle/passive states of the frame."""
+        _, A, _, _ = self.system.evaluate(state, t, alpha, order=1)
+        l, L, speed = self.muscle_states(state)
+        if self.muscle_set is not None:
+            s_m, f_p = self.muscle_set.evaluate(l, speed)
+            s_m = np.maximum(s_m, MIN_STRENGTH)
+        else:
+            s_m = f_p = np.zeros(0)
+        Q, passive_out, _ = self.passive.generalized_forces(state, t)
+        if len(f_p):
+            Q -= L.T @ f_p  # passive muscle tension is an applied load
+        d_full = inertial_minus_gravity(self.model, state, vdot) - Q
+        C, d = assemble(self.layout, A, L, d_full)
+        s = np.concatenate([s_m, self.unilateral_strength])
+        return C, d, s, (l, speed, s_m, f_p, passive_out)
+
+    def recruit(self, C, d, s, warm=None):
+        """Solve the recruitment problem with the model's criterion."""
+        lay, st = self.layout, self.settings
+        kw = dict(row_names=lay.row_names, column_names=lay.column_names)
+        if st.criterion == "minmax":
+            from ..recruitment import solve_minmax
+
+            return solve_minmax(C, d, lay.n_bounded, s, **kw)
+        from ..recruitment.polynomial import solve_polynomial
+
+        return solve_polynomial(C, d, lay.n_bounded, s, st.power, x0=warm, tol=st.tolerance, **kw)
+
+    def frame(self, state, vdot, t, alpha=None, warm=None):
+        """Inverse dynamics of one frame; ``state`` holds q and v, ``vdot`` (n,)."""
+        C, d, s, (l, speed, s_m, f_p, passive_out) = self.equilibrium(state, vdot, t, alpha)
+        res = self.recruit(C, d, s, warm)
+        return FrameForces(res.f, l, speed, s_m, f_p, passive_out, bool(res.converged), res.status,
+                           "" if res.converged else res.message, int(res.iterations), res)
+
+
+@dataclass(frozen=True)
+class InverseDynamicsResult:
+    """Forces over a trial. forces : (nf, n_columns) N; column_names;
+    muscle_length/speed/strength/passive : (nf, n_muscles); ligament_* and spring_* :
+    (nf, n); converged (nf,) bool; status; messages; iterations (nf,)."""
+
+    time: np.ndarray
+    column_names: tuple
+    muscle_names: tuple
+    n_bounded: int
+    forces: np.ndarray
+    muscle_length: np.ndarray
+    muscle_speed: np.ndarray
+    muscle_strength: np.ndarray
+    muscle_passive: np.ndarray
+    ligament_names: tuple
+    ligament_length: np.ndarray
+    ligament_strain: np.ndarray
+    ligament_force: np.ndarray
+    spring_names: tuple
+    spring_force: np.ndarray
+    converged: np.ndarray
+    status: tuple
+    messages: tuple
+    iterations: np.ndarray
+    wall_time: float = 0.0
+    extra: dict = field(default_factory=dict)
+
+    def failed_frames(self):
+        return [(int(i), float(self.time[i]), self.messages[i]) for i in np.flatnonzero(~self.converged)]
+
+    def summary(self):
+        return {
+            "frames": int(len(self.time)),
+            "converged_frames": int(np.sum(self.converged)),
+            "failed_frames": [{"frame": i, "time": t, "reason": m} for i, t, m in self.failed_frames()],
+            "mean_recruitment_iterations": float(np.mean(self.iterations)) if len(self.iterations) else 0.0,
+            "wall_time_s": self.wall_time,
+        }
+
+
+def run_inverse_dynamics(model, kin, progress=False, solver=None):
+    """Inverse dynamics for every frame of a KinematicsResult ``kin``.
+
+    Frames whose kinematics failed are flagged ("kinematics failed: ...") with NaN forces.
+    """
+    t0 = _time.perf_counter()
+    solver = solver or InverseDynamics(model)
+    lay = solver.layout
+    nf, nm = len(kin.time), lay.n_muscles
+    nl, ns = len(solver.passive.ligaments), len(solver.passive.springs)
+    F = np.full((nf, lay.n_columns), np.nan)
+    ml, mv, msg_s, mp = (np.full((nf, nm), np.nan) for _ in range(4))
+    ll, ls, lf = (np.full((nf, nl), np.nan) for _ in range(3))
+    sf = np.full((nf, ns), np.nan)
+    ok = np.zeros(nf, dtype=bool)
+    status, msgs = ["kinematics_failed"] * nf, [""] * nf
+    iters = np.zeros(nf, dtype=int)
+    state = model.initial_state()
+    warm = None
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=nf, desc="inverse dynamics", unit="frame", leave=False)
+    for k in range(nf):
+        if not kin.converged[k]:
+            msgs[k] = f"kinematics failed: {kin.messages[k]}"
+        else:
+            state.set_q(kin.q[k])
+            state.set_v(kin.v[k])
+            fr = solver.frame(state, kin.vdot[k], kin.time[k], kin.alpha, warm)
+            F[k], ml[k], mv[k], msg_s[k], mp[k] = fr.f, fr.muscle_length, fr.muscle_speed, fr.muscle_strength, fr.muscle_passive
+            ll[k], ls[k], lf[k] = fr.passive.ligament_length, fr.passive.ligament_strain, fr.passive.ligament_force
+            sf[k] = fr.passive.spring_force
+            ok[k], status[k], iters[k] = fr.converged, fr.status, fr.iterations
+            if not fr.converged:
+                msgs[k] = f"frame {k} (t = {kin.time[k]:.4f} s): {fr.message}"
+            warm = fr.recruitment if fr.converged else None
+        if bar:
+            bar.update()
+    if bar:
+        bar.close()
+    return InverseDynamicsResult(
+        kin.time, lay.column_names, tuple(m.name for m in lay.muscles), lay.n_bounded, F, ml, mv, msg_s, mp,
+        tuple(x.name for x in solver.passive.ligaments), ll, ls, lf,
+        tuple(x.name for x in solver.passive.springs), sf, ok, tuple(status), tuple(msgs), iters,
+        _time.perf_counter() - t0,
+    )

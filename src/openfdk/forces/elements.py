@@ -1,0 +1,205 @@
+"""Force elements attached to a model: muscles, ligaments, springs, unilateral reactions,
+external loads, and the recruitment settings.
+
+Elements live in ``model.elements`` (a dict of tuples by kind) and are added with the
+functions here, which take a :class:`~openfdk.model.builder.ModelBuilder`::
+
+    add_muscle(b, "masseter_r", ["skull.mas_o_r", "mandible.mas_i_r"], Hill3ElementMuscle(...))
+    add_ligament(b, "tmj_lig_r1", ["skull.tub_r", "mandible.neck_r1"],
+                 stiffness=90.8, reference_strain=0.0)
+    add_spring(b, "fdk_spring", b.measure("ml_shift"), stiffness=0.1)
+    add_unilateral_reaction(b, "tmj_r", row=0, direction="push", strength=20e3)
+    add_external_load(b, "bite", "mandible.incisor", force=Constant([0, 0, -50]))
+
+Paths (sympy's pathway idea, STYLE.md §9): a muscle or ligament path is a chain of points
+on bodies with straight segments between them; its length l is a measure (a sum of
+distances), its lengthening speed is L v with L = ∂l/∂q̂, and a tension T ≥ 0 acts on the
+bodies as the generalised force Q = −Lᵀ T (tension shortens the path).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..model.measures import Linear, Measure
+from ..model.model import ModelError
+from ..model.timefunctions import Constant, TimeFunction
+from .blankevoort import Blankevoort1991Ligament
+from .spring import LinearSpring
+
+MUSCLES, LIGAMENTS, SPRINGS, REACTIONS, LOADS, RECRUITMENT = (
+    "muscles", "ligaments", "springs", "unilateral_reactions", "loads", "recruitment",
+)
+
+
+@dataclass(frozen=True, eq=False)
+class Muscle:
+    """A muscle: path measure (length, m) and a strength model (constant or Hill)."""
+
+    name: str
+    path: Measure
+    law: object
+    points: tuple = ()
+
+
+@dataclass(frozen=True, eq=False)
+class Ligament:
+    """A ligament: path measure (m) and a Blankevoort1991Ligament law (passive load)."""
+
+    name: str
+    path: Measure
+    law: Blankevoort1991Ligament
+    points: tuple = ()
+
+
+@dataclass(frozen=True, eq=False)
+class Spring:
+    """A linear spring on a scalar measure: generalised force −k (m − m_rest) along m."""
+
+    name: str
+    measure: Measure
+    law: LinearSpring
+
+
+@dataclass(frozen=True, eq=False)
+class UnilateralReaction:
+    """Turns one joint reaction row into a bounded, one-sided actuator (recruited like a
+    muscle, paper's 20 kN POP TMJ element): 0 ≤ f ≤ strength, acting along +Φ_q̂ᵀ of the
+    row for ``direction = +1`` ("push": force on the child body toward increasing
+    measure, e.g. along the plane normal of a point_on_plane joint) or −Φ_q̂ᵀ for −1."""
+
+    name: str
+    constraint: str
+    row: int
+    direction: int
+    strength: float
+
+
+@dataclass(frozen=True, eq=False)
+class ExternalLoad:
+    """A force (N) and moment (N m) on a body, as time functions of 3 components,
+    applied at a point of the body; ``frame`` "world" or "body" for the components."""
+
+    name: str
+    body: int
+    p_BP: np.ndarray
+    force: TimeFunction
+    moment: TimeFunction
+    frame: str = "world"
+
+
+@dataclass(frozen=True)
+class RecruitmentSettings:
+    """criterion: "polynomial" (power p ≥ 2; 3 as in the paper) or "minmax"."""
+
+    criterion: str = "polynomial"
+    power: float = 3.0
+    tolerance: float = 1e-10
+
+
+def path_measure(b, points, name=""):
+    """Length (m) of the chain of points (qualified names, ≥ 2): Σ |p_{k+1} − p_k|."""
+    if len(points) < 2:
+        raise ModelError(f"path {name!r}: needs at least 2 points, got {list(points)}")
+    terms = [(np.ones((1, 1)), b.distance(points[k], points[k + 1])) for k in range(len(points) - 1)]
+    return Linear(terms, units=("length",), name=name)
+
+
+def _append(b, kind, element):
+    items = list(b.elements.get(kind, ()))
+    all_names = {e.name for k in (MUSCLES, LIGAMENTS, SPRINGS, REACTIONS, LOADS) for e in b.elements.get(k, ())}
+    if element.name in all_names:
+        raise ModelError(f"force element {element.name!r} is defined twice")
+    items.append(element)
+    b.elements[kind] = tuple(items)
+    return element
+
+
+def add_muscle(b, name, points, law):
+    """A muscle along ``points`` with a strength model from :mod:`openfdk.forces.hill`."""
+    return _append(b, MUSCLES, Muscle(name, path_measure(b, points, name), law, tuple(points)))
+
+
+def reference_length(b, measure):
+    """Value of a scalar measure in the builder's reference pose (bodies' initial poses)."""
+    from ..model.state import BodyStates
+
+    names = [r["name"] for r in b._bodies]
+    state = BodyStates([r["position"] for r in b._bodies], [r["quat"] for r in b._bodies], [-1] * len(names))
+    return float(measure.evaluate(state, 0)[0][0])
+
+
+def add_ligament(b, name, points, stiffness, slack_length=None, reference_length_m=None,
+                 reference_strain=0.0, transition_strain=0.03):
+    """A Blankevoort ligament along ``points``. Slack length given directly (m), or from
+    a reference length l_r (m; default: the path length in the reference pose) and a
+    reference strain ε_r: l0 = l_r / (1 + ε_r). stiffness k in N/m."""
+    path = path_measure(b, points, name)
+    if slack_length is not None:
+        law = Blankevoort1991Ligament(stiffness, slack_length, transition_strain, name=name)
+    else:
+        l_r = reference_length(b, path) if reference_length_m is None else reference_length_m
+        law = Blankevoort1991Ligament.from_reference(stiffness, l_r, reference_strain, transition_strain, name=name)
+    return _append(b, LIGAMENTS, Ligament(name, path, law, tuple(points)))
+
+
+def add_spring(b, name, measure, stiffness, rest_value=0.0, unit="m"):
+    """A linear spring on a scalar measure (k in N/m or N m/rad)."""
+    if isinstance(measure, str):
+        measure = b.measure(measure)
+    if measure.size != 1:
+        raise ModelError(f"spring {name!r}: the measure must be scalar")
+    return _append(b, SPRINGS, Spring(name, measure, LinearSpring(stiffness, rest_value, unit, name=name)))
+
+
+def add_unilateral_reaction(b, constraint, row=0, direction="push", strength=20e3, name=None):
+    """Make row ``row`` of joint ``constraint`` a one-sided bounded reaction."""
+    names = [c.name for c in b._constraints]
+    if constraint not in names:
+        raise ModelError(f"unilateral reaction: unknown joint/constraint {constraint!r}; known: {names}")
+    c = b._constraints[names.index(constraint)]
+    if not (0 <= row < c.size):
+        raise ModelError(f"unilateral reaction on {constraint!r}: row {row} out of range (0..{c.size - 1})")
+    if not c.reaction:
+        raise ModelError(f"unilateral reaction on {constraint!r}: this constraint carries no reaction")
+    sign = {"push": 1, "pull": -1}.get(direction)
+    if sign is None:
+        raise ModelError(f"unilateral reaction on {constraint!r}: direction must be 'push' or 'pull', got {direction!r}")
+    if not (np.isfinite(strength) and strength > 0):
+        raise ModelError(f"unilateral reaction on {constraint!r}: strength must be > 0 N")
+    el = UnilateralReaction(name or c.row_names[row], constraint, int(row), sign, float(strength))
+    for other in b.elements.get(REACTIONS, ()):
+        if other.constraint == constraint and other.row == row:
+            raise ModelError(f"row {row} of {constraint!r} is made unilateral twice")
+    return _append(b, REACTIONS, el)
+
+
+def add_external_load(b, name, point, force=None, moment=None, frame="world"):
+    """External force (N) and moment (N m) at ``point`` ("body.frame"): time functions
+    of 3 components or constant triples."""
+    f = b.frame(point)
+    body = b._body_index(f.body)
+    force = Constant(np.zeros(3) if force is None else force) if not isinstance(force, TimeFunction) else force
+    moment = Constant(np.zeros(3) if moment is None else moment) if not isinstance(moment, TimeFunction) else moment
+    if force.size != 3 or moment.size != 3:
+        raise ModelError(f"load {name!r}: force and moment need 3 components")
+    if frame not in ("world", "body"):
+        raise ModelError(f"load {name!r}: frame must be 'world' or 'body', got {frame!r}")
+    return _append(b, LOADS, ExternalLoad(name, body, f.p_BF, force, moment, frame))
+
+
+def set_recruitment(b, criterion="polynomial", power=3.0, tolerance=1e-10):
+    if criterion not in ("polynomial", "minmax"):
+        raise ModelError(f"recruitment criterion must be 'polynomial' or 'minmax', got {criterion!r}")
+    if criterion == "polynomial" and not (np.isfinite(power) and power >= 2):
+        raise ModelError(f"recruitment power must be >= 2, got {power}")
+    b.elements[RECRUITMENT] = RecruitmentSettings(criterion, float(power), float(tolerance))
+
+
+__all__ = [
+    "Muscle", "Ligament", "Spring", "UnilateralReaction", "ExternalLoad", "RecruitmentSettings",
+    "add_muscle", "add_ligament", "add_spring", "add_unilateral_reaction", "add_external_load",
+    "set_recruitment", "path_measure",
+]

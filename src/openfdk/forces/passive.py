@@ -1,0 +1,115 @@
+"""Passive force elements evaluated at a state: generalised forces Q (applied loads in
+the equilibrium, paper Eq. 13) and per-element outputs.
+
+* ligament along a path of length l with tension T(l) ≥ 0:  Q = −Lᵀ T,  L = ∂l/∂q̂;
+* spring on a measure m:  Q = Mᵀ f,  f = −k (m − m_rest);
+* muscle passive (parallel-elastic) tension f_P:  Q = −Lᵀ f_P (added by the caller, which
+  knows the muscle states);
+* external load (F, M) at a body point P:  Q = [F_W; R_WBᵀ (p̃_BP R_WBᵀ F_W) + M_B];
+* contacts: generalised forces from :mod:`openfdk.contact` when the model has any.
+
+Also returns, on request, the stiffness ∂Q/∂q̂ of ligaments and springs (for the analytic
+FDK Jacobian): K = −Lᵀ (dT/dl) L − (∂Lᵀ/∂q̂) T, of which the second (geometric) term is
+included by central differences of Lᵀ over the path only when ``geometric=True``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .elements import LIGAMENTS, LOADS, SPRINGS
+
+
+@dataclass
+class PassiveOutputs:
+    """Per-element outputs at one frame (SI units)."""
+
+    ligament_length: np.ndarray
+    ligament_strain: np.ndarray
+    ligament_force: np.ndarray
+    spring_value: np.ndarray
+    spring_force: np.ndarray
+    contact: dict
+
+
+def _cross(a, b):
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+class PassiveElements:
+    """All passive elements of a model (ligaments, springs, loads, contacts)."""
+
+    def __init__(self, model):
+        self.model = model
+        self.ligaments = tuple(model.elements.get(LIGAMENTS, ()))
+        self.springs = tuple(model.elements.get(SPRINGS, ()))
+        self.loads = tuple(model.elements.get(LOADS, ()))
+        self.contacts = tuple(model.elements.get("contacts", ()))
+
+    def generalized_forces(self, state, t, want_stiffness=False):
+        """Q (n,) [N, N m] of all passive elements and external loads (gravity excluded),
+        their outputs, and (if asked) K = ∂Q/∂q̂ (n, n) of ligaments, springs, contacts."""
+        n = state.n_coords
+        Q = np.zeros(n)
+        K = np.zeros((n, n)) if want_stiffness else None
+        nl, ns = len(self.ligaments), len(self.springs)
+        out = PassiveOutputs(np.zeros(nl), np.zeros(nl), np.zeros(nl), np.zeros(ns), np.zeros(ns), {})
+        for k, lig in enumerate(self.ligaments):
+            l, L, _ = lig.path.evaluate(state, 1)
+            length = float(l[0])
+            T = float(lig.law.force(length))
+            out.ligament_length[k] = length
+            out.ligament_strain[k] = float(lig.law.strain(length))
+            out.ligament_force[k] = T
+            Q -= L[0] * T
+            if want_stiffness:
+                K -= np.outer(L[0], L[0]) * float(lig.law.dforce_dlength(length))
+                if T != 0.0:
+                    K -= T * _path_hessian(lig.path, state)
+        for k, spr in enumerate(self.springs):
+            m, M, _ = spr.measure.evaluate(state, 1)
+            f = float(spr.law.force(float(m[0])))
+            out.spring_value[k] = float(m[0])
+            out.spring_force[k] = f
+            Q += M[0] * f
+            if want_stiffness:
+                K += np.outer(M[0], M[0]) * float(spr.law.dforce_dmeasure(float(m[0])))
+                if f != 0.0:
+                    K += f * _path_hessian(spr.measure, state)
+        for load in self.loads:
+            Q += self._load_Q(load, state, t)
+        for contact in self.contacts:
+            Qc, Kc, info = contact.generalized_forces(state, want_stiffness)
+            Q += Qc
+            if want_stiffness:
+                K += Kc
+            out.contact[contact.name] = info
+        return Q, out, K
+
+    @staticmethod
+    def _load_Q(load, state, t):
+        """Generalised force of an external load (force in world/body, moment)."""
+        i = load.body
+        c = state.column[i]
+        Q = np.zeros(state.n_coords)
+        if c < 0:
+            return Q
+        R = state.R_WB[i]
+        F, M = load.force.derivatives(t)[0], load.moment.derivatives(t)[0]
+        if load.frame == "world":
+            F_W, M_B = F, R.T @ M
+        else:
+            F_W, M_B = R @ F, M
+        Q[c : c + 3] = F_W
+        Q[c + 3 : c + 6] = _cross(load.p_BP, R.T @ F_W) + M_B
+        return Q
+
+
+def _path_hessian(measure, state, eps=1e-7):
+    """H[i, k] = ∂M_i/∂q̂_k (n, n) of a scalar measure's Jacobian row M, by central
+    differences on the manifold (the geometric stiffness term T ∂Lᵀ/∂q̂)."""
+    from ..numdiff import manifold_jacobian
+
+    return manifold_jacobian(lambda s: measure.evaluate(s, 1)[1][0], state, eps)
