@@ -121,7 +121,7 @@ def _swept_face_boxes(mesh, depth_behind, margin):
     return swept.min(axis=1) - spread[:, None], swept.max(axis=1) + spread[:, None]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def trilinear_sample(flat, cells, nx, ny, nz, origin, inv_h, y0, y1, y2, out):
     """Gradient-corrected trilinear interpolation of φ and ∇φ at one point (m, in B).
 

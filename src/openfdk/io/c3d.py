@@ -256,7 +256,7 @@ def _parse_parameters(buf: bytes, processor: int, name: str) -> dict:
             raise corrupt("group id 0")
         if not item_name.isprintable():
             raise corrupt("the name is not printable text")
-        if offset_pos + 3 > len(buf):
+        if offset_pos + (3 if item_id < 0 else 4) > len(buf):
             raise corrupt("the record runs past the end of the file")
         offset = int(np.frombuffer(buf, dtype=offset_dtype, count=1, offset=offset_pos)[0])
         if item_id < 0:

@@ -1,0 +1,126 @@
+"""Inverse dynamics and recruitment against closed forms (paper Eqs. 11–14)."""
+
+import numpy as np
+import pytest
+
+from openfdk.analysis.inverse_dynamics import run_inverse_dynamics
+from openfdk.forces.elements import add_external_load, add_muscle, set_recruitment
+from openfdk.forces.hill import ConstantStrengthMuscle
+from openfdk.kinematics.analysis import run_determinate
+from openfdk.model.builder import ModelBuilder
+from openfdk.model.timefunctions import Constant, Polynomial
+
+G = 9.81
+# pin frame axes (columns): x = world x, y = world −z, z = world +y
+R_PIN = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])
+
+
+def pendulum(mass=2.0, L=0.5, omega=3.0, joint="revolute"):
+    """A bob with its centre of mass L below a pivot at the world origin, rotated about
+    the pin's z axis (world +y) at constant rate ω by a motor (a driver with reaction)."""
+    b = ModelBuilder("pendulum", gravity=(0, 0, -G))
+    b.add_body("bob", mass, [0.01, 0.02, 0.03], position=[0, 0, -L])
+    b.add_frame("ground", "pin", [0, 0, 0], orientation=R_PIN)
+    b.add_frame("bob", "pin", [0, 0, L], orientation=R_PIN)
+    if joint == "revolute":
+        b.add_joint("pin", "revolute", parent="ground.pin", child="bob.pin")
+        b.add_driver("motor", b.angles("ground.pin", "bob.pin"), Polynomial([[0.0], [omega]]), components=[2], reaction=True)
+    else:
+        b.add_joint("pin", "spherical", parent="ground.pin", child="bob.pin")
+        b.add_driver("motor", b.angles("ground.pin", "bob.pin"), Polynomial([[0.0, 0.0, 0.0], [0.0, 0.0, omega]]), reaction=True)
+    return b.build()
+
+
+def test_hanging_body_reaction_equals_weight():
+    model = pendulum(omega=0.0, joint="spherical")
+    kin = run_determinate(model, np.array([0.0, 0.5]))
+    res = run_inverse_dynamics(model, kin)
+    assert res.converged.all()
+    col = {n: i for i, n in enumerate(res.column_names)}
+    # pin reaction = force on the bob in pin-frame components: y = world −z
+    np.testing.assert_allclose(res.forces[:, col["pin.y"]], -2.0 * G, rtol=1e-10)
+    np.testing.assert_allclose(res.forces[:, [col["pin.x"], col["pin.z"]]], 0.0, atol=1e-9)
+    np.testing.assert_allclose(res.forces[:, [col["motor[0]"], col["motor[1]"], col["motor[2]"]]], 0.0, atol=1e-9)
+
+
+def test_driven_pendulum_reaction_includes_centripetal_term():
+    """Constant-rate pendulum: F_pin = m (a − g) with a = −ω² r (centripetal), and the
+    motor torque balances gravity: τ = m g L sin θ about the pin axis (θ̈ = 0, and the
+    gyroscopic term vanishes for rotation about a principal axis)."""
+    m, L, w = 2.0, 0.5, 3.0
+    model = pendulum(m, L, w)
+    t = np.linspace(0, 2, 41)
+    kin = run_determinate(model, t)
+    res = run_inverse_dynamics(model, kin)
+    assert kin.converged.all() and res.converged.all()
+    col = {n: i for i, n in enumerate(res.column_names)}
+    th = w * t
+    # rotation by θ about the pin z = world +y: r = Ry(θ) (0, 0, −L) = (−L sin θ, 0, −L cos θ)
+    r = np.stack([-L * np.sin(th), 0 * th, -L * np.cos(th)], axis=1)
+    np.testing.assert_allclose(kin.q[:, :3], r, atol=1e-10)
+    F_W = m * (-(w**2) * r - np.array([0, 0, -G]))
+    F_pin = F_W @ R_PIN  # world -> pin-frame components
+    np.testing.assert_allclose(res.forces[:, [col["pin.x"], col["pin.y"], col["pin.z"]]], F_pin, atol=1e-8)
+    assert np.max(np.abs(F_W[:, 0])) > 5.0  # the centripetal part is really there
+    # gravity's moment about the pivot is r × m g = (0, −m g L sin θ, 0): the motor gives +
+    np.testing.assert_allclose(res.forces[:, col["motor"]], m * G * L * np.sin(th), atol=1e-8)
+
+
+def two_muscle_hinge(s1, s2, a1, a2, M, p=3.0):
+    """A bar hinged about world z at the origin, held by a driver without reaction; two
+    constant-strength muscles pull in +y at distances a1, a2 along the bar (moment arms
+    a1, a2 about z); an external moment −M about z. No gravity."""
+    b = ModelBuilder("hinge", gravity=(0, 0, 0))
+    b.add_body("bar", 1.0, [0.01, 0.01, 0.01], position=[0.1, 0, 0])
+    b.add_frame("bar", "pivot", [-0.1, 0, 0])
+    b.add_frame("bar", "i1", [a1 - 0.1, 0, 0])
+    b.add_frame("bar", "i2", [a2 - 0.1, 0, 0])
+    b.add_frame("ground", "o1", [a1, 1.0, 0])
+    b.add_frame("ground", "o2", [a2, 1.0, 0])
+    b.add_joint("hinge", "revolute", parent="ground.origin", child="bar.pivot")
+    b.add_driver("hold", b.angles("ground.origin", "bar.origin"), Constant([0.0]), components=[2])
+    add_muscle(b, "m1", ["ground.o1", "bar.i1"], ConstantStrengthMuscle(s1, "m1"))
+    add_muscle(b, "m2", ["ground.o2", "bar.i2"], ConstantStrengthMuscle(s2, "m2"))
+    add_external_load(b, "load", "bar.origin", moment=[0, 0, -M])
+    set_recruitment(b, "polynomial", p)
+    return b.build()
+
+
+@pytest.mark.parametrize("p", [2.0, 3.0])
+def test_two_muscles_closed_form(p):
+    """min Σ (f_i/s_i)^p s.t. a1 f1 + a2 f2 = M: the stationarity condition
+    p f_i^(p−1)/s_i^p = λ a_i gives f_i = k (a_i s_i^p)^(1/(p−1)), k from the moment."""
+    s1, s2, a1, a2, M = 100.0, 300.0, 0.05, 0.12, 6.0
+    model = two_muscle_hinge(s1, s2, a1, a2, M, p)
+    kin = run_determinate(model, np.array([0.0]))
+    res = run_inverse_dynamics(model, kin)
+    assert res.converged.all(), res.messages
+    u = np.array([(a1 * s1**p) ** (1 / (p - 1)), (a2 * s2**p) ** (1 / (p - 1))])
+    k = M / (a1 * u[0] + a2 * u[1])
+    np.testing.assert_allclose(res.forces[0, :2], k * u, rtol=1e-7)
+    # the hinge carries the muscles' pull: reaction y = −(f1 + f2)
+    col = {n: i for i, n in enumerate(res.column_names)}
+    assert res.forces[0, col["hinge.y"]] == pytest.approx(-(k * u).sum(), rel=1e-7)
+
+
+def test_weak_muscle_saturates_at_strength():
+    """The cubic criterion activates muscle i in proportion to sqrt(a_i s_i), so the
+    muscle with the larger a·s saturates first: f1 = s1 and f2 carries the rest."""
+    s1, s2, a1, a2, M = 100.0, 20.0, 0.12, 0.05, 12.8
+    model = two_muscle_hinge(s1, s2, a1, a2, M, 3.0)
+    res = run_inverse_dynamics(model, run_determinate(model, np.array([0.0])))
+    assert res.converged.all()
+    f1 = res.forces[0, 0]
+    # without the bound f1 would be k (a1 s1^3)^(1/2) > s1 for these numbers
+    u1, u2 = (a1 * s1**3) ** 0.5, (a2 * s2**3) ** 0.5
+    assert M / (a1 * u1 + a2 * u2) * u1 > s1
+    assert f1 == pytest.approx(s1, rel=1e-6)
+    assert res.forces[0, 1] == pytest.approx((M - a1 * s1) / a2, rel=1e-6)
+
+
+def test_infeasible_frame_is_flagged_and_run_continues():
+    """Moment larger than both muscles can deliver: flagged, not a crash."""
+    model = two_muscle_hinge(10.0, 10.0, 0.05, 0.12, 100.0)
+    res = run_inverse_dynamics(model, run_determinate(model, np.array([0.0, 0.1])))
+    assert not res.converged.any()
+    assert "bar.Mz" in res.messages[0]
