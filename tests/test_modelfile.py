@@ -84,7 +84,7 @@ def test_units_are_converted_at_the_boundary(tmp_path):
         ("bodies: {arm: {mass: 1, inertia: [1, 1, 1]}}\nmeasures: {a: {type: angles, frame: ground.origin, of: arm.origin}}\ndrivers: {d: {measure: a, components: [5], function: {type: constant, value: 0}}}", "drivers.d.components: indices [5] out of range"),
         ("bodies: {arm: {mass: 1, inertia: [1, 1, 1]}}\nmeasures: {a: {type: angles, frame: ground.origin, of: arm.origin}}\ndrivers: {d: {measure: a, function: {type: polynom, coefficients: [0]}}}", "drivers.d.function.type: unknown function type 'polynom'"),
         ("bodies: {arm: {mass: 1, inertia: [1, 1, 1], markers: {M1: [0, 0]}}}", "bodies.arm.markers.M1: expected 3 numbers"),
-        ("bodies: {arm: {mass: 1, inertia: [1, 1, 1]}}\nsprings: {}", "(top level).springs: unknown key"),
+        ("bodies: {arm: {mass: 1, inertia: [1, 1, 1]}}\nspring: {}", "(top level).spring: unknown key; did you mean 'springs'"),
         ("openfdk: 7\nbodies: {arm: {mass: 1, inertia: [1, 1, 1]}}", "openfdk: unsupported format version 7"),
     ],
 )

@@ -2,6 +2,7 @@
 
     openfdk kinematics MODEL.yaml TRIAL.c3d --out DIR   marker-tracking kinematics
     openfdk kinematics MODEL.yaml --out DIR             determinate kinematics (drivers)
+    openfdk run MODEL.yaml [TRIAL.c3d] --out DIR        kinematics + inverse dynamics
     openfdk check MODEL.yaml                            validate a model file
     openfdk bench [--quick] [--json]                    benchmarks
 
@@ -46,6 +47,24 @@ def _cmd_kinematics(args):
         print(f"  failed: {msg}", file=sys.stderr)
     if len(result.failed_frames()) > 10:
         print(f"  ... and {len(result.failed_frames()) - 10} more failed frames (see summary.json)", file=sys.stderr)
+    return 0
+
+
+def _cmd_run(args):
+    from .io.results import write_forces, write_json, write_kinematics
+    from .jobs import run_job
+
+    kin, dyn, info = run_job(args.model, args.trial, cutoff_hz=args.cutoff, progress=not args.no_progress,
+                             start=args.start, end=args.end)
+    write_kinematics(args.out, kin, {"input": info})
+    write_forces(args.out, dyn)
+    write_json(f"{args.out}/summary.json", {"input": info, "kinematics": kin.summary(), "inverse_dynamics": dyn.summary()})
+    print(
+        f"run: kinematics {int(kin.converged.sum())}/{len(kin.time)} frames, inverse dynamics "
+        f"{int(dyn.converged.sum())}/{len(dyn.time)} frames converged -> {args.out}/forces.csv"
+    )
+    for i, t, msg in dyn.failed_frames()[:10]:
+        print(f"  failed: {msg}", file=sys.stderr)
     return 0
 
 
@@ -94,6 +113,16 @@ def build_parser():
     k.add_argument("--end", type=float, default=None, help="last analysed time (s)")
     k.add_argument("--no-progress", action="store_true", help="no progress bar")
     k.set_defaults(func=_cmd_kinematics)
+
+    r = sub.add_parser("run", help="kinematics, then inverse dynamics with muscle recruitment")
+    r.add_argument("model", help="model file (YAML)")
+    r.add_argument("trial", nargs="?", help="C3D file (omit for determinate kinematics)")
+    r.add_argument("--out", required=True, help="output directory")
+    r.add_argument("--cutoff", type=float, default=None, help="marker low-pass cutoff in Hz (0 = no filter)")
+    r.add_argument("--start", type=float, default=None, help="first analysed time (s)")
+    r.add_argument("--end", type=float, default=None, help="last analysed time (s)")
+    r.add_argument("--no-progress", action="store_true", help="no progress bar")
+    r.set_defaults(func=_cmd_run)
 
     b = sub.add_parser("bench", help="run the benchmarks")
     b.add_argument("--quick", action="store_true", help="short runs (for tests)")

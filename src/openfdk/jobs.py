@@ -64,3 +64,14 @@ def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, s
     times = analysis_window(model, np.asarray(trial.time, dtype=float), start, end)
     info.update({"trial": str(Path(trial_path)), "rate_hz": trial.rate, "markers": list(trial.labels)})
     return run_tracking(model, traj, times, alpha=alpha, progress=progress), info
+
+
+def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=None, end=None):
+    """Kinematics then inverse dynamics with muscle recruitment.
+    Returns (KinematicsResult, InverseDynamicsResult, info)."""
+    from .analysis.inverse_dynamics import run_inverse_dynamics
+
+    model = load_model(model_path) if not hasattr(model_path, "bodies") else model_path
+    kin, info = kinematics_job(model, trial_path, cutoff_hz, progress, start, end)
+    info["model"] = str(model_path) if not hasattr(model_path, "bodies") else model.name
+    return kin, run_inverse_dynamics(model, kin, progress=progress), info

@@ -105,3 +105,36 @@ def write_kinematics(out_dir, result, extra_summary=None):
         summary.update(extra_summary)
     write_json(out / "summary.json", summary)
     return out
+
+
+def forces_columns(res):
+    """Columns of forces.csv for an InverseDynamicsResult (N; activation = f/s)."""
+    cols = {"time": res.time, "converged": res.converged.astype(int), "status": list(res.status),
+            "recruitment_iterations": res.iterations}
+    nm = len(res.muscle_names)
+    for k, name in enumerate(res.muscle_names):
+        cols[f"{name}.force_N"] = res.forces[:, k]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cols[f"{name}.activation"] = res.forces[:, k] / res.muscle_strength[:, k]
+        cols[f"{name}.passive_N"] = res.muscle_passive[:, k]
+        cols[f"{name}.strength_N"] = res.muscle_strength[:, k]
+        cols[f"{name}.length_m"] = res.muscle_length[:, k]
+    for k in range(nm, len(res.column_names)):
+        cols[f"{res.column_names[k]}.reaction"] = res.forces[:, k]
+    for k, name in enumerate(res.ligament_names):
+        cols[f"{name}.force_N"] = res.ligament_force[:, k]
+        cols[f"{name}.strain"] = res.ligament_strain[:, k]
+        cols[f"{name}.length_m"] = res.ligament_length[:, k]
+    for k, name in enumerate(res.spring_names):
+        cols[f"{name}.force"] = res.spring_force[:, k]
+    for key, arr in res.extra.get("columns", {}).items():
+        cols[key] = arr
+    cols["message"] = list(res.messages)
+    return cols
+
+
+def write_forces(out_dir, res):
+    """Write ``forces.csv`` into ``out_dir``."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_table(out / "forces.csv", forces_columns(res))

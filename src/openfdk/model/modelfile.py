@@ -30,6 +30,19 @@ FORMAT_VERSION = 1
 
 #: section name -> loader(builder, data, ctx); filled by later layers
 SECTION_LOADERS: dict = {}
+#: modules that register further sections when imported
+SECTION_MODULES = ("openfdk.forces.sections", "openfdk.contact.sections")
+
+
+def _register_sections():
+    import importlib
+
+    for name in SECTION_MODULES:
+        try:
+            importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            if exc.name != name:
+                raise
 
 CORE_SECTIONS = (
     "openfdk", "name", "units", "gravity", "bodies", "measures", "joints",
@@ -113,6 +126,7 @@ def load_model(path) -> Model:
 
 def model_from_dict(data, source="<dict>", base_dir=None) -> Model:
     """Build a model from the parsed YAML mapping (see docs/model-file.md)."""
+    _register_sections()
     ctx = Ctx(source, base_dir=base_dir)
     if not isinstance(data, dict):
         raise ModelError(f"{source}: the file must contain a mapping with sections {list(CORE_SECTIONS)}")

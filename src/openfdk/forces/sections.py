@@ -1,0 +1,134 @@
+"""Model-file sections of the force layer: muscles, ligaments, springs, reactions
+(unilateral), loads and recruitment (format: docs/model-file.md, docs/muscles.md,
+docs/ligaments.md). Registered into :data:`openfdk.model.modelfile.SECTION_LOADERS`.
+
+Units: lengths in the file's length unit, angles in its angle unit; forces N, moments
+N m, stiffness N/m (ligaments, length springs) or N m/rad (angle springs) — always SI.
+"""
+
+from __future__ import annotations
+
+from ..model.modelfile import SECTION_LOADERS, _function, _measure, _unit_scale, _wrap
+from . import elements as el
+from .hill import ConstantStrengthMuscle, Hill3ElementMuscle
+
+HILL_LENGTH_KEYS = ("optimal_fibre_length", "tendon_slack_length")
+HILL_KEYS = (
+    "max_isometric_force", "tendon_strain_at_max_force", "pennation_angle_at_optimal",
+    "fast_fibre_fraction", "passive_shape_factor", "passive_strain_at_max_force",
+    "max_contraction_velocity", "force_length_width", "max_eccentric_force",
+) + HILL_LENGTH_KEYS
+
+
+def _points(ctx, value, path):
+    if not isinstance(value, list) or len(value) < 2 or not all(isinstance(p, str) for p in value):
+        raise ctx.error(path, f"expected a list of at least 2 points ('body.point'), got {value!r}")
+    return value
+
+
+def load_muscles(b, data, ctx):
+    for name, spec in ctx.mapping(data, "muscles").items():
+        p = f"muscles.{name}"
+        ctx.keys(spec, p, ["path", "model", "strength", *HILL_KEYS], required=("path",))
+        kind = spec.get("model", "hill" if "max_isometric_force" in spec else "constant")
+        points = _points(ctx, spec["path"], f"{p}.path")
+        if kind == "constant":
+            if "strength" not in spec:
+                raise ctx.error(p, "a constant-strength muscle needs 'strength' (N)")
+            law = _wrap(ctx, p, lambda: ConstantStrengthMuscle(ctx.number(spec["strength"], f"{p}.strength", positive=True), name))
+        elif kind == "hill":
+            kw = {}
+            for k in HILL_KEYS:
+                if k in spec:
+                    v = ctx.number(spec[k], f"{p}.{k}")
+                    kw[k] = v * (ctx.length if k in HILL_LENGTH_KEYS else ctx.angle if k == "pennation_angle_at_optimal" else 1.0)
+            for k in ("max_isometric_force", *HILL_LENGTH_KEYS):
+                if k not in kw:
+                    raise ctx.error(p, f"a Hill muscle needs {k!r}")
+            law = _wrap(ctx, p, lambda: _hill(name, kw, ctx, p))
+        else:
+            raise ctx.error(f"{p}.model", f"unknown muscle model {kind!r}; expected 'constant' or 'hill'")
+        _wrap(ctx, p, lambda: el.add_muscle(b, name, points, law))
+
+
+def _hill(name, kw, ctx, path):
+    try:
+        return Hill3ElementMuscle(name=name, **kw)
+    except ValueError as exc:
+        raise ctx.error(path, str(exc)) from None
+
+
+def load_ligaments(b, data, ctx):
+    for name, spec in ctx.mapping(data, "ligaments").items():
+        p = f"ligaments.{name}"
+        ctx.keys(spec, p, ["path", "stiffness", "slack_length", "reference_length", "reference_strain",
+                           "transition_strain"], required=("path", "stiffness"))
+        points = _points(ctx, spec["path"], f"{p}.path")
+        k = ctx.number(spec["stiffness"], f"{p}.stiffness", positive=True)
+        slack = ctx.number(spec["slack_length"], f"{p}.slack_length", positive=True) * ctx.length if "slack_length" in spec else None
+        lref = spec.get("reference_length", "reference_pose")
+        lref = None if lref == "reference_pose" else ctx.number(lref, f"{p}.reference_length", positive=True) * ctx.length
+        eps_r = ctx.number(spec.get("reference_strain", 0.0), f"{p}.reference_strain")
+        eps_l = ctx.number(spec.get("transition_strain", 0.03), f"{p}.transition_strain", positive=True)
+        _wrap(ctx, p, lambda: el.add_ligament(b, name, points, k, slack, lref, eps_r, eps_l))
+
+
+def load_springs(b, data, ctx):
+    for name, spec in ctx.mapping(data, "springs").items():
+        p = f"springs.{name}"
+        ctx.keys(spec, p, ["measure", "component", "stiffness", "rest_value"], required=("measure", "stiffness"))
+        m = _measure(b, spec["measure"], f"{p}.measure", ctx)
+        if "component" in spec:
+            m = _wrap(ctx, p, lambda: b._select(m, [spec["component"]]))
+        unit = m.units[0]
+        scale = _unit_scale(unit, ctx)
+        rest = ctx.number(spec.get("rest_value", 0.0), f"{p}.rest_value") * scale
+        k = ctx.number(spec["stiffness"], f"{p}.stiffness", nonnegative=True)
+        _wrap(ctx, p, lambda: el.add_spring(b, name, m, k, rest, {"length": "m", "angle": "rad"}.get(unit, "1")))
+
+
+def load_reactions(b, data, ctx):
+    for name, spec in ctx.mapping(data, "reactions").items():
+        p = f"reactions.{name}"
+        ctx.keys(spec, p, ["joint", "row", "direction", "strength"], required=("joint",))
+        row = spec.get("row", 0)
+        if not isinstance(row, int) or isinstance(row, bool):
+            raise ctx.error(f"{p}.row", f"expected a row index, got {row!r}")
+        strength = ctx.number(spec.get("strength", 20e3), f"{p}.strength", positive=True)
+        _wrap(ctx, p, lambda: el.add_unilateral_reaction(b, spec["joint"], row, spec.get("direction", "push"), strength, name))
+
+
+def load_loads(b, data, ctx):
+    for name, spec in ctx.mapping(data, "loads").items():
+        p = f"loads.{name}"
+        ctx.keys(spec, p, ["point", "force", "moment", "frame"], required=("point",))
+
+        def vec(key):
+            v = spec.get(key)
+            if v is None:
+                return None
+            if isinstance(v, dict):  # a time function in SI units (N or N m)
+                return _function(v, ("1", "1", "1"), f"{p}.{key}", ctx)
+            return ctx.vector(v, f"{p}.{key}", n=3)
+
+        _wrap(ctx, p, lambda: el.add_external_load(b, name, spec["point"], vec("force"), vec("moment"), spec.get("frame", "world")))
+
+
+def load_recruitment(b, data, ctx):
+    ctx.keys(data, "recruitment", ["criterion", "power", "tolerance"])
+    _wrap(ctx, "recruitment", lambda: el.set_recruitment(
+        b, data.get("criterion", "polynomial"), ctx.number(data.get("power", 3.0), "recruitment.power"),
+        ctx.number(data.get("tolerance", 1e-10), "recruitment.tolerance", positive=True)))
+
+
+SECTION_LOADERS.update(
+    {
+        "muscles": load_muscles,
+        "ligaments": load_ligaments,
+        "springs": load_springs,
+        "reactions": load_reactions,
+        "loads": load_loads,
+        "recruitment": load_recruitment,
+    }
+)
+
