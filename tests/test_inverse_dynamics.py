@@ -124,3 +124,35 @@ def test_infeasible_frame_is_flagged_and_run_continues():
     res = run_inverse_dynamics(model, run_determinate(model, np.array([0.0, 0.1])))
     assert not res.converged.any()
     assert "bar.Mz" in res.messages[0]
+
+
+def test_slider_crank_motor_power_equals_rate_of_mechanical_energy(request):
+    """Physical invariant for a frictionless mechanism: the motor's power τ θ̇ equals
+    d/dt (kinetic + potential energy); the joint reactions do no work."""
+    from openfdk.model.modelfile import load_model
+
+    model = load_model(request.config.rootpath / "examples/slider_crank.yaml")
+    h = 1e-4
+    centres = np.array([0.13, 0.41, 0.77])
+    times = np.sort(np.concatenate([centres - h, centres, centres + h]))
+    kin = run_determinate(model, times)
+    res = run_inverse_dynamics(model, kin)
+    assert kin.converged.all() and res.converged.all()
+
+    def energy(k):
+        E = 0.0
+        for b in model.moving_bodies:
+            c = b.column
+            i = c // 6
+            v, w = kin.v[k, c : c + 3], kin.v[k, c + 3 : c + 6]
+            r = kin.q[k, 7 * i : 7 * i + 3]
+            E += 0.5 * b.mass * v @ v + 0.5 * w @ b.inertia_B @ w - b.mass * model.gravity_W @ r
+        return E
+
+    tau = res.forces[:, res.column_names.index("crank_drive")]
+    omega = 2 * np.pi
+    for j in range(3):
+        k = 3 * j + 1
+        dE = (energy(k + 1) - energy(k - 1)) / (2 * h)
+        assert abs(tau[k] * omega) > 0.5  # the motor does real work here
+        assert tau[k] * omega == pytest.approx(dE, rel=1e-5, abs=1e-6)

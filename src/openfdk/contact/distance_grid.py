@@ -7,7 +7,7 @@ marking each triangle's inflated bounding box) are evaluated, with the exact met
 ``[φ, ∂φ/∂x, ∂φ/∂y, ∂φ/∂z]`` (float32). Nodes outside the band, and nodes whose closest
 point is on the boundary rim, hold φ = NaN.
 
-Query (:func:`trilinear_sample`): trilinear weights applied to the corner values
+Query (:func:`sample_grid`): trilinear weights applied to the corner values
 corrected by half their tangent-plane step, which cancels the h²-term of plain trilinear
 interpolation (plain trilinear errs by ≈ (h²/8)·Σ|∂²φ/∂x_k²| ≈ h²/(4ρ) for curvature
 radius ρ); the stored gradients are interpolated trilinearly and normalised to give the
@@ -32,7 +32,7 @@ from .mesh import SurfaceMesh
 from .signed_distance import OpenSurfaceDistance
 
 __all__ = ["SignedDistanceGrid", "build_distance_grid", "cached_distance_grid",
-           "clear_grid_cache"]
+           "clear_grid_cache", "sample_grid", "band_occupancy"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,12 +74,15 @@ class SignedDistanceGrid:
         normal_B (k, 3) unit (NaN likewise).
         """
         P = np.ascontiguousarray(p_BQ, dtype=np.float64).reshape(-1, 3)
-        phi = np.empty(P.shape[0])
-        normal = np.empty((P.shape[0], 3))
+        k = P.shape[0]
+        index = np.empty(k, np.int64)
+        phi = np.empty(k)
+        normal = np.empty((k, 3))
+        y = np.empty((k, 3))
         nx, ny, nz = self.shape
-        _query_points(P, self.values.reshape(-1), self.cell_valid.reshape(-1), nx, ny, nz,
-                      self.origin_B,
-                      1.0 / self.spacing, phi, normal)
+        sample_grid(P, np.eye(3), np.zeros(3), self.values.reshape(-1),
+                    self.cell_valid.reshape(-1), nx, ny, nz, self.origin_B,
+                    1.0 / self.spacing, self.max_depth, False, index, phi, normal, y)
         return phi, normal
 
 
@@ -121,80 +124,129 @@ def _swept_face_boxes(mesh, depth_behind, margin):
     return swept.min(axis=1) - spread[:, None], swept.max(axis=1) + spread[:, None]
 
 
-@njit(cache=True, inline="always")
-def trilinear_sample(flat, cells, nx, ny, nz, origin, inv_h, y0, y1, y2, out):
-    """Gradient-corrected trilinear interpolation of φ and ∇φ at one point (m, in B).
+@njit(cache=True)
+def sample_grid(points, R, t, flat, cells, nx, ny, nz, origin, inv_h, max_depth,
+                contact_only, index, phi, grad, p_out):
+    """Transform points and interpolate φ and ∇φ at them (the numba query kernel).
 
-    With trilinear weights w_c of the 8 corners x_c of the cell holding y,
-        φ̂(y) = Σ_c w_c [φ_c + ½ ∇φ_c · (y − x_c)],      ∇̂φ(y) = Σ_c w_c ∇φ_c.
-    Plain trilinear interpolation overestimates a convex φ by ½ Σ_k φ_kk t_k(1−t_k)h²;
-    the blend of corner tangent planes Σ w_c [φ_c + ∇φ_c·(y − x_c)] underestimates it by
-    the same amount, so their average (above) is exact for quadratic φ (error O(h³)).
-    ``flat`` is the grid's ``values`` (nx, ny, nz, 4) raveled (C order) and ``cells`` its
-    ``cell_valid`` (nx−1, ny−1, nz−1) raveled. Writes out[0] = φ̂ (m), out[1:4] = ∇̂φ
-    (not normalised); returns False when the point is outside the grid or its cell has
-    a NaN corner (outside the band / at the rim) — decided from the 1-byte cell mask
-    before the 16-byte nodes are touched.
+    Each point is mapped to y = R·x + t (B's frame, m), then
+        φ̂(y) = Σ_c w_c [φ_c + ½ ∇φ_c · (y − x_c)],      ∇̂φ(y) = Σ_c w_c ∇φ_c,
+    with trilinear weights w_c of the 8 corners x_c of the cell holding y. Plain
+    trilinear interpolation overestimates a convex φ by ½ Σ_k φ_kk t_k(1−t_k)h²; the
+    blend of corner tangent planes Σ w_c [φ_c + ∇φ_c·(y − x_c)] underestimates it by the
+    same amount, so their average (above) is exact for quadratic φ (error O(h³)).
+    A point outside the grid box, or whose cell has a NaN corner (``cells`` mask = 0:
+    outside the band or at the rim), has no value — decided from the 1-byte mask before
+    the 16-byte nodes are read.
+
+    Parameters
+    ----------
+    points : (n, 3) m. R : (3, 3), t : (3,) m — map into B.
+    flat : the grid's values (nx, ny, nz, 4) raveled; cells : cell_valid raveled.
+    origin : (3,) m; inv_h : 1/m; max_depth : m.
+    contact_only : if True, keep only points with 0 < −φ̂ ≤ max_depth, compacted in
+        order (index[m] = point number); else every point, φ = NaN where no value.
+    index (n,) int, phi (n,) m, grad (n, 3) unit normal, p_out (n, 3) m (y) — outputs.
+
+    Returns the number of rows written.
     """
-    u0 = (y0 - origin[0]) * inv_h
-    u1 = (y1 - origin[1]) * inv_h
-    u2 = (y2 - origin[2]) * inv_h
-    if not (u0 >= 0.0 and u1 >= 0.0 and u2 >= 0.0):
-        return False
-    i = int(u0)
-    j = int(u1)
-    k = int(u2)
-    if i >= nx - 1 or j >= ny - 1 or k >= nz - 1:
-        return False
     sk = 4
     sj = 4 * nz
     si = 4 * nz * ny
-    base = i * si + j * sj + k * sk
-    if cells[(i * (ny - 1) + j) * (nz - 1) + k] == 0:
-        return False
-    f0 = u0 - i
-    f1 = u1 - j
-    f2 = u2 - k
     half_h = 0.5 / inv_h
-    phi = 0.0
-    g0 = 0.0
-    g1 = 0.0
-    g2 = 0.0
-    for di in range(2):
-        w0 = f0 if di == 1 else 1.0 - f0
-        for dj in range(2):
-            w01 = w0 * (f1 if dj == 1 else 1.0 - f1)
-            for dk in range(2):
-                w = w01 * (f2 if dk == 1 else 1.0 - f2)
-                q = base + di * si + dj * sj + dk * sk
-                n0 = flat[q + 1]
-                n1 = flat[q + 2]
-                n2 = flat[q + 3]
-                # φ_c + ½ ∇φ_c·(y − x_c), (y − x_c) = h (f − corner offset)
-                phi += w * (flat[q] + half_h * (n0 * (f0 - di) + n1 * (f1 - dj) + n2 * (f2 - dk)))
-                g0 += w * n0
-                g1 += w * n1
-                g2 += w * n2
-    out[0] = phi
-    out[1] = g0
-    out[2] = g1
-    out[3] = g2
-    return True
+    count = 0
+    for q in range(points.shape[0]):
+        x0 = points[q, 0]
+        x1 = points[q, 1]
+        x2 = points[q, 2]
+        y0 = R[0, 0] * x0 + R[0, 1] * x1 + R[0, 2] * x2 + t[0]
+        y1 = R[1, 0] * x0 + R[1, 1] * x1 + R[1, 2] * x2 + t[1]
+        y2 = R[2, 0] * x0 + R[2, 1] * x1 + R[2, 2] * x2 + t[2]
+        u0 = (y0 - origin[0]) * inv_h
+        u1 = (y1 - origin[1]) * inv_h
+        u2 = (y2 - origin[2]) * inv_h
+        ok = u0 >= 0.0 and u1 >= 0.0 and u2 >= 0.0
+        i = 0
+        j = 0
+        k = 0
+        if ok:
+            i = int(u0)
+            j = int(u1)
+            k = int(u2)
+            ok = i < nx - 1 and j < ny - 1 and k < nz - 1
+        if ok:
+            ok = cells[(i * (ny - 1) + j) * (nz - 1) + k] != 0
+        if not ok:
+            if not contact_only:
+                index[count] = q
+                phi[count] = np.nan
+                grad[count, 0] = np.nan
+                grad[count, 1] = np.nan
+                grad[count, 2] = np.nan
+                p_out[count, 0] = y0
+                p_out[count, 1] = y1
+                p_out[count, 2] = y2
+                count += 1
+            continue
+        f0 = u0 - i
+        f1 = u1 - j
+        f2 = u2 - k
+        base = i * si + j * sj + k * sk
+        value = 0.0
+        g0 = 0.0
+        g1 = 0.0
+        g2 = 0.0
+        for di in range(2):
+            w0 = f0 if di == 1 else 1.0 - f0
+            for dj in range(2):
+                w01 = w0 * (f1 if dj == 1 else 1.0 - f1)
+                for dk in range(2):
+                    w = w01 * (f2 if dk == 1 else 1.0 - f2)
+                    c = base + di * si + dj * sj + dk * sk
+                    n0 = flat[c + 1]
+                    n1 = flat[c + 2]
+                    n2 = flat[c + 3]
+                    # φ_c + ½ ∇φ_c·(y − x_c), with y − x_c = h (f − corner offset)
+                    value += w * (flat[c] + half_h * (n0 * (f0 - di) + n1 * (f1 - dj)
+                                                      + n2 * (f2 - dk)))
+                    g0 += w * n0
+                    g1 += w * n1
+                    g2 += w * n2
+        if contact_only and (value >= 0.0 or -value > max_depth):
+            continue
+        norm = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+        index[count] = q
+        phi[count] = value
+        grad[count, 0] = g0 / norm
+        grad[count, 1] = g1 / norm
+        grad[count, 2] = g2 / norm
+        p_out[count, 0] = y0
+        p_out[count, 1] = y1
+        p_out[count, 2] = y2
+        count += 1
+    return count
 
 
-@njit(cache=True)
-def _query_points(P, flat, cells, nx, ny, nz, origin, inv_h, phi, normal):
-    out = np.empty(4)
-    for q in range(P.shape[0]):
-        if trilinear_sample(flat, cells, nx, ny, nz, origin, inv_h, P[q, 0], P[q, 1], P[q, 2], out):
-            phi[q] = out[0]
-            norm = np.sqrt(out[1] ** 2 + out[2] ** 2 + out[3] ** 2)
-            for c in range(3):
-                normal[q, c] = out[1 + c] / norm
-        else:
-            phi[q] = np.nan
-            for c in range(3):
-                normal[q, c] = np.nan
+def band_occupancy(mesh: SurfaceMesh, max_depth: float, voxel: float):
+    """Coarse boolean voxels covering every point within the band behind ``mesh``.
+
+    No distance is computed: voxel centres inside the swept, inflated triangle boxes of
+    :func:`_swept_face_boxes` (depth ``max_depth``) are marked. A point within the band
+    (−max_depth ≤ φ ≤ 0) always rounds to a marked voxel centre, so the mask culls
+    points before exact closest-point queries without losing any contact.
+
+    Returns mask (nx, ny, nz) bool, origin_B (3,) m of voxel centre (0, 0, 0), voxel m.
+    """
+    V = mesh.vertices_B
+    pad = max_depth + voxel
+    lo = V.min(axis=0) - pad
+    hi = V.max(axis=0) + pad
+    shape = tuple(int(np.ceil((hi[d] - lo[d]) / voxel)) + 1 for d in range(3))
+    mask = np.zeros(shape, dtype=np.bool_)
+    box_lo, box_hi = _swept_face_boxes(mesh, max_depth, 1e-6)
+    half_diagonal = 0.5 * np.sqrt(3.0) * voxel
+    _mark_boxes(box_lo - half_diagonal, box_hi + half_diagonal, lo, 1.0 / voxel, mask)
+    return mask, lo, float(voxel)
 
 
 def _difference_gradient(phi, grad_exact, h):

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .distance_grid import cached_distance_grid, trilinear_sample
+from .distance_grid import band_occupancy, cached_distance_grid, sample_grid
 from .mesh import SurfaceMesh
 from .signed_distance import OpenSurfaceDistance
 
@@ -148,10 +148,11 @@ class ElasticFoundation:
         else:
             self.grid = None
             self._exact = OpenSurfaceDistance(surface_B)
-            V = surface_B.vertices_B
-            # cull box: B's bounding box in b's frame, inflated by the band depth
-            self._box_lo = V.min(axis=0) - self.max_depth
-            self._box_hi = V.max(axis=0) + self.max_depth
+            # cull mask: coarse voxels (about max_depth/2, ≥ 0.5 mm) around the band of B;
+            # its extent is B's bounding box in b's frame inflated by the band depth
+            voxel = max(0.5 * self.max_depth, 0.5e-3)
+            self._cull_mask, self._cull_origin, self._cull_voxel = band_occupancy(
+                surface_B, self.max_depth, voxel)
 
     def __repr__(self) -> str:
         return (
@@ -177,15 +178,21 @@ class ElasticFoundation:
             depth = np.empty(n)
             g_B = np.empty((n, 3))
             y_B = np.empty((n, 3))
-            k = _grid_penetration(self._s_A, R_ba, p_ba, self._flat, self._cells,
-                                  *self._grid_shape,
-                                  self._origin, self._inv_h, self.max_depth,
-                                  idx, depth, g_B, y_B)
+            # cull + interpolate in one numba pass; vertices outside the grid box (B's box
+            # inflated by the band) are rejected by the bounds test before any lookup
+            k = sample_grid(self._s_A, R_ba, p_ba, self._flat, self._cells,
+                            *self._grid_shape, self._origin, self._inv_h, self.max_depth,
+                            True, idx, depth, g_B, y_B)
+            depth[:k] *= -1.0  # d_i = −φ_B(y_i)
             return idx[:k], depth[:k], g_B[:k], y_B[:k]
         y_all = self._s_A @ R_ba.T + p_ba
-        # cull vertices outside B's inflated box before any closest-point query
-        inside = np.all((y_all >= self._box_lo) & (y_all <= self._box_hi), axis=1)
+        # cull vertices outside B's inflated box, then outside the band voxels, before
+        # any closest-point query
+        ijk = np.rint((y_all - self._cull_origin) / self._cull_voxel).astype(np.int64)
+        shape = np.array(self._cull_mask.shape)
+        inside = np.all((ijk >= 0) & (ijk < shape), axis=1)
         cand = np.flatnonzero(inside)
+        cand = cand[self._cull_mask[ijk[cand, 0], ijk[cand, 1], ijk[cand, 2]]]
         phi, g_B, valid, _ = self._exact.query(y_all[cand])
         depth = -phi
         hit = valid & (depth > 0.0) & (depth <= self.max_depth)
@@ -238,39 +245,6 @@ def _pose(r_Wa, R_Wa, r_Wb, R_Wb):
             np.ascontiguousarray(R_Wa, dtype=np.float64).reshape(3, 3),
             np.asarray(r_Wb, dtype=np.float64).reshape(3),
             np.ascontiguousarray(R_Wb, dtype=np.float64).reshape(3, 3))
-
-
-@njit(cache=True)
-def _grid_penetration(s_A, R_ba, p_ba, flat, cells, nx, ny, nz, origin, inv_h, max_depth,
-                      idx, depth, g_B, y_B):
-    """Depths of A's vertices behind B from the grid; returns the number in contact.
-
-    Vertices outside the grid box (B's box inflated by the band) are culled by the
-    bounds test of the trilinear sampler before any interpolation.
-    """
-    out = np.empty(4)
-    count = 0
-    for i in range(s_A.shape[0]):
-        # y = R_ba s_i + p_ba: vertex in b's frame
-        y0 = R_ba[0, 0] * s_A[i, 0] + R_ba[0, 1] * s_A[i, 1] + R_ba[0, 2] * s_A[i, 2] + p_ba[0]
-        y1 = R_ba[1, 0] * s_A[i, 0] + R_ba[1, 1] * s_A[i, 1] + R_ba[1, 2] * s_A[i, 2] + p_ba[1]
-        y2 = R_ba[2, 0] * s_A[i, 0] + R_ba[2, 1] * s_A[i, 1] + R_ba[2, 2] * s_A[i, 2] + p_ba[2]
-        if not trilinear_sample(flat, cells, nx, ny, nz, origin, inv_h, y0, y1, y2, out):
-            continue
-        d = -out[0]  # d_i = −φ_B(y_i)
-        if d <= 0.0 or d > max_depth:
-            continue
-        norm = np.sqrt(out[1] * out[1] + out[2] * out[2] + out[3] * out[3])
-        idx[count] = i
-        depth[count] = d
-        g_B[count, 0] = out[1] / norm
-        g_B[count, 1] = out[2] / norm
-        g_B[count, 2] = out[3] / norm
-        y_B[count, 0] = y0
-        y_B[count, 1] = y1
-        y_B[count, 2] = y2
-        count += 1
-    return count
 
 
 @njit(cache=True)

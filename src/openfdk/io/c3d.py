@@ -396,9 +396,12 @@ def inspect_c3d(path: str | os.PathLike) -> C3DLayout:
     # must hold at least one value of the right kind when present
     for key in _SCALAR_NUMERIC_PARAMETERS:
         value = parameters.get(key)
-        if value is not None and (isinstance(value, list) or len(value) == 0):
-            raise C3DError(f"{name}: parameter {key} must hold a number, found "
-                           f"{value!r}")
+        if value is not None and (isinstance(value, list) or len(value) == 0
+                                  or not np.isfinite(value[0])
+                                  or (value[0] < 0 and key != "POINT:SCALE")):
+            raise C3DError(f"{name}: parameter {key} must hold a finite "
+                           f"{'' if key == 'POINT:SCALE' else 'non-negative '}number, "
+                           f"found {value!r}")
 
     # the parameters describe the data too (and win where they differ, C3D User Guide);
     # where one is absent, the header value stands
@@ -412,7 +415,9 @@ def inspect_c3d(path: str | os.PathLike) -> C3DLayout:
     if param_scale is not None and (param_scale < 0) != is_float:
         raise C3DError(f"{name}: header scale factor {scale_factor:g} and POINT:SCALE "
                        f"{param_scale:g} disagree on float vs integer storage")
-    if param_points and not (np.isfinite(param_rate) and param_rate > 0):
+    if n_points == 0 and param_points == 0:
+        raise C3DError(f"{name}: contains no 3D points (header and POINT:USED say 0)")
+    if not (np.isfinite(param_rate) and param_rate > 0):
         raise C3DError(f"{name}: point rate is {param_rate}, expected a positive rate in Hz")
 
     labels = [lab for key, value in parameters.items() if _is_continuation(key, "POINT:LABELS")
@@ -427,9 +432,8 @@ def inspect_c3d(path: str | os.PathLike) -> C3DLayout:
                   if analog_samples_per_frame else 0)
     param_channels = _as_count(_first_number(parameters, "ANALOG:USED"))
     analog_rate = _first_number(parameters, "ANALOG:RATE")
-    param_samples = (int(round(analog_rate / param_rate))
-                     if analog_rate and param_rate and param_rate > 0 else
-                     analog_samples_per_frame)
+    param_samples = (int(round(analog_rate / param_rate)) if analog_rate
+                     else analog_samples_per_frame)
     channels_needed = max(n_channels, param_channels or 0)
     if channels_needed and not any(k.startswith("SHADOW:") for k in parameters):
         if _first_number(parameters, "ANALOG:GEN_SCALE") is None:
@@ -471,10 +475,14 @@ def inspect_c3d(path: str | os.PathLike) -> C3DLayout:
     if n_rotations:
         ratio = _first_number(parameters, "ROTATION:RATIO")
         rotation_rate = _first_number(parameters, "ROTATION:RATE")
-        if not ratio and rotation_rate and param_rate:
+        if not ratio and rotation_rate:
             ratio = rotation_rate / param_rate
+        ratio = int(round(ratio or 0))
         start_block = _as_count(_first_number(parameters, "ROTATION:DATA_START")) or 0
-        rotation_bytes = param_frames * int(round(ratio or 0)) * n_rotations * 17 * 4
+        rotation_bytes = param_frames * ratio * n_rotations * 17 * 4
+        if ratio < 1:
+            raise C3DError(f"{name}: {n_rotations} rotations but no positive "
+                           f"ROTATION:RATIO or ROTATION:RATE")
         if start_block < 2 or (start_block - 1) * BLOCK_BYTES + rotation_bytes > file_size:
             raise C3DError(
                 f"{name} is truncated: ROTATION parameters promise {param_frames} frames of "
