@@ -51,40 +51,47 @@ def spline_errors(rate, duration=2.0):
 def test_spline_reproduces_analytic_trajectory_within_error_bounds():
     """Hall & Meyer (1976) bounds for a cubic spline interpolant of f ∈ C⁴ with knot
     spacing h: |f − s| ≤ 5/384 h⁴ M₄, |f' − s'| ≤ 1/24 h³ M₄, |f'' − s''| ≤ 3/8 h² M₄,
-    M₄ = max|f⁗| = A ω⁴ here (the cubic z axis has f⁗ = 0).  They hold for the complete
-    spline; away from the ends the not-a-knot spline's end effects have decayed (they fall
-    by ≈ 0.27 per knot), so the interior is held to the bounds; near the ends the
-    not-a-knot pieces have a larger constant and are held to twice the bounds."""
+    M₄ = max|f⁗| = A ω⁴ here (the cubic z axis has f⁗ = 0 and is reproduced exactly).
+    They are proved for the complete (clamped) spline; away from the ends the
+    not-a-knot spline's end effects have decayed (by ≈ 0.27 per knot), so the interior
+    (10 samples in from each end) is held to them.  The not-a-knot end pieces have a
+    larger error constant (≈ 2.2× here); they are held to the same orders of
+    convergence, O(h⁴), O(h³), O(h²), by halving h, and to 4× the bounds."""
     rate = 100.0
     h = 1.0 / rate
     M4 = A * OMEGA ** 4
     bounds = np.array([5 / 384 * h ** 4 * M4, h ** 3 * M4 / 24, 3 / 8 * h ** 2 * M4])
     interior, overall = spline_errors(rate)
     assert np.all(interior <= bounds), (interior, bounds)
-    assert np.all(overall <= 2 * bounds), (overall, bounds)
-    assert overall[0] < 1e-6 * A                                # relative position error
+    assert np.all(overall <= 4 * bounds), (overall, bounds)
+    assert overall[0] < 2e-6 * A                                # relative position error
     # convergence order: halving h divides the errors by ≈ 2⁴, 2³, 2²
-    interior_fine, _ = spline_errors(2 * rate)
-    ratios = interior / interior_fine
-    assert ratios[0] > 12 and ratios[1] > 6 and ratios[2] > 3, ratios
+    interior_fine, overall_fine = spline_errors(2 * rate)
+    for coarse, fine in ((interior, interior_fine), (overall, overall_fine)):
+        ratios = coarse / fine
+        assert ratios[0] > 12 and ratios[1] > 6 and ratios[2] > 3, ratios
 
 
 def test_velocity_and_acceleration_are_derivatives_of_position():
     """Central differences of the evaluated positions reproduce the evaluated velocity
-    and acceleration (consistency of the piecewise-polynomial evaluation)."""
+    and acceleration.  Inside one cubic piece the central difference of p has error
+    ε² p‴/6 (ε = 1e-6 → ≈ 1e-10 here) plus round-off ≈ 1e-16/ε; the second difference is
+    exact for a cubic up to round-off ≈ 4e-16/ε² (ε = 1e-4 → 4e-8).  Query times are
+    ≥ 1e-3 s from a knot."""
     rng = np.random.default_rng(11)
     t = np.arange(300) / 100.0
     p = rng.normal(scale=0.01, size=(300, 3, 3)).cumsum(axis=0)   # a rough random walk
     markers = MarkerTrajectories(trial_from(t, p, labels=("a", "b", "c")), cutoff_hz=8.0)
-    eps = 1e-5
     for tq in (0.512, 1.237, 2.9871):
-        p_minus, p0, p_plus = (markers.positions(tq + d) for d in (-eps, 0.0, eps))
         _, v, a, _ = markers.evaluate(tq)
-        v_fd = (p_plus - p_minus) / (2 * eps)
-        a_fd = (p_plus - 2 * p0 + p_minus) / eps ** 2
+        eps = 1e-6
+        v_fd = (markers.positions(tq + eps) - markers.positions(tq - eps)) / (2 * eps)
+        eps = 1e-4
+        a_fd = (markers.positions(tq + eps) - 2 * markers.positions(tq)
+                + markers.positions(tq - eps)) / eps ** 2
         assert np.abs(v).max() > 1e-3 and np.abs(a).max() > 1e-2     # non-trivial
-        np.testing.assert_allclose(v, v_fd, rtol=0, atol=1e-8 * (1 + np.abs(v).max()))
-        np.testing.assert_allclose(a, a_fd, rtol=0, atol=1e-4 * (1 + np.abs(a).max()))
+        np.testing.assert_allclose(v, v_fd, rtol=0, atol=1e-8)
+        np.testing.assert_allclose(a, a_fd, rtol=0, atol=1e-6)
 
 
 def fitted_gain_and_phase(frequency, rate=100.0, cutoff=6.0, order=2):
@@ -150,7 +157,7 @@ def test_gap_is_not_visible_and_does_not_bleed(cutoff):
         assert np.isnan(p[1]).all() and np.isnan(v[1]).all() and np.isnan(a[1]).all()
         assert np.isfinite(p[[0, 2]]).all() and np.isfinite(a[[0, 2]]).all()
     # the segment ends are visible and finite, at the sample and just inside
-    for tq in (t[79], t[79] - 1e-4, t[100], t[100] + 1e-4, 99 / 100 + 0.01 * 1, t[200]):
+    for tq in (t[79], t[79] - 1e-4, t[100], t[100] + 1e-4, 100 * 0.01, t[200]):
         p, v, a, visible = markers.evaluate(tq)
         assert visible.all(), tq
         assert np.isfinite(p).all() and np.isfinite(v).all() and np.isfinite(a).all()
@@ -190,22 +197,26 @@ def test_sample_times_computed_by_round_off_stay_visible():
 
 
 def test_short_segments():
-    """Segments shorter than the filter padding are filtered with a shorter pad; below
-    four samples they are interpolated unfiltered (so they pass through the samples)."""
-    t = np.arange(60) / 100.0
+    """Segments not longer than the filter's padding (9 samples for order 2) are
+    interpolated unfiltered, so they pass through their samples; a 10-sample segment is
+    filtered (moved, but only by the end transient of a smooth motion, < 2 mm)."""
+    t = np.arange(80) / 100.0
     p, _, _ = analytic(t)
-    positions = np.repeat(p[:, None, :], 2, axis=1)
-    mask = np.ones(60, dtype=bool)
-    mask[10:13] = False     # a 3-sample segment: 13..15 visible? build explicitly below
-    positions[:, 0][~np.isin(np.arange(60), [20, 21, 22])] = np.nan     # 3 samples
-    positions[:, 1][~np.isin(np.arange(60), np.arange(30, 36))] = np.nan  # 6 samples
-    markers = MarkerTrajectories(trial_from(t, positions, labels=("three", "six")))
-    for k in (20, 21, 22):
-        np.testing.assert_allclose(markers.positions(t[k])[0], p[k], atol=1e-15)
-    assert markers.visible(t[21] + 0.003)[0] and not markers.visible(t[23])[0]
-    assert np.isfinite(markers.positions(t[32] + 0.004)).all()
-    # a 6-sample segment of a smooth motion is barely changed by a 6 Hz filter
-    assert np.abs(markers.filtered_positions[30:36, 1] - p[30:36]).max() < 1e-3
+    positions = np.repeat(p[:, None, :], 3, axis=1)
+    for m, keep in enumerate((np.arange(20, 23), np.arange(30, 39), np.arange(50, 60))):
+        positions[~np.isin(np.arange(80), keep), m] = np.nan
+    markers = MarkerTrajectories(trial_from(t, positions, labels=("three", "nine", "ten")))
+    assert markers.min_filtered_samples == 10
+    for k in range(20, 23):
+        np.testing.assert_allclose(markers.positions(t[k])[0], p[k], rtol=0, atol=1e-15)
+    for k in range(30, 39):
+        np.testing.assert_allclose(markers.positions(t[k])[1], p[k], rtol=0, atol=1e-15)
+    moved = np.abs(markers.filtered_positions[50:60, 2] - p[50:60])
+    assert 1e-5 < moved.max() < 2e-3
+    assert markers.visible(t[21] + 0.003).tolist() == [True, False, False]
+    assert markers.visible(t[32] + 0.004).tolist() == [False, True, False]
+    assert markers.visible(t[59]).tolist() == [False, False, True]
+    assert not markers.visible(t[23] + 0.001).any()
 
 
 def test_evaluate_agrees_with_single_quantity_methods():

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .model.builder import ModelBuilder
 from .spatial import quat_from_rotvec, rotation_matrix, rotation_matrix_xyz
 
 PLANE_TILT = np.deg2rad(30.0)
@@ -29,22 +28,41 @@ def plane_axes():
     return n, u
 
 
-def two_body_model(jaw_markers=JAW_MARKERS, skull_markers=SKULL_MARKERS):
-    """The two-body model (builder API): skull (tracked), jaw, point-on-plane joint."""
+def two_body_model_dict():
+    """The two-body model as a model-file mapping (mm, deg): skull (tracked, no
+    equilibrium rows), jaw, point-on-plane joint, 4 markers per body. Written as YAML by
+    the demo; :func:`two_body_model` builds it."""
     n, u = plane_axes()
-    b = ModelBuilder("two-body jaw", gravity=(0, 0, -9.81))
-    b.add_body("skull", 4.0, [0.02, 0.02, 0.02])
-    # plane frame: z along the plane normal
+    mm = lambda v: [round(float(x) * 1e3, 9) for x in v]  # noqa: E731
     y = np.cross(n, u)
-    b.add_frame("skull", "plane", CONDYLE_S, orientation=np.column_stack([u, y, n]))
-    b.add_body("jaw", 0.44, [8.6e-4, 2.9e-4, 6.1e-4], position=JAW_COM_S)
-    b.add_frame("jaw", "condyle", CONDYLE_J - JAW_COM_S)
-    for k, p in enumerate(skull_markers):
-        b.add_marker(f"S{k + 1}", "skull", p)
-    for k, p in enumerate(jaw_markers):
-        b.add_marker(f"J{k + 1}", "jaw", p - JAW_COM_S)
-    b.add_joint("tmj", "point_on_plane", parent="skull.plane", child="jaw.condyle")
-    return b.build()
+    return {
+        "openfdk": 1,
+        "name": "two-body jaw",
+        "units": {"length": "mm", "angle": "deg"},
+        "gravity": [0.0, 0.0, -9.81],
+        "bodies": {
+            "skull": {
+                "mass": 4.0, "inertia": [0.02, 0.02, 0.02], "equilibrium": False,
+                "frames": {"plane": {"position": mm(CONDYLE_S),
+                                     "orientation": {"matrix": np.column_stack([u, y, n]).round(12).tolist()}}},
+                "markers": {f"S{k + 1}": mm(p) for k, p in enumerate(SKULL_MARKERS)},
+            },
+            "jaw": {
+                "mass": 0.44, "inertia": [8.6e-4, 2.9e-4, 6.1e-4], "position": mm(JAW_COM_S),
+                "frames": {"condyle": mm(CONDYLE_J - JAW_COM_S)},
+                "markers": {f"J{k + 1}": mm(p - JAW_COM_S) for k, p in enumerate(JAW_MARKERS)},
+            },
+        },
+        "joints": {"tmj": {"type": "point_on_plane", "parent": "skull.plane", "child": "jaw.condyle"}},
+        "analysis": {"marker_cutoff_hz": 8.0},
+    }
+
+
+def two_body_model():
+    """The two-body model (see :func:`two_body_model_dict`)."""
+    from .model.modelfile import model_from_dict
+
+    return model_from_dict(two_body_model_dict(), source="two_body.yaml")
 
 
 def true_motion(t, frequency=1.0, opening_deg=12.0, slide=0.006):

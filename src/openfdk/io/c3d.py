@@ -36,6 +36,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import ezc3d
 import numpy as np
 
 __all__ = [
@@ -200,13 +201,10 @@ class C3DLayout:
 
 def _decode_floats(raw: bytes, processor: int) -> np.ndarray:
     """float32 values stored by ``processor`` → float64 array."""
-    data = np.frombuffer(raw, dtype=np.uint8)
-    if processor == 86:                                    # MIPS: big-endian IEEE
-        return np.frombuffer(raw, dtype=">f4").astype(float)
-    if processor == 85:                                    # DEC: swap 16-bit words, VAX F = IEEE/4
-        swapped = data.reshape(-1, 4)[:, [2, 3, 0, 1]].copy()
+    if processor == 85:            # DEC: 16-bit halves swapped, VAX F value = IEEE value / 4
+        swapped = np.frombuffer(raw, dtype=np.uint8).reshape(-1, 4)[:, [2, 3, 0, 1]].copy()
         return swapped.view("<f4").reshape(-1).astype(float) / 4.0
-    return np.frombuffer(raw, dtype="<f4").astype(float)   # Intel
+    return np.frombuffer(raw, dtype=(">f4" if processor == 86 else "<f4")).astype(float)
 
 
 def _int8(byte: int) -> int:
@@ -504,13 +502,11 @@ def inspect_c3d(path: str | os.PathLike) -> C3DLayout:
 def _string_list(group: dict, key: str) -> list[str]:
     """A character parameter and its continuations (LABELS, LABELS2, LABELS3, …)."""
     values: list[str] = []
-    suffix = ""
-    index = 1
-    while key + suffix in group:
+    for suffix in ("", *map(str, range(2, 100))):
+        if key + suffix not in group:
+            break
         value = group[key + suffix]["value"]
         values.extend([value] if isinstance(value, str) else list(value))
-        index += 1
-        suffix = str(index)
     return values
 
 
@@ -528,8 +524,6 @@ def read_c3d(path: str | os.PathLike) -> MarkerTrial:
     """
     name = os.fspath(path)
     layout = inspect_c3d(name)
-    import ezc3d
-
     try:
         c3d = ezc3d.c3d(name)
     except Exception as exc:  # ezc3d raises RuntimeError/IOError/ValueError by cause
@@ -604,7 +598,6 @@ def write_c3d(path: str | os.PathLike, labels: Sequence[str], positions: np.ndar
         raise C3DError(f"{name}: duplicate marker labels {duplicates}")
     if not (np.isfinite(rate) and rate > 0):
         raise C3DError(f"{name}: rate must be a positive number of Hz, got {rate}")
-    import ezc3d
 
     missing = ~np.all(np.isfinite(positions), axis=2)               # (n_frames, n_markers)
     stored = np.where(missing[:, :, None], 0.0, positions / UNIT_TO_METRE[units])

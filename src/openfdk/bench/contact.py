@@ -1,0 +1,97 @@
+"""Contact benchmark: a condyle-like cap against a fossa-like surface.
+
+Geometry (generated, :mod:`openfdk.contact.shapes`): half ellipsoid 9 mm (AP) × 20 mm (ML)
+× 4 mm high, ≈ 4 900 vertices, on a mandible whose centre of mass is 40 mm away; a
+fossa-like roof with an articular eminence, ≈ 10 000 triangles. The condyle top is
+pressed 0.2 mm into the fossa roof (≈ 700 vertices in contact, ≈ 65 N).
+
+Records (medians over repeats):
+* ``contact_grid_eval_ms`` — one :meth:`ElasticFoundation.evaluate` in grid mode
+  (target ≤ 0.2 ms);
+* ``contact_grid_eval_stiffness_ms`` — the same with the 12×12 stiffness;
+* ``contact_exact_eval_ms`` — exact mode (libigl AABB closest points);
+* ``contact_grid_build_s`` — building the distance grid of the fossa at the default
+  spacing and band (uncached).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from openfdk.contact import DEFAULT_GRID_SPACING, DEFAULT_MAX_DEPTH, ElasticFoundation, surface_mesh
+from openfdk.contact.distance_grid import build_distance_grid
+from openfdk.contact.shapes import ellipsoid_cap, flat_patch, fossa_surface
+
+PRESSURE_MODULUS = 10e9  # N/m³ (paper)
+
+
+def _median_time(fun, repeats):
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fun()
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times))
+
+
+def tmj_like_pair():
+    """(condyle SurfaceMesh in the mandible frame, fossa SurfaceMesh, contact pose).
+
+    The pose is (r_Wa, R_Wa, r_Wb, R_Wb) with the skull (b) at the world origin.
+    """
+    cap = ellipsoid_cap((4.5e-3, 10e-3, 4e-3), 0.29e-3)
+    s0 = np.array([-0.01, 0.03, -0.025])  # condyle base centre from the mandible COM, m
+    condyle = surface_mesh(cap.vertices_B + s0, cap.faces, name="condyle (generated)",
+                           repair=False)
+    fossa = fossa_surface(edge_length=0.38e-3, ml_radius=35e-3, name="fossa (generated)")
+    top_in_b = np.array([0.5e-3, 0.0, -4e-3 + 0.2e-3])  # 0.2 mm into the roof
+    pose = (top_in_b - s0, np.eye(3), np.zeros(3), np.eye(3))
+    return condyle, fossa, pose
+
+
+def run(quick: bool) -> list[dict]:
+    """Run the contact benchmark; ``quick`` uses fewer repeats. Returns records."""
+    # compile the numba kernels outside the timings
+    tiny = flat_patch(2e-3, 2e-3, 1e-3)
+    warm = ElasticFoundation(tiny, tiny, PRESSURE_MODULUS, mode="grid", grid_spacing=0.5e-3,
+                             max_depth=1e-3)
+    warm.evaluate(np.zeros(3), np.eye(3), np.zeros(3), np.eye(3), want_stiffness=True)
+
+    condyle, fossa, pose = tmj_like_pair()
+    records = []
+
+    t_build = _median_time(
+        lambda: build_distance_grid(fossa, DEFAULT_GRID_SPACING, DEFAULT_MAX_DEPTH),
+        1 if quick else 3,
+    )
+    grid = ElasticFoundation(condyle, fossa, PRESSURE_MODULUS, mode="grid")
+    exact = ElasticFoundation(condyle, fossa, PRESSURE_MODULUS, mode="exact")
+    result = grid.evaluate(*pose)
+    detail = (f"{condyle.n_vertices} vertices vs {fossa.n_faces} triangles, "
+              f"{result.n_contact} in contact, |F| = {np.linalg.norm(result.force_W):.1f} N")
+    n_eval = 200 if quick else 2000
+    for _ in range(20):
+        grid.evaluate(*pose, want_stiffness=True)
+    t_grid = _median_time(lambda: grid.evaluate(*pose), n_eval)
+    t_grid_k = _median_time(lambda: grid.evaluate(*pose, want_stiffness=True), n_eval)
+    exact.evaluate(*pose)
+    t_exact = _median_time(lambda: exact.evaluate(*pose), 5 if quick else 30)
+
+    records.append({"name": "contact_grid_eval_ms", "value": 1e3 * t_grid, "unit": "ms",
+                    "target": 0.2, "detail": detail})
+    records.append({"name": "contact_grid_eval_stiffness_ms", "value": 1e3 * t_grid_k,
+                    "unit": "ms", "detail": detail})
+    records.append({"name": "contact_exact_eval_ms", "value": 1e3 * t_exact, "unit": "ms",
+                    "detail": detail})
+    records.append({"name": "contact_grid_build_s", "value": t_build, "unit": "s",
+                    "detail": (f"spacing {DEFAULT_GRID_SPACING * 1e3:g} mm, max_depth "
+                               f"{DEFAULT_MAX_DEPTH * 1e3:g} mm, {grid.grid.n_evaluated} "
+                               f"nodes evaluated, {grid.grid.nbytes / 1e6:.1f} MB")})
+    return records
+
+
+if __name__ == "__main__":  # pragma: no cover
+    for record in run(quick=False):
+        print(record)

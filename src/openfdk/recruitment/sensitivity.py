@@ -1,0 +1,159 @@
+"""Sensitivity of the polynomial recruitment solution to the equilibrium data C and d.
+
+Needed by the analytic FDK Jacobian (DESIGN.md §1): how the optimal forces f move when the
+kinematics change C and d. With the active set held fixed — interior bounded forces I,
+bounded forces at a bound (f = 0 or f = s, unchanged), free forces F — the optimality
+conditions of paper Eq. 11 are
+
+    ∇G_I(f_I) = C_Iᵀ λ,     C_Fᵀ λ = 0,     C f = d,
+    ∇G_i = p f_i^(p−1) / s_i^p,   H_i = ∂²G/∂f_i² = p (p−1) f_i^(p−2) / s_i^p.
+
+Differentiating along a direction (dC, dd) (implicit-function theorem on the KKT system,
+Fiacco, "Introduction to Sensitivity and Stability Analysis in Nonlinear Programming",
+1983, Thm 3.2.2; Nocedal & Wright 2006, §16.1):
+
+    H_I df_I − C_Iᵀ dλ = dC_Iᵀ λ
+           − C_Fᵀ dλ = dC_Fᵀ λ
+    C_I df_I + C_F df_F = dd − dC f.
+
+Eliminating df_I = H_I⁻¹ (dC_Iᵀ λ + C_Iᵀ dλ) leaves the symmetric (n_eq + n_free) system
+
+    [C_I H_I⁻¹ C_Iᵀ   C_F] [dλ  ]   [dd − dC f − C_I H_I⁻¹ dC_Iᵀ λ]
+    [C_Fᵀ             0  ] [df_F] = [−dC_Fᵀ λ                     ],
+
+factored once for all directions. The derivative exists when strict complementarity holds
+(no bounded force exactly at a bound with a zero bound multiplier); at such points this is
+the one-sided derivative for the current active set.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg
+
+from openfdk.recruitment.result import RecruitmentInputError, RecruitmentResult
+
+__all__ = ["recruitment_sensitivity"]
+
+
+def _as_directions(dC, dd, n_eq, n_var):
+    """Stack directions as dC (k, n_eq, n_var), dd (k, n_eq); returns (dC, dd, batched)."""
+    if isinstance(dC, (list, tuple)):
+        dC = np.stack([np.asarray(a, dtype=np.float64) for a in dC])
+    else:
+        dC = np.asarray(dC, dtype=np.float64)
+    if isinstance(dd, (list, tuple)):
+        dd = np.stack([np.asarray(a, dtype=np.float64) for a in dd])
+    else:
+        dd = np.asarray(dd, dtype=np.float64)
+    batched = dC.ndim == 3
+    if not batched:
+        dC = dC[None]
+        dd = dd[None]
+    k = dC.shape[0]
+    if dC.shape != (k, n_eq, n_var):
+        raise RecruitmentInputError(
+            f"dC must have shape ({n_eq}, {n_var}) or (k, {n_eq}, {n_var}); got {dC.shape}"
+        )
+    if dd.shape != (k, n_eq):
+        raise RecruitmentInputError(f"dd must have shape ({k}, {n_eq}) to match dC; got "
+                                    f"{dd.shape}")
+    return dC, dd, batched
+
+
+def recruitment_sensitivity(result: RecruitmentResult, C, d, s, p, dC, dd):
+    """Directional derivative(s) of the optimal forces f for perturbations (dC, dd).
+
+    Parameters
+    ----------
+    result : converged polynomial RecruitmentResult of (C, d, s, p).
+    C : (n_eq, n_var); d : (n_eq,) N or N·m; s : (n_bounded,) N; p : float ≥ 2.
+    dC : (n_eq, n_var) or (k, n_eq, n_var) or a list of k such arrays — dC/dε.
+    dd : (n_eq,) or (k, n_eq) or a list — dd/dε (N or N·m per unit ε).
+
+    Returns
+    -------
+    df : (n_var,) or (k, n_var) — df/dε (N per unit ε), with the active set of ``result``
+    held fixed (bounded forces at 0 or s do not move).
+
+    Raises
+    ------
+    RecruitmentInputError if the result is not a converged polynomial solution of (C, d).
+    """
+    if not result.converged:
+        raise RecruitmentInputError(
+            f"sensitivity needs a converged recruitment result; got status "
+            f"'{result.status}': {result.message}"
+        )
+    if result.criterion == "minmax":
+        raise RecruitmentInputError(
+            "sensitivity is defined for the polynomial criterion only; the min/max "
+            "solution is not unique"
+        )
+    C = np.asarray(C, dtype=np.float64)
+    d = np.asarray(d, dtype=np.float64)
+    s = np.asarray(s, dtype=np.float64)
+    p = float(p)
+    n_eq, n_var = C.shape
+    n_bounded = result.n_bounded
+    f = result.f
+    lam = result.multipliers
+    if f.shape != (n_var,) or s.shape != (n_bounded,):
+        raise RecruitmentInputError(
+            f"result (n_var={f.shape[0]}, n_bounded={n_bounded}) does not match C "
+            f"{C.shape} and s {s.shape}"
+        )
+    scale = np.max(np.abs(d), initial=0.0) + np.max(np.abs(C) @ np.abs(f), initial=0.0)
+    if np.max(np.abs(C @ f - d), initial=0.0) > 1e-6 * max(scale, 1e-300):
+        raise RecruitmentInputError("result does not satisfy C f = d for the C and d given")
+    dC, dd, batched = _as_directions(dC, dd, n_eq, n_var)
+    k = dC.shape[0]
+
+    active = np.zeros(n_var, dtype=bool)
+    active[:n_bounded] = result.active_lower[:n_bounded] | result.active_upper[:n_bounded]
+    interior = np.flatnonzero(~active[:n_bounded])
+    free = np.arange(n_bounded, n_var)
+    n_free = free.size
+
+    # H_i = p (p−1) f_i^(p−2) / s_i^p on the interior bounded forces
+    f_I = f[interior]
+    hessian_I = p * (p - 1.0) * f_I ** (p - 2.0) / s[interior] ** p
+    C_I = C[:, interior]
+    C_F = C[:, free]
+    CI_Hinv = C_I / hessian_I  # C_I H_I⁻¹
+
+    # KKT matrix [[C_I H⁻¹ C_Iᵀ, C_F], [C_Fᵀ, 0]]
+    kkt = np.zeros((n_eq + n_free, n_eq + n_free))
+    kkt[:n_eq, :n_eq] = CI_Hinv @ C_I.T
+    kkt[:n_eq, n_eq:] = C_F
+    kkt[n_eq:, :n_eq] = C_F.T
+
+    # right-hand sides, one column per direction
+    dC_I = dC[:, :, interior]  # (k, n_eq, n_I)
+    dC_F = dC[:, :, free]
+    dCI_T_lam = np.einsum("kei,e->ki", dC_I, lam)  # dC_Iᵀ λ (k, n_I)
+    rhs = np.zeros((n_eq + n_free, k))
+    rhs[:n_eq] = (dd - dC @ f - dCI_T_lam @ CI_Hinv.T).T
+    rhs[n_eq:] = -np.einsum("kef,e->fk", dC_F, lam)
+
+    # symmetric equilibration D K D (nearly free bounded forces — 20 kN unilateral
+    # reactions with tiny f — give entries of H_I⁻¹ up to ~1e12), then one LU factorisation
+    row_max = np.max(np.abs(kkt), axis=1)
+    equilibrate = 1.0 / np.sqrt(np.where(row_max > 0.0, row_max, 1.0))
+    kkt_scaled = kkt * equilibrate[:, None] * equilibrate[None, :]
+    rhs_scaled = rhs * equilibrate[:, None]
+    try:
+        lu = scipy.linalg.lu_factor(kkt_scaled, check_finite=False)
+        solution = scipy.linalg.lu_solve(lu, rhs_scaled, check_finite=False)
+        if not np.all(np.isfinite(solution)):
+            raise np.linalg.LinAlgError("singular KKT matrix")
+    except (np.linalg.LinAlgError, ValueError, scipy.linalg.LinAlgWarning):
+        # degenerate active set (too few interior forces to span the rows): minimum norm
+        solution = np.linalg.lstsq(kkt_scaled, rhs_scaled, rcond=None)[0]
+    solution = solution * equilibrate[:, None]
+    dlam = solution[:n_eq].T  # (k, n_eq)
+    df = np.zeros((k, n_var))
+    # df_I = H_I⁻¹ (dC_Iᵀ λ + C_Iᵀ dλ)
+    df[:, interior] = (dCI_T_lam + dlam @ C_I) / hessian_I
+    df[:, free] = solution[n_eq:].T
+    return df if batched else df[0]

@@ -1,0 +1,173 @@
+"""Contact stiffness K = ∂Q/∂q̂ against central finite differences on the manifold.
+
+q̂ = [δr_a, δπ_a, δr_b, δπ_b]; the finite-difference column k perturbs r by ±ε e_k or
+R by R·Exp(±ε e_k) and differences Q. The analytic K neglects only the Hessian of B's
+distance field (B's curvature κ), a relative error of order d·κ (d = penetration):
+* against a flat B (sphere cap's vertices on a plane) nothing is neglected and the
+  check is tight (float32 grid storage limits grid mode to ~1e-6);
+* against a curved B (ball of radius 10 mm in a 12 mm cup, κ = 1/12 mm) the bound is
+  1.5·d_max·κ relative to the largest entry of K.
+Blocks are compared in N/m after scaling rotations by a 40 mm lever.
+Also Q = −∂U/∂q̂ for the elastic energy U = ½ Σ p a_i d_i² (conservative loads).
+"""
+
+import numpy as np
+import pytest
+
+from openfdk.contact import ElasticFoundation, surface_mesh
+from openfdk.contact.shapes import flat_patch, sphere_cap
+from openfdk.spatial import quat_from_rotvec, rotation_matrix
+
+P_MOD = 1e10
+
+
+def _exp(rotvec):
+    return rotation_matrix(quat_from_rotvec(rotvec))
+
+
+def _perturbed(pose, k, eps):
+    """Pose with coordinate k of q̂ = [δr_a, δπ_a, δr_b, δπ_b] moved by eps (manifold)."""
+    r_Wa, R_Wa, r_Wb, R_Wb = (np.array(x, dtype=float) for x in pose)
+    block, axis = divmod(k, 3)
+    e = np.zeros(3)
+    e[axis] = eps
+    if block == 0:
+        r_Wa = r_Wa + e
+    elif block == 1:
+        R_Wa = R_Wa @ _exp(e)
+    elif block == 2:
+        r_Wb = r_Wb + e
+    else:
+        R_Wb = R_Wb @ _exp(e)
+    return r_Wa, R_Wa, r_Wb, R_Wb
+
+
+def _finite_difference(fun, pose, eps_r=1e-8, eps_t=1e-6):
+    """Central differences of fun(pose) (array) over the 12 manifold coordinates."""
+    columns = []
+    for k in range(12):
+        eps = eps_r if (k // 3) % 2 == 0 else eps_t
+        plus = fun(_perturbed(pose, k, +eps))
+        minus = fun(_perturbed(pose, k, -eps))
+        columns.append((plus - minus) / (2.0 * eps))
+    return np.stack(columns, axis=-1)
+
+
+def _in_newton_per_metre(K, L=0.04):
+    """S K S with S = diag(1, 1/L, 1, 1/L) per 3-block: every block in N/m (L = lever, m)."""
+    S = np.repeat([1.0, 1.0 / L, 1.0, 1.0 / L], 3)
+    return S[:, None] * K * S[None, :]
+
+
+def _with_com_offset(mesh, s0, name):
+    return surface_mesh(mesh.vertices_B + s0, mesh.faces, name=name, repair=False)
+
+
+def _world(rng, r_ba, R_ba):
+    """Put body b anywhere in the world, body a at (r_ba, R_ba) relative to it."""
+    R_Wb = _exp(rng.normal(size=3))
+    r_Wb = rng.normal(size=3) * 0.05
+    return r_Wb + R_Wb @ r_ba, R_Wb @ R_ba, r_Wb, R_Wb
+
+
+@pytest.fixture(scope="module")
+def ball_on_plane():
+    R = 10e-3
+    ball = sphere_cap(R, 0.3, 0.25e-3)  # centre at the origin of its mesh frame
+    s0 = np.array([0.02, -0.01, 0.03])  # sphere centre relative to body a's COM
+    plane = flat_patch(0.02, 0.02, 1e-3)
+    b0 = np.array([-0.01, 0.02, -0.015])  # plane relative to body b's COM
+    return _with_com_offset(ball, s0, "ball"), _with_com_offset(plane, b0, "plane"), R, s0, b0
+
+
+@pytest.mark.parametrize("mode", ["exact", "grid"])
+def test_stiffness_sphere_on_plane_is_exact(ball_on_plane, mode):
+    ball, plane, R, s0, b0 = ball_on_plane
+    ef = ElasticFoundation(ball, plane, P_MOD, mode=mode, max_depth=1e-3)
+    rng = np.random.default_rng(42 if mode == "exact" else 43)
+    delta = 0.12e-3
+    # a tilted, shifted sphere pressed δ into the plane (sphere centre at b0 + (x, y, R − δ))
+    R_ba = _exp([0.05, -0.03, 0.4])
+    centre_b = b0 + np.array([0.7e-3, -0.4e-3, R - delta])
+    pose = _world(rng, centre_b - R_ba @ s0, R_ba)
+    res = ef.evaluate(*pose, want_stiffness=True)
+    assert res.n_contact > 100
+    # no vertex within 1e-6 m of the contact boundary: FD steps (≤ 1e-6·0.04 m) stay inside
+    r_Wa, R_Wa, r_Wb, R_Wb = pose
+    z = (R_Wb.T @ ((r_Wa + ball.vertices_B @ R_Wa.T) - r_Wb).T)[2] - b0[2]
+    assert np.min(np.abs(z)) > 1e-6
+    K_fd = _in_newton_per_metre(_finite_difference(lambda q: ef.evaluate(*q).Q, pose))
+    K = _in_newton_per_metre(res.K)
+    scale = np.abs(K_fd).max()
+    assert scale > 1e4  # N/m: non-zero
+    # every block coupling is exercised: rotations of both bodies matter
+    for rows in (slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12)):
+        for cols in (slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12)):
+            assert np.abs(K_fd[rows, cols]).max() > 1e-2 * scale
+    tol = 1e-7 if mode == "exact" else 1e-6
+    np.testing.assert_allclose(K, K_fd, rtol=0, atol=tol * scale)
+    # the terms from the lever arms and the normal turning with b (p a d ∂u/∂q̂) are
+    # needed: −Σ p a u uᵀ alone, built here from the contact vertices, misses by far more
+    idx, depth, g_B, y_B = ef.penetration(*pose)
+    n_W = g_B @ R_Wb.T
+    s_A = ball.vertices_B[idx]
+    u = np.hstack([n_W, np.cross(s_A, n_W @ R_Wa), -n_W, -np.cross(y_B, g_B)])
+    K_uu = _in_newton_per_metre(-(P_MOD * ball.vertex_areas[idx] * u.T) @ u)
+    assert np.abs(K_uu - K_fd).max() > 100 * tol * scale
+    # the normal stiffness of the pair: ∂F_z/∂z_a = −Σ p a_i (vertices in contact)
+    n_W = R_Wb[:, 2]
+    assert n_W @ res.K[0:3, 0:3] @ n_W == pytest.approx(-P_MOD * res.area, rel=1e-6)
+
+
+@pytest.fixture(scope="module")
+def ball_in_cup():
+    R_ball, R_cup = 10e-3, 12e-3
+    ball = sphere_cap(R_ball, 0.5, 0.25e-3, pole=(0, 0, -1))
+    cup = sphere_cap(R_cup, 0.6, 0.25e-3, pole=(0, 0, -1), inward=True)  # normals → centre
+    s0 = np.array([0.0, 0.02, 0.03])
+    return _with_com_offset(ball, s0, "ball"), cup, R_ball, R_cup, s0
+
+
+@pytest.mark.parametrize("mode", ["exact", "grid"])
+def test_stiffness_ball_in_cup_within_curvature_bound(ball_in_cup, mode):
+    ball, cup, R_ball, R_cup, s0 = ball_in_cup
+    ef = ElasticFoundation(ball, cup, P_MOD, mode=mode, max_depth=1e-3)
+    rng = np.random.default_rng(7)
+    delta = 0.12e-3
+    R_ba = _exp([0.05, -0.03, 0.2])
+    # ball centre 2 mm + δ below the cup centre (the cup's lowest point is at −12 mm)
+    centre_b = np.array([0.3e-3, -0.2e-3, -(R_cup - R_ball) - delta])
+    pose = _world(rng, centre_b - R_ba @ s0, R_ba)
+    res = ef.evaluate(*pose, want_stiffness=True)
+    assert res.n_contact > 300
+    K_fd = _in_newton_per_metre(_finite_difference(lambda q: ef.evaluate(*q).Q, pose))
+    K = _in_newton_per_metre(res.K)
+    scale = np.abs(K_fd).max()
+    assert scale > 1e5
+    bound = 1.5 * res.max_penetration / R_cup  # neglected d·κ terms
+    assert 0.005 < bound < 0.03
+    assert np.abs(K - K_fd).max() < bound * scale
+
+
+@pytest.mark.parametrize("mode, rtol", [("exact", 1e-6), ("grid", 5e-4)])
+def test_generalized_forces_are_minus_energy_gradient(ball_in_cup, mode, rtol):
+    ball, cup, R_ball, R_cup, s0 = ball_in_cup
+    ef = ElasticFoundation(ball, cup, P_MOD, mode=mode, max_depth=1e-3)
+    rng = np.random.default_rng(3)
+    R_ba = _exp([-0.04, 0.02, 0.1])
+    centre_b = np.array([-0.2e-3, 0.4e-3, -(R_cup - R_ball) - 0.1e-3])
+    pose = _world(rng, centre_b - R_ba @ s0, R_ba)
+    res = ef.evaluate(*pose)
+    assert res.energy > 0.0
+    dU = _finite_difference(lambda q: np.array([ef.evaluate(*q).energy]), pose)[0]
+    np.testing.assert_allclose(res.Q, -dU, rtol=0, atol=rtol * np.abs(res.Q).max())
+
+
+def test_stiffness_zero_without_contact(ball_on_plane):
+    ball, plane, R, s0, b0 = ball_on_plane
+    ef = ElasticFoundation(ball, plane, P_MOD, mode="grid", max_depth=1e-3)
+    I3 = np.eye(3)
+    res = ef.evaluate(b0 + np.array([0, 0, R + 1e-4]) - s0, I3, np.zeros(3), I3,
+                      want_stiffness=True)
+    assert res.n_contact == 0
+    assert np.all(res.K == 0.0) and np.all(res.Q == 0.0)
