@@ -1,7 +1,6 @@
 """Kinematic analysis against closed forms (paper Eqs. 1–10)."""
 
 import numpy as np
-import pytest
 
 from models import slider_crank, slider_crank_closed_form
 from openfdk.kinematics.analysis import run_determinate, run_tracking

@@ -14,7 +14,7 @@ from numba import njit
 __all__ = ["cholesky_in_place", "cholesky_solve", "power", "weighted_gram"]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def weighted_gram(A, weight, K):
     """K ← A diag(weight) Aᵀ.
 
@@ -30,7 +30,7 @@ def weighted_gram(A, weight, K):
             K[j, i] = acc
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def cholesky_in_place(K, relative_shift):
     """Factor K = L Lᵀ in place (lower triangle holds L); returns True on success.
 
@@ -62,7 +62,7 @@ def cholesky_in_place(K, relative_shift):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def cholesky_solve(L, rhs, out):
     """Solve (L Lᵀ) out = rhs with the factor from :func:`cholesky_in_place`.
 
@@ -83,7 +83,7 @@ def cholesky_solve(L, rhs, out):
         out[i] = acc / L[i, i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def power(x, e):
     """x**e for x ≥ 0, with fast paths for the exponents of the p = 2 and p = 3 criteria."""
     if e == 2.0:

@@ -38,7 +38,7 @@ DUAL_MAX_ITER = 1
 DUAL_FAILED = 2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _primal_from_dual(A, mu, p, x, D):
     """x(μ) and D = dx/du (see module docstring); returns h(μ) − μᵀb = Σ x^p − u x."""
     r, n = A.shape
@@ -61,7 +61,7 @@ def _primal_from_dual(A, mu, p, x, D):
     return value
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def power_box_dual_newton(A, b, p, mu_start, tol, max_iter):
     """Maximise the dual h(μ) from ``mu_start`` (see module docstring).
 
@@ -161,7 +161,7 @@ def power_box_dual_newton(A, b, p, mu_start, tol, max_iter):
     return x, mu, status, iteration
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def multipliers_from_primal(A, x0, p):
     """Least-squares multipliers μ with (Aᵀμ)_i ≈ p x0_i^(p−1) on the interior x0_i ∈ (0, 1).
 

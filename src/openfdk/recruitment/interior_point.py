@@ -40,7 +40,7 @@ IPM_MAX_ITER = 1
 IPM_FAILED = 2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _max_primal_step(x, dx):
     """Largest α ≤ 1 keeping 0 ≤ x + αΔx ≤ 1."""
     alpha = 1.0
@@ -52,7 +52,7 @@ def _max_primal_step(x, dx):
     return alpha
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _max_dual_step(z, dz, w, dw):
     """Largest α ≤ 1 keeping z + αΔz ≥ 0 and w + αΔw ≥ 0."""
     alpha = 1.0
@@ -64,7 +64,7 @@ def _max_dual_step(z, dz, w, dw):
     return alpha
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _newton_direction(A, L_K, Sigma, rho, r_p, dx, dmu, rhs_r):
     """Δμ, Δx of the reduced Newton system for a given ρ (see module docstring)."""
     r, n = A.shape
@@ -83,7 +83,7 @@ def _newton_direction(A, L_K, Sigma, rho, r_p, dx, dmu, rhs_r):
         dx[i] = acc / Sigma[i]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def ipm_starting_point(A, b, p):
     """Starting point (x, z, w, μ) of :func:`power_box_ipm`.
 
@@ -110,7 +110,7 @@ def ipm_starting_point(A, b, p):
     return x, z, w, mu
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def power_box_ipm(A, b, p, x, z, w, mu, tol, max_iter):
     """Mehrotra predictor–corrector IPM for min Σ x^p s.t. A x = b, 0 ≤ x ≤ 1.
 

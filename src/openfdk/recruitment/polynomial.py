@@ -69,7 +69,7 @@ _POLISH_MAX_ITER = 8
 _WARM_MAX_ITER = 20
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _solve_polynomial_kernel(C, d, n_bounded, s, p, warm_mode, lam_start, x_start, tol,
                              max_iter):
     """Numba driver; warm_mode 0 cold, 1 from multipliers λ (m,), 2 from activities x (n_B,).

@@ -41,7 +41,7 @@ REDUCE_RANK_DEFICIENT_FREE = 1
 REDUCE_INCONSISTENT_ROWS = 2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def reduce_problem(C, d, n_bounded, s, rank_rtol, consistency_rtol):
     """Eliminate the free forces and redundant rows of C f = d.
 
@@ -158,7 +158,7 @@ def reduce_problem(C, d, n_bounded, s, rank_rtol, consistency_rtol):
     return status, A_full, A_r, b_r, L, free_back, Sigma_r, Q2U_r
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def multiplier_to_reduced(lam, Sigma_r, Q2U_r):
     """Reduced multipliers μ = Σ_r (Q2 U_r)ᵀ λ of given equality multipliers λ (m,)."""
     r = Sigma_r.shape[0]
