@@ -39,19 +39,16 @@ from pathlib import Path
 import ezc3d
 import numpy as np
 
-__all__ = [
-    "C3DError",
-    "MissingMarkerError",
-    "MarkerTrial",
-    "C3DLayout",
-    "inspect_c3d",
-    "read_c3d",
-    "write_c3d",
-]
+__all__ = ["C3DError", "MissingMarkerError", "MarkerTrial", "C3DLayout", "inspect_c3d",
+           "read_c3d", "write_c3d"]
 
 BLOCK_BYTES = 512
 PROCESSOR_NAMES = {84: "Intel", 85: "DEC", 86: "MIPS"}
 UNIT_TO_METRE = {"mm": 1e-3, "cm": 1e-2, "m": 1.0}
+
+
+def _duplicates(labels: Sequence[str]) -> list[str]:
+    return sorted({label for label in labels if labels.count(label) > 1})
 
 
 class C3DError(ValueError):
@@ -112,9 +109,8 @@ class MarkerTrial:
         if time.shape != (positions.shape[0],):
             raise ValueError(f"{self.source}: time must have shape ({positions.shape[0]},), "
                              f"got {time.shape}")
-        duplicates = sorted({lab for lab in labels if labels.count(lab) > 1})
-        if duplicates:
-            raise ValueError(f"{self.source}: duplicate marker labels {duplicates}")
+        if _duplicates(labels):
+            raise ValueError(f"{self.source}: duplicate marker labels {_duplicates(labels)}")
         time.setflags(write=False)
         positions.setflags(write=False)
         object.__setattr__(self, "labels", labels)
@@ -157,11 +153,8 @@ class MarkerTrial:
         labels = [str(lab) for lab in labels]
         missing = [lab for lab in labels if lab not in self._index]
         if missing:
-            hints = []
-            for lab in missing:
-                near = self._near_matches(lab)
-                if near:
-                    hints.append(f"{lab!r} ~ {', '.join(repr(n) for n in near)}")
+            hints = [f"{lab!r} ~ {', '.join(repr(n) for n in self._near_matches(lab))}"
+                     for lab in missing if self._near_matches(lab)]
             hint = f"; near matches: {'; '.join(hints)}" if hints else ""
             raise MissingMarkerError(
                 f"{len(missing)} marker(s) missing from {self.source}: "
@@ -543,9 +536,8 @@ def read_c3d(path: str | os.PathLike) -> MarkerTrial:
         raise C3DError(f"{name}: POINT:LABELS lists {len(labels)} labels for "
                        f"{n_markers} points")
     labels = labels[:n_markers]
-    duplicates = sorted({lab for lab in labels if labels.count(lab) > 1})
-    if duplicates:
-        raise C3DError(f"{name}: duplicate marker labels {duplicates}")
+    if _duplicates(labels):
+        raise C3DError(f"{name}: duplicate marker labels {_duplicates(labels)}")
 
     units_values = _string_list(point_group, "UNITS")
     if not units_values:
@@ -593,9 +585,8 @@ def write_c3d(path: str | os.PathLike, labels: Sequence[str], positions: np.ndar
                        f"for {len(labels)} labels, got {positions.shape}")
     if not labels or any(not lab for lab in labels):
         raise C3DError(f"{name}: every marker needs a non-empty label, got {labels}")
-    duplicates = sorted({lab for lab in labels if labels.count(lab) > 1})
-    if duplicates:
-        raise C3DError(f"{name}: duplicate marker labels {duplicates}")
+    if _duplicates(labels):
+        raise C3DError(f"{name}: duplicate marker labels {_duplicates(labels)}")
     if not (np.isfinite(rate) and rate > 0):
         raise C3DError(f"{name}: rate must be a positive number of Hz, got {rate}")
 
