@@ -33,7 +33,7 @@ def trial_from(t, p, labels=("M",), source="<test>"):
 def spline_errors(rate, duration=2.0):
     """Max |error| of p, v, a at off-sample times (τ = 0.37 h), interior and overall."""
     h = 1.0 / rate
-    t = np.arange(int(round(duration * rate)) + 1) * h
+    t = np.arange(round(duration * rate) + 1) * h
     p, _, _ = analytic(t)
     markers = MarkerTrajectories(trial_from(t, p[:, None, :]), cutoff_hz=None)
     t_query = t[:-1] + 0.37 * h

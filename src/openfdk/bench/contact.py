@@ -20,7 +20,12 @@ import time
 
 import numpy as np
 
-from openfdk.contact import DEFAULT_GRID_SPACING, DEFAULT_MAX_DEPTH, ElasticFoundation, surface_mesh
+from openfdk.contact import (
+    DEFAULT_GRID_SPACING,
+    DEFAULT_MAX_DEPTH,
+    ElasticFoundation,
+    surface_mesh,
+)
 from openfdk.contact.distance_grid import build_distance_grid
 from openfdk.contact.shapes import ellipsoid_cap, flat_patch, fossa_surface
 

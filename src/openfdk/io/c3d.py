@@ -39,8 +39,15 @@ from pathlib import Path
 import ezc3d
 import numpy as np
 
-__all__ = ["C3DError", "MissingMarkerError", "MarkerTrial", "C3DLayout", "inspect_c3d",
-           "read_c3d", "write_c3d"]
+__all__ = [
+    "C3DError",
+    "C3DLayout",
+    "MarkerTrial",
+    "MissingMarkerError",
+    "inspect_c3d",
+    "read_c3d",
+    "write_c3d",
+]
 
 BLOCK_BYTES = 512
 PROCESSOR_NAMES = {84: "Intel", 85: "DEC", 86: "MIPS"}
@@ -239,7 +246,7 @@ def _parse_parameters(buf: bytes, processor: int, name: str) -> dict:
         group = group_names.get(abs(item_id), f"group {abs(item_id)}")
         label = f"group {item_name}" if item_id < 0 else f"parameter {group}:{item_name}"
 
-        def corrupt(what, label=label):
+        def corrupt(what, label=label, pos=pos):
             return C3DError(f"{name}: parameter section is corrupt at {label} (byte {pos} "
                             f"of the section): {what}")
 
@@ -423,7 +430,7 @@ def inspect_c3d(path: str | os.PathLike) -> C3DLayout:
                   if analog_samples_per_frame else 0)
     param_channels = _as_count(_first_number(parameters, "ANALOG:USED"))
     analog_rate = _first_number(parameters, "ANALOG:RATE")
-    param_samples = (int(round(analog_rate / param_rate)) if analog_rate
+    param_samples = (round(analog_rate / param_rate) if analog_rate
                      else analog_samples_per_frame)
     channels_needed = max(n_channels, param_channels or 0)
     if channels_needed and not any(k.startswith("SHADOW:") for k in parameters):
@@ -468,7 +475,7 @@ def inspect_c3d(path: str | os.PathLike) -> C3DLayout:
         rotation_rate = _first_number(parameters, "ROTATION:RATE")
         if not ratio and rotation_rate:
             ratio = rotation_rate / param_rate
-        ratio = int(round(ratio or 0))
+        ratio = round(ratio or 0)
         start_block = _as_count(_first_number(parameters, "ROTATION:DATA_START")) or 0
         rotation_bytes = param_frames * ratio * n_rotations * 17 * 4
         if ratio < 1:
