@@ -108,7 +108,7 @@ def test_stiffness_sphere_on_plane_is_exact(ball_on_plane, mode):
     np.testing.assert_allclose(K, K_fd, rtol=0, atol=tol * scale)
     # the terms from the lever arms and the normal turning with b (p a d ∂u/∂q̂) are
     # needed: −Σ p a u uᵀ alone, built here from the contact vertices, misses by far more
-    idx, depth, g_B, y_B = ef.penetration(*pose)
+    idx, _, g_B, y_B = ef.penetration(*pose)
     n_W = g_B @ R_Wb.T
     s_A = ball.vertices_B[idx]
     u = np.hstack([n_W, np.cross(s_A, n_W @ R_Wa), -n_W, -np.cross(y_B, g_B)])

@@ -239,6 +239,11 @@ def test_cutoff_must_be_below_nyquist():
     with pytest.raises(ValueError, match="order"):
         MarkerTrajectories(trial, order=0)
     MarkerTrajectories(trial, cutoff_hz=49.0)                  # just below: fine
+    uneven = MarkerTrial(labels=("M",), rate=100.0, time=[0.0, 0.01, 0.03, 0.04],
+                         positions=np.zeros((4, 1, 3)))
+    with pytest.raises(ValueError, match="uniformly"):
+        MarkerTrajectories(uneven)
+    MarkerTrajectories(uneven, cutoff_hz=None)                 # interpolation alone: fine
 
 
 def test_select_puts_markers_in_model_order():

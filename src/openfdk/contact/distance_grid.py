@@ -297,7 +297,6 @@ def build_distance_grid(mesh: SurfaceMesh, spacing: float, max_depth: float,
     h = float(spacing)
     width = float(max_depth) + 2.0 * h
     V = np.ascontiguousarray(mesh.vertices_B, dtype=np.float64)
-    F = np.ascontiguousarray(mesh.faces, dtype=np.int64)
     lo = V.min(axis=0) - width
     hi = V.max(axis=0) + width
     shape = tuple(int(np.ceil((hi[d] - lo[d]) / h)) + 1 for d in range(3))
@@ -344,7 +343,7 @@ def build_distance_grid(mesh: SurfaceMesh, spacing: float, max_depth: float,
     return SignedDistanceGrid(values, cell_valid, origin, h, float(max_depth), mesh.name, int(flat.size))
 
 
-_CACHE: "OrderedDict[tuple, SignedDistanceGrid]" = OrderedDict()
+_CACHE: OrderedDict[tuple, SignedDistanceGrid] = OrderedDict()
 _CACHE_SIZE = 16
 
 

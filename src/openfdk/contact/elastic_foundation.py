@@ -1,4 +1,4 @@
-"""Elastic-foundation contact between two triangle meshes (DESIGN.md §1; paper §2.3).
+"""Elastic-foundation contact between two triangle meshes (DESIGN.md §1; Andersen et al. 2017).
 
 A pair couples a *vertex surface* A on body a with an *opposite surface* B on body b.
 For every vertex i of A at p_W = r_Wa + R_Wa s_i (s_i in a's frame):
@@ -13,8 +13,8 @@ open: a point beyond the rim is neither in front of nor behind B; a point deeper
 max_depth is taken to be far behind B, e.g. behind the opposite side of a bone, and is
 ignored — choose max_depth well above the expected penetration). The force on b is −f_i
 along the same line of action (through p_W and its closest point on B), so the pair
-exerts no net moment. The field is conservative: f_i = −∂U/∂p_W with
-U = ½ Σ p a_i d_i² (neglecting the change of ∇φ_B, below).
+exerts no net moment. The loads derive from the elastic energy
+U = ½ Σ p a_i d_i², f_i = −∂U/∂p_W (exact mode; to interpolation accuracy in grid mode).
 
 Generalized forces (common brief): Q = [F_a; M_a; F_b; M_b] with forces in world and
 moments about each body's centre of mass in its body frame:

@@ -143,7 +143,7 @@ def _readonly(a):
     return a
 
 
-def _orient_consistently(faces, face_areas, face_normals, name):
+def _orient_consistently(faces, face_areas):
     """Flip triangles so that adjacent triangles wind consistently.
 
     Breadth-first traversal of the face-adjacency graph of each connected component;
@@ -245,7 +245,7 @@ def surface_mesh(vertices_B, faces, name="mesh", *, repair=True) -> SurfaceMesh:
             new_index = np.cumsum(used) - 1
             vertices = vertices[used]
             faces = new_index[faces]
-        faces, n_flipped = _orient_consistently(faces, areas, normals, name)
+        faces, n_flipped = _orient_consistently(faces, areas)
         if n_flipped:
             warnings.warn(
                 f"mesh '{name}': {n_flipped} triangle(s) had winding inconsistent with "

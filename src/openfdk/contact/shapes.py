@@ -25,7 +25,7 @@ def _ellipse_points(ax, ay, spacing):
     t = np.linspace(0.0, 2.0 * np.pi, 4001)
     ring = np.c_[ax * np.cos(t), ay * np.sin(t)]
     arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(ring, axis=0), axis=1))]
-    n_boundary = max(8, round((arc[-1] / spacing)))
+    n_boundary = max(8, int(round(arc[-1] / spacing)))
     s = np.linspace(0.0, arc[-1], n_boundary, endpoint=False)
     t_b = np.interp(s, arc, t)
     boundary = np.c_[ax * np.cos(t_b), ay * np.sin(t_b)]
@@ -64,8 +64,8 @@ def flat_patch(size_x, size_y, edge_length, name="flat patch") -> SurfaceMesh:
     Parameters: size_x, size_y, edge_length — m. A regular grid of
     ``round(size/edge_length) + 1`` points per side, each square split in two triangles.
     """
-    nx = max(2, round((size_x / edge_length)) + 1)
-    ny = max(2, round((size_y / edge_length)) + 1)
+    nx = max(2, int(round(size_x / edge_length)) + 1)
+    ny = max(2, int(round(size_y / edge_length)) + 1)
     x = np.linspace(-0.5 * size_x, 0.5 * size_x, nx)
     y = np.linspace(-0.5 * size_y, 0.5 * size_y, ny)
     X, Y = np.meshgrid(x, y, indexing="ij")
@@ -136,24 +136,27 @@ def ellipsoid_cap(semi_axes, edge_length, name="ellipsoid cap") -> SurfaceMesh:
     return surface_mesh(vertices, tri, name=name, repair=False)
 
 
-def fossa_surface(length_ap=28e-3, width_ml=26e-3, edge_length=0.4e-3, *,
-                  eminence_height=6e-3, eminence_distance=14e-3, ml_radius=15e-3,
+def fossa_surface(length_ap=28e-3, width_ml=26e-3, edge_length=0.38e-3, *,
+                  eminence_height=6e-3, eminence_distance=14e-3, ml_radius=35e-3,
                   name="fossa") -> SurfaceMesh:
     """Fossa-like height field: a concave roof with an articular eminence in front.
 
-    z(x, y) = −½ H (1 − cos(π x / L)) − y² / (2 R_ml) for x anterior in
-    [−0.32, 0.68]·length_ap·(28/28), y medio-lateral in ±width_ml/2. The roof (fossa)
-    is at the origin (z = 0, the highest point), the eminence crest at x = L, z = −H.
-    Curvature radius of the roof and eminence along x: 2 L² / (H π²) (6.6 mm for the
-    defaults), along y: R_ml. Normals point down (−z at the roof), out of the skull into
-    the joint space.
+        z(x, y) = −½ H (1 − cos(π x / L)) − y² / (2 R_ml)
+
+    over x (anterior) in [−0.32, 0.68]·length_ap and y (medio-lateral) in ±width_ml/2,
+    on a regular grid of about ``edge_length`` (two triangles per square). The roof
+    (glenoid fossa) is at the origin, the highest point; the eminence crest is at x = L,
+    z = −H. Curvature radius along x at roof and crest: 2 L² / (H π²) (6.6 mm for the
+    defaults); along y: R_ml (35 mm, flatter than a 20 mm-wide condyle's 25 mm). The
+    defaults give ≈ 10 000 triangles. Normals point down (−z at the roof): out of the
+    skull, into the joint space.
 
     Parameters: length_ap, width_ml, edge_length, eminence_height (H),
     eminence_distance (L), ml_radius (R_ml) — all m.
     """
     x0 = -0.32 * length_ap
-    nx = max(2, round((length_ap / edge_length)) + 1)
-    ny = max(2, round((width_ml / edge_length)) + 1)
+    nx = max(2, int(round(length_ap / edge_length)) + 1)
+    ny = max(2, int(round(width_ml / edge_length)) + 1)
     x = np.linspace(x0, x0 + length_ap, nx)
     y = np.linspace(-0.5 * width_ml, 0.5 * width_ml, ny)
     X, Y = np.meshgrid(x, y, indexing="ij")

@@ -39,15 +39,8 @@ from pathlib import Path
 import ezc3d
 import numpy as np
 
-__all__ = [
-    "C3DError",
-    "C3DLayout",
-    "MarkerTrial",
-    "MissingMarkerError",
-    "inspect_c3d",
-    "read_c3d",
-    "write_c3d",
-]
+__all__ = ["C3DError", "C3DLayout", "MarkerTrial", "MissingMarkerError", "inspect_c3d",
+           "read_c3d", "write_c3d"]
 
 BLOCK_BYTES = 512
 PROCESSOR_NAMES = {84: "Intel", 85: "DEC", 86: "MIPS"}
@@ -400,6 +393,11 @@ def inspect_c3d(path: str | os.PathLike) -> C3DLayout:
             raise C3DError(f"{name}: parameter {key} must hold a finite "
                            f"{'' if key == 'POINT:SCALE' else 'non-negative '}number, "
                            f"found {value!r}")
+
+    for key, value in parameters.items():
+        if (key == "POINT:UNITS" or _is_continuation(key, "POINT:LABELS")) and not isinstance(
+                value, list):
+            raise C3DError(f"{name}: parameter {key} must hold text, found numbers {value!r}")
 
     # the parameters describe the data too (and win where they differ, C3D User Guide);
     # where one is absent, the header value stands

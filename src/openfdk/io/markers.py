@@ -34,7 +34,7 @@ off a segment end by round-off).  A segment of a single sample is treated as not
 gap and outside the trial the marker is not visible and its values are NaN.
 
 Evaluation is vectorised over markers: the spline coefficients of every marker on every
-sample interval are stored in one array ``(n_frames − 1, n_markers, 4, 3)`` (NaN where the
+sample interval are stored in one array ``(n_frames − 1, 4, n_markers, 3)`` (NaN where the
 interval is not inside a segment); the interval is found by bisection and position,
 velocity and acceleration come from one product [p; ṗ; p̈] = T(τ)·c.  Memory: 96 bytes per
 marker per frame (24 markers × 60 000 frames ≈ 140 MB).
@@ -52,6 +52,7 @@ from scipy.signal import butter, sosfiltfilt
 from openfdk.io.c3d import MarkerTrial
 
 __all__ = ["MarkerTrajectories", "visible_segments"]
+
 
 def visible_segments(visible: np.ndarray) -> list[tuple[int, int]]:
     """Contiguous runs of True in ``visible (n_frames,) bool`` as ``[(start, stop), …]``
@@ -98,6 +99,9 @@ class MarkerTrajectories:
         time = trial.time
         if np.any(np.diff(time) <= 0):
             raise ValueError(f"{trial.source}: sample times must increase strictly")
+        if cutoff_hz is not None and np.max(np.abs(np.diff(time) * trial.rate - 1.0)) > 1e-6:
+            raise ValueError(f"{trial.source}: filtering needs samples spaced uniformly at "
+                             f"1/rate = {1.0 / trial.rate:g} s")
 
         sos = (None if cutoff_hz is None else
                butter(self.order, self.cutoff_hz, btype="low", fs=trial.rate, output="sos"))
@@ -106,8 +110,8 @@ class MarkerTrajectories:
             2 * len(sos) + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))))
 
         n_frames, n_markers = trial.n_frames, trial.n_markers
-        # coef[k, m, i, :] = c_i of marker m on [t_k, t_k+1]: p = Σ c_i (t − t_k)^i
-        coef = np.full((n_frames - 1, n_markers, 4, 3), np.nan)
+        # coef[k, i, m, :] = c_i of marker m on [t_k, t_k+1]: p = Σ c_i (t − t_k)^i
+        coef = np.full((n_frames - 1, 4, n_markers, 3), np.nan)
         filtered = np.full((n_frames, n_markers, 3), np.nan)
         segments: list[list[tuple[int, int]]] = []
         for m in range(n_markers):
@@ -121,10 +125,10 @@ class MarkerTrajectories:
                     x = sosfiltfilt(sos, x, axis=0)
                 spline = CubicSpline(time[a:b], x, axis=0, bc_type="not-a-knot")
                 # spline.c: (4, pieces, 3), highest power first
-                coef[a:b - 1, m] = np.transpose(spline.c[::-1], (1, 0, 2))
+                coef[a:b - 1, :, m] = np.transpose(spline.c[::-1], (1, 0, 2))
                 filtered[a:b, m] = x
         self._coef = coef
-        self._valid = np.isfinite(coef[:, :, 0, 0])        # (n_frames − 1, n_markers)
+        self._valid = np.isfinite(coef[:, 0, :, 0])        # (n_frames − 1, n_markers)
         self._all_valid = self._valid.all(axis=1)          # (n_frames − 1,)
         self._segments = segments
         self._time = time
@@ -203,7 +207,7 @@ class MarkerTrajectories:
             T = np.array([[1.0, tau, tau * tau, tau * tau * tau],
                           [0.0, 1.0, 2.0 * tau, 3.0 * tau * tau],
                           [0.0, 0.0, 2.0, 6.0 * tau]])
-            pva = T @ self._coef[k]                         # (n_markers, 3, 3)
+            pva = (T @ self._coef[k].reshape(4, 3 * n)).reshape(3, n, 3)
             visible = np.ones(n, dtype=bool)
         else:
             # at a segment's first or last sample t may sit (within tol) in the
@@ -228,8 +232,9 @@ class MarkerTrajectories:
             T[:, 1, 3] = 3.0 * tau_m * tau_m
             T[:, 2, 2] = 2.0
             T[:, 2, 3] = 6.0 * tau_m
-            pva = T @ self._coef[interval, self._marker_index]
-        return pva[:, 0], pva[:, 1], pva[:, 2], visible
+            c = self._coef[interval, :, self._marker_index]  # (n_markers, 4, 3)
+            pva = np.ascontiguousarray(np.transpose(T @ c, (1, 0, 2)))
+        return pva[0], pva[1], pva[2], visible
 
     def positions(self, t: float) -> np.ndarray:
         """``(n_markers, 3) m`` marker positions at time t s (NaN where not visible)."""
