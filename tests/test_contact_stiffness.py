@@ -171,3 +171,31 @@ def test_stiffness_zero_without_contact(ball_on_plane):
                       want_stiffness=True)
     assert res.n_contact == 0
     assert np.all(res.K == 0.0) and np.all(res.Q == 0.0)
+
+
+def test_contact_element_scatters_into_model_columns(ball_on_plane):
+    from openfdk.contact import ContactElement
+    from openfdk.model.state import BodyStates
+    from openfdk.spatial import quat_from_matrix
+
+    ball, plane, R, s0, b0 = ball_on_plane
+    pair = ElasticFoundation(ball, plane, P_MOD, mode="grid", max_depth=1e-3)
+    rng = np.random.default_rng(5)
+    R_ba = _exp([0.02, 0.01, -0.3])
+    r_Wa, R_Wa, r_Wb, R_Wb = _world(rng, b0 + np.array([0, 0, R - 1e-4]) - R_ba @ s0, R_ba)
+    quats = [quat_from_matrix(np.eye(3)), quat_from_matrix(R_Wb), quat_from_matrix(R_Wa)]
+    # body 0 fixed (ground), body 1 = plane (columns 0..5), body 2 = ball (6..11)
+    state = BodyStates([np.zeros(3), r_Wb, r_Wa], quats, [-1, 0, 6])
+    element = ContactElement("tmj", body_a=2, body_b=1, pair=pair)
+    Q, K, res = element.generalized_forces(state, want_stiffness=True)
+    direct = pair.evaluate(r_Wa, R_Wa, r_Wb, R_Wb, want_stiffness=True)
+    assert res.n_contact > 0
+    np.testing.assert_allclose(Q[6:12], direct.Q[0:6], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(Q[0:6], direct.Q[6:12], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(K[6:12, 0:6], direct.K[0:6, 6:12], rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(K[0:6, 0:6], direct.K[6:12, 6:12], rtol=1e-9, atol=1e-9)
+    # the plane fixed: only the ball's block remains
+    fixed = BodyStates([np.zeros(3), r_Wb, r_Wa], quats, [-1, -1, 0])
+    Q2, K2, _ = element.generalized_forces(fixed, want_stiffness=True)
+    np.testing.assert_allclose(Q2, direct.Q[0:6], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(K2, direct.K[0:6, 0:6], rtol=1e-9, atol=1e-9)

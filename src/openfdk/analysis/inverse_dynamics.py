@@ -17,6 +17,7 @@ import numpy as np
 from ..dynamics.equilibrium import assemble, equilibrium_layout, inertial_minus_gravity
 from ..forces.elements import RECRUITMENT, RecruitmentSettings
 from ..forces.passive import PassiveElements
+from ..forces.pathset import PathSet
 from ..kinematics.system import ConstraintSystem
 
 #: strengths below this (N) are raised to it so that the recruitment stays defined; a
@@ -56,6 +57,7 @@ class InverseDynamics:
         self.layout = equilibrium_layout(model, self.system)
         muscles = self.layout.muscles
         self.muscle_set = MuscleSet([m.law for m in muscles]) if muscles else None
+        self.paths = PathSet(muscles) if muscles else None
         self.passive = PassiveElements(model)
         self.settings = model.elements.get(RECRUITMENT, RecruitmentSettings())
         self.unilateral_strength = np.array([u[2] for u in self.layout.unilateral], dtype=float)
@@ -64,12 +66,9 @@ class InverseDynamics:
 
     def muscle_states(self, state):
         """Muscle lengths l (nm,) m, path Jacobians L (nm, n), speeds L v (nm,) m/s."""
-        nm = self.layout.n_muscles
-        l = np.zeros(nm)
-        L = np.zeros((nm, state.n_coords))
-        for k, m in enumerate(self.layout.muscles):
-            val, M, _ = m.path.evaluate(state, 1)
-            l[k], L[k] = val[0], M[0]
+        if self.paths is None:
+            return np.zeros(0), np.zeros((0, state.n_coords)), np.zeros(0)
+        l, L = self.paths.evaluate(state)
         return l, L, L @ state.get_v()
 
     def equilibrium(self, state, vdot, t, alpha=None):

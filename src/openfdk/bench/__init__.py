@@ -9,5 +9,6 @@ does not hide the others.
 BENCHMARK_MODULES = [
     "openfdk.bench.kinematics",
     "openfdk.bench.recruitment",
+    "openfdk.bench.inverse_dynamics",
     "openfdk.bench.contact",
 ]

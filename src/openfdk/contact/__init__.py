@@ -5,6 +5,8 @@
 * :mod:`.elastic_foundation` — :class:`ElasticFoundation` contact pairs and
   :class:`ContactResult` (generalized forces, centre of pressure, area, peak pressure,
   stiffness).
+* :mod:`.element` — :class:`ContactElement`, a pair as a model force element (scatters Q
+  and K into a model's q̂ columns).
 * :mod:`.signed_distance`, :mod:`.distance_grid` — exact (libigl) and gridded (numba)
   signed distance to an open surface.
 * :mod:`.shapes` — procedural test surfaces (sphere cap, flat patch, ellipsoid cap, fossa).
@@ -19,6 +21,7 @@ from .elastic_foundation import (
     ContactResult,
     ElasticFoundation,
 )
+from .element import ContactElement
 from .mesh import (
     MeshError,
     MeshWarning,
@@ -31,6 +34,7 @@ from .mesh import (
 
 __all__ = [
     "ElasticFoundation",
+    "ContactElement",
     "ContactResult",
     "DEFAULT_GRID_SPACING",
     "DEFAULT_MAX_DEPTH",

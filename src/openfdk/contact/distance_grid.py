@@ -1,16 +1,18 @@
 """Precomputed signed-distance grid of an open surface, queried by a numba trilinear kernel.
 
 The grid covers the surface's body-frame bounding box inflated by the band half-width
-``w = max_depth + 2h`` (h = spacing). Only nodes within ``w`` of some triangle (found by
-marking each triangle's inflated bounding box) are evaluated, with the exact method of
+``w = max_depth + 2h`` (h = spacing). Only candidate nodes near the band
+−w ≤ φ ≤ 2h (found by marking each triangle's box swept back by w along its normals)
+are evaluated, with the exact method of
 :class:`~openfdk.contact.signed_distance.OpenSurfaceDistance`; every node stores
-``[φ, ∂φ/∂x, ∂φ/∂y, ∂φ/∂z]`` (float32). Nodes outside the band, and nodes whose closest
+``[φ, ∂φ/∂x, ∂φ/∂y, ∂φ/∂z]`` (float32), the gradient by central differences of the node
+values (:func:`_difference_gradient`). Nodes outside the band, and nodes whose closest
 point is on the boundary rim, hold φ = NaN.
 
 Query (:func:`sample_grid`): trilinear weights applied to the corner values
 corrected by half their tangent-plane step, which cancels the h²-term of plain trilinear
 interpolation (plain trilinear errs by ≈ (h²/8)·Σ|∂²φ/∂x_k²| ≈ h²/(4ρ) for curvature
-radius ρ); the stored gradients are interpolated trilinearly and normalised to give the
+radius ρ); the node gradients are interpolated trilinearly and normalised to give the
 outward unit normal. A point whose cell has any NaN corner is "not in contact" (this
 trims about one cell from the rim). The faceted surface's distance field has kinks
 behind the mesh edges; they limit the accuracy (docs/contact.md has measurements).

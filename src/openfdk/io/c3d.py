@@ -330,12 +330,14 @@ def inspect_c3d(path: str | os.PathLike) -> C3DLayout:
 
     Checks: the file exists and is non-empty; the 512-byte header is complete; byte 2
     is 0x50; the parameter block pointer (byte 1) points inside the file; the processor
-    type is 84 (Intel), 85 (DEC) or 86 (MIPS); the parameter records are well formed; the
-    header and POINT:SCALE agree on float vs integer storage; ANALOG:SCALE, ANALOG:OFFSET
-    and ANALOG:GEN_SCALE cover every analog channel (ezc3d crashes otherwise); the data
-    section implied by the header and by the parameters
-    (data start block + frames × (4 × points + analog values) × 2 or 4 bytes) fits in
-    the file.  Returns the layout; raises :class:`C3DError` naming the file otherwise.
+    type is 84 (Intel), 85 (DEC) or 86 (MIPS); the parameter records are well formed
+    (packed, ≤ 7 dimensions, no group id twice; counts and rates finite and ≥ 0; labels
+    and units are text; enough labels for the points); the header and POINT:SCALE agree
+    on float vs integer storage; ANALOG:SCALE, ANALOG:OFFSET and ANALOG:GEN_SCALE cover
+    every analog channel (ezc3d crashes otherwise); the data section implied by the
+    header and by the parameters (data start block + frames × (4 × points + analog
+    values) × 2 or 4 bytes), and ezc3d's ROTATION data, fit in the file.
+    Returns the layout; raises :class:`C3DError` naming the file otherwise.
     """
     name = os.fspath(path)
     if not os.path.exists(name):

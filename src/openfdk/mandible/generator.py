@@ -42,7 +42,7 @@ def _mirror(v, side: str) -> np.ndarray:
     v = np.array(v, dtype=float)
     if side == "l":
         v[..., 1] *= -1.0
-    return v
+    return v + 0.0          # + 0.0 turns -0.0 into 0.0
 
 
 def tmj_plane_normal(side: str, downward_anterior: float, medial_cant: float) -> np.ndarray:
@@ -117,13 +117,14 @@ def build_anatomy(symmetric: bool = True, seed: int = 0, asymmetry: float = 1.0)
         m = _MEDIAL_SIGN[side]
         top = np.array([0.0, -m * half_width, m * dz])      # origin stays midway
         size = 1.0 + jitter(bounds["condyle_size_fraction"])
-        angle = m * (cd["long_axis_angle"] + jitter(bounds["long_axis_angle_deg"])) * _DEG
+        turn = jitter(bounds["long_axis_angle_deg"])
+        angle = m * (cd["long_axis_angle"] + turn) * _DEG
         condyles[side] = CondyleShape(
             top=top, semi_axes=0.5 * _MM * size * np.array([cd["antero_posterior_depth"],
                                                             cd["medio_lateral_width"], 2.0 * cd["height"]]),
             axis_angle=angle, cap_extent=cd["cap_extent"])
         fossae[side] = FossaShape(
-            top=top, axis_angle=angle, medial_sign=m, height_offset=layer,
+            top=top, axis_angle=m * (fd["axis_angle"] + turn) * _DEG, medial_sign=m, height_offset=layer,
             depth=(fd["depth"] + jitter(bounds["fossa_depth_mm"])) * _MM,
             eminence_slope=(fd["eminence_slope"] + jitter(bounds["eminence_slope_deg"])) * _DEG,
             eminence_start=fd["eminence_start"] * _MM, corner_width=fd["corner_width"] * _MM,
@@ -157,8 +158,15 @@ def load_anatomy(directory: str | os.PathLike) -> VirtualAnatomy:
 
 def _mm(v, digits: int = 6):
     """Metres → mm list/float, rounded to 1 nm."""
-    a = np.round(np.asarray(v, dtype=float) / _MM, digits)
+    a = np.round(np.asarray(v, dtype=float) / _MM, digits) + 0.0     # + 0.0: no "-0.0"
     return a.tolist() if a.ndim else float(a)
+
+
+class _PlainDumper(yaml.SafeDumper):
+    """Safe dumper without YAML anchors/aliases (repeated lists are written out)."""
+
+    def ignore_aliases(self, data):
+        return True
 
 
 def _write_stl(path: Path, vertices_m: np.ndarray, faces: np.ndarray) -> None:
@@ -172,9 +180,9 @@ def _subject_document(anatomy: VirtualAnatomy, name: str) -> dict:
     data, muscle_table = generic_data()
     landmarks = {f"condyle_top_{s}": _mm(anatomy.condyles[s].top) for s in SIDES}
     landmarks["incisal_point"] = list(map(float, data["landmarks"]["incisal_point"]))
-    for s in SIDES:
-        landmarks[f"molar_{s}"] = _mirror(data["landmarks"]["molar_r"], s).tolist()
-        landmarks[f"premolar_{s}"] = _mirror(data["landmarks"]["premolar_r"], s).tolist()
+    for kind in ("molar", "premolar"):
+        for s in SIDES:
+            landmarks[f"{kind}_{s}"] = (_mirror(data["landmarks"][f"{kind}_r"], s) + 0.0).tolist()
     plane = data["tmj_plane"]
     planes = {s: {"point": landmarks[f"condyle_top_{s}"],
                   "normal": np.round(tmj_plane_normal(s, plane["downward_anterior"] * _DEG,
@@ -257,7 +265,8 @@ def create_subject(directory: str | os.PathLike, *, resolution: str = "default",
         _write_stl(directory / f"condyle_{s}.stl", *condyle_mesh(anatomy.condyles[s], sizes["condyle_rings"]))
         _write_stl(directory / f"fossa_{s}.stl", *fossa_mesh(anatomy.fossae[s], *sizes["fossa_grid"]))
     document = _subject_document(anatomy, name)
-    text = _HEADER + yaml.safe_dump(document, sort_keys=False, default_flow_style=None, width=100)
+    text = _HEADER + yaml.dump(document, Dumper=_PlainDumper, sort_keys=False,
+                                default_flow_style=None, width=100)
     (directory / SUBJECT_FILE).write_text(text, encoding="utf-8")
     record = anatomy.to_dict()
     record["generator"] = {"resolution": resolution, "symmetric": bool(symmetric), "seed": int(seed),

@@ -77,3 +77,138 @@ def displace_poses(p_WB, quat_WB, R_WB, moving, column, dq_hat):
         R_WB[i, 2, 0] = 2 * (e1 * e3 - e0 * e2)
         R_WB[i, 2, 1] = 2 * (e2 * e3 + e0 * e1)
         R_WB[i, 2, 2] = 1 - 2 * (e1 * e1 + e2 * e2)
+
+
+@njit(cache=True)
+def relative_vector(p_WB, R_WB, w_BB, v_WB, column, ia, s_a, ib, s_b, k, n_coords, order):
+    """Vector u = p_b − p_a between points s_a (on body ia) and s_b (on body ib),
+    expressed in body k's frame (world if k < 0): w = R_kᵀ u.
+
+    M = R_kᵀ (M_b − M_a) (+ w̃ in k's rotation columns); b = R_kᵀ b_u − 2 ω'_k × (R_kᵀ u̇)
+    + ω'_k × (ω'_k × w) with b_u = R_b ω̃'_b ω̃'_b s_b − R_a ω̃'_a ω̃'_a s_a (DESIGN.md §1).
+    Returns value (3,), M (3, n_coords), b (3,), u̇ expressed like w (3,).
+    """
+    value = np.zeros(3)
+    M = np.zeros((3, n_coords))
+    b = np.zeros(3)
+    du = np.zeros(3)
+    sW = np.zeros((2, 3))
+    u = np.zeros(3)
+    for side in range(2):
+        i = ia if side == 0 else ib
+        s = s_a if side == 0 else s_b
+        R = R_WB[i]
+        for r in range(3):
+            sW[side, r] = R[r, 0] * s[0] + R[r, 1] * s[1] + R[r, 2] * s[2]
+        sign = -1.0 if side == 0 else 1.0
+        for r in range(3):
+            u[r] += sign * (p_WB[i, r] + sW[side, r])
+    if k >= 0:
+        Rk = R_WB[k]
+    else:
+        Rk = np.eye(3)
+    for r in range(3):
+        value[r] = Rk[0, r] * u[0] + Rk[1, r] * u[1] + Rk[2, r] * u[2]
+    if order == 0:
+        return value, M, b, du
+    for side in range(2):
+        i = ia if side == 0 else ib
+        c = column[i]
+        if c < 0:
+            continue
+        sign = -1.0 if side == 0 else 1.0
+        R = R_WB[i]
+        s = s_a if side == 0 else s_b
+        # block_W = [I, −R s̃] ; M += sign · R_kᵀ block_W
+        blk = np.zeros((3, 6))
+        for r in range(3):
+            blk[r, r] = 1.0
+            blk[r, 3] = R[r, 2] * s[1] - R[r, 1] * s[2]
+            blk[r, 4] = R[r, 0] * s[2] - R[r, 2] * s[0]
+            blk[r, 5] = R[r, 1] * s[0] - R[r, 0] * s[1]
+        for r in range(3):
+            for j in range(6):
+                acc = Rk[0, r] * blk[0, j] + Rk[1, r] * blk[1, j] + Rk[2, r] * blk[2, j]
+                M[r, c + j] += sign * acc
+    if k >= 0 and column[k] >= 0:
+        ck = column[k]
+        # + w̃ in k's rotation columns
+        M[0, ck + 4] += -value[2]
+        M[0, ck + 5] += value[1]
+        M[1, ck + 3] += value[2]
+        M[1, ck + 5] += -value[0]
+        M[2, ck + 3] += -value[1]
+        M[2, ck + 4] += value[0]
+    if order == 1:
+        return value, M, b, du
+    duW = np.zeros(3)
+    bW = np.zeros(3)
+    for side in range(2):
+        i = ia if side == 0 else ib
+        s = s_a if side == 0 else s_b
+        sign = -1.0 if side == 0 else 1.0
+        R = R_WB[i]
+        w0, w1, w2 = w_BB[i, 0], w_BB[i, 1], w_BB[i, 2]
+        a0, a1, a2 = w1 * s[2] - w2 * s[1], w2 * s[0] - w0 * s[2], w0 * s[1] - w1 * s[0]
+        c0, c1, c2 = w1 * a2 - w2 * a1, w2 * a0 - w0 * a2, w0 * a1 - w1 * a0
+        for r in range(3):
+            duW[r] += sign * (v_WB[i, r] + R[r, 0] * a0 + R[r, 1] * a1 + R[r, 2] * a2)
+            bW[r] += sign * (R[r, 0] * c0 + R[r, 1] * c1 + R[r, 2] * c2)
+    for r in range(3):
+        du[r] = Rk[0, r] * duW[0] + Rk[1, r] * duW[1] + Rk[2, r] * duW[2]
+        b[r] = Rk[0, r] * bW[0] + Rk[1, r] * bW[1] + Rk[2, r] * bW[2]
+    if k >= 0:
+        wk0, wk1, wk2 = w_BB[k, 0], w_BB[k, 1], w_BB[k, 2]
+        x0, x1, x2 = wk1 * du[2] - wk2 * du[1], wk2 * du[0] - wk0 * du[2], wk0 * du[1] - wk1 * du[0]
+        y0, y1, y2 = wk1 * value[2] - wk2 * value[1], wk2 * value[0] - wk0 * value[2], wk0 * value[1] - wk1 * value[0]
+        z0, z1, z2 = wk1 * y2 - wk2 * y1, wk2 * y0 - wk0 * y2, wk0 * y1 - wk1 * y0
+        b[0] += -2.0 * x0 + z0
+        b[1] += -2.0 * x1 + z1
+        b[2] += -2.0 * x2 + z2
+        # the rate of w itself: ẇ = R_kᵀ u̇ − ω'_k × w
+        du[0] -= y0
+        du[1] -= y1
+        du[2] -= y2
+    return value, M, b, du
+
+
+@njit(cache=True)
+def path_lengths(p_WB, R_WB, column, seg_a, s_a, seg_b, s_b, seg_path, n_paths, n_coords):
+    """Lengths l (n_paths,) m and Jacobians L = ∂l/∂q̂ (n_paths, n_coords) of paths made
+    of straight segments between body points (segment k from s_a[k] on body seg_a[k]
+    to s_b[k] on body seg_b[k], belonging to path seg_path[k]): l = Σ |p_b − p_a|,
+    L = Σ eᵀ (M_b − M_a), e the unit segment direction."""
+    l = np.zeros(n_paths)
+    L = np.zeros((n_paths, n_coords))
+    for k in range(seg_a.shape[0]):
+        ia, ib = seg_a[k], seg_b[k]
+        Ra, Rb = R_WB[ia], R_WB[ib]
+        sa = np.zeros(3)
+        sb = np.zeros(3)
+        u = np.zeros(3)
+        for r in range(3):
+            sa[r] = Ra[r, 0] * s_a[k, 0] + Ra[r, 1] * s_a[k, 1] + Ra[r, 2] * s_a[k, 2]
+            sb[r] = Rb[r, 0] * s_b[k, 0] + Rb[r, 1] * s_b[k, 1] + Rb[r, 2] * s_b[k, 2]
+            u[r] = p_WB[ib, r] + sb[r] - p_WB[ia, r] - sa[r]
+        length = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+        p = seg_path[k]
+        l[p] += length
+        e0, e1, e2 = u[0] / length, u[1] / length, u[2] / length
+        for side in range(2):
+            i = ia if side == 0 else ib
+            c = column[i]
+            if c < 0:
+                continue
+            sign = -1.0 if side == 0 else 1.0
+            sW = sa if side == 0 else sb
+            L[p, c] += sign * e0
+            L[p, c + 1] += sign * e1
+            L[p, c + 2] += sign * e2
+            # eᵀ(−R s̃) = eᵀ(−s̃_W R) = (s_W × e)ᵀ R ... computed as (R ᵀ (s_W × e))ᵀ
+            x0 = sW[1] * e2 - sW[2] * e1
+            x1 = sW[2] * e0 - sW[0] * e2
+            x2 = sW[0] * e1 - sW[1] * e0
+            R = R_WB[i]
+            for j in range(3):
+                L[p, c + 3 + j] += sign * (R[0, j] * x0 + R[1, j] * x1 + R[2, j] * x2)
+    return l, L

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..spatial import xyz_angles_from_matrix
+from .kernels import relative_vector
 
 __all__ = [
     "Measure",
@@ -121,30 +122,16 @@ class RelativeVector(Measure):
         return tuple(sorted(set(self.point_a.bodies() + self.point_b.bodies() + extra)))
 
     def evaluate(self, state, order=1):
-        ua, Ma, ba = self.point_a.evaluate(state, order)
-        ub, Mb, bb = self.point_b.evaluate(state, order)
-        u = ub - ua
-        k = self.frame
-        if k is None:
-            if order == 0:
-                return u, None, None
-            return u, Mb - Ma, (None if order == 1 else bb - ba)
-        R = state.R_WB[k]
-        w = R.T @ u
-        if order == 0:
-            return w, None, None
-        M = R.T @ (Mb - Ma)
-        c = state.column[k]
-        if c >= 0:
-            M[:, c + 3 : c + 6] += _skew(w)
-        if order == 1:
-            return w, M, None
-        v = state.get_v()
-        du_W = (Mb - Ma) @ v if state.n_coords else np.zeros(3)
-        wk = state.w_BB[k]
-        du_k = R.T @ du_W
-        b = R.T @ (bb - ba) - 2.0 * _cross(wk, du_k) + _cross(wk, _cross(wk, w))
-        return w, M, b
+        value, M, b, _ = self._kernel(state, order)
+        return value, (M if order >= 1 else None), (b if order >= 2 else None)
+
+    def _kernel(self, state, order):
+        """(w, M, b, ẇ) from the numba kernel :func:`openfdk.model.kernels.relative_vector`."""
+        return relative_vector(
+            state.p_WB, state.R_WB, state.w_BB, state.v_WB, state.column,
+            self.point_a.body, self.point_a.p_BP, self.point_b.body, self.point_b.p_BP,
+            -1 if self.frame is None else self.frame, state.n_coords, order,
+        )
 
 
 class Distance(Measure):
@@ -164,7 +151,7 @@ class Distance(Measure):
         return self.vector.bodies()
 
     def evaluate(self, state, order=1):
-        u, Mu, bu = self.vector.evaluate(state, order)
+        u, Mu, bu, du = self.vector._kernel(state, order)
         length = float(np.sqrt(u @ u))
         value = np.array([length])
         if order == 0:
@@ -175,7 +162,6 @@ class Distance(Measure):
         M = (e @ Mu)[None, :]
         if order == 1:
             return value, M, None
-        du = Mu @ state.get_v()
         b = np.array([e @ bu + (du @ du - (e @ du) ** 2) / length])
         return value, M, b
 
@@ -319,6 +305,10 @@ class Linear(Measure):
         return tuple(sorted(out))
 
     def evaluate(self, state, order=1):
+        if len(self.terms) == 1:
+            C, m = self.terms[0]
+            mv, mM, mb = m.evaluate(state, order)
+            return (C @ mv + self.offset, None if order == 0 else C @ mM, None if order < 2 else C @ mb)
         value = self.offset.copy()
         M = None if order == 0 else np.zeros((self.size, state.n_coords))
         b = None if order < 2 else np.zeros(self.size)

@@ -23,6 +23,7 @@ from openfdk.recruitment.result import (
     STATUS_OPTIMAL,
     RecruitmentResult,
     check_problem,
+    solve_without_zero_strength,
     rank_deficiency_error,
 )
 
@@ -40,7 +41,7 @@ def solve_minmax(C, d, n_bounded, s, *, row_names=None, column_names=None
     Parameters
     ----------
     C : (n_eq, n_var), columns ordered [bounded..., free...]; d : (n_eq,) N or N·m;
-    n_bounded : int; s : (n_bounded,) N strengths > 0;
+    n_bounded : int; s : (n_bounded,) N strengths ≥ 0 (0 fixes that force at zero);
     row_names, column_names : optional names for messages.
 
     Returns
@@ -53,6 +54,9 @@ def solve_minmax(C, d, n_bounded, s, *, row_names=None, column_names=None
     RankDeficientFreeColumnsError when the free columns are linearly dependent.
     """
     C, d, s = check_problem(C, d, n_bounded, s, row_names, column_names)
+    if n_bounded and s.min() == 0.0:
+        return solve_without_zero_strength(solve_minmax, C, d, int(n_bounded), s,
+                                           column_names=column_names, row_names=row_names)
     n_eq, n_var = C.shape
     n_bounded = int(n_bounded)
     n_free = n_var - n_bounded

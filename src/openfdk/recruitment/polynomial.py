@@ -50,6 +50,7 @@ from openfdk.recruitment.result import (
     RecruitmentInputError,
     RecruitmentResult,
     check_problem,
+    solve_without_zero_strength,
     rank_deficiency_error,
 )
 
@@ -206,7 +207,7 @@ def solve_polynomial(C, d, n_bounded, s, p=3.0, *, x0=None, tol=1e-10, max_iter=
         (row units per column unit: 1 for force rows, m for moment rows of force columns).
     d : (n_eq,) N (force rows) or N·m (moment rows).
     n_bounded : int, number of bounded columns (muscles, unilateral reactions).
-    s : (n_bounded,) N, strengths > 0.
+    s : (n_bounded,) N, strengths ≥ 0 (0 fixes that force at zero).
     p : float ≥ 2, exponent (3 = the paper's cubic criterion, 2 = quadratic).
     x0 : optional warm start — a previous :class:`RecruitmentResult` (its multipliers are
         used; best) or forces (n_var,) N.
@@ -226,6 +227,10 @@ def solve_polynomial(C, d, n_bounded, s, p=3.0, *, x0=None, tol=1e-10, max_iter=
     columns are linearly dependent.
     """
     C, d, s = check_problem(C, d, n_bounded, s, row_names, column_names)
+    if n_bounded and s.min() == 0.0:
+        return solve_without_zero_strength(solve_polynomial, C, d, int(n_bounded), s,
+                                           column_names=column_names, p=p, x0=x0, tol=tol,
+                                           max_iter=max_iter, row_names=row_names)
     p = float(p)
     if not (np.isfinite(p) and p >= 2.0):
         raise RecruitmentInputError(f"exponent p must be a finite number ≥ 2; got {p!r}")

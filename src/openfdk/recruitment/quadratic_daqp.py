@@ -27,6 +27,7 @@ from openfdk.recruitment.result import (
     STATUS_OPTIMAL,
     RecruitmentResult,
     check_problem,
+    solve_without_zero_strength,
     rank_deficiency_error,
 )
 
@@ -45,7 +46,7 @@ def solve_quadratic_daqp(C, d, n_bounded, s, *, row_names=None, column_names=Non
     Parameters
     ----------
     C : (n_eq, n_var), columns ordered [bounded..., free...]; d : (n_eq,) N or N·m;
-    n_bounded : int; s : (n_bounded,) N strengths > 0;
+    n_bounded : int; s : (n_bounded,) N strengths ≥ 0 (0 fixes that force at zero);
     row_names, column_names : optional names for messages;
     primal_tol : DAQP's primal feasibility tolerance (scaled, dimensionless).
 
@@ -55,6 +56,9 @@ def solve_quadratic_daqp(C, d, n_bounded, s, *, row_names=None, column_names=Non
     diagnosed with the phase-1 LP like the other solvers.
     """
     C, d, s = check_problem(C, d, n_bounded, s, row_names, column_names)
+    if n_bounded and s.min() == 0.0:
+        return solve_without_zero_strength(solve_quadratic_daqp, C, d, int(n_bounded), s,
+                                           column_names=column_names, row_names=row_names, primal_tol=primal_tol)
     n_eq, n_var = C.shape
     n_bounded = int(n_bounded)
     status, A_full, A_r, b_r, L, free_back, _, _ = reduce_problem(

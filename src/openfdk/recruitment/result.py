@@ -17,7 +17,7 @@ right-hand side of equilibrium row k.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -135,7 +135,8 @@ def check_problem(C, d, n_bounded, s, row_names=None, column_names=None):
     C : (n_eq, n_var) equilibrium matrix (row units per column units, e.g. 1 or m).
     d : (n_eq,) right-hand side (N or N·m per row).
     n_bounded : int, number of leading bounded columns.
-    s : (n_bounded,) N, strengths, all > 0 and finite.
+    s : (n_bounded,) N, strengths, all ≥ 0 and finite (0: the force is fixed at zero, see
+        :func:`solve_without_zero_strength`).
 
     Returns ``(C, d, s)`` as C-contiguous float64 arrays.
     Raises RecruitmentInputError naming the offending argument or column.
@@ -158,10 +159,10 @@ def check_problem(C, d, n_bounded, s, row_names=None, column_names=None):
     # NaN and inf propagate through a sum (cheaper than an element-wise isfinite)
     if not (np.isfinite(C.sum()) and np.isfinite(d.sum())):
         raise RecruitmentInputError("C and d must be finite (found NaN or inf)")
-    if n_bounded and not (s.min() > 0.0 and np.isfinite(s.sum())):
-        j = int(np.flatnonzero(~(np.isfinite(s) & (s > 0.0)))[0])
+    if n_bounded and not (s.min() >= 0.0 and np.isfinite(s.sum())):
+        j = int(np.flatnonzero(~(np.isfinite(s) & (s >= 0.0)))[0])
         raise RecruitmentInputError(
-            f"strength of {column_label(j, column_names)} must be finite and > 0 N; got {s[j]!r}"
+            f"strength of {column_label(j, column_names)} must be finite and ≥ 0 N; got {s[j]!r}"
         )
     if row_names is not None and len(row_names) != n_eq:
         raise RecruitmentInputError(f"row_names must have {n_eq} entries; got {len(row_names)}")
@@ -186,3 +187,44 @@ def rank_deficiency_error(null_vectors, n_bounded, column_names):
         "openfdk does not regularise free forces silently.",
         involved,
     )
+
+
+def solve_without_zero_strength(solve, C, d, n_bounded, s, *, column_names=None, x0=None,
+                                **options):
+    """Solve with the zero-strength bounded columns removed (their forces are fixed at 0).
+
+    A muscle whose strength is 0 at this state (e.g. far down its force–length curve) can
+    only carry f = 0; it is dropped, the problem is solved by ``solve`` (a solver with the
+    signature of the openfdk recruitment solvers), and the result is expanded back to all
+    columns with those forces at zero and marked ``active_lower``.
+
+    C : (n_eq, n_var); d : (n_eq,); s : (n_bounded,) N with some zeros; x0 : optional warm
+    start (forces (n_var,) or a RecruitmentResult). Returns RecruitmentResult (n_var columns).
+    """
+    n_var = C.shape[1]
+    keep = np.ones(n_var, dtype=bool)
+    keep[:n_bounded] = s > 0.0
+    kept_index = np.flatnonzero(keep)
+    names = None if column_names is None else [column_names[j] for j in kept_index]
+    if x0 is not None:
+        if isinstance(x0, RecruitmentResult) and x0.converged:
+            options["x0"] = x0  # its multipliers (per row) are all that is used
+        else:
+            forces = x0.f if isinstance(x0, RecruitmentResult) else np.asarray(x0, float)
+            options["x0"] = forces[keep]
+    n_kept = int(keep[:n_bounded].sum())
+    try:
+        sub = solve(C[:, keep], d, n_kept, s[keep[:n_bounded]], column_names=names, **options)
+    except RankDeficientFreeColumnsError as error:
+        error.columns = tuple(int(kept_index[j]) for j in error.columns)
+        raise
+    f = np.zeros(n_var)
+    f[keep] = sub.f
+    active_upper = np.zeros(n_var, dtype=bool)
+    active_lower = np.zeros(n_var, dtype=bool)
+    active_upper[keep] = sub.active_upper
+    active_lower[keep] = sub.active_lower
+    if sub.converged:
+        active_lower[:n_bounded] |= ~keep[:n_bounded]
+    return replace(sub, f=f, active_upper=active_upper, active_lower=active_lower,
+                   n_bounded=n_bounded)

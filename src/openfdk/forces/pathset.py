@@ -1,0 +1,41 @@
+"""Many muscle/ligament paths evaluated at once (numba kernel), for the hot loop.
+
+A path is a chain of body points with straight segments (see :mod:`.elements`); the
+kernel :func:`openfdk.model.kernels.path_lengths` returns every path's length (m) and
+Jacobian L = ∂l/∂q̂ in one call.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..model.kernels import path_lengths
+
+
+class PathSet:
+    """Lengths and Jacobians of the paths of ``elements`` (each with ``.path``, a Linear
+    of Distance measures as built by :func:`openfdk.forces.elements.path_measure`)."""
+
+    def __init__(self, elements):
+        seg_a, s_a, seg_b, s_b, seg_path = [], [], [], [], []
+        for k, el in enumerate(elements):
+            for C, dist in el.path.terms:
+                if C.shape != (1, 1) or C[0, 0] != 1.0 or not hasattr(dist, "vector"):
+                    raise ValueError(f"path of {el.name!r} is not a chain of segments")
+                v = dist.vector
+                seg_a.append(v.point_a.body)
+                s_a.append(v.point_a.p_BP)
+                seg_b.append(v.point_b.body)
+                s_b.append(v.point_b.p_BP)
+                seg_path.append(k)
+        self.n_paths = len(elements)
+        self.seg_a = np.array(seg_a, dtype=np.int64)
+        self.seg_b = np.array(seg_b, dtype=np.int64)
+        self.s_a = np.array(s_a, dtype=float).reshape(-1, 3)
+        self.s_b = np.array(s_b, dtype=float).reshape(-1, 3)
+        self.seg_path = np.array(seg_path, dtype=np.int64)
+
+    def evaluate(self, state):
+        """l (n_paths,) m and L (n_paths, n_coords)."""
+        return path_lengths(state.p_WB, state.R_WB, state.column, self.seg_a, self.s_a, self.seg_b,
+                            self.s_b, self.seg_path, self.n_paths, state.n_coords)

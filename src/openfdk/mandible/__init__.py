@@ -1,0 +1,16 @@
+"""The mandible study: subject folders, the virtual subject and the virtual experiment.
+
+* :func:`load_subject` — read and validate a subject folder (docs/subject-folder.md).
+* :func:`create_subject` — write a generated (virtual) subject folder.
+* :func:`record_experiment` — the virtual experiment: C3D trials + ground truth
+  (docs/virtual-experiment.md).
+* :func:`measured_condyle_kinematics` — condyle tops as the dental braces measure them.
+"""
+
+from .experiment import load_truth, measured_condyle_kinematics, record_experiment, rigid_fit
+from .generator import create_subject
+from .subject import Subject, SubjectError, load_subject
+from .truth import TruthOptions
+
+__all__ = ["Subject", "SubjectError", "TruthOptions", "create_subject", "load_subject",
+           "load_truth", "measured_condyle_kinematics", "record_experiment", "rigid_fit"]
