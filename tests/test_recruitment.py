@@ -590,7 +590,7 @@ def test_benchmark_records():
     records = bench.run(quick=True)
     names = {record["name"] for record in records}
     assert {"recruitment_polynomial_p3_24m8r_ms", "recruitment_polynomial_p2_24m8r_ms",
-            "recruitment_minmax_highs_24m8r_ms"} <= names
+            "recruitment_minmax_24m8r_ms"} <= names
     for record in records:
         assert record["unit"] == "ms" and record["value"] > 0.0
 

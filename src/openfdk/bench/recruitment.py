@@ -106,7 +106,7 @@ def run(quick: bool) -> list[dict]:
         "recruitment_polynomial_p3_24m8r_ms": lambda C, d, n, s: solve_polynomial(C, d, n, s, 3.0),
         "recruitment_polynomial_p2_24m8r_ms": lambda C, d, n, s: solve_polynomial(C, d, n, s, 2.0),
         "recruitment_quadratic_daqp_24m8r_ms": solve_quadratic_daqp,
-        "recruitment_minmax_highs_24m8r_ms": solve_minmax,
+        "recruitment_minmax_24m8r_ms": solve_minmax,
     }
     records = []
     for name, solve in solvers.items():

@@ -40,7 +40,7 @@ from .subject import Subject, load_subject
 from .truth import SIDES, TrueJoint, TruthOptions, solve_contact
 
 __all__ = ["TASKS", "TaskTruth", "record_experiment", "simulate_task", "measured_condyle_kinematics",
-           "rigid_fit", "load_truth", "true_marker_positions"]
+           "rigid_fit", "load_truth", "load_true_joint", "true_marker_positions"]
 
 _MM, _DEG = 1e-3, np.pi / 180.0
 #: default cycle frequency (Hz) of each task; "reference" is a static 1 s trial
@@ -268,6 +268,29 @@ def load_truth(directory: str | os.PathLike, task: str) -> dict:
     path = Path(directory) / "truth" / f"{task}.csv"
     data = np.genfromtxt(path, delimiter=",", names=True)
     return {name: np.asarray(data[name]) for name in data.dtype.names}
+
+
+def load_true_joint(directory: str | os.PathLike) -> tuple[TrueJoint, dict]:
+    """The true joint and true brace markers of a recorded virtual experiment.
+
+    Rebuilt from ``truth/anatomy.yaml`` and ``truth/truth.yaml``. Returns the
+    :class:`TrueJoint` and body → (k, 3) m true marker positions (body frames).
+    """
+    from .geometry import SmoothField
+
+    directory = Path(directory)
+    anatomy = load_anatomy(directory)
+    info = yaml.safe_load((directory / "truth" / "truth.yaml").read_text(encoding="utf-8"))
+    options = info["truth_options"]
+    fields = {k: SmoothField(*(np.asarray(v[key], dtype=float).reshape(-1, 3) if key == "wave_vectors"
+                               else np.asarray(v[key], dtype=float) for key in ("wave_vectors", "amplitudes", "phases")))
+              for k, v in info["segmentation_fields"].items()}
+    joint = TrueJoint(anatomy.condyles, anatomy.fossae, float(info["cartilage_offset_m"]),
+                      _MM * np.array([options["disc_excess_anterior"], options["disc_excess_superior"],
+                                      options["disc_excess_posterior"]]),
+                      {s: fields[f"condyle_{s}"] for s in SIDES}, {s: fields[f"fossa_{s}"] for s in SIDES})
+    markers = {body: np.array(list(m.values())) for body, m in info["true_markers_m"].items()}
+    return joint, markers
 
 
 _README = """\

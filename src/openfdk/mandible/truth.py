@@ -219,7 +219,7 @@ class _SideCache:
     """Square grid of cap parameters (n × n over [−ρ, ρ]², the points outside |s| ≤ ρ
     masked) and their offset points, for the global search of one side."""
 
-    def __init__(self, joint: TrueJoint, side: str, n_grid: int = 25):
+    def __init__(self, joint: TrueJoint, side: str, n_grid: int = 21):
         self.side = side
         self.n = n_grid
         self.cap_extent = joint.condyles[side].cap_extent
@@ -247,7 +247,7 @@ def min_gap(joint: TrueJoint, side: str, R_SM, p_SM, cache: _SideCache | None = 
     P* (B, 3) m (the same point, skull frame).
 
     A global search on a parameter grid (unless ``s_start``), then Newton on s with a
-    9-point central finite-difference gradient and Hessian (step ``fd_step`` in s),
+    6-point finite-difference gradient and Hessian (step ``fd_step`` in s),
     started from the ``candidates`` lowest local minima of the grid.
     """
     cache = cache or _SideCache(joint, side)
@@ -257,9 +257,10 @@ def min_gap(joint: TrueJoint, side: str, R_SM, p_SM, cache: _SideCache | None = 
         # global search: the `candidates` lowest local minima of the grid values are
         # each refined, and the lowest result is kept (two parts of the surface can
         # come equally close; refining only the lowest grid point could pick the wrong one)
-        P = p_SM[:, None, :] + np.einsum("bij,kj->bki", R_SM, cache.p_M)
-        g = joint.fossa_height(side, P[..., 0], P[..., 1]) - P[..., 2]
-        g = np.where(cache.inside, g, np.inf).reshape(B, cache.n, cache.n)
+        P = p_SM[:, None, :] + np.einsum("bij,kj->bki", R_SM, cache.p_M[cache.inside])
+        g = np.full((B, cache.n * cache.n), np.inf)
+        g[:, cache.inside] = joint.fossa_height(side, P[..., 0], P[..., 1]) - P[..., 2]
+        g = g.reshape(B, cache.n, cache.n)
         padded = np.pad(g, ((0, 0), (1, 1), (1, 1)), constant_values=np.inf)
         local = np.ones_like(g, dtype=bool)
         for di in (-1, 0, 1):
@@ -276,16 +277,18 @@ def min_gap(joint: TrueJoint, side: str, R_SM, p_SM, cache: _SideCache | None = 
         return gap[pick], s[pick], p_M[pick], P[pick]
     s = np.array(s_start, dtype=float)
     h = fd_step
-    offsets = np.array([[0, 0], [h, 0], [-h, 0], [0, h], [0, -h], [h, h], [h, -h], [-h, h], [-h, -h]])
+    offsets = np.array([[0, 0], [h, 0], [-h, 0], [0, h], [0, -h], [h, h]])
     for _ in range(iterations):
         stencil = (s[:, None, :] + offsets[None]).reshape(-1, 2)
-        f = _gap(joint, side, stencil, np.repeat(R_SM, 9, axis=0), np.repeat(p_SM, 9, axis=0))[0]
-        f = f.reshape(B, 9)
+        f = _gap(joint, side, stencil, np.repeat(R_SM, 6, axis=0), np.repeat(p_SM, 6, axis=0))[0]
+        f = f.reshape(B, 6)
+        # central differences for the gradient (its zero is the minimiser) and the
+        # diagonal of the Hessian; forward difference for the mixed term
         grad = np.stack([(f[:, 1] - f[:, 2]) / (2 * h), (f[:, 3] - f[:, 4]) / (2 * h)], axis=1)
         H = np.empty((B, 2, 2))
         H[:, 0, 0] = (f[:, 1] - 2 * f[:, 0] + f[:, 2]) / h ** 2
         H[:, 1, 1] = (f[:, 3] - 2 * f[:, 0] + f[:, 4]) / h ** 2
-        H[:, 0, 1] = H[:, 1, 0] = (f[:, 5] - f[:, 6] - f[:, 7] + f[:, 8]) / (4 * h * h)
+        H[:, 0, 1] = H[:, 1, 0] = (f[:, 5] - f[:, 1] - f[:, 3] + f[:, 0]) / (h * h)
         det = H[:, 0, 0] * H[:, 1, 1] - H[:, 0, 1] ** 2
         convex = (det > 0) & (H[:, 0, 0] > 0)
         step = np.where(convex[:, None],
@@ -323,14 +326,14 @@ class ContactSolution:
     iterations: int
 
 
-def _height_function(joint: TrueJoint, side: str, R_SM, x, y, cache):
+def _height_function(joint: TrueJoint, side: str, R_SM, x, y, cache, s_start=None):
     """m(roll) = min_s g(s) at z = 0 and its derivative ∂m/∂roll (envelope theorem).
 
     Because P_x, P_y do not depend on z and ∂P_z/∂z = 1, the gap at any z is m − z.
     Returns m (B,), dm/droll (B,), s* (B, 2), P* (B, 3) m at z = 0.
     """
     p = np.column_stack([x, y, np.zeros_like(x)])
-    m, s, p_M, P = min_gap(joint, side, R_SM, p, cache)
+    m, s, p_M, P = min_gap(joint, side, R_SM, p, cache, s_start=s_start)
     _, zx, zy = joint.fossa_height_and_gradient(side, P[:, 0], P[:, 1])
     # ∂P/∂roll = R_SM (e_x × p_M)  (R = Rz Ry Rx, d Rx/d roll = Rx [e_x]×)
     dP = np.einsum("bij,bj->bi", R_SM, np.cross(np.array([1.0, 0.0, 0.0]), p_M))
@@ -362,21 +365,37 @@ def solve_contact(joint: TrueJoint, x, y, yaw, opening, *, tolerance: float = 1e
     lo, hi = np.full(n, -roll_bracket), np.full(n, roll_bracket)
     h_previous = np.full(n, np.inf)
     m, s_all, contact = np.zeros((n, 2)), np.zeros((n, 2, 2)), np.zeros((n, 2, 3))
+    # global grid search in the first evaluation of every frame and to verify a
+    # converged frame; local searches from the previous minimiser in between. A frame
+    # whose verification finds another, lower minimum restarts with global searches only.
     active = np.arange(n)
+    search_global = np.ones(n, dtype=bool)
+    always_global = np.zeros(n, dtype=bool)
     iteration = 0
     while len(active):
         iteration += 1
         if iteration > max_iterations:
             raise ValueError(f"contact solve did not converge at frames {active[:5].tolist()}: "
                              f"|h| = {np.abs(h[~done])[:5]} m after {max_iterations} iterations")
-        R = relative_rotation(yaw[active], opening[active], roll[active])
-        dm = np.zeros((len(active), 2))
-        for k, side in enumerate(SIDES):
-            m[active, k], dm[:, k], s_all[active, k], contact[active, k] = _height_function(
-                joint, side, R, x[active], y[active], caches[side])
-        h, dh = m[active, 0] - m[active, 1], dm[:, 0] - dm[:, 1]
-        done = np.abs(h) < tolerance
+        dm = np.zeros((n, 2))
+        for group in (active[search_global[active]], active[~search_global[active]]):
+            if not len(group):
+                continue
+            R = relative_rotation(yaw[group], opening[group], roll[group])
+            for k, side in enumerate(SIDES):
+                start_s = None if search_global[group[0]] else s_all[group, k]
+                m[group, k], dm[group, k], s_all[group, k], contact[group, k] = _height_function(
+                    joint, side, R, x[group], y[group], caches[side], start_s)
         a = active
+        h, dh = m[a, 0] - m[a, 1], dm[a, 0] - dm[a, 1]
+        done = np.abs(h) < tolerance
+        finished = done & search_global[a]
+        verify = done & ~search_global[a]
+        # a failed verification: the local searches missed a lower minimum
+        failed = search_global[a] & ~always_global[a] & (iteration > 1) & ~done
+        restart = a[failed]
+        always_global[restart] = True
+        lo[restart], hi[restart], h_previous[restart] = -roll_bracket, roll_bracket, np.inf
         lo[a] = np.where(h < 0, roll[a], lo[a])
         hi[a] = np.where(h > 0, roll[a], hi[a])
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -384,7 +403,8 @@ def solve_contact(joint: TrueJoint, x, y, yaw, opening, *, tolerance: float = 1e
         accept = (dh > 0) & (newton > lo[a]) & (newton < hi[a]) & (np.abs(h) < 0.5 * h_previous[a])
         roll[a] = np.where(done, roll[a], np.where(accept, newton, 0.5 * (lo[a] + hi[a])))
         h_previous[a] = np.abs(h)
-        active = a[~done]
+        search_global[a] = verify | always_global[a]
+        active = a[~finished]
     z = m[:, 0].copy()                                         # z = m_r(roll): right gap 0
     contact[..., 2] += z[:, None]
     gap = m - z[:, None]

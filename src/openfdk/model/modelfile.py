@@ -81,6 +81,12 @@ class Ctx:
         return value
 
     def number(self, value, path, positive=False, nonnegative=False):
+        if isinstance(value, str):
+            # YAML 1.1 reads 1.0e10 (no sign in the exponent) as a string: accept it
+            try:
+                value = float(value)
+            except ValueError:
+                raise self.error(path, f"expected a number, got {value!r}") from None
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.error(path, f"expected a number, got {value!r}")
         v = float(value)

@@ -50,8 +50,8 @@ from openfdk.recruitment.result import (
     RecruitmentInputError,
     RecruitmentResult,
     check_problem,
-    solve_without_zero_strength,
     rank_deficiency_error,
+    solve_without_zero_strength,
 )
 
 __all__ = ["solve_polynomial"]

@@ -27,8 +27,8 @@ from openfdk.recruitment.result import (
     STATUS_OPTIMAL,
     RecruitmentResult,
     check_problem,
-    solve_without_zero_strength,
     rank_deficiency_error,
+    solve_without_zero_strength,
 )
 
 __all__ = ["solve_quadratic_daqp"]

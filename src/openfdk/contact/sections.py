@@ -1,0 +1,114 @@
+"""Model-file section ``contacts`` and the builder function :func:`add_contact`.
+
+```yaml
+contacts:
+  tmj_r:
+    vertices:                         # surface whose vertices are tested (body a)
+      body: mandible
+      mesh: meshes/condyle_r.stl      # path relative to the model file
+      units: mm                       # the mesh file's unit (default: the model's)
+      placement: {position: [0, 0, 0], orientation: [0, 0, 0]}   # file -> body frame
+      offset: 1.0                     # along vertex normals, model length unit
+    surface:                          # the opposite surface (body b)
+      body: skull
+      mesh: meshes/fossa_r.stl
+    pressure_modulus: 1.0e10          # N/m³ (always SI)
+    mode: grid                        # grid (default) or exact
+    grid_spacing: 0.3                 # model length unit (default 0.3 mm)
+    max_depth: 3                      # model length unit (default 3 mm)
+```
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from ..model.modelfile import SECTION_LOADERS, _orientation, _wrap
+from ..model.model import ModelError
+from .elastic_foundation import DEFAULT_GRID_SPACING, DEFAULT_MAX_DEPTH, ElasticFoundation
+from .element import ContactElement
+from .mesh import MeshError, MeshWarning, check_scale, load_mesh, offset
+
+CONTACTS = "contacts"
+#: typical size (m) of a meshed joint region, for the mm-vs-m order-of-magnitude warning
+JOINT_REGION_SIZE = 0.05
+
+
+def add_contact(b, name, body_a, surface_a, body_b, surface_b, pressure_modulus, mode="grid",
+                grid_spacing=None, max_depth=DEFAULT_MAX_DEPTH):
+    """Add an elastic-foundation contact: vertices of ``surface_a`` (SurfaceMesh in body_a's
+    frame) against ``surface_b`` (in body_b's frame); pressure modulus in N/m³.
+    Warns (MeshWarning) when the two surfaces are far apart in the reference pose."""
+    ia, ib = b._body_index(body_a, f"contact {name!r}"), b._body_index(body_b, f"contact {name!r}")
+    if ia == ib:
+        raise ModelError(f"contact {name!r}: both surfaces are on body {body_a!r}")
+    pair = ElasticFoundation(surface_a, surface_b, pressure_modulus, mode, grid_spacing, max_depth, name)
+    _warn_if_apart(b, name, ia, surface_a, ib, surface_b, max_depth)
+    items = list(b.elements.get(CONTACTS, ()))
+    if any(c.name == name for c in items):
+        raise ModelError(f"contact {name!r} is defined twice")
+    items.append(ContactElement(name, ia, ib, pair))
+    b.elements[CONTACTS] = tuple(items)
+    return items[-1]
+
+
+def _warn_if_apart(b, name, ia, surf_a, ib, surf_b, max_depth):
+    from ..spatial import rotation_matrix
+
+    def world(i, surf):
+        rec = b._bodies[i]
+        return rec["position"] + surf.vertices_B @ rotation_matrix(rec["quat"]).T
+
+    A, B = world(ia, surf_a), world(ib, surf_b)
+    gap = np.maximum(0.0, np.maximum(A.min(0) - B.max(0), B.min(0) - A.max(0)))
+    distance = float(np.linalg.norm(gap))
+    if distance > max(5e-3, 10 * max_depth):
+        warnings.warn(
+            f"contact {name!r}: the surfaces are {distance * 1e3:.1f} mm apart in the reference pose "
+            f"(bounding boxes); check the mesh units and placement",
+            MeshWarning, stacklevel=3,
+        )
+
+
+def _surface(spec, path, ctx):
+    ctx.keys(spec, path, ["body", "mesh", "units", "placement", "offset", "flip_normals"], required=("body", "mesh"))
+    units = spec.get("units", {1.0: "m", 0.01: "cm", 0.001: "mm"}.get(ctx.length, "m"))
+    placement = None
+    if "placement" in spec:
+        pl = ctx.keys(spec["placement"], f"{path}.placement", ["position", "orientation"])
+        t = ctx.position(pl.get("position", [0, 0, 0]), f"{path}.placement.position")
+        placement = (t, _orientation(pl.get("orientation"), f"{path}.placement.orientation", ctx))
+    mesh_path = ctx.base_dir / str(spec["mesh"])
+    try:
+        mesh = load_mesh(mesh_path, units=units, placement=placement, flip_normals=bool(spec.get("flip_normals", False)),
+                         name=str(spec["mesh"]))
+    except MeshError as exc:
+        raise ctx.error(f"{path}.mesh", str(exc)) from None
+    check_scale(mesh, JOINT_REGION_SIZE)
+    if "offset" in spec:
+        mesh = offset(mesh, ctx.number(spec["offset"], f"{path}.offset") * ctx.length)
+    return spec["body"], mesh
+
+
+def load_contacts(b, data, ctx):
+    for name, spec in ctx.mapping(data, CONTACTS).items():
+        p = f"{CONTACTS}.{name}"
+        ctx.keys(spec, p, ["vertices", "surface", "pressure_modulus", "mode", "grid_spacing", "max_depth"],
+                 required=("vertices", "surface", "pressure_modulus"))
+        body_a, surf_a = _surface(spec["vertices"], f"{p}.vertices", ctx)
+        body_b, surf_b = _surface(spec["surface"], f"{p}.surface", ctx)
+        k = ctx.number(spec["pressure_modulus"], f"{p}.pressure_modulus", positive=True)
+        mode = spec.get("mode", "grid")
+        h = ctx.number(spec["grid_spacing"], f"{p}.grid_spacing", positive=True) * ctx.length if "grid_spacing" in spec else DEFAULT_GRID_SPACING
+        depth = ctx.number(spec["max_depth"], f"{p}.max_depth", positive=True) * ctx.length if "max_depth" in spec else DEFAULT_MAX_DEPTH
+        try:
+            _wrap(ctx, p, lambda: add_contact(b, name, body_a, surf_a, body_b, surf_b, k, mode, h, depth))
+        except (ValueError, TypeError) as exc:
+            if isinstance(exc, ModelError):
+                raise
+            raise ctx.error(p, str(exc)) from None
+
+
+SECTION_LOADERS[CONTACTS] = load_contacts

@@ -1,0 +1,119 @@
+"""Ligaments, springs and contacts as model force elements: model-file sections,
+generalised forces against closed forms, and stiffness ∂Q/∂q̂ against finite
+differences on the manifold."""
+
+import textwrap
+import warnings
+
+import numpy as np
+import pytest
+import trimesh
+
+from openfdk.contact.mesh import MeshWarning
+from openfdk.contact.shapes import flat_patch
+from openfdk.forces.passive import PassiveElements
+from openfdk.model.model import ModelError
+from openfdk.model.modelfile import load_model
+from openfdk.numdiff import manifold_jacobian
+from openfdk.spatial import quat_from_rotvec
+
+
+def _write_patch(path, size, edge, scale=1.0, flip=False):
+    patch = flat_patch(size, size, edge)
+    faces = patch.faces[:, ::-1] if flip else patch.faces
+    trimesh.Trimesh(patch.vertices_B * scale, faces, process=False).export(path)
+
+
+MODEL = """
+openfdk: 1
+units: {length: mm, angle: deg}
+bodies:
+  block:
+    mass: 1.0
+    inertia: [1.0e-3, 1.0e-3, 1.0e-3]
+    position: [0, 0, 4.9]          # bottom face 5 mm below the centre of mass: 0.1 mm into the floor
+    frames:
+      hook: [0, 0, 10]
+  ground:
+    frames:
+      anchor: [0, 0, 40]
+contacts:
+  floor:
+    vertices: {body: block, mesh: bottom.stl, units: mm, placement: {position: [0, 0, -5], orientation: [180, 0, 0]}}
+    surface: {body: ground, mesh: floor.stl, units: mm}
+    pressure_modulus: 1.0e10
+ligaments:
+  sling:
+    path: [ground.anchor, block.hook]
+    stiffness: 500
+    slack_length: 20
+springs:
+  level:
+    measure: {type: vector, from: ground.origin, to: block.origin}
+    component: 0
+    stiffness: 100
+    rest_value: 0
+"""
+
+
+@pytest.fixture
+def block_model(tmp_path):
+    _write_patch(tmp_path / "bottom.stl", 10.0, 0.5)   # 10 mm × 10 mm face, normals flipped down by the placement
+    _write_patch(tmp_path / "floor.stl", 40.0, 1.0)    # floor at z = 0, normals up
+    (tmp_path / "block.yaml").write_text(textwrap.dedent(MODEL))
+    return load_model(tmp_path / "block.yaml")
+
+
+def test_contact_ligament_spring_forces_closed_form(block_model):
+    """Flat 10×10 mm face 0.1 mm into the floor: F = p A δ = 1e10·1e-4·1e-4 = 100 N up;
+    ligament stretched from 20 mm to 40 − 14.9 = 25.1 mm: toe or linear branch of
+    Blankevoort's law; spring at rest (x = 0): no force."""
+    model = block_model
+    state = model.initial_state()
+    Q, out, _ = PassiveElements(model).generalized_forces(state, 0.0)
+    contact = out.contact["floor"]
+    assert contact.force_W[2] == pytest.approx(100.0, rel=1e-6)
+    l0, k, eps_l = 0.020, 500.0, 0.03
+    eps = (0.0251 - l0) / l0
+    T = k * l0 * (eps - eps_l) if eps > 2 * eps_l else k * l0 * eps**2 / (4 * eps_l)
+    assert out.ligament_force[0] == pytest.approx(T, rel=1e-9)
+    assert out.spring_force[0] == pytest.approx(0.0, abs=1e-12)
+    np.testing.assert_allclose(Q[:3], [0.0, 0.0, 100.0 + T], rtol=1e-6, atol=1e-9)
+
+
+def test_passive_stiffness_matches_manifold_finite_differences(block_model):
+    model = block_model
+    state = model.initial_state()
+    # tilt and shift a little so every element and every block of K is active
+    state.displace(np.r_[0.0005, -0.0003, 0.00002, 0.01, -0.02, 0.3])
+    passive = PassiveElements(model)
+    _, _, K = passive.generalized_forces(state, 0.0, want_stiffness=True)
+    K_fd = manifold_jacobian(lambda s: passive.generalized_forces(s, 0.0)[0], state, eps=1e-8)
+    assert np.abs(K).max() > 1e5  # contact stiffness p A ≈ 1e6 N/m
+    # rotations scaled by a 10 mm lever so that all blocks compare in N/m
+    S = np.diag([1, 1, 1, 1e2, 1e2, 1e2])
+    np.testing.assert_allclose(S @ K @ S, S @ K_fd @ S, atol=1e-3 * np.abs(S @ K @ S).max())
+
+
+def test_contact_far_apart_and_unit_warnings(tmp_path):
+    _write_patch(tmp_path / "bottom.stl", 10.0, 1.0)
+    _write_patch(tmp_path / "floor.stl", 40.0, 2.0)
+    text = textwrap.dedent(MODEL).replace("position: [0, 0, 4.9]", "position: [0, 0, 400]")
+    (tmp_path / "far.yaml").write_text(text)
+    with pytest.warns(MeshWarning, match="floor.*apart in the reference pose"):
+        load_model(tmp_path / "far.yaml")
+    text = textwrap.dedent(MODEL).replace("{body: ground, mesh: floor.stl, units: mm}", "{body: ground, mesh: floor.stl, units: m}")
+    (tmp_path / "units.yaml").write_text(text)
+    # a 40 mm floor read as metres: the scale warning comes first, then the distance
+    # grid refuses the 40 m surface with a clear error
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with pytest.raises(ModelError, match="units.yaml: contacts.floor: .*floor.stl.*larger spacing"):
+            load_model(tmp_path / "units.yaml")
+    assert any("floor.stl" in str(w.message) and "mm" in str(w.message) for w in caught)
+
+
+def test_missing_mesh_is_named(tmp_path):
+    (tmp_path / "m.yaml").write_text(textwrap.dedent(MODEL))
+    with pytest.raises(ModelError, match=r"m.yaml: contacts.floor.vertices.mesh: .*bottom.stl"):
+        load_model(tmp_path / "m.yaml")
