@@ -117,3 +117,38 @@ def test_missing_mesh_is_named(tmp_path):
     (tmp_path / "m.yaml").write_text(textwrap.dedent(MODEL))
     with pytest.raises(ModelError, match=r"m.yaml: contacts.floor.vertices.mesh: .*bottom.stl"):
         load_model(tmp_path / "m.yaml")
+
+
+def test_contact_outputs_in_forces_csv(tmp_path):
+    """A block held in place by drivers (with reactions) resting 0.1 mm into the floor:
+    forces.csv reports the contact force p A δ = 100 N, its centre of pressure under the
+    block, the 1 cm² area and the pressure p δ = 1 MPa; the driver reactions carry the
+    rest of the weight, ligament and contact (sum of vertical forces = m g)."""
+    import csv
+
+    from openfdk.cli import main
+
+    _write_patch(tmp_path / "bottom.stl", 10.0, 0.5)
+    _write_patch(tmp_path / "floor.stl", 40.0, 1.0)
+    text = textwrap.dedent(MODEL) + textwrap.dedent("""
+    measures:
+      where: {type: point, point: block.origin}
+      how: {type: angles, frame: ground.origin, of: block.origin}
+    drivers:
+      hold_position: {measure: where, function: {type: constant, value: [0, 0, 4.9]}, reaction: true}
+      hold_angles: {measure: how, function: {type: constant, value: [0, 0, 0]}, reaction: true}
+    analysis: {start: 0, end: 0.1, frames: 3}
+    """)
+    text = text.replace("springs:\n  level:", "springs_unused:\n  level:").replace("springs_unused:", "springs:")
+    (tmp_path / "held.yaml").write_text(text)
+    out = tmp_path / "out"
+    assert main(["run", str(tmp_path / "held.yaml"), "--out", str(out), "--no-progress"]) == 0
+    rows = list(csv.DictReader(open(out / "forces.csv")))
+    assert len(rows) == 3 and all(r["converged"] == "1" for r in rows)
+    r = rows[0]
+    assert float(r["floor.Fz_N"]) == pytest.approx(100.0, rel=1e-6)
+    assert float(r["floor.area_m2"]) == pytest.approx(1e-4, rel=1e-6)
+    assert float(r["floor.peak_pressure_Pa"]) == pytest.approx(1e10 * 1e-4, rel=1e-6)
+    assert abs(float(r["floor.cop_x_m"])) < 1e-9 and abs(float(r["floor.cop_y_m"])) < 1e-9
+    total = float(r["floor.Fz_N"]) + float(r["sling.force_N"]) + float(r["hold_position[2].reaction"])
+    assert total == pytest.approx(1.0 * 9.81, abs=1e-6)  # CSV keeps 10 significant digits

@@ -168,6 +168,7 @@ def run_inverse_dynamics(model, kin, progress=False, solver=None):
     iters = np.zeros(nf, dtype=int)
     state = model.initial_state()
     warm = None
+    contact_cols = {}
     bar = None
     if progress:
         from tqdm.auto import tqdm
@@ -184,6 +185,7 @@ def run_inverse_dynamics(model, kin, progress=False, solver=None):
             ll[k], ls[k], lf[k] = fr.passive.ligament_length, fr.passive.ligament_strain, fr.passive.ligament_force
             sf[k] = fr.passive.spring_force
             ok[k], status[k], iters[k] = fr.converged, fr.status, fr.iterations
+            _collect_contacts(contact_cols, fr.passive.contact, k, nf)
             if not fr.converged:
                 msgs[k] = f"frame {k} (t = {kin.time[k]:.4f} s): {fr.message}"
             warm = fr.recruitment if fr.converged else None
@@ -195,5 +197,19 @@ def run_inverse_dynamics(model, kin, progress=False, solver=None):
         kin.time, lay.column_names, tuple(m.name for m in lay.muscles), lay.n_bounded, F, ml, mv, msg_s, mp,
         tuple(x.name for x in solver.passive.ligaments), ll, ls, lf,
         tuple(x.name for x in solver.passive.springs), sf, ok, tuple(status), tuple(msgs), iters,
-        _time.perf_counter() - t0,
+        _time.perf_counter() - t0, {"columns": contact_cols},
     )
+
+
+def _collect_contacts(cols, contacts, k, nf):
+    """Per-contact outputs of frame k into columns (force on the vertex body, world, N;
+    centre of pressure m; area m²; peak pressure Pa; vertices in contact)."""
+    for name, res in contacts.items():
+        values = {
+            f"{name}.Fx_N": res.force_W[0], f"{name}.Fy_N": res.force_W[1], f"{name}.Fz_N": res.force_W[2],
+            f"{name}.cop_x_m": res.cop_W[0], f"{name}.cop_y_m": res.cop_W[1], f"{name}.cop_z_m": res.cop_W[2],
+            f"{name}.area_m2": res.area, f"{name}.peak_pressure_Pa": res.peak_pressure,
+            f"{name}.n_contact": res.n_contact,
+        }
+        for key, v in values.items():
+            cols.setdefault(key, np.full(nf, np.nan))[k] = v
