@@ -113,6 +113,18 @@ def _cmd_bench(args):
     return 1 if failures else 0
 
 
+def _trial_arguments(p):
+    """Arguments shared by the commands that analyse a model over a trial."""
+    p.add_argument("model", help="model file (YAML)")
+    p.add_argument("trial", nargs="?", help="C3D file with the model's markers (omit for determinate kinematics)")
+    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument("--cutoff", type=float, default=None,
+                   help="marker low-pass cutoff in Hz (default: model file, else 6 Hz; 0 = no filter)")
+    p.add_argument("--start", type=float, default=None, help="first analysed time (s)")
+    p.add_argument("--end", type=float, default=None, help="last analysed time (s)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
 def build_parser():
     p = argparse.ArgumentParser(prog="openfdk", description="Force-dependent kinematics and musculoskeletal analysis")
     sub = p.add_subparsers(dest="command", required=True)
@@ -122,23 +134,11 @@ def build_parser():
     c.set_defaults(func=_cmd_check)
 
     k = sub.add_parser("kinematics", help="kinematic analysis: marker tracking (with a C3D trial) or determinate")
-    k.add_argument("model", help="model file (YAML)")
-    k.add_argument("trial", nargs="?", help="C3D file with the model's markers (omit for determinate kinematics)")
-    k.add_argument("--out", required=True, help="output directory")
-    k.add_argument("--cutoff", type=float, default=None, help="marker low-pass cutoff in Hz (default: model file, else 6 Hz; 0 = no filter)")
-    k.add_argument("--start", type=float, default=None, help="first analysed time (s)")
-    k.add_argument("--end", type=float, default=None, help="last analysed time (s)")
-    k.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _trial_arguments(k)
     k.set_defaults(func=_cmd_kinematics)
 
     r = sub.add_parser("run", help="kinematics, then inverse dynamics with muscle recruitment")
-    r.add_argument("model", help="model file (YAML)")
-    r.add_argument("trial", nargs="?", help="C3D file (omit for determinate kinematics)")
-    r.add_argument("--out", required=True, help="output directory")
-    r.add_argument("--cutoff", type=float, default=None, help="marker low-pass cutoff in Hz (0 = no filter)")
-    r.add_argument("--start", type=float, default=None, help="first analysed time (s)")
-    r.add_argument("--end", type=float, default=None, help="last analysed time (s)")
-    r.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _trial_arguments(r)
     r.set_defaults(func=_cmd_run)
 
     d = sub.add_parser("demo", help="run the end-to-end example and write its outputs")
