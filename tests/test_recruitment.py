@@ -606,3 +606,30 @@ def test_benchmark_problem_is_feasible_and_nontrivial():
     lp = linprog(np.zeros(C.shape[1]), A_eq=C, b_eq=d,
                  bounds=[(0, si) for si in s] + [(None, None)] * 3, method="highs")
     assert lp.status == 0
+
+
+def test_sensitivity_with_strength_change_matches_finite_differences():
+    """ds enters through the criterion (interior forces) and the bounds (saturated
+    forces): compare with central differences of the solver along (dC, dd, ds)."""
+    from openfdk.recruitment import recruitment_sensitivity, solve_polynomial
+
+    rng = np.random.default_rng(11)
+    n_eq, n_m = 3, 8
+    saturated = 0
+    for trial in range(40):
+        C = np.hstack([rng.normal(size=(n_eq, n_m)), rng.normal(size=(n_eq, 1))])
+        # one strong muscle among weak ones saturates first under the cubic criterion
+        s = np.r_[rng.uniform(300, 600), rng.uniform(10, 40, n_m - 1)]
+        d = C[:, :n_m] @ s * rng.uniform(0.6, 0.95)
+        res = solve_polynomial(C, d, n_m, s, 3.0, tol=1e-13)
+        if not res.converged:
+            continue
+        saturated += res.active_upper.any()
+        dC, dd, ds = rng.normal(size=C.shape), rng.normal(size=n_eq), rng.normal(size=n_m) * 5
+        df = recruitment_sensitivity(res, C, d, s, 3.0, dC, dd, ds)
+        h = 1e-6
+        fp = solve_polynomial(C + h * dC, d + h * dd, n_m, s + h * ds, 3.0, tol=1e-13).f
+        fm = solve_polynomial(C - h * dC, d - h * dd, n_m, s - h * ds, 3.0, tol=1e-13).f
+        assert np.max(np.abs(df)) > 1e-3
+        np.testing.assert_allclose(df, (fp - fm) / (2 * h), rtol=1e-4, atol=1e-4 * np.max(np.abs(df)))
+    assert saturated >= 3  # the bound term was exercised

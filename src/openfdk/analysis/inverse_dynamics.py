@@ -41,6 +41,9 @@ class FrameForces:
     message: str
     iterations: int
     recruitment: object = None
+    C: np.ndarray = None
+    d: np.ndarray = None
+    s: np.ndarray = None
 
 
 class InverseDynamics:
@@ -105,7 +108,7 @@ class InverseDynamics:
         C, d, s, (l, speed, s_m, f_p, passive_out) = self.equilibrium(state, vdot, t, alpha)
         res = self.recruit(C, d, s, warm)
         return FrameForces(res.f, l, speed, s_m, f_p, passive_out, bool(res.converged), res.status,
-                           "" if res.converged else res.message, int(res.iterations), res)
+                           "" if res.converged else res.message, int(res.iterations), res, C, d, s)
 
 
 @dataclass(frozen=True)
@@ -149,6 +152,48 @@ class InverseDynamicsResult:
         }
 
 
+class ForcesRecorder:
+    """Collects FrameForces of a trial into the arrays of an InverseDynamicsResult."""
+
+    def __init__(self, solver, nf):
+        lay = solver.layout
+        self.solver, self.nf = solver, nf
+        nm, nl, ns = lay.n_muscles, len(solver.passive.ligaments), len(solver.passive.springs)
+        self.F = np.full((nf, lay.n_columns), np.nan)
+        self.ml, self.mv, self.ms, self.mp = (np.full((nf, nm), np.nan) for _ in range(4))
+        self.ll, self.ls, self.lf = (np.full((nf, nl), np.nan) for _ in range(3))
+        self.sf = np.full((nf, ns), np.nan)
+        self.ok = np.zeros(nf, dtype=bool)
+        self.status, self.msgs = ["kinematics_failed"] * nf, [""] * nf
+        self.iters = np.zeros(nf, dtype=int)
+        self.contact_cols = {}
+
+    def record(self, k, fr, t):
+        """Store frame k's forces (fr: FrameForces) at time t (s)."""
+        self.F[k], self.ml[k], self.mv[k] = fr.f, fr.muscle_length, fr.muscle_speed
+        self.ms[k], self.mp[k] = fr.muscle_strength, fr.muscle_passive
+        self.ll[k], self.ls[k], self.lf[k] = fr.passive.ligament_length, fr.passive.ligament_strain, fr.passive.ligament_force
+        self.sf[k] = fr.passive.spring_force
+        self.ok[k], self.status[k], self.iters[k] = fr.converged, fr.status, fr.iterations
+        if not fr.converged:
+            self.msgs[k] = f"frame {k} (t = {t:.4f} s): {fr.message}"
+        _collect_contacts(self.contact_cols, fr.passive.contact, k, self.nf)
+
+    def fail(self, k, status, message):
+        self.ok[k], self.status[k], self.msgs[k] = False, status, message
+
+    def result(self, time, wall_time, extra_columns=None):
+        lay, p = self.solver.layout, self.solver.passive
+        cols = dict(self.contact_cols)
+        cols.update(extra_columns or {})
+        return InverseDynamicsResult(
+            np.asarray(time), lay.column_names, tuple(m.name for m in lay.muscles), lay.n_bounded, self.F,
+            self.ml, self.mv, self.ms, self.mp, tuple(x.name for x in p.ligaments), self.ll, self.ls, self.lf,
+            tuple(x.name for x in p.springs), self.sf, self.ok, tuple(self.status), tuple(self.msgs),
+            self.iters, wall_time, {"columns": cols},
+        )
+
+
 def run_inverse_dynamics(model, kin, progress=False, solver=None):
     """Inverse dynamics for every frame of a KinematicsResult ``kin``.
 
@@ -156,19 +201,10 @@ def run_inverse_dynamics(model, kin, progress=False, solver=None):
     """
     t0 = _time.perf_counter()
     solver = solver or InverseDynamics(model)
-    lay = solver.layout
-    nf, nm = len(kin.time), lay.n_muscles
-    nl, ns = len(solver.passive.ligaments), len(solver.passive.springs)
-    F = np.full((nf, lay.n_columns), np.nan)
-    ml, mv, msg_s, mp = (np.full((nf, nm), np.nan) for _ in range(4))
-    ll, ls, lf = (np.full((nf, nl), np.nan) for _ in range(3))
-    sf = np.full((nf, ns), np.nan)
-    ok = np.zeros(nf, dtype=bool)
-    status, msgs = ["kinematics_failed"] * nf, [""] * nf
-    iters = np.zeros(nf, dtype=int)
+    nf = len(kin.time)
+    rec = ForcesRecorder(solver, nf)
     state = model.initial_state()
     warm = None
-    contact_cols = {}
     bar = None
     if progress:
         from tqdm.auto import tqdm
@@ -176,29 +212,18 @@ def run_inverse_dynamics(model, kin, progress=False, solver=None):
         bar = tqdm(total=nf, desc="inverse dynamics", unit="frame", leave=False)
     for k in range(nf):
         if not kin.converged[k]:
-            msgs[k] = f"kinematics failed: {kin.messages[k]}"
+            rec.fail(k, "kinematics_failed", f"kinematics failed: {kin.messages[k]}")
         else:
             state.set_q(kin.q[k])
             state.set_v(kin.v[k])
             fr = solver.frame(state, kin.vdot[k], kin.time[k], kin.alpha, warm)
-            F[k], ml[k], mv[k], msg_s[k], mp[k] = fr.f, fr.muscle_length, fr.muscle_speed, fr.muscle_strength, fr.muscle_passive
-            ll[k], ls[k], lf[k] = fr.passive.ligament_length, fr.passive.ligament_strain, fr.passive.ligament_force
-            sf[k] = fr.passive.spring_force
-            ok[k], status[k], iters[k] = fr.converged, fr.status, fr.iterations
-            _collect_contacts(contact_cols, fr.passive.contact, k, nf)
-            if not fr.converged:
-                msgs[k] = f"frame {k} (t = {kin.time[k]:.4f} s): {fr.message}"
+            rec.record(k, fr, kin.time[k])
             warm = fr.recruitment if fr.converged else None
         if bar:
             bar.update()
     if bar:
         bar.close()
-    return InverseDynamicsResult(
-        kin.time, lay.column_names, tuple(m.name for m in lay.muscles), lay.n_bounded, F, ml, mv, msg_s, mp,
-        tuple(x.name for x in solver.passive.ligaments), ll, ls, lf,
-        tuple(x.name for x in solver.passive.springs), sf, ok, tuple(status), tuple(msgs), iters,
-        _time.perf_counter() - t0, {"columns": contact_cols},
-    )
+    return rec.result(kin.time, _time.perf_counter() - t0)
 
 
 def _collect_contacts(cols, contacts, k, nf):

@@ -48,15 +48,17 @@ class PassiveElements:
         self.loads = tuple(model.elements.get(LOADS, ()))
         self.contacts = tuple(model.elements.get("contacts", ()))
 
-    def generalized_forces(self, state, t, want_stiffness=False):
-        """Q (n,) [N, N m] of all passive elements and external loads (gravity excluded),
-        their outputs, and (if asked) K = ∂Q/∂q̂ (n, n) of ligaments, springs, contacts."""
+    def generalized_forces(self, state, t, want_stiffness=False, elements=True, loads=True):
+        """Q (n,) [N, N m] of the passive elements (ligaments, springs, contacts; if
+        ``elements``) and external loads (if ``loads``; gravity excluded), their outputs,
+        and (if asked) K = ∂Q/∂q̂ (n, n) of the elements."""
         n = state.n_coords
         Q = np.zeros(n)
         K = np.zeros((n, n)) if want_stiffness else None
         nl, ns = len(self.ligaments), len(self.springs)
         out = PassiveOutputs(np.zeros(nl), np.zeros(nl), np.zeros(nl), np.zeros(ns), np.zeros(ns), {})
-        for k, lig in enumerate(self.ligaments):
+        ligaments, springs, contacts = (self.ligaments, self.springs, self.contacts) if elements else ((), (), ())
+        for k, lig in enumerate(ligaments):
             l, L, _ = lig.path.evaluate(state, 1)
             length = float(l[0])
             T = float(lig.law.force(length))
@@ -68,7 +70,7 @@ class PassiveElements:
                 K -= np.outer(L[0], L[0]) * float(lig.law.dforce_dlength(length))
                 if T != 0.0:
                     K -= T * _path_hessian(lig.path, state)
-        for k, spr in enumerate(self.springs):
+        for k, spr in enumerate(springs):
             m, M, _ = spr.measure.evaluate(state, 1)
             f = float(spr.law.force(float(m[0])))
             out.spring_value[k] = float(m[0])
@@ -78,9 +80,9 @@ class PassiveElements:
                 K += np.outer(M[0], M[0]) * float(spr.law.dforce_dmeasure(float(m[0])))
                 if f != 0.0:
                     K += f * _path_hessian(spr.measure, state)
-        for load in self.loads:
+        for load in self.loads if loads else ():
             Q += self._load_Q(load, state, t)
-        for contact in self.contacts:
+        for contact in contacts:
             Qc, Kc, info = contact.generalized_forces(state, want_stiffness)
             Q += Qc
             if want_stiffness:

@@ -226,7 +226,7 @@ def run_tracking(model, trajectories, times=None, alpha=None, settings=None, pro
         if not guessed and np.any(vis):
             tracker.initial_guess(state, x, vis)
             guessed = True
-        res, K = tracker.solve_positions(state, t, x, vis, alpha)
+        res, K, _ = tracker.solve_positions(state, t, x, vis, alpha)
         iters[k], viol[k] = res.iterations, res.residual
         if res.converged:
             ok[k] = True

@@ -103,15 +103,15 @@ class MarkerTracker:
         """Gauss–Newton SQP from ``state`` (modified in place).
 
         x_WM : (n_markers, 3) m measured positions (NaN where not visible);
-        visible : (n_markers,) bool. Returns (FrameSolve, K) where K is the KKT matrix
+        visible : (n_markers,) bool. Returns (FrameSolve, K, λ) where K is the KKT matrix
         (n + m, n + m) of the last iteration, reused by the velocity and acceleration
-        solves (Eqs. 8–10). Converged when max |Δq̂| < tol_step and max |Φ| <
+        solves (Eqs. 8–10), and λ (m,) the constraint multipliers of the last step. Converged when max |Δq̂| < tol_step and max |Φ| <
         tol_constraint at the start of that step (Φ only shrinks after it).
         """
         s = self.settings
         msg = self.observability_message(state, t, visible, alpha)
         if msg:
-            return FrameSolve(False, 0, np.nan, msg), None
+            return FrameSolve(False, 0, np.nan, msg), None, None
         w = self._weights(visible)
         x = np.where(visible[:, None], x_WM, 0.0).ravel()
         n, m = self.system.n_coords, self.system.n_rows
@@ -128,20 +128,21 @@ class MarkerTracker:
             rhs[:n] = -WJ.T @ (p - x)
             rhs[n:] = -Phi
             try:
-                dq = np.linalg.solve(K, rhs)[:n]
+                sol = np.linalg.solve(K, rhs)
             except np.linalg.LinAlgError as exc:
-                return FrameSolve(False, it, np.nan, f"KKT system singular: {exc}"), None
+                return FrameSolve(False, it, np.nan, f"KKT system singular: {exc}"), None, None
+            dq, lam = sol[:n], sol[n:]
             if not np.all(np.isfinite(dq)):
-                return FrameSolve(False, it, np.nan, "KKT system singular (non-finite step)"), None
+                return FrameSolve(False, it, np.nan, "KKT system singular (non-finite step)"), None, None
             state.displace(dq)
             step = np.max(np.abs(dq)) if n else 0.0
             res = float(np.max(np.abs(Phi))) if m else 0.0
             if step < s.tol_step and res <= s.tol_constraint:
-                return FrameSolve(True, it, res), K
+                return FrameSolve(True, it, res), K, lam
         return (
             FrameSolve(False, s.max_iter, res, f"Gauss–Newton did not converge in {s.max_iter} iterations "
                        f"(last step {step:.3g}, max |Φ| = {res:.3g})"),
-            K,
+            K, lam,
         )
 
     def kkt_matrix(self, state, t, visible, alpha=None):

@@ -153,7 +153,8 @@ def true_marker_positions(subject: Subject, options: TruthOptions, rng) -> dict:
         R = _rotvec_matrices((options.registration_rotation * _DEG * axis / np.linalg.norm(axis))[None])[0]
         shift = options.registration_translation * _MM * direction / np.linalg.norm(direction)
         centroid = p.mean(axis=0)
-        true[body] = centroid + (p - centroid) @ R.T + shift
+        # p + (R − I)(p − c) + t: exactly p when both differences are zero
+        true[body] = p + (p - centroid) @ (R - np.eye(3)).T + shift
     return true
 
 

@@ -61,8 +61,13 @@ def _as_directions(dC, dd, n_eq, n_var):
     return dC, dd, batched
 
 
-def recruitment_sensitivity(result: RecruitmentResult, C, d, s, p, dC, dd):
-    """Directional derivative(s) of the optimal forces f for perturbations (dC, dd).
+def recruitment_sensitivity(result: RecruitmentResult, C, d, s, p, dC, dd, ds=None):
+    """Directional derivative(s) of the optimal forces f for perturbations (dC, dd, ds).
+
+    A change of strength ds (Hill muscles: s depends on length and speed) enters twice:
+    a force at its upper bound moves with it (df_i = ds_i, and C_U ds_U leaves the
+    right-hand side), and an interior force feels ∂∇G_i/∂s_i ds_i = −p² f_i^(p−1)/s_i^(p+1)
+    ds_i in its stationarity row (added to dC_Iᵀ λ with the opposite sign).
 
     Parameters
     ----------
@@ -70,6 +75,7 @@ def recruitment_sensitivity(result: RecruitmentResult, C, d, s, p, dC, dd):
     C : (n_eq, n_var); d : (n_eq,) N or N·m; s : (n_bounded,) N; p : float ≥ 2.
     dC : (n_eq, n_var) or (k, n_eq, n_var) or a list of k such arrays — dC/dε.
     dd : (n_eq,) or (k, n_eq) or a list — dd/dε (N or N·m per unit ε).
+    ds : optional (n_bounded,) or (k, n_bounded) — ds/dε (N per unit ε).
 
     Returns
     -------
@@ -108,6 +114,8 @@ def recruitment_sensitivity(result: RecruitmentResult, C, d, s, p, dC, dd):
         raise RecruitmentInputError("result does not satisfy C f = d for the C and d given")
     dC, dd, batched = _as_directions(dC, dd, n_eq, n_var)
     k = dC.shape[0]
+    ds = np.zeros((k, n_bounded)) if ds is None else np.asarray(ds, dtype=np.float64).reshape(k, n_bounded)
+    upper = np.flatnonzero(result.active_upper[:n_bounded])
 
     active = np.zeros(n_var, dtype=bool)
     active[:n_bounded] = result.active_lower[:n_bounded] | result.active_upper[:n_bounded]
@@ -132,6 +140,9 @@ def recruitment_sensitivity(result: RecruitmentResult, C, d, s, p, dC, dd):
     dC_I = dC[:, :, interior]  # (k, n_eq, n_I)
     dC_F = dC[:, :, free]
     dCI_T_lam = np.einsum("kei,e->ki", dC_I, lam)  # dC_Iᵀ λ (k, n_I)
+    # strength change of interior forces: −∂∇G_I/∂s ds = p² f^(p−1)/s^(p+1) ds
+    dCI_T_lam = dCI_T_lam + p * p * f_I ** (p - 1.0) / s[interior] ** (p + 1.0) * ds[:, interior]
+    dd = dd - ds[:, upper] @ C[:, upper].T  # forces at their strength move with it
     rhs = np.zeros((n_eq + n_free, k))
     rhs[:n_eq] = (dd - dC @ f - dCI_T_lam @ CI_Hinv.T).T
     rhs[n_eq:] = -np.einsum("kef,e->fk", dC_F, lam)
@@ -156,4 +167,5 @@ def recruitment_sensitivity(result: RecruitmentResult, C, d, s, p, dC, dd):
     # df_I = H_I⁻¹ (dC_Iᵀ λ + C_Iᵀ dλ)
     df[:, interior] = (dCI_T_lam + dlam @ C_I) / hessian_I
     df[:, free] = solution[n_eq:].T
+    df[:, upper] = ds[:, upper]
     return df if batched else df[0]
