@@ -113,7 +113,7 @@ def test_the_true_layer_is_the_documented_disc(recorded):
     expected = 1e-3 + MM * np.array([options.disc_excess_anterior, options.disc_excess_superior,
                                      options.disc_excess_posterior])
     np.testing.assert_allclose(joint.disc_thickness("r", s), expected, atol=1e-12)
-    assert joint.fossa_errors["r"].rms == pytest.approx(0.3e-3)
+    assert joint.fossa_errors["r"].rms == pytest.approx(0.2e-3)
 
 
 def test_symmetric_subject_open_close_is_left_right_symmetric(recorded):
@@ -257,20 +257,22 @@ def test_zero_differences_make_the_model_the_truth(exact):
         np.testing.assert_allclose(joint.layer_thickness(side, s), subject.cartilage_offset, atol=1e-15)
     # and the model's own contact (STL condyle offset by the folder's layer along its
     # vertex normals vs the STL fossa) touches at every frame, to mesh precision:
-    # tolerance as in test_condyle_sits_in_the_fossa_through_the_cartilage_layer
-    for task in TASKS:
-        truth = load_truth(exact, task)
-        R, p = _poses(truth, "mandible_in_skull")
-        for side in ("r", "l"):
-            c, f = subject.surfaces[f"condyle_{side}"], subject.surfaces[f"fossa_{side}"]
-            cm, fm = (trimesh.Trimesh(m.vertices, m.faces, process=False) for m in (c, f))
-            offset = c.vertices + subject.cartilage_offset * cm.vertex_normals
-            hc, hf = cm.edges_unique_length.max(), fm.edges_unique_length.max()
-            tol = hc ** 2 / (8 * 4.05e-3) + hf ** 2 / (8 * 3.2e-3) + (hc / 2) ** 2 / (2 * 4.05e-3)
-            for i in range(0, len(p), 10):
-                d = igl.signed_distance(offset @ R[i].T + p[i], f.vertices, f.faces,
-                                        igl.SIGNED_DISTANCE_TYPE_PSEUDONORMAL)[0]
-                assert abs(d.min()) < tol, (task, side, i, d.min(), tol)
+    # tolerance as in test_condyle_sits_in_the_fossa_through_the_cartilage_layer;
+    # vertices more than 0.3 mm below the fossa are skipped (see the test above)
+    for side in ("r", "l"):
+        c, f = subject.surfaces[f"condyle_{side}"], subject.surfaces[f"fossa_{side}"]
+        cm, fm = (trimesh.Trimesh(m.vertices, m.faces, process=False) for m in (c, f))
+        offset = c.vertices + subject.cartilage_offset * cm.vertex_normals
+        hc, hf = cm.edges_unique_length.max(), fm.edges_unique_length.max()
+        tol = hc ** 2 / (8 * 4.05e-3) + hf ** 2 / (8 * 3.2e-3) + (hc / 2) ** 2 / (2 * 4.05e-3)
+        for task in TASKS:
+            R, p = _poses(load_truth(exact, task), "mandible_in_skull")
+            P = np.einsum("nij,kj->nki", R, offset) + p[:, None]
+            near = joint.fossa_height(side, P[..., 0], P[..., 1]) - P[..., 2] < 0.3e-3
+            d = igl.signed_distance(P[near], f.vertices, f.faces, igl.SIGNED_DISTANCE_TYPE_PSEUDONORMAL)[0]
+            closest = np.full(len(p), np.inf)
+            np.minimum.at(closest, np.nonzero(near)[0], d)
+            assert np.max(np.abs(closest)) < tol, (task, side, np.max(np.abs(closest)), tol)
 
 
 def test_default_differences_bias_the_brace_measurement(recorded):

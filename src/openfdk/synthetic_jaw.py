@@ -137,3 +137,77 @@ def jaw_markers(n_frames=500, rate=100.0, noise=0.0, seed=0):
     if noise:
         x = x + np.random.default_rng(seed).normal(scale=noise, size=x.shape)
     return t, [f"S{k + 1}" for k in range(4)] + [f"J{k + 1}" for k in range(4)], x, poses
+
+
+CONDYLE_RADIUS = 0.005  # m, spherical condyle head of the TMJ-like FDK test model
+CARTILAGE = 0.001  # m, the paper's condyle offset for missing cartilage
+LIGAMENT_ORIGINS = np.array([[0.010, -0.058, -0.004]])  # articular tubercle, right (m)
+LIGAMENT_INSERTIONS = np.array([[-0.003, -0.052, -0.014], [0.0, -0.054, -0.017], [0.003, -0.052, -0.020]])
+
+
+def write_jaw_meshes(directory, edge=0.0006):
+    """Write the TMJ-like surfaces of :func:`jaw_fdk_model_dict` as STL files (m):
+    condyle_{r,l}.stl (sphere caps, normals outward, in the subject frame at the closed
+    pose) and fossa_{r,l}.stl (planar patches on the POP planes, normals down into the
+    joint space). Returns the directory."""
+    from pathlib import Path
+
+    import trimesh
+
+    from .contact.shapes import flat_patch, sphere_cap
+
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    for side, tag in ((-1, "r"), (1, "l")):
+        n = plane_normal(side)
+        top = np.array([0.0, side * HALF_WIDTH, 0.0])
+        cap = sphere_cap(CONDYLE_RADIUS, np.deg2rad(70), edge, pole=n, center=top - CONDYLE_RADIUS * n)
+        trimesh.Trimesh(cap.vertices_B, cap.faces, process=False).export(d / f"condyle_{tag}.stl")
+        patch = flat_patch(0.024, 0.024, 2 * edge)
+        R = np.array(_frame_from_normal(n)) @ np.diag([1.0, -1.0, -1.0])  # patch normal → −n
+        trimesh.Trimesh(patch.vertices_B @ R.T + top, patch.faces, process=False).export(d / f"fossa_{tag}.stl")
+    return d
+
+
+def jaw_fdk_model_dict(mesh_dir=".", n_muscles_per_side=12, ligament_stiffness=90.8, spring=0.1):
+    """The TMJ-like FDK test model (mm, deg): the POP jaw of :func:`jaw_model_dict` with
+    its TMJ planes and medio-lateral constraint replaced by 3 FDK DOFs (each condyle's
+    distance from its plane, the medio-lateral shift), elastic-foundation contact of
+    spherical condyles (1 mm cartilage offset, 10 GN/m³) against the planes, 3 ligament
+    elements per side and weak springs (0.1 N/m) on the FDK DOFs. Meshes from
+    :func:`write_jaw_meshes` in ``mesh_dir`` (paths written relative to it)."""
+    data = jaw_model_dict(n_muscles_per_side)
+    mm = lambda v: [round(float(x) * 1e3, 9) for x in v]  # noqa: E731
+    data["name"] = "synthetic FDK jaw"
+    del data["joints"], data["constraints"], data["reactions"]
+    skull, jaw = data["bodies"]["skull"]["frames"], data["bodies"]["mandible"]["frames"]
+    ligaments, contacts = {}, {}
+    for side, tag in ((-1, "r"), (1, "l")):
+        flip = np.array([1.0, -1.0, 1.0]) if side == 1 else np.ones(3)
+        skull[f"tubercle_{tag}"] = mm(LIGAMENT_ORIGINS[0] * flip)
+        for e, p in enumerate(LIGAMENT_INSERTIONS):
+            jaw[f"neck_{tag}{e + 1}"] = mm(p * flip - COM_J)
+            ligaments[f"tmj_ligament_{tag}{e + 1}"] = {
+                "path": [f"skull.tubercle_{tag}", f"mandible.neck_{tag}{e + 1}"],
+                "stiffness": ligament_stiffness, "reference_strain": 0.0,
+            }
+        contacts[f"tmj_{tag}"] = {
+            "vertices": {"body": "mandible", "mesh": f"{mesh_dir}/condyle_{tag}.stl", "units": "m",
+                         "placement": {"position": mm(-COM_J)}, "offset": CARTILAGE * 1e3},
+            "surface": {"body": "skull", "mesh": f"{mesh_dir}/fossa_{tag}.stl", "units": "m"},
+            "pressure_modulus": 1.0e10,
+        }
+    data["measures"]["gap_r"] = {"type": "plane_distance", "plane": "skull.plane_r", "point": "mandible.condyle_r"}
+    data["measures"]["gap_l"] = {"type": "plane_distance", "plane": "skull.plane_l", "point": "mandible.condyle_l"}
+    data["fdk_dofs"] = {
+        "tmj_r_normal": {"measure": "gap_r", "initial": 0.0},
+        "tmj_l_normal": {"measure": "gap_l", "initial": 0.0},
+        "ml_shift": {"measure": "ml", "component": 1, "initial": 0.0},
+    }
+    data["springs"] = {
+        f"fdk_spring_{k}": {"measure": m, **({"component": 1} if m == "ml" else {}), "stiffness": spring}
+        for k, m in (("r", "gap_r"), ("l", "gap_l"), ("ml", "ml"))
+    }
+    data["ligaments"] = ligaments
+    data["contacts"] = contacts
+    return data

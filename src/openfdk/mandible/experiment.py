@@ -84,7 +84,7 @@ def _prescribe(task: str, s, amplitude, working_side: str, intercondylar: float)
     if task == "protrusion":
         q = _bump(s, 0.0, 0.35, 0.50, 0.85)
         # slight closing rotation keeps the incisor path "forward and a few mm down"
-        return 8.5 * _MM * a1 * q, zero, zero, -1.0 * _DEG * a0 * q
+        return 8.6 * _MM * a1 * q, zero, zero, -1.0 * _DEG * a0 * q
     if task == "chewing":
         q_open = _bump(s, 0.0, 0.35, 0.35, 0.80)
         q_side = _bump(s, 0.10, 0.50, 0.50, 0.90)            # lateral excursion lags opening

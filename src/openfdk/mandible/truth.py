@@ -74,7 +74,7 @@ class TruthOptions:
         band) and CBCT joint spaces (anterior ≈1.3, superior ≈2.5, posterior ≈2.1 mm,
         Ikeda & Kawamura 2009). Because the true layer differs from L, the true closed
         pose sits slightly lower than the CT (subject-frame) pose.
-    (b) ``segmentation_error_rms`` 0.3 mm: true bone = segmented bone + a smooth random
+    (b) ``segmentation_error_rms`` 0.2 mm: true bone = segmented bone + a smooth random
         field (normal displacement on the condyle, vertical on the fossa; 8 plane waves
         of wavelength ``segmentation_wavelength`` 10–20 mm, independent per surface).
     (c) ``registration_translation`` 0.3 mm and ``registration_rotation`` 0.1°: each
@@ -89,7 +89,7 @@ class TruthOptions:
     disc_excess_anterior: float = 0.3
     disc_excess_superior: float = 0.8
     disc_excess_posterior: float = 1.5
-    segmentation_error_rms: float = 0.3
+    segmentation_error_rms: float = 0.2
     segmentation_wavelength: tuple = (10.0, 20.0)
     registration_translation: float = 0.3
     registration_rotation: float = 0.1

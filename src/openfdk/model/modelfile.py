@@ -31,7 +31,7 @@ FORMAT_VERSION = 1
 #: section name -> loader(builder, data, ctx); filled by later layers
 SECTION_LOADERS: dict = {}
 #: modules that register further sections when imported
-SECTION_MODULES = ("openfdk.forces.sections", "openfdk.contact.sections")
+SECTION_MODULES = ("openfdk.forces.sections", "openfdk.contact.sections", "openfdk.fdk.settings")
 
 
 def _register_sections():

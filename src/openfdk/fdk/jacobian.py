@@ -1,0 +1,137 @@
+"""Jacobians ∂f^FDK/∂α (n_fdk, n_fdk) of the FDK residual of one frame.
+
+* :func:`central_jacobian` — the paper's central differences: 2 n_fdk residual
+  evaluations (each a kinematic analysis and a recruitment solve).
+* :func:`analytic_jacobian` — the chain rule (the paper's stated future work), with no
+  recruitment solve:
+
+  1. kinematic sensitivity dq̂/dα from the optimality conditions of the kinematic problem:
+     determinate: Φ_q̂ dq̂ = E dα (E selects the FDK rows Φ^FDK − α);
+     tracking: [[H, Φ_q̂ᵀ], [Φ_q̂, 0]] [dq̂; dλ] = [0; E] dα with H = ∂/∂q̂ (Ψ_q̂ᵀ W Ψ +
+     Φ_q̂ᵀ λ) the Hessian of the Lagrangian of Eqs. 4–5;
+  2. along each u_j = dq̂/dα_j: the force elements' stiffness dQ = K u_j (contacts,
+     ligaments, springs; analytic, :mod:`openfdk.forces.passive`), and the change of the
+     coefficient matrix C, of the remaining right-hand side (inertial terms with v, v̇
+     held, external loads, passive muscle tension) and of the muscle strengths s;
+  3. the sensitivity of the recruitment solution at its active set (KKT of Eq. 11,
+     :func:`openfdk.recruitment.recruitment_sensitivity`), whose FDK columns give
+     ∂f^FDK/∂α_j.
+
+  The second derivatives of the geometry that steps 1–2 need (H, and the change of the
+  Jacobian columns in C) are central differences of analytic first derivatives on the
+  manifold (exact to O(ε²), no recruitment solve). The dependence of v and v̇ on α
+  through the neighbouring frames' positions is neglected: α̇ = α̈ = 0 by definition and
+  the inertial forces of jaw-sized bodies are small next to joint stiffness.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..analysis.inverse_dynamics import MIN_STRENGTH
+from ..dynamics.equilibrium import assemble, inertial_minus_gravity
+from ..numdiff import manifold_jacobian
+from ..recruitment import recruitment_sensitivity
+from .residual import FrameWorkspace
+
+
+def central_jacobian(ctx, k, ev, ws, steps):
+    """Central differences: column j = (f(α + h_j e_j) − f(α − h_j e_j)) / 2h_j.
+
+    Returns (J, n_evaluations, message) — message non-empty if an evaluation failed."""
+    n = len(ev.alpha)
+    J = np.zeros((n, n))
+    evaluations = 0
+    for j in range(n):
+        cols = []
+        for sign in (1.0, -1.0):
+            a = ev.alpha.copy()
+            a[j] += sign * steps[j]
+            e = ctx.evaluate(k, a, ws.copy(), ev.frame.recruitment if ev.frame is not None else None)
+            evaluations += 1
+            if not e.ok:
+                return None, evaluations, f"Jacobian evaluation at α ± h failed: {e.message}"
+            cols.append(e.f_fdk)
+        J[:, j] = (cols[0] - cols[1]) / (2 * steps[j])
+    return J, evaluations, ""
+
+
+def kinematic_sensitivity(ctx, ev):
+    """dq̂/dα (n, n_fdk) at the evaluation's pose."""
+    system, state, t = ctx.system, ev.state, ev.time
+    n_fdk = len(ev.alpha)
+    _, A, _, _ = system.evaluate(state, t, ev.alpha, order=1)
+    m, n = A.shape
+    E = np.zeros((m, n_fdk))
+    E[m - n_fdk :, :] = np.eye(n_fdk)
+    if ctx.tracker is None:
+        return np.linalg.solve(A, E)
+    tracker = ctx.tracker
+    w = tracker._weights(ev.visible)
+    x = np.where(ev.visible[:, None], ev.x, 0.0).ravel()
+    lam = ev.lam
+
+    def gradient(s):
+        p, J, _ = tracker.markers.evaluate(s, 1)
+        _, As, _, _ = system.evaluate(s, t, ev.alpha, order=1)
+        return J.T @ (w * (p - x)) + As.T @ lam
+
+    H = manifold_jacobian(gradient, state, eps=1e-7)
+    K = np.zeros((n + m, n + m))
+    K[:n, :n] = H
+    K[:n, n:] = A.T
+    K[n:, :n] = A
+    rhs = np.zeros((n + m, n_fdk))
+    rhs[n:] = E
+    return np.linalg.solve(K, rhs)[:n]
+
+
+def _geometry_terms(ctx, state, vdot, t, alpha):
+    """C, the right-hand side without the passive elements (inertial − loads − passive
+    muscle tension), and the strengths s at ``state`` (velocities held)."""
+    solver = ctx.solver
+    _, A, _, _ = ctx.system.evaluate(state, t, alpha, order=1)
+    l, L, speed = solver.muscle_states(state)
+    if solver.muscle_set is not None:
+        s_m, f_p = solver.muscle_set.evaluate(l, speed)
+        s_m = np.maximum(s_m, MIN_STRENGTH)
+    else:
+        s_m = f_p = np.zeros(0)
+    Q_loads, _, _ = solver.passive.generalized_forces(state, t, elements=False, loads=True)
+    if len(f_p):
+        Q_loads = Q_loads - L.T @ f_p
+    d_full = inertial_minus_gravity(ctx.model, state, vdot) - Q_loads
+    C, d = assemble(solver.layout, A, L, d_full)
+    return C, d, np.concatenate([s_m, solver.unilateral_strength])
+
+
+def analytic_jacobian(ctx, k, ev):
+    """Chain-rule Jacobian (module docstring). Returns (J, 0 evaluations, message)."""
+    t = ctx.times[k]
+    fr = ev.frame
+    if fr.recruitment is None or fr.recruitment.criterion == "minmax":
+        return None, 0, "analytic FDK Jacobian needs the polynomial recruitment criterion"
+    u_all = kinematic_sensitivity(ctx, ev)  # (n, n_fdk)
+    rows = ctx.solver.layout.eq_coords
+    _, _, K = ctx.solver.passive.generalized_forces(ev.state, t, want_stiffness=True, loads=False)
+    n_fdk = len(ev.alpha)
+    dC, dd, ds = [], [], []
+    for j in range(n_fdk):
+        u = u_all[:, j]
+        scale = max(np.max(np.abs(u)), 1e-12)
+        eps = 1e-6 / scale
+        sp, sm = ev.state.copy(), ev.state.copy()
+        sp.displace(eps * u)
+        sm.displace(-eps * u)
+        Cp, dp, s_p = _geometry_terms(ctx, sp, ev.vdot, t, ev.alpha)
+        Cm, dm, s_mn = _geometry_terms(ctx, sm, ev.vdot, t, ev.alpha)
+        dC.append((Cp - Cm) / (2 * eps))
+        # d = d_geometry − Q_elements: the elements' part by their analytic stiffness
+        dd.append((dp - dm) / (2 * eps) - (K @ u)[rows])
+        ds.append((s_p - s_mn) / (2 * eps))
+    p = ctx.solver.settings.power
+    df = recruitment_sensitivity(fr.recruitment, fr.C, fr.d, fr.s, p, np.array(dC), np.array(dd), np.array(ds))
+    return df[:, ctx.fdk_columns].T, 0, ""
+
+
+__all__ = ["central_jacobian", "analytic_jacobian", "kinematic_sensitivity", "FrameWorkspace"]

@@ -1,0 +1,147 @@
+"""The FDK residual f^FDK(α) of one frame (paper Fig. 1, Eqs. 1–14).
+
+For given FDK inputs α (held fixed, α̇ = α̈ = 0): kinematic analysis at α — marker
+tracking (positions at t − Δt, t, t + Δt with the same α, so that the residual rates of
+Eq. 7 exist, then velocities and accelerations, Eqs. 8–10) or determinate (Eqs. 1–3) —
+then the force elements, the equilibrium C f = d with one free residual-force column per
+FDK DOF (Eq. 14), and the recruitment (Eq. 11). f^FDK is the FDK columns of f.
+
+A :class:`FrameWorkspace` keeps the poses of the frame and its neighbours from the last
+evaluation as the warm start of the next one; it belongs to one frame's solve.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..kinematics.determinate import solve_positions, solve_velocities_accelerations
+
+
+@dataclass
+class Evaluation:
+    """One residual evaluation at α (n_fdk,). ok : kinematics and recruitment succeeded;
+    f_fdk : (n_fdk,) N or N m; message : reason when not ok; state : BodyStates at t with
+    velocities; vdot : (n,); frame : FrameForces; kkt : the kinematic KKT matrix (tracking)
+    and lam : its multipliers; x, visible : the measured markers at t (tracking)."""
+
+    alpha: np.ndarray
+    ok: bool
+    f_fdk: np.ndarray
+    message: str = ""
+    stage: str = ""
+    state: object = None
+    vdot: np.ndarray = None
+    frame: object = None
+    kkt: np.ndarray = None
+    lam: np.ndarray = None
+    delta: np.ndarray = None
+    x: np.ndarray = None
+    visible: np.ndarray = None
+    time: float = 0.0
+
+    @property
+    def norm(self):
+        return float(np.max(np.abs(self.f_fdk))) if self.ok else np.inf
+
+
+class FrameWorkspace:
+    """Warm-start poses of frame k and its neighbours (BodyStates copies)."""
+
+    def __init__(self, states):
+        self.states = {j: s.copy() for j, s in states.items()}
+
+    def copy(self):
+        return FrameWorkspace(self.states)
+
+
+class FDKContext:
+    """Everything the residual needs that does not change within a trial.
+
+    model; solver : InverseDynamics (its system has the FDK rows); tracker : MarkerTracker
+    or None (determinate); measurements : per-frame (x, ẋ, ẍ, visible) or None;
+    times : (nf,) s.
+    """
+
+    def __init__(self, model, solver, tracker, measurements, times):
+        self.model = model
+        self.solver = solver
+        self.system = solver.system
+        self.tracker = tracker
+        self.meas = measurements
+        self.times = np.asarray(times, dtype=float)
+        self.dt = float(self.times[1] - self.times[0]) if len(self.times) > 1 else 1.0
+        names = solver.layout.column_names
+        self.fdk_columns = np.array([names.index(f"fdk.{d.name}") for d in model.fdk_dofs], dtype=int)
+
+    def frames_needed(self, k):
+        """Frame k and (tracking) its existing neighbours."""
+        if self.tracker is None:
+            return [k]
+        return [j for j in (k - 1, k, k + 1) if 0 <= j < len(self.times)]
+
+    def evaluate(self, k, alpha, ws: FrameWorkspace, warm_recruitment=None) -> Evaluation:
+        """f^FDK(α) at frame k; ``ws`` is updated in place with the new poses."""
+        ev = self._evaluate(k, alpha, ws, warm_recruitment)
+        ev.time = float(self.times[k])
+        return ev
+
+    def _evaluate(self, k, alpha, ws, warm_recruitment):
+        alpha = np.asarray(alpha, dtype=float)
+        t = self.times[k]
+        if self.tracker is None:
+            state = ws.states[k]
+            res = solve_positions(self.system, state, t, alpha)
+            if not res.converged:
+                return Evaluation(alpha, False, np.full(len(alpha), np.nan), f"kinematics failed: {res.message}", "kinematics")
+            v, vdot = solve_velocities_accelerations(self.system, state, t, alpha)
+            return self._dynamics(k, alpha, state, vdot, warm_recruitment)
+        # marker tracking: positions at t - Δt, t, t + Δt with the same α (Eq. 7)
+        delta, kkt, lam = {}, None, None
+        for j in self.frames_needed(k):
+            x, _, _, vis = self.meas[j]
+            res, K, lm = self.tracker.solve_positions(ws.states[j], self.times[j], x, vis, alpha)
+            if res.converged:
+                delta[j] = np.where(vis[:, None], self.tracker.residuals(ws.states[j], x), np.nan)
+                if j == k:
+                    kkt, lam = K, lm
+            elif j == k:
+                return Evaluation(alpha, False, np.full(len(alpha), np.nan), f"kinematics failed: {res.message}", "kinematics")
+        d1, d2 = self._rates(k, delta)
+        x, xd, xdd, vis = self.meas[k]
+        state = ws.states[k]
+        v, vdot = self.tracker.solve_velocities_accelerations(
+            state, t, kkt, vis, np.nan_to_num(xd), np.nan_to_num(xdd), d1, d2, alpha)
+        ev = self._dynamics(k, alpha, state, vdot, warm_recruitment)
+        ev.kkt, ev.lam, ev.delta, ev.x, ev.visible = kkt, lam, delta[k], x, vis
+        return ev
+
+    def _rates(self, k, delta):
+        """δ̇, δ̈ (n_markers, 3) at frame k from the residuals of k and its neighbours
+        (central; one-sided when a neighbour is missing; per marker where visible)."""
+        dt = self.dt
+        cur = delta[k]
+        prev, nxt = delta.get(k - 1), delta.get(k + 1)
+        d1 = np.zeros_like(cur)
+        d2 = np.zeros_like(cur)
+        ok_c = np.isfinite(cur)
+        if prev is not None and nxt is not None:
+            both = ok_c & np.isfinite(prev) & np.isfinite(nxt)
+            d1 = np.where(both, (np.nan_to_num(nxt) - np.nan_to_num(prev)) / (2 * dt), 0.0)
+            d2 = np.where(both, (np.nan_to_num(nxt) - 2 * np.nan_to_num(cur) + np.nan_to_num(prev)) / dt**2, 0.0)
+        elif nxt is not None:
+            one = ok_c & np.isfinite(nxt)
+            d1 = np.where(one, (np.nan_to_num(nxt) - np.nan_to_num(cur)) / dt, 0.0)
+        elif prev is not None:
+            one = ok_c & np.isfinite(prev)
+            d1 = np.where(one, (np.nan_to_num(cur) - np.nan_to_num(prev)) / dt, 0.0)
+        return d1, d2
+
+    def _dynamics(self, k, alpha, state, vdot, warm):
+        state = state.copy()  # the workspace moves on with later evaluations
+        fr = self.solver.frame(state, vdot, self.times[k], alpha, warm)
+        if not fr.converged:
+            return Evaluation(alpha, False, np.full(len(alpha), np.nan), f"recruitment infeasible: {fr.message}",
+                              "recruitment", state, vdot, fr)
+        return Evaluation(alpha, True, fr.f[self.fdk_columns].copy(), "", "", state, vdot, fr)

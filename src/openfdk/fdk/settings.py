@@ -1,0 +1,90 @@
+"""FDK solver settings: model-file section ``fdk`` and per-DOF settings.
+
+```yaml
+fdk:
+  tolerance: 1.0e-3        # N (N m for angular DOFs): converged when max |f^FDK| < tolerance
+  max_iterations: 25       # Newton iterations per frame
+  jacobian: analytic       # or central (the paper's central differences)
+  line_search: true        # golden-section search on the step length when the full step fails
+  extrapolate: true        # warm start α by linear extrapolation of the two previous frames
+fdk_dofs:
+  tmj_r_normal: {measure: ..., max_step: 0.5, perturbation: 1.0e-3}   # file units
+```
+
+Defaults per DOF by unit: length DOFs max_step 1 mm, perturbation 1 µm; angle DOFs
+0.05 rad and 1e-6 rad.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..model.modelfile import SECTION_LOADERS, _wrap
+from ..model.model import ModelError
+
+FDK = "fdk"
+DEFAULT_MAX_STEP = {"length": 1e-3, "angle": 0.05}
+DEFAULT_PERTURBATION = {"length": 1e-6, "angle": 1e-6}
+
+
+@dataclass(frozen=True)
+class FDKSettings:
+    """tolerance : N or N m on max |f^FDK|; max_iterations; jacobian : "analytic" or
+    "central"; line_search; extrapolate; max_step, perturbation : (n_fdk,) SI."""
+
+    tolerance: float = 1e-3
+    max_iterations: int = 25
+    jacobian: str = "analytic"
+    line_search: bool = True
+    extrapolate: bool = True
+    max_step: tuple = ()
+    perturbation: tuple = ()
+    golden_section_evaluations: int = 8
+
+
+def fdk_settings(model, **overrides) -> FDKSettings:
+    """Settings of a model: its ``fdk`` section, per-DOF values and defaults by unit."""
+    base = dict(model.elements.get(FDK, {}))
+    base.update(overrides)
+    steps, perts = [], []
+    for dof in model.fdk_dofs:
+        unit = dof.measure.units[0]
+        steps.append(float(dof.settings.get("max_step", DEFAULT_MAX_STEP.get(unit, 1e-3))))
+        perts.append(float(dof.settings.get("perturbation", DEFAULT_PERTURBATION.get(unit, 1e-6))))
+    base.setdefault("max_step", tuple(steps))
+    base.setdefault("perturbation", tuple(perts))
+    settings = FDKSettings(**base)
+    if settings.jacobian not in ("analytic", "central"):
+        raise ModelError(f"fdk.jacobian must be 'analytic' or 'central', got {settings.jacobian!r}")
+    if not (settings.tolerance > 0 and settings.max_iterations >= 1):
+        raise ModelError("fdk.tolerance must be > 0 and fdk.max_iterations >= 1")
+    if np.any(np.asarray(settings.max_step) <= 0):
+        raise ModelError("FDK max_step values must be > 0")
+    return settings
+
+
+def load_fdk(b, data, ctx):
+    ctx.keys(data, FDK, ["tolerance", "max_iterations", "jacobian", "line_search", "extrapolate"])
+    out = {}
+    if "tolerance" in data:
+        out["tolerance"] = ctx.number(data["tolerance"], "fdk.tolerance", positive=True)
+    if "max_iterations" in data:
+        n = data["max_iterations"]
+        if not isinstance(n, int) or isinstance(n, bool) or n < 1:
+            raise ctx.error("fdk.max_iterations", f"expected a positive integer, got {n!r}")
+        out["max_iterations"] = n
+    if "jacobian" in data:
+        if data["jacobian"] not in ("analytic", "central"):
+            raise ctx.error("fdk.jacobian", f"expected 'analytic' or 'central', got {data['jacobian']!r}")
+        out["jacobian"] = data["jacobian"]
+    for key in ("line_search", "extrapolate"):
+        if key in data:
+            if not isinstance(data[key], bool):
+                raise ctx.error(f"fdk.{key}", f"expected true or false, got {data[key]!r}")
+            out[key] = data[key]
+    _wrap(ctx, FDK, lambda: b.elements.__setitem__(FDK, out))
+
+
+SECTION_LOADERS[FDK] = load_fdk
