@@ -9,8 +9,9 @@ the equilibrium, paper Eq. 13) and per-element outputs.
 * contacts: generalised forces from :mod:`openfdk.contact` when the model has any.
 
 Also returns, on request, the stiffness ∂Q/∂q̂ of ligaments and springs (for the analytic
-FDK Jacobian): K = −Lᵀ (dT/dl) L − (∂Lᵀ/∂q̂) T, of which the second (geometric) term is
-included by central differences of Lᵀ over the path only when ``geometric=True``.
+FDK Jacobian): K = −Lᵀ (dT/dl) L − Σ T ∂Lᵀ/∂q̂; the second (geometric) term is one
+batched forward difference of the analytic path Jacobians on the manifold (relative
+error ~1e-7, far below what the FDK Jacobian needs).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..numdiff import manifold_jacobian
 from .elements import LIGAMENTS, LOADS, SPRINGS
 
 
@@ -47,6 +49,9 @@ class PassiveElements:
         self.springs = tuple(model.elements.get(SPRINGS, ()))
         self.loads = tuple(model.elements.get(LOADS, ()))
         self.contacts = tuple(model.elements.get("contacts", ()))
+        from .pathset import PathSet
+
+        self.ligament_paths = PathSet(self.ligaments) if self.ligaments else None
 
     def generalized_forces(self, state, t, want_stiffness=False, elements=True, loads=True):
         """Q (n,) [N, N m] of the passive elements (ligaments, springs, contacts; if
@@ -58,18 +63,21 @@ class PassiveElements:
         nl, ns = len(self.ligaments), len(self.springs)
         out = PassiveOutputs(np.zeros(nl), np.zeros(nl), np.zeros(nl), np.zeros(ns), np.zeros(ns), {})
         ligaments, springs, contacts = (self.ligaments, self.springs, self.contacts) if elements else ((), (), ())
-        for k, lig in enumerate(ligaments):
-            l, L, _ = lig.path.evaluate(state, 1)
-            length = float(l[0])
-            T = float(lig.law.force(length))
-            out.ligament_length[k] = length
-            out.ligament_strain[k] = float(lig.law.strain(length))
-            out.ligament_force[k] = T
-            Q -= L[0] * T
-            if want_stiffness:
-                K -= np.outer(L[0], L[0]) * float(lig.law.dforce_dlength(length))
-                if T != 0.0:
-                    K -= T * _path_hessian(lig.path, state)
+        if ligaments:
+            lengths, L = self.ligament_paths.evaluate(state)
+            for k, lig in enumerate(ligaments):
+                length = float(lengths[k])
+                T = float(lig.law.force(length))
+                out.ligament_length[k] = length
+                out.ligament_strain[k] = float(lig.law.strain(length))
+                out.ligament_force[k] = T
+                Q -= L[k] * T
+                if want_stiffness:
+                    K -= np.outer(L[k], L[k]) * float(lig.law.dforce_dlength(length))
+            if want_stiffness and np.any(out.ligament_force):
+                # geometric term −Σ T_k ∂L_kᵀ/∂q̂, one batched difference of the path kernel
+                T = out.ligament_force.copy()
+                K -= manifold_jacobian(lambda s: T @ self.ligament_paths.evaluate(s)[1], state, 1e-7, central=False)
         for k, spr in enumerate(springs):
             m, M, _ = spr.measure.evaluate(state, 1)
             f = float(spr.law.force(float(m[0])))
@@ -78,8 +86,10 @@ class PassiveElements:
             Q += M[0] * f
             if want_stiffness:
                 K += np.outer(M[0], M[0]) * float(spr.law.dforce_dmeasure(float(m[0])))
-                if f != 0.0:
-                    K += f * _path_hessian(spr.measure, state)
+        if want_stiffness and springs and np.any(out.spring_force):
+            f = out.spring_force.copy()
+            K += manifold_jacobian(lambda s: sum(fk * sp.measure.evaluate(s, 1)[1][0] for fk, sp in zip(f, springs)),
+                                   state, 1e-7, central=False)
         for load in self.loads if loads else ():
             Q += self._load_Q(load, state, t)
         for contact in contacts:
@@ -107,11 +117,3 @@ class PassiveElements:
         Q[c : c + 3] = F_W
         Q[c + 3 : c + 6] = _cross(load.p_BP, R.T @ F_W) + M_B
         return Q
-
-
-def _path_hessian(measure, state, eps=1e-7):
-    """H[i, k] = ∂M_i/∂q̂_k (n, n) of a scalar measure's Jacobian row M, by central
-    differences on the manifold (the geometric stiffness term T ∂Lᵀ/∂q̂)."""
-    from ..numdiff import manifold_jacobian
-
-    return manifold_jacobian(lambda s: measure.evaluate(s, 1)[1][0], state, eps)
