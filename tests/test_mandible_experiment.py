@@ -12,9 +12,20 @@ import pytest
 import trimesh
 
 from openfdk.io.c3d import read_c3d
-from openfdk.mandible import (TruthOptions, create_subject, load_subject, load_truth,
-                              measured_condyle_kinematics, record_experiment, rigid_fit)
-from openfdk.mandible.experiment import load_true_joint, simulate_task, true_marker_positions
+from openfdk.mandible import (
+    TruthOptions,
+    create_subject,
+    load_subject,
+    load_truth,
+    measured_condyle_kinematics,
+    record_experiment,
+    rigid_fit,
+)
+from openfdk.mandible.experiment import (
+    load_true_joint,
+    simulate_task,
+    true_marker_positions,
+)
 from openfdk.mandible.generator import load_anatomy
 from openfdk.mandible.geometry import fossa_mesh
 from openfdk.mandible.truth import TrueJoint
@@ -82,7 +93,7 @@ def test_condyles_stay_on_the_true_fossa_through_the_true_layer(recorded):
     s = s[np.hypot(*s.T) <= 0.9]
     worst = 0.0
     for side in ("r", "l"):
-        V, F = fossa_mesh(joint.fossae[side], 145, 137, height=lambda x, y: joint.fossa_height(side, x, y))
+        V, F = fossa_mesh(joint.fossae[side], 145, 137, height=lambda x, y, side=side: joint.fossa_height(side, x, y))
         points_M = joint.offset_points(side, s)
         for task in TASKS:
             truth = load_truth(folder, task)

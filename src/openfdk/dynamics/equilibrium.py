@@ -76,7 +76,10 @@ def equilibrium_layout(model, system):
         for u in model.elements.get(REACTIONS, ())
     )
     one_sided = {u[0] for u in unilateral}
-    free_rows = [offsets[c.name] + k for c in model.constraints if c.reaction for k in range(c.size)
+    # a reaction acts in equilibrium only if its constraint touches a body with rows
+    balanced = {b.index for b in model.moving_bodies if b.equilibrium}
+    free_rows = [offsets[c.name] + k for c in model.constraints
+                 if c.reaction and balanced.intersection(c.measure.bodies()) for k in range(c.size)
                  if offsets[c.name] + k not in one_sided]
     n_joint = sum(c.size for c in model.constraints)
     fdk_rows = list(range(n_joint, n_joint + len(model.fdk_dofs)))

@@ -7,7 +7,12 @@
 * :func:`measured_condyle_kinematics` — condyle tops as the dental braces measure them.
 """
 
-from .experiment import load_truth, measured_condyle_kinematics, record_experiment, rigid_fit
+from .experiment import (
+           load_truth,
+           measured_condyle_kinematics,
+           record_experiment,
+           rigid_fit,
+)
 from .generator import create_subject
 from .subject import Subject, SubjectError, load_subject
 from .truth import TruthOptions

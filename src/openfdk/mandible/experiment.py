@@ -39,8 +39,17 @@ from .generator import load_anatomy
 from .subject import Subject, load_subject
 from .truth import SIDES, TrueJoint, TruthOptions, solve_contact
 
-__all__ = ["TASKS", "TaskTruth", "record_experiment", "simulate_task", "measured_condyle_kinematics",
-           "rigid_fit", "load_truth", "load_true_joint", "true_marker_positions"]
+__all__ = [
+    "TASKS",
+    "TaskTruth",
+    "load_true_joint",
+    "load_truth",
+    "measured_condyle_kinematics",
+    "record_experiment",
+    "rigid_fit",
+    "simulate_task",
+    "true_marker_positions",
+]
 
 _MM, _DEG = 1e-3, np.pi / 180.0
 #: default cycle frequency (Hz) of each task; "reference" is a static 1 s trial
@@ -204,7 +213,7 @@ def simulate_task(subject: Subject, joint: TrueJoint, markers_true: dict, task: 
     """
     rng = rng if rng is not None else np.random.default_rng(0)
     if task == "reference":
-        t = np.arange(int(round(REFERENCE_S * rate)) + 1) / rate
+        t = np.arange(round(REFERENCE_S * rate) + 1) / rate
         cycle, phase, amplitude = -np.ones(len(t), dtype=int), np.zeros(len(t)), np.ones((len(t), 3))
     else:
         if task not in TASKS:

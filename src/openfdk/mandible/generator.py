@@ -20,8 +20,15 @@ from .geometry import RESOLUTIONS, CondyleShape, FossaShape, condyle_mesh, fossa
 from .subject import FORMAT_NAME, FORMAT_VERSION, SUBJECT_FILE
 from .truth import SIDES, TrueJoint, TruthOptions, min_gap
 
-__all__ = ["VirtualAnatomy", "create_subject", "build_anatomy", "load_anatomy", "generic_data",
-           "tmj_plane_normal", "ANATOMY_FILE"]
+__all__ = [
+    "ANATOMY_FILE",
+    "VirtualAnatomy",
+    "build_anatomy",
+    "create_subject",
+    "generic_data",
+    "load_anatomy",
+    "tmj_plane_normal",
+]
 
 DATA_DIR = Path(__file__).resolve().parent.parent / "data" / "mandible"
 ANATOMY_FILE = Path("truth") / "anatomy.yaml"
@@ -77,7 +84,7 @@ class VirtualAnatomy:
                                      "axis_angle": float(c.axis_angle), "cap_extent": float(c.cap_extent)}
             f = self.fossae[side]
             d = {k: getattr(f, k) for k in f.__dataclass_fields__ if not k.startswith("_")}
-            d = {k: (np.asarray(v).tolist() if not isinstance(v, float) else v) for k, v in d.items()}
+            d = {k: np.asarray(v, dtype=float).tolist() for k, v in d.items()}   # plain floats
             out["fossae"][side] = d
         return out
 

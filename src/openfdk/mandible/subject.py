@@ -26,21 +26,21 @@ import yaml
 from ..spatial import rotation_matrix_xyz
 
 __all__ = [
-    "SubjectError",
-    "Plane",
-    "InertialProperties",
-    "MuscleSpec",
-    "LigamentSpec",
-    "SurfaceSpec",
-    "Brace",
-    "Subject",
-    "load_subject",
-    "SUBJECT_FILE",
     "FORMAT_NAME",
     "FORMAT_VERSION",
-    "REQUIRED_LANDMARKS",
-    "SURFACE_BODIES",
     "MUSCLE_DEFAULTS",
+    "REQUIRED_LANDMARKS",
+    "SUBJECT_FILE",
+    "SURFACE_BODIES",
+    "Brace",
+    "InertialProperties",
+    "LigamentSpec",
+    "MuscleSpec",
+    "Plane",
+    "Subject",
+    "SubjectError",
+    "SurfaceSpec",
+    "load_subject",
 ]
 
 SUBJECT_FILE = "subject.yaml"

@@ -36,15 +36,15 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .geometry import CondyleShape, FossaShape, SmoothField
+from .geometry import SmoothField
 
 __all__ = [
-    "TruthOptions",
-    "TrueJoint",
-    "ContactSolution",
     "SIDES",
-    "relative_rotation",
+    "ContactSolution",
+    "TrueJoint",
+    "TruthOptions",
     "min_gap",
+    "relative_rotation",
     "solve_contact",
 ]
 
@@ -375,8 +375,9 @@ def solve_contact(joint: TrueJoint, x, y, yaw, opening, *, tolerance: float = 1e
     while len(active):
         iteration += 1
         if iteration > max_iterations:
+            residual = np.abs(m[active, 0] - m[active, 1])[:5]
             raise ValueError(f"contact solve did not converge at frames {active[:5].tolist()}: "
-                             f"|h| = {np.abs(h[~done])[:5]} m after {max_iterations} iterations")
+                             f"|m_r − m_l| = {residual} m after {max_iterations} iterations")
         dm = np.zeros((n, 2))
         for group in (active[search_global[active]], active[~search_global[active]]):
             if not len(group):

@@ -1,0 +1,175 @@
+"""Force-dependent kinematics (paper Fig. 1) against closed forms, and the analytic
+Jacobian against central differences."""
+
+import numpy as np
+import pytest
+
+from openfdk.contact.sections import add_contact
+from openfdk.contact.shapes import flat_patch, sphere_cap
+from openfdk.fdk.analysis import run_fdk
+from openfdk.forces.elements import add_external_load, add_spring
+from openfdk.model.builder import ModelBuilder
+from openfdk.model.timefunctions import Constant, SplineThroughData
+
+G = 9.81
+
+
+def _slider(mass=2.0, stiffness=500.0):
+    b = ModelBuilder("spring", gravity=(0, 0, -G))
+    b.add_body("block", mass, [1e-3] * 3)
+    b.add_joint("rail", "prismatic", parent="ground.origin", child="block.origin")
+    b.add_measure("z", b._select(b.vector("ground.origin", "block.origin"), [2]))
+    b.add_fdk_dof("height", "z", initial=0.0, max_step=0.1)
+    add_spring(b, "spring", "z", stiffness)
+    return b.build()
+
+
+@pytest.mark.parametrize("jacobian", ["analytic", "central"])
+def test_body_on_linear_spring_settles_at_mg_over_k(jacobian):
+    m, k = 2.0, 500.0
+    res = run_fdk(_slider(m, k), None, np.linspace(0, 1, 4), jacobian=jacobian)
+    assert res.converged.all()
+    np.testing.assert_allclose(res.alpha[:, 0], -m * G / k, atol=1e-3 / k)  # force tolerance / stiffness
+    assert np.all(np.abs(res.f_fdk) < 1e-3)
+
+
+def _block_on_floor(mass=1.0, p=1e8, size=0.01, floor_z=None, lift=None):
+    """A 10 mm × 10 mm flat face (bottom of a block, 5 mm below its centre of mass) on a
+    floor body; the block slides vertically (prismatic) and its height is an FDK DOF."""
+    b = ModelBuilder("block on floor", gravity=(0, 0, -G))
+    b.add_body("floor", 10.0, [1, 1, 1], position=[0, 0, 0], equilibrium=False)  # moved by its driver
+    b.add_body("block", mass, [1e-4] * 3, position=[0, 0, 0.005])
+    bottom = flat_patch(size, size, size / 20)
+    down = np.diag([1.0, -1.0, -1.0])  # normals down, face 5 mm below the centre of mass
+    from openfdk.contact.mesh import surface_mesh
+
+    bottom = surface_mesh(bottom.vertices_B @ down.T + [0, 0, -0.005], bottom.faces[:, ::-1], name="bottom")
+    add_contact(b, "floor", "block", bottom, "floor", flat_patch(0.05, 0.05, 0.002, name="floor"), p)
+    b.add_measure("floor_z", b._select(b.point("floor.origin"), [2]))
+    b.add_measure("floor_angles", b.angles("ground.origin", "floor.origin"))
+    b.add_joint("floor_rail", "prismatic", parent="ground.origin", child="floor.origin")
+    b.add_driver("floor_height", "floor_z", floor_z or Constant([0.0]))
+    b.add_joint("rail", "prismatic", parent="floor.origin", child="block.origin")
+    b.add_measure("height", b._select(b.vector("floor.origin", "block.origin"), [2]))
+    b.add_fdk_dof("height", "height", initial=0.005, max_step=0.002)
+    if lift is not None:
+        add_external_load(b, "lift", "block.origin", force=lift)
+    return b.build()
+
+
+@pytest.mark.parametrize("jacobian", ["analytic", "central"])
+def test_block_on_elastic_foundation_penetrates_mg_over_pA(jacobian):
+    m, p, size = 1.0, 1e8, 0.01
+    res = run_fdk(_block_on_floor(m, p, size), None, np.array([0.0, 0.1]), jacobian=jacobian)
+    assert res.converged.all(), res.messages
+    delta = m * G / (p * size**2)  # 0.98 mm
+    np.testing.assert_allclose(0.005 - res.alpha[:, 0], delta, rtol=1e-6)
+
+
+def test_sphere_in_cup_under_sideways_load_rolls_to_equilibrium_angle():
+    """A ball (radius r) in a spherical cup (radius R) under gravity and a sideways
+    force F: frictionless contact forces act along the cup's normals, i.e. through the
+    cup's centre, so the ball's centre settles on the ray from the cup's centre at
+    tan θ = F / (m g) from the vertical."""
+    m, F, r, R = 0.5, 2.0, 0.008, 0.012
+    b = ModelBuilder("ball in cup", gravity=(0, 0, -G))
+    b.add_body("ball", m, [1e-5] * 3, position=[0, 0, -(R - r)])
+    ball = sphere_cap(r, np.deg2rad(80), 0.0004, pole=(0, 0, -1), name="ball")
+    cup = sphere_cap(R, np.deg2rad(70), 0.0005, pole=(0, 0, -1), inward=True, name="cup")
+    add_contact(b, "cup", "ball", ball, "ground", cup, 2e9)
+    add_external_load(b, "push", "ball.origin", force=[F, 0.0, 0.0])
+    b.add_driver("no_rotation", b.angles("ground.origin", "ball.origin"), Constant([0.0, 0.0, 0.0]), reaction=True)
+    position = b.add_measure("position", b.point("ball.origin"))
+    for j, axis in enumerate("xyz"):
+        b.add_fdk_dof(f"ball_{axis}", position, initial=[0.0, 0.0, -(R - r) - 2e-4][j], component=j, max_step=0.002)
+    model = b.build()
+    res = run_fdk(model, None, np.array([0.0]), jacobian="analytic")
+    assert res.converged.all(), res.messages
+    x, y, z = res.alpha[0]
+    theta = np.arctan2(x, -z)
+    assert abs(y) < 1e-6
+    assert np.degrees(theta) == pytest.approx(np.degrees(np.arctan2(F, m * G)), abs=0.05)
+    assert np.hypot(x, z) > R - r  # pressed into the cup
+
+
+def test_frame_without_restoring_force_is_flagged_and_run_continues():
+    """For three frames a 20 N lift (more than the block's weight) pulls the block off
+    the floor: with no contact and no spring nothing restores the FDK DOF, so those
+    frames are flagged (not hidden) and the others converge."""
+    times = np.arange(10) * 0.01
+    lift = np.where((times > 0.025) & (times < 0.055), 20.0, 0.0)
+    model = _block_on_floor(lift=SplineThroughData(times, np.c_[0 * lift, 0 * lift, lift]))
+    res = run_fdk(model, None, times, jacobian="analytic")
+    failed = set(np.flatnonzero(~res.converged))
+    assert failed == {3, 4, 5}
+    for k in failed:
+        assert res.reasons[k] in ("singular", "line_search", "iteration_limit")
+        assert res.messages[k].startswith(f"frame {k} ")
+    assert any("no restoring force along ['height']" in res.messages[k] for k in failed)
+    summary = res.summary()
+    assert summary["converged_frames"] == 7 and len(summary["failed_frames"]) == 3
+    np.testing.assert_allclose(0.005 - res.alpha[[0, 1, 2, 6, 7, 8, 9], 0], G / (1e8 * 1e-4), rtol=1e-6)
+
+
+@pytest.fixture(scope="module")
+def tmj_model(tmp_path_factory):
+    from openfdk.model.modelfile import model_from_dict
+    from openfdk.synthetic_jaw import jaw_fdk_model_dict, write_jaw_meshes
+
+    d = write_jaw_meshes(tmp_path_factory.mktemp("tmj"))
+    data = jaw_fdk_model_dict(str(d))
+    data["recruitment"]["tolerance"] = 1e-13
+    return model_from_dict(data, "tmj.yaml", base_dir="/")
+
+
+def _tmj_context(model, n_frames=30):
+    from openfdk.analysis.inverse_dynamics import InverseDynamics
+    from openfdk.fdk.residual import FDKContext
+    from openfdk.io.c3d import MarkerTrial
+    from openfdk.io.markers import MarkerTrajectories
+    from openfdk.kinematics.system import ConstraintSystem
+    from openfdk.kinematics.tracking import MarkerTracker, TrackingSettings
+    from openfdk.synthetic_jaw import jaw_markers
+
+    t, labels, x, _ = jaw_markers(n_frames, noise=1e-4, seed=3)
+    traj = MarkerTrajectories(MarkerTrial(tuple(labels), 100.0, t, x), cutoff_hz=8.0)
+    system = ConstraintSystem(model)
+    tracker = MarkerTracker(system, TrackingSettings(tol_step=1e-13, tol_constraint=1e-13, max_iter=60))
+    return FDKContext(model, InverseDynamics(model, system), tracker, [traj.evaluate(tt) for tt in t], t), traj, t
+
+
+def test_analytic_jacobian_matches_central_differences_on_tmj_model(tmj_model):
+    """At several frames and α (in contact), the chain-rule Jacobian agrees with central
+    differences of full residual evaluations (inner solvers tight) to 1e-4 relative."""
+    from openfdk.fdk.jacobian import analytic_jacobian, central_jacobian
+    from openfdk.fdk.residual import FrameWorkspace
+
+    ctx, _, _ = _tmj_context(tmj_model)
+    state0 = tmj_model.initial_state()
+    ctx.tracker.initial_guess(state0, ctx.meas[0][0], ctx.meas[0][3])
+    checked = 0
+    for k, alpha in [(5, [-6e-4, -6e-4, 0.0]), (15, [-5e-4, -7e-4, 2e-5]), (25, [-7e-4, -5e-4, -3e-5])]:
+        ws = FrameWorkspace({j: state0 for j in ctx.frames_needed(k)})
+        ev = ctx.evaluate(k, np.array(alpha), ws)
+        assert ev.ok, ev.message
+        Ja, _, msg = analytic_jacobian(ctx, k, ev)
+        assert msg == ""
+        Jc, n_ev, msg = central_jacobian(ctx, k, ev, ws, [2e-7, 2e-7, 2e-7])
+        assert msg == "" and n_ev == 6
+        scale = np.abs(Jc).max()
+        assert scale > 1e4  # N/m: contact stiffness dominates
+        assert np.abs(Ja - Jc).max() < 1e-4 * scale, (Ja, Jc)
+        checked += 1
+    assert checked == 3
+
+
+def test_analytic_and_central_fdk_converge_to_same_alpha(tmj_model):
+
+    _, traj, t = _tmj_context(tmj_model, n_frames=20)
+    ra = run_fdk(tmj_model, traj, t, jacobian="analytic")
+    rc = run_fdk(tmj_model, traj, t, jacobian="central")
+    assert ra.converged.all() and rc.converged.all()
+    # α agree to the force tolerance over the joint stiffness (≥ 1e4 N/m): < 1e-7 m
+    np.testing.assert_allclose(ra.alpha, rc.alpha, atol=1e-7)
+    assert np.all(ra.alpha[:, :2] < 0)  # condyles pressed into their fossae through the 1 mm layer
+    assert ra.evaluations.mean() <= 4 < rc.evaluations.mean()
