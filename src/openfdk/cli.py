@@ -59,11 +59,21 @@ def _cmd_run(args):
                              start=args.start, end=args.end)
     write_kinematics(args.out, kin, {"input": info})
     write_forces(args.out, dyn)
-    write_json(f"{args.out}/summary.json", {"input": info, "kinematics": kin.summary(), "inverse_dynamics": dyn.summary()})
+    fdk = info.pop("fdk", None)
+    summary = {"input": info, "kinematics": kin.summary(), "inverse_dynamics": dyn.summary()}
+    if fdk is not None:
+        summary["fdk"] = fdk
+    write_json(f"{args.out}/summary.json", summary)
     print(
         f"run: kinematics {int(kin.converged.sum())}/{len(kin.time)} frames, inverse dynamics "
         f"{int(dyn.converged.sum())}/{len(dyn.time)} frames converged -> {args.out}/forces.csv"
     )
+    if fdk is not None:
+        print(
+            f"  FDK: {fdk['converged_frames']}/{fdk['frames']} frames converged, "
+            f"{fdk['mean_residual_evaluations_per_frame']:.2f} residual evaluations per frame, "
+            f"{fdk['frames_per_second']:.0f} frames/s ({fdk['jacobian']} Jacobian)"
+        )
     for i, t, msg in dyn.failed_frames()[:10]:
         print(f"  failed: {msg}", file=sys.stderr)
     return 0
@@ -92,7 +102,7 @@ def _cmd_bench(args):
 
     failures = 0
     for name in BENCHMARK_MODULES:
-        if args.only and not any(o in name for o in args.only):
+        if args.only and not any(o in name.rsplit(".", 1)[-1] for o in args.only):
             continue
         try:
             mod = importlib.import_module(name)

@@ -67,11 +67,31 @@ def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, s
 
 
 def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=None, end=None):
-    """Kinematics then inverse dynamics with muscle recruitment.
-    Returns (KinematicsResult, InverseDynamicsResult, info)."""
+    """Kinematics then inverse dynamics with muscle recruitment; when the model declares
+    FDK DOFs, force-dependent kinematics (each frame's α found so that the FDK residual
+    forces vanish). Returns (KinematicsResult, InverseDynamicsResult, info); for FDK,
+    info["fdk"] holds the FDK summary."""
     from .analysis.inverse_dynamics import run_inverse_dynamics
+    from .kinematics.analysis import analysis_times
 
     model = load_model(model_path) if not hasattr(model_path, "bodies") else model_path
-    kin, info = kinematics_job(model, trial_path, cutoff_hz, progress, start, end)
-    info["model"] = str(model_path) if not hasattr(model_path, "bodies") else model.name
-    return kin, run_inverse_dynamics(model, kin, progress=progress), info
+    label = str(model_path) if not hasattr(model_path, "bodies") else model.name
+    if not model.fdk_dofs:
+        kin, info = kinematics_job(model, trial_path, cutoff_hz, progress, start, end)
+        info["model"] = label
+        return kin, run_inverse_dynamics(model, kin, progress=progress), info
+    from .fdk.analysis import run_fdk
+
+    info = {"model": label}
+    if trial_path is None:
+        a = model.elements.get("analysis", {})
+        t0 = float(a.get("start", 0.0) if start is None else start)
+        t1 = float(a.get("end", 1.0) if end is None else end)
+        traj, times = None, analysis_times(t0, t1, int(a.get("frames", 101)))
+    else:
+        trial, traj = load_trajectories(model, trial_path, cutoff_hz)
+        times = analysis_window(model, np.asarray(trial.time, dtype=float), start, end)
+        info.update({"trial": str(Path(trial_path)), "rate_hz": trial.rate, "markers": list(trial.labels)})
+    res = run_fdk(model, traj, times, progress=progress)
+    info["fdk"] = res.summary()
+    return res.kinematics, res.forces, info

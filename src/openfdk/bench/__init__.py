@@ -11,4 +11,5 @@ BENCHMARK_MODULES = [
     "openfdk.bench.recruitment",
     "openfdk.bench.inverse_dynamics",
     "openfdk.bench.contact",
+    "openfdk.bench.fdk",
 ]
