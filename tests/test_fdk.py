@@ -173,3 +173,33 @@ def test_analytic_and_central_fdk_converge_to_same_alpha(tmj_model):
     np.testing.assert_allclose(ra.alpha, rc.alpha, atol=1e-7)
     assert np.all(ra.alpha[:, :2] < 0)  # condyles pressed into their fossae through the 1 mm layer
     assert ra.evaluations.mean() <= 4 < rc.evaluations.mean()
+
+
+def test_run_cli_does_fdk_when_the_model_declares_fdk_dofs(tmp_path):
+    """`openfdk run` on a model file with fdk_dofs and a C3D trial: forces.csv has α and
+    f^FDK per frame, summary.json the FDK convergence rate and evaluations per frame."""
+    import csv
+    import json
+
+    import yaml
+
+    from openfdk.cli import main
+    from openfdk.io.c3d import write_c3d
+    from openfdk.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, write_jaw_meshes
+
+    write_jaw_meshes(tmp_path / "meshes")
+    (tmp_path / "jaw.yaml").write_text(yaml.safe_dump(jaw_fdk_model_dict("meshes")))
+    t, labels, x, _ = jaw_markers(25, noise=1e-4)
+    write_c3d(tmp_path / "trial.c3d", labels, x, 100.0)
+    out = tmp_path / "out"
+    assert main(["run", str(tmp_path / "jaw.yaml"), str(tmp_path / "trial.c3d"), "--out", str(out), "--no-progress"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["fdk"]["convergence_rate"] == 1.0
+    assert 1 <= summary["fdk"]["mean_residual_evaluations_per_frame"] <= 4
+    rows = list(csv.DictReader(open(out / "forces.csv")))
+    assert len(rows) == 25
+    for r in rows:
+        assert abs(float(r["fdk.tmj_r_normal.residual"])) < 1e-3
+        assert float(r["fdk.tmj_r_normal.alpha"]) < 0
+        assert float(r["tmj_r.Fz_N"]) < -1.0  # the fossa pushes the condyle down
+        assert r["fdk_converged"] == "1"

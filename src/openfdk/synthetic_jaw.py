@@ -76,7 +76,7 @@ def jaw_model_dict(n_muscles_per_side=12):
             m.update({key: v for key, v in defaults.items()})
             # calibration (as AnyBody's 3-element model): the tendon slack length is set
             # so that the fibres are at their optimal length in the closed reference pose
-            m["tendon_slack_length"] = round(max(1e3 * np.linalg.norm(i - o) - spec["optimal_fibre_length"], 1.0), 6)
+            m["tendon_slack_length"] = float(round(max(1e3 * np.linalg.norm(i - o) - spec["optimal_fibre_length"], 1.0), 6))
             muscles[f"{name}_{tag}"] = {"path": [f"skull.{name}_o_{tag}", f"mandible.{name}_i_{tag}"], **m}
     jaw_frames["ml_point"] = mm(-COM_J)
     return {
