@@ -430,7 +430,7 @@ def rigid_fit(model_points, measured):
     return R, p
 
 
-def measured_condyle_kinematics(subject: Subject, trial) -> tuple:
+def measured_condyle_kinematics(subject: Subject, trial, braces=None) -> tuple:
     """Condyle-top positions as the brace measures them (paper: marker-only estimate).
 
     Fits the skull and mandible braces rigidly (:func:`rigid_fit`) to the trial's
@@ -438,15 +438,18 @@ def measured_condyle_kinematics(subject: Subject, trial) -> tuple:
     skull frame: p_S = R_LSᵀ (p_LM + R_LM p_M − p_LS).
 
     Args: subject (its brace marker positions and landmarks); trial: a
-    :class:`~openfdk.io.c3d.MarkerTrial` or a C3D path.
+    :class:`~openfdk.io.c3d.MarkerTrial` or a C3D path; braces: optional registered
+    brace geometry, body -> (labels, positions (k, 3) m in the subject frame), e.g. from
+    :func:`openfdk.mandible.registration.register_braces` (default: the subject's
+    nominal brace positions).
     Returns: time (n,) s, p_right (n, 3) m, p_left (n, 3) m in the skull/subject frame.
     """
     if not isinstance(trial, MarkerTrial):
         trial = read_c3d(trial)
-    R_LS, p_LS = rigid_fit(subject.braces["skull"].positions,
-                           trial.select(subject.braces["skull"].labels).positions)
-    R_LM, p_LM = rigid_fit(subject.braces["mandible"].positions,
-                           trial.select(subject.braces["mandible"].labels).positions)
+    if braces is None:
+        braces = {b: (subject.braces[b].labels, subject.braces[b].positions) for b in ("skull", "mandible")}
+    R_LS, p_LS = rigid_fit(braces["skull"][1], trial.select(braces["skull"][0]).positions)
+    R_LM, p_LM = rigid_fit(braces["mandible"][1], trial.select(braces["mandible"][0]).positions)
     out = []
     for side in SIDES:
         p_L = p_LM + R_LM @ subject.condyle_top(side)

@@ -1,0 +1,180 @@
+"""The paper's two TMJ models, written as ordinary model files from a subject folder.
+
+Both models have a skull (tracked by its brace, `equilibrium: false`: its loads come
+from the neck and are not analysed), a mandible (mass, inertia, centre of mass from the
+subject), 24 Hill-type muscles (origin on the skull, insertion on the mandible, straight
+lines) and cubic recruitment. The brace markers are the registered positions
+(:mod:`.registration`).
+
+* **POP** (point-on-plane): the most superior point of each condyle stays on its TMJ
+  plane (30° down-anteriorly, 5° medial cant; subject ``tmj_planes``) and the mandible
+  origin cannot move medio-laterally relative to the skull. The plane reactions are
+  compressive only: 20 kN push-only elements recruited like muscles; the medio-lateral
+  reaction is free and is assigned to the right or left TMJ by its sign (a force toward
+  +y, i.e. medial on the right condyle, to the right TMJ; toward −y to the left).
+* **FDK**: the same three directions (each condyle's distance from its plane, the
+  medio-lateral shift) are FDK DOFs; the joint is held by elastic-foundation contact of
+  the condyle (offset by the subject's cartilage layer, 1 mm) against the fossa/eminence
+  (10 GN/m³), three Blankevoort ligament elements per side (the paper's whole-ligament
+  stiffness k split equally over the elements, reference strain ε_r at the reference
+  pose), and a weak spring (0.1 N/m) on each FDK DOF.
+
+Muscle calibration (as AnyBody's 3-element muscles are calibrated): each tendon slack
+length is set so that the fibres are at their optimal length with the mandible opened
+by ``calibration_opening_deg`` about the intercondylar axis; this keeps the passive
+elevator forces physiological over half-open movements with straight-line paths.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from ..spatial import quat_from_rotvec, rotation_matrix
+
+PARAMETER_STUDY_STIFFNESS = (136.2, 272.4, 544.8)  # N/m, whole TMJ ligament (paper)
+PARAMETER_STUDY_STRAIN = (-0.04, -0.02, 0.0, 0.02, 0.04)
+DEFAULT_STIFFNESS, DEFAULT_STRAIN = 272.4, 0.0  # the paper's comparison model
+SIDES = (("r", "right"), ("l", "left"))
+
+
+def _mm(v):
+    return [round(float(x) * 1e3, 6) for x in np.asarray(v).ravel()]
+
+
+def _plane_frame(normal):
+    """Rotation (3, 3) whose z axis is the plane normal and x axis points anteriorly."""
+    n = np.asarray(normal, float) / np.linalg.norm(normal)
+    x = np.array([1.0, 0.0, 0.0]) - n[0] * n
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(n, x), n])
+
+
+def calibrated_tendon_slack(subject, muscle, opening_deg):
+    """Tendon slack length (m) with optimal fibres at the calibration opening: the
+    insertion rotated by the opening about the intercondylar (y) axis through the
+    condyle tops; l_T = l_MT − Lf0 cos α0, at least 1 mm."""
+    axis_point = 0.5 * (subject.condyle_top("r") + subject.condyle_top("l"))
+    R = rotation_matrix(quat_from_rotvec([0.0, np.deg2rad(opening_deg), 0.0]))
+    insertion = axis_point + R @ (muscle.insertion - axis_point)
+    l_mt = float(np.linalg.norm(insertion - muscle.origin))
+    return max(l_mt - muscle.optimal_fibre_length * np.cos(muscle.pennation_angle_at_optimal), 1e-3)
+
+
+def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS,
+               reference_strain=DEFAULT_STRAIN, calibration_opening_deg=10.0, mesh_dir=None,
+               pressure_modulus=1.0e10, spring_stiffness=0.1):
+    """The POP (``kind="pop"``) or FDK (``kind="fdk"``) model of a subject as a model-file
+    mapping (mm, deg). ``mesh_dir``: path written for the STL files (relative to where
+    the model file will be written; default the subject folder, absolute)."""
+    if kind not in ("pop", "fdk"):
+        raise ValueError(f"model kind must be 'pop' or 'fdk', got {kind!r}")
+    com = subject.mandible.center_of_mass
+    skull_frames = {"incisal_point_skull": _mm(subject.landmarks["incisal_point"])}
+    jaw_frames = {"ml_point": _mm(-com), "incisal_point": _mm(subject.landmarks["incisal_point"] - com)}
+    for tag, _ in SIDES:
+        plane = subject.tmj_planes[tag]
+        skull_frames[f"plane_{tag}"] = {"position": _mm(plane.point),
+                                        "orientation": {"matrix": _plane_frame(plane.normal).round(12).tolist()}}
+        jaw_frames[f"condyle_{tag}"] = _mm(subject.condyle_top(tag) - com)
+    muscles = {}
+    for m in subject.muscles:
+        skull_frames[f"{m.name}_origin"] = _mm(m.origin)
+        jaw_frames[f"{m.name}_insertion"] = _mm(m.insertion - com)
+        muscles[m.name] = {
+            "path": [f"skull.{m.name}_origin", f"mandible.{m.name}_insertion"],
+            "max_isometric_force": float(m.max_isometric_force),
+            "optimal_fibre_length": float(m.optimal_fibre_length * 1e3),
+            "tendon_slack_length": float(round(calibrated_tendon_slack(subject, m, calibration_opening_deg) * 1e3, 6)),
+            "tendon_strain_at_max_force": float(m.tendon_strain_at_max_force),
+            "pennation_angle_at_optimal": float(np.rad2deg(m.pennation_angle_at_optimal)),
+            "fast_fibre_fraction": float(m.fast_fibre_fraction),
+            "passive_shape_factor": float(m.passive_shape_factor),
+        }
+    labels_s, pos_s = registration["skull"]
+    labels_m, pos_m = registration["mandible"]
+    data = {
+        "openfdk": 1,
+        "name": f"{subject.name} {kind.upper()} TMJ model",
+        "description": f"written by openfdk.mandible.models from {subject.directory}",
+        "units": {"length": "mm", "angle": "deg"},
+        "gravity": [0.0, 0.0, -9.81],
+        "bodies": {
+            "skull": {"mass": 4.0, "inertia": [0.02, 0.02, 0.02], "equilibrium": False, "frames": skull_frames,
+                      "markers": {lab: _mm(p) for lab, p in zip(labels_s, pos_s)}},
+            "mandible": {"mass": float(subject.mandible.mass), "inertia": np.asarray(subject.mandible.inertia).tolist(),
+                         "position": _mm(com), "frames": jaw_frames,
+                         "markers": {lab: _mm(p - com) for lab, p in zip(labels_m, pos_m)}},
+        },
+        "measures": {
+            "ml": {"type": "vector", "from": "skull.origin", "to": "mandible.ml_point", "expressed_in": "skull"},
+            "gap_r": {"type": "plane_distance", "plane": "skull.plane_r", "point": "mandible.condyle_r"},
+            "gap_l": {"type": "plane_distance", "plane": "skull.plane_l", "point": "mandible.condyle_l"},
+        },
+        "muscles": muscles,
+        "recruitment": {"criterion": "polynomial", "power": 3},
+        "analysis": {"marker_cutoff_hz": 6.0},
+    }
+    if kind == "pop":
+        data["joints"] = {f"tmj_{t}": {"type": "point_on_plane", "parent": f"skull.plane_{t}", "child": f"mandible.condyle_{t}"}
+                          for t, _ in SIDES}
+        data["constraints"] = {"tmj_ml": {"measure": "ml", "components": [1]}}
+        # plane normals point up into the skull: the fossa pushes the condyle along −n
+        data["reactions"] = {f"tmj_{t}_compression": {"joint": f"tmj_{t}", "direction": "pull", "strength": 20000}
+                             for t, _ in SIDES}
+        return data
+    mesh_dir = Path(mesh_dir) if mesh_dir is not None else Path(subject.directory).resolve()
+    contacts, ligaments = {}, {}
+    per_element = ligament_stiffness / 3.0
+    for tag, _ in SIDES:
+        condyle, fossa = subject.surfaces[f"condyle_{tag}"], subject.surfaces[f"fossa_{tag}"]
+        contacts[f"tmj_{tag}"] = {
+            "vertices": {"body": "mandible", "mesh": str(mesh_dir / condyle.path.name), "units": subject.length_unit,
+                         "placement": {"position": _mm(-com)}, "offset": float(round(subject.cartilage_offset * 1e3, 6))},
+            "surface": {"body": "skull", "mesh": str(mesh_dir / fossa.path.name), "units": subject.length_unit},
+            "pressure_modulus": float(pressure_modulus),
+        }
+    for lig in subject.ligaments:
+        skull_frames[f"{lig.name}_origin"] = _mm(lig.origin)
+        jaw_frames[f"{lig.name}_insertion"] = _mm(lig.insertion - com)
+        ligaments[lig.name] = {
+            "path": [f"skull.{lig.name}_origin", f"mandible.{lig.name}_insertion"],
+            "stiffness": float(round(per_element, 9)),
+            "reference_length": float(round(lig.reference_length * 1e3, 6)),
+            "reference_strain": float(reference_strain),
+        }
+    data["contacts"] = contacts
+    data["ligaments"] = ligaments
+    data["fdk_dofs"] = {
+        "tmj_r_normal": {"measure": "gap_r", "initial": 0.0, "max_step": 0.5},
+        "tmj_l_normal": {"measure": "gap_l", "initial": 0.0, "max_step": 0.5},
+        "tmj_ml": {"measure": "ml", "component": 1, "initial": 0.0, "max_step": 0.5},
+    }
+    data["springs"] = {
+        "fdk_spring_r": {"measure": "gap_r", "stiffness": spring_stiffness},
+        "fdk_spring_l": {"measure": "gap_l", "stiffness": spring_stiffness},
+        "fdk_spring_ml": {"measure": "ml", "component": 1, "stiffness": spring_stiffness},
+    }
+    return data
+
+
+def write_model(path, data):
+    """Write a model mapping as a commented YAML model file; returns the path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    header = (f"# {data['name']}: written by openfdk (docs/mandible-study.md). An ordinary model file:\n"
+              f"# edit it, or run it with `openfdk run {path.name} TRIAL.c3d --out DIR`.\n")
+    path.write_text(header + yaml.safe_dump(data, sort_keys=False, width=120))
+    return path
+
+
+def write_models(subject, registration, out_dir, **kw):
+    """Write pop.yaml and fdk.yaml into ``out_dir`` (mesh paths relative to it)."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    rel = Path(os.path.relpath(Path(subject.directory).resolve(), out_dir.resolve()))
+    return {kind: write_model(out_dir / f"{kind}.yaml", model_dict(subject, registration, kind, mesh_dir=rel, **kw))
+            for kind in ("pop", "fdk")}
