@@ -4,7 +4,8 @@
     openfdk kinematics MODEL.yaml --out DIR             determinate kinematics (drivers)
     openfdk run MODEL.yaml [TRIAL.c3d] --out DIR        kinematics + inverse dynamics
     openfdk check MODEL.yaml                            validate a model file
-    openfdk demo [--out DIR] [--quick]                  the end-to-end example
+    openfdk demo [--out DIR] [--quick]                  the mandible study on the virtual subject
+    openfdk subject create|record DIR                   virtual subject and experiment
     openfdk bench [--quick] [--json]                    benchmarks
 
 Bad input ends with exit code 2 and a one-line reason on stderr.
@@ -80,18 +81,22 @@ def _cmd_run(args):
 
 
 def _cmd_demo(args):
-    from .demo_kinematics import run_kinematics_demo
+    from .mandible.demo import run_demo
 
-    out = args.out
-    print(f"openfdk demo: two-body jaw-like model tracked from a synthetic C3D trial -> {out}/")
-    numbers = run_kinematics_demo(out, quick=args.quick, progress=not args.no_progress)
-    print(
-        f"  {numbers['converged_frames']}/{numbers['frames']} frames converged, "
-        f"{numbers['frames_per_second']:.0f} frames/s; jaw position RMS error vs truth "
-        f"{numbers['jaw_position_rms_error_mm']:.3f} mm (0.2 mm marker noise)"
-    )
-    print(f"  model file: {out}/two_body.yaml   trial: {out}/trial.c3d")
-    print(f"  results: {out}/kinematics.csv, {out}/summary.json   figure: {out}/kinematics.png")
+    run_demo(args.out, quick=args.quick, progress=not args.no_progress)
+    return 0
+
+
+def _cmd_subject(args):
+    from .mandible.experiment import record_experiment
+    from .mandible.generator import create_subject
+
+    if args.action == "create":
+        path = create_subject(args.directory, resolution=args.resolution, symmetric=not args.asymmetric, seed=args.seed)
+        print(f"virtual subject written to {path}/ (subject.yaml and STL files); next: openfdk subject record {path}")
+    else:
+        files = record_experiment(args.directory, cycles=args.cycles, noise_mm=args.noise, seed=args.seed)
+        print(f"virtual experiment written: {', '.join(sorted(str(k) for k in files))}")
     return 0
 
 
@@ -151,11 +156,21 @@ def build_parser():
     _trial_arguments(r)
     r.set_defaults(func=_cmd_run)
 
-    d = sub.add_parser("demo", help="run the end-to-end example and write its outputs")
+    d = sub.add_parser("demo", help="the mandible study on the virtual subject, end to end")
     d.add_argument("--out", default="openfdk-demo", help="output directory (default ./openfdk-demo)")
-    d.add_argument("--quick", action="store_true", help="a reduced run (for tests)")
+    d.add_argument("--quick", action="store_true", help="a reduced run (coarse meshes, 2 cycles; for tests)")
     d.add_argument("--no-progress", action="store_true", help="no progress bar")
     d.set_defaults(func=_cmd_demo)
+
+    s = sub.add_parser("subject", help="create a virtual mandible subject or record its virtual experiment")
+    s.add_argument("action", choices=["create", "record"])
+    s.add_argument("directory")
+    s.add_argument("--resolution", default="default", choices=["coarse", "default", "fine"], help="mesh resolution (create)")
+    s.add_argument("--asymmetric", action="store_true", help="perturb left and right shapes differently (create)")
+    s.add_argument("--cycles", type=int, default=5, help="cycles per task (record)")
+    s.add_argument("--noise", type=float, default=0.15, help="marker noise in mm (record)")
+    s.add_argument("--seed", type=int, default=0)
+    s.set_defaults(func=_cmd_subject)
 
     b = sub.add_parser("bench", help="run the benchmarks")
     b.add_argument("--quick", action="store_true", help="short runs (for tests)")

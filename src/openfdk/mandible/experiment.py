@@ -444,14 +444,23 @@ def measured_condyle_kinematics(subject: Subject, trial, braces=None) -> tuple:
     nominal brace positions).
     Returns: time (n,) s, p_right (n, 3) m, p_left (n, 3) m in the skull/subject frame.
     """
+    time, p = mandible_points_in_skull(subject, trial, [subject.condyle_top(side) for side in SIDES], braces)
+    return time, p[:, 0], p[:, 1]
+
+
+def mandible_points_in_skull(subject: Subject, trial, points_S, braces=None) -> tuple:
+    """Mandible-fixed points (given in the subject frame at the reference pose) in the
+    skull frame over a trial, from rigid fits of the two braces (marker-only estimate).
+
+    points_S : (k, 3) m; braces: as in :func:`measured_condyle_kinematics`.
+    Returns time (n,) s and p (n, k, 3) m (NaN where a brace has < 3 markers).
+    """
     if not isinstance(trial, MarkerTrial):
         trial = read_c3d(trial)
     if braces is None:
         braces = {b: (subject.braces[b].labels, subject.braces[b].positions) for b in ("skull", "mandible")}
     R_LS, p_LS = rigid_fit(braces["skull"][1], trial.select(braces["skull"][0]).positions)
     R_LM, p_LM = rigid_fit(braces["mandible"][1], trial.select(braces["mandible"][0]).positions)
-    out = []
-    for side in SIDES:
-        p_L = p_LM + R_LM @ subject.condyle_top(side)
-        out.append(np.einsum("nji,nj->ni", R_LS, p_L - p_LS))
-    return trial.time, out[0], out[1]
+    points_S = np.asarray(points_S, dtype=float).reshape(-1, 3)
+    p_L = p_LM[:, None, :] + np.einsum("nij,kj->nki", R_LM, points_S)
+    return trial.time, np.einsum("nji,nkj->nki", R_LS, p_L - p_LS[:, None, :])

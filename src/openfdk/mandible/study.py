@@ -1,0 +1,170 @@
+"""The mandible study end to end (DESIGN.md §2): registration, POP and FDK models,
+every task, cycles, Tables 1–2, Figures 5–7 and the ligament parameter study.
+
+Only public openfdk layers and ordinary model files are used, so a real subject folder
+(CT-segmented STL files, landmarks, C3D recordings in ``trials/``) runs the same way:
+
+    run_study("my_subject", "out")   # or: openfdk study-mandible ...  (see docs)
+
+Outputs in ``out``: ``models/pop.yaml``, ``models/fdk.yaml`` (+ the parameter-study
+variants), per task ``<task>/{pop,fdk}/{kinematics,forces}.csv``, ``table1.{csv,md}``,
+``table2.{csv,md}``, ``figures/<task>_{kinematics,forces}.png``, ``summary.json``.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from pathlib import Path
+
+import numpy as np
+
+from ..io.results import write_forces, write_json, write_kinematics
+from ..jobs import run_job
+from .experiment import mandible_points_in_skull
+from .extract import condyle_kinematics, fdk_forces, pop_forces
+from .models import (DEFAULT_STIFFNESS, DEFAULT_STRAIN, PARAMETER_STUDY_STIFFNESS, PARAMETER_STUDY_STRAIN,
+                     model_dict, write_model, write_models)
+from .registration import register_braces
+from .subject import load_subject
+
+TASKS = ("chewing", "protrusion", "open_close")
+REFERENCE_TRIAL = "reference"
+
+
+class StudyError(ValueError):
+    """The subject folder cannot be studied (e.g. a trial is missing); names the file."""
+
+
+def _trial(subject_dir, name):
+    p = Path(subject_dir) / "trials" / f"{name}.c3d"
+    if not p.is_file():
+        raise StudyError(f"subject folder {str(subject_dir)!r}: trial file trials/{name}.c3d is missing")
+    return p
+
+
+def parameter_variants(quick=False):
+    """(label, stiffness N/m, reference strain) of the parameter study (15 models; quick:
+    the stiffness extremes at zero reference strain)."""
+    if quick:
+        return [(f"k{k:g}_e0", k, 0.0) for k in (PARAMETER_STUDY_STIFFNESS[0], PARAMETER_STUDY_STIFFNESS[-1])]
+    return [(f"k{k:g}_e{e:+g}", k, e) for k in PARAMETER_STUDY_STIFFNESS for e in PARAMETER_STUDY_STRAIN]
+
+
+def analyse_task(subject, registration, models, task, out_dir, progress=False):
+    """POP and FDK on one task; returns time series (skull frame) and run summaries."""
+    trial = _trial(subject.directory, task)
+    time, measured = mandible_points_in_skull(
+        subject, trial, [subject.condyle_top("r"), subject.condyle_top("l"), subject.landmarks["incisal_point"]],
+        registration)
+    series = {"time": np.asarray(time), "kinematics": {"measured": {"right": measured[:, 0], "left": measured[:, 1]}},
+              "forces": {}, "incisor": measured[:, 2]}
+    runs = {}
+    for kind in ("pop", "fdk"):
+        t0 = _time.perf_counter()
+        kin, dyn, info = run_job(models[kind], trial, progress=progress)
+        out = Path(out_dir) / task / kind
+        write_kinematics(out, kin, {"input": info})
+        write_forces(out, dyn)
+        label = kind.upper()
+        series["kinematics"][label] = condyle_kinematics(kin, subject)
+        series["forces"][label] = (pop_forces if kind == "pop" else fdk_forces)(dyn, kin, subject)
+        runs[label] = {"frames": int(len(kin.time)), "kinematics_converged": int(kin.converged.sum()),
+                       "forces_converged": int(dyn.converged.sum()), "wall_time_s": _time.perf_counter() - t0}
+        if "fdk" in info:
+            runs[label]["fdk"] = {k: info["fdk"][k] for k in ("convergence_rate", "mean_residual_evaluations_per_frame",
+                                                               "frames_per_second")}
+        write_json(out / "summary.json", {"input": info, "kinematics": kin.summary(), "inverse_dynamics": dyn.summary(),
+                                          **({"fdk": info["fdk"]} if "fdk" in info else {})})
+    return series, runs
+
+
+def cycle_arrays(series, n_cycles, n_points=101):
+    """Split on the measured incisal displacement from its closed position and normalise
+    every signal to 0–100 % of each cycle: dict kinematics/forces model -> side ->
+    (n_cycles, n_points, 3)."""
+    from .cycles import normalize_cycles, split_cycles
+
+    t = series["time"]
+    inc = series["incisor"]
+    closed = np.nanpercentile(inc, 5, axis=0)
+    signal = np.linalg.norm(inc - closed, axis=1)
+    cycles = split_cycles(t, signal, n_cycles=n_cycles)
+    out = {"cycles": cycles}
+    for group in ("kinematics", "forces"):
+        out[group] = {model: {side: normalize_cycles(t, arr, cycles, n_points) for side, arr in sides.items()}
+                      for model, sides in series[group].items()}
+    return out
+
+
+def run_study(subject_dir, out_dir, tasks=TASKS, n_cycles=5, quick=False, parameter_study=True, progress=True,
+              log=print):
+    """The whole study; returns a dict summary (also written to summary.json)."""
+    from .figures import plot_forces, plot_kinematics
+    from .tables import table1, table2, to_markdown, write_csv
+
+    t_start = _time.perf_counter()
+    out = Path(out_dir)
+    subject = load_subject(subject_dir)
+    registration = register_braces(subject, _trial(subject_dir, REFERENCE_TRIAL))
+    models = write_models(subject, registration, out / "models")
+    log(f"  registered the braces (skull fit RMS {registration['rms_m'] * 1e3:.3f} mm); models: {models['pop']}, {models['fdk']}")
+    per_task, runs = {}, {}
+    for task in tasks:
+        log(f"  {task}: POP and FDK ...")
+        series, task_runs = analyse_task(subject, registration, models, task, out, progress)
+        per_task[task] = (series, cycle_arrays(series, n_cycles))
+        runs[task] = task_runs
+    bands = {}
+    if parameter_study:
+        variants = parameter_variants(quick)
+        log(f"  parameter study: {len(variants)} FDK models × {len(tasks)} tasks ...")
+        bands, runs["parameter_study"] = _parameter_study(subject, registration, out, variants, tasks, per_task, progress)
+    results = {task: {"kinematics": c["kinematics"], "forces": c["forces"]} for task, (_, c) in per_task.items()}
+    rows1, rows2 = table1(results), table2(results)
+    write_csv(rows1, out / "table1.csv")
+    write_csv(rows2, out / "table2.csv")
+    (out / "table1.md").write_text(to_markdown(rows1) + "\n")
+    (out / "table2.md").write_text(to_markdown(rows2) + "\n")
+    figures = []
+    for task, (_, c) in per_task.items():
+        band = bands.get(task, {})
+        figures.append(plot_kinematics(task, c["kinematics"], out / "figures" / f"{task}_kinematics.png",
+                                       band=band.get("kinematics")))
+        figures.append(plot_forces(task, c["forces"], out / "figures" / f"{task}_forces.png", band=band.get("forces")))
+    summary = {
+        "subject": str(subject_dir), "tasks": list(tasks), "cycles": n_cycles, "quick": quick,
+        "registration_rms_mm": registration["rms_m"] * 1e3, "runs": runs,
+        "figures": [str(f) for f in figures], "wall_time_s": _time.perf_counter() - t_start,
+    }
+    write_json(out / "summary.json", summary)
+    return {"summary": summary, "table1": rows1, "table2": rows2, "figures": figures}
+
+
+def _parameter_study(subject, registration, out, variants, tasks, per_task, progress):
+    """FDK variants over every task; bands: task -> kinematics/forces -> side ->
+    (n_variants, n_points, 3) of each variant's mean cycle."""
+    from .cycles import normalize_cycles
+
+    bands = {task: {"kinematics": {}, "forces": {}} for task in tasks}
+    runs = {}
+    for label, k, e in variants:
+        path = write_model(out / "models" / "parameter_study" / f"fdk_{label}.yaml",
+                           model_dict(subject, registration, "fdk", ligament_stiffness=k, reference_strain=e,
+                                      mesh_dir=Path(subject.directory).resolve()))
+        for task in tasks:
+            series, cycles = per_task[task]
+            kin, dyn, info = run_job(path, _trial(subject.directory, task), progress=False)
+            runs[f"{label}/{task}"] = info["fdk"]["convergence_rate"]
+            t = series["time"]
+            for group, data in (("kinematics", condyle_kinematics(kin, subject)), ("forces", fdk_forces(dyn, kin, subject))):
+                for side, arr in data.items():
+                    mean = np.nanmean(normalize_cycles(t, arr, cycles["cycles"]), axis=0)
+                    bands[task][group].setdefault(side, []).append(mean)
+    for task in tasks:
+        for group in ("kinematics", "forces"):
+            bands[task][group] = {side: np.array(v) for side, v in bands[task][group].items()}
+    return bands, runs
+
+
+__all__ = ["run_study", "analyse_task", "cycle_arrays", "parameter_variants", "StudyError", "TASKS",
+           "DEFAULT_STIFFNESS", "DEFAULT_STRAIN"]
