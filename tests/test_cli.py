@@ -89,12 +89,15 @@ def test_run_cli_inverse_dynamics(tmp_path, request):
     assert header[0] == "time" and "crank_drive.reaction" in header
 
 
-def test_demo_quick(tmp_path, capsys):
+def test_kinematics_demo_quick(tmp_path):
+    """The two-body tracking example (synthetic C3D with noise and a gap) end to end."""
+    from openfdk.demo_kinematics import run_kinematics_demo
+
     out = tmp_path / "demo"
-    assert main(["demo", "--quick", "--out", str(out), "--no-progress"]) == 0
+    numbers = run_kinematics_demo(out, quick=True, progress=False)
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["demo"]["converged_frames"] == summary["demo"]["frames"]
-    assert summary["demo"]["jaw_position_rms_error_mm"] < 0.5  # 0.2 mm marker noise
+    assert summary["demo"]["converged_frames"] == summary["demo"]["frames"] == numbers["frames"]
+    assert numbers["jaw_position_rms_error_mm"] < 0.5  # 0.2 mm marker noise
     assert (out / "kinematics.png").stat().st_size > 10_000
 
 
