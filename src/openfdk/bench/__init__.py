@@ -12,4 +12,5 @@ BENCHMARK_MODULES = [
     "openfdk.bench.inverse_dynamics",
     "openfdk.bench.contact",
     "openfdk.bench.fdk",
+    "openfdk.bench.mandible",
 ]

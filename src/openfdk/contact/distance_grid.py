@@ -302,6 +302,9 @@ def build_distance_grid(mesh: SurfaceMesh, spacing: float, max_depth: float,
     lo = V.min(axis=0) - width
     hi = V.max(axis=0) + width
     shape = tuple(int(np.ceil((hi[d] - lo[d]) / h)) + 1 for d in range(3))
+    # centre the lattice on the box: a mirrored surface then gets the mirrored lattice
+    # (left/right symmetric joints see the same interpolation error on both sides)
+    lo = 0.5 * (lo + hi) - 0.5 * h * (np.array(shape) - 1)
     n_nodes = shape[0] * shape[1] * shape[2]
     if n_nodes > 400_000_000:
         raise ValueError(

@@ -269,6 +269,10 @@ def fossa_mesh(shape: FossaShape, n_xi: int, n_eta: int, height=None) -> tuple[n
     height = shape.height if height is None else height
     xi = np.linspace(*shape.extent_xi, n_xi)
     eta = np.linspace(*shape.extent_eta, n_eta)
+    if shape.medial_sign < 0:
+        # the left side runs η the other way so that a symmetric subject's left mesh is
+        # the exact mirror image of the right one (same triangles, not just vertices)
+        eta = eta[::-1]
     XI, ETA = np.meshgrid(xi, eta, indexing="ij")
     axes = shape._axes
     x = shape.top[0] + XI * axes[0, 0] + ETA * axes[0, 1]
@@ -280,6 +284,8 @@ def fossa_mesh(shape: FossaShape, n_xi: int, n_eta: int, height=None) -> tuple[n
     # (a, b, c) is counter-clockwise seen from +z (ξ, η is a rotation of x, y);
     # reversed, the normal points down
     faces = np.concatenate([np.column_stack([a, c, b]), np.column_stack([a, d, c])])
+    if shape.medial_sign < 0:
+        faces = faces[:, ::-1]  # reversed η order flips the winding back to normals down
     return vertices, faces.astype(np.int64)
 
 
