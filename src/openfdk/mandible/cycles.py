@@ -8,26 +8,29 @@ series on those cycles.
 
 Cycle rule (docs/mandible-study-outputs.md, "Cycles"):
 
-1. The signal is low-pass filtered (zero-lag 2nd-order Butterworth, cut-off
-   ``harmonics`` / T with T the dominant period from the autocorrelation, bounded by
-   ``min_period``/``max_period``). NaN gaps are bridged linearly before filtering.
-2. Opening peaks are the maxima of the smoothed signal that are at least 0.6 T apart
-   (or ``min_period``) and rise by at least 30 % of its 2–98 % range.
-3. A cycle starts at the closed-mouth minimum before each peak: the LAST sample of the
-   trough (between the previous peak, or the record start, and this peak) whose smoothed
-   value is within a closed-mouth band of the trough's minimum: ``flat_tolerance`` ×
-   (peak − minimum) plus 4 σ_s, σ_s the noise left after smoothing (estimated from the
-   filter residual). For a flat closed-mouth rest this is the onset of the opening, so
-   rest before the movement is not part of the first cycle; for a sharp minimum it is
-   just after the minimum (noise-free sinusoid, default 1 %: 0.032 T late).
-4. A cycle stops where the next one starts. After the last peak the signal must come
-   back to the closed level (a trough that is not the record's last samples); the last
-   cycle then stops at the next opening onset, or — when the mouth stays closed to the
+1. Smoothing: zero-lag 2nd-order Butterworth low-pass, cut-off ``harmonics`` / T, with
+   T the dominant period (first major maximum of the autocorrelation, searched within
+   ``min_period``…``max_period``). NaN gaps are bridged linearly first. σ_s, the white
+   noise left after smoothing, is estimated from the filter residual.
+2. Opening peaks: maxima of the smoothed signal s at least 0.6 T (or ``min_period``)
+   apart whose prominence is ≥ 30 % of the 2–98 % range of s and ≥ 8 σ_s.
+3. Closed-mouth band of the trough before each peak (between the previous peak, or the
+   record start, and this peak): the band width is b = ``flat_tolerance`` × (peak −
+   trough minimum) + 4 σ_s; the closed level L is the median of s over the trough's
+   samples within b of its minimum (robust to noise wiggles in a long rest).
+4. A cycle starts at the last trough sample with s ≤ L + b: the onset of the opening
+   (the usual "baseline + k·SD" onset rule). For a flat closed rest this excludes the
+   rest; for a sharp minimum it is just after the minimum (noise-free sinusoid, default
+   1 %: ≈ 0.04 T late); with noise, the time the signal needs to rise 4 σ_s.
+5. A cycle stops where the next one starts (both indices belong to it). After the last
+   peak the mouth must close again; the last cycle then stops at the next opening onset
+   if the signal rises again (by > 25 % of the cycle's rise), otherwise — closed to the
    record end — one median cycle duration after its start (at most the last sample).
-5. A trough is only a valid start if it is a real minimum: not at the record's first
-   samples unless a closed rest (≥ 5 % of T) precedes the opening. A record that starts
-   mid-opening therefore skips the partial cycle.
-6. Cycles shorter than ``min_period`` or longer than ``max_period`` are discarded; the
+6. Record edges: the trough before the first peak (or after the last) counts only if at
+   least 3 % of T of its samples lie at the closed level of the interior troughs
+   (median L + b). A record that starts mid-opening or stops mid-closing therefore skips
+   that partial cycle.
+7. Cycles shorter than ``min_period`` or longer than ``max_period`` are discarded; the
    first ``n_cycles`` remaining cycles are returned.
 
 Indices are inclusive at both ends: cycle k covers ``time[start_k] … time[stop_k]`` and
@@ -42,8 +45,12 @@ from scipy.signal import butter, filtfilt, find_peaks
 __all__ = ["CycleError", "normalize_cycles", "split_cycles"]
 
 _PEAK_SPACING = 0.6         # minimum peak distance, fraction of the period estimate
-_PEAK_RISE = 0.30           # minimum peak prominence, fraction of the 2–98 % range
-_EDGE = 0.05                # closed rest needed at a record edge, fraction of the period
+_PEAK_RISE = 0.30           # minimum peak prominence, fraction of the 2–98 % range …
+_PEAK_NOISE = 8.0           # … and in units of the smoothed noise σ_s
+_BAND_NOISE = 4.0           # closed-mouth band above the trough: 4 σ_s (+ flat_tolerance)
+_EDGE = 0.03                # closed samples needed in an edge trough, fraction of T
+_REOPEN = 0.25              # rise after the last closing that marks a new opening
+_MIN_AUTOCORRELATION = 0.0  # weakest autocorrelation accepted as a periodic movement
 
 
 class CycleError(ValueError):
@@ -84,7 +91,7 @@ def _dominant_period(x, h, min_period, max_period) -> float:
     n = x.size
     z = x - x.mean()
     spectrum = np.fft.rfft(z, 2 * n)
-    acf = np.fft.irfft(spectrum * np.conj(spectrum))[:n]
+    acf = np.fft.irfft(spectrum * np.conj(spectrum))[:n]      # biased estimator
     if acf[0] <= 0.0:
         raise CycleError("signal is constant; no movement cycles to find")
     acf = acf / acf[0]
@@ -95,9 +102,11 @@ def _dominant_period(x, h, min_period, max_period) -> float:
     hi = n // 2 if max_period is None else min(n - 1, int(np.ceil(max_period / h)))
     lags, _ = find_peaks(acf[: hi + 1])
     lags = lags[lags >= lo]
-    if lags.size == 0:
-        raise CycleError("no periodic movement found in the signal (its autocorrelation has "
-                         "no maximum in the allowed period range)")
+    if lags.size == 0 or acf[lags].max() < _MIN_AUTOCORRELATION:
+        best = f"{acf[lags].max():.2f}" if lags.size else "none"
+        raise CycleError("no periodic movement found in the signal (largest autocorrelation "
+                         f"maximum in the allowed period range: {best}; "
+                         f"need ≥ {_MIN_AUTOCORRELATION})")
     best = acf[lags].max()
     return float(lags[np.argmax(acf[lags] >= 0.7 * best)] * h)
 
@@ -123,16 +132,15 @@ def _smooth(x, h, period, harmonics) -> tuple[np.ndarray, float]:
 # Cycle detection
 # --------------------------------------------------------------------------------------
 
-def _closed_end(s, lo, hi, level, tolerance):
-    """Last index in [lo, hi] with s ≤ level + tolerance (the opening onset) and the
-    length of the closed run ending there."""
+def _trough(s, lo, hi, top, flat_tolerance, noise) -> tuple[float, float, int]:
+    """Closed level L, band b and opening onset (last index with s ≤ L + b) of the
+    trough s[lo … hi] below the peak value ``top`` (rules 3–4 of the module docstring)."""
     window = s[lo : hi + 1]
-    closed = np.flatnonzero(window <= level + tolerance)
-    end = lo + int(closed[-1])
-    run_start = end
-    while run_start > lo and s[run_start - 1] <= level + tolerance:
-        run_start -= 1
-    return end, end - run_start
+    minimum = float(window.min())
+    band = flat_tolerance * (top - minimum) + _BAND_NOISE * noise
+    level = float(np.median(window[window <= minimum + band]))
+    onset = lo + int(np.flatnonzero(window <= level + band)[-1])
+    return level, band, onset
 
 
 def split_cycles(time, signal, n_cycles: int = 5, min_period: float | None = None,
@@ -140,10 +148,10 @@ def split_cycles(time, signal, n_cycles: int = 5, min_period: float | None = Non
                  flat_tolerance: float = 0.01) -> list[tuple[int, int]]:
     """The first ``n_cycles`` complete cycles of a quasi-periodic jaw movement.
 
-    Cycles start at successive closed-mouth minima of the low-pass-filtered signal (the
-    rule is in the module docstring); robust to measurement noise, to a period that
-    varies from cycle to cycle, to rest before/after the movement and to partial cycles
-    at the record's ends.
+    Cycles start at successive closed-mouth minima (opening onsets) of the low-pass
+    filtered signal; the rule is in the module docstring. Robust to measurement noise,
+    to a period that varies from cycle to cycle, to rest before/after the movement and
+    to partial cycles at the record's ends.
 
     Args:
         time : (n,) s, uniformly sampled, strictly increasing.
@@ -153,8 +161,7 @@ def split_cycles(time, signal, n_cycles: int = 5, min_period: float | None = Non
         min_period, max_period : s, optional bounds on a cycle's duration (they also bound
             the period search and the peak spacing).
         harmonics : low-pass cut-off as a multiple of the dominant frequency.
-        flat_tolerance : closed-mouth band above a trough's minimum, as a fraction of the
-            following rise.
+        flat_tolerance : part of the closed-mouth band, as a fraction of the trough's rise.
     Returns: list of ``n_cycles`` (start_index, stop_index), both inclusive, in time order.
     Raises: CycleError (a ValueError) naming the cycles found when fewer than
         ``n_cycles`` complete cycles exist, or when the inputs are malformed.
@@ -169,38 +176,42 @@ def split_cycles(time, signal, n_cycles: int = 5, min_period: float | None = Non
     n = s.size
     edge = max(2, int(round(_EDGE * period / h)))
 
-    # opening peaks: far enough apart and rising enough
+    # rule 2: opening peaks
     spacing = (min_period if min_period is not None else _PEAK_SPACING * period) / h
     lo_pct, hi_pct = np.percentile(s, [2.0, 98.0])
     peaks, _ = find_peaks(s, distance=max(1, int(spacing)),
-                          prominence=_PEAK_RISE * (hi_pct - lo_pct))
+                          prominence=max(_PEAK_RISE * (hi_pct - lo_pct), _PEAK_NOISE * noise))
     if peaks.size == 0:
-        raise CycleError(f"found no opening peak in the signal (period estimate {period:.3g} s)")
+        raise CycleError(f"found no opening peak rising above the noise (period estimate "
+                         f"{period:.3g} s, smoothed noise σ = {noise:.3g})")
 
-    # one candidate start per peak: the end of the closed trough before it (None if partial)
-    starts: list[int | None] = []
-    for j, peak in enumerate(peaks):
-        lo = 0 if j == 0 else int(peaks[j - 1])
-        level = float(s[lo : peak + 1].min())
-        band = flat_tolerance * (s[peak] - level) + 4.0 * noise
-        start, run = _closed_end(s, lo, int(peak), level, band)
-        real_minimum = int(np.argmin(s[lo : peak + 1])) + lo > lo + edge or run >= edge
-        starts.append(start if (j > 0 or real_minimum) else None)
-
-    # each peak's cycle stops where the next one starts; the last needs a closed return
-    stops: list[int | None] = [starts[j + 1] for j in range(len(peaks) - 1)]
+    # rules 3–4: one trough (level, band, onset) before each peak, one after the last
+    bounds = [0] + [int(p) for p in peaks]
+    troughs = [_trough(s, bounds[j], int(p), s[p], flat_tolerance, noise)
+               for j, p in enumerate(peaks)]
     last = int(peaks[-1])
-    tail = s[last:]
-    level = float(tail.min())
-    rise = float(s[last] - (s[starts[-1]] if starts[-1] is not None else level))
-    returned = rise > 0.0 and level <= s[last] - 0.9 * rise       # back to ≤ 10 % of the rise
+    tail = _trough(s, last, n - 1, s[last], flat_tolerance, noise) if last < n - 1 else None
+    interior = [level for level, _, _ in troughs[1:]]
+    typical_level = float(np.median(interior)) if interior else troughs[0][0]
+
+    # rule 6: edge troughs must reach the closed level of the interior troughs
+    def closed_samples(lo, hi, band):
+        return int(np.count_nonzero(s[lo : hi + 1] <= typical_level + band))
+
+    starts: list[int | None] = [onset for _, _, onset in troughs]
+    if closed_samples(0, starts[0], troughs[0][1]) < edge:
+        starts[0] = None                                    # record starts mid-opening
+
+    # rule 5: stops
+    stops: list[int | None] = starts[1:]
     stop_last: int | None = None
-    if returned and last < n - 1:
-        end, run = _closed_end(s, last, n - 1, level, flat_tolerance * rise + 4.0 * noise)
-        if end < n - 1 - edge:
-            stop_last = end                                  # the next opening begins
-        elif int(np.argmin(tail)) + last < n - 1 - edge or run >= edge:
-            stop_last = -1                                   # closed to the record end
+    if tail is not None and closed_samples(last, n - 1, tail[1]) >= edge:
+        level, _, onset = tail
+        rise = s[last] - level
+        if np.max(s[onset:]) - level > _REOPEN * rise:
+            stop_last = onset                               # the next opening begins
+        else:
+            stop_last = -1                                  # closed to the record end
     stops.append(stop_last)
 
     durations = [b - a for a, b in zip(starts, stops) if a is not None and b is not None and b > 0]
@@ -208,14 +219,14 @@ def split_cycles(time, signal, n_cycles: int = 5, min_period: float | None = Non
     cycles, skipped = [], []
     for a, b in zip(starts, stops):
         if a is None or b is None:
-            skipped.append("partial")
+            skipped.append("a partial cycle at the " + ("start" if a is None else "end"))
             continue
         if b == -1:
             b = min(a + typical, n - 1)
         duration = t[b] - t[a]
         if (min_period is not None and duration < min_period) or (
                 max_period is not None and duration > max_period):
-            skipped.append(f"{duration:.3g} s long at t = {t[a]:.3g} s")
+            skipped.append(f"a cycle {duration:.3g} s long at t = {t[a]:.3g} s")
             continue
         cycles.append((int(a), int(b)))
     if len(cycles) < n_cycles:
@@ -224,7 +235,7 @@ def split_cycles(time, signal, n_cycles: int = 5, min_period: float | None = Non
             f"found {len(cycles)} complete cycle(s) ({found}) but n_cycles={n_cycles} were "
             f"requested; {len(peaks)} opening peak(s) at t = "
             f"{', '.join(f'{t[p]:.3g}' for p in peaks)} s, period estimate {period:.3g} s"
-            + (f"; skipped: {'; '.join(skipped)}" if skipped else ""))
+            + (f"; skipped {', '.join(skipped)}" if skipped else ""))
     return cycles[:n_cycles]
 
 

@@ -56,7 +56,10 @@ def analyse_task(subject, registration, models, task, out_dir, progress=False):
     time, measured = mandible_points_in_skull(
         subject, trial, [subject.condyle_top("r"), subject.condyle_top("l"), subject.landmarks["incisal_point"]],
         registration)
-    series = {"time": np.asarray(time), "kinematics": {"measured": {"right": measured[:, 0], "left": measured[:, 1]}},
+    # TMJ kinematics as displacements of the condyle tops from the reference (CT) pose
+    ref = {"right": subject.condyle_top("r"), "left": subject.condyle_top("l")}
+    series = {"time": np.asarray(time),
+              "kinematics": {"measured": {"right": measured[:, 0] - ref["right"], "left": measured[:, 1] - ref["left"]}},
               "forces": {}, "incisor": measured[:, 2]}
     runs = {}
     for kind in ("pop", "fdk"):
@@ -66,7 +69,7 @@ def analyse_task(subject, registration, models, task, out_dir, progress=False):
         write_kinematics(out, kin, {"input": info})
         write_forces(out, dyn)
         label = kind.upper()
-        series["kinematics"][label] = condyle_kinematics(kin, subject)
+        series["kinematics"][label] = {side: p - ref[side] for side, p in condyle_kinematics(kin, subject).items()}
         series["forces"][label] = (pop_forces if kind == "pop" else fdk_forces)(dyn, kin, subject)
         runs[label] = {"frames": int(len(kin.time)), "kinematics_converged": int(kin.converged.sum()),
                        "forces_converged": int(dyn.converged.sum()), "wall_time_s": _time.perf_counter() - t0}
@@ -126,6 +129,7 @@ def run_study(subject_dir, out_dir, tasks=TASKS, n_cycles=5, quick=False, parame
     (out / "table1.md").write_text(to_markdown(rows1) + "\n")
     (out / "table2.md").write_text(to_markdown(rows2) + "\n")
     figures = []
+    (out / "figures").mkdir(parents=True, exist_ok=True)
     for task, (_, c) in per_task.items():
         band = bands.get(task, {})
         figures.append(plot_kinematics(task, c["kinematics"], out / "figures" / f"{task}_kinematics.png",
@@ -156,7 +160,9 @@ def _parameter_study(subject, registration, out, variants, tasks, per_task, prog
             kin, dyn, info = run_job(path, _trial(subject.directory, task), progress=False)
             runs[f"{label}/{task}"] = info["fdk"]["convergence_rate"]
             t = series["time"]
-            for group, data in (("kinematics", condyle_kinematics(kin, subject)), ("forces", fdk_forces(dyn, kin, subject))):
+            ref = {"right": subject.condyle_top("r"), "left": subject.condyle_top("l")}
+            displacement = {side: p - ref[side] for side, p in condyle_kinematics(kin, subject).items()}
+            for group, data in (("kinematics", displacement), ("forces", fdk_forces(dyn, kin, subject))):
                 for side, arr in data.items():
                     mean = np.nanmean(normalize_cycles(t, arr, cycles["cycles"]), axis=0)
                     bands[task][group].setdefault(side, []).append(mean)

@@ -271,7 +271,7 @@ def format_text(rows: list[dict], decimals: int = 2) -> str:
     """
     labels = _labels(rows)
     unit, reference = rows[0]["unit"], rows[0]["reference"]
-    width = 2 * decimals + 7
+    width = 2 * decimals + 8
     group = " ".join(f"{_HEADER[n] + (f'({unit})' if n == 'RMSD' else ''):>{width}}" for n in METRICS)
     lines = [f"{'':<12}" + " | ".join(f"{label + ' vs ' + reference:^{len(group)}}" for label in labels),
              f"{'':<12}" + " | ".join(group for _ in labels)]

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import re
 import time as _time
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -76,13 +76,15 @@ def analysis_inputs(model, trial_path=None, cutoff_hz=None, start=None, end=None
 @dataclass(frozen=True)
 class SegmentResult:
     """segment; kinematics : KinematicsResult; forces : InverseDynamicsResult; fdk :
-    FDKResult or None (no FDK DOFs); wall_time : s."""
+    FDKResult or None (no FDK DOFs); wall_time : s; info : input description (model,
+    trial, rate, markers) for the summary."""
 
     segment: Segment
     kinematics: object
     forces: object
     fdk: object
     wall_time: float
+    info: dict = field(default_factory=dict)
 
 
 def analyse(model, trajectories, times):
@@ -103,11 +105,11 @@ def analyse(model, trajectories, times):
     return kin, run_inverse_dynamics(model, kin), None
 
 
-def solve_segment(model, trajectories, times, segment: Segment) -> SegmentResult:
+def solve_segment(model, trajectories, times, segment: Segment, info=None) -> SegmentResult:
     """Analyse the solved range of one segment (times: all analysed times (nf,) s)."""
     t0 = _time.perf_counter()
     kin, dyn, fdk = analyse(model, trajectories, times[segment.solve_start:segment.solve_stop])
-    return SegmentResult(segment, kin, dyn, fdk, _time.perf_counter() - t0)
+    return SegmentResult(segment, kin, dyn, fdk, _time.perf_counter() - t0, dict(info or {}))
 
 
 # -- stitching -----------------------------------------------------------------------

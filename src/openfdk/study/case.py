@@ -1,0 +1,168 @@
+"""One study case in a worker: build the model, run it, publish its folder atomically.
+
+A case folder ``OUT/cases/<case_id>/`` holds what ``openfdk run`` writes
+(``kinematics.csv``, ``forces.csv``, ``summary.json``) plus ``case.json`` (the case
+definition, its fingerprint, the worker and the wall time). It is written under a
+temporary name ``OUT/cases/.<case_id>.tmp-<random>`` and renamed when complete, so a
+folder under the final name is always whole; ``case.json`` is written last. If the
+final folder already holds the same fingerprint (another attempt of the same case
+finished first) the new one is discarded; a stale folder (different fingerprint) is
+replaced.
+
+These functions are the Dask tasks: :func:`run_case` (a whole case),
+:func:`segment_task` and :func:`finish_chunked_case` (a chunked case: K segment tasks,
+then one task that stitches and publishes).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import socket
+import time as _time
+import uuid
+from dataclasses import asdict
+from pathlib import Path
+
+from ..io.results import write_forces, write_json, write_kinematics
+from .chunks import analysis_inputs, chunk_info, plan_segments, solve_segment, stitch
+from .kinds import import_callable
+from .overrides import apply_overrides
+
+CASES = "cases"
+CASE_JSON = "case.json"
+
+
+def case_dir(out_root, case_id) -> Path:
+    """The final folder of a case."""
+    return Path(out_root) / CASES / case_id
+
+
+def completed_record(folder, fingerprint):
+    """The case.json record of a complete case folder with this fingerprint, else None."""
+    try:
+        rec = json.loads((Path(folder) / CASE_JSON).read_text())
+    except (OSError, ValueError):
+        return None
+    if rec.get("status") == "completed" and rec.get("fingerprint") == fingerprint:
+        return rec
+    return None
+
+
+def build_case_model(case):
+    """(model, trial path or None, model label) of a case: the kind's prepare, then the
+    overrides applied to the model mapping, then the model built."""
+    from ..model.modelfile import model_from_dict
+
+    prepared = import_callable(case.prepare)(case)
+    data = apply_overrides(prepared.model_data, case.overrides, source=prepared.source)
+    model = model_from_dict(data, source=f"{prepared.source} [case {case.case_id}]", base_dir=prepared.base_dir)
+    return model, prepared.trial, str(Path(prepared.base_dir) / prepared.source)
+
+
+def write_run_outputs(out, kin, dyn, info):
+    """What ``openfdk run`` writes into ``out``: kinematics.csv, forces.csv and
+    summary.json ({input, kinematics, inverse_dynamics, fdk?})."""
+    info = dict(info)
+    fdk = info.pop("fdk", None)
+    write_kinematics(out, kin, {"input": info})
+    write_forces(out, dyn)
+    summary = {"input": info, "kinematics": kin.summary(), "inverse_dynamics": dyn.summary()}
+    if fdk is not None:
+        summary["fdk"] = fdk
+    write_json(Path(out) / "summary.json", summary)
+
+
+def _worker_tag():
+    return f"{socket.gethostname()}:{os.getpid()}"
+
+
+def case_definition(case):
+    """JSON-able definition of a case (for case.json and the summary)."""
+    return {
+        "case_id": case.case_id, "kind": case.kind, "names": case.names, "inputs": case.inputs,
+        "parameters": case.parameters,
+        "overrides": [{"path": o.path, "value": o.value, "mode": o.mode} for o in case.overrides],
+        "options": asdict(case.options), "fingerprint": case.fingerprint,
+    }
+
+
+def publish_case(out_root, case, kin, dyn, info, wall_time):
+    """Write a case's results under a temporary name and rename it into place.
+    Returns the case.json record."""
+    cases = Path(out_root) / CASES
+    cases.mkdir(parents=True, exist_ok=True)
+    final = cases / case.case_id
+    tmp = cases / f".{case.case_id}.tmp-{uuid.uuid4().hex[:10]}"
+    tmp.mkdir()
+    try:
+        write_run_outputs(tmp, kin, dyn, info)
+        record = {**case_definition(case), "status": "completed", "wall_time_s": float(wall_time),
+                  "worker": _worker_tag(), "finished": _time.strftime("%Y-%m-%dT%H:%M:%S")}
+        write_json(tmp / CASE_JSON, record)
+        try:
+            os.rename(tmp, final)
+        except OSError:
+            # the final name exists: a finished twin (keep it) or a stale result (replace)
+            twin = completed_record(final, case.fingerprint)
+            if twin is not None:
+                shutil.rmtree(tmp, ignore_errors=True)
+                return twin
+            old = cases / f".{case.case_id}.old-{uuid.uuid4().hex[:10]}"
+            os.rename(final, old)
+            os.rename(tmp, final)
+            shutil.rmtree(old, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return record
+
+
+def run_case(case, out_root):
+    """Dask task / serial step: run one case (its chunks one after the other when
+    ``options.chunks`` > 1) and publish its folder. Returns the case.json record.
+    Exceptions propagate (the driver retries, then records them)."""
+    done = completed_record(case_dir(out_root, case.case_id), case.fingerprint)
+    if done is not None:
+        return done
+    t0 = _time.perf_counter()
+    model, trial, label = build_case_model(case)
+    opts = case.options
+    traj, times, info = analysis_inputs(model, trial, opts.cutoff_hz, opts.start, opts.end)
+    if opts.chunks > 1:
+        segments = plan_segments(len(times), opts.chunks, opts.overlap)
+        parts = [solve_segment(model, traj, times, s) for s in segments]
+        kin, dyn, fdk = stitch(parts, _time.perf_counter() - t0)
+        info.update(chunk_info(parts, opts.overlap))
+    else:
+        from .chunks import analyse
+
+        kin, dyn, fdk = analyse(model, traj, times)
+    info = {"model": label, **info}
+    if fdk is not None:
+        info["fdk"] = fdk.summary()
+    return publish_case(out_root, case, kin, dyn, info, _time.perf_counter() - t0)
+
+
+def segment_task(case, index):
+    """Dask task: solve segment ``index`` of a chunked case. Returns a SegmentResult."""
+    model, trial, label = build_case_model(case)
+    opts = case.options
+    traj, times, info = analysis_inputs(model, trial, opts.cutoff_hz, opts.start, opts.end)
+    segment = plan_segments(len(times), opts.chunks, opts.overlap)[index]
+    return solve_segment(model, traj, times, segment, {"model": label, **info})
+
+
+def finish_chunked_case(case, out_root, started, *segment_results):
+    """Dask task: stitch the segments of a chunked case and publish it. ``started`` is
+    the wall-clock time (time.time(), s) the case was submitted."""
+    done = completed_record(case_dir(out_root, case.case_id), case.fingerprint)
+    if done is not None:
+        return done
+    wall = _time.time() - started
+    kin, dyn, fdk = stitch(segment_results, wall)
+    info = {**segment_results[0].info, **chunk_info(segment_results, case.options.overlap)}
+    if fdk is not None:
+        info["fdk"] = fdk.summary()
+    return publish_case(out_root, case, kin, dyn, info, wall)

@@ -1,0 +1,164 @@
+"""Command-line pieces of studies and chunked runs (wired into ``openfdk.cli``).
+
+    openfdk study STUDY.yaml --out DIR [--scheduler ADDRESS] [--workers N] [--retries R]
+                  [--force] [--list] [--no-progress]
+    openfdk run MODEL.yaml TRIAL.c3d --out DIR --chunks K [--overlap F] [--scheduler ADDRESS] [--workers N]
+
+``openfdk study`` exits with 0 when every case completed, 1 when some case failed (the
+others are still run and summarised), 2 for a bad study file (raised as StudyError, a
+ValueError, which ``openfdk.cli.main`` reports in one line).
+"""
+
+from __future__ import annotations
+
+import sys
+import time as _time
+from pathlib import Path
+
+from .spec import DEFAULT_OVERLAP, Case, RunOptions, StudyError
+
+
+def add_study_parser(subparsers):
+    """Register the ``study`` subcommand on an argparse subparsers object; its handler
+    (``args.func``) returns the exit code. Returns the parser."""
+    p = subparsers.add_parser(
+        "study", help="run a parameter / trial / subject study as independent tasks (Dask)",
+        description="Run every case of a study file (docs/studies.md). Complete cases in DIR are skipped.",
+    )
+    p.add_argument("study", help="study file (YAML)")
+    p.add_argument("--out", required=True, help="output directory (one folder per case, summary.csv)")
+    p.add_argument("--scheduler", default=None, help="address of a running Dask scheduler (default: a LocalCluster here)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="LocalCluster worker processes (default: CPU count); 0 = run the cases in this process")
+    p.add_argument("--retries", type=int, default=None, help="runs of a failing case after the first (default: study file, else 2)")
+    p.add_argument("--force", action="store_true", help="run complete cases again")
+    p.add_argument("--list", action="store_true", help="list the cases and exit")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_study)
+    return p
+
+
+def add_chunk_arguments(parser):
+    """Add ``--chunks``, ``--overlap``, ``--scheduler`` and ``--workers`` to the ``run``
+    subcommand's parser."""
+    parser.add_argument("--chunks", type=int, default=1,
+                        help="split the trial into K frame segments solved in parallel, then stitched (default 1)")
+    parser.add_argument("--overlap", type=int, default=DEFAULT_OVERLAP,
+                        help=f"warm-up frames solved before each chunk and dropped (default {DEFAULT_OVERLAP})")
+    parser.add_argument("--scheduler", default=None, help="address of a running Dask scheduler (default: a LocalCluster)")
+    parser.add_argument("--workers", type=int, default=None,
+                        help="LocalCluster worker processes (default: min(chunks, CPUs)); 0 = in this process")
+    return parser
+
+
+def _print_cases(study):
+    params = study.parameter_names
+    print(f"study {study.name!r}: {len(study.cases)} cases (kind {study.kind})")
+    for c in study.cases:
+        names = " ".join(f"{k}={v}" for k, v in c.names.items())
+        values = " ".join(f"{p}={c.parameters[p]}" for p in params if p in c.parameters)
+        print(f"  {c.case_id}: {names} {values}".rstrip())
+
+
+def cmd_study(args):
+    """Handler of ``openfdk study``: returns the exit code."""
+    from .runner import run_study
+    from .spec import load_study
+
+    study = load_study(args.study)
+    if args.list:
+        _print_cases(study)
+        return 0
+    if args.workers is not None and args.workers < 0:
+        raise StudyError(f"--workers must be >= 0, got {args.workers}")
+    res = run_study(study, args.out, scheduler=args.scheduler, workers=args.workers, retries=args.retries,
+                    force=args.force, progress=not args.no_progress)
+    c = res.summary["counts"]
+    print(f"study {study.name!r}: {c['completed']}/{c['cases']} cases completed ({c['reused']} from an earlier run), "
+          f"{c['failed']} failed, {res.wall_time:.1f} s -> {Path(res.out_dir) / 'summary.csv'}")
+    for r in res.failed[:10]:
+        print(f"  failed: {r['case_id']} after {r['attempts']} attempts: {r['error']}", file=sys.stderr)
+    if len(res.failed) > 10:
+        print(f"  ... and {len(res.failed) - 10} more failed cases (see summary.json)", file=sys.stderr)
+    return 1 if res.failed else 0
+
+
+def job_case(model_path, trial_path, chunks, overlap=DEFAULT_OVERLAP, cutoff_hz=None, start=None, end=None):
+    """A model-kind Case (no overrides) for one model file and trial."""
+    model = Path(model_path)
+    if not model.is_file():
+        raise FileNotFoundError(f"model file {str(model)!r} does not exist")
+    inputs = {"models": str(model.resolve())}
+    names = {"models": model.stem}
+    if trial_path is not None:
+        trial = Path(trial_path)
+        if not trial.is_file():
+            raise FileNotFoundError(f"trial file {str(trial)!r} does not exist")
+        inputs["trials"], names["trials"] = str(trial.resolve()), trial.stem
+    options = RunOptions(chunks=int(chunks), overlap=int(overlap), cutoff_hz=cutoff_hz, start=start, end=end)
+    return Case("-".join(names.values()), "model", "openfdk.study.kinds:prepare_model_case", names, inputs, {}, (),
+                options)
+
+
+def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=None, start=None, end=None,
+                    overlap=DEFAULT_OVERLAP, scheduler=None, workers=None, client=None, progress=True,
+                    malloc_trim=False):
+    """``openfdk run --chunks K``: one trial split into ``chunks`` frame segments solved
+    in parallel (each warmed up by ``overlap`` frames, docs/studies.md), stitched into
+    one result equal to the serial run's to the solver tolerances.
+
+    Execution: ``client`` if given; else the scheduler at ``scheduler``; else
+    ``workers`` = 0 solves the segments one after the other in this process; else a
+    LocalCluster of ``workers`` processes (default min(chunks, CPUs)) on 127.0.0.1.
+    Returns (KinematicsResult, InverseDynamicsResult, info) like
+    :func:`openfdk.jobs.run_job` (info["fdk"] for FDK models, info["chunks"],
+    info["segments"]); with ``out_dir``, also writes kinematics.csv, forces.csv and
+    summary.json there as ``openfdk run`` does.
+    """
+    import contextlib
+    import os
+
+    from .case import segment_task, write_run_outputs
+    from .chunks import chunk_info, stitch
+    from .cluster import dask_client
+
+    if int(chunks) < 1:
+        raise ValueError(f"--chunks must be >= 1, got {chunks}")
+    case = job_case(model_path, trial_path, chunks, overlap, cutoff_hz, start, end)
+    t0 = _time.perf_counter()
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=int(chunks), desc="chunks", unit="chunk", leave=False)
+    results = []
+    try:
+        if client is None and scheduler is None and workers == 0:
+            for k in range(int(chunks)):
+                results.append(segment_task(case, k))
+                if bar:
+                    bar.update()
+        else:
+            from distributed import as_completed
+
+            with contextlib.ExitStack() as stack:
+                if client is None:
+                    n = workers or min(int(chunks), os.cpu_count() or 1)
+                    client = stack.enter_context(dask_client(scheduler, n, malloc_trim))
+                futures = [client.submit(segment_task, case, k, pure=False) for k in range(int(chunks))]
+                for fut in as_completed(futures, loop=client.loop):
+                    results.append(fut.result())
+                    if bar:
+                        bar.update()
+    finally:
+        if bar:
+            bar.close()
+    wall = _time.perf_counter() - t0
+    kin, dyn, fdk = stitch(results, wall)
+    info = {**results[0].info, **chunk_info(results, overlap)}
+    info["model"] = str(model_path)
+    if fdk is not None:
+        info["fdk"] = fdk.summary()
+    if out_dir is not None:
+        write_run_outputs(out_dir, kin, dyn, info)
+    return kin, dyn, info
