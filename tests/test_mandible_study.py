@@ -71,21 +71,28 @@ def test_symmetric_subject_symmetric_open_close(tmp_path):
     subject = load_subject(d)
     reg = register_braces(subject, d / "trials" / "reference.c3d")
     models = write_models(subject, reg, tmp_path / "models")
+    # the virtual lab holds the head pitched 5° and yawed 30°, which puts ≈ 4 % of the
+    # mandible's weight along the skull's medio-lateral axis: a real, asymmetric load.
+    # Symmetry is checked without gravity.
+    import yaml
+
+    for path in models.values():
+        data = yaml.safe_load(path.read_text())
+        data["gravity"] = [0.0, 0.0, 0.0]
+        path.write_text(yaml.safe_dump(data))
     series, runs = analyse_task(subject, reg, models, "open_close", tmp_path / "out")
     mirror = np.array([1.0, -1.0, 1.0])
     for model in ("measured", "POP"):
         k = series["kinematics"][model]
         np.testing.assert_allclose(k["left"], k["right"] * mirror, atol=2e-5, err_msg=model)  # 0.02 mm
-    # FDK: the medio-lateral DOF is held only by the lateral components of the contact
-    # forces, ligaments and a 0.1 N/m spring; near the unloaded turning points of the
-    # movement its stiffness is a few N/m, so the FDK force tolerance (1e-3 N) leaves it
-    # determined to a few tenths of a mm, and the Newton path decides within that band.
-    # Away from those frames AP and SI mirror to 0.05 mm.
+    # FDK: near the unloaded turning points of the movement the medio-lateral DOF's
+    # stiffness is a few N/m, so the force tolerance (1e-3 N) leaves it determined to a
+    # few hundredths of a mm there; elsewhere AP and SI mirror to 0.05 mm
     k = series["kinematics"]["FDK"]
     diff = np.abs(k["left"][:, [0, 2]] - k["right"][:, [0, 2]])
     assert np.median(diff) < 5e-5 and np.max(diff) < 5e-4
     shift = 0.5 * (k["left"][:, 1] + k["right"][:, 1])  # common sideways shift of the mandible
-    assert np.max(np.abs(shift)) < 1e-3 and np.median(np.abs(shift)) < 5e-5
+    assert np.median(np.abs(shift)) < 2e-5 and np.max(np.abs(shift)) < 5e-4
     for model in ("POP", "FDK"):
         f = series["forces"][model]
         scale = np.nanmax(np.abs(f["right"]))

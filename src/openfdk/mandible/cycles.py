@@ -10,7 +10,8 @@ Cycle rule (docs/mandible-study-outputs.md, "Cycles"):
 
 1. Smoothing: zero-lag 2nd-order Butterworth low-pass, cut-off ``harmonics`` / T, with
    T the dominant period (first major maximum of the autocorrelation, searched within
-   ``min_period``…``max_period``). NaN gaps are bridged linearly first. σ_s, the white
+   ``min_period``…``max_period``; it must reach max(0.2, 5/√n), white noise stays
+   below ≈ 3.5/√n). NaN gaps are bridged linearly first. σ_s, the white
    noise left after smoothing, is estimated from the filter residual.
 2. Opening peaks: maxima of the smoothed signal s at least 0.6 T (or ``min_period``)
    apart whose prominence is ≥ 30 % of the 2–98 % range of s and ≥ 8 σ_s.
@@ -21,7 +22,7 @@ Cycle rule (docs/mandible-study-outputs.md, "Cycles"):
 4. A cycle starts at the last trough sample with s ≤ L + b: the onset of the opening
    (the usual "baseline + k·SD" onset rule). For a flat closed rest this excludes the
    rest; for a sharp minimum it is just after the minimum (noise-free sinusoid, default
-   1 %: ≈ 0.04 T late); with noise, the time the signal needs to rise 4 σ_s.
+   1 %: ≈ 0.03 T late); with noise, the time the signal needs to rise 4 σ_s.
 5. A cycle stops where the next one starts (both indices belong to it). After the last
    peak the mouth must close again; the last cycle then stops at the next opening onset
    if the signal rises again (by > 25 % of the cycle's rise), otherwise — closed to the
@@ -50,7 +51,8 @@ _PEAK_NOISE = 8.0           # … and in units of the smoothed noise σ_s
 _BAND_NOISE = 4.0           # closed-mouth band above the trough: 4 σ_s (+ flat_tolerance)
 _EDGE = 0.03                # closed samples needed in an edge trough, fraction of T
 _REOPEN = 0.25              # rise after the last closing that marks a new opening
-_MIN_AUTOCORRELATION = 0.0  # weakest autocorrelation accepted as a periodic movement
+_MIN_AUTOCORRELATION = 0.2  # weakest autocorrelation accepted as a periodic movement …
+_NOISE_AUTOCORRELATION = 5.0  # … and ≥ 5/√n (white noise: max ≈ 3.5/√n)
 
 
 class CycleError(ValueError):
@@ -102,11 +104,11 @@ def _dominant_period(x, h, min_period, max_period) -> float:
     hi = n // 2 if max_period is None else min(n - 1, int(np.ceil(max_period / h)))
     lags, _ = find_peaks(acf[: hi + 1])
     lags = lags[lags >= lo]
-    if lags.size == 0 or acf[lags].max() < _MIN_AUTOCORRELATION:
+    needed = max(_MIN_AUTOCORRELATION, _NOISE_AUTOCORRELATION / np.sqrt(n))
+    if lags.size == 0 or acf[lags].max() < needed:
         best = f"{acf[lags].max():.2f}" if lags.size else "none"
         raise CycleError("no periodic movement found in the signal (largest autocorrelation "
-                         f"maximum in the allowed period range: {best}; "
-                         f"need ≥ {_MIN_AUTOCORRELATION})")
+                         f"maximum in the allowed period range: {best}; need ≥ {needed:.2f})")
     best = acf[lags].max()
     return float(lags[np.argmax(acf[lags] >= 0.7 * best)] * h)
 
@@ -174,7 +176,7 @@ def split_cycles(time, signal, n_cycles: int = 5, min_period: float | None = Non
     period = _dominant_period(x, h, min_period, max_period)
     s, noise = _smooth(x, h, period, harmonics)
     n = s.size
-    edge = max(2, int(round(_EDGE * period / h)))
+    edge = max(2, round(_EDGE * period / h))
 
     # rule 2: opening peaks
     spacing = (min_period if min_period is not None else _PEAK_SPACING * period) / h
@@ -215,7 +217,7 @@ def split_cycles(time, signal, n_cycles: int = 5, min_period: float | None = Non
     stops.append(stop_last)
 
     durations = [b - a for a, b in zip(starts, stops) if a is not None and b is not None and b > 0]
-    typical = int(round(np.median(durations))) if durations else int(round(period / h))
+    typical = int(np.rint(np.median(durations))) if durations else round(period / h)
     cycles, skipped = [], []
     for a, b in zip(starts, stops):
         if a is None or b is None:

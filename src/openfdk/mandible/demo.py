@@ -27,9 +27,9 @@ def run_demo(out="openfdk-demo", quick=False, progress=True, log=print):
         log(f"creating the virtual subject in {subject}/ ...")
         create_subject(subject, resolution="coarse" if quick else "default")
     if not (subject / "trials" / "open_close.c3d").is_file():
-        # one cycle more than analysed: the study takes the first complete cycles, as the paper
-        log(f"recording the virtual experiment ({cycles + 1} cycles per task) ...")
-        record_experiment(subject, cycles=cycles + 1)
+        # more cycles than analysed: the study takes the first complete ones, as the paper did
+        log(f"recording the virtual experiment ({cycles + 2} cycles per task) ...")
+        record_experiment(subject, cycles=cycles + 2)
     log(f"running the mandible study -> {out}/")
     result = run_study(subject, out / "study", n_cycles=cycles, quick=quick, progress=progress, log=log)
     log("")

@@ -5,8 +5,10 @@ ML / SI, columns left / right TMJ, x = normalised cycle 0–100 %. Each model is
 its mean curve over the cycles with a ±1 SD band (sample SD, ddof = 1): measured in
 black, POP in green, FDK in blue (the paper's colours for the models). An optional
 parameter-study ``band`` — ``dict[side -> (n_variants, n_points, 3)]``, each variant's
-mean curve — is drawn behind everything as a grey min–max envelope. Kinematics are
-plotted in mm, forces in N. Matplotlib's Agg backend is used (no display needed).
+mean curve — is drawn behind everything as a grey (hatched) min–max envelope.
+Kinematics are plotted in mm as given (displacements from a reference pose, or positions
+in the skull frame), forces in N; every panel has its own y range. Matplotlib's Agg
+backend is used (no display needed).
 
 Inputs follow :mod:`openfdk.mandible.tables`: ``dict[model -> dict[side ->
 (n_cycles, n_points, 3)]]`` in m (kinematics) or N (forces). Models may have different
@@ -33,7 +35,6 @@ MODEL_STYLE = {
 _OTHER_COLORS = ("#d95f02", "#7570b3", "#e7298a", "#66a61e")
 _BAND = {"facecolor": "0.86", "edgecolor": "0.62", "hatch": "////",
          "label": "FDK parameter study (min–max)"}
-_DIRECTION_NAME = {"AP": "AP", "ML": "ML", "SI": "SI"}
 
 
 def _plt():
@@ -112,12 +113,14 @@ def _draw_grid(axes, kind: str, series: dict, band: dict | None, scale: float,
                                         alpha=0.18, lw=0, zorder=2 + k)
                 line, = ax.plot(x, mean, color=style["color"], lw=1.6, zorder=10 + k)
                 handles[model] = ((shade, line), style["label"])
-            ax.axhline(0.0, color="0.8", lw=0.6, zorder=0)
             ax.set_xlim(0.0, 100.0)
+            y_lo, y_hi = ax.get_ylim()
+            if y_lo < 0.0 < y_hi:                                    # zero line if in range
+                ax.axhline(0.0, color="0.75", lw=0.6, zorder=0)
             ax.grid(True, color="0.92", lw=0.6)
             ax.tick_params(labelsize=8)
             if col == 0:
-                ax.set_ylabel(f"{_DIRECTION_NAME[direction]} {quantity} ({unit})", fontsize=9)
+                ax.set_ylabel(f"{direction} {quantity} ({unit})", fontsize=9)
     return [handles[k] for k in handles]
 
 
@@ -137,12 +140,13 @@ def _finish(fig, axes, handles, title: str):
     return fig
 
 
-def kinematics_figure(task: str, kinematics: dict, band: dict | None = None):
+def kinematics_figure(task: str, kinematics: dict, band: dict | None = None, *,
+                      quantity: str = "displacement"):
     """Figure (3 × 2 panels) of condyle kinematics; arguments as :func:`plot_kinematics`.
     Returns: the matplotlib Figure (close it with ``plt.close(fig)``)."""
     plt = _plt()
-    fig, axes = plt.subplots(3, 2, figsize=(7.5, 7.2), sharex=True, sharey="row")
-    handles = _draw_grid(axes, "kinematics", kinematics, band, 1e3, "mm", "displacement")
+    fig, axes = plt.subplots(3, 2, figsize=(7.5, 7.2), sharex=True)
+    handles = _draw_grid(axes, "kinematics", kinematics, band, 1e3, "mm", quantity)
     return _finish(fig, axes, handles, f"{task_title(task)}: TMJ kinematics (condyle in skull frame)")
 
 
@@ -150,20 +154,18 @@ def forces_figure(task: str, forces: dict, band: dict | None = None):
     """Figure (3 × 2 panels) of TMJ reaction forces; arguments as :func:`plot_forces`.
     Returns: the matplotlib Figure."""
     plt = _plt()
-    fig, axes = plt.subplots(3, 2, figsize=(7.5, 7.2), sharex=True, sharey="row")
+    fig, axes = plt.subplots(3, 2, figsize=(7.5, 7.2), sharex=True)
     handles = _draw_grid(axes, "forces", forces, band, 1.0, "N", "force")
     return _finish(fig, axes, handles, f"{task_title(task)}: TMJ reaction force on the mandible")
 
 
 def task_figure(task: str, kinematics: dict, forces: dict, kinematics_band: dict | None = None,
-                force_band: dict | None = None):
+                force_band: dict | None = None, *, quantity: str = "displacement"):
     """Both blocks in one figure like the paper's Figs. 5–7: kinematics (rows 1–3) above
     forces (rows 4–6). Returns: the matplotlib Figure."""
     plt = _plt()
     fig, axes = plt.subplots(6, 2, figsize=(7.5, 12.5), sharex=True)
-    for r in range(6):                     # share y across the left/right pair of a row
-        axes[r, 1].sharey(axes[r, 0])
-    h1 = _draw_grid(axes[:3], "kinematics", kinematics, kinematics_band, 1e3, "mm", "displacement")
+    h1 = _draw_grid(axes[:3], "kinematics", kinematics, kinematics_band, 1e3, "mm", quantity)
     h2 = _draw_grid(axes[3:], "forces", forces, force_band, 1.0, "N", "force")
     seen = {label for _, label in h1}
     return _finish(fig, axes, h1 + [h for h in h2 if h[1] not in seen],
@@ -177,7 +179,8 @@ def _save(fig, path) -> str:
     return os.fspath(path)
 
 
-def plot_kinematics(task: str, kinematics: dict, path, band: dict | None = None) -> str:
+def plot_kinematics(task: str, kinematics: dict, path, band: dict | None = None, *,
+                    quantity: str = "displacement") -> str:
     """Paper-style figure of the condyle kinematics of one task.
 
     Args:
@@ -187,9 +190,10 @@ def plot_kinematics(task: str, kinematics: dict, path, band: dict | None = None)
         path : output image file (format from the suffix, e.g. .png, .pdf).
         band : optional dict[side -> (n_variants, n_points, 3) m], the parameter-study
             variants' mean curves, drawn as a grey min–max envelope.
+        quantity : y-label word, "displacement" (from a reference pose) or "position".
     Returns: the path.
     """
-    return _save(kinematics_figure(task, kinematics, band), path)
+    return _save(kinematics_figure(task, kinematics, band, quantity=quantity), path)
 
 
 def plot_forces(task: str, forces: dict, path, band: dict | None = None) -> str:
@@ -207,10 +211,12 @@ def plot_forces(task: str, forces: dict, path, band: dict | None = None) -> str:
 
 
 def plot_task(task: str, kinematics: dict, forces: dict, path,
-              kinematics_band: dict | None = None, force_band: dict | None = None) -> str:
+              kinematics_band: dict | None = None, force_band: dict | None = None, *,
+              quantity: str = "displacement") -> str:
     """Kinematics and forces of one task in one figure (the paper's Figs. 5–7 layout).
 
     Args: as :func:`plot_kinematics` (kinematics m, kinematics_band m) and
     :func:`plot_forces` (forces N, force_band N); path : output file. Returns: the path.
     """
-    return _save(task_figure(task, kinematics, forces, kinematics_band, force_band), path)
+    return _save(task_figure(task, kinematics, forces, kinematics_band, force_band,
+                             quantity=quantity), path)

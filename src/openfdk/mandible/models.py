@@ -20,9 +20,14 @@ lines) and cubic recruitment. The brace markers are the registered positions
   pose), and a weak spring (0.1 N/m) on each FDK DOF.
 
 Muscle calibration (as AnyBody's 3-element muscles are calibrated): each tendon slack
-length is set so that the fibres are at their optimal length with the mandible opened
-by ``calibration_opening_deg`` about the intercondylar axis; this keeps the passive
-elevator forces physiological over half-open movements with straight-line paths.
+length is set so that the fibres are at their optimal length in a rest posture — the
+mandible opened by ``calibration_opening_deg`` (5°) about the intercondylar axis and
+translated 2 mm forward and 1 mm down. With straight-line paths and the reference
+table's tendon lengths the closed pose stretches the posterior temporalis by ≈ 20 mm
+(325 N passive); calibrated closed, opening is infeasible, calibrated half-open (10°),
+protrusion is. The parallel-elastic strain at F0 is 1.0 (see
+:data:`PASSIVE_STRAIN_AT_MAX_FORCE`). Measured on the virtual subject with the POP model:
+every frame of chewing, protrusion and open–close is feasible with these choices.
 """
 
 from __future__ import annotations
@@ -38,6 +43,16 @@ from ..spatial import quat_from_rotvec, rotation_matrix
 PARAMETER_STUDY_STIFFNESS = (136.2, 272.4, 544.8)  # N/m, whole TMJ ligament (paper)
 PARAMETER_STUDY_STRAIN = (-0.04, -0.02, 0.0, 0.02, 0.04)
 DEFAULT_STIFFNESS, DEFAULT_STRAIN = 272.4, 0.0  # the paper's comparison model
+#: condyle translation of the muscle calibration posture (m): half of a typical
+#: protrusion, forward and down along the eminence
+CALIBRATION_TRANSLATION = (0.002, 0.0, -0.001)
+CALIBRATION_OPENING_DEG = 5.0
+#: parallel-elastic strain at F0 of the jaw muscles (Thelen 2003 gives 0.6 for limb
+#: muscles of young adults; the reference table gives none). With 0.6 the stretched
+#: supra-hyoid muscles' passive tension exceeds what the openers can balance during
+#: protrusion (≈ 20 % of frames infeasible on the virtual subject); 1.0 keeps every task
+#: feasible. A model-level choice: edit the model file to study it.
+PASSIVE_STRAIN_AT_MAX_FORCE = 1.0
 SIDES = (("r", "right"), ("l", "left"))
 
 
@@ -53,19 +68,22 @@ def _plane_frame(normal):
     return np.column_stack([x, np.cross(n, x), n])
 
 
-def calibrated_tendon_slack(subject, muscle, opening_deg):
-    """Tendon slack length (m) with optimal fibres at the calibration opening: the
-    insertion rotated by the opening about the intercondylar (y) axis through the
-    condyle tops; l_T = l_MT − Lf0 cos α0, at least 1 mm."""
+def calibrated_tendon_slack(subject, muscle, opening_deg, translation=(0.0, 0.0, 0.0)):
+    """Tendon slack length (m) with optimal fibres in the calibration posture: the
+    insertion rotated by ``opening_deg`` about the intercondylar (y) axis through the
+    condyle tops, then translated by ``translation`` (3,) m (forward–down along the
+    eminence); l_T = l_MT − Lf0 cos α0, at least 1 mm."""
     axis_point = 0.5 * (subject.condyle_top("r") + subject.condyle_top("l"))
     R = rotation_matrix(quat_from_rotvec([0.0, np.deg2rad(opening_deg), 0.0]))
-    insertion = axis_point + R @ (muscle.insertion - axis_point)
+    insertion = axis_point + R @ (muscle.insertion - axis_point) + np.asarray(translation, dtype=float)
     l_mt = float(np.linalg.norm(insertion - muscle.origin))
     return max(l_mt - muscle.optimal_fibre_length * np.cos(muscle.pennation_angle_at_optimal), 1e-3)
 
 
 def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS,
-               reference_strain=DEFAULT_STRAIN, calibration_opening_deg=10.0, mesh_dir=None,
+               reference_strain=DEFAULT_STRAIN, calibration_opening_deg=CALIBRATION_OPENING_DEG,
+               calibration_translation=CALIBRATION_TRANSLATION, mesh_dir=None,
+               passive_strain_at_max_force=PASSIVE_STRAIN_AT_MAX_FORCE,
                pressure_modulus=1.0e10, spring_stiffness=0.1):
     """The POP (``kind="pop"``) or FDK (``kind="fdk"``) model of a subject as a model-file
     mapping (mm, deg). ``mesh_dir``: path written for the STL files (relative to where
@@ -88,11 +106,13 @@ def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS
             "path": [f"skull.{m.name}_origin", f"mandible.{m.name}_insertion"],
             "max_isometric_force": float(m.max_isometric_force),
             "optimal_fibre_length": float(m.optimal_fibre_length * 1e3),
-            "tendon_slack_length": float(round(calibrated_tendon_slack(subject, m, calibration_opening_deg) * 1e3, 6)),
+            "tendon_slack_length": float(round(calibrated_tendon_slack(
+                subject, m, calibration_opening_deg, calibration_translation) * 1e3, 6)),
             "tendon_strain_at_max_force": float(m.tendon_strain_at_max_force),
             "pennation_angle_at_optimal": float(np.rad2deg(m.pennation_angle_at_optimal)),
             "fast_fibre_fraction": float(m.fast_fibre_fraction),
             "passive_shape_factor": float(m.passive_shape_factor),
+            "passive_strain_at_max_force": float(passive_strain_at_max_force),
         }
     labels_s, pos_s = registration["skull"]
     labels_m, pos_m = registration["mandible"]

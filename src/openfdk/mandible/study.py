@@ -50,21 +50,34 @@ def parameter_variants(quick=False):
     return [(f"k{k:g}_e{e:+g}", k, e) for k in PARAMETER_STUDY_STIFFNESS for e in PARAMETER_STUDY_STRAIN]
 
 
-def analyse_task(subject, registration, models, task, out_dir, progress=False):
-    """POP and FDK on one task; returns time series (skull frame) and run summaries."""
+def analyse_task(subject, registration, models, task, out_dir, progress=False, n_cycles=None, margin=0.05):
+    """POP and FDK on one task; returns time series (skull frame) and run summaries.
+
+    With ``n_cycles``, only the first ``n_cycles`` complete cycles of the measured
+    movement (± ``margin`` s) are analysed, as the paper extracted them."""
     trial = _trial(subject.directory, task)
     time, measured = mandible_points_in_skull(
         subject, trial, [subject.condyle_top("r"), subject.condyle_top("l"), subject.landmarks["incisal_point"]],
         registration)
+    start = end = None
+    if n_cycles is not None:
+        from .cycles import split_cycles
+
+        cycles = split_cycles(time, _opening_signal(measured[:, 2], subject.landmarks["incisal_point"]), n_cycles=n_cycles)
+        start, end = time[cycles[0][0]] - margin, time[min(cycles[-1][1], len(time) - 1)] + margin
+        keep = (time >= start - 1e-9) & (time <= end + 1e-9)
+        time, measured = time[keep], measured[keep]
     # TMJ kinematics as displacements of the condyle tops from the reference (CT) pose
     ref = {"right": subject.condyle_top("r"), "left": subject.condyle_top("l")}
     series = {"time": np.asarray(time),
               "kinematics": {"measured": {"right": measured[:, 0] - ref["right"], "left": measured[:, 1] - ref["left"]}},
-              "forces": {}, "incisor": measured[:, 2]}
+              "forces": {}, "incisor": measured[:, 2], "incisor_closed": subject.landmarks["incisal_point"]}
     runs = {}
     for kind in ("pop", "fdk"):
         t0 = _time.perf_counter()
-        kin, dyn, info = run_job(models[kind], trial, progress=progress)
+        kin, dyn, info = run_job(models[kind], trial, progress=progress, start=start, end=end)
+        if len(kin.time) != len(time):
+            raise StudyError(f"{trial}: the analysis window has {len(kin.time)} frames, the markers {len(time)}")
         out = Path(out_dir) / task / kind
         write_kinematics(out, kin, {"input": info})
         write_forces(out, dyn)
@@ -81,6 +94,12 @@ def analyse_task(subject, registration, models, task, out_dir, progress=False):
     return series, runs
 
 
+def _opening_signal(incisor, closed):
+    """Incisal displacement (m) from its closed (reference-pose) position ``closed`` (3,):
+    the signal whose minima separate the cycles of every task."""
+    return np.linalg.norm(incisor - closed, axis=1)
+
+
 def cycle_arrays(series, n_cycles, n_points=101):
     """Split on the measured incisal displacement from its closed position and normalise
     every signal to 0–100 % of each cycle: dict kinematics/forces model -> side ->
@@ -88,10 +107,7 @@ def cycle_arrays(series, n_cycles, n_points=101):
     from .cycles import normalize_cycles, split_cycles
 
     t = series["time"]
-    inc = series["incisor"]
-    closed = np.nanpercentile(inc, 5, axis=0)
-    signal = np.linalg.norm(inc - closed, axis=1)
-    cycles = split_cycles(t, signal, n_cycles=n_cycles)
+    cycles = split_cycles(t, _opening_signal(series["incisor"], series["incisor_closed"]), n_cycles=n_cycles)
     out = {"cycles": cycles}
     for group in ("kinematics", "forces"):
         out[group] = {model: {side: normalize_cycles(t, arr, cycles, n_points) for side, arr in sides.items()}
@@ -114,14 +130,16 @@ def run_study(subject_dir, out_dir, tasks=TASKS, n_cycles=5, quick=False, parame
     per_task, runs = {}, {}
     for task in tasks:
         log(f"  {task}: POP and FDK ...")
-        series, task_runs = analyse_task(subject, registration, models, task, out, progress)
+        series, task_runs = analyse_task(subject, registration, models, task, out, progress, n_cycles=n_cycles)
         per_task[task] = (series, cycle_arrays(series, n_cycles))
         runs[task] = task_runs
     bands = {}
     if parameter_study:
         variants = parameter_variants(quick)
-        log(f"  parameter study: {len(variants)} FDK models × {len(tasks)} tasks ...")
-        bands, runs["parameter_study"] = _parameter_study(subject, registration, out, variants, tasks, per_task, progress)
+        log(f"  parameter study: {len(variants)} FDK models × {1 if quick else len(tasks)} task(s) ...")
+        study_tasks = tasks if not quick else tasks[-1:]  # quick: the band on one task only
+        bands, runs["parameter_study"] = _parameter_study(subject, registration, out, variants, study_tasks, per_task,
+                                                          progress)
     results = {task: {"kinematics": c["kinematics"], "forces": c["forces"]} for task, (_, c) in per_task.items()}
     rows1, rows2 = table1(results), table2(results)
     write_csv(rows1, out / "table1.csv")
@@ -157,9 +175,9 @@ def _parameter_study(subject, registration, out, variants, tasks, per_task, prog
                                       mesh_dir=Path(subject.directory).resolve()))
         for task in tasks:
             series, cycles = per_task[task]
-            kin, dyn, info = run_job(path, _trial(subject.directory, task), progress=False)
-            runs[f"{label}/{task}"] = info["fdk"]["convergence_rate"]
             t = series["time"]
+            kin, dyn, info = run_job(path, _trial(subject.directory, task), progress=False, start=t[0], end=t[-1])
+            runs[f"{label}/{task}"] = info["fdk"]["convergence_rate"]
             ref = {"right": subject.condyle_top("r"), "left": subject.condyle_top("l")}
             displacement = {side: p - ref[side] for side, p in condyle_kinematics(kin, subject).items()}
             for group, data in (("kinematics", displacement), ("forces", fdk_forces(dyn, kin, subject))):

@@ -4,8 +4,9 @@ Data layout (all arrays cycle-normalised by :func:`openfdk.mandible.cycles.norma
 
 * ``kinematics``: ``dict[model -> dict[side -> (n_cycles, n_points, 3) m]]`` with model in
   {"measured", "POP", "FDK"} and side in {"left", "right"}; the 3 components are AP (x,
-  anterior), ML (y, to the left) and SI (z, up) of the condyle point in the skull frame.
-  Tables report RMSD in mm.
+  anterior), ML (y, to the left) and SI (z, up) of the condyle point in the skull frame
+  (positions, or displacements from a reference pose — Sprague–Geers M and P depend on
+  that origin, see docs/mandible-study-outputs.md). Tables report RMSD in mm.
 * ``forces``: ``dict[model -> dict[side -> (n_cycles, n_points, 3) N]]`` for "POP" and
   "FDK": the TMJ reaction force on the mandible in the skull frame (AP, ML, SI).
 * ``results_by_task``: ``dict[task -> kinematics]`` (for :func:`table1`) or

@@ -1,0 +1,149 @@
+"""Long trials in chunks: segment planning, and chunked vs serial runs of one trial on
+the TMJ-like FDK model and on the POP jaw (tracking + inverse dynamics), in this process
+and on a 2-worker LocalCluster on loopback."""
+
+import json
+
+import numpy as np
+import pytest
+import yaml
+
+from openfdk.fdk.analysis import run_fdk
+from openfdk.io.c3d import write_c3d
+from openfdk.jobs import load_trajectories, run_job
+from openfdk.model.modelfile import load_model
+from openfdk.study.chunks import analyse, plan_segments
+from openfdk.study.cli import run_chunked_job
+from openfdk.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, jaw_model_dict, write_jaw_meshes
+
+N_FRAMES = 24
+FDK_DOFS = ("tmj_r_normal", "tmj_l_normal", "ml_shift")
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("chunks")
+    write_jaw_meshes(d / "meshes")
+    (d / "tmj.yaml").write_text(yaml.safe_dump(jaw_fdk_model_dict("meshes"), sort_keys=False))
+    (d / "pop.yaml").write_text(yaml.safe_dump(jaw_model_dict(), sort_keys=False))
+    t, labels, x, _ = jaw_markers(N_FRAMES, noise=1e-4, seed=3)
+    write_c3d(d / "trial.c3d", labels, x, 100.0)
+    return d
+
+
+@pytest.fixture(scope="module")
+def serial_fdk(files):
+    return run_job(files / "tmj.yaml", files / "trial.c3d", progress=False)
+
+
+def _alpha(dyn):
+    return np.column_stack([dyn.extra["columns"][f"fdk.{d}.alpha"] for d in FDK_DOFS])
+
+
+def test_segments_cover_the_trial_once_and_see_their_neighbours():
+    for n, k, overlap in [(24, 3, 5), (10, 10, 0), (7, 2, 2), (100, 7, 4)]:
+        segs = plan_segments(n, k, overlap)
+        kept = np.concatenate([np.arange(s.keep_start, s.keep_stop) for s in segs])
+        np.testing.assert_array_equal(kept, np.arange(n))  # every frame kept exactly once, in order
+        lengths = [s.keep_stop - s.keep_start for s in segs]
+        assert max(lengths) - min(lengths) <= 1
+        for s in segs:
+            # overlap warm-up frames + the left neighbour before, the right neighbour after
+            assert s.solve_start == max(0, s.keep_start - overlap - 1)
+            assert s.solve_stop == min(n, s.keep_stop + 1)
+    with pytest.raises(ValueError, match="cannot split 5 frames into 6 chunks"):
+        plan_segments(5, 6)
+    with pytest.raises(ValueError, match="chunks must be"):
+        plan_segments(5, 0)
+
+
+def test_chunked_fdk_agrees_with_serial_to_the_fdk_tolerance(files, serial_fdk):
+    """Each frame is a root of f^FDK(α) to |f| < tol, so two runs may differ by at most
+    |Δα| ≤ ‖J⁻¹‖ · 2 tol (J = ∂f^FDK/∂α, measured here by central differences at every
+    frame of the serial solution); forces then differ by the FDK tolerance order."""
+    from openfdk.analysis.inverse_dynamics import InverseDynamics
+    from openfdk.fdk.jacobian import central_jacobian
+    from openfdk.fdk.residual import FDKContext, FrameWorkspace
+    from openfdk.fdk.settings import fdk_settings
+    from openfdk.kinematics.system import ConstraintSystem
+    from openfdk.kinematics.tracking import MarkerTracker, TrackingSettings
+
+    kin, dyn, info = serial_fdk
+    kc, dc, ic = run_chunked_job(files / "tmj.yaml", files / "trial.c3d", 3, workers=0, progress=False, overlap=2)
+    assert ic["chunks"] == 3 and [s["keep"] for s in ic["segments"]] == [[0, 8], [8, 16], [16, 24]]
+    np.testing.assert_array_equal(kc.time, kin.time)
+    tol = fdk_settings(load_model(files / "tmj.yaml")).tolerance
+    assert info["fdk"]["converged_frames"] == N_FRAMES and ic["fdk"]["converged_frames"] == N_FRAMES
+    f_chunked = np.column_stack([dc.extra["columns"][f"fdk.{d}.residual"] for d in FDK_DOFS])
+    assert np.all(np.abs(f_chunked) < tol)
+
+    # ‖J⁻¹‖ at every frame of the serial solution (central differences, h = 0.2 µm)
+    model = load_model(files / "tmj.yaml")
+    _, traj = load_trajectories(model, files / "trial.c3d")
+    system = ConstraintSystem(model)
+    ctx = FDKContext(model, InverseDynamics(model, system), MarkerTracker(system, TrackingSettings()),
+                     [traj.evaluate(t) for t in kin.time], kin.time)
+    alpha_s, alpha_c = _alpha(dyn), _alpha(dc)
+    state = model.initial_state()
+    ctx.tracker.initial_guess(state, ctx.meas[0][0], ctx.meas[0][3])
+    for k in range(N_FRAMES):
+        ws = FrameWorkspace({j: state for j in ctx.frames_needed(k)})
+        ev = ctx.evaluate(k, alpha_s[k], ws)
+        J, _, msg = central_jacobian(ctx, k, ev, ws, [2e-7] * 3)
+        assert msg == "" and np.linalg.norm(J) > 1.0  # a real restoring stiffness (N/m)
+        bound = 2 * tol * np.linalg.norm(np.linalg.inv(J), 2)
+        assert np.max(np.abs(alpha_c[k] - alpha_s[k])) <= bound, k
+        state = ws.states[k]
+    # muscle and contact forces: both solutions balance the same loads to the tolerance
+    np.testing.assert_allclose(dc.forces, dyn.forces, atol=50 * tol, rtol=0)
+    for c in ("tmj_r.Fz_N", "tmj_l.Fz_N"):
+        np.testing.assert_allclose(dc.extra["columns"][c], dyn.extra["columns"][c], atol=50 * tol, rtol=0)
+
+
+def test_segment_ends_use_the_real_neighbouring_frames(files, serial_fdk):
+    """Velocities and accelerations come from the residuals at t ± Δt (Eq. 7): a segment
+    solved without its neighbour frames gets one-sided differences at its ends (visibly
+    different accelerations); with them, the boundary frames equal the serial ones."""
+    kin, dyn, _ = serial_fdk
+    kc, _, _ = run_chunked_job(files / "tmj.yaml", files / "trial.c3d", 2, workers=0, progress=False, overlap=0)
+    boundary = [11, 12]  # last frame of chunk 0 and first of chunk 1
+    scale = np.max(np.abs(kin.vdot))
+    np.testing.assert_allclose(kc.vdot[boundary], kin.vdot[boundary], atol=1e-6 * scale)
+    np.testing.assert_allclose(kc.v[boundary], kin.v[boundary], atol=1e-6 * np.max(np.abs(kin.v)))
+    # the same segment without the extra frame after it: its last frame is one-sided
+    model = load_model(files / "tmj.yaml")
+    _, traj = load_trajectories(model, files / "trial.c3d")
+    naive = run_fdk(model, traj, kin.time[:12])
+    assert np.max(np.abs(naive.kinematics.vdot[11] - kin.vdot[11])) > 1e-3 * scale
+
+
+def test_chunked_tracking_and_inverse_dynamics_without_fdk(files):
+    """The POP jaw (marker tracking + recruitment, no FDK DOFs): chunks equal the serial run."""
+    kin, dyn, _ = run_job(files / "pop.yaml", files / "trial.c3d", progress=False)
+    kc, dc, ic = run_chunked_job(files / "pop.yaml", files / "trial.c3d", 4, workers=0, progress=False)
+    assert "fdk" not in ic and kc.converged.all() and dc.converged.all()
+    np.testing.assert_allclose(kc.q, kin.q, atol=1e-9)
+    np.testing.assert_allclose(kc.vdot, kin.vdot, atol=1e-6 * np.max(np.abs(kin.vdot)))
+    # recruitment is solved to its own tolerance: compare forces relative to their scale
+    np.testing.assert_allclose(dc.forces, dyn.forces, atol=1e-5 * np.nanmax(np.abs(dyn.forces)))
+
+
+def test_failed_frame_messages_keep_the_trial_numbering(files):
+    """Messages that name a frame are renumbered from segment to trial frames."""
+    from openfdk.study.chunks import _renumber
+
+    assert _renumber(("", "frame 3 (t = 0.0300 s): FDK not converged: frame 3 (t = 0.0300 s)"), 10) == (
+        "", "frame 13 (t = 0.0300 s): FDK not converged: frame 13 (t = 0.0300 s)")
+
+
+def test_chunked_run_on_a_local_cluster_writes_the_run_outputs(files, serial_fdk, tmp_path):
+    kin, dyn, info = serial_fdk
+    out = tmp_path / "run"
+    kc, dc, ic = run_chunked_job(files / "tmj.yaml", files / "trial.c3d", 2, out, workers=2, progress=False)
+    tol = 1e-3
+    np.testing.assert_allclose(dc.forces, dyn.forces, atol=50 * tol, rtol=0)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["fdk"]["converged_frames"] == N_FRAMES and summary["input"]["chunks"] == 2
+    header = (out / "forces.csv").read_text().splitlines()[0].split(",")
+    assert header[0] == "time" and "fdk.tmj_r_normal.alpha" in header
+    assert len((out / "kinematics.csv").read_text().splitlines()) == N_FRAMES + 1
