@@ -12,7 +12,7 @@ from openfdk.fdk.analysis import run_fdk
 from openfdk.io.c3d import write_c3d
 from openfdk.jobs import load_trajectories, run_job
 from openfdk.model.modelfile import load_model
-from openfdk.study.chunks import analyse, plan_segments
+from openfdk.study.chunks import plan_segments
 from openfdk.study.cli import run_chunked_job
 from openfdk.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, jaw_model_dict, write_jaw_meshes
 
@@ -26,7 +26,7 @@ def files(tmp_path_factory):
     write_jaw_meshes(d / "meshes")
     (d / "tmj.yaml").write_text(yaml.safe_dump(jaw_fdk_model_dict("meshes"), sort_keys=False))
     (d / "pop.yaml").write_text(yaml.safe_dump(jaw_model_dict(), sort_keys=False))
-    t, labels, x, _ = jaw_markers(N_FRAMES, noise=1e-4, seed=3)
+    _t, labels, x, _ = jaw_markers(N_FRAMES, noise=1e-4, seed=3)
     write_c3d(d / "trial.c3d", labels, x, 100.0)
     return d
 
@@ -104,7 +104,7 @@ def test_segment_ends_use_the_real_neighbouring_frames(files, serial_fdk):
     """Velocities and accelerations come from the residuals at t ± Δt (Eq. 7): a segment
     solved without its neighbour frames gets one-sided differences at its ends (visibly
     different accelerations); with them, the boundary frames equal the serial ones."""
-    kin, dyn, _ = serial_fdk
+    kin, _dyn, _ = serial_fdk
     kc, _, _ = run_chunked_job(files / "tmj.yaml", files / "trial.c3d", 2, workers=0, progress=False, overlap=0)
     boundary = [11, 12]  # last frame of chunk 0 and first of chunk 1
     scale = np.max(np.abs(kin.vdot))
@@ -137,9 +137,9 @@ def test_failed_frame_messages_keep_the_trial_numbering(files):
 
 
 def test_chunked_run_on_a_local_cluster_writes_the_run_outputs(files, serial_fdk, tmp_path):
-    kin, dyn, info = serial_fdk
+    _kin, dyn, _info = serial_fdk
     out = tmp_path / "run"
-    kc, dc, ic = run_chunked_job(files / "tmj.yaml", files / "trial.c3d", 2, out, workers=2, progress=False)
+    _kc, dc, _ic = run_chunked_job(files / "tmj.yaml", files / "trial.c3d", 2, out, workers=2, progress=False)
     tol = 1e-3
     np.testing.assert_allclose(dc.forces, dyn.forces, atol=50 * tol, rtol=0)
     summary = json.loads((out / "summary.json").read_text())

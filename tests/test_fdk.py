@@ -166,13 +166,44 @@ def test_analytic_jacobian_matches_central_differences_on_tmj_model(tmj_model):
 def test_analytic_and_central_fdk_converge_to_same_alpha(tmj_model):
 
     _, traj, t = _tmj_context(tmj_model, n_frames=20)
-    ra = run_fdk(tmj_model, traj, t, jacobian="analytic")
-    rc = run_fdk(tmj_model, traj, t, jacobian="central")
+    # a fresh Jacobian at every iteration, as in the paper
+    ra = run_fdk(tmj_model, traj, t, jacobian="analytic", reuse_jacobian=False)
+    rc = run_fdk(tmj_model, traj, t, jacobian="central", reuse_jacobian=False)
     assert ra.converged.all() and rc.converged.all()
     # α agree to the force tolerance over the joint stiffness (≥ 1e4 N/m): < 1e-7 m
     np.testing.assert_allclose(ra.alpha, rc.alpha, atol=1e-7)
     assert np.all(ra.alpha[:, :2] < 0)  # condyles pressed into their fossae through the 1 mm layer
     assert ra.evaluations.mean() <= 4 < rc.evaluations.mean()
+
+
+@pytest.mark.parametrize("jacobian", ["analytic", "central"])
+def test_reused_broyden_jacobian_converges_to_the_fresh_jacobian_alpha(tmj_model, jacobian):
+    """Carrying J between iterations and frames (Broyden updates) is a different path to
+    the same root: α agree to tolerance / stiffness, with far fewer Jacobians."""
+    _, traj, t = _tmj_context(tmj_model, n_frames=20)
+    fresh = run_fdk(tmj_model, traj, t, jacobian=jacobian, reuse_jacobian=False)
+    reused = run_fdk(tmj_model, traj, t, jacobian=jacobian, reuse_jacobian=True)
+    assert fresh.converged.all() and reused.converged.all()
+    assert np.abs(reused.f_fdk).max() < reused.settings.tolerance
+    np.testing.assert_allclose(reused.alpha, fresh.alpha, atol=1e-7)
+    # at least one J per frame when fresh (frames that start converged need none)
+    assert fresh.jacobians.sum() >= np.count_nonzero(fresh.iterations)
+    assert reused.jacobians.sum() < 0.5 * fresh.jacobians.sum()
+    assert reused.summary()["mean_jacobians_per_frame"] == reused.jacobians.mean()
+
+
+def test_broyden_update_meets_the_secant_condition_and_keeps_the_orthogonal_action():
+    from openfdk.fdk.newton import _broyden
+
+    rng = np.random.default_rng(3)
+    J = rng.normal(size=(3, 3))
+    s, y = rng.normal(size=3), rng.normal(size=3)
+    J1 = _broyden(J, s, y)
+    np.testing.assert_allclose(J1 @ s, y, atol=1e-12)  # secant condition
+    v = np.cross(s, rng.normal(size=3))  # v ⟂ s
+    np.testing.assert_allclose(J1 @ v, J @ v, atol=1e-12)
+    assert np.linalg.matrix_rank(J1 - J) == 1
+    np.testing.assert_array_equal(_broyden(J, np.zeros(3), y), J)  # no step: no update
 
 
 def test_run_cli_does_fdk_when_the_model_declares_fdk_dofs(tmp_path):

@@ -15,8 +15,18 @@ import yaml
 
 from openfdk.io.c3d import write_c3d
 from openfdk.study import (
-    CaseKind, Override, OverrideError, StudyError, add_study_parser, apply_overrides, load_study,
-    parameter_band, read_table, register_case_kind, run_study, study_from_dict,
+    CaseKind,
+    Override,
+    OverrideError,
+    StudyError,
+    add_study_parser,
+    apply_overrides,
+    load_study,
+    parameter_band,
+    read_table,
+    register_case_kind,
+    run_study,
+    study_from_dict,
 )
 from openfdk.study.cluster import dask_client
 from openfdk.study.kinds import prepare_model_case
@@ -35,7 +45,7 @@ def files(tmp_path_factory):
     d = tmp_path_factory.mktemp("study")
     write_jaw_meshes(d / "meshes")
     (d / "tmj.yaml").write_text(yaml.safe_dump(jaw_fdk_model_dict("meshes"), sort_keys=False))
-    t, labels, x, _ = jaw_markers(30, noise=1e-4, seed=11)
+    _t, labels, x, _ = jaw_markers(30, noise=1e-4, seed=11)
     write_c3d(d / "trial.c3d", labels, x, 100.0)
     return d
 
@@ -109,7 +119,8 @@ def test_override_paths_globs_lists_and_new_keys():
 
 def test_override_that_matches_nothing_is_an_error_naming_it():
     data = {"ligaments": {"tmj_ligament_r1": {"stiffness": 1.0}}, "contacts": {"tmj_r": {"pressure_modulus": 1e10}}}
-    with pytest.raises(OverrideError, match=r"'ligaments\.tmj_ligamnt_\*\.stiffness' matches nothing.*'tmj_ligamnt_\*'"):
+    pattern = r"'ligaments\.tmj_ligamnt_\*\.stiffness' matches nothing.*'tmj_ligamnt_\*'"
+    with pytest.raises(OverrideError, match=pattern):
         apply_overrides(data, [Override("ligaments.tmj_ligamnt_*.stiffness", 2.0)])
     with pytest.raises(OverrideError, match="did you mean 'contacts'"):
         apply_overrides(data, [Override("contact.tmj_r.pressure_modulus", 2.0)])
@@ -207,7 +218,8 @@ def test_local_cluster_study_gives_the_serial_results(files, serial, client, tmp
     for rec in res.records:
         a, b = _forces(tmp_path, rec["case_id"]), _forces(serial.out_dir, rec["case_id"])
         # the same deterministic computation in another process: equal to round-off
-        for col in ("fdk.tmj_r_normal.alpha", "fdk.ml_shift.alpha", "tmj_r.Fz_N", "anterior_temporalis_r.force_N", "superficial_masseter_r.passive_N"):
+        for col in ("fdk.tmj_r_normal.alpha", "fdk.ml_shift.alpha", "tmj_r.Fz_N", "anterior_temporalis_r.force_N",
+                    "superficial_masseter_r.passive_N"):
             np.testing.assert_allclose(a[col], b[col], rtol=1e-7, atol=1e-10)
     header = (tmp_path / "summary.csv").read_text().splitlines()[0].split(",")
     assert header[:7] == ["case_id", "status", "reused", "model", "trial", "stiffness", "reference_strain"]
@@ -294,7 +306,7 @@ def test_rerun_after_an_interruption_skips_completed_cases(files, tmp_path):
     (tmp_path / "cases" / ".tmj-oc-002.tmp-deadbeef" / "kinematics.csv").write_text("time\n0.0\n")
     ran = []
     res = run_study(study, tmp_path, workers=0, progress=False, on_case_done=lambda r: ran.append(r["case_id"]))
-    assert res.ok and sorted(ran) == sorted(set(c.case_id for c in study.cases) - set(done))
+    assert res.ok and sorted(ran) == sorted({c.case_id for c in study.cases} - set(done))
     assert [r["reused"] for r in res.records] == [c.case_id in done for c in study.cases]
     assert {c: (tmp_path / "cases" / c / "case.json").stat().st_mtime_ns for c in done} == stamps
     assert not (tmp_path / "cases" / ".tmj-oc-002.tmp-deadbeef").exists()
@@ -306,10 +318,41 @@ def test_rerun_after_an_interruption_skips_completed_cases(files, tmp_path):
     assert sorted(ran) == ["tmj-oc-002", "tmj-oc-003"]
     case = json.loads((tmp_path / "cases" / "tmj-oc-002" / "case.json").read_text())
     assert case["parameters"]["stiffness"] == 600.0
+    # --force runs complete cases again
+    ran.clear()
+    res = run_study(study_from_dict(edited, "s.yaml", files), tmp_path, workers=0, progress=False, force=True,
+                    on_case_done=lambda r: ran.append(r["case_id"]))
+    assert len(ran) == 4 and not any(r["reused"] for r in res.records)
+
+
+def test_study_on_a_running_scheduler_by_address(files, client, tmp_path):
+    data = study_data(grid={"stiffness": [272.4]}, run={"end": 0.03})
+    res = run_study(study_from_dict(data, "s.yaml", files), tmp_path, scheduler=client.scheduler.address,
+                    progress=False)
+    assert res.ok and res.summary["execution"]["scheduler"] == client.scheduler.address
+    assert len(_forces(tmp_path, "tmj-oc-000")["time"]) == 4
+
+
+def test_example_studies_load(tmp_path):
+    """The example study files parse and their override paths resolve in their models."""
+    import importlib.util
+    import shutil
+    from pathlib import Path
+
+    examples = Path(__file__).resolve().parents[1] / "examples" / "studies"
+    study = load_study(examples / "slider_crank_speed_and_mass.yaml")
+    assert len(study.cases) == 6 and study.options.metrics == ("crank_drive.reaction",)
+    spec = importlib.util.spec_from_file_location("make_tmj_inputs", examples / "make_tmj_inputs.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    module.make_tmj_inputs(tmp_path / "tmj")
+    for name, n_cases in (("tmj_ligament_parameter_study.yaml", 15), ("tmj_long_trial_chunks.yaml", 3)):
+        shutil.copy(examples / name, tmp_path / name)
+        assert len(load_study(tmp_path / name).cases) == n_cases
 
 
 def test_parameter_band_envelopes_the_cases(serial):
-    time_s, lower, upper, mean = parameter_band(serial.out_dir, "tmj_ligament_r3.force_N")
+    time_s, lower, upper, _mean = parameter_band(serial.out_dir, "tmj_ligament_r3.force_N")
     values = np.vstack([_forces(serial.out_dir, r["case_id"])["tmj_ligament_r3.force_N"] for r in serial.records])
     np.testing.assert_array_equal(lower, values.min(axis=0))
     np.testing.assert_array_equal(upper, values.max(axis=0))

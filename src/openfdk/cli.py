@@ -53,18 +53,21 @@ def _cmd_kinematics(args):
 
 
 def _cmd_run(args):
-    from .io.results import write_forces, write_json, write_kinematics
-    from .jobs import run_job
+    if args.chunks > 1:
+        from .study.cli import run_chunked_job
 
-    kin, dyn, info = run_job(args.model, args.trial, cutoff_hz=args.cutoff, progress=not args.no_progress,
-                             start=args.start, end=args.end)
-    write_kinematics(args.out, kin, {"input": info})
-    write_forces(args.out, dyn)
-    fdk = info.pop("fdk", None)
-    summary = {"input": info, "kinematics": kin.summary(), "inverse_dynamics": dyn.summary()}
-    if fdk is not None:
-        summary["fdk"] = fdk
-    write_json(f"{args.out}/summary.json", summary)
+        kin, dyn, info = run_chunked_job(
+            args.model, args.trial, args.chunks, args.out, cutoff_hz=args.cutoff, start=args.start,
+            end=args.end, overlap=args.overlap, scheduler=args.scheduler, workers=args.workers,
+            progress=not args.no_progress)
+    else:
+        from .jobs import run_job
+        from .study.case import write_run_outputs
+
+        kin, dyn, info = run_job(args.model, args.trial, cutoff_hz=args.cutoff, progress=not args.no_progress,
+                                 start=args.start, end=args.end)
+        write_run_outputs(args.out, kin, dyn, info)
+    fdk = info.get("fdk")
     print(
         f"run: kinematics {int(kin.converged.sum())}/{len(kin.time)} frames, inverse dynamics "
         f"{int(dyn.converged.sum())}/{len(dyn.time)} frames converged -> {args.out}/forces.csv"
@@ -155,6 +158,10 @@ def build_parser():
     r = sub.add_parser("run", help="kinematics, then inverse dynamics with muscle recruitment")
     _trial_arguments(r)
     r.set_defaults(func=_cmd_run)
+    from .study.cli import add_chunk_arguments, add_study_parser
+
+    add_chunk_arguments(r)
+    add_study_parser(sub)
 
     d = sub.add_parser("demo", help="the mandible study on the virtual subject, end to end")
     d.add_argument("--out", default="openfdk-demo", help="output directory (default ./openfdk-demo)")

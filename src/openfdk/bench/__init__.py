@@ -13,4 +13,5 @@ BENCHMARK_MODULES = [
     "openfdk.bench.contact",
     "openfdk.bench.fdk",
     "openfdk.bench.mandible",
+    "openfdk.bench.study",
 ]

@@ -27,7 +27,7 @@ from .settings import fdk_settings
 class FDKResult:
     """kinematics : KinematicsResult at the final α of each frame; forces :
     InverseDynamicsResult; alpha, f_fdk : (nf, n_fdk) SI; converged (nf,); iterations,
-    evaluations (nf,) int; reasons, messages : per frame; dof_names; settings."""
+    evaluations (residual evaluations), jacobians (Jacobians computed) (nf,) int; reasons, messages : per frame; dof_names; settings."""
 
     kinematics: KinematicsResult
     forces: object
@@ -41,6 +41,7 @@ class FDKResult:
     messages: tuple
     settings: object
     wall_time: float
+    jacobians: np.ndarray = None  # (nf,) int: Jacobians computed per frame
 
     def summary(self):
         nf = len(self.converged)
@@ -50,6 +51,9 @@ class FDKResult:
             "convergence_rate": float(self.converged.mean()) if nf else 0.0,
             "mean_residual_evaluations_per_frame": float(self.evaluations.mean()) if nf else 0.0,
             "mean_newton_iterations_per_frame": float(self.iterations.mean()) if nf else 0.0,
+            "mean_jacobians_per_frame": (float(self.jacobians.mean()) if nf and self.jacobians is not None
+                                         else None),
+            "reuse_jacobian": self.settings.reuse_jacobian,
             "max_final_residual": float(np.nanmax(np.abs(self.f_fdk))) if nf else 0.0,
             "jacobian": self.settings.jacobian,
             "tolerance": self.settings.tolerance,
@@ -70,6 +74,8 @@ class FDKResult:
         cols["fdk_converged"] = self.converged.astype(int)
         cols["fdk_iterations"] = self.iterations
         cols["fdk_evaluations"] = self.evaluations
+        if self.jacobians is not None:
+            cols["fdk_jacobians"] = self.jacobians
         cols["fdk_reason"] = list(self.reasons)
         return cols
 
@@ -111,6 +117,7 @@ def run_fdk(model, trajectories=None, times=None, settings=None, progress=False,
     ok = np.zeros(nf, dtype=bool)
     iters = np.zeros(nf, dtype=int)
     evals = np.zeros(nf, dtype=int)
+    jacobians = np.zeros(nf, dtype=int)
     reasons, msgs = [""] * nf, [""] * nf
     rec = ForcesRecorder(solver, nf)
 
@@ -122,6 +129,7 @@ def run_fdk(model, trajectories=None, times=None, settings=None, progress=False,
     a_init = np.array([d.initial for d in model.fdk_dofs])
     history = []  # α of the most recent converged frames
     warm = None
+    J_carry = None  # the last converged frame's FDK Jacobian (settings.reuse_jacobian)
     bar = None
     if progress:
         from tqdm.auto import tqdm
@@ -135,7 +143,9 @@ def run_fdk(model, trajectories=None, times=None, settings=None, progress=False,
             a0 = history[-1][1].copy()
         else:
             a0 = a_init.copy()
-        sol = solve_frame(ctx, k, a0, ws, settings, warm)
+        sol = solve_frame(ctx, k, a0, ws, settings, warm, J_carry)
+        J_carry = sol.jacobian if sol.converged else None
+        jacobians[k] = sol.jacobians
         ev = sol.best
         iters[k], evals[k], reasons[k] = sol.iterations, sol.evaluations, sol.reason
         ok[k] = sol.converged
@@ -175,6 +185,7 @@ def run_fdk(model, trajectories=None, times=None, settings=None, progress=False,
         "fdk-tracking" if tracker else "fdk-determinate",
     )
     res = FDKResult(kin, None, tuple(d.name for d in model.fdk_dofs), alpha, f_fdk, ok, iters, evals,
-                    tuple(reasons), tuple(msgs), settings, wall)
+                    tuple(reasons), tuple(msgs), settings, wall, jacobians)
     forces = rec.result(times, wall, res.columns())
-    return FDKResult(kin, forces, res.dof_names, alpha, f_fdk, ok, iters, evals, tuple(reasons), tuple(msgs), settings, wall)
+    return FDKResult(kin, forces, res.dof_names, alpha, f_fdk, ok, iters, evals, tuple(reasons), tuple(msgs), settings, wall,
+                     jacobians)

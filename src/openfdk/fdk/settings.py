@@ -5,6 +5,7 @@ fdk:
   tolerance: 1.0e-3        # N (N m for angular DOFs): converged when max |f^FDK| < tolerance
   max_iterations: 25       # Newton iterations per frame
   jacobian: analytic       # or central (the paper's central differences)
+  reuse_jacobian: true     # carry J between iterations and frames with Broyden updates
   line_search: true        # golden-section search on the step length when the full step fails
   extrapolate: true        # warm start α by linear extrapolation of the two previous frames
 fdk_dofs:
@@ -32,12 +33,14 @@ DEFAULT_PERTURBATION = {"length": 1e-6, "angle": 1e-6}
 @dataclass(frozen=True)
 class FDKSettings:
     """tolerance : N or N m on max |f^FDK|; max_iterations; jacobian : "analytic" or
-    "central"; line_search; extrapolate; max_step, perturbation : (n_fdk,) SI."""
+    "central"; line_search; reuse_jacobian (Broyden-updated J carried between
+    iterations and frames, fdk/newton.py); extrapolate; max_step, perturbation : (n_fdk,) SI."""
 
     tolerance: float = 1e-3
     max_iterations: int = 25
     jacobian: str = "analytic"
     line_search: bool = True
+    reuse_jacobian: bool = True
     extrapolate: bool = True
     max_step: tuple = ()
     perturbation: tuple = ()
@@ -66,7 +69,7 @@ def fdk_settings(model, **overrides) -> FDKSettings:
 
 
 def load_fdk(b, data, ctx):
-    ctx.keys(data, FDK, ["tolerance", "max_iterations", "jacobian", "line_search", "extrapolate"])
+    ctx.keys(data, FDK, ["tolerance", "max_iterations", "jacobian", "line_search", "reuse_jacobian", "extrapolate"])
     out = {}
     if "tolerance" in data:
         out["tolerance"] = ctx.number(data["tolerance"], "fdk.tolerance", positive=True)
@@ -79,7 +82,7 @@ def load_fdk(b, data, ctx):
         if data["jacobian"] not in ("analytic", "central"):
             raise ctx.error("fdk.jacobian", f"expected 'analytic' or 'central', got {data['jacobian']!r}")
         out["jacobian"] = data["jacobian"]
-    for key in ("line_search", "extrapolate"):
+    for key in ("line_search", "reuse_jacobian", "extrapolate"):
         if key in data:
             if not isinstance(data[key], bool):
                 raise ctx.error(f"fdk.{key}", f"expected true or false, got {data[key]!r}")

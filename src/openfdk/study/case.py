@@ -88,9 +88,10 @@ def case_definition(case):
     }
 
 
-def publish_case(out_root, case, kin, dyn, info, wall_time):
-    """Write a case's results under a temporary name and rename it into place.
-    Returns the case.json record."""
+def publish_case(out_root, case, kin, dyn, info, wall_time, force=False):
+    """Write a case's results under a temporary name and rename it into place (an
+    existing folder with the same fingerprint is kept unless ``force``). Returns the
+    case.json record."""
     cases = Path(out_root) / CASES
     cases.mkdir(parents=True, exist_ok=True)
     final = cases / case.case_id
@@ -105,7 +106,7 @@ def publish_case(out_root, case, kin, dyn, info, wall_time):
             os.rename(tmp, final)
         except OSError:
             # the final name exists: a finished twin (keep it) or a stale result (replace)
-            twin = completed_record(final, case.fingerprint)
+            twin = None if force else completed_record(final, case.fingerprint)
             if twin is not None:
                 shutil.rmtree(tmp, ignore_errors=True)
                 return twin
@@ -119,11 +120,12 @@ def publish_case(out_root, case, kin, dyn, info, wall_time):
     return record
 
 
-def run_case(case, out_root):
+def run_case(case, out_root, force=False):
     """Dask task / serial step: run one case (its chunks one after the other when
-    ``options.chunks`` > 1) and publish its folder. Returns the case.json record.
-    Exceptions propagate (the driver retries, then records them)."""
-    done = completed_record(case_dir(out_root, case.case_id), case.fingerprint)
+    ``options.chunks`` > 1) and publish its folder; a complete folder is returned as it
+    is unless ``force``. Returns the case.json record. Exceptions propagate (the driver
+    retries, then records them)."""
+    done = None if force else completed_record(case_dir(out_root, case.case_id), case.fingerprint)
     if done is not None:
         return done
     t0 = _time.perf_counter()
@@ -142,7 +144,7 @@ def run_case(case, out_root):
     info = {"model": label, **info}
     if fdk is not None:
         info["fdk"] = fdk.summary()
-    return publish_case(out_root, case, kin, dyn, info, _time.perf_counter() - t0)
+    return publish_case(out_root, case, kin, dyn, info, _time.perf_counter() - t0, force)
 
 
 def segment_task(case, index):
@@ -154,10 +156,11 @@ def segment_task(case, index):
     return solve_segment(model, traj, times, segment, {"model": label, **info})
 
 
-def finish_chunked_case(case, out_root, started, *segment_results):
+def finish_chunked_case(case, out_root, started, force, *segment_results):
     """Dask task: stitch the segments of a chunked case and publish it. ``started`` is
-    the wall-clock time (time.time(), s) the case was submitted."""
-    done = completed_record(case_dir(out_root, case.case_id), case.fingerprint)
+    the wall-clock time (time.time(), s) the case was submitted; ``force`` as in
+    :func:`run_case`."""
+    done = None if force else completed_record(case_dir(out_root, case.case_id), case.fingerprint)
     if done is not None:
         return done
     wall = _time.time() - started
@@ -165,4 +168,4 @@ def finish_chunked_case(case, out_root, started, *segment_results):
     info = {**segment_results[0].info, **chunk_info(segment_results, case.options.overlap)}
     if fdk is not None:
         info["fdk"] = fdk.summary()
-    return publish_case(out_root, case, kin, dyn, info, wall)
+    return publish_case(out_root, case, kin, dyn, info, wall, force)

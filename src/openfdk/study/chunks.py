@@ -19,6 +19,7 @@ zero-lag Butterworth filter is not local), exactly as in the serial run.
 
 from __future__ import annotations
 
+import itertools
 import re
 import time as _time
 from dataclasses import dataclass, field, fields, replace
@@ -26,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .spec import DEFAULT_OVERLAP
+from .defaults import DEFAULT_OVERLAP
 
 
 @dataclass(frozen=True)
@@ -52,7 +53,7 @@ def plan_segments(n_frames: int, chunks: int, overlap: int = DEFAULT_OVERLAP) ->
         raise ValueError(f"overlap must be >= 0 frames, got {overlap}")
     edges = np.linspace(0, n_frames, chunks + 1).round().astype(int)
     return [Segment(k, int(a), int(b), max(0, int(a) - overlap - 1), min(n_frames, int(b) + 1))
-            for k, (a, b) in enumerate(zip(edges[:-1], edges[1:]))]
+            for k, (a, b) in enumerate(itertools.pairwise(edges))]
 
 
 def analysis_inputs(model, trial_path=None, cutoff_hz=None, start=None, end=None):
@@ -121,7 +122,8 @@ _PER_FRAME = {
     "InverseDynamicsResult": ("time", "forces", "muscle_length", "muscle_speed", "muscle_strength", "muscle_passive",
                               "ligament_length", "ligament_strain", "ligament_force", "spring_force", "converged",
                               "status", "messages", "iterations"),
-    "FDKResult": ("alpha", "f_fdk", "converged", "iterations", "evaluations", "reasons", "messages"),
+    "FDKResult": ("alpha", "f_fdk", "converged", "iterations", "evaluations", "jacobians", "reasons",
+                  "messages"),
 }
 
 
@@ -190,7 +192,7 @@ def stitch(results, wall_time=None):
     the segments' wall times)."""
     results = sorted(results, key=lambda r: r.segment.index)
     segs = [r.segment for r in results]
-    for a, b in zip(segs[:-1], segs[1:]):
+    for a, b in itertools.pairwise(segs):
         if a.keep_stop != b.keep_start:
             raise ValueError(f"segments {a.index} and {b.index} do not join (frames {a.keep_stop} and {b.keep_start})")
     if segs[0].keep_start != 0:

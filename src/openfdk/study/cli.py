@@ -15,7 +15,7 @@ import sys
 import time as _time
 from pathlib import Path
 
-from .spec import DEFAULT_OVERLAP, Case, RunOptions, StudyError
+from .defaults import DEFAULT_OVERLAP
 
 
 def add_study_parser(subparsers):
@@ -27,10 +27,12 @@ def add_study_parser(subparsers):
     )
     p.add_argument("study", help="study file (YAML)")
     p.add_argument("--out", required=True, help="output directory (one folder per case, summary.csv)")
-    p.add_argument("--scheduler", default=None, help="address of a running Dask scheduler (default: a LocalCluster here)")
+    p.add_argument("--scheduler", default=None,
+                   help="address of a running Dask scheduler (default: a LocalCluster here)")
     p.add_argument("--workers", type=int, default=None,
                    help="LocalCluster worker processes (default: CPU count); 0 = run the cases in this process")
-    p.add_argument("--retries", type=int, default=None, help="runs of a failing case after the first (default: study file, else 2)")
+    p.add_argument("--retries", type=int, default=None,
+                   help="runs of a failing case after the first (default: study file, else 2)")
     p.add_argument("--force", action="store_true", help="run complete cases again")
     p.add_argument("--list", action="store_true", help="list the cases and exit")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -45,7 +47,8 @@ def add_chunk_arguments(parser):
                         help="split the trial into K frame segments solved in parallel, then stitched (default 1)")
     parser.add_argument("--overlap", type=int, default=DEFAULT_OVERLAP,
                         help=f"warm-up frames solved before each chunk and dropped (default {DEFAULT_OVERLAP})")
-    parser.add_argument("--scheduler", default=None, help="address of a running Dask scheduler (default: a LocalCluster)")
+    parser.add_argument("--scheduler", default=None,
+                        help="address of a running Dask scheduler (default: a LocalCluster)")
     parser.add_argument("--workers", type=int, default=None,
                         help="LocalCluster worker processes (default: min(chunks, CPUs)); 0 = in this process")
     return parser
@@ -63,7 +66,7 @@ def _print_cases(study):
 def cmd_study(args):
     """Handler of ``openfdk study``: returns the exit code."""
     from .runner import run_study
-    from .spec import load_study
+    from .spec import StudyError, load_study
 
     study = load_study(args.study)
     if args.list:
@@ -85,6 +88,8 @@ def cmd_study(args):
 
 def job_case(model_path, trial_path, chunks, overlap=DEFAULT_OVERLAP, cutoff_hz=None, start=None, end=None):
     """A model-kind Case (no overrides) for one model file and trial."""
+    from .spec import Case, RunOptions
+
     model = Path(model_path)
     if not model.is_file():
         raise FileNotFoundError(f"model file {str(model)!r} does not exist")

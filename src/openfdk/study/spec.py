@@ -24,12 +24,11 @@ from pathlib import Path
 
 import yaml
 
+from .defaults import DEFAULT_OVERLAP, DEFAULT_RETRIES
 from .kinds import CASE_KINDS, import_callable
 from .overrides import Override, OverrideError, apply_overrides
 
 FORMAT_VERSION = 1
-DEFAULT_OVERLAP = 5  # frames solved before each chunk and dropped (warm start)
-DEFAULT_RETRIES = 2
 TOP_LEVEL = ("openfdk_study", "name", "description", "kind", "parameters", "grid", "cases", "run")
 RUN_KEYS = ("chunks", "overlap", "cutoff_hz", "start", "end", "metrics", "retries")
 
@@ -213,7 +212,8 @@ def _parameter_sets(ctx, data, params):
                 close = difflib.get_close_matches(k, list(params), n=1)
                 hint = f"; did you mean {close[0]!r}?" if close else f"; declared: {list(params)}"
                 where = f"grid.{k}" if grid is not None and k in grid else f"cases[{i}].{k}"
-                raise ctx.error(where, f"unknown parameter (not declared under 'parameters' and not a dotted path){hint}")
+                raise ctx.error(where, "unknown parameter (not declared under 'parameters' and not a dotted "
+                                       f"path){hint}")
     return sets
 
 
@@ -226,9 +226,13 @@ def _overrides(pset, params):
             continue
         v = value
         if p.scale != 1.0:
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
+            try:  # YAML 1.1 reads 1.0e10 (no sign in the exponent) as a string
+                number = float(value) if isinstance(value, str) else value
+            except ValueError:
+                number = None
+            if isinstance(number, bool) or not isinstance(number, (int, float)):
                 raise StudyError(f"parameter {key!r} has scale {p.scale}; its values must be numbers, got {value!r}")
-            v = value * p.scale
+            v = number * p.scale
         out += [Override(path, v, p.mode) for path in p.paths]
     return tuple(out)
 

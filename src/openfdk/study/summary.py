@@ -133,7 +133,7 @@ def summary_rows(study, records):
 
 
 def _singular(section):
-    return section[:-1] if section.endswith("s") else section
+    return section.removesuffix("s")
 
 
 def _cell(x):
