@@ -55,6 +55,61 @@ def test_demo_quick_physically_meaningful(demo_dir):
                 assert np.all(f >= 0) and np.median(f) > 0
 
 
+def test_demo_quick_parameter_study_runs_through_the_study_machinery(demo_dir):
+    """The quick parameter study (k = 136.2 and 544.8 N/m at ε_r = 0 on open–close) is an
+    openfdk.study study: one row per case in summary.csv, every case converged, and —
+    since the ligaments are far too weak to move the joint — the kinematics are nearly
+    the same, so every ligament's peak force scales with the stiffness (ratio 4)."""
+    ps = demo_dir / "study" / "parameter_study"
+    rows = _rows(ps / "summary.csv")
+    assert [r["case_id"] for r in rows] == ["fdk-open_close-000", "fdk-open_close-001"]
+    assert [float(r["stiffness"]) for r in rows] == [136.2, 544.8]
+    for r in rows:
+        assert r["status"] == "completed" and float(r["convergence_rate"]) >= 0.99
+        assert (ps / "cases" / r["case_id"] / "forces.csv").is_file()
+    peaks = [k for k in rows[0] if k.startswith("tmj_ligament") and k.endswith(".peak_force_N")]
+    assert len(peaks) == 6
+    for k in peaks:
+        lo, hi = float(rows[0][k]), float(rows[1][k])
+        assert lo > 0 and hi / lo == pytest.approx(544.8 / 136.2, rel=0.05), k
+    summary = json.loads((demo_dir / "study" / "summary.json").read_text())
+    assert summary["runs"]["parameter_study"]["cases"] == 2 and not summary["runs"]["parameter_study"]["failed"]
+
+
+def test_parameter_study_case_series_in_the_skull_frame(tmp_path):
+    """The figures' grey band is built from the case folders' CSV files: a hand-made case
+    (skull turned 90° about z, mandible sliding 2 mm along world x) gives the condyle
+    displacement and contact force in the skull frame worked out by hand."""
+    from types import SimpleNamespace
+
+    from openfdk.mandible.parameter_study import case_tmj_series
+
+    subject = SimpleNamespace(mandible=SimpleNamespace(center_of_mass=np.zeros(3)),
+                              condyle_top=lambda tag: np.array([0.01, 0.05 if tag == "r" else -0.05, 0.0]))
+    t = np.linspace(0.0, 1.0, 11)
+    folder = tmp_path / "case"
+    folder.mkdir()
+    head = ["time"] + [f"{b}.{c}" for b in ("skull", "mandible") for c in ("x_m", "y_m", "z_m", "e0", "e1", "e2", "e3")]
+    with open(folder / "kinematics.csv", "w") as fh:
+        fh.write(",".join(head) + "\n")
+        for ti in t:
+            # skull turned 90° about z (e = [cos 45°, 0, 0, sin 45°]); mandible translated 2 mm along world x
+            s = [0.0, 0.0, 0.0, np.sqrt(0.5), 0.0, 0.0, np.sqrt(0.5)]
+            m = [0.002 * ti, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
+            fh.write(",".join(str(x) for x in [ti] + s + m) + "\n")
+    with open(folder / "forces.csv", "w") as fh:
+        fh.write("time,tmj_r.Fx_N,tmj_r.Fy_N,tmj_r.Fz_N\n")
+        for ti in t:
+            fh.write(f"{ti},10.0,0.0,-5.0\n")
+    time, kin, forces = case_tmj_series(folder, subject)
+    # world x is the skull's −y: p_S = R_WSᵀ p_W; displacement = p_S − condyle top
+    p_W = np.array([0.01, 0.05, 0.0])
+    expected_r = np.array([p_W[1], -p_W[0], 0.0])[None, :] + np.outer(0.002 * t, [0.0, -1.0, 0.0]) - [0.01, 0.05, 0]
+    np.testing.assert_allclose(kin["right"], expected_r, atol=1e-12)
+    np.testing.assert_allclose(forces["right"], np.tile([0.0, -10.0, -5.0], (11, 1)), atol=1e-12)
+    assert np.all(np.isnan(forces["left"]))  # no left contact columns: NaN, not zero
+
+
 def test_symmetric_subject_symmetric_open_close(tmp_path):
     """A symmetric subject, a symmetric open–close without noise, head motion or
     model–truth differences: left and right TMJ kinematics and forces mirror each other

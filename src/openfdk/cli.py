@@ -86,7 +86,7 @@ def _cmd_run(args):
 def _cmd_demo(args):
     from .mandible.demo import run_demo
 
-    run_demo(args.out, quick=args.quick, progress=not args.no_progress)
+    run_demo(args.out, quick=args.quick, progress=not args.no_progress, workers=args.workers)
     return 0
 
 
@@ -94,7 +94,15 @@ def _cmd_subject(args):
     from .mandible.experiment import record_experiment
     from .mandible.generator import create_subject
 
-    if args.action == "create":
+    if args.action == "study":
+        from .mandible.demo import report
+        from .mandible.study import run_study
+
+        out = args.out or f"{args.directory.rstrip('/')}-study"
+        result = run_study(args.directory, out, n_cycles=args.cycles, progress=not args.no_progress,
+                           workers=args.workers, scheduler=args.scheduler)
+        report(result, out)
+    elif args.action == "create":
         path = create_subject(args.directory, resolution=args.resolution, symmetric=not args.asymmetric, seed=args.seed)
         print(f"virtual subject written to {path}/ (subject.yaml and STL files); next: openfdk subject record {path}")
     else:
@@ -167,14 +175,23 @@ def build_parser():
     d.add_argument("--out", default="openfdk-demo", help="output directory (default ./openfdk-demo)")
     d.add_argument("--quick", action="store_true", help="a reduced run (coarse meshes, 2 cycles; for tests)")
     d.add_argument("--no-progress", action="store_true", help="no progress bar")
+    d.add_argument("--workers", type=int, default=None,
+                   help="parameter-study worker processes (default one per CPU; 0 = this process)")
     d.set_defaults(func=_cmd_demo)
 
     s = sub.add_parser("subject", help="create a virtual mandible subject or record its virtual experiment")
-    s.add_argument("action", choices=["create", "record"])
+    s.add_argument("action", choices=["create", "record", "study"],
+                   help="create: write a virtual subject; record: its virtual experiment; study: run the mandible "
+                        "study (POP, FDK, tables, figures, parameter study) on a subject folder")
     s.add_argument("directory")
     s.add_argument("--resolution", default="default", choices=["coarse", "default", "fine"], help="mesh resolution (create)")
     s.add_argument("--asymmetric", action="store_true", help="perturb left and right shapes differently (create)")
-    s.add_argument("--cycles", type=int, default=5, help="cycles per task (record)")
+    s.add_argument("--cycles", type=int, default=5, help="cycles per task (record), cycles analysed (study)")
+    s.add_argument("--out", default=None, help="output folder (study; default DIRECTORY-study)")
+    s.add_argument("--workers", type=int, default=None,
+                   help="parameter-study worker processes (study; default one per CPU, 0 = this process)")
+    s.add_argument("--scheduler", default=None, help="address of a running Dask scheduler (study)")
+    s.add_argument("--no-progress", action="store_true", help="no progress bar")
     s.add_argument("--noise", type=float, default=0.15, help="marker noise in mm (record)")
     s.add_argument("--seed", type=int, default=0)
     s.set_defaults(func=_cmd_subject)

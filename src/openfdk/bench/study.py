@@ -1,76 +1,87 @@
-"""Benchmark: the paper's 15-model TMJ ligament parameter study (whole-ligament stiffness
-136.2 / 272.4 / 544.8 N/m split over 3 elements × reference strain −0.04…0.04 step 0.02,
-DESIGN.md §2) on the synthetic TMJ-like FDK model (the stand-in until the mandible
-models land), one 300-frame open–close trial at 100 Hz, run as a study.
+"""Benchmark: the mandible study's ligament parameter study (the paper's 15 FDK models:
+whole-ligament stiffness 136.2 / 272.4 / 544.8 N/m × reference strain −0.04…0.04 step
+0.02, DESIGN.md §2) on the virtual subject's open–close trial, run as an openfdk.study
+study exactly as ``openfdk demo`` runs it (:mod:`openfdk.mandible.parameter_study`).
 
-Each timing runs ``run_study`` in a fresh Python process, so both sides pay their
-start-up (imports, numba cache loading, distance grids; for Dask also the cluster and
-its worker processes), with BLAS/OpenMP limited to one thread as in Dask's workers (a
+Each timing runs the study in a fresh Python process, so both sides pay their start-up
+(imports, numba cache loading, distance grids; for Dask also the cluster and its worker
+processes), with BLAS/OpenMP limited to one thread as in Dask's workers (a
 multi-threaded BLAS on these small matrices is slower, and erratic when the other core
 is busy):
 
 * ``study_param15_serial_s``: ``workers=0``, every case one after the other;
 * ``study_param15_2workers_s``: a 2-process LocalCluster (started and stopped inside);
-* ``study_param15_speedup``: their ratio (target >= 1.7 on 2 cores);
+* ``study_param15_speedup``: their ratio (target >= 1.7 on 2 cores; the ceiling for 15
+  equal cases on 2 workers is 15/8 = 1.875);
 * ``study_param15_2workers_warm_s`` / ``study_param15_2workers_malloc_trim_warm_s``:
   the study on an already running, warmed-up 2-worker cluster without / with Dask's
   ``MALLOC_TRIM_THRESHOLD_=65536`` in the workers (DESIGN.md §5; openfdk removes it).
 
-Quick mode: 4 cases of 30 frames, no warm variants.
+Quick mode: coarse meshes, 2 cases of 40 frames, no warm variants.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
+import pickle
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-STIFFNESS = [136.2, 272.4, 544.8]  # N/m, whole ligament (paper)
-REFERENCE_STRAIN = [-0.04, -0.02, 0.0, 0.02, 0.04]
 SINGLE_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
-def write_inputs(d: Path, n_frames: int, grid: dict) -> Path:
-    """Meshes, the TMJ-like model, a trial of n_frames and a study file over ``grid`` in
-    ``d``. Returns the study file."""
-    import yaml
+def write_inputs(d: Path, n_frames: int, quick: bool) -> Path:
+    """A virtual subject, its open–close recording, the mandible models and the
+    parameter study over the first ``n_frames`` frames, in ``d``. The study (a Study
+    object: its cases carry the analysis window) is pickled to ``d/study.pkl``, whose
+    path is returned."""
+    from ..mandible.experiment import record_experiment
+    from ..mandible.generator import create_subject
+    from ..mandible.models import write_models
+    from ..mandible.parameter_study import parameter_study
+    from ..mandible.registration import register_braces
+    from ..mandible.subject import load_subject
 
-    from ..io.c3d import write_c3d
-    from ..synthetic_jaw import jaw_fdk_model_dict, jaw_markers, write_jaw_meshes
+    subject_dir = create_subject(d / "subject", resolution="coarse" if quick else "default")
+    record_experiment(subject_dir, tasks=("open_close",), cycles=1 if quick else 3)
+    subject = load_subject(subject_dir)
+    reg = register_braces(subject, subject_dir / "trials" / "reference.c3d")
+    models = write_models(subject, reg, d / "models")
+    trial = subject_dir / "trials" / "open_close.c3d"
+    study = parameter_study(models["fdk"], {"open_close": (trial, 0.0, (n_frames - 1) / 100.0)}, quick=quick)
+    return _save(study, d / "study.pkl")
 
-    d.mkdir(parents=True, exist_ok=True)
-    write_jaw_meshes(d / "meshes")
-    (d / "tmj.yaml").write_text(yaml.safe_dump(jaw_fdk_model_dict("meshes"), sort_keys=False))
-    _t, labels, x, _ = jaw_markers(n_frames, noise=1e-4, seed=5)
-    write_c3d(d / "trial.c3d", labels, x, 100.0)
-    study = {
-        "openfdk_study": 1, "name": "param15", "models": {"tmj": "tmj.yaml"}, "trials": {"open_close": "trial.c3d"},
-        "parameters": {"stiffness": {"set": "ligaments.tmj_ligament_*.stiffness", "scale": 1 / 3},
-                       "reference_strain": "ligaments.tmj_ligament_*.reference_strain"},
-        "grid": grid,
-    }
-    (d / "study.yaml").write_text(yaml.safe_dump(study, sort_keys=False))
-    return d / "study.yaml"
+
+def _save(study, path):
+    Path(path).write_bytes(pickle.dumps(study))
+    return Path(path)
+
+
+def _load(path):
+    return pickle.loads(Path(path).read_bytes())
 
 
 def warm_process(study_path, out_dir):
-    """Run a (small) study in this process, e.g. in every worker through client.run."""
+    """Run a (small) pickled study in this process, e.g. in every worker through
+    client.run."""
     from ..study.runner import run_study
 
-    run_study(study_path, Path(out_dir) / str(os.getpid()), workers=0, progress=False, force=True)
+    run_study(_load(study_path), Path(out_dir) / str(os.getpid()), workers=0, progress=False, force=True)
 
 
 def _timed_in_fresh_process(study_path, out_dir, workers):
     """Wall time (s) of run_study in a new interpreter, and its counts."""
     code = ("import json, sys, time\n"
+            "from openfdk.bench.study import _load\n"
             "from openfdk.study.runner import run_study\n"
             "if __name__ == '__main__':\n"
             "    t0 = time.perf_counter()\n"
-            "    res = run_study(sys.argv[1], sys.argv[2], workers=int(sys.argv[3]), progress=False)\n"
+            "    res = run_study(_load(sys.argv[1]), sys.argv[2], workers=int(sys.argv[3]), progress=False)\n"
             "    print(json.dumps({'wall_s': time.perf_counter() - t0, 'counts': res.summary['counts'],\n"
             "                      'convergence': [r['metrics']['convergence_rate'] for r in res.records\n"
             "                                      if r['status'] == 'completed']}))\n")
@@ -90,15 +101,12 @@ def _timed_in_fresh_process(study_path, out_dir, workers):
 def run(quick=False):
     from ..study.cluster import dask_client
     from ..study.runner import run_study
-    from ..study.spec import load_study
 
-    n_frames = 30 if quick else 300
-    grid = ({"stiffness": STIFFNESS[:2], "reference_strain": REFERENCE_STRAIN[:2]} if quick
-            else {"stiffness": STIFFNESS, "reference_strain": REFERENCE_STRAIN})
+    n_frames = 40 if quick else 300
     out = []
     with tempfile.TemporaryDirectory() as tmp:
         d = Path(tmp)
-        study_path = write_inputs(d / "inputs", n_frames, grid)
+        study_path = write_inputs(d / "inputs", n_frames, quick)
         serial = _timed_in_fresh_process(study_path, d / "out-serial", 0)
         parallel = _timed_in_fresh_process(study_path, d / "out-2workers", 2)
         out += [
@@ -111,8 +119,8 @@ def run(quick=False):
              "value": min(serial["convergence"] + parallel["convergence"]), "unit": "fraction"},
         ]
         if not quick:
-            warm = write_inputs(d / "warm", 5, {"stiffness": [272.4]})
-            study = load_study(study_path)
+            study = _load(study_path)
+            warm = _save(dataclasses.replace(study, cases=study.cases[:1]), d / "warm.pkl")
             for name, trim in (("study_param15_2workers_warm_s", False),
                                ("study_param15_2workers_malloc_trim_warm_s", True)):
                 with dask_client(workers=2, malloc_trim=trim) as client:

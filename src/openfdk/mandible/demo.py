@@ -13,11 +13,13 @@ import time as _time
 from pathlib import Path
 
 
-def run_demo(out="openfdk-demo", quick=False, progress=True, log=print):
+def run_demo(out="openfdk-demo", quick=False, progress=True, log=print, workers=None, scheduler=None):
+    """Subject, recordings and study in ``out`` (see the module docstring); ``workers`` /
+    ``scheduler``: where the parameter study runs (:func:`.study.run_study`). Returns the
+    study's result dict."""
     from .experiment import record_experiment
     from .generator import create_subject
     from .study import run_study
-    from .tables import format_text
 
     t0 = _time.perf_counter()
     out = Path(out)
@@ -31,7 +33,17 @@ def run_demo(out="openfdk-demo", quick=False, progress=True, log=print):
         log(f"recording the virtual experiment ({cycles + 2} cycles per task) ...")
         record_experiment(subject, cycles=cycles + 2)
     log(f"running the mandible study -> {out}/")
-    result = run_study(subject, out / "study", n_cycles=cycles, quick=quick, progress=progress, log=log)
+    result = run_study(subject, out / "study", n_cycles=cycles, quick=quick, progress=progress, log=log,
+                       workers=workers, scheduler=scheduler)
+    report(result, out / "study", log)
+    log(f"done in {_time.perf_counter() - t0:.0f} s")
+    return result
+
+
+def report(result, study_dir, log=print):
+    """Print Tables 1 and 2 of a finished study and where its files are."""
+    from .tables import format_text
+
     log("")
     log("Table 1: TMJ kinematics of the FDK and POP models vs measured (mean ± SD over cycles; RMSD in mm)")
     log(format_text(result["table1"]))
@@ -39,9 +51,8 @@ def run_demo(out="openfdk-demo", quick=False, progress=True, log=print):
     log("Table 2: TMJ reaction forces, POP vs FDK (mean ± SD over cycles; RMSD in N)")
     log(format_text(result["table2"]))
     log("")
-    log(f"tables: {out}/study/table1.md, {out}/study/table2.md (and .csv)")
-    log(f"figures: {out}/study/figures/")
+    log(f"tables: {study_dir}/table1.md, {study_dir}/table2.md (and .csv)")
+    log(f"parameter study: {study_dir}/parameter_study/summary.csv (one row per case)")
+    log(f"figures: {study_dir}/figures/")
     for f in result["figures"]:
         log(f"  {f}")
-    log(f"done in {_time.perf_counter() - t0:.0f} s")
-    return result

@@ -19,8 +19,8 @@ from ..spatial import rotation_matrix
 SIDE_TAGS = {"right": "r", "left": "l"}
 
 
-def _skull_rotations(kin, skull=0):
-    q = kin.q[:, 7 * skull + 3 : 7 * skull + 7]
+def _rotations(q):
+    """(nf, 3, 3) rotation matrices of (nf, 4) unit quaternions (NaN rows stay NaN)."""
     R = np.full((len(q), 3, 3), np.nan)
     ok = np.all(np.isfinite(q), axis=1)
     for k in np.flatnonzero(ok):
@@ -28,19 +28,27 @@ def _skull_rotations(kin, skull=0):
     return R
 
 
-def condyle_kinematics(kin, subject):
-    """dict side -> (nf, 3) m: condyle tops in the skull frame (NaN for failed frames)."""
-    i_s, i_m = kin.body_names.index("skull"), kin.body_names.index("mandible")
-    R_S = _skull_rotations(kin, i_s)
-    R_M = _skull_rotations(kin, i_m)
-    r_S, r_M = kin.q[:, 7 * i_s : 7 * i_s + 3], kin.q[:, 7 * i_m : 7 * i_m + 3]
+def _body_poses(kin, name):
+    i = kin.body_names.index(name)
+    return kin.q[:, 7 * i : 7 * i + 7]
+
+
+def skull_frame_points(q_S, q_M, subject):
+    """dict side -> (nf, 3) m: the condyle tops in the skull frame, from the skull and
+    mandible poses q_S, q_M (nf, 7) = (position m, unit quaternion) per frame."""
+    R_S, R_M = _rotations(q_S[:, 3:7]), _rotations(q_M[:, 3:7])
     com = subject.mandible.center_of_mass
     out = {}
     for side, tag in SIDE_TAGS.items():
         c = subject.condyle_top(tag) - com
-        p_W = r_M + np.einsum("nij,j->ni", R_M, c)
-        out[side] = np.einsum("nji,nj->ni", R_S, p_W - r_S)
+        p_W = q_M[:, :3] + np.einsum("nij,j->ni", R_M, c)
+        out[side] = np.einsum("nji,nj->ni", R_S, p_W - q_S[:, :3])
     return out
+
+
+def condyle_kinematics(kin, subject):
+    """dict side -> (nf, 3) m: condyle tops in the skull frame (NaN for failed frames)."""
+    return skull_frame_points(_body_poses(kin, "skull"), _body_poses(kin, "mandible"), subject)
 
 
 def pop_forces(dyn, kin, subject):
@@ -58,12 +66,17 @@ def pop_forces(dyn, kin, subject):
     return out
 
 
-def fdk_forces(dyn, kin, subject):
-    """dict side -> (nf, 3) N: FDK contact forces on the mandible in S."""
-    cols = dyn.extra["columns"]
-    R_S = _skull_rotations(kin, kin.body_names.index("skull"))
+def skull_frame_forces(columns, q_S):
+    """dict side -> (nf, 3) N: the contact forces ``tmj_<r|l>.F{x,y,z}_N`` of ``columns``
+    (forces.csv columns, world frame) in the skull frame of poses q_S (nf, 7)."""
+    R_S = _rotations(q_S[:, 3:7])
     out = {}
     for side, tag in SIDE_TAGS.items():
-        F_W = np.stack([cols.get(f"tmj_{tag}.F{c}_N", np.full(len(kin.time), np.nan)) for c in "xyz"], axis=1)
+        F_W = np.stack([columns.get(f"tmj_{tag}.F{c}_N", np.full(len(q_S), np.nan)) for c in "xyz"], axis=1)
         out[side] = np.einsum("nji,nj->ni", R_S, F_W)
     return out
+
+
+def fdk_forces(dyn, kin, subject):
+    """dict side -> (nf, 3) N: FDK contact forces on the mandible in S."""
+    return skull_frame_forces(dyn.extra["columns"], _body_poses(kin, "skull"))

@@ -4,11 +4,12 @@ every task, cycles, Tables 1–2, Figures 5–7 and the ligament parameter study
 Only public openfdk layers and ordinary model files are used, so a real subject folder
 (CT-segmented STL files, landmarks, C3D recordings in ``trials/``) runs the same way:
 
-    run_study("my_subject", "out")   # or: openfdk study-mandible ...  (see docs)
+    run_study("my_subject", "out")   # or: openfdk subject study my_subject --out out
 
-Outputs in ``out``: ``models/pop.yaml``, ``models/fdk.yaml`` (+ the parameter-study
-variants), per task ``<task>/{pop,fdk}/{kinematics,forces}.csv``, ``table1.{csv,md}``,
-``table2.{csv,md}``, ``figures/<task>_{kinematics,forces}.png``, ``summary.json``.
+Outputs in ``out``: ``models/pop.yaml``, ``models/fdk.yaml``, per task
+``<task>/{pop,fdk}/{kinematics,forces}.csv``, ``table1.{csv,md}``, ``table2.{csv,md}``,
+``figures/<task>_{kinematics,forces}.png``, ``parameter_study/`` (an openfdk.study
+output folder: ``summary.csv``, ``cases/<case>/``), ``summary.json``.
 """
 
 from __future__ import annotations
@@ -22,8 +23,7 @@ from ..io.results import write_forces, write_json, write_kinematics
 from ..jobs import run_job
 from .experiment import mandible_points_in_skull
 from .extract import condyle_kinematics, fdk_forces, pop_forces
-from .models import (DEFAULT_STIFFNESS, DEFAULT_STRAIN, PARAMETER_STUDY_STIFFNESS, PARAMETER_STUDY_STRAIN,
-                     model_dict, write_model, write_models)
+from .models import DEFAULT_STIFFNESS, DEFAULT_STRAIN, write_models
 from .registration import register_braces
 from .subject import load_subject
 
@@ -40,14 +40,6 @@ def _trial(subject_dir, name):
     if not p.is_file():
         raise StudyError(f"subject folder {str(subject_dir)!r}: trial file trials/{name}.c3d is missing")
     return p
-
-
-def parameter_variants(quick=False):
-    """(label, stiffness N/m, reference strain) of the parameter study (15 models; quick:
-    the stiffness extremes at zero reference strain)."""
-    if quick:
-        return [(f"k{k:g}_e0", k, 0.0) for k in (PARAMETER_STUDY_STIFFNESS[0], PARAMETER_STUDY_STIFFNESS[-1])]
-    return [(f"k{k:g}_e{e:+g}", k, e) for k in PARAMETER_STUDY_STIFFNESS for e in PARAMETER_STUDY_STRAIN]
 
 
 def analyse_task(subject, registration, models, task, out_dir, progress=False, n_cycles=None, margin=0.05):
@@ -116,8 +108,12 @@ def cycle_arrays(series, n_cycles, n_points=101):
 
 
 def run_study(subject_dir, out_dir, tasks=TASKS, n_cycles=5, quick=False, parameter_study=True, progress=True,
-              log=print):
-    """The whole study; returns a dict summary (also written to summary.json)."""
+              log=print, workers=None, scheduler=None):
+    """The whole study; returns a dict summary (also written to summary.json).
+
+    The parameter study runs as an :mod:`openfdk.study` study in ``out/parameter_study``
+    on a LocalCluster of ``workers`` processes (default one per CPU; 0 = in this
+    process) or on the Dask scheduler at ``scheduler``; a rerun skips its complete cases."""
     from .figures import plot_forces, plot_kinematics
     from .tables import table1, table2, to_markdown, write_csv
 
@@ -135,11 +131,24 @@ def run_study(subject_dir, out_dir, tasks=TASKS, n_cycles=5, quick=False, parame
         runs[task] = task_runs
     bands = {}
     if parameter_study:
-        variants = parameter_variants(quick)
-        log(f"  parameter study: {len(variants)} FDK models × {1 if quick else len(tasks)} task(s) ...")
+        from .parameter_study import parameter_bands, parameter_grid, run_parameter_study
+
         study_tasks = tasks if not quick else tasks[-1:]  # quick: the band on one task only
-        bands, runs["parameter_study"] = _parameter_study(subject, registration, out, variants, study_tasks, per_task,
-                                                          progress)
+        n_models = int(np.prod([len(v) for v in parameter_grid(quick).values()]))
+        log(f"  parameter study: {n_models} FDK models × {len(study_tasks)} task(s) -> {out / 'parameter_study'}/ ...")
+        windows = {task: (_trial(subject_dir, task), per_task[task][0]["time"][0], per_task[task][0]["time"][-1])
+                   for task in study_tasks}
+        result = run_parameter_study(models["fdk"], windows, out / "parameter_study", quick=quick, workers=workers,
+                                     scheduler=scheduler, progress=progress)
+        for rec in result.failed:
+            log(f"  parameter study case {rec['case_id']} failed: {rec.get('error', '')}")
+        bands = parameter_bands(result, subject, {task: (per_task[task][0]["time"], per_task[task][1]["cycles"])
+                                                  for task in study_tasks})
+        runs["parameter_study"] = {
+            "cases": len(result.records), "failed": [r["case_id"] for r in result.failed],
+            "wall_time_s": result.wall_time, "execution": result.summary["execution"],
+            "convergence_rate": {r["case_id"]: r.get("metrics", {}).get("convergence_rate") for r in result.records},
+        }
     results = {task: {"kinematics": c["kinematics"], "forces": c["forces"]} for task, (_, c) in per_task.items()}
     rows1, rows2 = table1(results), table2(results)
     write_csv(rows1, out / "table1.csv")
@@ -162,33 +171,5 @@ def run_study(subject_dir, out_dir, tasks=TASKS, n_cycles=5, quick=False, parame
     return {"summary": summary, "table1": rows1, "table2": rows2, "figures": figures}
 
 
-def _parameter_study(subject, registration, out, variants, tasks, per_task, progress):
-    """FDK variants over every task; bands: task -> kinematics/forces -> side ->
-    (n_variants, n_points, 3) of each variant's mean cycle."""
-    from .cycles import normalize_cycles
-
-    bands = {task: {"kinematics": {}, "forces": {}} for task in tasks}
-    runs = {}
-    for label, k, e in variants:
-        path = write_model(out / "models" / "parameter_study" / f"fdk_{label}.yaml",
-                           model_dict(subject, registration, "fdk", ligament_stiffness=k, reference_strain=e,
-                                      mesh_dir=Path(subject.directory).resolve()))
-        for task in tasks:
-            series, cycles = per_task[task]
-            t = series["time"]
-            kin, dyn, info = run_job(path, _trial(subject.directory, task), progress=False, start=t[0], end=t[-1])
-            runs[f"{label}/{task}"] = info["fdk"]["convergence_rate"]
-            ref = {"right": subject.condyle_top("r"), "left": subject.condyle_top("l")}
-            displacement = {side: p - ref[side] for side, p in condyle_kinematics(kin, subject).items()}
-            for group, data in (("kinematics", displacement), ("forces", fdk_forces(dyn, kin, subject))):
-                for side, arr in data.items():
-                    mean = np.nanmean(normalize_cycles(t, arr, cycles["cycles"]), axis=0)
-                    bands[task][group].setdefault(side, []).append(mean)
-    for task in tasks:
-        for group in ("kinematics", "forces"):
-            bands[task][group] = {side: np.array(v) for side, v in bands[task][group].items()}
-    return bands, runs
-
-
-__all__ = ["run_study", "analyse_task", "cycle_arrays", "parameter_variants", "StudyError", "TASKS",
+__all__ = ["run_study", "analyse_task", "cycle_arrays", "StudyError", "TASKS",
            "DEFAULT_STIFFNESS", "DEFAULT_STRAIN"]
