@@ -76,6 +76,25 @@ def test_demo_quick_parameter_study_runs_through_the_study_machinery(demo_dir):
     assert summary["runs"]["parameter_study"]["cases"] == 2 and not summary["runs"]["parameter_study"]["failed"]
 
 
+def test_subject_study_command_serial_matches_the_demo_on_dask(demo_dir, tmp_path):
+    """`openfdk subject study` on the demo's subject folder, parameter study in this
+    process (--workers 0): same tables and same parameter-study metrics as the demo's
+    2-worker LocalCluster run."""
+    out = tmp_path / "study"
+    assert main(["subject", "study", str(demo_dir / "subject"), "--out", str(out), "--cycles", "2", "--quick",
+                 "--workers", "0", "--no-progress"]) == 0
+    for table in ("table1.csv", "table2.csv"):
+        assert _rows(out / table) == _rows(demo_dir / "study" / table)
+    serial, dask = _rows(out / "parameter_study" / "summary.csv"), _rows(demo_dir / "study" / "parameter_study" / "summary.csv")
+    assert [r["case_id"] for r in serial] == [r["case_id"] for r in dask]
+    for a, b in zip(serial, dask):
+        for k in a:
+            if k.endswith("_N") or k.endswith("_min") or k.endswith("_max") or k == "convergence_rate":
+                assert float(a[k]) == pytest.approx(float(b[k]), rel=1e-6, abs=1e-9), k
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["runs"]["parameter_study"]["execution"]["mode"] == "serial"
+
+
 def test_parameter_study_case_series_in_the_skull_frame(tmp_path):
     """The figures' grey band is built from the case folders' CSV files: a hand-made case
     (skull turned 90° about z, mandible sliding 2 mm along world x) gives the condyle

@@ -15,7 +15,6 @@ from openfdk.forces.passive import PassiveElements
 from openfdk.model.model import ModelError
 from openfdk.model.modelfile import load_model
 from openfdk.numdiff import manifold_jacobian
-from openfdk.spatial import quat_from_rotvec
 
 
 def _write_patch(path, size, edge, scale=1.0, flip=False):

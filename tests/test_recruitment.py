@@ -118,7 +118,6 @@ def clarabel_cubic(C, d, n_bounded, s):
     Variables v = [x (n_B), f_F, t (n_B), u (n_B)]; minimise Σ t.
     """
     n_eq, n_var = C.shape
-    n_free = n_var - n_bounded
     N = n_var + 2 * n_bounded
     i_t, i_u = n_var, n_var + n_bounded
     cost = np.concatenate([np.zeros(n_var), np.ones(n_bounded), np.zeros(n_bounded)])

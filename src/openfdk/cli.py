@@ -99,7 +99,7 @@ def _cmd_subject(args):
         from .mandible.study import run_study
 
         out = args.out or f"{args.directory.rstrip('/')}-study"
-        result = run_study(args.directory, out, n_cycles=args.cycles, progress=not args.no_progress,
+        result = run_study(args.directory, out, n_cycles=args.cycles, quick=args.quick, progress=not args.no_progress,
                            workers=args.workers, scheduler=args.scheduler)
         report(result, out)
     elif args.action == "create":
@@ -191,6 +191,8 @@ def build_parser():
     s.add_argument("--workers", type=int, default=None,
                    help="parameter-study worker processes (study; default one per CPU, 0 = this process)")
     s.add_argument("--scheduler", default=None, help="address of a running Dask scheduler (study)")
+    s.add_argument("--quick", action="store_true",
+                   help="study: a 2-model parameter study on open-close only (as openfdk demo --quick)")
     s.add_argument("--no-progress", action="store_true", help="no progress bar")
     s.add_argument("--noise", type=float, default=0.15, help="marker noise in mm (record)")
     s.add_argument("--seed", type=int, default=0)

@@ -23,8 +23,6 @@ Memory: 17 bytes per node over the box (16 for the node, 1 for the cell mask),
 
 from __future__ import annotations
 
-import hashlib
-from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,8 +31,7 @@ from numba import njit
 from .mesh import SurfaceMesh
 from .signed_distance import OpenSurfaceDistance
 
-__all__ = ["SignedDistanceGrid", "build_distance_grid", "cached_distance_grid",
-           "clear_grid_cache", "sample_grid", "band_occupancy"]
+__all__ = ["SignedDistanceGrid", "build_distance_grid", "sample_grid", "band_occupancy"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -346,37 +343,3 @@ def build_distance_grid(mesh: SurfaceMesh, spacing: float, max_depth: float,
     origin = lo.copy()
     origin.setflags(write=False)
     return SignedDistanceGrid(values, cell_valid, origin, h, float(max_depth), mesh.name, int(flat.size))
-
-
-_CACHE: OrderedDict[tuple, SignedDistanceGrid] = OrderedDict()
-_CACHE_SIZE = 16
-
-
-def _fingerprint(mesh: SurfaceMesh) -> str:
-    digest = hashlib.sha1()
-    digest.update(np.ascontiguousarray(mesh.vertices_B).tobytes())
-    digest.update(np.ascontiguousarray(mesh.faces).tobytes())
-    return digest.hexdigest()
-
-
-def cached_distance_grid(mesh: SurfaceMesh, spacing: float, max_depth: float) -> SignedDistanceGrid:
-    """:func:`build_distance_grid`, memoised in memory by mesh content, spacing and depth.
-
-    Contact pairs that share a surface (e.g. the models of a parameter study in one
-    process) share its grid. At most 16 grids are kept (least recently used dropped).
-    """
-    key = (_fingerprint(mesh), float(spacing), float(max_depth))
-    grid = _CACHE.get(key)
-    if grid is None:
-        grid = build_distance_grid(mesh, spacing, max_depth)
-        _CACHE[key] = grid
-        while len(_CACHE) > _CACHE_SIZE:
-            _CACHE.popitem(last=False)
-    else:
-        _CACHE.move_to_end(key)
-    return grid
-
-
-def clear_grid_cache() -> None:
-    """Drop every cached distance grid."""
-    _CACHE.clear()

@@ -40,7 +40,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .distance_grid import band_occupancy, cached_distance_grid, sample_grid
+from .distance_grid import band_occupancy, sample_grid
+from .grid_cache import cached_distance_grid
 from .mesh import SurfaceMesh
 from .signed_distance import OpenSurfaceDistance
 
@@ -108,7 +109,7 @@ class ElasticFoundation:
     name : str — label for messages.
 
     The grid (grid mode) or AABB tree (exact mode) is built once here; the grid is also
-    memoised per surface, spacing and depth (:func:`~.distance_grid.cached_distance_grid`).
+    memoised per surface, spacing and depth (:func:`~.grid_cache.cached_distance_grid`).
     The object is not modified by :meth:`evaluate`.
     """
 

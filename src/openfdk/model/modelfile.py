@@ -15,7 +15,7 @@ import difflib
 from pathlib import Path
 
 import numpy as np
-import yaml
+from ..io.yamlfile import read_yaml
 
 from ..spatial import quat_from_rotvec, rotation_matrix_xyz
 from .builder import ModelBuilder
@@ -119,14 +119,7 @@ class Ctx:
 def load_model(path) -> Model:
     """Read, validate and build a model file. Raises ModelError naming the entry."""
     path = Path(path)
-    if not path.is_file():
-        raise ModelError(f"model file {str(path)!r} does not exist")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        raise ModelError(f"{path.name}: malformed YAML{where}: {getattr(exc, 'problem', exc)}") from None
+    data = read_yaml(path, ModelError, "model file")
     return model_from_dict(data, source=path.name, base_dir=path.parent)
 
 

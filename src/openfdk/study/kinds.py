@@ -13,7 +13,7 @@ Adding a kind (e.g. the mandible study's "subject folder + task + model kind")::
 
     register_case_kind(CaseKind(
         name="subject", inputs=("subjects", "tasks", "model_kinds"),
-        paths=("subjects",), prepare="openfdk.mandible.study:prepare_subject_case"))
+        paths=("subjects",), prepare="mylab.cases:prepare_subject_case"))
 
 and a study file then says ``kind: subject`` with sections ``subjects``, ``tasks`` and
 ``model_kinds``. The study file must be loaded after the kind is registered, in the
@@ -26,8 +26,7 @@ import importlib
 from dataclasses import dataclass
 from pathlib import Path
 
-import yaml
-
+from ..io.yamlfile import read_yaml
 from ..model.model import ModelError
 
 
@@ -90,14 +89,7 @@ def import_callable(spec: str):
 def read_model_mapping(path) -> dict:
     """The parsed YAML mapping of a model file (safe loader; errors name the file)."""
     path = Path(path)
-    if not path.is_file():
-        raise ModelError(f"model file {str(path)!r} does not exist")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        raise ModelError(f"{path.name}: malformed YAML{where}: {getattr(exc, 'problem', exc)}") from None
+    data = read_yaml(path, ModelError, "model file")
     if not isinstance(data, dict):
         raise ModelError(f"{path.name}: a model file must contain a mapping of sections")
     return data

@@ -22,7 +22,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import yaml
+from ..io.yamlfile import read_yaml
 
 from .defaults import DEFAULT_OVERLAP, DEFAULT_RETRIES
 from .kinds import CASE_KINDS, import_callable
@@ -356,13 +356,6 @@ def study_from_dict(data, source="<study>", base_dir=".", check_overrides=True) 
 def load_study(path, check_overrides=True) -> Study:
     """Read and validate a study file; paths in it are relative to its folder."""
     path = Path(path)
-    if not path.is_file():
-        raise StudyError(f"study file {str(path)!r} does not exist")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        raise StudyError(f"{path.name}: malformed YAML{where}: {getattr(exc, 'problem', exc)}") from None
+    data = read_yaml(path, StudyError, "study file")
     study = study_from_dict(data, path.name, path.parent.resolve(), check_overrides)
     return Study(study.name, path.resolve(), study.kind, study.parameters, study.cases, study.options, study.data)
