@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..model.batched import RelativeVectorRows
 from ..model.model import Model
 
 
@@ -34,6 +35,12 @@ class ConstraintSystem:
         # the Cardan-angle measure returns values in (−π, π]
         self.angle_rows = np.array([u == "angle" for u in units], dtype=bool)
         self.has_angles = bool(self.angle_rows.any())
+        # joint and FDK rows that are projections of relative vectors: one kernel call
+        # each for all of them (None: evaluated measure by measure)
+        self._block_rows = RelativeVectorRows.from_measures([c.measure for c in self.blocks])
+        self._fdk_rows = RelativeVectorRows.from_measures([d.measure for d in self.fdk])
+        if self._fdk_rows is not None and self._fdk_rows.n_rows != len(self.fdk):
+            self._fdk_rows = None  # an FDK DOF uses row 0 of its measure only
 
     def evaluate(self, state, t, alpha=None, order=1):
         """Φ, Φ_q̂, ν, γ at time t (s) for FDK inputs α (n_fdk,) in m or rad.
@@ -47,9 +54,15 @@ class ConstraintSystem:
         nu = None if order == 0 else np.empty(m)
         gamma = None if order < 2 else np.empty(m)
         r = 0
+        if self._block_rows is not None:
+            vals, Ms, bs = self._block_rows.evaluate(state, order)
         for c in self.blocks:
             k = c.size
-            val, M, b = c.measure.evaluate(state, order)
+            if self._block_rows is not None:
+                val, M = vals[r : r + k], (None if order == 0 else Ms[r : r + k])
+                b = None if order < 2 else bs[r : r + k]
+            else:
+                val, M, b = c.measure.evaluate(state, order)
             f, df, ddf = c.target_derivatives(t)
             Phi[r : r + k] = val - f
             if order >= 1:
@@ -60,7 +73,16 @@ class ConstraintSystem:
             r += k
         if self.fdk:
             alpha = np.zeros(len(self.fdk)) if alpha is None else np.asarray(alpha, dtype=float)
-            for j, d in enumerate(self.fdk):
+            if self._fdk_rows is not None:  # one row per FDK DOF
+                vals, Ms, bs = self._fdk_rows.evaluate(state, order)
+                Phi[r:] = vals - alpha  # Φ^FDK − α (Eq. 1); α̇ = α̈ = 0
+                if order >= 1:
+                    Phi_q[r:] = Ms
+                    nu[r:] = 0.0
+                if order >= 2:
+                    gamma[r:] = -bs
+                r += len(self.fdk)
+            for j, d in enumerate(self.fdk if self._fdk_rows is None else ()):
                 val, M, b = d.measure.evaluate(state, order)
                 Phi[r] = val[0] - alpha[j]  # Φ^FDK − α (Eq. 1); α̇ = α̈ = 0
                 if order >= 1:

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..spatial import quat_from_matrix
 from .determinate import FrameSolve
+from .kkt import kkt_step
 from .system import ConstraintSystem, undetermined_coordinates
 
 
@@ -116,27 +117,18 @@ class MarkerTracker:
         x = np.where(visible[:, None], x_WM, 0.0).ravel()
         n, m = self.system.n_coords, self.system.n_rows
         K = np.zeros((n + m, n + m))
-        rhs = np.zeros(n + m)
         step = res = np.inf
         for it in range(1, s.max_iter + 1):
             p, J, _ = self.markers.evaluate(state, 1)
             Phi, A, _, _ = self.system.evaluate(state, t, alpha, order=1)
-            WJ = J * w[:, None]
-            K[:n, :n] = J.T @ WJ
-            K[:n, n:] = A.T
-            K[n:, :n] = A
-            rhs[:n] = -WJ.T @ (p - x)
-            rhs[n:] = -Phi
             try:
-                sol = np.linalg.solve(K, rhs)
+                sol, step, res = kkt_step(J, w, p, x, A, Phi, K)
             except np.linalg.LinAlgError as exc:
                 return FrameSolve(False, it, np.nan, f"KKT system singular: {exc}"), None, None
             dq, lam = sol[:n], sol[n:]
             if not np.all(np.isfinite(dq)):
                 return FrameSolve(False, it, np.nan, "KKT system singular (non-finite step)"), None, None
             state.displace(dq)
-            step = np.max(np.abs(dq)) if n else 0.0
-            res = float(np.max(np.abs(Phi))) if m else 0.0
             if step < s.tol_step and res <= s.tol_constraint:
                 return FrameSolve(True, it, res), K, lam
         return (

@@ -1,0 +1,61 @@
+"""One Gauss–Newton SQP step of marker tracking (paper Eqs. 4–5) as a numba kernel.
+
+The KKT system of :mod:`openfdk.kinematics.tracking`,
+
+    [ Ψ_q̂ᵀ W Ψ_q̂   Φ_q̂ᵀ ] [ Δq̂ ]   [ −Ψ_q̂ᵀ W (p − x) ]
+    [ Φ_q̂           0    ] [ λ  ] = [ −Φ              ],
+
+is assembled and solved in one call: for the few tens of rows of a joint model the
+NumPy products, slices and LAPACK dispatch cost more than the arithmetic.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+__all__ = ["kkt_step"]
+
+
+@njit(cache=True)
+def kkt_step(J, w, p, x, A, Phi, K):
+    """Assemble K and solve for [Δq̂; λ].
+
+    J : (3 n_markers, n) marker Jacobian Ψ_q̂; w : (3 n_markers,) row weights (0 for
+    occluded markers); p, x : (3 n_markers,) m model and measured marker positions
+    (x finite where w > 0); A : (m, n) Φ_q̂; Phi : (m,) constraint values (m or rad);
+    K : (n + m, n + m) output, the KKT matrix (reused by Eqs. 8–10).
+
+    Returns sol (n + m,) = [Δq̂; λ], max |Δq̂|, max |Φ| (0 when empty). Raises
+    ``np.linalg.LinAlgError`` when K is singular.
+    """
+    n = J.shape[1]
+    m = A.shape[0]
+    rows = J.shape[0]
+    rhs = np.zeros(n + m)
+    for i in range(n):
+        for j in range(i, n):
+            s = 0.0
+            for k in range(rows):
+                s += J[k, i] * w[k] * J[k, j]
+            K[i, j] = s
+            K[j, i] = s
+        g = 0.0
+        for k in range(rows):
+            if w[k] != 0.0:
+                g += J[k, i] * w[k] * (p[k] - x[k])
+        rhs[i] = -g
+    res = 0.0
+    for a in range(m):
+        for j in range(n):
+            K[n + a, j] = A[a, j]
+            K[j, n + a] = A[a, j]
+        for b in range(m):
+            K[n + a, n + b] = 0.0
+        rhs[n + a] = -Phi[a]
+        res = max(res, abs(Phi[a]))
+    sol = np.linalg.solve(K, rhs)
+    step = 0.0
+    for i in range(n):
+        step = max(step, abs(sol[i]))
+    return sol, step, res
