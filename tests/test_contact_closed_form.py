@@ -234,3 +234,23 @@ def test_bad_arguments_are_named():
         ElasticFoundation(patch, patch, P_MOD, mode="fast")
     with pytest.raises(ValueError, match="max_depth"):
         ElasticFoundation(patch, patch, P_MOD, max_depth=0.0)
+
+
+def test_block_mask_marks_exactly_the_blocks_with_a_valid_cell(tmj_pair):
+    """block_occupancy against a direct loop over blocks, on a random mask with sizes
+    that are not multiples of the block edge; and the grid's own block mask covers
+    every valid cell (so the query's block test cannot drop a point)."""
+    from openfdk.contact.distance_grid import BLOCK, block_occupancy
+
+    rng = np.random.default_rng(3)
+    cells = (rng.random((9, 6, 13)) < 0.05).astype(np.uint8)
+    blocks = block_occupancy(cells, 4)
+    assert blocks.shape == (3, 2, 4)
+    for I, J, K in np.ndindex(blocks.shape):
+        expect = cells[4 * I : 4 * I + 4, 4 * J : 4 * J + 4, 4 * K : 4 * K + 4].any()
+        assert blocks[I, J, K] == expect
+    assert 0 < blocks.sum() < blocks.size
+    grid = tmj_pair[0].grid
+    i, j, k = np.nonzero(grid.cell_valid)
+    assert np.all(grid.block_valid[i // BLOCK, j // BLOCK, k // BLOCK] == 1)
+    assert grid.block_valid.mean() < 0.5  # and it rejects most of the box

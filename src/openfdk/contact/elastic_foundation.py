@@ -142,6 +142,7 @@ class ElasticFoundation:
             self.grid = cached_distance_grid(surface_B, self.grid_spacing, self.max_depth)
             self._flat = self.grid.values.reshape(-1)
             self._cells = self.grid.cell_valid.reshape(-1)
+            self._blocks = self.grid.block_valid
             self._grid_shape = tuple(int(v) for v in self.grid.shape)
             self._origin = np.asarray(self.grid.origin_B, dtype=np.float64)
             self._inv_h = 1.0 / self.grid.spacing
@@ -181,7 +182,7 @@ class ElasticFoundation:
             y_B = np.empty((n, 3))
             # cull + interpolate in one numba pass; vertices outside the grid box (B's box
             # inflated by the band) are rejected by the bounds test before any lookup
-            k = sample_grid(self._s_A, R_ba, p_ba, self._flat, self._cells,
+            k = sample_grid(self._s_A, R_ba, p_ba, self._flat, self._cells, self._blocks,
                             *self._grid_shape, self._origin, self._inv_h, self.max_depth,
                             True, idx, depth, g_B, y_B)
             depth[:k] *= -1.0  # d_i = −φ_B(y_i)
