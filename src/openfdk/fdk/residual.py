@@ -112,14 +112,15 @@ class FDKContext:
         x, xd, xdd, vis = self.meas[k]
         state = ws.states[k]
         v, vdot = self.tracker.solve_velocities_accelerations(
-            state, t, kkt, vis, np.nan_to_num(xd), np.nan_to_num(xdd), d1, d2, alpha)
+            state, t, kkt, vis, _zero_nan(xd), _zero_nan(xdd), d1, d2, alpha)
         ev = self._dynamics(k, alpha, state, vdot, warm_recruitment)
         ev.kkt, ev.lam, ev.delta, ev.x, ev.visible = kkt, lam, delta[k], x, vis
         return ev
 
     def _rates(self, k, delta):
         """δ̇, δ̈ (n_markers, 3) at frame k from the residuals of k and its neighbours
-        (central; one-sided when a neighbour is missing; per marker where visible)."""
+        (central; one-sided when a neighbour is missing; per marker where visible; 0
+        where a needed residual is missing — np.where drops the NaN branches)."""
         dt = self.dt
         cur = delta[k]
         prev, nxt = delta.get(k - 1), delta.get(k + 1)
@@ -128,14 +129,14 @@ class FDKContext:
         ok_c = np.isfinite(cur)
         if prev is not None and nxt is not None:
             both = ok_c & np.isfinite(prev) & np.isfinite(nxt)
-            d1 = np.where(both, (np.nan_to_num(nxt) - np.nan_to_num(prev)) / (2 * dt), 0.0)
-            d2 = np.where(both, (np.nan_to_num(nxt) - 2 * np.nan_to_num(cur) + np.nan_to_num(prev)) / dt**2, 0.0)
+            d1 = np.where(both, (nxt - prev) / (2 * dt), 0.0)
+            d2 = np.where(both, (nxt - 2 * cur + prev) / dt**2, 0.0)
         elif nxt is not None:
             one = ok_c & np.isfinite(nxt)
-            d1 = np.where(one, (np.nan_to_num(nxt) - np.nan_to_num(cur)) / dt, 0.0)
+            d1 = np.where(one, (nxt - cur) / dt, 0.0)
         elif prev is not None:
             one = ok_c & np.isfinite(prev)
-            d1 = np.where(one, (np.nan_to_num(cur) - np.nan_to_num(prev)) / dt, 0.0)
+            d1 = np.where(one, (cur - prev) / dt, 0.0)
         return d1, d2
 
     def _dynamics(self, k, alpha, state, vdot, warm):
@@ -145,3 +146,8 @@ class FDKContext:
             return Evaluation(alpha, False, np.full(len(alpha), np.nan), f"recruitment infeasible: {fr.message}",
                               "recruitment", state, vdot, fr)
         return Evaluation(alpha, True, fr.f[self.fdk_columns].copy(), "", "", state, vdot, fr)
+
+
+def _zero_nan(a):
+    """a with its non-finite entries (occluded markers' rates) set to 0."""
+    return np.where(np.isfinite(a), a, 0.0)

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..model.batched import RelativeVectorRows
 from ..numdiff import manifold_jacobian
 from .elements import LIGAMENTS, LOADS, SPRINGS
 
@@ -52,6 +53,16 @@ class PassiveElements:
         from .pathset import PathSet
 
         self.ligament_paths = PathSet(self.ligaments) if self.ligaments else None
+        # springs on relative-vector projections (e.g. FDK DOF springs): one kernel call
+        rows = RelativeVectorRows.from_measures([s.measure for s in self.springs])
+        self._spring_rows = rows if rows is not None and rows.n_rows == len(self.springs) else None
+
+    def _spring_measures(self, state):
+        """(values (n_springs,), M (n_springs, n)) of the springs' measures (row 0 each)."""
+        if self._spring_rows is not None:
+            return self._spring_rows.evaluate(state, 1)[:2]
+        parts = [spr.measure.evaluate(state, 1) for spr in self.springs]
+        return np.array([p[0][0] for p in parts]), np.array([p[1][0] for p in parts])
 
     def generalized_forces(self, state, t, want_stiffness=False, elements=True, loads=True):
         """Q (n,) [N, N m] of the passive elements (ligaments, springs, contacts; if
@@ -78,18 +89,19 @@ class PassiveElements:
                 # geometric term −Σ T_k ∂L_kᵀ/∂q̂, one batched difference of the path kernel
                 T = out.ligament_force.copy()
                 K -= manifold_jacobian(lambda s: T @ self.ligament_paths.evaluate(s)[1], state, 1e-7, central=False)
+        if springs:
+            m_s, M_s = self._spring_measures(state)
         for k, spr in enumerate(springs):
-            m, M, _ = spr.measure.evaluate(state, 1)
-            f = float(spr.law.force(float(m[0])))
-            out.spring_value[k] = float(m[0])
+            f = float(spr.law.force(float(m_s[k])))
+            out.spring_value[k] = float(m_s[k])
             out.spring_force[k] = f
-            Q += M[0] * f
+            Q += M_s[k] * f
             if want_stiffness:
-                K += np.outer(M[0], M[0]) * float(spr.law.dforce_dmeasure(float(m[0])))
+                K += np.outer(M_s[k], M_s[k]) * float(spr.law.dforce_dmeasure(float(m_s[k])))
         if want_stiffness and springs and np.any(out.spring_force):
+            # geometric term Σ f_k ∂M_kᵀ/∂q̂
             f = out.spring_force.copy()
-            K += manifold_jacobian(lambda s: sum(fk * sp.measure.evaluate(s, 1)[1][0] for fk, sp in zip(f, springs)),
-                                   state, 1e-7, central=False)
+            K += manifold_jacobian(lambda s: f @ self._spring_measures(s)[1], state, 1e-7, central=False)
         for load in self.loads if loads else ():
             Q += self._load_Q(load, state, t)
         for contact in contacts:
