@@ -213,3 +213,19 @@ def test_surface_mesh_is_read_only():
         patch.vertices_B[0, 0] = 1.0
     with pytest.raises(MeshError, match="face indices"):
         surface_mesh(np.zeros((3, 3)), np.array([[0, 1, 3]]), name="bad")
+
+
+def test_undirected_edge_keys_match_lexicographic_edge_rows():
+    """Keys are equal for (a, b) and (b, a), and 1-D unique of the keys gives the same
+    groups, in the same order, as np.unique(axis=0) of the sorted (lo, hi) rows."""
+    from openfdk.contact.mesh import undirected_edge_keys
+
+    rng = np.random.default_rng(1)
+    ends = rng.integers(0, 50, size=(400, 2))
+    np.testing.assert_array_equal(undirected_edge_keys(ends), undirected_edge_keys(ends[:, ::-1]))
+    rows = np.sort(ends, axis=1)
+    u_rows, inv_rows, cnt_rows = np.unique(rows, axis=0, return_inverse=True, return_counts=True)
+    u_keys, inv_keys, cnt_keys = np.unique(undirected_edge_keys(ends), return_inverse=True, return_counts=True)
+    np.testing.assert_array_equal(inv_keys.ravel(), inv_rows.ravel())
+    np.testing.assert_array_equal(cnt_keys, cnt_rows)
+    assert len(u_keys) == len(u_rows) < len(ends)

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .mesh import SurfaceMesh
+from .mesh import SurfaceMesh, undirected_edge_keys
 
 __all__ = ["OpenSurfaceDistance"]
 
@@ -47,7 +47,7 @@ class OpenSurfaceDistance:
         # local edge k of a face is the edge opposite its vertex k: (v[k+1], v[k+2])
         ends = np.stack([F[:, [1, 2]], F[:, [2, 0]], F[:, [0, 1]]], axis=1)  # (m, 3, 2)
         keys = np.sort(ends.reshape(-1, 2), axis=1)
-        _, edge_id, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+        _, edge_id, counts = np.unique(undirected_edge_keys(keys), return_inverse=True, return_counts=True)
         edge_id = edge_id.ravel()
         edge_normal = np.zeros((counts.size, 3))
         np.add.at(edge_normal, edge_id, np.repeat(face_normals, 3, axis=0))
