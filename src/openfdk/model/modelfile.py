@@ -1,6 +1,6 @@
 """YAML model files -> :class:`~openfdk.model.model.Model` (format: docs/model-file.md).
 
-The file is data: it is read with ``yaml.safe_load`` and nothing in it is evaluated.
+The file is data: it is read with PyYAML's safe loader and nothing in it is evaluated.
 Lengths are in the file's declared unit (``units.length``: m, cm or mm) and angles in
 ``units.angle`` (rad or deg); they are converted to SI once, here. Every error names
 the file and the entry, e.g. ``model.yaml: bodies.jaw.mass: expected a number``.
