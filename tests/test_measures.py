@@ -103,14 +103,19 @@ def test_marker_set_matches_point_measures():
     np.testing.assert_allclose(M, M_fd, atol=1e-8)
 
 
-def test_joint_constraint_rows_fd():
-    """Each joint type's rows (built from measures) differentiate correctly."""
-    rng = np.random.default_rng(7)
-    b = ModelBuilder("joints")
+def _add_two_bodies_with_frame_j(b, rng):
+    """Bodies a and b at random poses, each with a randomly placed and turned frame 'j'."""
     for name in ("a", "b"):
         b.add_body(name, 1.0, [1, 1, 1], position=rng.normal(size=3) * 0.1,
                    orientation=quat_from_rotvec(rng.normal(size=3) * 0.3))
         b.add_frame(name, "j", rng.normal(size=3) * 0.05, orientation=quat_from_rotvec(rng.normal(size=3) * 0.3))
+
+
+def test_joint_constraint_rows_fd():
+    """Each joint type's rows (built from measures) differentiate correctly."""
+    rng = np.random.default_rng(7)
+    b = ModelBuilder("joints")
+    _add_two_bodies_with_frame_j(b, rng)
     for k, jt in enumerate(["weld", "spherical", "revolute", "prismatic", "point_on_plane"]):
         b.add_joint(f"j{k}", jt, parent="a.j", child="b.j")
     model = b.build()
@@ -183,10 +188,7 @@ def test_constraint_system_batched_equals_measure_by_measure():
 
     rng = np.random.default_rng(5)
     b = ModelBuilder("batched")
-    for name in ("a", "b"):
-        b.add_body(name, 1.0, [1, 1, 1], position=rng.normal(size=3) * 0.1,
-                   orientation=quat_from_rotvec(rng.normal(size=3) * 0.3))
-        b.add_frame(name, "j", rng.normal(size=3) * 0.05, orientation=quat_from_rotvec(rng.normal(size=3) * 0.3))
+    _add_two_bodies_with_frame_j(b, rng)
     b.add_joint("slide", "point_on_plane", parent="a.j", child="b.j")
     b.add_joint("hold", "spherical", parent="ground", child="a.j")
     gap = b.vector("a.j", "b.j", expressed_in="a")
