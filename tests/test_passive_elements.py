@@ -171,7 +171,7 @@ def test_spring_forces_and_stiffness_batched_and_measure_by_measure():
     model = b.build()
     state = model.initial_state()
     passive = PassiveElements(model)
-    assert passive._spring_rows is not None
+    assert passive._spring_rows.batched is not None
     Q, out, K = passive.generalized_forces(state, 0.0, want_stiffness=True)
     expect = np.zeros(model.n_coords)
     for k, (spr, m0, stiff) in enumerate(zip(passive.springs, [0.005, -0.01], [300.0, 150.0])):
@@ -186,7 +186,7 @@ def test_spring_forces_and_stiffness_batched_and_measure_by_measure():
     assert np.abs(K - K_material).max() > 1e-2  # the geometric part is exercised
     np.testing.assert_allclose(K, K_fd, atol=1e-5 * np.abs(K).max())
     slow = PassiveElements(model)
-    slow._spring_rows = None
+    slow._spring_rows.batched = None  # measure by measure
     Q2, _, K2 = slow.generalized_forces(state, 0.0, want_stiffness=True)
     np.testing.assert_allclose(Q2, Q, rtol=0, atol=1e-13)
     np.testing.assert_allclose(K2, K, rtol=0, atol=1e-9)

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.batched import RelativeVectorRows
+from ..model.batched import ScalarRows
 from ..numdiff import manifold_jacobian
 from .elements import LIGAMENTS, LOADS, SPRINGS
 
@@ -53,16 +53,12 @@ class PassiveElements:
         from .pathset import PathSet
 
         self.ligament_paths = PathSet(self.ligaments) if self.ligaments else None
-        # springs on relative-vector projections (e.g. FDK DOF springs): one kernel call
-        rows = RelativeVectorRows.from_measures([s.measure for s in self.springs])
-        self._spring_rows = rows if rows is not None and rows.n_rows == len(self.springs) else None
+        # the springs' measures (one kernel call when they are relative-vector projections)
+        self._spring_rows = ScalarRows([s.measure for s in self.springs])
 
     def _spring_measures(self, state):
         """(values (n_springs,), M (n_springs, n)) of the springs' measures (row 0 each)."""
-        if self._spring_rows is not None:
-            return self._spring_rows.evaluate(state, 1)[:2]
-        parts = [spr.measure.evaluate(state, 1) for spr in self.springs]
-        return np.array([p[0][0] for p in parts]), np.array([p[1][0] for p in parts])
+        return self._spring_rows.evaluate(state, 1)[:2]
 
     def generalized_forces(self, state, t, want_stiffness=False, elements=True, loads=True):
         """Q (n,) [N, N m] of the passive elements (ligaments, springs, contacts; if

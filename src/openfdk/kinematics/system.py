@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model.batched import RelativeVectorRows
+from ..model.batched import RelativeVectorRows, ScalarRows
 from ..model.model import Model
 
 
@@ -38,9 +38,7 @@ class ConstraintSystem:
         # joint and FDK rows that are projections of relative vectors: one kernel call
         # each for all of them (None: evaluated measure by measure)
         self._block_rows = RelativeVectorRows.from_measures([c.measure for c in self.blocks])
-        self._fdk_rows = RelativeVectorRows.from_measures([d.measure for d in self.fdk])
-        if self._fdk_rows is not None and self._fdk_rows.n_rows != len(self.fdk):
-            self._fdk_rows = None  # an FDK DOF uses row 0 of its measure only
+        self._fdk_rows = ScalarRows([d.measure for d in self.fdk])  # row 0 of each
 
     def evaluate(self, state, t, alpha=None, order=1):
         """Φ, Φ_q̂, ν, γ at time t (s) for FDK inputs α (n_fdk,) in m or rad.
@@ -73,24 +71,13 @@ class ConstraintSystem:
             r += k
         if self.fdk:
             alpha = np.zeros(len(self.fdk)) if alpha is None else np.asarray(alpha, dtype=float)
-            if self._fdk_rows is not None:  # one row per FDK DOF
-                vals, Ms, bs = self._fdk_rows.evaluate(state, order)
-                Phi[r:] = vals - alpha  # Φ^FDK − α (Eq. 1); α̇ = α̈ = 0
-                if order >= 1:
-                    Phi_q[r:] = Ms
-                    nu[r:] = 0.0
-                if order >= 2:
-                    gamma[r:] = -bs
-                r += len(self.fdk)
-            for j, d in enumerate(self.fdk if self._fdk_rows is None else ()):
-                val, M, b = d.measure.evaluate(state, order)
-                Phi[r] = val[0] - alpha[j]  # Φ^FDK − α (Eq. 1); α̇ = α̈ = 0
-                if order >= 1:
-                    Phi_q[r] = M[0]
-                    nu[r] = 0.0
-                if order >= 2:
-                    gamma[r] = -b[0]
-                r += 1
+            vals, Ms, bs = self._fdk_rows.evaluate(state, order)
+            Phi[r:] = vals - alpha  # Φ^FDK − α (Eq. 1); α̇ = α̈ = 0
+            if order >= 1:
+                Phi_q[r:] = Ms
+                nu[r:] = 0.0
+            if order >= 2:
+                gamma[r:] = -bs
         if self.has_angles:
             a = self.angle_rows
             Phi[a] = (Phi[a] + np.pi) % (2.0 * np.pi) - np.pi

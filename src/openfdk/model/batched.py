@@ -18,7 +18,7 @@ from numba import njit
 from .kernels import relative_vector
 from .measures import Linear, RelativeVector
 
-__all__ = ["RelativeVectorRows"]
+__all__ = ["RelativeVectorRows", "ScalarRows"]
 
 
 class RelativeVectorRows:
@@ -93,3 +93,24 @@ def _rows(p_WB, R_WB, w_BB, v_WB, column, ia, s_a, ib, s_b, frame, term, C, offs
                     M[r, c] = C[r, 0] * Mj[0, c] + C[r, 1] * Mj[1, c] + C[r, 2] * Mj[2, c]
             b[r] = C[r, 0] * bj[0] + C[r, 1] * bj[1] + C[r, 2] * bj[2]
             r += 1
+
+
+class ScalarRows:
+    """Row 0 of each of a list of measures (FDK DOFs, springs): value (k,), M (k, n),
+    b (k,), in one kernel call when every measure is a relative-vector projection with
+    one row (:class:`RelativeVectorRows`), else measure by measure."""
+
+    def __init__(self, measures):
+        self.measures = list(measures)
+        rows = RelativeVectorRows.from_measures(self.measures)
+        self.batched = rows if rows is not None and rows.n_rows == len(self.measures) else None
+
+    def evaluate(self, state, order=1):
+        """As :meth:`RelativeVectorRows.evaluate`, one row per measure."""
+        if self.batched is not None:
+            return self.batched.evaluate(state, order)
+        parts = [m.evaluate(state, order) for m in self.measures]
+        value = np.array([p[0][0] for p in parts])
+        M = np.array([p[1][0] for p in parts]).reshape(len(parts), state.n_coords) if order >= 1 else None
+        b = np.array([p[2][0] for p in parts]) if order >= 2 else None
+        return value, M, b
