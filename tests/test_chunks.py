@@ -128,12 +128,32 @@ def test_chunked_tracking_and_inverse_dynamics_without_fdk(files):
     np.testing.assert_allclose(dc.forces, dyn.forces, atol=1e-5 * np.nanmax(np.abs(dyn.forces)))
 
 
-def test_failed_frame_messages_keep_the_trial_numbering(files):
-    """Messages that name a frame are renumbered from segment to trial frames."""
-    from openfdk.study.chunks import _renumber
+def test_failed_frame_messages_keep_the_trial_numbering():
+    """Messages that name a frame use the trial's numbering after stitching: they are
+    made from the structured per-frame reports, not renumbered text."""
+    from openfdk.kinematics.analysis import KinematicsResult
+    from openfdk.study.chunks import Segment, _stitch_object
+    from openfdk.trial.status import FrameReport, Reason
 
-    assert _renumber(("", "frame 3 (t = 0.0300 s): FDK not converged: frame 3 (t = 0.0300 s)"), 10) == (
-        "", "frame 13 (t = 0.0300 s): FDK not converged: frame 13 (t = 0.0300 s)")
+    def segment_result(time, reports):
+        nf = len(time)
+        ok = np.array([r.converged for r in reports])
+        return KinematicsResult("m", ("jaw",), (), time, np.zeros((nf, 7)), np.zeros((nf, 6)), np.zeros((nf, 6)),
+                                np.zeros((nf, 0, 3)), np.zeros(nf), np.zeros(nf, int), ok, tuple(reports),
+                                np.zeros(0))
+
+    bad = FrameReport.failed(Reason.UNOBSERVABLE, "the pose cannot be determined")
+    good = FrameReport.ok()
+    t = np.arange(20) * 0.01
+    # segment 1 keeps frames 10..19 and solves 7..19 (its local frame 6 is trial frame 13)
+    segs = [Segment(0, 0, 10, 0, 11), Segment(1, 10, 20, 7, 20)]
+    parts = [segment_result(t[0:11], [good] * 11),
+             segment_result(t[7:20], [good] * 6 + [bad] + [good] * 6)]
+    kin = _stitch_object(parts, segs, 1.0)
+    assert parts[1].messages[6] == "frame 6 (t = 0.1300 s): the pose cannot be determined"
+    assert kin.messages[13] == "frame 13 (t = 0.1300 s): the pose cannot be determined"
+    assert [i for i, m in enumerate(kin.messages) if m] == [13]
+    assert kin.reports[13].reason is Reason.UNOBSERVABLE and not kin.converged[13]
 
 
 def test_chunked_run_on_a_local_cluster_writes_the_run_outputs(files, serial_fdk, tmp_path):

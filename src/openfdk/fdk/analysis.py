@@ -5,6 +5,8 @@ converged predecessors (or α_{k−1}, or the DOFs' initial values), and the pos
 previous frame's solution. Every frame reports converged, Newton iterations, residual
 evaluations (each a recruitment solve), final max |f^FDK| and α; a frame that does not
 converge keeps its best iterate, is flagged with the reason, and the run goes on.
+
+The loop is the trial driver's (:mod:`openfdk.trial`); :class:`FDKStep` is one frame.
 """
 
 from __future__ import annotations
@@ -14,10 +16,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..analysis.inverse_dynamics import ForcesRecorder, InverseDynamics
-from ..kinematics.analysis import KinematicsResult
+from ..dynamics.inverse import InverseDynamics
+from ..dynamics.results import forces_failure, forces_fields, forces_result, forces_values
+from ..kinematics.analysis import KinematicsResult, kinematics_fields, kinematics_result
 from ..kinematics.system import ConstraintSystem
 from ..kinematics.tracking import MarkerTracker, TrackingSettings
+from ..trial import drive
+from ..trial.status import FrameReport, Reason, frame_messages
 from .newton import solve_frame
 from .residual import FDKContext, FrameWorkspace
 from .settings import fdk_settings
@@ -27,7 +32,9 @@ from .settings import fdk_settings
 class FDKResult:
     """kinematics : KinematicsResult at the final α of each frame; forces :
     InverseDynamicsResult; alpha, f_fdk : (nf, n_fdk) SI; converged (nf,); iterations,
-    evaluations (residual evaluations), jacobians (Jacobians computed) (nf,) int; reasons, messages : per frame; dof_names; settings."""
+    evaluations (residual evaluations), jacobians (Jacobians computed) (nf,) int;
+    reports : FrameReport per frame (reasons, messages: their codes and texts);
+    dof_names; settings."""
 
     kinematics: KinematicsResult
     forces: object
@@ -37,14 +44,23 @@ class FDKResult:
     converged: np.ndarray
     iterations: np.ndarray
     evaluations: np.ndarray
-    reasons: tuple
-    messages: tuple
+    reports: tuple
     settings: object
     wall_time: float
     jacobians: np.ndarray = None  # (nf,) int: Jacobians computed per frame
 
+    @property
+    def reasons(self):
+        """Per-frame reason codes ('converged', 'line_search', …)."""
+        return tuple(r.reason.value for r in self.reports)
+
+    @property
+    def messages(self):
+        return frame_messages(self.reports, self.kinematics.time)
+
     def summary(self):
         nf = len(self.converged)
+        reasons, messages = self.reasons, self.messages
         return {
             "frames": int(nf),
             "converged_frames": int(self.converged.sum()),
@@ -58,7 +74,7 @@ class FDKResult:
             "jacobian": self.settings.jacobian,
             "tolerance": self.settings.tolerance,
             "failed_frames": [
-                {"frame": int(i), "time": float(self.kinematics.time[i]), "reason": self.reasons[i], "message": self.messages[i]}
+                {"frame": int(i), "time": float(self.kinematics.time[i]), "reason": reasons[i], "message": messages[i]}
                 for i in np.flatnonzero(~self.converged)
             ],
             "wall_time_s": self.wall_time,
@@ -80,6 +96,118 @@ class FDKResult:
         return cols
 
 
+class FDKStep:
+    """Trial-driver step of FDK: Newton on f^FDK(α) = 0 at frame k (fdk/newton.py).
+
+    Warm starts carried from frame to frame: the last frame's poses, α of the two most
+    recent converged frames, the recruitment solution and the Jacobian (reuse_jacobian).
+    """
+
+    def __init__(self, model, ctx, settings):
+        self.model, self.ctx, self.settings = model, ctx, settings
+        self.system = ctx.system
+        state0 = model.initial_state()
+        if ctx.tracker is not None:
+            nf = len(ctx.times)
+            first = next((j for j in range(nf) if np.any(ctx.meas[j][3])), 0)
+            ctx.tracker.initial_guess(state0, ctx.meas[first][0], ctx.meas[first][3])
+        self.last_state = state0
+        self.a_init = np.array([d.initial for d in model.fdk_dofs])
+        self.history = []  # (frame, α) of the most recent converged frames
+        self.warm = None
+        self.J_carry = None  # the last converged frame's FDK Jacobian (settings.reuse_jacobian)
+
+    def fields(self):
+        n_fdk = len(self.model.fdk_dofs)
+        nm = self.model.markers.size if self.ctx.tracker is not None else 0
+        out = kinematics_fields(self.model, nm)
+        out.update(forces_fields(self.ctx.solver))
+        out.update({"fdk.alpha": ((n_fdk,), float, np.nan), "fdk.f_fdk": ((n_fdk,), float, np.nan),
+                    "fdk.iterations": ((), int, 0), "fdk.evaluations": ((), int, 0),
+                    "fdk.jacobians": ((), int, 0), "fdk.report": ((), object, None)})
+        return out
+
+    def step(self, k):
+        ctx, settings, history = self.ctx, self.settings, self.history
+        t = ctx.times[k]
+        ws = FrameWorkspace({j: self.last_state for j in ctx.frames_needed(k)})
+        if settings.extrapolate and len(history) >= 2 and history[-1][0] == k - 1 and history[-2][0] == k - 2:
+            a0 = 2 * history[-1][1] - history[-2][1]
+        elif history:
+            a0 = history[-1][1].copy()
+        else:
+            a0 = self.a_init.copy()
+        sol = solve_frame(ctx, k, a0, ws, settings, self.warm, self.J_carry)
+        self.J_carry = sol.jacobian if sol.converged else None
+        ev = sol.best
+        if sol.converged:
+            report = FrameReport.ok(sol.iterations, ev.norm)
+        else:
+            report = FrameReport.failed(Reason(sol.reason), f"FDK not converged: {sol.message}", sol.iterations,
+                                        ev.norm)
+        values = {"fdk.alpha": ev.alpha, "fdk.iterations": sol.iterations, "fdk.evaluations": sol.evaluations,
+                  "fdk.jacobians": sol.jacobians, "fdk.report": report}
+        if ev.ok:
+            values["fdk.f_fdk"] = ev.f_fdk
+        if ev.state is not None:
+            viol = float(np.max(np.abs(self.system.evaluate(ev.state, t, ev.alpha, order=0)[0])))
+            values.update({"kin.q": ev.state.get_q(), "kin.v": ev.state.get_v(), "kin.vdot": ev.vdot,
+                           "kin.constraint_violation": viol, "kin.report": FrameReport.ok(0, viol)})
+            if ctx.tracker is not None and ev.delta is not None:
+                values["kin.marker_residual"] = ev.delta
+            self.last_state = ev.state
+        else:
+            values["kin.report"] = FrameReport.failed(Reason.KINEMATICS, sol.message)
+        status = None if sol.converged else "fdk_" + sol.reason
+        if ev.frame is not None:
+            values.update(forces_values(ev.frame, report=None if sol.converged else report, status=status))
+        else:
+            values.update(forces_failure(report, status))
+        if sol.converged:
+            history.append((k, ev.alpha.copy()))
+            self.history = history[-2:]
+            self.warm = ev.frame.recruitment
+        return [(k, values)]
+
+    def finish(self):
+        return []
+
+    def carry(self):
+        return self.last_state.copy(), list(self.history), self.warm, self.J_carry
+
+    def restore(self, carry):
+        last_state, history, self.warm, self.J_carry = carry
+        self.last_state, self.history = last_state.copy(), list(history)
+
+
+def fdk_context(model, trajectories, times, tracking=None):
+    """The FDKContext of a trial (system with FDK rows, inverse dynamics, tracker and
+    the measured markers at ``times`` (nf,) s, or determinate kinematics)."""
+    system = ConstraintSystem(model)
+    solver = InverseDynamics(model, system)
+    tracker, meas = None, None
+    if trajectories is not None:
+        tracker = MarkerTracker(system, tracking or TrackingSettings())
+        meas = [trajectories.evaluate(t) for t in times]
+    return FDKContext(model, solver, tracker, meas, times)
+
+
+def fdk_result(rec, model, ctx, settings, times, wall_time):
+    """The FDKResult (with its kinematics and forces) of a Recording."""
+    reports = rec.objects("fdk.report")
+    ok = np.array([r.converged for r in reports], dtype=bool)
+    ok.setflags(write=False)
+    alpha = rec.array("fdk.alpha")
+    a_init = np.array([d.initial for d in model.fdk_dofs])
+    kin = kinematics_result(rec, model, times, alpha[0] if len(times) else a_init, wall_time,
+                            "fdk-tracking" if ctx.tracker is not None else "fdk-determinate")
+    names = tuple(d.name for d in model.fdk_dofs)
+    args = (names, alpha, rec.array("fdk.f_fdk"), ok, rec.array("fdk.iterations"), rec.array("fdk.evaluations"),
+            reports, settings, wall_time, rec.array("fdk.jacobians"))
+    forces = forces_result(rec, ctx.solver, times, wall_time, extra_columns=FDKResult(kin, None, *args).columns())
+    return FDKResult(kin, forces, *args)
+
+
 def run_fdk(model, trajectories=None, times=None, settings=None, progress=False, tracking=None, **overrides):
     """Force-dependent kinematics over a trial.
 
@@ -94,98 +222,10 @@ def run_fdk(model, trajectories=None, times=None, settings=None, progress=False,
     if times is None:
         times = np.asarray(trajectories.time, dtype=float)
     times = np.asarray(times, dtype=float)
-    nf, n_fdk = len(times), len(model.fdk_dofs)
-    system = ConstraintSystem(model)
-    solver = InverseDynamics(model, system)
-    tracker, meas = None, None
-    if trajectories is not None:
-        tracker = MarkerTracker(system, tracking or TrackingSettings())
-        meas = [trajectories.evaluate(t) for t in times]
-    ctx = FDKContext(model, solver, tracker, meas, times)
+    ctx = fdk_context(model, trajectories, times, tracking)
+    step = FDKStep(model, ctx, settings)
 
-    n = model.n_coords
-    q = np.full((nf, 7 * n // 6), np.nan)
-    v = np.full((nf, n), np.nan)
-    vd = np.full((nf, n), np.nan)
-    nm = model.markers.size
-    resid = np.full((nf, nm if tracker else 0, 3), np.nan)
-    viol = np.full(nf, np.nan)
-    kin_ok = np.zeros(nf, dtype=bool)
-    kin_msgs = [""] * nf
-    alpha = np.full((nf, n_fdk), np.nan)
-    f_fdk = np.full((nf, n_fdk), np.nan)
-    ok = np.zeros(nf, dtype=bool)
-    iters = np.zeros(nf, dtype=int)
-    evals = np.zeros(nf, dtype=int)
-    jacobians = np.zeros(nf, dtype=int)
-    reasons, msgs = [""] * nf, [""] * nf
-    rec = ForcesRecorder(solver, nf)
+    def build(rec):
+        return fdk_result(rec, model, ctx, settings, times[: rec.n_frames], _time.perf_counter() - t0)
 
-    state0 = model.initial_state()
-    if tracker is not None:
-        first = next((j for j in range(nf) if np.any(meas[j][3])), 0)
-        tracker.initial_guess(state0, meas[first][0], meas[first][3])
-    last_state = state0
-    a_init = np.array([d.initial for d in model.fdk_dofs])
-    history = []  # α of the most recent converged frames
-    warm = None
-    J_carry = None  # the last converged frame's FDK Jacobian (settings.reuse_jacobian)
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
-
-        bar = tqdm(total=nf, desc="FDK", unit="frame", leave=False)
-    for k in range(nf):
-        ws = FrameWorkspace({j: last_state for j in ctx.frames_needed(k)})
-        if settings.extrapolate and len(history) >= 2 and history[-1][0] == k - 1 and history[-2][0] == k - 2:
-            a0 = 2 * history[-1][1] - history[-2][1]
-        elif history:
-            a0 = history[-1][1].copy()
-        else:
-            a0 = a_init.copy()
-        sol = solve_frame(ctx, k, a0, ws, settings, warm, J_carry)
-        J_carry = sol.jacobian if sol.converged else None
-        jacobians[k] = sol.jacobians
-        ev = sol.best
-        iters[k], evals[k], reasons[k] = sol.iterations, sol.evaluations, sol.reason
-        ok[k] = sol.converged
-        if not sol.converged:
-            msgs[k] = f"frame {k} (t = {times[k]:.4f} s): FDK not converged: {sol.message}"
-        alpha[k] = ev.alpha
-        if ev.ok:
-            f_fdk[k] = ev.f_fdk
-        if ev.state is not None:
-            kin_ok[k] = True
-            q[k], v[k], vd[k] = ev.state.get_q(), ev.state.get_v(), ev.vdot
-            viol[k] = float(np.max(np.abs(system.evaluate(ev.state, times[k], ev.alpha, order=0)[0])))
-            if tracker is not None and ev.delta is not None:
-                resid[k] = ev.delta
-            last_state = ev.state
-        else:
-            kin_msgs[k] = sol.message
-        if ev.frame is not None:
-            rec.record(k, ev.frame, times[k])
-            if not sol.converged:
-                rec.fail(k, "fdk_" + sol.reason, msgs[k])
-        else:
-            rec.fail(k, "fdk_" + sol.reason, msgs[k])
-        if sol.converged:
-            history.append((k, ev.alpha.copy()))
-            history = history[-2:]
-            warm = ev.frame.recruitment
-        if bar:
-            bar.update()
-            bar.set_postfix(converged=f"{ok[: k + 1].mean():.0%}")
-    if bar:
-        bar.close()
-    wall = _time.perf_counter() - t0
-    kin = KinematicsResult(
-        model.name, tuple(b.name for b in model.moving_bodies), model.markers.names, times, q, v, vd, resid, viol,
-        np.zeros(nf, dtype=int), kin_ok, tuple(kin_msgs), alpha[0] if nf else a_init, wall,
-        "fdk-tracking" if tracker else "fdk-determinate",
-    )
-    res = FDKResult(kin, None, tuple(d.name for d in model.fdk_dofs), alpha, f_fdk, ok, iters, evals,
-                    tuple(reasons), tuple(msgs), settings, wall, jacobians)
-    forces = rec.result(times, wall, res.columns())
-    return FDKResult(kin, forces, res.dof_names, alpha, f_fdk, ok, iters, evals, tuple(reasons), tuple(msgs), settings, wall,
-                     jacobians)
+    return drive(step, len(times), build, progress=progress, desc="FDK")

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..analysis.inverse_dynamics import MIN_STRENGTH
+from ..dynamics.inverse import MIN_STRENGTH
 from ..dynamics.equilibrium import assemble, inertial_minus_gravity
 from ..numdiff import manifold_jacobian
 from ..recruitment import recruitment_sensitivity

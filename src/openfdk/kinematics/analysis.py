@@ -11,6 +11,12 @@ Two modes:
 
 A frame that fails is flagged with its reason and its outputs are NaN; the analysis
 continues (warm start from the last good frame).
+
+Both run on the trial driver (:mod:`openfdk.trial`) as steps: :class:`DeterminateStep`
+and :class:`TrackingStep`. Marker tracking finishes frame k − 1 (velocities and
+accelerations) once frame k's pose is known, since Eq. 7 needs the residuals at t ± Δt;
+the arithmetic is that of a first pass over all positions followed by a second pass
+over all rates.
 """
 
 from __future__ import annotations
@@ -20,6 +26,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..trial import drive
+from ..trial.status import frame_messages
 from .determinate import check_square, solve_positions, solve_velocities_accelerations
 from .system import ConstraintSystem
 from .tracking import MarkerTracker, TrackingSettings
@@ -33,7 +41,8 @@ class KinematicsResult:
     v, vdot : (nf, 6 n_moving) [m/s, rad/s] and [m/s², rad/s²] (body-frame ω');
     marker_residual : (nf, n_markers, 3) m, model minus measured (NaN if not visible);
     constraint_violation : (nf,) max |Φ| (m or rad); iterations : (nf,) int;
-    converged : (nf,) bool; messages : per-frame reason ('' if converged);
+    converged : (nf,) bool; reports : FrameReport per frame; messages : per-frame text
+    from the reports ('' if converged);
     alpha : (n_fdk,) the FDK inputs used; wall_time : s.
     """
 
@@ -48,11 +57,15 @@ class KinematicsResult:
     constraint_violation: np.ndarray
     iterations: np.ndarray
     converged: np.ndarray
-    messages: tuple
+    reports: tuple
     alpha: np.ndarray
     wall_time: float = 0.0
     mode: str = "tracking"
     extra: dict = field(default_factory=dict)
+
+    @property
+    def messages(self):
+        return frame_messages(self.reports, self.time)
 
     @property
     def n_frames(self):
@@ -60,7 +73,8 @@ class KinematicsResult:
 
     def failed_frames(self):
         """[(frame index, time, message)] of frames that did not converge."""
-        return [(i, float(self.time[i]), self.messages[i]) for i in np.flatnonzero(~self.converged)]
+        msgs = self.messages
+        return [(i, float(self.time[i]), msgs[i]) for i in np.flatnonzero(~self.converged)]
 
     def summary(self):
         """dict for summary.json."""
@@ -81,58 +95,12 @@ class KinematicsResult:
         }
 
 
-def _progress(total, enabled, desc):
-    if not enabled:
-        return None
-    from tqdm.auto import tqdm
-
-    return tqdm(total=total, desc=desc, unit="frame", leave=False)
-
 
 def analysis_times(t_start, t_end, n_frames):
     """Uniform analysis times (n_frames,) s."""
     if n_frames < 1 or not t_end >= t_start:
         raise ValueError(f"invalid analysis interval [{t_start}, {t_end}] s with {n_frames} frames")
     return np.linspace(t_start, t_end, n_frames)
-
-
-def run_determinate(model, times, alpha=None, progress=False):
-    """Determinate kinematics (Eqs. 1–3) at ``times`` (nf,) s. Returns KinematicsResult."""
-    t0 = _time.perf_counter()
-    system = ConstraintSystem(model)
-    check_square(system)
-    alpha = _alpha(model, alpha)
-    state = model.initial_state()
-    nf, n = len(times), model.n_coords
-    q = np.full((nf, 7 * n // 6), np.nan)
-    v = np.full((nf, n), np.nan)
-    vd = np.full((nf, n), np.nan)
-    viol = np.full(nf, np.nan)
-    iters = np.zeros(nf, dtype=int)
-    ok = np.zeros(nf, dtype=bool)
-    msgs = [""] * nf
-    last_good = state.copy()
-    bar = _progress(nf, progress, "kinematics")
-    for k, t in enumerate(times):
-        res = solve_positions(system, state, t, alpha)
-        iters[k], viol[k] = res.iterations, res.residual
-        if res.converged:
-            v[k], vd[k] = solve_velocities_accelerations(system, state, t, alpha)
-            q[k] = state.get_q()
-            ok[k] = True
-            last_good = state.copy()
-        else:
-            msgs[k] = res.message
-            state = last_good.copy()
-        if bar:
-            bar.update()
-    if bar:
-        bar.close()
-    return KinematicsResult(
-        model.name, tuple(b.name for b in model.moving_bodies), model.markers.names, np.asarray(times, float),
-        q, v, vd, np.zeros((nf, 0, 3)), viol, iters, ok, tuple(msgs), alpha,
-        _time.perf_counter() - t0, "determinate",
-    )
 
 
 def _alpha(model, alpha):
@@ -147,7 +115,7 @@ def _alpha(model, alpha):
 def _extrapolate(state, q_prev):
     """state ← state ⊕ (state ⊖ q_prev): first-order prediction of the next frame's pose
     (translations linearly, rotations by the same body-frame increment)."""
-    from ..spatial import quat_conjugate, quat_multiply, normalize_quat, rotation_matrix
+    from ..spatial import normalize_quat, quat_conjugate, quat_multiply, rotation_matrix
 
     qp = np.asarray(q_prev).reshape(-1, 7)
     for k, i in enumerate(state.moving):
@@ -157,28 +125,188 @@ def _extrapolate(state, q_prev):
         state.R_WB[i] = rotation_matrix(state.quat_WB[i])
 
 
-def _rates(delta, ok, dt):
-    """δ̇ and δ̈ (nf, nm, 3) from the residual history δ (nf, nm, 3) by central
-    differences (Eq. 7), one-sided where a neighbour is missing or failed."""
-    nf = len(delta)
-    d1 = np.zeros_like(delta)
-    d2 = np.zeros_like(delta)
-    good = ok[:, None, None] & np.isfinite(delta)
-    D = np.where(good, delta, 0.0)
-    for k in range(nf):
-        has_prev = k > 0
-        has_next = k < nf - 1
-        cur = good[k]
-        prev = good[k - 1] if has_prev else np.zeros_like(cur)
-        nxt = good[k + 1] if has_next else np.zeros_like(cur)
-        both = cur & prev & nxt
-        d1[k] = np.where(both, (D[min(k + 1, nf - 1)] - D[max(k - 1, 0)]) / (2 * dt), 0.0)
-        d2[k] = np.where(both, (D[min(k + 1, nf - 1)] - 2 * D[k] + D[max(k - 1, 0)]) / dt**2, 0.0)
-        fwd = cur & nxt & ~prev
-        d1[k] = np.where(fwd, (D[min(k + 1, nf - 1)] - D[k]) / dt, d1[k])
-        bwd = cur & prev & ~nxt
-        d1[k] = np.where(bwd, (D[k] - D[max(k - 1, 0)]) / dt, d1[k])
+def residual_rates(prev, cur, nxt, dt):
+    """δ̇ and δ̈ (nm, 3) of one frame from the residuals δ (nm, 3) m of the frame and its
+    neighbours (Eq. 7 and its second-order analogue): central where all three are known,
+    one-sided where a neighbour is missing (None: outside the trial) or NaN (failed
+    frame, occluded marker), 0 otherwise."""
+    good = np.isfinite(cur)
+    none = np.zeros_like(good)
+    good_p = np.isfinite(prev) if prev is not None else none
+    good_n = np.isfinite(nxt) if nxt is not None else none
+    D = np.where(good, cur, 0.0)
+    Dp = np.where(good_p, prev, 0.0) if prev is not None else D
+    Dn = np.where(good_n, nxt, 0.0) if nxt is not None else D
+    both = good & good_p & good_n
+    d1 = np.where(both, (Dn - Dp) / (2 * dt), 0.0)
+    d2 = np.where(both, (Dn - 2 * D + Dp) / dt**2, 0.0)
+    d1 = np.where(good & good_n & ~good_p, (Dn - D) / dt, d1)
+    d1 = np.where(good & good_p & ~good_n, (D - Dp) / dt, d1)
     return d1, d2
+
+
+def kinematics_fields(model, n_markers, prefix="kin."):
+    """Declared per-frame fields {name: (shape, dtype, fill)} of a kinematic analysis."""
+    n = model.n_coords
+    return {prefix + "q": ((7 * n // 6,), float, np.nan), prefix + "v": ((n,), float, np.nan),
+            prefix + "vdot": ((n,), float, np.nan), prefix + "marker_residual": ((n_markers, 3), float, np.nan),
+            prefix + "constraint_violation": ((), float, np.nan), prefix + "iterations": ((), int, 0),
+            prefix + "report": ((), object, None)}
+
+
+def kinematics_result(rec, model, times, alpha, wall_time, mode, prefix="kin."):
+    """The KinematicsResult of a Recording (frames in ``times`` (nf,) s)."""
+    reports = rec.objects(prefix + "report")
+    converged = np.array([r.converged for r in reports], dtype=bool)
+    converged.setflags(write=False)
+    return KinematicsResult(
+        model.name, tuple(b.name for b in model.moving_bodies), model.markers.names, np.asarray(times, float),
+        rec.array(prefix + "q"), rec.array(prefix + "v"), rec.array(prefix + "vdot"),
+        rec.array(prefix + "marker_residual"), rec.array(prefix + "constraint_violation"),
+        rec.array(prefix + "iterations"), converged, reports, alpha, wall_time, mode,
+    )
+
+
+class DeterminateStep:
+    """Trial-driver step of determinate kinematics (Eqs. 1–3): Newton–Raphson from the
+    previous frame's pose (the last converged one after a failure)."""
+
+    def __init__(self, model, times, alpha, prefix="kin."):
+        self.model, self.times, self.alpha, self.prefix = model, times, alpha, prefix
+        self.system = ConstraintSystem(model)
+        check_square(self.system)
+        self.state = model.initial_state()
+        self.last_good = self.state.copy()
+
+    def fields(self):
+        return kinematics_fields(self.model, 0, self.prefix)
+
+    def step(self, k):
+        t, P = self.times[k], self.prefix
+        res = solve_positions(self.system, self.state, t, self.alpha)
+        values = {P + "iterations": res.iterations, P + "constraint_violation": res.residual,
+                  P + "report": res.report()}
+        if res.converged:
+            v, vd = solve_velocities_accelerations(self.system, self.state, t, self.alpha)
+            values.update({P + "q": self.state.get_q(), P + "v": v, P + "vdot": vd})
+            self.last_good = self.state.copy()
+        else:
+            self.state = self.last_good.copy()
+        return [(k, values)]
+
+    def finish(self):
+        return []
+
+    def carry(self):
+        return self.state.copy(), self.last_good.copy()
+
+    def restore(self, carry):
+        self.state, self.last_good = carry[0].copy(), carry[1].copy()
+
+
+class TrackingStep:
+    """Trial-driver step of marker tracking (Eqs. 4–10).
+
+    step(k) solves frame k's positions (Eqs. 4–5, warm-started by linear extrapolation
+    of the two previous poses on the manifold), then finishes frame k − 1: residual
+    rates from frames k − 2, k − 1, k (Eq. 7) and velocities and accelerations
+    (Eqs. 8–10) with the KKT matrix of its last Gauss–Newton step.
+    """
+
+    def __init__(self, model, trajectories, times, alpha, settings=None, prefix="kin."):
+        self.model, self.traj, self.times, self.alpha, self.prefix = model, trajectories, times, alpha, prefix
+        nf = len(times)
+        self.dt = float(times[1] - times[0]) if nf > 1 else 1.0
+        self.tracker = MarkerTracker(ConstraintSystem(model), settings or TrackingSettings())
+        self.state = model.initial_state()
+        self.last_good = self.state.copy()
+        self.q_prev = None
+        self.guessed = False
+        self.pending = {}  # frame -> positions of the last frames not yet finished
+
+    def fields(self):
+        return kinematics_fields(self.model, self.model.markers.size, self.prefix)
+
+    def step(self, k):
+        t = self.times[k]
+        x, xd, xdd, vis = self.traj.evaluate(t)
+        tracker, state = self.tracker, self.state
+        if not self.guessed and np.any(vis):
+            tracker.initial_guess(state, x, vis)
+            self.guessed = True
+        res, K, _ = tracker.solve_positions(state, t, x, vis, self.alpha)
+        frame = {"res": res, "meas": (x, xd, xdd, vis), "K": None, "q": None,
+                 "delta": np.full((self.model.markers.size, 3), np.nan)}
+        if res.converged:
+            frame.update(K=K, q=state.get_q(), delta=np.where(vis[:, None], tracker.residuals(state, x), np.nan))
+            self.last_good = state.copy()
+            # warm start of the next frame: linear extrapolation on the manifold
+            if self.q_prev is not None:
+                _extrapolate(state, self.q_prev)
+            self.q_prev = frame["q"]
+        else:
+            self.state = self.last_good.copy()
+            self.q_prev = None
+        self.pending[k] = frame
+        done = [(k - 1, self._finish_frame(k - 1))] if k >= 1 else []
+        self.pending.pop(k - 2, None)  # frame k − 1 was its last user
+        return done
+
+    def finish(self):
+        last = len(self.times) - 1
+        return [(last, self._finish_frame(last))] if last in self.pending else []
+
+    def _finish_frame(self, j):
+        """Velocities and accelerations of frame j (its neighbours' residuals known)."""
+        P, fr = self.prefix, self.pending[j]
+        res = fr["res"]
+        values = {P + "iterations": res.iterations, P + "constraint_violation": res.residual,
+                  P + "report": res.report(), P + "marker_residual": fr["delta"]}
+        if not res.converged:
+            return values
+        prev, nxt = self.pending.get(j - 1), self.pending.get(j + 1)
+        d1, d2 = residual_rates(None if prev is None else prev["delta"], fr["delta"],
+                                None if nxt is None else nxt["delta"], self.dt)
+        x, xd, xdd, vis = fr["meas"]
+        state = self.model.initial_state()
+        state.set_q(fr["q"])
+        v, vd = self.tracker.solve_velocities_accelerations(
+            state, self.times[j], fr["K"], vis, np.nan_to_num(xd), np.nan_to_num(xdd), d1, d2, self.alpha)
+        values.update({P + "q": fr["q"], P + "v": v, P + "vdot": vd})
+        return values
+
+    def carry(self):
+        return self.state.copy(), self.last_good.copy(), self.q_prev, self.guessed, dict(self.pending)
+
+    def restore(self, carry):
+        state, last_good, self.q_prev, self.guessed, pending = carry
+        self.state, self.last_good, self.pending = state.copy(), last_good.copy(), dict(pending)
+
+
+def run_determinate(model, times, alpha=None, progress=False):
+    """Determinate kinematics (Eqs. 1–3) at ``times`` (nf,) s. Returns KinematicsResult."""
+    t0 = _time.perf_counter()
+    alpha = _alpha(model, alpha)
+    times = np.asarray(times, float)
+    step = DeterminateStep(model, times, alpha)
+
+    def build(rec):
+        return kinematics_result(rec, model, times[: rec.n_frames], alpha, _time.perf_counter() - t0,
+                                 "determinate")
+
+    return drive(step, len(times), build, progress=progress, desc="kinematics")
+
+
+def tracking_times(trajectories, times):
+    """The analysed times (nf,) s: ``times`` or the trial's samples; checked uniform."""
+    if times is None:
+        times = np.asarray(trajectories.time, dtype=float)
+    times = np.asarray(times, dtype=float)
+    nf = len(times)
+    dt = float(times[1] - times[0]) if nf > 1 else 1.0
+    if nf > 2 and np.max(np.abs(np.diff(times) - dt)) > 1e-9 * max(1.0, abs(dt)):
+        raise ValueError("marker tracking needs uniformly spaced analysis times")
+    return times
 
 
 def run_tracking(model, trajectories, times=None, alpha=None, settings=None, progress=False):
@@ -193,71 +321,11 @@ def run_tracking(model, trajectories, times=None, alpha=None, settings=None, pro
     t0 = _time.perf_counter()
     if model.markers.size == 0:
         raise ValueError(f"model {model.name!r} has no markers to track")
-    if times is None:
-        times = np.asarray(trajectories.time, dtype=float)
-    times = np.asarray(times, dtype=float)
-    nf = len(times)
-    dt = float(times[1] - times[0]) if nf > 1 else 1.0
-    if nf > 2 and np.max(np.abs(np.diff(times) - dt)) > 1e-9 * max(1.0, abs(dt)):
-        raise ValueError("marker tracking needs uniformly spaced analysis times")
+    times = tracking_times(trajectories, times)
     alpha = _alpha(model, alpha)
-    system = ConstraintSystem(model)
-    tracker = MarkerTracker(system, settings or TrackingSettings())
-    nm, n = model.markers.size, model.n_coords
-    state = model.initial_state()
-    q = np.full((nf, 7 * n // 6), np.nan)
-    v = np.full((nf, n), np.nan)
-    vd = np.full((nf, n), np.nan)
-    delta = np.full((nf, nm, 3), np.nan)
-    viol = np.full(nf, np.nan)
-    iters = np.zeros(nf, dtype=int)
-    ok = np.zeros(nf, dtype=bool)
-    msgs = [""] * nf
-    meas = []
-    bar = _progress(2 * nf, progress, "kinematics")
-    guessed = False
-    last_good = state.copy()
-    kkt = [None] * nf
-    q_prev = None
-    # -- pass 1: positions (Eqs. 4-5) ------------------------------------------------
-    for k, t in enumerate(times):
-        x, xd, xdd, vis = trajectories.evaluate(t)
-        meas.append((x, xd, xdd, vis))
-        if not guessed and np.any(vis):
-            tracker.initial_guess(state, x, vis)
-            guessed = True
-        res, K, _ = tracker.solve_positions(state, t, x, vis, alpha)
-        iters[k], viol[k] = res.iterations, res.residual
-        if res.converged:
-            ok[k] = True
-            kkt[k] = K
-            q[k] = state.get_q()
-            delta[k] = np.where(vis[:, None], tracker.residuals(state, x), np.nan)
-            last_good = state.copy()
-            # warm start of the next frame: linear extrapolation on the manifold
-            if q_prev is not None:
-                _extrapolate(state, q_prev)
-            q_prev = q[k]
-        else:
-            msgs[k] = f"frame {k} (t = {t:.4f} s): {res.message}"
-            state = last_good.copy()
-            q_prev = None
-        if bar:
-            bar.update()
-    # -- pass 2: velocities and accelerations (Eqs. 6-10) ---------------------------
-    d1, d2 = _rates(delta, ok, dt)
-    for k, t in enumerate(times):
-        if ok[k]:
-            state.set_q(q[k])
-            x, xd, xdd, vis = meas[k]
-            v[k], vd[k] = tracker.solve_velocities_accelerations(
-                state, t, kkt[k], vis, np.nan_to_num(xd), np.nan_to_num(xdd), d1[k], d2[k], alpha
-            )
-        if bar:
-            bar.update()
-    if bar:
-        bar.close()
-    return KinematicsResult(
-        model.name, tuple(b.name for b in model.moving_bodies), model.markers.names, times,
-        q, v, vd, delta, viol, iters, ok, tuple(msgs), alpha, _time.perf_counter() - t0, "tracking",
-    )
+    step = TrackingStep(model, trajectories, times, alpha, settings)
+
+    def build(rec):
+        return kinematics_result(rec, model, times[: rec.n_frames], alpha, _time.perf_counter() - t0, "tracking")
+
+    return drive(step, len(times), build, progress=progress, desc="kinematics")

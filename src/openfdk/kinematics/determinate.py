@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
+from ..trial.status import FrameReport, Reason
 from .system import ConstraintSystem, KinematicsError, dependent_rows, undetermined_coordinates
 
 
@@ -19,13 +20,20 @@ class FrameSolve:
     """Outcome of one frame's position (and velocity/acceleration) solve.
 
     converged : bool; iterations : int; residual : max |Φ| (m or rad) at the end;
-    message : str ('' when converged).
+    message : str ('' when converged); reason : Reason (why it failed).
     """
 
     converged: bool
     iterations: int
     residual: float
     message: str = ""
+    reason: Reason = Reason.CONVERGED
+
+    def report(self) -> FrameReport:
+        """The frame's structured status."""
+        if self.converged:
+            return FrameReport.ok(self.iterations, self.residual)
+        return FrameReport.failed(self.reason, self.message, self.iterations, self.residual)
 
 
 def check_square(system: ConstraintSystem):
@@ -62,7 +70,7 @@ def solve_positions(system: ConstraintSystem, state, t, alpha=None, tol=1e-10, m
         try:
             dq = np.linalg.solve(Phi_q, -Phi)
         except np.linalg.LinAlgError:
-            return FrameSolve(False, it, float(np.max(np.abs(Phi))), diagnose_singular(system, Phi_q))
+            return FrameSolve(False, it, float(np.max(np.abs(Phi))), diagnose_singular(system, Phi_q), Reason.SINGULAR)
         state.displace(dq)
         if np.max(np.abs(dq)) < tol:
             Phi = system.evaluate(state, t, alpha, order=0)[0]
@@ -73,7 +81,7 @@ def solve_positions(system: ConstraintSystem, state, t, alpha=None, tol=1e-10, m
     res = float(np.max(np.abs(Phi)))
     msg = f"Newton–Raphson did not converge in {max_iter} iterations (max |Φ| = {res:.3g})"
     worst = system.row_names[int(np.argmax(np.abs(Phi)))]
-    return FrameSolve(False, max_iter, res, msg + f"; largest violation in row {worst!r}")
+    return FrameSolve(False, max_iter, res, msg + f"; largest violation in row {worst!r}", Reason.ITERATION_LIMIT)
 
 
 def solve_velocities_accelerations(system: ConstraintSystem, state, t, alpha=None):

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..spatial import quat_from_matrix
+from ..trial.status import Reason
 from .determinate import FrameSolve
 from .kkt import kkt_step
 from .system import ConstraintSystem, undetermined_coordinates
@@ -112,7 +113,7 @@ class MarkerTracker:
         s = self.settings
         msg = self.observability_message(state, t, visible, alpha)
         if msg:
-            return FrameSolve(False, 0, np.nan, msg), None, None
+            return FrameSolve(False, 0, np.nan, msg, Reason.UNOBSERVABLE), None, None
         w = self._weights(visible)
         x = np.where(visible[:, None], x_WM, 0.0).ravel()
         n, m = self.system.n_coords, self.system.n_rows
@@ -124,16 +125,16 @@ class MarkerTracker:
             try:
                 sol, step, res = kkt_step(J, w, p, x, A, Phi, K)
             except np.linalg.LinAlgError as exc:
-                return FrameSolve(False, it, np.nan, f"KKT system singular: {exc}"), None, None
+                return FrameSolve(False, it, np.nan, f"KKT system singular: {exc}", Reason.SINGULAR), None, None
             dq, lam = sol[:n], sol[n:]
             if not np.all(np.isfinite(dq)):
-                return FrameSolve(False, it, np.nan, "KKT system singular (non-finite step)"), None, None
+                return FrameSolve(False, it, np.nan, "KKT system singular (non-finite step)", Reason.SINGULAR), None, None
             state.displace(dq)
             if step < s.tol_step and res <= s.tol_constraint:
                 return FrameSolve(True, it, res), K, lam
         return (
             FrameSolve(False, s.max_iter, res, f"Gauss–Newton did not converge in {s.max_iter} iterations "
-                       f"(last step {step:.3g}, max |Φ| = {res:.3g})"),
+                       f"(last step {step:.3g}, max |Φ| = {res:.3g})", Reason.ITERATION_LIMIT),
             K, lam,
         )
 

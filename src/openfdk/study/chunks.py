@@ -20,7 +20,6 @@ zero-lag Butterworth filter is not local), exactly as in the serial run.
 from __future__ import annotations
 
 import itertools
-import re
 import time as _time
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
@@ -115,28 +114,16 @@ def solve_segment(model, trajectories, times, segment: Segment, info=None) -> Se
 
 # -- stitching -----------------------------------------------------------------------
 
-_FRAME_REF = re.compile(r"\bframe (\d+) \(t = ")
+#: per-frame fields of each result kind. Messages are not among them: they are made from
+#: the structured reports with the trial's frame numbers (openfdk.trial.status).
 _PER_FRAME = {
     "KinematicsResult": ("time", "q", "v", "vdot", "marker_residual", "constraint_violation", "iterations",
-                         "converged", "messages"),
+                         "converged", "reports"),
     "InverseDynamicsResult": ("time", "forces", "muscle_length", "muscle_speed", "muscle_strength", "muscle_passive",
                               "ligament_length", "ligament_strain", "ligament_force", "spring_force", "converged",
-                              "status", "messages", "iterations"),
-    "FDKResult": ("alpha", "f_fdk", "converged", "iterations", "evaluations", "jacobians", "reasons",
-                  "messages"),
+                              "status", "reports", "iterations"),
+    "FDKResult": ("alpha", "f_fdk", "converged", "iterations", "evaluations", "jacobians", "reports"),
 }
-
-
-def _renumber(messages, offset):
-    """Per-frame messages name their frame ("frame 3 (t = ...") in segment numbering:
-    shift to the whole trial's numbering."""
-    return tuple(_FRAME_REF.sub(lambda m: f"frame {int(m.group(1)) + offset} (t = ", s) if s else s for s in messages)
-
-
-def _kept(part, lo, hi, offset, name):
-    if name == "messages":
-        return _renumber(part[lo:hi], offset)
-    return part[lo:hi]
 
 
 def _join(parts):
@@ -155,7 +142,7 @@ def _stitch_object(objects, segments, wall_time, extra_columns=None):
         parts = []
         for obj, seg in zip(objects, segments):
             lo, hi = seg.keep_start - seg.solve_start, seg.keep_stop - seg.solve_start
-            parts.append(_kept(getattr(obj, name), lo, hi, seg.solve_start, name))
+            parts.append(getattr(obj, name)[lo:hi])
         changes[name] = _join(parts)
     if "wall_time" in {f.name for f in fields(objects[0])}:
         changes["wall_time"] = wall_time

@@ -1,0 +1,157 @@
+"""The trial driver: one loop over the analysed frames for every analysis.
+
+An analysis supplies a *step* object (its per-frame solver with its warm starts):
+
+* ``fields()`` → ``{name: (shape, dtype, fill)}`` the per-frame values it records;
+* ``step(k)`` → ``[(j, values)]`` the frames finished by processing frame k (usually
+  ``[(k, …)]``; marker tracking finishes frame k − 1 once frame k's pose is known,
+  because Eq. 7 needs the residuals at t ± Δt);
+* ``finish()`` → the frames still pending after the last one;
+* ``carry()`` / ``restore(carry)`` → its warm-start state (picklable), for checkpoints.
+
+:func:`drive` owns the loop, the progress display, the recording (a
+:class:`Recording`, frozen when the loop ends), periodic checkpoints and Ctrl-C: on
+KeyboardInterrupt it raises :class:`TrialInterrupted` carrying the result built from the
+frames finished so far.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .status import NOT_RUN, FrameReport
+
+REPORT = "report"  # conventional name of the FrameReport field of a step
+
+
+class Recording:
+    """Per-frame values of one trial, filled frame by frame, then frozen.
+
+    n_frames : int; fields : {name: (shape, dtype, fill)} declared by the step; values
+    of undeclared names become float arrays (NaN fill) or, for text and objects, tuples.
+    """
+
+    def __init__(self, n_frames, fields=None):
+        self.n_frames = int(n_frames)
+        self._arrays = {}
+        self._objects = {}
+        self.done = np.zeros(self.n_frames, dtype=bool)
+        self.interrupted = False
+        for name, (shape, dtype, fill) in (fields or {}).items():
+            self._declare(name, shape, dtype, fill)
+
+    def _declare(self, name, shape, dtype, fill):
+        if dtype is object:
+            self._objects[name] = [fill] * self.n_frames
+        else:
+            self._arrays[name] = np.full((self.n_frames, *shape), fill, dtype=dtype)
+
+    def record(self, k, values):
+        """Store frame k's values (dict name -> value) and mark it finished."""
+        for name, value in values.items():
+            if name not in self._arrays and name not in self._objects:
+                if isinstance(value, (str, FrameReport)) or value is None:
+                    self._declare(name, (), object, None)
+                else:
+                    self._declare(name, np.shape(value), float, np.nan)
+            if name in self._objects:
+                self._objects[name][k] = value
+            else:
+                self._arrays[name][k] = value
+        self.done[k] = True
+
+    @property
+    def frames_done(self):
+        """Number of leading finished frames (all of them after a complete run)."""
+        missing = np.flatnonzero(~self.done)
+        return int(missing[0]) if missing.size else self.n_frames
+
+    def names(self):
+        return list(self._arrays) + list(self._objects)
+
+    def __contains__(self, name):
+        return name in self._arrays or name in self._objects
+
+    def array(self, name):
+        """A read-only view of a numeric field (n_frames, …)."""
+        a = self._arrays[name]
+        a.setflags(write=False)
+        return a
+
+    def objects(self, name):
+        """A tuple of an object field's per-frame values (reports: NOT_RUN if never set)."""
+        vals = self._objects[name]
+        if name == REPORT or name.endswith("." + REPORT):
+            return tuple(NOT_RUN if v is None else v for v in vals)
+        return tuple(vals)
+
+    def truncated(self, n):
+        """A new Recording holding the first n frames."""
+        out = Recording(n)
+        out._arrays = {k: v[:n].copy() for k, v in self._arrays.items()}
+        out._objects = {k: v[:n] for k, v in self._objects.items()}
+        out.done = self.done[:n].copy()
+        out.interrupted = self.interrupted
+        return out
+
+
+class TrialInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a trial. ``partial`` is the result of the frames finished before
+    the interruption (built by the analysis as for a complete run, with only those
+    frames), ``frames_planned`` the number of frames asked for."""
+
+    def __init__(self, partial, frames_planned):
+        super().__init__("interrupted")
+        self.partial = partial
+        self.frames_planned = frames_planned
+
+
+def _progress(total, enabled, desc):
+    if not enabled:
+        return None
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, desc=desc, unit="frame", leave=False)
+
+
+def drive(step, n_frames, build, *, progress=False, desc="frames", checkpoints=None, resume=False):
+    """Run ``step`` over frames 0 … n_frames − 1 and return ``build(recording)``.
+
+    checkpoints : :class:`openfdk.trial.checkpoint.Checkpoints` or None — finished
+    frames and the step's warm-start state are saved as the loop goes; with ``resume``
+    the loop continues after the last saved frame (the result is the same as an
+    uninterrupted run's, bit for bit, because the warm starts are restored exactly).
+    On KeyboardInterrupt raises TrialInterrupted(build(first finished frames)).
+    """
+    rec = Recording(n_frames, step.fields())
+    start = 0
+    if checkpoints is not None and resume:
+        saved = checkpoints.load()
+        if saved is not None:
+            for j, values in saved.records:
+                rec.record(j, values)
+            step.restore(saved.carry)
+            start = saved.next_frame
+    bar = _progress(n_frames, progress, desc)
+    if bar is not None and start:
+        bar.update(start)
+    pending = []
+    try:
+        for k in range(start, n_frames):
+            for j, values in step.step(k):
+                rec.record(j, values)
+                pending.append((j, values))
+            if checkpoints is not None and checkpoints.due(len(pending)):
+                checkpoints.save(pending, step.carry(), k + 1)
+                pending = []
+            if bar is not None:
+                bar.update()
+        for j, values in step.finish():
+            rec.record(j, values)
+    except KeyboardInterrupt:
+        rec.interrupted = True
+        raise TrialInterrupted(build(rec.truncated(rec.frames_done)), n_frames) from None
+    finally:
+        if bar is not None:
+            bar.close()
+    return build(rec)
