@@ -14,7 +14,7 @@ from openfdk.jobs import load_trajectories, run_job
 from openfdk.model.modelfile import load_model
 from openfdk.study.chunks import plan_segments
 from openfdk.study.cli import run_chunked_job
-from openfdk.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, jaw_model_dict, write_jaw_meshes
+from openfdk.fixtures.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, jaw_model_dict, write_jaw_meshes
 
 N_FRAMES = 24
 FDK_DOFS = ("tmj_r_normal", "tmj_l_normal", "ml_shift")

@@ -9,7 +9,7 @@ import yaml
 
 from openfdk.cli import main
 from openfdk.io.c3d import write_c3d
-from openfdk.synthetic import synthetic_markers, two_body_model_dict
+from openfdk.fixtures.synthetic import synthetic_markers, two_body_model_dict
 
 
 @pytest.fixture

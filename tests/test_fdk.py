@@ -114,7 +114,7 @@ def test_frame_without_restoring_force_is_flagged_and_run_continues():
 @pytest.fixture(scope="module")
 def tmj_model(tmp_path_factory):
     from openfdk.model.modelfile import model_from_dict
-    from openfdk.synthetic_jaw import jaw_fdk_model_dict, write_jaw_meshes
+    from openfdk.fixtures.synthetic_jaw import jaw_fdk_model_dict, write_jaw_meshes
 
     d = write_jaw_meshes(tmp_path_factory.mktemp("tmj"))
     data = jaw_fdk_model_dict(str(d))
@@ -129,7 +129,7 @@ def _tmj_context(model, n_frames=30):
     from openfdk.io.markers import MarkerTrajectories
     from openfdk.kinematics.system import ConstraintSystem
     from openfdk.kinematics.tracking import MarkerTracker, TrackingSettings
-    from openfdk.synthetic_jaw import jaw_markers
+    from openfdk.fixtures.synthetic_jaw import jaw_markers
 
     t, labels, x, _ = jaw_markers(n_frames, noise=1e-4, seed=3)
     traj = MarkerTrajectories(MarkerTrial(tuple(labels), 100.0, t, x), cutoff_hz=8.0)
@@ -216,7 +216,7 @@ def test_run_cli_does_fdk_when_the_model_declares_fdk_dofs(tmp_path):
 
     from openfdk.cli import main
     from openfdk.io.c3d import write_c3d
-    from openfdk.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, write_jaw_meshes
+    from openfdk.fixtures.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, write_jaw_meshes
 
     write_jaw_meshes(tmp_path / "meshes")
     (tmp_path / "jaw.yaml").write_text(yaml.safe_dump(jaw_fdk_model_dict("meshes")))

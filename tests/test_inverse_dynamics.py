@@ -205,7 +205,7 @@ def test_pop_jaw_tmj_forces_are_compressive_and_symmetric():
     from openfdk.io.markers import MarkerTrajectories
     from openfdk.kinematics.analysis import run_tracking
     from openfdk.model.modelfile import model_from_dict
-    from openfdk.synthetic_jaw import jaw_markers, jaw_model_dict
+    from openfdk.fixtures.synthetic_jaw import jaw_markers, jaw_model_dict
 
     model = model_from_dict(jaw_model_dict(), "jaw.yaml")
     t, labels, x, _ = jaw_markers(150, noise=0.0)

@@ -30,7 +30,7 @@ from openfdk.study import (
 )
 from openfdk.study.cluster import dask_client
 from openfdk.study.kinds import prepare_model_case
-from openfdk.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, write_jaw_meshes
+from openfdk.fixtures.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, write_jaw_meshes
 
 EPS_L = 0.03  # Blankevoort toe-region parameter ε_l (DESIGN.md §1)
 LIGAMENTS = [f"tmj_ligament_{s}{e}" for s in "rl" for e in (1, 2, 3)]

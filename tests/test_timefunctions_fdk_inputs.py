@@ -7,7 +7,7 @@ from models import slider_crank
 from openfdk.kinematics.analysis import run_determinate, run_tracking
 from openfdk.model.builder import ModelBuilder
 from openfdk.model.timefunctions import Constant, Fourier, Polynomial, SplineThroughData
-from openfdk.synthetic import synthetic_markers, two_body_model_dict
+from openfdk.fixtures.synthetic import synthetic_markers, two_body_model_dict
 
 
 @pytest.mark.parametrize(

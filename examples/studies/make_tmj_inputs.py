@@ -1,6 +1,6 @@
 """Write the inputs of the TMJ example studies next to this file (folder ``tmj/``): the
 synthetic TMJ-like FDK model (two spherical condyles in elastic-foundation contact with
-the TMJ planes, 3 FDK DOFs, 6 ligament elements, 24 Hill muscles; openfdk.synthetic_jaw),
+the TMJ planes, 3 FDK DOFs, 6 ligament elements, 24 Hill muscles; openfdk.fixtures.synthetic_jaw),
 its meshes, a 300-frame and a 2000-frame open–close trial at 100 Hz (0.1 mm marker noise).
 
     python examples/studies/make_tmj_inputs.py
@@ -12,7 +12,7 @@ from pathlib import Path
 import yaml
 
 from openfdk.io.c3d import write_c3d
-from openfdk.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, write_jaw_meshes
+from openfdk.fixtures.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, write_jaw_meshes
 
 
 def make_tmj_inputs(folder):

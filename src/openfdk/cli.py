@@ -63,10 +63,20 @@ def _cmd_run(args):
     else:
         from .jobs import run_job
         from .study.case import write_run_outputs
+        from .trial import TrialInterrupted
 
-        kin, dyn, info = run_job(args.model, args.trial, cutoff_hz=args.cutoff, progress=not args.no_progress,
-                                 start=args.start, end=args.end)
+        checkpoints = _run_checkpoints(args)
+        try:
+            kin, dyn, info = run_job(args.model, args.trial, cutoff_hz=args.cutoff, progress=not args.no_progress,
+                                     start=args.start, end=args.end, checkpoints=checkpoints, resume=args.resume)
+        except TrialInterrupted as exc:
+            kin, dyn, info = exc.partial
+            write_run_outputs(args.out, kin, dyn, info, frames_planned=exc.frames_planned)
+            print(f"openfdk: interrupted: {len(kin.time)} of {exc.frames_planned} frames finished, written to "
+                  f"{args.out} (marked partial in summary.json; continue with --resume)", file=sys.stderr)
+            return 130
         write_run_outputs(args.out, kin, dyn, info)
+        checkpoints.clear()
     fdk = info.get("fdk")
     print(
         f"run: kinematics {int(kin.converged.sum())}/{len(kin.time)} frames, inverse dynamics "
@@ -81,6 +91,32 @@ def _cmd_run(args):
     for i, t, msg in dyn.failed_frames()[:10]:
         print(f"  failed: {msg}", file=sys.stderr)
     return 0
+
+
+def _run_checkpoints(args):
+    """Checkpoints of ``openfdk run`` in OUT/.checkpoint, fingerprinted by the model and
+    trial files' contents and the analysis options."""
+    import hashlib
+    from pathlib import Path
+
+    from .trial.checkpoint import CHECKPOINT_DIR, Checkpoints
+
+    h = hashlib.sha256()
+    for path in (args.model, args.trial):
+        if path is not None:
+            h.update(Path(path).read_bytes())
+    h.update(repr((args.cutoff, args.start, args.end, _version())).encode())
+    return Checkpoints(Path(args.out) / CHECKPOINT_DIR, h.hexdigest(), args.checkpoint_frames,
+                       args.checkpoint_seconds)
+
+
+def _version():
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("openfdk")
+    except PackageNotFoundError:  # pragma: no cover - running from a source tree
+        return "unknown"
 
 
 def _cmd_demo(args):
@@ -169,6 +205,14 @@ def build_parser():
     from .study.cli import add_chunk_arguments, add_study_parser
 
     add_chunk_arguments(r)
+    from .trial.checkpoint import DEFAULT_EVERY_FRAMES, DEFAULT_EVERY_SECONDS
+
+    r.add_argument("--resume", action="store_true",
+                   help="continue an interrupted run from the checkpoint in --out (same model, trial and options)")
+    r.add_argument("--checkpoint-frames", type=int, default=DEFAULT_EVERY_FRAMES, metavar="N",
+                   help=f"write finished frames to --out at least every N frames (default {DEFAULT_EVERY_FRAMES})")
+    r.add_argument("--checkpoint-seconds", type=float, default=DEFAULT_EVERY_SECONDS, metavar="S",
+                   help=f"... and at least every S seconds (default {DEFAULT_EVERY_SECONDS:g})")
     add_study_parser(sub)
 
     d = sub.add_parser("demo", help="the mandible study on the virtual subject, end to end")

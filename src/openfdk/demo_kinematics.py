@@ -17,7 +17,7 @@ from .io.c3d import write_c3d
 from .io.results import write_kinematics
 from .jobs import kinematics_job
 from .plots import plot_tracking
-from .synthetic import synthetic_markers, two_body_model_dict
+from .fixtures.synthetic import synthetic_markers, two_body_model_dict
 
 
 def run_kinematics_demo(out="openfdk-demo", quick=False, progress=True):

@@ -50,48 +50,59 @@ def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, s
     """Kinematics of a model file over a C3D trial (marker tracking), or over the model
     file's ``analysis`` interval (determinate) when ``trial_path`` is None.
     Returns (KinematicsResult, info dict for the summary)."""
-    from .kinematics.analysis import analysis_times, run_determinate, run_tracking
+    from .kinematics.analysis import run_determinate, run_tracking
 
     model = load_model(model_path) if not hasattr(model_path, "bodies") else model_path
     info = {"model": str(model_path) if not hasattr(model_path, "bodies") else model.name}
-    if trial_path is None:
-        a = model.elements.get("analysis", {})
-        t0 = float(a.get("start", 0.0) if start is None else start)
-        t1 = float(a.get("end", 1.0) if end is None else end)
-        times = analysis_times(t0, t1, int(a.get("frames", 101)))
+    traj, times, more = analysis_inputs(model, trial_path, cutoff_hz, start, end)
+    info.update(more)
+    if traj is None:
         return run_determinate(model, times, alpha=alpha, progress=progress), info
-    trial, traj = load_trajectories(model, trial_path, cutoff_hz)
-    times = analysis_window(model, np.asarray(trial.time, dtype=float), start, end)
-    info.update({"trial": str(Path(trial_path)), "rate_hz": trial.rate, "markers": list(trial.labels)})
     return run_tracking(model, traj, times, alpha=alpha, progress=progress), info
 
 
-def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=None, end=None):
-    """Kinematics then inverse dynamics with muscle recruitment; when the model declares
-    FDK DOFs, force-dependent kinematics (each frame's α found so that the FDK residual
-    forces vanish). Returns (KinematicsResult, InverseDynamicsResult, info); for FDK,
-    info["fdk"] holds the FDK summary."""
-    from .analysis.inverse_dynamics import run_inverse_dynamics
+def analysis_inputs(model, trial_path=None, cutoff_hz=None, start=None, end=None):
+    """(trajectories or None, times (nf,) s, info): the trial's samples within the
+    analysis window, or for determinate kinematics the model file's ``analysis``
+    start/end/frames."""
     from .kinematics.analysis import analysis_times
 
-    model = load_model(model_path) if not hasattr(model_path, "bodies") else model_path
-    label = str(model_path) if not hasattr(model_path, "bodies") else model.name
-    if not model.fdk_dofs:
-        kin, info = kinematics_job(model, trial_path, cutoff_hz, progress, start, end)
-        info["model"] = label
-        return kin, run_inverse_dynamics(model, kin, progress=progress), info
-    from .fdk.analysis import run_fdk
-
-    info = {"model": label}
     if trial_path is None:
         a = model.elements.get("analysis", {})
         t0 = float(a.get("start", 0.0) if start is None else start)
         t1 = float(a.get("end", 1.0) if end is None else end)
-        traj, times = None, analysis_times(t0, t1, int(a.get("frames", 101)))
-    else:
-        trial, traj = load_trajectories(model, trial_path, cutoff_hz)
-        times = analysis_window(model, np.asarray(trial.time, dtype=float), start, end)
-        info.update({"trial": str(Path(trial_path)), "rate_hz": trial.rate, "markers": list(trial.labels)})
-    res = run_fdk(model, traj, times, progress=progress)
-    info["fdk"] = res.summary()
-    return res.kinematics, res.forces, info
+        return None, analysis_times(t0, t1, int(a.get("frames", 101))), {}
+    trial, traj = load_trajectories(model, trial_path, cutoff_hz)
+    times = analysis_window(model, np.asarray(trial.time, dtype=float), start, end)
+    info = {"trial": str(Path(trial_path)), "rate_hz": trial.rate, "markers": list(trial.labels)}
+    return traj, times, info
+
+
+def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=None, end=None, checkpoints=None,
+            resume=False):
+    """Kinematics then inverse dynamics with muscle recruitment; when the model declares
+    FDK DOFs, force-dependent kinematics (each frame's α found so that the FDK residual
+    forces vanish). Returns (KinematicsResult, InverseDynamicsResult, info); for FDK,
+    info["fdk"] holds the FDK summary. checkpoints, resume: see
+    :func:`openfdk.analysis.run.run_trial` (Ctrl-C raises TrialInterrupted whose
+    ``partial`` is (kin, dyn, info) of the finished frames)."""
+    from .analysis.run import run_trial
+    from .trial import TrialInterrupted
+
+    model = load_model(model_path) if not hasattr(model_path, "bodies") else model_path
+    label = str(model_path) if not hasattr(model_path, "bodies") else model.name
+    traj, times, info = analysis_inputs(model, trial_path, cutoff_hz, start, end)
+    info = {"model": label, **info}
+
+    def with_info(kin, dyn, fdk):
+        out = dict(info)
+        if fdk is not None:
+            out["fdk"] = fdk.summary()
+        return kin, dyn, out
+
+    try:
+        kin, dyn, fdk = run_trial(model, traj, times, progress=progress, checkpoints=checkpoints, resume=resume)
+    except TrialInterrupted as exc:
+        exc.partial = with_info(*exc.partial)
+        raise
+    return with_info(kin, dyn, fdk)

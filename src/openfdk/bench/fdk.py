@@ -18,7 +18,7 @@ def run(quick=False):
     from ..io.c3d import MarkerTrial
     from ..io.markers import MarkerTrajectories
     from ..model.modelfile import model_from_dict
-    from ..synthetic_jaw import jaw_fdk_model_dict, jaw_markers, write_jaw_meshes
+    from ..fixtures.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, write_jaw_meshes
 
     n_frames = 40 if quick else 300
     repeats = 1 if quick else 3

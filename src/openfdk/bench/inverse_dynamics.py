@@ -18,7 +18,7 @@ def run(quick=False):
     from ..io.markers import MarkerTrajectories
     from ..kinematics.analysis import run_tracking
     from ..model.modelfile import model_from_dict
-    from ..synthetic_jaw import jaw_markers, jaw_model_dict
+    from ..fixtures.synthetic_jaw import jaw_markers, jaw_model_dict
 
     n_frames = 100 if quick else 1000
     repeats = 1 if quick else 3

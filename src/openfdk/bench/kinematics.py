@@ -13,7 +13,7 @@ def run(quick=False):
     from ..io.c3d import MarkerTrial
     from ..io.markers import MarkerTrajectories
     from ..kinematics.analysis import run_tracking
-    from ..synthetic import synthetic_markers, two_body_model
+    from ..fixtures.synthetic import synthetic_markers, two_body_model
 
     n_frames = 200 if quick else 2000
     repeats = 1 if quick else 3

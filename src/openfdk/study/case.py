@@ -61,14 +61,19 @@ def build_case_model(case):
     return model, prepared.trial, str(Path(prepared.base_dir) / prepared.source)
 
 
-def write_run_outputs(out, kin, dyn, info):
+def write_run_outputs(out, kin, dyn, info, frames_planned=None):
     """What ``openfdk run`` writes into ``out``: kinematics.csv, forces.csv and
-    summary.json ({input, kinematics, inverse_dynamics, fdk?})."""
+    summary.json ({input, kinematics, inverse_dynamics, fdk?}). ``frames_planned``
+    (int) marks an interrupted run: summary.json then says ``"partial": true`` with the
+    frames finished and planned."""
     info = dict(info)
     fdk = info.pop("fdk", None)
     write_kinematics(out, kin, {"input": info})
     write_forces(out, dyn)
     summary = {"input": info, "kinematics": kin.summary(), "inverse_dynamics": dyn.summary()}
+    if frames_planned is not None:
+        summary = {"partial": True, "frames_finished": int(len(kin.time)), "frames_planned": int(frames_planned),
+                   **summary}
     if fdk is not None:
         summary["fdk"] = fdk
     write_json(Path(out) / "summary.json", summary)

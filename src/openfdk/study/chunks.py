@@ -22,7 +22,6 @@ from __future__ import annotations
 import itertools
 import time as _time
 from dataclasses import dataclass, field, fields, replace
-from pathlib import Path
 
 import numpy as np
 
@@ -57,20 +56,10 @@ def plan_segments(n_frames: int, chunks: int, overlap: int = DEFAULT_OVERLAP) ->
 
 def analysis_inputs(model, trial_path=None, cutoff_hz=None, start=None, end=None):
     """(trajectories or None, times (nf,) s, info) exactly as :func:`openfdk.jobs.run_job`
-    chooses them: the trial's samples within the analysis window, or for determinate
-    kinematics the model file's ``analysis`` start/end/frames."""
-    from ..jobs import analysis_window, load_trajectories
-    from ..kinematics.analysis import analysis_times
+    chooses them (:func:`openfdk.jobs.analysis_inputs`)."""
+    from ..jobs import analysis_inputs as inputs
 
-    if trial_path is None:
-        a = model.elements.get("analysis", {})
-        t0 = float(a.get("start", 0.0) if start is None else start)
-        t1 = float(a.get("end", 1.0) if end is None else end)
-        return None, analysis_times(t0, t1, int(a.get("frames", 101))), {}
-    trial, traj = load_trajectories(model, trial_path, cutoff_hz)
-    times = analysis_window(model, np.asarray(trial.time, dtype=float), start, end)
-    info = {"trial": str(Path(trial_path)), "rate_hz": trial.rate, "markers": list(trial.labels)}
-    return traj, times, info
+    return inputs(model, trial_path, cutoff_hz, start, end)
 
 
 @dataclass(frozen=True)
@@ -89,20 +78,11 @@ class SegmentResult:
 
 def analyse(model, trajectories, times):
     """Kinematics, inverse dynamics and (when the model has FDK DOFs) FDK over ``times``
-    (nf,) s, as :func:`openfdk.jobs.run_job` does. Returns (kin, dyn, fdk or None)."""
-    from ..analysis.inverse_dynamics import run_inverse_dynamics
-    from ..kinematics.analysis import run_determinate, run_tracking
+    (nf,) s, as :func:`openfdk.jobs.run_job` does (one pass of the trial driver).
+    Returns (kin, dyn, fdk or None)."""
+    from ..analysis.run import run_trial
 
-    if model.fdk_dofs:
-        from ..fdk.analysis import run_fdk
-
-        res = run_fdk(model, trajectories, times)
-        return res.kinematics, res.forces, res
-    if trajectories is None:
-        kin = run_determinate(model, times)
-    else:
-        kin = run_tracking(model, trajectories, times)
-    return kin, run_inverse_dynamics(model, kin), None
+    return run_trial(model, trajectories, times)
 
 
 def solve_segment(model, trajectories, times, segment: Segment, info=None) -> SegmentResult:

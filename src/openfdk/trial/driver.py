@@ -120,7 +120,8 @@ def drive(step, n_frames, build, *, progress=False, desc="frames", checkpoints=N
     checkpoints : :class:`openfdk.trial.checkpoint.Checkpoints` or None — finished
     frames and the step's warm-start state are saved as the loop goes; with ``resume``
     the loop continues after the last saved frame (the result is the same as an
-    uninterrupted run's, bit for bit, because the warm starts are restored exactly).
+    uninterrupted run's, bit for bit, because the warm starts are restored exactly);
+    without ``resume`` any earlier checkpoint is removed first.
     On KeyboardInterrupt raises TrialInterrupted(build(first finished frames)).
     """
     rec = Recording(n_frames, step.fields())
@@ -132,6 +133,8 @@ def drive(step, n_frames, build, *, progress=False, desc="frames", checkpoints=N
                 rec.record(j, values)
             step.restore(saved.carry)
             start = saved.next_frame
+    elif checkpoints is not None:
+        checkpoints.clear()  # another run's parts must not mix with this one's
     bar = _progress(n_frames, progress, desc)
     if bar is not None and start:
         bar.update(start)

@@ -1,0 +1,94 @@
+"""A whole trial in one pass of the trial driver: kinematics then inverse dynamics
+frame by frame, or FDK. This is what ``openfdk run`` and chunked runs execute.
+
+Each finished frame carries its kinematics and forces, so checkpoints
+(:mod:`openfdk.trial.checkpoint`) and an interrupted run's partial result hold whole
+frames. The numbers are those of :func:`openfdk.kinematics.analysis.run_tracking` (or
+``run_determinate``) followed by :func:`openfdk.analysis.inverse_dynamics.run_inverse_dynamics`:
+the same per-frame solves in the same order with the same warm starts.
+"""
+
+from __future__ import annotations
+
+import time as _time
+
+import numpy as np
+
+from ..dynamics.inverse import InverseDynamics
+from ..dynamics.results import forces_result
+from ..kinematics.analysis import (DeterminateStep, TrackingStep, _alpha, kinematics_result, tracking_times)
+from ..trial import drive
+from .inverse_dynamics import DynamicsStep
+
+
+class KinematicsDynamicsStep:
+    """Trial-driver step: a kinematics step, then inverse dynamics of every frame it
+    finishes (warm-started from the previous converged frame's recruitment)."""
+
+    def __init__(self, kinematics, dynamics):
+        self.kinematics, self.dynamics = kinematics, dynamics
+
+    def fields(self):
+        return {**self.kinematics.fields(), **self.dynamics.fields()}
+
+    def _forces(self, finished):
+        for j, values in finished:
+            values.update(self.dynamics.frame(j, values.get("kin.q"), values.get("kin.v"), values.get("kin.vdot"),
+                                              values["kin.report"]))
+        return finished
+
+    def step(self, k):
+        return self._forces(self.kinematics.step(k))
+
+    def finish(self):
+        return self._forces(self.kinematics.finish())
+
+    def carry(self):
+        return self.kinematics.carry(), self.dynamics.carry()
+
+    def restore(self, carry):
+        self.kinematics.restore(carry[0])
+        self.dynamics.restore(carry[1])
+
+
+def run_trial(model, trajectories, times, *, progress=False, checkpoints=None, resume=False):
+    """Kinematics + inverse dynamics (or FDK when the model has FDK DOFs) over ``times``
+    (nf,) s; ``trajectories`` None means determinate kinematics.
+
+    checkpoints, resume : see :func:`openfdk.trial.drive`. Returns (KinematicsResult,
+    InverseDynamicsResult, FDKResult or None). Ctrl-C raises
+    :class:`openfdk.trial.TrialInterrupted` whose ``partial`` is that triple for the
+    frames finished.
+    """
+    t0 = _time.perf_counter()
+    times = np.asarray(times, dtype=float)
+    if model.fdk_dofs:
+        from ..fdk.analysis import FDKStep, fdk_context, fdk_result
+        from ..fdk.settings import fdk_settings
+
+        settings = fdk_settings(model)
+        ctx = fdk_context(model, trajectories, times)
+        step = FDKStep(model, ctx, settings)
+
+        def build(rec):
+            res = fdk_result(rec, model, ctx, settings, times[: rec.n_frames], _time.perf_counter() - t0)
+            return res.kinematics, res.forces, res
+
+        return drive(step, len(times), build, progress=progress, desc="FDK", checkpoints=checkpoints, resume=resume)
+    alpha = _alpha(model, None)
+    if trajectories is None:
+        kin_step, mode = DeterminateStep(model, times, alpha), "determinate"
+    else:
+        if model.markers.size == 0:
+            raise ValueError(f"model {model.name!r} has no markers to track")
+        times = tracking_times(trajectories, times)
+        kin_step, mode = TrackingStep(model, trajectories, times, alpha), "tracking"
+    solver = InverseDynamics(model)
+    step = KinematicsDynamicsStep(kin_step, DynamicsStep(model, solver, times, None, None, None, None, alpha))
+
+    def build(rec):
+        n, wall = rec.n_frames, _time.perf_counter() - t0
+        kin = kinematics_result(rec, model, times[:n], alpha, wall, mode)
+        return kin, forces_result(rec, solver, times[:n], wall), None
+
+    return drive(step, len(times), build, progress=progress, desc="frames", checkpoints=checkpoints, resume=resume)

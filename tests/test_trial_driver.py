@@ -1,0 +1,207 @@
+"""The one trial driver (openfdk.trial): its results against straightforward per-frame
+loops written here, checkpoints with kill -9 and --resume (identical final files), and
+Ctrl-C (partial results, marked)."""
+
+import json
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import yaml
+
+from openfdk.analysis.run import run_trial
+from openfdk.cli import main
+from openfdk.fixtures.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, jaw_model_dict, write_jaw_meshes
+from openfdk.io.c3d import write_c3d
+from openfdk.jobs import load_trajectories
+from openfdk.model.modelfile import load_model
+from openfdk.trial.status import FrameStatus, Reason
+
+N_FRAMES = 12
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("driver")
+    write_jaw_meshes(d / "meshes")
+    (d / "tmj.yaml").write_text(yaml.safe_dump(jaw_fdk_model_dict("meshes"), sort_keys=False))
+    (d / "pop.yaml").write_text(yaml.safe_dump(jaw_model_dict(), sort_keys=False))
+    _t, labels, x, _ = jaw_markers(160, noise=1e-4, seed=3)
+    write_c3d(d / "trial.c3d", labels, x, 100.0)
+    return d
+
+
+def _central_rates(delta, dt):
+    """δ̇, δ̈ (nf, nm, 3) by central differences, one-sided first derivative at the ends
+    (every frame converged, every marker visible)."""
+    d1, d2 = np.zeros_like(delta), np.zeros_like(delta)
+    d1[1:-1] = (delta[2:] - delta[:-2]) / (2 * dt)
+    d2[1:-1] = (delta[2:] - 2 * delta[1:-1] + delta[:-2]) / dt**2
+    d1[0], d1[-1] = (delta[1] - delta[0]) / dt, (delta[-1] - delta[-2]) / dt
+    return d1, d2
+
+
+def test_tracking_and_inverse_dynamics_equal_a_plain_per_frame_loop(files):
+    """POP jaw: marker tracking (Eqs. 4–10) and recruitment (Eq. 11) frame by frame with
+    no warm starts, written out here, against the driver's run (one pass, warm starts)."""
+    from openfdk.dynamics.inverse import InverseDynamics
+    from openfdk.kinematics.system import ConstraintSystem
+    from openfdk.kinematics.tracking import MarkerTracker
+
+    model = load_model(files / "pop.yaml")
+    _, traj = load_trajectories(model, files / "trial.c3d")
+    times = np.asarray(traj.time)[:N_FRAMES]
+    kin, dyn, fdk = run_trial(model, traj, times)
+    assert fdk is None and kin.converged.all() and dyn.converged.all()
+    assert all(r.status is FrameStatus.CONVERGED and r.reason is Reason.CONVERGED for r in kin.reports)
+
+    tracker = MarkerTracker(ConstraintSystem(model))
+    state = model.initial_state()
+    meas = [traj.evaluate(t) for t in times]
+    q, delta = [], []
+    for k, t in enumerate(times):
+        x, _, _, vis = meas[k]
+        tracker.initial_guess(state, x, vis)  # from the markers alone, every frame
+        res, _, _ = tracker.solve_positions(state, t, x, vis)
+        assert res.converged
+        q.append(state.get_q())
+        delta.append(tracker.residuals(state, x))
+    q, delta = np.array(q), np.array(delta)
+    np.testing.assert_allclose(kin.q, q, atol=1e-9)
+    d1, d2 = _central_rates(delta, times[1] - times[0])
+    solver = InverseDynamics(model)
+    for k, t in enumerate(times):
+        x, xd, xdd, vis = meas[k]
+        state.set_q(q[k])
+        K = tracker.kkt_matrix(state, t, vis)
+        v, vd = tracker.solve_velocities_accelerations(state, t, K, vis, xd, xdd, d1[k], d2[k])
+        np.testing.assert_allclose(kin.v[k], v, atol=1e-7 * np.max(np.abs(kin.v)))
+        np.testing.assert_allclose(kin.vdot[k], vd, atol=1e-6 * np.max(np.abs(kin.vdot)))
+        fr = solver.frame(state, kin.vdot[k], t)  # recruitment from a cold start
+        assert fr.converged
+        np.testing.assert_allclose(dyn.forces[k], fr.f, atol=1e-5 * np.max(np.abs(fr.f)))
+    # results are built once and cannot be changed afterwards
+    with pytest.raises(ValueError):
+        kin.q[0, 0] = 1.0
+    with pytest.raises(ValueError):
+        dyn.forces[0, 0] = 1.0
+
+
+def test_fdk_equals_a_plain_newton_loop_with_central_differences(files):
+    """TMJ jaw: per frame, Newton on f^FDK(α) = 0 with a central-difference Jacobian
+    (the paper's method, written here, no line search, no Jacobian reuse, cold
+    recruitment). Both stop at max |f^FDK| < tol, so α agrees to ‖J⁻¹‖·2 tol."""
+    from openfdk.fdk.analysis import fdk_context
+    from openfdk.fdk.residual import FrameWorkspace
+    from openfdk.fdk.settings import fdk_settings
+
+    model = load_model(files / "tmj.yaml")
+    _, traj = load_trajectories(model, files / "trial.c3d")
+    times = np.asarray(traj.time)[:6]
+    kin, dyn, res = run_trial(model, traj, times)
+    assert res.converged.all() and all(r.reason is Reason.CONVERGED for r in res.reports)
+    tol = fdk_settings(model).tolerance
+    ctx = fdk_context(model, traj, times)
+    state = model.initial_state()
+    ctx.tracker.initial_guess(state, ctx.meas[0][0], ctx.meas[0][3])
+    alpha = np.array([d.initial for d in model.fdk_dofs])
+    h = 2e-7
+    for k in range(len(times)):
+        ws = FrameWorkspace({j: state for j in ctx.frames_needed(k)})
+        for _ in range(30):
+            ev = ctx.evaluate(k, alpha, ws)
+            assert ev.ok
+            J = np.zeros((len(alpha), len(alpha)))
+            for j in range(len(alpha)):
+                e = np.eye(len(alpha))[j] * h
+                J[:, j] = (ctx.evaluate(k, alpha + e, ws.copy()).f_fdk - ctx.evaluate(k, alpha - e, ws.copy()).f_fdk) / (2 * h)
+            if ev.norm < tol:
+                break
+            alpha = alpha - np.linalg.solve(J, ev.f_fdk)
+        assert ev.norm < tol
+        bound = 2 * tol * np.linalg.norm(np.linalg.inv(J), 2)
+        assert np.max(np.abs(res.alpha[k] - alpha)) <= bound, k
+        np.testing.assert_allclose(dyn.forces[k], ev.frame.f, atol=50 * tol, rtol=0)
+        state = ws.states[k]
+
+
+def _run(args):
+    return subprocess.Popen([sys.executable, "-m", "openfdk.cli", "run", *map(str, args), "--no-progress"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_for(path, proc, timeout=300):
+    t0 = time.monotonic()
+    while not path.exists():
+        assert proc.poll() is None, f"the run ended before {path.name} appeared: {proc.communicate()}"
+        assert time.monotonic() - t0 < timeout
+        time.sleep(0.01)
+
+
+def _summary_without_timing(path):
+    s = json.loads(path.read_text())
+    for part in s.values():
+        if isinstance(part, dict):
+            for key in ("wall_time_s", "frames_per_second"):
+                part.pop(key, None)
+    return s
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("model_name, n_frames", [("tmj.yaml", 60), ("pop.yaml", 160)])
+def test_kill_9_then_resume_gives_the_uninterrupted_files(files, tmp_path, model_name, n_frames):
+    """openfdk run killed with SIGKILL after a few checkpoints, then --resume: the final
+    kinematics.csv and forces.csv equal an uninterrupted run's byte for byte (and the
+    summary, apart from timings)."""
+    end = (n_frames - 1) / 100.0
+    common = [files / model_name, files / "trial.c3d", "--end", end, "--checkpoint-frames", 4]
+    whole = tmp_path / "whole"
+    assert main(["run", *map(str, common), "--out", str(whole), "--no-progress"]) == 0
+    assert not (whole / ".checkpoint").exists()  # removed once the final files are written
+
+    out = tmp_path / "killed"
+    proc = _run([*common, "--out", out])
+    _wait_for(out / ".checkpoint" / "part-000002.pkl", proc)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert not (out / "forces.csv").exists()  # killed midway: nothing final yet
+    parts = sorted((out / ".checkpoint").glob("part-*.pkl"))
+    assert 3 <= len(parts) < n_frames // 4
+    proc = _run([*common, "--out", out, "--resume"])
+    _stdout, stderr = proc.communicate(timeout=600)
+    assert proc.returncode == 0, stderr
+    for name in ("kinematics.csv", "forces.csv"):
+        assert (out / name).read_bytes() == (whole / name).read_bytes(), name
+    assert _summary_without_timing(out / "summary.json") == _summary_without_timing(whole / "summary.json")
+    assert not (out / ".checkpoint").exists()
+
+
+@pytest.mark.slow
+def test_ctrl_c_writes_the_finished_frames_marked_partial(files, tmp_path):
+    n_frames = 160
+    common = [files / "pop.yaml", files / "trial.c3d", "--end", (n_frames - 1) / 100.0, "--checkpoint-frames", 4]
+    out = tmp_path / "interrupted"
+    proc = _run([*common, "--out", out])
+    _wait_for(out / ".checkpoint" / "part-000002.pkl", proc)
+    proc.send_signal(signal.SIGINT)
+    _stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 130, stderr
+    assert "interrupted" in stderr and "partial" in stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["partial"] is True and summary["frames_planned"] == n_frames
+    done = summary["frames_finished"]
+    assert 12 <= done < n_frames
+    assert summary["kinematics"]["frames"] == summary["inverse_dynamics"]["frames"] == done
+    rows = (out / "forces.csv").read_text().splitlines()
+    assert len(rows) == done + 1 and len((out / "kinematics.csv").read_text().splitlines()) == done + 1
+    # the finished frames are those of a complete run
+    whole = tmp_path / "whole"
+    assert main(["run", *map(str, common), "--out", str(whole), "--no-progress"]) == 0
+    assert (whole / "forces.csv").read_text().splitlines()[: done + 1] == rows
+    # and the run can be continued from its last checkpoint
+    proc = _run([*common, "--out", out, "--resume"])
+    assert proc.wait(timeout=600) == 0
+    assert (out / "forces.csv").read_bytes() == (whole / "forces.csv").read_bytes()
