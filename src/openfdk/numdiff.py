@@ -9,14 +9,15 @@ from __future__ import annotations
 import numpy as np
 
 
-def manifold_jacobian(fun, state, eps=1e-6, central=True):
+def manifold_jacobian(fun, state, eps=1e-6, central=True, f0=None):
     """Jacobian ∂fun/∂q̂ (m, 6 n_moving) of ``fun(state) -> (m,)`` by central (error
     O(ε²)) or forward (O(ε), half the evaluations) differences on the manifold.
 
-    ``state`` (BodyStates) is restored on return.
+    f0 : fun(state) when the caller has it (not evaluated again). ``state``
+    (BodyStates) is restored on return.
     """
     base = state.copy()
-    f0 = np.atleast_1d(fun(state))
+    f0 = np.atleast_1d(fun(state) if f0 is None else f0)
     J = np.zeros((f0.size, state.n_coords))
     for k in range(state.n_coords):
         e = np.zeros(state.n_coords)

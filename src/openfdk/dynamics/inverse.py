@@ -13,7 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..model.framedata import FrameData
 from .equilibrium import assemble, equilibrium_layout, inertial_minus_gravity
+from .stages import equilibrium_stage, recruitment_stage
 from ..forces.elements import RECRUITMENT, RecruitmentSettings
 from ..forces.passive import PassiveElements
 from ..forces.pathset import PathSet
@@ -73,9 +75,11 @@ class InverseDynamics:
         l, L = self.paths.evaluate(state)
         return l, L, L @ state.get_v()
 
-    def equilibrium(self, state, vdot, t, alpha=None):
-        """C, d, strengths s (n_bounded,), and the muscle/passive states of the frame."""
-        _, A, _, _ = self.system.evaluate(state, t, alpha, order=1)
+    def equilibrium(self, state, vdot, t, alpha=None, A=None):
+        """C, d, strengths s (n_bounded,), and the muscle/passive states of the frame.
+        A : Φ_q̂ (m, n) at this pose when the position stage has it (else evaluated)."""
+        if A is None:
+            _, A, _, _ = self.system.evaluate(state, t, alpha, order=1)
         l, L, speed = self.muscle_states(state)
         if self.muscle_set is not None:
             s_m, f_p = self.muscle_set.evaluate(l, speed)
@@ -102,9 +106,16 @@ class InverseDynamics:
 
         return solve_polynomial(C, d, lay.n_bounded, s, st.power, x0=warm, tol=st.tolerance, **kw)
 
-    def frame(self, state, vdot, t, alpha=None, warm=None):
-        """Inverse dynamics of one frame; ``state`` holds q and v, ``vdot`` (n,)."""
-        C, d, s, (l, speed, s_m, f_p, passive_out) = self.equilibrium(state, vdot, t, alpha)
-        res = self.recruit(C, d, s, warm)
-        return FrameForces(res.f, l, speed, s_m, f_p, passive_out, bool(res.converged), res.status,
-                           "" if res.converged else res.message, int(res.iterations), res, C, d, s)
+    def frame(self, state, vdot, t, alpha=None, warm=None, A=None, data=None):
+        """Inverse dynamics of one frame; ``state`` holds q and v, ``vdot`` (n,);
+        A : Φ_q̂ (m, n) at this pose if known; data : the frame's FrameData (its
+        equilibrium and recruitment stages are filled)."""
+        if data is None:
+            data = FrameData(t=t, alpha=alpha, Phi_q=A)
+        data.vdot = vdot
+        equilibrium_stage(self, data, state)
+        recruitment_stage(self, data, warm)
+        res = data.recruitment
+        return FrameForces(res.f, data.muscle_length, data.muscle_speed, data.muscle_strength, data.muscle_passive,
+                           data.passive, bool(res.converged), res.status, "" if res.converged else res.message,
+                           int(res.iterations), res, data.C, data.d, data.s)

@@ -150,7 +150,7 @@ class FDKStep:
         if ev.ok:
             values["fdk.f_fdk"] = ev.f_fdk
         if ev.state is not None:
-            viol = float(np.max(np.abs(self.system.evaluate(ev.state, t, ev.alpha, order=0)[0])))
+            viol = float(np.max(np.abs(ev.data.Phi)))  # position stage at the final pose
             values.update({"kin.q": ev.state.get_q(), "kin.v": ev.state.get_v(), "kin.vdot": ev.vdot,
                            "kin.constraint_violation": viol, "kin.report": FrameReport.ok(0, viol)})
             if ctx.tracker is not None and ev.delta is not None:

@@ -58,10 +58,11 @@ def central_jacobian(ctx, k, ev, ws, steps):
 
 
 def kinematic_sensitivity(ctx, ev):
-    """dq̂/dα (n, n_fdk) at the evaluation's pose."""
-    system, state, t = ctx.system, ev.state, ev.time
+    """dq̂/dα (n, n_fdk) at the evaluation's pose (Φ_q̂, marker Jacobian and multipliers
+    read from the evaluation's FrameData)."""
+    system, state, t, data = ctx.system, ev.state, ev.time, ev.data
     n_fdk = len(ev.alpha)
-    _, A, _, _ = system.evaluate(state, t, ev.alpha, order=1)
+    A = data.Phi_q  # position stage: Φ_q̂ at this pose
     m, n = A.shape
     E = np.zeros((m, n_fdk))
     E[m - n_fdk :, :] = np.eye(n_fdk)
@@ -77,7 +78,9 @@ def kinematic_sensitivity(ctx, ev):
         _, As, _, _ = system.evaluate(s, t, ev.alpha, order=1)
         return J.T @ (w * (p - x)) + As.T @ lam
 
-    H = manifold_jacobian(gradient, state, eps=1e-7, central=False)
+    # the gradient at the pose itself from the position stage (marker Jacobian, Φ_q̂)
+    g0 = data.J_M.T @ (w * (data.p_M - x)) + A.T @ lam
+    H = manifold_jacobian(gradient, state, eps=1e-7, central=False, f0=g0)
     K = np.zeros((n + m, n + m))
     K[:n, :n] = H
     K[:n, n:] = A.T

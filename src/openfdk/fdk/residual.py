@@ -16,7 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kinematics.determinate import solve_positions, solve_velocities_accelerations
+from ..kinematics.determinate import solve_positions
+from ..kinematics.stages import position_stage, velocity_stage_determinate, velocity_stage_tracking
+from ..model.framedata import FrameData
 
 
 @dataclass
@@ -24,7 +26,8 @@ class Evaluation:
     """One residual evaluation at α (n_fdk,). ok : kinematics and recruitment succeeded;
     f_fdk : (n_fdk,) N or N m; message : reason when not ok; state : BodyStates at t with
     velocities; vdot : (n,); frame : FrameForces; kkt : the kinematic KKT matrix (tracking)
-    and lam : its multipliers; x, visible : the measured markers at t (tracking)."""
+    and lam : its multipliers; x, visible : the measured markers at t (tracking);
+    data : the FrameData of the pose (every stage once; the analytic Jacobian reads it)."""
 
     alpha: np.ndarray
     ok: bool
@@ -40,6 +43,7 @@ class Evaluation:
     x: np.ndarray = None
     visible: np.ndarray = None
     time: float = 0.0
+    data: FrameData = None
 
     @property
     def norm(self):
@@ -90,31 +94,33 @@ class FDKContext:
     def _evaluate(self, k, alpha, ws, warm_recruitment):
         alpha = np.asarray(alpha, dtype=float)
         t = self.times[k]
+        data = FrameData(t=t, alpha=alpha)
         if self.tracker is None:
             state = ws.states[k]
-            res = solve_positions(self.system, state, t, alpha)
+            res = solve_positions(self.system, state, t, alpha, data=data)  # + position stage
             if not res.converged:
                 return Evaluation(alpha, False, np.full(len(alpha), np.nan), f"kinematics failed: {res.message}", "kinematics")
-            v, vdot = solve_velocities_accelerations(self.system, state, t, alpha)
-            return self._dynamics(k, alpha, state, vdot, warm_recruitment)
+            velocity_stage_determinate(self.system, data, state)
+            return self._dynamics(k, alpha, state, data, warm_recruitment)
         # marker tracking: positions at t - Δt, t, t + Δt with the same α (Eq. 7)
-        delta, kkt, lam = {}, None, None
+        delta = {}
         for j in self.frames_needed(k):
             x, _, _, vis = self.meas[j]
             res, K, lm = self.tracker.solve_positions(ws.states[j], self.times[j], x, vis, alpha)
             if res.converged:
                 delta[j] = np.where(vis[:, None], self.tracker.residuals(ws.states[j], x), np.nan)
                 if j == k:
-                    kkt, lam = K, lm
+                    data.kkt, data.lam = K, lm
             elif j == k:
                 return Evaluation(alpha, False, np.full(len(alpha), np.nan), f"kinematics failed: {res.message}", "kinematics")
         d1, d2 = self._rates(k, delta)
         x, xd, xdd, vis = self.meas[k]
         state = ws.states[k]
-        v, vdot = self.tracker.solve_velocities_accelerations(
-            state, t, kkt, vis, _zero_nan(xd), _zero_nan(xdd), d1, d2, alpha)
-        ev = self._dynamics(k, alpha, state, vdot, warm_recruitment)
-        ev.kkt, ev.lam, ev.delta, ev.x, ev.visible = kkt, lam, delta[k], x, vis
+        position_stage(self.system, data, state, t, alpha, self.tracker.markers)
+        data.x_M, data.visible, data.delta = x, vis, delta[k]
+        velocity_stage_tracking(self.tracker, data, state, _zero_nan(xd), _zero_nan(xdd), d1, d2)
+        ev = self._dynamics(k, alpha, state, data, warm_recruitment)
+        ev.kkt, ev.lam, ev.delta, ev.x, ev.visible = data.kkt, data.lam, delta[k], x, vis
         return ev
 
     def _rates(self, k, delta):
@@ -139,13 +145,15 @@ class FDKContext:
             d1 = np.where(one, (cur - prev) / dt, 0.0)
         return d1, d2
 
-    def _dynamics(self, k, alpha, state, vdot, warm):
+    def _dynamics(self, k, alpha, state, data, warm):
+        """Equilibrium and recruitment stages from the data's Φ_q̂ and v̇; f^FDK."""
         state = state.copy()  # the workspace moves on with later evaluations
-        fr = self.solver.frame(state, vdot, self.times[k], alpha, warm)
+        fr = self.solver.frame(state, data.vdot, self.times[k], alpha, warm, data=data)
         if not fr.converged:
             return Evaluation(alpha, False, np.full(len(alpha), np.nan), f"recruitment infeasible: {fr.message}",
-                              "recruitment", state, vdot, fr)
-        return Evaluation(alpha, True, fr.f[self.fdk_columns].copy(), "", "", state, vdot, fr)
+                              "recruitment", state, data.vdot, fr, data=data)
+        data.f_fdk = fr.f[self.fdk_columns].copy()
+        return Evaluation(alpha, True, data.f_fdk, "", "", state, data.vdot, fr, data=data)
 
 
 def _zero_nan(a):

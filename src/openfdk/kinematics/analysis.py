@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..model.framedata import FrameData
 from ..trial import drive
 from ..trial.status import frame_messages
 from .determinate import check_square, solve_positions, solve_velocities_accelerations
@@ -183,11 +184,12 @@ class DeterminateStep:
 
     def step(self, k):
         t, P = self.times[k], self.prefix
-        res = solve_positions(self.system, self.state, t, self.alpha)
+        data = FrameData()
+        res = solve_positions(self.system, self.state, t, self.alpha, data=data)
         values = {P + "iterations": res.iterations, P + "constraint_violation": res.residual,
                   P + "report": res.report()}
         if res.converged:
-            v, vd = solve_velocities_accelerations(self.system, self.state, t, self.alpha)
+            v, vd = solve_velocities_accelerations(self.system, self.state, t, self.alpha, data)
             values.update({P + "q": self.state.get_q(), P + "v": v, P + "vdot": vd})
             self.last_good = self.state.copy()
         else:

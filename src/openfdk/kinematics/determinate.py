@@ -9,9 +9,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as sla
 
+from ..model.framedata import FrameData
 from ..trial.status import FrameReport, Reason
+from .stages import position_stage, velocity_stage_determinate
 from .system import ConstraintSystem, KinematicsError, dependent_rows, undetermined_coordinates
 
 
@@ -59,37 +60,46 @@ def diagnose_singular(system: ConstraintSystem, Phi_q):
     )
 
 
-def solve_positions(system: ConstraintSystem, state, t, alpha=None, tol=1e-10, max_iter=50):
+def solve_positions(system: ConstraintSystem, state, t, alpha=None, tol=1e-10, max_iter=50, data=None):
     """Newton–Raphson on Φ(q, t) = 0 starting from ``state`` (modified in place).
 
-    tol : max |Φ| (SI) and max |Δq̂| for convergence. Returns FrameSolve.
+    tol : max |Φ| (SI) and max |Δq̂| for convergence: after a step smaller than tol,
+    max |Φ| at the new pose below max(10 tol, 1e-9). Each pose is evaluated once (Φ,
+    Φ_q̂, ν); the last one, the solved pose, is the position stage kept in ``data``
+    (FrameData, optional). Returns FrameSolve (iterations = Newton steps).
     """
-    Phi_q = None
-    for it in range(1, max_iter + 1):
-        Phi, Phi_q, _, _ = system.evaluate(state, t, alpha, order=1)
-        try:
-            dq = np.linalg.solve(Phi_q, -Phi)
-        except np.linalg.LinAlgError:
-            return FrameSolve(False, it, float(np.max(np.abs(Phi))), diagnose_singular(system, Phi_q), Reason.SINGULAR)
-        state.displace(dq)
-        if np.max(np.abs(dq)) < tol:
-            Phi = system.evaluate(state, t, alpha, order=0)[0]
+    data = FrameData() if data is None else data
+    small_step = False
+    for it in range(0, max_iter + 1):
+        Phi = position_stage(system, data, state, t, alpha).Phi
+        if small_step:
             res = float(np.max(np.abs(Phi))) if Phi.size else 0.0
             if res < max(tol * 10, 1e-9):
                 return FrameSolve(True, it, res)
-    Phi = system.evaluate(state, t, alpha, order=0)[0]
+        if it == max_iter:
+            break
+        try:
+            dq = np.linalg.solve(data.Phi_q, -Phi)
+        except np.linalg.LinAlgError:
+            return FrameSolve(False, it + 1, float(np.max(np.abs(Phi))), diagnose_singular(system, data.Phi_q),
+                              Reason.SINGULAR)
+        if not np.any(dq) and Phi.size:
+            # an exactly zero step leaves the pose as it is: no second evaluation there
+            res = float(np.max(np.abs(Phi)))
+            if res < max(tol * 10, 1e-9):
+                return FrameSolve(True, it + 1, res)
+        state.displace(dq)
+        small_step = bool(np.max(np.abs(dq)) < tol)
     res = float(np.max(np.abs(Phi)))
     msg = f"Newton–Raphson did not converge in {max_iter} iterations (max |Φ| = {res:.3g})"
     worst = system.row_names[int(np.argmax(np.abs(Phi)))]
     return FrameSolve(False, max_iter, res, msg + f"; largest violation in row {worst!r}", Reason.ITERATION_LIMIT)
 
 
-def solve_velocities_accelerations(system: ConstraintSystem, state, t, alpha=None):
-    """Eqs. 2–3: set state velocities; returns (v (n,), v̇ (n,)) [m/s, rad/s, m/s², rad/s²]."""
-    _, Phi_q, nu, _ = system.evaluate(state, t, alpha, order=1)
-    lu = sla.lu_factor(Phi_q, check_finite=False)
-    v = sla.lu_solve(lu, nu, check_finite=False)
-    state.set_v(v)
-    _, _, _, gamma = system.evaluate(state, t, alpha, order=2)
-    vdot = sla.lu_solve(lu, gamma, check_finite=False)
-    return v, vdot
+def solve_velocities_accelerations(system: ConstraintSystem, state, t, alpha=None, data=None):
+    """Eqs. 2–3: set state velocities; returns (v (n,), v̇ (n,)) [m/s, rad/s, m/s², rad/s²].
+    ``data``: a FrameData whose position stage ran at this pose (else it runs here)."""
+    if data is None or data.Phi_q is None:
+        data = position_stage(system, FrameData(), state, t, alpha)
+    velocity_stage_determinate(system, data, state)
+    return data.v, data.vdot

@@ -46,10 +46,19 @@ class ConstraintSystem:
         order 0: (Φ, None, None, None); order 1 adds Φ_q̂ and ν; order 2 adds γ (needs
         the state's velocities).
         """
+        return self._evaluate(state, t, alpha, order, True)
+
+    def bias(self, state, t, alpha=None):
+        """γ (m,) alone, Φ_q̂ v̇ = γ (Eq. 3), at a pose whose Φ_q̂ is already known (the
+        velocity stage; needs the state's velocities). Φ_q̂ is not assembled again (the
+        measure kernels still return their rows with the bias)."""
+        return self._evaluate(state, t, alpha, 2, False)[3]
+
+    def _evaluate(self, state, t, alpha, order, jacobian):
         m, n = self.n_rows, self.n_coords
         Phi = np.empty(m)
-        Phi_q = None if order == 0 else np.empty((m, n))
-        nu = None if order == 0 else np.empty(m)
+        Phi_q = None if (order == 0 or not jacobian) else np.empty((m, n))
+        nu = None if (order == 0 or not jacobian) else np.empty(m)
         gamma = None if order < 2 else np.empty(m)
         r = 0
         if self._block_rows is not None:
@@ -63,7 +72,7 @@ class ConstraintSystem:
                 val, M, b = c.measure.evaluate(state, order)
             f, df, ddf = c.target_derivatives(t)
             Phi[r : r + k] = val - f
-            if order >= 1:
+            if order >= 1 and jacobian:
                 Phi_q[r : r + k] = M
                 nu[r : r + k] = df  # Eq. 2: Φ_t = −ḟ
             if order >= 2:
@@ -73,7 +82,7 @@ class ConstraintSystem:
             alpha = np.zeros(len(self.fdk)) if alpha is None else np.asarray(alpha, dtype=float)
             vals, Ms, bs = self._fdk_rows.evaluate(state, order)
             Phi[r:] = vals - alpha  # Φ^FDK − α (Eq. 1); α̇ = α̈ = 0
-            if order >= 1:
+            if order >= 1 and jacobian:
                 Phi_q[r:] = Ms
                 nu[r:] = 0.0
             if order >= 2:

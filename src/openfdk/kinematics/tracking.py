@@ -59,10 +59,18 @@ class MarkerTracker:
         pattern (the rank depends on the pattern, not on the pose, away from
         degenerate poses)."""
         key = visible.tobytes()
+        if key not in self._observable_cache:
+            _, J, _ = self.markers.evaluate(state, 1)
+            _, A, _, _ = self.system.evaluate(state, t, alpha, order=1)
+            self._observability(J, A, visible)
+        return self._observable_cache[key]
+
+    def _observability(self, J, A, visible):
+        """The observability message from the marker Jacobian J (3 n_markers, n) and
+        Φ_q̂ A (m, n) at some pose (cached per visibility pattern)."""
+        key = visible.tobytes()
         if key in self._observable_cache:
             return self._observable_cache[key]
-        _, J, _ = self.markers.evaluate(state, 1)
-        _, A, _, _ = self.system.evaluate(state, t, alpha, order=1)
         sw = np.sqrt(self._weights(visible))
         stacked = np.vstack([sw[:, None] * J, A])
         free = undetermined_coordinates(stacked, self.coord_names, tol=1e-8)
@@ -111,9 +119,6 @@ class MarkerTracker:
         tol_constraint at the start of that step (Φ only shrinks after it).
         """
         s = self.settings
-        msg = self.observability_message(state, t, visible, alpha)
-        if msg:
-            return FrameSolve(False, 0, np.nan, msg, Reason.UNOBSERVABLE), None, None
         w = self._weights(visible)
         x = np.where(visible[:, None], x_WM, 0.0).ravel()
         n, m = self.system.n_coords, self.system.n_rows
@@ -122,6 +127,10 @@ class MarkerTracker:
         for it in range(1, s.max_iter + 1):
             p, J, _ = self.markers.evaluate(state, 1)
             Phi, A, _, _ = self.system.evaluate(state, t, alpha, order=1)
+            if it == 1:
+                msg = self._observability(J, A, visible)
+                if msg:
+                    return FrameSolve(False, 0, np.nan, msg, Reason.UNOBSERVABLE), None, None
             try:
                 sol, step, res = kkt_step(J, w, p, x, A, Phi, K)
             except np.linalg.LinAlgError as exc:
@@ -155,25 +164,30 @@ class MarkerTracker:
         return self.markers.positions(state) - x_WM
 
     # -- Eqs. 6-10 ----------------------------------------------------------------
-    def solve_velocities_accelerations(self, state, t, K, visible, xdot, xddot, d_delta, dd_delta, alpha=None):
+    def solve_velocities_accelerations(self, state, t, K, visible, xdot, xddot, d_delta, dd_delta, alpha=None,
+                                       J=None, nu=None):
         """Velocities (Eqs. 8–9) and accelerations (Eq. 10); sets state velocities.
 
         K : KKT matrix from :meth:`solve_positions` or :meth:`kkt_matrix`;
         xdot, xddot : (n_markers, 3) measured marker velocity (m/s) and acceleration (m/s²);
-        d_delta, dd_delta : (n_markers, 3) residual rates δ̇ (m/s) and δ̈ (m/s²) (Eq. 7).
+        d_delta, dd_delta : (n_markers, 3) residual rates δ̇ (m/s) and δ̈ (m/s²) (Eq. 7);
+        J (3 n_markers, n), nu (m,) : the marker Jacobian and ν at this pose when the
+        position stage already has them (else evaluated here).
         Returns v, v̇ (6 n_moving,) each.
         """
         n = self.system.n_coords
         w = self._weights(visible)
         vis3 = np.repeat(visible, 3)
-        _, J, _ = self.markers.evaluate(state, 1)
-        _, _, nu, _ = self.system.evaluate(state, t, alpha, order=1)
+        if J is None:
+            _, J, _ = self.markers.evaluate(state, 1)
+        if nu is None:
+            _, _, nu, _ = self.system.evaluate(state, t, alpha, order=1)
         WJ = J * w[:, None]
         target_v = np.where(vis3, (xdot + d_delta).ravel(), 0.0)
         v = np.linalg.solve(K, np.concatenate([WJ.T @ target_v, nu]))[:n]
         state.set_v(v)
         _, _, b = self.markers.evaluate(state, 2)
-        _, _, _, gamma = self.system.evaluate(state, t, alpha, order=2)
+        gamma = self.system.bias(state, t, alpha)
         target_a = np.where(vis3, (xddot + dd_delta).ravel() - b, 0.0)
         vdot = np.linalg.solve(K, np.concatenate([WJ.T @ target_a, gamma]))[:n]
         return v, vdot

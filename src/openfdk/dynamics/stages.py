@@ -1,0 +1,21 @@
+"""Dynamic stages of a frame (DESIGN.md §3, :mod:`openfdk.model.framedata`): forces and
+equilibrium C f = d (Eqs. 12–14) from the position stage's Φ_q̂, then the recruitment
+(Eq. 11)."""
+
+from __future__ import annotations
+
+
+def equilibrium_stage(solver, data, state):
+    """Forces (path lengths and Jacobians, strengths, passive forces) and C, d, s from
+    the data's Φ_q̂ and v̇ (``state`` holds q and v); solver : InverseDynamics."""
+    C, d, s, (l, speed, s_m, f_p, passive) = solver.equilibrium(state, data.vdot, data.t, data.alpha, data.Phi_q)
+    data.C, data.d, data.s = C, d, s
+    data.muscle_length, data.muscle_speed, data.muscle_strength, data.muscle_passive = l, speed, s_m, f_p
+    data.passive = passive
+    return data
+
+
+def recruitment_stage(solver, data, warm=None):
+    """The recruitment of data.C, data.d, data.s (warm: a previous RecruitmentResult)."""
+    data.recruitment = solver.recruit(data.C, data.d, data.s, warm)
+    return data
