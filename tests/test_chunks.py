@@ -11,7 +11,7 @@ import yaml
 from openfdk.fdk.analysis import run_fdk
 from openfdk.io.c3d import write_c3d
 from openfdk.jobs import load_trajectories, run_job
-from openfdk.model.modelfile import load_model
+from openfdk.io.modelfile import load_model
 from openfdk.study.chunks import plan_segments
 from openfdk.study.cli import run_chunked_job
 from openfdk.fixtures.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, jaw_model_dict, write_jaw_meshes

@@ -113,7 +113,7 @@ def test_frame_without_restoring_force_is_flagged_and_run_continues():
 
 @pytest.fixture(scope="module")
 def tmj_model(tmp_path_factory):
-    from openfdk.model.modelfile import model_from_dict
+    from openfdk.io.modelfile import model_from_dict
     from openfdk.fixtures.synthetic_jaw import jaw_fdk_model_dict, write_jaw_meshes
 
     d = write_jaw_meshes(tmp_path_factory.mktemp("tmj"))

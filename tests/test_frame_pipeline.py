@@ -17,7 +17,7 @@ from openfdk.io.c3d import write_c3d
 from openfdk.jobs import load_trajectories
 from openfdk.kinematics.system import ConstraintSystem
 from openfdk.model.builder import ModelBuilder
-from openfdk.model.modelfile import load_model
+from openfdk.io.modelfile import load_model
 
 
 @pytest.fixture

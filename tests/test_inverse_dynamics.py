@@ -129,7 +129,7 @@ def test_infeasible_frame_is_flagged_and_run_continues():
 def test_slider_crank_motor_power_equals_rate_of_mechanical_energy(request):
     """Physical invariant for a frictionless mechanism: the motor's power τ θ̇ equals
     d/dt (kinetic + potential energy); the joint reactions do no work."""
-    from openfdk.model.modelfile import load_model
+    from openfdk.io.modelfile import load_model
 
     model = load_model(request.config.rootpath / "examples/slider_crank.yaml")
     h = 1e-4
@@ -204,7 +204,7 @@ def test_pop_jaw_tmj_forces_are_compressive_and_symmetric():
     from openfdk.io.c3d import MarkerTrial
     from openfdk.io.markers import MarkerTrajectories
     from openfdk.kinematics.analysis import run_tracking
-    from openfdk.model.modelfile import model_from_dict
+    from openfdk.io.modelfile import model_from_dict
     from openfdk.fixtures.synthetic_jaw import jaw_markers, jaw_model_dict
 
     model = model_from_dict(jaw_model_dict(), "jaw.yaml")

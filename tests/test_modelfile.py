@@ -10,7 +10,7 @@ from models import slider_crank, slider_crank_closed_form
 from openfdk.kinematics.analysis import run_determinate
 from openfdk.kinematics.system import KinematicsError
 from openfdk.model.model import ModelError
-from openfdk.model.modelfile import load_model, model_from_dict
+from openfdk.io.modelfile import load_model, model_from_dict
 
 EXAMPLE = "examples/slider_crank.yaml"
 

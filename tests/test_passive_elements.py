@@ -13,7 +13,7 @@ from openfdk.contact.mesh import MeshWarning
 from openfdk.contact.shapes import flat_patch
 from openfdk.forces.passive import PassiveElements
 from openfdk.model.model import ModelError
-from openfdk.model.modelfile import load_model
+from openfdk.io.modelfile import load_model
 from openfdk.numdiff import manifold_jacobian
 
 

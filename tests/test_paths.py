@@ -38,7 +38,7 @@ def _world_points(model, state, pts):
 def test_path_length_equals_sum_of_segments():
     model, pts = _three_body_path()
     state = model.initial_state()
-    path = model.elements["muscles"][0].path
+    path = model.muscles[0].path
     P = _world_points(model, state, pts)
     expected = sum(np.linalg.norm(P[k + 1] - P[k]) for k in range(3))
     assert path.evaluate(state, 0)[0][0] == pytest.approx(expected, rel=1e-14)
@@ -49,7 +49,7 @@ def test_lengthening_speed_is_time_derivative_of_length():
     model, pts = _three_body_path()
     state = model.initial_state()
     v = np.random.default_rng(1).normal(size=model.n_coords)
-    path = model.elements["muscles"][0].path
+    path = model.muscles[0].path
     _, L, _ = path.evaluate(state, 1)
     h = 1e-6
     sp, sm = state.copy(), state.copy()
@@ -66,7 +66,7 @@ def test_tension_generalized_force_is_virtual_work():
     the force is T times the unit vectors toward the neighbouring path points."""
     model, pts = _three_body_path()
     state = model.initial_state()
-    path = model.elements["muscles"][0].path
+    path = model.muscles[0].path
     _, L, _ = path.evaluate(state, 1)
     T = 50.0
     Q = -L[0] * T

@@ -67,7 +67,7 @@ def test_fdk_dof_is_an_input_of_determinate_kinematics():
 def test_fdk_dof_is_a_hard_constraint_in_marker_tracking():
     """The two-body jaw with the joint-plane normal distance declared an FDK DOF: the
     tracked condyle sits α off the plane, and the markers absorb the mismatch."""
-    from openfdk.model.modelfile import model_from_dict
+    from openfdk.io.modelfile import model_from_dict
 
     data = two_body_model_dict()
     data["joints"] = {}

@@ -17,7 +17,7 @@ from openfdk.cli import main
 from openfdk.fixtures.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, jaw_model_dict, write_jaw_meshes
 from openfdk.io.c3d import write_c3d
 from openfdk.jobs import load_trajectories
-from openfdk.model.modelfile import load_model
+from openfdk.io.modelfile import load_model
 from openfdk.trial.status import FrameStatus, Reason
 
 N_FRAMES = 12

@@ -24,7 +24,7 @@ class UserError(Exception):
 
 
 def _cmd_check(args):
-    from .model.modelfile import load_model
+    from .io.modelfile import load_model
 
     model = load_model(args.model)
     print(model.describe())

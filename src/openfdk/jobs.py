@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .model.modelfile import load_model
+from .io.modelfile import load_model
 
 DEFAULT_CUTOFF_HZ = 6.0
 
@@ -26,14 +26,14 @@ def load_trajectories(model, trial_path, cutoff_hz=None):
         raise ValueError(f"model {model.name!r} has no markers; a trial cannot be tracked")
     trial = trial.select(list(model.markers.labels))
     if cutoff_hz is None:
-        cutoff_hz = model.elements.get("analysis", {}).get("marker_cutoff_hz", DEFAULT_CUTOFF_HZ)
+        cutoff_hz = model.settings.kinematics.get("marker_cutoff_hz", DEFAULT_CUTOFF_HZ)
     cutoff = None if (cutoff_hz is None or float(cutoff_hz) <= 0) else float(cutoff_hz)
     return trial, MarkerTrajectories(trial, cutoff_hz=cutoff)
 
 
 def analysis_window(model, times, start=None, end=None):
     """Sample times within [start, end] (defaults: model file ``analysis.start/end``)."""
-    settings = model.elements.get("analysis", {})
+    settings = model.settings.kinematics
     start = settings.get("start") if start is None else start
     end = settings.get("end") if end is None else end
     keep = np.ones(len(times), dtype=bool)
@@ -68,7 +68,7 @@ def analysis_inputs(model, trial_path=None, cutoff_hz=None, start=None, end=None
     from .kinematics.analysis import analysis_times
 
     if trial_path is None:
-        a = model.elements.get("analysis", {})
+        a = model.settings.kinematics
         t0 = float(a.get("start", 0.0) if start is None else start)
         t1 = float(a.get("end", 1.0) if end is None else end)
         return None, analysis_times(t0, t1, int(a.get("frames", 101))), {}

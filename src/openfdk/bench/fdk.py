@@ -17,7 +17,7 @@ def run(quick=False):
     from ..fdk.analysis import run_fdk
     from ..io.c3d import MarkerTrial
     from ..io.markers import MarkerTrajectories
-    from ..model.modelfile import model_from_dict
+    from ..io.modelfile import model_from_dict
     from ..fixtures.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, write_jaw_meshes
 
     n_frames = 40 if quick else 300

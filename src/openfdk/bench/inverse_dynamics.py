@@ -17,7 +17,7 @@ def run(quick=False):
     from ..io.c3d import MarkerTrial
     from ..io.markers import MarkerTrajectories
     from ..kinematics.analysis import run_tracking
-    from ..model.modelfile import model_from_dict
+    from ..io.modelfile import model_from_dict
     from ..fixtures.synthetic_jaw import jaw_markers, jaw_model_dict
 
     n_frames = 100 if quick else 1000

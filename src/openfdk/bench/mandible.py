@@ -18,7 +18,7 @@ def run(quick=False):
     from ..fdk.analysis import run_fdk
     from ..analysis.inverse_dynamics import run_inverse_dynamics
     from ..kinematics.analysis import run_tracking
-    from ..model.modelfile import load_model
+    from ..io.modelfile import load_model
     from ..mandible.demo import run_demo
     from ..mandible.experiment import record_experiment
     from ..mandible.generator import create_subject

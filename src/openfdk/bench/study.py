@@ -60,7 +60,7 @@ def write_inputs(d: Path, n_frames: int, quick: bool) -> Path:
     models = write_models(subject, reg, d / "models")
     windows = {task: (subject_dir / "trials" / f"{task}.c3d", 0.0, (n_frames - 1) / 100.0) for task in tasks}
     study = parameter_study(models["fdk"], windows, quick=quick)
-    from ..model.modelfile import load_model
+    from ..io.modelfile import load_model
 
     load_model(models["fdk"])  # the fossa distance grids into the disk cache, as after a first run
     return _save(study, d / "study.pkl")

@@ -2,7 +2,7 @@
 
 The passive-force assembly (:mod:`openfdk.forces.passive`) calls
 ``element.generalized_forces(state, want_stiffness)`` on every entry of
-``model.elements["contacts"]``; this adapter evaluates an :class:`ElasticFoundation`
+``model.contacts``; this adapter evaluates an :class:`ElasticFoundation`
 at the two bodies' poses from a :class:`~openfdk.model.state.BodyStates` workspace and
 places the blocks at the bodies' columns (a fixed body, column −1, gets none).
 """

@@ -25,7 +25,7 @@ import warnings
 
 import numpy as np
 
-from ..model.modelfile import SECTION_LOADERS, _orientation, _wrap
+from ..model.modelfile import _orientation, _wrap
 from ..model.model import ModelError
 from .elastic_foundation import DEFAULT_GRID_SPACING, DEFAULT_MAX_DEPTH, ElasticFoundation
 from .element import ContactElement
@@ -110,5 +110,3 @@ def load_contacts(b, data, ctx):
                 raise
             raise ctx.error(p, str(exc)) from None
 
-
-SECTION_LOADERS[CONTACTS] = load_contacts

@@ -24,7 +24,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..forces.elements import MUSCLES, REACTIONS
 
 
 def _cross(a, b):
@@ -66,14 +65,14 @@ def equilibrium_layout(model, system):
         if b.equilibrium:
             eq_coords += list(range(b.column, b.column + 6))
             row_names += [f"{b.name}.{c}" for c in ("Fx", "Fy", "Fz", "Mx", "My", "Mz")]
-    muscles = tuple(model.elements.get(MUSCLES, ()))
+    muscles = model.muscles
     offsets, r = {}, 0
     for c in model.constraints:
         offsets[c.name] = r
         r += c.size
     unilateral = tuple(
         (offsets[u.constraint] + u.row, u.direction, u.strength, u.name)
-        for u in model.elements.get(REACTIONS, ())
+        for u in model.unilateral_reactions
     )
     one_sided = {u[0] for u in unilateral}
     # a reaction acts in equilibrium only if its constraint touches a body with rows

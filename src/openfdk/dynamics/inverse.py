@@ -16,7 +16,7 @@ import numpy as np
 from ..model.framedata import FrameData
 from .equilibrium import assemble, equilibrium_layout, inertial_minus_gravity
 from .stages import equilibrium_stage, recruitment_stage
-from ..forces.elements import RECRUITMENT, RecruitmentSettings
+from ..forces.elements import RecruitmentSettings
 from ..forces.passive import PassiveElements
 from ..forces.pathset import PathSet
 from ..kinematics.system import ConstraintSystem
@@ -63,7 +63,7 @@ class InverseDynamics:
         self.muscle_set = MuscleSet([m.law for m in muscles]) if muscles else None
         self.paths = PathSet(muscles) if muscles else None
         self.passive = PassiveElements(model)
-        self.settings = model.elements.get(RECRUITMENT, RecruitmentSettings())
+        self.settings = model.settings.recruitment or RecruitmentSettings()
         self.unilateral_strength = np.array([u[2] for u in self.layout.unilateral], dtype=float)
         if len(self.layout.eq_coords) == 0:
             raise ValueError(f"model {model.name!r}: no body has equilibrium: true; nothing to solve")

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.modelfile import SECTION_LOADERS, _wrap
+from ..model.modelfile import _wrap
 from ..model.model import ModelError
 
 FDK = "fdk"
@@ -49,7 +49,7 @@ class FDKSettings:
 
 def fdk_settings(model, **overrides) -> FDKSettings:
     """Settings of a model: its ``fdk`` section, per-DOF values and defaults by unit."""
-    base = dict(model.elements.get(FDK, {}))
+    base = dict(model.settings.fdk)
     base.update(overrides)
     steps, perts = [], []
     for dof in model.fdk_dofs:
@@ -89,5 +89,3 @@ def load_fdk(b, data, ctx):
             out[key] = data[key]
     _wrap(ctx, FDK, lambda: b.elements.__setitem__(FDK, out))
 
-
-SECTION_LOADERS[FDK] = load_fdk

@@ -1,8 +1,10 @@
 """Force elements attached to a model: muscles, ligaments, springs, unilateral reactions,
 external loads, and the recruitment settings.
 
-Elements live in ``model.elements`` (a dict of tuples by kind) and are added with the
-functions here, which take a :class:`~openfdk.model.builder.ModelBuilder`::
+Elements are typed fields of the model (``model.muscles``, ``model.ligaments``,
+``model.springs``, ``model.unilateral_reactions``, ``model.loads``; contacts in
+:mod:`openfdk.contact.sections`) and are added with the functions here, which take a
+:class:`~openfdk.model.builder.ModelBuilder`::
 
     add_muscle(b, "masseter_r", ["skull.mas_o_r", "mandible.mas_i_r"], Hill3ElementMuscle(...))
     add_ligament(b, "tmj_lig_r1", ["skull.tub_r", "mandible.neck_r1"],

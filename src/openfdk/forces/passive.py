@@ -22,7 +22,6 @@ import numpy as np
 
 from ..model.batched import ScalarRows
 from ..numdiff import manifold_jacobian
-from .elements import LIGAMENTS, LOADS, SPRINGS
 
 
 @dataclass
@@ -46,10 +45,10 @@ class PassiveElements:
 
     def __init__(self, model):
         self.model = model
-        self.ligaments = tuple(model.elements.get(LIGAMENTS, ()))
-        self.springs = tuple(model.elements.get(SPRINGS, ()))
-        self.loads = tuple(model.elements.get(LOADS, ()))
-        self.contacts = tuple(model.elements.get("contacts", ()))
+        self.ligaments = model.ligaments
+        self.springs = model.springs
+        self.loads = model.loads
+        self.contacts = model.contacts
         from .pathset import PathSet
 
         self.ligament_paths = PathSet(self.ligaments) if self.ligaments else None

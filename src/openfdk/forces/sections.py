@@ -1,6 +1,6 @@
 """Model-file sections of the force layer: muscles, ligaments, springs, reactions
 (unilateral), loads and recruitment (format: docs/model-file.md, docs/muscles.md,
-docs/ligaments.md). Registered into :data:`openfdk.model.modelfile.SECTION_LOADERS`.
+docs/ligaments.md). Read by :func:`openfdk.io.modelfile.model_from_dict`.
 
 Units: lengths in the file's length unit, angles in its angle unit; forces N, moments
 N m, stiffness N/m (ligaments, length springs) or N m/rad (angle springs) — always SI.
@@ -8,7 +8,7 @@ N m, stiffness N/m (ligaments, length springs) or N m/rad (angle springs) — al
 
 from __future__ import annotations
 
-from ..model.modelfile import SECTION_LOADERS, _function, _measure, _unit_scale, _wrap
+from ..model.modelfile import _function, _measure, _unit_scale, _wrap
 from . import elements as el
 from .hill import ConstantStrengthMuscle, Hill3ElementMuscle
 
@@ -119,16 +119,3 @@ def load_recruitment(b, data, ctx):
     _wrap(ctx, "recruitment", lambda: el.set_recruitment(
         b, data.get("criterion", "polynomial"), ctx.number(data.get("power", 3.0), "recruitment.power"),
         ctx.number(data.get("tolerance", 1e-10), "recruitment.tolerance", positive=True)))
-
-
-SECTION_LOADERS.update(
-    {
-        "muscles": load_muscles,
-        "ligaments": load_ligaments,
-        "springs": load_springs,
-        "reactions": load_reactions,
-        "loads": load_loads,
-        "recruitment": load_recruitment,
-    }
-)
-

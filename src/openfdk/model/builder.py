@@ -22,6 +22,7 @@ from .components import GROUND, Body, Frame, Marker
 from .constraints import DRIVER, JOINT, Constraint, FDKDof, MarkerSet
 from .measures import AxisDot, Distance, Linear, Measure, PointPosition, RelativeAngles, RelativeVector
 from .model import Model, ModelError
+from .settings import AnalysisSettings
 from .timefunctions import Constant, TimeFunction
 
 JOINT_TYPES = ("weld", "spherical", "revolute", "prismatic", "point_on_plane", "generic")
@@ -64,7 +65,7 @@ class ModelBuilder:
         self._measures = {}
         self._constraints = []
         self._fdk = []
-        self.elements = {}
+        self.elements = {}  # force elements and settings by kind while building (Model fields when built)
         self.source = ""
         self._add_body_record(GROUND, 0.0, np.zeros((3, 3)), np.zeros(3), None, fixed=True, equilibrium=False)
 
@@ -327,8 +328,24 @@ class ModelBuilder:
             raise ModelError(f"model {self.name!r} has no moving body")
         return Model(
             self.name, tuple(bodies), dict(self._frames), markers, dict(self._measures),
-            tuple(self._constraints), tuple(self._fdk), self.gravity_W.copy(), dict(self.elements), self.source,
+            tuple(self._constraints), tuple(self._fdk), self.gravity_W.copy(), **self._typed_elements(),
+            source=self.source,
         )
+
+    #: element kinds collected in ``self.elements`` -> Model field
+    ELEMENT_FIELDS = ("muscles", "ligaments", "springs", "contacts", "loads", "unilateral_reactions")
+    SETTING_FIELDS = {"analysis": "kinematics", "recruitment": "recruitment", "fdk": "fdk", "units": "units"}
+
+    def _typed_elements(self):
+        """Model keyword arguments from the kinds collected in ``self.elements``."""
+        rest = dict(self.elements)
+        out = {kind: tuple(rest.pop(kind, ())) for kind in self.ELEMENT_FIELDS}
+        settings = {name: rest.pop(kind) for kind, name in self.SETTING_FIELDS.items() if kind in rest}
+        if rest:
+            raise ModelError(f"unknown force-element or settings kinds {sorted(rest)}; known: "
+                             f"{list(self.ELEMENT_FIELDS) + list(self.SETTING_FIELDS)}")
+        out["settings"] = AnalysisSettings(**settings)
+        return out
 
 
 def _stack(parts):

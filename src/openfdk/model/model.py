@@ -8,6 +8,7 @@ import numpy as np
 
 from .components import GROUND, Body, Frame
 from .constraints import Constraint, FDKDof, MarkerSet
+from .settings import AnalysisSettings
 from .state import BodyStates
 
 
@@ -18,7 +19,7 @@ class ModelError(ValueError):
 @dataclass(frozen=True, eq=False)
 class Model:
     """A complete model. Build it with :class:`~openfdk.model.builder.ModelBuilder` or
-    :func:`~openfdk.model.modelfile.load_model`.
+    :func:`~openfdk.io.modelfile.load_model`.
 
     Attributes
     ----------
@@ -30,7 +31,20 @@ class Model:
     constraints : tuple of Constraint (joints and drivers)
     fdk_dofs : tuple of FDKDof
     gravity_W : (3,) m/s²
-    elements : dict of further sections added by later layers (force elements, settings)
+
+    Force elements, each kind a typed field (tuples, in declaration order). Ligaments,
+    springs, contacts and loads share one interface at the set level
+    (:class:`openfdk.forces.passive.PassiveElements`): generalised forces Q (n,) on the
+    bodies and, when asked, their stiffness ∂Q/∂q̂ (n, n).
+
+    muscles : Muscle (path + strength model; recruited)
+    ligaments : Ligament (path + Blankevoort1991Ligament)
+    springs : Spring (scalar measure + LinearSpring)
+    contacts : ContactElement (elastic foundation between two meshes)
+    loads : ExternalLoad (force and moment time functions at a body point)
+    unilateral_reactions : UnilateralReaction (one-sided joint rows, recruited)
+    settings : AnalysisSettings (kinematics window, recruitment, fdk), not part of the
+        physical description
     """
 
     name: str
@@ -41,7 +55,13 @@ class Model:
     constraints: tuple
     fdk_dofs: tuple
     gravity_W: np.ndarray
-    elements: dict = field(default_factory=dict)
+    muscles: tuple = ()
+    ligaments: tuple = ()
+    springs: tuple = ()
+    contacts: tuple = ()
+    loads: tuple = ()
+    unilateral_reactions: tuple = ()
+    settings: AnalysisSettings = field(default_factory=AnalysisSettings)
     source: str = ""
 
     # -- look-ups -------------------------------------------------------------------
@@ -100,4 +120,4 @@ class Model:
         return "\n".join(lines)
 
 
-__all__ = ["Model", "ModelError", "GROUND", "Constraint", "FDKDof"]
+__all__ = ["Model", "ModelError", "GROUND", "Constraint", "FDKDof", "AnalysisSettings"]

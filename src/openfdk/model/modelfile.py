@@ -5,8 +5,10 @@ Lengths are in the file's declared unit (``units.length``: m, cm or mm) and angl
 ``units.angle`` (rad or deg); they are converted to SI once, here. Every error names
 the file and the entry, e.g. ``model.yaml: bodies.jaw.mass: expected a number``.
 
-Later layers add sections (muscles, ligaments, contacts, ...) by registering a loader in
-:data:`SECTION_LOADERS`: ``loader(builder, data, ctx)``.
+This module reads the core sections (units, bodies, measures, joints, constraints,
+drivers, FDK DOFs, analysis). The force-element, contact and FDK-settings sections
+belong to later layers; :mod:`openfdk.io.modelfile` reads a whole file by calling the
+core and then each section's loader explicitly.
 """
 
 from __future__ import annotations
@@ -15,7 +17,6 @@ import difflib
 from pathlib import Path
 
 import numpy as np
-from ..io.yamlfile import read_yaml
 
 from ..spatial import quat_from_rotvec, rotation_matrix_xyz
 from .builder import ModelBuilder
@@ -27,22 +28,6 @@ from .timefunctions import Constant, Fourier, Polynomial, SplineThroughData
 LENGTH_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 ANGLE_UNITS = {"rad": 1.0, "deg": np.pi / 180.0}
 FORMAT_VERSION = 1
-
-#: section name -> loader(builder, data, ctx); filled by later layers
-SECTION_LOADERS: dict = {}
-#: modules that register further sections when imported
-SECTION_MODULES = ("openfdk.forces.sections", "openfdk.contact.sections", "openfdk.fdk.settings")
-
-
-def _register_sections():
-    import importlib
-
-    for name in SECTION_MODULES:
-        try:
-            importlib.import_module(name)
-        except ModuleNotFoundError as exc:
-            if exc.name != name:
-                raise
 
 CORE_SECTIONS = (
     "openfdk", "name", "units", "gravity", "bodies", "measures", "joints",
@@ -116,20 +101,14 @@ class Ctx:
         return self.vector(value, path, n=3) * self.length
 
 
-def load_model(path) -> Model:
-    """Read, validate and build a model file. Raises ModelError naming the entry."""
-    path = Path(path)
-    data = read_yaml(path, ModelError, "model file")
-    return model_from_dict(data, source=path.name, base_dir=path.parent)
-
-
-def model_from_dict(data, source="<dict>", base_dir=None) -> Model:
-    """Build a model from the parsed YAML mapping (see docs/model-file.md)."""
-    _register_sections()
+def read_core(data, source="<dict>", base_dir=None, sections=()):
+    """(ModelBuilder, Ctx) after the core sections of a parsed model file; ``sections``
+    are the names of the further sections the caller reads (any other top-level key is
+    an error naming it)."""
     ctx = Ctx(source, base_dir=base_dir)
     if not isinstance(data, dict):
         raise ModelError(f"{source}: the file must contain a mapping with sections {list(CORE_SECTIONS)}")
-    ctx.keys(data, "(top level)", list(CORE_SECTIONS) + list(SECTION_LOADERS), required=("bodies",))
+    ctx.keys(data, "(top level)", list(CORE_SECTIONS) + list(sections), required=("bodies",))
     version = data.get("openfdk", FORMAT_VERSION)
     if version != FORMAT_VERSION:
         raise ctx.error("openfdk", f"unsupported format version {version!r}; this openfdk reads version {FORMAT_VERSION}")
@@ -156,9 +135,11 @@ def model_from_dict(data, source="<dict>", base_dir=None) -> Model:
         _load_fdk(b, name, spec, ctx)
     b.elements["analysis"] = dict(ctx.mapping(data.get("analysis") or {}, "analysis"))
     b.elements["units"] = {"length": lu, "angle": au}
-    for section, loader in SECTION_LOADERS.items():
-        if section in data:
-            loader(b, data[section], ctx)
+    return b, ctx
+
+
+def build(b, ctx) -> Model:
+    """The validated Model of a builder filled from a file (errors name the file)."""
     return _wrap(ctx, "(model)", b.build)
 
 

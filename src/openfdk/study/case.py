@@ -53,7 +53,7 @@ def completed_record(folder, fingerprint):
 def build_case_model(case):
     """(model, trial path or None, model label) of a case: the kind's prepare, then the
     overrides applied to the model mapping, then the model built."""
-    from ..model.modelfile import model_from_dict
+    from ..io.modelfile import model_from_dict
 
     prepared = import_callable(case.prepare)(case)
     data = apply_overrides(prepared.model_data, case.overrides, source=prepared.source)

@@ -1,0 +1,58 @@
+"""YAML model files -> :class:`~openfdk.model.model.Model` (format: docs/model-file.md).
+
+The file is data: it is read with a safe YAML loader and nothing in it is evaluated.
+Lengths are in the file's declared unit (``units.length``: m, cm or mm) and angles in
+``units.angle`` (rad or deg); they are converted to SI once, on reading. Every error
+names the file and the entry, e.g. ``model.yaml: bodies.jaw.mass: expected a number``.
+
+Each section is read by an explicit call to its layer's loader, in this order: the core
+(:func:`openfdk.model.modelfile.read_core`: units, bodies, measures, joints,
+constraints, drivers, FDK DOFs, analysis), then muscles, ligaments, springs, reactions,
+loads and recruitment (:mod:`openfdk.forces.sections`), contacts
+(:mod:`openfdk.contact.sections`) and the FDK solver settings
+(:mod:`openfdk.fdk.settings`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..contact.sections import load_contacts
+from ..fdk.settings import load_fdk
+from ..forces.sections import (load_ligaments, load_loads, load_muscles, load_reactions, load_recruitment,
+                               load_springs)
+from ..model.model import Model, ModelError
+from ..model.modelfile import build, read_core
+from .yamlfile import read_yaml
+
+#: the sections read after the core ones, with their loaders (builder, data, ctx)
+SECTIONS = ("muscles", "ligaments", "springs", "reactions", "loads", "recruitment", "contacts", "fdk")
+
+
+def load_model(path) -> Model:
+    """Read, validate and build a model file. Raises ModelError naming the entry."""
+    path = Path(path)
+    data = read_yaml(path, ModelError, "model file")
+    return model_from_dict(data, source=path.name, base_dir=path.parent)
+
+
+def model_from_dict(data, source="<dict>", base_dir=None) -> Model:
+    """Build a model from the parsed YAML mapping (see docs/model-file.md)."""
+    b, ctx = read_core(data, source, base_dir, SECTIONS)
+    if "muscles" in data:
+        load_muscles(b, data["muscles"], ctx)
+    if "ligaments" in data:
+        load_ligaments(b, data["ligaments"], ctx)
+    if "springs" in data:
+        load_springs(b, data["springs"], ctx)
+    if "reactions" in data:
+        load_reactions(b, data["reactions"], ctx)
+    if "loads" in data:
+        load_loads(b, data["loads"], ctx)
+    if "recruitment" in data:
+        load_recruitment(b, data["recruitment"], ctx)
+    if "contacts" in data:
+        load_contacts(b, data["contacts"], ctx)
+    if "fdk" in data:
+        load_fdk(b, data["fdk"], ctx)
+    return build(b, ctx)
