@@ -16,7 +16,7 @@ import numpy as np
 
 from ..dynamics.inverse import InverseDynamics
 from ..dynamics.results import forces_result
-from ..kinematics.analysis import (DeterminateStep, TrackingStep, _alpha, kinematics_result, tracking_times)
+from ..kinematics.analysis import (DeterminateStep, TrackingStep, alpha_inputs, kinematics_result, tracking_times)
 from ..trial import drive
 from .inverse_dynamics import DynamicsStep
 
@@ -75,7 +75,7 @@ def run_trial(model, trajectories, times, *, progress=False, checkpoints=None, r
             return res.kinematics, res.forces, res
 
         return drive(step, len(times), build, progress=progress, desc="FDK", checkpoints=checkpoints, resume=resume)
-    alpha = _alpha(model, None)
+    alpha = alpha_inputs(model, None)
     if trajectories is None:
         kin_step, mode = DeterminateStep(model, times, alpha), "determinate"
     else:

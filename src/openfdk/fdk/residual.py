@@ -18,6 +18,7 @@ import numpy as np
 
 from ..kinematics.determinate import solve_positions
 from ..kinematics.stages import position_stage, velocity_stage_determinate, velocity_stage_tracking
+from ..kinematics.tracking import residual_rates
 from ..model.framedata import FrameData
 
 
@@ -125,25 +126,9 @@ class FDKContext:
 
     def _rates(self, k, delta):
         """δ̇, δ̈ (n_markers, 3) at frame k from the residuals of k and its neighbours
-        (central; one-sided when a neighbour is missing; per marker where visible; 0
-        where a needed residual is missing — np.where drops the NaN branches)."""
-        dt = self.dt
-        cur = delta[k]
-        prev, nxt = delta.get(k - 1), delta.get(k + 1)
-        d1 = np.zeros_like(cur)
-        d2 = np.zeros_like(cur)
-        ok_c = np.isfinite(cur)
-        if prev is not None and nxt is not None:
-            both = ok_c & np.isfinite(prev) & np.isfinite(nxt)
-            d1 = np.where(both, (nxt - prev) / (2 * dt), 0.0)
-            d2 = np.where(both, (nxt - 2 * cur + prev) / dt**2, 0.0)
-        elif nxt is not None:
-            one = ok_c & np.isfinite(nxt)
-            d1 = np.where(one, (nxt - cur) / dt, 0.0)
-        elif prev is not None:
-            one = ok_c & np.isfinite(prev)
-            d1 = np.where(one, (cur - prev) / dt, 0.0)
-        return d1, d2
+        (Eq. 7; :func:`openfdk.kinematics.tracking.residual_rates`, as in marker
+        tracking: central, one-sided per marker where a neighbour is missing)."""
+        return residual_rates(delta.get(k - 1), delta[k], delta.get(k + 1), self.dt)
 
     def _dynamics(self, k, alpha, state, data, warm):
         """Equilibrium and recruitment stages from the data's Φ_q̂ and v̇; f^FDK."""

@@ -31,7 +31,7 @@ from ..trial import drive
 from ..trial.status import frame_messages
 from .determinate import check_square, solve_positions, solve_velocities_accelerations
 from .system import ConstraintSystem
-from .tracking import MarkerTracker, TrackingSettings
+from .tracking import MarkerTracker, TrackingSettings, residual_rates
 
 
 @dataclass(frozen=True)
@@ -104,7 +104,7 @@ def analysis_times(t_start, t_end, n_frames):
     return np.linspace(t_start, t_end, n_frames)
 
 
-def _alpha(model, alpha):
+def alpha_inputs(model, alpha):
     if alpha is None:
         return np.array([d.initial for d in model.fdk_dofs])
     alpha = np.asarray(alpha, dtype=float)
@@ -124,26 +124,6 @@ def _extrapolate(state, q_prev):
         dq = quat_multiply(quat_conjugate(qp[k, 3:]), state.quat_WB[i])
         state.quat_WB[i] = normalize_quat(quat_multiply(state.quat_WB[i], dq))
         state.R_WB[i] = rotation_matrix(state.quat_WB[i])
-
-
-def residual_rates(prev, cur, nxt, dt):
-    """δ̇ and δ̈ (nm, 3) of one frame from the residuals δ (nm, 3) m of the frame and its
-    neighbours (Eq. 7 and its second-order analogue): central where all three are known,
-    one-sided where a neighbour is missing (None: outside the trial) or NaN (failed
-    frame, occluded marker), 0 otherwise."""
-    good = np.isfinite(cur)
-    none = np.zeros_like(good)
-    good_p = np.isfinite(prev) if prev is not None else none
-    good_n = np.isfinite(nxt) if nxt is not None else none
-    D = np.where(good, cur, 0.0)
-    Dp = np.where(good_p, prev, 0.0) if prev is not None else D
-    Dn = np.where(good_n, nxt, 0.0) if nxt is not None else D
-    both = good & good_p & good_n
-    d1 = np.where(both, (Dn - Dp) / (2 * dt), 0.0)
-    d2 = np.where(both, (Dn - 2 * D + Dp) / dt**2, 0.0)
-    d1 = np.where(good & good_n & ~good_p, (Dn - D) / dt, d1)
-    d1 = np.where(good & good_p & ~good_n, (D - Dp) / dt, d1)
-    return d1, d2
 
 
 def kinematics_fields(model, n_markers, prefix="kin."):
@@ -288,7 +268,7 @@ class TrackingStep:
 def run_determinate(model, times, alpha=None, progress=False):
     """Determinate kinematics (Eqs. 1–3) at ``times`` (nf,) s. Returns KinematicsResult."""
     t0 = _time.perf_counter()
-    alpha = _alpha(model, alpha)
+    alpha = alpha_inputs(model, alpha)
     times = np.asarray(times, float)
     step = DeterminateStep(model, times, alpha)
 
@@ -324,7 +304,7 @@ def run_tracking(model, trajectories, times=None, alpha=None, settings=None, pro
     if model.markers.size == 0:
         raise ValueError(f"model {model.name!r} has no markers to track")
     times = tracking_times(trajectories, times)
-    alpha = _alpha(model, alpha)
+    alpha = alpha_inputs(model, alpha)
     step = TrackingStep(model, trajectories, times, alpha, settings)
 
     def build(rec):

@@ -191,3 +191,23 @@ class MarkerTracker:
         target_a = np.where(vis3, (xddot + dd_delta).ravel() - b, 0.0)
         vdot = np.linalg.solve(K, np.concatenate([WJ.T @ target_a, gamma]))[:n]
         return v, vdot
+
+
+def residual_rates(prev, cur, nxt, dt):
+    """δ̇ and δ̈ (nm, 3) of one frame from the residuals δ (nm, 3) m of the frame and its
+    neighbours (Eq. 7 and its second-order analogue): central where all three are known,
+    one-sided where a neighbour is missing (None: outside the trial) or NaN (failed
+    frame, occluded marker), 0 otherwise."""
+    good = np.isfinite(cur)
+    none = np.zeros_like(good)
+    good_p = np.isfinite(prev) if prev is not None else none
+    good_n = np.isfinite(nxt) if nxt is not None else none
+    D = np.where(good, cur, 0.0)
+    Dp = np.where(good_p, prev, 0.0) if prev is not None else D
+    Dn = np.where(good_n, nxt, 0.0) if nxt is not None else D
+    both = good & good_p & good_n
+    d1 = np.where(both, (Dn - Dp) / (2 * dt), 0.0)
+    d2 = np.where(both, (Dn - 2 * D + Dp) / dt**2, 0.0)
+    d1 = np.where(good & good_n & ~good_p, (Dn - D) / dt, d1)
+    d1 = np.where(good & good_p & ~good_n, (D - Dp) / dt, d1)
+    return d1, d2

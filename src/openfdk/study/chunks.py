@@ -108,7 +108,9 @@ _PER_FRAME = {
 
 def _join(parts):
     if isinstance(parts[0], np.ndarray):
-        return np.concatenate(parts, axis=0)
+        out = np.concatenate(parts, axis=0)
+        out.setflags(write=False)  # results are immutable, stitched ones too
+        return out
     return tuple(x for p in parts for x in p)
 
 
