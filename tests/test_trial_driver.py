@@ -205,3 +205,21 @@ def test_ctrl_c_writes_the_finished_frames_marked_partial(files, tmp_path):
     proc = _run([*common, "--out", out, "--resume"])
     assert proc.wait(timeout=600) == 0
     assert (out / "forces.csv").read_bytes() == (whole / "forces.csv").read_bytes()
+
+
+def test_resume_with_chunks_and_bad_checkpoint_options_are_refused(files, tmp_path, capsys):
+    base = ["run", str(files / "pop.yaml"), str(files / "trial.c3d"), "--out", str(tmp_path / "o"), "--no-progress"]
+    assert main([*base, "--chunks", "2", "--resume"]) == 2
+    assert "--resume is not available with --chunks" in capsys.readouterr().err
+    assert main([*base, "--checkpoint-frames", "0"]) == 2
+    assert "--checkpoint-frames must be >= 1" in capsys.readouterr().err
+
+
+def test_checkpoints_of_another_run_are_refused(tmp_path):
+    from openfdk.trial.checkpoint import CheckpointError, Checkpoints
+
+    Checkpoints(tmp_path / "c", "run-a").save([(0, {"x": 1.0})], None, 1)
+    with pytest.raises(CheckpointError, match="belongs to another run"):
+        Checkpoints(tmp_path / "c", "run-b").load()
+    saved = Checkpoints(tmp_path / "c", "run-a").load()
+    assert saved.next_frame == 1 and saved.records == [(0, {"x": 1.0})]

@@ -53,6 +53,10 @@ def _cmd_kinematics(args):
 
 
 def _cmd_run(args):
+    if args.chunks > 1 and args.resume:
+        raise UserError("--resume is not available with --chunks (chunked runs write no checkpoints)")
+    if args.checkpoint_frames < 1 or not args.checkpoint_seconds > 0:
+        raise UserError("--checkpoint-frames must be >= 1 and --checkpoint-seconds > 0")
     if args.chunks > 1:
         from .study.cli import run_chunked_job
 
