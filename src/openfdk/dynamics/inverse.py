@@ -75,9 +75,11 @@ class InverseDynamics:
         l, L = self.paths.evaluate(state)
         return l, L, L @ state.get_v()
 
-    def equilibrium(self, state, vdot, t, alpha=None, A=None):
+    def equilibrium(self, state, vdot, t, alpha=None, A=None, elements=True):
         """C, d, strengths s (n_bounded,), and the muscle/passive states of the frame.
-        A : Φ_q̂ (m, n) at this pose when the position stage has it (else evaluated)."""
+        A : Φ_q̂ (m, n) at this pose when the position stage has it (else evaluated);
+        elements : include the passive elements in d (False: only external loads and
+        passive muscle tension, for the analytic FDK Jacobian)."""
         if A is None:
             _, A, _, _ = self.system.evaluate(state, t, alpha, order=1)
         l, L, speed = self.muscle_states(state)
@@ -86,7 +88,7 @@ class InverseDynamics:
             s_m = np.maximum(s_m, MIN_STRENGTH)
         else:
             s_m = f_p = np.zeros(0)
-        Q, passive_out, _ = self.passive.generalized_forces(state, t)
+        Q, passive_out, _ = self.passive.generalized_forces(state, t, elements=elements)
         if len(f_p):
             Q -= L.T @ f_p  # passive muscle tension is an applied load
         d_full = inertial_minus_gravity(self.model, state, vdot) - Q

@@ -29,8 +29,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..dynamics.inverse import MIN_STRENGTH
-from ..dynamics.equilibrium import assemble, inertial_minus_gravity
 from ..numdiff import manifold_jacobian
 from ..recruitment import recruitment_sensitivity
 from .residual import FrameWorkspace
@@ -93,20 +91,8 @@ def kinematic_sensitivity(ctx, ev):
 def _geometry_terms(ctx, state, vdot, t, alpha):
     """C, the right-hand side without the passive elements (inertial − loads − passive
     muscle tension), and the strengths s at ``state`` (velocities held)."""
-    solver = ctx.solver
-    _, A, _, _ = ctx.system.evaluate(state, t, alpha, order=1)
-    l, L, speed = solver.muscle_states(state)
-    if solver.muscle_set is not None:
-        s_m, f_p = solver.muscle_set.evaluate(l, speed)
-        s_m = np.maximum(s_m, MIN_STRENGTH)
-    else:
-        s_m = f_p = np.zeros(0)
-    Q_loads, _, _ = solver.passive.generalized_forces(state, t, elements=False, loads=True)
-    if len(f_p):
-        Q_loads = Q_loads - L.T @ f_p
-    d_full = inertial_minus_gravity(ctx.model, state, vdot) - Q_loads
-    C, d = assemble(solver.layout, A, L, d_full)
-    return C, d, np.concatenate([s_m, solver.unilateral_strength])
+    C, d, s, _ = ctx.solver.equilibrium(state, vdot, t, alpha, elements=False)
+    return C, d, s
 
 
 def analytic_jacobian(ctx, k, ev):

@@ -25,8 +25,18 @@ from ..model.model import Model, ModelError
 from ..model.modelfile import build, read_core
 from .yamlfile import read_yaml
 
-#: the sections read after the core ones, with their loaders (builder, data, ctx)
-SECTIONS = ("muscles", "ligaments", "springs", "reactions", "loads", "recruitment", "contacts", "fdk")
+#: the sections read after the core ones, in this order, each by its layer's loader
+#: ``loader(builder, data, ctx)``
+SECTIONS = (
+    ("muscles", load_muscles),
+    ("ligaments", load_ligaments),
+    ("springs", load_springs),
+    ("reactions", load_reactions),
+    ("loads", load_loads),
+    ("recruitment", load_recruitment),
+    ("contacts", load_contacts),
+    ("fdk", load_fdk),
+)
 
 
 def load_model(path) -> Model:
@@ -38,21 +48,8 @@ def load_model(path) -> Model:
 
 def model_from_dict(data, source="<dict>", base_dir=None) -> Model:
     """Build a model from the parsed YAML mapping (see docs/model-file.md)."""
-    b, ctx = read_core(data, source, base_dir, SECTIONS)
-    if "muscles" in data:
-        load_muscles(b, data["muscles"], ctx)
-    if "ligaments" in data:
-        load_ligaments(b, data["ligaments"], ctx)
-    if "springs" in data:
-        load_springs(b, data["springs"], ctx)
-    if "reactions" in data:
-        load_reactions(b, data["reactions"], ctx)
-    if "loads" in data:
-        load_loads(b, data["loads"], ctx)
-    if "recruitment" in data:
-        load_recruitment(b, data["recruitment"], ctx)
-    if "contacts" in data:
-        load_contacts(b, data["contacts"], ctx)
-    if "fdk" in data:
-        load_fdk(b, data["fdk"], ctx)
+    b, ctx = read_core(data, source, base_dir, [name for name, _ in SECTIONS])
+    for name, loader in SECTIONS:
+        if name in data:
+            loader(b, data[name], ctx)
     return build(b, ctx)
