@@ -41,3 +41,19 @@ def slider_crank_closed_form(t, a=0.1, L=0.3, omega=2 * np.pi):
     xdd = -a * omega**2 * c - a**2 * omega**2 * ((c**2 - s**2) / S + a**2 * s**2 * c**2 / S**3)
     phi = np.arcsin(-a * s / L)
     return x, xd, xdd, phi
+
+
+def write_jaw_files(directory, n_frames, seed=3):
+    """The TMJ-like FDK jaw (tmj.yaml with its meshes), the POP jaw (pop.yaml) and a
+    marker trial (trial.c3d, n_frames at 100 Hz, 0.1 mm noise) in ``directory``."""
+    import yaml
+
+    from openfdk.fixtures.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, jaw_model_dict, write_jaw_meshes
+    from openfdk.io.c3d import write_c3d
+
+    write_jaw_meshes(directory / "meshes")
+    (directory / "tmj.yaml").write_text(yaml.safe_dump(jaw_fdk_model_dict("meshes"), sort_keys=False))
+    (directory / "pop.yaml").write_text(yaml.safe_dump(jaw_model_dict(), sort_keys=False))
+    _t, labels, x, _ = jaw_markers(n_frames, noise=1e-4, seed=seed)
+    write_c3d(directory / "trial.c3d", labels, x, 100.0)
+    return directory

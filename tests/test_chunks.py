@@ -6,15 +6,14 @@ import json
 
 import numpy as np
 import pytest
-import yaml
 
 from openfdk.fdk.analysis import run_fdk
-from openfdk.io.c3d import write_c3d
 from openfdk.jobs import load_trajectories, run_job
 from openfdk.io.modelfile import load_model
 from openfdk.study.chunks import plan_segments
 from openfdk.study.cli import run_chunked_job
-from openfdk.fixtures.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, jaw_model_dict, write_jaw_meshes
+
+from models import write_jaw_files
 
 N_FRAMES = 24
 FDK_DOFS = ("tmj_r_normal", "tmj_l_normal", "ml_shift")
@@ -22,13 +21,7 @@ FDK_DOFS = ("tmj_r_normal", "tmj_l_normal", "ml_shift")
 
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
-    d = tmp_path_factory.mktemp("chunks")
-    write_jaw_meshes(d / "meshes")
-    (d / "tmj.yaml").write_text(yaml.safe_dump(jaw_fdk_model_dict("meshes"), sort_keys=False))
-    (d / "pop.yaml").write_text(yaml.safe_dump(jaw_model_dict(), sort_keys=False))
-    _t, labels, x, _ = jaw_markers(N_FRAMES, noise=1e-4, seed=3)
-    write_c3d(d / "trial.c3d", labels, x, 100.0)
-    return d
+    return write_jaw_files(tmp_path_factory.mktemp("chunks"), N_FRAMES)
 
 
 @pytest.fixture(scope="module")

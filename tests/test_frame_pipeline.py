@@ -6,18 +6,17 @@ from collections import Counter
 
 import numpy as np
 import pytest
-import yaml
 
 from openfdk.fdk.analysis import fdk_context
 from openfdk.fdk.jacobian import analytic_jacobian
 from openfdk.fdk.residual import FrameWorkspace
-from openfdk.fixtures.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, write_jaw_meshes
 from openfdk.forces.elements import add_spring
-from openfdk.io.c3d import write_c3d
 from openfdk.jobs import load_trajectories
 from openfdk.kinematics.system import ConstraintSystem
 from openfdk.model.builder import ModelBuilder
 from openfdk.io.modelfile import load_model
+
+from models import write_jaw_files
 
 
 @pytest.fixture
@@ -37,10 +36,7 @@ def phi_q_counts(monkeypatch):
 
 
 def test_tracking_fdk_residual_assembles_phi_q_once_per_pose(tmp_path, phi_q_counts):
-    write_jaw_meshes(tmp_path / "meshes")
-    (tmp_path / "tmj.yaml").write_text(yaml.safe_dump(jaw_fdk_model_dict("meshes"), sort_keys=False))
-    _t, labels, x, _ = jaw_markers(8, noise=1e-4, seed=3)
-    write_c3d(tmp_path / "trial.c3d", labels, x, 100.0)
+    write_jaw_files(tmp_path, 8)
     model = load_model(tmp_path / "tmj.yaml")
     _, traj = load_trajectories(model, tmp_path / "trial.c3d")
     times = np.asarray(traj.time)

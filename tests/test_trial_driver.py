@@ -10,28 +10,21 @@ import time
 
 import numpy as np
 import pytest
-import yaml
 
 from openfdk.analysis.run import run_trial
 from openfdk.cli import main
-from openfdk.fixtures.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, jaw_model_dict, write_jaw_meshes
-from openfdk.io.c3d import write_c3d
 from openfdk.jobs import load_trajectories
 from openfdk.io.modelfile import load_model
 from openfdk.trial.status import FrameStatus, Reason
+
+from models import write_jaw_files
 
 N_FRAMES = 12
 
 
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
-    d = tmp_path_factory.mktemp("driver")
-    write_jaw_meshes(d / "meshes")
-    (d / "tmj.yaml").write_text(yaml.safe_dump(jaw_fdk_model_dict("meshes"), sort_keys=False))
-    (d / "pop.yaml").write_text(yaml.safe_dump(jaw_model_dict(), sort_keys=False))
-    _t, labels, x, _ = jaw_markers(160, noise=1e-4, seed=3)
-    write_c3d(d / "trial.c3d", labels, x, 100.0)
-    return d
+    return write_jaw_files(tmp_path_factory.mktemp("driver"), 160)
 
 
 def _central_rates(delta, dt):
