@@ -77,3 +77,16 @@ def test_determinate_fdk_residual_assembles_phi_q_once_per_pose(phi_q_counts):
     assert ev.ok
     np.testing.assert_allclose(ev.f_fdk, [2.0 * 9.81 - 500.0 * 0.01], rtol=1e-9)
     assert phi_q_counts and max(phi_q_counts.values()) == 1
+
+
+def test_tracking_and_inverse_dynamics_run_assembles_phi_q_once_per_pose(tmp_path, phi_q_counts):
+    """openfdk run on the POP jaw (tracking + recruitment in one pass): the equilibrium
+    takes Φ_q̂ from the kinematic position stage."""
+    from openfdk.analysis.run import run_trial
+
+    write_jaw_files(tmp_path, 8)
+    model = load_model(tmp_path / "pop.yaml")
+    _, traj = load_trajectories(model, tmp_path / "trial.c3d")
+    kin, dyn, _ = run_trial(model, traj, np.asarray(traj.time))
+    assert kin.converged.all() and dyn.converged.all()
+    assert len(phi_q_counts) > 8 and max(phi_q_counts.values()) == 1, phi_q_counts.most_common(3)

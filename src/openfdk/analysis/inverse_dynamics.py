@@ -38,14 +38,15 @@ class DynamicsStep:
     def fields(self):
         return forces_fields(self.solver)
 
-    def frame(self, k, q, v, vdot, kin_report):
-        """Values of frame k from its kinematics (q, v, v̇) or its failed report."""
+    def frame(self, k, q, v, vdot, kin_report, Phi_q=None):
+        """Values of frame k from its kinematics (q, v, v̇) or its failed report;
+        Phi_q (m, n) : Φ_q̂ at q when the kinematic position stage has it."""
         if not kin_report.converged:
             return forces_failure(FrameReport.failed(Reason.KINEMATICS, f"kinematics failed: {kin_report.message}"),
                                   "kinematics_failed")
         self.state.set_q(q)
         self.state.set_v(v)
-        fr = self.solver.frame(self.state, vdot, self.time[k], self.alpha, self.warm)
+        fr = self.solver.frame(self.state, vdot, self.time[k], self.alpha, self.warm, A=Phi_q)
         self.warm = fr.recruitment if fr.converged else None
         return forces_values(fr)
 

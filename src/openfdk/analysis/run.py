@@ -33,8 +33,9 @@ class KinematicsDynamicsStep:
 
     def _forces(self, finished):
         for j, values in finished:
+            data = self.kinematics.frame_data.pop(j, None)  # Φ_q̂ of the position stage
             values.update(self.dynamics.frame(j, values.get("kin.q"), values.get("kin.v"), values.get("kin.vdot"),
-                                              values["kin.report"]))
+                                              values["kin.report"], None if data is None else data.Phi_q))
         return finished
 
     def step(self, k):

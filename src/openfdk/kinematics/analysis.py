@@ -30,6 +30,7 @@ from ..model.framedata import FrameData
 from ..trial import drive
 from ..trial.status import frame_messages
 from .determinate import check_square, solve_positions, solve_velocities_accelerations
+from .stages import position_stage, velocity_stage_tracking
 from .system import ConstraintSystem
 from .tracking import MarkerTracker, TrackingSettings, residual_rates
 
@@ -158,18 +159,21 @@ class DeterminateStep:
         check_square(self.system)
         self.state = model.initial_state()
         self.last_good = self.state.copy()
+        self.frame_data = {}  # frame -> FrameData of the frame just finished (for the dynamics)
 
     def fields(self):
         return kinematics_fields(self.model, 0, self.prefix)
 
     def step(self, k):
         t, P = self.times[k], self.prefix
+        self.frame_data = {}
         data = FrameData()
         res = solve_positions(self.system, self.state, t, self.alpha, data=data)
         values = {P + "iterations": res.iterations, P + "constraint_violation": res.residual,
                   P + "report": res.report()}
         if res.converged:
             v, vd = solve_velocities_accelerations(self.system, self.state, t, self.alpha, data)
+            self.frame_data = {k: data}
             values.update({P + "q": self.state.get_q(), P + "v": v, P + "vdot": vd})
             self.last_good = self.state.copy()
         else:
@@ -205,12 +209,14 @@ class TrackingStep:
         self.q_prev = None
         self.guessed = False
         self.pending = {}  # frame -> positions of the last frames not yet finished
+        self.frame_data = {}  # frame -> FrameData of the frame just finished (for the dynamics)
 
     def fields(self):
         return kinematics_fields(self.model, self.model.markers.size, self.prefix)
 
     def step(self, k):
         t = self.times[k]
+        self.frame_data = {}
         x, xd, xdd, vis = self.traj.evaluate(t)
         tracker, state = self.tracker, self.state
         if not self.guessed and np.any(vis):
@@ -235,6 +241,7 @@ class TrackingStep:
         return done
 
     def finish(self):
+        self.frame_data = {}
         last = len(self.times) - 1
         return [(last, self._finish_frame(last))] if last in self.pending else []
 
@@ -252,9 +259,11 @@ class TrackingStep:
         x, xd, xdd, vis = fr["meas"]
         state = self.model.initial_state()
         state.set_q(fr["q"])
-        v, vd = self.tracker.solve_velocities_accelerations(
-            state, self.times[j], fr["K"], vis, np.nan_to_num(xd), np.nan_to_num(xdd), d1, d2, self.alpha)
-        values.update({P + "q": fr["q"], P + "v": v, P + "vdot": vd})
+        data = position_stage(self.tracker.system, FrameData(), state, self.times[j], self.alpha, self.tracker.markers)
+        data.kkt, data.visible = fr["K"], vis
+        velocity_stage_tracking(self.tracker, data, state, np.nan_to_num(xd), np.nan_to_num(xdd), d1, d2)
+        self.frame_data[j] = data
+        values.update({P + "q": fr["q"], P + "v": data.v, P + "vdot": data.vdot})
         return values
 
     def carry(self):
