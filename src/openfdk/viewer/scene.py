@@ -61,7 +61,9 @@ def build_scene(model, max_vertices=MAX_MESH_VERTICES):
     index) and the FDK DOF names. Raises ViewError naming a visual mesh that cannot be
     read."""
     bodies = [{"name": b.name, "fixed": bool(b.fixed or b.column < 0), "color": PALETTE[k % len(PALETTE)],
-               "p0": b.p_WB0.tolist(), "q0": b.quat_WB0.tolist()} for k, b in enumerate(model.bodies)]
+               "p0": b.p_WB0.tolist(), "q0": b.quat_WB0.tolist(),
+               "points": [f.p_BF.tolist() for f in model.frames.values() if f.body == b.name and np.any(f.p_BF)]}
+              for k, b in enumerate(model.bodies)]
     meshes, contacts, labels, points = [], [], [], []
     for c in model.elements.get("contacts", ()):
         pair = c.pair
@@ -86,6 +88,9 @@ def build_scene(model, max_vertices=MAX_MESH_VERTICES):
     markers = {"names": list(model.markers.names), "body": [int(i) for i in model.markers.body],
                "p_B": np.asarray(model.markers.p_BM, dtype=float).reshape(-1, 3).tolist()}
     points.append(np.array([model.bodies[i].p_WB0 for i in range(len(model.bodies))]))
+    for i, b in enumerate(bodies):
+        if b["points"]:
+            points.append(_world(model, i, np.array(b["points"])))
     paths = []
     for kind, key in (("muscle", "muscles"), ("ligament", "ligaments")):
         for el in model.elements.get(key, ()):

@@ -95,6 +95,13 @@
               : new THREE.MeshStandardMaterial({ color: b.color }));
     if (isProbe) dot.renderOrder = 10; else layers.frames.push(dot);
     grp.add(dot);
+    if (b.points.length) {  // a stick from the origin to each frame/point of the body
+      const sticks = new Float32Array(6 * b.points.length);
+      b.points.forEach((p, j) => sticks.set(p, 6 * j + 3));
+      const sg = new THREE.BufferGeometry(); sg.setAttribute('position', new THREE.BufferAttribute(sticks, 3));
+      const st = new THREE.LineSegments(sg, new THREE.LineBasicMaterial({ color: b.color }));
+      grp.add(st); layers.frames.push(st);
+    }
     scene.add(grp); groups.push(grp);
   }
   const meshObjects = [];
@@ -257,6 +264,7 @@
     series.forEach((sr, j) => {
       const x = sr.v[frame], cell = $('s-' + j);
       if (sr.flag) { cell.textContent = x === 1 ? 'yes' : Number.isFinite(x) ? 'NO' : '–'; cell.className = 'v' + (x === 1 ? '' : ' bad'); }
+      else if (Number.isInteger(x)) cell.textContent = String(x);
       else cell.textContent = Number.isFinite(x) ? (Math.abs(x) >= 1e4 || (Math.abs(x) < 1e-3 && x !== 0) ? x.toExponential(3) : x.toFixed(4)) : '–';
     });
     $('clock').textContent = `t = ${time[frame].toFixed(3)} s  (frame ${frame + 1}/${nf})`;
@@ -296,6 +304,7 @@
   window.addEventListener('resize', () => {
     camera.aspect = window.innerWidth / window.innerHeight; camera.updateProjectionMatrix();
     renderer.setSize(window.innerWidth, window.innerHeight, false); render();
+    say('size ' + window.innerWidth + ' ' + window.innerHeight);
   });
 
   // -- start ------------------------------------------------------------------------------
