@@ -358,6 +358,15 @@ def test_a_60_s_mandible_trial_gives_a_file_under_30_MB(tmp_path):
     models = write_models(subject, register_braces(subject, Path(subject_dir) / "trials" / "reference.c3d"),
                           tmp_path / "models")
     model = load_model(models["fdk"])
+    # lift the mandible until both condyles touch their fossae (+0.3 mm), so that contact is drawn
+    jaw, skull = model.body("mandible"), model.body("skull")
+
+    def touching(dz):
+        R_j, R_s = rotation_matrix(jaw.quat_WB0), rotation_matrix(skull.quat_WB0)
+        return all(c.pair.evaluate(jaw.p_WB0 + [0, 0, dz], R_j, skull.p_WB0, R_s).n_contact > 0
+                   for c in model.elements["contacts"])
+
+    lift = next(dz for dz in np.arange(0.0, 0.01, 1e-4) if touching(dz)) + 3e-4
     n = 6000
     t = np.arange(n) / 100.0
     cols = {"time": t, "converged": np.ones(n, int)}
@@ -366,7 +375,8 @@ def test_a_60_s_mandible_trial_gives_a_file_under_30_MB(tmp_path):
         if b.name == "mandible":  # rotation about the intercondylar (y) axis through the origin
             th = np.radians(8.0) * 0.5 * (1 - np.cos(2 * np.pi * t))
             R = np.array([rotation_matrix(quat_from_rotvec([0.0, a, 0.0])) for a in th])
-            p, q = np.einsum("fij,j->fi", R, p0), np.array([quat_from_matrix(r @ R0) for r in R])
+            p = np.einsum("fij,j->fi", R, p0) + [0.0, 0.0, lift]
+            q = np.array([quat_from_matrix(r @ R0) for r in R])
         else:
             p, q = np.tile(p0, (n, 1)), np.tile(b.quat_WB0, (n, 1))
         for j, c in enumerate("xyz"):
@@ -388,8 +398,11 @@ def test_a_60_s_mandible_trial_gives_a_file_under_30_MB(tmp_path):
     f["fdk_converged"] = np.ones(n, int)
     write_table(out / "forces.csv", f)
     write_json(out / "summary.json", {"input": {"model_file": str(Path(models["fdk"]).resolve())}})
-    page = write_view(out)
-    data, _ = view_data(out)
+    from openfdk.viewer.page import render_page
+
+    data, title = view_data(out)
+    page = out / "view.html"
+    page.write_text(render_page(data, title), encoding="utf-8")
     levels = sum(len(unpack(c["level"])) for c in data["frames"]["contacts"])
     assert levels > n  # contact is drawn in (most) frames: the pressure data is really there
     size_mb = page.stat().st_size / 1e6
