@@ -119,6 +119,17 @@ def test_run_records_the_absolute_model_path_and_view_finds_it(slider_view):
     assert "Copyright © 2010-2026 three.js authors" in html  # the vendored licence travels with the code
 
 
+def test_a_kinematics_only_result_can_be_viewed(slider_view, tmp_path):
+    out = tmp_path / "kin"
+    assert main(["kinematics", str(ROOT / "examples" / "slider_crank.yaml"), "--out", str(out), "--no-progress"]) == 0
+    data, _ = view_data(out)
+    assert data["frames"]["measured"] is None and data["frames"]["contacts"] == []
+    poses = unpack(data["frames"]["poses"])
+    names = [b["name"] for b in data["scene"]["bodies"]]
+    # the crank turns once per second about the ground pivot: its centre of mass at t = 0.25 s
+    np.testing.assert_allclose(poses[25, names.index("crank"), :3], [0.0, 0.05, 0.0], atol=1e-6)
+
+
 @needs_browser
 def test_browser_draws_the_body_at_its_projected_position_at_two_times(slider_view, tmp_path):
     import csv
@@ -270,6 +281,9 @@ def test_view_data_rebuilds_markers_paths_and_panel(jaw_result):
     data, _ = view_data(out)
     scene, frames = data["scene"], data["frames"]
     assert [m["kind"] for m in scene["meshes"]] == ["contact"] * 4 + ["visual"]
+    chin = unpack(scene["meshes"][4]["vertices"]).reshape(-1, 3)  # icosphere r = 12 mm placed at (70, 0, -10) mm
+    assert scene["meshes"][4]["body"] == [b["name"] for b in scene["bodies"]].index("mandible")
+    np.testing.assert_allclose(np.linalg.norm(chin - [0.07, 0.0, -0.01], axis=1), 0.012, rtol=1e-6)
     assert {p["kind"] for p in scene["paths"]} == {"muscle", "ligament"}  # FDK springs act on non-path measures
     assert len(scene["paths"]) == 24 + 6
     # measured = model marker − residual (residual 0.5 mm along x)

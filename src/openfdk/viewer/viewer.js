@@ -95,7 +95,8 @@
               : new THREE.MeshStandardMaterial({ color: b.color }));
     if (isProbe) dot.renderOrder = 10; else layers.frames.push(dot);
     grp.add(dot);
-    if (b.points.length) {  // a stick from the origin to each frame/point of the body
+    const hasMesh = S.meshes.some((m) => S.bodies[m.body] === b);
+    if (b.points.length && !hasMesh) {  // no mesh: a stick from the origin to each frame/point of the body
       const sticks = new Float32Array(6 * b.points.length);
       b.points.forEach((p, j) => sticks.set(p, 6 * j + 3));
       const sg = new THREE.BufferGeometry(); sg.setAttribute('position', new THREE.BufferAttribute(sticks, 3));
@@ -125,8 +126,8 @@
   // -- markers and residual lines --------------------------------------------------------
   const nm = S.markers.names.length;
   const sphere = new THREE.SphereGeometry(scale * 0.008, 12, 8);
-  const modelMarkers = new THREE.InstancedMesh(sphere, new THREE.MeshStandardMaterial({ color: 0x1f5fbf }), Math.max(nm, 1));
-  const measMarkers = new THREE.InstancedMesh(sphere, new THREE.MeshStandardMaterial({ color: 0xf08c00 }), Math.max(nm, 1));
+  const modelMarkers = new THREE.InstancedMesh(sphere, new THREE.MeshStandardMaterial({ color: 0x1f5fbf, transparent: true, opacity: 0.45, depthWrite: false }), Math.max(nm, 1));
+  const measMarkers = new THREE.InstancedMesh(new THREE.SphereGeometry(scale * 0.0055, 12, 8), new THREE.MeshStandardMaterial({ color: 0xf08c00 }), Math.max(nm, 1));
   modelMarkers.count = nm; measMarkers.count = measured ? nm : 0;
   const resGeo = new THREE.BufferGeometry();
   resGeo.setAttribute('position', new THREE.BufferAttribute(new Float32Array(6 * Math.max(nm, 1)), 3));
@@ -191,6 +192,33 @@
   const rows = series.map((s) => `<tr><td>${s.name}</td><td class="v" id="s-${series.indexOf(s)}"></td><td>${s.unit}</td></tr>`);
   $('panel-body').innerHTML = `<table>${rows.join('')}</table><div id="failsum"></div>` +
     `<div style="margin-top:4px;color:#555">${D.meta.lines.join('<br>')}</div>`;
+  // sparklines of the non-flag series over the whole trial, with a cursor at the current frame
+  const sparks = [];
+  series.forEach((sr, j) => {
+    if (sr.flag || sparks.length >= 10) return;
+    let lo = Infinity, hi = -Infinity;
+    for (const x of sr.v) if (Number.isFinite(x)) { lo = Math.min(lo, x); hi = Math.max(hi, x); }
+    if (!(hi >= lo)) return;
+    if (hi === lo) { hi += 1e-12 + Math.abs(hi) * 1e-6; lo -= 1e-12 + Math.abs(lo) * 1e-6; }
+    const cv = document.createElement('canvas'); cv.width = 270; cv.height = 28; cv.title = sr.name;
+    const row = document.createElement('tr'), td = document.createElement('td'); td.colSpan = 3; td.append(cv); row.append(td);
+    $('s-' + j).parentElement.after(row);
+    const ctx = cv.getContext('2d'); ctx.strokeStyle = '#4f6fa8'; ctx.beginPath();
+    for (let k = 0; k < nf; k++) {
+      const x = sr.v[k]; if (!Number.isFinite(x)) continue;
+      const px = nf > 1 ? k / (nf - 1) * 269 : 0, py = 26 - (x - lo) / (hi - lo) * 24;
+      k === 0 ? ctx.moveTo(px, py) : ctx.lineTo(px, py);
+    }
+    ctx.stroke();
+    for (const [k] of failed) { ctx.fillStyle = 'rgba(176,0,32,0.5)'; ctx.fillRect(nf > 1 ? k / (nf - 1) * 269 : 0, 0, 1, 28); }
+    sparks.push({ ctx, img: ctx.getImageData(0, 0, 270, 28) });
+  });
+  function drawCursors() {
+    for (const sp of sparks) {
+      sp.ctx.putImageData(sp.img, 0, 0); sp.ctx.fillStyle = '#d00000';
+      sp.ctx.fillRect(nf > 1 ? frame / (nf - 1) * 269 : 0, 0, 1.5, 28);
+    }
+  }
   $('failsum').innerHTML = failed.size ? `<span class="bad">${failed.size} failed frame(s)</span>` : 'all frames converged';
 
   // -- per-frame update --------------------------------------------------------------------
@@ -269,6 +297,7 @@
     });
     $('clock').textContent = `t = ${time[frame].toFixed(3)} s  (frame ${frame + 1}/${nf})`;
     $('slider').value = frame;
+    drawCursors();
     const msg = failed.get(frame) || (posesOk ? '' : `frame ${frame}: no pose (kinematics failed)`);
     $('banner').style.display = msg && showUI ? 'block' : 'none'; $('banner').textContent = msg;
     render();
