@@ -38,8 +38,8 @@ def run_demo(out="openfdk-demo", quick=False, progress=True, log=print, workers=
     report(result, out / "study", log)
     from ..viewer import write_view
 
-    for task in sorted(p.parent for p in (out / "study").glob("*/fdk/kinematics.csv")):  # one 3D viewer per task
-        log(f"viewer: {write_view(task / 'fdk')}")
+    for run in sorted(p.parent for p in (out / "study").glob("*/fdk/kinematics.csv")):  # a 3D viewer per task
+        log(f"viewer: {write_view(run)}")
     log(f"done in {_time.perf_counter() - t0:.0f} s")
     return result
 

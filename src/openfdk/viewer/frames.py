@@ -53,11 +53,14 @@ def measured_markers(model, results, poses):
             continue
         res = np.stack([kin[c] for c in cols], axis=1)
         b, p_B = int(model.markers.body[k]), model.markers.p_BM[k]
-        for f in range(nf):
-            q = poses[f, b]
-            if np.all(np.isfinite(q)):
-                out[f, k] = q[:3] + rotation_matrix(q[3:]) @ p_B - res[f]
+        out[:, k] = poses[:, b, :3] + np.einsum("fij,j->fi", rotations(poses[:, b, 3:]), p_B) - res
     return out
+
+
+def rotations(e):
+    """Rotation matrices (nf, 3, 3) of Euler parameters e (nf, 4), e0 first; NaN rows
+    stay NaN (:func:`openfdk.spatial.rotation_matrix` applied to whole columns)."""
+    return np.moveaxis(rotation_matrix(np.asarray(e, dtype=float).T), -1, 0)
 
 
 def _col(forces, key, nf):
