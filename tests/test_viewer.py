@@ -99,7 +99,7 @@ def magenta_centroid(img):
     mask = (img[..., 0] > 0.9) & (img[..., 1] < 0.1) & (img[..., 2] > 0.9)
     assert mask.sum() > 20, "the probe body (magenta) is not in the picture"
     ys, xs = np.nonzero(mask)
-    return np.array([xs.mean(), ys.mean()]), mask
+    return np.array([xs.mean(), ys.mean()]) + 0.5, mask  # pixel k covers [k, k + 1)
 
 
 # -- a small run: the slider-crank example ----------------------------------------------------
@@ -137,7 +137,7 @@ def test_browser_draws_the_body_at_its_projected_position_at_two_times(slider_vi
     with open(slider_view / "run" / "kinematics.csv") as fh:
         rows = list(csv.DictReader(fh))
     kin = {k: np.array([float(r[k]) for r in rows]) for k in ("time", "slider.x_m", "slider.y_m", "slider.z_m")}
-    eye, target, up, fov = np.array([0.3, 0.05, 0.9]), np.array([0.3, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]), 40.0
+    eye, target, up, fov = np.array([0.05, 0.35, 0.8]), np.array([0.3, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]), 40.0
     cam = ",".join(f"{v:g}" for v in (*eye, *target))
     url = (slider_view / "run" / "view.html").as_uri()
     shots = {}
@@ -154,7 +154,7 @@ def test_browser_draws_the_body_at_its_projected_position_at_two_times(slider_vi
         p_W = np.array([kin["slider.x_m"][k], kin["slider.y_m"][k], kin["slider.z_m"][k]])
         expected = project(p_W, eye, target, up, fov, w, h)
         centroid, mask = magenta_centroid(img)
-        assert np.linalg.norm(centroid - expected) < 2.5, (centroid, expected)
+        assert np.linalg.norm(centroid - expected) < 1.5, (centroid, expected)  # measured: ≤ 0.12 px
         # not blank: besides the probe, other bodies' frames are drawn
         other = np.any(np.abs(img - BACKGROUND) > 0.08, axis=2) & ~mask
         assert other.sum() > 200
