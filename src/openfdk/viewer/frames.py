@@ -130,8 +130,10 @@ def panel_series(model, results, measured, poses):
     if measured is not None:
         names = list(model.markers.names)
         res = np.stack([np.stack([_col(kin, f"{m}.residual_{c}_m", nf) for c in "xyz"], axis=1) for m in names], axis=1)
-        with np.errstate(invalid="ignore"):
-            rms = np.sqrt(np.nanmean(np.sum(res ** 2, axis=2), axis=1)) * 1e3
+        sq = np.sum(res ** 2, axis=2)
+        n_seen = np.sum(np.isfinite(sq), axis=1)
+        rms = np.full(nf, np.nan)
+        rms[n_seen > 0] = np.sqrt(np.nansum(sq[n_seen > 0], axis=1) / n_seen[n_seen > 0]) * 1e3
         series.append({"name": "marker RMS residual", "unit": "mm", "values": pack(rms)})
     return series
 
