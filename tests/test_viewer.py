@@ -305,6 +305,8 @@ def test_view_data_rebuilds_markers_paths_and_panel(jaw_result):
     assert frames["failed"] == [(3, "frame 3 (t = 0.0300 s): test failure")]
     names = [s["name"] for s in frames["panel"]]
     assert "tmj_r_normal α" in names and "marker RMS residual" in names
+    assert "spring fdk_spring_ml" in names  # a spring on a non-path measure: in the panel
+    np.testing.assert_allclose(unpack(frames["panel"][names.index("spring fdk_spring_ml")]["values"]), 0.001)
     rms = unpack(frames["panel"][names.index("marker RMS residual")]["values"])
     np.testing.assert_allclose(np.delete(rms, 3), 0.5, rtol=1e-5)  # mm
     assert np.isnan(rms[3])

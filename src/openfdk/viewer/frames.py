@@ -109,9 +109,9 @@ def contact_frames(model, scene, results, poses):
     return out
 
 
-def panel_series(model, results, measured, poses):
-    """Side-panel series: FDK α (mm or deg) and residual f^FDK (N or N m) per DOF, FDK
-    convergence and iterations, kinematics/forces convergence, marker RMS residual (mm).
+def panel_series(model, results, measured, scene_paths=()):
+    """Side-panel series: FDK α (mm or deg) and residual f^FDK (N or N m) per DOF, the
+    forces of springs that are not drawn as paths, FDK convergence and iterations, kinematics/forces convergence, marker RMS residual (mm).
     Each {"name", "unit", "values": packed (nf,), "flag": bool for 0/1 series}."""
     nf, kin, f = results.n_frames, results.kinematics, results.forces
     series = []
@@ -121,6 +121,11 @@ def panel_series(model, results, measured, poses):
                        "values": pack(_col(f, f"fdk.{d.name}.alpha", nf) * (180 / np.pi if angle else 1e3))})
         series.append({"name": f"{d.name} residual", "unit": "N m" if angle else "N",
                        "values": pack(_col(f, f"fdk.{d.name}.residual", nf))})
+    drawn = {p["name"] for p in scene_paths}
+    for el in model.elements.get("springs", ()):  # springs on measures that are not paths (e.g. FDK DOF springs)
+        if el.name not in drawn and f"{el.name}.force" in f:
+            unit = {"m": "N", "rad": "N m"}.get(getattr(el.law, "unit", ""), "")
+            series.append({"name": f"spring {el.name}", "unit": unit, "values": pack(_col(f, f"{el.name}.force", nf))})
     for key, name in (("fdk_converged", "FDK converged"), ("fdk_iterations", "FDK iterations")):
         if key in f:
             series.append({"name": name, "unit": "", "values": pack(_col(f, key, nf)), "flag": key.endswith("converged")})
@@ -164,6 +169,6 @@ def build_frames(model, scene, results):
         "measured": pack(measured) if measured is not None else None,
         "path_force": pack(forces), "path_fmax": fmax,
         "contacts": contact_frames(model, scene, results, poses),
-        "panel": panel_series(model, results, measured, poses),
+        "panel": panel_series(model, results, measured, scene.data["paths"]),
         "failed": failed_frames(results),
     }
