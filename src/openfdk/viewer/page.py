@@ -9,6 +9,8 @@ request from the page.
 from __future__ import annotations
 
 import json
+import re
+from html import escape
 from importlib import resources
 
 THREE_VERSION = "0.187.0"
@@ -32,15 +34,11 @@ def render_page(data, title):
     payload = json.dumps(data, separators=(",", ":"), allow_nan=False).replace("<", "\\u003c")
     core, module, orbit, lic = (_text("vendor", n) for n in VENDOR)
     html = _text("template.html")
-    from html import escape
-
     parts = {
         "__TITLE__": escape(title), "__THREE_VERSION__": THREE_VERSION,
         "__THREE_CORE__": _embed(core, VENDOR[0]), "__THREE_MODULE__": _embed(module, VENDOR[1]),
-        "__THREE_ORBIT__": _embed(orbit, VENDOR[2]), "__THREE_LICENSE__": _embed(escape(lic), VENDOR[3]),
+        "__THREE_ORBIT__": _embed(orbit, VENDOR[2]), "__THREE_LICENSE__": _embed(lic, VENDOR[3]),
         "__VIEWER_JS__": _embed(_text("viewer.js"), "viewer.js"), "__DATA__": payload,
     }
     # one pass, so that no inserted text is searched for later placeholders
-    import re
-
     return re.sub("|".join(re.escape(k) for k in parts), lambda m: parts[m.group(0)], html)
