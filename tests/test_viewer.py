@@ -179,11 +179,11 @@ def test_network_check_sees_a_page_request(tmp_path):
 
 # -- the TMJ-like FDK model: contact, ligaments, muscles, springs, markers, visual mesh -------
 def write_jaw_result(d, n_frames, rate=100.0, visual_subdivisions=3):
-    """A result folder for the TMJ-like FDK model (openfdk.synthetic_jaw) whose poses are
+    """A result folder for the TMJ-like FDK model (openfdk.fixtures.synthetic_jaw) whose poses are
     the model's known open–close motion, plus known forces; returns (folder, model path)."""
     import trimesh
 
-    from openfdk.synthetic_jaw import jaw_fdk_model_dict, jaw_true_motion, write_jaw_meshes
+    from openfdk.fixtures.synthetic_jaw import jaw_fdk_model_dict, jaw_true_motion, write_jaw_meshes
 
     write_jaw_meshes(d / "meshes")
     trimesh.creation.icosphere(subdivisions=visual_subdivisions, radius=12.0).export(d / "meshes" / "chin.stl")
@@ -213,17 +213,17 @@ def write_jaw_result(d, n_frames, rate=100.0, visual_subdivisions=3):
     out = d / "run"
     out.mkdir()
     write_table(out / "kinematics.csv", cols)
-    from openfdk.model.modelfile import load_model
+    from openfdk.io.modelfile import load_model
 
     model = load_model(d / "tmj.yaml")
     f = {"time": t, "converged": np.ones(n_frames, int)}
-    for k, el in enumerate(model.elements["muscles"]):
+    for k, el in enumerate(model.muscles):
         f[f"{el.name}.force_N"] = 10.0 * (k + 1) * (1 + np.sin(2 * np.pi * t))
-    for el in model.elements["ligaments"]:
+    for el in model.ligaments:
         f[f"{el.name}.force_N"] = np.full(n_frames, 2.0)
-    for el in model.elements["springs"]:
+    for el in model.springs:
         f[f"{el.name}.force"] = np.full(n_frames, 0.001)
-    for c in model.elements["contacts"]:
+    for c in model.contacts:
         for a, v in zip("xyz", (0.0, 0.0, -50.0)):
             f[f"{c.name}.F{a}_N"] = np.full(n_frames, v)
             f[f"{c.name}.cop_{a}_m"] = np.full(n_frames, 0.0)
@@ -248,7 +248,7 @@ def test_contact_pressure_in_the_page_data_matches_the_closed_form(jaw_result):
     k = 10 GN/m³). The page stores the pressure on the display vertices, quantised to
     255 levels of the trial's peak; decoded, it must equal k h to the quantum plus the
     distance-grid error."""
-    from openfdk.synthetic_jaw import plane_normal
+    from openfdk.fixtures.synthetic_jaw import plane_normal
 
     out, model_path = jaw_result
     data, _ = view_data(out)
@@ -378,7 +378,7 @@ def test_a_60_s_mandible_trial_gives_a_file_under_30_MB(tmp_path):
     from openfdk.mandible.models import write_models
     from openfdk.mandible.registration import register_braces
     from openfdk.mandible.subject import load_subject
-    from openfdk.model.modelfile import load_model
+    from openfdk.io.modelfile import load_model
 
     subject_dir = create_subject(tmp_path / "subject", resolution="default")
     record_experiment(subject_dir, cycles=1)
@@ -392,7 +392,7 @@ def test_a_60_s_mandible_trial_gives_a_file_under_30_MB(tmp_path):
     def touching(dz):
         R_j, R_s = rotation_matrix(jaw.quat_WB0), rotation_matrix(skull.quat_WB0)
         return all(c.pair.evaluate(jaw.p_WB0 + [0, 0, dz], R_j, skull.p_WB0, R_s).n_contact > 0
-                   for c in model.elements["contacts"])
+                   for c in model.contacts)
 
     lift = next(dz for dz in np.arange(0.0, 0.01, 1e-4) if touching(dz)) + 3e-4
     n = 6000
@@ -418,7 +418,7 @@ def test_a_60_s_mandible_trial_gives_a_file_under_30_MB(tmp_path):
     out.mkdir()
     write_table(out / "kinematics.csv", cols)
     f = {"time": t, "converged": np.ones(n, int)}
-    for el in model.elements["muscles"] + model.elements["ligaments"]:
+    for el in model.muscles + model.ligaments:
         f[f"{el.name}.force_N"] = 100 * np.sin(t) ** 2
     for dof in model.fdk_dofs:
         f[f"fdk.{dof.name}.alpha"] = 1e-4 * np.sin(t)

@@ -333,7 +333,7 @@ class ModelBuilder:
         )
 
     #: element kinds collected in ``self.elements`` -> Model field
-    ELEMENT_FIELDS = ("muscles", "ligaments", "springs", "contacts", "loads", "unilateral_reactions")
+    ELEMENT_FIELDS = ("muscles", "ligaments", "springs", "contacts", "loads", "unilateral_reactions", "visuals")
     SETTING_FIELDS = {"analysis": "kinematics", "recruitment": "recruitment", "fdk": "fdk", "units": "units"}
 
     def _typed_elements(self):

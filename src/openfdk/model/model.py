@@ -43,6 +43,7 @@ class Model:
     contacts : ContactElement (elastic foundation between two meshes)
     loads : ExternalLoad (force and moment time functions at a body point)
     unilateral_reactions : UnilateralReaction (one-sided joint rows, recruited)
+    visuals : Visual (display meshes of bodies, for the viewer; no forces)
     settings : AnalysisSettings (kinematics window, recruitment, fdk), not part of the
         physical description
     """
@@ -61,6 +62,7 @@ class Model:
     contacts: tuple = ()
     loads: tuple = ()
     unilateral_reactions: tuple = ()
+    visuals: tuple = ()
     settings: AnalysisSettings = field(default_factory=AnalysisSettings)
     source: str = ""
 

@@ -48,7 +48,7 @@ class VisualMesh:
 
 def load_visuals(b, body, value, path, ctx):
     """Parse ``bodies.<body>.visual`` (a mapping or a list of mappings) into VisualMesh
-    entries appended to ``b.elements["visuals"]``; errors name the file and the entry."""
+    entries appended to the builder's visuals (``model.visuals`` once built); errors name the file and the entry."""
     from .modelfile import _orientation
 
     entries = value if isinstance(value, list) else [value]

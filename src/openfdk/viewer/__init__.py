@@ -25,7 +25,7 @@ __all__ = ["write_view", "view_data", "ViewError"]
 def view_data(result_dir, model=None, max_vertices=MAX_MESH_VERTICES):
     """(data dict {meta, scene, frames}, title) of a result folder. ``model``: a model
     file path (default: the one named in summary.json) or a loaded Model."""
-    from ..model.modelfile import load_model
+    from ..io.modelfile import load_model
 
     results = read_results(result_dir)
     if model is None or not hasattr(model, "bodies"):

@@ -83,7 +83,7 @@ def contact_frames(model, scene, results, poses):
     (nf, 3) m (forces.csv), and the sparse quantised pressure on the display mesh."""
     out = []
     nf, f = results.n_frames, results.forces
-    for c, lab in zip(model.elements.get("contacts", ()), scene.contact_labels):
+    for c, lab in zip(model.contacts, scene.contact_labels):
         F = np.stack([_col(f, f"{c.name}.F{a}_N", nf) for a in "xyz"], axis=1)
         cop = np.stack([_col(f, f"{c.name}.cop_{a}_m", nf) for a in "xyz"], axis=1)
         n_disp = int(lab.max()) + 1
@@ -122,7 +122,7 @@ def panel_series(model, results, measured, scene_paths=()):
         series.append({"name": f"{d.name} residual", "unit": "N m" if angle else "N",
                        "values": pack(_col(f, f"fdk.{d.name}.residual", nf))})
     drawn = {p["name"] for p in scene_paths}
-    for el in model.elements.get("springs", ()):  # springs on measures that are not paths (e.g. FDK DOF springs)
+    for el in model.springs:  # springs on measures that are not paths (e.g. FDK DOF springs)
         if el.name not in drawn and f"{el.name}.force" in f:
             unit = {"m": "N", "rad": "N m"}.get(getattr(el.law, "unit", ""), "")
             series.append({"name": f"spring {el.name}", "unit": unit, "values": pack(_col(f, f"{el.name}.force", nf))})

@@ -65,7 +65,7 @@ def build_scene(model, max_vertices=MAX_MESH_VERTICES):
                "points": [f.p_BF.tolist() for f in model.frames.values() if f.body == b.name and np.any(f.p_BF)]}
               for k, b in enumerate(model.bodies)]
     meshes, contacts, labels, points = [], [], [], []
-    for c in model.elements.get("contacts", ()):
+    for c in model.contacts:
         pair = c.pair
         entry_a, lab, va = _mesh_entry(pair.surface_A.vertices_B, pair.surface_A.faces, c.body_a, "contact",
                                        f"{c.name} ({pair.surface_A.name})", CONTACT_COLOR, max_vertices)
@@ -75,7 +75,7 @@ def build_scene(model, max_vertices=MAX_MESH_VERTICES):
         meshes += [entry_a, entry_b]
         labels.append(lab)
         points += [_world(model, c.body_a, va), _world(model, c.body_b, vb)]
-    for vis in model.elements.get("visuals", ()):
+    for vis in model.visuals:
         try:
             mesh = load_mesh(vis.path, units=vis.units, placement=(vis.p_BF, vis.R_BF), name=vis.entry)
         except MeshError as exc:
@@ -93,11 +93,11 @@ def build_scene(model, max_vertices=MAX_MESH_VERTICES):
             points.append(_world(model, i, np.array(b["points"])))
     paths = []
     for kind, key in (("muscle", "muscles"), ("ligament", "ligaments")):
-        for el in model.elements.get(key, ()):
+        for el in getattr(model, key):
             pts = _path_points(model, el.path)
             if pts is not None:
                 paths.append({"name": el.name, "kind": kind, "points": [[i, *p.tolist()] for i, p in pts]})
-    for el in model.elements.get("springs", ()):
+    for el in model.springs:
         pts = _path_points(model, el.measure)
         if pts is not None:
             paths.append({"name": el.name, "kind": "spring", "points": [[i, *p.tolist()] for i, p in pts]})
