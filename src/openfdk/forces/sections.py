@@ -21,9 +21,39 @@ HILL_KEYS = (
 
 
 def _points(ctx, value, path):
+    """A path: points 'body.point' and wrapping-surface names (no dot), ≥ 2 entries."""
     if not isinstance(value, list) or len(value) < 2 or not all(isinstance(p, str) for p in value):
-        raise ctx.error(path, f"expected a list of at least 2 points ('body.point'), got {value!r}")
+        raise ctx.error(path, f"expected a list of at least 2 points ('body.point') or wrapping surfaces, got {value!r}")
     return value
+
+
+SIDES = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0), "+z": (0, 0, 1), "-z": (0, 0, -1)}
+
+
+def load_wrapping(b, data, ctx):
+    """``wrapping: {name: {type, frame, radius | semi_axes, side}}`` (docs/muscles.md)."""
+    for name, spec in ctx.mapping(data, "wrapping").items():
+        p = f"wrapping.{name}"
+        ctx.keys(spec, p, ["type", "frame", "radius", "semi_axes", "side"], required=("type", "frame"))
+        kind = spec["type"]
+        if kind in ("cylinder", "sphere"):
+            ctx.keys(spec, p, ["type", "frame", "radius", "side"], required=("radius",))
+            dims = ctx.number(spec["radius"], f"{p}.radius", positive=True) * ctx.length
+        elif kind == "ellipsoid":
+            ctx.keys(spec, p, ["type", "frame", "semi_axes", "side"], required=("semi_axes",))
+            dims = ctx.vector(spec["semi_axes"], f"{p}.semi_axes", n=3) * ctx.length
+        else:
+            raise ctx.error(f"{p}.type", f"unknown wrapping surface {kind!r}; expected cylinder, sphere or ellipsoid")
+        side = spec.get("side")
+        if isinstance(side, str):
+            if side not in SIDES:
+                raise ctx.error(f"{p}.side", f"expected one of {list(SIDES)} or 3 numbers, got {side!r}")
+            side = SIDES[side]
+        elif side is not None:
+            side = ctx.vector(side, f"{p}.side", n=3)
+        if not isinstance(spec["frame"], str):
+            raise ctx.error(f"{p}.frame", f"expected a frame name 'body.frame', got {spec['frame']!r}")
+        _wrap(ctx, p, lambda: el.add_wrap_surface(b, name, kind, spec["frame"], dims, side))
 
 
 def load_muscles(b, data, ctx):
@@ -123,6 +153,7 @@ def load_recruitment(b, data, ctx):
 
 SECTION_LOADERS.update(
     {
+        "wrapping": load_wrapping,
         "muscles": load_muscles,
         "ligaments": load_ligaments,
         "springs": load_springs,
