@@ -175,10 +175,35 @@ class ModelBuilder:
     def distance(self, point_a, point_b, name=""):
         return Distance(self.point(point_a), self.point(point_b), name=name)
 
-    def angles(self, frame_a, frame_b, name=""):
-        """x-y-z Cardan angles of frame_b relative to frame_a (3 rows, rad)."""
+    def angles(self, frame_a, frame_b, name="", sequence="xyz"):
+        """Angles of frame_b relative to frame_a (3 rows, rad) in an intrinsic Euler or
+        Cardan ``sequence`` (default x-y-z; :mod:`openfdk.model.rotation_angles`)."""
         fa, fb = self.frame(frame_a), self.frame(frame_b)
-        return RelativeAngles(self._body_index(fa.body), fa.R_BF, self._body_index(fb.body), fb.R_BF, name=name)
+        if sequence == "xyz":
+            return RelativeAngles(self._body_index(fa.body), fa.R_BF, self._body_index(fb.body), fb.R_BF, name=name)
+        from .rotation_angles import RotationAngles
+
+        try:
+            return RotationAngles(self._body_index(fa.body), fa.R_BF, self._body_index(fb.body), fb.R_BF,
+                                  sequence, name=name)
+        except ValueError as exc:
+            raise ModelError(str(exc)) from None
+
+    def jcs_angles(self, parent, child, joint="knee", side="right", name=""):
+        """Joint-coordinate-system angles (Grood & Suntay 1983; ISB, Wu et al. 2002/2005)
+        of the anatomical frame ``child`` in ``parent`` (3 rows, rad): knee/hip/ankle
+        z-x-y (flexion, adduction, internal rotation), shoulder y-x-y; ``side`` "left"
+        negates angles 2 and 3 (docs/model-file.md, measures)."""
+        from .rotation_angles import JCS_CONVENTIONS, RotationAngles
+
+        if joint not in JCS_CONVENTIONS:
+            raise ModelError(f"JCS angles: unknown joint convention {joint!r}; expected one of {sorted(JCS_CONVENTIONS)}")
+        if side not in ("right", "left"):
+            raise ModelError(f"JCS angles: side must be 'right' or 'left', got {side!r}")
+        fa, fb = self.frame(parent), self.frame(child)
+        sign = (1.0, 1.0, 1.0) if side == "right" or joint == "shoulder" else (1.0, -1.0, -1.0)
+        return RotationAngles(self._body_index(fa.body), fa.R_BF, self._body_index(fb.body), fb.R_BF,
+                              JCS_CONVENTIONS[joint][0], sign, name=name)
 
     def axis_dot(self, frame_a, axis_a, frame_b, axis_b, name=""):
         fa, fb = self.frame(frame_a), self.frame(frame_b)

@@ -250,7 +250,8 @@ MEASURE_KEYS = {
     "point": ["point"],
     "vector": ["from", "to", "expressed_in"],
     "distance": ["from", "to"],
-    "angles": ["frame", "of"],
+    "angles": ["frame", "of", "sequence"],
+    "jcs": ["frame", "of", "joint", "side"],
     "axis_dot": ["frame_a", "axis_a", "frame_b", "axis_b"],
     "plane_distance": ["plane", "point"],
     "linear": ["terms", "offset"],
@@ -265,7 +266,7 @@ def _measure(b, spec, path, ctx):
     kind = spec.get("type")
     if kind not in MEASURE_KEYS:
         raise ctx.error(f"{path}.type", f"unknown measure type {kind!r}; expected one of {list(MEASURE_KEYS)}")
-    ctx.keys(spec, path, ["type"] + MEASURE_KEYS[kind], required=[k for k in MEASURE_KEYS[kind] if k not in ("expressed_in", "offset")])
+    ctx.keys(spec, path, ["type"] + MEASURE_KEYS[kind], required=[k for k in MEASURE_KEYS[kind] if k not in ("expressed_in", "offset", "sequence", "joint", "side")])
     if kind == "point":
         return _wrap(ctx, path, lambda: b.point(spec["point"]))
     if kind == "vector":
@@ -273,7 +274,10 @@ def _measure(b, spec, path, ctx):
     if kind == "distance":
         return _wrap(ctx, path, lambda: b.distance(spec["from"], spec["to"]))
     if kind == "angles":
-        return _wrap(ctx, path, lambda: b.angles(spec["frame"], spec["of"]))
+        return _wrap(ctx, path, lambda: b.angles(spec["frame"], spec["of"], sequence=spec.get("sequence", "xyz")))
+    if kind == "jcs":
+        return _wrap(ctx, path, lambda: b.jcs_angles(spec["frame"], spec["of"], spec.get("joint", "knee"),
+                                                     spec.get("side", "right")))
     if kind == "axis_dot":
         return _wrap(ctx, path, lambda: b.axis_dot(
             spec["frame_a"], ctx.vector(spec["axis_a"], f"{path}.axis_a", n=3),
