@@ -25,9 +25,16 @@ class UserError(Exception):
 
 def _cmd_check(args):
     from .model.modelfile import load_model
+    from .model_check import check_model
 
     model = load_model(args.model)
-    print(model.describe())
+    report = check_model(model)
+    print("\n".join(report.lines))
+    if not report.ok:
+        # the model cannot run: one line per problem, the first one as the exit message
+        for extra in report.errors[1:]:
+            print(f"openfdk: error: {args.model}: {extra}", file=sys.stderr)
+        raise UserError(f"{args.model}: {report.errors[0]}")
     return 0
 
 
