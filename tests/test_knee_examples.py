@@ -134,3 +134,14 @@ def test_contact_example_with_generated_meshes_runs(tmp_path):
     assert quad > 100
     assert -F_on_thigh[0] == pytest.approx(quad, rel=0.05)
     assert abs(F_on_thigh[2]) < 1e-6
+
+
+def test_knee_benchmark_reports_frames_per_second(capsys):
+    import json
+
+    from openfdk.cli import main
+
+    assert main(["bench", "--quick", "--json", "--only", "knee"]) == 0
+    lines = [json.loads(x) for x in capsys.readouterr().out.splitlines() if x.startswith("{")]
+    fps = [x for x in lines if x["name"] == "knee_example_contact_fdk_fps"]
+    assert len(fps) == 1 and fps[0]["value"] > 0 and fps[0]["convergence_rate"] == 1.0
