@@ -4,6 +4,7 @@
     openfdk kinematics MODEL.yaml --out DIR             determinate kinematics (drivers)
     openfdk run MODEL.yaml [TRIAL.c3d] --out DIR        kinematics + inverse dynamics
     openfdk check MODEL.yaml                            validate a model file
+    openfdk cache info|clear                            the distance-grid cache on disk
     openfdk demo [--out DIR] [--quick]                  the mandible study on the virtual subject
     openfdk subject create|record DIR                   virtual subject and experiment
     openfdk bench [--quick] [--json]                    benchmarks
@@ -35,6 +36,21 @@ def _cmd_check(args):
         for extra in report.errors[1:]:
             print(f"openfdk: error: {args.model}: {extra}", file=sys.stderr)
         raise UserError(f"{args.model}: {report.errors[0]}")
+    return 0
+
+
+def _cmd_cache(args):
+    from .contact.grid_cache import clear_grid_cache, grid_cache_info
+
+    folder, n, size = grid_cache_info()
+    if folder is None:
+        print("distance-grid cache: off (OPENFDK_CACHE_DIR=off)")
+        return 0
+    if args.action == "clear":
+        clear_grid_cache(disk=True)
+        print(f"distance-grid cache {folder}: removed {n} grid files ({size / 2**20:.1f} MB)")
+        return 0
+    print(f"distance-grid cache {folder}: {n} grid files, {size / 2**20:.1f} MB")
     return 0
 
 
@@ -165,6 +181,10 @@ def build_parser():
     c = sub.add_parser("check", help="validate a model file and print a summary")
     c.add_argument("model")
     c.set_defaults(func=_cmd_check)
+
+    ca = sub.add_parser("cache", help="the on-disk distance-grid cache: size (info) or delete it (clear)")
+    ca.add_argument("action", choices=["info", "clear"])
+    ca.set_defaults(func=_cmd_cache)
 
     k = sub.add_parser("kinematics", help="kinematic analysis: marker tracking (with a C3D trial) or determinate")
     _trial_arguments(k)
