@@ -72,14 +72,15 @@ def test_angle_jacobian_and_bias_against_finite_differences(sequence):
 
 def test_knee_jcs_against_hand_built_flexion_adduction_rotation():
     """Tibia frame from the femur frame by Grood & Suntay's three rotations, about axes
-    written in the world: flexion α about the femur's z (e1), adduction β about the
-    floating axis (the femur x after flexion, e2), internal rotation γ about the
-    tibia's long axis y (e3)."""
+    written in the world: flexion α about the femur's z (e1, lateral; flexion moves the
+    tibia's distal end posterior, i.e. −α about +z), adduction β about the floating axis
+    (the femur x after flexion, e2), internal rotation γ about the tibia's long axis y
+    (e3)."""
     alpha, beta, gamma = np.radians([60.0, 8.0, -15.0])
     b = ModelBuilder("knee")
     R_WF = rotation_matrix(quat_from_rotvec([0.3, -0.2, 0.4]))
     b.add_body("femur", 1.0, [1, 1, 1], orientation=R_WF)
-    R1 = rot(R_WF[:, 2], alpha) @ R_WF  # after flexion about e1
+    R1 = rot(R_WF[:, 2], -alpha) @ R_WF  # after flexion about e1
     R2 = rot(R1[:, 0], beta) @ R1  # adduction about the floating axis e2
     R_WT = rot(R2[:, 1], gamma) @ R2  # rotation about the tibia's long axis e3
     b.add_body("tibia", 1.0, [1, 1, 1], position=[0, -0.4, 0], orientation=R_WT)
@@ -93,7 +94,9 @@ def test_knee_jcs_against_hand_built_flexion_adduction_rotation():
     e1, e3 = R_WF[:, 2], R_WT[:, 1]
     e2 = np.cross(e3, e1) / np.linalg.norm(np.cross(e3, e1))
     assert np.arcsin(e1 @ e3) == pytest.approx(beta, abs=1e-14)
-    assert np.arctan2(np.cross(R_WF[:, 0], e2) @ e1, R_WF[:, 0] @ e2) == pytest.approx(alpha, abs=1e-14)
+    assert np.arctan2(np.cross(R_WF[:, 0], e2) @ e1, R_WF[:, 0] @ e2) == pytest.approx(-alpha, abs=1e-14)
+    # flexion moves the tibia's distal end (−y) posterior (−x of the femur)
+    assert (R_WF.T @ R_WT @ [0, -1, 0])[0] < -0.5
     _, M, _ = right.evaluate(state, 1)
     np.testing.assert_allclose(M, manifold_jacobian(lambda s: right.evaluate(s, 0)[0], state), atol=1e-8)
 

@@ -13,6 +13,15 @@ their body frames (x anterior, y proximal, z lateral):
   lowest line lies 25 mm below the shank's knee frame (y = 175 mm) and touches the
   condyle at full extension, ±35 degrees wide in the sagittal plane, 50 mm wide; normals
   point up, toward the condyle.
+
+For the 3-DOF tibiofemoral example (examples/knee/tibiofemoral_3dof.yaml), in the femur's
+and tibia's knee frames (origin at the knee centre):
+
+* condyle_medial.stl, condyle_lateral.stl (femur): sphere caps of radius 20 mm centred
+  at z = ∓22 mm, around the direction 30 degrees posterior of straight down, 75 degrees
+  half-angle, so they face the tibia from extension to deep flexion; normals outward.
+* plateau_medial.stl, plateau_lateral.stl (tibia): flat 36 mm × 30 mm patches at
+  y = −20 mm (touching the condyles' lowest points at extension), z = ∓22 mm; normals up.
 """
 
 from __future__ import annotations
@@ -50,6 +59,38 @@ def cylinder_patch(radius, centre_xy, angle_from, angle_to, width, outward):
     return V, F
 
 
+def flat_patch_y(centre, size_x, size_z):
+    """A flat rectangle in the plane y = centre[1], normals +y (vertices mm, faces)."""
+    n_x = int(np.ceil(size_x / EDGE)) + 1
+    n_z = int(np.ceil(size_z / EDGE)) + 1
+    X, Z = np.meshgrid(np.linspace(-size_x / 2, size_x / 2, n_x), np.linspace(-size_z / 2, size_z / 2, n_z),
+                       indexing="ij")
+    V = np.stack([centre[0] + X, np.full_like(X, centre[1]), centre[2] + Z], axis=-1).reshape(-1, 3)
+    idx = np.arange(n_x * n_z).reshape(n_x, n_z)
+    q0, q1, q2, q3 = idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]
+    # ∂/∂x × ∂/∂z = −y: reverse the winding for +y normals
+    F = np.concatenate([np.stack([q0, q2, q1], -1).reshape(-1, 3), np.stack([q0, q3, q2], -1).reshape(-1, 3)])
+    return V, F
+
+
+def write_tibiofemoral_meshes(out_dir):
+    """The four surfaces of the 3-DOF tibiofemoral example (module docstring)."""
+    from openfdk.contact.shapes import sphere_cap
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    pole = np.array([-np.sin(np.radians(30)), -np.cos(np.radians(30)), 0.0])
+    for side, z in (("medial", -22.0), ("lateral", 22.0)):
+        cap = sphere_cap(20.0, np.radians(75), EDGE, pole=pole, center=(0.0, 0.0, z), name=side)
+        paths.append(out / f"condyle_{side}.stl")
+        trimesh.Trimesh(cap.vertices_B, cap.faces, process=False).export(paths[-1])
+        V, F = flat_patch_y((0.0, -20.0, z), 36.0, 30.0)
+        paths.append(out / f"plateau_{side}.stl")
+        trimesh.Trimesh(V, F, process=False).export(paths[-1])
+    return paths
+
+
 def write_meshes(out_dir):
     """Write both STL files into ``out_dir`` (created); returns their paths."""
     out = Path(out_dir)
@@ -67,5 +108,5 @@ def write_meshes(out_dir):
 
 if __name__ == "__main__":
     target = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parent / "meshes"
-    for path in write_meshes(target):
+    for path in [*write_meshes(target), *write_tibiofemoral_meshes(target)]:
         print(path)

@@ -192,8 +192,9 @@ class ModelBuilder:
     def jcs_angles(self, parent, child, joint="knee", side="right", name=""):
         """Joint-coordinate-system angles (Grood & Suntay 1983; ISB, Wu et al. 2002/2005)
         of the anatomical frame ``child`` in ``parent`` (3 rows, rad): knee/hip/ankle
-        z-x-y (flexion, adduction, internal rotation), shoulder y-x-y; ``side`` "left"
-        negates angles 2 and 3 (docs/model-file.md, measures)."""
+        z-x-y (flexion, adduction, internal rotation; knee flexion is the negative
+        rotation about z), shoulder y-x-y; ``side`` "left" negates angles 2 and 3
+        (docs/model-file.md, measures)."""
         from .rotation_angles import JCS_CONVENTIONS, RotationAngles
 
         if joint not in JCS_CONVENTIONS:
@@ -201,9 +202,11 @@ class ModelBuilder:
         if side not in ("right", "left"):
             raise ModelError(f"JCS angles: side must be 'right' or 'left', got {side!r}")
         fa, fb = self.frame(parent), self.frame(child)
-        sign = (1.0, 1.0, 1.0) if side == "right" or joint == "shoulder" else (1.0, -1.0, -1.0)
+        sequence, _, sign = JCS_CONVENTIONS[joint]
+        if side == "left" and joint != "shoulder":
+            sign = (sign[0], -sign[1], -sign[2])
         return RotationAngles(self._body_index(fa.body), fa.R_BF, self._body_index(fb.body), fb.R_BF,
-                              JCS_CONVENTIONS[joint][0], sign, name=name)
+                              sequence, sign, name=name)
 
     def axis_dot(self, frame_a, axis_a, frame_b, axis_b, name=""):
         fa, fb = self.frame(frame_a), self.frame(frame_b)

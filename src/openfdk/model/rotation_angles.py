@@ -22,7 +22,10 @@ parent-fixed axis e1, the last about a child-fixed axis e3, the middle one about
 floating axis e2 ⟂ e1, e3 — exactly a Cardan sequence of the two anatomical frames:
 
 * knee (and hip, ankle, ISB frames X anterior, Y superior, Z right): sequence z-x-y,
-  angles (flexion, adduction, internal rotation) for the right side;
+  angles (flexion, adduction, internal rotation) for the right side. Knee flexion moves
+  the tibia's distal end posterior, a *negative* right-hand rotation about Z, so the knee's
+  first angle is negated (Grood & Suntay: flexion positive); hip flexion and ankle
+  dorsiflexion are positive rotations about Z;
 * shoulder (glenohumeral, ISB 2005): sequence y-x-y, angles (plane of elevation,
   elevation, axial rotation).
 
@@ -38,12 +41,12 @@ from numba import njit
 from .measures import Measure
 
 AXES = {"x": 0, "y": 1, "z": 2}
-#: named JCS conventions: (sequence, angle names)
+#: named JCS conventions: (sequence, angle names, signs for the right side)
 JCS_CONVENTIONS = {
-    "knee": ("zxy", ("flexion", "adduction", "internal_rotation")),
-    "hip": ("zxy", ("flexion", "adduction", "internal_rotation")),
-    "ankle": ("zxy", ("dorsiflexion", "inversion", "internal_rotation")),
-    "shoulder": ("yxy", ("plane_of_elevation", "elevation", "axial_rotation")),
+    "knee": ("zxy", ("flexion", "adduction", "internal_rotation"), (-1.0, 1.0, 1.0)),
+    "hip": ("zxy", ("flexion", "adduction", "internal_rotation"), (1.0, 1.0, 1.0)),
+    "ankle": ("zxy", ("dorsiflexion", "inversion", "internal_rotation"), (1.0, 1.0, 1.0)),
+    "shoulder": ("yxy", ("plane_of_elevation", "elevation", "axial_rotation"), (1.0, 1.0, 1.0)),
 }
 
 
