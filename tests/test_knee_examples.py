@@ -145,3 +145,28 @@ def test_knee_benchmark_reports_frames_per_second(capsys):
     lines = [json.loads(x) for x in capsys.readouterr().out.splitlines() if x.startswith("{")]
     fps = [x for x in lines if x["name"] == "knee_example_contact_fdk_fps"]
     assert len(fps) == 1 and fps[0]["value"] > 0 and fps[0]["convergence_rate"] == 1.0
+
+
+def test_tibiofemoral_3dof_example_runs_and_balances_the_load(tmp_path):
+    """Every frame converges; at extension the two condyle contacts carry the 500 N
+    compression (plus the small ligament pull, < 25 N) and the 5 N m varus moment splits
+    them: (F_medial − F_lateral) × 22 mm ≈ 5 N m."""
+    import csv
+    import shutil
+    import subprocess
+    import sys
+
+    from openfdk.cli import main
+
+    shutil.copy(KNEE / "tibiofemoral_3dof.yaml", tmp_path / "tf.yaml")
+    subprocess.run([sys.executable, str(KNEE / "make_meshes.py"), str(tmp_path / "meshes")], check=True,
+                   capture_output=True)
+    assert main(["run", str(tmp_path / "tf.yaml"), "--out", str(tmp_path / "out"), "--no-progress"]) == 0
+    rows = list(csv.DictReader(open(tmp_path / "out" / "forces.csv")))
+    assert len(rows) == 31 and all(r["fdk_converged"] == "1" for r in rows)
+    first = rows[0]
+    ligaments = sum(float(first[f"{n}.force_N"]) for n in ("acl", "pcl", "mcl", "lcl"))
+    F_m, F_l = float(first["medial.Fy_N"]), float(first["lateral.Fy_N"])
+    assert ligaments < 25
+    assert F_m + F_l == pytest.approx(500.0, abs=ligaments + 1.0)
+    assert (F_m - F_l) * 0.022 == pytest.approx(5.0, abs=0.6)
