@@ -166,3 +166,27 @@ loads:
     f.write_text(bad)
     with pytest.raises(ModelError, match=r"knee.yaml: joints.knee: .*unknown rows \['w'\]"):
         load_model(str(f))
+
+
+def test_joint_measures_are_written_to_measures_csv(tmp_path):
+    import csv
+
+    from openfdk.cli import main
+
+    model = tmp_path / "pendulum.yaml"
+    model.write_text("""
+units: {length: m, angle: deg}
+bodies:
+  arm: {mass: 1.0, inertia: [0.01, 0.01, 0.01], position: [0, -0.5, 0], frames: {pivot: [0, 0.5, 0]}}
+joints:
+  pin: {type: revolute, parent: ground.origin, child: arm.pivot}
+drivers:
+  swing: {measure: pin.angle, function: {type: polynomial, coefficients: [0, 30]}}
+analysis: {start: 0, end: 1, frames: 5}
+""")
+    assert main(["kinematics", str(model), "--out", str(tmp_path / "out"), "--no-progress"]) == 0
+    rows = list(csv.DictReader(open(tmp_path / "out" / "measures.csv")))
+    assert len(rows) == 5
+    np.testing.assert_allclose([float(r["pin.angle_rad"]) for r in rows], np.radians(30 * np.linspace(0, 1, 5)), atol=1e-9)
+    # the pivot stays at the ground origin: position ≈ 0
+    assert max(abs(float(r["pin.position[0]_m"])) for r in rows) < 1e-9

@@ -63,6 +63,7 @@ def _cmd_kinematics(args):
         start=args.start, end=args.end,
     )
     write_kinematics(args.out, result, {"input": info})
+    _write_measures(args.out, args.model, result)
     s = result.summary()
     print(
         f"kinematics: {s['converged_frames']}/{s['frames']} frames converged in {s['wall_time_s']:.2f} s "
@@ -73,6 +74,14 @@ def _cmd_kinematics(args):
     if len(result.failed_frames()) > 10:
         print(f"  ... and {len(result.failed_frames()) - 10} more failed frames (see summary.json)", file=sys.stderr)
     return 0
+
+
+def _write_measures(out_dir, model_path, kinematics):
+    """measures.csv: the model's named measures (joint measures included) per frame."""
+    from .io.measure_outputs import write_measures
+    from .model.modelfile import load_model
+
+    write_measures(out_dir, load_model(model_path), kinematics)
 
 
 def _cmd_run(args):
@@ -90,6 +99,7 @@ def _cmd_run(args):
         kin, dyn, info = run_job(args.model, args.trial, cutoff_hz=args.cutoff, progress=not args.no_progress,
                                  start=args.start, end=args.end)
         write_run_outputs(args.out, kin, dyn, info)
+    _write_measures(args.out, args.model, kin)
     fdk = info.get("fdk")
     print(
         f"run: kinematics {int(kin.converged.sum())}/{len(kin.time)} frames, inverse dynamics "
