@@ -1,4 +1,5 @@
-"""Shortest paths over one wrapping surface (numba kernels, surface frame S, SI units).
+"""Numba kernels of wrapped paths: the shortest path over one surface (surface frame S,
+SI units), and whole paths through points and surfaces.
 
 A path from point P to point Q that must pass around a convex surface is a straight
 segment P→T1, a geodesic arc T1→T2 on the surface, and a straight segment T2→Q, with
@@ -31,8 +32,12 @@ length and slope; the direction can only flip where the bisector is perpendicula
 path stays on that side and wraps the long way round when the straight line passes on
 the other side of the axis/centre; lift-off (θ → 0) is continuous in length and slope.
 
-Every kernel returns ``(status, length, T1 (3,), T2 (3,), arc)``: status 0 = no contact
-(straight), 1 = wrapping, −1 = P or Q inside the surface, −2 = geodesic not converged.
+Every single-surface kernel returns ``(status, length, T1 (3,), T2 (3,), arc)``: status
+0 = no contact (straight), 1 = wrapping, −1 = P or Q inside the surface, −2 = geodesic
+not converged. :func:`wrapped_path_lengths` assembles whole paths through points and
+surfaces (see :mod:`.wrapping`). All jitted code of the wrapping lives in this one
+module, so numba's on-disk cache never holds a kernel compiled against an older copy of
+a function from another file.
 """
 
 from __future__ import annotations
@@ -269,3 +274,153 @@ def ellipsoid_wrap(P, Q, axes, side, tol):
     a1 = T1c - P
     a2 = Q - x
     return 1, np.sqrt(a1 @ a1) + s + np.sqrt(a2 @ a2), T1, T2, s
+
+
+# --- paths through points and surfaces (see openfdk.forces.wrapping) -----------------
+
+POINT, CYLINDER, SPHERE, ELLIPSOID = 0, 1, 2, 3
+SURFACE_KINDS = {"cylinder": CYLINDER, "sphere": SPHERE, "ellipsoid": ELLIPSOID}
+#: Newton tolerance of the ellipsoid geodesic end condition (m)
+ELLIPSOID_TOL = 1e-13
+#: status codes of :func:`wrapped_path_lengths`
+STATUS_TEXT = {-1: "a path point lies inside the wrapping surface", -2: "the ellipsoid geodesic did not converge",
+               -3: "adjacent wrapping surfaces did not settle"}
+
+
+@njit(cache=True)
+def _wrap_one(kind, P_S, Q_S, dims, side):
+    if kind == CYLINDER:
+        return cylinder_wrap(P_S, Q_S, dims[0], side)
+    if kind == SPHERE:
+        return sphere_wrap(P_S, Q_S, dims[0], side)
+    return ellipsoid_wrap(P_S, Q_S, dims, side, ELLIPSOID_TOL)
+
+
+@njit(cache=True)
+def _anchor(j, step, kinds, active, X_W, T1_W, T2_W):
+    """Nearest node before (step −1) or after (+1) node j that the path touches: a point's
+    position, or T2 (before) / T1 (after) of a surface in contact."""
+    k = j + step
+    while kinds[k] != POINT and not active[k]:
+        k += step
+    if kinds[k] == POINT:
+        return X_W[k]
+    return T2_W[k] if step < 0 else T1_W[k]
+
+
+@njit(cache=True)
+def _add_segment(L, p, column, p_WB, R_WB, ia, xa, ib, xb):
+    """L[p] += eᵀ (M_B − M_A) for the segment from xa (fixed in body ia) to xb (in ib);
+    returns its length (m)."""
+    u = xb - xa
+    length = np.sqrt(u @ u)
+    if length == 0.0:
+        return 0.0
+    e = u / length
+    for side in range(2):
+        i = ia if side == 0 else ib
+        c = column[i]
+        if c < 0:
+            continue
+        sign = -1.0 if side == 0 else 1.0
+        sW = (xa if side == 0 else xb) - p_WB[i]
+        x0 = sW[1] * e[2] - sW[2] * e[1]
+        x1 = sW[2] * e[0] - sW[0] * e[2]
+        x2 = sW[0] * e[1] - sW[1] * e[0]
+        R = R_WB[i]
+        for r in range(3):
+            L[p, c + r] += sign * e[r]
+            L[p, c + 3 + r] += sign * (R[0, r] * x0 + R[1, r] * x1 + R[2, r] * x2)
+    return length
+
+
+@njit(cache=True)
+def wrapped_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, dims, sides, start, n_coords):
+    """Lengths, Jacobians and tangent points of paths through points and surfaces.
+
+    p_WB (nb, 3) m, R_WB (nb, 3, 3); column (nb,) first q̂ column of each body (−1 fixed);
+    nodes of all paths concatenated: kinds (N,) (POINT, CYLINDER, SPHERE, ELLIPSOID),
+    bodies (N,), p_B (N, 3) m (point, or surface origin, in the body frame), R_BS (N, 3, 3),
+    dims (N, 3) m, sides (N, 3); path k owns nodes start[k]:start[k+1].
+    Returns l (n_paths,) m, L (n_paths, n_coords), status (n_paths,) (0 ok, < 0 see
+    ``STATUS_TEXT``), T_W (N, 2, 3) m the world tangent points of each surface in
+    contact (NaN when not in contact or for points).
+    """
+    n_paths = start.shape[0] - 1
+    N = kinds.shape[0]
+    l = np.zeros(n_paths)
+    L = np.zeros((n_paths, n_coords))
+    status = np.zeros(n_paths, dtype=np.int64)
+    T_W = np.full((N, 2, 3), np.nan)
+    X_W = np.zeros((N, 3))
+    R_WS = np.zeros((N, 3, 3))
+    for j in range(N):
+        i = bodies[j]
+        X_W[j] = p_WB[i] + R_WB[i] @ p_B[j]
+        R_WS[j] = R_WB[i] @ R_BS[j]
+    active = np.zeros(N, dtype=np.bool_)
+    T1_W = np.zeros((N, 3))
+    T2_W = np.zeros((N, 3))
+    arc = np.zeros(N)
+    for p in range(n_paths):
+        j0, j1 = start[p], start[p + 1]
+        adjacent = False
+        for j in range(j0 + 1, j1 - 1):
+            if kinds[j] != POINT and kinds[j + 1] != POINT:
+                adjacent = True
+        scale = 0.0
+        for j in range(j0, j1):
+            scale = max(scale, np.sqrt((X_W[j] - X_W[j0]) @ (X_W[j] - X_W[j0])))
+        settled = False
+        for sweep in range(200 if adjacent else 1):
+            change = 0.0
+            for j in range(j0 + 1, j1 - 1):
+                if kinds[j] == POINT:
+                    continue
+                P_W = _anchor(j, -1, kinds, active, X_W, T1_W, T2_W)
+                Q_W = _anchor(j, 1, kinds, active, X_W, T1_W, T2_W)
+                R = R_WS[j]
+                st, _, T1, T2, a = _wrap_one(kinds[j], R.T @ (P_W - X_W[j]), R.T @ (Q_W - X_W[j]), dims[j], sides[j])
+                if st < 0:
+                    status[p] = st
+                    break
+                new_active = st == 1
+                t1 = X_W[j] + R @ T1
+                t2 = X_W[j] + R @ T2
+                if new_active != active[j]:
+                    change = np.inf
+                elif new_active:
+                    change = max(change, np.sqrt((t1 - T1_W[j]) @ (t1 - T1_W[j])), np.sqrt((t2 - T2_W[j]) @ (t2 - T2_W[j])))
+                active[j] = new_active
+                T1_W[j] = t1
+                T2_W[j] = t2
+                arc[j] = a
+            if status[p] < 0:
+                break
+            if change <= 1e-14 * scale:
+                settled = True
+                break
+        if status[p] < 0:
+            l[p] = np.nan
+            continue
+        if adjacent and not settled:
+            status[p] = -3
+            l[p] = np.nan
+            continue
+        # l = Σ segments + Σ arcs;  L = Σ eᵀ (M_B − M_A), tangent points fixed in their bodies
+        last_body, last_x = bodies[j0], X_W[j0]
+        total = 0.0
+        for j in range(j0 + 1, j1):
+            if kinds[j] == POINT:
+                total += _add_segment(L, p, column, p_WB, R_WB, last_body, last_x, bodies[j], X_W[j])
+                last_body, last_x = bodies[j], X_W[j]
+            elif active[j]:
+                total += _add_segment(L, p, column, p_WB, R_WB, last_body, last_x, bodies[j], T1_W[j])
+                total += arc[j]
+                T_W[j, 0] = T1_W[j]
+                T_W[j, 1] = T2_W[j]
+                last_body, last_x = bodies[j], T2_W[j]
+        l[p] = total
+    return l, L, status, T_W
+
+
