@@ -90,7 +90,8 @@ def check_grid_memory(mesh_name, vertices_B, spacing, max_depth):
         raise ValueError(
             f"distance grid for mesh '{mesh_name}' would need about {_size(build)} to build "
             f"({n:.3g} nodes at spacing {spacing * 1e3:g} mm; limit {limit / 2**20:.0f} MB, "
-            f"OPENFDK_GRID_MEMORY_MB): use grid_spacing >= {np.ceil(fit * 1e5) / 1e2:.2f} mm or mesh only the joint region")
+            f"OPENFDK_GRID_MEMORY_MB): use a larger spacing, grid_spacing >= {np.ceil(fit * 1e5) / 1e2:.2f} mm, "
+            "or mesh only the joint region")
     if build > NOTICE_MB * 2**20:
         warnings.warn(
             f"building a distance grid for mesh '{mesh_name}': {n:.3g} nodes, about {build / 2**20:.0f} MB "
