@@ -69,3 +69,24 @@ def test_knee_with_fdk_rows_passes_and_lists_everything(tmp_path, capsys):
     assert "springs: 2 (kx, ky)" in out and "loads: 1 (push)" in out
     assert "rank of the constraint Jacobian at the reference pose: 6 of 6 rows" in out
     assert "determinate" in out
+
+
+def test_path_inside_a_wrapping_surface_is_listed(tmp_path, capsys):
+    f = tmp_path / "wrap.yaml"
+    f.write_text("""
+units: {length: mm, angle: deg}
+bodies:
+  arm: {mass: 1.0, inertia: [0.01, 0.01, 0.01], position: [0, -200, 0], frames: {pivot: [0, 200, 0], insertion: [10, 150, 0]}}
+  ground: {frames: {origin_point: [5, 5, 0]}}
+joints:
+  pin: {type: revolute, parent: ground.origin, child: arm.pivot}
+drivers:
+  swing: {measure: pin.angle, function: {type: constant, value: 0}}
+wrapping:
+  drum: {type: cylinder, frame: ground.origin, radius: 30}
+muscles:
+  m: {path: [ground.origin_point, drum, arm.insertion], strength: 100}
+""")
+    assert main(["check", str(f)]) == 0
+    assert "warning: muscle 'm' at the reference pose: path 'm': a path point lies inside the wrapping surface" \
+        in capsys.readouterr().out

@@ -11,7 +11,9 @@ initial α), as ``run`` does per frame:
   then undetermined (named). With markers the marker Jacobian Ψ_q̂ (Eq. 4) is stacked
   under Φ_q̂ first, because marker tracking can fix what the constraints leave free.
 
-Either problem makes the model unable to run: :func:`check_model` returns them as
+Muscle and ligament paths are evaluated at the reference pose too; a path that cannot be
+formed there (e.g. an attachment inside a wrapping surface) is listed as a warning, since
+the assembled poses of a run may differ. Either rank problem makes the model unable to run: :func:`check_model` returns them as
 errors and the command exits with code 2.
 """
 
@@ -64,6 +66,13 @@ def check_model(model):
                        ("contacts", "contacts"), ("loads", "loads"), ("unilateral reactions", "unilateral_reactions")):
         items = el.get(key, ())
         rep.lines.append(f"  {label}: {len(items)}" + (f" ({_names([x.name for x in items])})" if items else ""))
+    state = model.initial_state()
+    for key in ("muscles", "ligaments"):
+        for item in el.get(key, ()):
+            try:
+                item.path.evaluate(state, 0)
+            except (FloatingPointError, ValueError) as exc:
+                rep.lines.append(f"  warning: {key[:-1]} {item.name!r} at the reference pose: {exc}")
     n = model.n_coords
     n_joint = sum(c.size for c in model.constraints if c.kind != DRIVER)
     n_driver = sum(c.size for c in drivers)
@@ -72,7 +81,6 @@ def check_model(model):
     rep.lines.append(f"  rows: {n_joint} joint/constraint + {n_driver} driver + {n_fdk} FDK = {rows}; "
                      f"coordinates: {n} (6 per moving body)")
     system = ConstraintSystem(model)
-    state = model.initial_state()
     alpha = np.array([d.initial for d in model.fdk_dofs], dtype=float)
     try:
         _, A, _, _ = system.evaluate(state, 0.0, alpha, order=1)
