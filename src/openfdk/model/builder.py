@@ -248,14 +248,14 @@ class ModelBuilder:
         stays on the plane through the parent origin normal to z (or ``normal``, (3,)
         in the parent frame).
 
-        Rows are labelled (``joint_rows``): x, y, z (child origin in the parent frame),
-        rx, ry, rz (weld, prismatic), zx, zy (revolute), n (point_on_plane).
+        Rows are labelled x, y, z (child origin in the parent frame), rx, ry, rz (weld,
+        prismatic), zx, zy (revolute), n (point_on_plane); row names are "{name}.{label}".
         fdk : labels of rows that become FDK DOFs instead of constraints (a list, or a
             dict label -> FDK settings such as ``initial``, ``max_step``); the DOF
             ``{name}_{label}`` is that row's measure, and the row carries no reaction.
         reaction : dict label -> bool, switches the reaction of single rows (default on).
 
-        Also registers the joint's measures by name (:meth:`joint_measures`):
+        Also registers the joint's measures by name (:meth:`_register_joint_measures`):
         ``{name}.position``, ``{name}.angles`` and, for a revolute, ``{name}.angle``, for a
         prismatic, ``{name}.slide``.
         """
