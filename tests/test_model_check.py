@@ -66,7 +66,7 @@ def test_knee_with_fdk_rows_passes_and_lists_everything(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "joints: knee (revolute, 3 rows)" in out
     assert "FDK DOFs: knee_x, knee_y" in out
-    assert "springs: 2 (kx, ky)" in out and "loads: 1 (push)" in out
+    assert "springs: 2 (kx, ky)" in out and "loads: 1 (push)" in out and "muscles: 0" in out
     assert "rank of the constraint Jacobian at the reference pose: 6 of 6 rows" in out
     assert "determinate" in out
 
@@ -88,5 +88,6 @@ muscles:
   m: {path: [ground.origin_point, drum, arm.insertion], strength: 100}
 """)
     assert main(["check", str(f)]) == 0
-    assert "warning: muscle 'm' at the reference pose: path 'm': a path point lies inside the wrapping surface" \
-        in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "muscles: 1 (m over drum)" in out
+    assert "warning: muscle 'm' at the reference pose: path 'm': a path point lies inside the wrapping surface" in out

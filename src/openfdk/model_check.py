@@ -46,6 +46,13 @@ def _names(items):
     return ", ".join(items) if items else "-"
 
 
+def _label(element):
+    """Element name, with the wrapping surfaces its path passes over."""
+    nodes = getattr(getattr(element, "path", None), "nodes", None)
+    surfaces = [n.name for n in nodes or () if hasattr(n, "kind")]
+    return f"{element.name} over {'+'.join(surfaces)}" if surfaces else element.name
+
+
 def check_model(model):
     """Inventory, row count and rank at the reference pose of ``model`` (CheckReport)."""
     rep = CheckReport()
@@ -65,7 +72,7 @@ def check_model(model):
     for label, key in (("muscles", "muscles"), ("ligaments", "ligaments"), ("springs", "springs"),
                        ("contacts", "contacts"), ("loads", "loads"), ("unilateral reactions", "unilateral_reactions")):
         items = el.get(key, ())
-        rep.lines.append(f"  {label}: {len(items)}" + (f" ({_names([x.name for x in items])})" if items else ""))
+        rep.lines.append(f"  {label}: {len(items)}" + (f" ({_names([_label(x) for x in items])})" if items else ""))
     state = model.initial_state()
     for key in ("muscles", "ligaments"):
         for item in el.get(key, ()):
