@@ -82,6 +82,13 @@ def test_row_reactions_can_be_switched_off():
     assert not by_name["hinge.passive"].reaction
     assert by_name["hinge.passive"].row_names == ("hinge.zx", "hinge.zy")
     assert c is by_name["hinge"]
+    # the equilibrium has reaction columns for x, y, z only
+    from openfdk.dynamics.equilibrium import equilibrium_layout
+    from openfdk.kinematics.system import ConstraintSystem
+
+    columns = equilibrium_layout(model, ConstraintSystem(model)).column_names
+    assert {"hinge.x", "hinge.y", "hinge.z"} <= set(columns)
+    assert "hinge.zx" not in columns and "hinge.zy" not in columns
     b2 = ModelBuilder("r2")
     b2.add_body("a", 1.0, [1, 1, 1])
     with pytest.raises(ModelError, match="unknown rows \\['w'\\]"):
