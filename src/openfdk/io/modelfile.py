@@ -7,8 +7,8 @@ names the file and the entry, e.g. ``model.yaml: bodies.jaw.mass: expected a num
 
 Each section is read by an explicit call to its layer's loader, in this order: the core
 (:func:`openfdk.model.modelfile.read_core`: units, bodies, measures, joints,
-constraints, drivers, FDK DOFs, analysis), then muscles, ligaments, springs, reactions,
-loads and recruitment (:mod:`openfdk.forces.sections`), contacts
+constraints, drivers, FDK DOFs, analysis), then wrapping surfaces, muscles, ligaments,
+springs, bushings, reactions, loads and recruitment (:mod:`openfdk.forces.sections`), contacts
 (:mod:`openfdk.contact.sections`) and the FDK solver settings
 (:mod:`openfdk.fdk.settings`).
 """
@@ -19,8 +19,8 @@ from pathlib import Path
 
 from ..contact.sections import load_contacts
 from ..fdk.settings import load_fdk
-from ..forces.sections import (load_ligaments, load_loads, load_muscles, load_reactions, load_recruitment,
-                               load_springs)
+from ..forces.sections import (load_bushings, load_ligaments, load_loads, load_muscles, load_reactions,
+                               load_recruitment, load_springs, load_wrapping)
 from ..model.model import Model, ModelError
 from ..model.modelfile import build, read_core
 from .yamlfile import read_yaml
@@ -28,9 +28,11 @@ from .yamlfile import read_yaml
 #: the sections read after the core ones, in this order, each by its layer's loader
 #: ``loader(builder, data, ctx)``
 SECTIONS = (
+    ("wrapping", load_wrapping),
     ("muscles", load_muscles),
     ("ligaments", load_ligaments),
     ("springs", load_springs),
+    ("bushings", load_bushings),
     ("reactions", load_reactions),
     ("loads", load_loads),
     ("recruitment", load_recruitment),
