@@ -10,12 +10,15 @@ An analysis supplies a *step* object (its per-frame solver with its warm starts)
 * ``carry()`` / ``restore(carry)`` → its warm-start state (picklable), for checkpoints.
 
 :func:`drive` owns the loop, the progress display, the recording (a
-:class:`Recording`, frozen when the loop ends), periodic checkpoints and Ctrl-C: on
+:class:`Recording`, frozen when the loop ends), periodic checkpoints and Ctrl-C (the first one stops after the current frame): on
 KeyboardInterrupt it raises :class:`TrialInterrupted` carrying the result built from the
 frames finished so far.
 """
 
 from __future__ import annotations
+
+import signal
+import threading
 
 import numpy as np
 
@@ -139,18 +142,22 @@ def drive(step, n_frames, build, *, progress=False, desc="frames", checkpoints=N
     if bar is not None and start:
         bar.update(start)
     pending = []
+    stop = _StopOnSigint()
     try:
-        for k in range(start, n_frames):
-            for j, values in step.step(k):
+        with stop:
+            for k in range(start, n_frames):
+                for j, values in step.step(k):
+                    rec.record(j, values)
+                    pending.append((j, values))
+                if checkpoints is not None and checkpoints.due(len(pending)):
+                    checkpoints.save(pending, step.carry(), k + 1)
+                    pending = []
+                if bar is not None:
+                    bar.update()
+                if stop.requested:
+                    raise KeyboardInterrupt
+            for j, values in step.finish():
                 rec.record(j, values)
-                pending.append((j, values))
-            if checkpoints is not None and checkpoints.due(len(pending)):
-                checkpoints.save(pending, step.carry(), k + 1)
-                pending = []
-            if bar is not None:
-                bar.update()
-        for j, values in step.finish():
-            rec.record(j, values)
     except KeyboardInterrupt:
         rec.interrupted = True
         raise TrialInterrupted(build(rec.truncated(rec.frames_done)), n_frames) from None
@@ -158,3 +165,29 @@ def drive(step, n_frames, build, *, progress=False, desc="frames", checkpoints=N
         if bar is not None:
             bar.close()
     return build(rec)
+
+
+class _StopOnSigint:
+    """Within the loop, the first Ctrl-C (SIGINT) only asks to stop after the current
+    frame: an exception raised in the middle of a compiled kernel call would surface as
+    a SystemError, not a KeyboardInterrupt. A second Ctrl-C interrupts at once. Only in
+    the main thread (signal handlers cannot be set elsewhere, e.g. in Dask workers)."""
+
+    def __init__(self):
+        self.requested = False
+        self._previous = None
+
+    def _handler(self, signum, frame):
+        if self.requested:  # second Ctrl-C: the previous behaviour (KeyboardInterrupt now)
+            signal.default_int_handler(signum, frame)
+        self.requested = True
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def __exit__(self, *exc):
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+        return False
