@@ -10,9 +10,9 @@ An analysis supplies a *step* object (its per-frame solver with its warm starts)
 * ``carry()`` / ``restore(carry)`` → its warm-start state (picklable), for checkpoints.
 
 :func:`drive` owns the loop, the progress display, the recording (a
-:class:`Recording`, frozen when the loop ends), periodic checkpoints and Ctrl-C (the first one stops after the current frame): on
-KeyboardInterrupt it raises :class:`TrialInterrupted` carrying the result built from the
-frames finished so far.
+:class:`Recording`, frozen when the loop ends), periodic checkpoints and Ctrl-C: the
+first one stops the loop after the current frame, and :class:`TrialInterrupted` carries
+the result built from the frames finished so far.
 """
 
 from __future__ import annotations
