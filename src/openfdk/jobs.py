@@ -15,13 +15,13 @@ DEFAULT_CUTOFF_HZ = 6.0
 
 
 def load_trajectories(model, trial_path, cutoff_hz=None):
-    """Read a C3D trial, pick the model's markers (by label, in model order) and build
+    """Read a C3D or TRC trial, pick the model's markers (by label, in model order) and build
     filtered, interpolated trajectories. A model marker absent from the file is an
     error naming it (MissingMarkerError)."""
-    from .io.c3d import read_c3d
     from .io.markers import MarkerTrajectories
+    from .io.trials import read_trial
 
-    trial = read_c3d(trial_path)
+    trial = read_trial(trial_path)
     if model.markers.size == 0:
         raise ValueError(f"model {model.name!r} has no markers; a trial cannot be tracked")
     trial = trial.select(list(model.markers.labels))

@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..io.c3d import MarkerTrial, read_c3d
+from ..io.c3d import MarkerTrial
+from ..io.trials import read_trial
 from .experiment import rigid_fit
 
 
@@ -27,7 +28,7 @@ def register_braces(subject, reference_trial, min_frames=10):
     Returns dict body -> (labels tuple, positions (k, 3) m in S) for "skull" and
     "mandible", and the RMS fit residual of the skull brace (m) under key "rms_m".
     """
-    trial = reference_trial if isinstance(reference_trial, MarkerTrial) else read_c3d(reference_trial)
+    trial = reference_trial if isinstance(reference_trial, MarkerTrial) else read_trial(reference_trial)
     out = {}
     mean = {}
     for body in ("skull", "mandible"):
