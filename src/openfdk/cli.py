@@ -2,7 +2,9 @@
 
     openfdk kinematics MODEL.yaml TRIAL.c3d --out DIR   marker-tracking kinematics
     openfdk kinematics MODEL.yaml --out DIR             determinate kinematics (drivers)
-    openfdk run MODEL.yaml [TRIAL.c3d] --out DIR        kinematics + inverse dynamics
+    openfdk run MODEL.yaml [TRIAL.c3d] --out DIR        kinematics + inverse dynamics (+ .sto, figures)
+    openfdk plot RESULT_DIR                             figures of a run
+    openfdk export-opensim RESULT_DIR --out DIR         OpenSim .osim + .mot of a run
     openfdk check MODEL.yaml                            validate a model file
     openfdk demo [--out DIR] [--quick]                  the mandible study on the virtual subject
     openfdk subject create|record DIR                   virtual subject and experiment
@@ -45,6 +47,9 @@ def _cmd_kinematics(args):
         f"kinematics: {s['converged_frames']}/{s['frames']} frames converged in {s['wall_time_s']:.2f} s "
         f"({s['frames_per_second']:.0f} frames/s) -> {args.out}/kinematics.csv"
     )
+    from .outputs_cli import after_run
+
+    after_run(args, plots=False)
     for i, t, msg in result.failed_frames()[:10]:
         print(f"  failed: {msg}", file=sys.stderr)
     if len(result.failed_frames()) > 10:
@@ -78,6 +83,9 @@ def _cmd_run(args):
             f"{fdk['mean_residual_evaluations_per_frame']:.2f} residual evaluations per frame, "
             f"{fdk['frames_per_second']:.0f} frames/s ({fdk['jacobian']} Jacobian)"
         )
+    from .outputs_cli import after_run
+
+    after_run(args)
     for i, t, msg in dyn.failed_frames()[:10]:
         print(f"  failed: {msg}", file=sys.stderr)
     return 0
@@ -142,7 +150,8 @@ def _cmd_bench(args):
 def _trial_arguments(p):
     """Arguments shared by the commands that analyse a model over a trial."""
     p.add_argument("model", help="model file (YAML)")
-    p.add_argument("trial", nargs="?", help="C3D file with the model's markers (omit for determinate kinematics)")
+    p.add_argument("trial", nargs="?",
+                   help="C3D or TRC file with the model's markers (omit for determinate kinematics)")
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--cutoff", type=float, default=None,
                    help="marker low-pass cutoff in Hz (default: model file, else 6 Hz; 0 = no filter)")
@@ -170,6 +179,10 @@ def build_parser():
 
     add_chunk_arguments(r)
     add_study_parser(sub)
+    from .outputs_cli import add_output_parsers, add_run_output_arguments
+
+    add_run_output_arguments(r)
+    add_output_parsers(sub)
 
     d = sub.add_parser("demo", help="the mandible study on the virtual subject, end to end")
     d.add_argument("--out", default="openfdk-demo", help="output directory (default ./openfdk-demo)")

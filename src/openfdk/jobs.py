@@ -18,10 +18,11 @@ def load_trajectories(model, trial_path, cutoff_hz=None):
     """Read a C3D or TRC trial, pick the model's markers (by label, in model order) and build
     filtered, interpolated trajectories. A model marker absent from the file is an
     error naming it (MissingMarkerError)."""
+    from .io.c3d import MarkerTrial
     from .io.markers import MarkerTrajectories
     from .io.trials import read_trial
 
-    trial = read_trial(trial_path)
+    trial = trial_path if isinstance(trial_path, MarkerTrial) else read_trial(trial_path)
     if model.markers.size == 0:
         raise ValueError(f"model {model.name!r} has no markers; a trial cannot be tracked")
     trial = trial.select(list(model.markers.labels))
@@ -29,6 +30,11 @@ def load_trajectories(model, trial_path, cutoff_hz=None):
         cutoff_hz = model.elements.get("analysis", {}).get("marker_cutoff_hz", DEFAULT_CUTOFF_HZ)
     cutoff = None if (cutoff_hz is None or float(cutoff_hz) <= 0) else float(cutoff_hz)
     return trial, MarkerTrajectories(trial, cutoff_hz=cutoff)
+
+
+def _trial_label(trial):
+    """The trial's file (its ``source``) for summary.json."""
+    return str(Path(trial.source)) if trial.source != "<memory>" else trial.source
 
 
 def analysis_window(model, times, start=None, end=None):
@@ -62,7 +68,7 @@ def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, s
         return run_determinate(model, times, alpha=alpha, progress=progress), info
     trial, traj = load_trajectories(model, trial_path, cutoff_hz)
     times = analysis_window(model, np.asarray(trial.time, dtype=float), start, end)
-    info.update({"trial": str(Path(trial_path)), "rate_hz": trial.rate, "markers": list(trial.labels)})
+    info.update({"trial": _trial_label(trial), "rate_hz": trial.rate, "markers": list(trial.labels)})
     return run_tracking(model, traj, times, alpha=alpha, progress=progress), info
 
 
@@ -91,7 +97,7 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
     else:
         trial, traj = load_trajectories(model, trial_path, cutoff_hz)
         times = analysis_window(model, np.asarray(trial.time, dtype=float), start, end)
-        info.update({"trial": str(Path(trial_path)), "rate_hz": trial.rate, "markers": list(trial.labels)})
+        info.update({"trial": _trial_label(trial), "rate_hz": trial.rate, "markers": list(trial.labels)})
     res = run_fdk(model, traj, times, progress=progress)
     info["fdk"] = res.summary()
     return res.kinematics, res.forces, info
