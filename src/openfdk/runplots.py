@@ -324,6 +324,7 @@ def _convergence(results, t, failed):
         res = np.nanmax(np.abs(np.column_stack([_col(fdk, c) for c in fdk.columns if c.endswith(".residual")])),
                         axis=1)
         ax2 = axes[i].twinx()
+        ax2.set_xlabel(TIME_LABEL)
         ax2.semilogy(t, np.where(res > 0, res, np.nan), "k:", lw=0.8)
         ax2.set_ylabel("max |f^FDK|\n(N or N·m, dotted)", fontsize=8)
         axes[i].set_ylabel("FDK iterations,\nevaluations (–)", fontsize=8)
