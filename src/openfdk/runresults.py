@@ -151,7 +151,7 @@ class RunResults:
                 status = str(f["status"].iloc[i])
                 stage = "fdk" if status.startswith("fdk") else "inverse_dynamics"
                 rows.append((int(i), float(f.index[i]), stage, str(f["message"].iloc[i]) or status))
-        return pd.DataFrame(rows, columns=["frame", "time", "stage", "reason"])
+        return pd.DataFrame(sorted(rows), columns=["frame", "time", "stage", "reason"])
 
     # ------------------------------------------------------------------ column groups
     def bodies(self) -> list[str]:

@@ -10,7 +10,7 @@ from openfdk.cli import main
 def slider_run(tmp_path_factory, request):
     out = tmp_path_factory.mktemp("slider") / "run"
     model = request.config.rootpath / "examples" / "slider_crank.yaml"
-    assert main(["run", str(model), "--out", str(out), "--no-progress", "--no-plots"]) == 0
+    assert main(["run", str(model), "--out", str(out), "--no-progress"]) == 0
     return out, model
 
 
