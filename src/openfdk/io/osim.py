@@ -134,7 +134,7 @@ def build_osim(model, coordinates0: dict, geometry=None) -> ET.ElementTree:
     FreeJoint coordinates (the first exported frame); geometry: body index ->
     [(geometry name, mesh file relative to the .osim)]."""
     doc = ET.Element("OpenSimDocument", Version=OSIM_VERSION)
-    m = _sub(doc, "Model", name=model.name)
+    m = _sub(doc, "Model", name=_file_stem(model.name))  # OpenSim names: no spaces, \ * + / or tabs
     _sub(m, "credits", "Exported by openfdk (export-opensim): one FreeJoint per body; see docs/opensim.md")
     _sub(m, "length_units", "meters")
     _sub(m, "force_units", "N")
