@@ -116,19 +116,23 @@ def _kinematics(results, t, failed):
     return _finish(fig, axes, t, failed, caption)
 
 
-def _dof_kinds(results):
-    """FDK DOF name -> measure kind (length/angle/1), from the model when available."""
+def _measure_kinds(results):
+    """Measure kinds (length / angle / 1) from the model when available: (FDK DOF name ->
+    kind, constraint row name -> kind); empty dicts without the model."""
     model = results.model()
-    kinds = {}
+    dofs, rows = {}, {}
     if model is not None:
         for d in model.fdk_dofs:
-            kinds[d.name] = d.measure.units[0] if d.measure.units else "1"
-    return kinds
+            dofs[d.name] = d.measure.units[0] if d.measure.units else "1"
+        for c in model.constraints:
+            for r, row in enumerate(c.row_names):
+                rows[row] = c.measure.units[r] if r < len(c.measure.units) else "1"
+    return dofs, rows
 
 
 def _fdk(results, t, failed):
     dofs = results.fdk_dofs()
-    kinds = _dof_kinds(results)
+    kinds = _measure_kinds(results)[0]
     f = results.forces
     groups = {}
     for d in dofs:
@@ -272,22 +276,10 @@ def _contact(results, t, failed):
     return _finish(fig, axes, t, failed, caption)
 
 
-def _reaction_kinds(results):
-    """Reaction row name -> measure kind, from the model's constraints when available."""
-    model = results.model()
-    kinds = {}
-    if model is not None:
-        for c in model.constraints:
-            units = c.measure.units
-            for r, row in enumerate(c.row_names):
-                kinds[row] = units[r] if r < len(units) else "1"
-    return kinds
-
-
 def _reactions(results, t, failed):
     f = results.forces
     names = results.reactions()
-    kinds = _reaction_kinds(results)
+    kinds = _measure_kinds(results)[1]
     groups = {}
     for n in names:
         groups.setdefault(conjugate_unit(kinds[n]) if n in kinds else "N or N·m", []).append(n)
