@@ -15,8 +15,8 @@ One PNG per topic, each only when the run has something to show:
 
 Failed frames are shaded red in every figure (and marked × in the convergence figure).
 Every axis names its quantity, unit and frame; each figure's caption states the sign
-conventions (docs/outputs.md has the full reference).  Matplotlib's Agg backend: no
-display needed.
+conventions (docs/outputs.md has the full reference).  Figures are plain matplotlib
+``Figure`` objects, not registered with pyplot: no display or backend is needed.
 """
 
 from __future__ import annotations
@@ -36,20 +36,14 @@ MAX_DEFAULT_MEASURES = 6
 TIME_LABEL = "time (s)"
 
 
-def _plt():
-    import matplotlib
+def _figure(n_rows, title, width=11.0, row_height=2.3):
+    """A stand-alone matplotlib Figure (not registered with pyplot: no backend is chosen
+    and nothing stays open; a notebook still displays it) with n_rows shared-x axes."""
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _figure(n_rows, title, width=9.0, row_height=2.3):
-    plt = _plt()
-    fig, axes = plt.subplots(n_rows, 1, figsize=(width, 0.9 + row_height * n_rows), sharex=True, squeeze=False)
+    fig = Figure(figsize=(width, 0.9 + row_height * n_rows))
+    axes = list(fig.subplots(n_rows, 1, sharex=True, squeeze=False)[:, 0])
     fig.suptitle(title, fontsize=11)
-    axes = list(axes[:, 0])
     axes[-1].set_xlabel(TIME_LABEL)
     for ax in axes[:-1]:
         ax.set_xlabel(TIME_LABEL)
@@ -68,8 +62,8 @@ def _finish(fig, axes, t, failed, caption):
         ax.grid(True, lw=0.3, alpha=0.5)
         if ax.get_legend_handles_labels()[0]:
             handles, labels = ax.get_legend_handles_labels()
-            ax.legend(handles[:MAX_LEGEND], labels[:MAX_LEGEND], loc="upper right", fontsize=7,
-                      ncol=min(4, max(1, len(labels[:MAX_LEGEND]) // 4 + 1)))
+            ax.legend(handles[:MAX_LEGEND], labels[:MAX_LEGEND], loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                      fontsize=7, borderaxespad=0.0)
     text = caption + (" Red bands: failed frames." if failed.any() else "")
     n_lines = 1 + len(text) // 150
     fig.text(0.01, 0.005, text, fontsize=7, wrap=True, va="bottom")
@@ -223,7 +217,7 @@ def _muscles(results, t, failed):
                            f"strongest)")
     for n in order:
         axes[0].plot(t, _col(f, f"{n}.force_N"), lw=1, label=n)
-        axes[1].plot(t, _col(f, f"{n}.activation"), lw=1, label=n)
+        axes[1].plot(t, _col(f, f"{n}.activation"), lw=1, label=f"_{n}")  # same colours: one legend
     axes[0].set_ylabel("muscle force (N,\ntension along path)", fontsize=8)
     axes[1].set_ylabel("activation f/s (–)", fontsize=8)
     caption = ("Muscle force: tension (≥ 0) along the muscle path, from the recruitment. Activation: force divided by "
@@ -365,7 +359,7 @@ def make_figures(results, measures=None) -> dict:
     return figs
 
 
-def save_figures(figures: dict, directory, dpi=110, close=True) -> list[Path]:
+def save_figures(figures: dict, directory, dpi=110) -> list[Path]:
     """Write each figure as ``<name>.png`` into ``directory`` (created)."""
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
@@ -373,8 +367,6 @@ def save_figures(figures: dict, directory, dpi=110, close=True) -> list[Path]:
     for name, fig in figures.items():
         paths.append(d / f"{name}.png")
         fig.savefig(paths[-1], dpi=dpi)
-        if close:
-            _plt().close(fig)
     return paths
 
 

@@ -219,7 +219,7 @@ class RunResults:
 
         figures = make_figures(self, measures=measures)
         if directory is not None:
-            save_figures(figures, directory, close=False)
+            save_figures(figures, directory)
         return figures
 
     def view(self, out_html=None):

@@ -86,7 +86,7 @@ def test_run_writes_figures_for_the_mandible_fdk_model(mandible_run):
     ax_f, ax_a = figs["muscles"].axes
     assert len(ax_f.get_lines()) == len(res.muscles()) == 24
     m = res.muscles()[0]
-    np.testing.assert_allclose(_lines(ax_a)[m], f[f"{m}.force_N"] / f[f"{m}.strength_N"])
+    np.testing.assert_allclose(_lines(ax_a)[f"_{m}"], f[f"{m}.force_N"] / f[f"{m}.strength_N"])
 
 
 def test_failed_frames_are_marked_and_no_plots_flag(tmp_path, capsys):
