@@ -13,11 +13,15 @@ These functions are re-exported lazily by ``openfdk`` (``import openfdk`` stays 
 from __future__ import annotations
 
 import os
+import weakref
 from pathlib import Path
 
 __all__ = ["load_model", "load_trial", "run", "read_results"]
 
 RUN_OPTIONS = ("cutoff_hz", "start", "end", "progress")
+#: Model -> absolute path of the file it was loaded from (recorded in summary.json, so
+#: that a saved run finds its model again for figures and the OpenSim export)
+_MODEL_FILES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def load_model(path):
@@ -25,7 +29,9 @@ def load_model(path):
     Raises ModelError (a ValueError) naming the file and the entry."""
     from .model.modelfile import load_model as _load
 
-    return _load(path)
+    model = _load(path)
+    _MODEL_FILES[model] = str(Path(path).resolve())
+    return model
 
 
 def load_trial(path):
@@ -58,10 +64,9 @@ def run(model, trial=None, **options):
     unknown = sorted(set(options) - set(RUN_OPTIONS))
     if unknown:
         raise TypeError(f"openfdk.run: unknown option(s) {unknown}; options are {list(RUN_OPTIONS)}")
-    model_file = None
     if isinstance(model, (str, os.PathLike)):
-        model_file = str(Path(model).resolve())
         model = load_model(model)
+    model_file = _MODEL_FILES.get(model)
     if isinstance(trial, (str, os.PathLike)):
         trial = load_trial(trial)
     kin, dyn, info = run_job(model, trial, cutoff_hz=options.get("cutoff_hz"),

@@ -67,7 +67,11 @@ def _finish(fig, axes, t, failed, caption):
     text = caption + (" Red bands: failed frames." if failed.any() else "")
     n_lines = 1 + len(text) // 150
     fig.text(0.01, 0.005, text, fontsize=7, wrap=True, va="bottom")
-    fig.tight_layout(rect=(0, 0.025 * n_lines + 0.01, 1, 0.97))
+    # laid out when drawn (saved or shown), not now: a figure is drawn once
+    from matplotlib.layout_engine import ConstrainedLayoutEngine
+
+    bottom = 0.025 * n_lines + 0.01                      # room for the caption
+    fig.set_layout_engine(ConstrainedLayoutEngine(rect=(0.0, bottom, 1.0, 1.0 - bottom)))  # (x, y, w, h)
     return fig
 
 

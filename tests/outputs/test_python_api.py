@@ -38,7 +38,7 @@ def test_python_api_docs_session_runs(request, tmp_path, monkeypatch, capsys):
         exec(compile(code, f"docs/python-api.md block {ran}", "exec"), namespace)
         ran += 1
     printed = capsys.readouterr().out
-    assert "RunResults('synthetic FDK jaw': 12 frames, 0 failed" in printed
+    assert "RunResults('synthetic FDK jaw': 8 frames, 0 failed" in printed
     result = namespace["result"]
     # the tables equal the files the command line wrote for the same inputs
     import pandas as pd

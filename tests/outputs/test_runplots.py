@@ -93,9 +93,9 @@ def test_failed_frames_are_marked_and_no_plots_flag(tmp_path, capsys):
     """Two-body model (no muscles) with the jaw markers occluded for 5 frames:
     `--no-plots` writes no figures; `openfdk plot` then marks exactly the failed frames."""
     (tmp_path / "m.yaml").write_text(yaml.safe_dump(two_body_model_dict()))
-    t, labels, x, _ = synthetic_markers(40, rate=100.0, noise=0.0)
+    t, labels, x, _ = synthetic_markers(25, rate=100.0, noise=0.0)
     x = x.copy()
-    x[20:25, 4:8] = np.nan
+    x[12:17, 4:8] = np.nan
     write_c3d(tmp_path / "trial.c3d", labels, x, 100.0)
     out = tmp_path / "out"
     assert main(["run", str(tmp_path / "m.yaml"), str(tmp_path / "trial.c3d"), "--out", str(out), "--no-progress",
@@ -106,10 +106,10 @@ def test_failed_frames_are_marked_and_no_plots_flag(tmp_path, capsys):
     assert (tmp_path / "figs" / "convergence.png").is_file()
     res = read_results(out)
     failed = res.failed_frames
-    # the occlusion fails the kinematics of frames 20–24; this model has no muscles, so
+    # the occlusion fails the kinematics of frames 12–16; this model has no muscles, so
     # the inverse dynamics of every other frame fails too (not enough strength)
-    assert list(failed.loc[failed["stage"] == "kinematics", "frame"]) == [20, 21, 22, 23, 24]
-    assert list(failed["frame"]) == list(range(40))
+    assert list(failed.loc[failed["stage"] == "kinematics", "frame"]) == [12, 13, 14, 15, 16]
+    assert list(failed["frame"]) == list(range(25))
     assert all("not enough strength" in r for r in failed.loc[failed["stage"] == "inverse_dynamics", "reason"])
     ax = make_figures(res)["convergence"].axes[0]
     marked = [line for line in ax.get_lines() if line.get_label() == "failed frame"]
