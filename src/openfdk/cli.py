@@ -6,6 +6,7 @@
     openfdk plot RESULT_DIR                             figures of a run
     openfdk export-opensim RESULT_DIR --out DIR         OpenSim .osim + .mot of a run
     openfdk check MODEL.yaml                            validate a model file
+    openfdk view RESULT_DIR [--out view.html]           3D viewer of a run (one HTML file)
     openfdk demo [--out DIR] [--quick]                  the mandible study on the virtual subject
     openfdk subject create|record DIR                   virtual subject and experiment
     openfdk bench [--quick] [--json]                    benchmarks
@@ -180,9 +181,11 @@ def build_parser():
     add_chunk_arguments(r)
     add_study_parser(sub)
     from .outputs_cli import add_output_parsers, add_run_output_arguments
+    from .viewer.cli import add_view_parser
 
     add_run_output_arguments(r)
     add_output_parsers(sub)
+    add_view_parser(sub)
 
     d = sub.add_parser("demo", help="the mandible study on the virtual subject, end to end")
     d.add_argument("--out", default="openfdk-demo", help="output directory (default ./openfdk-demo)")

@@ -235,7 +235,7 @@ class RunResults:
 
             self.save(tempfile.mkdtemp(prefix="openfdk-run-"))
         out_html = Path(out_html) if out_html else self.directory / "view.html"
-        write_view(self.directory, out_html)
+        write_view(self.directory, out_html, model=self._model)
         return out_html
 
     def __repr__(self):
