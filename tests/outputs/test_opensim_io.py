@@ -309,3 +309,35 @@ def test_export_without_a_model_file_is_one_line(slider_run, tmp_path, capsys):
     assert main(["export-opensim", str(copy), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "summary.json" in err and "--model" in err
+
+
+def test_export_includes_visual_meshes_in_the_body_frame(slider_run, tmp_path):
+    """A `visual:` mesh (STL in mm, placed 10 mm along x and turned 90° about z on the
+    crank) is exported as OBJ vertices v_B = Rz(90°)·(v_file/1000) + (0.01, 0, 0) m with
+    its colour."""
+    import trimesh
+
+    out, model_path = slider_run
+    data = yaml.safe_load(model_path.read_text())
+    sphere = trimesh.creation.icosphere(subdivisions=2, radius=8.0)
+    sphere.apply_translation([3.0, -2.0, 1.0])
+    sphere.export(tmp_path / "crank.stl")
+    data["bodies"]["crank"]["visual"] = {"mesh": "crank.stl", "units": "mm", "color": "#ff8000",
+                                         "placement": {"position": [10, 0, 0], "orientation": [0, 0, 90]}}
+    (tmp_path / "slider.yaml").write_text(yaml.safe_dump(data))
+    assert main(["export-opensim", str(out), "--out", str(tmp_path / "osim"), "--model",
+                 str(tmp_path / "slider.yaml")]) == 0
+    root = ET.parse(next((tmp_path / "osim").glob("*.osim"))).getroot()
+    crank = [b for b in root.iter("Body") if b.get("name") == "crank"][0]
+    mesh = crank.find("attached_geometry/Mesh")
+    assert mesh.find("mesh_file").text == "Geometry/crank_visual_0.obj"
+    np.testing.assert_allclose([float(c) for c in mesh.find("Appearance/color").text.split()], [1.0, 128 / 255, 0.0],
+                               atol=1e-6)
+    lines = (tmp_path / "osim" / "Geometry" / "crank_visual_0.obj").read_text().splitlines()
+    v = np.array([[float(x) for x in ln.split()[1:]] for ln in lines if ln.startswith("v ")])
+    stl = trimesh.load(tmp_path / "crank.stl", force="mesh", process=False)
+    assert len(v) == len(stl.vertices) or len(v) == len(np.unique(stl.vertices.round(6), axis=0))
+    expected = stl.vertices / 1000.0 @ _Rz(np.pi / 2).T + [0.01, 0.0, 0.0]
+    # same point set (loaders may merge or reorder duplicated STL vertices)
+    d = np.linalg.norm(v[:, None, :] - expected[None, :, :], axis=2)
+    assert d.min(axis=1).max() < 1e-9 and d.min(axis=0).max() < 1e-9

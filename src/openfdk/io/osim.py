@@ -7,8 +7,9 @@
   named ``<body>_free``; the body's frame is openfdk's body frame (origin at the centre
   of mass, so ``mass_center`` is 0 and the joint's child frame is the body frame itself,
   without offset); inertia about the centre of mass in that frame; the contact meshes
-  as ``Mesh`` geometry (``Geometry/<contact>_<side>.obj``, vertices in the body frame,
-  metres); the model's markers as a ``MarkerSet``.  openfdk's ground (body 0, world
+  and the bodies' visual meshes (model-file ``visual:`` entries) as ``Mesh`` geometry
+  (``Geometry/<contact>_<side>.obj``, ``Geometry/<body>_visual_<k>.obj``, vertices in the
+  body frame, metres); the model's markers as a ``MarkerSet``.  openfdk's ground (body 0, world
   frame W) is OpenSim's ``ground``: its meshes and markers attach there.  Any other fixed
   openfdk body is exported like the rest, with its coordinates locked at its pose.
 * ``<model>.mot`` — the free-joint coordinates over time.  OpenSim's FreeJoint
@@ -92,10 +93,12 @@ def _write_obj(path, vertices, faces, comment):
 
 
 def _geometry(model, out_dir):
-    """Write the contact meshes; returns body index -> [(geometry name, file name)]."""
+    """Write the contact meshes and the bodies' visual meshes (model-file ``visual:``
+    entries) in their body frames; returns body index -> [(geometry name, file, colour)]."""
     attached = {}
     contacts = model.elements.get("contacts", ())
-    if contacts:
+    visuals = model.elements.get("visuals", ())
+    if contacts or visuals:
         (out_dir / GEOMETRY_DIR).mkdir(parents=True, exist_ok=True)
     for c in contacts:
         for side, body, surface in (("vertices", c.body_a, c.pair.surface_A), ("surface", c.body_b, c.pair.surface_B)):
@@ -103,7 +106,17 @@ def _geometry(model, out_dir):
             _write_obj(out_dir / GEOMETRY_DIR / fname, surface.vertices_B, surface.faces,
                        f"openfdk contact {c.name!r} {side} mesh ({surface.name}), body "
                        f"{model.bodies[body].name!r} frame, metres")
-            attached.setdefault(body, []).append((f"{c.name}_{side}", f"{GEOMETRY_DIR}/{fname}"))
+            attached.setdefault(body, []).append((f"{c.name}_{side}", f"{GEOMETRY_DIR}/{fname}", ""))
+    if visuals:
+        from ..contact.mesh import load_mesh
+
+    for k, v in enumerate(visuals):
+        mesh = load_mesh(v.path, units=v.units, placement=(v.p_BF, v.R_BF))   # file -> body frame, m
+        body = model.body(v.body).index
+        fname = f"{v.body}_visual_{k}.obj"
+        _write_obj(out_dir / GEOMETRY_DIR / fname, mesh.vertices_B, mesh.faces,
+                   f"openfdk visual mesh {v.entry} ({Path(v.path).name}), body {v.body!r} frame, metres")
+        attached.setdefault(body, []).append((f"{v.body}_visual_{k}", f"{GEOMETRY_DIR}/{fname}", v.color))
     return attached
 
 
@@ -118,21 +131,23 @@ def _coordinate(parent, name, value, locked, rotational):
 
 
 def _attach(frame_element, geoms):
-    """``attached_geometry`` Mesh entries (name, file) on a Ground or Body element."""
+    """``attached_geometry`` Mesh entries (name, file, colour) on a Ground or Body element."""
     if not geoms:
         return
     ag = _sub(frame_element, "attached_geometry")
-    for gname, fname in geoms:
+    for gname, fname, color in geoms:
         mesh = _sub(ag, "Mesh", name=gname)
         _sub(mesh, "socket_frame", "..")
         _sub(mesh, "scale_factors", "1 1 1")
+        if color:  # "#rrggbb" -> OpenSim's r g b in [0, 1]
+            _sub(_sub(mesh, "Appearance"), "color", " ".join(f"{int(color[i:i + 2], 16) / 255:.6g}" for i in (1, 3, 5)))
         _sub(mesh, "mesh_file", fname)
 
 
 def build_osim(model, coordinates0: dict, geometry=None) -> ET.ElementTree:
     """The ``.osim`` document of ``model``; coordinates0: body name -> (6,) default
     FreeJoint coordinates (the first exported frame); geometry: body index ->
-    [(geometry name, mesh file relative to the .osim)]."""
+    [(geometry name, mesh file relative to the .osim, "#rrggbb" colour or "")]."""
     doc = ET.Element("OpenSimDocument", Version=OSIM_VERSION)
     m = _sub(doc, "Model", name=_file_stem(model.name))  # OpenSim names: no spaces, \ * + / or tabs
     _sub(m, "credits", "Exported by openfdk (export-opensim): one FreeJoint per body; see docs/opensim.md")
