@@ -88,7 +88,7 @@ def after_run(args, plots=True):
 
     out = Path(args.out)
     record_model_file(out, args.model)
-    written = [p for p in (csv_to_sto(out / name) for name in ("kinematics.csv", "forces.csv")
+    written = [p for p in (csv_to_sto(out / name) for name in ("kinematics.csv", "forces.csv", "measures.csv")
                            if (out / name).is_file()) if p is not None]
     if written:
         print(f"  OpenSim storage: {', '.join(str(p) for p in written)}")

@@ -151,51 +151,47 @@ def _fdk(results, t, failed):
     return _finish(fig, axes, t, failed, caption)
 
 
-def default_measures(model):
-    """Measures plotted when none are chosen: the model's named measures in file order,
-    at most MAX_DEFAULT_MEASURES."""
-    names = [n for n in model.measures]
-    return names[:MAX_DEFAULT_MEASURES]
+def default_measures(names):
+    """Measures plotted when none are chosen, from the measure names of a run: the model
+    file's own measures first (names without a dot), then the joints' measures
+    (``joint.angle``…), at most MAX_DEFAULT_MEASURES."""
+    names = list(names)
+    return ([n for n in names if "." not in n] + [n for n in names if "." in n])[:MAX_DEFAULT_MEASURES]
 
 
-def measure_values(results, measure):
-    """``(n_frames, size)`` SI values of ``measure`` evaluated on the tracked poses."""
-    model = results.model()
-    state = model.initial_state()
-    k = results.kinematics
-    bodies = [(model.body(name).index, name) for name in results.bodies()]
-    P = {name: np.column_stack([_col(k, f"{name}.{c}_m") for c in "xyz"]) for _, name in bodies}
-    Q = {name: np.column_stack([_col(k, f"{name}.e{j}") for j in range(4)]) for _, name in bodies}
-    out = np.full((len(k), measure.size), np.nan)
-    from .spatial import rotation_matrix
+_KIND_OF_SUFFIX = {"m": "length", "rad": "angle", "1": "1"}
 
-    for i in range(len(k)):
-        if not all(np.all(np.isfinite(Q[n][i])) and np.all(np.isfinite(P[n][i])) for _, n in bodies):
-            continue
-        for idx, n in bodies:
-            q = Q[n][i] / np.linalg.norm(Q[n][i])
-            state.p_WB[idx], state.quat_WB[idx], state.R_WB[idx] = P[n][i], q, rotation_matrix(q)
-        out[i] = measure.evaluate(state, order=0)[0]
+
+def measure_series(results, name):
+    """Components of measure ``name`` in the run's measures table (measures.csv):
+    list of (label, kind, (n_frames,) SI values); [] when the run has no such measure."""
+    table = results.measures
+    if table is None:
+        return []
+    out = []
+    for col in table.columns:
+        base, _, suffix = col.rpartition("_")
+        if base == name or (base.startswith(name + "[") and base.endswith("]")):
+            out.append((base[len(name):] or name, _KIND_OF_SUFFIX.get(suffix, "1"), _col(table, col)))
     return out
 
 
 def _measures(results, t, failed, chosen):
-    model = results.model()
-    unknown = [m for m in chosen if m not in model.measures]
+    series = {name: measure_series(results, name) for name in chosen}
+    unknown = [n for n, s in series.items() if not s]
     if unknown:
-        raise ValueError(f"model {model.name!r}: unknown measure(s) {unknown}; the model's measures are "
-                         f"{sorted(model.measures)}")
+        raise ValueError(f"unknown measure(s) {unknown}; the run's measures are {results.measure_names()}")
+    model = results.model()
     fig, axes = _figure(len(chosen), f"{_name(results)}: kinematic measures")
     for ax, name in zip(axes, chosen):
-        m = model.measures[name]
-        values = measure_values(results, m)
-        kinds = sorted(set(m.units)) or ["1"]
-        for j in range(m.size):
-            factor, _ = DISPLAY.get(m.units[j], (1.0, ""))
-            ax.plot(t, factor * values[:, j], label=f"[{j}]" if m.size > 1 else name)
+        kinds = []
+        for label, kind, values in series[name]:
+            ax.plot(t, DISPLAY.get(kind, (1.0, ""))[0] * values, label=label)
+            kinds += [kind] if kind not in kinds else []
         units = ", ".join(DISPLAY.get(kd, (1, kd))[1] for kd in kinds)
-        ax.set_ylabel(f"{name}\n({units}, {_measure_frame(m)})", fontsize=8)
-    caption = ("Measures as declared in the model file, evaluated on the tracked poses; [j] is component j. Vectors "
+        frame = _measure_frame(model.measures[name]) if model is not None and name in model.measures else "measure"
+        ax.set_ylabel(f"{name}\n({units}, {frame})", fontsize=8)
+    caption = ("Named measures of the model (measures.csv) on the solved poses; [j] is component j. Vectors "
                "point from their first to their second point; angles are x-y'-z'' Cardan angles of the second frame "
                "relative to the first.")
     return _finish(fig, axes, t, failed, caption)
@@ -335,20 +331,15 @@ def make_figures(results, measures=None) -> dict:
     """Figures of a run (a :class:`~openfdk.runresults.RunResults`): dict name ->
     matplotlib Figure, one per topic the run has data for (see the module docstring).
 
-    measures: names of model measures to plot (default: the model's first
-    MAX_DEFAULT_MEASURES named measures when the model file can be found; an empty
-    list plots none)."""
+    measures: names of the run's measures to plot (measures.csv; default:
+    :func:`default_measures`; an empty list plots none)."""
     t = results.time
     failed = _failed(results)
     figs = {"kinematics": _kinematics(results, t, failed)}
     if results.fdk_dofs():
         figs["fdk_dofs"] = _fdk(results, t, failed)
-    model = results.model()
     if measures is None:
-        measures = default_measures(model) if model is not None else []
-    elif measures and model is None:
-        raise ValueError("measures were chosen but the run's model file cannot be found (see summary.json "
-                         "input.model); pass the model")
+        measures = default_measures(results.measure_names())
     if measures:
         figs["measures"] = _measures(results, t, failed, list(measures))
     if results.muscles():
@@ -382,4 +373,4 @@ def write_plots(result_dir, out_dir=None, measures=None) -> list[Path]:
     return save_figures(make_figures(results, measures), out_dir or Path(result_dir) / "plots")
 
 
-__all__ += ["default_measures", "measure_values", "measure_unit"]
+__all__ += ["default_measures", "measure_series", "measure_unit"]

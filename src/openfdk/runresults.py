@@ -15,7 +15,7 @@ import numpy as np
 
 __all__ = ["RunResults", "read_results", "conjugate_unit", "measure_unit"]
 
-KINEMATICS_CSV, FORCES_CSV, SUMMARY_JSON = "kinematics.csv", "forces.csv", "summary.json"
+KINEMATICS_CSV, FORCES_CSV, MEASURES_CSV, SUMMARY_JSON = "kinematics.csv", "forces.csv", "measures.csv", "summary.json"
 #: per-frame text columns
 TEXT_COLUMNS = ("message", "status", "fdk_reason")
 _SI = {"length": "m", "angle": "rad", "1": "1"}
@@ -58,13 +58,16 @@ class RunResults:
         kinematics: DataFrame indexed by time (s), the columns of kinematics.csv.
         forces: DataFrame indexed by time (s), the columns of forces.csv (None for a
             kinematics-only run).
+        measures: DataFrame indexed by time (s), the model's named measures per frame
+            (measures.csv: ``name_unit`` / ``name[k]_unit``, SI), None if it has none.
         summary: dict, the content of summary.json.
         directory: the folder the run was saved to or read from (None if not saved).
     """
 
-    def __init__(self, kinematics, forces, summary: dict, model=None, directory=None):
+    def __init__(self, kinematics, forces, summary: dict, model=None, directory=None, measures=None):
         self.kinematics = kinematics
         self.forces = forces
+        self.measures = measures
         self.summary = summary
         self._model = model
         self.directory = None if directory is None else Path(directory)
@@ -84,7 +87,12 @@ class RunResults:
         if fdk is not None:
             summary["fdk"] = fdk
         forces = None if dyn is None else _frame(forces_columns(dyn))
-        return cls(_frame(kinematics_columns(kin)), forces, summary, model)
+        measures = None
+        if model is not None and model.measures:
+            from .io.measure_outputs import measure_columns
+
+            measures = _frame(measure_columns(model, kin))
+        return cls(_frame(kinematics_columns(kin)), forces, summary, model, measures=measures)
 
     @classmethod
     def read(cls, directory):
@@ -94,17 +102,20 @@ class RunResults:
             raise FileNotFoundError(f"{d}: no {KINEMATICS_CSV}; is this an openfdk result folder?")
         summary = json.loads((d / SUMMARY_JSON).read_text()) if (d / SUMMARY_JSON).is_file() else {}
         forces = _read_csv(d / FORCES_CSV) if (d / FORCES_CSV).is_file() else None
-        return cls(_read_csv(d / KINEMATICS_CSV), forces, summary, None, d)
+        measures = _read_csv(d / MEASURES_CSV) if (d / MEASURES_CSV).is_file() else None
+        return cls(_read_csv(d / KINEMATICS_CSV), forces, summary, None, d, measures)
 
     def save(self, directory, sto: bool = True):
-        """Write kinematics.csv, forces.csv, summary.json (and their ``.sto`` twins
-        unless ``sto=False``) into ``directory`` (created). Returns the folder."""
+        """Write kinematics.csv, forces.csv, measures.csv, summary.json (and the ``.sto``
+        twins of the tables unless ``sto=False``) into ``directory`` (created). Returns
+        the folder."""
         from .io.results import write_json, write_table
         from .io.storage import csv_to_sto
 
         d = Path(directory)
         d.mkdir(parents=True, exist_ok=True)
-        for name, df in ((KINEMATICS_CSV, self.kinematics), (FORCES_CSV, self.forces)):
+        for name, df in ((KINEMATICS_CSV, self.kinematics), (FORCES_CSV, self.forces),
+                         (MEASURES_CSV, self.measures)):
             if df is None:
                 continue
             cols = {"time": df.index.to_numpy()}
@@ -157,6 +168,13 @@ class RunResults:
     def bodies(self) -> list[str]:
         """Names of the bodies whose pose is in kinematics.csv."""
         return [c[:-4] for c in self.kinematics.columns if c.endswith(".x_m")]
+
+    def measure_names(self) -> list[str]:
+        """Names of the measures in measures.csv (``gap_l``, ``knee.angle``, …)."""
+        if self.measures is None:
+            return []
+        names = [c.rpartition("_")[0].split("[")[0] for c in self.measures.columns]
+        return list(dict.fromkeys(names))
 
     def markers(self) -> list[str]:
         return [c[: -len(".residual_x_m")] for c in self.kinematics.columns if c.endswith(".residual_x_m")]

@@ -42,7 +42,7 @@ def test_run_writes_figures_for_the_slider_crank(slider_run):
     assert all(p.stat().st_size > 20_000 for p in (out / "plots").glob("*.png"))
     res = read_results(out)
     figs = make_figures(res)
-    assert check_axes(figs) == 2 * 3 + 2 + 2 + 3
+    assert check_axes(figs) == 2 * 3 + 6 + 2 + 3  # measures: crank_angles, small_end_offset, 4 joint measures
     f = res.forces
     # the drive torque is a moment (N·m, an angle driver); joint x/y rows are forces
     ax_force, ax_moment = figs["reactions"].axes
@@ -54,7 +54,8 @@ def test_run_writes_figures_for_the_slider_crank(slider_run):
     np.testing.assert_allclose(np.hypot(_lines(ax_pos)["x"], _lines(ax_pos)["y"]), 50.0, atol=1e-6)
     # measures: crank_angles component 2 is the driven angle 360°/s·t (wrapped to ±180°)
     ax = figs["measures"].axes[0]
-    assert "deg" in ax.get_ylabel()
+    assert ax.get_ylabel().startswith("crank_angles") and "deg" in ax.get_ylabel()
+    assert [a.get_ylabel().split("\n")[0] for a in figs["measures"].axes][:2] == ["crank_angles", "small_end_offset"]
     angle = _lines(ax)["[2]"]
     expected = (360.0 * res.time + 180.0) % 360.0 - 180.0
     ok = np.abs(np.abs(expected) - 180.0) > 1e-6
