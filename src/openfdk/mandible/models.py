@@ -45,14 +45,17 @@ PARAMETER_STUDY_STRAIN = (-0.04, -0.02, 0.0, 0.02, 0.04)
 DEFAULT_STIFFNESS, DEFAULT_STRAIN = 272.4, 0.0  # the paper's comparison model
 #: condyle translation of the muscle calibration posture (m): half of a typical
 #: protrusion, forward and down along the eminence
-CALIBRATION_TRANSLATION = (0.002, 0.0, -0.001)
-CALIBRATION_OPENING_DEG = 5.0
+CALIBRATION_TRANSLATION = (0.009, 0.0, -0.005)
+CALIBRATION_OPENING_DEG = 20.0
 #: parallel-elastic strain at F0 of the jaw muscles (Thelen 2003 gives 0.6 for limb
 #: muscles of young adults; the reference table gives none). With 0.6 the stretched
 #: supra-hyoid muscles' passive tension exceeds what the openers can balance during
 #: protrusion (≈ 20 % of frames infeasible on the virtual subject); 1.0 keeps every task
 #: feasible. A model-level choice: edit the model file to study it.
 PASSIVE_STRAIN_AT_MAX_FORCE = 1.0
+#: fraction λ of the mandible's motion (at the hyoid's rest position) that the hyoid
+#: follows (0 = supra-hyoid lower ends fixed to the skull)
+HYOID_FOLLOW = 0.5
 SIDES = (("r", "right"), ("l", "left"))
 
 
@@ -84,7 +87,7 @@ def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS
                reference_strain=DEFAULT_STRAIN, calibration_opening_deg=CALIBRATION_OPENING_DEG,
                calibration_translation=CALIBRATION_TRANSLATION, mesh_dir=None,
                passive_strain_at_max_force=PASSIVE_STRAIN_AT_MAX_FORCE,
-               pressure_modulus=1.0e10, spring_stiffness=0.1):
+               pressure_modulus=1.0e10, spring_stiffness=0.1, hyoid_follow=HYOID_FOLLOW):
     """The POP (``kind="pop"``) or FDK (``kind="fdk"``) model of a subject as a model-file
     mapping (mm, deg). ``mesh_dir``: path written for the STL files (relative to where
     the model file will be written; default the subject folder, absolute)."""
@@ -99,11 +102,20 @@ def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS
                                         "orientation": {"matrix": _plane_frame(plane.normal).round(12).tolist()}}
         jaw_frames[f"condyle_{tag}"] = _mm(subject.condyle_top(tag) - com)
     muscles = {}
+    hyoid_muscles = set(suprahyoid_muscles(subject)) if hyoid_follow > 0 else set()
+    hyoid_rest = (np.mean([m.origin for m in subject.muscles if m.name in hyoid_muscles], axis=0)
+                  if hyoid_muscles else None)
+    hyoid_frames = {}
     for m in subject.muscles:
-        skull_frames[f"{m.name}_origin"] = _mm(m.origin)
+        if m.name in hyoid_muscles:
+            hyoid_frames[f"{m.name}_origin"] = _mm(m.origin - hyoid_rest)
+            origin = f"hyoid.{m.name}_origin"
+        else:
+            skull_frames[f"{m.name}_origin"] = _mm(m.origin)
+            origin = f"skull.{m.name}_origin"
         jaw_frames[f"{m.name}_insertion"] = _mm(m.insertion - com)
         muscles[m.name] = {
-            "path": [f"skull.{m.name}_origin", f"mandible.{m.name}_insertion"],
+            "path": [origin, f"mandible.{m.name}_insertion"],
             "max_isometric_force": float(m.max_isometric_force),
             "optimal_fibre_length": float(m.optimal_fibre_length * 1e3),
             "tendon_slack_length": float(round(calibrated_tendon_slack(
@@ -138,10 +150,12 @@ def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS
         "recruitment": {"criterion": "polynomial", "power": 3},
         "analysis": {"marker_cutoff_hz": 6.0},
     }
+    if hyoid_muscles:
+        _add_hyoid(data, hyoid_rest, com, hyoid_frames, hyoid_follow)
     if kind == "pop":
         data["joints"] = {f"tmj_{t}": {"type": "point_on_plane", "parent": f"skull.plane_{t}", "child": f"mandible.condyle_{t}"}
                           for t, _ in SIDES}
-        data["constraints"] = {"tmj_ml": {"measure": "ml", "components": [1]}}
+        data.setdefault("constraints", {})["tmj_ml"] = {"measure": "ml", "components": [1]}
         # plane normals point up into the skull: the fossa pushes the condyle along −n
         data["reactions"] = {f"tmj_{t}_compression": {"joint": f"tmj_{t}", "direction": "pull", "strength": 20000}
                              for t, _ in SIDES}
@@ -179,6 +193,43 @@ def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS
         "fdk_spring_ml": {"measure": "ml", "component": 1, "stiffness": spring_stiffness},
     }
     return data
+
+
+def suprahyoid_muscles(subject) -> tuple:
+    """Names of the muscles whose skull-side end is on the hyoid: ``subject.hyoid_muscles``
+    when the subject folder lists them, else those named like a supra-hyoid muscle
+    (digastric, geniohyoid, mylohyoid)."""
+    listed = getattr(subject, "hyoid_muscles", None)
+    if listed is not None:
+        return tuple(listed)
+    return tuple(m.name for m in subject.muscles
+                 if any(k in m.name.lower() for k in ("digastric", "geniohyoid", "mylohyoid")))
+
+
+def _add_hyoid(data, hyoid_rest, com, hyoid_frames, follow):
+    """A hyoid body carrying the supra-hyoid muscles' lower ends: it keeps the skull's
+    orientation and its origin H follows the mandible, p_SH = (1 − λ) p_SH0 + λ p_SF,
+    with H0 the rest position (mean of those ends) and F the mandible point at H0 in the
+    reference pose (λ = ``follow``). Both constraints carry no reaction: the hyoid is
+    held by the (unmodelled) infra-hyoid muscles, so the mandible receives only the
+    supra-hyoid muscle forces; the hyoid has no equilibrium rows."""
+    data["bodies"]["skull"]["frames"]["hyoid_rest"] = _mm(hyoid_rest)
+    data["bodies"]["mandible"]["frames"]["hyoid_follow"] = _mm(hyoid_rest - com)
+    data["bodies"]["hyoid"] = {"mass": 0.02, "inertia": [2e-6, 2e-6, 2e-6], "position": _mm(hyoid_rest),
+                               "equilibrium": False, "frames": hyoid_frames}
+    eye = np.eye(3)
+    data["measures"]["hyoid_position"] = {"type": "vector", "from": "skull.hyoid_rest", "to": "hyoid.origin",
+                                          "expressed_in": "skull"}
+    data["measures"]["hyoid_follow"] = {"type": "vector", "from": "skull.hyoid_rest", "to": "mandible.hyoid_follow",
+                                        "expressed_in": "skull"}
+    # (p_SH − p_SH0) − λ (p_SF − p_SH0) = 0
+    data["measures"]["hyoid_blend"] = {"type": "linear", "terms": [
+        {"measure": "hyoid_position", "coefficients": eye.tolist()},
+        {"measure": "hyoid_follow", "coefficients": (-float(follow) * eye).tolist()}]}
+    data["measures"]["hyoid_orientation"] = {"type": "angles", "frame": "skull.origin", "of": "hyoid.origin"}
+    data.setdefault("constraints", {})
+    data["constraints"]["hyoid_follows_mandible"] = {"measure": "hyoid_blend", "reaction": False}
+    data["constraints"]["hyoid_orientation"] = {"measure": "hyoid_orientation", "reaction": False}
 
 
 def write_model(path, data):
