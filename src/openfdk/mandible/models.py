@@ -84,15 +84,27 @@ def calibrated_tendon_slack(subject, muscle, opening_deg, translation=(0.0, 0.0,
 
 
 def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS,
-               reference_strain=DEFAULT_STRAIN, calibration_opening_deg=CALIBRATION_OPENING_DEG,
-               calibration_translation=CALIBRATION_TRANSLATION, mesh_dir=None,
+               reference_strain=DEFAULT_STRAIN, calibration_opening_deg=None,
+               calibration_translation=None, mesh_dir=None,
                passive_strain_at_max_force=PASSIVE_STRAIN_AT_MAX_FORCE,
-               pressure_modulus=1.0e10, spring_stiffness=0.1, hyoid_follow=HYOID_FOLLOW):
+               pressure_modulus=1.0e10, spring_stiffness=0.1, hyoid_follow=None):
     """The POP (``kind="pop"``) or FDK (``kind="fdk"``) model of a subject as a model-file
     mapping (mm, deg). ``mesh_dir``: path written for the STL files (relative to where
-    the model file will be written; default the subject folder, absolute)."""
+    the model file will be written; default the subject folder, absolute).
+    ``calibration_opening_deg`` (deg), ``calibration_translation`` ((3,) m) and
+    ``hyoid_follow`` (fraction) default to the subject's ``muscle_calibration`` and
+    ``hyoid`` sections, else to the module defaults."""
     if kind not in ("pop", "fdk"):
         raise ValueError(f"model kind must be 'pop' or 'fdk', got {kind!r}")
+    protocol = getattr(subject, "protocol", None)
+    if calibration_opening_deg is None:
+        calibration_opening_deg = (np.rad2deg(protocol.calibration_opening) if protocol is not None
+                                   else CALIBRATION_OPENING_DEG)
+    if calibration_translation is None:
+        calibration_translation = (protocol.calibration_translation if protocol is not None
+                                   else CALIBRATION_TRANSLATION)
+    if hyoid_follow is None:
+        hyoid_follow = protocol.hyoid_follow if protocol is not None else HYOID_FOLLOW
     com = subject.mandible.center_of_mass
     skull_frames = {"incisal_point_skull": _mm(subject.landmarks["incisal_point"])}
     jaw_frames = {"ml_point": _mm(-com), "incisal_point": _mm(subject.landmarks["incisal_point"] - com)}
