@@ -88,10 +88,10 @@ def _bump(s, start, rise_end, fall_start, end):
 #: incisor excursion ≈ 12 mm).
 AMPLITUDES = {"open_close": {"opening_deg": 12.5, "translation_mm": 7.0},
               "protrusion": {"translation_mm": 8.6, "opening_deg": -1.0},
-              "chewing": {"opening_deg": 10.5, "lateral_mm": 4.0, "bennett_mm": 1.2}}
-WIDE_AMPLITUDES = {"open_close": {"opening_deg": 28.5, "translation_mm": 14.0},
+              "chewing": {"opening_deg": 10.5, "lateral_mm": 4.0, "bennett_mm": 1.2, "working_mm": 0.8}}
+WIDE_AMPLITUDES = {"open_close": {"opening_deg": 30.0, "translation_mm": 14.0},
                    "protrusion": {"translation_mm": 9.0, "opening_deg": -1.0},
-                   "chewing": {"opening_deg": 12.0, "lateral_mm": 7.5, "bennett_mm": 2.0}}
+                   "chewing": {"opening_deg": 12.0, "lateral_mm": 10.0, "bennett_mm": 1.2, "working_mm": 2.5}}
 
 
 def _prescribe(task: str, s, amplitude, working_side: str, intercondylar: float, amplitudes=None):
@@ -113,7 +113,7 @@ def _prescribe(task: str, s, amplitude, working_side: str, intercondylar: float,
     if task == "chewing":
         q_open = _bump(s, 0.0, 0.35, 0.35, 0.80)
         q_side = _bump(s, 0.10, 0.50, 0.50, 0.90)            # lateral excursion lags opening
-        x_working = 0.8 * _MM * a1 * q_open
+        x_working = A["working_mm"] * _MM * a1 * q_open
         x_balancing = 2.5 * _MM * a1 * q_open + A["lateral_mm"] * _MM * a2 * q_side
         toward_working = 1.0 if working_side == "l" else -1.0      # +y is left
         y = toward_working * A["bennett_mm"] * _MM * a2 * q_side   # Bennett shift

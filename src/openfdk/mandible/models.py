@@ -56,6 +56,9 @@ PASSIVE_STRAIN_AT_MAX_FORCE = 1.0
 #: fraction λ of the mandible's motion (at the hyoid's rest position) that the hyoid
 #: follows (0 = supra-hyoid lower ends fixed to the skull)
 HYOID_FOLLOW = 0.5
+#: marker low-pass cut-off of the models' marker tracking (and of the measured
+#: kinematics of the study), Hz
+MARKER_CUTOFF_HZ = 6.0
 SIDES = (("r", "right"), ("l", "left"))
 
 
@@ -160,7 +163,7 @@ def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS
         },
         "muscles": muscles,
         "recruitment": {"criterion": "polynomial", "power": 3},
-        "analysis": {"marker_cutoff_hz": 6.0},
+        "analysis": {"marker_cutoff_hz": MARKER_CUTOFF_HZ},
     }
     if hyoid_muscles:
         _add_hyoid(data, hyoid_rest, com, hyoid_frames, hyoid_follow)

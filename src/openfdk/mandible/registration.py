@@ -151,10 +151,10 @@ class Registration:
         }
 
 
-def _mean_markers(subject, trial, min_frames):
-    """Mean measured markers (k, 3) m per brace over the static trial (lab frame)."""
+def _static_markers(subject, trial, min_frames):
+    """Measured brace markers per frame, body → (n, k, 3) m (lab frame, NaN = missing)."""
     trial = trial if isinstance(trial, MarkerTrial) else read_c3d(trial)
-    mean = {}
+    out = {}
     for body in ("skull", "mandible"):
         labels = subject.braces[body].labels
         x = trial.select(labels).positions  # (n, k, 3)
@@ -164,18 +164,25 @@ def _mean_markers(subject, trial, min_frames):
             raise RegistrationError(
                 f"{trial.source}: markers {bad} are visible in fewer than {min_frames} frames of the "
                 f"static trial; cannot register the {body} brace")
-        mean[body] = np.nanmean(x, axis=0)
-    return trial, mean
+        out[body] = x
+    return trial, out
 
 
 def _fit(nominal, measured, source, body):
-    """Rigid fit of nominal (k, 3) to measured (k, 3): R (3, 3), p (3,), RMS m."""
-    R, p = rigid_fit(nominal, measured[None])
-    R, p = R[0], p[0]
-    if not np.all(np.isfinite(R)):
-        raise RegistrationError(f"{source}: the {body} brace markers do not define a pose")
-    rms = float(np.sqrt(np.mean(np.sum((nominal @ R.T + p - measured) ** 2, axis=1))))
+    """Per-frame rigid fits of nominal (k, 3) to measured (n, k, 3): R (n, 3, 3),
+    p (n, 3) m, and the RMS residual over every visible marker sample (m)."""
+    R, p = rigid_fit(nominal, measured)
+    if not np.any(np.isfinite(R[:, 0, 0])):
+        raise RegistrationError(f"{source}: the {body} brace markers do not define a pose in any frame")
+    residual = np.einsum("nij,kj->nki", R, nominal) + p[:, None, :] - measured
+    rms = float(np.sqrt(np.nanmean(np.sum(residual ** 2, axis=2))))
     return R, p, rms
+
+
+def _mean_rotation(R):
+    """The rotation (3, 3) closest to the mean of the finite matrices R (n, 3, 3)."""
+    U, _, Vt = np.linalg.svd(np.nanmean(R, axis=0))
+    return U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))]) @ Vt
 
 
 def _warn(messages, body, rms, source, warn_rms):
@@ -203,14 +210,16 @@ def register_from_braces(subject, static_trial=None, *, warn_rms=WARN_RMS_M, min
     if static_trial is None:
         return Registration("braces", skull, mandible, {"skull": None, "mandible": None},
                             assumption="none: the braces of subject.yaml are used unchecked (no static trial)")
-    trial, mean = _mean_markers(subject, static_trial, min_frames)
-    R_LS, p_LS, rms_s = _fit(skull[1], mean["skull"], trial.source, "skull")
-    R_LM, p_LM, rms_m = _fit(mandible[1], mean["mandible"], trial.source, "mandible")
+    trial, x = _static_markers(subject, static_trial, min_frames)
+    R_LS, p_LS, rms_s = _fit(skull[1], x["skull"], trial.source, "skull")
+    R_LM, p_LM, rms_m = _fit(mandible[1], x["mandible"], trial.source, "mandible")
     messages = []
     _warn(messages, "skull", rms_s, trial.source, warn_rms)
     _warn(messages, "mandible", rms_m, trial.source, warn_rms)
-    # static pose of M in S: R_SM = R_LSᵀ R_LM, p_SM = R_LSᵀ (p_LM − p_LS)
-    pose = StaticPose(R_LS.T @ R_LM, R_LS.T @ (p_LM - p_LS), "measured by the brace fits")
+    # static pose of M in S per frame, R_SM = R_LSᵀ R_LM, p_SM = R_LSᵀ (p_LM − p_LS); mean
+    R_SM = np.einsum("nji,njk->nik", R_LS, R_LM)
+    p_SM = np.einsum("nji,nj->ni", R_LS, p_LM - p_LS)
+    pose = StaticPose(_mean_rotation(R_SM), np.nanmean(p_SM, axis=0), "measured by the brace fits")
     return Registration("braces", skull, mandible, {"skull": rms_s, "mandible": rms_m}, pose,
                         "none: the braces of subject.yaml are the registered positions; the static trial "
                         "only checks them", str(trial.source), tuple(messages))
@@ -236,12 +245,13 @@ def register_from_static_trial(subject, static_trial, static_pose: StaticPose | 
     """
     pose = static_pose if static_pose is not None else StaticPose.occlusion()
     assumption = pose.description if static_pose is None else f"static pose given: {pose.description}"
-    trial, mean = _mean_markers(subject, static_trial, min_frames)
-    nominal = subject.braces["skull"].positions
-    R_LS, p_LS, rms_s = _fit(nominal, mean["skull"], trial.source, "skull")
-    x_S = {body: (mean[body] - p_LS) @ R_LS for body in ("skull", "mandible")}   # R_LSᵀ (x − p_LS)
+    trial, x = _static_markers(subject, static_trial, min_frames)
+    R_LS, p_LS, rms_s = _fit(subject.braces["skull"].positions, x["skull"], trial.source, "skull")
+    # every marker in S per frame, x_S = R_LSᵀ (x_L − p_LS), then the mean over frames
+    x_S = {body: np.nanmean(np.einsum("nji,nkj->nki", R_LS, x[body] - p_LS[:, None, :]), axis=0)
+           for body in ("skull", "mandible")}
     x_M = (x_S["mandible"] - pose.p_SM) @ pose.R_SM                              # R_SMᵀ (x_S − p_SM)
-    _, _, rms_m = _fit(subject.braces["mandible"].positions, x_M, trial.source, "mandible")
+    _, _, rms_m = _fit(subject.braces["mandible"].positions, x_M[None], trial.source, "mandible")
     messages = []
     _warn(messages, "skull", rms_s, trial.source, warn_rms)
     return Registration("static_trial", (subject.braces["skull"].labels, x_S["skull"]),

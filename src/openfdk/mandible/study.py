@@ -36,12 +36,14 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ..io.c3d import MarkerTrial, read_c3d
+from ..io.markers import MarkerTrajectories
 from ..io.results import write_forces, write_json, write_kinematics
 from ..jobs import run_job
 from .cycles import CycleError, find_cycles, normalize_cycles
 from .experiment import mandible_points_in_skull
 from .extract import SIDE_TAGS, compared_condyle_point, condyle_kinematics, fdk_forces, pop_forces
-from .models import DEFAULT_STIFFNESS, DEFAULT_STRAIN, write_models
+from .models import DEFAULT_STIFFNESS, DEFAULT_STRAIN, MARKER_CUTOFF_HZ, write_models
 from .protocol import TrialSpec
 from .registration import StaticPose, register
 from .subject import load_subject
@@ -120,12 +122,22 @@ def register_subject(subject, method: str | None = None, pose: StaticPose | None
 # One trial
 # --------------------------------------------------------------------------------------
 
-def measured_series(subject, registration, trial):
+def measured_series(subject, registration, trial, cutoff_hz=MARKER_CUTOFF_HZ):
     """Marker-only estimate over a whole trial (the paper's "measured" kinematics).
+
+    The brace markers are low-pass filtered as the models' marker tracking filters them
+    (zero-lag 2nd-order Butterworth at ``cutoff_hz``, Hz; None = raw; gaps stay gaps,
+    :class:`openfdk.io.markers.MarkerTrajectories`), then each brace is fitted rigidly.
 
     Args: subject; registration (:func:`register_subject`); trial: C3D path or MarkerTrial.
     Returns: time (n,) s, condyle points {side: (n, 3) m} (positions in the skull frame,
     NaN where a brace has < 3 markers) and the incisal point (n, 3) m."""
+    trial = trial if isinstance(trial, MarkerTrial) else read_c3d(trial)
+    labels = registration["skull"][0] + registration["mandible"][0]
+    trial = trial.select(labels)
+    if cutoff_hz is not None:
+        filtered = MarkerTrajectories(trial, cutoff_hz).filtered_positions
+        trial = MarkerTrial(trial.labels, trial.rate, trial.time, filtered, trial.source)
     tags = list(SIDE_TAGS.values())
     points = [compared_condyle_point(subject, tag) for tag in tags] + [subject.landmarks["incisal_point"]]
     time, p = mandible_points_in_skull(subject, trial, points, registration)
