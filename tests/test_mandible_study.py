@@ -179,5 +179,5 @@ def test_missing_trial_is_named(tmp_path):
     from openfdk.mandible.study import StudyError, run_study
 
     d = create_subject(tmp_path / "subject", resolution="coarse")
-    with pytest.raises(StudyError, match=r"trials/reference.c3d is missing"):
+    with pytest.raises(StudyError, match=r"task .chewing.: trial file trials/chewing.c3d is missing"):
         run_study(d, tmp_path / "out", log=lambda *a: None)
