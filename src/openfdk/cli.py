@@ -114,7 +114,8 @@ def _cmd_subject(args):
         out = args.out or f"{args.directory.rstrip('/')}-study"
         cycles = 5 if args.cycles is None else (None if args.cycles == "all" else args.cycles)
         result = run_study(args.directory, out, n_cycles=cycles, quick=args.quick, progress=not args.no_progress,
-                           workers=args.workers, scheduler=args.scheduler)
+                           workers=args.workers, scheduler=args.scheduler,
+                           parameter_study=not args.no_parameter_study)
         if result["table1"]:
             report(result, out)
         for task, message in result["failed"].items():
@@ -232,6 +233,7 @@ def build_parser():
                    help="study: a 2-model parameter study on open-close only (as openfdk demo --quick); "
                         "record --realistic: fewer chewing and protrusion cycles")
     s.add_argument("--no-progress", action="store_true", help="no progress bar")
+    s.add_argument("--no-parameter-study", action="store_true", help="study: skip the ligament parameter study")
     s.add_argument("--noise", type=float, default=0.15, help="marker noise in mm (record)")
     s.add_argument("--seed", type=int, default=0)
     s.set_defaults(func=_cmd_subject)
