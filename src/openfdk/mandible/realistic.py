@@ -12,7 +12,8 @@ recordings"):
 * wide movements (:data:`.experiment.WIDE_AMPLITUDES`): incisal opening ≈ 45 mm,
   protrusion ≈ 10 mm, lateral incisor excursion ≈ 12 mm in chewing;
 * non-standard trial file names, declared in a ``trials:`` section that is written into
-  ``subject.yaml`` (chewing with a time window, protrusion with its own cycle count, 3);
+  ``subject.yaml`` (chewing with a time window, protrusion with its own cycle count:
+  3, quick 2);
 * extra markers (9 skin markers: 17 in all, as the paper's recordings);
 * occasional short marker gaps (0.05–0.25 s, one marker at a time).
 
@@ -65,7 +66,7 @@ def _trials_section(quick: bool) -> str:
         if task == "chewing":       # a window: quick, all 5 cycles; else it cuts the 7th cycle
             extra = f", window: [0.2, {round(0.5 + 5 / 1.2 + 0.3, 2) if quick else 6.0}]"
         if task == "protrusion":    # this task's own cycle count
-            extra = ", cycles: 3"
+            extra = f", cycles: {2 if quick else 3}"
         lines.append(f"  {task}: {{file: trials/{name}, kind: {kind}{extra}}}")
     lines += ["registration: {method: braces, static_trial: reference}", ""]
     return "\n".join(lines)
