@@ -91,7 +91,7 @@ AMPLITUDES = {"open_close": {"opening_deg": 12.5, "translation_mm": 7.0},
               "chewing": {"opening_deg": 10.5, "lateral_mm": 4.0, "bennett_mm": 1.2, "working_mm": 0.8}}
 WIDE_AMPLITUDES = {"open_close": {"opening_deg": 30.0, "translation_mm": 14.0},
                    "protrusion": {"translation_mm": 9.0, "opening_deg": -1.0},
-                   "chewing": {"opening_deg": 12.0, "lateral_mm": 10.0, "bennett_mm": 1.2, "working_mm": 2.5}}
+                   "chewing": {"opening_deg": 12.0, "lateral_mm": 11.0, "bennett_mm": 1.2, "working_mm": 4.0}}
 
 
 def _prescribe(task: str, s, amplitude, working_side: str, intercondylar: float, amplitudes=None):
