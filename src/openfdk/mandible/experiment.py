@@ -294,6 +294,25 @@ def _truth_columns(truth: TaskTruth) -> dict:
     return cols
 
 
+def write_truth_csv(directory, task: str, truth: TaskTruth) -> Path:
+    """Write ``truth/<task>.csv`` (columns of docs/virtual-experiment.md); returns its path."""
+    columns = _truth_columns(truth)
+    path = Path(directory) / "truth" / f"{task}.csv"
+    np.savetxt(path, np.column_stack(list(columns.values())), delimiter=",",
+               header=",".join(columns), comments="", fmt="%.12g")
+    return path
+
+
+def truth_geometry(subject: Subject, joint: TrueJoint, markers_true: dict) -> dict:
+    """The truth.yaml entries :func:`load_true_joint` reads back: cartilage offset, true
+    brace markers (m, body frames) and the segmentation-error fields."""
+    return {"cartilage_offset_m": float(subject.cartilage_offset),
+            "true_markers_m": {body: dict(zip(subject.braces[body].labels, markers_true[body].tolist()))
+                               for body in ("skull", "mandible")},
+            "segmentation_fields": {f"condyle_{s}": joint.condyle_errors[s].to_dict() for s in SIDES}
+            | {f"fossa_{s}": joint.fossa_errors[s].to_dict() for s in SIDES}}
+
+
 def load_truth(directory: str | os.PathLike, task: str) -> dict:
     """Columns of ``truth/<task>.csv`` as arrays (n,), names as in docs/virtual-experiment.md."""
     path = Path(directory) / "truth" / f"{task}.csv"
@@ -399,18 +418,10 @@ def record_experiment(directory: str | os.PathLike, *,
         c3d_path = directory / "trials" / f"{task}.c3d"
         write_c3d(c3d_path, labels, noisy, rate, units="mm")
         written[f"trials/{task}.c3d"] = c3d_path
-        columns = _truth_columns(result)
-        csv_path = directory / "truth" / f"{task}.csv"
-        np.savetxt(csv_path, np.column_stack(list(columns.values())), delimiter=",",
-                   header=",".join(columns), comments="", fmt="%.12g")
-        written[f"truth/{task}.csv"] = csv_path
+        written[f"truth/{task}.csv"] = write_truth_csv(directory, task, result)
     info = {"truth_options": truth.to_dict(), "seed": int(seed), "noise_mm": float(noise_mm),
             "head_motion": bool(head_motion), "rate_hz": float(rate), "cycles": int(cycles),
-            "working_side": working_side, "cartilage_offset_m": float(subject.cartilage_offset),
-            "true_markers_m": {body: dict(zip(subject.braces[body].labels, markers_true[body].tolist()))
-                               for body in ("skull", "mandible")},
-            "segmentation_fields": {f"condyle_{s}": joint.condyle_errors[s].to_dict() for s in SIDES}
-            | {f"fossa_{s}": joint.fossa_errors[s].to_dict() for s in SIDES}}
+            "working_side": working_side, **truth_geometry(subject, joint, markers_true)}
     (directory / "truth" / "truth.yaml").write_text(yaml.safe_dump(info, sort_keys=False), encoding="utf-8")
     (directory / "truth" / "README.md").write_text(_README, encoding="utf-8")
     written["truth/truth.yaml"] = directory / "truth" / "truth.yaml"

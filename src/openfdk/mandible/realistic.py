@@ -29,10 +29,10 @@ import numpy as np
 import yaml
 
 from ..io.c3d import write_c3d
-from .experiment import (WIDE_AMPLITUDES, _truth_columns, load_anatomy, simulate_task,
-                         true_marker_positions)
+from .experiment import (WIDE_AMPLITUDES, load_anatomy, simulate_task, true_marker_positions, truth_geometry,
+                         write_truth_csv)
 from .subject import SUBJECT_FILE, load_subject
-from .truth import SIDES, TrueJoint, TruthOptions
+from .truth import TrueJoint, TruthOptions
 
 __all__ = ["EXTRA_MARKERS", "REALISTIC_TRIALS", "STATIC_OPENING_DEG", "record_realistic"]
 
@@ -146,21 +146,13 @@ def record_realistic(directory: str | os.PathLike, *, quick: bool = False, rate:
         path = directory / "trials" / name
         write_c3d(path, labels, positions, rate, units="mm")
         written[f"trials/{name}"] = path
-        columns = _truth_columns(result)
-        csv_path = directory / "truth" / f"{task}.csv"
-        np.savetxt(csv_path, np.column_stack(list(columns.values())), delimiter=",",
-                   header=",".join(columns), comments="", fmt="%.12g")
-        written[f"truth/{task}.csv"] = csv_path
+        written[f"truth/{task}.csv"] = write_truth_csv(directory, task, result)
     info = {"realistic": True, "quick": bool(quick), "truth_options": truth.to_dict(), "seed": int(seed),
             "noise_mm": float(noise_mm), "head_motion": bool(head_motion), "rate_hz": float(rate),
             "static_opening_deg": STATIC_OPENING_DEG, "working_side": working_side,
             "trials": {task: {"file": f"trials/{v[0]}", "kind": v[1], "frequency_hz": v[2],
                               "cycles": v[4] if quick else v[3]} for task, v in REALISTIC_TRIALS.items()},
-            "amplitudes": WIDE_AMPLITUDES, "cartilage_offset_m": float(subject.cartilage_offset),
-            "true_markers_m": {body: dict(zip(subject.braces[body].labels, markers_true[body].tolist()))
-                               for body in ("skull", "mandible")},
-            "segmentation_fields": {f"condyle_{s}": joint.condyle_errors[s].to_dict() for s in SIDES}
-            | {f"fossa_{s}": joint.fossa_errors[s].to_dict() for s in SIDES}}
+            "amplitudes": WIDE_AMPLITUDES, **truth_geometry(subject, joint, markers_true)}
     (directory / "truth" / "truth.yaml").write_text(yaml.safe_dump(info, sort_keys=False), encoding="utf-8")
     written["truth/truth.yaml"] = directory / "truth" / "truth.yaml"
     with open(subject_file, "a", encoding="utf-8") as fh:
