@@ -126,3 +126,31 @@ def test_condyle_point_is_settable(subject_dir, tmp_path):
         # and not the condyle top: 5° about the axis moves the two points differently
         top = truth.R_SM[0] @ subject.condyle_top(tag) + truth.p_SM[0]
         assert np.linalg.norm(expected - top) > 2.5 * MM
+
+
+def test_a_failing_task_is_reported_and_the_others_are_written(subject_dir, tmp_path, capsys):
+    """A task whose record holds no movement (the static trial declared as chewing)
+    fails; summary.json names it with the reason, the other task's tables and figures
+    are written, and the command exits 2 after saying so."""
+    import csv
+    import json
+
+    from openfdk.mandible.experiment import record_experiment
+
+    folder = _with(subject_dir, tmp_path, trials={
+        "reference": "trials/reference.c3d",
+        "still": {"file": "trials/reference.c3d", "kind": "chewing"},
+        "open_close": "trials/open_close.c3d"})
+    record_experiment(folder, tasks=("open_close",), cycles=3)
+    out = tmp_path / "study"
+    code = main(["subject", "study", str(folder), "--out", str(out), "--cycles", "2", "--no-parameter-study",
+                 "--no-progress"])
+    assert code == 2
+    assert "task 'still' failed" in capsys.readouterr().err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["completed"] == ["open_close"] and list(summary["failed"]) == ["still"]
+    assert "no periodic movement" in summary["failed"]["still"]
+    rows = list(csv.DictReader(open(out / "table1.csv")))
+    assert {r["task"] for r in rows} == {"open_close"} and {r["n_cycles"] for r in rows} == {"2"}
+    assert (out / "figures" / "open_close_kinematics.png").is_file()
+    assert not (out / "figures" / "still_kinematics.png").exists()
