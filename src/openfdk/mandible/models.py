@@ -233,14 +233,13 @@ def _add_hyoid(data, hyoid_rest, com, hyoid_frames, follow):
     data["bodies"]["hyoid"] = {"mass": 0.02, "inertia": [2e-6, 2e-6, 2e-6], "position": _mm(hyoid_rest),
                                "equilibrium": False, "frames": hyoid_frames}
     eye = np.eye(3)
-    data["measures"]["hyoid_position"] = {"type": "vector", "from": "skull.hyoid_rest", "to": "hyoid.origin",
-                                          "expressed_in": "skull"}
-    data["measures"]["hyoid_follow"] = {"type": "vector", "from": "skull.hyoid_rest", "to": "mandible.hyoid_follow",
-                                        "expressed_in": "skull"}
-    # (p_SH − p_SH0) − λ (p_SF − p_SH0) = 0
+    # (p_SH − p_SH0) − λ (p_SF − p_SH0) = 0; the vectors inline, so any key order loads
     data["measures"]["hyoid_blend"] = {"type": "linear", "terms": [
-        {"measure": "hyoid_position", "coefficients": eye.tolist()},
-        {"measure": "hyoid_follow", "coefficients": (-float(follow) * eye).tolist()}]}
+        {"measure": {"type": "vector", "from": "skull.hyoid_rest", "to": "hyoid.origin", "expressed_in": "skull"},
+         "coefficients": eye.tolist()},
+        {"measure": {"type": "vector", "from": "skull.hyoid_rest", "to": "mandible.hyoid_follow",
+                     "expressed_in": "skull"},
+         "coefficients": (-float(follow) * eye).tolist()}]}
     data["measures"]["hyoid_orientation"] = {"type": "angles", "frame": "skull.origin", "of": "hyoid.origin"}
     data.setdefault("constraints", {})
     data["constraints"]["hyoid_follows_mandible"] = {"measure": "hyoid_blend", "reaction": False}
