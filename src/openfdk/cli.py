@@ -4,6 +4,7 @@
     openfdk kinematics MODEL.yaml --out DIR             determinate kinematics (drivers)
     openfdk run MODEL.yaml [TRIAL.c3d] --out DIR        kinematics + inverse dynamics
     openfdk check MODEL.yaml                            validate a model file
+    openfdk view RESULT_DIR [--out view.html]           3D viewer of a run (one HTML file)
     openfdk demo [--out DIR] [--quick]                  the mandible study on the virtual subject
     openfdk subject create|record DIR                   virtual subject and experiment
     openfdk bench [--quick] [--json]                    benchmarks
@@ -203,6 +204,9 @@ def build_parser():
 
     add_chunk_arguments(r)
     add_study_parser(sub)
+    from .viewer.cli import add_view_parser
+
+    add_view_parser(sub)
 
     d = sub.add_parser("demo", help="the mandible study on the virtual subject, end to end")
     d.add_argument("--out", default="openfdk-demo", help="output directory (default ./openfdk-demo)")

@@ -206,9 +206,10 @@ def _load_bodies(b, bodies, ctx):
         raise ctx.error("bodies", "at least one body is needed")
     for name, spec in bodies.items():
         p = f"bodies.{name}"
-        ctx.keys(spec, p, ["mass", "inertia", "position", "orientation", "fixed", "equilibrium", "frames", "points", "markers"])
+        ctx.keys(spec, p, ["mass", "inertia", "position", "orientation", "fixed", "equilibrium", "frames", "points", "markers",
+                         "visual"])
         if name == GROUND:
-            ctx.keys(spec, p, ["fixed", "frames", "points"])
+            ctx.keys(spec, p, ["fixed", "frames", "points", "visual"])
             if spec.get("fixed", True) is not True:
                 raise ctx.error(f"{p}.fixed", "the ground is always fixed")
             spec = {k: v for k, v in spec.items() if k != "fixed"}
@@ -244,6 +245,10 @@ def _load_bodies(b, bodies, ctx):
             else:
                 pos, weight, label = ctx.position(mspec, mp), 1.0, None
             _wrap(ctx, mp, lambda: b.add_marker(mname, name, pos, weight, label))
+        if "visual" in spec:
+            from .visuals import load_visuals
+
+            load_visuals(b, name, spec["visual"], f"{p}.visual", ctx)
 
 
 MEASURE_KEYS = {
