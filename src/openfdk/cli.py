@@ -6,7 +6,8 @@
     openfdk check MODEL.yaml                            validate a model file
     openfdk view RESULT_DIR [--out view.html]           3D viewer of a run (one HTML file)
     openfdk demo [--out DIR] [--quick]                  the mandible study on the virtual subject
-    openfdk subject create|record DIR                   virtual subject and experiment
+    openfdk subject create|record DIR [--realistic]     virtual subject and experiment
+    openfdk subject study DIR [--out OUT] [--cycles N|all]   the mandible study on a subject folder
     openfdk bench [--quick] [--json]                    benchmarks
 
 Bad input ends with exit code 2 and a one-line reason on stderr.
