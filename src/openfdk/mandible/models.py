@@ -19,15 +19,17 @@ lines) and cubic recruitment. The brace markers are the registered positions
   stiffness k split equally over the elements, reference strain ε_r at the reference
   pose), and a weak spring (0.1 N/m) on each FDK DOF.
 
-Muscle calibration (as AnyBody's 3-element muscles are calibrated): each tendon slack
-length is set so that the fibres are at their optimal length in a rest posture — the
-mandible opened by ``calibration_opening_deg`` (5°) about the intercondylar axis and
-translated 2 mm forward and 1 mm down. With straight-line paths and the reference
-table's tendon lengths the closed pose stretches the posterior temporalis by ≈ 20 mm
-(325 N passive); calibrated closed, opening is infeasible, calibrated half-open (10°),
-protrusion is. The parallel-elastic strain at F0 is 1.0 (see
-:data:`PASSIVE_STRAIN_AT_MAX_FORCE`). Measured on the virtual subject with the POP model:
-every frame of chewing, protrusion and open–close is feasible with these choices.
+Muscle calibration (as AnyBody's 3-element muscles, e.g. in the de Zee et al. 2007
+mandible model, are calibrated): each tendon slack length is set so that the fibres are
+at their optimal length in a calibration pose — the mandible opened by
+``calibration_opening_deg`` (default 20°) about the intercondylar axis and translated
+9 mm forward and 5 mm down (the subject's ``muscle_calibration``). The supra-hyoid
+muscles' lower ends sit on a ``hyoid`` body that follows half of the mandible's motion
+(the subject's ``hyoid``; :func:`_add_hyoid`). With the earlier 5° calibration and
+skull-fixed supra-hyoid ends, a 45 mm opening was infeasible on a third of the frames:
+the openers' moment arms vanish and the stretched elevators pull it shut
+(docs/mandible-study.md, "Muscle calibration and the hyoid"). The parallel-elastic strain
+at F0 is 1.0 (see :data:`PASSIVE_STRAIN_AT_MAX_FORCE`).
 """
 
 from __future__ import annotations
@@ -39,14 +41,15 @@ import numpy as np
 import yaml
 
 from ..spatial import quat_from_rotvec, rotation_matrix
+from . import protocol as _protocol
 
 PARAMETER_STUDY_STIFFNESS = (136.2, 272.4, 544.8)  # N/m, whole TMJ ligament (paper)
 PARAMETER_STUDY_STRAIN = (-0.04, -0.02, 0.0, 0.02, 0.04)
 DEFAULT_STIFFNESS, DEFAULT_STRAIN = 272.4, 0.0  # the paper's comparison model
-#: condyle translation of the muscle calibration posture (m): half of a typical
-#: protrusion, forward and down along the eminence
-CALIBRATION_TRANSLATION = (0.009, 0.0, -0.005)
-CALIBRATION_OPENING_DEG = 20.0
+#: the default muscle calibration pose: opening (deg) and condyle translation (m),
+#: forward and down along the eminence (docs/mandible-study.md)
+CALIBRATION_OPENING_DEG = _protocol.CALIBRATION_OPENING_DEG
+CALIBRATION_TRANSLATION = tuple(1e-3 * float(v) for v in _protocol.CALIBRATION_TRANSLATION_MM)
 #: parallel-elastic strain at F0 of the jaw muscles (Thelen 2003 gives 0.6 for limb
 #: muscles of young adults; the reference table gives none). With 0.6 the stretched
 #: supra-hyoid muscles' passive tension exceeds what the openers can balance during
@@ -55,7 +58,7 @@ CALIBRATION_OPENING_DEG = 20.0
 PASSIVE_STRAIN_AT_MAX_FORCE = 1.0
 #: fraction λ of the mandible's motion (at the hyoid's rest position) that the hyoid
 #: follows (0 = supra-hyoid lower ends fixed to the skull)
-HYOID_FOLLOW = 0.5
+HYOID_FOLLOW = _protocol.HYOID_FOLLOW
 #: marker low-pass cut-off of the models' marker tracking (and of the measured
 #: kinematics of the study), Hz
 MARKER_CUTOFF_HZ = 6.0

@@ -81,7 +81,7 @@ class StudyProtocol:
     condyle_points: MappingProxyType = field(
         default_factory=lambda: MappingProxyType({"r": "condyle_top_r", "l": "condyle_top_l"}))
     calibration_opening: float = float(np.deg2rad(CALIBRATION_OPENING_DEG))
-    calibration_translation: tuple = tuple(1e-3 * np.array(CALIBRATION_TRANSLATION_MM))
+    calibration_translation: tuple = tuple(1e-3 * float(v) for v in CALIBRATION_TRANSLATION_MM)
     hyoid_muscles: tuple | None = None
     hyoid_follow: float = HYOID_FOLLOW
     file: Path | None = None

@@ -49,7 +49,6 @@ from .registration import StaticPose, register
 from .subject import load_subject
 
 TASKS = ("chewing", "protrusion", "open_close")
-REFERENCE_TRIAL = "reference"
 CYCLE_MARGIN_S = 0.05
 
 
