@@ -149,7 +149,10 @@ def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS
     data = {
         "openfdk": 1,
         "name": f"{subject.name} {kind.upper()} TMJ model",
-        "description": f"written by openfdk.mandible.models from {subject.directory}",
+        "description": (f"written by openfdk.mandible.models from {subject.directory}; tendon slack lengths "
+                        f"calibrated {float(calibration_opening_deg):g} deg open, condyles translated "
+                        f"{[round(1e3 * float(v), 3) for v in calibration_translation]} mm; "
+                        f"hyoid follows {float(hyoid_follow):g} of the mandible's motion"),
         "units": {"length": "mm", "angle": "deg"},
         "gravity": [0.0, 0.0, -9.81],
         "bodies": {
