@@ -13,5 +13,6 @@ BENCHMARK_MODULES = [
     "openfdk.bench.contact",
     "openfdk.bench.fdk",
     "openfdk.bench.mandible",
+    "openfdk.bench.knee",
     "openfdk.bench.study",
 ]
