@@ -122,7 +122,7 @@ def test_fdk_equals_a_plain_newton_loop_with_central_differences(files):
 
 
 def _run(args):
-    return subprocess.Popen([sys.executable, "-m", "openfdk.cli", "run", *map(str, args), "--no-progress"],
+    return subprocess.Popen([sys.executable, "-m", "openfdk.cli", "run", *map(str, args), "--no-progress", "--no-plots"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
@@ -152,7 +152,7 @@ def test_kill_9_then_resume_gives_the_uninterrupted_files(files, tmp_path, model
     end = (n_frames - 1) / 100.0
     common = [files / model_name, files / "trial.c3d", "--end", end, "--checkpoint-frames", 4]
     whole = tmp_path / "whole"
-    assert main(["run", *map(str, common), "--out", str(whole), "--no-progress"]) == 0
+    assert main(["run", *map(str, common), "--out", str(whole), "--no-progress", "--no-plots"]) == 0
     assert not (whole / ".checkpoint").exists()  # removed once the final files are written
 
     out = tmp_path / "killed"
@@ -192,7 +192,7 @@ def test_ctrl_c_writes_the_finished_frames_marked_partial(files, tmp_path):
     assert len(rows) == done + 1 and len((out / "kinematics.csv").read_text().splitlines()) == done + 1
     # the finished frames are those of a complete run
     whole = tmp_path / "whole"
-    assert main(["run", *map(str, common), "--out", str(whole), "--no-progress"]) == 0
+    assert main(["run", *map(str, common), "--out", str(whole), "--no-progress", "--no-plots"]) == 0
     assert (whole / "forces.csv").read_text().splitlines()[: done + 1] == rows
     # and the run can be continued from its last checkpoint
     proc = _run([*common, "--out", out, "--resume"])
@@ -201,7 +201,7 @@ def test_ctrl_c_writes_the_finished_frames_marked_partial(files, tmp_path):
 
 
 def test_resume_with_chunks_and_bad_checkpoint_options_are_refused(files, tmp_path, capsys):
-    base = ["run", str(files / "pop.yaml"), str(files / "trial.c3d"), "--out", str(tmp_path / "o"), "--no-progress"]
+    base = ["run", str(files / "pop.yaml"), str(files / "trial.c3d"), "--out", str(tmp_path / "o"), "--no-progress", "--no-plots"]
     assert main([*base, "--chunks", "2", "--resume"]) == 2
     assert "--resume is not available with --chunks" in capsys.readouterr().err
     assert main([*base, "--checkpoint-frames", "0"]) == 2
