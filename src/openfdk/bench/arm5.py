@@ -7,7 +7,9 @@ sinusoidal flexion θ(t) = 30° + 35° sin(2π·0.5 t) driven for 2 s at 100 Hz 
 Gravity is −z; at θ = 0 the forearm is horizontal along +x, flexion raises it.
 
 Timings (median over repeats, milliseconds per frame, start-up and compilation excluded
-by a warm-up call):
+by a warm-up call). They are the process's CPU time (``time.process_time``): the stages
+are single-threaded, so this is the one-core time, and it stays meaningful on a machine
+shared with other jobs (wall time there counts the time the process waits for a core):
 
 * ``arm5_determinate_kinematics_ms``: determinate kinematics from the driver (positions,
   velocities, accelerations; paper Eqs. 1–3) — :func:`run_determinate`;
@@ -160,9 +162,9 @@ def stage_timings(repeats=5):
     samples = {k: [] for k in stages}
     for _ in range(repeats):
         for name, fn in stages.items():
-            t0 = time.perf_counter()
+            t0 = time.process_time()
             ok = fn()
-            samples[name].append((time.perf_counter() - t0) * 1e3 / nf)
+            samples[name].append((time.process_time() - t0) * 1e3 / nf)
             if not ok:
                 raise RuntimeError(f"{name}: not every frame converged")
     return {k: statistics.median(v) for k, v in samples.items()}
