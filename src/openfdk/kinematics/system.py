@@ -90,6 +90,10 @@ class ConstraintSystem:
         val, M, b = self.program.evaluate(state, order)
         return self._assemble(val, M, b, t, alpha, order)
 
+    def jacobian(self, state):
+        """Φ_q̂ (m, 6 n_moving) alone (no targets: for the equilibrium, Eq. 12)."""
+        return self.program.evaluate(state, 1)[1]
+
     def evaluate_reference(self, state, t, alpha=None, order=1):
         """As :meth:`evaluate`, measure by measure in Python (the reference for tests)."""
         parts = [c.measure.evaluate(state, order) for c in self.blocks]
