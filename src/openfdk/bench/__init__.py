@@ -15,4 +15,5 @@ BENCHMARK_MODULES = [
     "openfdk.bench.fdk",
     "openfdk.bench.mandible",
     "openfdk.bench.study",
+    "openfdk.bench.memory",
 ]
