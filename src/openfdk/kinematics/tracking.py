@@ -44,13 +44,20 @@ class MarkerTracker:
         self.markers = system.model.markers
         self.settings = settings or TrackingSettings()
         self._observable_cache = {}
+        self._weight_cache = {}
         self.coord_names = system.model.coordinate_names()
 
     # -- helpers ------------------------------------------------------------------
     def _weights(self, visible):
-        """Per-row weights (3 n_markers,) from marker weights and visibility."""
-        w = np.where(visible, self.markers.weight, 0.0)
-        return np.repeat(w, 3)
+        """Per-row weights (3 n_markers,) from marker weights and visibility (cached per
+        visibility pattern; read-only)."""
+        key = visible.tobytes()
+        w = self._weight_cache.get(key)
+        if w is None:
+            w = np.repeat(np.where(visible, self.markers.weight, 0.0), 3)
+            w.setflags(write=False)
+            self._weight_cache[key] = w
+        return w
 
     def observability_message(self, state, t, visible, alpha=None):
         """'' if the visible markers plus constraints fix the pose, else a message
