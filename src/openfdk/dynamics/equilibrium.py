@@ -145,8 +145,8 @@ def assemble(layout, A, L_muscles, d_full):
     nm = layout.n_muscles
     C = np.empty((len(rows), nm + len(sel)))
     if nm:
-        C[:, :nm] = -L_muscles[:, rows].T
-    C[:, nm:] = A[np.ix_(sel, rows)].T * sign
+        np.negative(L_muscles.take(rows, 1).T, out=C[:, :nm])
+    np.multiply(A.take(sel, 0).take(rows, 1).T, sign, out=C[:, nm:])
     return C, d_full[rows]
 
 
