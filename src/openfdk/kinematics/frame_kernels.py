@@ -21,7 +21,7 @@ import numpy as np
 from numba import njit
 
 from ..model.compiled import evaluate_into
-from ..model.kernels import displace_poses, marker_positions_jacobian
+from ..model.kernels import displace_poses, marker_positions_jacobian, set_velocities
 from .kkt import kkt_step
 
 OK, SINGULAR, NOT_CONVERGED, MEASURE_ERROR = 0, 1, 2, 3
@@ -139,15 +139,6 @@ def newton_positions(op, node_row, node_size, i_start, iparams, f_start, fparams
 
 
 @njit(cache=True)
-def _set_velocities(v, column, moving, v_WB, w_BB):
-    for i in moving:
-        c = column[i]
-        for r in range(3):
-            v_WB[i, r] = v[c + r]
-            w_BB[i, r] = v[c + 3 + r]
-
-
-@njit(cache=True)
 def determinate_rates(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows, n_node_rows,
                       p_WB, R_WB, w_BB, v_WB, column, moving, df, ddf, v, vdot):
     """Φ_q̂ v = ν = ḟ (Eq. 2), sets the state's velocities, then Φ_q̂ v̇ = γ = f̈ − b
@@ -168,7 +159,7 @@ def determinate_rates(op, node_row, node_size, i_start, iparams, f_start, fparam
     for r in range(n):
         v[r] = df[r]
     lu_solve(A, piv, v)
-    _set_velocities(v, column, moving, v_WB, w_BB)
+    set_velocities(v, column, moving, v_WB, w_BB)
     A2 = np.empty((m, n))
     e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
                                    n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 2, val, A2, bias)
@@ -248,7 +239,7 @@ def tracking_rates(op, node_row, node_size, i_start, iparams, f_start, fparams, 
     lu_solve(LU, piv, rhs)
     for c in range(n):
         v[c] = rhs[c]
-    _set_velocities(v, column, moving, v_WB, w_BB)
+    set_velocities(v, column, moving, v_WB, w_BB)
     _, _, b_m = marker_positions_jacobian(p_WB, R_WB, w_BB, column, marker_body, p_BM, n, 2)
     e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
                                    n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 2, val, A, bias)

@@ -241,3 +241,14 @@ def set_poses(q, moving, p_WB, quat_WB, R_WB):
         R_WB[i, 2, 1] = 2 * (e2 * e3 + e0 * e1)
         R_WB[i, 2, 2] = 1 - 2 * (e1 * e1 + e2 * e2)
     return -1
+
+
+@njit(cache=True)
+def set_velocities(v, column, moving, v_WB, w_BB):
+    """In place: ṙ_i ← v[c:c+3], ω'_i ← v[c+3:c+6] for every moving body i with
+    c = column[i]. v (6 n_moving,) [m/s, rad/s]."""
+    for i in moving:
+        c = column[i]
+        for r in range(3):
+            v_WB[i, r] = v[c + r]
+            w_BB[i, r] = v[c + 3 + r]

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..spatial import rotation_matrix
-from .kernels import displace_poses, set_poses
+from .kernels import displace_poses, set_poses, set_velocities
 
 
 class BodyStates:
@@ -82,8 +82,8 @@ class BodyStates:
         return v
 
     def set_v(self, v):
-        """Set body velocities from a generalised velocity (6 n_moving,)."""
-        for i in self.moving:
-            c = self.column[i]
-            self.v_WB[i] = v[c : c + 3]
-            self.w_BB[i] = v[c + 3 : c + 6]
+        """Set body velocities from a generalised velocity (6 n_moving,) [m/s, rad/s]."""
+        v = np.ascontiguousarray(v, dtype=float)
+        if v.shape != (self.n_coords,):
+            raise ValueError(f"v must have {self.n_coords} entries (6 per moving body), got {v.shape}")
+        set_velocities(v, self.column, self.moving, self.v_WB, self.w_BB)
