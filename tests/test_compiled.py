@@ -34,6 +34,8 @@ def _joint_measures(seed=7):
     state.set_v(rng.normal(size=model.n_coords))
     measures = {c.name: c.measure for c in model.constraints}
     measures["via_point_path"] = path
+    measures["angles_zxz"] = b.angles("a.j", "b.j", sequence="zxz")
+    measures["jcs_knee_left"] = b.jcs_angles("a.j", "b.j", joint="knee", side="left")
     measures["fdk_row"] = Linear([(np.array([[0.0, 0.0, 1.0]]), b.vector("a.j", "b.j", expressed_in="a"))])
     return model, state, measures
 
@@ -42,6 +44,7 @@ def _cases():
     out = [("basic", name) for name in ALL]
     out += [("joints", f"j_{jt}") for jt in JOINTS]
     out += [("joints", "drive"), ("joints", "via_point_path"), ("joints", "fdk_row")]
+    out += [("joints", "angles_zxz"), ("joints", "jcs_knee_left")]
     return out
 
 
@@ -112,9 +115,10 @@ def test_compiled_errors_match_python():
     b.add_frame("a", "f", [0, 0, 0], orientation=quat_from_rotvec([0, np.pi / 2, 0]))
     d = b.distance("ground.origin", "a.origin", name="d0")
     ang = b.angles("ground.origin", "a.f", name="lock")
+    euler = b.angles("ground.origin", "a.origin", name="euler", sequence="zxz")  # θ2 = 0 at rest
     model = b.build()
     state = model.initial_state()
-    for m, what in ((d, "coincide"), (ang, "gimbal")):
+    for m, what in ((d, "coincide"), (ang, "gimbal"), (euler, "gimbal lock, the middle angle is 0.0 deg")):
         with pytest.raises(FloatingPointError, match=what):
             m.evaluate(state, 1)
         with pytest.raises(FloatingPointError, match=what):

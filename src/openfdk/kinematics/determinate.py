@@ -69,7 +69,7 @@ def solve_positions(system: ConstraintSystem, state, t, alpha=None, tol=1e-10, m
     if status == OK:
         return FrameSolve(True, int(it), float(res))
     if status == MEASURE_ERROR:
-        system.program.raise_error(e_node, e_kind)
+        system.program.raise_error(e_node, e_kind, state)
     if status == SINGULAR:
         Phi_q = system.evaluate(state, t, alpha, order=1)[1]
         return FrameSolve(False, int(it), float(res), diagnose_singular(system, Phi_q))
@@ -90,7 +90,7 @@ def solve_velocities_accelerations(system: ConstraintSystem, state, t, alpha=Non
         *_kernel_args(system, state), state.p_WB, state.R_WB, state.w_BB, state.v_WB, state.column,
         state.moving, df, ddf, v, vdot)
     if status == MEASURE_ERROR:
-        system.program.raise_error(e_node, e_kind)
+        system.program.raise_error(e_node, e_kind, state)
     if status == SINGULAR:
         raise np.linalg.LinAlgError("Singular matrix")
     return v, vdot

@@ -136,7 +136,7 @@ class MarkerTracker:
         except np.linalg.LinAlgError as exc:
             return FrameSolve(False, 0, np.nan, f"KKT system singular: {exc}"), None, None
         if status == MEASURE_ERROR:
-            prog.raise_error(e_node, e_kind)
+            prog.raise_error(e_node, e_kind, state)
         if status == SINGULAR:
             return FrameSolve(False, int(it), np.nan, "KKT system singular (non-finite step)"), None, None
         if status == OK:
@@ -185,7 +185,7 @@ class MarkerTracker:
             state.moving, df, ddf, self.markers.body, self.markers.p_BM, w, target_v, target_a,
             np.ascontiguousarray(K), v, vdot)
         if status == MEASURE_ERROR:
-            prog.raise_error(e_node, e_kind)
+            prog.raise_error(e_node, e_kind, state)
         if status == SINGULAR:
             raise np.linalg.LinAlgError("Singular matrix")
         return v, vdot

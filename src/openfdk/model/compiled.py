@@ -26,6 +26,8 @@ OP_DISTANCE    node_u (a 3-row vector node)             —
 OP_AXIS_DOT    body_a, body_b                           n_a (3), n_b (3)
 OP_ANGLES      body_a, body_b                           R_aFa (9), R_bFb (9) row-major
 OP_LINEAR      n_terms, child_1 … child_n               offset (size), C_1 … C_n row-major
+OP_ROTATION_   body_a, body_b, axes i, j, k             R_aFa (9), R_bFb (9), sign (3)
+ANGLES         (any Euler/Cardan sequence, JCS angles)
 =============  =======================================  =============================
 
 The maths of each op is the one of the measure class of the same name in
@@ -52,10 +54,11 @@ import numpy as np
 from numba import njit
 
 from .measures import AxisDot, Distance, Linear, PointPosition, RelativeAngles, RelativeVector
+from .rotation_angles import RotationAngles, rotation_angles
 
 __all__ = ["CompiledMeasures", "MeasureCompileError", "register", "evaluate_program"]
 
-OP_POINT, OP_VECTOR, OP_DISTANCE, OP_AXIS_DOT, OP_ANGLES, OP_LINEAR = 0, 1, 2, 3, 4, 5
+OP_POINT, OP_VECTOR, OP_DISTANCE, OP_AXIS_DOT, OP_ANGLES, OP_LINEAR, OP_ROTATION_ANGLES = 0, 1, 2, 3, 4, 5, 6
 
 #: error codes returned by the kernel (with the failing node)
 ERR_NONE, ERR_COINCIDENT, ERR_GIMBAL = 0, 1, 2
@@ -81,6 +84,9 @@ register(Distance, lambda m, child: (OP_DISTANCE, [child(m.vector)], []))
 register(AxisDot, lambda m, child: (OP_AXIS_DOT, [m.body_a, m.body_b], list(m.n_a) + list(m.n_b)))
 register(RelativeAngles, lambda m, child: (
     OP_ANGLES, [m.body_a, m.body_b], list(np.ravel(m.R_aFa)) + list(np.ravel(m.R_bFb))))
+register(RotationAngles, lambda m, child: (
+    OP_ROTATION_ANGLES, [m.body_a, m.body_b] + [int(x) for x in m.seq],
+    list(np.ravel(m.R_aFa)) + list(np.ravel(m.R_bFb)) + list(m.sign)))
 register(Linear, lambda m, child: (
     OP_LINEAR, [len(m.terms)] + [child(sub) for _, sub in m.terms],
     list(m.offset) + [x for C, _ in m.terms for x in np.ravel(C)]))
@@ -146,9 +152,12 @@ class CompiledMeasures:
         return (self.op, self.node_row, self.node_size, self.i_start, self.iparams,
                 self.f_start, self.fparams, self.out_rows)
 
-    def raise_error(self, err_node, err_kind):
-        """Raise the Python reference's FloatingPointError for a kernel error code."""
+    def raise_error(self, err_node, err_kind, state=None):
+        """Raise the Python reference's FloatingPointError for a kernel error code
+        (``state``: the pose, for messages that quote values)."""
         m = self._node_measure[err_node]
+        if state is not None and isinstance(m, RotationAngles):
+            m.evaluate(state, 1)  # raises the reference's message (the middle angle)
         if err_kind == ERR_COINCIDENT:
             raise FloatingPointError(f"distance measure {m.name!r}: the two points coincide")
         raise FloatingPointError(f"relative angles {m.name!r}: gimbal lock (θ1 = ±90°)")
@@ -162,7 +171,7 @@ class CompiledMeasures:
         err_node, err_kind = evaluate_into(*self.program, self.n_node_rows, state.p_WB, state.R_WB,
                                            state.w_BB, state.v_WB, state.column, n, order, value, M, b)
         if err_node >= 0:
-            self.raise_error(err_node, err_kind)
+            self.raise_error(err_node, err_kind, state)
         return value, (M if order >= 1 else None), (b if order >= 2 else None)
 
 
@@ -436,6 +445,21 @@ def evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fparams
                     r0, r1, r2 = -x0 - e0, -x1 - e1, -x2 - e2
                     for r in range(3):
                         b[row + r] = Binv[r, 0] * r0 + Binv[r, 1] * r1 + Binv[r, 2] * r2
+        elif o == OP_ROTATION_ANGLES:
+            # any intrinsic sequence (JCS angles): the kernel of openfdk.model.rotation_angles
+            theta, Mr, br, ok = rotation_angles(
+                R_WB, w_BB, column, iparams[ip], fparams[fp : fp + 9].copy().reshape(3, 3),
+                iparams[ip + 1], fparams[fp + 9 : fp + 18].copy().reshape(3, 3),
+                iparams[ip + 2 : ip + 5], fparams[fp + 18 : fp + 21], n, order)
+            if not ok:
+                return k, ERR_GIMBAL
+            for r in range(3):
+                val[row + r] = theta[r]
+                if order >= 1:
+                    for c in range(n):
+                        M[row + r, c] = Mr[r, c]
+                if order >= 2:
+                    b[row + r] = br[r]
         else:  # OP_LINEAR: m = Σ_j C_j m_j + offset
             size = node_size[k]
             n_terms = iparams[ip]
