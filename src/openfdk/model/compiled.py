@@ -202,6 +202,18 @@ def _inv3(B, out):
 
 
 @njit(cache=True)
+def _add_axis_dot_columns(M, row, c, R, other, n0, n1, n2):
+    """M[row, c+3:c+6] += n × (Rᵀ other): ∂(R n · other)/∂δπ' of the body at column c."""
+    t0 = R[0, 0] * other[0] + R[1, 0] * other[1] + R[2, 0] * other[2]
+    t1 = R[0, 1] * other[0] + R[1, 1] * other[1] + R[2, 1] * other[2]
+    t2 = R[0, 2] * other[0] + R[1, 2] * other[1] + R[2, 2] * other[2]
+    x0, x1, x2 = _cross(n0, n1, n2, t0, t1, t2)
+    M[row, c + 3] += x0
+    M[row, c + 4] += x1
+    M[row, c + 5] += x2
+
+
+@njit(cache=True)
 def _rate(M, v, row, n):
     """ṁ of node row ``row``: M[row] · v."""
     s = 0.0
@@ -347,21 +359,9 @@ def evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fparams
             if order >= 1:
                 ca, cb = column[ia], column[ib]
                 if ca >= 0:
-                    t0 = Ra[0, 0] * bv[0] + Ra[1, 0] * bv[1] + Ra[2, 0] * bv[2]
-                    t1 = Ra[0, 1] * bv[0] + Ra[1, 1] * bv[1] + Ra[2, 1] * bv[2]
-                    t2 = Ra[0, 2] * bv[0] + Ra[1, 2] * bv[1] + Ra[2, 2] * bv[2]
-                    x0, x1, x2 = _cross(na0, na1, na2, t0, t1, t2)
-                    M[row, ca + 3] += x0
-                    M[row, ca + 4] += x1
-                    M[row, ca + 5] += x2
+                    _add_axis_dot_columns(M, row, ca, Ra, bv, na0, na1, na2)
                 if cb >= 0:
-                    t0 = Rb[0, 0] * a[0] + Rb[1, 0] * a[1] + Rb[2, 0] * a[2]
-                    t1 = Rb[0, 1] * a[0] + Rb[1, 1] * a[1] + Rb[2, 1] * a[2]
-                    t2 = Rb[0, 2] * a[0] + Rb[1, 2] * a[1] + Rb[2, 2] * a[2]
-                    x0, x1, x2 = _cross(nb0, nb1, nb2, t0, t1, t2)
-                    M[row, cb + 3] += x0
-                    M[row, cb + 4] += x1
-                    M[row, cb + 5] += x2
+                    _add_axis_dot_columns(M, row, cb, Rb, a, nb0, nb1, nb2)
             if order >= 2:
                 # b = (R_a ω̃ ω̃ n_a)·b + a·(R_b ω̃ ω̃ n_b) + 2 ȧ·ḃ
                 wa0, wa1, wa2 = w_BB[ia, 0], w_BB[ia, 1], w_BB[ia, 2]

@@ -44,6 +44,20 @@ def marker_positions_jacobian(p_WB, R_WB, w_BB, column, body, p_BM, n_coords, or
 
 
 @njit(cache=True)
+def _set_rotation(R_WB, i, e0, e1, e2, e3):
+    """R_WB[i] ← R(p) of the unit Euler parameters p = (e0, e1, e2, e3)."""
+    R_WB[i, 0, 0] = 1 - 2 * (e2 * e2 + e3 * e3)
+    R_WB[i, 0, 1] = 2 * (e1 * e2 - e0 * e3)
+    R_WB[i, 0, 2] = 2 * (e1 * e3 + e0 * e2)
+    R_WB[i, 1, 0] = 2 * (e1 * e2 + e0 * e3)
+    R_WB[i, 1, 1] = 1 - 2 * (e1 * e1 + e3 * e3)
+    R_WB[i, 1, 2] = 2 * (e2 * e3 - e0 * e1)
+    R_WB[i, 2, 0] = 2 * (e1 * e3 - e0 * e2)
+    R_WB[i, 2, 1] = 2 * (e2 * e3 + e0 * e1)
+    R_WB[i, 2, 2] = 1 - 2 * (e1 * e1 + e2 * e2)
+
+
+@njit(cache=True)
 def displace_poses(p_WB, quat_WB, R_WB, moving, column, dq_hat):
     """In place: r ← r + δr, p ← p ⊗ exp(½ δπ') (normalised, scalar part ≥ 0), R ← R(p)
     for every moving body (DESIGN.md §1). dq_hat (6 n_moving,) [m, rad]."""
@@ -68,15 +82,7 @@ def displace_poses(p_WB, quat_WB, R_WB, moving, column, dq_hat):
             norm = -norm
         e0, e1, e2, e3 = e0 / norm, e1 / norm, e2 / norm, e3 / norm
         quat_WB[i, 0], quat_WB[i, 1], quat_WB[i, 2], quat_WB[i, 3] = e0, e1, e2, e3
-        R_WB[i, 0, 0] = 1 - 2 * (e2 * e2 + e3 * e3)
-        R_WB[i, 0, 1] = 2 * (e1 * e2 - e0 * e3)
-        R_WB[i, 0, 2] = 2 * (e1 * e3 + e0 * e2)
-        R_WB[i, 1, 0] = 2 * (e1 * e2 + e0 * e3)
-        R_WB[i, 1, 1] = 1 - 2 * (e1 * e1 + e3 * e3)
-        R_WB[i, 1, 2] = 2 * (e2 * e3 - e0 * e1)
-        R_WB[i, 2, 0] = 2 * (e1 * e3 - e0 * e2)
-        R_WB[i, 2, 1] = 2 * (e2 * e3 + e0 * e1)
-        R_WB[i, 2, 2] = 1 - 2 * (e1 * e1 + e2 * e2)
+        _set_rotation(R_WB, i, e0, e1, e2, e3)
 
 
 @njit(cache=True)
@@ -231,15 +237,7 @@ def set_poses(q, moving, p_WB, quat_WB, R_WB):
             norm = -norm
         e0, e1, e2, e3 = e0 / norm, e1 / norm, e2 / norm, e3 / norm
         quat_WB[i, 0], quat_WB[i, 1], quat_WB[i, 2], quat_WB[i, 3] = e0, e1, e2, e3
-        R_WB[i, 0, 0] = 1 - 2 * (e2 * e2 + e3 * e3)
-        R_WB[i, 0, 1] = 2 * (e1 * e2 - e0 * e3)
-        R_WB[i, 0, 2] = 2 * (e1 * e3 + e0 * e2)
-        R_WB[i, 1, 0] = 2 * (e1 * e2 + e0 * e3)
-        R_WB[i, 1, 1] = 1 - 2 * (e1 * e1 + e3 * e3)
-        R_WB[i, 1, 2] = 2 * (e2 * e3 - e0 * e1)
-        R_WB[i, 2, 0] = 2 * (e1 * e3 - e0 * e2)
-        R_WB[i, 2, 1] = 2 * (e2 * e3 + e0 * e1)
-        R_WB[i, 2, 2] = 1 - 2 * (e1 * e1 + e2 * e2)
+        _set_rotation(R_WB, i, e0, e1, e2, e3)
     return -1
 
 
