@@ -81,7 +81,7 @@ class InverseDynamics:
         elements : include the passive elements in d (False: only external loads and
         passive muscle tension, for the analytic FDK Jacobian)."""
         if A is None:
-            _, A, _, _ = self.system.evaluate(state, t, alpha, order=1)
+            A = self.system.jacobian(state)
         l, L, speed = self.muscle_states(state)
         if self.muscle_set is not None:
             s_m, f_p = self.muscle_set.evaluate(l, speed)

@@ -22,6 +22,7 @@ import numpy as np
 
 from ..model.batched import ScalarRows
 from ..numdiff import manifold_jacobian
+from .blankevoort import Blankevoort1991Ligament
 
 
 @dataclass
@@ -40,81 +41,102 @@ def _cross(a, b):
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
-class LigamentSet:
-    """The ligaments of a model along their paths (one batched path kernel call).
+def _blankevoort_arrays(length, l0, k_l0, k, eps_l):
+    """Blankevoort1991Ligament (see :mod:`.blankevoort`) on arrays (n,): strain
+    ε = (l − l0)/l0, tension f = 0 (ε < 0), k·l0·ε²/(4ε_l) (0 ≤ ε ≤ 2ε_l),
+    k·l0·(ε − ε_l) (ε > 2ε_l) in N, and df/dl in N/m."""
+    eps = (length - l0) / l0
+    taut, linear = eps >= 0.0, eps > 2.0 * eps_l
+    f = np.where(linear, k_l0 * (eps - eps_l), np.where(taut, k_l0 * eps * eps / (4.0 * eps_l), 0.0))
+    df = np.where(linear, k, np.where(taut, k * eps / (2.0 * eps_l), 0.0))
+    return eps, f, df
 
-    Force-element interface (shared by every set here): ``accumulate(state, t, Q, K,
-    out)`` adds the generalised forces to Q (n,) [N, N m] and, when K (n, n) is given,
-    the stiffness ∂Q/∂q̂ to K; per-element outputs go into ``out`` (PassiveOutputs)."""
 
-    def __init__(self, ligaments):
+class PassiveElements:
+    """All passive elements of a model (ligaments, springs, loads, contacts)."""
+
+    def __init__(self, model):
+        self.model = model
+        self.ligaments = model.ligaments
+        self.springs = model.springs
+        self.loads = model.loads
+        self.contacts = model.contacts
         from .pathset import PathSet
 
-        self.ligaments = tuple(ligaments)
-        self.paths = PathSet(self.ligaments) if self.ligaments else None
+        self.ligament_paths = PathSet(self.ligaments) if self.ligaments else None
+        laws = [lig.law for lig in self.ligaments]
+        self._blankevoort = None
+        if laws and all(type(x) is Blankevoort1991Ligament for x in laws):
+            # (slack length l0 (n,) m, k·l0 (n,) N, k (n,) N/m, transition strain ε_l (n,))
+            self._blankevoort = (np.array([x.slack_length for x in laws]),
+                                 np.array([x.stiffness * x.slack_length for x in laws]),
+                                 np.array([x.stiffness for x in laws]),
+                                 np.array([x.transition_strain for x in laws]))
+        # the springs' measures (one kernel call when they are relative-vector projections)
+        self._spring_rows = ScalarRows([s.measure for s in self.springs])
 
-    def accumulate(self, state, t, Q, K, out):
-        if not self.ligaments:
-            return
-        lengths, L = self.paths.evaluate(state)
-        for k, lig in enumerate(self.ligaments):
-            length = float(lengths[k])
-            T = float(lig.law.force(length))
-            out.ligament_length[k] = length
-            out.ligament_strain[k] = float(lig.law.strain(length))
-            out.ligament_force[k] = T
-            Q -= L[k] * T  # Q = −Lᵀ T
-            if K is not None:
-                K -= np.outer(L[k], L[k]) * float(lig.law.dforce_dlength(length))
-        if K is not None and np.any(out.ligament_force):
-            # geometric term −Σ T_k ∂L_kᵀ/∂q̂, one batched difference of the path kernel
-            T = out.ligament_force.copy()
-            K -= manifold_jacobian(lambda s: T @ self.paths.evaluate(s)[1], state, 1e-7, central=False)
-
-
-class SpringSet:
-    """Linear springs on scalar measures (one kernel call when they are relative-vector
-    projections): Q = Mᵀ f, f = −k (m − m_rest). Interface of :class:`LigamentSet`."""
-
-    def __init__(self, springs):
-        self.springs = tuple(springs)
-        self._rows = ScalarRows([s.measure for s in self.springs])
-
-    def measures(self, state):
+    def _spring_measures(self, state):
         """(values (n_springs,), M (n_springs, n)) of the springs' measures (row 0 each)."""
-        return self._rows.evaluate(state, 1)[:2]
+        return self._spring_rows.evaluate(state, 1)[:2]
 
-    def accumulate(self, state, t, Q, K, out):
-        if not self.springs:
-            return
-        m_s, M_s = self.measures(state)
-        for k, spr in enumerate(self.springs):
+    def generalized_forces(self, state, t, want_stiffness=False, elements=True, loads=True):
+        """Q (n,) [N, N m] of the passive elements (ligaments, springs, contacts; if
+        ``elements``) and external loads (if ``loads``; gravity excluded), their outputs,
+        and (if asked) K = ∂Q/∂q̂ (n, n) of the elements."""
+        n = state.n_coords
+        Q = np.zeros(n)
+        K = np.zeros((n, n)) if want_stiffness else None
+        nl, ns = len(self.ligaments), len(self.springs)
+        out = PassiveOutputs(np.zeros(nl), np.zeros(nl), np.zeros(nl), np.zeros(ns), np.zeros(ns), {})
+        ligaments, springs, contacts = (self.ligaments, self.springs, self.contacts) if elements else ((), (), ())
+        if ligaments:
+            lengths, L = self.ligament_paths.evaluate(state)
+            out.ligament_length[:] = lengths
+            if self._blankevoort is not None:
+                # all Blankevoort1991Ligament: the law on the (n_ligaments,) arrays at once
+                strain, T, dT = _blankevoort_arrays(lengths, *self._blankevoort)
+                out.ligament_strain[:], out.ligament_force[:] = strain, T
+                Q -= L.T @ T
+                if want_stiffness:
+                    K -= L.T @ (L * dT[:, None])
+            for k, lig in enumerate(ligaments if self._blankevoort is None else ()):
+                length = float(lengths[k])
+                T = float(lig.law.force(length))
+                out.ligament_strain[k] = float(lig.law.strain(length))
+                out.ligament_force[k] = T
+                Q -= L[k] * T
+                if want_stiffness:
+                    K -= np.outer(L[k], L[k]) * float(lig.law.dforce_dlength(length))
+            if want_stiffness and np.any(out.ligament_force):
+                # geometric term −Σ T_k ∂L_kᵀ/∂q̂, one batched difference of the path kernel
+                T = out.ligament_force.copy()
+                K -= manifold_jacobian(lambda s: T @ self.ligament_paths.evaluate(s)[1], state, 1e-7, central=False)
+        if springs:
+            m_s, M_s = self._spring_measures(state)
+        for k, spr in enumerate(springs):
             f = float(spr.law.force(float(m_s[k])))
             out.spring_value[k] = float(m_s[k])
             out.spring_force[k] = f
             Q += M_s[k] * f
-            if K is not None:
+            if want_stiffness:
                 K += np.outer(M_s[k], M_s[k]) * float(spr.law.dforce_dmeasure(float(m_s[k])))
-        if K is not None and np.any(out.spring_force):
+        if want_stiffness and springs and np.any(out.spring_force):
             # geometric term Σ f_k ∂M_kᵀ/∂q̂
             f = out.spring_force.copy()
-            K += manifold_jacobian(lambda s: f @ self.measures(s)[1], state, 1e-7, central=False)
-
-
-class LoadSet:
-    """External loads (F, M) at body points: Q = [F_W; p̃_BP R_WBᵀ F_W + M_B]. Their
-    stiffness is not modelled (K unchanged). Interface of :class:`LigamentSet`."""
-
-    def __init__(self, loads):
-        self.loads = tuple(loads)
-
-    def accumulate(self, state, t, Q, K, out):
-        for load in self.loads:
-            Q += self.load_Q(load, state, t)
+            K += manifold_jacobian(lambda s: f @ self._spring_measures(s)[1], state, 1e-7, central=False)
+        for load in self.loads if loads else ():
+            Q += self._load_Q(load, state, t)
+        for contact in contacts:
+            Qc, Kc, info = contact.generalized_forces(state, want_stiffness)
+            Q += Qc
+            if want_stiffness:
+                K += Kc
+            out.contact[contact.name] = info
+        return Q, out, K
 
     @staticmethod
-    def load_Q(load, state, t):
-        """Generalised force (n,) of an external load (force in world/body, moment)."""
+    def _load_Q(load, state, t):
+        """Generalised force of an external load (force in world/body, moment)."""
         i = load.body
         c = state.column[i]
         Q = np.zeros(state.n_coords)
@@ -129,58 +151,3 @@ class LoadSet:
         Q[c : c + 3] = F_W
         Q[c + 3 : c + 6] = _cross(load.p_BP, R.T @ F_W) + M_B
         return Q
-
-
-class ContactSet:
-    """Elastic-foundation contacts (:class:`openfdk.contact.element.ContactElement`),
-    analytic stiffness. Interface of :class:`LigamentSet`."""
-
-    def __init__(self, contacts):
-        self.contacts = tuple(contacts)
-
-    def accumulate(self, state, t, Q, K, out):
-        for contact in self.contacts:
-            Qc, Kc, info = contact.generalized_forces(state, K is not None)
-            Q += Qc
-            if K is not None:
-                K += Kc
-            out.contact[contact.name] = info
-
-
-class PassiveElements:
-    """All passive elements of a model: the ligament, spring, load and contact sets, each
-    with the force-element interface (generalised forces, stiffness when asked)."""
-
-    def __init__(self, model):
-        self.model = model
-        self.ligaments = model.ligaments
-        self.springs = model.springs
-        self.loads = model.loads
-        self.contacts = model.contacts
-        self.ligament_set = LigamentSet(model.ligaments)
-        self.spring_set = SpringSet(model.springs)
-        self.load_set = LoadSet(model.loads)
-        self.contact_set = ContactSet(model.contacts)
-
-    @property
-    def _spring_rows(self):
-        """The springs' rows (batched when possible; tests switch the batching off)."""
-        return self.spring_set._rows
-
-    def generalized_forces(self, state, t, want_stiffness=False, elements=True, loads=True):
-        """Q (n,) [N, N m] of the passive elements (ligaments, springs, contacts; if
-        ``elements``) and external loads (if ``loads``; gravity excluded), their outputs,
-        and (if asked) K = ∂Q/∂q̂ (n, n) of the elements."""
-        n = state.n_coords
-        Q = np.zeros(n)
-        K = np.zeros((n, n)) if want_stiffness else None
-        nl, ns = len(self.ligaments), len(self.springs)
-        out = PassiveOutputs(np.zeros(nl), np.zeros(nl), np.zeros(nl), np.zeros(ns), np.zeros(ns), {})
-        if elements:
-            self.ligament_set.accumulate(state, t, Q, K, out)
-            self.spring_set.accumulate(state, t, Q, K, out)
-        if loads:
-            self.load_set.accumulate(state, t, Q, K, out)
-        if elements:
-            self.contact_set.accumulate(state, t, Q, K, out)
-        return Q, out, K

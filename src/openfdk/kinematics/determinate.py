@@ -10,9 +10,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.framedata import FrameData
+from ..model.framedata import FrameData  # noqa: F401  (re-exported for callers building stage data)
 from ..trial.status import FrameReport, Reason
-from .stages import position_stage, velocity_stage_determinate
+from .frame_kernels import MEASURE_ERROR, OK, SINGULAR, determinate_rates, newton_positions
+from .stages import position_stage
 from .system import ConstraintSystem, KinematicsError, dependent_rows, undetermined_coordinates
 
 
@@ -60,46 +61,53 @@ def diagnose_singular(system: ConstraintSystem, Phi_q):
     )
 
 
+def _kernel_args(system, state):
+    """The compiled program and the state arrays, in the kernels' argument order."""
+    return system.program.program + (system.program.n_node_rows,)
+
+
 def solve_positions(system: ConstraintSystem, state, t, alpha=None, tol=1e-10, max_iter=50, data=None):
     """Newton–Raphson on Φ(q, t) = 0 starting from ``state`` (modified in place).
 
-    tol : max |Φ| (SI) and max |Δq̂| for convergence: after a step smaller than tol,
-    max |Φ| at the new pose below max(10 tol, 1e-9). Each pose is evaluated once (Φ,
-    Φ_q̂, ν); the last one, the solved pose, is the position stage kept in ``data``
-    (FrameData, optional). Returns FrameSolve (iterations = Newton steps).
+    tol : max |Φ| (SI) and max |Δq̂| for convergence. Returns FrameSolve. The iterations
+    run in one kernel (:func:`.frame_kernels.newton_positions`); data : FrameData whose
+    position stage (Φ, Φ_q̂, ν at the solved pose) is filled on convergence.
     """
-    data = FrameData() if data is None else data
-    small_step = False
-    for it in range(0, max_iter + 1):
-        Phi = position_stage(system, data, state, t, alpha).Phi
-        if small_step:
-            res = float(np.max(np.abs(Phi))) if Phi.size else 0.0
-            if res < max(tol * 10, 1e-9):
-                return FrameSolve(True, it, res)
-        if it == max_iter:
-            break
-        try:
-            dq = np.linalg.solve(data.Phi_q, -Phi)
-        except np.linalg.LinAlgError:
-            return FrameSolve(False, it + 1, float(np.max(np.abs(Phi))), diagnose_singular(system, data.Phi_q),
-                              Reason.SINGULAR)
-        if not np.any(dq) and Phi.size:
-            # an exactly zero step leaves the pose as it is: no second evaluation there
-            res = float(np.max(np.abs(Phi)))
-            if res < max(tol * 10, 1e-9):
-                return FrameSolve(True, it + 1, res)
-        state.displace(dq)
-        small_step = bool(np.max(np.abs(dq)) < tol)
-    res = float(np.max(np.abs(Phi)))
+    f, _, _ = system.targets(t, alpha)
+    status, it, res, e_node, e_kind = newton_positions(
+        *_kernel_args(system, state), state.p_WB, state.quat_WB, state.R_WB, state.w_BB, state.v_WB,
+        state.column, state.moving, f, system.angle_rows, tol, max_iter)
+    if status == OK:
+        if data is not None:
+            position_stage(system, data, state, t, alpha)
+        return FrameSolve(True, int(it), float(res))
+    if status == MEASURE_ERROR:
+        system.program.raise_error(e_node, e_kind, state)
+    if status == SINGULAR:
+        Phi_q = system.evaluate(state, t, alpha, order=1)[1]
+        return FrameSolve(False, int(it), float(res), diagnose_singular(system, Phi_q), Reason.SINGULAR)
+    Phi = system.evaluate(state, t, alpha, order=0)[0]
     msg = f"Newton–Raphson did not converge in {max_iter} iterations (max |Φ| = {res:.3g})"
     worst = system.row_names[int(np.argmax(np.abs(Phi)))]
-    return FrameSolve(False, max_iter, res, msg + f"; largest violation in row {worst!r}", Reason.ITERATION_LIMIT)
+    return FrameSolve(False, max_iter, float(res), msg + f"; largest violation in row {worst!r}",
+                      Reason.ITERATION_LIMIT)
 
 
 def solve_velocities_accelerations(system: ConstraintSystem, state, t, alpha=None, data=None):
-    """Eqs. 2–3: set state velocities; returns (v (n,), v̇ (n,)) [m/s, rad/s, m/s², rad/s²].
-    ``data``: a FrameData whose position stage ran at this pose (else it runs here)."""
-    if data is None or data.Phi_q is None:
-        data = position_stage(system, FrameData(), state, t, alpha)
-    velocity_stage_determinate(system, data, state)
-    return data.v, data.vdot
+    """Eqs. 2–3: set state velocities; returns (v (n,), v̇ (n,)) [m/s, rad/s, m/s², rad/s²]
+    (also stored in ``data``, a FrameData, when given).
+
+    Raises ``np.linalg.LinAlgError`` if Φ_q̂ is singular."""
+    _, df, ddf = system.targets(t, alpha)
+    n = system.n_coords
+    v, vdot = np.empty(n), np.empty(n)
+    status, e_node, e_kind = determinate_rates(
+        *_kernel_args(system, state), state.p_WB, state.R_WB, state.w_BB, state.v_WB, state.column,
+        state.moving, df, ddf, v, vdot)
+    if status == MEASURE_ERROR:
+        system.program.raise_error(e_node, e_kind, state)
+    if status == SINGULAR:
+        raise np.linalg.LinAlgError("Singular matrix")
+    if data is not None:
+        data.v, data.vdot = v, vdot
+    return v, vdot
