@@ -51,8 +51,10 @@ def test_tracking_fdk_residual_assembles_phi_q_once_per_pose(tmp_path, phi_q_cou
     assert ev.ok and np.all(np.isfinite(ev.f_fdk))
     solved = (ev.state.get_q().tobytes(), float(times[k]))
     assert phi_q_counts[solved] == 1  # the position stage at the solved pose
-    # Gauss–Newton iterates at t − Δt, t, t + Δt (several each) plus the solved pose
-    assert len(phi_q_counts) >= 4 and {t for _, t in phi_q_counts} == set(times[k - 1 : k + 2])
+    # the Gauss–Newton iterates at t − Δt, t, t + Δt are evaluated inside the compiled
+    # kernel (kinematics/frame_kernels.py), once per iterate; in Python, only the solved
+    # pose (and the start pose, once per visibility pattern, for observability)
+    assert {t for _, t in phi_q_counts} <= set(times[k - 1 : k + 2])
     assert max(phi_q_counts.values()) == 1, phi_q_counts.most_common(3)
     # the analytic Jacobian reads Φ_q̂ at the solved pose from the stages
     phi_q_counts.clear()
@@ -89,4 +91,4 @@ def test_tracking_and_inverse_dynamics_run_assembles_phi_q_once_per_pose(tmp_pat
     _, traj = load_trajectories(model, tmp_path / "trial.c3d")
     kin, dyn, _ = run_trial(model, traj, np.asarray(traj.time))
     assert kin.converged.all() and dyn.converged.all()
-    assert len(phi_q_counts) > 8 and max(phi_q_counts.values()) == 1, phi_q_counts.most_common(3)
+    assert len(phi_q_counts) >= 8 and max(phi_q_counts.values()) == 1, phi_q_counts.most_common(3)
