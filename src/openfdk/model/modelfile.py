@@ -11,11 +11,10 @@ Later layers add sections (muscles, ligaments, contacts, ...) by registering a l
 
 from __future__ import annotations
 
-import difflib
 from pathlib import Path
 
 import numpy as np
-from ..io.yamlfile import read_yaml
+from ..io.yamlfile import YamlContext, read_yaml
 
 from ..spatial import quat_from_rotvec, rotation_matrix_xyz
 from .builder import ModelBuilder
@@ -50,70 +49,14 @@ CORE_SECTIONS = (
 )
 
 
-class Ctx:
-    """Where we are in the file (for messages) and the unit scales."""
+class Ctx(YamlContext):
+    """Where we are in the file (for messages) and the unit scales: the shared YAML
+    context (:class:`~openfdk.io.yamlfile.YamlContext`) raising :class:`ModelError`."""
+
+    error_type = ModelError
 
     def __init__(self, source, length=1.0, angle=1.0, base_dir=None):
-        self.source = source
-        self.length = length
-        self.angle = angle
-        self.base_dir = Path(base_dir) if base_dir else Path(".")
-
-    def error(self, path, msg):
-        return ModelError(f"{self.source}: {path}: {msg}")
-
-    # -- typed getters ----------------------------------------------------------------
-    def mapping(self, value, path):
-        if not isinstance(value, dict):
-            raise self.error(path, f"expected a mapping of keys, got {type(value).__name__}")
-        return value
-
-    def keys(self, value, path, allowed, required=()):
-        self.mapping(value, path)
-        for k in value:
-            if k not in allowed:
-                hint = difflib.get_close_matches(str(k), allowed, n=1)
-                extra = f"; did you mean {hint[0]!r}?" if hint else f"; allowed: {sorted(allowed)}"
-                raise self.error(f"{path}.{k}", f"unknown key{extra}")
-        for k in required:
-            if k not in value:
-                raise self.error(path, f"missing required key {k!r}")
-        return value
-
-    def number(self, value, path, positive=False, nonnegative=False):
-        if isinstance(value, str):
-            # YAML 1.1 reads 1.0e10 (no sign in the exponent) as a string: accept it
-            try:
-                value = float(value)
-            except ValueError:
-                raise self.error(path, f"expected a number, got {value!r}") from None
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.error(path, f"expected a number, got {value!r}")
-        v = float(value)
-        if not np.isfinite(v):
-            raise self.error(path, f"expected a finite number, got {value!r}")
-        if positive and v <= 0:
-            raise self.error(path, f"must be > 0, got {v}")
-        if nonnegative and v < 0:
-            raise self.error(path, f"must be >= 0, got {v}")
-        return v
-
-    def vector(self, value, path, n=None, shape=None):
-        try:
-            arr = np.array(value, dtype=float)
-        except (TypeError, ValueError):
-            raise self.error(path, f"expected a list of numbers, got {value!r}") from None
-        if shape is not None and arr.shape != shape:
-            raise self.error(path, f"expected shape {shape}, got {arr.shape}")
-        if n is not None and arr.shape != (n,):
-            raise self.error(path, f"expected {n} numbers, got {value!r}")
-        if not np.all(np.isfinite(arr)):
-            raise self.error(path, f"expected finite numbers, got {value!r}")
-        return arr
-
-    def position(self, value, path):
-        """A length triple in the file unit -> (3,) m."""
-        return self.vector(value, path, n=3) * self.length
+        super().__init__(source, length, angle, base_dir)
 
 
 def load_model(path) -> Model:
@@ -395,6 +338,10 @@ def _load_fdk(b, name, spec, ctx):
     ctx.keys(spec, p, ["measure", "component", "initial"] + FDK_SETTING_KEYS, required=("measure",))
     m = _measure(b, spec["measure"], f"{p}.measure", ctx)
     comp = spec.get("component")
+    if comp is not None:
+        comp = ctx.integer(comp, f"{p}.component", low=0, high=m.size - 1)
+    elif m.size != 1:
+        raise ctx.error(p, f"the measure has {m.size} components; give 'component' (0 to {m.size - 1})")
     unit = m.units[comp if comp is not None else 0]
     scale = _unit_scale(unit, ctx)
     initial = ctx.number(spec.get("initial", 0.0), f"{p}.initial") * scale
