@@ -36,6 +36,7 @@ def analysis_window(model, times, start=None, end=None):
     settings = model.elements.get("analysis", {})
     start = settings.get("start") if start is None else start
     end = settings.get("end") if end is None else end
+    _check_order(start, end)
     keep = np.ones(len(times), dtype=bool)
     if start is not None:
         keep &= times >= float(start) - 1e-9
@@ -46,23 +47,48 @@ def analysis_window(model, times, start=None, end=None):
     return times[keep]
 
 
+def _check_order(start, end):
+    if start is not None and end is not None and float(start) > float(end):
+        raise ValueError(f"analysis window: start ({float(start):g} s) is after end ({float(end):g} s); "
+                         "give start <= end (--start/--end or the model file's analysis section)")
+
+
+def determinate_times(model, start=None, end=None):
+    """Analysis times (nf,) s of a determinate run: [start, end] (defaults: model file
+    ``analysis.start/end``, else 0 and 1 s) with ``analysis.frames`` frames (default 101)."""
+    from .kinematics.analysis import analysis_times
+
+    a = model.elements.get("analysis", {})
+    t0 = float(a.get("start", 0.0) if start is None else start)
+    t1 = float(a.get("end", 1.0) if end is None else end)
+    _check_order(t0, t1)
+    return analysis_times(t0, t1, int(a.get("frames", 101)))
+
+
+def trial_window(model, trial_path, cutoff_hz=None, start=None, end=None):
+    """The C3D trial, its filtered trajectories and the analysed times (nf,) s; warns
+    (PlausibilityWarning) about markers never visible in the window or far from the
+    model at its first frame. Returns (trial, trajectories, times, info dict)."""
+    from .model.plausibility import check_trial_markers
+
+    trial, traj = load_trajectories(model, trial_path, cutoff_hz)
+    times = analysis_window(model, np.asarray(trial.time, dtype=float), start, end)
+    check_trial_markers(model, trial, times)
+    return trial, traj, times, {"trial": str(Path(trial_path)), "rate_hz": trial.rate, "markers": list(trial.labels)}
+
+
 def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=None, end=None, alpha=None):
     """Kinematics of a model file over a C3D trial (marker tracking), or over the model
     file's ``analysis`` interval (determinate) when ``trial_path`` is None.
     Returns (KinematicsResult, info dict for the summary)."""
-    from .kinematics.analysis import analysis_times, run_determinate, run_tracking
+    from .kinematics.analysis import run_determinate, run_tracking
 
     model = load_model(model_path) if not hasattr(model_path, "bodies") else model_path
     info = {"model": str(model_path) if not hasattr(model_path, "bodies") else model.name}
     if trial_path is None:
-        a = model.elements.get("analysis", {})
-        t0 = float(a.get("start", 0.0) if start is None else start)
-        t1 = float(a.get("end", 1.0) if end is None else end)
-        times = analysis_times(t0, t1, int(a.get("frames", 101)))
-        return run_determinate(model, times, alpha=alpha, progress=progress), info
-    trial, traj = load_trajectories(model, trial_path, cutoff_hz)
-    times = analysis_window(model, np.asarray(trial.time, dtype=float), start, end)
-    info.update({"trial": str(Path(trial_path)), "rate_hz": trial.rate, "markers": list(trial.labels)})
+        return run_determinate(model, determinate_times(model, start, end), alpha=alpha, progress=progress), info
+    _, traj, times, trial_info = trial_window(model, trial_path, cutoff_hz, start, end)
+    info.update(trial_info)
     return run_tracking(model, traj, times, alpha=alpha, progress=progress), info
 
 
@@ -72,26 +98,25 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
     forces vanish). Returns (KinematicsResult, InverseDynamicsResult, info); for FDK,
     info["fdk"] holds the FDK summary."""
     from .analysis.inverse_dynamics import run_inverse_dynamics
-    from .kinematics.analysis import analysis_times
+    from .model.plausibility import warn_pulling_contacts
 
     model = load_model(model_path) if not hasattr(model_path, "bodies") else model_path
     label = str(model_path) if not hasattr(model_path, "bodies") else model.name
     if not model.fdk_dofs:
         kin, info = kinematics_job(model, trial_path, cutoff_hz, progress, start, end)
         info["model"] = label
-        return kin, run_inverse_dynamics(model, kin, progress=progress), info
+        dyn = run_inverse_dynamics(model, kin, progress=progress)
+        warn_pulling_contacts(model, kin, dyn)
+        return kin, dyn, info
     from .fdk.analysis import run_fdk
 
     info = {"model": label}
     if trial_path is None:
-        a = model.elements.get("analysis", {})
-        t0 = float(a.get("start", 0.0) if start is None else start)
-        t1 = float(a.get("end", 1.0) if end is None else end)
-        traj, times = None, analysis_times(t0, t1, int(a.get("frames", 101)))
+        traj, times = None, determinate_times(model, start, end)
     else:
-        trial, traj = load_trajectories(model, trial_path, cutoff_hz)
-        times = analysis_window(model, np.asarray(trial.time, dtype=float), start, end)
-        info.update({"trial": str(Path(trial_path)), "rate_hz": trial.rate, "markers": list(trial.labels)})
+        _, traj, times, trial_info = trial_window(model, trial_path, cutoff_hz, start, end)
+        info.update(trial_info)
     res = run_fdk(model, traj, times, progress=progress)
     info["fdk"] = res.summary()
+    warn_pulling_contacts(model, res.kinematics, res.forces)
     return res.kinematics, res.forces, info

@@ -207,9 +207,9 @@ def run_inverse_dynamics(model, kin, progress=False, solver=None):
     warm = None
     bar = None
     if progress:
-        from tqdm.auto import tqdm
+        from ..progress import progress as _display
 
-        bar = tqdm(total=nf, desc="inverse dynamics", unit="frame", leave=False)
+        bar = _display(nf, "inverse dynamics", "frame")
     for k in range(nf):
         if not kin.converged[k]:
             rec.fail(k, "kinematics_failed", f"kinematics failed: {kin.messages[k]}")

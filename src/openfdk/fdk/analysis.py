@@ -132,9 +132,9 @@ def run_fdk(model, trajectories=None, times=None, settings=None, progress=False,
     J_carry = None  # the last converged frame's FDK Jacobian (settings.reuse_jacobian)
     bar = None
     if progress:
-        from tqdm.auto import tqdm
+        from ..progress import progress as _display
 
-        bar = tqdm(total=nf, desc="FDK", unit="frame", leave=False)
+        bar = _display(nf, "FDK", "frame")
     for k in range(nf):
         ws = FrameWorkspace({j: last_state for j in ctx.frames_needed(k)})
         if settings.extrapolate and len(history) >= 2 and history[-1][0] == k - 1 and history[-2][0] == k - 2:

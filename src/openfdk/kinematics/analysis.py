@@ -84,9 +84,9 @@ class KinematicsResult:
 def _progress(total, enabled, desc):
     if not enabled:
         return None
-    from tqdm.auto import tqdm
+    from ..progress import progress
 
-    return tqdm(total=total, desc=desc, unit="frame", leave=False)
+    return progress(total, desc, "frame")
 
 
 def analysis_times(t_start, t_end, n_frames):

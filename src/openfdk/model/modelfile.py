@@ -21,6 +21,7 @@ from .builder import ModelBuilder
 from .components import GROUND
 from .measures import Linear
 from .model import Model, ModelError
+from .plausibility import check_model
 from .timefunctions import Constant, Fourier, Polynomial, SplineThroughData
 
 LENGTH_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
@@ -63,7 +64,9 @@ def load_model(path) -> Model:
     """Read, validate and build a model file. Raises ModelError naming the entry."""
     path = Path(path)
     data = read_yaml(path, ModelError, "model file")
-    return model_from_dict(data, source=path.name, base_dir=path.parent)
+    model = model_from_dict(data, source=path.name, base_dir=path.parent)
+    check_model(model, path.name, model.elements["units"]["length"])
+    return model
 
 
 def model_from_dict(data, source="<dict>", base_dir=None) -> Model:
@@ -97,12 +100,29 @@ def model_from_dict(data, source="<dict>", base_dir=None) -> Model:
         _load_driver(b, name, spec, ctx)
     for name, spec in (ctx.mapping(data.get("fdk_dofs") or {}, "fdk_dofs")).items():
         _load_fdk(b, name, spec, ctx)
-    b.elements["analysis"] = dict(ctx.mapping(data.get("analysis") or {}, "analysis"))
+    b.elements["analysis"] = _analysis(data.get("analysis") or {}, ctx)
     b.elements["units"] = {"length": lu, "angle": au}
     for section, loader in SECTION_LOADERS.items():
         if section in data:
             loader(b, data[section], ctx)
     return _wrap(ctx, "(model)", b.build)
+
+
+def _analysis(spec, ctx):
+    """The ``analysis`` section: marker_cutoff_hz (Hz, >= 0), start and end (s, start <=
+    end) and frames (an integer >= 1)."""
+    spec = ctx.keys(spec, "analysis", ["marker_cutoff_hz", "start", "end", "frames"])
+    out = {}
+    if "marker_cutoff_hz" in spec:
+        out["marker_cutoff_hz"] = ctx.number(spec["marker_cutoff_hz"], "analysis.marker_cutoff_hz", "Hz", nonnegative=True)
+    for k in ("start", "end"):
+        if k in spec:
+            out[k] = ctx.number(spec[k], f"analysis.{k}", "s")
+    if "start" in out and "end" in out and out["start"] > out["end"]:
+        raise ctx.error("analysis", f"start ({out['start']:g} s) is after end ({out['end']:g} s)")
+    if "frames" in spec:
+        out["frames"] = ctx.integer(spec["frames"], "analysis.frames", low=1, high=10_000_000)
+    return out
 
 
 def _wrap(ctx, path, fn):

@@ -11,6 +11,7 @@ ValueError, which ``openfdk.cli.main`` reports in one line).
 
 from __future__ import annotations
 
+import argparse
 import sys
 import time as _time
 from pathlib import Path
@@ -35,7 +36,9 @@ def add_study_parser(subparsers):
                    help="runs of a failing case after the first (default: study file, else 2)")
     p.add_argument("--force", action="store_true", help="run complete cases again")
     p.add_argument("--list", action="store_true", help="list the cases and exit")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-progress", action="store_true", help="no progress display")
+    p.add_argument("--quiet", "-q", action="store_true", default=argparse.SUPPRESS,
+                   help="no progress display and no informational output (warnings and errors still go to stderr)")
     p.set_defaults(func=cmd_study)
     return p
 
@@ -133,9 +136,9 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
     t0 = _time.perf_counter()
     bar = None
     if progress:
-        from tqdm.auto import tqdm
+        from ..progress import progress as _display
 
-        bar = tqdm(total=int(chunks), desc="chunks", unit="chunk", leave=False)
+        bar = _display(int(chunks), "chunks", "chunk")
     results = []
     try:
         if client is None and scheduler is None and workers == 0:
