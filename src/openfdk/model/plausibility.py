@@ -33,6 +33,7 @@ MAX_INERTIA = 1e6
 PASSIVE_FRACTION = 0.10
 #: plausible span (m) of a musculoskeletal model's points: a finger joint to a whole body
 MODEL_SPAN = (2e-3, 20.0)
+TYPICAL_SPAN = 0.3
 LENGTH_SCALES = {"m": 1.0, "cm": 1e-2, "mm": 1e-3}
 
 
@@ -91,10 +92,9 @@ def _reference_points(model):
 def _likely_unit(span, declared):
     """The length unit under which ``span`` (m, as read with ``declared``) is plausible."""
     raw = span / LENGTH_SCALES.get(declared, 1.0)  # the numbers as written in the file
-    for unit, scale in sorted(LENGTH_SCALES.items(), key=lambda kv: abs(np.log10(kv[1]) - np.log10(1e-2))):
-        if MODEL_SPAN[0] <= raw * scale <= MODEL_SPAN[1] and unit != declared:
-            return unit
-    return None
+    fits = [(abs(np.log10(raw * scale / TYPICAL_SPAN)), unit) for unit, scale in LENGTH_SCALES.items()
+            if MODEL_SPAN[0] <= raw * scale <= MODEL_SPAN[1] and unit != declared]
+    return min(fits)[1] if fits else None
 
 
 def check_length_magnitudes(model, source="", length_unit="m"):
