@@ -27,6 +27,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+#: largest plausible coordinate (m); beyond it squared distances overflow
+MAX_LENGTH = 1e6
 _BASE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 
@@ -224,8 +226,11 @@ class YamlContext:
         return arr
 
     def position(self, value, path):
-        """A length triple in the file unit -> (3,) m."""
-        return self.vector(value, path, n=3) * self.length
+        """A length triple in the file unit -> (3,) m, each at most MAX_LENGTH m."""
+        p = self.vector(value, path, n=3) * self.length
+        if np.max(np.abs(p)) > MAX_LENGTH:
+            raise self.error(path, f"coordinates beyond {MAX_LENGTH:g} m are not plausible, got {value!r}")
+        return p
 
 
 def _numeric_tree(value, depth=0) -> bool:

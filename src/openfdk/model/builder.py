@@ -148,6 +148,8 @@ class ModelBuilder:
 
     def frame(self, qualified):
         """The Frame named "body.frame" (a bare body name means its origin)."""
+        if not isinstance(qualified, str):
+            raise ModelError(f"expected a frame or point name ('body.frame'), got {qualified!r}")
         if "." not in qualified:
             qualified = f"{qualified}.origin"
         if qualified not in self._frames:
@@ -164,6 +166,8 @@ class ModelBuilder:
         """RelativeVector from one point to another, in ``expressed_in``'s frame (a body
         name or a qualified frame whose body is used; world if None)."""
         k = None
+        if expressed_in is not None and not isinstance(expressed_in, str):
+            raise ModelError(f"expressed_in: expected a body or frame name, got {expressed_in!r}")
         if expressed_in is not None:
             k = self._body_index(self.frame(expressed_in).body if "." in expressed_in else expressed_in)
         return RelativeVector(self.point(from_point), self.point(to_point), k, name=name)
@@ -197,7 +201,7 @@ class ModelBuilder:
         return measure
 
     def measure(self, name):
-        if name not in self._measures:
+        if not isinstance(name, str) or name not in self._measures:
             raise ModelError(f"unknown measure {name!r}; known: {sorted(self._measures)}")
         return self._measures[name]
 
@@ -296,7 +300,8 @@ class ModelBuilder:
         if components is None:
             return measure
         components = list(components)
-        if any(not (0 <= c < measure.size) for c in components):
+        if any(isinstance(c, bool) or not isinstance(c, (int, np.integer)) or not (0 <= c < measure.size)
+               for c in components):
             raise ModelError(f"measure {measure.name!r} has {measure.size} components; got {components}")
         return Linear([(np.eye(measure.size)[components], measure)], name=measure.name)
 

@@ -129,9 +129,9 @@ def _wrap(ctx, path, fn):
     """Run fn, re-raising builder errors with the file and entry path."""
     try:
         return fn()
-    except ModelError as exc:
+    except ValueError as exc:  # ModelError, and the parameter errors of muscles, ligaments, meshes
         msg = str(exc)
-        if msg.startswith(ctx.source):
+        if isinstance(exc, ModelError) and msg.startswith(ctx.source):
             raise
         raise ctx.error(path, msg) from None
 

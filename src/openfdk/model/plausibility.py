@@ -155,6 +155,8 @@ def check_passive_muscles(model, source=""):
     state = model.initial_state()
     for m in muscles:
         length = float(np.ravel(m.path.evaluate(state, 0)[0])[0])
+        if not np.isfinite(length):
+            continue
         _, passive = m.law.evaluate(length, 0.0)
         F0 = float(m.law.max_isometric_force)
         if np.isfinite(passive) and passive > PASSIVE_FRACTION * F0:

@@ -166,7 +166,7 @@ def _parameters(ctx, data):
         ctx.keys(spec, where, ("set", "scale", "mode"))
         paths = spec.get("set")
         paths = [paths] if isinstance(paths, str) else paths
-        if not paths or not all(isinstance(p, str) and p for p in paths):
+        if not isinstance(paths, list) or not paths or not all(isinstance(p, str) and p for p in paths):
             raise ctx.error(f"{where}.set", f"expected a dotted path or a list of them, got {spec.get('set')!r}")
         scale = ctx.number(spec.get("scale", 1.0), f"{where}.scale")
         mode = ctx.choice(spec.get("mode", "set"), f"{where}.mode", ("set", "multiply"), "mode")
@@ -326,7 +326,10 @@ def study_from_dict(data, source="<study>", base_dir=".", check_overrides=True) 
             case = Case(case_id, kind.name, kind.prepare, names, values, dict(pset), overrides, options)
             if prepare is not None and overrides:
                 if prepared is None:
-                    prepared = prepare(case)
+                    try:
+                        prepared = prepare(case)
+                    except ValueError as exc:  # the input's model file is bad (ModelError)
+                        raise ctx.error(f"case {case_id}", str(exc)) from None
                 try:
                     apply_overrides(prepared.model_data, overrides, source=prepared.source)
                 except OverrideError as exc:
