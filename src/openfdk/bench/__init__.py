@@ -14,4 +14,5 @@ BENCHMARK_MODULES = [
     "openfdk.bench.fdk",
     "openfdk.bench.mandible",
     "openfdk.bench.study",
+    "openfdk.bench.fuzz",
 ]

@@ -1,0 +1,97 @@
+"""Fuzz suite, quick version (issue 16): mutated model, subject and study files and C3D
+trials either load or raise the loader's documented error naming the file — never
+anything else. The long run (>= 10 000 inputs per kind) is
+``python -m openfdk.bench.fuzz_inputs 10000``; its counts are in the closing note."""
+
+import warnings
+
+import numpy as np
+import pytest
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from openfdk.bench.fuzz_inputs import KINDS, Bases, _load, _paths, documented_error, fuzz, mutate_bytes, mutate_yaml
+
+
+@pytest.fixture(scope="module")
+def bases():
+    b = Bases(KINDS)
+    yield b
+    b.close()
+
+
+def _outcome(kind, bases):
+    """'loaded' or 'refused'; any other exception propagates and fails the test."""
+    error = documented_error(kind)
+    path = bases.paths[kind]
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            with np.errstate(all="ignore"):
+                _load(kind, path)
+        return "loaded"
+    except error as exc:
+        assert path.name in str(exc) or path.parent.name in str(exc), str(exc)
+        return "refused"
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_seeded_fuzz_quick(kind, bases):
+    c = fuzz(kind, 40 if kind != "subject" else 25, seed=2024, bases=bases)
+    assert c["unexpected"] == []
+    # both outcomes occur: the mutations are neither all harmless nor all fatal
+    assert c["loaded"] > 0 and c["refused"] > 0
+    assert c["loaded"] + c["refused"] == c["inputs"]
+
+
+_SETTINGS = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+
+
+@pytest.mark.parametrize("kind", ["model", "study", "subject"])
+@_SETTINGS
+@given(seed=st.integers(0, 2**63 - 1))
+def test_hypothesis_mutated_yaml(kind, bases, seed):
+    path = bases.paths[kind]
+    original = path.read_bytes() if path.exists() else None
+    try:
+        path.write_text(mutate_yaml(bases.texts[kind], np.random.default_rng(seed)))
+        _outcome(kind, bases)
+    finally:
+        if original is not None:
+            path.write_bytes(original)
+
+
+@_SETTINGS
+@given(seed=st.integers(0, 2**63 - 1))
+def test_hypothesis_mutated_c3d(bases, seed):
+    path = bases.paths["c3d"]
+    try:
+        path.write_bytes(mutate_bytes(bases.c3d_bytes, np.random.default_rng(seed)))
+        _outcome("c3d", bases)
+    finally:
+        path.write_bytes(bases.c3d_bytes)
+
+
+_ANY = st.one_of(st.none(), st.booleans(), st.integers(), st.floats(), st.text(max_size=6),
+                 st.lists(st.floats(), max_size=4), st.dictionaries(st.text(max_size=3), st.integers(), max_size=2))
+
+
+@_SETTINGS
+@given(data=st.data())
+def test_hypothesis_any_value_at_any_entry_of_a_model(bases, data):
+    """Any YAML value (of any type and magnitude, NaN and infinities included) at any
+    entry of a valid model file."""
+    tree = yaml.safe_load(bases.texts["model"])
+    paths = [p for p, _ in _paths(tree) if p]
+    path = data.draw(st.sampled_from(paths))
+    node = tree
+    for k in path[:-1]:
+        node = node[k]
+    node[path[-1]] = data.draw(_ANY)
+    target = bases.paths["model"]
+    try:
+        target.write_text(yaml.safe_dump(tree, sort_keys=False))
+        _outcome("model", bases)
+    finally:
+        target.write_text(bases.texts["model"])
