@@ -4,8 +4,8 @@
                   [--force] [--list] [--no-progress]
     openfdk run MODEL.yaml TRIAL.c3d --out DIR --chunks K [--overlap F] [--scheduler ADDRESS] [--workers N]
 
-``openfdk study`` exits with 0 when every case completed, 1 when some case failed (the
-others are still run and summarised), 2 for a bad study file (raised as StudyError, a
+``openfdk study`` exits with 0 when every case completed, 3 when some case failed (the
+others are still run and summarised; as ``openfdk run`` with failed frames), 2 for a bad study file (raised as StudyError, a
 ValueError, which ``openfdk.cli.main`` reports in one line).
 """
 
@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections import Counter
 import time as _time
 from pathlib import Path
 
@@ -80,13 +81,19 @@ def cmd_study(args):
     res = run_study(study, args.out, scheduler=args.scheduler, workers=args.workers, retries=args.retries,
                     force=args.force, progress=not args.no_progress)
     c = res.summary["counts"]
-    print(f"study {study.name!r}: {c['completed']}/{c['cases']} cases completed ({c['reused']} from an earlier run), "
-          f"{c['failed']} failed, {res.wall_time:.1f} s -> {Path(res.out_dir) / 'summary.csv'}")
+    if not getattr(args, "quiet", False):
+        print(f"study {study.name!r}: {c['completed']}/{c['cases']} cases completed ({c['reused']} from an earlier run), "
+              f"{c['failed']} failed, {res.wall_time:.1f} s -> {Path(res.out_dir) / 'summary.csv'}")
     for r in res.failed[:10]:
         print(f"  failed: {r['case_id']} after {r['attempts']} attempts: {r['error']}", file=sys.stderr)
     if len(res.failed) > 10:
         print(f"  ... and {len(res.failed) - 10} more failed cases (see summary.json)", file=sys.stderr)
-    return 1 if res.failed else 0
+    if res.failed:
+        reasons = Counter(str(r["error"]).split(":")[0] for r in res.failed).most_common(1)[0]
+        print(f"openfdk: {len(res.failed)} of {c['cases']} cases failed; most common reason ({reasons[1]} cases): "
+              f"{reasons[0]}", file=sys.stderr)
+        return 3
+    return 0
 
 
 def job_case(model_path, trial_path, chunks, overlap=DEFAULT_OVERLAP, cutoff_hz=None, start=None, end=None):
