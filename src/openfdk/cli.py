@@ -26,6 +26,8 @@ import time
 import warnings
 from collections import Counter
 
+from . import argtypes
+
 #: exit codes (README "Exit codes")
 EXIT_OK, EXIT_BAD_INPUT, EXIT_FAILED_FRAMES, EXIT_INTERRUPTED = 0, 2, 3, 130
 DEFAULT_MAX_FAILED = 0.01
@@ -212,24 +214,14 @@ def _trial_arguments(p):
     p.add_argument("trial", nargs="?", help="C3D file with the model's markers (omit for determinate kinematics)")
     p.add_argument("--out", required=True, help="output folder (checked for writability before any computation)")
     p.add_argument("--force", action="store_true", help="overwrite the results already in the --out folder")
-    p.add_argument("--cutoff", type=float, default=None,
+    p.add_argument("--cutoff", type=argtypes.nonnegative, default=None,
                    help="marker low-pass cutoff in Hz (default: model file, else 6 Hz; 0 = no filter)")
-    p.add_argument("--start", type=float, default=None, help="first analysed time (s)")
-    p.add_argument("--end", type=float, default=None, help="last analysed time (s)")
-    p.add_argument("--max-failed", type=_fraction, default=DEFAULT_MAX_FAILED, metavar="FRACTION",
+    p.add_argument("--start", type=argtypes.finite, default=None, help="first analysed time (s)")
+    p.add_argument("--end", type=argtypes.finite, default=None, help="last analysed time (s)")
+    p.add_argument("--max-failed", type=argtypes.fraction, default=DEFAULT_MAX_FAILED, metavar="FRACTION",
                    help=f"largest fraction of failed frames that still exits with 0 (default {DEFAULT_MAX_FAILED}); "
                         "more failed frames exit with 3")
     _display_arguments(p)
-
-
-def _fraction(text):
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a fraction between 0 and 1, got {text!r}") from None
-    if not 0.0 <= v <= 1.0:
-        raise argparse.ArgumentTypeError(f"expected a fraction between 0 and 1, got {text!r}")
-    return v
 
 
 def _display_arguments(p, top=False):
@@ -281,7 +273,7 @@ def build_parser():
     d.add_argument("--out", default="openfdk-demo", help="output directory (default ./openfdk-demo)")
     d.add_argument("--quick", action="store_true", help="a reduced run (coarse meshes, 2 cycles; for tests)")
     _display_arguments(d)
-    d.add_argument("--workers", type=int, default=None,
+    d.add_argument("--workers", type=argtypes.count(0), default=None,
                    help="parameter-study worker processes (default one per CPU; 0 = this process)")
     d.set_defaults(func=_cmd_demo)
 
@@ -292,15 +284,15 @@ def build_parser():
     s.add_argument("directory", help="subject folder (holding subject.yaml and its STL files)")
     s.add_argument("--resolution", default="default", choices=["coarse", "default", "fine"], help="mesh resolution (create)")
     s.add_argument("--asymmetric", action="store_true", help="perturb left and right shapes differently (create)")
-    s.add_argument("--cycles", type=int, default=5, help="cycles per task (record), cycles analysed (study)")
+    s.add_argument("--cycles", type=argtypes.count(1), default=5, help="cycles per task (record), cycles analysed (study)")
     s.add_argument("--out", default=None, help="output folder (study; default DIRECTORY-study)")
-    s.add_argument("--workers", type=int, default=None,
+    s.add_argument("--workers", type=argtypes.count(0), default=None,
                    help="parameter-study worker processes (study; default one per CPU, 0 = this process)")
     s.add_argument("--scheduler", default=None, help="address of a running Dask scheduler (study)")
     s.add_argument("--quick", action="store_true",
                    help="study: a 2-model parameter study on open-close only (as openfdk demo --quick)")
     _display_arguments(s)
-    s.add_argument("--noise", type=float, default=0.15, help="marker noise in mm (record)")
+    s.add_argument("--noise", type=argtypes.nonnegative, default=0.15, help="marker noise in mm (record)")
     s.add_argument("--seed", type=int, default=0, help="random seed of the shapes (create) and marker noise (record)")
     s.set_defaults(func=_cmd_subject)
 

@@ -17,6 +17,7 @@ from collections import Counter
 import time as _time
 from pathlib import Path
 
+from .. import argtypes
 from .defaults import DEFAULT_OVERLAP
 
 
@@ -31,9 +32,9 @@ def add_study_parser(subparsers):
     p.add_argument("--out", required=True, help="output directory (one folder per case, summary.csv)")
     p.add_argument("--scheduler", default=None,
                    help="address of a running Dask scheduler (default: a LocalCluster here)")
-    p.add_argument("--workers", type=int, default=None,
+    p.add_argument("--workers", type=argtypes.count(0), default=None,
                    help="LocalCluster worker processes (default: CPU count); 0 = run the cases in this process")
-    p.add_argument("--retries", type=int, default=None,
+    p.add_argument("--retries", type=argtypes.count(0), default=None,
                    help="runs of a failing case after the first (default: study file, else 2)")
     p.add_argument("--force", action="store_true", help="run complete cases again")
     p.add_argument("--list", action="store_true", help="list the cases and exit")
@@ -47,13 +48,13 @@ def add_study_parser(subparsers):
 def add_chunk_arguments(parser):
     """Add ``--chunks``, ``--overlap``, ``--scheduler`` and ``--workers`` to the ``run``
     subcommand's parser."""
-    parser.add_argument("--chunks", type=int, default=1,
+    parser.add_argument("--chunks", type=argtypes.count(1), default=1,
                         help="split the trial into K frame segments solved in parallel, then stitched (default 1)")
-    parser.add_argument("--overlap", type=int, default=DEFAULT_OVERLAP,
+    parser.add_argument("--overlap", type=argtypes.count(0), default=DEFAULT_OVERLAP,
                         help=f"warm-up frames solved before each chunk and dropped (default {DEFAULT_OVERLAP})")
     parser.add_argument("--scheduler", default=None,
                         help="address of a running Dask scheduler (default: a LocalCluster)")
-    parser.add_argument("--workers", type=int, default=None,
+    parser.add_argument("--workers", type=argtypes.count(0), default=None,
                         help="LocalCluster worker processes (default: min(chunks, CPUs)); 0 = in this process")
     return parser
 
