@@ -214,7 +214,8 @@ def test_inverted_contact_normals_warn_at_check_and_pulling_force_per_run(tmp_pa
     assert code == 0
     pulls = [ln for ln in err.splitlines() if "pulls" in ln]
     assert len(pulls) == 1
-    assert "contacts.floor: the contact force pulls the surfaces together in 3 of 3 frames (down to -100 N" in pulls[0]
+    assert "contacts.floor: the contact force pulls the surfaces together in 3 of 3 frames" in pulls[0]
+    assert "cosine down to -1.00" in pulls[0]   # straight down, the block's centre of mass straight up
     # correct normals: neither warning, and no contact force (the block is above the floor)
     _patch(tmp_path / "floor.stl", 40.0, 1.0)
     code, _, err = _run(capsys, "run", model, "--out", tmp_path / "o2", "--no-progress")

@@ -341,7 +341,7 @@ def load_mesh(path, units="m", placement=None, *, flip_normals=False, name=None)
 
     path = os.fspath(path)
     label = name or os.path.basename(path)
-    if units not in LENGTH_UNITS:
+    if not isinstance(units, str) or units not in LENGTH_UNITS:
         raise MeshError(
             f"mesh '{label}': unknown length unit {units!r}; expected one of "
             f"{sorted(LENGTH_UNITS)}"

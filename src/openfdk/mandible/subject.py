@@ -353,9 +353,13 @@ def _ligaments(ctx: _Context, data) -> tuple:
 
 
 def _load_stl(ctx: _Context, where: str, path: Path, scale: float, placement, flip: bool):
-    if not path.exists():
+    try:
+        found, size = path.exists(), (path.stat().st_size if path.is_file() else 0)
+    except (OSError, ValueError) as exc:  # name too long, NUL byte
+        raise ctx.error(where, f"mesh file {path.name[:80]!r} is not a usable path: {exc}") from None
+    if not found:
         raise ctx.error(where, f"mesh file {path.name!r} not found in {path.parent}")
-    if not path.is_file() or path.stat().st_size == 0:
+    if size == 0:
         raise ctx.error(where, f"mesh file {path.name!r} is empty")
     import trimesh
 

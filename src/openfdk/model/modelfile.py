@@ -81,10 +81,8 @@ def model_from_dict(data, source="<dict>", base_dir=None) -> Model:
         raise ctx.error("openfdk", f"unsupported format version {version!r}; this openfdk reads version {FORMAT_VERSION}")
     units = ctx.keys(data.get("units", {}) or {}, "units", ["length", "angle"])
     lu, au = units.get("length", "m"), units.get("angle", "rad")
-    if lu not in LENGTH_UNITS:
-        raise ctx.error("units.length", f"unknown length unit {lu!r}; expected one of {list(LENGTH_UNITS)}")
-    if au not in ANGLE_UNITS:
-        raise ctx.error("units.angle", f"unknown angle unit {au!r}; expected one of {list(ANGLE_UNITS)}")
+    ctx.choice(lu, "units.length", LENGTH_UNITS, "length unit")
+    ctx.choice(au, "units.angle", ANGLE_UNITS, "angle unit")
     ctx.length, ctx.angle = LENGTH_UNITS[lu], ANGLE_UNITS[au]
     gravity = ctx.vector(data.get("gravity", [0, 0, -9.81]), "gravity", n=3)
     b = ModelBuilder(str(data.get("name", source)), gravity=gravity)
@@ -226,7 +224,7 @@ def _measure(b, spec, path, ctx):
         return _wrap(ctx, path, lambda: b.measure(spec))
     ctx.mapping(spec, path)
     kind = spec.get("type")
-    if kind not in MEASURE_KEYS:
+    if not isinstance(kind, str) or kind not in MEASURE_KEYS:
         raise ctx.error(f"{path}.type", f"unknown measure type {kind!r}; expected one of {list(MEASURE_KEYS)}")
     ctx.keys(spec, path, ["type"] + MEASURE_KEYS[kind], required=[k for k in MEASURE_KEYS[kind] if k not in ("expressed_in", "offset")])
     if kind == "point":
@@ -310,7 +308,7 @@ def _function(spec, units, path, ctx):
     """Time function from its spec; values in the file's units of the driven measure."""
     ctx.mapping(spec, path)
     kind = spec.get("type")
-    if kind not in FUNCTION_KEYS:
+    if not isinstance(kind, str) or kind not in FUNCTION_KEYS:
         raise ctx.error(f"{path}.type", f"unknown function type {kind!r}; expected one of {list(FUNCTION_KEYS)}")
     ctx.keys(spec, path, ["type"] + FUNCTION_KEYS[kind], required=["type"] + FUNCTION_KEYS[kind])
     scale = np.array([_unit_scale(u, ctx) for u in units])

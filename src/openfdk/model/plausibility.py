@@ -15,7 +15,8 @@ Warnings (:class:`PlausibilityWarning`, each naming the item):
 - a Hill muscle whose passive force at the reference pose exceeds 10 % of F0;
 - a marker never visible in the analysis window; trial markers far from the model's at
   the first frame, or spanning a very different size (likely the wrong units);
-- a contact force that pulls the two surfaces together (once per run).
+- a contact force that pulls the two surfaces together (once per run, see
+  :func:`pulling_contacts`).
 """
 
 from __future__ import annotations
@@ -34,6 +35,8 @@ PASSIVE_FRACTION = 0.10
 #: plausible span (m) of a musculoskeletal model's points: a finger joint to a whole body
 MODEL_SPAN = (2e-3, 20.0)
 TYPICAL_SPAN = 0.3
+#: trial markers whose centroid lies farther (m) from the model's are flagged (no lab is larger)
+FAR_FROM_MODEL = 20.0
 LENGTH_SCALES = {"m": 1.0, "cm": 1e-2, "mm": 1e-3}
 
 
@@ -111,39 +114,57 @@ def check_length_magnitudes(model, source="", length_unit="m"):
           f"{length_unit}{hint} (a musculoskeletal model spans {MODEL_SPAN[0] * 1e3:g} mm to {MODEL_SPAN[1]:g} m)")
 
 
-def facing_fraction(surface, R_WS, p_WS, target_W, nearest=0.1):
-    """Area-weighted mean of n · (target − c) / |target − c| over the triangles of
-    ``surface`` (in a body at R_WS (3, 3), p_WS (3,) m) nearest to the point target_W
-    (3,) m (the closest ``nearest`` fraction, at least one). +1: the normals face the
-    target; −1: they face away."""
+def _nearest_faces(surface, R_WS, p_WS, target_W, nearest=0.1):
+    """Triangles of ``surface`` (in a body at R_WS (3, 3), p_WS (3,) m) nearest to the
+    point target_W (3,) m (the closest ``nearest`` fraction, at least one): their
+    centroids (k, 3) m and normals scaled by twice their areas (k, 3) m², world."""
     V = surface.vertices_B @ R_WS.T + p_WS
     F = surface.faces
     c = V[F].mean(axis=1)
-    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])   # 2 × area × unit normal
+    sel = np.argsort(np.linalg.norm(target_W - c, axis=1))[: max(1, int(nearest * len(F)))]
+    n = np.cross(V[F[sel, 1]] - V[F[sel, 0]], V[F[sel, 2]] - V[F[sel, 0]])
+    return c[sel], n
+
+
+def facing(surface, R_WS, p_WS, target_W):
+    """Area-weighted mean cosine between the normals of the triangles of ``surface``
+    nearest to target_W and the directions from them to target_W: +1 the normals face
+    the target, −1 they face away. Also returns their mean unit normal (3,)."""
+    c, n = _nearest_faces(surface, R_WS, p_WS, target_W)
     d = target_W - c
-    dist = np.linalg.norm(d, axis=1)
-    k = max(1, int(nearest * len(F)))
-    sel = np.argsort(dist)[:k]
-    w = np.linalg.norm(n[sel], axis=1)
-    dots = np.einsum("ij,ij->i", n[sel], d[sel]) / np.maximum(w * dist[sel], 1e-300)
-    return float(np.sum(w * dots) / max(np.sum(w), 1e-300))
+    w = np.linalg.norm(n, axis=1)
+    cos = np.einsum("ij,ij->i", n, d) / np.maximum(w * np.linalg.norm(d, axis=1), 1e-300)
+    mean_n = n.sum(axis=0)
+    return float(np.sum(w * cos) / max(np.sum(w), 1e-300)), mean_n / max(np.linalg.norm(mean_n), 1e-300)
 
 
 def check_contact_facing(model, source=""):
     """Warn for each contact surface whose normals point away from its partner surface
-    at the reference pose (inverted normals make the contact pull)."""
+    at the reference pose (inverted normals make the contact pull).
+
+    The facing regions are B's triangles nearest to A's centroid and A's triangles
+    nearest to those. Their mean normals must be opposed; when they point the same way,
+    the surface whose normals point away from the other's facing region is inverted.
+    (Opposed normals that both point away — both files inverted — are not detected.)"""
     state = model.initial_state()
     for c in model.elements.get("contacts", ()):
         pair = c.pair
-        sides = ((pair.surface_A, c.body_a, pair.surface_B, c.body_b, "vertices"),
-                 (pair.surface_B, c.body_b, pair.surface_A, c.body_a, "surface"))
-        for surf, i, other, j, key in sides:
-            target = (other.vertices_B @ state.R_WB[j].T + state.p_WB[j]).mean(axis=0)
-            f = facing_fraction(surf, state.R_WB[i], state.p_WB[i], target)
-            if f < 0:
+        world = [(pair.surface_A, c.body_a, "vertices"), (pair.surface_B, c.body_b, "surface")]
+        pose = [(state.R_WB[i], state.p_WB[i]) for _, i, _ in world]
+        # the facing regions: B's triangles nearest to A's centroid, then A's nearest to those
+        c_A = (world[0][0].vertices_B @ pose[0][0].T + pose[0][1]).mean(axis=0)
+        r_B = _nearest_faces(world[1][0], *pose[1], c_A)[0].mean(axis=0)
+        r_A = _nearest_faces(world[0][0], *pose[0], r_B)[0].mean(axis=0)
+        targets = (r_B, r_A)
+        sides = [facing(s, *pose[k], targets[k]) for k, (s, _, _) in enumerate(world)]
+        if float(sides[0][1] @ sides[1][1]) < 0:
+            continue
+        for k, (surf, _, key) in enumerate(world):
+            if sides[k][0] < 0:
+                other = world[1 - k][0]
                 _warn(f"{_where(source, f'contacts.{c.name}.{key}')}: the normals of mesh '{surf.name}' point away "
-                      f"from '{other.name}' at the reference pose (mean cosine {f:.2f}); set flip_normals: true "
-                      "if the file is wound the other way")
+                      f"from '{other.name}' at the reference pose (mean cosine {sides[k][0]:.2f}); set "
+                      "flip_normals: true if the file is wound the other way")
 
 
 def check_passive_muscles(model, source=""):
@@ -199,17 +220,22 @@ def check_trial_markers(model, trial, times):
         _warn(f"{trial.source}: at the first frame (t = {times[0]:g} s) the markers spread {s_trial:.4g} m around "
               f"their centroid, {ratio:.3g}x the model's markers ({s_model:.4g} m): likely the wrong units "
               f"(a factor {factor:g}; check POINT:UNITS)")
-    elif gap > max(1.0, 20 * s_model):
+    elif gap > max(FAR_FROM_MODEL, 20 * s_model):
         _warn(f"{trial.source}: at the first frame (t = {times[0]:g} s) the markers' centroid is {gap:.3g} m from "
               "the model's markers at the reference pose; check the units and the lab frame")
 
 
 # -- run results ------------------------------------------------------------------------
 
-def pulling_contacts(model, kin, dyn):
-    """Per contact that pulled in some frame: (name, frames pulling, most negative push
-    force N). A contact pushes when the force on its vertex body points away from the
-    other body: F_a · (c_a − c_b) > 0 with c the surfaces' centroids in world."""
+def pulling_contacts(model, kin, dyn, threshold=-0.2):
+    """Per contact that pulled in some frame: (name, frames pulling, lowest cosine).
+
+    A contact force pushes each body toward its own inside: the force on the vertex body
+    a, F_a, points from the centre of pressure toward a's centre of mass, and −F_a
+    toward b's (the ground, whose origin is not inside anything, is skipped). A frame
+    pulls when the cosine of that angle is below ``threshold`` for every side checked;
+    inverted normals give cosines near −1. ``dyn`` holds the per-contact force and
+    centre-of-pressure columns, ``kin`` the poses of the same frames."""
     contacts = model.elements.get("contacts", ())
     cols = getattr(dyn, "extra", {}).get("columns", {}) if dyn is not None else {}
     out = []
@@ -217,22 +243,24 @@ def pulling_contacts(model, kin, dyn):
         return out
     state = model.initial_state()
     for c in contacts:
-        keys = [f"{c.name}.F{a}_N" for a in "xyz"]
+        keys = [f"{c.name}.F{a}_N" for a in "xyz"] + [f"{c.name}.cop_{a}_m" for a in "xyz"]
         if not all(k in cols for k in keys):
             continue
-        F = np.stack([np.asarray(cols[k], dtype=float) for k in keys], axis=1)
-        n_pull, worst = 0, 0.0
-        for k in np.flatnonzero(np.isfinite(F).all(axis=1) & (np.abs(F).sum(axis=1) > 0)):
-            if k >= len(kin.q) or not np.all(np.isfinite(kin.q[k])):
+        X = np.stack([np.asarray(cols[k], dtype=float) for k in keys], axis=1)
+        sides = [(body, sign) for body, sign in ((c.body_a, 1.0), (c.body_b, -1.0)) if body != 0]
+        n_pull, worst = 0, 1.0
+        for k in np.flatnonzero(np.isfinite(X).all(axis=1) & (np.abs(X[:, :3]).sum(axis=1) > 0)):
+            if k >= len(kin.q) or not np.all(np.isfinite(kin.q[k])) or not sides:
                 continue
             state.set_q(kin.q[k])
-            ca = state.p_WB[c.body_a] + state.R_WB[c.body_a] @ c.pair.surface_A.vertices_B.mean(axis=0)
-            cb = state.p_WB[c.body_b] + state.R_WB[c.body_b] @ c.pair.surface_B.vertices_B.mean(axis=0)
-            d = ca - cb
-            push = float(F[k] @ d / max(np.linalg.norm(d), 1e-300))
-            if push < 0:
+            F, cop = X[k, :3], X[k, 3:]
+            cosines = []
+            for body, sign in sides:
+                d = state.p_WB[body] - cop
+                cosines.append(float(sign * F @ d / max(np.linalg.norm(F) * np.linalg.norm(d), 1e-300)))
+            if max(cosines) < threshold:
                 n_pull += 1
-                worst = min(worst, push)
+                worst = min(worst, max(cosines))
         if n_pull:
             out.append((c.name, n_pull, worst))
     return out
@@ -242,5 +270,5 @@ def warn_pulling_contacts(model, kin, dyn):
     """One warning per run for the contacts that pulled (see :func:`pulling_contacts`)."""
     for name, n, worst in pulling_contacts(model, kin, dyn):
         _warn(f"contacts.{name}: the contact force pulls the surfaces together in {n} of {len(kin.time)} frames "
-              f"(down to {worst:.4g} N along the line between the surfaces); inverted normals? see the "
+              f"(it points away from the bodies' insides, cosine down to {worst:.2f}); inverted normals? see the "
               "reference-pose normal check")

@@ -147,8 +147,12 @@ def _entries(ctx, value, section, is_path, base_dir):
         if is_path:
             if not isinstance(v, str):
                 raise ctx.error(f"{section}.{name}", f"expected a file or folder path, got {v!r}")
-            p = (base_dir / v).resolve()
-            if not p.exists():
+            try:
+                p = (base_dir / v).resolve()
+                found = p.exists()
+            except (OSError, ValueError) as exc:  # name too long, NUL byte
+                raise ctx.error(f"{section}.{name}", f"{v[:80]!r} is not a usable path: {exc}") from None
+            if not found:
                 raise ctx.error(f"{section}.{name}", f"{v!r} not found (relative to {str(base_dir)!r})")
             v = str(p)
         out[name] = v
