@@ -95,3 +95,27 @@ def test_hypothesis_any_value_at_any_entry_of_a_model(bases, data):
         _outcome("model", bases)
     finally:
         target.write_text(bases.texts["model"])
+
+
+def test_c3d_numeric_parameter_stored_as_text_is_refused_not_a_crash(tmp_path):
+    """Found by the fuzz suite: FORCE_PLATFORM:CHANNEL turned into a character parameter
+    made ezc3d dereference a null pointer (segmentation fault). It is now a C3DError.
+    Run in a child process so that a regression fails this test instead of the session."""
+    import subprocess
+    import sys
+
+    from openfdk.io.c3d import write_c3d
+    from openfdk.synthetic import synthetic_markers
+
+    _, labels, x, _ = synthetic_markers(10)
+    write_c3d(tmp_path / "ok.c3d", labels, x, 100.0)
+    data = bytearray((tmp_path / "ok.c3d").read_bytes())
+    i = data.index(b"CHANNEL")
+    assert data[i + 9] == 2                      # type byte after the name and the 2-byte offset: int16
+    data[i + 9], data[i + 10] = 255, 0           # -1: characters, 0 dimensions
+    (tmp_path / "bad.c3d").write_bytes(bytes(data))
+    code = ("from openfdk.io.c3d import read_c3d, C3DError\n"
+            "try:\n    read_c3d(r'%s')\nexcept C3DError as e:\n    print(e)\n" % (tmp_path / "bad.c3d"))
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "bad.c3d: parameter FORCE_PLATFORM:CHANNEL must hold numbers" in proc.stdout
