@@ -18,6 +18,7 @@ from openfdk.cli import build_parser, main
 from openfdk.contact.shapes import flat_patch
 from openfdk.io.c3d import write_c3d
 from openfdk.synthetic import synthetic_markers, two_body_model_dict
+from test_passive_elements import HELD, MODEL
 
 
 def _write(tmp_path, data, name="model.yaml"):
@@ -177,27 +178,8 @@ def _patch(path, size, edge, flip=False, extra=None):
     trimesh.Trimesh(V, F, process=False).export(path)
 
 
-BLOCK = """\
-openfdk: 1
-units: {length: mm, angle: deg}
-bodies:
-  block:
-    mass: 1.0
-    inertia: [1.0e-3, 1.0e-3, 1.0e-3]
-    position: [0, 0, 5.1]
-contacts:
-  floor:
-    vertices: {body: block, mesh: bottom.stl, units: mm, placement: {position: [0, 0, -5], orientation: [180, 0, 0]}}
-    surface: {body: ground, mesh: floor.stl, units: mm}
-    pressure_modulus: 1.0e10
-measures:
-  where: {type: point, point: block.origin}
-  how: {type: angles, frame: ground.origin, of: block.origin}
-drivers:
-  hold_position: {measure: where, function: {type: constant, value: [0, 0, 5.1]}, reaction: true}
-  hold_angles: {measure: how, function: {type: constant, value: [0, 0, 0]}, reaction: true}
-analysis: {start: 0, end: 0.1, frames: 3}
-"""
+# the block of test_passive_elements held 0.1 mm above the floor (no contact with correct normals)
+BLOCK = (textwrap.dedent(MODEL) + textwrap.dedent(HELD)).replace("[0, 0, 4.9]", "[0, 0, 5.1]")
 
 
 def test_inverted_contact_normals_warn_at_check_and_pulling_force_per_run(tmp_path, capsys):
