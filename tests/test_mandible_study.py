@@ -181,3 +181,12 @@ def test_missing_trial_is_named(tmp_path):
     d = create_subject(tmp_path / "subject", resolution="coarse")
     with pytest.raises(StudyError, match=r"trials/reference.c3d is missing"):
         run_study(d, tmp_path / "out", log=lambda *a: None)
+
+
+def test_demo_writes_a_3d_viewer_per_task(demo_dir):
+    for task in ("chewing", "protrusion", "open_close"):
+        page = demo_dir / "study" / task / "fdk" / "view.html"
+        text = page.read_text()
+        assert 'id="openfdk-data"' in text and page.stat().st_size < 30e6
+        data = json.loads(text.split('id="openfdk-data">', 1)[1].split("</script>", 1)[0])
+        assert len(data["scene"]["contacts"]) == 2 and len(data["scene"]["paths"]) >= 24

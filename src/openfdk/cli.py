@@ -4,6 +4,8 @@
     openfdk kinematics MODEL.yaml --out DIR             determinate kinematics (drivers)
     openfdk run MODEL.yaml [TRIAL.c3d] --out DIR        kinematics + inverse dynamics
     openfdk check MODEL.yaml                            validate a model file
+    openfdk cache info|clear                            the distance-grid cache on disk
+    openfdk view RESULT_DIR [--out view.html]           3D viewer of a run (one HTML file)
     openfdk demo [--out DIR] [--quick]                  the mandible study on the virtual subject
     openfdk subject create|record DIR                   virtual subject and experiment
     openfdk bench [--quick] [--json]                    benchmarks
@@ -39,9 +41,31 @@ class UserError(Exception):
 
 def _cmd_check(args):
     from .model.modelfile import load_model
+    from .model_check import check_model
 
     model = load_model(args.model)
-    _say(args, model.describe())
+    report = check_model(model)
+    _say(args, "\n".join(report.lines))
+    if not report.ok:
+        # the model cannot run: one line per problem, the first one as the exit message
+        for extra in report.errors[1:]:
+            print(f"openfdk: error: {args.model}: {extra}", file=sys.stderr)
+        raise UserError(f"{args.model}: {report.errors[0]}")
+    return 0
+
+
+def _cmd_cache(args):
+    from .contact.grid_cache import clear_grid_cache, grid_cache_info
+
+    folder, n, size = grid_cache_info()
+    if folder is None:
+        print("distance-grid cache: off (OPENFDK_CACHE_DIR=off)")
+        return 0
+    if args.action == "clear":
+        clear_grid_cache(disk=True)
+        print(f"distance-grid cache {folder}: removed {n} grid files ({size / 2**20:.1f} MB)")
+        return 0
+    print(f"distance-grid cache {folder}: {n} grid files, {size / 2**20:.1f} MB")
     return 0
 
 
@@ -100,6 +124,7 @@ def _cmd_kinematics(args):
         start=args.start, end=args.end,
     )
     write_kinematics(args.out, result, {"input": info})
+    _write_measures(args.out, args.model, result)
     s = result.summary()
     _say(args, f"kinematics: {s['converged_frames']}/{s['frames']} frames converged in {s['wall_time_s']:.2f} s "
                f"({s['frames_per_second'] or 0:.0f} frames/s) -> {args.out}/kinematics.csv")
@@ -114,6 +139,14 @@ def _print_failed(args, failed):
         print(f"  failed: {msg}", file=sys.stderr)
     if len(failed) > 10:
         print(f"  ... and {len(failed) - 10} more failed frames (see summary.json)", file=sys.stderr)
+
+
+def _write_measures(out_dir, model_path, kinematics):
+    """measures.csv: the model's named measures (joint measures included) per frame."""
+    from .io.measure_outputs import write_measures
+    from .model.modelfile import load_model
+
+    write_measures(out_dir, load_model(model_path), kinematics)
 
 
 def _cmd_run(args):
@@ -133,6 +166,7 @@ def _cmd_run(args):
         kin, dyn, info = run_job(args.model, args.trial, cutoff_hz=args.cutoff, progress=_progress_on(args),
                                  start=args.start, end=args.end)
         write_run_outputs(args.out, kin, dyn, info)
+    _write_measures(args.out, args.model, kin)
     fdk = info.get("fdk")
     _say(args,
          f"run: kinematics {int(kin.converged.sum())}/{len(kin.time)} frames, inverse dynamics "
@@ -257,6 +291,11 @@ def build_parser():
     _display_arguments(c)
     c.set_defaults(func=_cmd_check)
 
+    ca = sub.add_parser("cache", help="the on-disk distance-grid cache: size (info) or delete it (clear)")
+    ca.add_argument("action", choices=["info", "clear"], help="info: folder, number of grids and size; clear: delete them")
+    _display_arguments(ca)
+    ca.set_defaults(func=_cmd_cache)
+
     k = sub.add_parser("kinematics", help="kinematic analysis: marker tracking (with a C3D trial) or determinate")
     _trial_arguments(k)
     k.set_defaults(func=_cmd_kinematics)
@@ -268,6 +307,9 @@ def build_parser():
 
     add_chunk_arguments(r)
     add_study_parser(sub)
+    from .viewer.cli import add_view_parser
+
+    add_view_parser(sub)
 
     d = sub.add_parser("demo", help="the mandible study on the virtual subject, end to end")
     d.add_argument("--out", default="openfdk-demo", help="output directory (default ./openfdk-demo)")

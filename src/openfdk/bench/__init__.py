@@ -13,6 +13,7 @@ BENCHMARK_MODULES = [
     "openfdk.bench.contact",
     "openfdk.bench.fdk",
     "openfdk.bench.mandible",
+    "openfdk.bench.knee",
     "openfdk.bench.study",
     "openfdk.bench.fuzz",
 ]

@@ -320,6 +320,9 @@ def build_distance_grid(mesh: SurfaceMesh, spacing: float, max_depth: float,
     if not max_depth > 0.0:
         raise ValueError(f"max_depth for mesh '{mesh.name}' must be > 0 m, got {max_depth!r}")
     h = float(spacing)
+    from .limits import check_grid_memory
+
+    check_grid_memory(mesh.name, mesh.vertices_B, h, float(max_depth))  # before any allocation
     width = float(max_depth) + 2.0 * h
     V = np.ascontiguousarray(mesh.vertices_B, dtype=np.float64)
     lo = V.min(axis=0) - width

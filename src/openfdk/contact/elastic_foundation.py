@@ -42,6 +42,7 @@ from numba import njit
 
 from .distance_grid import band_occupancy, sample_grid
 from .grid_cache import cached_distance_grid
+from .limits import warn_depth
 from .mesh import SurfaceMesh
 from .signed_distance import OpenSurfaceDistance
 
@@ -221,6 +222,8 @@ class ElasticFoundation:
         _accumulate(self._s_A, self._a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb,
                     self.pressure_modulus, want_stiffness, Q, K, sums)
         p = self.pressure_modulus
+        if idx.size:
+            warn_depth(self.name, float(depth.max()), self.max_depth)
         weight = sums[3]
         cop = sums[:3] / weight if weight > 0.0 else np.full(3, np.nan)
         vertex_pressure = None

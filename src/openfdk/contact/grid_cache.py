@@ -31,7 +31,7 @@ import numpy as np
 from .distance_grid import SignedDistanceGrid, build_distance_grid
 from .mesh import SurfaceMesh
 
-__all__ = ["cached_distance_grid", "clear_grid_cache", "grid_cache_dir"]
+__all__ = ["cached_distance_grid", "clear_grid_cache", "grid_cache_dir", "grid_cache_info"]
 
 GRID_FORMAT = 1
 MEMORY_SLOTS = 16
@@ -122,3 +122,12 @@ def clear_grid_cache(disk: bool = False) -> None:
     if disk and folder is not None and folder.is_dir():
         for f in folder.glob("*.npz"):
             f.unlink(missing_ok=True)
+
+
+def grid_cache_info():
+    """(folder or None, number of grid files, total bytes) of the disk cache."""
+    folder = grid_cache_dir()
+    if folder is None or not folder.is_dir():
+        return folder, 0, 0
+    files = list(folder.glob("*.npz"))
+    return folder, len(files), sum(f.stat().st_size for f in files)

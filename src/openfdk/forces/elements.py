@@ -100,11 +100,75 @@ class RecruitmentSettings:
 
 
 def path_measure(b, points, name=""):
-    """Length (m) of the chain of points (qualified names, ≥ 2): Σ |p_{k+1} − p_k|."""
+    """Length (m) of the chain of points (qualified names, ≥ 2): Σ |p_{k+1} − p_k|.
+
+    Names without a dot are wrapping surfaces added with :func:`add_wrap_surface`; a path
+    with any of them is a :class:`~openfdk.forces.wrapping.WrappedPath` (first and last
+    entries must be points)."""
     if len(points) < 2:
         raise ModelError(f"path {name!r}: needs at least 2 points, got {list(points)}")
+    if any(isinstance(p, str) and "." not in p for p in points):
+        return wrapped_path_measure(b, points, name)
     terms = [(np.ones((1, 1)), b.distance(points[k], points[k + 1])) for k in range(len(points) - 1)]
     return Linear(terms, units=("length",), name=name)
+
+
+def add_wrap_surface(b, name, kind, frame, dims, side=None):
+    """A wrapping surface named ``name`` fixed to the body of ``frame`` ("body.frame" or
+    "body"; the surface axes are the frame's axes, a cylinder's axis is its z).
+
+    kind : "cylinder" | "sphere" (dims = radius, m) or "ellipsoid" (dims = 3 semi-axes,
+    m); side : None or a direction (3,) in the surface frame on which paths must pass.
+    Referenced by name in muscle and ligament paths (docs/muscles.md, wrapping)."""
+    from .wrapping import SURFACE_KINDS, WrapSurface
+
+    surfaces = b.__dict__.setdefault("wrap_surfaces", {})
+    if not isinstance(name, str) or not name or "." in name:
+        raise ModelError(f"wrapping surface name {name!r} must be a non-empty string without '.'")
+    if name in surfaces:
+        raise ModelError(f"wrapping surface {name!r} is defined twice")
+    if kind not in SURFACE_KINDS:
+        raise ModelError(f"wrapping surface {name!r}: type must be one of {sorted(SURFACE_KINDS)}, got {kind!r}")
+    dims = np.atleast_1d(np.asarray(dims, dtype=float))
+    if kind == "ellipsoid":
+        if dims.shape != (3,):
+            raise ModelError(f"wrapping surface {name!r}: an ellipsoid needs 3 semi-axes (m)")
+    else:
+        if dims.shape != (1,):
+            raise ModelError(f"wrapping surface {name!r}: a {kind} needs one radius (m)")
+        dims = np.repeat(dims, 3)
+    if not np.all(np.isfinite(dims) & (dims > 0)):
+        raise ModelError(f"wrapping surface {name!r}: radius/semi-axes must be > 0 m, got {dims.tolist()}")
+    side = np.zeros(3) if side is None else np.asarray(side, dtype=float)
+    if side.shape != (3,) or not np.all(np.isfinite(side)):
+        raise ModelError(f"wrapping surface {name!r}: side must be a direction of 3 numbers")
+    if kind == "cylinder" and np.any(side) and not np.any(side[:2]):
+        raise ModelError(f"wrapping surface {name!r}: a cylinder's side must not be along its axis (z)")
+    f = b.frame(frame if "." in frame else f"{frame}.origin")
+    surface = WrapSurface(name, kind, b._body_index(f.body), np.asarray(f.p_BF, dtype=float),
+                          np.asarray(f.R_BF, dtype=float), dims, side)
+    surfaces[name] = surface
+    return surface
+
+
+def wrapped_path_measure(b, entries, name=""):
+    """A :class:`~openfdk.forces.wrapping.WrappedPath` through points ("body.point") and
+    wrapping surfaces (names) in any order; first and last entries must be points."""
+    from .wrapping import WrappedPath
+
+    surfaces = b.__dict__.get("wrap_surfaces", {})
+    nodes = []
+    for k, entry in enumerate(entries):
+        if isinstance(entry, str) and "." not in entry:
+            if entry not in surfaces:
+                raise ModelError(f"path {name!r}: unknown wrapping surface {entry!r}; known: {sorted(surfaces)}")
+            if k in (0, len(entries) - 1):
+                raise ModelError(f"path {name!r}: must start and end at a point, not at surface {entry!r}")
+            nodes.append(surfaces[entry])
+        else:
+            f = b.frame(entry)
+            nodes.append((b._body_index(f.body), np.asarray(f.p_BF, dtype=float)))
+    return WrappedPath(nodes, name)
 
 
 def _append(b, kind, element):
@@ -201,5 +265,5 @@ def set_recruitment(b, criterion="polynomial", power=3.0, tolerance=1e-10):
 __all__ = [
     "Muscle", "Ligament", "Spring", "UnilateralReaction", "ExternalLoad", "RecruitmentSettings",
     "add_muscle", "add_ligament", "add_spring", "add_unilateral_reaction", "add_external_load",
-    "set_recruitment", "path_measure",
+    "set_recruitment", "path_measure", "add_wrap_surface", "wrapped_path_measure",
 ]

@@ -1,8 +1,10 @@
-"""Many muscle/ligament paths evaluated at once (numba kernel), for the hot loop.
+"""Many muscle/ligament paths evaluated at once (numba kernels), for the hot loop.
 
 A path is a chain of body points with straight segments (see :mod:`.elements`); the
 kernel :func:`openfdk.model.kernels.path_lengths` returns every path's length (m) and
-Jacobian L = ∂l/∂q̂ in one call.
+Jacobian L = ∂l/∂q̂ in one call. Paths over wrapping surfaces
+(:class:`~openfdk.forces.wrapping.WrappedPath`) go through one call of
+:func:`openfdk.forces.wrapping.wrapped_path_lengths`.
 """
 
 from __future__ import annotations
@@ -10,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..model.kernels import path_lengths
+from .wrapping import WrapNodes, WrappedPath
 
 
 class PathSet:
@@ -18,7 +21,12 @@ class PathSet:
 
     def __init__(self, elements):
         seg_a, s_a, seg_b, s_b, seg_path = [], [], [], [], []
+        wrapped = [k for k, el in enumerate(elements) if isinstance(el.path, WrappedPath)]
+        self.wrapped_rows = np.array(wrapped, dtype=np.int64)
+        self.wrapped = WrapNodes([elements[k].path.nodes for k in wrapped], [elements[k].name for k in wrapped]) if wrapped else None
         for k, el in enumerate(elements):
+            if isinstance(el.path, WrappedPath):
+                continue
             for C, dist in el.path.terms:
                 if C.shape != (1, 1) or C[0, 0] != 1.0 or not hasattr(dist, "vector"):
                     raise ValueError(f"path of {el.name!r} is not a chain of segments")
@@ -37,5 +45,8 @@ class PathSet:
 
     def evaluate(self, state):
         """l (n_paths,) m and L (n_paths, n_coords)."""
-        return path_lengths(state.p_WB, state.R_WB, state.column, self.seg_a, self.s_a, self.seg_b,
+        l, L = path_lengths(state.p_WB, state.R_WB, state.column, self.seg_a, self.s_a, self.seg_b,
                             self.s_b, self.seg_path, self.n_paths, state.n_coords)
+        if self.wrapped is not None:
+            l[self.wrapped_rows], L[self.wrapped_rows] = self.wrapped.evaluate(state)
+        return l, L

@@ -8,6 +8,7 @@ N m, stiffness N/m (ligaments, length springs) or N m/rad (angle springs) — al
 
 from __future__ import annotations
 
+from ..model.model import ModelError
 from ..model.modelfile import SECTION_LOADERS, _function, _measure, _unit_scale, _wrap
 from . import elements as el
 from .hill import ConstantStrengthMuscle, Hill3ElementMuscle
@@ -21,9 +22,39 @@ HILL_KEYS = (
 
 
 def _points(ctx, value, path):
+    """A path: points 'body.point' and wrapping-surface names (no dot), ≥ 2 entries."""
     if not isinstance(value, list) or len(value) < 2 or not all(isinstance(p, str) for p in value):
-        raise ctx.error(path, f"expected a list of at least 2 points ('body.point'), got {value!r}")
+        raise ctx.error(path, f"expected a list of at least 2 points ('body.point') or wrapping surfaces, got {value!r}")
     return value
+
+
+SIDES = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0), "+z": (0, 0, 1), "-z": (0, 0, -1)}
+
+
+def load_wrapping(b, data, ctx):
+    """``wrapping: {name: {type, frame, radius | semi_axes, side}}`` (docs/muscles.md)."""
+    for name, spec in ctx.mapping(data, "wrapping").items():
+        p = f"wrapping.{name}"
+        ctx.keys(spec, p, ["type", "frame", "radius", "semi_axes", "side"], required=("type", "frame"))
+        kind = spec["type"]
+        if kind in ("cylinder", "sphere"):
+            ctx.keys(spec, p, ["type", "frame", "radius", "side"], required=("radius",))
+            dims = ctx.number(spec["radius"], f"{p}.radius", positive=True) * ctx.length
+        elif kind == "ellipsoid":
+            ctx.keys(spec, p, ["type", "frame", "semi_axes", "side"], required=("semi_axes",))
+            dims = ctx.vector(spec["semi_axes"], f"{p}.semi_axes", n=3) * ctx.length
+        else:
+            raise ctx.error(f"{p}.type", f"unknown wrapping surface {kind!r}; expected cylinder, sphere or ellipsoid")
+        side = spec.get("side")
+        if isinstance(side, str):
+            if side not in SIDES:
+                raise ctx.error(f"{p}.side", f"expected one of {list(SIDES)} or 3 numbers, got {side!r}")
+            side = SIDES[side]
+        elif side is not None:
+            side = ctx.vector(side, f"{p}.side", n=3)
+        if not isinstance(spec["frame"], str):
+            raise ctx.error(f"{p}.frame", f"expected a frame name 'body.frame', got {spec['frame']!r}")
+        _wrap(ctx, p, lambda: el.add_wrap_surface(b, name, kind, spec["frame"], dims, side))
 
 
 def load_muscles(b, data, ctx):
@@ -73,18 +104,71 @@ def load_ligaments(b, data, ctx):
         _wrap(ctx, p, lambda: el.add_ligament(b, name, points, k, slack, lref, eps_r, eps_l))
 
 
+LAW_KEYS = {"polynomial": ["coefficients"], "table": ["values", "forces"],
+            "blankevoort": ["stiffness", "slack_length", "transition_strain"]}
+
+
 def load_springs(b, data, ctx):
+    """Springs on scalar measures: linear (``stiffness``) or any ``law`` of
+    :mod:`openfdk.forces.force_laws` (docs/ligaments.md, springs and force laws)."""
+    from .force_laws import Blankevoort1991Spring, ForceLawError, PolynomialSpring, TabulatedSpring, add_nonlinear_spring
+
     for name, spec in ctx.mapping(data, "springs").items():
         p = f"springs.{name}"
-        ctx.keys(spec, p, ["measure", "component", "stiffness", "rest_value"], required=("measure", "stiffness"))
+        ctx.keys(spec, p, ["measure", "component", "stiffness", "rest_value", "law"], required=("measure",))
         m = _measure(b, spec["measure"], f"{p}.measure", ctx)
         if "component" in spec:
             m = _wrap(ctx, p, lambda: b._select(m, [spec["component"]]))
         unit = m.units[0]
         scale = _unit_scale(unit, ctx)
+        si_unit = {"length": "m", "angle": "rad"}.get(unit, "1")
         rest = ctx.number(spec.get("rest_value", 0.0), f"{p}.rest_value") * scale
-        k = ctx.number(spec["stiffness"], f"{p}.stiffness", nonnegative=True)
-        _wrap(ctx, p, lambda: el.add_spring(b, name, m, k, rest, {"length": "m", "angle": "rad"}.get(unit, "1")))
+        if "law" not in spec:
+            if "stiffness" not in spec:
+                raise ctx.error(p, "missing required key 'stiffness' (or a 'law')")
+            k = ctx.number(spec["stiffness"], f"{p}.stiffness", nonnegative=True)
+            _wrap(ctx, p, lambda: el.add_spring(b, name, m, k, rest, si_unit))
+            continue
+        if "stiffness" in spec:
+            raise ctx.error(f"{p}.stiffness", "give either 'stiffness' (linear) or 'law', not both")
+        law = ctx.mapping(spec["law"], f"{p}.law")
+        kind = law.get("type")
+        if kind not in LAW_KEYS:
+            raise ctx.error(f"{p}.law.type", f"unknown force law {kind!r}; expected one of {list(LAW_KEYS)}")
+        ctx.keys(law, f"{p}.law", ["type"] + LAW_KEYS[kind],
+                 required=[k for k in LAW_KEYS[kind] if k != "transition_strain"])
+        try:
+            if kind == "polynomial":
+                fl = PolynomialSpring(ctx.vector(law["coefficients"], f"{p}.law.coefficients"), rest, si_unit, name)
+            elif kind == "table":
+                fl = TabulatedSpring(ctx.vector(law["values"], f"{p}.law.values") * scale,
+                                     ctx.vector(law["forces"], f"{p}.law.forces"), si_unit, name)
+            else:
+                if unit != "length":
+                    raise ctx.error(f"{p}.law", "the blankevoort law needs a length measure")
+                fl = Blankevoort1991Spring(ctx.number(law["stiffness"], f"{p}.law.stiffness", positive=True),
+                                           ctx.number(law["slack_length"], f"{p}.law.slack_length", positive=True) * ctx.length,
+                                           ctx.number(law.get("transition_strain", 0.03), f"{p}.law.transition_strain", positive=True),
+                                           name)
+        except ModelError:
+            raise
+        except (ForceLawError, ValueError) as exc:
+            raise ctx.error(f"{p}.law", str(exc)) from None
+        _wrap(ctx, p, lambda: add_nonlinear_spring(b, name, m, fl))
+
+
+def load_bushings(b, data, ctx):
+    """``bushings: {name: {parent, child, translational_stiffness: [3] N/m,
+    rotational_stiffness: [3] N m/rad}}``."""
+    from .force_laws import add_bushing
+
+    for name, spec in ctx.mapping(data, "bushings").items():
+        p = f"bushings.{name}"
+        ctx.keys(spec, p, ["parent", "child", "translational_stiffness", "rotational_stiffness"],
+                 required=("parent", "child", "translational_stiffness", "rotational_stiffness"))
+        k_t = ctx.vector(spec["translational_stiffness"], f"{p}.translational_stiffness", n=3)
+        k_r = ctx.vector(spec["rotational_stiffness"], f"{p}.rotational_stiffness", n=3)
+        _wrap(ctx, p, lambda: add_bushing(b, name, spec["parent"], spec["child"], k_t, k_r))
 
 
 def load_reactions(b, data, ctx):
@@ -123,9 +207,11 @@ def load_recruitment(b, data, ctx):
 
 SECTION_LOADERS.update(
     {
+        "wrapping": load_wrapping,
         "muscles": load_muscles,
         "ligaments": load_ligaments,
         "springs": load_springs,
+        "bushings": load_bushings,
         "reactions": load_reactions,
         "loads": load_loads,
         "recruitment": load_recruitment,

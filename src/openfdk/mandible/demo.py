@@ -36,6 +36,10 @@ def run_demo(out="openfdk-demo", quick=False, progress=True, log=print, workers=
     result = run_study(subject, out / "study", n_cycles=cycles, quick=quick, progress=progress, log=log,
                        workers=workers, scheduler=scheduler)
     report(result, out / "study", log)
+    from ..viewer import write_view
+
+    for run in sorted(p.parent for p in (out / "study").glob("*/fdk/kinematics.csv")):  # a 3D viewer per task
+        log(f"viewer: {write_view(run)}")
     log(f"done in {_time.perf_counter() - t0:.0f} s")
     return result
 

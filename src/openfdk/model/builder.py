@@ -163,22 +163,52 @@ class ModelBuilder:
         return PointPosition(self._body_index(f.body), f.p_BF, name=name or f.name)
 
     def vector(self, from_point, to_point, expressed_in=None, name=""):
-        """RelativeVector from one point to another, in ``expressed_in``'s frame (a body
-        name or a qualified frame whose body is used; world if None)."""
-        k = None
-        if expressed_in is not None and not isinstance(expressed_in, str):
-            raise ModelError(f"expressed_in: expected a body or frame name, got {expressed_in!r}")
-        if expressed_in is not None:
-            k = self._body_index(self.frame(expressed_in).body if "." in expressed_in else expressed_in)
-        return RelativeVector(self.point(from_point), self.point(to_point), k, name=name)
+        """Vector from one point to another (3 rows, m) expressed in ``expressed_in``: a
+        body name (the body's axes), a qualified frame "body.frame" (that frame's axes:
+        w_F = R_BFᵀ w_B) or None (world axes)."""
+        if expressed_in is None:
+            return RelativeVector(self.point(from_point), self.point(to_point), None, name=name)
+        f = self.frame(expressed_in)
+        vec = RelativeVector(self.point(from_point), self.point(to_point), self._body_index(f.body), name=name)
+        if "." not in expressed_in or np.array_equal(f.R_BF, np.eye(3)):
+            return vec
+        return Linear([(f.R_BF.T, vec)], name=name)
 
     def distance(self, point_a, point_b, name=""):
         return Distance(self.point(point_a), self.point(point_b), name=name)
 
-    def angles(self, frame_a, frame_b, name=""):
-        """x-y-z Cardan angles of frame_b relative to frame_a (3 rows, rad)."""
+    def angles(self, frame_a, frame_b, name="", sequence="xyz"):
+        """Angles of frame_b relative to frame_a (3 rows, rad) in an intrinsic Euler or
+        Cardan ``sequence`` (default x-y-z; :mod:`openfdk.model.rotation_angles`)."""
         fa, fb = self.frame(frame_a), self.frame(frame_b)
-        return RelativeAngles(self._body_index(fa.body), fa.R_BF, self._body_index(fb.body), fb.R_BF, name=name)
+        if sequence == "xyz":
+            return RelativeAngles(self._body_index(fa.body), fa.R_BF, self._body_index(fb.body), fb.R_BF, name=name)
+        from .rotation_angles import RotationAngles
+
+        try:
+            return RotationAngles(self._body_index(fa.body), fa.R_BF, self._body_index(fb.body), fb.R_BF,
+                                  sequence, name=name)
+        except ValueError as exc:
+            raise ModelError(str(exc)) from None
+
+    def jcs_angles(self, parent, child, joint="knee", side="right", name=""):
+        """Joint-coordinate-system angles (Grood & Suntay 1983; ISB, Wu et al. 2002/2005)
+        of the anatomical frame ``child`` in ``parent`` (3 rows, rad): knee/hip/ankle
+        z-x-y (flexion, adduction, internal rotation; knee flexion is the negative
+        rotation about z), shoulder y-x-y; ``side`` "left" negates angles 2 and 3
+        (docs/model-file.md, measures)."""
+        from .rotation_angles import JCS_CONVENTIONS, RotationAngles
+
+        if joint not in JCS_CONVENTIONS:
+            raise ModelError(f"JCS angles: unknown joint convention {joint!r}; expected one of {sorted(JCS_CONVENTIONS)}")
+        if side not in ("right", "left"):
+            raise ModelError(f"JCS angles: side must be 'right' or 'left', got {side!r}")
+        fa, fb = self.frame(parent), self.frame(child)
+        sequence, _, sign = JCS_CONVENTIONS[joint]
+        if side == "left" and joint != "shoulder":
+            sign = (sign[0], -sign[1], -sign[2])
+        return RotationAngles(self._body_index(fa.body), fa.R_BF, self._body_index(fb.body), fb.R_BF,
+                              sequence, sign, name=name)
 
     def axis_dot(self, frame_a, axis_a, frame_b, axis_b, name=""):
         fa, fb = self.frame(frame_a), self.frame(frame_b)
@@ -187,9 +217,8 @@ class ModelBuilder:
     def plane_distance(self, plane_frame, point, name=""):
         """Signed distance of ``point`` from the plane through ``plane_frame``'s origin
         with normal z of ``plane_frame`` (1 row, m)."""
-        fa = self.frame(plane_frame)
         vec = self.vector(plane_frame, point, expressed_in=plane_frame)
-        return Linear([(fa.R_BF[:, 2][None, :], vec)], name=name)
+        return Linear([(_EZ[None, :], vec)], name=name)
 
     def add_measure(self, name, measure: Measure):
         """Register a named measure (for drivers, outputs and FDK DOFs by name)."""
@@ -212,7 +241,7 @@ class ModelBuilder:
         self._constraints.append(c)
         return c
 
-    def add_joint(self, name, type, parent, child, normal=None):
+    def add_joint(self, name, type, parent, child, normal=None, fdk=None, reaction=None):
         """A joint between two frames (JOINT_TYPES).
 
         weld: all 6 relative DOFs locked; spherical: origins coincide; revolute: origins
@@ -220,6 +249,17 @@ class ModelBuilder:
         z of the parent frame, no relative rotation; point_on_plane: the child origin
         stays on the plane through the parent origin normal to z (or ``normal``, (3,)
         in the parent frame).
+
+        Rows are labelled x, y, z (child origin in the parent frame), rx, ry, rz (weld,
+        prismatic), zx, zy (revolute), n (point_on_plane); row names are "{name}.{label}".
+        fdk : labels of rows that become FDK DOFs instead of constraints (a list, or a
+            dict label -> FDK settings such as ``initial``, ``max_step``); the DOF
+            ``{name}_{label}`` is that row's measure, and the row carries no reaction.
+        reaction : dict label -> bool, switches the reaction of single rows (default on).
+
+        Also registers the joint's measures by name (:meth:`_register_joint_measures`):
+        ``{name}.position``, ``{name}.angles`` and, for a revolute, ``{name}.angle``, for a
+        prismatic, ``{name}.slide``.
         """
         _check_name(name, "joint")
         if type not in JOINT_TYPES[:-1]:
@@ -229,23 +269,19 @@ class ModelBuilder:
             raise ModelError(f"joint {name!r}: parent and child are on the same body {fa.body!r}")
         ia, ib = self._body_index(fa.body), self._body_index(fb.body)
         Ra, Rb = fa.R_BF, fb.R_BF
-        vec = self.vector(parent, child, expressed_in=parent)
-        rows, names = [], []
         # relative vector of the origins, expressed in the parent frame F_a
-        rel_Fa = Linear([(Ra.T, vec)])
+        rel_Fa = self.vector(parent, child, expressed_in=parent)
+        rows = []  # (label, (1, size) coefficients, measure)
 
         def dot(u, w, label):
-            rows.append((np.ones((1, 1)), AxisDot(ia, Ra @ u, ib, Rb @ w)))
-            names.append(f"{name}.{label}")
+            rows.append((label, np.ones((1, 1)), AxisDot(ia, Ra @ u, ib, Rb @ w)))
 
         if type == "point_on_plane":
             n = _EZ if normal is None else np.asarray(normal, float) / np.linalg.norm(normal)
-            measure = Linear([((Ra @ n)[None, :], vec)])
-            names = [f"{name}.n"]
+            rows.append(("n", n[None, :], rel_Fa))
         else:
-            pos_rows = [0, 1, 2] if type != "prismatic" else [0, 1]
-            measure_parts = [(np.eye(3)[pos_rows], rel_Fa)]
-            names = [f"{name}.{'xyz'[r]}" for r in pos_rows]
+            for r in [0, 1, 2] if type != "prismatic" else [0, 1]:
+                rows.append(("xyz"[r], np.eye(3)[[r]], rel_Fa))
             if type in ("weld", "prismatic"):
                 dot(_EY, _EZ, "rx")
                 dot(_EZ, _EX, "ry")
@@ -253,10 +289,60 @@ class ModelBuilder:
             elif type == "revolute":
                 dot(_EZ, _EX, "zx")
                 dot(_EZ, _EY, "zy")
-            measure = _stack(measure_parts + [(C, m) for C, m in rows])
-        return self._add_constraint(
-            Constraint(name, measure, JOINT, np.zeros(measure.size), None, True, tuple(names), type)
-        )
+        labels = [r[0] for r in rows]
+        fdk_settings = _joint_row_options(name, "fdk", fdk, labels)
+        reactions = _joint_row_options(name, "reaction", reaction, labels)
+        for label, on in reactions.items():
+            if not isinstance(on, bool):
+                raise ModelError(f"joint {name!r}: reaction of row {label!r} must be true or false, got {on!r}")
+            if label in fdk_settings and on:
+                raise ModelError(f"joint {name!r}: row {label!r} is an FDK DOF and cannot carry a reaction")
+        self._register_joint_measures(name, type, parent, child, rel_Fa)
+        for label in fdk_settings:
+            C, m = next((C, m) for lab, C, m in rows if lab == label)
+            settings = dict(fdk_settings[label] or {})
+            initial = float(settings.pop("initial", 0.0))
+            self.add_fdk_dof(f"{name}_{label}", Linear([(C, m)], name=f"{name}.{label}"), initial, **settings)
+        kept = [r for r in rows if r[0] not in fdk_settings]
+        if not kept:
+            return None
+        with_reaction = [r for r in kept if reactions.get(r[0], True)]
+        without = [r for r in kept if not reactions.get(r[0], True)]
+        first = None
+        # rows without reaction go to their own block "{name}.passive" (or "{name}" alone)
+        for carries, group in ((True, with_reaction), (False, without)):
+            if not group:
+                continue
+            cname = f"{name}.passive" if (not carries and with_reaction) else name
+            parts = []  # consecutive rows of one measure share one block
+            for _, C, m in group:
+                if parts and parts[-1][1] is m:
+                    parts[-1] = (np.vstack([parts[-1][0], C]), m)
+                else:
+                    parts.append((C, m))
+            measure = _stack(parts)
+            c = self._add_constraint(Constraint(cname, measure, JOINT, np.zeros(measure.size), None, carries,
+                                                tuple(f"{name}.{r[0]}" for r in group), type))
+            first = first or c
+        return first
+
+    def _register_joint_measures(self, name, type, parent, child, rel_Fa):
+        """Named measures of a joint: ``name.position`` (3, m, child origin in the parent
+        frame), ``name.angles`` (3, rad, x-y-z Cardan angles of the child frame in the
+        parent frame), ``name.angle`` (revolute: rotation about z, rad), ``name.slide``
+        (prismatic: translation along the parent z, m)."""
+        angles = self.angles(parent, child)
+        found = {f"{name}.position": rel_Fa, f"{name}.angles": angles}
+        if type == "revolute":
+            found[f"{name}.angle"] = Linear([(_EZ[None, :], angles)])
+        if type == "prismatic":
+            found[f"{name}.slide"] = Linear([(_EZ[None, :], rel_Fa)])
+        for key, m in found.items():
+            if key in self._measures:
+                raise ModelError(f"joint {name!r}: measure {key!r} is already defined")
+            m = Linear([(np.eye(m.size), m)], name=key) if m.name else m
+            m.name = key
+            self._measures[key] = m
 
     def add_constraint(self, name, measure, value=None, components=None, reaction=True):
         """Generic constraint ``measure = value`` (value in SI units, default 0)."""
@@ -346,6 +432,20 @@ def _stack(parts):
         terms.append((big, m))
         r += C.shape[0]
     return Linear(terms)
+
+
+def _joint_row_options(name, key, value, labels):
+    """{label: settings} from a list of labels or a mapping label -> settings."""
+    if value is None:
+        return {}
+    if isinstance(value, (list, tuple)):
+        value = {label: None for label in value}
+    if not isinstance(value, dict):
+        raise ModelError(f"joint {name!r}: {key} must be a list of row labels or a mapping, got {value!r}")
+    bad = [k for k in value if k not in labels]
+    if bad:
+        raise ModelError(f"joint {name!r}: {key}: unknown rows {bad}; this joint's rows are {labels}")
+    return dict(value)
 
 
 def _row_names(name, size):

@@ -167,9 +167,10 @@ def _load_bodies(b, bodies, ctx):
         raise ctx.error("bodies", "at least one body is needed")
     for name, spec in bodies.items():
         p = f"bodies.{name}"
-        ctx.keys(spec, p, ["mass", "inertia", "position", "orientation", "fixed", "equilibrium", "frames", "points", "markers"])
+        ctx.keys(spec, p, ["mass", "inertia", "position", "orientation", "fixed", "equilibrium", "frames", "points", "markers",
+                         "visual"])
         if name == GROUND:
-            ctx.keys(spec, p, ["fixed", "frames", "points"])
+            ctx.keys(spec, p, ["fixed", "frames", "points", "visual"])
             if spec.get("fixed", True) is not True:
                 raise ctx.error(f"{p}.fixed", "the ground is always fixed")
             spec = {k: v for k, v in spec.items() if k != "fixed"}
@@ -205,13 +206,18 @@ def _load_bodies(b, bodies, ctx):
             else:
                 pos, weight, label = ctx.position(mspec, mp), 1.0, None
             _wrap(ctx, mp, lambda: b.add_marker(mname, name, pos, weight, label))
+        if "visual" in spec:
+            from .visuals import load_visuals
+
+            load_visuals(b, name, spec["visual"], f"{p}.visual", ctx)
 
 
 MEASURE_KEYS = {
     "point": ["point"],
     "vector": ["from", "to", "expressed_in"],
     "distance": ["from", "to"],
-    "angles": ["frame", "of"],
+    "angles": ["frame", "of", "sequence"],
+    "jcs": ["frame", "of", "joint", "side"],
     "axis_dot": ["frame_a", "axis_a", "frame_b", "axis_b"],
     "plane_distance": ["plane", "point"],
     "linear": ["terms", "offset"],
@@ -226,7 +232,7 @@ def _measure(b, spec, path, ctx):
     kind = spec.get("type")
     if not isinstance(kind, str) or kind not in MEASURE_KEYS:
         raise ctx.error(f"{path}.type", f"unknown measure type {kind!r}; expected one of {list(MEASURE_KEYS)}")
-    ctx.keys(spec, path, ["type"] + MEASURE_KEYS[kind], required=[k for k in MEASURE_KEYS[kind] if k not in ("expressed_in", "offset")])
+    ctx.keys(spec, path, ["type"] + MEASURE_KEYS[kind], required=[k for k in MEASURE_KEYS[kind] if k not in ("expressed_in", "offset", "sequence", "joint", "side")])
     if kind == "point":
         return _wrap(ctx, path, lambda: b.point(spec["point"]))
     if kind == "vector":
@@ -234,7 +240,10 @@ def _measure(b, spec, path, ctx):
     if kind == "distance":
         return _wrap(ctx, path, lambda: b.distance(spec["from"], spec["to"]))
     if kind == "angles":
-        return _wrap(ctx, path, lambda: b.angles(spec["frame"], spec["of"]))
+        return _wrap(ctx, path, lambda: b.angles(spec["frame"], spec["of"], sequence=spec.get("sequence", "xyz")))
+    if kind == "jcs":
+        return _wrap(ctx, path, lambda: b.jcs_angles(spec["frame"], spec["of"], spec.get("joint", "knee"),
+                                                     spec.get("side", "right")))
     if kind == "axis_dot":
         return _wrap(ctx, path, lambda: b.axis_dot(
             spec["frame_a"], ctx.vector(spec["axis_a"], f"{path}.axis_a", n=3),
@@ -275,11 +284,39 @@ def _components(spec, m, path, ctx):
     return comps, tuple(m.units[c] for c in comps)
 
 
+#: joint rows whose measure is a length (the others are cosines, dimensionless)
+LENGTH_ROWS = ("x", "y", "z", "n")
+
+
 def _load_joint(b, name, spec, ctx):
+    """A joint; ``fdk`` (list of row labels, or label -> {initial, max_step,
+    perturbation, spring}) makes rows FDK DOFs, ``reaction`` (label -> bool) switches
+    single rows' reactions (docs/model-file.md, joints)."""
     p = f"joints.{name}"
-    ctx.keys(spec, p, ["type", "parent", "child", "normal"], required=("type", "parent", "child"))
+    ctx.keys(spec, p, ["type", "parent", "child", "normal", "fdk", "reaction"], required=("type", "parent", "child"))
     normal = ctx.vector(spec["normal"], f"{p}.normal", n=3) if "normal" in spec else None
-    _wrap(ctx, p, lambda: b.add_joint(name, spec["type"], spec["parent"], spec["child"], normal=normal))
+    fdk = spec.get("fdk")
+    if isinstance(fdk, dict):
+        out = {}
+        for label, settings in fdk.items():
+            lp = f"{p}.fdk.{label}"
+            settings = {} if settings is None else settings
+            ctx.keys(settings, lp, ["initial"] + FDK_SETTING_KEYS)
+            scale = ctx.length if label in LENGTH_ROWS else 1.0
+            out[label] = {}
+            for k in ("initial", "max_step", "perturbation"):
+                if k in settings:
+                    out[label][k] = ctx.number(settings[k], f"{lp}.{k}", positive=(k != "initial")) * scale
+            if "spring" in settings:
+                out[label]["spring"] = settings["spring"]
+        fdk = out
+    elif fdk is not None and not (isinstance(fdk, list) and all(isinstance(x, str) for x in fdk)):
+        raise ctx.error(f"{p}.fdk", f"expected a list of row labels (e.g. [x, y]) or a mapping, got {fdk!r}")
+    reaction = spec.get("reaction")
+    if reaction is not None and not isinstance(reaction, dict):
+        raise ctx.error(f"{p}.reaction", f"expected a mapping row label -> true/false, got {reaction!r}")
+    _wrap(ctx, p, lambda: b.add_joint(name, spec["type"], spec["parent"], spec["child"], normal=normal,
+                                      fdk=fdk, reaction=reaction))
 
 
 def _load_constraint(b, name, spec, ctx):

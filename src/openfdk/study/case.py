@@ -66,6 +66,9 @@ def write_run_outputs(out, kin, dyn, info):
     summary.json ({input, kinematics, inverse_dynamics, fdk?})."""
     info = dict(info)
     fdk = info.pop("fdk", None)
+    for key in ("model", "trial"):  # absolute paths, so that 'openfdk view' finds the inputs from anywhere
+        if isinstance(info.get(key), str) and Path(info[key]).is_file():
+            info[f"{key}_file"] = str(Path(info[key]).resolve())
     write_kinematics(out, kin, {"input": info})
     write_forces(out, dyn)
     summary = {"input": info, "kinematics": kin.summary(), "inverse_dynamics": dyn.summary()}

@@ -1,0 +1,426 @@
+"""Numba kernels of wrapped paths: the shortest path over one surface (surface frame S,
+SI units), and whole paths through points and surfaces.
+
+A path from point P to point Q that must pass around a convex surface is a straight
+segment P→T1, a geodesic arc T1→T2 on the surface, and a straight segment T2→Q, with
+both segments tangent to the arc at T1 and T2 (the path is locally shortest). When the
+straight segment P→Q does not cross the surface the path is that segment (lift-off).
+
+* circle (the 2-D core):    tangent points at angles α ± acos(r/ρ), arc r θ;
+* cylinder (axis z_S):      unrolled onto the tangent plane the path is straight, so
+                            l = sqrt((d1 + r θ + d2)² + Δz²) (helical arc, closed form);
+* sphere (centre o_S):      the path lies in the plane through o_S, P and Q, a great
+                            circle arc (closed form);
+* ellipsoid x²/a²+y²/b²+z²/c² = 1: the map X' = D X, D = diag(1/a, 1/b, 1/c), sends the
+  ellipsoid to the unit sphere and keeps straight lines, tangency and intersections, so
+  the sphere solution gives the lift-off test, the side and an initial guess; then the
+  geodesic ODE x'' = −(x'ᵀ A x' / |A x|²) A x, A = D², is shot from the tangent point
+  T1(φ) on P's horizon (the conic {X on the ellipsoid : Pᵀ A X = 1}) over an arc length
+  s, and Newton on (φ, s) makes the end tangent line pass through Q.
+
+Side: ``side`` (3,) is a direction in S: the path passes the axis (cylinder; only the
+x_S, y_S part counts) or the centre (sphere, ellipsoid) on the side where ``side``
+points; the zero vector means the shorter way (the side the straight line passes on).
+In the plane of the wrap, the arc turning counter-clockwise from P to Q is chosen when its
+bisector points along ``side`` (positive dot product), else the clockwise one. With the
+direction fixed, γ is the angle swept from P to Q in that direction and the arc between
+the tangent points is θ = γ − acos(r/ρ_P) − acos(r/ρ_Q): the path wraps iff θ > 0 (an
+obstacle-set rule: the path never crosses to the other side, so it wraps the long way
+round when the straight line passes on the other side). Lift-off is θ → 0, continuous in
+length and slope; the direction can only flip where the bisector is perpendicular to
+``side``, i.e. with both points on one flank of the surface. With a side the
+path stays on that side and wraps the long way round when the straight line passes on
+the other side of the axis/centre; lift-off (θ → 0) is continuous in length and slope.
+
+Every single-surface kernel returns ``(status, length, T1 (3,), T2 (3,), arc)``: status
+0 = no contact (straight), 1 = wrapping, −1 = P or Q inside the surface, −2 = geodesic
+not converged. :func:`wrapped_path_lengths` assembles whole paths through points and
+surfaces (see :mod:`.wrapping`). All jitted code of the wrapping lives in this one
+module, so numba's on-disk cache never holds a kernel compiled against an older copy of
+a function from another file.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+TWO_PI = 2.0 * np.pi
+
+
+@njit(cache=True)
+def circle_wrap(px, py, qx, qy, r, sigma):
+    """Planar wrap of P→Q around the circle |x| = r (centre at the origin).
+
+    sigma : +1 counter-clockwise, −1 clockwise, 0 the side of the straight line.
+    Returns (status, d1, theta, d2, t1x, t1y, t2x, t2y): tangent lengths d1 = |P − T1|,
+    d2 = |T2 − Q| (m), wrap angle θ ∈ [0, 2π) (rad), tangent points T1, T2 (m).
+    """
+    rho_p = np.sqrt(px * px + py * py)
+    rho_q = np.sqrt(qx * qx + qy * qy)
+    if rho_p <= r or rho_q <= r:
+        return -1, 0.0, 0.0, 0.0, px, py, qx, qy
+    if sigma == 0:  # the shorter way: the side of the centre the straight line leaves
+        sigma = 1 if px * qy - py * qx >= 0.0 else -1
+    # γ: angle swept from P to Q in the wrap direction; θ = γ − acos(r/ρ_P) − acos(r/ρ_Q)
+    # is the arc between the tangent points, θ ≤ 0 means the straight line clears
+    a_p, a_q = np.arctan2(py, px), np.arctan2(qy, qx)
+    gamma = np.mod(sigma * (a_q - a_p), TWO_PI)
+    theta = gamma - np.arccos(r / rho_p) - np.arccos(r / rho_q)
+    if theta <= 0.0:
+        return 0, 0.0, 0.0, 0.0, px, py, qx, qy
+    phi1 = a_p + sigma * np.arccos(r / rho_p)
+    phi2 = a_q - sigma * np.arccos(r / rho_q)
+    d1 = np.sqrt(rho_p * rho_p - r * r)
+    d2 = np.sqrt(rho_q * rho_q - r * r)
+    return 1, d1, theta, d2, r * np.cos(phi1), r * np.sin(phi1), r * np.cos(phi2), r * np.sin(phi2)
+
+
+@njit(cache=True)
+def _side_sigma(px, py, qx, qy, sx, sy):
+    """+1 when the counter-clockwise arc from the direction of P to that of Q has its
+    bisector along (sx, sy), −1 otherwise, 0 when no side is given."""
+    if sx == 0.0 and sy == 0.0:
+        return 0
+    a_p = np.arctan2(py, px)
+    beta = np.mod(np.arctan2(qy, qx) - a_p, TWO_PI)
+    mid = a_p + 0.5 * beta
+    return 1 if np.cos(mid) * sx + np.sin(mid) * sy >= 0.0 else -1
+
+
+@njit(cache=True)
+def cylinder_wrap(P, Q, r, side):
+    """Wrap of P→Q (3,) m around the infinite cylinder x² + y² = r² (axis z): a helix.
+    side (3,): the path passes the axis on this side (x, y part; zero: the shorter way).
+
+    Unrolled, the path is the straight line of horizontal length H = d1 + r θ + d2 and
+    rise Δz = Q_z − P_z, so l = sqrt(H² + Δz²) and T1_z, T2_z divide Δz like H.
+    """
+    sigma = _side_sigma(P[0], P[1], Q[0], Q[1], side[0], side[1])
+    st, d1, theta, d2, t1x, t1y, t2x, t2y = circle_wrap(P[0], P[1], Q[0], Q[1], r, sigma)
+    T1 = np.empty(3)
+    T2 = np.empty(3)
+    if st != 1:
+        T1[:] = P
+        T2[:] = Q
+        dx, dy, dz = Q[0] - P[0], Q[1] - P[1], Q[2] - P[2]
+        return st, np.sqrt(dx * dx + dy * dy + dz * dz), T1, T2, 0.0
+    H = d1 + r * theta + d2
+    dz = Q[2] - P[2]
+    length = np.sqrt(H * H + dz * dz)
+    T1[0], T1[1], T1[2] = t1x, t1y, P[2] + dz * d1 / H
+    T2[0], T2[1], T2[2] = t2x, t2y, P[2] + dz * (d1 + r * theta) / H
+    return 1, length, T1, T2, length * r * theta / H
+
+
+@njit(cache=True)
+def _plane_basis(P, Q, side):
+    """Orthonormal e1 = P/|P|, e2 ⟂ e1 in the plane of (0, P, Q), e2·Q ≥ 0; when Q is
+    (nearly) on the line through 0 and P, e2 comes from ``side`` (or any perpendicular)."""
+    e1 = P / np.sqrt(P @ P)
+    q_perp = Q - (Q @ e1) * e1
+    nq = np.sqrt(q_perp @ q_perp)
+    if nq > 1e-12 * np.sqrt(Q @ Q):
+        return e1, q_perp / nq
+    d = side - (side @ e1) * e1
+    if np.sqrt(d @ d) < 1e-12:
+        d = np.array([1.0, 0.0, 0.0]) if abs(e1[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        d = d - (d @ e1) * e1
+    return e1, d / np.sqrt(d @ d)
+
+
+@njit(cache=True)
+def sphere_wrap(P, Q, r, side):
+    """Wrap of P→Q (3,) m around the sphere |x| = r: a great-circle arc in the plane
+    through the centre, P and Q. side (3,): direction the path must pass (0: shorter)."""
+    T1 = np.empty(3)
+    T2 = np.empty(3)
+    e1, e2 = _plane_basis(P, Q, side)
+    qx, qy = Q @ e1, Q @ e2
+    sigma = _side_sigma(1.0, 0.0, qx, qy, side @ e1, side @ e2)
+    st, d1, theta, d2, t1x, t1y, t2x, t2y = circle_wrap(np.sqrt(P @ P), 0.0, qx, qy, r, sigma)
+    if st != 1:
+        T1[:] = P
+        T2[:] = Q
+        u = Q - P
+        return st, np.sqrt(u @ u), T1, T2, 0.0
+    T1[:] = t1x * e1 + t1y * e2
+    T2[:] = t2x * e1 + t2y * e2
+    return 1, d1 + r * theta + d2, T1, T2, r * theta
+
+
+# --- ellipsoid ----------------------------------------------------------------------
+
+
+@njit(cache=True)
+def _geodesic_rhs(x, v, A):
+    """Geodesic ODE on xᵀ A x = 1: x' = v, v' = −(vᵀ A v / |A x|²) A x."""
+    Ax = A * x
+    lam = (v @ (A * v)) / (Ax @ Ax)
+    return v, -lam * Ax
+
+
+@njit(cache=True)
+def shoot_geodesic(x0, v0, A, s, n_steps):
+    """Integrate the geodesic from x0 (3,) with unit direction v0 (3,) over arc length s
+    (m) by classical RK4 in ``n_steps`` steps. A (3,) = (1/a², 1/b², 1/c²). Returns
+    (x(s), x'(s))."""
+    h = s / n_steps
+    x = x0.copy()
+    v = v0.copy()
+    for _ in range(n_steps):
+        k1x, k1v = _geodesic_rhs(x, v, A)
+        k2x, k2v = _geodesic_rhs(x + 0.5 * h * k1x, v + 0.5 * h * k1v, A)
+        k3x, k3v = _geodesic_rhs(x + 0.5 * h * k2x, v + 0.5 * h * k2v, A)
+        k4x, k4v = _geodesic_rhs(x + h * k3x, v + h * k3v, A)
+        x = x + (h / 6.0) * (k1x + 2.0 * k2x + 2.0 * k3x + k4x)
+        v = v + (h / 6.0) * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
+    return x, v
+
+
+@njit(cache=True)
+def _horizon_point(phi, c0, rho, u1, u2, axes):
+    """T1(φ) on P's horizon: the circle c0 + ρ(cos φ u1 + sin φ u2) on the unit sphere of
+    the mapped space, mapped back by D⁻¹ = diag(a, b, c)."""
+    return axes * (c0 + rho * (np.cos(phi) * u1 + np.sin(phi) * u2))
+
+
+@njit(cache=True)
+def _shoot_residual(phi, s, P, Q, c0, rho, u1, u2, axes, A, n_steps):
+    """Residual of the end condition: Q on the tangent line of the geodesic end, as
+    [(Q − x)·n̂, (Q − x)·(n̂ × x')] (m), with n̂ the unit surface normal at x."""
+    T1 = _horizon_point(phi, c0, rho, u1, u2, axes)
+    d = T1 - P
+    v0 = d / np.sqrt(d @ d)
+    x, v = shoot_geodesic(T1, v0, A, s, n_steps)
+    n = A * x
+    n = n / np.sqrt(n @ n)
+    w = Q - x
+    b = np.array([n[1] * v[2] - n[2] * v[1], n[2] * v[0] - n[0] * v[2], n[0] * v[1] - n[1] * v[0]])
+    return np.array([w @ n, w @ b]), T1, x
+
+
+@njit(cache=True)
+def ellipsoid_wrap(P, Q, axes, side, tol):
+    """Wrap of P→Q (3,) m around the ellipsoid with semi-axes ``axes`` (3,) m along
+    x_S, y_S, z_S. side (3,) as for the sphere, in S. ``tol`` (m): Newton stops when the
+    end residual is below it (1e-12 m gives lengths to ~1e-10 relative)."""
+    T1 = np.empty(3)
+    T2 = np.empty(3)
+    Dinv = axes
+    P1 = P / Dinv
+    Q1 = Q / Dinv
+    st, _, T1s, T2s, _ = sphere_wrap(P1, Q1, 1.0, side / Dinv)
+    if st != 1:
+        T1[:] = P
+        T2[:] = Q
+        u = Q - P
+        return st, np.sqrt(u @ u), T1, T2, 0.0
+    A = 1.0 / (axes * axes)
+    # horizon circle of P in the mapped space: centre P'/|P'|², radius sqrt(1 − 1/|P'|²)
+    pp = P1 @ P1
+    c0 = P1 / pp
+    rho = np.sqrt(1.0 - 1.0 / pp)
+    u1 = T1s - c0
+    u1 = u1 / np.sqrt(u1 @ u1)
+    n1 = P1 / np.sqrt(pp)
+    u2 = np.array([n1[1] * u1[2] - n1[2] * u1[1], n1[2] * u1[0] - n1[0] * u1[2], n1[0] * u1[1] - n1[1] * u1[0]])
+    # initial arc length: the mapped great-circle arc T1s→T2s sampled in 64 chords
+    theta = np.arccos(min(1.0, max(-1.0, T1s @ T2s)))
+    e2 = T2s - (T2s @ T1s) * T1s
+    ne2 = np.sqrt(e2 @ e2)
+    s = 0.0
+    if ne2 > 0.0:
+        e2 = e2 / ne2
+        prev = Dinv * T1s
+        for k in range(1, 65):
+            a = theta * k / 64.0
+            cur = Dinv * (np.cos(a) * T1s + np.sin(a) * e2)
+            d = cur - prev
+            s += np.sqrt(d @ d)
+            prev = cur
+    n_steps = 48 + int(300.0 * theta / np.pi)
+    scale = np.sqrt(P @ P) + np.sqrt(Q @ Q)
+    phi = 0.0
+    converged = False
+    for _ in range(60):
+        res, T1c, x = _shoot_residual(phi, s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps)
+        if np.sqrt(res @ res) < tol:
+            converged = True
+            break
+        h_phi = 1e-7
+        h_s = 1e-7 * scale
+        r_phi = (_shoot_residual(phi + h_phi, s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps)[0] - res) / h_phi
+        r_s = (_shoot_residual(phi, s + h_s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps)[0] - res) / h_s
+        det = r_phi[0] * r_s[1] - r_phi[1] * r_s[0]
+        if det == 0.0:
+            break
+        d_phi = -(r_s[1] * res[0] - r_s[0] * res[1]) / det
+        d_s = -(-r_phi[1] * res[0] + r_phi[0] * res[1]) / det
+        # damping: at most 0.3 rad of horizon angle and half the arc per step
+        f = 1.0
+        if abs(d_phi) > 0.3:
+            f = 0.3 / abs(d_phi)
+        if s + f * d_s < 0.5 * s:
+            f = min(f, 0.5 * s / abs(d_s))
+        phi += f * d_phi
+        s += f * d_s
+    if not converged:
+        T1[:] = P
+        T2[:] = Q
+        return -2, np.nan, T1, T2, 0.0
+    T1[:] = T1c
+    T2[:] = x
+    a1 = T1c - P
+    a2 = Q - x
+    return 1, np.sqrt(a1 @ a1) + s + np.sqrt(a2 @ a2), T1, T2, s
+
+
+# --- paths through points and surfaces (see openfdk.forces.wrapping) -----------------
+
+POINT, CYLINDER, SPHERE, ELLIPSOID = 0, 1, 2, 3
+SURFACE_KINDS = {"cylinder": CYLINDER, "sphere": SPHERE, "ellipsoid": ELLIPSOID}
+#: Newton tolerance of the ellipsoid geodesic end condition (m)
+ELLIPSOID_TOL = 1e-13
+#: status codes of :func:`wrapped_path_lengths`
+STATUS_TEXT = {-1: "a path point lies inside the wrapping surface", -2: "the ellipsoid geodesic did not converge",
+               -3: "adjacent wrapping surfaces did not settle"}
+
+
+@njit(cache=True)
+def _wrap_one(kind, P_S, Q_S, dims, side):
+    if kind == CYLINDER:
+        return cylinder_wrap(P_S, Q_S, dims[0], side)
+    if kind == SPHERE:
+        return sphere_wrap(P_S, Q_S, dims[0], side)
+    return ellipsoid_wrap(P_S, Q_S, dims, side, ELLIPSOID_TOL)
+
+
+@njit(cache=True)
+def _anchor(j, step, kinds, active, X_W, T1_W, T2_W):
+    """Nearest node before (step −1) or after (+1) node j that the path touches: a point's
+    position, or T2 (before) / T1 (after) of a surface in contact."""
+    k = j + step
+    while kinds[k] != POINT and not active[k]:
+        k += step
+    if kinds[k] == POINT:
+        return X_W[k]
+    return T2_W[k] if step < 0 else T1_W[k]
+
+
+@njit(cache=True)
+def _add_segment(L, p, column, p_WB, R_WB, ia, xa, ib, xb):
+    """L[p] += eᵀ (M_B − M_A) for the segment from xa (fixed in body ia) to xb (in ib);
+    returns its length (m)."""
+    u = xb - xa
+    length = np.sqrt(u @ u)
+    if length == 0.0:
+        return 0.0
+    e = u / length
+    for side in range(2):
+        i = ia if side == 0 else ib
+        c = column[i]
+        if c < 0:
+            continue
+        sign = -1.0 if side == 0 else 1.0
+        sW = (xa if side == 0 else xb) - p_WB[i]
+        x0 = sW[1] * e[2] - sW[2] * e[1]
+        x1 = sW[2] * e[0] - sW[0] * e[2]
+        x2 = sW[0] * e[1] - sW[1] * e[0]
+        R = R_WB[i]
+        for r in range(3):
+            L[p, c + r] += sign * e[r]
+            L[p, c + 3 + r] += sign * (R[0, r] * x0 + R[1, r] * x1 + R[2, r] * x2)
+    return length
+
+
+@njit(cache=True)
+def wrapped_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, dims, sides, start, n_coords):
+    """Lengths, Jacobians and tangent points of paths through points and surfaces.
+
+    p_WB (nb, 3) m, R_WB (nb, 3, 3); column (nb,) first q̂ column of each body (−1 fixed);
+    nodes of all paths concatenated: kinds (N,) (POINT, CYLINDER, SPHERE, ELLIPSOID),
+    bodies (N,), p_B (N, 3) m (point, or surface origin, in the body frame), R_BS (N, 3, 3),
+    dims (N, 3) m, sides (N, 3); path k owns nodes start[k]:start[k+1].
+    Returns l (n_paths,) m, L (n_paths, n_coords), status (n_paths,) (0 ok, < 0 see
+    ``STATUS_TEXT``), T_W (N, 2, 3) m the world tangent points of each surface in
+    contact (NaN when not in contact or for points).
+    """
+    n_paths = start.shape[0] - 1
+    N = kinds.shape[0]
+    l = np.zeros(n_paths)
+    L = np.zeros((n_paths, n_coords))
+    status = np.zeros(n_paths, dtype=np.int64)
+    T_W = np.full((N, 2, 3), np.nan)
+    X_W = np.zeros((N, 3))
+    R_WS = np.zeros((N, 3, 3))
+    for j in range(N):
+        i = bodies[j]
+        X_W[j] = p_WB[i] + R_WB[i] @ p_B[j]
+        R_WS[j] = R_WB[i] @ R_BS[j]
+    active = np.zeros(N, dtype=np.bool_)
+    T1_W = np.zeros((N, 3))
+    T2_W = np.zeros((N, 3))
+    arc = np.zeros(N)
+    for p in range(n_paths):
+        j0, j1 = start[p], start[p + 1]
+        adjacent = False
+        for j in range(j0 + 1, j1 - 1):
+            if kinds[j] != POINT and kinds[j + 1] != POINT:
+                adjacent = True
+        scale = 0.0
+        for j in range(j0, j1):
+            scale = max(scale, np.sqrt((X_W[j] - X_W[j0]) @ (X_W[j] - X_W[j0])))
+        settled = False
+        for sweep in range(200 if adjacent else 1):
+            change = 0.0
+            for j in range(j0 + 1, j1 - 1):
+                if kinds[j] == POINT:
+                    continue
+                P_W = _anchor(j, -1, kinds, active, X_W, T1_W, T2_W)
+                Q_W = _anchor(j, 1, kinds, active, X_W, T1_W, T2_W)
+                R = R_WS[j]
+                st, _, T1, T2, a = _wrap_one(kinds[j], R.T @ (P_W - X_W[j]), R.T @ (Q_W - X_W[j]), dims[j], sides[j])
+                if st < 0:
+                    status[p] = st
+                    break
+                new_active = st == 1
+                t1 = X_W[j] + R @ T1
+                t2 = X_W[j] + R @ T2
+                if new_active != active[j]:
+                    change = np.inf
+                elif new_active:
+                    change = max(change, np.sqrt((t1 - T1_W[j]) @ (t1 - T1_W[j])), np.sqrt((t2 - T2_W[j]) @ (t2 - T2_W[j])))
+                active[j] = new_active
+                T1_W[j] = t1
+                T2_W[j] = t2
+                arc[j] = a
+            if status[p] < 0:
+                break
+            if change <= 1e-14 * scale:
+                settled = True
+                break
+        if status[p] < 0:
+            l[p] = np.nan
+            continue
+        if adjacent and not settled:
+            status[p] = -3
+            l[p] = np.nan
+            continue
+        # l = Σ segments + Σ arcs;  L = Σ eᵀ (M_B − M_A), tangent points fixed in their bodies
+        last_body, last_x = bodies[j0], X_W[j0]
+        total = 0.0
+        for j in range(j0 + 1, j1):
+            if kinds[j] == POINT:
+                total += _add_segment(L, p, column, p_WB, R_WB, last_body, last_x, bodies[j], X_W[j])
+                last_body, last_x = bodies[j], X_W[j]
+            elif active[j]:
+                total += _add_segment(L, p, column, p_WB, R_WB, last_body, last_x, bodies[j], T1_W[j])
+                total += arc[j]
+                T_W[j, 0] = T1_W[j]
+                T_W[j, 1] = T2_W[j]
+                last_body, last_x = bodies[j], T2_W[j]
+        l[p] = total
+    return l, L, status, T_W
+
+

@@ -1,0 +1,148 @@
+"""Muscle and ligament paths through via points and wrapping surfaces, in any order.
+
+A path is a list of *nodes*: body points and wrapping surfaces (cylinder, sphere,
+ellipsoid fixed to a body, see :mod:`.wrap_kernels`). The first and last nodes are
+points. Each surface wraps the path between its neighbouring anchors: the previous point
+(or the exit tangent point T2 of the previous surface in contact) and the next point (or
+the entry tangent point T1 of the next surface in contact). Surfaces next to each other
+are solved by block Gauss–Seidel sweeps until the tangent points stop moving.
+
+Length:  l = Σ straight segments + Σ geodesic arcs.
+Jacobian (moment arms): the path is locally shortest, so by the envelope theorem
+∂l/∂q̂ equals the derivative with the tangent points held fixed *in their surface's
+body*; the arcs are then rigid and only the straight segments count:
+L = Σ_segments eᵀ (M_B − M_A), e the unit segment direction, M the point Jacobians
+(DESIGN.md §1). This is exact for the closed-form cylinder and sphere arcs and as
+accurate as the shooting tolerance for the ellipsoid. Lengthening speed l̇ = L v; a
+tension T acts as Q = −Lᵀ T. The acceleration bias b = L̇ v (needed only when a path
+length is driven or used as a constraint) is a central difference of L along v.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..model.measures import Measure
+from .wrap_kernels import POINT, STATUS_TEXT, SURFACE_KINDS, wrapped_path_lengths
+
+
+@dataclass(frozen=True, eq=False)
+class WrapSurface:
+    """A wrapping surface fixed to a body.
+
+    kind : "cylinder" (axis z_S, infinite), "sphere" or "ellipsoid" (semi-axes along
+    x_S, y_S, z_S); body : body index; p_BS (3,) m and R_BS (3, 3): the surface frame S
+    in the body frame; dims (3,) m: (r, r, r) or the semi-axes (a, b, c); side (3,): a
+    direction in S on which the path must pass (zeros: the shorter way).
+    """
+
+    name: str
+    kind: str
+    body: int
+    p_BS: np.ndarray
+    R_BS: np.ndarray
+    dims: np.ndarray
+    side: np.ndarray
+
+
+class WrapNodes:
+    """The node arrays of one or more wrapped paths, ready for the kernel.
+
+    paths : list of node lists; a node is ``(body, p_BP)`` for a point or a
+    :class:`WrapSurface`. names : the paths' names (error messages).
+    """
+
+    def __init__(self, paths, names):
+        kinds, bodies, p_B, R_BS, dims, sides, start = [], [], [], [], [], [], [0]
+        for nodes in paths:
+            for node in nodes:
+                if isinstance(node, WrapSurface):
+                    kinds.append(SURFACE_KINDS[node.kind])
+                    bodies.append(node.body)
+                    p_B.append(node.p_BS)
+                    R_BS.append(node.R_BS)
+                    dims.append(node.dims)
+                    sides.append(node.side)
+                else:
+                    body, p_BP = node
+                    kinds.append(POINT)
+                    bodies.append(body)
+                    p_B.append(p_BP)
+                    R_BS.append(np.eye(3))
+                    dims.append(np.zeros(3))
+                    sides.append(np.zeros(3))
+            start.append(len(kinds))
+        self.names = list(names)
+        self.kinds = np.array(kinds, dtype=np.int64)
+        self.bodies = np.array(bodies, dtype=np.int64)
+        self.p_B = np.array(p_B, dtype=float).reshape(-1, 3)
+        self.R_BS = np.array(R_BS, dtype=float).reshape(-1, 3, 3)
+        self.dims = np.array(dims, dtype=float).reshape(-1, 3)
+        self.sides = np.array(sides, dtype=float).reshape(-1, 3)
+        self.start = np.array(start, dtype=np.int64)
+        self.n_paths = len(self.names)
+
+    def evaluate(self, state, with_tangents=False):
+        """l (n_paths,) m and L (n_paths, n_coords); raises FloatingPointError naming the
+        path when a path cannot be formed (a point inside a surface, no convergence)."""
+        l, L, status, T_W = wrapped_path_lengths(
+            state.p_WB, state.R_WB, state.column, self.kinds, self.bodies, self.p_B, self.R_BS,
+            self.dims, self.sides, self.start, state.n_coords)
+        bad = np.flatnonzero(status)
+        if len(bad):
+            k = bad[0]
+            raise FloatingPointError(f"path {self.names[k]!r}: {STATUS_TEXT[int(status[k])]}")
+        return (l, L, T_W) if with_tangents else (l, L)
+
+
+class WrappedPath(Measure):
+    """Length (m) of a path through body points and wrapping surfaces (a scalar measure).
+
+    nodes : list of ``(body, p_BP (3,) m)`` points and :class:`WrapSurface` objects, first
+    and last a point. ``evaluate`` gives (l (1,), L (1, n), b (1,)); b = L̇ v is a central
+    difference of L along v on the manifold (step 1e-6 s, relative error ~1e-8).
+    """
+
+    size = 1
+    units = ("length",)
+
+    def __init__(self, nodes, name=""):
+        self.nodes = list(nodes)
+        self.name = name
+        self.kernel = WrapNodes([self.nodes], [name])
+
+    def bodies(self):
+        return tuple(sorted({n.body if isinstance(n, WrapSurface) else int(n[0]) for n in self.nodes}))
+
+    def tangent_points(self, state):
+        """World tangent points (n_nodes, 2, 3) m of each surface (NaN if not in contact)."""
+        return self.kernel.evaluate(state, with_tangents=True)[2]
+
+    def evaluate(self, state, order=1):
+        l, L = self.kernel.evaluate(state)
+        if order == 0:
+            return l, None, None
+        if order == 1:
+            return l, L, None
+        v = state.get_v()
+        h = 1e-6
+        base = state.copy()
+        state.displace(h * v)
+        Lp = self.kernel.evaluate(state)[1]
+        _restore_pose(state, base)
+        state.displace(-h * v)
+        Lm = self.kernel.evaluate(state)[1]
+        _restore_pose(state, base)
+        b = ((Lp - Lm) / (2.0 * h)) @ v
+        return l, L, b
+
+
+def _restore_pose(state, base):
+    state.p_WB[:] = base.p_WB
+    state.quat_WB[:] = base.quat_WB
+    state.R_WB[:] = base.R_WB
+
+
+__all__ = ["WrapSurface", "WrappedPath", "WrapNodes", "SURFACE_KINDS"]

@@ -1,0 +1,119 @@
+"""``openfdk check``: what a model contains, and whether it can run, before it runs.
+
+The report lists bodies, joints, constraints, drivers, FDK DOFs, markers, muscles,
+ligaments, springs, contacts, loads and unilateral reactions; counts constraint rows
+(joints + drivers + FDK DOFs, paper Eq. 1) against the 6 n_moving coordinates q̂; and
+takes the rank of the constraint Jacobian Φ_q̂ at the reference pose (FDK DOFs at their
+initial α), as ``run`` does per frame:
+
+* rows in a linear dependency (left null space of Φ_q̂) are *redundant* and named;
+* coordinates in the right null space are *free*; without markers the kinematics are
+  then undetermined (named). With markers the marker Jacobian Ψ_q̂ (Eq. 4) is stacked
+  under Φ_q̂ first, because marker tracking can fix what the constraints leave free.
+
+Muscle and ligament paths are evaluated at the reference pose too; a path that cannot be
+formed there (e.g. an attachment inside a wrapping surface) is listed as a warning, since
+the assembled poses of a run may differ. Either rank problem makes the model unable to run: :func:`check_model` returns them as
+errors and the command exits with code 2.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .kinematics.system import ConstraintSystem, dependent_rows, undetermined_coordinates
+from .model.constraints import DRIVER
+
+
+@dataclass
+class CheckReport:
+    """lines : the printable summary; errors : one-line reasons the model cannot run."""
+
+    lines: list = field(default_factory=list)
+    errors: list = field(default_factory=list)
+
+    @property
+    def ok(self):
+        return not self.errors
+
+    def text(self):
+        return "\n".join(self.lines + [f"ERROR: {e}" for e in self.errors])
+
+
+def _names(items):
+    return ", ".join(items) if items else "-"
+
+
+def _label(element):
+    """Element name, with the wrapping surfaces its path passes over."""
+    nodes = getattr(getattr(element, "path", None), "nodes", None)
+    surfaces = [n.name for n in nodes or () if hasattr(n, "kind")]
+    return f"{element.name} over {'+'.join(surfaces)}" if surfaces else element.name
+
+
+def check_model(model):
+    """Inventory, row count and rank at the reference pose of ``model`` (CheckReport)."""
+    rep = CheckReport()
+    el = model.elements
+    moving = [b.name for b in model.moving_bodies]
+    fixed = [b.name for b in model.bodies if b.column < 0]
+    joints = [c for c in model.constraints if c.kind != DRIVER and c.joint_type != "generic"]
+    generic = [c for c in model.constraints if c.kind != DRIVER and c.joint_type == "generic"]
+    drivers = [c for c in model.constraints if c.kind == DRIVER]
+    rep.lines.append(f"model {model.name!r}")
+    rep.lines.append(f"  bodies: {len(moving)} moving ({_names(moving)}), fixed: {_names(fixed)}")
+    rep.lines.append(f"  joints: {_names([f'{c.name} ({c.joint_type}, {c.size} rows)' for c in joints])}")
+    rep.lines.append(f"  constraints: {_names([f'{c.name} ({c.size} rows)' for c in generic])}")
+    rep.lines.append(f"  drivers: {_names([f'{c.name} ({c.size} rows)' for c in drivers])}")
+    rep.lines.append(f"  FDK DOFs: {_names([d.name for d in model.fdk_dofs])}")
+    rep.lines.append(f"  markers: {model.markers.size}")
+    for label, key in (("muscles", "muscles"), ("ligaments", "ligaments"), ("springs", "springs"),
+                       ("contacts", "contacts"), ("loads", "loads"), ("unilateral reactions", "unilateral_reactions")):
+        items = el.get(key, ())
+        rep.lines.append(f"  {label}: {len(items)}" + (f" ({_names([_label(x) for x in items])})" if items else ""))
+    state = model.initial_state()
+    for key in ("muscles", "ligaments"):
+        for item in el.get(key, ()):
+            try:
+                item.path.evaluate(state, 0)
+            except (FloatingPointError, ValueError) as exc:
+                rep.lines.append(f"  warning: {key[:-1]} {item.name!r} at the reference pose: {exc}")
+    n = model.n_coords
+    n_joint = sum(c.size for c in model.constraints if c.kind != DRIVER)
+    n_driver = sum(c.size for c in drivers)
+    n_fdk = len(model.fdk_dofs)
+    rows = n_joint + n_driver + n_fdk
+    rep.lines.append(f"  rows: {n_joint} joint/constraint + {n_driver} driver + {n_fdk} FDK = {rows}; "
+                     f"coordinates: {n} (6 per moving body)")
+    system = ConstraintSystem(model)
+    alpha = np.array([d.initial for d in model.fdk_dofs], dtype=float)
+    try:
+        _, A, _, _ = system.evaluate(state, 0.0, alpha, order=1)
+    except (FloatingPointError, ValueError) as exc:
+        rep.errors.append(f"the constraints cannot be evaluated at the reference pose: {exc}")
+        return rep
+    rank, redundant = dependent_rows(A, system.row_names)
+    rep.lines.append(f"  rank of the constraint Jacobian at the reference pose: {rank} of {rows} rows")
+    if redundant:
+        rep.errors.append(f"constraint Jacobian is singular at the reference pose (rank {rank} of {rows} rows): "
+                          f"redundant or inconsistent rows {redundant}")
+    if model.markers.size:
+        _, Psi_q, _ = model.markers.evaluate(state, 1)
+        free = undetermined_coordinates(np.vstack([A, Psi_q]), model.coordinate_names())
+        if free:
+            rep.errors.append(f"constraints and markers leave coordinates free at the reference pose: {free}")
+        else:
+            rep.lines.append("  kinematics: marker tracking; constraints and markers determine every coordinate")
+    else:
+        free = undetermined_coordinates(A, model.coordinate_names())
+        if free:
+            rep.errors.append(f"{n - rank} coordinate(s) free at the reference pose, no markers to track them: "
+                              f"add joints, drivers or FDK DOFs for {free}")
+        elif not redundant:
+            rep.lines.append("  kinematics: determinate (drivers and FDK DOFs fix every coordinate)")
+    return rep
+
+
+__all__ = ["CheckReport", "check_model"]

@@ -1,0 +1,23 @@
+"""The ``openfdk view`` sub-command (registered by :func:`openfdk.cli.build_parser`)."""
+
+from __future__ import annotations
+
+
+def _cmd_view(args):
+    from . import write_view
+
+    out = write_view(args.result_dir, args.out, model=args.model, max_vertices=args.max_vertices)
+    size = out.stat().st_size / 1e6
+    print(f"view: {out} ({size:.1f} MB); open it in a web browser (works offline)")
+    return 0
+
+
+def add_view_parser(sub):
+    v = sub.add_parser("view", help="write a self-contained 3D viewer (HTML) of a result folder")
+    v.add_argument("result_dir", help="folder written by 'openfdk run' (kinematics.csv, forces.csv, summary.json)")
+    v.add_argument("--out", default=None, help="HTML file to write (default RESULT_DIR/view.html)")
+    v.add_argument("--model", default=None, help="model file (default: the one recorded in summary.json)")
+    v.add_argument("--max-vertices", type=int, default=4000,
+                   help="meshes with more vertices are decimated for display (default 4000)")
+    v.set_defaults(func=_cmd_view)
+    return v

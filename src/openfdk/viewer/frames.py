@@ -1,0 +1,174 @@
+"""The moving part of a view: per-frame body poses, measured markers, element forces,
+contact loads and pressures, and the FDK side-panel series.
+
+Poses come from kinematics.csv (``<body>.x_m … <body>.e3``); measured marker positions
+are the model markers minus the residuals Ψ = p_WM(q) − x_M (kinematics.csv
+``<marker>.residual_{x,y,z}_m``); forces from forces.csv. Contact pressures are not in
+the tables: they are re-evaluated here (elastic foundation, DESIGN.md §1) at each frame's
+recorded poses, mapped onto the decimated display mesh (maximum over the vertices of a
+display cluster) and quantised to 255 levels of the trial's peak pressure.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..spatial import rotation_matrix
+from .pack import index_kind, pack
+from .results import ViewError
+
+
+def body_poses(model, results):
+    """(nf, nb, 7) [m, -]: r_WB and Euler parameters (e0 first) of every body, fixed
+    bodies at their reference pose; NaN where the kinematics gave none."""
+    kin, nf = results.kinematics, results.n_frames
+    out = np.empty((nf, len(model.bodies), 7))
+    for i, b in enumerate(model.bodies):
+        keys = [f"{b.name}.{c}_m" for c in "xyz"] + [f"{b.name}.e{j}" for j in range(4)]
+        if b.column < 0 or keys[0] not in kin:
+            if b.column >= 0:
+                raise ViewError(f"{results.directory / 'kinematics.csv'}: no columns for body {b.name!r} of the model "
+                                f"(expected {keys[0]!r}); is this the model that produced the run?")
+            out[:, i, :3], out[:, i, 3:] = b.p_WB0, b.quat_WB0
+            continue
+        for j, k in enumerate(keys):
+            if k not in kin:
+                raise ViewError(f"{results.directory / 'kinematics.csv'}: column {k!r} missing")
+            out[:, i, j] = kin[k]
+    return out
+
+
+def measured_markers(model, results, poses):
+    """(nf, nm, 3) m measured marker positions x_M = p_WM(q) − Ψ, NaN in gaps; None
+    when kinematics.csv has no residual columns (a determinate run)."""
+    kin = results.kinematics
+    names = list(model.markers.names)
+    if not names or f"{names[0]}.residual_x_m" not in kin:
+        return None
+    nf = results.n_frames
+    out = np.full((nf, len(names), 3), np.nan)
+    for k, name in enumerate(names):
+        cols = [f"{name}.residual_{c}_m" for c in "xyz"]
+        if cols[0] not in kin:
+            continue
+        res = np.stack([kin[c] for c in cols], axis=1)
+        b, p_B = int(model.markers.body[k]), model.markers.p_BM[k]
+        out[:, k] = poses[:, b, :3] + np.einsum("fij,j->fi", rotations(poses[:, b, 3:]), p_B) - res
+    return out
+
+
+def rotations(e):
+    """Rotation matrices (nf, 3, 3) of Euler parameters e (nf, 4), e0 first; NaN rows
+    stay NaN (:func:`openfdk.spatial.rotation_matrix` applied to whole columns)."""
+    return np.moveaxis(rotation_matrix(np.asarray(e, dtype=float).T), -1, 0)
+
+
+def _col(forces, key, nf):
+    v = forces.get(key)
+    return np.asarray(v, dtype=float) if v is not None and not isinstance(v, list) else np.full(nf, np.nan)
+
+
+def path_forces(scene, results):
+    """(nf, n_paths) N (springs: N or N m) of the scene's paths, from forces.csv."""
+    nf, f = results.n_frames, results.forces
+    cols = []
+    for p in scene.data["paths"]:
+        key = f"{p['name']}.force" if p["kind"] == "spring" else f"{p['name']}.force_N"
+        cols.append(_col(f, key, nf))
+    return np.stack(cols, axis=1) if cols else np.zeros((nf, 0))
+
+
+def contact_frames(model, scene, results, poses):
+    """Per contact: force on the vertex body (nf, 3) N world and centre of pressure
+    (nf, 3) m (forces.csv), and the sparse quantised pressure on the display mesh."""
+    out = []
+    nf, f = results.n_frames, results.forces
+    for c, lab in zip(model.elements.get("contacts", ()), scene.contact_labels):
+        F = np.stack([_col(f, f"{c.name}.F{a}_N", nf) for a in "xyz"], axis=1)
+        cop = np.stack([_col(f, f"{c.name}.cop_{a}_m", nf) for a in "xyz"], axis=1)
+        n_disp = int(lab.max()) + 1
+        per_frame = []
+        for k in range(nf):
+            qa, qb = poses[k, c.body_a], poses[k, c.body_b]
+            if not (np.all(np.isfinite(qa)) and np.all(np.isfinite(qb))):
+                per_frame.append((np.zeros(0, int), np.zeros(0)))
+                continue
+            res = c.pair.evaluate(qa[:3], rotation_matrix(qa[3:]), qb[:3], rotation_matrix(qb[3:]),
+                                  want_vertex_pressure=True)
+            disp = np.zeros(n_disp)
+            np.maximum.at(disp, lab, res.vertex_pressure)
+            idx = np.flatnonzero(disp > 0)
+            per_frame.append((idx, disp[idx]))
+        p_max = max((float(p.max()) for _, p in per_frame if len(p)), default=0.0)
+        offsets = np.cumsum([0] + [len(i) for i, _ in per_frame])
+        idx = np.concatenate([i for i, _ in per_frame]) if offsets[-1] else np.zeros(0, int)
+        lev = np.concatenate([p for _, p in per_frame]) if offsets[-1] else np.zeros(0)
+        level = np.clip(np.ceil(255 * lev / p_max), 1, 255) if p_max > 0 else np.zeros(0)
+        out.append({"force": pack(F), "cop": pack(cop), "p_max": p_max, "offsets": pack(offsets, "u32"),
+                    "index": pack(idx, index_kind(n_disp)), "level": pack(level, "u8")})
+    return out
+
+
+def panel_series(model, results, measured, scene_paths=()):
+    """Side-panel series: FDK α (mm or deg) and residual f^FDK (N or N m) per DOF, the
+    forces of springs that are not drawn as paths, FDK convergence and iterations, kinematics/forces convergence, marker RMS residual (mm).
+    Each {"name", "unit", "values": packed (nf,), "flag": bool for 0/1 series}."""
+    nf, kin, f = results.n_frames, results.kinematics, results.forces
+    series = []
+    for d in model.fdk_dofs:
+        angle = d.measure.units[0] == "angle"
+        series.append({"name": f"{d.name} α", "unit": "deg" if angle else "mm",
+                       "values": pack(_col(f, f"fdk.{d.name}.alpha", nf) * (180 / np.pi if angle else 1e3))})
+        series.append({"name": f"{d.name} residual", "unit": "N m" if angle else "N",
+                       "values": pack(_col(f, f"fdk.{d.name}.residual", nf))})
+    drawn = {p["name"] for p in scene_paths}
+    for el in model.elements.get("springs", ()):  # springs on measures that are not paths (e.g. FDK DOF springs)
+        if el.name not in drawn and f"{el.name}.force" in f:
+            unit = {"m": "N", "rad": "N m"}.get(getattr(el.law, "unit", ""), "")
+            series.append({"name": f"spring {el.name}", "unit": unit, "values": pack(_col(f, f"{el.name}.force", nf))})
+    for key, name in (("fdk_converged", "FDK converged"), ("fdk_iterations", "FDK iterations")):
+        if key in f:
+            series.append({"name": name, "unit": "", "values": pack(_col(f, key, nf)), "flag": key.endswith("converged")})
+    series.append({"name": "kinematics converged", "unit": "", "values": pack(_col(kin, "converged", nf)), "flag": True})
+    if f:
+        series.append({"name": "forces converged", "unit": "", "values": pack(_col(f, "converged", nf)), "flag": True})
+    if measured is not None:
+        names = list(model.markers.names)
+        res = np.stack([np.stack([_col(kin, f"{m}.residual_{c}_m", nf) for c in "xyz"], axis=1) for m in names], axis=1)
+        sq = np.sum(res ** 2, axis=2)
+        n_seen = np.sum(np.isfinite(sq), axis=1)
+        rms = np.full(nf, np.nan)
+        rms[n_seen > 0] = np.sqrt(np.nansum(sq[n_seen > 0], axis=1) / n_seen[n_seen > 0]) * 1e3
+        series.append({"name": "marker RMS residual", "unit": "mm", "values": pack(rms)})
+    return series
+
+
+def failed_frames(results):
+    """[(frame, message)] of frames whose kinematics or forces failed (from the tables)."""
+    out = {}
+    for table in (results.kinematics, results.forces):
+        if not table or "converged" not in table:
+            continue
+        msgs = table.get("message") if isinstance(table.get("message"), list) else [""] * results.n_frames
+        for k in np.flatnonzero(np.asarray(table["converged"]) == 0):
+            out.setdefault(int(k), msgs[k] or f"frame {k} did not converge")
+    return sorted(out.items())
+
+
+def build_frames(model, scene, results):
+    """JSON-able per-frame data of the view (see the module docstring)."""
+    poses = body_poses(model, results)
+    measured = measured_markers(model, results, poses)
+    forces = path_forces(scene, results)
+    with np.errstate(invalid="ignore"):
+        fmax = [float(np.nanmax(np.abs(forces[:, j]))) if np.any(np.isfinite(forces[:, j])) else 0.0
+                for j in range(forces.shape[1])]
+    return {
+        "time": pack(results.time),
+        "poses": pack(poses),
+        "measured": pack(measured) if measured is not None else None,
+        "path_force": pack(forces), "path_fmax": fmax,
+        "contacts": contact_frames(model, scene, results, poses),
+        "panel": panel_series(model, results, measured, scene.data["paths"]),
+        "failed": failed_frames(results),
+    }

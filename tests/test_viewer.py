@@ -1,0 +1,437 @@
+"""openfdk view: the self-contained HTML viewer, opened in headless Chromium from a file
+URL. Pixel positions are checked against a pinhole projection computed here from the
+camera parameters passed in the URL and the body position read from kinematics.csv;
+network use is checked in Chromium's NetLog and console log. Also: contact pressures in
+the page data against the closed-form penetration of a sphere cap into a plane, the
+decimation, bad input, and the file-size bound on a 60 s mandible trial."""
+
+import json
+import os
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from openfdk.cli import main
+from openfdk.io.results import write_json, write_table
+from openfdk.spatial import quat_from_matrix, quat_from_rotvec, rotation_matrix
+from openfdk.viewer import ViewError, view_data, write_view
+from openfdk.viewer.decimate import decimate
+from openfdk.viewer.pack import unpack
+
+ROOT = Path(__file__).resolve().parents[1]
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+HAVE_CHROMIUM = os.access(CHROMIUM, os.X_OK)
+# .ci/run installs Chromium and sets OPENFDK_REQUIRE_BROWSER=1, so CI never skips these
+needs_browser = pytest.mark.skipif(not HAVE_CHROMIUM and os.environ.get("OPENFDK_REQUIRE_BROWSER") != "1",
+                                   reason="Debian package 'chromium' not installed (.ci/run installs it)")
+FLAGS = [
+    "--headless", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+    "--disable-background-networking", "--disable-component-update", "--disable-sync", "--no-first-run",
+    "--no-pings", "--disable-domain-reliability", "--disable-default-apps", "--disable-extensions",
+    "--enable-logging=stderr", "--v=0", "--virtual-time-budget=10000", "--hide-scrollbars",
+]
+BACKGROUND = np.array([243, 243, 241]) / 255.0
+
+
+def browse(url, tmp, tag, size=(800, 600)):
+    """Screenshot (H, W, 3) floats, console log text and the page-initiated network
+    requests [(url, initiator)] of one headless Chromium visit."""
+    shot, net = tmp / f"{tag}.png", tmp / f"{tag}-netlog.json"
+    proc = subprocess.run(
+        [CHROMIUM, *FLAGS, f"--user-data-dir={tmp / ('profile-' + tag)}", f"--log-net-log={net}",
+         f"--window-size={size[0]},{size[1]}", f"--screenshot={shot}", url],
+        capture_output=True, text=True, timeout=180)
+    assert shot.is_file(), f"no screenshot; chromium said:\n{proc.stderr[-3000:]}"
+    import matplotlib.image
+
+    img = matplotlib.image.imread(shot)[..., :3].astype(float)
+    return img, proc.stderr, page_requests(net)
+
+
+def page_requests(netlog):
+    """URL requests of the NetLog not started by the browser itself: the browser's own
+    background requests carry the initiator 'not an origin'; a page's requests carry its
+    origin (``null`` for a file:// page)."""
+    data = json.loads(Path(netlog).read_text())
+    url_request = data["constants"]["logSourceType"]["URL_REQUEST"]
+    urls, initiators = {}, {}
+    for ev in data["events"]:
+        if ev["source"]["type"] != url_request:
+            continue
+        p, sid = ev.get("params", {}), ev["source"]["id"]
+        if "url" in p:
+            urls.setdefault(sid, p["url"])
+        if "initiator" in p:
+            initiators[sid] = p["initiator"]
+    return [(u, initiators.get(sid)) for sid, u in urls.items() if initiators.get(sid) != "not an origin"]
+
+
+def ready_info(log):
+    m = re.findall(r'openfdk-view: ready (\{.*?\})", source', log)
+    assert m, f"the viewer did not report ready; console:\n{_console(log)}"
+    return json.loads(m[-1])
+
+
+def _console(log):
+    return "\n".join(line for line in log.splitlines() if "CONSOLE" in line)[-3000:]
+
+
+def project(p_W, eye, target, up, fov_deg, width, height):
+    """Pixel (x right, y down) of world point p_W seen by a pinhole camera at ``eye``
+    looking at ``target`` (vertical field of view fov_deg, image width × height)."""
+    f = (target - eye) / np.linalg.norm(target - eye)
+    r = np.cross(f, up)
+    r /= np.linalg.norm(r)
+    u = np.cross(r, f)
+    d = p_W - eye
+    x, y, z = d @ r, d @ u, d @ f
+    t = np.tan(np.radians(fov_deg) / 2)
+    ndc = np.array([x / (z * t * width / height), y / (z * t)])
+    return np.array([(ndc[0] + 1) / 2 * width, (1 - ndc[1]) / 2 * height])
+
+
+def magenta_centroid(img):
+    mask = (img[..., 0] > 0.9) & (img[..., 1] < 0.1) & (img[..., 2] > 0.9)
+    assert mask.sum() > 20, "the probe body (magenta) is not in the picture"
+    ys, xs = np.nonzero(mask)
+    return np.array([xs.mean(), ys.mean()]) + 0.5, mask  # pixel k covers [k, k + 1)
+
+
+# -- a small run: the slider-crank example ----------------------------------------------------
+@pytest.fixture(scope="module")
+def slider_view(tmp_path_factory):
+    d = tmp_path_factory.mktemp("view-sc")
+    assert main(["run", str(ROOT / "examples" / "slider_crank.yaml"), "--out", str(d / "run"), "--no-progress"]) == 0
+    assert main(["view", str(d / "run")]) == 0
+    return d
+
+
+def test_run_records_the_absolute_model_path_and_view_finds_it(slider_view):
+    s = json.loads((slider_view / "run" / "summary.json").read_text())
+    assert Path(s["input"]["model_file"]) == (ROOT / "examples" / "slider_crank.yaml").resolve()
+    html = (slider_view / "run" / "view.html").read_text()
+    assert "<script src" not in html and "http://" not in html.split("three-core")[0]
+    lic = (ROOT / "src" / "openfdk" / "viewer" / "vendor" / "LICENSE-three.txt").read_text()
+    assert lic in html and "three.js authors" in lic  # the vendored licence travels with the code, verbatim
+
+
+def test_a_kinematics_only_result_can_be_viewed(slider_view, tmp_path):
+    out = tmp_path / "kin"
+    assert main(["kinematics", str(ROOT / "examples" / "slider_crank.yaml"), "--out", str(out), "--no-progress"]) == 0
+    data, _ = view_data(out)
+    assert data["frames"]["measured"] is None and data["frames"]["contacts"] == []
+    poses = unpack(data["frames"]["poses"])
+    names = [b["name"] for b in data["scene"]["bodies"]]
+    # the crank turns once per second about the ground pivot: its centre of mass at t = 0.25 s
+    np.testing.assert_allclose(poses[25, names.index("crank"), :3], [0.0, 0.05, 0.0], atol=1e-6)
+
+
+@needs_browser
+def test_browser_draws_the_body_at_its_projected_position_at_two_times(slider_view, tmp_path):
+    import csv
+
+    with open(slider_view / "run" / "kinematics.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    kin = {k: np.array([float(r[k]) for r in rows]) for k in ("time", "slider.x_m", "slider.y_m", "slider.z_m")}
+    eye, target, up, fov = np.array([0.05, 0.35, 0.8]), np.array([0.3, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]), 40.0
+    cam = ",".join(f"{v:g}" for v in (*eye, *target))
+    url = (slider_view / "run" / "view.html").as_uri()
+    shots = {}
+    for t in (0.0, 0.5):
+        img, log, requests = browse(f"{url}#t={t}&cam={cam}&fov={fov:g}&ui=0&probe=slider", tmp_path, f"t{t}")
+        info = ready_info(log)
+        assert "Content Security Policy" not in log and "openfdk-view: error" not in log, _console(log)
+        assert requests == [], f"the page made network requests: {requests}"
+        h, w = img.shape[:2]
+        sizes = re.findall(r"openfdk-view: size (\d+) (\d+)", log)
+        assert (w, h) == tuple(int(v) for v in (sizes[-1] if sizes else (info["width"], info["height"])))
+        k = int(np.argmin(np.abs(kin["time"] - t)))
+        assert info["frame"] == k
+        p_W = np.array([kin["slider.x_m"][k], kin["slider.y_m"][k], kin["slider.z_m"][k]])
+        expected = project(p_W, eye, target, up, fov, w, h)
+        centroid, mask = magenta_centroid(img)
+        assert np.linalg.norm(centroid - expected) < 1.5, (centroid, expected)  # measured: ≤ 0.12 px
+        # not blank: besides the probe, other bodies' frames are drawn
+        other = np.any(np.abs(img - BACKGROUND) > 0.08, axis=2) & ~mask
+        assert other.sum() > 200
+        shots[t] = (img, expected)
+    (a, pa), (b, pb) = shots[0.0], shots[0.5]
+    assert np.linalg.norm(pa - pb) > 100  # the slider moved 0.2 m: far apart in the picture
+    for p in (pa, pb):  # the pictures differ where the slider was and where it went
+        x, y = int(round(p[0])), int(round(p[1]))
+        assert np.abs(a[y - 5 : y + 6, x - 5 : x + 6] - b[y - 5 : y + 6, x - 5 : x + 6]).max() > 0.5
+    assert np.array_equal(a[:40, :40], b[:40, :40])  # a corner with nothing moving is the same
+
+
+@needs_browser
+def test_network_check_sees_a_page_request(tmp_path):
+    """The NetLog check above would see a request made by a file:// page."""
+    page = tmp_path / "probe.html"
+    page.write_text('<html><body><img src="http://127.0.0.1:9/x.png"></body></html>')
+    _img, _log, requests = browse(page.as_uri(), tmp_path, "probe")
+    assert any(u.startswith("http://127.0.0.1:9/") for u, _ in requests)
+
+
+# -- the TMJ-like FDK model: contact, ligaments, muscles, springs, markers, visual mesh -------
+def write_jaw_result(d, n_frames, rate=100.0, visual_subdivisions=3):
+    """A result folder for the TMJ-like FDK model (openfdk.synthetic_jaw) whose poses are
+    the model's known open–close motion, plus known forces; returns (folder, model path)."""
+    import trimesh
+
+    from openfdk.synthetic_jaw import jaw_fdk_model_dict, jaw_true_motion, write_jaw_meshes
+
+    write_jaw_meshes(d / "meshes")
+    trimesh.creation.icosphere(subdivisions=visual_subdivisions, radius=12.0).export(d / "meshes" / "chin.stl")
+    data = jaw_fdk_model_dict("meshes")
+    data["bodies"]["mandible"]["visual"] = {"mesh": "meshes/chin.stl", "units": "mm", "color": "#c8b89a",
+                                            "placement": {"position": [70, 0, -10]}}
+    (d / "tmj.yaml").write_text(yaml.safe_dump(data, sort_keys=False))
+    t = np.arange(n_frames) / rate
+    poses = jaw_true_motion(t)  # body origins: the skull's, the mandible's centre of mass
+    cols = {"time": t, "converged": np.ones(n_frames, int)}
+    for body in ("skull", "mandible"):
+        p, R = poses[body]
+        q = np.array([quat_from_matrix(r) for r in R])
+        for j, c in enumerate("xyz"):
+            cols[f"{body}.{c}_m"] = p[:, j]
+        for j in range(4):
+            cols[f"{body}.e{j}"] = q[:, j]
+    for m in ("S1", "S2", "S3", "S4", "J1", "J2", "J3", "J4"):
+        for j, c in enumerate("xyz"):
+            cols[f"{m}.residual_{c}_m"] = np.full(n_frames, 5e-4 if c == "x" else 0.0)
+    cols["message"] = [""] * n_frames
+    for key in cols:  # frame 3 failed: no pose, no residuals (as openfdk writes a failed frame)
+        if key.startswith(("skull.", "mandible.", "S", "J")):
+            cols[key][3] = np.nan
+    cols["converged"][3] = 0
+    cols["message"][3] = "frame 3 (t = 0.0300 s): test failure"
+    out = d / "run"
+    out.mkdir()
+    write_table(out / "kinematics.csv", cols)
+    from openfdk.model.modelfile import load_model
+
+    model = load_model(d / "tmj.yaml")
+    f = {"time": t, "converged": np.ones(n_frames, int)}
+    for k, el in enumerate(model.elements["muscles"]):
+        f[f"{el.name}.force_N"] = 10.0 * (k + 1) * (1 + np.sin(2 * np.pi * t))
+    for el in model.elements["ligaments"]:
+        f[f"{el.name}.force_N"] = np.full(n_frames, 2.0)
+    for el in model.elements["springs"]:
+        f[f"{el.name}.force"] = np.full(n_frames, 0.001)
+    for c in model.elements["contacts"]:
+        for a, v in zip("xyz", (0.0, 0.0, -50.0)):
+            f[f"{c.name}.F{a}_N"] = np.full(n_frames, v)
+            f[f"{c.name}.cop_{a}_m"] = np.full(n_frames, 0.0)
+    for dof in model.fdk_dofs:
+        f[f"fdk.{dof.name}.alpha"] = np.full(n_frames, 1e-4)
+        f[f"fdk.{dof.name}.residual"] = np.full(n_frames, 1e-6)
+    f["fdk_converged"] = np.ones(n_frames, int)
+    f["message"] = [""] * n_frames
+    write_table(out / "forces.csv", f)
+    write_json(out / "summary.json", {"input": {"model": "tmj.yaml", "trial": "trial.c3d"}})
+    return out, d / "tmj.yaml"
+
+
+@pytest.fixture(scope="module")
+def jaw_result(tmp_path_factory):
+    return write_jaw_result(tmp_path_factory.mktemp("view-jaw"), 12)
+
+
+def test_contact_pressure_in_the_page_data_matches_the_closed_form(jaw_result):
+    """Each condyle (sphere cap, 1 mm cartilage offset) presses into its fossa plane:
+    a vertex at signed height h above the plane carries p = k h (elastic foundation,
+    k = 10 GN/m³). The page stores the pressure on the display vertices, quantised to
+    255 levels of the trial's peak; decoded, it must equal k h to the quantum plus the
+    distance-grid error."""
+    from openfdk.synthetic_jaw import plane_normal
+
+    out, model_path = jaw_result
+    data, _ = view_data(out)
+    scene, frames = data["scene"], data["frames"]
+    poses = unpack(frames["poses"])
+    names = [b["name"] for b in scene["bodies"]]
+    skull, jaw = names.index("skull"), names.index("mandible")
+    k_p = 1.0e10
+    for side, c_scene, c_frames in zip((-1, 1), scene["contacts"], frames["contacts"]):
+        mesh = scene["meshes"][c_scene["mesh"]]
+        v_B = unpack(mesh["vertices"]).reshape(-1, 3)
+        offsets, index, level = unpack(c_frames["offsets"]), unpack(c_frames["index"]), unpack(c_frames["level"])
+        n_S = plane_normal(side)  # plane normal in the skull frame, pointing into the skull
+        top_S = np.array([0.0, side * 0.0495, 0.0])
+        h_all = []
+        for f in range(len(poses)):
+            if f == 3:  # the failed frame: nothing drawn
+                assert offsets[4] == offsets[3] and np.isnan(poses[3, jaw]).all()
+                h_all.append(np.full(len(v_B), -1.0))
+                continue
+            qs, qm = poses[f, skull].astype(float), poses[f, jaw].astype(float)
+            R_s, R_m = rotation_matrix(qs[3:]), rotation_matrix(qm[3:])
+            v_S = (qm[:3] + v_B @ R_m.T - qs[:3]) @ R_s  # vertices in the skull frame
+            h_all.append((v_S - top_S) @ n_S)
+        p_max = k_p * max(h.max() for h in h_all)
+        assert c_frames["p_max"] == pytest.approx(p_max, rel=0.02)
+        for f, h in enumerate(h_all):
+            if f == 3:
+                continue
+            idx, lev = index[offsets[f] : offsets[f + 1]], level[offsets[f] : offsets[f + 1]]
+            p = lev / 255.0 * c_frames["p_max"]
+            assert len(idx) > 0
+            np.testing.assert_allclose(p, k_p * h[idx], atol=c_frames["p_max"] / 255 + k_p * 3e-5)
+            outside = np.setdiff1d(np.arange(len(h)), idx)
+            assert np.all(h[outside] < 3e-5)  # vertices not stored are not in contact
+
+
+def test_view_data_rebuilds_markers_paths_and_panel(jaw_result):
+    out, _ = jaw_result
+    data, _ = view_data(out)
+    scene, frames = data["scene"], data["frames"]
+    assert [m["kind"] for m in scene["meshes"]] == ["contact"] * 4 + ["visual"]
+    chin = unpack(scene["meshes"][4]["vertices"]).reshape(-1, 3)  # icosphere r = 12 mm placed at (70, 0, -10) mm
+    assert scene["meshes"][4]["body"] == [b["name"] for b in scene["bodies"]].index("mandible")
+    np.testing.assert_allclose(np.linalg.norm(chin - [0.07, 0.0, -0.01], axis=1), 0.012, rtol=1e-6)
+    assert {p["kind"] for p in scene["paths"]} == {"muscle", "ligament"}  # FDK springs act on non-path measures
+    assert len(scene["paths"]) == 24 + 6
+    # measured = model marker − residual (residual 0.5 mm along x)
+    poses, meas = unpack(frames["poses"]), unpack(frames["measured"])
+    j = scene["markers"]["names"].index("J2")
+    b, p_B = scene["markers"]["body"][j], np.array(scene["markers"]["p_B"][j])
+    q = poses[5, b].astype(float)
+    np.testing.assert_allclose(meas[5, j], q[:3] + rotation_matrix(q[3:]) @ p_B - [5e-4, 0, 0], atol=1e-6)
+    assert np.isnan(meas[3]).all()
+    assert frames["failed"] == [(3, "frame 3 (t = 0.0300 s): test failure")]
+    names = [s["name"] for s in frames["panel"]]
+    assert "tmj_r_normal α" in names and "marker RMS residual" in names
+    assert "spring fdk_spring_ml" in names  # a spring on a non-path measure: in the panel
+    np.testing.assert_allclose(unpack(frames["panel"][names.index("spring fdk_spring_ml")]["values"]), 0.001)
+    rms = unpack(frames["panel"][names.index("marker RMS residual")]["values"])
+    np.testing.assert_allclose(np.delete(rms, 3), 0.5, rtol=1e-5)  # mm
+    assert np.isnan(rms[3])
+
+
+@needs_browser
+def test_browser_shows_the_fdk_jaw_without_errors(jaw_result, tmp_path):
+    out, _ = jaw_result
+    page = write_view(out, tmp_path / "jaw.html")
+    img, log, requests = browse(f"{page.as_uri()}#frame=3&view=anterior", tmp_path, "jaw", size=(900, 700))
+    info = ready_info(log)
+    assert "openfdk-view: error" not in log and "Content Security Policy" not in log, _console(log)
+    assert requests == []
+    assert (info["meshes"], info["markers"], info["paths"], info["contacts"]) == (5, 8, 30, 2)
+    # the failed frame is announced in the banner (red text) and the canvas is drawn
+    red = (img[..., 0] > 0.6) & (img[..., 1] < 0.2) & (img[..., 2] < 0.25)
+    assert red.sum() > 30
+    assert np.any(np.abs(img - BACKGROUND) > 0.08, axis=2).mean() > 0.02
+
+
+# -- mesh decimation ----------------------------------------------------------------------------
+def test_decimation_bounds_vertices_and_keeps_the_shape():
+    import trimesh
+
+    sphere = trimesh.creation.icosphere(subdivisions=6, radius=0.02)  # 40 962 vertices
+    v, f, labels = decimate(sphere.vertices, sphere.faces, 2000)
+    assert len(v) <= 2000 and len(f) > 1000
+    assert labels.shape == (len(sphere.vertices),) and labels.max() == len(v) - 1
+    r = np.linalg.norm(v, axis=1)
+    assert np.all(np.abs(r - 0.02) < 0.0015)  # cluster means stay near the surface
+    assert np.all(np.linalg.norm(sphere.vertices - v[labels], axis=1) < 0.003)
+    v2, f2, l2 = decimate(sphere.vertices, sphere.faces, 10**6)
+    assert len(v2) == len(sphere.vertices) and np.array_equal(l2, np.arange(len(v2)))
+
+
+# -- bad input: one line, exit 2 ----------------------------------------------------------------
+def test_bad_inputs_exit_2_with_one_line(tmp_path, capsys, jaw_result):
+    assert main(["view", str(tmp_path / "nothing")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    (tmp_path / "empty").mkdir()
+    assert main(["view", str(tmp_path / "empty")]) == 2
+    assert "kinematics.csv: missing" in capsys.readouterr().err
+    out, model_path = jaw_result
+    bad = tmp_path / "bad"
+    shutil.copytree(out, bad)
+    write_json(bad / "summary.json", {"input": {"model": "/no/such/model.yaml"}})
+    assert main(["view", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "summary.json: input.model" in err and err.count("\n") == 1
+    data = yaml.safe_load(model_path.read_text())
+    data["bodies"]["mandible"]["visual"] = {"mesh": "meshes/missing.stl"}
+    (model_path.parent / "bad.yaml").write_text(yaml.safe_dump(data))
+    assert main(["view", str(out), "--model", str(model_path.parent / "bad.yaml")]) == 2
+    assert "bodies.mandible.visual.mesh: mesh file" in capsys.readouterr().err
+    data["bodies"]["mandible"]["visual"] = {"mesh": "meshes/chin.stl", "colour": "#ffffff"}
+    (model_path.parent / "bad.yaml").write_text(yaml.safe_dump(data))
+    assert main(["check", str(model_path.parent / "bad.yaml")]) == 2
+    assert "bodies.mandible.visual.colour: unknown key" in capsys.readouterr().err
+
+
+# -- size: a 60 s trial of the mandible FDK model ----------------------------------------------
+def test_a_60_s_mandible_trial_gives_a_file_under_30_MB(tmp_path):
+    """The virtual subject's FDK model (default-resolution meshes), 60 s at 100 Hz: the
+    mandible opens and closes (8° about the intercondylar axis, 1 Hz) so that the
+    condyles press into the fossae; every frame's contact is evaluated and stored."""
+    from openfdk.mandible.experiment import record_experiment
+    from openfdk.mandible.generator import create_subject
+    from openfdk.mandible.models import write_models
+    from openfdk.mandible.registration import register_braces
+    from openfdk.mandible.subject import load_subject
+    from openfdk.model.modelfile import load_model
+
+    subject_dir = create_subject(tmp_path / "subject", resolution="default")
+    record_experiment(subject_dir, cycles=1)
+    subject = load_subject(subject_dir)
+    models = write_models(subject, register_braces(subject, Path(subject_dir) / "trials" / "reference.c3d"),
+                          tmp_path / "models")
+    model = load_model(models["fdk"])
+    # lift the mandible until both condyles touch their fossae (+0.3 mm), so that contact is drawn
+    jaw, skull = model.body("mandible"), model.body("skull")
+
+    def touching(dz):
+        R_j, R_s = rotation_matrix(jaw.quat_WB0), rotation_matrix(skull.quat_WB0)
+        return all(c.pair.evaluate(jaw.p_WB0 + [0, 0, dz], R_j, skull.p_WB0, R_s).n_contact > 0
+                   for c in model.elements["contacts"])
+
+    lift = next(dz for dz in np.arange(0.0, 0.01, 1e-4) if touching(dz)) + 3e-4
+    n = 6000
+    t = np.arange(n) / 100.0
+    cols = {"time": t, "converged": np.ones(n, int)}
+    for b in model.moving_bodies:
+        p0, R0 = b.p_WB0, rotation_matrix(b.quat_WB0)
+        if b.name == "mandible":  # rotation about the intercondylar (y) axis through the origin
+            th = np.radians(8.0) * 0.5 * (1 - np.cos(2 * np.pi * t))
+            R = np.array([rotation_matrix(quat_from_rotvec([0.0, a, 0.0])) for a in th])
+            p = np.einsum("fij,j->fi", R, p0) + [0.0, 0.0, lift]
+            q = np.array([quat_from_matrix(r @ R0) for r in R])
+        else:
+            p, q = np.tile(p0, (n, 1)), np.tile(b.quat_WB0, (n, 1))
+        for j, c in enumerate("xyz"):
+            cols[f"{b.name}.{c}_m"] = p[:, j]
+        for j in range(4):
+            cols[f"{b.name}.e{j}"] = q[:, j]
+    for m in model.markers.names:
+        for c in "xyz":
+            cols[f"{m}.residual_{c}_m"] = 1e-4 * np.sin(t)
+    out = tmp_path / "run"
+    out.mkdir()
+    write_table(out / "kinematics.csv", cols)
+    f = {"time": t, "converged": np.ones(n, int)}
+    for el in model.elements["muscles"] + model.elements["ligaments"]:
+        f[f"{el.name}.force_N"] = 100 * np.sin(t) ** 2
+    for dof in model.fdk_dofs:
+        f[f"fdk.{dof.name}.alpha"] = 1e-4 * np.sin(t)
+        f[f"fdk.{dof.name}.residual"] = 1e-3 * np.cos(t)
+    f["fdk_converged"] = np.ones(n, int)
+    write_table(out / "forces.csv", f)
+    write_json(out / "summary.json", {"input": {"model_file": str(Path(models["fdk"]).resolve())}})
+    from openfdk.viewer.page import render_page
+
+    data, title = view_data(out)
+    page = out / "view.html"
+    page.write_text(render_page(data, title), encoding="utf-8")
+    levels = sum(len(unpack(c["level"])) for c in data["frames"]["contacts"])
+    assert levels > n  # contact is drawn in (most) frames: the pressure data is really there
+    size_mb = page.stat().st_size / 1e6
+    assert size_mb < 30, f"{size_mb:.1f} MB"

@@ -1,0 +1,335 @@
+"""Paths over wrapping surfaces: lengths against closed forms written here (cylinder helix,
+sphere great circle, two cylinders), the ellipsoid against an independent discretised
+shortest path, moment arms against finite differences on the manifold, lift-off
+continuity, and the model-file section."""
+
+import numpy as np
+import pytest
+from scipy.optimize import minimize
+
+from openfdk.forces.elements import add_ligament, add_muscle, add_wrap_surface
+from openfdk.forces.hill import ConstantStrengthMuscle
+from openfdk.forces.passive import PassiveElements
+from openfdk.forces.pathset import PathSet
+from openfdk.model.builder import ModelBuilder
+from openfdk.numdiff import manifold_jacobian
+from openfdk.spatial import quat_from_rotvec, rotation_matrix
+
+
+def _set_pose(model, state, body, p, rotvec):
+    i = model.body(body).index
+    state.p_WB[i] = p
+    state.quat_WB[i] = quat_from_rotvec(np.asarray(rotvec, dtype=float))
+    state.R_WB[i] = rotation_matrix(state.quat_WB[i])
+
+
+def _wrap_model(kind, dims, side=None, frame_rot=(0.0, 0.0, 0.0)):
+    """A drum body carrying the surface (frame rotated by ``frame_rot``), a fixed origin
+    point on ground and an insertion on an arm body."""
+    b = ModelBuilder("wrap", gravity=(0, 0, 0))
+    b.add_body("drum", 1.0, [1, 1, 1])
+    b.add_body("arm", 1.0, [1, 1, 1])
+    b.add_frame("drum", "S", [0.0, 0.0, 0.0], orientation=quat_from_rotvec(np.asarray(frame_rot)))
+    b.add_frame("ground", "o", [-0.1, 0.05, 0.02])
+    b.add_frame("arm", "i", [0.12, 0.0, -0.03])
+    add_wrap_surface(b, "surf", kind, "drum.S", dims, side)
+    add_muscle(b, "m", ["ground.o", "surf", "arm.i"], ConstantStrengthMuscle(100.0, "m"))
+    model = b.build()
+    return model, model.elements["muscles"][0].path
+
+
+# --- independent closed forms -----------------------------------------------------
+
+
+def cylinder_length(P, Q, r, over_positive_y=True):
+    """Straight segments + helix for a path passing the z axis on the +y side (P on the
+    left, x < 0, so the path turns clockwise), written from angles: γ = angle from P to
+    Q going over +y, θ = γ − acos(r/ρ_P) − acos(r/ρ_Q) is the
+    wrap angle (≤ 0: no contact); unrolled, l = sqrt(H² + Δz²), H = d_P + r θ + d_Q."""
+    rho_p, rho_q = np.hypot(P[0], P[1]), np.hypot(Q[0], Q[1])
+    a_p, a_q = np.arctan2(P[1], P[0]), np.arctan2(Q[1], Q[0])
+    gamma = np.mod(a_p - a_q, 2 * np.pi) if over_positive_y else np.mod(a_q - a_p, 2 * np.pi)
+    theta = gamma - np.arccos(r / rho_p) - np.arccos(r / rho_q)
+    if theta <= 0:
+        return np.linalg.norm(Q - P), 0.0
+    H = np.sqrt(rho_p**2 - r**2) + r * theta + np.sqrt(rho_q**2 - r**2)
+    return np.hypot(H, Q[2] - P[2]), theta
+
+
+def sphere_length(P, Q, r):
+    """Great circle: γ = ∠POQ, θ = γ − acos(r/|P|) − acos(r/|Q|), l = d_P + r θ + d_Q."""
+    nP, nQ = np.linalg.norm(P), np.linalg.norm(Q)
+    gamma = np.arccos(np.clip(P @ Q / (nP * nQ), -1, 1))
+    theta = gamma - np.arccos(r / nP) - np.arccos(r / nQ)
+    if theta <= 0:
+        return np.linalg.norm(Q - P)
+    return np.sqrt(nP**2 - r**2) + r * theta + np.sqrt(nQ**2 - r**2)
+
+
+def _surface_frame_points(model, state, path):
+    """P (origin) and Q (insertion) in the drum's surface frame S."""
+    i_d, i_a = model.body("drum").index, model.body("arm").index
+    R_WS = state.R_WB[i_d] @ model.frame("drum.S").R_BF
+    P_W = np.array([-0.1, 0.05, 0.02])
+    Q_W = state.p_WB[i_a] + state.R_WB[i_a] @ np.array([0.12, 0.0, -0.03])
+    return R_WS.T @ (P_W - state.p_WB[i_d]), R_WS.T @ (Q_W - state.p_WB[i_d])
+
+
+# --- cylinder ----------------------------------------------------------------------
+
+
+def test_cylinder_length_is_segments_plus_helix_at_many_poses_with_lift_off():
+    r = 0.03
+    model, path = _wrap_model("cylinder", r, side=[0, 1, 0], frame_rot=(0.2, -0.1, 0.3))
+    state = model.initial_state()
+    _set_pose(model, state, "drum", [0.004, -0.002, 0.001], [0.05, 0.1, -0.2])
+    n_wrap = n_free = 0
+    for psi in np.linspace(-1.2, 2.4, 73):
+        _set_pose(model, state, "arm", [0.0, 0.0, 0.01], [0.1, -0.05, psi])
+        P, Q = _surface_frame_points(model, state, path)
+        expected, theta = cylinder_length(P, Q, r)
+        n_wrap += theta > 0
+        n_free += theta <= 0
+        assert path.evaluate(state, 0)[0][0] == pytest.approx(expected, rel=1e-13, abs=1e-15)
+    assert n_wrap > 10 and n_free > 10  # the sweep covers contact and lift-off
+
+
+def test_cylinder_side_picks_the_long_way_round():
+    """With side −y the same pose wraps under the cylinder (the straight line passes just
+    above the axis): γ measured counter-clockwise, longer than the wrap over the top."""
+    r = 0.03
+    model, path = _wrap_model("cylinder", r, side=[0, -1, 0])
+    state = model.initial_state()
+    _set_pose(model, state, "arm", [0, 0, 0], [0, 0, 0.0])
+    P, Q = _surface_frame_points(model, state, path)
+    rho_p, rho_q = np.hypot(*P[:2]), np.hypot(*Q[:2])
+    gamma = np.mod(np.arctan2(Q[1], Q[0]) - np.arctan2(P[1], P[0]), 2 * np.pi)
+    theta = gamma - np.arccos(r / rho_p) - np.arccos(r / rho_q)
+    H = np.sqrt(rho_p**2 - r**2) + r * theta + np.sqrt(rho_q**2 - r**2)
+    assert theta > 0.5
+    assert path.evaluate(state, 0)[0][0] == pytest.approx(np.hypot(H, Q[2] - P[2]), rel=1e-13)
+    assert np.hypot(H, Q[2] - P[2]) > cylinder_length(P, Q, r)[0] + 0.01
+
+
+def test_lift_off_has_no_jump_in_length_or_slope():
+    r = 0.03
+    model, path = _wrap_model("cylinder", r, side=[0, 1, 0])
+    state = model.initial_state()
+    psis = np.linspace(-1.0, 2.0, 3001)
+    ls, thetas = [], []
+    for psi in psis:
+        _set_pose(model, state, "arm", [0, 0, 0], [0, 0, psi])
+        ls.append(path.evaluate(state, 0)[0][0])
+        thetas.append(cylinder_length(*_surface_frame_points(model, state, path), r)[1])
+    ls, thetas = np.array(ls), np.array(thetas)
+    k = np.flatnonzero(np.diff(thetas > 0))
+    assert len(k) == 1  # one lift-off inside the sweep
+    dl = np.diff(ls)
+    h = psis[1] - psis[0]
+    # no jump: neighbouring steps differ by O(h²) around the lift-off (slope continuous)
+    assert np.max(np.abs(np.diff(dl[k[0] - 3 : k[0] + 4]))) < 50 * h**2
+    assert np.max(np.abs(dl)) < 0.2 * h
+
+
+# --- sphere ------------------------------------------------------------------------
+
+
+def test_sphere_length_is_great_circle_arc():
+    r = 0.035
+    model, path = _wrap_model("sphere", r)
+    state = model.initial_state()
+    rng = np.random.default_rng(7)
+    n_wrap = 0
+    for _ in range(40):
+        _set_pose(model, state, "drum", rng.normal(size=3) * 0.005, rng.normal(size=3) * 0.3)
+        _set_pose(model, state, "arm", rng.normal(size=3) * 0.01, [0, 0, rng.uniform(-1.5, 2.0)])
+        P, Q = _surface_frame_points(model, state, path)
+        expected = sphere_length(P, Q, r)
+        n_wrap += expected > np.linalg.norm(Q - P) + 1e-9
+        assert path.evaluate(state, 0)[0][0] == pytest.approx(expected, rel=1e-13)
+    assert n_wrap > 5
+
+
+# --- ellipsoid ---------------------------------------------------------------------
+
+
+def discrete_shortest_path_length(P, Q, axes, n, bump):
+    """Independent reference: n free points x_k between P and Q, all outside the
+    ellipsoid (x_kᵀ A x_k ≥ 1, A = diag(a⁻², b⁻², c⁻²)), minimising the discrete energy
+    Σ |x_{k+1} − x_k|² (SLSQP); its minimiser is an evenly spaced shortest path, whose
+    polyline length converges like 1/n² (chords cut the surface). ``bump`` (3,) m bends
+    the straight-line start to the side the path must pass."""
+    A = 1.0 / np.asarray(axes) ** 2
+    t = np.linspace(0.0, 1.0, n + 2)[1:-1]
+    X0 = P + t[:, None] * (Q - P) + np.sin(np.pi * t)[:, None] * bump
+
+    def energy(z):
+        X = np.vstack([P, z.reshape(-1, 3), Q])
+        d = np.diff(X, axis=0)
+        g = np.zeros_like(X)
+        g[:-1] -= 2 * d
+        g[1:] += 2 * d
+        return (d * d).sum(), g[1:-1].ravel()
+
+    def outside_jac(z):
+        Z = z.reshape(-1, 3)
+        J = np.zeros((n, 3 * n))
+        for k in range(n):
+            J[k, 3 * k : 3 * k + 3] = 2 * A * Z[k]
+        return J
+
+    cons = {"type": "ineq", "fun": lambda z: (z.reshape(-1, 3) ** 2) @ A - 1.0, "jac": outside_jac}
+    res = minimize(energy, X0.ravel(), jac=True, constraints=[cons], method="SLSQP",
+                   options={"ftol": 1e-16, "maxiter": 2000})
+    assert res.success, res.message
+    X = np.vstack([P, res.x.reshape(-1, 3), Q])
+    return np.linalg.norm(np.diff(X, axis=0), axis=1).sum()
+
+
+def test_ellipsoid_length_matches_independent_discrete_geodesic():
+    axes = np.array([0.045, 0.03, 0.025])
+    model, path = _wrap_model("ellipsoid", axes, side=[0, 1, 0], frame_rot=(0.0, 0.0, 0.1))
+    state = model.initial_state()
+    for psi in (-0.5,):  # one pose (the SLSQP reference takes ~10 s); wrap arc ≈ 19 mm
+        _set_pose(model, state, "arm", [0, 0.0, 0.005], [0.1, 0.05, psi])
+        P, Q = _surface_frame_points(model, state, path)
+        length = path.evaluate(state, 0)[0][0]
+        l1 = discrete_shortest_path_length(P, Q, axes, 40, np.array([0, 0.06, 0]))
+        l2 = discrete_shortest_path_length(P, Q, axes, 80, np.array([0, 0.06, 0]))
+        richardson = (4 * l2 - l1) / 3  # the 1/n² error removed
+        assert length > np.linalg.norm(Q - P) + 5e-4  # really wrapping
+        assert length == pytest.approx(richardson, rel=1e-6)
+
+
+def test_ellipsoid_with_equal_axes_is_the_sphere():
+    r = 0.03
+    m_e, p_e = _wrap_model("ellipsoid", [r, r, r])
+    state = m_e.initial_state()
+    for psi in np.linspace(-1.0, 1.5, 11):
+        _set_pose(m_e, state, "arm", [0, 0, 0], [0.2, 0.1, psi])
+        P, Q = _surface_frame_points(m_e, state, p_e)
+        assert p_e.evaluate(state, 0)[0][0] == pytest.approx(sphere_length(P, Q, r), rel=1e-9)
+
+
+# --- moment arms -------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("kind,dims,side", [
+    ("cylinder", 0.03, [0, 1, 0]), ("sphere", 0.03, None), ("ellipsoid", [0.04, 0.03, 0.025], [0, 1, 0]),
+])
+def test_moment_arms_match_finite_differences_on_manifold(kind, dims, side):
+    model, path = _wrap_model(kind, dims, side, frame_rot=(0.3, 0.2, -0.1))
+    state = model.initial_state()
+    _set_pose(model, state, "drum", [0.002, 0.001, -0.003], [0.1, -0.2, 0.1])
+    _set_pose(model, state, "arm", [0.0, 0.003, 0.0], [0.05, 0.1, -0.4])
+    assert np.all(np.isfinite(path.tangent_points(state)[1]))  # in contact
+    _, L, _ = path.evaluate(state, 1)
+    fd = manifold_jacobian(lambda s: path.evaluate(s, 0)[0], state, 1e-6)
+    assert np.linalg.norm(L) > 0.5
+    tol = 1e-8 if kind != "ellipsoid" else 1e-7
+    np.testing.assert_allclose(L, fd, atol=tol)
+    # a pure rotation of the arm about the drum axis has a moment arm > the radius/2
+    assert np.max(np.abs(L[0, 9:12])) > 0.015
+
+
+def test_acceleration_bias_is_second_derivative_along_velocity():
+    from openfdk.numdiff import second_derivative_along
+
+    model, path = _wrap_model("cylinder", 0.03, [0, 1, 0])
+    state = model.initial_state()
+    _set_pose(model, state, "arm", [0.0, 0.0, 0.0], [0.0, 0.0, 0.1])
+    v = np.random.default_rng(3).normal(size=model.n_coords)
+    state.set_v(v)
+    _, _, b = path.evaluate(state, 2)
+    expected = second_derivative_along(lambda s: path.evaluate(s, 0)[0], state, v, h=1e-4)
+    assert abs(b[0]) > 1e-3
+    assert b[0] == pytest.approx(expected[0], rel=1e-4)
+
+
+# --- several surfaces and via points ----------------------------------------------
+
+
+def test_two_cylinders_and_a_via_point_closed_form():
+    """Two parallel cylinders of radius r centred at x = ±d, a path over their tops from
+    P = (−d − a, 0) to Q = (d + a, 0): l = 2 sqrt(a² − r²) + 2 r (π/2 − acos(r/a)) + 2d
+    (the common tangent on top is 2d long). Then a via point above the middle splits it."""
+    r, d, a = 0.02, 0.05, 0.06
+    b = ModelBuilder("two", gravity=(0, 0, 0))
+    b.add_body("arm", 1.0, [1, 1, 1])
+    b.add_frame("ground", "c1", [-d, 0, 0])
+    b.add_frame("ground", "c2", [d, 0, 0])
+    b.add_frame("ground", "P", [-d - a, 0, 0])
+    b.add_frame("arm", "Q", [d + a, 0, 0])
+    b.add_frame("ground", "V", [0.0, r + 0.01, 0])
+    add_wrap_surface(b, "cyl1", "cylinder", "ground.c1", r, [0, 1, 0])
+    add_wrap_surface(b, "cyl2", "cylinder", "ground.c2", r, [0, 1, 0])
+    add_muscle(b, "two", ["ground.P", "cyl1", "cyl2", "arm.Q"], ConstantStrengthMuscle(1.0, "two"))
+    add_muscle(b, "via", ["ground.P", "cyl1", "ground.V", "cyl2", "arm.Q"], ConstantStrengthMuscle(1.0, "via"))
+    model = b.build()
+    state = model.initial_state()
+    paths = PathSet(model.elements["muscles"])
+    l, L = paths.evaluate(state)
+    expected = 2 * np.sqrt(a**2 - r**2) + 2 * r * (np.pi / 2 - np.arccos(r / a)) + 2 * d
+    assert l[0] == pytest.approx(expected, rel=1e-12)
+    # via point V: tangents from V to each circle, wraps from the P/Q tangents
+    V = np.array([d, r + 0.01])  # V relative to cylinder 2's centre (mirror for cylinder 1)
+    nV = np.linalg.norm(V)
+    theta = (np.pi - np.arccos(r / a)) - (np.arctan2(V[1], V[0]) + np.arccos(r / nV))
+    half = np.sqrt(a**2 - r**2) + r * theta + np.sqrt(nV**2 - r**2)
+    assert l[1] == pytest.approx(2 * half, rel=1e-12)
+    fd = manifold_jacobian(lambda s: paths.evaluate(s)[0], state, 1e-6)
+    np.testing.assert_allclose(L, fd, atol=1e-8)
+    assert abs(L[0, 0]) > 0.5
+
+
+def test_ligament_stiffness_over_a_wrap_matches_finite_differences():
+    b = ModelBuilder("lig", gravity=(0, 0, 0))
+    b.add_body("arm", 1.0, [1, 1, 1])
+    b.add_frame("ground", "o", [-0.1, 0.05, 0.0])
+    b.add_frame("arm", "i", [0.1, 0.0, 0.01])
+    add_wrap_surface(b, "drum", "cylinder", "ground", 0.03, [0, 1, 0])
+    add_ligament(b, "lig", ["ground.o", "drum", "arm.i"], stiffness=2000.0, reference_strain=0.05)
+    model = b.build()
+    state = model.initial_state()
+    passive = PassiveElements(model)
+    Q, out, K = passive.generalized_forces(state, 0.0, want_stiffness=True)
+    assert out.ligament_force[0] > 1.0
+    K_fd = manifold_jacobian(lambda s: passive.generalized_forces(s, 0.0)[0], state, 1e-6)
+    np.testing.assert_allclose(K, K_fd, atol=1e-4 * np.abs(K_fd).max())
+    assert np.abs(K).max() > 10
+
+
+def test_point_inside_surface_is_reported_by_name():
+    model, path = _wrap_model("sphere", 0.2)
+    with pytest.raises(FloatingPointError, match="path 'm'.*inside"):
+        path.evaluate(model.initial_state(), 0)
+
+
+def test_model_file_wrapping_section(tmp_path):
+    from openfdk.model.modelfile import load_model
+
+    text = """
+units: {length: mm, angle: deg}
+bodies:
+  ground:
+    frames:
+      o: [-100, 50, 20]
+      axis: {position: [0, 0, 0], orientation: [0, 0, 0]}
+  arm:
+    mass: 1.0
+    inertia: [1, 1, 1]
+    frames:
+      i: [120, 0, -30]
+wrapping:
+  condyle: {type: cylinder, frame: ground.axis, radius: 30, side: +y}
+muscles:
+  quad: {path: [ground.o, condyle, arm.i], strength: 100}
+"""
+    f = tmp_path / "m.yaml"
+    f.write_text(text)
+    model = load_model(str(f))
+    state = model.initial_state()
+    path = model.elements["muscles"][0].path
+    expected, theta = cylinder_length(np.array([-0.1, 0.05, 0.02]), np.array([0.12, 0.0, -0.03]), 0.03)
+    assert theta > 0
+    assert path.evaluate(state, 0)[0][0] == pytest.approx(expected, rel=1e-13)
