@@ -168,7 +168,11 @@ class YamlContext:
         return self.mapping(value, path, allowed, required)
 
     def number(self, value, path, unit="", positive=False, nonnegative=False, low=None, high=None):
-        """A finite number (int or float, not a boolean) -> float, within the bounds."""
+        """A finite number (int or float, not a boolean) -> float, within the bounds.
+        Text like ``1.0e5`` (what YAML 1.1 readers make of 1.2 floats, e.g. in a mapping
+        parsed elsewhere) counts as that number."""
+        if isinstance(value, str) and _FLOAT_12.match(value.strip()):
+            value = float(value)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.error(path, f"expected a number{_unit(unit)}, got {value!r}")
         try:
