@@ -180,6 +180,15 @@ def test_write_read_round_trip(tmp_path, units):
     assert trial.source == str(path)
 
 
+def test_write_refuses_millimetres_passed_as_metres(tmp_path):
+    """Positions are metres: lab coordinates in mm (here 300–1500 "m") are refused with
+    a message that says so, instead of a file 1000× too large."""
+    labels, p_WM, rate = trajectory()
+    with pytest.raises(C3DError, match=r"must be in metres.*looks like millimetres"):
+        write_c3d(tmp_path / "mm.c3d", labels, 1e3 * p_WM + 300.0, rate)
+    write_c3d(tmp_path / "m.c3d", labels, p_WM + 0.3, rate)       # the same data in m: fine
+
+
 def test_written_file_matches_independent_parser(tmp_path):
     labels, p_WM, rate = trajectory()
     path = tmp_path / "trial.c3d"

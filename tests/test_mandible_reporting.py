@@ -353,3 +353,74 @@ def test_figure_input_errors(kinematics_by_task, tmp_path):
     with pytest.raises(ValueError, match="side 'right' missing"):
         figures.plot_forces("chewing", {"POP": {"left": np.zeros((5, 101, 3))}}, tmp_path / "x.png")
     assert not (tmp_path / "x.png").exists()
+
+
+# --------------------------------------------------------------------------------------
+# Whole-record splitting: periods 0.3–5 s, partial cycles at both ends, fewer cycles
+# --------------------------------------------------------------------------------------
+
+def partial_edged_cycles(period, n_complete, noise=0.01, seed=0):
+    """Cycles that open (raised cosine over the first 80 % of each period) and rest
+    closed for the last 20 %; the record starts at 15 % of a cycle (mid-opening) and
+    stops at 60 % of the cycle after the last complete one (mid-closing). Periods vary
+    by ±5 %; noise is a fraction of the amplitude. Returns time, signal and the onsets
+    (s) of the complete cycles plus the onset of the trailing partial one."""
+    rng = np.random.default_rng(seed)
+    periods = period * (1.0 + rng.uniform(-0.05, 0.05, n_complete + 2))
+    onsets = np.concatenate([[-0.15 * periods[0]], -0.15 * periods[0] + np.cumsum(periods)])
+    end = onsets[-2] + 0.6 * periods[-1]
+    t = np.arange(0.0, end, 1.0 / FS)
+    x = np.zeros_like(t)
+    for a, T in zip(onsets[:-1], periods):
+        s = (t - a) / (0.8 * T)
+        inside = (s >= 0.0) & (s < 1.0)
+        x[inside] = 0.5 * (1.0 - np.cos(2 * np.pi * s[inside]))
+    x = x + rng.normal(0.0, noise, t.size)
+    return t, x, onsets[1:-1]
+
+
+@pytest.mark.parametrize("period,n_complete", [(0.3, 8), (0.8, 5), (1.7, 4), (2.75, 4), (5.0, 3)])
+def test_whole_record_cycles_for_periods_from_0_3_to_5_s(period, n_complete):
+    """Every complete cycle is found, both partial edge cycles are skipped and named,
+    starts lag the true onsets by less than the closed-band rise time (≤ 5 % of the
+    period plus two samples), and consecutive cycles share their boundary."""
+    from openfdk.mandible.cycles import find_cycles
+
+    t, x, onsets = partial_edged_cycles(period, n_complete)
+    split = find_cycles(t, x)
+    assert len(split.cycles) == n_complete
+    assert split.skipped == ["a partial cycle at the start", "a partial cycle at the end"]
+    starts = np.array([t[a] for a, _ in split.cycles])
+    lag = starts - onsets[:n_complete]
+    assert np.all(lag >= -0.5 / FS) and np.all(lag <= 0.05 * period + 2.0 / FS), lag
+    for (_, b), (a, _) in itertools.pairwise(split.cycles):
+        assert b == a
+    # the last complete cycle stops at the opening onset of the trailing partial one
+    assert t[split.cycles[-1][1]] - onsets[n_complete] == pytest.approx(np.mean(lag), abs=0.05 * period + 0.02)
+
+
+def test_fewer_cycles_than_requested():
+    """Five requested, three complete: split_cycles raises naming what it found,
+    allow_fewer returns the three, n_cycles=None returns all of them."""
+    t, x, onsets = partial_edged_cycles(2.75, 3)
+    with pytest.raises(CycleError, match=r"found 3 complete cycle\(s\).*but n_cycles=5 were requested"):
+        split_cycles(t, x, n_cycles=5)
+    fewer = split_cycles(t, x, n_cycles=5, allow_fewer=True)
+    assert len(fewer) == 3 and fewer == split_cycles(t, x, n_cycles=None)
+    assert split_cycles(t, x, n_cycles=2) == fewer[:2]
+    with pytest.raises(CycleError, match="n_cycles must be"):
+        split_cycles(t, x, n_cycles=0)
+
+
+def test_a_slow_record_cut_close_to_its_cycles_keeps_its_edge_cycles():
+    """The failure of issue 14: a 2.75 s-period record cut to its first three cycles
+    ± 0.05 s. The edge troughs then hold 5 closed samples — fewer than 3 % of the period
+    (8 samples) — yet the cycles are complete: all three must be found, with the same
+    boundaries within 3 samples (1 % of the period; the filter's edge transient moves
+    the closed level of the cut record's edge troughs slightly)."""
+    t, x, onsets = raised_cosine_cycles(np.full(5, 2.75), amplitude=0.01, noise=5e-5, seed=4)
+    cycles = split_cycles(t, x, n_cycles=3)
+    lo, hi = cycles[0][0] - 5, cycles[-1][1] + 5
+    cut = split_cycles(t[lo : hi + 1], x[lo : hi + 1], n_cycles=3)
+    assert len(cut) == 3
+    np.testing.assert_allclose(np.array(cut) + lo, np.array(cycles), atol=3)

@@ -59,7 +59,7 @@ def test_demo_quick_parameter_study_runs_through_the_study_machinery(demo_dir):
     """The quick parameter study (k = 136.2 and 544.8 N/m at ε_r = 0 on open–close) is an
     openfdk.study study: one row per case in summary.csv, every case converged, and —
     since the ligaments are far too weak to move the joint — the kinematics are nearly
-    the same, so every ligament's peak force scales with the stiffness (ratio 4)."""
+    the same, so every ligament's peak force scales with the stiffness (ratio ≤ 4, > 3)."""
     ps = demo_dir / "study" / "parameter_study"
     rows = _rows(ps / "summary.csv")
     assert [r["case_id"] for r in rows] == ["fdk-open_close-000", "fdk-open_close-001"]
@@ -69,9 +69,12 @@ def test_demo_quick_parameter_study_runs_through_the_study_machinery(demo_dir):
         assert (ps / "cases" / r["case_id"] / "forces.csv").is_file()
     peaks = [k for k in rows[0] if k.startswith("tmj_ligament") and k.endswith(".peak_force_N")]
     assert len(peaks) == 6
+    # the joint carries only a few newtons in this unloaded open–close (elevators slack
+    # below their 20° calibration opening), so a 4× stiffer ligament stretches slightly
+    # less: the ratio is at most 4 (5 % tolerance) and well above 3 for every element
     for k in peaks:
         lo, hi = float(rows[0][k]), float(rows[1][k])
-        assert lo > 0 and hi / lo == pytest.approx(544.8 / 136.2, rel=0.05), k
+        assert lo > 0 and 3.0 < hi / lo <= 1.05 * 544.8 / 136.2, k
     summary = json.loads((demo_dir / "study" / "summary.json").read_text())
     assert summary["runs"]["parameter_study"]["cases"] == 2 and not summary["runs"]["parameter_study"]["failed"]
 
@@ -137,7 +140,7 @@ def test_symmetric_subject_symmetric_open_close(tmp_path):
     from openfdk.mandible.generator import create_subject
     from openfdk.mandible.models import write_models
     from openfdk.mandible.registration import register_braces
-    from openfdk.mandible.study import analyse_task
+    from openfdk.mandible.study import analyse_trial
     from openfdk.mandible.subject import load_subject
 
     d = create_subject(tmp_path / "subject", resolution="coarse", symmetric=True)
@@ -154,7 +157,8 @@ def test_symmetric_subject_symmetric_open_close(tmp_path):
         data = yaml.safe_load(path.read_text())
         data["gravity"] = [0.0, 0.0, 0.0]
         path.write_text(yaml.safe_dump(data))
-    series, runs = analyse_task(subject, reg, models, "open_close", tmp_path / "out")
+    # the whole one-cycle trial (no cycle split: one cycle has no autocorrelation peak)
+    series, runs = analyse_trial(subject, reg, models, d / "trials" / "open_close.c3d", tmp_path / "out")
     mirror = np.array([1.0, -1.0, 1.0])
     for model in ("measured", "POP"):
         k = series["kinematics"][model]
@@ -179,7 +183,7 @@ def test_missing_trial_is_named(tmp_path):
     from openfdk.mandible.study import StudyError, run_study
 
     d = create_subject(tmp_path / "subject", resolution="coarse")
-    with pytest.raises(StudyError, match=r"trials/reference.c3d is missing"):
+    with pytest.raises(StudyError, match=r"task .chewing.: trial file trials/chewing.c3d is missing"):
         run_study(d, tmp_path / "out", log=lambda *a: None)
 
 

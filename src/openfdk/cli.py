@@ -7,7 +7,8 @@
     openfdk cache info|clear                            the distance-grid cache on disk
     openfdk view RESULT_DIR [--out view.html]           3D viewer of a run (one HTML file)
     openfdk demo [--out DIR] [--quick]                  the mandible study on the virtual subject
-    openfdk subject create|record DIR                   virtual subject and experiment
+    openfdk subject create|record DIR [--realistic]     virtual subject and experiment
+    openfdk subject study DIR [--out OUT] [--cycles N|all]   the mandible study on a subject folder
     openfdk bench [--quick] [--json]                    benchmarks
 
 Exit codes: 0 success (every frame converged, or at most ``--max-failed`` of them
@@ -193,6 +194,19 @@ def _cmd_demo(args):
     return 0
 
 
+def _cycles_argument(value):
+    """--cycles: a whole number ≥ 1 or 'all'."""
+    if value == "all":
+        return value
+    try:
+        n = int(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number or 'all', got {value!r}") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number ≥ 1 or 'all', got {value!r}")
+    return n
+
+
 def _cmd_subject(args):
     from .mandible.experiment import record_experiment
     from .mandible.generator import create_subject
@@ -202,14 +216,34 @@ def _cmd_subject(args):
         from .mandible.study import run_study
 
         out = args.out or f"{args.directory.rstrip('/')}-study"
-        result = run_study(args.directory, out, n_cycles=args.cycles, quick=args.quick, progress=_progress_on(args),
-                           workers=args.workers, scheduler=args.scheduler)
-        report(result, out)
+        cycles = 5 if args.cycles is None else (None if args.cycles == "all" else args.cycles)
+        result = run_study(args.directory, out, n_cycles=cycles, quick=args.quick, progress=_progress_on(args),
+                           workers=args.workers, scheduler=args.scheduler,
+                           parameter_study=not args.no_parameter_study)
+        if result["table1"]:
+            report(result, out)
+        for task, message in result["failed"].items():
+            print(f"openfdk: error: task {task!r} failed: {message}", file=sys.stderr)
+        if result["failed"]:
+            print(f"openfdk: {len(result['failed'])} task(s) failed (listed in {out}/summary.json); the other "
+                  "tasks' tables and figures are written", file=sys.stderr)
+            return 2
     elif args.action == "create":
         path = create_subject(args.directory, resolution=args.resolution, symmetric=not args.asymmetric, seed=args.seed)
         print(f"virtual subject written to {path}/ (subject.yaml and STL files); next: openfdk subject record {path}")
+    elif args.realistic:
+        from .mandible.realistic import record_realistic
+
+        if args.cycles is not None:
+            raise UserError("openfdk subject record --realistic: --cycles is fixed by the realistic protocol "
+                            "(docs/virtual-experiment.md); drop it")
+        files = record_realistic(args.directory, quick=args.quick, noise_mm=args.noise, seed=args.seed)
+        print(f"realistic virtual experiment written: {', '.join(sorted(str(k) for k in files))}")
     else:
-        files = record_experiment(args.directory, cycles=args.cycles, noise_mm=args.noise, seed=args.seed)
+        if args.cycles == "all":
+            raise UserError("openfdk subject record: --cycles must be a whole number")
+        files = record_experiment(args.directory, cycles=5 if args.cycles is None else args.cycles,
+                                  noise_mm=args.noise, seed=args.seed)
         print(f"virtual experiment written: {', '.join(sorted(str(k) for k in files))}")
     return 0
 
@@ -326,14 +360,21 @@ def build_parser():
     s.add_argument("directory", help="subject folder (holding subject.yaml and its STL files)")
     s.add_argument("--resolution", default="default", choices=["coarse", "default", "fine"], help="mesh resolution (create)")
     s.add_argument("--asymmetric", action="store_true", help="perturb left and right shapes differently (create)")
-    s.add_argument("--cycles", type=argtypes.count(1), default=5, help="cycles per task (record), cycles analysed (study)")
+    s.add_argument("--cycles", type=_cycles_argument, default=None,
+                   help="record: cycles per task (default 5); study: cycles analysed per task, a number or 'all' "
+                        "(default 5; a task's own count in trials: wins)")
+    s.add_argument("--realistic", action="store_true",
+                   help="record: realistic recordings (static trial 4.6° open, slow and wide tasks, 3 open-close "
+                        "cycles, extra markers, gaps, trial names declared in trials:)")
     s.add_argument("--out", default=None, help="output folder (study; default DIRECTORY-study)")
     s.add_argument("--workers", type=argtypes.count(0), default=None,
                    help="parameter-study worker processes (study; default one per CPU, 0 = this process)")
     s.add_argument("--scheduler", default=None, help="address of a running Dask scheduler (study)")
     s.add_argument("--quick", action="store_true",
-                   help="study: a 2-model parameter study on open-close only (as openfdk demo --quick)")
+                   help="study: a 2-model parameter study on open-close only (as openfdk demo --quick); "
+                        "record --realistic: fewer chewing and protrusion cycles")
     _display_arguments(s)
+    s.add_argument("--no-parameter-study", action="store_true", help="study: skip the ligament parameter study")
     s.add_argument("--noise", type=argtypes.nonnegative, default=0.15, help="marker noise in mm (record)")
     s.add_argument("--seed", type=int, default=0, help="random seed of the shapes (create) and marker noise (record)")
     s.set_defaults(func=_cmd_subject)

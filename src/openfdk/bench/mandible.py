@@ -2,8 +2,12 @@
 on the open–close trial (FDK model: two condyle–fossa contacts with the generated
 meshes, 3 FDK DOFs, 6 ligaments, 24 Hill muscles, marker tracking; model loading
 excluded; median of 3 runs of 400 frames after a 5-frame first call, whose time — numba
-loading its cached kernels — is reported as ``mandible_*_first_call_s``), and the wall
-time of the whole demo (``--quick``: the reduced demo, one run of 60 frames)."""
+loading its cached kernels — is reported as ``mandible_*_first_call_s``), the wall
+time of the whole demo (``--quick``: the reduced demo, one run of 60 frames), and
+``mandible_realistic_study_wall_s``: the whole study (registration, models, POP and FDK
+on every task, cycles, tables, figures; no parameter study) on the realistic virtual
+subject (:mod:`openfdk.mandible.realistic`; default meshes; ``--quick``: coarse meshes and
+the quick recordings), with the share of feasible/converged frames per model."""
 
 from __future__ import annotations
 
@@ -61,4 +65,24 @@ def run(quick=False):
         t0 = time.perf_counter()
         run_demo(d / "demo", quick=quick, progress=False, log=lambda *a, **k: None)
         out.append({"name": "demo_quick_wall_s" if quick else "demo_wall_s", "value": time.perf_counter() - t0, "unit": "s"})
+        out.append(realistic_study(d, quick))
     return out
+
+
+def realistic_study(d, quick=False):
+    """``mandible_realistic_study_wall_s``: run_study without the parameter study on a
+    freshly recorded realistic subject in ``d``; recording excluded."""
+    from ..mandible.generator import create_subject
+    from ..mandible.realistic import record_realistic
+    from ..mandible.study import run_study
+
+    subject = create_subject(Path(d) / "realistic", resolution="coarse" if quick else "default")
+    record_realistic(subject, quick=quick)
+    t0 = time.perf_counter()
+    result = run_study(subject, Path(d) / "realistic-study", parameter_study=False, progress=False,
+                       log=lambda *a, **k: None)
+    wall = time.perf_counter() - t0
+    summary = result["summary"]
+    frames = {task: {m: r[m]["frames"] for m in ("POP", "FDK")} for task, r in summary["runs"].items()}
+    return {"name": "mandible_realistic_study_wall_s", "value": wall, "unit": "s",
+            "frames": frames, "feasible_share": summary["feasible_share"], "failed": summary["failed"]}

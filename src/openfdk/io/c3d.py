@@ -581,6 +581,10 @@ def read_c3d(path: str | os.PathLike) -> MarkerTrial:
                        source=name)
 
 
+#: largest marker coordinate write_c3d accepts (m): a lab is smaller, mm data is not
+MAX_LAB_COORDINATE_M = 100.0
+
+
 def write_c3d(path: str | os.PathLike, labels: Sequence[str], positions: np.ndarray,
               rate: float, units: str = "mm") -> None:
     """Write marker positions to a float-format C3D file (with ezc3d).
@@ -588,10 +592,15 @@ def write_c3d(path: str | os.PathLike, labels: Sequence[str], positions: np.ndar
     Args:
         path: file to write (replaced atomically if it exists).
         labels: n_markers unique, non-empty marker names.
-        positions: ``(n_frames, n_markers, 3)`` m; a sample with any NaN coordinate is
-            written as missing (coordinates 0, residual −1).
+        positions: ``(n_frames, n_markers, 3)`` in **metres** (SI, as every openfdk
+            array), whatever ``units`` says: divide millimetre data by 1000 first. A
+            sample with any NaN coordinate is written as missing (coordinates 0,
+            residual −1). Coordinates beyond 100 m are refused as probably millimetres.
         rate: sample rate, Hz.
-        units: unit written to POINT:UNITS and used for the stored numbers (mm, cm, m).
+        units: unit of the numbers stored in the file and written to POINT:UNITS (mm,
+            cm, m); the positions are converted from metres to it.
+
+    Example: ``write_c3d("trial.c3d", ["M1"], p_mm / 1000.0, 100.0)`` stores mm.
     """
     name = os.fspath(path)
     labels = [str(lab).strip() for lab in labels]
@@ -609,6 +618,10 @@ def write_c3d(path: str | os.PathLike, labels: Sequence[str], positions: np.ndar
         raise C3DError(f"{name}: rate must be a positive number of Hz, got {rate}")
 
     missing = ~np.all(np.isfinite(positions), axis=2)               # (n_frames, n_markers)
+    largest = float(np.max(np.abs(positions[~missing]))) if (~missing).any() else 0.0
+    if largest > MAX_LAB_COORDINATE_M:
+        raise C3DError(f"{name}: positions must be in metres; a coordinate of {largest:g} m (beyond "
+                       f"{MAX_LAB_COORDINATE_M:g} m) looks like millimetres: divide by 1000")
     stored = np.where(missing[:, :, None], 0.0, positions / UNIT_TO_METRE[units])
     n_frames, n_markers, _ = positions.shape
     points = np.ones((4, n_markers, n_frames))

@@ -27,12 +27,17 @@ Cycle rule (docs/mandible-study-outputs.md, "Cycles"):
    peak the mouth must close again; the last cycle then stops at the next opening onset
    if the signal rises again (by > 25 % of the cycle's rise), otherwise — closed to the
    record end — one median cycle duration after its start (at most the last sample).
-6. Record edges: the trough before the first peak (or after the last) counts only if at
-   least 3 % of T of its samples lie at the closed level of the interior troughs
-   (median L + b). A record that starts mid-opening or stops mid-closing therefore skips
-   that partial cycle.
+6. Record edges: the trough before the first peak (or after the last) counts only if
+   enough of its samples lie at the closed level of the interior troughs (median L + b):
+   3 % of T, at most 0.05 s and at least 2 samples. A record that starts mid-opening or
+   stops mid-closing therefore skips that partial cycle, while a slow task (T up to 5 s)
+   whose record starts or stops after a short closed rest keeps its edge cycles.
 7. Cycles shorter than ``min_period`` or longer than ``max_period`` are discarded; the
-   first ``n_cycles`` remaining cycles are returned.
+   first ``n_cycles`` remaining cycles (all of them for ``n_cycles=None``) are returned.
+
+Split the **whole record** and then select cycles: a record cut to the first n cycles ±
+a few samples has too little closed rest at its ends for rule 6. :func:`find_cycles`
+returns every complete cycle with what was skipped; :func:`split_cycles` the first n.
 
 Indices are inclusive at both ends: cycle k covers ``time[start_k] … time[stop_k]`` and
 ``stop_k == start_{k+1}`` for successive cycles (0 % of one is 100 % of the previous).
@@ -40,16 +45,19 @@ Indices are inclusive at both ends: cycle k covers ``time[start_k] … time[stop
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.signal import butter, filtfilt, find_peaks
 
-__all__ = ["CycleError", "normalize_cycles", "split_cycles"]
+__all__ = ["CycleError", "CycleSplit", "find_cycles", "normalize_cycles", "split_cycles"]
 
 _PEAK_SPACING = 0.6         # minimum peak distance, fraction of the period estimate
 _PEAK_RISE = 0.30           # minimum peak prominence, fraction of the 2–98 % range …
 _PEAK_NOISE = 8.0           # … and in units of the smoothed noise σ_s
 _BAND_NOISE = 4.0           # closed-mouth band above the trough: 4 σ_s (+ flat_tolerance)
-_EDGE = 0.03                # closed samples needed in an edge trough, fraction of T
+_EDGE = 0.03                # closed samples needed in an edge trough, fraction of T …
+_EDGE_MAX_S = 0.05          # … but at most this long (s), so slow tasks keep edge cycles
 _REOPEN = 0.25              # rise after the last closing that marks a new opening
 _MIN_AUTOCORRELATION = 0.2  # weakest autocorrelation accepted as a periodic movement …
 _NOISE_AUTOCORRELATION = 5.0  # … and ≥ 5/√n (white noise: max ≈ 3.5/√n)
@@ -145,38 +153,59 @@ def _trough(s, lo, hi, top, flat_tolerance, noise) -> tuple[float, float, int]:
     return level, band, onset
 
 
-def split_cycles(time, signal, n_cycles: int = 5, min_period: float | None = None,
-                 max_period: float | None = None, *, harmonics: float = 6.0,
-                 flat_tolerance: float = 0.01) -> list[tuple[int, int]]:
-    """The first ``n_cycles`` complete cycles of a quasi-periodic jaw movement.
+@dataclass(frozen=True)
+class CycleSplit:
+    """Every complete cycle of a record (:func:`find_cycles`).
+
+    ``cycles``: list of (start_index, stop_index), both inclusive, in time order;
+    ``skipped``: what was left out and why (partial edge cycles, cycles outside the
+    period bounds), one phrase each; ``period`` s, the dominant period; ``peaks``
+    (n_peaks,) int, indices of the opening peaks; ``time`` (n,) s.
+    """
+
+    cycles: list
+    skipped: list
+    period: float
+    peaks: np.ndarray
+    time: np.ndarray
+
+    def describe(self) -> str:
+        """One line: the cycles found (s), the peaks and what was skipped."""
+        t = self.time
+        found = ", ".join(f"{t[a]:.3g}–{t[b]:.3g} s" for a, b in self.cycles) or "none"
+        return (f"found {len(self.cycles)} complete cycle(s) ({found}); {len(self.peaks)} opening "
+                f"peak(s) at t = {', '.join(f'{t[p]:.3g}' for p in self.peaks)} s, period estimate "
+                f"{self.period:.3g} s" + (f"; skipped {', '.join(self.skipped)}" if self.skipped else ""))
+
+
+def find_cycles(time, signal, min_period: float | None = None, max_period: float | None = None, *,
+                harmonics: float = 6.0, flat_tolerance: float = 0.01) -> CycleSplit:
+    """Every complete cycle of a quasi-periodic jaw movement over the whole record.
 
     Cycles start at successive closed-mouth minima (opening onsets) of the low-pass
     filtered signal; the rule is in the module docstring. Robust to measurement noise,
-    to a period that varies from cycle to cycle, to rest before/after the movement and
-    to partial cycles at the record's ends.
+    to a period that varies from cycle to cycle (periods 0.3–5 s at 100 Hz), to rest
+    before/after the movement and to partial cycles at the record's ends.
 
     Args:
         time : (n,) s, uniformly sampled, strictly increasing.
         signal : (n,) any unit, smallest with the mouth closed (e.g. incisal opening,
             condyle AP displacement in m); NaN gaps are bridged linearly.
-        n_cycles : number of cycles wanted.
         min_period, max_period : s, optional bounds on a cycle's duration (they also bound
             the period search and the peak spacing).
         harmonics : low-pass cut-off as a multiple of the dominant frequency.
         flat_tolerance : part of the closed-mouth band, as a fraction of the trough's rise.
-    Returns: list of ``n_cycles`` (start_index, stop_index), both inclusive, in time order.
-    Raises: CycleError (a ValueError) naming the cycles found when fewer than
-        ``n_cycles`` complete cycles exist, or when the inputs are malformed.
+    Returns: a :class:`CycleSplit` (possibly with no cycles).
+    Raises: CycleError (a ValueError) when the inputs are malformed or the signal has no
+        periodic movement.
     """
-    if n_cycles < 1:
-        raise CycleError(f"n_cycles must be ≥ 1; got {n_cycles}")
     if min_period is not None and max_period is not None and not 0 < min_period < max_period:
         raise CycleError(f"need 0 < min_period < max_period; got {min_period}, {max_period}")
     t, x, h = _check_time_signal(time, signal)
     period = _dominant_period(x, h, min_period, max_period)
     s, noise = _smooth(x, h, period, harmonics)
     n = s.size
-    edge = max(2, round(_EDGE * period / h))
+    edge = max(2, round(min(_EDGE * period, _EDGE_MAX_S) / h))
 
     # rule 2: opening peaks
     spacing = (min_period if min_period is not None else _PEAK_SPACING * period) / h
@@ -231,14 +260,36 @@ def split_cycles(time, signal, n_cycles: int = 5, min_period: float | None = Non
             skipped.append(f"a cycle {duration:.3g} s long at t = {t[a]:.3g} s")
             continue
         cycles.append((int(a), int(b)))
-    if len(cycles) < n_cycles:
-        found = ", ".join(f"{t[a]:.3g}–{t[b]:.3g} s" for a, b in cycles) or "none"
-        raise CycleError(
-            f"found {len(cycles)} complete cycle(s) ({found}) but n_cycles={n_cycles} were "
-            f"requested; {len(peaks)} opening peak(s) at t = "
-            f"{', '.join(f'{t[p]:.3g}' for p in peaks)} s, period estimate {period:.3g} s"
-            + (f"; skipped {', '.join(skipped)}" if skipped else ""))
-    return cycles[:n_cycles]
+    return CycleSplit(cycles, skipped, period, peaks, t)
+
+
+def split_cycles(time, signal, n_cycles: int | None = 5, min_period: float | None = None,
+                 max_period: float | None = None, *, allow_fewer: bool = False,
+                 harmonics: float = 6.0, flat_tolerance: float = 0.01) -> list[tuple[int, int]]:
+    """The first ``n_cycles`` complete cycles of a quasi-periodic jaw movement.
+
+    The cycles are found on the whole record by :func:`find_cycles` (same arguments),
+    then the first ``n_cycles`` are taken (all of them for ``n_cycles=None``).
+
+    Args:
+        time, signal, min_period, max_period, harmonics, flat_tolerance: as in
+            :func:`find_cycles`.
+        n_cycles : number of cycles wanted (≥ 1), or None for every complete cycle.
+        allow_fewer : when fewer than ``n_cycles`` exist, return those (at least one)
+            instead of raising; the caller says so (the study warns and reports n).
+    Returns: list of (start_index, stop_index), both inclusive, in time order.
+    Raises: CycleError (a ValueError) naming the cycles found when there are fewer than
+        ``n_cycles`` (or none at all), or when the inputs are malformed.
+    """
+    if n_cycles is not None and n_cycles < 1:
+        raise CycleError(f"n_cycles must be ≥ 1 or None (all); got {n_cycles}")
+    split = find_cycles(time, signal, min_period, max_period, harmonics=harmonics,
+                        flat_tolerance=flat_tolerance)
+    cycles = split.cycles
+    if not cycles or (n_cycles is not None and len(cycles) < n_cycles and not allow_fewer):
+        wanted = "at least one was" if n_cycles is None else f"n_cycles={n_cycles} were"
+        raise CycleError(f"{split.describe().replace('; ', f' but {wanted} requested; ', 1)}")
+    return cycles if n_cycles is None else cycles[:n_cycles]
 
 
 # --------------------------------------------------------------------------------------

@@ -81,30 +81,46 @@ def _bump(s, start, rise_end, fall_start, end):
     return out
 
 
-def _prescribe(task: str, s, amplitude, working_side: str, intercondylar: float):
+#: movement amplitudes of each task (lengths mm, angles deg): open–close opening and
+#: condyle translation; protrusion condyle translation; chewing opening and balancing-side
+#: lateral translation (the docstring's targets). :data:`WIDE_AMPLITUDES`: the realistic
+#: recordings' wide movements (incisal opening ≈ 45 mm, protrusion ≈ 10 mm, lateral
+#: incisor excursion ≈ 12 mm).
+AMPLITUDES = {"open_close": {"opening_deg": 12.5, "translation_mm": 7.0},
+              "protrusion": {"translation_mm": 8.6, "opening_deg": -1.0},
+              "chewing": {"opening_deg": 10.5, "lateral_mm": 4.0, "bennett_mm": 1.2, "working_mm": 0.8}}
+WIDE_AMPLITUDES = {"open_close": {"opening_deg": 30.0, "translation_mm": 14.0},
+                   "protrusion": {"translation_mm": 9.0, "opening_deg": -1.0},
+                   "chewing": {"opening_deg": 12.0, "lateral_mm": 11.0, "bennett_mm": 1.2, "working_mm": 4.0}}
+
+
+def _prescribe(task: str, s, amplitude, working_side: str, intercondylar: float, amplitudes=None):
     """Prescribed DOFs (x, y, yaw, opening) for phase s (n,) and per-frame amplitude
-    factors ``amplitude`` (n, 3); lengths m, angles rad. See the module docstring."""
+    factors ``amplitude`` (n, 3); lengths m, angles rad. ``task`` is a task kind;
+    ``amplitudes``: a task's entry of :data:`AMPLITUDES` (default). See the module
+    docstring."""
     zero = np.zeros_like(s)
     a0, a1, a2 = amplitude.T
+    A = amplitudes if amplitudes is not None else AMPLITUDES.get(task, {})
     if task == "open_close":
         q = _bump(s, 0.0, 0.40, 0.50, 0.90)
         # rotation first: translation ∝ q², 25 % of it at half the opening angle
-        return 7.0 * _MM * a1 * q ** 2, zero, zero, 12.5 * _DEG * a0 * q
+        return A["translation_mm"] * _MM * a1 * q ** 2, zero, zero, A["opening_deg"] * _DEG * a0 * q
     if task == "protrusion":
         q = _bump(s, 0.0, 0.35, 0.50, 0.85)
         # slight closing rotation keeps the incisor path "forward and a few mm down"
-        return 8.6 * _MM * a1 * q, zero, zero, -1.0 * _DEG * a0 * q
+        return A["translation_mm"] * _MM * a1 * q, zero, zero, A["opening_deg"] * _DEG * a0 * q
     if task == "chewing":
         q_open = _bump(s, 0.0, 0.35, 0.35, 0.80)
         q_side = _bump(s, 0.10, 0.50, 0.50, 0.90)            # lateral excursion lags opening
-        x_working = 0.8 * _MM * a1 * q_open
-        x_balancing = 2.5 * _MM * a1 * q_open + 4.0 * _MM * a2 * q_side
+        x_working = A["working_mm"] * _MM * a1 * q_open
+        x_balancing = 2.5 * _MM * a1 * q_open + A["lateral_mm"] * _MM * a2 * q_side
         toward_working = 1.0 if working_side == "l" else -1.0      # +y is left
-        y = toward_working * 1.2 * _MM * a2 * q_side                # Bennett shift
+        y = toward_working * A["bennett_mm"] * _MM * a2 * q_side   # Bennett shift
         x_r, x_l = (x_balancing, x_working) if working_side == "l" else (x_working, x_balancing)
         # Rz(yaw) moves the right condyle top (0, −W/2, 0) forward by (W/2) sin(yaw)
         yaw = np.arcsin((x_r - x_l) / intercondylar)
-        return 0.5 * (x_r + x_l), y, yaw, 10.5 * _DEG * a0 * q_open
+        return 0.5 * (x_r + x_l), y, yaw, A["opening_deg"] * _DEG * a0 * q_open
     raise ValueError(f"unknown task {task!r}; known: {sorted(TASKS)}")
 
 
@@ -205,11 +221,15 @@ class TaskTruth:
 
 def simulate_task(subject: Subject, joint: TrueJoint, markers_true: dict, task: str, *,
                   cycles: int = 5, rate: float = 100.0, head_motion: bool = True,
-                  rng=None, frequency: float | None = None, working_side: str = "l") -> TaskTruth:
+                  rng=None, frequency: float | None = None, working_side: str = "l",
+                  amplitudes: dict | None = None, static_opening_deg: float = 0.0) -> TaskTruth:
     """True motion of one trial ("reference" or a key of :data:`TASKS`).
 
     Args: ``markers_true`` body → (4, 3) m true brace markers (mandible/skull frames);
-    ``rate`` Hz; ``working_side`` 'r'/'l' for chewing. Returns a :class:`TaskTruth`.
+    ``rate`` Hz; ``working_side`` 'r'/'l' for chewing; ``amplitudes``: the task's
+    movement amplitudes (an entry of :data:`AMPLITUDES`, the default);
+    ``static_opening_deg``: the reference trial's opening (deg; 0 = occlusion; the
+    condyles stay on the true fossae). Returns a :class:`TaskTruth`.
     """
     rng = rng if rng is not None else np.random.default_rng(0)
     if task == "reference":
@@ -225,9 +245,10 @@ def simulate_task(subject: Subject, joint: TrueJoint, markers_true: dict, task: 
     top_r, top_l = subject.condyle_top("r"), subject.condyle_top("l")
     intercondylar = float(np.linalg.norm(top_l - top_r))
     if task == "reference":
-        x = y = yaw = opening = np.zeros(len(t))
+        x = y = yaw = np.zeros(len(t))
+        opening = np.full(len(t), static_opening_deg * _DEG)
     else:
-        x, y, yaw, opening = _prescribe(task, phase, amplitude, working_side, intercondylar)
+        x, y, yaw, opening = _prescribe(task, phase, amplitude, working_side, intercondylar, amplitudes)
     solution = solve_contact(joint, x, y, yaw, opening)
     R_SM, p_SM = solution.R_SM, solution.p_SM
     R_LS, p_LS = _head_pose(rng, t, head_motion)
@@ -271,6 +292,25 @@ def _truth_columns(truth: TaskTruth) -> dict:
             cols[f"contact_{side}_{a}_m"] = truth.contact_S[:, k, i]
         cols[f"gap_{side}_m"] = truth.gap[:, k]
     return cols
+
+
+def write_truth_csv(directory, task: str, truth: TaskTruth) -> Path:
+    """Write ``truth/<task>.csv`` (columns of docs/virtual-experiment.md); returns its path."""
+    columns = _truth_columns(truth)
+    path = Path(directory) / "truth" / f"{task}.csv"
+    np.savetxt(path, np.column_stack(list(columns.values())), delimiter=",",
+               header=",".join(columns), comments="", fmt="%.12g")
+    return path
+
+
+def truth_geometry(subject: Subject, joint: TrueJoint, markers_true: dict) -> dict:
+    """The truth.yaml entries :func:`load_true_joint` reads back: cartilage offset, true
+    brace markers (m, body frames) and the segmentation-error fields."""
+    return {"cartilage_offset_m": float(subject.cartilage_offset),
+            "true_markers_m": {body: dict(zip(subject.braces[body].labels, markers_true[body].tolist()))
+                               for body in ("skull", "mandible")},
+            "segmentation_fields": {f"condyle_{s}": joint.condyle_errors[s].to_dict() for s in SIDES}
+            | {f"fossa_{s}": joint.fossa_errors[s].to_dict() for s in SIDES}}
 
 
 def load_truth(directory: str | os.PathLike, task: str) -> dict:
@@ -378,18 +418,10 @@ def record_experiment(directory: str | os.PathLike, *,
         c3d_path = directory / "trials" / f"{task}.c3d"
         write_c3d(c3d_path, labels, noisy, rate, units="mm")
         written[f"trials/{task}.c3d"] = c3d_path
-        columns = _truth_columns(result)
-        csv_path = directory / "truth" / f"{task}.csv"
-        np.savetxt(csv_path, np.column_stack(list(columns.values())), delimiter=",",
-                   header=",".join(columns), comments="", fmt="%.12g")
-        written[f"truth/{task}.csv"] = csv_path
+        written[f"truth/{task}.csv"] = write_truth_csv(directory, task, result)
     info = {"truth_options": truth.to_dict(), "seed": int(seed), "noise_mm": float(noise_mm),
             "head_motion": bool(head_motion), "rate_hz": float(rate), "cycles": int(cycles),
-            "working_side": working_side, "cartilage_offset_m": float(subject.cartilage_offset),
-            "true_markers_m": {body: dict(zip(subject.braces[body].labels, markers_true[body].tolist()))
-                               for body in ("skull", "mandible")},
-            "segmentation_fields": {f"condyle_{s}": joint.condyle_errors[s].to_dict() for s in SIDES}
-            | {f"fossa_{s}": joint.fossa_errors[s].to_dict() for s in SIDES}}
+            "working_side": working_side, **truth_geometry(subject, joint, markers_true)}
     (directory / "truth" / "truth.yaml").write_text(yaml.safe_dump(info, sort_keys=False), encoding="utf-8")
     (directory / "truth" / "README.md").write_text(_README, encoding="utf-8")
     written["truth/truth.yaml"] = directory / "truth" / "truth.yaml"

@@ -19,6 +19,12 @@ from ..spatial import rotation_matrix
 SIDE_TAGS = {"right": "r", "left": "l"}
 
 
+def compared_condyle_point(subject, tag):
+    """The condyle point (3,) m whose kinematics the study compares, side tag 'r'/'l':
+    the subject's ``condyle_point`` landmark (default the condyle top)."""
+    return getattr(subject, "condyle_point", subject.condyle_top)(tag)
+
+
 def _rotations(q):
     """(nf, 3, 3) rotation matrices of (nf, 4) unit quaternions (NaN rows stay NaN)."""
     R = np.full((len(q), 3, 3), np.nan)
@@ -34,20 +40,22 @@ def _body_poses(kin, name):
 
 
 def skull_frame_points(q_S, q_M, subject):
-    """dict side -> (nf, 3) m: the condyle tops in the skull frame, from the skull and
+    """dict side -> (nf, 3) m: the compared condyle points (default the condyle tops;
+    :func:`compared_condyle_point`) in the skull frame, from the skull and
     mandible poses q_S, q_M (nf, 7) = (position m, unit quaternion) per frame."""
     R_S, R_M = _rotations(q_S[:, 3:7]), _rotations(q_M[:, 3:7])
     com = subject.mandible.center_of_mass
     out = {}
     for side, tag in SIDE_TAGS.items():
-        c = subject.condyle_top(tag) - com
+        c = compared_condyle_point(subject, tag) - com
         p_W = q_M[:, :3] + np.einsum("nij,j->ni", R_M, c)
         out[side] = np.einsum("nji,nj->ni", R_S, p_W - q_S[:, :3])
     return out
 
 
 def condyle_kinematics(kin, subject):
-    """dict side -> (nf, 3) m: condyle tops in the skull frame (NaN for failed frames)."""
+    """dict side -> (nf, 3) m: compared condyle points in the skull frame (NaN for failed
+    frames)."""
     return skull_frame_points(_body_poses(kin, "skull"), _body_poses(kin, "mandible"), subject)
 
 

@@ -19,15 +19,17 @@ lines) and cubic recruitment. The brace markers are the registered positions
   stiffness k split equally over the elements, reference strain ε_r at the reference
   pose), and a weak spring (0.1 N/m) on each FDK DOF.
 
-Muscle calibration (as AnyBody's 3-element muscles are calibrated): each tendon slack
-length is set so that the fibres are at their optimal length in a rest posture — the
-mandible opened by ``calibration_opening_deg`` (5°) about the intercondylar axis and
-translated 2 mm forward and 1 mm down. With straight-line paths and the reference
-table's tendon lengths the closed pose stretches the posterior temporalis by ≈ 20 mm
-(325 N passive); calibrated closed, opening is infeasible, calibrated half-open (10°),
-protrusion is. The parallel-elastic strain at F0 is 1.0 (see
-:data:`PASSIVE_STRAIN_AT_MAX_FORCE`). Measured on the virtual subject with the POP model:
-every frame of chewing, protrusion and open–close is feasible with these choices.
+Muscle calibration (as AnyBody's 3-element muscles, e.g. in the de Zee et al. 2007
+mandible model, are calibrated): each tendon slack length is set so that the fibres are
+at their optimal length in a calibration pose — the mandible opened by
+``calibration_opening_deg`` (default 20°) about the intercondylar axis and translated
+9 mm forward and 5 mm down (the subject's ``muscle_calibration``). The supra-hyoid
+muscles' lower ends sit on a ``hyoid`` body that follows half of the mandible's motion
+(the subject's ``hyoid``; :func:`_add_hyoid`). With the earlier 5° calibration and
+skull-fixed supra-hyoid ends, a 45 mm opening was infeasible on a third of the frames:
+the openers' moment arms vanish and the stretched elevators pull it shut
+(docs/mandible-study.md, "Muscle calibration and the hyoid"). The parallel-elastic strain
+at F0 is 1.0 (see :data:`PASSIVE_STRAIN_AT_MAX_FORCE`).
 """
 
 from __future__ import annotations
@@ -39,20 +41,27 @@ import numpy as np
 import yaml
 
 from ..spatial import quat_from_rotvec, rotation_matrix
+from . import protocol as _protocol
 
 PARAMETER_STUDY_STIFFNESS = (136.2, 272.4, 544.8)  # N/m, whole TMJ ligament (paper)
 PARAMETER_STUDY_STRAIN = (-0.04, -0.02, 0.0, 0.02, 0.04)
 DEFAULT_STIFFNESS, DEFAULT_STRAIN = 272.4, 0.0  # the paper's comparison model
-#: condyle translation of the muscle calibration posture (m): half of a typical
-#: protrusion, forward and down along the eminence
-CALIBRATION_TRANSLATION = (0.002, 0.0, -0.001)
-CALIBRATION_OPENING_DEG = 5.0
+#: the default muscle calibration pose: opening (deg) and condyle translation (m),
+#: forward and down along the eminence (docs/mandible-study.md)
+CALIBRATION_OPENING_DEG = _protocol.CALIBRATION_OPENING_DEG
+CALIBRATION_TRANSLATION = tuple(1e-3 * float(v) for v in _protocol.CALIBRATION_TRANSLATION_MM)
 #: parallel-elastic strain at F0 of the jaw muscles (Thelen 2003 gives 0.6 for limb
 #: muscles of young adults; the reference table gives none). With 0.6 the stretched
 #: supra-hyoid muscles' passive tension exceeds what the openers can balance during
 #: protrusion (≈ 20 % of frames infeasible on the virtual subject); 1.0 keeps every task
 #: feasible. A model-level choice: edit the model file to study it.
 PASSIVE_STRAIN_AT_MAX_FORCE = 1.0
+#: fraction λ of the mandible's motion (at the hyoid's rest position) that the hyoid
+#: follows (0 = supra-hyoid lower ends fixed to the skull)
+HYOID_FOLLOW = _protocol.HYOID_FOLLOW
+#: marker low-pass cut-off of the models' marker tracking (and of the measured
+#: kinematics of the study), Hz
+MARKER_CUTOFF_HZ = 6.0
 SIDES = (("r", "right"), ("l", "left"))
 
 
@@ -81,15 +90,27 @@ def calibrated_tendon_slack(subject, muscle, opening_deg, translation=(0.0, 0.0,
 
 
 def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS,
-               reference_strain=DEFAULT_STRAIN, calibration_opening_deg=CALIBRATION_OPENING_DEG,
-               calibration_translation=CALIBRATION_TRANSLATION, mesh_dir=None,
+               reference_strain=DEFAULT_STRAIN, calibration_opening_deg=None,
+               calibration_translation=None, mesh_dir=None,
                passive_strain_at_max_force=PASSIVE_STRAIN_AT_MAX_FORCE,
-               pressure_modulus=1.0e10, spring_stiffness=0.1):
+               pressure_modulus=1.0e10, spring_stiffness=0.1, hyoid_follow=None):
     """The POP (``kind="pop"``) or FDK (``kind="fdk"``) model of a subject as a model-file
     mapping (mm, deg). ``mesh_dir``: path written for the STL files (relative to where
-    the model file will be written; default the subject folder, absolute)."""
+    the model file will be written; default the subject folder, absolute).
+    ``calibration_opening_deg`` (deg), ``calibration_translation`` ((3,) m) and
+    ``hyoid_follow`` (fraction) default to the subject's ``muscle_calibration`` and
+    ``hyoid`` sections, else to the module defaults."""
     if kind not in ("pop", "fdk"):
         raise ValueError(f"model kind must be 'pop' or 'fdk', got {kind!r}")
+    protocol = getattr(subject, "protocol", None)
+    if calibration_opening_deg is None:
+        calibration_opening_deg = (np.rad2deg(protocol.calibration_opening) if protocol is not None
+                                   else CALIBRATION_OPENING_DEG)
+    if calibration_translation is None:
+        calibration_translation = (protocol.calibration_translation if protocol is not None
+                                   else CALIBRATION_TRANSLATION)
+    if hyoid_follow is None:
+        hyoid_follow = protocol.hyoid_follow if protocol is not None else HYOID_FOLLOW
     com = subject.mandible.center_of_mass
     skull_frames = {"incisal_point_skull": _mm(subject.landmarks["incisal_point"])}
     jaw_frames = {"ml_point": _mm(-com), "incisal_point": _mm(subject.landmarks["incisal_point"] - com)}
@@ -99,11 +120,20 @@ def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS
                                         "orientation": {"matrix": _plane_frame(plane.normal).round(12).tolist()}}
         jaw_frames[f"condyle_{tag}"] = _mm(subject.condyle_top(tag) - com)
     muscles = {}
+    hyoid_muscles = set(suprahyoid_muscles(subject)) if hyoid_follow > 0 else set()
+    hyoid_rest = (np.mean([m.origin for m in subject.muscles if m.name in hyoid_muscles], axis=0)
+                  if hyoid_muscles else None)
+    hyoid_frames = {}
     for m in subject.muscles:
-        skull_frames[f"{m.name}_origin"] = _mm(m.origin)
+        if m.name in hyoid_muscles:
+            hyoid_frames[f"{m.name}_origin"] = _mm(m.origin - hyoid_rest)
+            origin = f"hyoid.{m.name}_origin"
+        else:
+            skull_frames[f"{m.name}_origin"] = _mm(m.origin)
+            origin = f"skull.{m.name}_origin"
         jaw_frames[f"{m.name}_insertion"] = _mm(m.insertion - com)
         muscles[m.name] = {
-            "path": [f"skull.{m.name}_origin", f"mandible.{m.name}_insertion"],
+            "path": [origin, f"mandible.{m.name}_insertion"],
             "max_isometric_force": float(m.max_isometric_force),
             "optimal_fibre_length": float(m.optimal_fibre_length * 1e3),
             "tendon_slack_length": float(round(calibrated_tendon_slack(
@@ -119,7 +149,10 @@ def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS
     data = {
         "openfdk": 1,
         "name": f"{subject.name} {kind.upper()} TMJ model",
-        "description": f"written by openfdk.mandible.models from {subject.directory}",
+        "description": (f"written by openfdk.mandible.models from {subject.directory}; tendon slack lengths "
+                        f"calibrated {float(calibration_opening_deg):g} deg open, condyles translated "
+                        f"{[round(1e3 * float(v), 3) for v in calibration_translation]} mm; "
+                        f"hyoid follows {float(hyoid_follow):g} of the mandible's motion"),
         "units": {"length": "mm", "angle": "deg"},
         "gravity": [0.0, 0.0, -9.81],
         "bodies": {
@@ -136,12 +169,14 @@ def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS
         },
         "muscles": muscles,
         "recruitment": {"criterion": "polynomial", "power": 3},
-        "analysis": {"marker_cutoff_hz": 6.0},
+        "analysis": {"marker_cutoff_hz": MARKER_CUTOFF_HZ},
     }
+    if hyoid_muscles:
+        _add_hyoid(data, hyoid_rest, com, hyoid_frames, hyoid_follow)
     if kind == "pop":
         data["joints"] = {f"tmj_{t}": {"type": "point_on_plane", "parent": f"skull.plane_{t}", "child": f"mandible.condyle_{t}"}
                           for t, _ in SIDES}
-        data["constraints"] = {"tmj_ml": {"measure": "ml", "components": [1]}}
+        data.setdefault("constraints", {})["tmj_ml"] = {"measure": "ml", "components": [1]}
         # plane normals point up into the skull: the fossa pushes the condyle along −n
         data["reactions"] = {f"tmj_{t}_compression": {"joint": f"tmj_{t}", "direction": "pull", "strength": 20000}
                              for t, _ in SIDES}
@@ -179,6 +214,42 @@ def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS
         "fdk_spring_ml": {"measure": "ml", "component": 1, "stiffness": spring_stiffness},
     }
     return data
+
+
+def suprahyoid_muscles(subject) -> tuple:
+    """Names of the muscles whose skull-side end is on the hyoid: ``subject.hyoid_muscles``
+    when the subject folder lists them, else those named like a supra-hyoid muscle
+    (digastric, geniohyoid, mylohyoid)."""
+    listed = getattr(subject, "hyoid_muscles", None)
+    if listed is not None:
+        return tuple(listed)
+    return tuple(m.name for m in subject.muscles
+                 if any(k in m.name.lower() for k in ("digastric", "geniohyoid", "mylohyoid")))
+
+
+def _add_hyoid(data, hyoid_rest, com, hyoid_frames, follow):
+    """A hyoid body carrying the supra-hyoid muscles' lower ends: it keeps the skull's
+    orientation and its origin H follows the mandible, p_SH = (1 − λ) p_SH0 + λ p_SF,
+    with H0 the rest position (mean of those ends) and F the mandible point at H0 in the
+    reference pose (λ = ``follow``). Both constraints carry no reaction: the hyoid is
+    held by the (unmodelled) infra-hyoid muscles, so the mandible receives only the
+    supra-hyoid muscle forces; the hyoid has no equilibrium rows."""
+    data["bodies"]["skull"]["frames"]["hyoid_rest"] = _mm(hyoid_rest)
+    data["bodies"]["mandible"]["frames"]["hyoid_follow"] = _mm(hyoid_rest - com)
+    data["bodies"]["hyoid"] = {"mass": 0.02, "inertia": [2e-6, 2e-6, 2e-6], "position": _mm(hyoid_rest),
+                               "equilibrium": False, "frames": hyoid_frames}
+    eye = np.eye(3)
+    # (p_SH − p_SH0) − λ (p_SF − p_SH0) = 0; the vectors inline, so any key order loads
+    data["measures"]["hyoid_blend"] = {"type": "linear", "terms": [
+        {"measure": {"type": "vector", "from": "skull.hyoid_rest", "to": "hyoid.origin", "expressed_in": "skull"},
+         "coefficients": eye.tolist()},
+        {"measure": {"type": "vector", "from": "skull.hyoid_rest", "to": "mandible.hyoid_follow",
+                     "expressed_in": "skull"},
+         "coefficients": (-float(follow) * eye).tolist()}]}
+    data["measures"]["hyoid_orientation"] = {"type": "angles", "frame": "skull.origin", "of": "hyoid.origin"}
+    data.setdefault("constraints", {})
+    data["constraints"]["hyoid_follows_mandible"] = {"measure": "hyoid_blend", "reaction": False}
+    data["constraints"]["hyoid_orientation"] = {"measure": "hyoid_orientation", "reaction": False}
 
 
 def write_model(path, data):

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..study.spec import study_from_dict
 from ..study.summary import read_table
-from .extract import SIDE_TAGS, skull_frame_forces, skull_frame_points
+from .extract import SIDE_TAGS, compared_condyle_point, skull_frame_forces, skull_frame_points
 from .models import PARAMETER_STUDY_STIFFNESS, PARAMETER_STUDY_STRAIN
 
 ELEMENTS_PER_SIDE = 3
@@ -76,7 +76,7 @@ def case_tmj_series(folder, subject):
     q_S, q_M = (np.column_stack([kin[f"{b}.{c}"] for c in ("x_m", "y_m", "z_m", "e0", "e1", "e2", "e3")])
                 for b in ("skull", "mandible"))
     points = skull_frame_points(q_S, q_M, subject)
-    ref = {side: subject.condyle_top(tag) for side, tag in SIDE_TAGS.items()}
+    ref = {side: compared_condyle_point(subject, tag) for side, tag in SIDE_TAGS.items()}
     displacement = {side: p - ref[side] for side, p in points.items()}
     return kin["time"], displacement, skull_frame_forces(forces, q_S)
 

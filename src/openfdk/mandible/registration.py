@@ -1,35 +1,160 @@
-"""Brace registration from a reference trial (as in the paper).
+"""Brace registration: where the brace markers sit on the skull and on the mandible.
 
-The subject sits still with the teeth in occlusion, so the mandible is in its reference
-pose relative to the skull (the subject frame S, where skull and mandible frames
-coincide). The skull brace's nominal geometry (subject folder, from the brace scan) is
-fitted rigidly to the mean measured skull-brace markers; that pose maps every measured
-marker, skull and mandible brace alike, into S. Those registered positions are what the
-models and the marker-only "measured" kinematics use.
+The models and the marker-only "measured" kinematics need each brace marker's position
+in its bone's frame: skull markers in the skull frame S, mandible markers in the
+mandible frame M (which coincides with S at the reference/CT pose). Two methods:
+
+* **From the subject's braces** (:func:`register_from_braces`, the paper's method:
+  Andersen et al. 2017 laser-scanned the braces and registered the scans to the CT).
+  The subject folder's ``braces`` *are* the registered positions; a static trial, if
+  given, only checks them: each brace's nominal geometry is fitted rigidly to its mean
+  measured markers and the RMS residual of each fit is reported (a warning above
+  1 mm). The fits also give the mandible's pose in the static trial (e.g. a few degrees
+  open when the braces hold the teeth apart), reported, never assumed.
+* **From a static trial** (:func:`register_from_static_trial`), for subjects without
+  scanned braces: the skull brace's nominal geometry is fitted to the mean measured
+  skull markers, which maps every measured marker into S; the mandible markers are then
+  carried into M through the mandible's **static pose** in S. That pose is an input
+  (:class:`StaticPose`): occlusion (identity) by default — an assumption stated in the
+  result, not made silently — or a known pose such as the opening set by the brace
+  thickness between the teeth (:meth:`StaticPose.from_opening`,
+  :meth:`StaticPose.from_incisal_gap`).
+
+Both return a :class:`Registration` that records the method, the positions, the fit RMS
+per brace, the static pose and the assumption; the study writes it to
+``registration.yaml`` and ``summary.json``.
 """
 
 from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..io.c3d import MarkerTrial, read_c3d
 from .experiment import rigid_fit
 
+__all__ = ["Registration", "RegistrationError", "RegistrationWarning", "StaticPose", "WARN_RMS_M",
+           "register", "register_braces", "register_from_braces", "register_from_static_trial"]
+
+#: RMS residual of a brace fit above which the registration warns, m
+WARN_RMS_M = 1e-3
+OCCLUSION_ASSUMPTION = ("the static trial is in occlusion: the mandible is at its reference (CT) pose "
+                        "relative to the skull")
+
 
 class RegistrationError(ValueError):
-    """The reference trial cannot register the braces; the message says why."""
+    """The static trial cannot register or check the braces; the message says why."""
 
 
-def register_braces(subject, reference_trial, min_frames=10):
-    """Registered brace marker positions in the subject frame S.
+class RegistrationWarning(UserWarning):
+    """A brace fit's RMS residual is above 1 mm: the braces or the static trial are off."""
 
-    subject : Subject; reference_trial : MarkerTrial or C3D path (static, occluded).
-    Returns dict body -> (labels tuple, positions (k, 3) m in S) for "skull" and
-    "mandible", and the RMS fit residual of the skull brace (m) under key "rms_m".
+
+@dataclass(frozen=True)
+class StaticPose:
+    """Pose of the mandible frame M in the skull frame S during a static trial:
+    ``R_SM`` (3, 3), ``p_SM`` (3,) m (x_S = R_SM x_M + p_SM); ``description`` says where
+    it comes from."""
+
+    R_SM: np.ndarray
+    p_SM: np.ndarray
+    description: str = "given"
+
+    @classmethod
+    def occlusion(cls) -> "StaticPose":
+        """The reference pose (identity): teeth in occlusion."""
+        return cls(np.eye(3), np.zeros(3), OCCLUSION_ASSUMPTION)
+
+    @classmethod
+    def from_opening(cls, subject, opening_deg: float, translation=(0.0, 0.0, 0.0)) -> "StaticPose":
+        """The mandible rotated open by ``opening_deg`` (deg, incisor down for > 0) about
+        the intercondylar axis (y, through the midpoint of the condyle tops), then
+        translated by ``translation`` (3,) m."""
+        c = 0.5 * (subject.condyle_top("r") + subject.condyle_top("l"))
+        a = np.deg2rad(opening_deg)
+        R = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
+        p = c - R @ c + np.asarray(translation, dtype=float)
+        t_mm = ", ".join(f"{1e3 * v:.3g}" for v in np.asarray(translation, dtype=float))
+        return cls(R, p, f"mandible {opening_deg:.3g}° open about the intercondylar axis, translated "
+                         f"[{t_mm}] mm")
+
+    @classmethod
+    def from_incisal_gap(cls, subject, gap_m: float) -> "StaticPose":
+        """The opening about the intercondylar axis that moves the incisal point ``gap_m``
+        (m, e.g. the brace thickness between the teeth) down."""
+        c = 0.5 * (subject.condyle_top("r") + subject.condyle_top("l"))
+        x, _, z = subject.landmarks["incisal_point"] - c
+        # drop(a) = z − (−x sin a + z cos a) = gap  →  x sin a − z cos a = r sin(a − ψ) = gap − z,
+        # r = √(x² + z²), ψ = atan2(z, x) (the incisor's angle about the axis)
+        r, psi = np.hypot(x, z), np.arctan2(z, x)
+        if not abs(gap_m - z) <= r:
+            raise RegistrationError(f"an incisal gap of {1e3 * gap_m:.3g} mm cannot be reached by "
+                                    "opening about the intercondylar axis")
+        a = psi + np.arcsin((gap_m - z) / r)
+        pose = cls.from_opening(subject, np.rad2deg(a))
+        return cls(pose.R_SM, pose.p_SM, f"incisal gap {1e3 * gap_m:.3g} mm ({pose.description})")
+
+    def opening_deg(self) -> float:
+        """Rotation angle of R_SM (deg)."""
+        return float(np.rad2deg(np.arccos(np.clip(0.5 * (np.trace(self.R_SM) - 1.0), -1.0, 1.0))))
+
+
+@dataclass(frozen=True)
+class Registration:
+    """Registered brace markers and how they were obtained.
+
+    ``method``: "braces" or "static_trial"; ``skull`` / ``mandible``: (labels tuple,
+    positions (k, 3) m) in the skull frame S / mandible frame M (= S at the reference
+    pose); ``rms_m``: body → RMS residual (m) of the brace fit to the static trial (None
+    without a static trial); ``static_pose``: the mandible's pose in the static trial
+    (measured for "braces", assumed or given for "static_trial"; None without a static
+    trial); ``assumption``: what was assumed; ``static_trial``: its file; ``warnings``:
+    the messages issued. ``reg["skull"]``, ``reg["mandible"]`` and ``reg["rms_m"]`` (the
+    skull fit) work as for a mapping.
     """
-    trial = reference_trial if isinstance(reference_trial, MarkerTrial) else read_c3d(reference_trial)
+
+    method: str
+    skull: tuple
+    mandible: tuple
+    rms_m: dict
+    static_pose: StaticPose | None = None
+    assumption: str = ""
+    static_trial: str | None = None
+    warnings: tuple = field(default_factory=tuple)
+
+    def __getitem__(self, key):
+        if key in ("skull", "mandible"):
+            return getattr(self, key)
+        if key == "rms_m":
+            return self.rms_m.get("skull")
+        raise KeyError(key)
+
+    def to_dict(self) -> dict:
+        """A plain mapping for YAML/JSON outputs (mm and deg)."""
+        pose = None
+        if self.static_pose is not None:
+            pose = {"description": self.static_pose.description,
+                    "rotation_deg": round(self.static_pose.opening_deg(), 4),
+                    "R_SM": np.round(self.static_pose.R_SM, 9).tolist(),
+                    "p_SM_mm": np.round(1e3 * self.static_pose.p_SM, 6).tolist()}
+        return {
+            "method": self.method,
+            "static_trial": self.static_trial,
+            "assumption": self.assumption,
+            "rms_mm": {k: (None if v is None else round(1e3 * v, 6)) for k, v in self.rms_m.items()},
+            "static_pose": pose,
+            "markers_mm": {body: {lab: np.round(1e3 * p, 6).tolist() for lab, p in zip(*getattr(self, body))}
+                           for body in ("skull", "mandible")},
+            "warnings": list(self.warnings),
+        }
+
+
+def _static_markers(subject, trial, min_frames):
+    """Measured brace markers per frame, body → (n, k, 3) m (lab frame, NaN = missing)."""
+    trial = trial if isinstance(trial, MarkerTrial) else read_c3d(trial)
     out = {}
-    mean = {}
     for body in ("skull", "mandible"):
         labels = subject.braces[body].labels
         x = trial.select(labels).positions  # (n, k, 3)
@@ -38,15 +163,118 @@ def register_braces(subject, reference_trial, min_frames=10):
             bad = [lab for lab, c in zip(labels, counts) if c < min_frames]
             raise RegistrationError(
                 f"{trial.source}: markers {bad} are visible in fewer than {min_frames} frames of the "
-                f"reference trial; cannot register the {body} brace"
-            )
-        mean[body] = np.nanmean(x, axis=0)
-    R, p = rigid_fit(subject.braces["skull"].positions, mean["skull"][None])
-    R, p = R[0], p[0]
-    if not np.all(np.isfinite(R)):
-        raise RegistrationError(f"{trial.source}: the skull brace markers do not define a pose")
-    for body in ("skull", "mandible"):
-        out[body] = (subject.braces[body].labels, (mean[body] - p) @ R)  # R_LSᵀ (x − p_LS)
-    fit = out["skull"][1] - subject.braces["skull"].positions
-    out["rms_m"] = float(np.sqrt(np.mean(np.sum(fit**2, axis=1))))
-    return out
+                f"static trial; cannot register the {body} brace")
+        out[body] = x
+    return trial, out
+
+
+def _fit(nominal, measured, source, body):
+    """Per-frame rigid fits of nominal (k, 3) to measured (n, k, 3): R (n, 3, 3),
+    p (n, 3) m, and the RMS residual over every visible marker sample (m)."""
+    R, p = rigid_fit(nominal, measured)
+    if not np.any(np.isfinite(R[:, 0, 0])):
+        raise RegistrationError(f"{source}: the {body} brace markers do not define a pose in any frame")
+    residual = np.einsum("nij,kj->nki", R, nominal) + p[:, None, :] - measured
+    rms = float(np.sqrt(np.nanmean(np.sum(residual ** 2, axis=2))))
+    return R, p, rms
+
+
+def _mean_rotation(R):
+    """The rotation (3, 3) closest to the mean of the finite matrices R (n, 3, 3)."""
+    U, _, Vt = np.linalg.svd(np.nanmean(R, axis=0))
+    return U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))]) @ Vt
+
+
+def _warn(messages, body, rms, source, warn_rms):
+    if rms > warn_rms:
+        msg = (f"{source}: the {body} brace fits the static trial with an RMS of {1e3 * rms:.2f} mm "
+               f"(> {1e3 * warn_rms:.2g} mm): check the brace positions in subject.yaml and the static trial")
+        warnings.warn(msg, RegistrationWarning, stacklevel=3)
+        messages.append(msg)
+
+
+def register_from_braces(subject, static_trial=None, *, warn_rms=WARN_RMS_M, min_frames=10) -> Registration:
+    """Registration from the subject's scanned braces (``subject.braces``, the paper's method).
+
+    Args:
+        subject : Subject; its braces are the marker positions (m) in the skull and
+            mandible frames.
+        static_trial : optional MarkerTrial or C3D path of a static trial, used only to
+            check the braces: each brace is fitted to its mean measured markers; the RMS
+            of each fit is reported and a :class:`RegistrationWarning` is issued above
+            ``warn_rms`` (m). The mandible's static pose is measured from the two fits.
+    Returns: :class:`Registration` (method "braces").
+    """
+    skull = (subject.braces["skull"].labels, np.array(subject.braces["skull"].positions))
+    mandible = (subject.braces["mandible"].labels, np.array(subject.braces["mandible"].positions))
+    if static_trial is None:
+        return Registration("braces", skull, mandible, {"skull": None, "mandible": None},
+                            assumption="none: the braces of subject.yaml are used unchecked (no static trial)")
+    trial, x = _static_markers(subject, static_trial, min_frames)
+    R_LS, p_LS, rms_s = _fit(skull[1], x["skull"], trial.source, "skull")
+    R_LM, p_LM, rms_m = _fit(mandible[1], x["mandible"], trial.source, "mandible")
+    messages = []
+    _warn(messages, "skull", rms_s, trial.source, warn_rms)
+    _warn(messages, "mandible", rms_m, trial.source, warn_rms)
+    # static pose of M in S per frame, R_SM = R_LSᵀ R_LM, p_SM = R_LSᵀ (p_LM − p_LS); mean
+    R_SM = np.einsum("nji,njk->nik", R_LS, R_LM)
+    p_SM = np.einsum("nji,nj->ni", R_LS, p_LM - p_LS)
+    pose = StaticPose(_mean_rotation(R_SM), np.nanmean(p_SM, axis=0), "measured by the brace fits")
+    return Registration("braces", skull, mandible, {"skull": rms_s, "mandible": rms_m}, pose,
+                        "none: the braces of subject.yaml are the registered positions; the static trial "
+                        "only checks them", str(trial.source), tuple(messages))
+
+
+def register_from_static_trial(subject, static_trial, static_pose: StaticPose | None = None, *,
+                               warn_rms=WARN_RMS_M, min_frames=10) -> Registration:
+    """Registration from a static trial, for subjects without scanned braces.
+
+    The skull brace's nominal geometry (subject folder) is fitted rigidly to the mean
+    measured skull markers (pose R_LS, p_LS); every measured marker is expressed in S,
+    x_S = R_LSᵀ (x_L − p_LS); the mandible markers are carried into M through the static
+    pose, x_M = R_SMᵀ (x_S − p_SM).
+
+    Args:
+        subject : Subject (skull brace geometry; the mandible brace only for its labels).
+        static_trial : MarkerTrial or C3D path.
+        static_pose : the mandible's pose in the static trial; None assumes occlusion
+            and says so in the result's ``assumption``.
+    Returns: :class:`Registration` (method "static_trial"); ``rms_m["skull"]`` is the
+    skull-brace fit, ``rms_m["mandible"]`` how far the registered mandible markers lie
+    from the subject's nominal mandible brace after a rigid fit (m).
+    """
+    pose = static_pose if static_pose is not None else StaticPose.occlusion()
+    assumption = pose.description if static_pose is None else f"static pose given: {pose.description}"
+    trial, x = _static_markers(subject, static_trial, min_frames)
+    R_LS, p_LS, rms_s = _fit(subject.braces["skull"].positions, x["skull"], trial.source, "skull")
+    # every marker in S per frame, x_S = R_LSᵀ (x_L − p_LS), then the mean over frames
+    x_S = {body: np.nanmean(np.einsum("nji,nkj->nki", R_LS, x[body] - p_LS[:, None, :]), axis=0)
+           for body in ("skull", "mandible")}
+    x_M = (x_S["mandible"] - pose.p_SM) @ pose.R_SM                              # R_SMᵀ (x_S − p_SM)
+    _, _, rms_m = _fit(subject.braces["mandible"].positions, x_M[None], trial.source, "mandible")
+    messages = []
+    _warn(messages, "skull", rms_s, trial.source, warn_rms)
+    return Registration("static_trial", (subject.braces["skull"].labels, x_S["skull"]),
+                        (subject.braces["mandible"].labels, x_M), {"skull": rms_s, "mandible": rms_m},
+                        pose, assumption, str(trial.source), tuple(messages))
+
+
+def register(subject, static_trial=None, method: str = "braces", static_pose: StaticPose | None = None,
+             **kw) -> Registration:
+    """Dispatch: ``method`` "braces" (:func:`register_from_braces`) or "static_trial"
+    (:func:`register_from_static_trial`, which needs ``static_trial``)."""
+    if method == "braces":
+        if static_pose is not None:
+            raise RegistrationError("a static pose is only used by the static_trial registration")
+        return register_from_braces(subject, static_trial, **kw)
+    if method == "static_trial":
+        if static_trial is None:
+            raise RegistrationError("the static_trial registration needs a static trial")
+        return register_from_static_trial(subject, static_trial, static_pose, **kw)
+    raise RegistrationError(f"unknown registration method {method!r}; expected 'braces' or 'static_trial'")
+
+
+def register_braces(subject, reference_trial, min_frames=10) -> Registration:
+    """Static-trial registration assuming occlusion (the method before the ``braces``
+    default; kept for scripts): :func:`register_from_static_trial` with no static pose."""
+    return register_from_static_trial(subject, reference_trial, None, min_frames=min_frames)

@@ -23,6 +23,7 @@ import numpy as np
 
 from ..io.yamlfile import YamlContext, read_yaml
 from ..spatial import rotation_matrix_xyz
+from .protocol import PROTOCOL_KEYS, StudyProtocol, parse_protocol
 
 __all__ = [
     "FORMAT_NAME",
@@ -58,7 +59,8 @@ MUSCLE_DEFAULTS = {"tendon_strain_at_max_force": 0.053, "pennation_angle_at_opti
 _MUSCLE_REQUIRED = {"origin": "length unit", "insertion": "length unit", "max_isometric_force": "N",
                     "optimal_fibre_length": "length unit", "tendon_slack_length": "length unit"}
 _TOP_KEYS = {"format", "version", "name", "description", "units", "cartilage_offset", "landmarks",
-             "tmj_planes", "mandible", "muscle_defaults", "muscles", "ligaments", "surfaces", "braces"}
+             "tmj_planes", "mandible", "muscle_defaults", "muscles", "ligaments", "surfaces", "braces",
+             *PROTOCOL_KEYS}
 _TOP_REQUIRED = ("format", "version", "landmarks", "tmj_planes", "mandible", "muscles", "ligaments",
                  "surfaces", "braces")
 _FRAME_TOLERANCE = 1e-3   # m: origin midway between the condyle tops, tops level in x
@@ -187,10 +189,22 @@ class Subject:
     braces: MappingProxyType
     cartilage_offset: float
     length_unit: str
+    protocol: StudyProtocol | None = None
 
     def condyle_top(self, side: str) -> np.ndarray:
         """Most superior condyle point (3,) m, side 'r' or 'l'."""
         return self.landmarks[f"condyle_top_{side}"]
+
+    def condyle_point(self, side: str) -> np.ndarray:
+        """The condyle point whose kinematics the study compares (3,) m, side 'r' or 'l':
+        the landmark named in ``condyle_point`` (default the condyle top)."""
+        name = self.protocol.condyle_points[side] if self.protocol is not None else f"condyle_top_{side}"
+        return self.landmarks[name]
+
+    @property
+    def hyoid_muscles(self):
+        """Muscle names listed in the ``hyoid`` section, or None (see :mod:`.models`)."""
+        return self.protocol.hyoid_muscles if self.protocol is not None else None
 
     @property
     def marker_labels(self) -> tuple:
@@ -472,14 +486,16 @@ def load_subject(directory: str | os.PathLike) -> Subject:
         raise ctx.error("version", f"unsupported version {data['version']!r}; this openfdk reads {FORMAT_VERSION}")
     landmarks = _landmarks(ctx, data["landmarks"])
     offset = ctx.length * ctx.number(data.get("cartilage_offset", 1.0 * 1e-3 / length), "cartilage_offset", low=0.0)
+    muscles = _muscles(ctx, data["muscles"], data.get("muscle_defaults"))
+    protocol = parse_protocol(ctx, data, directory, landmarks, [m.name for m in muscles])
     return Subject(
         directory=directory, name=str(data.get("name", directory.name)),
         description=str(data.get("description", "")),
         landmarks=MappingProxyType(landmarks),
         tmj_planes=MappingProxyType(_planes(ctx, data["tmj_planes"])),
         mandible=_mandible(ctx, data["mandible"]),
-        muscles=_muscles(ctx, data["muscles"], data.get("muscle_defaults")),
+        muscles=muscles,
         ligaments=_ligaments(ctx, data["ligaments"]),
         surfaces=MappingProxyType(_surfaces(ctx, data["surfaces"], directory, landmarks, length_unit)),
         braces=MappingProxyType(_braces(ctx, data["braces"])),
-        cartilage_offset=offset, length_unit=length_unit)
+        cartilage_offset=offset, length_unit=length_unit, protocol=protocol)
