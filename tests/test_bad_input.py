@@ -124,7 +124,12 @@ def test_all_nan_markers_exit_3_with_reason_and_no_numpy_noise(files, tmp_path, 
 
 def test_markers_in_mm_declared_as_m_exit_3_with_unit_hint(files, tmp_path, capsys):
     model, _, (labels, x) = files
-    write_c3d(tmp_path / "mm_as_m.c3d", labels, x * 1000.0, 100.0, units="m")
+    # a file in mm whose POINT:UNITS says m (write_c3d itself refuses to write such a file)
+    write_c3d(tmp_path / "mm_as_m.c3d", labels, x, 100.0, units="mm")
+    data = bytearray((tmp_path / "mm_as_m.c3d").read_bytes())
+    i = data.index(b"mm", data.index(b"UNITS"))
+    data[i:i + 2] = b"m "
+    (tmp_path / "mm_as_m.c3d").write_bytes(bytes(data))
     code, _, err = _run(capsys, "kinematics", model, tmp_path / "mm_as_m.c3d", "--out", tmp_path / "o", "--no-progress")
     warning = [ln for ln in err.splitlines() if ln.startswith("openfdk: warning:") and "mm_as_m.c3d" in ln]
     assert len(warning) == 1 and "likely the wrong units (a factor 1000" in warning[0]
