@@ -130,57 +130,6 @@ def test_joint_constraint_rows_fd():
         assert np.linalg.matrix_rank(M) == c.size, f"{c.name}: rows must be independent"
 
 
-def _batchable(measures):
-    from openfdk.model.measures import Linear
-
-    picked = [measures["vector_world"], measures["vector_in_a"], measures["vector_in_b_ground_point"],
-              Linear([(np.array([[0.3, -0.4, 0.866]]), measures["vector_in_a"])], offset=[0.01]),
-              Linear([(np.array([[0.0, 1.0, 0.0], [1.0, 0.0, -1.0]]), measures["vector_in_b_ground_point"])]),
-              # nested one-term Linears with offsets at both levels
-              Linear([(np.array([[2.0, -1.0]]),
-                       Linear([(np.array([[1.0, 0.5, 0.0], [0.0, -1.0, 3.0]]), measures["vector_world"])],
-                              offset=[0.1, -0.2]))], offset=[0.05])]
-    return picked
-
-
-def test_batched_relative_vector_rows_fd_and_per_measure():
-    """RelativeVectorRows (one kernel call) against manifold finite differences (value
-    Jacobian and acceleration bias, both non-zero) and against each measure's own
-    evaluation, row by row."""
-    from openfdk.model.batched import RelativeVectorRows
-
-    model, state, measures = _model_and_state(seed=11)
-    picked = _batchable(measures)
-    rows = RelativeVectorRows.from_measures(picked)
-    assert rows.n_rows == 3 + 3 + 3 + 1 + 2 + 1
-    val, M, b = rows.evaluate(state, 2)
-    M_fd = manifold_jacobian(lambda s: rows.evaluate(s, 0)[0], state, eps=1e-6)
-    assert np.min(np.max(np.abs(M), axis=1)) > 1e-3, "every row's Jacobian must be non-zero"
-    np.testing.assert_allclose(M, M_fd, atol=1e-8, rtol=1e-6)
-    b_fd = second_derivative_along(lambda s: rows.evaluate(s, 0)[0], state, state.get_v(), h=1e-4)
-    assert np.min(np.abs(b)) > 1e-5
-    np.testing.assert_allclose(b, b_fd, atol=1e-6, rtol=1e-5)
-    ref = [m.evaluate(state, 2) for m in picked]
-    np.testing.assert_allclose(val, np.concatenate([r[0] for r in ref]), rtol=0, atol=1e-15)
-    np.testing.assert_allclose(M, np.vstack([r[1] for r in ref]), rtol=0, atol=1e-14)
-    np.testing.assert_allclose(b, np.concatenate([r[2] for r in ref]), rtol=0, atol=1e-13)
-    # orders 0 and 1 give the same rows and no unrequested parts
-    v0, M0, b0 = rows.evaluate(state, 0)
-    v1, M1, b1 = rows.evaluate(state, 1)
-    assert M0 is None and b0 is None and b1 is None
-    np.testing.assert_array_equal(v0, val)
-    np.testing.assert_array_equal(M1, M)
-
-
-def test_batched_rows_refuse_other_measures():
-    from openfdk.model.batched import RelativeVectorRows
-
-    _, _, measures = _model_and_state()
-    assert RelativeVectorRows.from_measures([measures["vector_world"], measures["distance"]]) is None
-    assert RelativeVectorRows.from_measures([measures["linear"]]) is None  # two terms
-    assert RelativeVectorRows.from_measures([]) is None
-
-
 def test_constraint_system_batched_equals_measure_by_measure():
     """A point-on-plane joint and two FDK DOFs along relative-vector projections: the
     system's batched evaluation equals the measure-by-measure one (Φ, Φ_q̂, ν, γ)."""
@@ -197,10 +146,7 @@ def test_constraint_system_batched_equals_measure_by_measure():
     model = b.build()
     state = model.initial_state()
     state.set_v(rng.normal(size=model.n_coords))
-    fast = ConstraintSystem(model)
-    slow = ConstraintSystem(model)
-    assert fast._block_rows is not None and fast._fdk_rows.batched is not None
-    slow._block_rows = slow._fdk_rows.batched = None
+    system = ConstraintSystem(model)
     alpha = np.array([0.01, -0.02])
-    for x, y in zip(fast.evaluate(state, 0.3, alpha, order=2), slow.evaluate(state, 0.3, alpha, order=2)):
+    for x, y in zip(system.evaluate(state, 0.3, alpha, order=2), system.evaluate_reference(state, 0.3, alpha, order=2)):
         np.testing.assert_allclose(x, y, rtol=0, atol=1e-14)

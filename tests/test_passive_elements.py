@@ -193,4 +193,39 @@ def test_spring_forces_and_stiffness_batched_and_measure_by_measure():
     slow._spring_rows.batched = None  # measure by measure
     Q2, _, K2 = slow.generalized_forces(state, 0.0, want_stiffness=True)
     np.testing.assert_allclose(Q2, Q, rtol=0, atol=1e-13)
-    np.testing.assert_allclose(K2, K, rtol=0, atol=1e-9)
+    # K's geometric part is a forward difference (ε = 1e-7): round-off of the two
+    # evaluation orders (≈1e-16 relative) is amplified ≈1e7 times
+    np.testing.assert_allclose(K2, K, rtol=0, atol=1e-7)
+
+
+def test_ligaments_law_on_arrays_equals_each_law():
+    """Three Blankevoort ligaments, one slack, one in the toe region and one in the
+    linear region: the law evaluated on arrays equals each law object's own evaluation
+    (lengths, strains, tensions, Q, K), and the tensions match the closed form."""
+    from openfdk.forces.elements import add_ligament
+    from openfdk.model.builder import ModelBuilder
+
+    b = ModelBuilder("ligs")
+    b.add_body("a", 1.0, [1e-3] * 3, position=[0.0, 0.0, -0.1])
+    b.add_frame("a", "p", [0.01, 0.0, 0.0])
+    b.add_frame("ground", "o", [0.0, 0.0, 0.0])
+    # path length is |(0.01, 0, -0.1)| ≈ 0.1005 m; slack lengths put ε at -1 %, 2 %, 10 %
+    length = float(np.hypot(0.01, 0.1))
+    strains = [-0.01, 0.02, 0.10]
+    for k, eps in enumerate(strains):
+        add_ligament(b, f"lig{k}", ["ground.o", "a.p"], stiffness=1000.0 * (k + 1), slack_length=length / (1 + eps))
+    model = b.build()
+    state = model.initial_state()
+    fast = PassiveElements(model)
+    slow = PassiveElements(model)
+    assert fast._blankevoort is not None
+    slow._blankevoort = None  # law object by law object
+    Q, out, K = fast.generalized_forces(state, 0.0, want_stiffness=True)
+    Q2, out2, K2 = slow.generalized_forces(state, 0.0, want_stiffness=True)
+    np.testing.assert_allclose(out.ligament_strain, strains, rtol=1e-12)
+    k_l0 = np.array([1000.0 * (k + 1) * length / (1 + e) for k, e in enumerate(strains)])
+    expect = [0.0, k_l0[1] * 0.02**2 / (4 * 0.03), k_l0[2] * (0.10 - 0.03)]
+    np.testing.assert_allclose(out.ligament_force, expect, rtol=1e-12, atol=1e-12)
+    for x, y in ((out.ligament_force, out2.ligament_force), (out.ligament_strain, out2.ligament_strain), (Q, Q2)):
+        np.testing.assert_allclose(x, y, rtol=1e-13, atol=1e-12)
+    np.testing.assert_allclose(K, K2, rtol=1e-12, atol=1e-9)

@@ -2,7 +2,9 @@
 
     openfdk kinematics MODEL.yaml TRIAL.c3d --out DIR   marker-tracking kinematics
     openfdk kinematics MODEL.yaml --out DIR             determinate kinematics (drivers)
-    openfdk run MODEL.yaml [TRIAL.c3d] --out DIR        kinematics + inverse dynamics
+    openfdk run MODEL.yaml [TRIAL.c3d] --out DIR        kinematics + inverse dynamics (+ .sto, figures)
+    openfdk plot RESULT_DIR                             figures of a run
+    openfdk export-opensim RESULT_DIR --out DIR         OpenSim .osim + .mot of a run
     openfdk check MODEL.yaml                            validate a model file
     openfdk cache info|clear                            the distance-grid cache on disk
     openfdk view RESULT_DIR [--out view.html]           3D viewer of a run (one HTML file)
@@ -129,6 +131,9 @@ def _cmd_kinematics(args):
     s = result.summary()
     _say(args, f"kinematics: {s['converged_frames']}/{s['frames']} frames converged in {s['wall_time_s']:.2f} s "
                f"({s['frames_per_second'] or 0:.0f} frames/s) -> {args.out}/kinematics.csv")
+    from .outputs_cli import after_run
+
+    after_run(args, plots=False)
     _print_failed(args, result.failed_frames())
     return failed_frames_exit(result.converged, None, result.messages, args.max_failed)
 
@@ -179,6 +184,9 @@ def _cmd_run(args):
              f"{fdk['mean_residual_evaluations_per_frame']:.2f} residual evaluations per frame, "
              f"{fdk['frames_per_second'] or 0:.0f} frames/s ({fdk['jacobian']} Jacobian)"
              )
+    from .outputs_cli import after_run
+
+    after_run(args)
     _print_failed(args, dyn.failed_frames())
     return failed_frames_exit(dyn.converged, dyn.status, dyn.messages, args.max_failed)
 
@@ -279,7 +287,8 @@ def _cmd_bench(args):
 def _trial_arguments(p):
     """Arguments shared by the commands that analyse a model over a trial."""
     p.add_argument("model", help="model file (YAML)")
-    p.add_argument("trial", nargs="?", help="C3D file with the model's markers (omit for determinate kinematics)")
+    p.add_argument("trial", nargs="?",
+                   help="C3D or TRC file with the model's markers (omit for determinate kinematics)")
     p.add_argument("--out", required=True, help="output folder (checked for writability before any computation)")
     p.add_argument("--force", action="store_true", help="overwrite the results already in the --out folder")
     p.add_argument("--cutoff", type=argtypes.nonnegative, default=None,
@@ -341,8 +350,11 @@ def build_parser():
 
     add_chunk_arguments(r)
     add_study_parser(sub)
+    from .outputs_cli import add_output_parsers, add_run_output_arguments
     from .viewer.cli import add_view_parser
 
+    add_run_output_arguments(r)
+    add_output_parsers(sub)
     add_view_parser(sub)
 
     d = sub.add_parser("demo", help="the mandible study on the virtual subject, end to end")

@@ -15,13 +15,14 @@ DEFAULT_CUTOFF_HZ = 6.0
 
 
 def load_trajectories(model, trial_path, cutoff_hz=None):
-    """Read a C3D trial, pick the model's markers (by label, in model order) and build
+    """Read a C3D or TRC trial, pick the model's markers (by label, in model order) and build
     filtered, interpolated trajectories. A model marker absent from the file is an
     error naming it (MissingMarkerError)."""
-    from .io.c3d import read_c3d
+    from .io.c3d import MarkerTrial
     from .io.markers import MarkerTrajectories
+    from .io.trials import read_trial
 
-    trial = read_c3d(trial_path)
+    trial = trial_path if isinstance(trial_path, MarkerTrial) else read_trial(trial_path)
     if model.markers.size == 0:
         raise ValueError(f"model {model.name!r} has no markers; a trial cannot be tracked")
     trial = trial.select(list(model.markers.labels))
@@ -29,6 +30,11 @@ def load_trajectories(model, trial_path, cutoff_hz=None):
         cutoff_hz = model.elements.get("analysis", {}).get("marker_cutoff_hz", DEFAULT_CUTOFF_HZ)
     cutoff = None if (cutoff_hz is None or float(cutoff_hz) <= 0) else float(cutoff_hz)
     return trial, MarkerTrajectories(trial, cutoff_hz=cutoff)
+
+
+def _trial_label(trial):
+    """The trial's file (its ``source``) for summary.json."""
+    return str(Path(trial.source)) if trial.source != "<memory>" else trial.source
 
 
 def analysis_window(model, times, start=None, end=None):
@@ -74,7 +80,7 @@ def trial_window(model, trial_path, cutoff_hz=None, start=None, end=None):
     trial, traj = load_trajectories(model, trial_path, cutoff_hz)
     times = analysis_window(model, np.asarray(trial.time, dtype=float), start, end)
     check_trial_markers(model, trial, times)
-    return trial, traj, times, {"trial": str(Path(trial_path)), "rate_hz": trial.rate, "markers": list(trial.labels)}
+    return trial, traj, times, {"trial": _trial_label(trial), "rate_hz": trial.rate, "markers": list(trial.labels)}
 
 
 def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=None, end=None, alpha=None):

@@ -76,7 +76,7 @@ class InverseDynamics:
 
     def equilibrium(self, state, vdot, t, alpha=None):
         """C, d, strengths s (n_bounded,), and the muscle/passive states of the frame."""
-        _, A, _, _ = self.system.evaluate(state, t, alpha, order=1)
+        A = self.system.jacobian(state)
         l, L, speed = self.muscle_states(state)
         if self.muscle_set is not None:
             s_m, f_p = self.muscle_set.evaluate(l, speed)

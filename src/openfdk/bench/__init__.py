@@ -8,6 +8,7 @@ does not hide the others.
 
 BENCHMARK_MODULES = [
     "openfdk.bench.kinematics",
+    "openfdk.bench.arm5",
     "openfdk.bench.recruitment",
     "openfdk.bench.inverse_dynamics",
     "openfdk.bench.contact",
@@ -16,4 +17,5 @@ BENCHMARK_MODULES = [
     "openfdk.bench.knee",
     "openfdk.bench.study",
     "openfdk.bench.fuzz",
+    "openfdk.bench.memory",
 ]

@@ -20,18 +20,16 @@ first group bounded (the recruitment's n_bounded).
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from ..forces.elements import MUSCLES, REACTIONS
 
 
-def _cross(a, b):
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class EquilibriumLayout:
     """Rows and columns of C f = d for one model.
 
@@ -92,31 +90,77 @@ def equilibrium_layout(model, system):
     )
 
 
+_BODY_ARRAYS = weakref.WeakKeyDictionary()
+
+
+def _body_arrays(model):
+    """(column (nm,), mass (nm,) kg, inertia (nm, 3, 3) kg m², body index (nm,)) of the
+    moving bodies, built once per model."""
+    arrays = _BODY_ARRAYS.get(model)
+    if arrays is None:
+        moving = model.moving_bodies
+        arrays = (np.array([b.column for b in moving], np.int64), np.array([b.mass for b in moving], float),
+                  np.array([b.inertia_B for b in moving], float).reshape(-1, 3, 3),
+                  np.array([b.index for b in moving], np.int64))
+        _BODY_ARRAYS[model] = arrays
+    return arrays
+
+
+@njit(cache=True)
+def _inertial_minus_gravity(column, mass, inertia, index, w_BB, vdot, g, out):
+    for k in range(column.shape[0]):
+        c = column[k]
+        J = inertia[k]
+        w0, w1, w2 = w_BB[index[k], 0], w_BB[index[k], 1], w_BB[index[k], 2]
+        for r in range(3):
+            out[c + r] = mass[k] * (vdot[c + r] - g[r])
+        # J ω̇' + ω̃' J ω'  (Eq. 13)
+        h0 = J[0, 0] * w0 + J[0, 1] * w1 + J[0, 2] * w2
+        h1 = J[1, 0] * w0 + J[1, 1] * w1 + J[1, 2] * w2
+        h2 = J[2, 0] * w0 + J[2, 1] * w1 + J[2, 2] * w2
+        out[c + 3] = J[0, 0] * vdot[c + 3] + J[0, 1] * vdot[c + 4] + J[0, 2] * vdot[c + 5] + w1 * h2 - w2 * h1
+        out[c + 4] = J[1, 0] * vdot[c + 3] + J[1, 1] * vdot[c + 4] + J[1, 2] * vdot[c + 5] + w2 * h0 - w0 * h2
+        out[c + 5] = J[2, 0] * vdot[c + 3] + J[2, 1] * vdot[c + 4] + J[2, 2] * vdot[c + 5] + w0 * h1 - w1 * h0
+
+
 def inertial_minus_gravity(model, state, vdot):
-    """[m (r̈ − g); J ω̇' + ω̃' J ω'] per moving body, stacked (n,) [N, N m]."""
+    """[m (r̈ − g); J ω̇' + ω̃' J ω'] per moving body, stacked (n,) [N, N m] (Eq. 13)."""
+    column, mass, inertia, index = _body_arrays(model)
     out = np.zeros(model.n_coords)
-    g = model.gravity_W
-    for b in model.moving_bodies:
-        c = b.column
-        w = state.w_BB[b.index]
-        out[c : c + 3] = b.mass * (vdot[c : c + 3] - g)
-        out[c + 3 : c + 6] = b.inertia_B @ vdot[c + 3 : c + 6] + _cross(w, b.inertia_B @ w)
+    _inertial_minus_gravity(column, mass, inertia, index, state.w_BB,
+                            np.ascontiguousarray(vdot, dtype=float), np.asarray(model.gravity_W, float), out)
     return out
 
 
 def assemble(layout, A, L_muscles, d_full):
-    """C (n_rows, n_cols) and d (n_rows,) restricted to the equilibrium rows.
+    """C (n_rows, n_cols) and d (n_rows,) restricted to the equilibrium rows (Eq. 12).
 
     A : (n_sys_rows, n) constraint Jacobian incl. FDK rows; L_muscles : (n_muscles, n)
     path-length Jacobians; d_full : (n,) right-hand side for all coordinates.
+    Columns: −Lᵀ (muscles), ±Φ_q̂ᵀ (unilateral reactions), Φ̃_q̂ᵀ (joint reactions),
+    Φ^FDK_q̂ᵀ (FDK residual forces).
     """
     rows = layout.eq_coords
-    cols = [-L_muscles.T] if layout.n_muscles else []
-    if layout.unilateral:
-        idx = np.array([u[0] for u in layout.unilateral], dtype=int)
-        sign = np.array([u[1] for u in layout.unilateral], dtype=float)
-        cols.append(A[idx].T * sign)
-    cols.append(A[layout.free_rows].T)
-    cols.append(A[layout.fdk_rows].T)
-    C = np.concatenate(cols, axis=1)[rows]
+    sel, sign = _reaction_rows(layout)
+    nm = layout.n_muscles
+    C = np.empty((len(rows), nm + len(sel)))
+    if nm:
+        np.negative(L_muscles.take(rows, 1).T, out=C[:, :nm])
+    np.multiply(A.take(sel, 0).take(rows, 1).T, sign, out=C[:, nm:])
     return C, d_full[rows]
+
+
+_REACTION_ROWS = weakref.WeakKeyDictionary()
+
+
+def _reaction_rows(layout):
+    """System rows of the reaction columns (unilateral, free, FDK) and their signs."""
+    out = _REACTION_ROWS.get(layout)
+    if out is None:
+        uni = [u[0] for u in layout.unilateral]
+        sel = np.array(uni + list(layout.free_rows) + list(layout.fdk_rows), np.int64)
+        sign = np.ones(len(sel))
+        sign[: len(uni)] = [u[1] for u in layout.unilateral]
+        out = (sel, sign)
+        _REACTION_ROWS[layout] = out
+    return out

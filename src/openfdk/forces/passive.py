@@ -22,6 +22,7 @@ import numpy as np
 
 from ..model.batched import ScalarRows
 from ..numdiff import manifold_jacobian
+from .blankevoort import Blankevoort1991Ligament
 from .elements import LIGAMENTS, LOADS, SPRINGS
 
 
@@ -41,6 +42,17 @@ def _cross(a, b):
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
+def _blankevoort_arrays(length, l0, k_l0, k, eps_l):
+    """Blankevoort1991Ligament (see :mod:`.blankevoort`) on arrays (n,): strain
+    ε = (l − l0)/l0, tension f = 0 (ε < 0), k·l0·ε²/(4ε_l) (0 ≤ ε ≤ 2ε_l),
+    k·l0·(ε − ε_l) (ε > 2ε_l) in N, and df/dl in N/m."""
+    eps = (length - l0) / l0
+    taut, linear = eps >= 0.0, eps > 2.0 * eps_l
+    f = np.where(linear, k_l0 * (eps - eps_l), np.where(taut, k_l0 * eps * eps / (4.0 * eps_l), 0.0))
+    df = np.where(linear, k, np.where(taut, k * eps / (2.0 * eps_l), 0.0))
+    return eps, f, df
+
+
 class PassiveElements:
     """All passive elements of a model (ligaments, springs, loads, contacts)."""
 
@@ -53,6 +65,14 @@ class PassiveElements:
         from .pathset import PathSet
 
         self.ligament_paths = PathSet(self.ligaments) if self.ligaments else None
+        laws = [lig.law for lig in self.ligaments]
+        self._blankevoort = None
+        if laws and all(type(x) is Blankevoort1991Ligament for x in laws):
+            # (slack length l0 (n,) m, k·l0 (n,) N, k (n,) N/m, transition strain ε_l (n,))
+            self._blankevoort = (np.array([x.slack_length for x in laws]),
+                                 np.array([x.stiffness * x.slack_length for x in laws]),
+                                 np.array([x.stiffness for x in laws]),
+                                 np.array([x.transition_strain for x in laws]))
         # the springs' measures (one kernel call when they are relative-vector projections)
         self._spring_rows = ScalarRows([s.measure for s in self.springs])
 
@@ -72,10 +92,17 @@ class PassiveElements:
         ligaments, springs, contacts = (self.ligaments, self.springs, self.contacts) if elements else ((), (), ())
         if ligaments:
             lengths, L = self.ligament_paths.evaluate(state)
-            for k, lig in enumerate(ligaments):
+            out.ligament_length[:] = lengths
+            if self._blankevoort is not None:
+                # all Blankevoort1991Ligament: the law on the (n_ligaments,) arrays at once
+                strain, T, dT = _blankevoort_arrays(lengths, *self._blankevoort)
+                out.ligament_strain[:], out.ligament_force[:] = strain, T
+                Q -= L.T @ T
+                if want_stiffness:
+                    K -= L.T @ (L * dT[:, None])
+            for k, lig in enumerate(ligaments if self._blankevoort is None else ()):
                 length = float(lengths[k])
                 T = float(lig.law.force(length))
-                out.ligament_length[k] = length
                 out.ligament_strain[k] = float(lig.law.strain(length))
                 out.ligament_force[k] = T
                 Q -= L[k] * T

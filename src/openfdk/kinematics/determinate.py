@@ -9,8 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as sla
 
+from .frame_kernels import MEASURE_ERROR, OK, SINGULAR, determinate_rates, newton_positions
 from .system import ConstraintSystem, KinematicsError, dependent_rows, undetermined_coordinates
 
 
@@ -51,37 +51,46 @@ def diagnose_singular(system: ConstraintSystem, Phi_q):
     )
 
 
+def _kernel_args(system, state):
+    """The compiled program and the state arrays, in the kernels' argument order."""
+    return system.program.program + (system.program.n_node_rows,)
+
+
 def solve_positions(system: ConstraintSystem, state, t, alpha=None, tol=1e-10, max_iter=50):
     """Newton–Raphson on Φ(q, t) = 0 starting from ``state`` (modified in place).
 
-    tol : max |Φ| (SI) and max |Δq̂| for convergence. Returns FrameSolve.
+    tol : max |Φ| (SI) and max |Δq̂| for convergence. Returns FrameSolve. The iterations
+    run in one kernel (:func:`.frame_kernels.newton_positions`).
     """
-    Phi_q = None
-    for it in range(1, max_iter + 1):
-        Phi, Phi_q, _, _ = system.evaluate(state, t, alpha, order=1)
-        try:
-            dq = np.linalg.solve(Phi_q, -Phi)
-        except np.linalg.LinAlgError:
-            return FrameSolve(False, it, float(np.max(np.abs(Phi))), diagnose_singular(system, Phi_q))
-        state.displace(dq)
-        if np.max(np.abs(dq)) < tol:
-            Phi = system.evaluate(state, t, alpha, order=0)[0]
-            res = float(np.max(np.abs(Phi))) if Phi.size else 0.0
-            if res < max(tol * 10, 1e-9):
-                return FrameSolve(True, it, res)
+    f, _, _ = system.targets(t, alpha)
+    status, it, res, e_node, e_kind = newton_positions(
+        *_kernel_args(system, state), state.p_WB, state.quat_WB, state.R_WB, state.w_BB, state.v_WB,
+        state.column, state.moving, f, system.angle_rows, tol, max_iter)
+    if status == OK:
+        return FrameSolve(True, int(it), float(res))
+    if status == MEASURE_ERROR:
+        system.program.raise_error(e_node, e_kind, state)
+    if status == SINGULAR:
+        Phi_q = system.evaluate(state, t, alpha, order=1)[1]
+        return FrameSolve(False, int(it), float(res), diagnose_singular(system, Phi_q))
     Phi = system.evaluate(state, t, alpha, order=0)[0]
-    res = float(np.max(np.abs(Phi)))
     msg = f"Newton–Raphson did not converge in {max_iter} iterations (max |Φ| = {res:.3g})"
     worst = system.row_names[int(np.argmax(np.abs(Phi)))]
-    return FrameSolve(False, max_iter, res, msg + f"; largest violation in row {worst!r}")
+    return FrameSolve(False, max_iter, float(res), msg + f"; largest violation in row {worst!r}")
 
 
 def solve_velocities_accelerations(system: ConstraintSystem, state, t, alpha=None):
-    """Eqs. 2–3: set state velocities; returns (v (n,), v̇ (n,)) [m/s, rad/s, m/s², rad/s²]."""
-    _, Phi_q, nu, _ = system.evaluate(state, t, alpha, order=1)
-    lu = sla.lu_factor(Phi_q, check_finite=False)
-    v = sla.lu_solve(lu, nu, check_finite=False)
-    state.set_v(v)
-    _, _, _, gamma = system.evaluate(state, t, alpha, order=2)
-    vdot = sla.lu_solve(lu, gamma, check_finite=False)
+    """Eqs. 2–3: set state velocities; returns (v (n,), v̇ (n,)) [m/s, rad/s, m/s², rad/s²].
+
+    Raises ``np.linalg.LinAlgError`` if Φ_q̂ is singular."""
+    _, df, ddf = system.targets(t, alpha)
+    n = system.n_coords
+    v, vdot = np.empty(n), np.empty(n)
+    status, e_node, e_kind = determinate_rates(
+        *_kernel_args(system, state), state.p_WB, state.R_WB, state.w_BB, state.v_WB, state.column,
+        state.moving, df, ddf, v, vdot)
+    if status == MEASURE_ERROR:
+        system.program.raise_error(e_node, e_kind, state)
+    if status == SINGULAR:
+        raise np.linalg.LinAlgError("Singular matrix")
     return v, vdot

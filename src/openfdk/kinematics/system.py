@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..model.batched import RelativeVectorRows, ScalarRows
+from ..model.compiled import CompiledMeasures
 from ..model.model import Model
 
 
@@ -21,6 +21,11 @@ class ConstraintSystem:
     """All constraint rows of a model: joints and drivers, then FDK DOF rows.
 
     include_fdk : append one row per FDK DOF, Φ^FDK(q) − α = 0 (α given at evaluation).
+
+    The measures of all rows are one compiled program (``program``,
+    :class:`~openfdk.model.compiled.CompiledMeasures`): one kernel call evaluates every
+    row's m, M and b. :meth:`evaluate_reference` evaluates measure by measure in Python
+    (the reference, for tests).
     """
 
     def __init__(self, model: Model, include_fdk=True):
@@ -35,53 +40,77 @@ class ConstraintSystem:
         # the Cardan-angle measure returns values in (−π, π]
         self.angle_rows = np.array([u == "angle" for u in units], dtype=bool)
         self.has_angles = bool(self.angle_rows.any())
-        # joint and FDK rows that are projections of relative vectors: one kernel call
-        # each for all of them (None: evaluated measure by measure)
-        self._block_rows = RelativeVectorRows.from_measures([c.measure for c in self.blocks])
-        self._fdk_rows = ScalarRows([d.measure for d in self.fdk])  # row 0 of each
+        self.program = CompiledMeasures(
+            [c.measure for c in self.blocks] + [d.measure for d in self.fdk],
+            [range(c.size) for c in self.blocks] + [[0]] * len(self.fdk))
+        # constant targets (joints, generic constraints); driver rows are filled per t
+        self._f_const = np.zeros(self.n_rows)
+        self._drivers = []
+        r = 0
+        for c in self.blocks:
+            if c.function is None:
+                self._f_const[r : r + c.size] = c.target
+            else:
+                self._drivers.append((r, c))
+            r += c.size
+        self._n_joint_rows = r
+        self._targets_key = None
+        self._targets = None
+
+    def targets(self, t, alpha=None):
+        """(f, ḟ, f̈) each (n_rows,) at time t (s): the rows' targets, Φ = m − f (Eq. 1);
+        FDK rows have f = α, ḟ = f̈ = 0. The last call's result is reused at the same t, α."""
+        alpha = np.zeros(len(self.fdk)) if alpha is None else np.asarray(alpha, dtype=float)
+        key = (float(t), alpha.tobytes())
+        if key == self._targets_key:
+            return self._targets
+        f = self._f_const.copy()
+        df = np.zeros(self.n_rows)
+        ddf = np.zeros(self.n_rows)
+        for r, c in self._drivers:
+            f[r : r + c.size], df[r : r + c.size], ddf[r : r + c.size] = c.function.derivatives(t)
+        f[self._n_joint_rows :] = alpha
+        self._targets_key, self._targets = key, (f, df, ddf)
+        return self._targets
+
+    def wrap_angles(self, Phi):
+        """Φ with its angle rows wrapped into [−π, π) (in place; returns Φ)."""
+        if self.has_angles:
+            a = self.angle_rows
+            Phi[a] = (Phi[a] + np.pi) % (2.0 * np.pi) - np.pi
+        return Phi
 
     def evaluate(self, state, t, alpha=None, order=1):
         """Φ, Φ_q̂, ν, γ at time t (s) for FDK inputs α (n_fdk,) in m or rad.
 
-        order 0: (Φ, None, None, None); order 1 adds Φ_q̂ and ν; order 2 adds γ (needs
-        the state's velocities).
+        Φ (m,) m or rad; Φ_q̂ (m, 6 n_moving); ν = ḟ (m,) (Eq. 2: Φ_t = −ḟ; α̇ = 0);
+        γ = f̈ − b (m,) (Eq. 3; α̈ = 0). order 0: (Φ, None, None, None); order 1 adds
+        Φ_q̂ and ν; order 2 adds γ (needs the state's velocities).
         """
-        m, n = self.n_rows, self.n_coords
-        Phi = np.empty(m)
-        Phi_q = None if order == 0 else np.empty((m, n))
-        nu = None if order == 0 else np.empty(m)
-        gamma = None if order < 2 else np.empty(m)
-        r = 0
-        if self._block_rows is not None:
-            vals, Ms, bs = self._block_rows.evaluate(state, order)
-        for c in self.blocks:
-            k = c.size
-            if self._block_rows is not None:
-                val, M = vals[r : r + k], (None if order == 0 else Ms[r : r + k])
-                b = None if order < 2 else bs[r : r + k]
-            else:
-                val, M, b = c.measure.evaluate(state, order)
-            f, df, ddf = c.target_derivatives(t)
-            Phi[r : r + k] = val - f
-            if order >= 1:
-                Phi_q[r : r + k] = M
-                nu[r : r + k] = df  # Eq. 2: Φ_t = −ḟ
-            if order >= 2:
-                gamma[r : r + k] = ddf - b  # Eq. 3
-            r += k
-        if self.fdk:
-            alpha = np.zeros(len(self.fdk)) if alpha is None else np.asarray(alpha, dtype=float)
-            vals, Ms, bs = self._fdk_rows.evaluate(state, order)
-            Phi[r:] = vals - alpha  # Φ^FDK − α (Eq. 1); α̇ = α̈ = 0
-            if order >= 1:
-                Phi_q[r:] = Ms
-                nu[r:] = 0.0
-            if order >= 2:
-                gamma[r:] = -bs
-        if self.has_angles:
-            a = self.angle_rows
-            Phi[a] = (Phi[a] + np.pi) % (2.0 * np.pi) - np.pi
-        return Phi, Phi_q, nu, gamma
+        val, M, b = self.program.evaluate(state, order)
+        return self._assemble(val, M, b, t, alpha, order)
+
+    def jacobian(self, state):
+        """Φ_q̂ (m, 6 n_moving) alone (no targets: for the equilibrium, Eq. 12)."""
+        return self.program.evaluate(state, 1)[1]
+
+    def evaluate_reference(self, state, t, alpha=None, order=1):
+        """As :meth:`evaluate`, measure by measure in Python (the reference for tests)."""
+        parts = [c.measure.evaluate(state, order) for c in self.blocks]
+        parts += [tuple(None if x is None else x[:1] for x in d.measure.evaluate(state, order)) for d in self.fdk]
+        val = np.concatenate([p[0] for p in parts]) if parts else np.zeros(0)
+        M = (np.vstack([p[1] for p in parts]) if parts else np.zeros((0, self.n_coords))) if order >= 1 else None
+        b = (np.concatenate([p[2] for p in parts]) if parts else np.zeros(0)) if order >= 2 else None
+        return self._assemble(val, M, b, t, alpha, order)
+
+    def _assemble(self, val, M, b, t, alpha, order):
+        f, df, ddf = self.targets(t, alpha)
+        Phi = self.wrap_angles(val - f)  # Eq. 1
+        if order == 0:
+            return Phi, None, None, None
+        nu = df.copy()  # Eq. 2: Φ_t = −ḟ
+        gamma = ddf - b if order >= 2 else None  # Eq. 3
+        return Phi, M, nu, gamma
 
 
 def dependent_rows(A, row_names, tol=1e-9):

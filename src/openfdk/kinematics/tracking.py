@@ -19,7 +19,7 @@ import numpy as np
 
 from ..spatial import quat_from_matrix
 from .determinate import FrameSolve
-from .kkt import kkt_step
+from .frame_kernels import MEASURE_ERROR, OK, SINGULAR, tracking_positions, tracking_rates
 from .system import ConstraintSystem, undetermined_coordinates
 
 
@@ -44,13 +44,20 @@ class MarkerTracker:
         self.markers = system.model.markers
         self.settings = settings or TrackingSettings()
         self._observable_cache = {}
+        self._weight_cache = {}
         self.coord_names = system.model.coordinate_names()
 
     # -- helpers ------------------------------------------------------------------
     def _weights(self, visible):
-        """Per-row weights (3 n_markers,) from marker weights and visibility."""
-        w = np.where(visible, self.markers.weight, 0.0)
-        return np.repeat(w, 3)
+        """Per-row weights (3 n_markers,) from marker weights and visibility (cached per
+        visibility pattern; read-only)."""
+        key = visible.tobytes()
+        w = self._weight_cache.get(key)
+        if w is None:
+            w = np.repeat(np.where(visible, self.markers.weight, 0.0), 3)
+            w.setflags(write=False)
+            self._weight_cache[key] = w
+        return w
 
     def observability_message(self, state, t, visible, alpha=None):
         """'' if the visible markers plus constraints fix the pose, else a message
@@ -117,22 +124,25 @@ class MarkerTracker:
         x = np.where(visible[:, None], x_WM, 0.0).ravel()
         n, m = self.system.n_coords, self.system.n_rows
         K = np.zeros((n + m, n + m))
-        step = res = np.inf
-        for it in range(1, s.max_iter + 1):
-            p, J, _ = self.markers.evaluate(state, 1)
-            Phi, A, _, _ = self.system.evaluate(state, t, alpha, order=1)
-            try:
-                sol, step, res = kkt_step(J, w, p, x, A, Phi, K)
-            except np.linalg.LinAlgError as exc:
-                return FrameSolve(False, it, np.nan, f"KKT system singular: {exc}"), None, None
-            dq, lam = sol[:n], sol[n:]
-            if not np.all(np.isfinite(dq)):
-                return FrameSolve(False, it, np.nan, "KKT system singular (non-finite step)"), None, None
-            state.displace(dq)
-            if step < s.tol_step and res <= s.tol_constraint:
-                return FrameSolve(True, it, res), K, lam
+        lam = np.zeros(m)
+        f, _, _ = self.system.targets(t, alpha)
+        prog = self.system.program
+        try:
+            # Gauss–Newton iterations in one kernel (Eqs. 4–5)
+            status, it, res, step, e_node, e_kind = tracking_positions(
+                *prog.program, prog.n_node_rows, state.p_WB, state.quat_WB, state.R_WB, state.w_BB, state.v_WB,
+                state.column, state.moving, f, self.system.angle_rows, self.markers.body, self.markers.p_BM,
+                w, x, s.tol_step, s.tol_constraint, s.max_iter, K, lam)
+        except np.linalg.LinAlgError as exc:
+            return FrameSolve(False, 0, np.nan, f"KKT system singular: {exc}"), None, None
+        if status == MEASURE_ERROR:
+            prog.raise_error(e_node, e_kind, state)
+        if status == SINGULAR:
+            return FrameSolve(False, int(it), np.nan, "KKT system singular (non-finite step)"), None, None
+        if status == OK:
+            return FrameSolve(True, int(it), float(res)), K, lam
         return (
-            FrameSolve(False, s.max_iter, res, f"Gauss–Newton did not converge in {s.max_iter} iterations "
+            FrameSolve(False, s.max_iter, float(res), f"Gauss–Newton did not converge in {s.max_iter} iterations "
                        f"(last step {step:.3g}, max |Φ| = {res:.3g})"),
             K, lam,
         )
@@ -165,14 +175,17 @@ class MarkerTracker:
         n = self.system.n_coords
         w = self._weights(visible)
         vis3 = np.repeat(visible, 3)
-        _, J, _ = self.markers.evaluate(state, 1)
-        _, _, nu, _ = self.system.evaluate(state, t, alpha, order=1)
-        WJ = J * w[:, None]
+        _, df, ddf = self.system.targets(t, alpha)
         target_v = np.where(vis3, (xdot + d_delta).ravel(), 0.0)
-        v = np.linalg.solve(K, np.concatenate([WJ.T @ target_v, nu]))[:n]
-        state.set_v(v)
-        _, _, b = self.markers.evaluate(state, 2)
-        _, _, _, gamma = self.system.evaluate(state, t, alpha, order=2)
-        target_a = np.where(vis3, (xddot + dd_delta).ravel() - b, 0.0)
-        vdot = np.linalg.solve(K, np.concatenate([WJ.T @ target_a, gamma]))[:n]
+        target_a = np.where(vis3, (xddot + dd_delta).ravel(), 0.0)
+        v, vdot = np.empty(n), np.empty(n)
+        prog = self.system.program
+        status, e_node, e_kind = tracking_rates(
+            *prog.program, prog.n_node_rows, state.p_WB, state.R_WB, state.w_BB, state.v_WB, state.column,
+            state.moving, df, ddf, self.markers.body, self.markers.p_BM, w, target_v, target_a,
+            np.ascontiguousarray(K), v, vdot)
+        if status == MEASURE_ERROR:
+            prog.raise_error(e_node, e_kind, state)
+        if status == SINGULAR:
+            raise np.linalg.LinAlgError("Singular matrix")
         return v, vdot

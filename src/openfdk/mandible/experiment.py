@@ -33,7 +33,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from ..io.c3d import MarkerTrial, read_c3d, write_c3d
+from ..io.c3d import MarkerTrial, write_c3d
+from ..io.trials import read_trial
 from ..spatial import rotation_matrix_xyz
 from .generator import load_anatomy
 from .subject import Subject, load_subject
@@ -488,7 +489,7 @@ def mandible_points_in_skull(subject: Subject, trial, points_S, braces=None) -> 
     Returns time (n,) s and p (n, k, 3) m (NaN where a brace has < 3 markers).
     """
     if not isinstance(trial, MarkerTrial):
-        trial = read_c3d(trial)
+        trial = read_trial(trial)
     if braces is None:
         braces = {b: (subject.braces[b].labels, subject.braces[b].positions) for b in ("skull", "mandible")}
     R_LS, p_LS = rigid_fit(braces["skull"][1], trial.select(braces["skull"][0]).positions)

@@ -32,7 +32,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..io.c3d import MarkerTrial, read_c3d
+from ..io.c3d import MarkerTrial
+from ..io.trials import read_trial
 from .experiment import rigid_fit
 
 __all__ = ["Registration", "RegistrationError", "RegistrationWarning", "StaticPose", "WARN_RMS_M",
@@ -153,7 +154,7 @@ class Registration:
 
 def _static_markers(subject, trial, min_frames):
     """Measured brace markers per frame, body → (n, k, 3) m (lab frame, NaN = missing)."""
-    trial = trial if isinstance(trial, MarkerTrial) else read_c3d(trial)
+    trial = trial if isinstance(trial, MarkerTrial) else read_trial(trial)
     out = {}
     for body in ("skull", "mandible"):
         labels = subject.braces[body].labels

@@ -87,8 +87,9 @@ class MarkerSet:
 
     def positions(self, state):
         """Model marker positions p_WM (n, 3) m."""
-        R = state.R_WB[self.body]
-        return state.p_WB[self.body] + np.einsum("nij,nj->ni", R, self.p_BM)
+        value, _, _ = marker_positions_jacobian(
+            state.p_WB, state.R_WB, state.w_BB, state.column, self.body, self.p_BM, state.n_coords, 0)
+        return value.reshape(-1, 3)
 
     def evaluate(self, state, order=1):
         """(p_WM (3n,) m, M (3n, 6 n_moving), b (3n,)) for all markers, stacked by marker.

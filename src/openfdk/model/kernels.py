@@ -44,6 +44,20 @@ def marker_positions_jacobian(p_WB, R_WB, w_BB, column, body, p_BM, n_coords, or
 
 
 @njit(cache=True)
+def _set_rotation(R_WB, i, e0, e1, e2, e3):
+    """R_WB[i] ← R(p) of the unit Euler parameters p = (e0, e1, e2, e3)."""
+    R_WB[i, 0, 0] = 1 - 2 * (e2 * e2 + e3 * e3)
+    R_WB[i, 0, 1] = 2 * (e1 * e2 - e0 * e3)
+    R_WB[i, 0, 2] = 2 * (e1 * e3 + e0 * e2)
+    R_WB[i, 1, 0] = 2 * (e1 * e2 + e0 * e3)
+    R_WB[i, 1, 1] = 1 - 2 * (e1 * e1 + e3 * e3)
+    R_WB[i, 1, 2] = 2 * (e2 * e3 - e0 * e1)
+    R_WB[i, 2, 0] = 2 * (e1 * e3 - e0 * e2)
+    R_WB[i, 2, 1] = 2 * (e2 * e3 + e0 * e1)
+    R_WB[i, 2, 2] = 1 - 2 * (e1 * e1 + e2 * e2)
+
+
+@njit(cache=True)
 def displace_poses(p_WB, quat_WB, R_WB, moving, column, dq_hat):
     """In place: r ← r + δr, p ← p ⊗ exp(½ δπ') (normalised, scalar part ≥ 0), R ← R(p)
     for every moving body (DESIGN.md §1). dq_hat (6 n_moving,) [m, rad]."""
@@ -68,15 +82,7 @@ def displace_poses(p_WB, quat_WB, R_WB, moving, column, dq_hat):
             norm = -norm
         e0, e1, e2, e3 = e0 / norm, e1 / norm, e2 / norm, e3 / norm
         quat_WB[i, 0], quat_WB[i, 1], quat_WB[i, 2], quat_WB[i, 3] = e0, e1, e2, e3
-        R_WB[i, 0, 0] = 1 - 2 * (e2 * e2 + e3 * e3)
-        R_WB[i, 0, 1] = 2 * (e1 * e2 - e0 * e3)
-        R_WB[i, 0, 2] = 2 * (e1 * e3 + e0 * e2)
-        R_WB[i, 1, 0] = 2 * (e1 * e2 + e0 * e3)
-        R_WB[i, 1, 1] = 1 - 2 * (e1 * e1 + e3 * e3)
-        R_WB[i, 1, 2] = 2 * (e2 * e3 - e0 * e1)
-        R_WB[i, 2, 0] = 2 * (e1 * e3 - e0 * e2)
-        R_WB[i, 2, 1] = 2 * (e2 * e3 + e0 * e1)
-        R_WB[i, 2, 2] = 1 - 2 * (e1 * e1 + e2 * e2)
+        _set_rotation(R_WB, i, e0, e1, e2, e3)
 
 
 @njit(cache=True)
@@ -212,3 +218,35 @@ def path_lengths(p_WB, R_WB, column, seg_a, s_a, seg_b, s_b, seg_path, n_paths, 
             for j in range(3):
                 L[p, c + 3 + j] += sign * (R[0, j] * x0 + R[1, j] * x1 + R[2, j] * x2)
     return l, L
+
+
+@njit(cache=True)
+def set_poses(q, moving, p_WB, quat_WB, R_WB):
+    """In place, for the k-th moving body i: r_i ← q[7k:7k+3], p_i ← q[7k+3:7k+7]
+    normalised with scalar part ≥ 0, R_i ← R(p_i). q (7 n_moving,) [m, -].
+    Returns −1, or k when the k-th quaternion cannot be normalised (zero or non-finite)."""
+    for k in range(moving.shape[0]):
+        i = moving[k]
+        for r in range(3):
+            p_WB[i, r] = q[7 * k + r]
+        e0, e1, e2, e3 = q[7 * k + 3], q[7 * k + 4], q[7 * k + 5], q[7 * k + 6]
+        norm = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2 + e3 * e3)
+        if not np.isfinite(norm) or norm == 0.0:
+            return k
+        if e0 < 0:
+            norm = -norm
+        e0, e1, e2, e3 = e0 / norm, e1 / norm, e2 / norm, e3 / norm
+        quat_WB[i, 0], quat_WB[i, 1], quat_WB[i, 2], quat_WB[i, 3] = e0, e1, e2, e3
+        _set_rotation(R_WB, i, e0, e1, e2, e3)
+    return -1
+
+
+@njit(cache=True)
+def set_velocities(v, column, moving, v_WB, w_BB):
+    """In place: ṙ_i ← v[c:c+3], ω'_i ← v[c+3:c+6] for every moving body i with
+    c = column[i]. v (6 n_moving,) [m/s, rad/s]."""
+    for i in moving:
+        c = column[i]
+        for r in range(3):
+            v_WB[i, r] = v[c + r]
+            w_BB[i, r] = v[c + 3 + r]

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..spatial import normalize_quat, rotation_matrix
-from .kernels import displace_poses
+from ..spatial import rotation_matrix
+from .kernels import displace_poses, set_poses, set_velocities
 
 
 class BodyStates:
@@ -55,12 +55,14 @@ class BodyStates:
         return np.concatenate([self.p_WB[m], self.quat_WB[m]], axis=1).ravel()
 
     def set_q(self, q):
-        """Inverse of :meth:`get_q`; q (7 n_moving,)."""
-        q = np.asarray(q, dtype=float).reshape(-1, 7)
-        for k, i in enumerate(self.moving):
-            self.p_WB[i] = q[k, :3]
-            self.quat_WB[i] = normalize_quat(q[k, 3:])
-            self.R_WB[i] = rotation_matrix(self.quat_WB[i])
+        """Inverse of :meth:`get_q`; q (7 n_moving,). Quaternions are normalised (scalar
+        part ≥ 0); a zero or non-finite one raises ValueError."""
+        q = np.ascontiguousarray(q, dtype=float).reshape(-1)
+        if q.shape != (7 * len(self.moving),):
+            raise ValueError(f"q must have {7 * len(self.moving)} entries (7 per moving body), got {q.shape}")
+        k = set_poses(q, self.moving, self.p_WB, self.quat_WB, self.R_WB)
+        if k >= 0:
+            raise ValueError(f"cannot normalise quaternion {q[7 * k + 3 : 7 * k + 7]!r}")
 
     def displace(self, dq_hat):
         """Finite displacement on the manifold: r ← r + δr, p ← p ⊗ exp(½ δπ').
@@ -80,8 +82,8 @@ class BodyStates:
         return v
 
     def set_v(self, v):
-        """Set body velocities from a generalised velocity (6 n_moving,)."""
-        for i in self.moving:
-            c = self.column[i]
-            self.v_WB[i] = v[c : c + 3]
-            self.w_BB[i] = v[c + 3 : c + 6]
+        """Set body velocities from a generalised velocity (6 n_moving,) [m/s, rad/s]."""
+        v = np.ascontiguousarray(v, dtype=float)
+        if v.shape != (self.n_coords,):
+            raise ValueError(f"v must have {self.n_coords} entries (6 per moving body), got {v.shape}")
+        set_velocities(v, self.column, self.moving, self.v_WB, self.w_BB)

@@ -79,14 +79,15 @@ class Fourier(TimeFunction):
             )
         self.size = self.a.shape[1]
 
+        self._kw = np.arange(1, self.a.shape[0], dtype=float) * self.omega  # (n,) rad/s
+
     def derivatives(self, t):
-        k = np.arange(1, self.a.shape[0], dtype=float)[:, None]
-        kw = k * self.omega
+        kw = self._kw
         c, s = np.cos(kw * t), np.sin(kw * t)
         ak, bk = self.a[1:], self.b
-        f = self.a[0] + np.sum(ak * c + bk * s, axis=0)
-        df = np.sum(kw * (-ak * s + bk * c), axis=0)
-        ddf = np.sum(-(kw**2) * (ak * c + bk * s), axis=0)
+        f = self.a[0] + c @ ak + s @ bk
+        df = (-kw * s) @ ak + (kw * c) @ bk
+        ddf = -((kw * kw * c) @ ak + (kw * kw * s) @ bk)
         return f, df, ddf
 
 

@@ -1,0 +1,85 @@
+"""The notebook API: load a model and a trial, run, get tables (docs/python-api.md).
+
+    import openfdk
+    model = openfdk.load_model("model.yaml")
+    trial = openfdk.load_trial("trial.c3d")          # or .trc
+    result = openfdk.run(model, trial)               # kinematics, inverse dynamics, FDK
+    result.kinematics, result.forces, result.fdk     # pandas DataFrames indexed by time (s)
+    result.save("out"); openfdk.read_results("out")
+
+These functions are re-exported lazily by ``openfdk`` (``import openfdk`` stays light).
+"""
+
+from __future__ import annotations
+
+import os
+import weakref
+from pathlib import Path
+
+__all__ = ["load_model", "load_trial", "run", "read_results"]
+
+RUN_OPTIONS = ("cutoff_hz", "start", "end", "progress")
+#: Model -> absolute path of the file it was loaded from (recorded in summary.json, so
+#: that a saved run finds its model again for figures and the OpenSim export)
+_MODEL_FILES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def load_model(path):
+    """Read and validate a model file (YAML, docs/model-file.md) into a Model.
+    Raises ModelError (a ValueError) naming the file and the entry."""
+    from .model.modelfile import load_model as _load
+
+    model = _load(path)
+    _MODEL_FILES[model] = str(Path(path).resolve())
+    return model
+
+
+def load_trial(path):
+    """Read a marker trial, C3D or TRC by extension, into a MarkerTrial
+    (``positions (n_frames, n_markers, 3) m`` NaN where missing, ``time (n_frames,) s``,
+    ``rate`` Hz, ``labels``)."""
+    from .io.trials import read_trial
+
+    return read_trial(path)
+
+
+def run(model, trial=None, **options):
+    """Kinematics then inverse dynamics with muscle recruitment; force-dependent
+    kinematics when the model declares FDK DOFs (as ``openfdk run``).
+
+    Args:
+        model: a Model (:func:`load_model`) or a model file path.
+        trial: a MarkerTrial (:func:`load_trial`) or a C3D/TRC path; None for a
+            determinate (driven) model over its ``analysis`` interval.
+        options: ``cutoff_hz`` (marker low-pass, Hz; 0 = none; default: the model
+            file's, else 6 Hz), ``start``/``end`` (analysed window, s), ``progress``
+            (progress bars, default False).
+    Returns: :class:`~openfdk.runresults.RunResults` — ``.kinematics``, ``.forces``,
+    ``.fdk`` DataFrames indexed by time, ``.summary``, ``.failed_frames``, ``.plot()``,
+    ``.view()``, ``.save(dir)``.
+    """
+    from .jobs import run_job
+    from .runresults import RunResults
+
+    unknown = sorted(set(options) - set(RUN_OPTIONS))
+    if unknown:
+        raise TypeError(f"openfdk.run: unknown option(s) {unknown}; options are {list(RUN_OPTIONS)}")
+    if isinstance(model, (str, os.PathLike)):
+        model = load_model(model)
+    model_file = _MODEL_FILES.get(model)
+    if isinstance(trial, (str, os.PathLike)):
+        trial = load_trial(trial)
+    kin, dyn, info = run_job(model, trial, cutoff_hz=options.get("cutoff_hz"),
+                             progress=bool(options.get("progress", False)),
+                             start=options.get("start"), end=options.get("end"))
+    if model_file:
+        info["model_file"] = model_file
+    return RunResults.from_analysis(kin, dyn, info, model)
+
+
+def read_results(directory):
+    """Load a saved run (``openfdk run --out DIR`` or ``result.save(DIR)``) as a
+    :class:`~openfdk.runresults.RunResults`."""
+    from .runresults import read_results as _read
+
+    return _read(directory)

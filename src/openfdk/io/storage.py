@@ -1,0 +1,106 @@
+"""OpenSim storage files: ``.sto`` (any time series) and ``.mot`` (coordinates).
+
+Layout (OpenSim documentation, "Storage (.sto) Files" and "Motion (.mot) Files"; the
+header of OpenSim ≥ 2.3.2 adds ``version`` and ``inDegrees``)::
+
+    <name>                  the name OpenSim shows for the data
+    version=1
+    nRows=<data rows>
+    nColumns=<columns, time included>
+    inDegrees=<yes|no>      whether angular columns are in degrees
+    <optional comment lines>
+    endheader
+    time<TAB>label 1<TAB>…  column labels
+    0<TAB>…                 one tab-separated row per time, time first
+
+Values are written with Python's shortest round-trip representation (``repr``), so a
+reader gets back exactly the float that was written; a missing value is ``NaN``.
+Column labels must not contain tabs or line breaks.  Text columns (e.g. ``message``)
+cannot be stored: :func:`csv_to_sto` drops them and says so in a comment line.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["write_storage", "csv_to_sto"]
+
+
+def _format(x: float) -> str:
+    x = float(x)
+    if math.isnan(x):
+        return "NaN"
+    if math.isinf(x):
+        return "Inf" if x > 0 else "-Inf"
+    return repr(x)
+
+
+def write_storage(path, time, columns: dict, name: str = "openfdk", in_degrees: bool = False,
+                  comments=()) -> Path:
+    """Write an OpenSim ``.sto``/``.mot`` file (atomically: temporary file + rename).
+
+    Args:
+        path: file to write.
+        time: ``(n_rows,) s`` sample times.
+        columns: label -> ``(n_rows,)`` numbers, in column order (``time`` excluded).
+        name: first header line.
+        in_degrees: value of the ``inDegrees`` header field (the angular columns' unit).
+        comments: extra header lines (no ``endheader`` among them).
+    Returns: the path written.
+    """
+    path = Path(path)
+    time = np.asarray(time, dtype=float).reshape(-1)
+    labels = list(columns)
+    data = [np.asarray(columns[k], dtype=float).reshape(-1) for k in labels]
+    for label, col in zip(labels, data):
+        if col.shape != time.shape:
+            raise ValueError(f"{path}: column {label!r} has {col.size} rows, time has {time.size}")
+        if not label or any(c in label for c in "\t\r\n"):
+            raise ValueError(f"{path}: column label {label!r} is empty or has a tab or line break")
+    for line in [name, *comments]:
+        if "\n" in line or line.strip() == "endheader":
+            raise ValueError(f"{path}: header line {line!r} is not allowed")
+    header = [name, "version=1", f"nRows={time.size}", f"nColumns={len(labels) + 1}",
+              f"inDegrees={'yes' if in_degrees else 'no'}", *comments, "endheader",
+              "\t".join(["time", *labels])]
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    with open(tmp, "w", newline="\n") as fh:
+        fh.write("\n".join(header) + "\n")
+        table = np.column_stack([time, *data]) if data else time[:, None]
+        for row in table:
+            fh.write("\t".join(_format(x) for x in row) + "\n")
+    os.replace(tmp, path)
+    return path
+
+
+def csv_to_sto(csv_path, sto_path=None, name=None) -> Path | None:
+    """Convert an openfdk result table (``kinematics.csv``, ``forces.csv``: first column
+    ``time``, SI units) to ``.sto`` beside it (or at ``sto_path``).  Numeric columns are
+    kept in order; text columns (``message``, ``status``, ``fdk_reason``) are dropped and
+    listed in a header comment.  Angular columns are in rad (``inDegrees=no``).
+    Returns the path written, or None when the table has no rows."""
+    csv_path = Path(csv_path)
+    sto_path = Path(sto_path) if sto_path else csv_path.with_suffix(".sto")
+    with open(csv_path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    if len(rows) < 2:
+        return None
+    header, body = rows[0], rows[1:]
+    if header[0] != "time":
+        raise ValueError(f"{csv_path}: the first column must be 'time', got {header[0]!r}")
+    numeric, dropped = {}, []
+    for j, label in enumerate(header[1:], start=1):
+        try:
+            numeric[label] = [float(r[j]) for r in body]
+        except ValueError:
+            dropped.append(label)
+    time = [float(r[0]) for r in body]
+    comments = [f"Source: {csv_path.name} (openfdk); SI units (m, s, N, rad), see docs/outputs.md"]
+    if dropped:
+        comments.append(f"Text columns not stored: {', '.join(dropped)}")
+    return write_storage(sto_path, time, numeric, name=name or csv_path.stem, comments=comments)

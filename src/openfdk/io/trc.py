@@ -1,0 +1,134 @@
+"""TRC marker files (Motion Analysis "Track Row Column", as read and written by OpenSim).
+
+Layout (OpenSim documentation, "Marker (.trc) Files"), tab separated:
+
+* line 1: ``PathFileType  4  (X/Y/Z)  <file name>``;
+* line 2: names of the header fields, e.g. ``DataRate CameraRate NumFrames NumMarkers
+  Units OrigDataRate OrigDataStartFrame OrigNumFrames``;
+* line 3: their values, in the same order;
+* line 4: ``Frame#  Time  <marker 1>  ''  ''  <marker 2> …`` (a marker's name sits over
+  its x column, followed by two empty cells);
+* line 5: ``''  ''  X1  Y1  Z1  X2 …``;
+* an optional blank line, then one row per frame: frame number, time (s), then x y z of
+  every marker.  A missing sample is an empty cell or ``NaN``; a row may stop early,
+  which leaves its last markers missing.
+
+What is used: ``DataRate`` (Hz) is the trial's rate, ``Units`` (mm, cm or m) converts the
+positions to metres once, here (DESIGN.md §4); times are the ``Time`` column (which OpenSim
+defines as (frame − OrigDataStartFrame)/DataRate).  The header fields are found by name,
+not position.  Every problem raises :class:`TRCError` naming the file and the line.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+
+from .c3d import UNIT_TO_METRE, MarkerTrial
+
+__all__ = ["TRCError", "read_trc"]
+
+#: spellings of the Units field accepted besides mm / cm / m
+UNIT_ALIASES = {"millimeters": "mm", "millimetres": "mm", "centimeters": "cm", "centimetres": "cm",
+                "meters": "m", "metres": "m"}
+
+
+class TRCError(ValueError):
+    """A TRC file cannot be read; the message names the file, the line and the cause."""
+
+
+def _cells(line: str) -> list[str]:
+    """Split a line on tabs (the format's separator), or on whitespace if it has none."""
+    line = line.rstrip("\r\n")
+    return [c.strip() for c in line.split("\t")] if "\t" in line else line.split()
+
+
+def _number(cell: str, name: str, line_no: int, what: str) -> float:
+    try:
+        return float(cell)
+    except ValueError:
+        raise TRCError(f"{name}: line {line_no}: {what} is {cell!r}, expected a number") from None
+
+
+def read_trc(path: str | os.PathLike) -> MarkerTrial:
+    """Read a TRC file into a :class:`~openfdk.io.c3d.MarkerTrial` (SI units).
+
+    Returns: MarkerTrial with ``positions (n_frames, n_markers, 3) m`` (NaN where a sample
+    is missing), ``time (n_frames,) s`` from the Time column and ``rate`` = DataRate Hz.
+    Raises: :class:`TRCError` naming the file and the line.
+    """
+    name = os.fspath(path)
+    try:
+        with open(name, encoding="utf-8", errors="replace") as fh:
+            lines = fh.readlines()
+    except OSError as exc:
+        raise TRCError(f"{name}: cannot read the file: {exc.strerror or exc}") from None
+    if len(lines) < 5:
+        raise TRCError(f"{name}: a TRC file has at least 5 header lines, this one has {len(lines)} lines")
+    if not lines[0].startswith("PathFileType"):
+        raise TRCError(f"{name}: line 1 must start with 'PathFileType' (is this a TRC file?)")
+
+    keys, values = _cells(lines[1]), _cells(lines[2])
+    header = dict(zip(keys, values))
+    for key in ("DataRate", "NumMarkers", "Units"):
+        if key not in header or header[key] == "":
+            raise TRCError(f"{name}: line 2/3: header field {key!r} is missing (fields: {keys})")
+    rate = _number(header["DataRate"], name, 3, "DataRate")
+    if not (math.isfinite(rate) and rate > 0):
+        raise TRCError(f"{name}: line 3: DataRate is {rate}, expected a positive rate in Hz")
+    n_declared = _number(header["NumMarkers"], name, 3, "NumMarkers")
+    units = UNIT_ALIASES.get(header["Units"].lower(), header["Units"].lower())
+    if units not in UNIT_TO_METRE:
+        raise TRCError(f"{name}: line 3: Units is {header['Units']!r}; expected one of mm, cm, m")
+
+    label_cells = _cells(lines[3])
+    if len(label_cells) < 2 or label_cells[0] != "Frame#" or label_cells[1] != "Time":
+        raise TRCError(f"{name}: line 4 must start with 'Frame#' and 'Time', got {label_cells[:2]}")
+    if "\t" in lines[3]:
+        # a name over the x column of each marker: columns 2, 5, 8, ...
+        labels = [label_cells[c] for c in range(2, len(label_cells), 3)]
+    else:
+        labels = label_cells[2:]
+    while labels and labels[-1] == "":
+        labels.pop()
+    if "" in labels:
+        raise TRCError(f"{name}: line 4: marker {labels.index('') + 1} has no name")
+    if len(labels) != int(n_declared):
+        raise TRCError(f"{name}: line 4 names {len(labels)} markers, NumMarkers on line 3 says {int(n_declared)}")
+    if len(set(labels)) != len(labels):
+        dup = sorted({lab for lab in labels if labels.count(lab) > 1})
+        raise TRCError(f"{name}: line 4: duplicate marker labels {dup}")
+
+    n_markers = len(labels)
+    n_values = 2 + 3 * n_markers
+    times, rows = [], []
+    for line_no, line in enumerate(lines[5:], start=6):
+        if not line.strip():
+            continue
+        cells = _cells(line)
+        if len(cells) > n_values and any(c for c in cells[n_values:]):
+            raise TRCError(f"{name}: line {line_no}: {len(cells)} values, expected at most {n_values} "
+                           f"(frame, time and x y z of {n_markers} markers)")
+        cells = cells + [""] * (n_values - len(cells))
+        times.append(_number(cells[1], name, line_no, "the time"))
+        row = np.full(3 * n_markers, np.nan)
+        for j, cell in enumerate(cells[2:n_values]):
+            if cell != "" and cell.lower() != "nan":
+                row[j] = _number(cell, name, line_no, f"column {j + 3}")
+        rows.append(row)
+    if not rows:
+        raise TRCError(f"{name}: contains no data rows")
+    if "NumFrames" in header and header["NumFrames"] != "":
+        declared = int(_number(header["NumFrames"], name, 3, "NumFrames"))
+        if declared != len(rows):
+            raise TRCError(f"{name}: NumFrames on line 3 is {declared}, the file has {len(rows)} data rows")
+
+    p = np.array(rows).reshape(len(rows), n_markers, 3) * UNIT_TO_METRE[units]
+    # a sample is missing when any coordinate is: the marker is seen or not as a whole
+    p[~np.all(np.isfinite(p), axis=2)] = np.nan
+    try:
+        return MarkerTrial(labels=tuple(labels), rate=rate, time=np.array(times), positions=p, source=name)
+    except ValueError as exc:
+        raise TRCError(str(exc)) from None

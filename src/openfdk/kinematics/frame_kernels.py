@@ -1,0 +1,259 @@
+"""One frame's kinematic solves as numba kernels over a compiled constraint program.
+
+Each kernel runs a whole per-frame algorithm — the Newton–Raphson of determinate
+positions (Eq. 1), the velocity and acceleration solves (Eqs. 2–3), the Gauss–Newton
+SQP of marker tracking (Eqs. 4–5) and its velocity/acceleration solves (Eqs. 8–10) —
+with no Python per iteration: the constraint rows come from
+:func:`openfdk.model.compiled.evaluate_into`, markers from
+:func:`openfdk.model.kernels.marker_positions_jacobian`, updates from
+:func:`openfdk.model.kernels.displace_poses`. The callers in
+:mod:`.determinate` and :mod:`.tracking` keep the Python-level contract (FrameSolve,
+messages); a kernel returns a status code and leaves the state where the Python loop
+would have left it, so that messages are built in Python from the same pose.
+
+``prog`` below is the tuple ``CompiledMeasures.program + (n_node_rows,)``; ``f, df, ddf``
+(m,) the rows' targets (Φ = m − f); ``angle`` (m,) bool rows compared modulo 2π.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..model.compiled import evaluate_into
+from ..model.kernels import displace_poses, marker_positions_jacobian, set_velocities
+from .kkt import kkt_step
+
+OK, SINGULAR, NOT_CONVERGED, MEASURE_ERROR = 0, 1, 2, 3
+
+
+@njit(cache=True)
+def lu_factor(A, piv):
+    """In place LU with partial pivoting of A (n, n); piv (n,) int. False if a pivot is
+    exactly zero (singular, as LAPACK getrf reports it)."""
+    n = A.shape[0]
+    for k in range(n):
+        p = k
+        big = abs(A[k, k])
+        for i in range(k + 1, n):
+            if abs(A[i, k]) > big:
+                big = abs(A[i, k])
+                p = i
+        piv[k] = p
+        if big == 0.0:
+            return False
+        if p != k:
+            for j in range(n):
+                A[k, j], A[p, j] = A[p, j], A[k, j]
+        inv = 1.0 / A[k, k]
+        for i in range(k + 1, n):
+            A[i, k] *= inv
+            a = A[i, k]
+            if a != 0.0:
+                for j in range(k + 1, n):
+                    A[i, j] -= a * A[k, j]
+    return True
+
+
+@njit(cache=True)
+def lu_solve(LU, piv, rhs):
+    """Solve with the factors of :func:`lu_factor`; rhs (n,) is overwritten and returned."""
+    n = LU.shape[0]
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            rhs[k], rhs[p] = rhs[p], rhs[k]
+    for i in range(n):
+        s = rhs[i]
+        for j in range(i):
+            s -= LU[i, j] * rhs[j]
+        rhs[i] = s
+    for i in range(n - 1, -1, -1):
+        s = rhs[i]
+        for j in range(i + 1, n):
+            s -= LU[i, j] * rhs[j]
+        rhs[i] = s / LU[i, i]
+    return rhs
+
+
+@njit(cache=True)
+def _residual(val, f, angle, Phi):
+    """Φ = m − f with angle rows wrapped into [−π, π) (Eq. 1); returns max |Φ|."""
+    res = 0.0
+    for r in range(val.shape[0]):
+        x = val[r] - f[r]
+        if angle[r]:
+            x = (x + np.pi) % (2.0 * np.pi) - np.pi
+        Phi[r] = x
+        res = max(res, abs(x))
+    return res
+
+
+@njit(cache=True)
+def newton_positions(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows, n_node_rows,
+                     p_WB, quat_WB, R_WB, w_BB, v_WB, column, moving, f, angle, tol, max_iter):
+    """Newton–Raphson on Φ(q, t) = 0 (Eq. 1), updates on the manifold, state in place.
+
+    Converged when max |Δq̂| < tol and then max |Φ| < max(10 tol, 1e-9) (the rules of
+    :func:`openfdk.kinematics.determinate.solve_positions`). Returns (status, iterations,
+    max |Φ|, failing node, error code); on SINGULAR the state is at the pose whose Φ_q̂
+    is singular, on NOT_CONVERGED at the last pose."""
+    m = out_rows.shape[0]
+    n = 6 * moving.shape[0]
+    val = np.empty(m)
+    A = np.empty((m, n))
+    bias = np.empty(m)
+    Phi = np.empty(m)
+    piv = np.empty(n, np.int64)
+    dq = np.empty(n)
+    res = 0.0
+    for it in range(1, max_iter + 1):
+        e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
+                                       n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 1, val, A, bias)
+        if e_node >= 0:
+            return MEASURE_ERROR, it, np.inf, e_node, e_kind
+        res = _residual(val, f, angle, Phi)
+        if not lu_factor(A, piv):
+            return SINGULAR, it, res, -1, 0
+        for r in range(n):
+            dq[r] = -Phi[r]
+        lu_solve(A, piv, dq)
+        displace_poses(p_WB, quat_WB, R_WB, moving, column, dq)
+        step = 0.0
+        for r in range(n):
+            step = max(step, abs(dq[r]))
+        if step < tol:
+            e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
+                                           n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 0, val, A, bias)
+            if e_node >= 0:
+                return MEASURE_ERROR, it, np.inf, e_node, e_kind
+            res = _residual(val, f, angle, Phi) if m > 0 else 0.0
+            if res < max(tol * 10.0, 1e-9):
+                return OK, it, res, -1, 0
+    e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
+                                   n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 0, val, A, bias)
+    if e_node >= 0:
+        return MEASURE_ERROR, max_iter, np.inf, e_node, e_kind
+    res = _residual(val, f, angle, Phi)
+    return NOT_CONVERGED, max_iter, res, -1, 0
+
+
+@njit(cache=True)
+def determinate_rates(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows, n_node_rows,
+                      p_WB, R_WB, w_BB, v_WB, column, moving, df, ddf, v, vdot):
+    """Φ_q̂ v = ν = ḟ (Eq. 2), sets the state's velocities, then Φ_q̂ v̇ = γ = f̈ − b
+    (Eq. 3), one LU factorisation for both. v, vdot (n,) outputs. Returns (status,
+    failing node, error code)."""
+    m = out_rows.shape[0]
+    n = 6 * moving.shape[0]
+    val = np.empty(m)
+    A = np.empty((m, n))
+    bias = np.empty(m)
+    piv = np.empty(n, np.int64)
+    e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
+                                   n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 1, val, A, bias)
+    if e_node >= 0:
+        return MEASURE_ERROR, e_node, e_kind
+    if not lu_factor(A, piv):
+        return SINGULAR, -1, 0
+    for r in range(n):
+        v[r] = df[r]
+    lu_solve(A, piv, v)
+    set_velocities(v, column, moving, v_WB, w_BB)
+    A2 = np.empty((m, n))
+    e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
+                                   n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 2, val, A2, bias)
+    if e_node >= 0:
+        return MEASURE_ERROR, e_node, e_kind
+    for r in range(n):
+        vdot[r] = ddf[r] - bias[r]
+    lu_solve(A, piv, vdot)
+    return OK, -1, 0
+
+
+@njit(cache=True)
+def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows, n_node_rows,
+                       p_WB, quat_WB, R_WB, w_BB, v_WB, column, moving, f, angle,
+                       marker_body, p_BM, w, x, tol_step, tol_constraint, max_iter, K, lam):
+    """Gauss–Newton SQP of marker tracking (Eqs. 4–5) from the state (in place).
+
+    marker_body (nm,), p_BM (nm, 3) m; w (3 nm,) row weights; x (3 nm,) m measured
+    positions (0 where w = 0); K (n + m, n + m) output, the last KKT matrix (reused by
+    Eqs. 8–10); lam (m,) output multipliers. Converged when max |Δq̂| < tol_step and
+    max |Φ| ≤ tol_constraint at the start of that step. Returns (status, iterations,
+    max |Φ|, last step, failing node, error code)."""
+    m = out_rows.shape[0]
+    n = 6 * moving.shape[0]
+    val = np.empty(m)
+    A = np.empty((m, n))
+    bias = np.empty(m)
+    Phi = np.empty(m)
+    step = np.inf
+    res = np.inf
+    for it in range(1, max_iter + 1):
+        p, J, _ = marker_positions_jacobian(p_WB, R_WB, w_BB, column, marker_body, p_BM, n, 1)
+        e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
+                                       n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 1, val, A, bias)
+        if e_node >= 0:
+            return MEASURE_ERROR, it, np.inf, step, e_node, e_kind
+        _residual(val, f, angle, Phi)
+        sol, step, res = kkt_step(J, w, p, x, A, Phi, K)
+        for r in range(n):
+            if not np.isfinite(sol[r]):
+                return SINGULAR, it, np.nan, step, -1, 0
+        for r in range(m):
+            lam[r] = sol[n + r]
+        displace_poses(p_WB, quat_WB, R_WB, moving, column, sol[:n].copy())
+        if step < tol_step and res <= tol_constraint:
+            return OK, it, res, step, -1, 0
+    return NOT_CONVERGED, max_iter, res, step, -1, 0
+
+
+@njit(cache=True)
+def tracking_rates(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows, n_node_rows,
+                   p_WB, R_WB, w_BB, v_WB, column, moving, df, ddf, marker_body, p_BM, w,
+                   target_v, target_a, K, v, vdot):
+    """Velocities (Eqs. 8–9) and accelerations (Eq. 10) with the KKT matrix K (n + m,
+    n + m) of the position solve: K [v; ·] = [Ψ_q̂ᵀ W (ẋ + δ̇); ν], sets the state's
+    velocities, then K [v̇; ·] = [Ψ_q̂ᵀ W (ẍ + δ̈ − b_Ψ); γ]. target_v, target_a (3 nm,)
+    (0 where occluded). Returns (status, failing node, error code)."""
+    m = out_rows.shape[0]
+    n = 6 * moving.shape[0]
+    rows = marker_body.shape[0] * 3
+    val = np.empty(m)
+    A = np.empty((m, n))
+    bias = np.empty(m)
+    piv = np.empty(n + m, np.int64)
+    LU = K.copy()
+    if not lu_factor(LU, piv):
+        return SINGULAR, -1, 0
+    _, J, _ = marker_positions_jacobian(p_WB, R_WB, w_BB, column, marker_body, p_BM, n, 1)
+    rhs = np.zeros(n + m)
+    for c in range(n):
+        s = 0.0
+        for k in range(rows):
+            s += J[k, c] * w[k] * target_v[k]
+        rhs[c] = s
+    for r in range(m):
+        rhs[n + r] = df[r]
+    lu_solve(LU, piv, rhs)
+    for c in range(n):
+        v[c] = rhs[c]
+    set_velocities(v, column, moving, v_WB, w_BB)
+    _, _, b_m = marker_positions_jacobian(p_WB, R_WB, w_BB, column, marker_body, p_BM, n, 2)
+    e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
+                                   n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 2, val, A, bias)
+    if e_node >= 0:
+        return MEASURE_ERROR, e_node, e_kind
+    for c in range(n):
+        s = 0.0
+        for k in range(rows):
+            if w[k] != 0.0:
+                s += J[k, c] * w[k] * (target_a[k] - b_m[k])
+        rhs[c] = s
+    for r in range(m):
+        rhs[n + r] = ddf[r] - bias[r]
+    lu_solve(LU, piv, rhs)
+    for c in range(n):
+        vdot[c] = rhs[c]
+    return OK, -1, 0

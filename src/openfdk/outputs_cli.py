@@ -1,0 +1,106 @@
+"""Command-line pieces for a run's outputs: figures, OpenSim files.
+
+    openfdk plot RESULT_DIR [--out DIR] [--measures NAME ...]   PNG figures of a run
+    openfdk export-opensim RESULT_DIR --out DIR [--model M]     .osim + .mot (+ meshes)
+    openfdk run ... [--no-plots]                                 STO twins and figures after a run
+
+Kept apart from :mod:`openfdk.cli` so that the main parser only registers them.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+
+def _cmd_plot(args):
+    from .runplots import make_figures, save_figures
+    from .runresults import read_results
+
+    results = read_results(args.result_dir)
+    if args.model:
+        from .model.modelfile import load_model
+
+        results._model = load_model(args.model)
+    out = Path(args.out) if args.out else Path(args.result_dir) / "plots"
+    paths = save_figures(make_figures(results, measures=args.measures), out)
+    print(f"plot: {len(paths)} figures -> {out}/ ({', '.join(p.name for p in paths)})")
+    return 0
+
+
+def _cmd_export_opensim(args):
+    from .io.osim import export_opensim
+
+    model = None
+    if args.model:
+        from .model.modelfile import load_model
+
+        model = load_model(args.model)
+    res = export_opensim(args.result_dir, args.out, model=model)
+    print(f"export-opensim: {res['osim']} and {res['mot']} ({res['frames']} frames"
+          + (f", {len(res['skipped_frames'])} failed frames left out" if res["skipped_frames"] else "")
+          + (f", {len(res['geometry'])} meshes in {Path(args.out) / 'Geometry'}" if res["geometry"] else "") + ")")
+    return 0
+
+
+def add_output_parsers(sub):
+    """Register ``plot`` and ``export-opensim`` on the main parser's subparsers."""
+    p = sub.add_parser("plot", help="PNG figures of a run (kinematics, FDK, muscles, contact, reactions, convergence)")
+    p.add_argument("result_dir", help="output folder of openfdk run / kinematics")
+    p.add_argument("--out", default=None, help="figure folder (default RESULT_DIR/plots)")
+    p.add_argument("--measures", nargs="*", default=None,
+                   help="model measures to plot (default: the model's first named measures; none: --measures)")
+    p.add_argument("--model", default=None, help="model file (default: the one recorded in summary.json)")
+    p.set_defaults(func=_cmd_plot)
+
+    e = sub.add_parser("export-opensim", help="an OpenSim .osim model (free joints, meshes, markers) and a .mot "
+                                              "motion of a run")
+    e.add_argument("result_dir", help="output folder of openfdk run / kinematics")
+    e.add_argument("--out", required=True, help="folder for the .osim, .mot and Geometry/")
+    e.add_argument("--model", default=None, help="model file (default: the one recorded in summary.json)")
+    e.set_defaults(func=_cmd_export_opensim)
+
+
+def add_run_output_arguments(p):
+    """``--no-plots`` for ``openfdk run``."""
+    p.add_argument("--no-plots", action="store_true", help="do not write the figures (RESULT_DIR/plots/*.png)")
+
+
+def record_model_file(out_dir, model_path):
+    """Add the model file's absolute path to summary.json (``input.model_file``), so
+    that ``plot`` and ``export-opensim`` find the model from any folder."""
+    path = Path(out_dir) / "summary.json"
+    if not path.is_file() or not model_path:
+        return
+    from .io.results import write_json
+
+    summary = json.loads(path.read_text())
+    summary.setdefault("input", {})["model_file"] = str(Path(model_path).resolve())
+    write_json(path, summary)
+
+
+def after_run(args, plots=True):
+    """After ``openfdk run``/``kinematics`` wrote its CSV files: record the model file,
+    write the ``.sto`` twins and (unless ``--no-plots``) the figures. A figure that
+    cannot be drawn is reported on stderr; the run's results stay."""
+    from .io.storage import csv_to_sto
+
+    out = Path(args.out)
+    record_model_file(out, args.model)
+    written = [p for p in (csv_to_sto(out / name) for name in ("kinematics.csv", "forces.csv", "measures.csv")
+                           if (out / name).is_file()) if p is not None]
+    quiet = getattr(args, "quiet", False)
+    if written and not quiet:
+        print(f"  OpenSim storage: {', '.join(str(p) for p in written)}")
+    if not plots or getattr(args, "no_plots", False):
+        return
+    try:
+        from .runplots import write_plots
+
+        paths = write_plots(out)
+    except Exception as exc:  # the analysis results are written; report and go on
+        print(f"openfdk: warning: figures not written: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return
+    if not quiet:
+        print(f"  figures: {len(paths)} PNG files -> {out / 'plots'}/")

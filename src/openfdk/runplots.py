@@ -1,0 +1,376 @@
+"""Figures of any run (``openfdk plot RESULT_DIR``, and at the end of ``openfdk run``).
+
+One PNG per topic, each only when the run has something to show:
+
+* ``kinematics.png`` — every body's centre-of-mass position (mm) and orientation
+  (body-fixed x-y-z Cardan angles of R_WB, deg), both relative to the world frame W;
+* ``fdk_dofs.png`` — FDK DOF values α and residual forces f^FDK (paper Eqs. 14–17);
+* ``measures.png`` — chosen kinematic measures evaluated on the tracked poses;
+* ``muscles.png`` — muscle forces (N) and activations f/s;
+* ``ligaments.png`` — ligament and spring forces;
+* ``contact.png`` — contact force (world components and magnitude), centre of pressure
+  (world) and contact area;
+* ``reactions.png`` — joint and constraint reactions, grouped by unit;
+* ``convergence.png`` — per-frame iterations and residuals of each stage.
+
+Failed frames are shaded red in every figure (and marked × in the convergence figure).
+Every axis names its quantity, unit and frame; each figure's caption states the sign
+conventions (docs/outputs.md has the full reference).  Figures are plain matplotlib
+``Figure`` objects, not registered with pyplot: no display or backend is needed.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .runresults import conjugate_unit, measure_unit
+
+__all__ = ["make_figures", "save_figures", "write_plots", "DISPLAY"]
+
+#: measure kind -> (display factor from SI, display unit)
+DISPLAY = {"length": (1e3, "mm"), "angle": (180.0 / np.pi, "deg"), "1": (1.0, "–")}
+MAX_LEGEND = 12
+MAX_DEFAULT_MEASURES = 6
+TIME_LABEL = "time (s)"
+
+
+def _figure(n_rows, title, width=11.0, row_height=2.3):
+    """A stand-alone matplotlib Figure (not registered with pyplot: no backend is chosen
+    and nothing stays open; a notebook still displays it) with n_rows shared-x axes."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, 0.9 + row_height * n_rows))
+    axes = list(fig.subplots(n_rows, 1, sharex=True, squeeze=False)[:, 0])
+    fig.suptitle(title, fontsize=11)
+    axes[-1].set_xlabel(TIME_LABEL)
+    for ax in axes[:-1]:
+        ax.set_xlabel(TIME_LABEL)
+        ax.xaxis.label.set_visible(False)
+    return fig, axes
+
+
+def _finish(fig, axes, t, failed, caption):
+    """Shade failed frames, add the caption, lay out."""
+    if len(t) > 1 and failed.any():
+        half = 0.5 * float(np.min(np.diff(t)))
+        for ax in axes:
+            for i in np.flatnonzero(failed):
+                ax.axvspan(t[i] - half, t[i] + half, color="red", alpha=0.15, lw=0)
+    for ax in axes:
+        ax.grid(True, lw=0.3, alpha=0.5)
+        if ax.get_legend_handles_labels()[0]:
+            handles, labels = ax.get_legend_handles_labels()
+            ax.legend(handles[:MAX_LEGEND], labels[:MAX_LEGEND], loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                      fontsize=7, borderaxespad=0.0)
+    text = caption + (" Red bands: failed frames." if failed.any() else "")
+    n_lines = 1 + len(text) // 150
+    fig.text(0.01, 0.005, text, fontsize=7, wrap=True, va="bottom")
+    # laid out when drawn (saved or shown), not now: a figure is drawn once
+    from matplotlib.layout_engine import ConstrainedLayoutEngine
+
+    bottom = 0.025 * n_lines + 0.01                      # room for the caption
+    fig.set_layout_engine(ConstrainedLayoutEngine(rect=(0.0, bottom, 1.0, 1.0 - bottom)))  # (x, y, w, h)
+    return fig
+
+
+def _failed(results):
+    failed = results.kinematics["converged"].to_numpy() == 0
+    if results.forces is not None:
+        failed = failed | (results.forces["converged"].to_numpy() == 0)
+    return failed
+
+
+def _col(df, name):
+    return df[name].to_numpy(dtype=float)
+
+
+# ---------------------------------------------------------------------------- figures
+def _kinematics(results, t, failed):
+    from .spatial import rotation_matrix, xyz_angles_from_matrix
+
+    bodies = results.bodies()
+    fig, axes = _figure(2 * len(bodies), f"{_name(results)}: body poses")
+    k = results.kinematics
+    for b, name in enumerate(bodies):
+        ax_p, ax_r = axes[2 * b], axes[2 * b + 1]
+        for c in "xyz":
+            ax_p.plot(t, 1e3 * _col(k, f"{name}.{c}_m"), label=c)
+        quat = np.column_stack([_col(k, f"{name}.e{j}") for j in range(4)])
+        angles = np.full((len(t), 3), np.nan)
+        for i, q in enumerate(quat):
+            if np.all(np.isfinite(q)):
+                angles[i] = xyz_angles_from_matrix(rotation_matrix(q / np.linalg.norm(q)))
+        missing = ~np.isfinite(angles)
+        angles = np.degrees(np.unwrap(np.where(missing, 0.0, angles), axis=0))
+        angles[missing] = np.nan
+        for j, c in enumerate(("about x", "about y'", "about z''")):
+            ax_r.plot(t, angles[:, j], label=c)
+        ax_p.set_ylabel(f"{name} COM\nposition (mm, world W)", fontsize=8)
+        ax_r.set_ylabel(f"{name} orientation\nx-y-z angles (deg, W)", fontsize=8)
+    caption = ("Centre-of-mass position r_WB in the world frame W. Orientation: body-fixed x-y'-z'' Cardan angles "
+               "of R_WB = Rx Ry Rz (right-hand rule, positive counter-clockwise), unwrapped over time.")
+    return _finish(fig, axes, t, failed, caption)
+
+
+def _measure_kinds(results):
+    """Measure kinds (length / angle / 1) from the model when available: (FDK DOF name ->
+    kind, constraint row name -> kind); empty dicts without the model."""
+    model = results.model()
+    dofs, rows = {}, {}
+    if model is not None:
+        for d in model.fdk_dofs:
+            dofs[d.name] = d.measure.units[0] if d.measure.units else "1"
+        for c in model.constraints:
+            for r, row in enumerate(c.row_names):
+                rows[row] = c.measure.units[r] if r < len(c.measure.units) else "1"
+    return dofs, rows
+
+
+def _fdk(results, t, failed):
+    dofs = results.fdk_dofs()
+    kinds = _measure_kinds(results)[0]
+    f = results.forces
+    groups = {}
+    for d in dofs:
+        groups.setdefault(kinds.get(d, "?"), []).append(d)
+    fig, axes = _figure(2 * len(groups), f"{_name(results)}: FDK degrees of freedom")
+    for g, (kind, names) in enumerate(groups.items()):
+        factor, unit = DISPLAY.get(kind, (1.0, "SI: m or rad"))
+        force_unit = conjugate_unit(kind) if kind != "?" else "N or N·m"
+        for d in names:
+            axes[2 * g].plot(t, factor * _col(f, f"fdk.{d}.alpha"), label=d)
+            axes[2 * g + 1].plot(t, _col(f, f"fdk.{d}.residual"), label=d)
+        axes[2 * g].set_ylabel(f"FDK DOF α\n({unit}, measure frame)", fontsize=8)
+        axes[2 * g + 1].set_ylabel(f"residual f^FDK\n({force_unit}, along α)", fontsize=8)
+    caption = ("α: value of each FDK DOF's measure (its frame is the measure's: e.g. a plane distance is positive "
+               "on the side of the plane normal). f^FDK: residual generalized force the FDK DOF must carry to hold α "
+               "(Φ^FDK_qᵀ f^FDK acts on the bodies): positive when the other loads push α to smaller values; a "
+               "converged frame has |f^FDK| below the force tolerance.")
+    return _finish(fig, axes, t, failed, caption)
+
+
+def default_measures(names):
+    """Measures plotted when none are chosen, from the measure names of a run: the model
+    file's own measures first (names without a dot), then the joints' measures
+    (``joint.angle``…), at most MAX_DEFAULT_MEASURES."""
+    names = list(names)
+    return ([n for n in names if "." not in n] + [n for n in names if "." in n])[:MAX_DEFAULT_MEASURES]
+
+
+_KIND_OF_SUFFIX = {"m": "length", "rad": "angle", "1": "1"}
+
+
+def measure_series(results, name):
+    """Components of measure ``name`` in the run's measures table (measures.csv):
+    list of (label, kind, (n_frames,) SI values); [] when the run has no such measure."""
+    table = results.measures
+    if table is None:
+        return []
+    out = []
+    for col in table.columns:
+        base, _, suffix = col.rpartition("_")
+        if base == name or (base.startswith(name + "[") and base.endswith("]")):
+            out.append((base[len(name):] or name, _KIND_OF_SUFFIX.get(suffix, "1"), _col(table, col)))
+    return out
+
+
+def _measures(results, t, failed, chosen):
+    series = {name: measure_series(results, name) for name in chosen}
+    unknown = [n for n, s in series.items() if not s]
+    if unknown:
+        raise ValueError(f"unknown measure(s) {unknown}; the run's measures are {results.measure_names()}")
+    model = results.model()
+    fig, axes = _figure(len(chosen), f"{_name(results)}: kinematic measures")
+    for ax, name in zip(axes, chosen):
+        kinds = []
+        for label, kind, values in series[name]:
+            ax.plot(t, DISPLAY.get(kind, (1.0, ""))[0] * values, label=label)
+            kinds += [kind] if kind not in kinds else []
+        units = ", ".join(DISPLAY.get(kd, (1, kd))[1] for kd in kinds)
+        frame = _measure_frame(model.measures[name]) if model is not None and name in model.measures else "measure"
+        ax.set_ylabel(f"{name}\n({units}, {frame})", fontsize=8)
+    caption = ("Named measures of the model (measures.csv) on the solved poses; [j] is component j. Vectors "
+               "point from their first to their second point; angles are x-y'-z'' Cardan angles of the second frame "
+               "relative to the first.")
+    return _finish(fig, axes, t, failed, caption)
+
+
+def _measure_frame(m):
+    frame = getattr(m, "frame", None)
+    if type(m).__name__ == "RelativeVector":
+        return "world W" if frame is None else "body frame"
+    if type(m).__name__ == "PointPosition":
+        return "world W"
+    if type(m).__name__ == "RelativeAngles":
+        return "relative"
+    return "scalar"
+
+
+def _muscles(results, t, failed):
+    f = results.forces
+    names = results.muscles()
+    peak = {n: np.nanmax(np.abs(_col(f, f"{n}.force_N")), initial=0.0) for n in names}
+    order = sorted(names, key=lambda n: -peak[n])
+    fig, axes = _figure(2, f"{_name(results)}: muscles ({len(names)}; legend: the {min(len(names), MAX_LEGEND)} "
+                           f"strongest)")
+    for n in order:
+        axes[0].plot(t, _col(f, f"{n}.force_N"), lw=1, label=n)
+        axes[1].plot(t, _col(f, f"{n}.activation"), lw=1, label=f"_{n}")  # same colours: one legend
+    axes[0].set_ylabel("muscle force (N,\ntension along path)", fontsize=8)
+    axes[1].set_ylabel("activation f/s (–)", fontsize=8)
+    caption = ("Muscle force: tension (≥ 0) along the muscle path, from the recruitment. Activation: force divided by "
+               "the current strength s (Hill model at the current length and speed); the passive force is applied "
+               "separately (forces.csv, <muscle>.passive_N).")
+    return _finish(fig, axes, t, failed, caption)
+
+
+def _ligaments(results, t, failed):
+    f = results.forces
+    ligs, springs = results.ligaments(), results.springs()
+    fig, axes = _figure(len([x for x in (ligs, springs) if x]) + (1 if ligs else 0),
+                        f"{_name(results)}: ligaments and springs")
+    i = 0
+    if ligs:
+        for n in ligs:
+            axes[0].plot(t, _col(f, f"{n}.force_N"), label=n)
+            axes[1].plot(t, _col(f, f"{n}.strain"), label=n)
+        axes[0].set_ylabel("ligament force\n(N, tension)", fontsize=8)
+        axes[1].set_ylabel("ligament strain\n(l − l0)/l0 (–)", fontsize=8)
+        i = 2
+    if springs:
+        for n in springs:
+            axes[i].plot(t, _col(f, f"{n}.force"), label=n)
+        axes[i].set_ylabel("spring force\n(N or N·m, along measure)", fontsize=8)
+    caption = ("Ligament force: tension ≥ 0 along the ligament path (Blankevoort 1991, zero when slack, strain < 0). "
+               "Spring force f = −k (m − m_rest): generalized force along its measure, N for a length, N·m for an "
+               "angle, positive when it pushes the measure to larger values.")
+    return _finish(fig, axes, t, failed, caption)
+
+
+def _contact(results, t, failed):
+    f = results.forces
+    names = results.contacts()
+    fig, axes = _figure(3, f"{_name(results)}: contact")
+    for n in names:
+        F = np.column_stack([_col(f, f"{n}.F{c}_N") for c in "xyz"])
+        for j, c in enumerate("xyz"):
+            axes[0].plot(t, F[:, j], lw=1, label=f"{n} F{c}")
+        axes[0].plot(t, np.linalg.norm(F, axis=1), "k" if len(names) == 1 else "-", lw=1.6, label=f"{n} |F|")
+        for c in "xyz":
+            axes[1].plot(t, 1e3 * _col(f, f"{n}.cop_{c}_m"), lw=1, label=f"{n} {c}")
+        axes[2].plot(t, 1e6 * _col(f, f"{n}.area_m2"), lw=1, label=n)
+    axes[0].set_ylabel("contact force\n(N, world W)", fontsize=8)
+    axes[1].set_ylabel("centre of pressure\n(mm, world W)", fontsize=8)
+    axes[2].set_ylabel("contact area (mm²)", fontsize=8)
+    caption = ("Contact force: resultant elastic-foundation force on the body carrying the contact's 'vertices' "
+               "surface, world components (the opposite body receives −F). Centre of pressure: pressure-weighted "
+               "mean of the contact points, world frame, undefined (gap) without contact.")
+    return _finish(fig, axes, t, failed, caption)
+
+
+def _reactions(results, t, failed):
+    f = results.forces
+    names = results.reactions()
+    kinds = _measure_kinds(results)[1]
+    groups = {}
+    for n in names:
+        groups.setdefault(conjugate_unit(kinds[n]) if n in kinds else "N or N·m", []).append(n)
+    fig, axes = _figure(len(groups), f"{_name(results)}: joint and constraint reactions")
+    for ax, (unit, rows) in zip(axes, groups.items()):
+        for n in rows:
+            ax.plot(t, _col(f, f"{n}.reaction"), lw=1, label=n)
+        what = "force" if unit == "N" else "moment" if unit == "N·m" else "reaction"
+        ax.set_ylabel(f"reaction {what}\n({unit}, constraint frame)", fontsize=8)
+    caption = ("Reaction λ of each constraint row: the load Φ_qᵀλ acts on the bodies. For a joint's x/y/z rows "
+               "(child origin − parent origin, in the parent joint frame) λ is the force on the child body along "
+               "that axis of the parent frame, −λ on the parent; rotational rows are moments (N·m).")
+    return _finish(fig, axes, t, failed, caption)
+
+
+def _convergence(results, t, failed):
+    k, f = results.kinematics, results.forces
+    fdk = results.fdk
+    rows = 2 + (f is not None) + (fdk is not None)
+    fig, axes = _figure(rows, f"{_name(results)}: per-frame convergence")
+    axes[0].plot(t, _col(k, "iterations"), ".-", lw=0.8, label="kinematics")
+    axes[0].set_ylabel("kinematics\niterations (–)", fontsize=8)
+    viol = np.abs(_col(k, "constraint_violation"))
+    axes[1].semilogy(t, np.where(viol > 0, viol, np.nan), ".-", lw=0.8, label="max |Φ|")
+    axes[1].set_ylabel("constraint\nviolation (m or rad)", fontsize=8)
+    i = 2
+    if f is not None:
+        axes[i].plot(t, _col(f, "recruitment_iterations"), ".-", lw=0.8, label="recruitment")
+        axes[i].set_ylabel("recruitment\niterations (–)", fontsize=8)
+        i += 1
+    if fdk is not None:
+        axes[i].plot(t, _col(fdk, "fdk_iterations"), ".-", lw=0.8, label="FDK Newton iterations")
+        axes[i].plot(t, _col(fdk, "fdk_evaluations"), ".-", lw=0.8, label="FDK residual evaluations")
+        res = np.nanmax(np.abs(np.column_stack([_col(fdk, c) for c in fdk.columns if c.endswith(".residual")])),
+                        axis=1)
+        ax2 = axes[i].twinx()
+        ax2.set_xlabel(TIME_LABEL)
+        ax2.semilogy(t, np.where(res > 0, res, np.nan), "k:", lw=0.8)
+        ax2.set_ylabel("max |f^FDK|\n(N or N·m, dotted)", fontsize=8)
+        axes[i].set_ylabel("FDK iterations,\nevaluations (–)", fontsize=8)
+    bad = np.flatnonzero(failed)
+    if bad.size:
+        axes[0].plot(t[bad], _col(k, "iterations")[bad], "rx", ms=7, label="failed frame")
+    caption = ("Iterations per frame of each stage; constraint violation max |Φ| after the position solve; FDK: Newton "
+               "iterations, residual evaluations and the final max |f^FDK| (dotted, right axis).")
+    return _finish(fig, axes, t, failed, caption)
+
+
+def _name(results):
+    return results.summary.get("kinematics", {}).get("model") or "run"
+
+
+# ---------------------------------------------------------------------------- API
+def make_figures(results, measures=None) -> dict:
+    """Figures of a run (a :class:`~openfdk.runresults.RunResults`): dict name ->
+    matplotlib Figure, one per topic the run has data for (see the module docstring).
+
+    measures: names of the run's measures to plot (measures.csv; default:
+    :func:`default_measures`; an empty list plots none)."""
+    t = results.time
+    failed = _failed(results)
+    figs = {"kinematics": _kinematics(results, t, failed)}
+    if results.fdk_dofs():
+        figs["fdk_dofs"] = _fdk(results, t, failed)
+    if measures is None:
+        measures = default_measures(results.measure_names())
+    if measures:
+        figs["measures"] = _measures(results, t, failed, list(measures))
+    if results.muscles():
+        figs["muscles"] = _muscles(results, t, failed)
+    if results.ligaments() or results.springs():
+        figs["ligaments"] = _ligaments(results, t, failed)
+    if results.contacts():
+        figs["contact"] = _contact(results, t, failed)
+    if results.reactions():
+        figs["reactions"] = _reactions(results, t, failed)
+    figs["convergence"] = _convergence(results, t, failed)
+    return figs
+
+
+def save_figures(figures: dict, directory, dpi=110) -> list[Path]:
+    """Write each figure as ``<name>.png`` into ``directory`` (created)."""
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for name, fig in figures.items():
+        paths.append(d / f"{name}.png")
+        fig.savefig(paths[-1], dpi=dpi)
+    return paths
+
+
+def write_plots(result_dir, out_dir=None, measures=None) -> list[Path]:
+    """Read a result folder and write its figures (default into ``RESULT_DIR/plots``)."""
+    from .runresults import read_results
+
+    results = read_results(result_dir)
+    return save_figures(make_figures(results, measures), out_dir or Path(result_dir) / "plots")
+
+
+__all__ += ["default_measures", "measure_series", "measure_unit"]

@@ -1,0 +1,267 @@
+"""The results of one run as pandas tables: built in memory from an analysis, or read
+back from a result folder (``kinematics.csv``, ``forces.csv``, ``summary.json``).
+
+:class:`RunResults` is what :func:`openfdk.run` and :func:`openfdk.read_results` return
+(docs/python-api.md); the figures (:mod:`openfdk.runplots`) and the OpenSim export
+(:mod:`openfdk.io.osim`) read it too.  Column meanings: docs/outputs.md.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["RunResults", "read_results", "conjugate_unit", "measure_unit"]
+
+KINEMATICS_CSV, FORCES_CSV, MEASURES_CSV, SUMMARY_JSON = "kinematics.csv", "forces.csv", "measures.csv", "summary.json"
+#: per-frame text columns
+TEXT_COLUMNS = ("message", "status", "fdk_reason")
+_SI = {"length": "m", "angle": "rad", "1": "1"}
+_CONJUGATE = {"length": "N", "angle": "N·m", "1": "N·m"}
+
+
+def measure_unit(kind: str) -> str:
+    """SI unit of a measure component of kind "length" / "angle" / "1"."""
+    return _SI.get(kind, kind)
+
+
+def conjugate_unit(kind: str) -> str:
+    """Unit of the generalized force conjugate to a measure component (work / measure):
+    N for a length, N·m for an angle or a dimensionless measure (axis dot product)."""
+    return _CONJUGATE.get(kind, "N or N·m")
+
+
+def _frame(columns: dict):
+    """DataFrame indexed by ``time`` (s) from a column dict (name -> (nf,) values)."""
+    import pandas as pd
+
+    df = pd.DataFrame({k: (list(v) if k in TEXT_COLUMNS else np.asarray(v)) for k, v in columns.items()})
+    return df.set_index("time")
+
+
+def _read_csv(path):
+    import pandas as pd
+
+    df = pd.read_csv(path, keep_default_na=False, na_values=["nan", "NaN"],
+                     dtype={k: str for k in TEXT_COLUMNS})
+    if df.columns[0] != "time":
+        raise ValueError(f"{path}: the first column must be 'time', got {df.columns[0]!r}")
+    return df.set_index("time")
+
+
+class RunResults:
+    """One run: kinematics, forces, FDK and convergence, as pandas DataFrames.
+
+    Attributes:
+        kinematics: DataFrame indexed by time (s), the columns of kinematics.csv.
+        forces: DataFrame indexed by time (s), the columns of forces.csv (None for a
+            kinematics-only run).
+        measures: DataFrame indexed by time (s), the model's named measures per frame
+            (measures.csv: ``name_unit`` / ``name[k]_unit``, SI), None if it has none.
+        summary: dict, the content of summary.json.
+        directory: the folder the run was saved to or read from (None if not saved).
+    """
+
+    def __init__(self, kinematics, forces, summary: dict, model=None, directory=None, measures=None):
+        self.kinematics = kinematics
+        self.forces = forces
+        self.measures = measures
+        self.summary = summary
+        self._model = model
+        self.directory = None if directory is None else Path(directory)
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_analysis(cls, kin, dyn, info: dict, model=None):
+        """From a KinematicsResult, an InverseDynamicsResult (or None) and the job info
+        (as returned by :func:`openfdk.jobs.run_job`)."""
+        from .io.results import forces_columns, kinematics_columns
+
+        info = dict(info)
+        fdk = info.pop("fdk", None)
+        summary = {"input": info, "kinematics": kin.summary()}
+        if dyn is not None:
+            summary["inverse_dynamics"] = dyn.summary()
+        if fdk is not None:
+            summary["fdk"] = fdk
+        forces = None if dyn is None else _frame(forces_columns(dyn))
+        measures = None
+        if model is not None and model.measures:
+            from .io.measure_outputs import measure_columns
+
+            measures = _frame(measure_columns(model, kin))
+        return cls(_frame(kinematics_columns(kin)), forces, summary, model, measures=measures)
+
+    @classmethod
+    def read(cls, directory):
+        """Read a result folder written by ``openfdk run``/``kinematics`` or :meth:`save`."""
+        d = Path(directory)
+        if not (d / KINEMATICS_CSV).is_file():
+            raise FileNotFoundError(f"{d}: no {KINEMATICS_CSV}; is this an openfdk result folder?")
+        summary = json.loads((d / SUMMARY_JSON).read_text()) if (d / SUMMARY_JSON).is_file() else {}
+        forces = _read_csv(d / FORCES_CSV) if (d / FORCES_CSV).is_file() else None
+        measures = _read_csv(d / MEASURES_CSV) if (d / MEASURES_CSV).is_file() else None
+        return cls(_read_csv(d / KINEMATICS_CSV), forces, summary, None, d, measures)
+
+    def save(self, directory, sto: bool = True):
+        """Write kinematics.csv, forces.csv, measures.csv, summary.json (and the ``.sto``
+        twins of the tables unless ``sto=False``) into ``directory`` (created). Returns
+        the folder."""
+        from .io.results import write_json, write_table
+        from .io.storage import csv_to_sto
+
+        d = Path(directory)
+        d.mkdir(parents=True, exist_ok=True)
+        for name, df in ((KINEMATICS_CSV, self.kinematics), (FORCES_CSV, self.forces),
+                         (MEASURES_CSV, self.measures)):
+            if df is None:
+                continue
+            cols = {"time": df.index.to_numpy()}
+            cols.update({k: (list(df[k]) if k in TEXT_COLUMNS else df[k].to_numpy()) for k in df.columns})
+            write_table(d / name, cols)
+            if sto:
+                csv_to_sto(d / name)
+        write_json(d / SUMMARY_JSON, self.summary)
+        self.directory = d
+        return d
+
+    # ------------------------------------------------------------------ views
+    @property
+    def time(self) -> np.ndarray:
+        """``(n_frames,) s``."""
+        return self.kinematics.index.to_numpy()
+
+    @property
+    def fdk(self):
+        """DataFrame of the FDK columns of forces.csv (α, residual per DOF, per-frame
+        convergence), indexed by time; None when the model has no FDK DOFs."""
+        if self.forces is None:
+            return None
+        cols = [c for c in self.forces.columns
+                if (c.startswith("fdk.") and not c.endswith(".reaction")) or c.startswith("fdk_")]
+        return self.forces[cols] if cols else None
+
+    @property
+    def failed_frames(self):
+        """DataFrame of every frame that failed at any stage: columns ``frame``,
+        ``time`` (s), ``stage`` (kinematics / inverse_dynamics / fdk) and ``reason``."""
+        import pandas as pd
+
+        rows = []
+        k = self.kinematics
+        for i in np.flatnonzero(k["converged"].to_numpy() == 0):
+            rows.append((int(i), float(k.index[i]), "kinematics", str(k["message"].iloc[i])))
+        if self.forces is not None:
+            f = self.forces
+            kin_failed = set(int(r[0]) for r in rows)
+            for i in np.flatnonzero(f["converged"].to_numpy() == 0):
+                if int(i) in kin_failed:
+                    continue
+                status = str(f["status"].iloc[i])
+                stage = "fdk" if status.startswith("fdk") else "inverse_dynamics"
+                rows.append((int(i), float(f.index[i]), stage, str(f["message"].iloc[i]) or status))
+        return pd.DataFrame(sorted(rows), columns=["frame", "time", "stage", "reason"])
+
+    # ------------------------------------------------------------------ column groups
+    def bodies(self) -> list[str]:
+        """Names of the bodies whose pose is in kinematics.csv."""
+        return [c[:-4] for c in self.kinematics.columns if c.endswith(".x_m")]
+
+    def measure_names(self) -> list[str]:
+        """Names of the measures in measures.csv (``gap_l``, ``knee.angle``, …)."""
+        if self.measures is None:
+            return []
+        names = [c.rpartition("_")[0].split("[")[0] for c in self.measures.columns]
+        return list(dict.fromkeys(names))
+
+    def markers(self) -> list[str]:
+        return [c[: -len(".residual_x_m")] for c in self.kinematics.columns if c.endswith(".residual_x_m")]
+
+    def _force_names(self, suffix, exclude_prefix=None) -> list[str]:
+        if self.forces is None:
+            return []
+        out = [c[: -len(suffix)] for c in self.forces.columns if c.endswith(suffix)]
+        return [n for n in out if not (exclude_prefix and n.startswith(exclude_prefix))]
+
+    def muscles(self) -> list[str]:
+        return self._force_names(".activation")
+
+    def ligaments(self) -> list[str]:
+        return self._force_names(".strain")
+
+    def springs(self) -> list[str]:
+        return self._force_names(".force")
+
+    def contacts(self) -> list[str]:
+        return self._force_names(".Fx_N")
+
+    def reactions(self) -> list[str]:
+        """Joint/constraint reaction rows (FDK residual columns excluded)."""
+        return self._force_names(".reaction", exclude_prefix="fdk.")
+
+    def fdk_dofs(self) -> list[str]:
+        return [n[4:] for n in self._force_names(".alpha") if n.startswith("fdk.")]
+
+    # ------------------------------------------------------------------ the model
+    def model(self):
+        """The analysed model: the one in memory, or loaded from the model file named in
+        summary.json (``input.model_file``, else ``input.model`` relative to the current
+        folder or to the result folder). None when it cannot be found."""
+        if self._model is None:
+            self._model = self._load_model()
+        return self._model
+
+    def model_path(self):
+        """Path of the model file recorded in summary.json, if it exists."""
+        inp = self.summary.get("input", {})
+        candidates = []
+        for key in ("model_file", "model"):
+            if inp.get(key):
+                p = Path(inp[key])
+                candidates += [p] + ([self.directory / p, self.directory.parent / p] if self.directory else [])
+        return next((p for p in candidates if p.is_file()), None)
+
+    def _load_model(self):
+        from .model.modelfile import load_model
+
+        path = self.model_path()
+        return load_model(path) if path is not None else None
+
+    # ------------------------------------------------------------------ outputs
+    def plot(self, directory=None, measures=None):
+        """The run's figures (:func:`openfdk.runplots.make_figures`): a dict name ->
+        matplotlib Figure. With ``directory``, also written there as PNG files."""
+        from .runplots import make_figures, save_figures
+
+        figures = make_figures(self, measures=measures)
+        if directory is not None:
+            save_figures(figures, directory)
+        return figures
+
+    def view(self, out_html=None):
+        """Write the 3D viewer of this run (``openfdk view``) and return its path. An
+        unsaved run is first saved to a temporary folder."""
+        try:
+            from .viewer import write_view
+        except ImportError as exc:
+            raise ImportError("the 3D viewer (openfdk.viewer) is not installed in this openfdk; "
+                              f"update openfdk to use .view() ({exc})") from None
+        if self.directory is None:
+            import tempfile
+
+            self.save(tempfile.mkdtemp(prefix="openfdk-run-"))
+        out_html = Path(out_html) if out_html else self.directory / "view.html"
+        write_view(self.directory, out_html, model=self._model)
+        return out_html
+
+    def __repr__(self):
+        s = self.summary.get("kinematics", {})
+        return (f"RunResults({s.get('model', '?')!r}: {len(self.kinematics)} frames, "
+                f"{len(self.failed_frames)} failed, folder={str(self.directory) if self.directory else None})")
+
+
+def read_results(directory) -> RunResults:
+    """Load a saved run (``openfdk run --out DIR`` or :meth:`RunResults.save`)."""
+    return RunResults.read(directory)

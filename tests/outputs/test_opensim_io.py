@@ -1,0 +1,343 @@
+"""OpenSim interoperability: TRC trials read like C3D, STO/MOT files round-trip through
+an independent parser written here from the format description, and the exported
+.osim + .mot reproduce the model and the run's body poses."""
+
+import csv
+import json
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+import yaml
+
+from openfdk.cli import main
+from openfdk.io.c3d import read_c3d, write_c3d
+from openfdk.io.trc import TRCError, read_trc
+from openfdk.io.trials import read_trial
+from openfdk.synthetic import synthetic_markers, two_body_model_dict
+
+
+# ------------------------------------------------------------------ an independent TRC writer
+def write_trc_opensim_layout(path, labels, positions_mm, rate, first_frame=1, units="mm", short_rows=()):
+    """TRC as OpenSim documents it: 3 header lines, marker names over their x column
+    followed by two empty cells, X1 Y1 Z1 labels, a blank line, then frame, time, x y z.
+    Missing samples are empty cells; rows in ``short_rows`` stop after their last
+    present marker (trailing markers missing)."""
+    n_frames, n_markers, _ = positions_mm.shape
+    lines = [f"PathFileType\t4\t(X/Y/Z)\t{path.name}",
+             "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\tOrigDataStartFrame\tOrigNumFrames",
+             f"{rate:g}\t{rate:g}\t{n_frames}\t{n_markers}\t{units}\t{rate:g}\t{first_frame}\t{n_frames}",
+             "Frame#\tTime\t" + "\t".join(f"{lab}\t\t" for lab in labels),
+             "\t\t" + "\t".join(f"X{i + 1}\tY{i + 1}\tZ{i + 1}" for i in range(n_markers)),
+             ""]
+    for k in range(n_frames):
+        f = first_frame + k
+        cells = [str(f), repr((f - first_frame) / rate)]
+        for m in range(n_markers):
+            p = positions_mm[k, m]
+            cells += ["", "", ""] if np.any(np.isnan(p)) else [repr(float(v)) for v in p]
+        if k in short_rows:
+            while cells and cells[-1] == "":
+                cells.pop()
+        lines.append("\t".join(cells))
+    path.write_text("\n".join(lines) + "\n")
+
+
+@pytest.fixture
+def marker_data():
+    t, labels, x, truth = synthetic_markers(60, rate=100.0, noise=0.0)
+    x = x.copy()
+    x[10:15, 2] = np.nan          # a gap in the middle
+    x[40:, 7] = np.nan            # the last marker lost at the end: short rows
+    x[0, 0] = np.nan              # the first sample of the first marker
+    return t, labels, x
+
+
+def test_trc_reads_to_the_same_trial_as_c3d_including_gaps(marker_data, tmp_path):
+    t, labels, x = marker_data
+    write_c3d(tmp_path / "trial.c3d", labels, x, 100.0, units="mm")
+    write_trc_opensim_layout(tmp_path / "trial.trc", labels, x * 1e3, 100.0, short_rows=range(40, 60))
+    # the short rows really are short (trailing markers absent)
+    assert len((tmp_path / "trial.trc").read_text().splitlines()[6 + 45].split("\t")) == 2 + 3 * 7
+    c3d, trc = read_c3d(tmp_path / "trial.c3d"), read_trc(tmp_path / "trial.trc")
+    assert trc.labels == c3d.labels == tuple(labels)
+    assert trc.rate == c3d.rate == 100.0
+    np.testing.assert_allclose(trc.time, c3d.time, atol=1e-12)
+    np.testing.assert_array_equal(np.isnan(trc.positions), np.isnan(c3d.positions))
+    assert np.isnan(trc.positions).any(axis=2).sum() == 5 + 20 + 1
+    # C3D stores float32 mm: 0.1 m is held to ~1e-8 m
+    np.testing.assert_allclose(trc.positions, c3d.positions, atol=2e-8, rtol=0)
+    np.testing.assert_allclose(trc.positions, x, atol=1e-15, rtol=1e-13)
+    assert isinstance(read_trial(tmp_path / "trial.trc"), type(c3d))
+
+
+def test_trc_units_and_start_frame_come_from_the_header(marker_data, tmp_path):
+    t, labels, x = marker_data
+    write_trc_opensim_layout(tmp_path / "m.trc", labels, x, 50.0, first_frame=11, units="m")
+    trial = read_trc(tmp_path / "m.trc")
+    assert trial.rate == 50.0
+    np.testing.assert_allclose(trial.time, np.arange(60) / 50.0)
+    np.testing.assert_allclose(trial.positions, x, rtol=1e-15)
+
+
+def test_kinematics_from_trc_equals_kinematics_from_c3d(marker_data, tmp_path):
+    t, labels, x = marker_data
+    (tmp_path / "two_body.yaml").write_text(yaml.safe_dump(two_body_model_dict()))
+    write_c3d(tmp_path / "trial.c3d", labels, x, 100.0, units="mm")
+    write_trc_opensim_layout(tmp_path / "trial.trc", labels, x * 1e3, 100.0)
+    for ext in ("c3d", "trc"):
+        assert main(["kinematics", str(tmp_path / "two_body.yaml"), str(tmp_path / f"trial.{ext}"), "--out",
+                     str(tmp_path / ext), "--no-progress", "--end", "0.3"]) == 0
+    a, b = _csv_numeric(tmp_path / "c3d" / "kinematics.csv"), _csv_numeric(tmp_path / "trc" / "kinematics.csv")
+    assert list(a) == list(b) and len(b["time"]) == 31
+    assert np.ptp(b["jaw.x_m"]) > 5e-4  # the jaw moved (0.9 mm)
+    poses = [c for c in b if c.endswith(("_m", ".e0", ".e1", ".e2", ".e3")) and not c.endswith("_m_s")]
+    assert len(poses) == 2 * 7 + 8 * 3
+    for c in poses:  # C3D's float32 storage: 1e-8 m per marker coordinate
+        np.testing.assert_allclose(a[c], b[c], atol=1e-7, err_msg=c)
+    assert json.loads((tmp_path / "trc" / "summary.json").read_text())["input"]["trial"].endswith("trial.trc")
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("Something else\n" * 6, "line 1 must start with 'PathFileType'"),
+    ("PathFileType\t4\t(X/Y/Z)\tx.trc\nDataRate\tNumMarkers\tUnits\n100\t1\tinch\nFrame#\tTime\tA\t\t\n\t\tX1\tY1\tZ1\n",
+     "Units is 'inch'"),
+    ("PathFileType\t4\t(X/Y/Z)\tx.trc\nDataRate\tNumMarkers\tUnits\n100\t2\tmm\nFrame#\tTime\tA\t\t\n\t\tX1\tY1\tZ1\n",
+     "line 4 names 1 markers, NumMarkers on line 3 says 2"),
+    ("PathFileType\t4\t(X/Y/Z)\tx.trc\nDataRate\tNumMarkers\tUnits\n100\t1\tmm\nFrame#\tTime\tA\t\t\n\t\tX1\tY1\tZ1\n"
+     "\n1\t0\t1\t2\tabc\n", "line 7: column 5 is 'abc'"),
+])
+def test_bad_trc_is_reported_with_file_and_line(tmp_path, capsys, text, expected):
+    bad = tmp_path / "bad.trc"
+    bad.write_text(text)
+    with pytest.raises(TRCError, match="bad.trc"):
+        read_trc(bad)
+    (tmp_path / "m.yaml").write_text(yaml.safe_dump(two_body_model_dict()))
+    assert main(["kinematics", str(tmp_path / "m.yaml"), str(bad), "--out", str(tmp_path / "o"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "bad.trc" in err and expected in err
+
+
+def test_unknown_trial_extension_is_named(tmp_path, capsys):
+    (tmp_path / "m.yaml").write_text(yaml.safe_dump(two_body_model_dict()))
+    (tmp_path / "trial.xyz").write_text("1 2 3\n")
+    assert main(["kinematics", str(tmp_path / "m.yaml"), str(tmp_path / "trial.xyz"), "--out", str(tmp_path / "o"),
+                 "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "trial.xyz" in err and ".c3d, .trc" in err
+
+
+# ------------------------------------------------------------------ an independent STO/MOT parser
+def parse_storage(path):
+    """OpenSim storage file (documentation: name line, key=value lines, endheader, a
+    tab-separated label line, numeric rows). Returns (name, fields, comments, labels,
+    values (n_rows, n_columns))."""
+    lines = path.read_text().split("\n")
+    end = lines.index("endheader")
+    name, fields, comments = lines[0], {}, []
+    for line in lines[1:end]:
+        key, eq, value = line.partition("=")
+        if eq and " " not in key:
+            fields[key] = value
+        else:
+            comments.append(line)
+    labels = lines[end + 1].split("\t")
+    rows = [[float(v) for v in line.split("\t")] for line in lines[end + 2:] if line != ""]
+    return name, fields, comments, labels, np.array(rows)
+
+
+def _csv_numeric(path):
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    out = {}
+    for j, label in enumerate(rows[0]):
+        try:
+            out[label] = np.array([float(r[j]) for r in rows[1:]])
+        except ValueError:
+            pass
+    return out
+
+
+def test_sto_files_round_trip_exactly(slider_run):
+    out, _ = slider_run
+    for table in ("kinematics", "forces"):
+        csv_cols = _csv_numeric(out / f"{table}.csv")
+        name, fields, comments, labels, values = parse_storage(out / f"{table}.sto")
+        assert name == table
+        assert fields == {"version": "1", "nRows": "101", "nColumns": str(len(csv_cols)), "inDegrees": "no"}
+        assert labels == list(csv_cols)  # numeric columns, CSV order, time first
+        assert values.shape == (101, len(labels))
+        for j, label in enumerate(labels):
+            np.testing.assert_array_equal(values[:, j], csv_cols[label], err_msg=label)
+    _, _, comments, _, _ = parse_storage(out / "forces.sto")
+    assert any("Text columns not stored: status, message" in c for c in comments)
+
+
+def test_write_storage_nan_and_header(tmp_path):
+    from openfdk.io.storage import write_storage
+
+    t = np.array([0.0, 0.1, 0.2])
+    write_storage(tmp_path / "a.mot", t, {"q1": [1.0, np.nan, 1 / 3], "q2": [1e-300, -2.5, 7.0]}, name="coords",
+                  in_degrees=True, comments=["hello"])
+    name, fields, comments, labels, values = parse_storage(tmp_path / "a.mot")
+    assert (name, fields["inDegrees"], fields["nRows"], fields["nColumns"], comments) == ("coords", "yes", "3", "3",
+                                                                                          ["hello"])
+    assert labels == ["time", "q1", "q2"]
+    np.testing.assert_array_equal(values, [[0.0, 1.0, 1e-300], [0.1, np.nan, -2.5], [0.2, 1 / 3, 7.0]])
+    with pytest.raises(ValueError, match="tab"):
+        write_storage(tmp_path / "b.sto", t, {"a\tb": t})
+
+
+# ------------------------------------------------------------------ the .osim export
+def _Rx(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def _Ry(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def _Rz(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+def _quat_matrix(e):
+    """Rotation matrix of a unit quaternion (scalar first), Euler–Rodrigues."""
+    e0, e1, e2, e3 = np.asarray(e) / np.linalg.norm(e)
+    return np.array([
+        [1 - 2 * (e2 * e2 + e3 * e3), 2 * (e1 * e2 - e0 * e3), 2 * (e1 * e3 + e0 * e2)],
+        [2 * (e1 * e2 + e0 * e3), 1 - 2 * (e1 * e1 + e3 * e3), 2 * (e2 * e3 - e0 * e1)],
+        [2 * (e1 * e3 - e0 * e2), 2 * (e2 * e3 + e0 * e1), 1 - 2 * (e1 * e1 + e2 * e2)]])
+
+
+def _floats(el, tag):
+    return np.array([float(v) for v in el.find(tag).text.split()])
+
+
+def check_export(result_dir, model, out):
+    """The .osim and .mot of a run against the model and kinematics.csv."""
+    assert main(["export-opensim", str(result_dir), "--out", str(out)]) == 0
+    osim = next(out.glob("*.osim"))
+    root = ET.parse(osim).getroot()  # well-formed XML
+    assert root.tag == "OpenSimDocument" and root.get("Version") == "40000"
+    m = root.find("Model")
+    moving = [b for b in model.bodies[1:]]
+    bodies = {b.get("name"): b for b in m.find("BodySet/objects")}
+    assert list(bodies) == [b.name for b in moving]
+    joints = list(m.find("JointSet/objects"))
+    assert [j.tag for j in joints] == ["FreeJoint"] * len(moving)
+    for b, j in zip(moving, joints):
+        el = bodies[b.name]
+        assert float(el.find("mass").text) == b.mass
+        np.testing.assert_array_equal(_floats(el, "mass_center"), 0.0)
+        J = b.inertia_B
+        np.testing.assert_array_equal(_floats(el, "inertia"), [J[0, 0], J[1, 1], J[2, 2], J[0, 1], J[0, 2], J[1, 2]])
+        assert j.find("socket_parent_frame").text == "/ground"
+        assert j.find("socket_child_frame").text == f"/bodyset/{b.name}"
+        assert [c.get("name") for c in j.find("coordinates")] == [f"{b.name}_{s}" for s in
+                                                                   ("rx", "ry", "rz", "tx", "ty", "tz")]
+    markers = list(m.find("MarkerSet/objects"))
+    assert [mk.get("name") for mk in markers] == list(model.markers.labels)
+    for j, mk in enumerate(markers):
+        body = model.bodies[model.markers.body[j]].name
+        assert mk.find("socket_parent_frame").text == f"/bodyset/{body}"
+        np.testing.assert_array_equal(_floats(mk, "location"), model.markers.p_BM[j])
+    # geometry: every contact surface as a mesh on its body, vertices in the body frame
+    meshes = {g.get("name"): (g.find("mesh_file").text, body.get("name"))
+              for body in m.iter() if body.tag in ("Body", "Ground") for g in body.iter("Mesh")}
+    contacts = model.elements.get("contacts", ())
+    assert len(meshes) == 2 * len(contacts)
+    for c in contacts:
+        for side, bi, surf in (("vertices", c.body_a, c.pair.surface_A), ("surface", c.body_b, c.pair.surface_B)):
+            fname, owner = meshes[f"{c.name}_{side}"]
+            assert owner == (model.bodies[bi].name if bi else "ground")
+            lines = (out / fname).read_text().splitlines()
+            v = np.array([[float(x) for x in ln.split()[1:]] for ln in lines if ln.startswith("v ")])
+            f = np.array([[int(x) - 1 for x in ln.split()[1:]] for ln in lines if ln.startswith("f ")])
+            np.testing.assert_array_equal(v, surf.vertices_B)
+            np.testing.assert_array_equal(f, surf.faces)
+    # the motion: applying the coordinates as OpenSim's FreeJoint does gives the poses
+    name, fields, comments, labels, values = parse_storage(next(out.glob("*.mot")))
+    assert fields["inDegrees"] == "no"
+    kin = _csv_numeric(result_dir / "kinematics.csv")
+    np.testing.assert_array_equal(values[:, 0], kin["time"])
+    col = {lab: values[:, i] for i, lab in enumerate(labels)}
+    n_checked = 0
+    for b in moving:
+        for i in range(len(values)):
+            rx, ry, rz, tx, ty, tz = (col[f"{b.name}_{s}"][i] for s in ("rx", "ry", "rz", "tx", "ty", "tz"))
+            R = _Rx(rx) @ _Ry(ry) @ _Rz(rz)
+            R_ref = _quat_matrix([kin[f"{b.name}.e{k}"][i] for k in range(4)])
+            np.testing.assert_allclose(R, R_ref, atol=1e-12)
+            assert (tx, ty, tz) == tuple(kin[f"{b.name}.{c}_m"][i] for c in "xyz")
+            n_checked += 1
+    assert n_checked == len(moving) * len(values)
+    return col
+
+
+def test_export_opensim_slider_crank_reproduces_the_poses(slider_run, tmp_path):
+    from openfdk.model.modelfile import load_model
+
+    out, model_path = slider_run
+    col = check_export(out, load_model(model_path), tmp_path / "osim")
+    # the crank turns once: rz is unwrapped (continuous) through 2π
+    rz = col["crank_rz"]
+    assert np.max(np.abs(np.diff(rz))) < 0.1 and np.ptp(rz) > 6.0
+
+
+def test_export_opensim_mandible_model_with_meshes_and_markers(mandible_run, tmp_path):
+    from openfdk.model.modelfile import load_model
+
+    out, model_path = mandible_run
+    model = load_model(model_path)
+    assert len(model.elements["contacts"]) == 2 and model.markers.size == 8
+    check_export(out, model, tmp_path / "osim")
+
+
+def test_export_without_a_model_file_is_one_line(slider_run, tmp_path, capsys):
+    import shutil
+
+    out, _ = slider_run
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    summary = json.loads((copy / "summary.json").read_text())
+    summary["input"] = {"model": "nowhere.yaml"}
+    (copy / "summary.json").write_text(json.dumps(summary))
+    assert main(["export-opensim", str(copy), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "summary.json" in err and "--model" in err
+
+
+def test_export_includes_visual_meshes_in_the_body_frame(slider_run, tmp_path):
+    """A `visual:` mesh (STL in mm, placed 10 mm along x and turned 90° about z on the
+    crank) is exported as OBJ vertices v_B = Rz(90°)·(v_file/1000) + (0.01, 0, 0) m with
+    its colour."""
+    import trimesh
+
+    out, model_path = slider_run
+    data = yaml.safe_load(model_path.read_text())
+    sphere = trimesh.creation.icosphere(subdivisions=2, radius=8.0)
+    sphere.apply_translation([3.0, -2.0, 1.0])
+    sphere.export(tmp_path / "crank.stl")
+    data["bodies"]["crank"]["visual"] = {"mesh": "crank.stl", "units": "mm", "color": "#ff8000",
+                                         "placement": {"position": [10, 0, 0], "orientation": [0, 0, 90]}}
+    (tmp_path / "slider.yaml").write_text(yaml.safe_dump(data))
+    assert main(["export-opensim", str(out), "--out", str(tmp_path / "osim"), "--model",
+                 str(tmp_path / "slider.yaml")]) == 0
+    root = ET.parse(next((tmp_path / "osim").glob("*.osim"))).getroot()
+    crank = [b for b in root.iter("Body") if b.get("name") == "crank"][0]
+    mesh = crank.find("attached_geometry/Mesh")
+    assert mesh.find("mesh_file").text == "Geometry/crank_visual_0.obj"
+    np.testing.assert_allclose([float(c) for c in mesh.find("Appearance/color").text.split()], [1.0, 128 / 255, 0.0],
+                               atol=1e-6)
+    lines = (tmp_path / "osim" / "Geometry" / "crank_visual_0.obj").read_text().splitlines()
+    v = np.array([[float(x) for x in ln.split()[1:]] for ln in lines if ln.startswith("v ")])
+    stl = trimesh.load(tmp_path / "crank.stl", force="mesh", process=False)
+    assert len(v) == len(stl.vertices) or len(v) == len(np.unique(stl.vertices.round(6), axis=0))
+    expected = stl.vertices / 1000.0 @ _Rz(np.pi / 2).T + [0.01, 0.0, 0.0]
+    # same point set (loaders may merge or reorder duplicated STL vertices)
+    d = np.linalg.norm(v[:, None, :] - expected[None, :, :], axis=2)
+    assert d.min(axis=1).max() < 1e-9 and d.min(axis=0).max() < 1e-9
