@@ -119,3 +119,19 @@ def test_c3d_numeric_parameter_stored_as_text_is_refused_not_a_crash(tmp_path):
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert "bad.c3d: parameter FORCE_PLATFORM:CHANNEL must hold numbers" in proc.stdout
+
+
+def test_trc_header_counts_nan_or_infinite_are_refused(bases, tmp_path):
+    """Found by the fuzz suite: NumMarkers / NumFrames of NaN or inf raised ValueError /
+    OverflowError from int(); now TRCError naming the file, the line and the field."""
+    from openfdk.io.trc import TRCError, read_trc
+
+    lines = bases.texts["trc"].split("\n")
+    for field, value in ((3, "NaN"), (2, "inf"), (3, "2.5")):   # NumMarkers, NumFrames, NumMarkers
+        cells = lines[2].split("\t")
+        cells[field] = value
+        path = tmp_path / "h.trc"
+        path.write_text("\n".join(lines[:2] + ["\t".join(cells)] + lines[3:]))
+        name = ("NumFrames", "NumMarkers")[field == 3]
+        with pytest.raises(TRCError, match=rf"h\.trc: line 3: {name} is '{value}', expected a whole number"):
+            read_trc(path)

@@ -11,7 +11,10 @@ names the file):
 - ``study``: a study file -> :func:`openfdk.study.spec.load_study` raises
   :class:`~openfdk.study.spec.StudyError` (a case's model is checked while loading);
 - ``c3d``: a C3D trial -> :func:`openfdk.io.c3d.read_c3d` raises
-  :class:`~openfdk.io.c3d.C3DError`.
+  :class:`~openfdk.io.c3d.C3DError`;
+- ``trc``: a TRC trial -> :func:`openfdk.io.trc.read_trc` raises
+  :class:`~openfdk.io.trc.TRCError` (text mutations, as for YAML files, plus numbers
+  replaced).
 
 Mutations of YAML files act on the parsed tree (a value replaced by one of another type
 or magnitude, scaled by 1000 or 1/1000 as a unit mistake would, negated, a key deleted,
@@ -32,7 +35,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-KINDS = ("model", "subject", "study", "c3d")
+KINDS = ("model", "subject", "study", "c3d", "trc")
 
 _VALUES = (None, True, False, 0, -1, 1, 2, 5, 1.5, -2.5, 1e300, -1e300, 1e-300, float("nan"), float("inf"),
            "", "abc", "1e3", "m", "mm", "deg", [], {}, [1, 2], [0, 0, 0], [1, 2, 3, 4], [[1, 2, 3]], {"a": 1},
@@ -108,8 +111,42 @@ class Bases:
             write_c3d(self.paths["c3d"], labels, x, 100.0, units="mm")
             self.c3d_bytes = self.paths["c3d"].read_bytes()
 
+        if "trc" in kinds:
+            self.texts["trc"] = _trc_text()
+            self.paths["trc"] = self.dir / "trial.trc"
+
     def close(self):
         shutil.rmtree(self.dir, ignore_errors=True)
+
+
+def _trc_text():
+    """A valid TRC file (tab separated, mm) of the synthetic two-body trial, 20 frames,
+    with a gap of one marker."""
+    from ..synthetic import synthetic_markers
+
+    t, labels, x, _ = synthetic_markers(20, rate=100.0, noise=1e-4, gap=(2, 5, 8))
+    head = ["PathFileType\t4\t(X/Y/Z)\ttrial.trc",
+            "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\tOrigDataStartFrame\tOrigNumFrames",
+            f"100\t100\t{len(t)}\t{len(labels)}\tmm\t100\t1\t{len(t)}",
+            "Frame#\tTime\t" + "\t".join(f"{lab}\t\t" for lab in labels),
+            "\t\t" + "\t".join(f"X{k + 1}\tY{k + 1}\tZ{k + 1}" for k in range(len(labels))), ""]
+    rows = [f"{k + 1}\t{t[k]:.4f}\t" + "\t".join("" if not np.isfinite(v) else f"{1e3 * v:.4f}" for v in x[k].ravel())
+            for k in range(len(t))]
+    return "\n".join(head + rows) + "\n"
+
+
+def mutate_text(text, rng):
+    """A mutated copy of a text table: 1–3 line/character mutations or a number replaced
+    by an edge value (NaN, inf, huge, negative, text)."""
+    for _ in range(int(rng.integers(1, 4))):
+        cells = text.split("\t")
+        if rng.random() < 0.4 and len(cells) > 1:
+            i = int(rng.integers(len(cells)))
+            cells[i] = str(rng.choice(["NaN", "inf", "-1", "0", "1e308", "abc", "", "1e-320", "mm", "m", "7"]))
+            text = "\t".join(cells)
+        else:
+            text = _text_mutation(text, rng)
+    return text
 
 
 # -- mutations ------------------------------------------------------------------------
@@ -256,6 +293,10 @@ def documented_error(kind):
         from ..study.spec import StudyError
 
         return StudyError
+    if kind == "trc":
+        from ..io.trc import TRCError
+
+        return TRCError
     from ..io.c3d import C3DError
 
     return C3DError
@@ -274,6 +315,10 @@ def _load(kind, path):
         from ..study.spec import load_study
 
         return load_study(path)
+    if kind == "trc":
+        from ..io.trc import read_trc
+
+        return read_trc(path)
     from ..io.c3d import read_c3d
 
     return read_c3d(path)
@@ -297,6 +342,8 @@ def fuzz(kind, n, seed=0, bases=None, time_limit=None):
                 break
             if kind == "c3d":
                 target.write_bytes(mutate_bytes(bases.c3d_bytes, rng))
+            elif kind == "trc":
+                target.write_text(mutate_text(bases.texts[kind], rng), encoding="utf-8")
             else:
                 target.write_text(mutate_yaml(bases.texts[kind], rng), encoding="utf-8")
             counts["inputs"] += 1
@@ -329,7 +376,8 @@ def reproduce(kind, seed, index, bases):
     rng = np.random.default_rng(seed)
     out = None
     for _ in range(index + 1):
-        out = mutate_bytes(bases.c3d_bytes, rng) if kind == "c3d" else mutate_yaml(bases.texts[kind], rng)
+        out = (mutate_bytes(bases.c3d_bytes, rng) if kind == "c3d" else mutate_text(bases.texts[kind], rng)
+               if kind == "trc" else mutate_yaml(bases.texts[kind], rng))
     return out
 
 
