@@ -230,7 +230,7 @@ def test_missing_folder_and_subject_yaml(tmp_path):
 def test_garbage_yaml(subject_dir, tmp_path):
     folder = _copy(subject_dir, tmp_path)
     (folder / "subject.yaml").write_text("landmarks: [1, 2\n  muscles: {{{\n")
-    with pytest.raises(SubjectError, match=r"subject\.yaml: not valid YAML"):
+    with pytest.raises(SubjectError, match=r"subject\.yaml: malformed YAML"):
         load_subject(folder)
     (folder / "subject.yaml").write_text("- just\n- a list\n")
     with pytest.raises(SubjectError, match="expected a mapping"):

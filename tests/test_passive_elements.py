@@ -55,6 +55,18 @@ springs:
 """
 
 
+#: drivers holding the block at its reference pose (with reactions), 3 frames
+HELD = """
+measures:
+  where: {type: point, point: block.origin}
+  how: {type: angles, frame: ground.origin, of: block.origin}
+drivers:
+  hold_position: {measure: where, function: {type: constant, value: [0, 0, 4.9]}, reaction: true}
+  hold_angles: {measure: how, function: {type: constant, value: [0, 0, 0]}, reaction: true}
+analysis: {start: 0, end: 0.1, frames: 3}
+"""
+
+
 @pytest.fixture
 def block_model(tmp_path):
     _write_patch(tmp_path / "bottom.stl", 10.0, 0.5)   # 10 mm × 10 mm face, normals flipped down by the placement
@@ -129,15 +141,7 @@ def test_contact_outputs_in_forces_csv(tmp_path):
 
     _write_patch(tmp_path / "bottom.stl", 10.0, 0.5)
     _write_patch(tmp_path / "floor.stl", 40.0, 1.0)
-    text = textwrap.dedent(MODEL) + textwrap.dedent("""
-    measures:
-      where: {type: point, point: block.origin}
-      how: {type: angles, frame: ground.origin, of: block.origin}
-    drivers:
-      hold_position: {measure: where, function: {type: constant, value: [0, 0, 4.9]}, reaction: true}
-      hold_angles: {measure: how, function: {type: constant, value: [0, 0, 0]}, reaction: true}
-    analysis: {start: 0, end: 0.1, frames: 3}
-    """)
+    text = textwrap.dedent(MODEL) + textwrap.dedent(HELD)
     text = text.replace("springs:\n  level:", "springs_unused:\n  level:").replace("springs_unused:", "springs:")
     (tmp_path / "held.yaml").write_text(text)
     out = tmp_path / "out"

@@ -13,15 +13,29 @@
     openfdk subject study DIR [--out OUT] [--cycles N|all]   the mandible study on a subject folder
     openfdk bench [--quick] [--json]                    benchmarks
 
-Bad input ends with exit code 2 and a one-line reason on stderr.
+Exit codes: 0 success (every frame converged, or at most ``--max-failed`` of them
+failed); 2 bad input (a one-line reason on stderr naming the file and the entry);
+3 the run completed but more frames failed than ``--max-failed`` (a one-line summary
+on stderr with the most common failure reason); 130 interrupted (Ctrl-C).
+Warnings are one line each (``openfdk: warning: ...``); numpy's floating-point and
+empty-slice warnings never reach the console.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 import time
+import warnings
+from collections import Counter
+
+from . import argtypes
+
+#: exit codes (README "Exit codes")
+EXIT_OK, EXIT_BAD_INPUT, EXIT_FAILED_FRAMES, EXIT_INTERRUPTED = 0, 2, 3, 130
+DEFAULT_MAX_FAILED = 0.01
 
 
 class UserError(Exception):
@@ -34,7 +48,7 @@ def _cmd_check(args):
 
     model = load_model(args.model)
     report = check_model(model)
-    print("\n".join(report.lines))
+    _say(args, "\n".join(report.lines))
     if not report.ok:
         # the model cannot run: one line per problem, the first one as the exit message
         for extra in report.errors[1:]:
@@ -58,29 +72,79 @@ def _cmd_cache(args):
     return 0
 
 
+def _say(args, text):
+    """An informational line on stdout, unless --quiet."""
+    if not getattr(args, "quiet", False):
+        print(text)
+
+
+def _check_window(args):
+    if args.start is not None and args.end is not None and args.start > args.end:
+        raise UserError(f"--start ({args.start:g} s) is after --end ({args.end:g} s)")
+
+
+def _prepare_out(args):
+    """Output folder checked before any computation (writable; results only with --force)."""
+    from .io.outdir import check_output_dir
+
+    check_output_dir(args.out, force=args.force, resume=getattr(args, "resume", False))
+
+
+def _reason(status, message):
+    """A failure reason without frame numbers and times, for counting."""
+    text = re.sub(r"^frame \d+ \(t = [^)]*\):\s*", "", str(message or ""))
+    text = re.sub(r"kinematics failed:\s*frame \d+ \(t = [^)]*\):\s*", "kinematics failed: ", text)
+    text = re.sub(r"[-+]?\d+(\.\d+)?(e[-+]?\d+)?", "#", text)
+    text = text.split(";")[0].strip()
+    return f"{status}: {text}" if status and text else (status or text or "unknown")
+
+
+def failed_frames_exit(converged, statuses, messages, max_failed, what="frames"):
+    """Exit code of a completed run: 0 when the failed fraction of frames is at most
+    ``max_failed``, else 3 with a one-line summary on stderr naming the most common
+    failure reason and its count."""
+    import numpy as np
+
+    converged = np.asarray(converged, dtype=bool)
+    n, failed = len(converged), np.flatnonzero(~converged)
+    if n == 0 or len(failed) <= max_failed * n:
+        return EXIT_OK
+    reasons = Counter(_reason(statuses[i] if statuses is not None else "", messages[i]) for i in failed)
+    reason, count = reasons.most_common(1)[0]
+    print(f"openfdk: {len(failed)} of {n} {what} failed ({100 * len(failed) / n:.1f} % > --max-failed "
+          f"{100 * max_failed:g} %); most common reason ({count} frames): {reason}", file=sys.stderr)
+    return EXIT_FAILED_FRAMES
+
+
 def _cmd_kinematics(args):
     from .io.results import write_kinematics
     from .jobs import kinematics_job
 
+    _check_window(args)
+    _prepare_out(args)
     result, info = kinematics_job(
-        args.model, args.trial, cutoff_hz=args.cutoff, progress=not args.no_progress,
+        args.model, args.trial, cutoff_hz=args.cutoff, progress=_progress_on(args),
         start=args.start, end=args.end,
     )
     write_kinematics(args.out, result, {"input": info})
     _write_measures(args.out, args.model, result)
     s = result.summary()
-    print(
-        f"kinematics: {s['converged_frames']}/{s['frames']} frames converged in {s['wall_time_s']:.2f} s "
-        f"({s['frames_per_second']:.0f} frames/s) -> {args.out}/kinematics.csv"
-    )
+    _say(args, f"kinematics: {s['converged_frames']}/{s['frames']} frames converged in {s['wall_time_s']:.2f} s "
+               f"({s['frames_per_second'] or 0:.0f} frames/s) -> {args.out}/kinematics.csv")
     from .outputs_cli import after_run
 
     after_run(args, plots=False)
-    for i, t, msg in result.failed_frames()[:10]:
+    _print_failed(args, result.failed_frames())
+    return failed_frames_exit(result.converged, None, result.messages, args.max_failed)
+
+
+def _print_failed(args, failed):
+    if getattr(args, "quiet", False):
+        return
+    for i, t, msg in failed[:10]:
         print(f"  failed: {msg}", file=sys.stderr)
-    if len(result.failed_frames()) > 10:
-        print(f"  ... and {len(result.failed_frames()) - 10} more failed frames (see summary.json)", file=sys.stderr)
-    return 0
+    if len(failed) > 10:
+        print(f"  ... and {len(failed) - 10} more failed frames (see summary.json)", file=sys.stderr)
 
 
 def _write_measures(out_dir, model_path, kinematics):
@@ -96,13 +160,15 @@ def _cmd_run(args):
         raise UserError("--resume is not available with --chunks (chunked runs write no checkpoints)")
     if args.checkpoint_frames < 1 or not args.checkpoint_seconds > 0:
         raise UserError("--checkpoint-frames must be >= 1 and --checkpoint-seconds > 0")
+    _check_window(args)
+    _prepare_out(args)
     if args.chunks > 1:
         from .study.cli import run_chunked_job
 
         kin, dyn, info = run_chunked_job(
             args.model, args.trial, args.chunks, args.out, cutoff_hz=args.cutoff, start=args.start,
             end=args.end, overlap=args.overlap, scheduler=args.scheduler, workers=args.workers,
-            progress=not args.no_progress)
+            progress=_progress_on(args))
     else:
         from .jobs import run_job
         from .study.case import write_run_outputs
@@ -110,7 +176,7 @@ def _cmd_run(args):
 
         checkpoints = _run_checkpoints(args)
         try:
-            kin, dyn, info = run_job(args.model, args.trial, cutoff_hz=args.cutoff, progress=not args.no_progress,
+            kin, dyn, info = run_job(args.model, args.trial, cutoff_hz=args.cutoff, progress=_progress_on(args),
                                      start=args.start, end=args.end, checkpoints=checkpoints, resume=args.resume)
         except TrialInterrupted as exc:
             kin, dyn, info = exc.partial
@@ -122,22 +188,25 @@ def _cmd_run(args):
         checkpoints.clear()
     _write_measures(args.out, args.model, kin)
     fdk = info.get("fdk")
-    print(
-        f"run: kinematics {int(kin.converged.sum())}/{len(kin.time)} frames, inverse dynamics "
-        f"{int(dyn.converged.sum())}/{len(dyn.time)} frames converged -> {args.out}/forces.csv"
-    )
+    _say(args,
+         f"run: kinematics {int(kin.converged.sum())}/{len(kin.time)} frames, inverse dynamics "
+         f"{int(dyn.converged.sum())}/{len(dyn.time)} frames converged -> {args.out}/forces.csv"
+         )
     if fdk is not None:
-        print(
-            f"  FDK: {fdk['converged_frames']}/{fdk['frames']} frames converged, "
-            f"{fdk['mean_residual_evaluations_per_frame']:.2f} residual evaluations per frame, "
-            f"{fdk['frames_per_second']:.0f} frames/s ({fdk['jacobian']} Jacobian)"
-        )
+        _say(args,
+             f"  FDK: {fdk['converged_frames']}/{fdk['frames']} frames converged, "
+             f"{fdk['mean_residual_evaluations_per_frame']:.2f} residual evaluations per frame, "
+             f"{fdk['frames_per_second'] or 0:.0f} frames/s ({fdk['jacobian']} Jacobian)"
+             )
     from .outputs_cli import after_run
 
     after_run(args)
-    for i, t, msg in dyn.failed_frames()[:10]:
-        print(f"  failed: {msg}", file=sys.stderr)
-    return 0
+    _print_failed(args, dyn.failed_frames())
+    return failed_frames_exit(dyn.converged, dyn.status, dyn.messages, args.max_failed)
+
+
+def _progress_on(args):
+    return not (getattr(args, "no_progress", False) or getattr(args, "quiet", False))
 
 
 def _run_checkpoints(args):
@@ -169,7 +238,7 @@ def _version():
 def _cmd_demo(args):
     from .mandible.demo import run_demo
 
-    run_demo(args.out, quick=args.quick, progress=not args.no_progress, workers=args.workers)
+    run_demo(args.out, quick=args.quick, progress=_progress_on(args), workers=args.workers)
     return 0
 
 
@@ -196,7 +265,7 @@ def _cmd_subject(args):
 
         out = args.out or f"{args.directory.rstrip('/')}-study"
         cycles = 5 if args.cycles is None else (None if args.cycles == "all" else args.cycles)
-        result = run_study(args.directory, out, n_cycles=cycles, quick=args.quick, progress=not args.no_progress,
+        result = run_study(args.directory, out, n_cycles=cycles, quick=args.quick, progress=_progress_on(args),
                            workers=args.workers, scheduler=args.scheduler,
                            parameter_study=not args.no_parameter_study)
         if result["table1"]:
@@ -260,24 +329,54 @@ def _trial_arguments(p):
     p.add_argument("model", help="model file (YAML)")
     p.add_argument("trial", nargs="?",
                    help="C3D or TRC file with the model's markers (omit for determinate kinematics)")
-    p.add_argument("--out", required=True, help="output directory")
-    p.add_argument("--cutoff", type=float, default=None,
+    p.add_argument("--out", required=True, help="output folder (checked for writability before any computation)")
+    p.add_argument("--force", action="store_true", help="overwrite the results already in the --out folder")
+    p.add_argument("--cutoff", type=argtypes.nonnegative, default=None,
                    help="marker low-pass cutoff in Hz (default: model file, else 6 Hz; 0 = no filter)")
-    p.add_argument("--start", type=float, default=None, help="first analysed time (s)")
-    p.add_argument("--end", type=float, default=None, help="last analysed time (s)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--start", type=argtypes.finite, default=None, help="first analysed time (s)")
+    p.add_argument("--end", type=argtypes.finite, default=None, help="last analysed time (s)")
+    p.add_argument("--max-failed", type=argtypes.fraction, default=DEFAULT_MAX_FAILED, metavar="FRACTION",
+                   help=f"largest fraction of failed frames that still exits with 0 (default {DEFAULT_MAX_FAILED}); "
+                        "more failed frames exit with 3")
+    _display_arguments(p)
+
+
+def _display_arguments(p, top=False):
+    """--no-progress and --quiet (on the main parser and on every subcommand)."""
+    default = False if top else argparse.SUPPRESS
+    if not top:
+        p.add_argument("--no-progress", action="store_true", help="no progress display")
+    p.add_argument("--quiet", "-q", action="store_true", default=default,
+                   help="no progress display and no informational output (warnings and errors still go to stderr)")
+
+
+def _version():
+    try:
+        from importlib.metadata import version
+
+        return version("openfdk")
+    except Exception:  # not installed as a distribution: the package's own number
+        from . import __version__
+
+        return __version__
 
 
 def build_parser():
-    p = argparse.ArgumentParser(prog="openfdk", description="Force-dependent kinematics and musculoskeletal analysis")
-    sub = p.add_subparsers(dest="command", required=True)
+    p = argparse.ArgumentParser(prog="openfdk", description="Force-dependent kinematics and musculoskeletal analysis",
+                                epilog="Exit codes: 0 success; 2 bad input; 3 more frames failed than --max-failed; "
+                                       "130 interrupted.")
+    p.add_argument("--version", action="version", version=f"openfdk {_version()}", help="print the version and exit")
+    _display_arguments(p, top=True)
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     c = sub.add_parser("check", help="validate a model file and print a summary")
-    c.add_argument("model")
+    c.add_argument("model", help="model file (YAML) to validate: errors exit with 2, plausibility warnings go to stderr")
+    _display_arguments(c)
     c.set_defaults(func=_cmd_check)
 
     ca = sub.add_parser("cache", help="the on-disk distance-grid cache: size (info) or delete it (clear)")
-    ca.add_argument("action", choices=["info", "clear"])
+    ca.add_argument("action", choices=["info", "clear"], help="info: folder, number of grids and size; clear: delete them")
+    _display_arguments(ca)
     ca.set_defaults(func=_cmd_cache)
 
     k = sub.add_parser("kinematics", help="kinematic analysis: marker tracking (with a C3D trial) or determinate")
@@ -309,8 +408,8 @@ def build_parser():
     d = sub.add_parser("demo", help="the mandible study on the virtual subject, end to end")
     d.add_argument("--out", default="openfdk-demo", help="output directory (default ./openfdk-demo)")
     d.add_argument("--quick", action="store_true", help="a reduced run (coarse meshes, 2 cycles; for tests)")
-    d.add_argument("--no-progress", action="store_true", help="no progress bar")
-    d.add_argument("--workers", type=int, default=None,
+    _display_arguments(d)
+    d.add_argument("--workers", type=argtypes.count(0), default=None,
                    help="parameter-study worker processes (default one per CPU; 0 = this process)")
     d.set_defaults(func=_cmd_demo)
 
@@ -318,7 +417,7 @@ def build_parser():
     s.add_argument("action", choices=["create", "record", "study"],
                    help="create: write a virtual subject; record: its virtual experiment; study: run the mandible "
                         "study (POP, FDK, tables, figures, parameter study) on a subject folder")
-    s.add_argument("directory")
+    s.add_argument("directory", help="subject folder (holding subject.yaml and its STL files)")
     s.add_argument("--resolution", default="default", choices=["coarse", "default", "fine"], help="mesh resolution (create)")
     s.add_argument("--asymmetric", action="store_true", help="perturb left and right shapes differently (create)")
     s.add_argument("--cycles", type=_cycles_argument, default=None,
@@ -328,38 +427,68 @@ def build_parser():
                    help="record: realistic recordings (static trial 4.6° open, slow and wide tasks, 3 open-close "
                         "cycles, extra markers, gaps, trial names declared in trials:)")
     s.add_argument("--out", default=None, help="output folder (study; default DIRECTORY-study)")
-    s.add_argument("--workers", type=int, default=None,
+    s.add_argument("--workers", type=argtypes.count(0), default=None,
                    help="parameter-study worker processes (study; default one per CPU, 0 = this process)")
     s.add_argument("--scheduler", default=None, help="address of a running Dask scheduler (study)")
     s.add_argument("--quick", action="store_true",
                    help="study: a 2-model parameter study on open-close only (as openfdk demo --quick); "
                         "record --realistic: fewer chewing and protrusion cycles")
-    s.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _display_arguments(s)
     s.add_argument("--no-parameter-study", action="store_true", help="study: skip the ligament parameter study")
-    s.add_argument("--noise", type=float, default=0.15, help="marker noise in mm (record)")
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--noise", type=argtypes.nonnegative, default=0.15, help="marker noise in mm (record)")
+    s.add_argument("--seed", type=int, default=0, help="random seed of the shapes (create) and marker noise (record)")
     s.set_defaults(func=_cmd_subject)
 
     b = sub.add_parser("bench", help="run the benchmarks")
     b.add_argument("--quick", action="store_true", help="short runs (for tests)")
     b.add_argument("--json", action="store_true", help="one JSON object per line")
     b.add_argument("--only", nargs="*", help="substrings of benchmark module names to run")
+    _display_arguments(b)
     b.set_defaults(func=_cmd_bench)
     return p
 
 
+_NUMPY_NOISE = re.compile(r"invalid value encountered|divide by zero|overflow encountered|underflow encountered|"
+                          r"All-NaN|Mean of empty slice|empty slice|Degrees of freedom|nan(arg)?(min|max)")
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """Warnings as one line, ``openfdk: warning: ...``; numpy's floating-point and
+    empty-slice warnings are dropped (failed frames are reported by the run itself)."""
+    text = str(message)
+    if issubclass(category, RuntimeWarning) and ("numpy" in filename or "scipy" in filename or _NUMPY_NOISE.search(text)):
+        return
+    text = " ".join(text.split())
+    print(f"openfdk: warning: {text}", file=sys.stderr if file is None else file)
+
+
 def main(argv=None):
+    import numpy as np
+
     args = build_parser().parse_args(argv)
+    from .progress import set_quiet
+
+    set_quiet(getattr(args, "quiet", False))
+    old_show, old_err = warnings.showwarning, np.seterr(all="ignore")
+    warnings.showwarning = _show_warning
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")
+            warnings.showwarning = _show_warning
+            return args.func(args)
     except KeyboardInterrupt:
         print("openfdk: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
     except (UserError, ValueError, FileNotFoundError, OSError) as exc:
-        # ModelError, C3DError, MissingMarkerError, KinematicsError are ValueErrors
-        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        # ModelError, SubjectError, StudyError, C3DError, MeshError, MissingMarkerError,
+        # KinematicsError and OutputDirError are ValueErrors
+        msg = " ".join(str(exc).split()) if str(exc).strip() else type(exc).__name__
         print(f"openfdk: error: {msg}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
+    finally:
+        warnings.showwarning = old_show
+        np.seterr(**old_err)
+        set_quiet(False)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -42,6 +42,7 @@ def analysis_window(model, times, start=None, end=None):
     settings = model.settings.kinematics
     start = settings.get("start") if start is None else start
     end = settings.get("end") if end is None else end
+    _check_order(start, end)
     keep = np.ones(len(times), dtype=bool)
     if start is not None:
         keep &= times >= float(start) - 1e-9
@@ -50,6 +51,46 @@ def analysis_window(model, times, start=None, end=None):
     if not keep.any():
         raise ValueError(f"no trial samples within the analysis window [{start}, {end}] s")
     return times[keep]
+
+
+def _check_order(start, end):
+    if start is not None and end is not None and float(start) > float(end):
+        raise ValueError(f"analysis window: start ({float(start):g} s) is after end ({float(end):g} s); "
+                         "give start <= end (--start/--end or the model file's analysis section)")
+
+
+def determinate_times(model, start=None, end=None):
+    """Analysis times (nf,) s of a determinate run: [start, end] (defaults: model file
+    ``analysis.start/end``, else 0 and 1 s) with ``analysis.frames`` frames (default 101)."""
+    from .kinematics.analysis import analysis_times
+
+    a = model.settings.kinematics
+    t0 = float(a.get("start", 0.0) if start is None else start)
+    t1 = float(a.get("end", 1.0) if end is None else end)
+    _check_order(t0, t1)
+    return analysis_times(t0, t1, int(a.get("frames", 101)))
+
+
+def trial_window(model, trial_path, cutoff_hz=None, start=None, end=None):
+    """The C3D trial, its filtered trajectories and the analysed times (nf,) s; warns
+    (PlausibilityWarning) about markers never visible in the window or far from the
+    model at its first frame. Returns (trial, trajectories, times, info dict)."""
+    from .model.plausibility import check_trial_markers
+
+    trial, traj = load_trajectories(model, trial_path, cutoff_hz)
+    times = analysis_window(model, np.asarray(trial.time, dtype=float), start, end)
+    check_trial_markers(model, trial, times)
+    return trial, traj, times, {"trial": _trial_label(trial), "rate_hz": trial.rate, "markers": list(trial.labels)}
+
+
+def analysis_inputs(model, trial_path=None, cutoff_hz=None, start=None, end=None):
+    """(trajectories or None, times (nf,) s, info): the trial's samples within the
+    analysis window (:func:`trial_window`), or for determinate kinematics the model
+    file's ``analysis`` start/end/frames (:func:`determinate_times`)."""
+    if trial_path is None:
+        return None, determinate_times(model, start, end), {}
+    _, traj, times, info = trial_window(model, trial_path, cutoff_hz, start, end)
+    return traj, times, info
 
 
 def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=None, end=None, alpha=None):
@@ -67,23 +108,6 @@ def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, s
     return run_tracking(model, traj, times, alpha=alpha, progress=progress), info
 
 
-def analysis_inputs(model, trial_path=None, cutoff_hz=None, start=None, end=None):
-    """(trajectories or None, times (nf,) s, info): the trial's samples within the
-    analysis window, or for determinate kinematics the model file's ``analysis``
-    start/end/frames."""
-    from .kinematics.analysis import analysis_times
-
-    if trial_path is None:
-        a = model.settings.kinematics
-        t0 = float(a.get("start", 0.0) if start is None else start)
-        t1 = float(a.get("end", 1.0) if end is None else end)
-        return None, analysis_times(t0, t1, int(a.get("frames", 101))), {}
-    trial, traj = load_trajectories(model, trial_path, cutoff_hz)
-    times = analysis_window(model, np.asarray(trial.time, dtype=float), start, end)
-    info = {"trial": _trial_label(trial), "rate_hz": trial.rate, "markers": list(trial.labels)}
-    return traj, times, info
-
-
 def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=None, end=None, checkpoints=None,
             resume=False):
     """Kinematics then inverse dynamics with muscle recruitment; when the model declares
@@ -93,6 +117,7 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
     :func:`openfdk.analysis.run.run_trial` (Ctrl-C raises TrialInterrupted whose
     ``partial`` is (kin, dyn, info) of the finished frames)."""
     from .analysis.run import run_trial
+    from .model.plausibility import warn_pulling_contacts
     from .trial import TrialInterrupted
 
     model = load_model(model_path) if not hasattr(model_path, "bodies") else model_path
@@ -111,4 +136,5 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
     except TrialInterrupted as exc:
         exc.partial = with_info(*exc.partial)
         raise
+    warn_pulling_contacts(model, kin, dyn)
     return with_info(kin, dyn, fdk)

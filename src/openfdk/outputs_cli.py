@@ -90,7 +90,8 @@ def after_run(args, plots=True):
     record_model_file(out, args.model)
     written = [p for p in (csv_to_sto(out / name) for name in ("kinematics.csv", "forces.csv", "measures.csv")
                            if (out / name).is_file()) if p is not None]
-    if written:
+    quiet = getattr(args, "quiet", False)
+    if written and not quiet:
         print(f"  OpenSim storage: {', '.join(str(p) for p in written)}")
     if not plots or getattr(args, "no_plots", False):
         return
@@ -101,4 +102,5 @@ def after_run(args, plots=True):
     except Exception as exc:  # the analysis results are written; report and go on
         print(f"openfdk: warning: figures not written: {type(exc).__name__}: {exc}", file=sys.stderr)
         return
-    print(f"  figures: {len(paths)} PNG files -> {out / 'plots'}/")
+    if not quiet:
+        print(f"  figures: {len(paths)} PNG files -> {out / 'plots'}/")

@@ -16,5 +16,6 @@ BENCHMARK_MODULES = [
     "openfdk.bench.mandible",
     "openfdk.bench.knee",
     "openfdk.bench.study",
+    "openfdk.bench.fuzz",
     "openfdk.bench.memory",
 ]

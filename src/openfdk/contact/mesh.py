@@ -239,6 +239,8 @@ def surface_mesh(vertices_B, faces, name="mesh", *, repair=True) -> SurfaceMesh:
                 stacklevel=2,
             )
             faces, normals, areas = faces[~degenerate], normals[~degenerate], areas[~degenerate]
+        faces, normals, areas = _drop_duplicate_faces(faces, normals, areas, name)
+        _warn_non_manifold(faces, name)
         used = np.zeros(vertices.shape[0], dtype=bool)
         used[faces.ravel()] = True
         if not used.all():
@@ -263,6 +265,31 @@ def surface_mesh(vertices_B, faces, name="mesh", *, repair=True) -> SurfaceMesh:
         vertex_areas=_readonly(vertex_areas),
         name=str(name),
     )
+
+
+def _drop_duplicate_faces(faces, normals, areas, name):
+    """Remove triangles on the same three vertices as an earlier one (any order), with a
+    MeshWarning giving the count; (faces, normals, areas) of the rest."""
+    key = np.sort(faces, axis=1)
+    _, first = np.unique(key, axis=0, return_index=True)
+    n_dup = faces.shape[0] - first.size
+    if n_dup == 0:
+        return faces, normals, areas
+    warnings.warn(f"mesh '{name}': {n_dup} duplicate triangle(s) (the same three vertices as another) removed",
+                  MeshWarning, stacklevel=3)
+    keep = np.sort(first)
+    return faces[keep], normals[keep], areas[keep]
+
+
+def _warn_non_manifold(faces, name):
+    """MeshWarning with the number of edges shared by more than two triangles."""
+    keys = undirected_edge_keys(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]))
+    _, counts = np.unique(keys, return_counts=True)
+    n_bad = int(np.sum(counts > 2))
+    if n_bad:
+        warnings.warn(f"mesh '{name}': {n_bad} non-manifold edge(s) shared by more than two triangles "
+                      "(a fin or a self-touching surface); contact near them is unreliable",
+                      MeshWarning, stacklevel=3)
 
 
 def _placement_transform(placement, name):
@@ -314,7 +341,7 @@ def load_mesh(path, units="m", placement=None, *, flip_normals=False, name=None)
 
     path = os.fspath(path)
     label = name or os.path.basename(path)
-    if units not in LENGTH_UNITS:
+    if not isinstance(units, str) or units not in LENGTH_UNITS:
         raise MeshError(
             f"mesh '{label}': unknown length unit {units!r}; expected one of "
             f"{sorted(LENGTH_UNITS)}"

@@ -305,6 +305,13 @@ _SCALAR_NUMERIC_PARAMETERS = (
 )
 
 
+#: parameters ezc3d interprets as numbers (any length)
+_NUMERIC_PARAMETERS = frozenset(_SCALAR_NUMERIC_PARAMETERS + (
+    "ANALOG:SCALE", "ANALOG:OFFSET", "ANALOG:BITS", "FORCE_PLATFORM:TYPE", "FORCE_PLATFORM:ZERO",
+    "FORCE_PLATFORM:CORNERS", "FORCE_PLATFORM:ORIGIN", "FORCE_PLATFORM:CHANNEL", "FORCE_PLATFORM:CAL_MATRIX",
+))
+
+
 def _is_continuation(key: str, base: str) -> bool:
     """``key`` is ``base`` or one of its continuations ``base2``, ``base3``, …"""
     return key == base or (key.startswith(base) and key[len(base):].isdigit())
@@ -400,6 +407,10 @@ def inspect_c3d(path: str | os.PathLike) -> C3DLayout:
         if (key == "POINT:UNITS" or _is_continuation(key, "POINT:LABELS")) and not isinstance(
                 value, list):
             raise C3DError(f"{name}: parameter {key} must hold text, found numbers {value!r}")
+        # ezc3d reads these as numbers whenever present: text there crashes the process
+        # (found by the fuzz suite: FORCE_PLATFORM:CHANNEL stored as characters)
+        if key in _NUMERIC_PARAMETERS and isinstance(value, list):
+            raise C3DError(f"{name}: parameter {key} must hold numbers, found text {value!r}")
 
     # the parameters describe the data too (and win where they differ, C3D User Guide);
     # where one is absent, the header value stands

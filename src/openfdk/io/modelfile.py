@@ -23,6 +23,7 @@ from ..forces.sections import (load_bushings, load_ligaments, load_loads, load_m
                                load_recruitment, load_springs, load_wrapping)
 from ..model.model import Model, ModelError
 from ..model.modelfile import build, read_core
+from ..model.plausibility import check_model
 from .yamlfile import read_yaml
 
 #: the sections read after the core ones, in this order, each by its layer's loader
@@ -45,7 +46,9 @@ def load_model(path) -> Model:
     """Read, validate and build a model file. Raises ModelError naming the entry."""
     path = Path(path)
     data = read_yaml(path, ModelError, "model file")
-    return model_from_dict(data, source=path.name, base_dir=path.parent)
+    model = model_from_dict(data, source=path.name, base_dir=path.parent)
+    check_model(model, path.name, model.settings.units["length"])  # plausibility warnings
+    return model
 
 
 def model_from_dict(data, source="<dict>", base_dir=None) -> Model:

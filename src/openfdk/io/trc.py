@@ -52,6 +52,14 @@ def _number(cell: str, name: str, line_no: int, what: str) -> float:
         raise TRCError(f"{name}: line {line_no}: {what} is {cell!r}, expected a number") from None
 
 
+def _count(cell: str, name: str, line_no: int, what: str) -> int:
+    """A header count: a finite whole number >= 0 (NaN or inf would not convert)."""
+    v = _number(cell, name, line_no, what)
+    if not (math.isfinite(v) and v >= 0 and v == int(v)):
+        raise TRCError(f"{name}: line {line_no}: {what} is {cell!r}, expected a whole number >= 0")
+    return int(v)
+
+
 def read_trc(path: str | os.PathLike) -> MarkerTrial:
     """Read a TRC file into a :class:`~openfdk.io.c3d.MarkerTrial` (SI units).
 
@@ -78,7 +86,7 @@ def read_trc(path: str | os.PathLike) -> MarkerTrial:
     rate = _number(header["DataRate"], name, 3, "DataRate")
     if not (math.isfinite(rate) and rate > 0):
         raise TRCError(f"{name}: line 3: DataRate is {rate}, expected a positive rate in Hz")
-    n_declared = _number(header["NumMarkers"], name, 3, "NumMarkers")
+    n_declared = _count(header["NumMarkers"], name, 3, "NumMarkers")
     units = UNIT_ALIASES.get(header["Units"].lower(), header["Units"].lower())
     if units not in UNIT_TO_METRE:
         raise TRCError(f"{name}: line 3: Units is {header['Units']!r}; expected one of mm, cm, m")
@@ -121,7 +129,7 @@ def read_trc(path: str | os.PathLike) -> MarkerTrial:
     if not rows:
         raise TRCError(f"{name}: contains no data rows")
     if "NumFrames" in header and header["NumFrames"] != "":
-        declared = int(_number(header["NumFrames"], name, 3, "NumFrames"))
+        declared = _count(header["NumFrames"], name, 3, "NumFrames")
         if declared != len(rows):
             raise TRCError(f"{name}: NumFrames on line 3 is {declared}, the file has {len(rows)} data rows")
 

@@ -14,15 +14,14 @@ Every problem raises :class:`SubjectError` naming the file and the entry, e.g.
 
 from __future__ import annotations
 
-import difflib
 import os
 from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
 
 import numpy as np
-import yaml
 
+from ..io.yamlfile import YamlContext, read_yaml
 from ..spatial import rotation_matrix_xyz
 from .protocol import PROTOCOL_KEYS, StudyProtocol, parse_protocol
 
@@ -223,45 +222,18 @@ class Subject:
 # Reading helpers: every error names file and entry
 # --------------------------------------------------------------------------------------
 
-class _Context:
+class _Context(YamlContext):
+    """The shared YAML context (:class:`~openfdk.io.yamlfile.YamlContext`) raising
+    :class:`SubjectError`; vectors are 3 numbers unless told."""
+
+    error_type = SubjectError
+
     def __init__(self, file: Path, length: float, angle: float):
-        self.file, self.length, self.angle = file, length, angle
-
-    def error(self, where: str, message: str) -> SubjectError:
-        return SubjectError(f"{self.file}: {where}: {message}")
-
-    def mapping(self, value, where: str, allowed=None, required=()) -> dict:
-        if not isinstance(value, dict):
-            raise self.error(where, f"expected a mapping, got {type(value).__name__}")
-        if allowed is not None:
-            for key in value:
-                if key not in allowed:
-                    near = difflib.get_close_matches(str(key), list(allowed), n=1)
-                    hint = f"; did you mean {near[0]!r}?" if near else f"; allowed: {sorted(allowed)}"
-                    raise self.error(f"{where}.{key}" if where else str(key), f"unknown key{hint}")
-        for key in required:
-            if key not in value:
-                raise self.error(where or "top level", f"missing {key!r}")
-        return value
-
-    def number(self, value, where: str, unit: str = "", positive=False, low=None, high=None) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-            raise self.error(where, f"expected a number{f' ({unit})' if unit else ''}, got {value!r}")
-        value = float(value)
-        if positive and value <= 0:
-            raise self.error(where, f"must be > 0, got {value:g}")
-        if low is not None and value < low or high is not None and value > high:
-            raise self.error(where, f"must be in [{low}, {high}], got {value:g}")
-        return value
+        super().__init__(file, length, angle, base_dir=Path(file).parent)
+        self.file = file
 
     def vector(self, value, where: str, n: int = 3) -> np.ndarray:
-        if (not isinstance(value, (list, tuple)) or len(value) != n
-                or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)):
-            raise self.error(where, f"expected a list of {n} numbers, got {value!r}")
-        a = np.asarray(value, dtype=float)
-        if not np.all(np.isfinite(a)):
-            raise self.error(where, f"non-finite value in {value!r}")
-        return a
+        return super().vector(value, where, n=n)
 
     def point(self, value, where: str) -> np.ndarray:
         return _readonly(self.vector(value, where) * self.length)
@@ -395,9 +367,13 @@ def _ligaments(ctx: _Context, data) -> tuple:
 
 
 def _load_stl(ctx: _Context, where: str, path: Path, scale: float, placement, flip: bool):
-    if not path.exists():
+    try:
+        found, size = path.exists(), (path.stat().st_size if path.is_file() else 0)
+    except (OSError, ValueError) as exc:  # name too long, NUL byte
+        raise ctx.error(where, f"mesh file {path.name[:80]!r} is not a usable path: {exc}") from None
+    if not found:
         raise ctx.error(where, f"mesh file {path.name!r} not found in {path.parent}")
-    if not path.is_file() or path.stat().st_size == 0:
+    if size == 0:
         raise ctx.error(where, f"mesh file {path.name!r} is empty")
     import trimesh
 
@@ -497,10 +473,7 @@ def load_subject(directory: str | os.PathLike) -> Subject:
     if not file.is_file():
         raise SubjectError(f"{file}: missing; a subject folder needs {SUBJECT_FILE} "
                            f"(see docs/subject-folder.md)")
-    try:
-        data = yaml.safe_load(file.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise SubjectError(f"{file}: not valid YAML: {exc}") from exc
+    data = read_yaml(file, SubjectError, "subject file", source=str(file))
     if not isinstance(data, dict):
         raise SubjectError(f"{file}: expected a mapping of sections at the top level, got "
                            f"{type(data).__name__}")

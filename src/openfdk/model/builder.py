@@ -149,6 +149,8 @@ class ModelBuilder:
 
     def frame(self, qualified):
         """The Frame named "body.frame" (a bare body name means its origin)."""
+        if not isinstance(qualified, str):
+            raise ModelError(f"expected a frame or point name ('body.frame'), got {qualified!r}")
         if "." not in qualified:
             qualified = f"{qualified}.origin"
         if qualified not in self._frames:
@@ -229,7 +231,7 @@ class ModelBuilder:
         return measure
 
     def measure(self, name):
-        if name not in self._measures:
+        if not isinstance(name, str) or name not in self._measures:
             raise ModelError(f"unknown measure {name!r}; known: {sorted(self._measures)}")
         return self._measures[name]
 
@@ -385,7 +387,8 @@ class ModelBuilder:
         if components is None:
             return measure
         components = list(components)
-        if any(not (0 <= c < measure.size) for c in components):
+        if any(isinstance(c, bool) or not isinstance(c, (int, np.integer)) or not (0 <= c < measure.size)
+               for c in components):
             raise ModelError(f"measure {measure.name!r} has {measure.size} components; got {components}")
         return Linear([(np.eye(measure.size)[components], measure)], name=measure.name)
 

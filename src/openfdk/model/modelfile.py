@@ -13,10 +13,10 @@ core and then each section's loader explicitly.
 
 from __future__ import annotations
 
-import difflib
 from pathlib import Path
 
 import numpy as np
+from ..io.yamlfile import YamlContext
 
 from ..spatial import quat_from_rotvec, rotation_matrix_xyz
 from .builder import ModelBuilder
@@ -35,70 +35,14 @@ CORE_SECTIONS = (
 )
 
 
-class Ctx:
-    """Where we are in the file (for messages) and the unit scales."""
+class Ctx(YamlContext):
+    """Where we are in the file (for messages) and the unit scales: the shared YAML
+    context (:class:`~openfdk.io.yamlfile.YamlContext`) raising :class:`ModelError`."""
+
+    error_type = ModelError
 
     def __init__(self, source, length=1.0, angle=1.0, base_dir=None):
-        self.source = source
-        self.length = length
-        self.angle = angle
-        self.base_dir = Path(base_dir) if base_dir else Path(".")
-
-    def error(self, path, msg):
-        return ModelError(f"{self.source}: {path}: {msg}")
-
-    # -- typed getters ----------------------------------------------------------------
-    def mapping(self, value, path):
-        if not isinstance(value, dict):
-            raise self.error(path, f"expected a mapping of keys, got {type(value).__name__}")
-        return value
-
-    def keys(self, value, path, allowed, required=()):
-        self.mapping(value, path)
-        for k in value:
-            if k not in allowed:
-                hint = difflib.get_close_matches(str(k), allowed, n=1)
-                extra = f"; did you mean {hint[0]!r}?" if hint else f"; allowed: {sorted(allowed)}"
-                raise self.error(f"{path}.{k}", f"unknown key{extra}")
-        for k in required:
-            if k not in value:
-                raise self.error(path, f"missing required key {k!r}")
-        return value
-
-    def number(self, value, path, positive=False, nonnegative=False):
-        if isinstance(value, str):
-            # YAML 1.1 reads 1.0e10 (no sign in the exponent) as a string: accept it
-            try:
-                value = float(value)
-            except ValueError:
-                raise self.error(path, f"expected a number, got {value!r}") from None
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.error(path, f"expected a number, got {value!r}")
-        v = float(value)
-        if not np.isfinite(v):
-            raise self.error(path, f"expected a finite number, got {value!r}")
-        if positive and v <= 0:
-            raise self.error(path, f"must be > 0, got {v}")
-        if nonnegative and v < 0:
-            raise self.error(path, f"must be >= 0, got {v}")
-        return v
-
-    def vector(self, value, path, n=None, shape=None):
-        try:
-            arr = np.array(value, dtype=float)
-        except (TypeError, ValueError):
-            raise self.error(path, f"expected a list of numbers, got {value!r}") from None
-        if shape is not None and arr.shape != shape:
-            raise self.error(path, f"expected shape {shape}, got {arr.shape}")
-        if n is not None and arr.shape != (n,):
-            raise self.error(path, f"expected {n} numbers, got {value!r}")
-        if not np.all(np.isfinite(arr)):
-            raise self.error(path, f"expected finite numbers, got {value!r}")
-        return arr
-
-    def position(self, value, path):
-        """A length triple in the file unit -> (3,) m."""
-        return self.vector(value, path, n=3) * self.length
+        super().__init__(source, length, angle, base_dir)
 
 
 def read_core(data, source="<dict>", base_dir=None, sections=()):
@@ -114,10 +58,8 @@ def read_core(data, source="<dict>", base_dir=None, sections=()):
         raise ctx.error("openfdk", f"unsupported format version {version!r}; this openfdk reads version {FORMAT_VERSION}")
     units = ctx.keys(data.get("units", {}) or {}, "units", ["length", "angle"])
     lu, au = units.get("length", "m"), units.get("angle", "rad")
-    if lu not in LENGTH_UNITS:
-        raise ctx.error("units.length", f"unknown length unit {lu!r}; expected one of {list(LENGTH_UNITS)}")
-    if au not in ANGLE_UNITS:
-        raise ctx.error("units.angle", f"unknown angle unit {au!r}; expected one of {list(ANGLE_UNITS)}")
+    ctx.choice(lu, "units.length", LENGTH_UNITS, "length unit")
+    ctx.choice(au, "units.angle", ANGLE_UNITS, "angle unit")
     ctx.length, ctx.angle = LENGTH_UNITS[lu], ANGLE_UNITS[au]
     gravity = ctx.vector(data.get("gravity", [0, 0, -9.81]), "gravity", n=3)
     b = ModelBuilder(str(data.get("name", source)), gravity=gravity)
@@ -133,7 +75,7 @@ def read_core(data, source="<dict>", base_dir=None, sections=()):
         _load_driver(b, name, spec, ctx)
     for name, spec in (ctx.mapping(data.get("fdk_dofs") or {}, "fdk_dofs")).items():
         _load_fdk(b, name, spec, ctx)
-    b.elements["analysis"] = dict(ctx.mapping(data.get("analysis") or {}, "analysis"))
+    b.elements["analysis"] = _analysis(data.get("analysis") or {}, ctx)
     b.elements["units"] = {"length": lu, "angle": au}
     return b, ctx
 
@@ -143,13 +85,30 @@ def build(b, ctx) -> Model:
     return _wrap(ctx, "(model)", b.build)
 
 
+def _analysis(spec, ctx):
+    """The ``analysis`` section: marker_cutoff_hz (Hz, >= 0), start and end (s, start <=
+    end) and frames (an integer >= 1)."""
+    spec = ctx.keys(spec, "analysis", ["marker_cutoff_hz", "start", "end", "frames"])
+    out = {}
+    if "marker_cutoff_hz" in spec:
+        out["marker_cutoff_hz"] = ctx.number(spec["marker_cutoff_hz"], "analysis.marker_cutoff_hz", "Hz", nonnegative=True)
+    for k in ("start", "end"):
+        if k in spec:
+            out[k] = ctx.number(spec[k], f"analysis.{k}", "s")
+    if "start" in out and "end" in out and out["start"] > out["end"]:
+        raise ctx.error("analysis", f"start ({out['start']:g} s) is after end ({out['end']:g} s)")
+    if "frames" in spec:
+        out["frames"] = ctx.integer(spec["frames"], "analysis.frames", low=1, high=10_000_000)
+    return out
+
+
 def _wrap(ctx, path, fn):
     """Run fn, re-raising builder errors with the file and entry path."""
     try:
         return fn()
-    except ModelError as exc:
+    except ValueError as exc:  # ModelError, and the parameter errors of muscles, ligaments, meshes
         msg = str(exc)
-        if msg.startswith(ctx.source):
+        if isinstance(exc, ModelError) and msg.startswith(ctx.source):
             raise
         raise ctx.error(path, msg) from None
 
@@ -250,7 +209,7 @@ def _measure(b, spec, path, ctx):
         return _wrap(ctx, path, lambda: b.measure(spec))
     ctx.mapping(spec, path)
     kind = spec.get("type")
-    if kind not in MEASURE_KEYS:
+    if not isinstance(kind, str) or kind not in MEASURE_KEYS:
         raise ctx.error(f"{path}.type", f"unknown measure type {kind!r}; expected one of {list(MEASURE_KEYS)}")
     ctx.keys(spec, path, ["type"] + MEASURE_KEYS[kind], required=[k for k in MEASURE_KEYS[kind] if k not in ("expressed_in", "offset", "sequence", "joint", "side")])
     if kind == "point":
@@ -365,7 +324,7 @@ def _function(spec, units, path, ctx):
     """Time function from its spec; values in the file's units of the driven measure."""
     ctx.mapping(spec, path)
     kind = spec.get("type")
-    if kind not in FUNCTION_KEYS:
+    if not isinstance(kind, str) or kind not in FUNCTION_KEYS:
         raise ctx.error(f"{path}.type", f"unknown function type {kind!r}; expected one of {list(FUNCTION_KEYS)}")
     ctx.keys(spec, path, ["type"] + FUNCTION_KEYS[kind], required=["type"] + FUNCTION_KEYS[kind])
     scale = np.array([_unit_scale(u, ctx) for u in units])
@@ -413,6 +372,10 @@ def _load_fdk(b, name, spec, ctx):
     ctx.keys(spec, p, ["measure", "component", "initial"] + FDK_SETTING_KEYS, required=("measure",))
     m = _measure(b, spec["measure"], f"{p}.measure", ctx)
     comp = spec.get("component")
+    if comp is not None:
+        comp = ctx.integer(comp, f"{p}.component", low=0, high=m.size - 1)
+    elif m.size != 1:
+        raise ctx.error(p, f"the measure has {m.size} components; give 'component' (0 to {m.size - 1})")
     unit = m.units[comp if comp is not None else 0]
     scale = _unit_scale(unit, ctx)
     initial = ctx.number(spec.get("initial", 0.0), f"{p}.initial") * scale

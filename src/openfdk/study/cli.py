@@ -4,17 +4,20 @@
                   [--force] [--list] [--no-progress]
     openfdk run MODEL.yaml TRIAL.c3d --out DIR --chunks K [--overlap F] [--scheduler ADDRESS] [--workers N]
 
-``openfdk study`` exits with 0 when every case completed, 1 when some case failed (the
-others are still run and summarised), 2 for a bad study file (raised as StudyError, a
+``openfdk study`` exits with 0 when every case completed, 3 when some case failed (the
+others are still run and summarised; as ``openfdk run`` with failed frames), 2 for a bad study file (raised as StudyError, a
 ValueError, which ``openfdk.cli.main`` reports in one line).
 """
 
 from __future__ import annotations
 
+import argparse
 import sys
+from collections import Counter
 import time as _time
 from pathlib import Path
 
+from .. import argtypes
 from .defaults import DEFAULT_OVERLAP
 
 
@@ -29,13 +32,15 @@ def add_study_parser(subparsers):
     p.add_argument("--out", required=True, help="output directory (one folder per case, summary.csv)")
     p.add_argument("--scheduler", default=None,
                    help="address of a running Dask scheduler (default: a LocalCluster here)")
-    p.add_argument("--workers", type=int, default=None,
+    p.add_argument("--workers", type=argtypes.count(0), default=None,
                    help="LocalCluster worker processes (default: CPU count); 0 = run the cases in this process")
-    p.add_argument("--retries", type=int, default=None,
+    p.add_argument("--retries", type=argtypes.count(0), default=None,
                    help="runs of a failing case after the first (default: study file, else 2)")
     p.add_argument("--force", action="store_true", help="run complete cases again")
     p.add_argument("--list", action="store_true", help="list the cases and exit")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-progress", action="store_true", help="no progress display")
+    p.add_argument("--quiet", "-q", action="store_true", default=argparse.SUPPRESS,
+                   help="no progress display and no informational output (warnings and errors still go to stderr)")
     p.set_defaults(func=cmd_study)
     return p
 
@@ -43,13 +48,13 @@ def add_study_parser(subparsers):
 def add_chunk_arguments(parser):
     """Add ``--chunks``, ``--overlap``, ``--scheduler`` and ``--workers`` to the ``run``
     subcommand's parser."""
-    parser.add_argument("--chunks", type=int, default=1,
+    parser.add_argument("--chunks", type=argtypes.count(1), default=1,
                         help="split the trial into K frame segments solved in parallel, then stitched (default 1)")
-    parser.add_argument("--overlap", type=int, default=DEFAULT_OVERLAP,
+    parser.add_argument("--overlap", type=argtypes.count(0), default=DEFAULT_OVERLAP,
                         help=f"warm-up frames solved before each chunk and dropped (default {DEFAULT_OVERLAP})")
     parser.add_argument("--scheduler", default=None,
                         help="address of a running Dask scheduler (default: a LocalCluster)")
-    parser.add_argument("--workers", type=int, default=None,
+    parser.add_argument("--workers", type=argtypes.count(0), default=None,
                         help="LocalCluster worker processes (default: min(chunks, CPUs)); 0 = in this process")
     return parser
 
@@ -77,13 +82,19 @@ def cmd_study(args):
     res = run_study(study, args.out, scheduler=args.scheduler, workers=args.workers, retries=args.retries,
                     force=args.force, progress=not args.no_progress)
     c = res.summary["counts"]
-    print(f"study {study.name!r}: {c['completed']}/{c['cases']} cases completed ({c['reused']} from an earlier run), "
-          f"{c['failed']} failed, {res.wall_time:.1f} s -> {Path(res.out_dir) / 'summary.csv'}")
+    if not getattr(args, "quiet", False):
+        print(f"study {study.name!r}: {c['completed']}/{c['cases']} cases completed ({c['reused']} from an earlier run), "
+              f"{c['failed']} failed, {res.wall_time:.1f} s -> {Path(res.out_dir) / 'summary.csv'}")
     for r in res.failed[:10]:
         print(f"  failed: {r['case_id']} after {r['attempts']} attempts: {r['error']}", file=sys.stderr)
     if len(res.failed) > 10:
         print(f"  ... and {len(res.failed) - 10} more failed cases (see summary.json)", file=sys.stderr)
-    return 1 if res.failed else 0
+    if res.failed:
+        reasons = Counter(str(r["error"]).split(":")[0] for r in res.failed).most_common(1)[0]
+        print(f"openfdk: {len(res.failed)} of {c['cases']} cases failed; most common reason ({reasons[1]} cases): "
+              f"{reasons[0]}", file=sys.stderr)
+        return 3
+    return 0
 
 
 def job_case(model_path, trial_path, chunks, overlap=DEFAULT_OVERLAP, cutoff_hz=None, start=None, end=None):
@@ -133,9 +144,9 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
     t0 = _time.perf_counter()
     bar = None
     if progress:
-        from tqdm.auto import tqdm
+        from ..progress import progress as _display
 
-        bar = tqdm(total=int(chunks), desc="chunks", unit="chunk", leave=False)
+        bar = _display(int(chunks), "chunks", "chunk")
     results = []
     try:
         if client is None and scheduler is None and workers == 0:

@@ -212,9 +212,9 @@ def run_study(study, out_dir, *, scheduler=None, workers=None, client=None, prog
                 records[case.case_id] = _record(case, out, done, None, 0, True, metric_columns)
         bar = None
         if progress:
-            from tqdm.auto import tqdm
+            from ..progress import progress as _display
 
-            bar = tqdm(total=len(study.cases), initial=len(records), desc=f"study {study.name}", unit="case")
+            bar = _display(len(study.cases), f"study {study.name}", "case", initial=len(records))
         try:
             with contextlib.ExitStack() as stack:
                 if not pending:

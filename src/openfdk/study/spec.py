@@ -22,7 +22,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..io.yamlfile import read_yaml
+from ..io.yamlfile import YamlContext, read_yaml
 
 from .defaults import DEFAULT_OVERLAP, DEFAULT_RETRIES
 from .kinds import CASE_KINDS, import_callable
@@ -112,22 +112,11 @@ class Study:
         return names
 
 
-class _Ctx:
-    def __init__(self, source):
-        self.source = source
+class _Ctx(YamlContext):
+    """The shared YAML context (:class:`~openfdk.io.yamlfile.YamlContext`) raising
+    :class:`StudyError`."""
 
-    def error(self, where, msg):
-        return StudyError(f"{self.source}: {where}: {msg}" if where else f"{self.source}: {msg}")
-
-    def keys(self, value, where, allowed):
-        if not isinstance(value, dict):
-            raise self.error(where, f"expected a mapping, got {type(value).__name__}")
-        for k in value:
-            if k not in allowed:
-                close = difflib.get_close_matches(str(k), allowed, n=1)
-                hint = f"; did you mean {close[0]!r}?" if close else f"; allowed: {list(allowed)}"
-                raise self.error(f"{where}.{k}" if where else str(k), f"unknown key{hint}")
-        return value
+    error_type = StudyError
 
 
 _SAFE = re.compile(r"[^A-Za-z0-9_.=+-]+")
@@ -158,8 +147,12 @@ def _entries(ctx, value, section, is_path, base_dir):
         if is_path:
             if not isinstance(v, str):
                 raise ctx.error(f"{section}.{name}", f"expected a file or folder path, got {v!r}")
-            p = (base_dir / v).resolve()
-            if not p.exists():
+            try:
+                p = (base_dir / v).resolve()
+                found = p.exists()
+            except (OSError, ValueError) as exc:  # name too long, NUL byte
+                raise ctx.error(f"{section}.{name}", f"{v[:80]!r} is not a usable path: {exc}") from None
+            if not found:
                 raise ctx.error(f"{section}.{name}", f"{v!r} not found (relative to {str(base_dir)!r})")
             v = str(p)
         out[name] = v
@@ -168,7 +161,7 @@ def _entries(ctx, value, section, is_path, base_dir):
 
 def _parameters(ctx, data):
     params = {}
-    for name, spec in (data or {}).items():
+    for name, spec in ctx.mapping(data or {}, "parameters").items():
         where = f"parameters.{name}"
         if "." in str(name):
             raise ctx.error(where, "a parameter name must not contain '.' (dotted keys are override paths)")
@@ -177,14 +170,10 @@ def _parameters(ctx, data):
         ctx.keys(spec, where, ("set", "scale", "mode"))
         paths = spec.get("set")
         paths = [paths] if isinstance(paths, str) else paths
-        if not paths or not all(isinstance(p, str) and p for p in paths):
+        if not isinstance(paths, list) or not paths or not all(isinstance(p, str) and p for p in paths):
             raise ctx.error(f"{where}.set", f"expected a dotted path or a list of them, got {spec.get('set')!r}")
-        scale = spec.get("scale", 1.0)
-        if isinstance(scale, bool) or not isinstance(scale, (int, float)):
-            raise ctx.error(f"{where}.scale", f"expected a number, got {scale!r}")
-        mode = spec.get("mode", "set")
-        if mode not in ("set", "multiply"):
-            raise ctx.error(f"{where}.mode", f"expected 'set' or 'multiply', got {mode!r}")
+        scale = ctx.number(spec.get("scale", 1.0), f"{where}.scale")
+        mode = ctx.choice(spec.get("mode", "set"), f"{where}.mode", ("set", "multiply"), "mode")
         params[str(name)] = Parameter(str(name), tuple(paths), float(scale), mode)
     return params
 
@@ -241,24 +230,23 @@ def _run_options(ctx, data):
     run = ctx.keys(data or {}, "run", RUN_KEYS)
 
     def integer(key, default, minimum):
-        v = run.get(key, default)
-        if isinstance(v, bool) or not isinstance(v, int) or v < minimum:
-            raise ctx.error(f"run.{key}", f"expected a whole number >= {minimum}, got {v!r}")
-        return v
+        return ctx.integer(run.get(key, default), f"run.{key}", low=minimum)
 
-    def number(key):
+    def number(key, unit):
         v = run.get(key)
-        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
-            raise ctx.error(f"run.{key}", f"expected a number, got {v!r}")
-        return None if v is None else float(v)
+        return None if v is None else ctx.number(v, f"run.{key}", unit)
+
+    start, end = number("start", "s"), number("end", "s")
+    if start is not None and end is not None and start > end:
+        raise ctx.error("run", f"start ({start:g} s) is after end ({end:g} s)")
 
     metrics = run.get("metrics", [])
     if isinstance(metrics, str):
         metrics = [metrics]
     if not isinstance(metrics, list) or not all(isinstance(m, str) for m in metrics):
         raise ctx.error("run.metrics", f"expected a list of result column names, got {metrics!r}")
-    return RunOptions(integer("chunks", 1, 1), integer("overlap", DEFAULT_OVERLAP, 0), number("cutoff_hz"),
-                      number("start"), number("end"), tuple(metrics), integer("retries", DEFAULT_RETRIES, 0))
+    return RunOptions(integer("chunks", 1, 1), integer("overlap", DEFAULT_OVERLAP, 0), number("cutoff_hz", "Hz"),
+                      start, end, tuple(metrics), integer("retries", DEFAULT_RETRIES, 0))
 
 
 _DIGESTS: dict = {}
@@ -306,7 +294,7 @@ def study_from_dict(data, source="<study>", base_dir=".", check_overrides=True) 
     if version != FORMAT_VERSION:
         raise ctx.error("openfdk_study", f"unsupported version {version!r}; this openfdk reads {FORMAT_VERSION}")
     kind_name = data.get("kind", "model")
-    kind = CASE_KINDS.get(kind_name)
+    kind = CASE_KINDS.get(kind_name) if isinstance(kind_name, str) else None
     if kind is None:
         raise ctx.error("kind", f"unknown case kind {kind_name!r}; known: {sorted(CASE_KINDS)}")
     ctx.keys(data, "", TOP_LEVEL + tuple(kind.inputs))
@@ -342,7 +330,10 @@ def study_from_dict(data, source="<study>", base_dir=".", check_overrides=True) 
             case = Case(case_id, kind.name, kind.prepare, names, values, dict(pset), overrides, options)
             if prepare is not None and overrides:
                 if prepared is None:
-                    prepared = prepare(case)
+                    try:
+                        prepared = prepare(case)
+                    except ValueError as exc:  # the input's model file is bad (ModelError)
+                        raise ctx.error(f"case {case_id}", str(exc)) from None
                 try:
                     apply_overrides(prepared.model_data, overrides, source=prepared.source)
                 except OverrideError as exc:

@@ -112,9 +112,9 @@ class TrialInterrupted(KeyboardInterrupt):
 def _progress(total, enabled, desc):
     if not enabled:
         return None
-    from tqdm.auto import tqdm
+    from ..progress import progress
 
-    return tqdm(total=total, desc=desc, unit="frame", leave=False)
+    return progress(total, desc, "frame")
 
 
 def drive(step, n_frames, build, *, progress=False, desc="frames", checkpoints=None, resume=False):

@@ -1,0 +1,274 @@
+"""Plausibility checks of a loaded model, of a trial against it and of a run's results.
+
+Errors (physically impossible, :class:`~openfdk.model.model.ModelError`):
+
+- a body's principal moments of inertia must be positive and satisfy the triangle
+  inequality I₁ + I₂ ≥ I₃ (a rigid body's mass distribution cannot give anything else:
+  I₁ + I₂ − I₃ = 2 ∫ z² dm ≥ 0 along the third principal axis);
+- masses above 1e6 kg and moments of inertia above 1e6 kg m² (a musculoskeletal segment
+  is 1e-3 to 1e2 kg; the recruitment LP cannot scale 1e300).
+
+Warnings (:class:`PlausibilityWarning`, each naming the item):
+
+- magnitudes implausible for the declared length unit, with the likely unit;
+- a contact surface whose normals point away from its partner at the reference pose;
+- a Hill muscle whose passive force at the reference pose exceeds 10 % of F0;
+- a marker never visible in the analysis window; trial markers far from the model's at
+  the first frame, or spanning a very different size (likely the wrong units);
+- a contact force that pulls the two surfaces together (once per run, see
+  :func:`pulling_contacts`).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from .model import ModelError
+
+#: largest accepted body mass (kg) and principal moment of inertia (kg m²)
+MAX_MASS = 1e6
+MAX_INERTIA = 1e6
+#: a Hill muscle's passive force at the reference pose above this fraction of F0 is flagged
+PASSIVE_FRACTION = 0.10
+#: plausible span (m) of a musculoskeletal model's points: a finger joint to a whole body
+MODEL_SPAN = (2e-3, 20.0)
+TYPICAL_SPAN = 0.3
+#: trial markers whose centroid lies farther (m) from the model's are flagged (no lab is larger)
+FAR_FROM_MODEL = 20.0
+LENGTH_SCALES = {"m": 1.0, "cm": 1e-2, "mm": 1e-3}
+
+
+class PlausibilityWarning(UserWarning):
+    """Input that is possible but probably wrong (units, orientation, parameters)."""
+
+
+def _warn(msg):
+    warnings.warn(msg, PlausibilityWarning, stacklevel=3)
+
+
+# -- model ------------------------------------------------------------------------------
+
+def check_model(model, source="", length_unit="m"):
+    """All load-time checks of ``model`` (errors raise ModelError, the rest warn).
+    ``source`` is the file name used in messages, ``length_unit`` the declared unit."""
+    check_mass_properties(model, source)
+    check_length_magnitudes(model, source, length_unit)
+    check_contact_facing(model, source)
+    check_passive_muscles(model, source)
+
+
+def _where(source, path):
+    return f"{source}: {path}" if source else path
+
+
+def check_mass_properties(model, source=""):
+    """Masses and inertias physically possible (module docstring); raises ModelError."""
+    for b in model.bodies:
+        if b.fixed:
+            continue
+        where = _where(source, f"bodies.{b.name}")
+        if b.mass > MAX_MASS:
+            raise ModelError(f"{where}.mass: {b.mass:g} kg is not a plausible body mass (at most {MAX_MASS:g} kg)")
+        I = np.linalg.eigvalsh(0.5 * (b.inertia_B + b.inertia_B.T))
+        if I[-1] > MAX_INERTIA:
+            raise ModelError(f"{where}.inertia: principal moment {I[-1]:g} kg m² is not plausible "
+                             f"(at most {MAX_INERTIA:g} kg m²)")
+        if I[0] + I[1] < I[2] * (1 - 1e-9):
+            raise ModelError(f"{where}.inertia: principal moments {np.round(I, 12).tolist()} kg m² violate the "
+                             "triangle inequality I1 + I2 >= I3; no rigid body has this inertia")
+
+
+def _reference_points(model):
+    """(n, 3) m: body centres of mass, frames and markers at the reference pose."""
+    state = model.initial_state()
+    pts = [b.p_WB0 for b in model.bodies if b.name != "ground"]
+    for f in model.frames.values():
+        i = next(k for k, b in enumerate(model.bodies) if b.name == f.body)
+        pts.append(state.p_WB[i] + state.R_WB[i] @ f.p_BF)
+    if model.markers.size:
+        pts.extend(model.markers.positions(state))
+    return np.array(pts, dtype=float).reshape(-1, 3)
+
+
+def _likely_unit(span, declared):
+    """The length unit under which ``span`` (m, as read with ``declared``) is plausible."""
+    raw = span / LENGTH_SCALES.get(declared, 1.0)  # the numbers as written in the file
+    fits = [(abs(np.log10(raw * scale / TYPICAL_SPAN)), unit) for unit, scale in LENGTH_SCALES.items()
+            if MODEL_SPAN[0] <= raw * scale <= MODEL_SPAN[1] and unit != declared]
+    return min(fits)[1] if fits else None
+
+
+def check_length_magnitudes(model, source="", length_unit="m"):
+    """Warn when the model's points span an implausible size for the declared unit."""
+    pts = _reference_points(model)
+    if len(pts) < 2:
+        return
+    span = float(np.max(np.ptp(pts, axis=0)))
+    if span == 0.0 or MODEL_SPAN[0] <= span <= MODEL_SPAN[1]:
+        return
+    likely = _likely_unit(span, length_unit)
+    hint = f"; the numbers look like {likely}" if likely else ""
+    _warn(f"{_where(source, 'units.length')}: the model's points span {span:.4g} m with lengths declared in "
+          f"{length_unit}{hint} (a musculoskeletal model spans {MODEL_SPAN[0] * 1e3:g} mm to {MODEL_SPAN[1]:g} m)")
+
+
+def _nearest_faces(surface, R_WS, p_WS, target_W, nearest=0.1):
+    """Triangles of ``surface`` (in a body at R_WS (3, 3), p_WS (3,) m) nearest to the
+    point target_W (3,) m (the closest ``nearest`` fraction, at least one): their
+    centroids (k, 3) m and normals scaled by twice their areas (k, 3) m², world."""
+    V = surface.vertices_B @ R_WS.T + p_WS
+    F = surface.faces
+    c = V[F].mean(axis=1)
+    sel = np.argsort(np.linalg.norm(target_W - c, axis=1))[: max(1, int(nearest * len(F)))]
+    n = np.cross(V[F[sel, 1]] - V[F[sel, 0]], V[F[sel, 2]] - V[F[sel, 0]])
+    return c[sel], n
+
+
+def facing(surface, R_WS, p_WS, target_W):
+    """Area-weighted mean cosine between the normals of the triangles of ``surface``
+    nearest to target_W and the directions from them to target_W: +1 the normals face
+    the target, −1 they face away. Also returns their mean unit normal (3,)."""
+    c, n = _nearest_faces(surface, R_WS, p_WS, target_W)
+    d = target_W - c
+    w = np.linalg.norm(n, axis=1)
+    cos = np.einsum("ij,ij->i", n, d) / np.maximum(w * np.linalg.norm(d, axis=1), 1e-300)
+    mean_n = n.sum(axis=0)
+    return float(np.sum(w * cos) / max(np.sum(w), 1e-300)), mean_n / max(np.linalg.norm(mean_n), 1e-300)
+
+
+def check_contact_facing(model, source=""):
+    """Warn for each contact surface whose normals point away from its partner surface
+    at the reference pose (inverted normals make the contact pull).
+
+    The facing regions are B's triangles nearest to A's centroid and A's triangles
+    nearest to those. Their mean normals must be opposed; when they point the same way,
+    the surface whose normals point away from the other's facing region is inverted.
+    (Opposed normals that both point away — both files inverted — are not detected.)"""
+    state = model.initial_state()
+    for c in model.contacts:
+        pair = c.pair
+        world = [(pair.surface_A, c.body_a, "vertices"), (pair.surface_B, c.body_b, "surface")]
+        pose = [(state.R_WB[i], state.p_WB[i]) for _, i, _ in world]
+        # the facing regions: B's triangles nearest to A's centroid, then A's nearest to those
+        c_A = (world[0][0].vertices_B @ pose[0][0].T + pose[0][1]).mean(axis=0)
+        r_B = _nearest_faces(world[1][0], *pose[1], c_A)[0].mean(axis=0)
+        r_A = _nearest_faces(world[0][0], *pose[0], r_B)[0].mean(axis=0)
+        targets = (r_B, r_A)
+        sides = [facing(s, *pose[k], targets[k]) for k, (s, _, _) in enumerate(world)]
+        if float(sides[0][1] @ sides[1][1]) < 0:
+            continue
+        for k, (surf, _, key) in enumerate(world):
+            if sides[k][0] < 0:
+                other = world[1 - k][0]
+                _warn(f"{_where(source, f'contacts.{c.name}.{key}')}: the normals of mesh '{surf.name}' point away "
+                      f"from '{other.name}' at the reference pose (mean cosine {sides[k][0]:.2f}); set "
+                      "flip_normals: true if the file is wound the other way")
+
+
+def check_passive_muscles(model, source=""):
+    """Warn for each Hill muscle whose passive force at the reference pose exceeds
+    PASSIVE_FRACTION of its maximum isometric force F0."""
+    muscles = [m for m in model.muscles if hasattr(m.law, "passive_shape_factor")]
+    if not muscles:
+        return
+    state = model.initial_state()
+    for m in muscles:
+        length = float(np.ravel(m.path.evaluate(state, 0)[0])[0])
+        if not np.isfinite(length):
+            continue
+        _, passive = m.law.evaluate(length, 0.0)
+        F0 = float(m.law.max_isometric_force)
+        if np.isfinite(passive) and passive > PASSIVE_FRACTION * F0:
+            _warn(f"{_where(source, f'muscles.{m.name}')}: passive force {passive:.4g} N at the reference pose is "
+                  f"{100 * passive / F0:.0f} % of max_isometric_force ({F0:g} N); check optimal_fibre_length and "
+                  f"tendon_slack_length (path length {length * 1e3:.1f} mm)")
+
+
+# -- trial against model ----------------------------------------------------------------
+
+def check_trial_markers(model, trial, times):
+    """Warn for markers never visible in the analysis window ``times`` (nf,) s, and when
+    the trial's markers at the first analysed frame are far from the model's markers at
+    the reference pose or span a very different size (likely the wrong units).
+    ``trial`` is a MarkerTrial already restricted to the model's markers (model order)."""
+    t = np.asarray(trial.time, dtype=float)
+    tol = 1e-9 + 0.5 / max(trial.rate, 1e-9)
+    window = (t >= times[0] - tol) & (t <= times[-1] + tol)
+    P = trial.positions[window]
+    seen = np.isfinite(P).all(axis=2).any(axis=0) if len(P) else np.zeros(trial.n_markers, bool)
+    never = [lab for lab, s in zip(trial.labels, seen) if not s]
+    if never:
+        _warn(f"{trial.source}: marker(s) {', '.join(repr(n) for n in never)} never visible in the analysis window "
+              f"[{times[0]:g}, {times[-1]:g}] s")
+    if not len(P):
+        return
+    first = P[0]
+    ok = np.isfinite(first).all(axis=1)
+    if ok.sum() < 2:
+        return
+    state = model.initial_state()
+    M = model.markers.positions(state)
+    M, X = M[ok], first[ok]
+    s_model = float(np.sqrt(np.mean(np.sum((M - M.mean(0)) ** 2, axis=1))))
+    s_trial = float(np.sqrt(np.mean(np.sum((X - X.mean(0)) ** 2, axis=1))))
+    gap = float(np.linalg.norm(X.mean(0) - M.mean(0)))
+    if s_model > 0 and s_trial > 0 and not (1 / 30 < s_trial / s_model < 30):
+        ratio = s_trial / s_model
+        factor = 10 ** round(np.log10(ratio))
+        _warn(f"{trial.source}: at the first frame (t = {times[0]:g} s) the markers spread {s_trial:.4g} m around "
+              f"their centroid, {ratio:.3g}x the model's markers ({s_model:.4g} m): likely the wrong units "
+              f"(a factor {factor:g}; check POINT:UNITS)")
+    elif gap > max(FAR_FROM_MODEL, 20 * s_model):
+        _warn(f"{trial.source}: at the first frame (t = {times[0]:g} s) the markers' centroid is {gap:.3g} m from "
+              "the model's markers at the reference pose; check the units and the lab frame")
+
+
+# -- run results ------------------------------------------------------------------------
+
+def pulling_contacts(model, kin, dyn, threshold=-0.2):
+    """Per contact that pulled in some frame: (name, frames pulling, lowest cosine).
+
+    A contact force pushes each body toward its own inside: the force on the vertex body
+    a, F_a, points from the centre of pressure toward a's centre of mass, and −F_a
+    toward b's (the ground, whose origin is not inside anything, is skipped). A frame
+    pulls when the cosine of that angle is below ``threshold`` for every side checked;
+    inverted normals give cosines near −1. ``dyn`` holds the per-contact force and
+    centre-of-pressure columns, ``kin`` the poses of the same frames."""
+    contacts = model.contacts
+    cols = getattr(dyn, "extra", {}).get("columns", {}) if dyn is not None else {}
+    out = []
+    if not contacts or not cols:
+        return out
+    state = model.initial_state()
+    for c in contacts:
+        keys = [f"{c.name}.F{a}_N" for a in "xyz"] + [f"{c.name}.cop_{a}_m" for a in "xyz"]
+        if not all(k in cols for k in keys):
+            continue
+        X = np.stack([np.asarray(cols[k], dtype=float) for k in keys], axis=1)
+        sides = [(body, sign) for body, sign in ((c.body_a, 1.0), (c.body_b, -1.0)) if body != 0]
+        n_pull, worst = 0, 1.0
+        for k in np.flatnonzero(np.isfinite(X).all(axis=1) & (np.abs(X[:, :3]).sum(axis=1) > 0)):
+            if k >= len(kin.q) or not np.all(np.isfinite(kin.q[k])) or not sides:
+                continue
+            state.set_q(kin.q[k])
+            F, cop = X[k, :3], X[k, 3:]
+            cosines = []
+            for body, sign in sides:
+                d = state.p_WB[body] - cop
+                cosines.append(float(sign * F @ d / max(np.linalg.norm(F) * np.linalg.norm(d), 1e-300)))
+            if max(cosines) < threshold:
+                n_pull += 1
+                worst = min(worst, max(cosines))
+        if n_pull:
+            out.append((c.name, n_pull, worst))
+    return out
+
+
+def warn_pulling_contacts(model, kin, dyn):
+    """One warning per run for the contacts that pulled (see :func:`pulling_contacts`)."""
+    for name, n, worst in pulling_contacts(model, kin, dyn):
+        _warn(f"contacts.{name}: the contact force pulls the surfaces together in {n} of {len(kin.time)} frames "
+              f"(it points away from the bodies' insides, cosine down to {worst:.2f}); inverted normals? see the "
+              "reference-pose normal check")

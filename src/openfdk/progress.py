@@ -1,0 +1,83 @@
+"""Progress display for loops over frames, chunks or cases.
+
+On a terminal it is a bar (tqdm) that redraws one line. When stderr is not a terminal
+(a log file, a pipe, a batch job) it is one plain line per 10 % — no carriage returns,
+so logs stay readable. ``set_quiet(True)`` (the CLI's ``--quiet``) turns every display
+off.
+
+    with progress(total=n, desc="kinematics", unit="frame", enabled=True) as bar:
+        for ...:
+            bar.update(1)
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+_QUIET = False
+
+
+def set_quiet(quiet: bool) -> None:
+    """Turn every progress display off (True) or back on (False)."""
+    global _QUIET
+    _QUIET = bool(quiet)
+
+
+def is_quiet() -> bool:
+    return _QUIET
+
+
+class _Silent:
+    """No display."""
+
+    def update(self, n=1):
+        pass
+
+    def close(self):
+        pass
+
+    def set_postfix(self, **kw):
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+class _Lines(_Silent):
+    """One line per 10 % on a non-terminal stream: ``<desc>: 30% (15/50 frame, 2.1 s)``."""
+
+    def __init__(self, total, desc, unit, stream, initial=0):
+        self.total, self.desc, self.unit, self.stream = max(int(total), 0), desc, unit, stream
+        self.done, self.t0 = int(initial), time.perf_counter()
+        self.next_tenth = self._tenth() + 1
+
+    def _tenth(self):
+        return (10 * self.done) // self.total if self.total else 10
+
+    def update(self, n=1):
+        self.done += int(n)
+        tenth = min(self._tenth(), 10)
+        if tenth >= self.next_tenth:
+            self.next_tenth = tenth + 1
+            self.stream.write(f"{self.desc}: {10 * tenth}% ({self.done}/{self.total} {self.unit}, "
+                              f"{time.perf_counter() - self.t0:.1f} s)\n")
+            self.stream.flush()
+
+
+def progress(total, desc="", unit="frame", enabled=True, initial=0, stream=None):
+    """A progress display with ``update(n)`` and ``close()`` (also a context manager):
+    a tqdm bar when ``stream`` (default stderr) is a terminal, one line per 10 % when it
+    is not, nothing when ``enabled`` is False or the display is quiet."""
+    if not enabled or _QUIET:
+        return _Silent()
+    stream = sys.stderr if stream is None else stream
+    isatty = getattr(stream, "isatty", None)
+    if isatty is not None and isatty():
+        from tqdm.auto import tqdm
+
+        return tqdm(total=total, desc=desc, unit=unit, leave=False, initial=initial, file=stream)
+    return _Lines(total, desc, unit, stream, initial)
