@@ -17,7 +17,7 @@ import yaml
 from openfdk.cli import build_parser, main
 from openfdk.contact.shapes import flat_patch
 from openfdk.io.c3d import write_c3d
-from openfdk.synthetic import synthetic_markers, two_body_model_dict
+from openfdk.fixtures.synthetic import synthetic_markers, two_body_model_dict
 from test_passive_elements import HELD, MODEL
 
 
@@ -346,7 +346,7 @@ def test_non_terminal_stderr_has_lines_per_ten_percent_and_no_carriage_returns(f
     lines = text.decode().splitlines()
     kin = [ln for ln in lines if ln.startswith("kinematics: ")]
     assert [ln.split()[1] for ln in kin] == [f"{p}%" for p in range(10, 101, 10)]
-    assert kin[-1].startswith("kinematics: 100% (80/80 frame")   # tracking counts 2 passes per frame
+    assert kin[-1].startswith("kinematics: 100% (40/40 frame")  # the trial driver: one pass, one count per frame
 
 
 def test_progress_lines_module():

@@ -105,7 +105,7 @@ def test_c3d_numeric_parameter_stored_as_text_is_refused_not_a_crash(tmp_path):
     import sys
 
     from openfdk.io.c3d import write_c3d
-    from openfdk.synthetic import synthetic_markers
+    from openfdk.fixtures.synthetic import synthetic_markers
 
     _, labels, x, _ = synthetic_markers(10)
     write_c3d(tmp_path / "ok.c3d", labels, x, 100.0)

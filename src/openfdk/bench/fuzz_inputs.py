@@ -48,7 +48,7 @@ def base_model_dict():
     """A valid model file mapping exercising most sections: two bodies, a joint, markers,
     points, a measure, a driver-free FDK DOF, Hill and constant muscles, a ligament, a
     spring, a load, recruitment and FDK settings (lengths in mm, angles in deg)."""
-    from ..synthetic import two_body_model_dict
+    from ..fixtures.synthetic import two_body_model_dict
 
     d = two_body_model_dict()
     d["bodies"]["skull"]["points"] = {"o": [60.0, 0.0, 0.0], "lig": [0.0, -50.0, 10.0]}
@@ -104,7 +104,7 @@ class Bases:
             self.texts["subject"] = self.paths["subject"].read_text()
         if "c3d" in kinds:
             from ..io.c3d import write_c3d
-            from ..synthetic import synthetic_markers
+            from ..fixtures.synthetic import synthetic_markers
 
             _, labels, x, _ = synthetic_markers(30, rate=100.0, noise=1e-4, gap=(2, 10, 14))
             self.paths["c3d"] = self.dir / "trial.c3d"
@@ -122,7 +122,7 @@ class Bases:
 def _trc_text():
     """A valid TRC file (tab separated, mm) of the synthetic two-body trial, 20 frames,
     with a gap of one marker."""
-    from ..synthetic import synthetic_markers
+    from ..fixtures.synthetic import synthetic_markers
 
     t, labels, x, _ = synthetic_markers(20, rate=100.0, noise=1e-4, gap=(2, 5, 8))
     head = ["PathFileType\t4\t(X/Y/Z)\ttrial.trc",
