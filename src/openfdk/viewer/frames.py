@@ -1,5 +1,6 @@
 """The moving part of a view: per-frame body poses, measured markers, element forces,
-contact loads and pressures, and the FDK side-panel series.
+contact loads and pressures, world polylines of wrapped paths (:mod:`.wrapview`), and
+the FDK side-panel series.
 
 Poses come from kinematics.csv (``<body>.x_m … <body>.e3``); measured marker positions
 are the model markers minus the residuals Ψ = p_WM(q) − x_M (kinematics.csv
@@ -16,6 +17,7 @@ import numpy as np
 from ..spatial import rotation_matrix
 from .pack import index_kind, pack
 from .results import ViewError
+from .wrapview import wrapped_polylines
 
 
 def body_poses(model, results):
@@ -168,6 +170,7 @@ def build_frames(model, scene, results):
         "poses": pack(poses),
         "measured": pack(measured) if measured is not None else None,
         "path_force": pack(forces), "path_fmax": fmax,
+        "wrap_points": pack(wrapped_polylines(model, scene.wrapped, poses)),
         "contacts": contact_frames(model, scene, results, poses),
         "panel": panel_series(model, results, measured, scene.data["paths"]),
         "failed": failed_frames(results),

@@ -16,6 +16,7 @@ from ..model.measures import Distance, Linear
 from .decimate import decimate
 from .pack import index_kind, pack
 from .results import ViewError
+from .wrapview import n_points, wrapped_measure
 
 #: body colours (display), cycled; a visual mesh's own ``color`` wins
 PALETTE = ("#4f86c6", "#e0a040", "#5aa469", "#c05050", "#8a6bbe", "#3fa7a7", "#b08968", "#7f7f7f")
@@ -31,6 +32,8 @@ class Scene:
     data: dict
     contact_labels: list = field(default_factory=list)
     scale: float = 0.1
+    #: the WrappedPath of every scene path drawn from per-frame world points, in order
+    wrapped: list = field(default_factory=list)
 
 
 def _mesh_entry(vertices_B, faces, body, kind, name, color, max_vertices):
@@ -57,7 +60,8 @@ def _path_points(model, measure):
 def build_scene(model, max_vertices=MAX_MESH_VERTICES):
     """Scene of ``model``: bodies (name, fixed, colour, reference pose), meshes (contact
     surfaces and visual meshes, decimated to ≤ max_vertices), markers (body, p_BM),
-    paths (muscles, ligaments, path springs: body points), contacts (vertex-surface mesh
+    paths (muscles, ligaments, path springs: body points; wrapped paths: a slice of the
+    per-frame world points, see :mod:`.wrapview`), contacts (vertex-surface mesh
     index) and the FDK DOF names. Raises ViewError naming a visual mesh that cannot be
     read."""
     bodies = [{"name": b.name, "fixed": bool(b.fixed or b.column < 0), "color": PALETTE[k % len(PALETTE)],
@@ -91,24 +95,26 @@ def build_scene(model, max_vertices=MAX_MESH_VERTICES):
     for i, b in enumerate(bodies):
         if b["points"]:
             points.append(_world(model, i, np.array(b["points"])))
-    paths = []
-    for kind, key in (("muscle", "muscles"), ("ligament", "ligaments")):
-        for el in getattr(model, key):
-            pts = _path_points(model, el.path)
-            if pts is not None:
-                paths.append({"name": el.name, "kind": kind, "points": [[i, *p.tolist()] for i, p in pts]})
-    for el in model.springs:
-        pts = _path_points(model, el.measure)
+    paths, wrapped = [], []
+    elements = [(el, "muscle", el.path) for el in model.muscles] + \
+        [(el, "ligament", el.path) for el in model.ligaments] + [(el, "spring", el.measure) for el in model.springs]
+    for el, kind, measure in elements:
+        pts = _path_points(model, measure)
         if pts is not None:
-            paths.append({"name": el.name, "kind": "spring", "points": [[i, *p.tolist()] for i, p in pts]})
-    for p in paths:
-        points.append(np.array([_world(model, i, np.array([xyz]))[0] for i, *xyz in p["points"]]))
+            paths.append({"name": el.name, "kind": kind, "points": [[i, *p.tolist()] for i, p in pts]})
+            points.append(np.array([_world(model, i, np.array([p]))[0] for i, p in pts]))
+        elif (w := wrapped_measure(measure)) is not None:
+            # drawn from per-frame world points (frames["wrap_points"][:, offset:offset + count])
+            paths.append({"name": el.name, "kind": kind, "points": [],
+                          "wrap": {"offset": sum(n_points(p) for p in wrapped), "count": n_points(w)}})
+            wrapped.append(w)
+            points += [_world(model, int(n[0]), np.array([n[1]])) for n in w.nodes if not hasattr(n, "kind")]
     allp = np.concatenate([np.asarray(p).reshape(-1, 3) for p in points if len(p)], axis=0)
     scale = float(np.linalg.norm(allp.max(0) - allp.min(0))) or 0.1
     data = {"bodies": bodies, "meshes": meshes, "markers": markers, "paths": paths, "contacts": contacts,
             "fdk_dofs": [d.name for d in model.fdk_dofs], "gravity": model.gravity_W.tolist(),
             "center": (0.5 * (allp.max(0) + allp.min(0))).tolist(), "scale": scale}
-    return Scene(data, labels, scale)
+    return Scene(data, labels, scale, wrapped)
 
 
 def _world(model, body, p_B):

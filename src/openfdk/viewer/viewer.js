@@ -137,7 +137,11 @@
   layers.markers.push(modelMarkers, measMarkers, resLines);
 
   // -- force paths (muscles, ligaments, springs) ------------------------------------------
-  let nseg = 0; for (const p of S.paths) nseg += p.points.length - 1;
+  // a chain of body points moves with its bodies; a wrapped path (p.wrap) is a slice of the
+  // per-frame world polylines F.wrap_points (nf, n_wrap_points, 3), fixed count per path
+  const wrapPoints = arr(F.wrap_points), nWrap = wrapPoints ? wrapPoints.length / (3 * nf) : 0;
+  const nPoints = (p) => (p.wrap ? p.wrap.count : p.points.length);
+  let nseg = 0; for (const p of S.paths) nseg += nPoints(p) - 1;
   const pathGeo = new THREE.BufferGeometry();
   pathGeo.setAttribute('position', new THREE.BufferAttribute(new Float32Array(6 * Math.max(nseg, 1)), 3));
   pathGeo.setAttribute('color', new THREE.BufferAttribute(new Float32Array(6 * Math.max(nseg, 1)), 3));
@@ -260,10 +264,15 @@
     S.paths.forEach((p, j) => {
       const f = pathForce[frame * S.paths.length + j], mx = kindMax[p.kind] || 1;
       if (Number.isFinite(f)) cmap(Math.abs(f) / mx, rgb); else { rgb[0] = rgb[1] = rgb[2] = 0.55; }
-      for (let e = 0; e + 1 < p.points.length; e++, s++) {
+      for (let e = 0; e + 1 < nPoints(p); e++, s++) {
         for (let h = 0; h < 2; h++) {
-          const a = p.points[e + h];
-          worldPoint(a[0], a[1], a[2], a[3], v);
+          if (p.wrap) {  // NaN (no pose, path not formed): collapse to the origin, invisible
+            const o = 3 * (frame * nWrap + p.wrap.offset + e + h), ok = Number.isFinite(wrapPoints[o]);
+            v.set(ok ? wrapPoints[o] : 0, ok ? wrapPoints[o + 1] : 0, ok ? wrapPoints[o + 2] : 0);
+          } else {
+            const a = p.points[e + h];
+            worldPoint(a[0], a[1], a[2], a[3], v);
+          }
           pp.set([v.x, v.y, v.z], 6 * s + 3 * h); pc.set(rgb, 6 * s + 3 * h);
         }
       }
@@ -355,5 +364,5 @@
   document.body.dataset.status = 'ready';
   say('ready ' + JSON.stringify({ width: window.innerWidth, height: window.innerHeight, frame, time: time[frame],
     fov, eye: camera.position.toArray(), target: controls.target.toArray(), up: camera.up.toArray(),
-    bodies: nb, meshes: S.meshes.length, markers: nm, paths: S.paths.length, contacts: contacts.length }));
+    bodies: nb, meshes: S.meshes.length, markers: nm, paths: S.paths.length, wrapped: S.paths.filter((p) => p.wrap).length, contacts: contacts.length }));
 })();
