@@ -435,3 +435,65 @@ def test_a_60_s_mandible_trial_gives_a_file_under_30_MB(tmp_path):
     assert levels > n  # contact is drawn in (most) frames: the pressure data is really there
     size_mb = page.stat().st_size / 1e6
     assert size_mb < 30, f"{size_mb:.1f} MB"
+
+
+# -- wrapped paths: the knee quadriceps over the condyle cylinder --------------------------------
+@pytest.fixture(scope="module")
+def knee_result(tmp_path_factory):
+    """A 6-frame run of examples/knee/knee_springs.yaml (flexion 0 → 90°: the quadriceps
+    lifts off near extension and wraps the condyle cylinder in flexion)."""
+    d = tmp_path_factory.mktemp("view-knee")
+    text = (ROOT / "examples" / "knee" / "knee_springs.yaml").read_text()
+    assert "frames: 51" in text
+    (d / "knee.yaml").write_text(text.replace("frames: 51", "frames: 6"))
+    assert main(["run", str(d / "knee.yaml"), "--out", str(d / "run"), "--no-progress", "--no-plots"]) == 0
+    return d / "run"
+
+
+def test_wrapped_quadriceps_polyline_has_the_model_length_and_lies_on_the_cylinder(knee_result):
+    """The stored world polyline of the wrapped quadriceps at each frame: its length equals
+    the path length the model wrote (forces.csv quadriceps.length_m, from the wrapping
+    kernel) to 1e-3 relative (the chords of 15 arc segments); in flexion its arc points lie
+    on the condyle cylinder (distance to the axis = 25 mm to float32 precision) and the
+    path ends at the origin and insertion points."""
+    import csv
+
+    from openfdk.viewer.wrapview import ARC_POINTS
+
+    data, _ = view_data(knee_result)
+    scene, frames = data["scene"], data["frames"]
+    (quad,) = [p for p in scene["paths"] if p["name"] == "quadriceps"]
+    assert quad["kind"] == "muscle" and quad["wrap"] == {"offset": 0, "count": 2 + ARC_POINTS}
+    W = unpack(frames["wrap_points"]).astype(float)
+    poses = unpack(frames["poses"]).astype(float)
+    rows = list(csv.DictReader(open(knee_result / "forces.csv")))
+    names = [b["name"] for b in scene["bodies"]]
+    thigh, shank = names.index("thigh"), names.index("shank")
+    assert W.shape == (6, 2 + ARC_POINTS, 3)
+    wrapped_frames = 0
+    for f in range(6):
+        pts = W[f]
+        length = np.linalg.norm(np.diff(pts, axis=0), axis=1).sum()
+        assert length == pytest.approx(float(rows[f]["quadriceps.length_m"]), rel=1e-3)
+        R_t, R_s = rotation_matrix(poses[f, thigh, 3:]), rotation_matrix(poses[f, shank, 3:])
+        np.testing.assert_allclose(pts[0], poses[f, thigh, :3] + R_t @ [0.03, 0.0, 0.0], atol=1e-6)
+        np.testing.assert_allclose(pts[-1], poses[f, shank, :3] + R_s @ [0.04, 0.15, 0.0], atol=1e-6)
+        arc = pts[1:-1]
+        if np.ptp(arc, axis=0).max() < 1e-9:  # lift-off: the arc collapses onto the origin point
+            continue
+        wrapped_frames += 1
+        axis_W, c_W = R_t[:, 2], poses[f, thigh, :3] + R_t @ [0.0, -0.2, 0.0]  # the knee frame's z axis
+        rel = arc - c_W
+        r = np.linalg.norm(rel - np.outer(rel @ axis_W, axis_W), axis=1)
+        np.testing.assert_allclose(r, 0.025, atol=1e-6)
+    assert wrapped_frames >= 4  # wraps in flexion (the test is not vacuous)
+
+
+@needs_browser
+def test_browser_draws_the_wrapped_knee_muscle(knee_result, tmp_path):
+    page = write_view(knee_result, tmp_path / "knee.html")
+    _img, log, requests = browse(f"{page.as_uri()}#frame=5&view=left", tmp_path, "knee")
+    info = ready_info(log)
+    assert "openfdk-view: error" not in log and "Uncaught" not in log, _console(log)
+    assert requests == []
+    assert (info["paths"], info["wrapped"]) == (1, 1)
