@@ -497,3 +497,30 @@ def test_browser_draws_the_wrapped_knee_muscle(knee_result, tmp_path):
     assert "openfdk-view: error" not in log and "Uncaught" not in log, _console(log)
     assert requests == []
     assert (info["paths"], info["wrapped"]) == (1, 1)
+
+
+@pytest.mark.parametrize("kind, dims", [("sphere", (0.02, 0.02, 0.02)), ("ellipsoid", (0.03, 0.02, 0.015))])
+def test_sphere_and_ellipsoid_arcs_lie_on_the_surface_with_the_kernel_length(kind, dims):
+    """A path from P to Q wrapping a sphere/ellipsoid (on a body rotated and moved): the
+    polyline's points lie on the surface (x_Sᵀ diag(1/a², 1/b², 1/c²) x_S = 1) and its
+    length is the wrapping kernel's path length to the chord error (1e-3 relative)."""
+    from openfdk.forces.wrapping import WrappedPath, WrapSurface
+    from openfdk.model.state import BodyStates
+    from openfdk.viewer.wrapview import ARC_POINTS, polyline
+
+    R_BS = rotation_matrix(quat_from_rotvec([0.2, -0.1, 0.3]))
+    surf = WrapSurface("s", kind, 0, np.array([0.01, 0.0, 0.0]), R_BS, np.array(dims), np.zeros(3))
+    path = WrappedPath([(0, np.array([0.01, 0.0, -0.08])), surf, (0, np.array([0.025, 0.004, 0.07]))], "p")
+    state = BodyStates([[0.1, 0.2, 0.3]], [quat_from_rotvec([0.5, 0.4, -0.2])], [0])
+    pts = polyline(path, state)
+    assert pts.shape == (2 + ARC_POINTS, 3)
+    l_kernel = float(path.evaluate(state, order=0)[0][0])
+    length = np.linalg.norm(np.diff(pts, axis=0), axis=1).sum()
+    straight = np.linalg.norm(pts[-1] - pts[0])
+    assert length == pytest.approx(l_kernel, rel=1e-3) and l_kernel > straight * 1.01  # it wraps
+    R_WS = state.R_WB[0] @ R_BS
+    x_S = (pts[1:-1] - (state.p_WB[0] + state.R_WB[0] @ surf.p_BS)) @ R_WS
+    np.testing.assert_allclose(np.sum(x_S ** 2 / np.array(dims) ** 2, axis=1), 1.0, atol=1e-6)
+    T1, T2 = path.tangent_points(state)[1]  # the arc runs from the kernel's T1 to its T2
+    np.testing.assert_allclose(pts[1], T1, atol=1e-9)
+    np.testing.assert_allclose(pts[-2], T2, atol=1e-6)
