@@ -49,8 +49,8 @@ def n_points(path):
 
 
 def _arc_S(kind, T1, T2, d, dims, k):
-    """k points (k, 3) m in the surface frame S from T1 to T2 (S) on the surface, leaving
-    T1 along the incoming direction d (S)."""
+    """k points (k, 3) m in the surface frame S from T1 to T2 (S) on a cylinder (helix)
+    or sphere (great circle), leaving T1 along the incoming direction d (S); dims (3,) m."""
     u = np.linspace(0.0, 1.0, k)
     if kind == "cylinder":
         a1, a2 = np.arctan2(T1[1], T1[0]), np.arctan2(T2[1], T2[0])
@@ -59,20 +59,19 @@ def _arc_S(kind, T1, T2, d, dims, k):
         a = a1 + turn * theta * u
         r = dims[0]
         return np.stack([r * np.cos(a), r * np.sin(a), T1[2] + (T2[2] - T1[2]) * u], axis=1)
-    if kind == "sphere":
-        n = np.cross(T1, d)
-        n /= np.linalg.norm(n)
-        b = np.cross(n, T1)  # T1 rotated by +90° about n (|b| = r)
-        theta = np.arctan2(T2 @ b, T2 @ T1) % (2 * np.pi)
-        a = theta * u
-        return np.cos(a)[:, None] * T1 + np.sin(a)[:, None] * b
-    # ellipsoid: the geodesic from T1 along d over the kernel's arc length s
-    return None
+    n = np.cross(T1, d)
+    n /= np.linalg.norm(n)
+    b = np.cross(n, T1)  # sphere: T1 rotated by +90° about n (|b| = r)
+    theta = np.arctan2(T2 @ b, T2 @ T1) % (2 * np.pi)
+    a = theta * u
+    return np.cos(a)[:, None] * T1 + np.sin(a)[:, None] * b
 
 
 def _ellipsoid_arc_S(P, Q, T1, d, dims, side, k):
     """Geodesic samples (k, 3) m of the wrap P→Q (S) over the ellipsoid with semi-axes dims."""
     status, _l, _t1, _t2, s = ellipsoid_wrap(P, Q, dims, side, ELLIPSOID_TOL)
+    if status != 1:
+        raise FloatingPointError("the ellipsoid arc could not be re-formed")
     A = 1.0 / dims ** 2
     v = d - (d @ (A * T1)) * (A * T1) / ((A * T1) @ (A * T1))  # tangent-plane part
     v /= np.linalg.norm(v)
