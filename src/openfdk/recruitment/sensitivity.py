@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from openfdk.kinematics.frame_kernels import lu_factor, lu_solve
+from openfdk.kinematics.frame_kernels import small_solve
 from openfdk.recruitment.result import RecruitmentInputError, RecruitmentResult
 
 __all__ = ["recruitment_sensitivity"]
@@ -155,15 +155,7 @@ def recruitment_sensitivity(result: RecruitmentResult, C, d, s, p, dC, dd, ds=No
     kkt_scaled = kkt * equilibrate[:, None] * equilibrate[None, :]
     rhs_scaled = rhs * equilibrate[:, None]
     try:
-        # compiled partial-pivoting LU (no BLAS call: its thread start-up costs more than
-        # the solve at this size), one triangular solve per FDK DOF column
-        LU = np.array(kkt_scaled, dtype=float, order="C")
-        piv = np.empty(LU.shape[0], np.int64)
-        if not lu_factor(LU, piv):
-            raise np.linalg.LinAlgError("singular KKT matrix")
-        solution = np.empty_like(rhs_scaled)
-        for j in range(rhs_scaled.shape[1]):
-            solution[:, j] = lu_solve(LU, piv, np.array(rhs_scaled[:, j], dtype=float))
+        solution = small_solve(kkt_scaled, rhs_scaled)  # compiled LU, no BLAS call
         if not np.all(np.isfinite(solution)):
             raise np.linalg.LinAlgError("singular KKT matrix")
     except (np.linalg.LinAlgError, ValueError, scipy.linalg.LinAlgWarning):
