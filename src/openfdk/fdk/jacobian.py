@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..kinematics.frame_kernels import small_solve
 from ..numdiff import manifold_jacobian
 from ..recruitment import recruitment_sensitivity
 from .residual import FrameWorkspace
@@ -65,7 +66,7 @@ def kinematic_sensitivity(ctx, ev):
     E = np.zeros((m, n_fdk))
     E[m - n_fdk :, :] = np.eye(n_fdk)
     if ctx.tracker is None:
-        return np.linalg.solve(A, E)
+        return small_solve(A, E)
     tracker = ctx.tracker
     w = tracker._weights(ev.visible)
     x = np.where(ev.visible[:, None], ev.x, 0.0).ravel()

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..kinematics.frame_kernels import small_solve
 from .jacobian import analytic_jacobian, central_jacobian
 
 GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
@@ -80,7 +81,7 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None) -> Frame
             if J is None:
                 return done(best, False, it, msg, "jacobian", best_ws)
         try:
-            step = np.linalg.solve(J, -ev.f_fdk)
+            step = small_solve(J, -ev.f_fdk)
             if not np.all(np.isfinite(step)):
                 raise np.linalg.LinAlgError
         except np.linalg.LinAlgError:

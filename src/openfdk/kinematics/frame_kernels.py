@@ -257,3 +257,22 @@ def tracking_rates(op, node_row, node_size, i_start, iparams, f_start, fparams, 
     for c in range(n):
         vdot[c] = rhs[c]
     return OK, -1, 0
+
+
+def small_solve(A, B):
+    """X = A⁻¹ B for a small square A (n, n) and B (n,) or (n, k), by the compiled LU above
+    (no BLAS call: at this size its thread start-up costs more than the solve). Raises
+    numpy.linalg.LinAlgError if a pivot is exactly zero, as numpy.linalg.solve does."""
+    LU = np.array(A, dtype=float, order="C")
+    if LU.ndim != 2 or LU.shape[0] != LU.shape[1]:
+        raise np.linalg.LinAlgError("small_solve: A must be square")
+    piv = np.empty(LU.shape[0], np.int64)
+    if not lu_factor(LU, piv):
+        raise np.linalg.LinAlgError("singular matrix")
+    B = np.asarray(B, dtype=float)
+    if B.ndim == 1:
+        return lu_solve(LU, piv, B.copy())
+    X = np.empty(B.shape)
+    for j in range(B.shape[1]):
+        X[:, j] = lu_solve(LU, piv, np.array(B[:, j]))
+    return X

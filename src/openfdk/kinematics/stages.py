@@ -11,7 +11,10 @@ Later stages (equilibrium, the analytic FDK Jacobian) read Φ_q̂ from the data.
 
 from __future__ import annotations
 
+import numpy as np
 import scipy.linalg as sla
+
+from .frame_kernels import lu_factor, lu_solve
 
 
 def position_stage(system, data, state, t, alpha=None, markers=None):
@@ -29,11 +32,23 @@ def velocity_stage_determinate(system, data, state):
     """Φ_q̂ v = ν (Eq. 2), then γ at (q, v) and Φ_q̂ v̇ = γ (Eq. 3), with one LU
     factorisation of data.Phi_q. Sets the state's velocities; fills data.v, data.gamma,
     data.vdot (n,) [m/s, rad/s; m/s², rad/s²]."""
-    lu = sla.lu_factor(data.Phi_q, check_finite=False)
-    data.v = sla.lu_solve(lu, data.nu, check_finite=False)
+    # The small square Φ_q̂ is factorised by the compiled partial-pivoting LU (no BLAS
+    # call, whose thread start-up dominates at this size); LAPACK only if singular, so
+    # that its warning and inf/nan results stay as they were.
+    LU = np.array(data.Phi_q, dtype=float, order="C")
+    piv = np.empty(LU.shape[0], np.int64)
+    if LU.shape[0] == LU.shape[1] and lu_factor(LU, piv):
+        def solve(rhs):
+            return lu_solve(LU, piv, np.array(rhs, dtype=float))
+    else:
+        lu = sla.lu_factor(data.Phi_q, check_finite=False)
+
+        def solve(rhs):
+            return sla.lu_solve(lu, rhs, check_finite=False)
+    data.v = solve(data.nu)
     state.set_v(data.v)
     data.gamma = system.bias(state, data.t, data.alpha)
-    data.vdot = sla.lu_solve(lu, data.gamma, check_finite=False)
+    data.vdot = solve(data.gamma)
     return data
 
 

@@ -31,6 +31,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
+from openfdk.kinematics.frame_kernels import small_solve
 from openfdk.recruitment.result import RecruitmentInputError, RecruitmentResult
 
 __all__ = ["recruitment_sensitivity"]
@@ -154,8 +155,7 @@ def recruitment_sensitivity(result: RecruitmentResult, C, d, s, p, dC, dd, ds=No
     kkt_scaled = kkt * equilibrate[:, None] * equilibrate[None, :]
     rhs_scaled = rhs * equilibrate[:, None]
     try:
-        lu = scipy.linalg.lu_factor(kkt_scaled, check_finite=False)
-        solution = scipy.linalg.lu_solve(lu, rhs_scaled, check_finite=False)
+        solution = small_solve(kkt_scaled, rhs_scaled)  # compiled LU, no BLAS call
         if not np.all(np.isfinite(solution)):
             raise np.linalg.LinAlgError("singular KKT matrix")
     except (np.linalg.LinAlgError, ValueError, scipy.linalg.LinAlgWarning):
