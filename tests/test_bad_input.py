@@ -441,10 +441,12 @@ def test_chunked_runs_warn_about_trial_markers_and_pulling_contacts_once(files, 
     x[:, labels.index("S2")] = np.nan
     write_c3d(tmp_path / "s2.c3d", labels, x, 100.0, units="mm")
     code, _, err = _run(capsys, "run", model, tmp_path / "s2.c3d", "--out", tmp_path / "o", "--no-progress",
-                        "--no-plots", "--start", "0.1", "--end", "0.3", "--chunks", "2", "--workers", "0")
+                        "--no-plots", "--start", "0.1", "--end", "0.3", "--chunks", "2", "--workers", "0",
+                        "--max-failed", "1")  # no muscles: every inverse-dynamics frame fails
     assert code == 0
     never = [ln for ln in err.splitlines() if "never visible" in ln]
-    assert never == ["openfdk: warning: s2.c3d: marker(s) 'S2' never visible in the analysis window [0.1, 0.3] s"]
+    assert len(never) == 1 and never[0].startswith("openfdk: warning: ")
+    assert never[0].endswith("s2.c3d: marker(s) 'S2' never visible in the analysis window [0.1, 0.3] s")
     # a segment told to skip the checks warns about nothing
     import warnings
 
