@@ -370,3 +370,97 @@ def test_progress_lines_module():
         assert buf2.getvalue() == ""
     finally:
         set_quiet(False)
+
+
+def _fake_study(calls, failed):
+    """A stand-in for the mandible study (run_study / run_demo): records its call and
+    returns a result whose ``failed`` tasks are given."""
+    def run(*args, **kwargs):
+        calls.append(args)
+        return {"failed": failed, "table1": [], "completed": ["open_close"]}
+    return run
+
+
+def test_subject_study_and_demo_with_a_failed_task_exit_3(tmp_path, capsys, monkeypatch):
+    """A task failed while the others completed: exit 3 (completed with failures), not 2
+    (bad input); the failed task is named on stderr. No failure: exit 0."""
+    import openfdk.mandible.demo
+    import openfdk.mandible.study
+
+    calls = []
+    failed = {"chewing": "no periodic movement in the record"}
+    monkeypatch.setattr(openfdk.mandible.study, "run_study", _fake_study(calls, failed))
+    monkeypatch.setattr(openfdk.mandible.demo, "run_demo", _fake_study(calls, failed))
+    code, _, err = _run(capsys, "subject", "study", tmp_path / "subject", "--out", tmp_path / "s", "--no-progress")
+    assert code == 3 and len(calls) == 1
+    assert "task 'chewing' failed: no periodic movement in the record" in err
+    assert "1 task(s) failed" in err
+    code, _, err = _run(capsys, "demo", "--out", tmp_path / "d", "--no-progress")
+    assert code == 3 and len(calls) == 2 and "task 'chewing' failed" in err
+    failed.clear()
+    assert _run(capsys, "demo", "--out", tmp_path / "d2", "--no-progress")[0] == 0
+
+
+def test_subject_study_and_demo_check_their_output_folder_first(tmp_path, capsys, monkeypatch):
+    """`openfdk subject study` and `openfdk demo` refuse a folder holding study results
+    (exit 2, the folder named, nothing computed) unless --force, and an unwritable one."""
+    import openfdk.mandible.demo
+    import openfdk.mandible.study
+
+    calls = []
+    monkeypatch.setattr(openfdk.mandible.study, "run_study", _fake_study(calls, {}))
+    monkeypatch.setattr(openfdk.mandible.demo, "run_demo", _fake_study(calls, {}))
+    study, demo = tmp_path / "s", tmp_path / "d"
+    (demo / "study").mkdir(parents=True)
+    for folder in (study, demo / "study"):
+        folder.mkdir(exist_ok=True)
+        (folder / "summary.json").write_text("{}")
+    code, _, err = _run(capsys, "subject", "study", tmp_path / "subject", "--out", study, "--no-progress")
+    assert code == 2 and f"output folder '{study}' already holds results (summary.json)" in _error_line(err)
+    code, _, err = _run(capsys, "demo", "--out", demo, "--no-progress")
+    assert code == 2 and f"output folder '{demo / 'study'}' already holds results" in _error_line(err)
+    assert "--force" in err and calls == []
+    (tmp_path / "afile").write_text("x")
+    code, _, err = _run(capsys, "subject", "study", tmp_path / "subject", "--out", tmp_path / "afile" / "o")
+    assert code == 2 and "is not writable" in _error_line(err) and calls == []
+    code, _, err = _run(capsys, "demo", "--out", tmp_path / "afile")
+    assert code == 2 and "is a file, not a folder" in _error_line(err) and calls == []
+    assert _run(capsys, "subject", "study", tmp_path / "subject", "--out", study, "--force", "--no-progress")[0] == 0
+    assert _run(capsys, "demo", "--out", demo, "--force", "--no-progress")[0] == 0
+    assert len(calls) == 2
+
+
+def test_chunked_runs_warn_about_trial_markers_and_pulling_contacts_once(files, tmp_path, capsys):
+    """`openfdk run --chunks K`: the trial-marker warning and the pulling-contact warning
+    of the whole trial appear once, as in the serial run (the segments skip them)."""
+    from openfdk.study.case import segment_task
+    from openfdk.study.cli import job_case
+
+    model, _, (labels, x) = files
+    x = x.copy()
+    x[:, labels.index("S2")] = np.nan
+    write_c3d(tmp_path / "s2.c3d", labels, x, 100.0, units="mm")
+    code, _, err = _run(capsys, "run", model, tmp_path / "s2.c3d", "--out", tmp_path / "o", "--no-progress",
+                        "--no-plots", "--start", "0.1", "--end", "0.3", "--chunks", "2", "--workers", "0",
+                        "--max-failed", "1")  # no muscles: every inverse-dynamics frame fails
+    assert code == 0
+    never = [ln for ln in err.splitlines() if "never visible" in ln]
+    assert len(never) == 1 and never[0].startswith("openfdk: warning: ")
+    assert never[0].endswith("s2.c3d: marker(s) 'S2' never visible in the analysis window [0.1, 0.3] s")
+    # a segment told to skip the checks warns about nothing
+    import warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        segment_task(job_case(model, tmp_path / "s2.c3d", 2, 1, None, 0.1, 0.3), 1, checks=False)
+    assert not [w for w in caught if "never visible" in str(w.message)]
+
+    _patch(tmp_path / "bottom.stl", 10.0, 0.5)
+    _patch(tmp_path / "floor.stl", 40.0, 1.0, flip=True)
+    block = _write(tmp_path, BLOCK, "block.yaml")
+    code, _, err = _run(capsys, "run", block, "--out", tmp_path / "b", "--no-progress", "--no-plots", "--chunks", "2",
+                        "--workers", "0")
+    assert code == 0
+    pulls = [ln for ln in err.splitlines() if "pulls" in ln]
+    assert len(pulls) == 1
+    assert "contacts.floor: the contact force pulls the surfaces together in 3 of 3 frames" in pulls[0]

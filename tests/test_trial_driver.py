@@ -200,10 +200,8 @@ def test_ctrl_c_writes_the_finished_frames_marked_partial(files, tmp_path):
     assert (out / "forces.csv").read_bytes() == (whole / "forces.csv").read_bytes()
 
 
-def test_resume_with_chunks_and_bad_checkpoint_options_are_refused(files, tmp_path, capsys):
+def test_bad_checkpoint_options_are_refused(files, tmp_path, capsys):
     base = ["run", str(files / "pop.yaml"), str(files / "trial.c3d"), "--out", str(tmp_path / "o"), "--no-progress", "--no-plots"]
-    assert main([*base, "--chunks", "2", "--resume"]) == 2
-    assert "--resume is not available with --chunks" in capsys.readouterr().err
     assert main([*base, "--checkpoint-frames", "0"]) == 2
     assert "--checkpoint-frames must be >= 1" in capsys.readouterr().err
 
@@ -216,3 +214,75 @@ def test_checkpoints_of_another_run_are_refused(tmp_path):
         Checkpoints(tmp_path / "c", "run-b").load()
     saved = Checkpoints(tmp_path / "c", "run-a").load()
     assert saved.next_frame == 1 and saved.records == [(0, {"x": 1.0})]
+
+
+def test_a_changed_mesh_refuses_the_resume(tmp_path, capsys):
+    """The checkpoint fingerprint covers the meshes the model refers to: the same model
+    and trial with one fossa mesh moved by 0.1 mm give another fingerprint, and
+    `openfdk run --resume` on the old checkpoint exits 2 naming the checkpoint."""
+    import trimesh
+
+    from openfdk.cli import _run_checkpoints, build_parser
+    from openfdk.io.fingerprint import referenced_files
+
+    write_jaw_files(tmp_path, 10)
+    out = tmp_path / "o"
+    argv = ["run", str(tmp_path / "tmj.yaml"), str(tmp_path / "trial.c3d"), "--out", str(out), "--no-progress",
+            "--no-plots"]
+    args = build_parser().parse_args(argv)
+    assert sorted(name for name, _ in referenced_files(args.model)) == [
+        "meshes/condyle_l.stl", "meshes/condyle_r.stl", "meshes/fossa_l.stl", "meshes/fossa_r.stl"]
+    before = _run_checkpoints(args)
+    assert _run_checkpoints(args).fingerprint == before.fingerprint   # same inputs, same fingerprint
+    before.save([], None, 0)                                           # a checkpoint of the old inputs
+    mesh = trimesh.load(tmp_path / "meshes" / "fossa_r.stl")
+    mesh.apply_translation([0.0, 0.0, 1e-4])
+    mesh.export(tmp_path / "meshes" / "fossa_r.stl")
+    assert _run_checkpoints(args).fingerprint != before.fingerprint
+    assert main([*argv, "--resume"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "part-000000.pkl: the checkpoint belongs to another run" in err[0]
+    assert not (out / "forces.csv").exists()
+
+
+def test_chunked_run_keeps_finished_chunks_and_resume_reuses_them(tmp_path, capsys, monkeypatch):
+    """`openfdk run --chunks 3`: interrupted while solving chunk 2 (exit 130), the first
+    two chunks are kept in OUT/.checkpoint; `--resume` solves only chunk 2 and the files
+    equal an uninterrupted chunked run's byte for byte; the checkpoint is then removed.
+    A chunk of another run (other --overlap) is refused."""
+    import openfdk.study.case as case_module
+
+    write_jaw_files(tmp_path, 30)
+    solve = case_module.segment_task
+    solved = []
+
+    def counting(case, k, checks=True):
+        if k == 2 and "stop" in solved:
+            raise KeyboardInterrupt
+        solved.append(k)
+        return solve(case, k, checks)
+
+    monkeypatch.setattr(case_module, "segment_task", counting)
+    common = ["run", str(tmp_path / "pop.yaml"), str(tmp_path / "trial.c3d"), "--chunks", "3", "--workers", "0",
+              "--no-progress", "--no-plots"]
+    whole, out = tmp_path / "whole", tmp_path / "out"
+    assert main([*common, "--out", str(whole)]) == 0 and solved == [0, 1, 2]
+    assert not (whole / ".checkpoint").exists()
+    solved[:] = ["stop"]
+    assert main([*common, "--out", str(out)]) == 130
+    assert solved == ["stop", 0, 1]
+    assert sorted(p.name for p in (out / ".checkpoint").glob("*.pkl")) == ["chunk-000000.pkl", "chunk-000001.pkl"]
+    assert not (out / "forces.csv").exists()
+    solved[:] = []
+    assert main([*common, "--out", str(out), "--resume"]) == 0
+    assert solved == [2]
+    for name in ("kinematics.csv", "forces.csv"):
+        assert (out / name).read_bytes() == (whole / name).read_bytes(), name
+    assert not (out / ".checkpoint").exists()
+    # another run's chunk is refused
+    solved[:] = ["stop"]
+    other = tmp_path / "other"
+    assert main([*common, "--out", str(other)]) == 130
+    capsys.readouterr()
+    assert main([*common, "--out", str(other), "--resume", "--overlap", "3"]) == 2
+    assert "chunk-000000.pkl: the checkpoint belongs to another run" in capsys.readouterr().err

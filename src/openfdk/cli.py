@@ -156,8 +156,6 @@ def _write_measures(out_dir, model_path, kinematics):
 
 
 def _cmd_run(args):
-    if args.chunks > 1 and args.resume:
-        raise UserError("--resume is not available with --chunks (chunked runs write no checkpoints)")
     if args.checkpoint_frames < 1 or not args.checkpoint_seconds > 0:
         raise UserError("--checkpoint-frames must be >= 1 and --checkpoint-seconds > 0")
     _check_window(args)
@@ -168,7 +166,7 @@ def _cmd_run(args):
         kin, dyn, info = run_chunked_job(
             args.model, args.trial, args.chunks, args.out, cutoff_hz=args.cutoff, start=args.start,
             end=args.end, overlap=args.overlap, scheduler=args.scheduler, workers=args.workers,
-            progress=_progress_on(args))
+            progress=_progress_on(args), checkpoints=_run_checkpoints(args, chunked=True), resume=args.resume)
     else:
         from .jobs import run_job
         from .study.case import write_run_outputs
@@ -209,20 +207,21 @@ def _progress_on(args):
     return not (getattr(args, "no_progress", False) or getattr(args, "quiet", False))
 
 
-def _run_checkpoints(args):
-    """Checkpoints of ``openfdk run`` in OUT/.checkpoint, fingerprinted by the model and
-    trial files' contents and the analysis options."""
-    import hashlib
+def _run_checkpoints(args, chunked=False):
+    """Checkpoints of ``openfdk run`` in OUT/.checkpoint, fingerprinted by the contents of
+    the model file, the meshes it refers to and the trial file, and the analysis options;
+    ``chunked``: the finished segments of ``--chunks K`` (SegmentCheckpoints)."""
     from pathlib import Path
 
-    from .trial.checkpoint import CHECKPOINT_DIR, Checkpoints
+    from .io.fingerprint import run_fingerprint
+    from .trial.checkpoint import CHECKPOINT_DIR, Checkpoints, SegmentCheckpoints
 
-    h = hashlib.sha256()
-    for path in (args.model, args.trial):
-        if path is not None:
-            h.update(Path(path).read_bytes())
-    h.update(repr((args.cutoff, args.start, args.end, _version())).encode())
-    return Checkpoints(Path(args.out) / CHECKPOINT_DIR, h.hexdigest(), args.checkpoint_frames,
+    options = (args.cutoff, args.start, args.end, _version())
+    if chunked:
+        fingerprint = run_fingerprint(args.model, args.trial, (*options, "chunks", args.chunks, args.overlap))
+        return SegmentCheckpoints(Path(args.out) / CHECKPOINT_DIR, fingerprint)
+    fingerprint = run_fingerprint(args.model, args.trial, options)
+    return Checkpoints(Path(args.out) / CHECKPOINT_DIR, fingerprint, args.checkpoint_frames,
                        args.checkpoint_seconds)
 
 
@@ -236,10 +235,28 @@ def _version():
 
 
 def _cmd_demo(args):
+    from pathlib import Path
+
+    from .io.outdir import check_output_dir
     from .mandible.demo import run_demo
 
-    run_demo(args.out, quick=args.quick, progress=_progress_on(args), workers=args.workers)
-    return 0
+    # before any computation: the demo folder (subject reused) and its study results
+    check_output_dir(args.out)
+    check_output_dir(Path(args.out) / "study", force=args.force)
+    result = run_demo(args.out, quick=args.quick, progress=_progress_on(args), workers=args.workers)
+    return _failed_tasks_exit(result, f"{args.out}/study")
+
+
+def _failed_tasks_exit(result, out):
+    """Exit code of a mandible study (``openfdk demo``, ``openfdk subject study``): 0, or 3
+    when some task failed while the others completed (each named on stderr)."""
+    for task, message in result["failed"].items():
+        print(f"openfdk: error: task {task!r} failed: {message}", file=sys.stderr)
+    if not result["failed"]:
+        return EXIT_OK
+    print(f"openfdk: {len(result['failed'])} task(s) failed (listed in {out}/summary.json); the other "
+          "tasks' tables and figures are written", file=sys.stderr)
+    return EXIT_FAILED_FRAMES  # completed with failures (README "Exit codes")
 
 
 def _cycles_argument(value):
@@ -263,19 +280,17 @@ def _cmd_subject(args):
         from .mandible.demo import report
         from .mandible.study import run_study
 
+        from .io.outdir import check_output_dir
+
         out = args.out or f"{args.directory.rstrip('/')}-study"
+        check_output_dir(out, force=args.force)  # before any computation
         cycles = 5 if args.cycles is None else (None if args.cycles == "all" else args.cycles)
         result = run_study(args.directory, out, n_cycles=cycles, quick=args.quick, progress=_progress_on(args),
                            workers=args.workers, scheduler=args.scheduler,
                            parameter_study=not args.no_parameter_study)
         if result["table1"]:
             report(result, out)
-        for task, message in result["failed"].items():
-            print(f"openfdk: error: task {task!r} failed: {message}", file=sys.stderr)
-        if result["failed"]:
-            print(f"openfdk: {len(result['failed'])} task(s) failed (listed in {out}/summary.json); the other "
-                  "tasks' tables and figures are written", file=sys.stderr)
-            return 2
+        return _failed_tasks_exit(result, out)
     elif args.action == "create":
         path = create_subject(args.directory, resolution=args.resolution, symmetric=not args.asymmetric, seed=args.seed)
         print(f"virtual subject written to {path}/ (subject.yaml and STL files); next: openfdk subject record {path}")
@@ -408,6 +423,8 @@ def build_parser():
     d = sub.add_parser("demo", help="the mandible study on the virtual subject, end to end")
     d.add_argument("--out", default="openfdk-demo", help="output directory (default ./openfdk-demo)")
     d.add_argument("--quick", action="store_true", help="a reduced run (coarse meshes, 2 cycles; for tests)")
+    d.add_argument("--force", action="store_true",
+                   help="overwrite the study results already in OUT/study (the subject in OUT/subject is reused)")
     _display_arguments(d)
     d.add_argument("--workers", type=argtypes.count(0), default=None,
                    help="parameter-study worker processes (default one per CPU; 0 = this process)")
@@ -426,7 +443,9 @@ def build_parser():
     s.add_argument("--realistic", action="store_true",
                    help="record: realistic recordings (static trial 4.6° open, slow and wide tasks, 3 open-close "
                         "cycles, extra markers, gaps, trial names declared in trials:)")
-    s.add_argument("--out", default=None, help="output folder (study; default DIRECTORY-study)")
+    s.add_argument("--out", default=None, help="output folder (study; default DIRECTORY-study; checked for "
+                                               "writability before any computation)")
+    s.add_argument("--force", action="store_true", help="study: overwrite the results already in the --out folder")
     s.add_argument("--workers", type=argtypes.count(0), default=None,
                    help="parameter-study worker processes (study; default one per CPU, 0 = this process)")
     s.add_argument("--scheduler", default=None, help="address of a running Dask scheduler (study)")

@@ -155,13 +155,24 @@ def run_case(case, out_root, force=False):
     return publish_case(out_root, case, kin, dyn, info, _time.perf_counter() - t0, force)
 
 
-def segment_task(case, index):
-    """Dask task: solve segment ``index`` of a chunked case. Returns a SegmentResult."""
-    model, trial, label = build_case_model(case)
-    opts = case.options
-    traj, times, info = analysis_inputs(model, trial, opts.cutoff_hz, opts.start, opts.end)
-    segment = plan_segments(len(times), opts.chunks, opts.overlap)[index]
-    return solve_segment(model, traj, times, segment, {"model": label, **info})
+def segment_task(case, index, checks=True):
+    """Dask task: solve segment ``index`` of a chunked case. Returns a SegmentResult.
+    ``checks`` False: the plausibility warnings of the model and trial are silenced here
+    (the caller checks them once for the whole trial, see
+    :func:`openfdk.study.cli.run_chunked_job`)."""
+    import contextlib
+    import warnings
+
+    from ..model.plausibility import PlausibilityWarning
+
+    with warnings.catch_warnings() if not checks else contextlib.nullcontext():
+        if not checks:
+            warnings.simplefilter("ignore", PlausibilityWarning)
+        model, trial, label = build_case_model(case)
+        opts = case.options
+        traj, times, info = analysis_inputs(model, trial, opts.cutoff_hz, opts.start, opts.end)
+        segment = plan_segments(len(times), opts.chunks, opts.overlap)[index]
+        return solve_segment(model, traj, times, segment, {"model": label, **info})
 
 
 def finish_chunked_case(case, out_root, started, force, *segment_results):

@@ -118,7 +118,7 @@ def job_case(model_path, trial_path, chunks, overlap=DEFAULT_OVERLAP, cutoff_hz=
 
 def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=None, start=None, end=None,
                     overlap=DEFAULT_OVERLAP, scheduler=None, workers=None, client=None, progress=True,
-                    malloc_trim=False):
+                    malloc_trim=False, checkpoints=None, resume=False):
     """``openfdk run --chunks K``: one trial split into ``chunks`` frame segments solved
     in parallel (each warmed up by ``overlap`` frames, docs/studies.md), stitched into
     one result equal to the serial run's to the solver tolerances.
@@ -130,6 +130,11 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
     :func:`openfdk.jobs.run_job` (info["fdk"] for FDK models, info["chunks"],
     info["segments"]); with ``out_dir``, also writes kinematics.csv, forces.csv and
     summary.json there as ``openfdk run`` does.
+
+    ``checkpoints``: a :class:`openfdk.trial.checkpoint.SegmentCheckpoints` keeping each
+    finished segment (cleared once the results are written); with ``resume`` the
+    segments kept there are reused and only the others solved, otherwise they are
+    discarded first.
     """
     import contextlib
     import os
@@ -141,19 +146,40 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
     if int(chunks) < 1:
         raise ValueError(f"--chunks must be >= 1, got {chunks}")
     case = job_case(model_path, trial_path, chunks, overlap, cutoff_hz, start, end)
+    # the plausibility checks of the whole trial, here once (the segments skip them):
+    # model (on loading), trial markers in the window, and the pulling contacts below
+    from ..io.modelfile import load_model
+    from ..jobs import analysis_inputs
+    from ..model.plausibility import warn_pulling_contacts
+
+    model = load_model(model_path)
+    analysis_inputs(model, trial_path, cutoff_hz, start, end)
+    done = {}
+    if checkpoints is not None:
+        if resume:
+            done = checkpoints.load()
+        else:
+            checkpoints.clear()
+    todo = [k for k in range(int(chunks)) if k not in done]
+
+    def finished(result):
+        results.append(result)
+        if checkpoints is not None:
+            checkpoints.save(result.segment.index, result)
+        if bar:
+            bar.update()
+
     t0 = _time.perf_counter()
     bar = None
     if progress:
         from ..progress import progress as _display
 
-        bar = _display(int(chunks), "chunks", "chunk")
-    results = []
+        bar = _display(int(chunks), "chunks", "chunk", initial=len(done))
+    results = [done[k] for k in sorted(done)]
     try:
         if client is None and scheduler is None and workers == 0:
-            for k in range(int(chunks)):
-                results.append(segment_task(case, k))
-                if bar:
-                    bar.update()
+            for k in todo:
+                finished(segment_task(case, k, checks=False))
         else:
             from distributed import as_completed
 
@@ -161,20 +187,21 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
                 if client is None:
                     n = workers or min(int(chunks), os.cpu_count() or 1)
                     client = stack.enter_context(dask_client(scheduler, n, malloc_trim))
-                futures = [client.submit(segment_task, case, k, pure=False) for k in range(int(chunks))]
+                futures = [client.submit(segment_task, case, k, checks=False, pure=False) for k in todo]
                 for fut in as_completed(futures, loop=client.loop):
-                    results.append(fut.result())
-                    if bar:
-                        bar.update()
+                    finished(fut.result())
     finally:
         if bar:
             bar.close()
     wall = _time.perf_counter() - t0
     kin, dyn, fdk = stitch(results, wall)
+    warn_pulling_contacts(model, kin, dyn)
     info = {**results[0].info, **chunk_info(results, overlap)}
     info["model"] = str(model_path)
     if fdk is not None:
         info["fdk"] = fdk.summary()
     if out_dir is not None:
         write_run_outputs(out_dir, kin, dyn, info)
+    if checkpoints is not None:
+        checkpoints.clear()
     return kin, dyn, info

@@ -27,6 +27,25 @@ class CheckpointError(ValueError):
     """Saved checkpoints that cannot be used (another run's, or parts missing)."""
 
 
+def _write_atomic(final, payload):
+    """Pickle ``payload`` to ``final`` under a temporary name, then rename (a file under
+    its final name is always whole)."""
+    tmp = final.parent / f".{final.name}.tmp-{os.getpid()}"
+    with open(tmp, "wb") as fh:
+        pickle.dump(payload, fh, protocol=pickle.HIGHEST_PROTOCOL)
+    os.replace(tmp, final)
+
+
+def _read_own(path, fingerprint):
+    """The payload of our checkpoint file ``path``; CheckpointError if another run's."""
+    with open(path, "rb") as fh:
+        payload = pickle.load(fh)  # our own files, written by _write_atomic
+    if not isinstance(payload, dict) or payload.get("fingerprint") != fingerprint:
+        raise CheckpointError(f"{path}: the checkpoint belongs to another run (model, meshes, trial or options "
+                              f"differ); start again with --force")
+    return payload
+
+
 @dataclass(frozen=True)
 class Saved:
     """records : [(frame, values)] in order; carry : the step's warm-start state;
@@ -67,12 +86,8 @@ class Checkpoints:
     def save(self, records, carry, next_frame):
         """Write one part atomically (temporary name, then rename)."""
         self.folder.mkdir(parents=True, exist_ok=True)
-        final = self.folder / f"part-{self._index:06d}.pkl"
-        tmp = self.folder / f".{final.name}.tmp-{os.getpid()}"
         payload = {"fingerprint": self.fingerprint, "next_frame": int(next_frame), "records": records, "carry": carry}
-        with open(tmp, "wb") as fh:
-            pickle.dump(payload, fh, protocol=pickle.HIGHEST_PROTOCOL)
-        os.replace(tmp, final)
+        _write_atomic(self.folder / f"part-{self._index:06d}.pkl", payload)
         self._index += 1
         self._last = time.monotonic()
 
@@ -87,15 +102,37 @@ class Checkpoints:
             return None
         records, carry, next_frame = [], None, 0
         for p in parts:
-            with open(p, "rb") as fh:
-                payload = pickle.load(fh)  # our own files, written by save()
-            if payload.get("fingerprint") != self.fingerprint:
-                raise CheckpointError(f"{p}: the checkpoint belongs to another run (model, trial or options "
-                                      f"differ); start again with --force")
+            payload = _read_own(p, self.fingerprint)
             records += payload["records"]
             carry, next_frame = payload["carry"], payload["next_frame"]
         self._index = len(parts)
         return Saved(records, carry, next_frame)
+
+    def clear(self):
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+
+class SegmentCheckpoints:
+    """Finished segments of a chunked run (``openfdk run --chunks K``), one file each:
+    ``folder/chunk-KKKKKK.pkl`` holding the fingerprint and the segment's result, written
+    atomically as each segment finishes; :meth:`load` gives them back for ``--resume``."""
+
+    def __init__(self, folder, fingerprint):
+        self.folder = Path(folder)
+        self.fingerprint = str(fingerprint)
+
+    def save(self, index, result):
+        """Keep the finished segment ``index`` (its result, any picklable object)."""
+        self.folder.mkdir(parents=True, exist_ok=True)
+        _write_atomic(self.folder / f"chunk-{int(index):06d}.pkl", {"fingerprint": self.fingerprint, "result": result})
+
+    def load(self):
+        """{segment index: result} of the segments kept (empty when none); raises
+        CheckpointError for another run's files."""
+        if not self.folder.is_dir():
+            return {}
+        return {int(p.stem.split("-")[1]): _read_own(p, self.fingerprint)["result"]
+                for p in sorted(self.folder.glob("chunk-*.pkl"))}
 
     def clear(self):
         shutil.rmtree(self.folder, ignore_errors=True)

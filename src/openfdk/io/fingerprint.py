@@ -1,0 +1,57 @@
+"""The fingerprint of a run's inputs, for checkpoints (``openfdk run --resume``).
+
+A checkpoint may only be continued by the run that wrote it. The fingerprint hashes the
+bytes of the model and trial files, of every file the model file refers to (meshes:
+any text value of the model file naming an existing file relative to the model's
+folder), and the analysis options. A changed mesh therefore gives another fingerprint
+and the checkpoint is refused.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+from .yamlfile import read_yaml
+
+
+def referenced_files(model_path) -> list:
+    """Files the model file ``model_path`` refers to: its text values (at any depth) that
+    name an existing file relative to the model's folder, in file order, each once."""
+    model_path = Path(model_path)
+    base, found, seen = model_path.parent, [], set()
+
+    def walk(value):
+        if isinstance(value, dict):
+            for v in value.values():
+                walk(v)
+        elif isinstance(value, list):
+            for v in value:
+                walk(v)
+        elif isinstance(value, str) and value and value not in seen:
+            seen.add(value)
+            try:
+                path = base / value
+                if path.is_file():
+                    found.append((value, path))
+            except (OSError, ValueError):  # over-long or otherwise impossible names
+                pass
+
+    walk(read_yaml(model_path, what="model file"))
+    return found
+
+
+def run_fingerprint(model_path, trial_path=None, options=()) -> str:
+    """SHA-256 (hex) of the model file, the files it refers to (name and bytes), the
+    trial file (None: determinate run) and ``repr(options)``."""
+    files = referenced_files(model_path)  # a missing or malformed model file: its one-line error
+    h = hashlib.sha256()
+    h.update(Path(model_path).read_bytes())
+    for name, path in files:
+        h.update(b"\0" + name.encode() + b"\0" + hashlib.sha256(path.read_bytes()).digest())
+    if trial_path is not None:
+        if not Path(trial_path).is_file():
+            raise FileNotFoundError(f"trial file {str(trial_path)!r} does not exist")
+        h.update(b"\0trial\0" + Path(trial_path).read_bytes())
+    h.update(repr(tuple(options)).encode())
+    return h.hexdigest()
