@@ -35,7 +35,9 @@ def phi_q_counts(monkeypatch):
     return counts
 
 
-def test_tracking_fdk_residual_assembles_phi_q_once_per_pose(tmp_path, phi_q_counts):
+def _tracking_fdk_frame(tmp_path):
+    """The TMJ FDK context on the synthetic jaw trial, frame k = 3, its warm-start
+    workspace and the initial α: (ctx, times (nf,) s, k, ws, alpha (n_fdk,))."""
     write_jaw_files(tmp_path, 8)
     model = load_model(tmp_path / "tmj.yaml")
     _, traj = load_trajectories(model, tmp_path / "trial.c3d")
@@ -46,6 +48,11 @@ def test_tracking_fdk_residual_assembles_phi_q_once_per_pose(tmp_path, phi_q_cou
     k = 3
     ws = FrameWorkspace({j: state for j in ctx.frames_needed(k)})
     alpha = np.array([d.initial for d in model.fdk_dofs])
+    return ctx, times, k, ws, alpha
+
+
+def test_tracking_fdk_residual_assembles_phi_q_once_per_pose(tmp_path, phi_q_counts):
+    ctx, times, k, ws, alpha = _tracking_fdk_frame(tmp_path)
     phi_q_counts.clear()
     ev = ctx.evaluate(k, alpha, ws)
     assert ev.ok and np.all(np.isfinite(ev.f_fdk))
@@ -144,16 +151,7 @@ def test_tracking_fdk_evaluation_evaluates_rows_once_at_the_solved_pose(tmp_path
     """Whole tracking FDK residual evaluation, kernels included: the rows at the solved
     pose of frame k are evaluated once (the velocity kernel's order-2 evaluation gives
     Φ, Φ_q̂ and the bias); Φ_q̂ read from it equals a fresh evaluation."""
-    write_jaw_files(tmp_path, 8)
-    model = load_model(tmp_path / "tmj.yaml")
-    _, traj = load_trajectories(model, tmp_path / "trial.c3d")
-    times = np.asarray(traj.time)
-    ctx = fdk_context(model, traj, times)
-    state = model.initial_state()
-    ctx.tracker.initial_guess(state, ctx.meas[0][0], ctx.meas[0][3])
-    k = 3
-    ws = FrameWorkspace({j: state for j in ctx.frames_needed(k)})
-    alpha = np.array([d.initial for d in model.fdk_dofs])
+    ctx, times, k, ws, alpha = _tracking_fdk_frame(tmp_path)
     row_evaluations.clear()
     ev = ctx.evaluate(k, alpha, ws)
     assert ev.ok
