@@ -104,6 +104,11 @@ def test_passive_stiffness_matches_manifold_finite_differences(block_model):
     # rotations scaled by a 10 mm lever so that all blocks compare in N/m
     S = np.diag([1, 1, 1, 1e2, 1e2, 1e2])
     np.testing.assert_allclose(S @ K @ S, S @ K_fd @ S, atol=1e-3 * np.abs(S @ K @ S).max())
+    # from the outputs the forces stage left (ligament/spring Jacobians not evaluated again)
+    _, out, _ = passive.generalized_forces(state, 0.0)
+    K_out = passive.stiffness(state, out)
+    np.testing.assert_allclose(S @ K_out @ S, S @ K_fd @ S, atol=1e-3 * np.abs(S @ K @ S).max())
+    np.testing.assert_allclose(K_out, K, rtol=0, atol=1e-9 * np.abs(K).max())
 
 
 def test_contact_far_apart_and_unit_warnings(tmp_path):

@@ -104,7 +104,9 @@ def analytic_jacobian(ctx, k, ev):
         return None, 0, "analytic FDK Jacobian needs the polynomial recruitment criterion"
     u_all = kinematic_sensitivity(ctx, ev)  # (n, n_fdk)
     rows = ctx.solver.layout.eq_coords
-    _, _, K = ctx.solver.passive.generalized_forces(ev.state, t, want_stiffness=True, loads=False)
+    # the elements' stiffness from what the forces stage left at this pose (ligament and
+    # spring Jacobians are not evaluated again; contacts are: K comes with their Q)
+    K = ctx.solver.passive.stiffness(ev.state, ev.data.passive)
     n_fdk = len(ev.alpha)
     dC, dd, ds = [], [], []
     for j in range(n_fdk):

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..kinematics.determinate import solve_positions
-from ..kinematics.stages import position_stage, velocity_stage_determinate, velocity_stage_tracking
+from ..kinematics.stages import marker_stage, velocity_stage_determinate, velocity_stage_tracking
 from ..kinematics.tracking import residual_rates
 from ..model.framedata import FrameData
 
@@ -109,15 +109,18 @@ class FDKContext:
             x, _, _, vis = self.meas[j]
             res, K, lm = self.tracker.solve_positions(ws.states[j], self.times[j], x, vis, alpha)
             if res.converged:
-                delta[j] = np.where(vis[:, None], self.tracker.residuals(ws.states[j], x), np.nan)
-                if j == k:
+                if j == k:  # marker stage at the solved pose; δ from its positions
                     data.kkt, data.lam = K, lm
+                    marker_stage(self.tracker.markers, data, ws.states[k])
+                    p_M = data.p_M.reshape(-1, 3)
+                else:
+                    p_M = self.tracker.markers.positions(ws.states[j])
+                delta[j] = np.where(vis[:, None], p_M - x, np.nan)
             elif j == k:
                 return Evaluation(alpha, False, np.full(len(alpha), np.nan), f"kinematics failed: {res.message}", "kinematics")
         d1, d2 = self._rates(k, delta)
         x, xd, xdd, vis = self.meas[k]
         state = ws.states[k]
-        position_stage(self.system, data, state, t, alpha, self.tracker.markers)
         data.x_M, data.visible, data.delta = x, vis, delta[k]
         velocity_stage_tracking(self.tracker, data, state, _zero_nan(xd), _zero_nan(xdd), d1, d2)
         ev = self._dynamics(k, alpha, state, data, warm_recruitment)

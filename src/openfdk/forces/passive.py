@@ -35,6 +35,8 @@ class PassiveOutputs:
     spring_value: np.ndarray
     spring_force: np.ndarray
     contact: dict
+    ligament_L: np.ndarray = None  #: (n_ligaments, n) path Jacobians ∂l/∂q̂ (for the stiffness)
+    spring_M: np.ndarray = None  #: (n_springs, n) measure Jacobians (for the stiffness)
 
 
 def _cross(a, b):
@@ -91,39 +93,26 @@ class PassiveElements:
         ligaments, springs, contacts = (self.ligaments, self.springs, self.contacts) if elements else ((), (), ())
         if ligaments:
             lengths, L = self.ligament_paths.evaluate(state)
-            out.ligament_length[:] = lengths
+            out.ligament_length[:], out.ligament_L = lengths, L
             if self._blankevoort is not None:
                 # all Blankevoort1991Ligament: the law on the (n_ligaments,) arrays at once
-                strain, T, dT = _blankevoort_arrays(lengths, *self._blankevoort)
+                strain, T, _ = _blankevoort_arrays(lengths, *self._blankevoort)
                 out.ligament_strain[:], out.ligament_force[:] = strain, T
                 Q -= L.T @ T
-                if want_stiffness:
-                    K -= L.T @ (L * dT[:, None])
             for k, lig in enumerate(ligaments if self._blankevoort is None else ()):
                 length = float(lengths[k])
                 T = float(lig.law.force(length))
                 out.ligament_strain[k] = float(lig.law.strain(length))
                 out.ligament_force[k] = T
                 Q -= L[k] * T
-                if want_stiffness:
-                    K -= np.outer(L[k], L[k]) * float(lig.law.dforce_dlength(length))
-            if want_stiffness and np.any(out.ligament_force):
-                # geometric term −Σ T_k ∂L_kᵀ/∂q̂, one batched difference of the path kernel
-                T = out.ligament_force.copy()
-                K -= manifold_jacobian(lambda s: T @ self.ligament_paths.evaluate(s)[1], state, 1e-7, central=False)
         if springs:
             m_s, M_s = self._spring_measures(state)
+            out.spring_M = M_s
         for k, spr in enumerate(springs):
             f = float(spr.law.force(float(m_s[k])))
             out.spring_value[k] = float(m_s[k])
             out.spring_force[k] = f
             Q += M_s[k] * f
-            if want_stiffness:
-                K += np.outer(M_s[k], M_s[k]) * float(spr.law.dforce_dmeasure(float(m_s[k])))
-        if want_stiffness and springs and np.any(out.spring_force):
-            # geometric term Σ f_k ∂M_kᵀ/∂q̂
-            f = out.spring_force.copy()
-            K += manifold_jacobian(lambda s: f @ self._spring_measures(s)[1], state, 1e-7, central=False)
         for load in self.loads if loads else ():
             Q += self._load_Q(load, state, t)
         for contact in contacts:
@@ -132,7 +121,43 @@ class PassiveElements:
             if want_stiffness:
                 K += Kc
             out.contact[contact.name] = info
+        if want_stiffness:
+            K += self.stiffness(state, out, contacts=False)
         return Q, out, K
+
+    def stiffness(self, state, out, contacts=True):
+        """K = ∂Q/∂q̂ (n, n) of the elements at ``state``, from the outputs ``out`` the
+        forces stage left there (ligament lengths, forces and path Jacobians; spring
+        values, forces and measure Jacobians), which are not evaluated again; the
+        geometric terms differentiate the path/measure Jacobians at nearby poses. The
+        contacts (if ``contacts``) are evaluated once more: their K comes from the same
+        grid samples as their Q."""
+        n = state.n_coords
+        K = np.zeros((n, n))
+        if self.ligaments and out.ligament_L is not None:
+            L, lengths = out.ligament_L, out.ligament_length
+            if self._blankevoort is not None:
+                dT = _blankevoort_arrays(lengths, *self._blankevoort)[2]
+                K -= L.T @ (L * dT[:, None])
+            for k, lig in enumerate(self.ligaments if self._blankevoort is None else ()):
+                K -= np.outer(L[k], L[k]) * float(lig.law.dforce_dlength(float(lengths[k])))
+            if np.any(out.ligament_force):
+                # geometric term −Σ T_k ∂L_kᵀ/∂q̂, one batched difference of the path kernel
+                T = out.ligament_force.copy()
+                K -= manifold_jacobian(lambda s: T @ self.ligament_paths.evaluate(s)[1], state, 1e-7, central=False,
+                                       f0=T @ L)
+        if self.springs and out.spring_M is not None:
+            M_s = out.spring_M
+            for k, spr in enumerate(self.springs):
+                K += np.outer(M_s[k], M_s[k]) * float(spr.law.dforce_dmeasure(float(out.spring_value[k])))
+            if np.any(out.spring_force):
+                # geometric term Σ f_k ∂M_kᵀ/∂q̂
+                f = out.spring_force.copy()
+                K += manifold_jacobian(lambda s: f @ self._spring_measures(s)[1], state, 1e-7, central=False,
+                                       f0=f @ M_s)
+        for contact in self.contacts if contacts else ():
+            K += contact.generalized_forces(state, True)[1]
+        return K
 
     @staticmethod
     def _load_Q(load, state, t):

@@ -30,7 +30,7 @@ from ..model.framedata import FrameData
 from ..trial import drive
 from ..trial.status import frame_messages
 from .determinate import check_square, solve_positions, solve_velocities_accelerations
-from .stages import position_stage, velocity_stage_tracking
+from .stages import marker_stage, velocity_stage_tracking
 from .system import ConstraintSystem
 from .tracking import MarkerTracker, TrackingSettings, residual_rates
 
@@ -259,7 +259,7 @@ class TrackingStep:
         x, xd, xdd, vis = fr["meas"]
         state = self.model.initial_state()
         state.set_q(fr["q"])
-        data = position_stage(self.tracker.system, FrameData(), state, self.times[j], self.alpha, self.tracker.markers)
+        data = marker_stage(self.tracker.markers, FrameData(t=self.times[j], alpha=self.alpha), state)
         data.kkt, data.visible = fr["K"], vis
         velocity_stage_tracking(self.tracker, data, state, np.nan_to_num(xd), np.nan_to_num(xdd), d1, d2)
         self.frame_data[j] = data

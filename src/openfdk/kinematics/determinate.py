@@ -12,8 +12,7 @@ import numpy as np
 
 from ..model.framedata import FrameData  # noqa: F401  (re-exported for callers building stage data)
 from ..trial.status import FrameReport, Reason
-from .frame_kernels import MEASURE_ERROR, OK, SINGULAR, determinate_rates, newton_positions
-from .stages import position_stage
+from .frame_kernels import MEASURE_ERROR, OK, SINGULAR, determinate_rates, newton_positions, rates_from_jacobian
 from .system import ConstraintSystem, KinematicsError, dependent_rows, undetermined_coordinates
 
 
@@ -73,13 +72,15 @@ def solve_positions(system: ConstraintSystem, state, t, alpha=None, tol=1e-10, m
     run in one kernel (:func:`.frame_kernels.newton_positions`); data : FrameData whose
     position stage (Φ, Φ_q̂, ν at the solved pose) is filled on convergence.
     """
-    f, _, _ = system.targets(t, alpha)
+    f, df, _ = system.targets(t, alpha)
+    A, Phi = np.empty((system.n_rows, system.n_coords)), np.empty(system.n_rows)
     status, it, res, e_node, e_kind = newton_positions(
         *_kernel_args(system, state), state.p_WB, state.quat_WB, state.R_WB, state.w_BB, state.v_WB,
-        state.column, state.moving, f, system.angle_rows, tol, max_iter)
+        state.column, state.moving, f, system.angle_rows, tol, max_iter, A, Phi)
     if status == OK:
-        if data is not None:
-            position_stage(system, data, state, t, alpha)
+        if data is not None:  # the position stage, from the kernel's check at the solved pose
+            data.t, data.alpha = t, alpha
+            data.Phi, data.Phi_q, data.nu = Phi, A, df.copy()  # Eq. 2: ν = −Φ_t = ḟ
         return FrameSolve(True, int(it), float(res))
     if status == MEASURE_ERROR:
         system.program.raise_error(e_node, e_kind, state)
@@ -95,15 +96,24 @@ def solve_positions(system: ConstraintSystem, state, t, alpha=None, tol=1e-10, m
 
 def solve_velocities_accelerations(system: ConstraintSystem, state, t, alpha=None, data=None):
     """Eqs. 2–3: set state velocities; returns (v (n,), v̇ (n,)) [m/s, rad/s, m/s², rad/s²]
-    (also stored in ``data``, a FrameData, when given).
+    (also stored in ``data``, a FrameData, when given, with γ (m,)). With a position
+    stage in ``data`` (data.Phi_q), Φ_q̂ is not evaluated again
+    (:func:`.frame_kernels.rates_from_jacobian`).
 
     Raises ``np.linalg.LinAlgError`` if Φ_q̂ is singular."""
     _, df, ddf = system.targets(t, alpha)
     n = system.n_coords
     v, vdot = np.empty(n), np.empty(n)
-    status, e_node, e_kind = determinate_rates(
-        *_kernel_args(system, state), state.p_WB, state.R_WB, state.w_BB, state.v_WB, state.column,
-        state.moving, df, ddf, v, vdot)
+    if data is not None and data.Phi_q is not None:
+        gamma = np.empty(system.n_rows)
+        status, e_node, e_kind = rates_from_jacobian(
+            *_kernel_args(system, state), state.p_WB, state.R_WB, state.w_BB, state.v_WB, state.column,
+            state.moving, data.Phi_q, df, ddf, v, vdot, gamma)
+        data.gamma = gamma
+    else:
+        status, e_node, e_kind = determinate_rates(
+            *_kernel_args(system, state), state.p_WB, state.R_WB, state.w_BB, state.v_WB, state.column,
+            state.moving, df, ddf, v, vdot)
     if status == MEASURE_ERROR:
         system.program.raise_error(e_node, e_kind, state)
     if status == SINGULAR:

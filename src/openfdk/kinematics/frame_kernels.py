@@ -91,8 +91,11 @@ def _residual(val, f, angle, Phi):
 
 @njit(cache=True)
 def newton_positions(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows, n_node_rows,
-                     p_WB, quat_WB, R_WB, w_BB, v_WB, column, moving, f, angle, tol, max_iter):
+                     p_WB, quat_WB, R_WB, w_BB, v_WB, column, moving, f, angle, tol, max_iter, A_out, Phi_out):
     """Newton–Raphson on Φ(q, t) = 0 (Eq. 1), updates on the manifold, state in place.
+
+    The convergence check evaluates the rows at order 1 at the solved pose: on OK,
+    A_out (m, n) holds Φ_q̂ and Phi_out (m,) Φ there (the position stage, evaluated once).
 
     Converged when max |Δq̂| < tol and then max |Φ| < max(10 tol, 1e-9) (the rules of
     :func:`openfdk.kinematics.determinate.solve_positions`). Returns (status, iterations,
@@ -124,10 +127,10 @@ def newton_positions(op, node_row, node_size, i_start, iparams, f_start, fparams
             step = max(step, abs(dq[r]))
         if step < tol:
             e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
-                                           n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 0, val, A, bias)
+                                           n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 1, val, A_out, bias)
             if e_node >= 0:
                 return MEASURE_ERROR, it, np.inf, e_node, e_kind
-            res = _residual(val, f, angle, Phi) if m > 0 else 0.0
+            res = _residual(val, f, angle, Phi_out) if m > 0 else 0.0
             if res < max(tol * 10.0, 1e-9):
                 return OK, it, res, -1, 0
     e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
@@ -142,32 +145,50 @@ def newton_positions(op, node_row, node_size, i_start, iparams, f_start, fparams
 def determinate_rates(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows, n_node_rows,
                       p_WB, R_WB, w_BB, v_WB, column, moving, df, ddf, v, vdot):
     """Φ_q̂ v = ν = ḟ (Eq. 2), sets the state's velocities, then Φ_q̂ v̇ = γ = f̈ − b
-    (Eq. 3), one LU factorisation for both. v, vdot (n,) outputs. Returns (status,
-    failing node, error code)."""
+    (Eq. 3), one LU factorisation for both; Φ_q̂ evaluated here (callers without a
+    position stage). v, vdot (n,) outputs. Returns (status, failing node, error code)."""
     m = out_rows.shape[0]
     n = 6 * moving.shape[0]
     val = np.empty(m)
     A = np.empty((m, n))
     bias = np.empty(m)
-    piv = np.empty(n, np.int64)
     e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
                                    n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 1, val, A, bias)
     if e_node >= 0:
         return MEASURE_ERROR, e_node, e_kind
-    if not lu_factor(A, piv):
+    return rates_from_jacobian(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows, n_node_rows,
+                               p_WB, R_WB, w_BB, v_WB, column, moving, A, df, ddf, v, vdot, np.empty(m))
+
+
+@njit(cache=True)
+def rates_from_jacobian(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows, n_node_rows,
+                        p_WB, R_WB, w_BB, v_WB, column, moving, A, df, ddf, v, vdot, gamma):
+    """Eqs. 2–3 with the position stage's Φ_q̂ = A (m, n) (not evaluated again): one LU
+    factorisation of A, Φ_q̂ v = ḟ, the state's velocities set, one order-2 evaluation
+    of the rows for b (it needs v), γ = f̈ − b (m,) output, Φ_q̂ v̇ = γ. v, vdot (n,)
+    outputs. Returns (status, failing node, error code)."""
+    m = out_rows.shape[0]
+    n = 6 * moving.shape[0]
+    val = np.empty(m)
+    A2 = np.empty((m, n))
+    bias = np.empty(m)
+    piv = np.empty(n, np.int64)
+    LU = A.copy()
+    if not lu_factor(LU, piv):
         return SINGULAR, -1, 0
     for r in range(n):
         v[r] = df[r]
-    lu_solve(A, piv, v)
+    lu_solve(LU, piv, v)
     set_velocities(v, column, moving, v_WB, w_BB)
-    A2 = np.empty((m, n))
     e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
                                    n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 2, val, A2, bias)
     if e_node >= 0:
         return MEASURE_ERROR, e_node, e_kind
+    for r in range(m):
+        gamma[r] = ddf[r] - bias[r]
     for r in range(n):
-        vdot[r] = ddf[r] - bias[r]
-    lu_solve(A, piv, vdot)
+        vdot[r] = gamma[r]
+    lu_solve(LU, piv, vdot)
     return OK, -1, 0
 
 
@@ -212,22 +233,23 @@ def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fpara
 @njit(cache=True)
 def tracking_rates(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows, n_node_rows,
                    p_WB, R_WB, w_BB, v_WB, column, moving, df, ddf, marker_body, p_BM, w,
-                   target_v, target_a, K, v, vdot):
+                   target_v, target_a, K, J, f, angle, v, vdot, A, Phi):
     """Velocities (Eqs. 8–9) and accelerations (Eq. 10) with the KKT matrix K (n + m,
     n + m) of the position solve: K [v; ·] = [Ψ_q̂ᵀ W (ẋ + δ̇); ν], sets the state's
     velocities, then K [v̇; ·] = [Ψ_q̂ᵀ W (ẍ + δ̈ − b_Ψ); γ]. target_v, target_a (3 nm,)
-    (0 where occluded). Returns (status, failing node, error code)."""
+    (0 where occluded). J (3 nm, n): the marker Jacobian Ψ_q̂ at this pose (the position
+    stage's). The rows are evaluated once here, at order 2 (b needs v): outputs A (m, n)
+    Φ_q̂ and Phi (m,) Φ = m − f (angle rows wrapped) at the pose, for the later stages.
+    Returns (status, failing node, error code)."""
     m = out_rows.shape[0]
     n = 6 * moving.shape[0]
     rows = marker_body.shape[0] * 3
     val = np.empty(m)
-    A = np.empty((m, n))
     bias = np.empty(m)
     piv = np.empty(n + m, np.int64)
     LU = K.copy()
     if not lu_factor(LU, piv):
         return SINGULAR, -1, 0
-    _, J, _ = marker_positions_jacobian(p_WB, R_WB, w_BB, column, marker_body, p_BM, n, 1)
     rhs = np.zeros(n + m)
     for c in range(n):
         s = 0.0
@@ -245,6 +267,7 @@ def tracking_rates(op, node_row, node_size, i_start, iparams, f_start, fparams, 
                                    n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 2, val, A, bias)
     if e_node >= 0:
         return MEASURE_ERROR, e_node, e_kind
+    _residual(val, f, angle, Phi)
     for c in range(n):
         s = 0.0
         for k in range(rows):

@@ -174,20 +174,26 @@ class MarkerTracker:
 
     # -- Eqs. 6-10 ----------------------------------------------------------------
     def solve_velocities_accelerations(self, state, t, K, visible, xdot, xddot, d_delta, dd_delta, alpha=None,
-                                       J=None, nu=None):
+                                       J=None, rows=False):
         """Velocities (Eqs. 8–9) and accelerations (Eq. 10); sets state velocities.
 
         K : KKT matrix from :meth:`solve_positions` or :meth:`kkt_matrix`;
         xdot, xddot : (n_markers, 3) measured marker velocity (m/s) and acceleration (m/s²);
         d_delta, dd_delta : (n_markers, 3) residual rates δ̇ (m/s) and δ̈ (m/s²) (Eq. 7);
-        J, nu : accepted for the position stage's callers; the compiled kernel
-        (:func:`.frame_kernels.tracking_rates`) evaluates the rows itself.
-        Returns v, v̇ (6 n_moving,) each.
+        J : (3 n_markers, n) the marker Jacobian at this pose if already evaluated (the
+        marker stage), else evaluated here. The compiled kernel
+        (:func:`.frame_kernels.tracking_rates`) evaluates the rows once, at order 2.
+        Returns v, v̇ (6 n_moving,) each; with ``rows`` also Φ (m,), Φ_q̂ (m, n) and
+        ν = ḟ (m,) at the pose, from that evaluation.
         """
         n = self.system.n_coords
         w = self._weights(visible)
         vis3 = np.repeat(visible, 3)
-        _, df, ddf = self.system.targets(t, alpha)
+        f, df, ddf = self.system.targets(t, alpha)
+        if J is None:
+            J = self.markers.evaluate(state, 1)[1]
+        m = self.system.n_rows
+        A, Phi = np.empty((m, n)), np.empty(m)
         target_v = np.where(vis3, (xdot + d_delta).ravel(), 0.0)
         target_a = np.where(vis3, (xddot + dd_delta).ravel(), 0.0)
         v, vdot = np.empty(n), np.empty(n)
@@ -195,11 +201,13 @@ class MarkerTracker:
         status, e_node, e_kind = tracking_rates(
             *prog.program, prog.n_node_rows, state.p_WB, state.R_WB, state.w_BB, state.v_WB, state.column,
             state.moving, df, ddf, self.markers.body, self.markers.p_BM, w, target_v, target_a,
-            np.ascontiguousarray(K), v, vdot)
+            np.ascontiguousarray(K), np.ascontiguousarray(J), f, self.system.angle_rows, v, vdot, A, Phi)
         if status == MEASURE_ERROR:
             prog.raise_error(e_node, e_kind, state)
         if status == SINGULAR:
             raise np.linalg.LinAlgError("Singular matrix")
+        if rows:
+            return v, vdot, Phi, A, df.copy()  # Eq. 2: ν = −Φ_t = ḟ
         return v, vdot
 
 

@@ -5,7 +5,9 @@ The model (:class:`~openfdk.model.model.Model`) is never modified by an analysis
 Everything a frame computes at one pose lives in a :class:`FrameData`, filled by stage
 functions ``stage(model_parts, data, …)`` in this order, each field once per pose:
 
-1. position — :func:`openfdk.kinematics.stages.position_stage`;
+1. position — the Newton kernel's check (determinate) or
+   :func:`openfdk.kinematics.stages.marker_stage` (tracking; Φ, Φ_q̂ then come with
+   the velocity kernel's one evaluation of the rows);
 2. velocity and acceleration — ``velocity_stage_determinate`` / ``velocity_stage_tracking``;
 3. forces and 4. equilibrium — :func:`openfdk.dynamics.stages.equilibrium_stage`;
 5. recruitment — :func:`openfdk.dynamics.stages.recruitment_stage`;
@@ -32,7 +34,7 @@ class FrameData:
     t: float = 0.0  #: time (s)
     alpha: np.ndarray = None  #: (n_fdk,) FDK inputs α, m or rad (held: α̇ = α̈ = 0)
 
-    # -- 1. position stage (kinematics.stages.position_stage) -----------------------
+    # -- 1. position stage (kinematics.stages; see the module docstring) -------------
     Phi: np.ndarray = None  #: (m,) Φ(q, t), m or rad (Eq. 1)
     Phi_q: np.ndarray = None  #: (m, n) Φ_q̂ at the solved pose
     nu: np.ndarray = None  #: (m,) ν = −Φ_t (Eq. 2)
