@@ -72,7 +72,9 @@ def test_tracking_fdk_residual_assembles_phi_q_once_per_pose(tmp_path, phi_q_cou
     assert max(phi_q_counts.values()) == 1
 
 
-def test_determinate_fdk_residual_assembles_phi_q_once_per_pose(phi_q_counts):
+def _block_on_spring():
+    """A 2 kg block on a vertical rail held by a 500 N/m spring on its height, the FDK
+    DOF (determinate): (model, FDK context at t = 0, workspace)."""
     b = ModelBuilder("spring", gravity=(0, 0, -9.81))
     b.add_body("block", 2.0, [1e-3] * 3)
     b.add_joint("rail", "prismatic", parent="ground.origin", child="block.origin")
@@ -81,7 +83,11 @@ def test_determinate_fdk_residual_assembles_phi_q_once_per_pose(phi_q_counts):
     add_spring(b, "spring", "z", 500.0)
     model = b.build()
     ctx = fdk_context(model, None, np.array([0.0]))
-    ws = FrameWorkspace({0: model.initial_state()})
+    return model, ctx, FrameWorkspace({0: model.initial_state()})
+
+
+def test_determinate_fdk_residual_assembles_phi_q_once_per_pose(phi_q_counts):
+    model, ctx, ws = _block_on_spring()
     ev = ctx.evaluate(0, np.array([-0.01]), ws)
     # weight m g balanced by the spring k α and the FDK residual force: f = −m g − k α
     assert ev.ok
@@ -168,15 +174,7 @@ def test_tracking_fdk_evaluation_evaluates_rows_once_at_the_solved_pose(tmp_path
 def test_determinate_fdk_evaluation_evaluates_rows_twice_at_the_solved_pose(row_evaluations):
     """Determinate FDK, kernels included: order 1 at the solved pose (the Newton check,
     kept as the position stage) and order 2 for γ once v is known; nothing else."""
-    b = ModelBuilder("spring", gravity=(0, 0, -9.81))
-    b.add_body("block", 2.0, [1e-3] * 3)
-    b.add_joint("rail", "prismatic", parent="ground.origin", child="block.origin")
-    b.add_measure("z", b._select(b.vector("ground.origin", "block.origin"), [2]))
-    b.add_fdk_dof("height", "z", initial=0.0, max_step=0.1)
-    add_spring(b, "spring", "z", 500.0)
-    model = b.build()
-    ctx = fdk_context(model, None, np.array([0.0]))
-    ws = FrameWorkspace({0: model.initial_state()})
+    model, ctx, ws = _block_on_spring()
     row_evaluations.clear()
     ev = ctx.evaluate(0, np.array([-0.01]), ws)
     assert ev.ok
