@@ -12,7 +12,7 @@ $(VENV)/.installed: pyproject.toml
 	touch $@
 
 demo: $(VENV)/.installed
-	$(VENV)/bin/openfdk demo
+	$(VENV)/bin/openfdk demo --force  # a second `make demo` overwrites the first one's results
 
 test: $(VENV)/.installed
 	$(PY) -m pytest -q
