@@ -226,7 +226,7 @@ def test_run_cli_does_fdk_when_the_model_declares_fdk_dofs(tmp_path):
     assert main(["run", str(tmp_path / "jaw.yaml"), str(tmp_path / "trial.c3d"), "--out", str(out), "--no-progress"]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["fdk"]["convergence_rate"] == 1.0
-    assert 1 <= summary["fdk"]["mean_residual_evaluations_per_frame"] <= 4
+    assert summary["fdk"]["mean_residual_evaluations_per_frame"] >= 1 and summary["fdk"]["mean_residual_evaluations_per_frame"] <= 4
     rows = list(csv.DictReader(open(out / "forces.csv")))
     assert len(rows) == 25
     for r in rows:
