@@ -101,7 +101,7 @@ def test_fdk_solves_99_5_percent_of_the_wide_chewing_frames(realistic):
     assert runs["forces_converged"] >= 0.995 * runs["frames"]
 
 
-def test_fdk_restart_finds_the_root_where_the_warm_start_stalls_in_the_wide_chewing(realistic):
+def test_fdk_restart_finds_the_root_where_the_warm_start_stalls_in_the_wide_chewing(realistic, tmp_path, capsys):
     """The mechanism of docs/fdk.md "Restarts" on the wide chewing: where the solution
     jumps by mm along the soft medio-lateral DOF between two frames, Newton from the
     extrapolated warm start stalls at a non-root minimiser of ‖f^FDK‖ (≫ tolerance,
@@ -138,3 +138,8 @@ def test_fdk_restart_finds_the_root_where_the_warm_start_stalls_in_the_wide_chew
     assert abs(stalled.best.alpha[2] - root[2]) > 1e-3
     ev = ctx.evaluate(k, root, ws.copy(), step.warm)
     assert ev.ok and ev.norm < 2 * settings.tolerance
+    # `openfdk run` over the same frames says that a frame was restarted
+    code = main(["run", str(out / "models" / "fdk.yaml"), str(trial), "--start", f"{t - 0.05:.2f}", "--end",
+                 f"{t + 0.01:.2f}", "--out", str(tmp_path / "run"), "--no-plots", "--no-progress"])
+    assert code == 0
+    assert "frame(s) restarted from another starting α" in capsys.readouterr().out
