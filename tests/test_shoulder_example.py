@@ -103,3 +103,16 @@ def test_fdk_solution_balances_the_arm(reach):
         F += contact
         assert pulled >= 4 and np.linalg.norm(contact) > 3 * weight   # a compressed, muscle-held joint
         assert np.linalg.norm(F) < 0.01, (i, F)                        # FDK tolerance 1e-3 N per DOF
+
+
+def test_the_tutorial_quotes_the_example_file():
+    """Every line of the YAML blocks in docs/tutorial-shoulder.md is in shoulder.yaml."""
+    import re
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "tutorial-shoulder.md").read_text()
+    blocks = re.findall(r"```yaml\n(.*?)```", doc, flags=re.S)
+    model = (SHOULDER / "shoulder.yaml").read_text().splitlines()
+    lines = [ln for b in blocks for ln in b.splitlines() if ln.strip()]
+    assert len(lines) >= 10
+    for ln in lines:
+        assert ln in model, ln
