@@ -32,10 +32,9 @@ class Model:
     fdk_dofs : tuple of FDKDof
     gravity_W : (3,) m/s²
 
-    Force elements, each kind a typed field (tuples, in declaration order). Ligaments,
-    springs, contacts and loads share one interface at the set level
-    (:class:`openfdk.forces.passive.PassiveElements`): generalised forces Q (n,) on the
-    bodies and, when asked, their stiffness ∂Q/∂q̂ (n, n).
+    Force elements, each kind a typed field (tuples, in declaration order). Every kind
+    is one force set with one interface (:mod:`openfdk.forces.forceset`): generalised
+    forces Q (n,) on the bodies and, when asked, their stiffness ∂Q/∂q̂ (n, n).
 
     muscles : Muscle (path + strength model; recruited)
     ligaments : Ligament (path + Blankevoort1991Ligament)
