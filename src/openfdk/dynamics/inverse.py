@@ -48,15 +48,17 @@ class InverseDynamics:
     """Per-frame inverse dynamics of a model (holds the layout and solver settings).
 
     The model is not modified; all per-frame data live in the returned FrameForces.
+    settings : AnalysisSettings (its ``recruitment``; default: the default criterion).
     """
 
-    def __init__(self, model, system=None):
+    def __init__(self, model, system=None, settings=None):
         self.model = model
         self.system = system or ConstraintSystem(model)
         self.layout = equilibrium_layout(model, self.system)
         self.forces = ForceElements(model)
         self.muscles = self.forces.by_kind.get("muscles")  # MuscleForces or None
-        self.settings = model.settings.recruitment or RecruitmentSettings()
+        #: the RecruitmentSettings used
+        self.settings = (settings.recruitment if settings is not None else None) or RecruitmentSettings()
         self.unilateral_strength = np.array([u[2] for u in self.layout.unilateral], dtype=float)
         if len(self.layout.eq_coords) == 0:
             raise ValueError(f"model {model.name!r}: no body has equilibrium: true; nothing to solve")

@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from .components import GROUND, Body, Frame
 from .constraints import Constraint, FDKDof, MarkerSet
-from .settings import AnalysisSettings
 from .state import BodyStates
 
 
@@ -43,8 +42,10 @@ class Model:
     loads : ExternalLoad (force and moment time functions at a body point)
     unilateral_reactions : UnilateralReaction (one-sided joint rows, recruited)
     visuals : Visual (display meshes of bodies, for the viewer; no forces)
-    settings : AnalysisSettings (kinematics window, recruitment, fdk), not part of the
-        physical description
+
+    The model is purely physical: how it is analysed (kinematics window, recruitment,
+    FDK solver) is an :class:`~openfdk.model.settings.AnalysisSettings` kept apart and
+    passed to the analyses (``settings=``).
     """
 
     name: str
@@ -62,7 +63,6 @@ class Model:
     loads: tuple = ()
     unilateral_reactions: tuple = ()
     visuals: tuple = ()
-    settings: AnalysisSettings = field(default_factory=AnalysisSettings)
     source: str = ""
 
     # -- look-ups -------------------------------------------------------------------
@@ -121,4 +121,4 @@ class Model:
         return "\n".join(lines)
 
 
-__all__ = ["Model", "ModelError", "GROUND", "Constraint", "FDKDof", "AnalysisSettings"]
+__all__ = ["Model", "ModelError", "GROUND", "Constraint", "FDKDof"]
