@@ -111,3 +111,30 @@ def test_every_model_field_of_a_force_kind_has_one_set():
     for kind, cls in FORCE_KINDS:
         assert kind in names and cls.kind == kind
         assert callable(cls.accumulate) and callable(cls.stiffness)
+
+
+def test_path_geometric_stiffness_over_two_moving_bodies():
+    """A taut ligament from the ground over a via point on body a to body b (segments
+    ground–a and a–b, both bodies rotated): the closed-form geometric stiffness plus the
+    material part equals manifold finite differences of Q in every block (a–a, a–b,
+    b–b), and its geometric part is not zero."""
+    from openfdk.forces.elements import add_ligament
+
+    b = ModelBuilder("two", gravity=(0, 0, 0))
+    _body(b)
+    b.add_body("b", 1.0, [1e-3] * 3, position=[0.05, -0.03, -0.45], orientation=quat_from_rotvec([-0.4, 0.1, 0.2]))
+    b.add_frame("b", "q", [0.01, 0.02, -0.03])
+    b.add_frame("ground", "o", [0.0, 0.01, 0.0])
+    add_ligament(b, "lig", ["ground.o", "a.p", "b.q"], stiffness=3000.0, reference_strain=0.08)
+    model = b.build()
+    state = model.initial_state()
+    forces = ForceElements(model)
+    Q, out, K = forces.generalized_forces(state, 0.0, want_stiffness=True)
+    T = out["ligaments"].force[0]
+    assert T > 1.0
+    L = out["ligaments"].L
+    K_material = -np.outer(L[0], L[0]) * forces.by_kind["ligaments"]._laws(out["ligaments"].length)[2][0]
+    K_fd = manifold_jacobian(lambda s: forces.generalized_forces(s, 0.0)[0], state, 1e-7)
+    assert np.abs(K - K_material).max() > 0.1 * np.abs(K).max()
+    assert np.abs(K_fd[:6, 6:]).max() > 1.0  # the bodies are coupled
+    np.testing.assert_allclose(K, K_fd, atol=1e-6 * np.abs(K).max())

@@ -3,8 +3,8 @@ length l acts on the bodies as Q = −Lᵀ T, L = ∂l/∂q̂ (n_ligaments, n); 
 
     K = −Lᵀ diag(dT/dl) L − Σ_k T_k ∂L_kᵀ/∂q̂,
 
-the second (geometric) term one batched forward difference of the analytic path
-Jacobians on the manifold (relative error ~1e-7, far below what the FDK Jacobian needs).
+the second (geometric) term in closed form for straight paths and one batched forward
+difference of the analytic Jacobians for wrapped ones (:meth:`.pathset.PathSet.add_geometric_stiffness`).
 All paths go through one kernel call (:class:`.pathset.PathSet`); when every law is a
 :class:`~.blankevoort.Blankevoort1991Ligament` the law runs on the arrays at once.
 """
@@ -15,7 +15,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..numdiff import manifold_jacobian
 from .blankevoort import Blankevoort1991Ligament
 from .pathset import PathSet
 
@@ -82,6 +81,4 @@ class LigamentForces:
         dT = self._laws(out.length)[2]
         K -= L.T @ (L * dT[:, None])
         if np.any(out.force):
-            # geometric term −Σ T_k ∂L_kᵀ/∂q̂, one batched difference of the path kernel
-            T = out.force.copy()
-            K -= manifold_jacobian(lambda s: T @ self.paths.evaluate(s)[1], state, 1e-7, central=False, f0=T @ L)
+            self.paths.add_geometric_stiffness(state, out.force, L, K)  # −Σ T_k ∂L_kᵀ/∂q̂

@@ -7,7 +7,7 @@ applied load (Eq. 13):
     Q = −Lᵀ f_P,   K = −Lᵀ diag(df_P/dl) L − Σ_k f_P,k ∂L_kᵀ/∂q̂,
 
 df_P/dl from the strength model's implicit derivative of its passive equilibrium, the
-geometric term one batched forward difference of the path kernel (only when some
+geometric term from :meth:`.pathset.PathSet.add_geometric_stiffness` (only when some
 f_P ≠ 0).
 """
 
@@ -17,7 +17,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..numdiff import manifold_jacobian
 from .hill import MuscleSet
 from .pathset import PathSet
 
@@ -73,5 +72,4 @@ class MuscleForces:
         L = out.L
         K -= L.T @ (L * out.dpassive[:, None])
         if np.any(out.passive):
-            f_p = out.passive.copy()
-            K -= manifold_jacobian(lambda s: f_p @ self.paths.evaluate(s)[1], state, 1e-7, central=False, f0=f_p @ L)
+            self.paths.add_geometric_stiffness(state, out.passive, L, K)  # −Σ f_P,k ∂L_kᵀ/∂q̂
