@@ -3,7 +3,7 @@
     python examples/shoulder/make_shoulder.py [OUT_DIR]     # default: next to this file
 
 meshes/humeral_head.stl  sphere cap, radius 25 mm, on the humerus (normals outward)
-meshes/glenoid.stl       concave spherical cup, radius 25 mm, on the thorax (normals
+meshes/glenoid.stl       concave spherical cup, radius 27 mm, on the thorax (normals
                          toward the cup's centre, i.e. out of the bone into the joint)
 reach.trc                2 s at 100 Hz: shoulder flexion 0 -> 60 deg and elbow flexion
                          10 -> 90 deg, 1 mm marker noise, a 60 ms gap of marker H3
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 HEAD_RADIUS = 25.0          # mm
-GLENOID_RADIUS = 25.0       # mm: congruent with the head at the reference pose
+GLENOID_RADIUS = 27.0       # mm: 2 mm larger than the head (a congruent cup makes FDK fail, see the docs)
 GH = np.array([0.0, 0.0, 180.0])        # glenohumeral centre in the thorax (= world) frame, mm
 ELBOW = np.array([0.0, -300.0, 180.0])  # elbow centre in the reference pose, mm
 # markers in the world frame at the reference pose (arm hanging, elbow straight), mm
