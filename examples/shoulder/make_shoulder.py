@@ -3,7 +3,7 @@
     python examples/shoulder/make_shoulder.py [OUT_DIR]     # default: next to this file
 
 meshes/humeral_head.stl  sphere cap, radius 25 mm, on the humerus (normals outward)
-meshes/glenoid.stl       concave spherical cup, radius 27 mm, on the thorax (normals
+meshes/glenoid.stl       concave spherical cup, radius 27 mm, half-angle 50 deg, on the thorax (normals
                          toward the cup's centre, i.e. out of the bone into the joint)
 reach.trc                2 s at 100 Hz: shoulder flexion 0 -> 60 deg and elbow flexion
                          10 -> 90 deg, 1 mm marker noise, a 60 ms gap of marker H3
@@ -116,7 +116,7 @@ def main(out=None):
     (out / "meshes").mkdir(parents=True, exist_ok=True)
     v, f = cap(HEAD_RADIUS, np.deg2rad(60), pole=[0, 0, -1])    # faces the glenoid (medial)
     write_stl(out / "meshes" / "humeral_head.stl", v, f)
-    v, f = cap(GLENOID_RADIUS, np.deg2rad(35), pole=[0, 0, -1], n_rings=10, n_seg=32)
+    v, f = cap(GLENOID_RADIUS, np.deg2rad(50), pole=[0, 0, -1], n_rings=14, n_seg=32)   # with the labrum
     write_stl(out / "meshes" / "glenoid.stl", v, f[:, ::-1])   # concave side: normals inward
     t, labels, x = trial()
     write_trc(out / "reach.trc", t, labels, x, 100.0)
