@@ -109,12 +109,12 @@ class TrialInterrupted(KeyboardInterrupt):
         self.frames_planned = frames_planned
 
 
-def _progress(total, enabled, desc):
+def _progress(total, enabled, desc, initial=0):
     if not enabled:
         return None
     from ..progress import progress
 
-    return progress(total, desc, "frame")
+    return progress(total, desc, "frame", initial=initial)
 
 
 def drive(step, n_frames, build, *, progress=False, desc="frames", checkpoints=None, resume=False):
@@ -138,9 +138,7 @@ def drive(step, n_frames, build, *, progress=False, desc="frames", checkpoints=N
             start = saved.next_frame
     elif checkpoints is not None:
         checkpoints.clear()  # another run's parts must not mix with this one's
-    bar = _progress(n_frames, progress, desc)
-    if bar is not None and start:
-        bar.update(start)
+    bar = _progress(n_frames, progress, desc, initial=start)
     pending = []
     stop = _StopOnSigint()
     try:

@@ -1,0 +1,95 @@
+"""Is numba's on-disk cache of the frame kernels cold (fresh install, upgrade, new cache folder)?
+
+The numerical kernels are ``numba.njit(cache=True)`` functions. numba keeps, per function,
+an index file (``<module>.<function>-<line>.pyXY.nbi``) in the module's ``__pycache__`` (or
+under ``NUMBA_CACHE_DIR``) that records the source file's stamp (mtime, size) and the
+compiled signatures. When that index is missing, or its stamp no longer matches the source
+(an upgrade rewrote the file), the first call compiles — 1–2 min for all the kernels of a
+run — and nothing is shown while it does.
+
+:func:`cache_is_cold` reads those index files (a few kB of pickles, milliseconds) through
+each dispatcher's own cache object, so it sees the same folder and staleness rule numba
+applies, and :func:`announce_cold_cache` prints one informational line before the first
+kernel call of a CLI command.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+#: Modules whose kernels every kinematic and FDK frame calls (constraint program,
+#: kinematic frame solve, residual and force kernels).
+FRAME_KERNEL_MODULES = (
+    "openfdk.model.compiled",
+    "openfdk.model.kernels",
+    "openfdk.kinematics.frame_kernels",
+    "openfdk.forces.hill",
+    "openfdk.dynamics.equilibrium",
+)
+
+MESSAGE = ("openfdk: compiling numerical kernels (first run after install, about 1–2 min; "
+           "cached afterwards)")
+
+
+def cached_dispatchers(module):
+    """The ``cache=True`` numba dispatchers defined in ``module`` (a module object)."""
+    out = []
+    for value in vars(module).values():
+        cache = getattr(value, "_cache", None)
+        py_func = getattr(value, "py_func", None)
+        if py_func is None or getattr(py_func, "__module__", None) != module.__name__:
+            continue
+        if getattr(cache, "_cache_file", None) is not None:
+            out.append(value)
+    return out
+
+
+def _index_is_fresh(dispatcher):
+    """True when numba's index for ``dispatcher`` exists, is of this numba's format, matches
+    the current source stamp and lists at least one compiled signature."""
+    try:
+        return bool(dispatcher._cache._cache_file._load_index())
+    except Exception:  # unreadable / other numba layout: count as cold, numba will recompile
+        return False
+
+
+def cold_fraction(modules=FRAME_KERNEL_MODULES):
+    """(number of cached kernels without a fresh index, number of cached kernels) over
+    ``modules`` (names or module objects)."""
+    n_cold = n_total = 0
+    for module in modules:
+        if isinstance(module, str):
+            module = importlib.import_module(module)
+        for dispatcher in cached_dispatchers(module):
+            n_total += 1
+            n_cold += not _index_is_fresh(dispatcher)
+    return n_cold, n_total
+
+
+def cache_is_cold(modules=FRAME_KERNEL_MODULES):
+    """True when at least half of the cached kernels of ``modules`` have no fresh index.
+
+    A model uses only some kernels (no wrapping, no contact…), so a warm cache still has
+    never-compiled entries; a fresh install or an upgrade empties (or invalidates) all of
+    them. Half is the line between the two."""
+    n_cold, n_total = cold_fraction(modules)
+    return n_total > 0 and 2 * n_cold >= n_total
+
+
+def announce_cold_cache(quiet=False, stream=None):
+    """Print :data:`MESSAGE` to ``stream`` (stderr) when the kernel cache is cold and not
+    ``quiet``; tell the progress displays to start their clocks after their first step
+    (the one that compiles). Returns whether the cache was cold."""
+    from .progress import set_warmup
+
+    try:
+        cold = cache_is_cold()
+    except Exception:  # numba missing or its internals changed: say nothing, run as usual
+        return False
+    set_warmup(cold)
+    if cold and not quiet:
+        stream = sys.stderr if stream is None else stream
+        print(MESSAGE, file=stream)
+        stream.flush()
+    return cold
