@@ -119,3 +119,21 @@ def test_openfdk_kernels_are_found():
     """The frame-kernel modules hold cached kernels (a renamed module would make the check blind)."""
     n_cold, n_total = kernel_cache.cold_fraction()
     assert n_total >= 20 and 0 <= n_cold <= n_total
+
+
+@pytest.mark.parametrize("quiet", [False, True])
+def test_check_announces_a_cold_cache_once(tmp_path, capsys, monkeypatch, quiet):
+    """openfdk check on a valid model: the line on stderr exactly once (cold), none with --quiet."""
+    import yaml
+
+    from openfdk.cli import main
+    from openfdk.fixtures.synthetic import two_body_model_dict
+
+    path = tmp_path / "model.yaml"
+    path.write_text(yaml.safe_dump(two_body_model_dict(), sort_keys=False))
+    monkeypatch.setattr(kernel_cache, "cache_is_cold", lambda modules=None: True)
+    code = main(["check", str(path)] + (["--quiet"] if quiet else []))
+    err = capsys.readouterr().err
+    assert code == 0
+    assert err.count(kernel_cache.MESSAGE) == (0 if quiet else 1)
+    assert not progress._WARMUP  # reset when the command ends
