@@ -136,6 +136,7 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
     ``partial`` is (kin, dyn, info) of the finished frames). settings :
     AnalysisSettings (default: the model file's, see :func:`model_and_settings`)."""
     from .analysis.run import run_trial
+    from .contact.rim import warn_contact_rims
     from .model.plausibility import warn_pulling_contacts
     from .trial import TrialInterrupted
 
@@ -156,4 +157,5 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
         exc.partial = with_info(*exc.partial)
         raise
     warn_pulling_contacts(model, kin, dyn)
+    warn_contact_rims(model, kin)
     return with_info(kin, dyn, fdk)
