@@ -68,22 +68,44 @@ def test_cold_then_warm_then_stale_after_source_change(kernel_module):
     assert mod.double(3.0) == 60.0
 
 
+def test_a_module_never_compiled_makes_the_cache_cold(tmp_path, monkeypatch):
+    """`openfdk check` warms the constraint program only; the run's other modules are still
+    cold: one module with no compiled kernel is enough, however warm the others."""
+    names = []
+    for i in range(3):
+        name = f"fake_kernels_{os.getpid()}_{time.monotonic_ns()}_{i}"
+        (tmp_path / f"{name}.py").write_text(textwrap.dedent(KERNEL_SOURCE.format(factor=2)))
+        names.append(name)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    try:
+        mods = [_import_fresh(tmp_path, n) for n in names]
+        for m in mods[:2]:
+            m.double(1.0), m.square(1.0)
+        assert kernel_cache.cold_fraction(mods) == (2, 6)  # a third cold: under half
+        assert kernel_cache.cache_is_cold(mods)  # but mods[2] has nothing compiled
+        mods[2].double(1.0)
+        assert not kernel_cache.cache_is_cold(mods)
+    finally:
+        for n in names:
+            sys.modules.pop(n, None)
+
+
 def test_announce_prints_one_line_unless_quiet(kernel_module, monkeypatch):
     src, name = kernel_module
     mod = _import_fresh(src.parent, name)
-    monkeypatch.setattr(kernel_cache, "FRAME_KERNEL_MODULES", (mod,))
-    monkeypatch.setattr(kernel_cache.cache_is_cold, "__defaults__", ((mod,),))
     try:
         out = io.StringIO()
-        assert kernel_cache.announce_cold_cache(stream=out)
+        assert kernel_cache.announce_cold_cache(stream=out, modules=[mod])
+        assert progress._WARMUP
         assert out.getvalue() == kernel_cache.MESSAGE + "\n"
         assert "compiling numerical kernels" in out.getvalue()
         out = io.StringIO()
-        assert kernel_cache.announce_cold_cache(quiet=True, stream=out)
+        assert kernel_cache.announce_cold_cache(quiet=True, stream=out, modules=[mod])
         assert out.getvalue() == ""
         mod.double(1.0), mod.square(1.0)
         out = io.StringIO()
-        assert not kernel_cache.announce_cold_cache(stream=out)
+        assert not kernel_cache.announce_cold_cache(stream=out, modules=[mod])
+        assert not progress._WARMUP
         assert out.getvalue() == ""
     finally:
         progress.set_warmup(False)
@@ -131,7 +153,7 @@ def test_check_announces_a_cold_cache_once(tmp_path, capsys, monkeypatch, quiet)
 
     path = tmp_path / "model.yaml"
     path.write_text(yaml.safe_dump(two_body_model_dict(), sort_keys=False))
-    monkeypatch.setattr(kernel_cache, "cache_is_cold", lambda modules=None: True)
+    monkeypatch.setattr(kernel_cache, "cache_is_cold", lambda modules: True)
     code = main(["check", str(path)] + (["--quiet"] if quiet else []))
     err = capsys.readouterr().err
     assert code == 0

@@ -47,7 +47,7 @@ def _cmd_check(args):
     from .model_check import check_model
 
     model = load_model(args.model)
-    _announce_kernels(args)
+    _announce_kernels(args, check=True)
     report = check_model(model)
     _say(args, "\n".join(report.lines))
     if not report.ok:
@@ -73,13 +73,13 @@ def _cmd_cache(args):
     return 0
 
 
-def _announce_kernels(args):
+def _announce_kernels(args, check=False):
     """Once the inputs are read and before the first kernel call: one line on stderr when
     numba's kernel cache is cold (first run after install/upgrade), unless --quiet; the
     progress displays then start after each stage's first (compiling) frame."""
-    from .kernel_cache import announce_cold_cache
+    from .kernel_cache import CHECK_KERNEL_MODULES, announce_cold_cache
 
-    announce_cold_cache(quiet=getattr(args, "quiet", False))
+    announce_cold_cache(quiet=getattr(args, "quiet", False), modules=CHECK_KERNEL_MODULES if check else None)
 
 
 def _say(args, text):

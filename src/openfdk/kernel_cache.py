@@ -18,14 +18,18 @@ from __future__ import annotations
 import importlib
 import sys
 
-#: Modules whose kernels every kinematic and FDK frame calls (constraint program,
-#: kinematic frame solve, residual and force kernels).
-FRAME_KERNEL_MODULES = (
+#: Modules whose kernels ``openfdk check`` calls for every model (the constraint program).
+CHECK_KERNEL_MODULES = (
     "openfdk.model.compiled",
     "openfdk.model.kernels",
+)
+#: ... and those every kinematic, inverse-dynamics and FDK frame calls (kinematic frame
+#: solve, equilibrium, the default polynomial recruitment).
+FRAME_KERNEL_MODULES = CHECK_KERNEL_MODULES + (
     "openfdk.kinematics.frame_kernels",
-    "openfdk.forces.hill",
     "openfdk.dynamics.equilibrium",
+    "openfdk.recruitment.polynomial",
+    "openfdk.recruitment.interior_point",
 )
 
 MESSAGE = ("openfdk: compiling numerical kernels (first run after install, about 1–2 min; "
@@ -54,37 +58,48 @@ def _index_is_fresh(dispatcher):
         return False
 
 
-def cold_fraction(modules=FRAME_KERNEL_MODULES):
-    """(number of cached kernels without a fresh index, number of cached kernels) over
-    ``modules`` (names or module objects)."""
-    n_cold = n_total = 0
+def _module_counts(modules):
+    """[(cold kernels, cached kernels)] per module of ``modules`` (names or module objects)."""
+    counts = []
     for module in modules:
         if isinstance(module, str):
             module = importlib.import_module(module)
-        for dispatcher in cached_dispatchers(module):
-            n_total += 1
-            n_cold += not _index_is_fresh(dispatcher)
-    return n_cold, n_total
+        fresh = [_index_is_fresh(d) for d in cached_dispatchers(module)]
+        counts.append((len(fresh) - sum(fresh), len(fresh)))
+    return counts
+
+
+def cold_fraction(modules=FRAME_KERNEL_MODULES):
+    """(number of cached kernels without a fresh index, number of cached kernels) over
+    ``modules`` (names or module objects)."""
+    counts = _module_counts(modules)
+    return sum(c for c, _ in counts), sum(n for _, n in counts)
 
 
 def cache_is_cold(modules=FRAME_KERNEL_MODULES):
-    """True when at least half of the cached kernels of ``modules`` have no fresh index.
+    """True when a module of ``modules`` has no compiled kernel at all (never used since
+    the install or the last upgrade of its source), or when at least half of the kernels of
+    ``modules`` have no fresh index.
 
-    A model uses only some kernels (no wrapping, no contact…), so a warm cache still has
-    never-compiled entries; a fresh install or an upgrade empties (or invalidates) all of
-    them. Half is the line between the two."""
-    n_cold, n_total = cold_fraction(modules)
+    A model calls only some kernels of a module (no wrapping, one recruitment path…), so a
+    warm cache still has never-compiled entries; but every module listed is used by every
+    run, so a module with none compiled means its first call compiles."""
+    counts = _module_counts(modules)
+    n_cold, n_total = sum(c for c, _ in counts), sum(n for _, n in counts)
+    if any(n and c == n for c, n in counts):
+        return True
     return n_total > 0 and 2 * n_cold >= n_total
 
 
-def announce_cold_cache(quiet=False, stream=None):
-    """Print :data:`MESSAGE` to ``stream`` (stderr) when the kernel cache is cold and not
-    ``quiet``; tell the progress displays to start their clocks after their first step
-    (the one that compiles). Returns whether the cache was cold."""
+def announce_cold_cache(quiet=False, stream=None, modules=None):
+    """Print :data:`MESSAGE` to ``stream`` (stderr) when the kernel cache of ``modules``
+    (default :data:`FRAME_KERNEL_MODULES`) is cold and not ``quiet``; tell the progress
+    displays to start their clocks after their first step (the one that compiles).
+    Returns whether the cache was cold."""
     from .progress import set_warmup
 
     try:
-        cold = cache_is_cold()
+        cold = cache_is_cold(FRAME_KERNEL_MODULES if modules is None else modules)
     except Exception:  # numba missing or its internals changed: say nothing, run as usual
         return False
     set_warmup(cold)
