@@ -215,11 +215,18 @@ def residual_rates(prev, cur, nxt, dt):
     """δ̇ and δ̈ (nm, 3) of one frame from the residuals δ (nm, 3) m of the frame and its
     neighbours (Eq. 7 and its second-order analogue): central where all three are known,
     one-sided where a neighbour is missing (None: outside the trial) or NaN (failed
-    frame, occluded marker), 0 otherwise."""
+    frame, occluded marker), 0 otherwise. A neighbour whose set of visible markers differs
+    from this frame's counts as missing for every marker: its pose solves another
+    least-squares problem, so the residuals step between the two frames and a difference
+    across that step is ±step/Δt² of spurious acceleration (tests/test_tracking_gap.py)."""
     good = np.isfinite(cur)
     none = np.zeros_like(good)
     good_p = np.isfinite(prev) if prev is not None else none
     good_n = np.isfinite(nxt) if nxt is not None else none
+    if np.any(good_p != good):
+        good_p = none
+    if np.any(good_n != good):
+        good_n = none
     D = np.where(good, cur, 0.0)
     Dp = np.where(good_p, prev, 0.0) if prev is not None else D
     Dn = np.where(good_n, nxt, 0.0) if nxt is not None else D
