@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from ..spatial import quat_from_matrix
 from ..trial.status import Reason
@@ -215,17 +216,32 @@ def residual_rates(prev, cur, nxt, dt):
     """δ̇ and δ̈ (nm, 3) of one frame from the residuals δ (nm, 3) m of the frame and its
     neighbours (Eq. 7 and its second-order analogue): central where all three are known,
     one-sided where a neighbour is missing (None: outside the trial) or NaN (failed
-    frame, occluded marker), 0 otherwise."""
-    good = np.isfinite(cur)
-    none = np.zeros_like(good)
-    good_p = np.isfinite(prev) if prev is not None else none
-    good_n = np.isfinite(nxt) if nxt is not None else none
-    D = np.where(good, cur, 0.0)
-    Dp = np.where(good_p, prev, 0.0) if prev is not None else D
-    Dn = np.where(good_n, nxt, 0.0) if nxt is not None else D
-    both = good & good_p & good_n
-    d1 = np.where(both, (Dn - Dp) / (2 * dt), 0.0)
-    d2 = np.where(both, (Dn - 2 * D + Dp) / dt**2, 0.0)
-    d1 = np.where(good & good_n & ~good_p, (Dn - D) / dt, d1)
-    d1 = np.where(good & good_p & ~good_n, (D - Dp) / dt, d1)
+    frame, occluded marker), 0 otherwise. dt : frame spacing, s. One compiled loop
+    (:func:`_residual_rates`)."""
+    cur = np.ascontiguousarray(cur, dtype=float)
+    d1, d2 = np.empty_like(cur), np.empty_like(cur)
+    _residual_rates(cur if prev is None else np.ascontiguousarray(prev, dtype=float), prev is not None,
+                    cur, cur if nxt is None else np.ascontiguousarray(nxt, dtype=float), nxt is not None,
+                    float(dt), d1.reshape(-1), d2.reshape(-1))
     return d1, d2
+
+
+@njit(cache=True)
+def _residual_rates(prev, has_prev, cur, nxt, has_next, dt, d1, d2):
+    """d1, d2 (3 nm,) ← δ̇, δ̈ of :func:`residual_rates` (prev, cur, nxt (nm, 3) m; a
+    neighbour counts as missing everywhere when ``has_*`` is False)."""
+    p, c, x = prev.reshape(-1), cur.reshape(-1), nxt.reshape(-1)
+    for i in range(c.shape[0]):
+        d1[i] = 0.0
+        d2[i] = 0.0
+        if not np.isfinite(c[i]):
+            continue
+        good_p = has_prev and np.isfinite(p[i])
+        good_n = has_next and np.isfinite(x[i])
+        if good_p and good_n:
+            d1[i] = (x[i] - p[i]) / (2 * dt)
+            d2[i] = (x[i] - 2 * c[i] + p[i]) / dt**2
+        elif good_n:
+            d1[i] = (x[i] - c[i]) / dt
+        elif good_p:
+            d1[i] = (c[i] - p[i]) / dt
