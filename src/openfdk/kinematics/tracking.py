@@ -53,13 +53,20 @@ class MarkerTracker:
     def _weights(self, visible):
         """Per-row weights (3 n_markers,) from marker weights and visibility (cached per
         visibility pattern; read-only)."""
+        return self._pattern(visible)[0]
+
+    def _pattern(self, visible):
+        """(per-row weights (3 n_markers,), per-row visibility (3 n_markers,) bool) of a
+        visibility pattern (n_markers,) bool, built once per pattern; read-only."""
         key = visible.tobytes()
-        w = self._weight_cache.get(key)
-        if w is None:
+        out = self._weight_cache.get(key)
+        if out is None:
             w = np.repeat(np.where(visible, self.markers.weight, 0.0), 3)
+            vis3 = np.repeat(visible, 3)
             w.setflags(write=False)
-            self._weight_cache[key] = w
-        return w
+            vis3.setflags(write=False)
+            out = self._weight_cache[key] = (w, vis3)
+        return out
 
     def observability_message(self, state, t, visible, alpha=None):
         """'' if the visible markers plus constraints fix the pose, else a message
@@ -188,8 +195,7 @@ class MarkerTracker:
         ν = ḟ (m,) at the pose, from that evaluation.
         """
         n = self.system.n_coords
-        w = self._weights(visible)
-        vis3 = np.repeat(visible, 3)
+        w, vis3 = self._pattern(visible)
         f, df, ddf = self.system.targets(t, alpha)
         if J is None:
             J = self.markers.evaluate(state, 1)[1]
