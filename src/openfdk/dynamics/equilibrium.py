@@ -125,7 +125,7 @@ def _inertial_minus_gravity(column, mass, inertia, index, w_BB, vdot, g, out):
 def inertial_minus_gravity(model, state, vdot):
     """[m (r̈ − g); J ω̇' + ω̃' J ω'] per moving body, stacked (n,) [N, N m] (Eq. 13)."""
     column, mass, inertia, index = _body_arrays(model)
-    out = np.zeros(model.n_coords)
+    out = np.zeros(state.n_coords)
     _inertial_minus_gravity(column, mass, inertia, index, state.w_BB,
                             np.ascontiguousarray(vdot, dtype=float), np.asarray(model.gravity_W, float), out)
     return out
