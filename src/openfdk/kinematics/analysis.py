@@ -31,7 +31,7 @@ from ..model.kernels import extrapolate_poses
 from ..trial import drive
 from ..trial.status import frame_messages
 from .determinate import check_square, solve_positions, solve_velocities_accelerations
-from .stages import velocity_stage_tracking
+from .stages import marker_stage, velocity_stage_tracking
 from .system import ConstraintSystem
 from .tracking import MarkerTracker, TrackingSettings, residual_rates
 
@@ -219,14 +219,14 @@ class TrackingStep:
             tracker.initial_guess(state, x, vis)
             self.guessed = True
         res, K, _ = tracker.solve_positions(state, t, x, vis, self.alpha)
-        frame = {"res": res, "meas": (xd, xdd, vis), "K": None, "q": None, "state": None, "p_M": None,
-                 "J_M": None, "delta": np.full((self.model.markers.size, 3), np.nan)}
+        frame = {"res": res, "meas": (xd, xdd), "q": None, "state": None, "data": None,
+                 "delta": np.full((self.model.markers.size, 3), np.nan)}
         if res.converged:
-            # the marker stage at the solved pose, once: δ = p_WM − x (Eq. 7) and the
-            # marker Jacobian of the velocity stage (Eqs. 8–10)
-            p_M, J_M, _ = tracker.markers.evaluate(state, 1)
-            frame.update(K=K, q=state.get_q(), state=state.copy(), p_M=p_M, J_M=J_M,
-                         delta=np.where(vis[:, None], p_M.reshape(-1, 3) - x, np.nan))
+            # the position stage at the solved pose, once: the markers' p_WM and Ψ_q̂ give
+            # δ = p_WM − x (Eq. 7) now and the velocity stage (Eqs. 8–10) at frame k + 1
+            data = marker_stage(tracker.markers, FrameData(t=t, alpha=self.alpha, kkt=K, visible=vis), state)
+            data.delta = np.where(vis[:, None], data.p_M.reshape(-1, 3) - x, np.nan)
+            frame.update(q=state.get_q(), state=state.copy(), data=data, delta=data.delta)
             self.last_good = state.copy()
             # warm start of the next frame: linear extrapolation on the manifold
             if self.q_prev is not None:
@@ -256,10 +256,8 @@ class TrackingStep:
         prev, nxt = self.pending.get(j - 1), self.pending.get(j + 1)
         d1, d2 = residual_rates(None if prev is None else prev["delta"], fr["delta"],
                                 None if nxt is None else nxt["delta"], self.dt)
-        xd, xdd, vis = fr["meas"]
-        state = fr["state"]  # the solved pose of frame j (its own copy: the stage sets v)
-        data = FrameData(t=self.times[j], alpha=self.alpha, p_M=fr["p_M"], J_M=fr["J_M"], kkt=fr["K"],
-                         visible=vis)
+        xd, xdd = fr["meas"]
+        state, data = fr["state"], fr["data"]  # the solved pose of frame j (its own copy: the stage sets v)
         # occluded markers' NaN ẋ, ẍ are masked out of the targets by the stage (weight 0)
         velocity_stage_tracking(self.tracker, data, state, xd, xdd, d1, d2)
         self.frame_data[j] = data
