@@ -72,17 +72,28 @@ def displace_poses(p_WB, quat_WB, R_WB, moving, column, dq_hat):
         else:
             s = np.sin(0.5 * angle) / angle
         d0, d1, d2, d3 = np.cos(0.5 * angle), s * x, s * y, s * z
-        p0, p1, p2, p3 = quat_WB[i, 0], quat_WB[i, 1], quat_WB[i, 2], quat_WB[i, 3]
-        e0 = p0 * d0 - p1 * d1 - p2 * d2 - p3 * d3
-        e1 = p0 * d1 + p1 * d0 + p2 * d3 - p3 * d2
-        e2 = p0 * d2 - p1 * d3 + p2 * d0 + p3 * d1
-        e3 = p0 * d3 + p1 * d2 - p2 * d1 + p3 * d0
-        norm = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2 + e3 * e3)
-        if e0 < 0:
-            norm = -norm
-        e0, e1, e2, e3 = e0 / norm, e1 / norm, e2 / norm, e3 / norm
-        quat_WB[i, 0], quat_WB[i, 1], quat_WB[i, 2], quat_WB[i, 3] = e0, e1, e2, e3
-        _set_rotation(R_WB, i, e0, e1, e2, e3)
+        _set_times(quat_WB, R_WB, i, d0, d1, d2, d3)
+
+
+@njit(cache=True)
+def _quat_product(p0, p1, p2, p3, d0, d1, d2, d3):
+    """p ⊗ d of two quaternions (scalar first), as four numbers."""
+    return (p0 * d0 - p1 * d1 - p2 * d2 - p3 * d3,
+            p0 * d1 + p1 * d0 + p2 * d3 - p3 * d2,
+            p0 * d2 - p1 * d3 + p2 * d0 + p3 * d1,
+            p0 * d3 + p1 * d2 - p2 * d1 + p3 * d0)
+
+
+@njit(cache=True)
+def _set_times(quat_WB, R_WB, i, d0, d1, d2, d3):
+    """quat_WB[i] ← p ⊗ d normalised with scalar part ≥ 0, R_WB[i] ← R of it."""
+    e0, e1, e2, e3 = _quat_product(quat_WB[i, 0], quat_WB[i, 1], quat_WB[i, 2], quat_WB[i, 3], d0, d1, d2, d3)
+    norm = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2 + e3 * e3)
+    if e0 < 0:
+        norm = -norm
+    e0, e1, e2, e3 = e0 / norm, e1 / norm, e2 / norm, e3 / norm
+    quat_WB[i, 0], quat_WB[i, 1], quat_WB[i, 2], quat_WB[i, 3] = e0, e1, e2, e3
+    _set_rotation(R_WB, i, e0, e1, e2, e3)
 
 
 @njit(cache=True)
@@ -284,21 +295,8 @@ def extrapolate_poses(p_WB, quat_WB, R_WB, moving, q_prev):
         i = moving[k]
         for r in range(3):
             p_WB[i, r] = 2 * p_WB[i, r] - q_prev[7 * k + r]
-        a0, a1, a2, a3 = q_prev[7 * k + 3], -q_prev[7 * k + 4], -q_prev[7 * k + 5], -q_prev[7 * k + 6]
-        p0, p1, p2, p3 = quat_WB[i, 0], quat_WB[i, 1], quat_WB[i, 2], quat_WB[i, 3]
-        # d = p_prev* ⊗ p
-        d0 = a0 * p0 - a1 * p1 - a2 * p2 - a3 * p3
-        d1 = a0 * p1 + a1 * p0 + a2 * p3 - a3 * p2
-        d2 = a0 * p2 - a1 * p3 + a2 * p0 + a3 * p1
-        d3 = a0 * p3 + a1 * p2 - a2 * p1 + a3 * p0
-        # e = p ⊗ d
-        e0 = p0 * d0 - p1 * d1 - p2 * d2 - p3 * d3
-        e1 = p0 * d1 + p1 * d0 + p2 * d3 - p3 * d2
-        e2 = p0 * d2 - p1 * d3 + p2 * d0 + p3 * d1
-        e3 = p0 * d3 + p1 * d2 - p2 * d1 + p3 * d0
-        norm = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2 + e3 * e3)
-        if e0 < 0:
-            norm = -norm
-        e0, e1, e2, e3 = e0 / norm, e1 / norm, e2 / norm, e3 / norm
-        quat_WB[i, 0], quat_WB[i, 1], quat_WB[i, 2], quat_WB[i, 3] = e0, e1, e2, e3
-        _set_rotation(R_WB, i, e0, e1, e2, e3)
+        # d = p_prev* ⊗ p, then p ← p ⊗ d
+        d0, d1, d2, d3 = _quat_product(q_prev[7 * k + 3], -q_prev[7 * k + 4], -q_prev[7 * k + 5],
+                                       -q_prev[7 * k + 6], quat_WB[i, 0], quat_WB[i, 1], quat_WB[i, 2],
+                                       quat_WB[i, 3])
+        _set_times(quat_WB, R_WB, i, d0, d1, d2, d3)
