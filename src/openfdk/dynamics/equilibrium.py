@@ -153,7 +153,9 @@ def assemble(layout, A, L_muscles, d_full):
 @njit(cache=True)
 def _assemble(L, A, rows, sel, sign, d_full, C, d):
     """C[r] ← [−L[:, c]ᵀ, sign ∘ A[sel, c]ᵀ], d[r] ← d_full[c] for each equilibrium row
-    r with coordinate c = rows[r] (Eq. 12)."""
+    r with coordinate c = rows[r] (Eq. 12). L (n_muscles, n) m/m or m/rad; A (m_rows, n);
+    rows (n_eq,), sel (n_react,) int; sign (n_react,) ±1; d_full (n,) [N, N m];
+    outputs C (n_eq, n_muscles + n_react), d (n_eq,)."""
     nm = L.shape[0]
     for r in range(rows.shape[0]):
         c = rows[r]

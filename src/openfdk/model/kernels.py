@@ -86,7 +86,8 @@ def _quat_product(p0, p1, p2, p3, d0, d1, d2, d3):
 
 @njit(cache=True)
 def _set_times(quat_WB, R_WB, i, d0, d1, d2, d3):
-    """quat_WB[i] ← p ⊗ d normalised with scalar part ≥ 0, R_WB[i] ← R of it."""
+    """quat_WB[i] ← p ⊗ d normalised with scalar part ≥ 0 (p = quat_WB[i], d a
+    quaternion as four numbers), R_WB[i] ← R of it; quat_WB (nb, 4), R_WB (nb, 3, 3)."""
     e0, e1, e2, e3 = _quat_product(quat_WB[i, 0], quat_WB[i, 1], quat_WB[i, 2], quat_WB[i, 3], d0, d1, d2, d3)
     norm = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2 + e3 * e3)
     if e0 < 0:
