@@ -89,10 +89,10 @@ def test_no_start_converges_reports_the_best_iterate_with_the_first_reason():
 
 def test_restart_setting_is_read_from_the_model_file(tmp_path):
     from openfdk.fdk.settings import fdk_settings
-    from openfdk.io.modelfile import load_model
+    from openfdk.io.modelfile import load_model_and_settings
 
     text = "openfdk: 1\nbodies: {arm: {mass: 1, inertia: [1, 1, 1]}}\n"
     (tmp_path / "on.yaml").write_text(text)
     (tmp_path / "off.yaml").write_text(text + "fdk: {restart: false}\n")
-    assert fdk_settings(load_model(tmp_path / "on.yaml")).restart is True
-    assert fdk_settings(load_model(tmp_path / "off.yaml")).restart is False
+    assert fdk_settings(*load_model_and_settings(tmp_path / "on.yaml")).restart is True
+    assert fdk_settings(*load_model_and_settings(tmp_path / "off.yaml")).restart is False

@@ -110,7 +110,7 @@ def test_fdk_restart_finds_the_root_where_the_warm_start_stalls_in_the_wide_chew
     from openfdk.fdk.newton import solve_frame
     from openfdk.fdk.residual import FrameWorkspace
     from openfdk.fdk.settings import fdk_settings
-    from openfdk.io.modelfile import load_model
+    from openfdk.io.modelfile import load_model_and_settings
     from openfdk.jobs import analysis_inputs
 
     subject_dir, out = realistic
@@ -121,11 +121,11 @@ def test_fdk_restart_finds_the_root_where_the_warm_start_stalls_in_the_wide_chew
     ml = np.array([float(r["fdk.tmj_ml.alpha"]) for r in rows])
     assert abs(ml[i] - ml[i - 1]) > 1e-3                       # a jump of > 1 mm in 10 ms
     t = float(rows[i]["time"])
-    model = load_model(out / "models" / "fdk.yaml")
+    model, file_settings = load_model_and_settings(out / "models" / "fdk.yaml")
     trial = load_subject(subject_dir).protocol.trials["chewing"].file
-    traj, times, _ = analysis_inputs(model, trial, None, t - 0.1, t + 0.02)
-    ctx = fdk_context(model, traj, times)
-    settings = fdk_settings(model)
+    traj, times, _ = analysis_inputs(model, trial, None, t - 0.1, t + 0.02, file_settings)
+    ctx = fdk_context(model, traj, times, settings=file_settings)
+    settings = fdk_settings(model, file_settings)
     step = FDKStep(model, ctx, settings)
     k = int(np.argmin(np.abs(times - t)))
     for j in range(k):

@@ -189,11 +189,12 @@ class FDKStep:
         self.last_state, self.history = last_state.copy(), list(history)
 
 
-def fdk_context(model, trajectories, times, tracking=None):
-    """The FDKContext of a trial (system with FDK rows, inverse dynamics, tracker and
-    the measured markers at ``times`` (nf,) s, or determinate kinematics)."""
+def fdk_context(model, trajectories, times, tracking=None, settings=None):
+    """The FDKContext of a trial (system with FDK rows, inverse dynamics with the
+    recruitment of ``settings`` (AnalysisSettings), tracker and the measured markers at
+    ``times`` (nf,) s, or determinate kinematics)."""
     system = ConstraintSystem(model)
-    solver = InverseDynamics(model, system)
+    solver = InverseDynamics(model, system, settings)
     tracker, meas = None, None
     if trajectories is not None:
         tracker = MarkerTracker(system, tracking or TrackingSettings())
@@ -222,16 +223,20 @@ def run_fdk(model, trajectories=None, times=None, settings=None, progress=False,
 
     trajectories : marker trajectories (``evaluate(t)``) in model marker order, or None
     for determinate kinematics (drivers); times : (nf,) s, uniform (default: the trial's
-    sample times); settings : FDKSettings (default: the model's ``fdk`` section).
+    sample times); settings : AnalysisSettings (recruitment and the ``fdk`` section;
+    default: AnalysisSettings(), the defaults), e.g. the model file's
+    (:func:`openfdk.io.modelfile.load_model_and_settings`); overrides : FDKSettings
+    fields (``jacobian="central"``, …). The model is not modified.
     """
     t0 = _time.perf_counter()
     if not model.fdk_dofs:
         raise ValueError(f"model {model.name!r} declares no FDK DOFs (section fdk_dofs)")
-    settings = settings or fdk_settings(model, **overrides)
+    analysis_settings = settings
+    settings = fdk_settings(model, analysis_settings, **overrides)
     if times is None:
         times = np.asarray(trajectories.time, dtype=float)
     times = np.asarray(times, dtype=float)
-    ctx = fdk_context(model, trajectories, times, tracking)
+    ctx = fdk_context(model, trajectories, times, tracking, analysis_settings)
     step = FDKStep(model, ctx, settings)
 
     def build(rec):

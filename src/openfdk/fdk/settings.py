@@ -52,9 +52,11 @@ class FDKSettings:
     golden_section_evaluations: int = 8
 
 
-def fdk_settings(model, **overrides) -> FDKSettings:
-    """Settings of a model: its ``fdk`` section, per-DOF values and defaults by unit."""
-    base = dict(model.settings.fdk)
+def fdk_settings(model, settings=None, **overrides) -> FDKSettings:
+    """FDK solver settings of a model analysed with ``settings`` (AnalysisSettings: the
+    model file's ``fdk`` section; default none), the per-DOF values and defaults by
+    unit, and keyword ``overrides``."""
+    base = dict(settings.fdk) if settings is not None else {}
     base.update(overrides)
     steps, perts = [], []
     for dof in model.fdk_dofs:
