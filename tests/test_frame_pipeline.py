@@ -192,7 +192,7 @@ def test_tracking_evaluates_the_markers_once_per_solved_pose(tmp_path, monkeypat
     from openfdk.model.constraints import MarkerSet
 
     write_jaw_files(tmp_path, 8)
-    model = load_model(tmp_path / "pop.yaml")
+    model, _ = load_model_and_settings(tmp_path / "pop.yaml")
     _, traj = load_trajectories(model, tmp_path / "trial.c3d")
     counts = Counter()
     for name in ("evaluate", "positions"):
