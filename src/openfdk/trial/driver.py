@@ -51,16 +51,22 @@ class Recording:
 
     def record(self, k, values):
         """Store frame k's values (dict name -> value) and mark it finished."""
+        arrays, objects = self._arrays, self._objects
         for name, value in values.items():
-            if name not in self._arrays and name not in self._objects:
+            a = arrays.get(name)
+            if a is not None:
+                a[k] = value
+                continue
+            o = objects.get(name)
+            if o is None:
                 if isinstance(value, (str, FrameReport)) or value is None:
                     self._declare(name, (), object, None)
                 else:
                     self._declare(name, np.shape(value), float, np.nan)
-            if name in self._objects:
-                self._objects[name][k] = value
-            else:
-                self._arrays[name][k] = value
+                    arrays[name][k] = value
+                    continue
+                o = objects[name]
+            o[k] = value
         self.done[k] = True
 
     @property
@@ -146,7 +152,8 @@ def drive(step, n_frames, build, *, progress=False, desc="frames", checkpoints=N
             for k in range(start, n_frames):
                 for j, values in step.step(k):
                     rec.record(j, values)
-                    pending.append((j, values))
+                    if checkpoints is not None:
+                        pending.append((j, values))
                 if checkpoints is not None and checkpoints.due(len(pending)):
                     checkpoints.save(pending, step.carry(), k + 1)
                     pending = []
