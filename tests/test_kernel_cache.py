@@ -159,3 +159,28 @@ def test_check_announces_a_cold_cache_once(tmp_path, capsys, monkeypatch, quiet)
     assert code == 0
     assert err.count(kernel_cache.MESSAGE) == (0 if quiet else 1)
     assert not progress._WARMUP  # reset when the command ends
+
+
+def test_analysis_announces_after_reading_the_trial(tmp_path, capsys, monkeypatch):
+    """openfdk kinematics with a bad trial file: the one-line error only (the announcement
+    waits until model and trial are read); with a good one: the line, once."""
+    import yaml
+
+    from openfdk.cli import main
+    from openfdk.fixtures.synthetic import synthetic_markers, two_body_model_dict
+    from openfdk.io.c3d import write_c3d
+
+    monkeypatch.setattr(kernel_cache, "cache_is_cold", lambda modules: True)
+    model = tmp_path / "m.yaml"
+    model.write_text(yaml.safe_dump(two_body_model_dict(), sort_keys=False))
+    bad = tmp_path / "bad.trc"
+    bad.write_text("Something else\n" * 6)
+    assert main(["kinematics", str(model), str(bad), "--out", str(tmp_path / "o1"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and "bad.trc" in err and kernel_cache.MESSAGE not in err
+    t, labels, x, _ = synthetic_markers(n_frames=20)
+    good = tmp_path / "good.c3d"
+    write_c3d(good, labels, x, 100.0, units="mm")
+    assert main(["kinematics", str(model), str(good), "--out", str(tmp_path / "o2"), "--no-progress"]) == 0
+    assert capsys.readouterr().err.count(kernel_cache.MESSAGE) == 1
+    assert kernel_cache._ARMED is None and not progress._WARMUP

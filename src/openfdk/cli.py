@@ -74,12 +74,17 @@ def _cmd_cache(args):
 
 
 def _announce_kernels(args, check=False):
-    """Once the inputs are read and before the first kernel call: one line on stderr when
-    numba's kernel cache is cold (first run after install/upgrade), unless --quiet; the
-    progress displays then start after each stage's first (compiling) frame."""
-    from .kernel_cache import CHECK_KERNEL_MODULES, announce_cold_cache
+    """One line on stderr when numba's kernel cache is cold (first run after install or
+    upgrade), unless --quiet, once the inputs are read and before the first kernel call:
+    now for ``check`` (model read), else when the analysis has read the model and trial
+    (:func:`openfdk.jobs.analysis_inputs`). The progress displays then start after each
+    stage's first (compiling) frame."""
+    from .kernel_cache import CHECK_KERNEL_MODULES, announce_cold_cache, arm
 
-    announce_cold_cache(quiet=getattr(args, "quiet", False), modules=CHECK_KERNEL_MODULES if check else None)
+    if check:
+        announce_cold_cache(quiet=getattr(args, "quiet", False), modules=CHECK_KERNEL_MODULES)
+    else:
+        arm(quiet=getattr(args, "quiet", False))
 
 
 def _say(args, text):
@@ -525,6 +530,9 @@ def main(argv=None):
         np.seterr(**old_err)
         set_quiet(False)
         set_warmup(False)
+        from .kernel_cache import disarm
+
+        disarm()
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -10,7 +10,8 @@ run — and nothing is shown while it does.
 :func:`cache_is_cold` reads those index files (a few kB of pickles, milliseconds) through
 each dispatcher's own cache object, so it sees the same folder and staleness rule numba
 applies, and :func:`announce_cold_cache` prints one informational line before the first
-kernel call of a CLI command.
+kernel call of a CLI command (``check`` after reading the model; the analyses after reading
+the model and the trial, through :func:`arm` and :func:`announce_armed`).
 """
 
 from __future__ import annotations
@@ -108,3 +109,28 @@ def announce_cold_cache(quiet=False, stream=None, modules=None):
         print(MESSAGE, file=stream)
         stream.flush()
     return cold
+
+
+_ARMED = None  # (quiet, modules) set by the CLI, used once the inputs are read
+
+
+def arm(quiet=False, modules=None):
+    """Ask for :func:`announce_cold_cache` at the next :func:`announce_armed` (the analysis
+    calls it after reading the model and trial, so bad input still gives one line)."""
+    global _ARMED
+    _ARMED = (bool(quiet), modules)
+
+
+def disarm():
+    global _ARMED
+    _ARMED = None
+
+
+def announce_armed(stream=None):
+    """:func:`announce_cold_cache` once if :func:`arm` was called; else nothing."""
+    global _ARMED
+    if _ARMED is None:
+        return False
+    quiet, modules = _ARMED
+    _ARMED = None
+    return announce_cold_cache(quiet=quiet, stream=stream, modules=modules)
