@@ -71,7 +71,8 @@ def test_pose_and_velocity_packing_round_trip():
 def test_residual_rates_closed_form_and_one_sided():
     """δ(t) = a t² + b t + c sampled at −Δt, 0, Δt: central differences give δ̇(0) = b
     and δ̈(0) = 2a exactly; with a neighbour missing (None) or NaN, the one-sided
-    difference and δ̈ = 0; a NaN residual gives 0 rates."""
+    difference and δ̈ = 0, also for every marker when a neighbour's visible set differs;
+    a NaN residual gives 0 rates."""
     rng = np.random.default_rng(5)
     a, b, c = rng.normal(size=(3, 4, 3))
     dt = 0.01
@@ -82,15 +83,22 @@ def test_residual_rates_closed_form_and_one_sided():
     d1, d2 = residual_rates(None, cur, nxt, dt)
     np.testing.assert_allclose(d1, (nxt - cur) / dt, atol=1e-12)
     np.testing.assert_array_equal(d2, 0.0)
+    # marker 1 hidden in the next frame: another visible set, so the next frame counts as
+    # missing for every marker (tests/test_tracking_gap.py): backward differences, δ̈ = 0
     gap = nxt.copy()
     gap[1] = np.nan
-    cur_gap = cur.copy()
-    cur_gap[2, 0] = np.nan
-    d1, d2 = residual_rates(prev, cur_gap, gap, dt)
-    np.testing.assert_allclose(d1[1], (cur[1] - prev[1]) / dt, atol=1e-12)  # backward
-    np.testing.assert_array_equal(d2[1], 0.0)
-    assert d1[2, 0] == 0.0 and d2[2, 0] == 0.0
-    np.testing.assert_allclose(d1[0], b[0], rtol=1e-9, atol=1e-9)  # untouched rows central
+    d1, d2 = residual_rates(prev, cur, gap, dt)
+    np.testing.assert_allclose(d1, (cur - prev) / dt, atol=1e-12)
+    np.testing.assert_array_equal(d2, 0.0)
+    # a NaN residual in this frame (and in its neighbours: the same visible set) → 0 there,
+    # central differences elsewhere
+    prev_gap, cur_gap, nxt_gap = prev.copy(), cur.copy(), nxt.copy()
+    for arr in (prev_gap, cur_gap, nxt_gap):
+        arr[2] = np.nan
+    d1, d2 = residual_rates(prev_gap, cur_gap, nxt_gap, dt)
+    assert np.all(d1[2] == 0.0) and np.all(d2[2] == 0.0)
+    np.testing.assert_allclose(d1[[0, 1, 3]], b[[0, 1, 3]], rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(d2[[0, 1, 3]], 2 * a[[0, 1, 3]], rtol=1e-6, atol=1e-6)
 
 
 def test_assemble_kernel_matches_the_numpy_formula():
