@@ -2,9 +2,11 @@
 
     python examples/shoulder/make_shoulder.py [OUT_DIR]     # default: next to this file
 
-meshes/humeral_head.stl  sphere cap, radius 25 mm, on the humerus (normals outward)
-meshes/glenoid.stl       concave spherical cup, radius 27 mm, half-angle 50 deg, on the thorax (normals
-                         toward the cup's centre, i.e. out of the bone into the joint)
+meshes/humeral_head.stl  sphere cap, radius 25 mm, half-angle 80 deg (the articular surface up to the
+                         anatomical neck), on the humerus (normals outward)
+meshes/glenoid.stl       concave spherical cup, radius 27 mm, half-angle 65 deg, on the thorax (normals
+                         toward the cup's centre, i.e. out of the bone into the joint): the
+                         bony glenoid to about 35 deg, the labrum and capsule beyond
 reach.trc                2 s at 100 Hz: shoulder flexion 0 -> 60 deg and elbow flexion
                          10 -> 90 deg, 1 mm marker noise, a 60 ms gap of marker H3
 
@@ -18,6 +20,8 @@ import numpy as np
 
 HEAD_RADIUS = 25.0          # mm
 GLENOID_RADIUS = 27.0       # mm: 2 mm larger than the head (a congruent cup makes FDK fail, see the docs)
+HEAD_HALF_ANGLE = 80.0      # deg: the head's articular cartilage ends at the anatomical neck
+GLENOID_HALF_ANGLE = 65.0   # deg: bony glenoid + labrum + capsule; the contact patch stays inside (docs)
 GH = np.array([0.0, 0.0, 180.0])        # glenohumeral centre in the thorax (= world) frame, mm
 ELBOW = np.array([0.0, -300.0, 180.0])  # elbow centre in the reference pose, mm
 # markers in the world frame at the reference pose (arm hanging, elbow straight), mm
@@ -114,9 +118,9 @@ def write_trc(path, t, labels, x, rate):
 def main(out=None):
     out = Path(out) if out else Path(__file__).parent
     (out / "meshes").mkdir(parents=True, exist_ok=True)
-    v, f = cap(HEAD_RADIUS, np.deg2rad(60), pole=[0, 0, -1])    # faces the glenoid (medial)
+    v, f = cap(HEAD_RADIUS, np.deg2rad(HEAD_HALF_ANGLE), pole=[0, 0, -1], n_rings=19)   # faces the glenoid (medial)
     write_stl(out / "meshes" / "humeral_head.stl", v, f)
-    v, f = cap(GLENOID_RADIUS, np.deg2rad(50), pole=[0, 0, -1], n_rings=14, n_seg=32)   # with the labrum
+    v, f = cap(GLENOID_RADIUS, np.deg2rad(GLENOID_HALF_ANGLE), pole=[0, 0, -1], n_rings=18, n_seg=32)
     write_stl(out / "meshes" / "glenoid.stl", v, f[:, ::-1])   # concave side: normals inward
     t, labels, x = trial()
     write_trc(out / "reach.trc", t, labels, x, 100.0)
