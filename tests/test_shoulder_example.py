@@ -7,6 +7,7 @@ zero on the humerus + forearm (the elbow is internal)."""
 
 import importlib.util
 import shutil
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -49,8 +50,17 @@ def folder(tmp_path_factory):
 def reach(folder):
     tmp, mod = folder
     model = openfdk.load_model(tmp / "shoulder.yaml")
-    result = openfdk.run(model, tmp / "reach.trc", start=0.78, end=0.88)   # across the gap of H3
-    return mod, model, result
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = openfdk.run(model, tmp / "reach.trc", start=0.78, end=0.88)   # across the gap of H3
+    return mod, model, result, [str(w.message) for w in caught]
+
+
+def _q(model, kinematics):
+    """(n, 7 n_moving) poses [r (m), quaternion] of the moving bodies, from the kinematics table."""
+    moving = [b.name for b in model.bodies if b.column >= 0]
+    cols = [f"{b}.{c}" for b in moving for c in ("x_m", "y_m", "z_m", "e0", "e1", "e2", "e3")]
+    return kinematics[cols].to_numpy()
 
 
 def test_kinematics_track_through_the_marker_gap_and_recover_the_motion(folder):
@@ -76,7 +86,7 @@ def test_kinematics_track_through_the_marker_gap_and_recover_the_motion(folder):
 
 
 def test_fdk_solution_balances_the_arm(reach):
-    _, model, result = reach
+    _, model, result, _ = reach
     k, f = result.kinematics, result.forces
     names = [b.name for b in model.bodies]
     column = np.array([b.column for b in model.bodies])
@@ -111,6 +121,29 @@ def test_fdk_solution_balances_the_arm(reach):
         F += contact
         assert pulled >= 4 and np.linalg.norm(contact) > 3 * weight   # a compressed, muscle-held joint
         assert np.linalg.norm(F) < 0.01, (i, F)                        # FDK tolerance 1e-3 N per DOF
+
+
+def test_the_contact_patch_stays_inside_both_meshes(reach, folder):
+    """The run gives no rim warning (contact/rim.py), and the check is not blind here: at the
+    very same poses the first version's 50° glenoid cup (on the 60° head) is cut off by its rim
+    on every frame of this window (the patch centre sits 45-50° from the cup's pole at 0.8 s)."""
+    from openfdk.contact.rim import contact_rim_frames
+
+    tmp, mod = folder
+    _, model, result, caught = reach
+    assert not [w for w in caught if "border of mesh" in w], caught
+    q = _q(model, result.kinematics)
+    assert contact_rim_frames(model, q) == []
+    # the same model with the old meshes: a 50° cup on a 60° head
+    old = tmp / "old"
+    (old / "meshes").mkdir(parents=True, exist_ok=True)
+    v, f = mod.cap(mod.GLENOID_RADIUS, np.deg2rad(50), pole=[0, 0, -1], n_rings=14, n_seg=32)
+    mod.write_stl(old / "meshes" / "glenoid.stl", v, f[:, ::-1])
+    v, f = mod.cap(mod.HEAD_RADIUS, np.deg2rad(60), pole=[0, 0, -1])
+    mod.write_stl(old / "meshes" / "humeral_head.stl", v, f)
+    shutil.copy(tmp / "shoulder.yaml", old / "shoulder.yaml")
+    hits = {role: (frames, share) for _, role, _, frames, share in contact_rim_frames(openfdk.load_model(old / "shoulder.yaml"), q)}
+    assert len(hits["surface"][0]) == len(q)                 # each frame: >= CUT_SHARE of the load cut off
 
 
 def test_the_tutorial_quotes_the_example_file():
