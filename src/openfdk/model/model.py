@@ -12,8 +12,7 @@ from .settings import AnalysisSettings
 from .state import BodyStates
 
 
-class ModelError(ValueError):
-    """A model description is invalid; the message names the offending entry."""
+from .errors import ModelError  # noqa: E402 — defined in a light module, re-exported here
 
 
 @dataclass(frozen=True, eq=False)

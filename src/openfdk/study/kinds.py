@@ -29,7 +29,7 @@ from pathlib import Path
 
 from ..io.fingerprint import file_stamp
 from ..io.yamlfile import read_yaml
-from ..model.model import ModelError
+from ..model.errors import ModelError
 
 
 @dataclass(frozen=True)

@@ -118,13 +118,13 @@ def _serial(pending, out, retries, force):
 
 def longest_first(cases):
     """``cases`` in the order they are given to the workers: longest analysed window
-    (``options.end − options.start``, s; a case whose window is open — the whole trial —
-    counts as longest) first, study order among equals. The last cases to finish are then
-    the short ones, so the workers run out of work at nearly the same time (longest
-    processing time first)."""
+    (``options.end − options.start``, s, start None counting as 0; a case whose window
+    has no end — the whole trial — counts as longest) first, study order among equals.
+    The last cases to finish are then the short ones, so the workers run out of work at
+    nearly the same time (longest processing time first)."""
     def window(case):
         o = case.options
-        return float("inf") if o.start is None or o.end is None else float(o.end) - float(o.start)
+        return float("inf") if o.end is None else float(o.end) - float(o.start or 0.0)
 
     return sorted(cases, key=window, reverse=True)
 
