@@ -23,9 +23,10 @@ Worker start-up (once per worker, not per case): Dask spawns each worker as a fr
 interpreter by default, which then imports Dask and, at its first case, openfdk's
 analysis layers (≈ 1.5 s of CPU each), while the driver idles. openfdk's LocalCluster
 instead forks its workers from a *fork server* (``multiprocessing`` "forkserver"),
-started before the scheduler, which imports :data:`WORKER_MODULES` once, in parallel
-with the driver starting the scheduler; the workers, and those a nanny restarts, begin
-with everything imported. The server lives as long as this process and serves its later
+started before Dask is imported, which imports :data:`WORKER_MODULES` once — Dask's
+worker, openfdk's analysis layers, and numba's cached kernels loaded
+(:mod:`.worker_start`) — while the driver imports Dask and starts the scheduler; the
+workers, and those a nanny restarts, begin with all of it done. The server lives as long as this process and serves its later
 clusters. Its environment, fixed when it starts, is :data:`FORK_SERVER_ENVIRONMENT`
 (one BLAS thread, as Dask's nanny sets); the driver's other environment variables are
 passed to each worker as it starts. With ``malloc_trim=True`` (which must be in the
@@ -53,11 +54,10 @@ WORKER_CONFIG = {
     "distributed.admin.system-monitor.interval": "2s",
     "distributed.worker.memory.monitor-interval": "1s",
 }
-#: what a LocalCluster worker needs before its first case: the Dask worker and openfdk's
-#: case and analysis layers (numpy, scipy, numba, trimesh). Imported once, by the fork
-#: server (module docstring), instead of once per worker process and case.
-WORKER_MODULES = ("distributed", "openfdk.study.case", "openfdk.analysis.run", "openfdk.io.markers",
-                  "openfdk.io.modelfile", "openfdk.fdk.analysis")
+#: what a LocalCluster worker needs before its first case: the Dask worker, and openfdk's
+#: case and analysis layers with their compiled kernels loaded (:mod:`.worker_start`).
+#: Imported once, by the fork server (module docstring), instead of once per worker.
+WORKER_MODULES = ("distributed", "openfdk.study.worker_start")
 #: environment of the fork server, hence of every worker forked from it (what Dask's nanny
 #: sets before spawning a worker: one BLAS/OpenMP thread, a fixed hash seed)
 FORK_SERVER_ENVIRONMENT = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
@@ -111,6 +111,8 @@ def dask_client(scheduler=None, workers=None, malloc_trim=False, timeout=START_T
     LocalCluster of ``workers`` processes (default: the number of CPUs) on 127.0.0.1;
     malloc_trim : keep Dask's MALLOC_TRIM_THRESHOLD_ in the local workers; timeout : s
     allowed for the cluster to start / the scheduler to answer."""
+    if scheduler is None and not malloc_trim:
+        start_fork_server()  # first: it imports while this process imports Dask and starts the scheduler
     import dask
     from distributed import Client, LocalCluster
 
@@ -130,7 +132,6 @@ def dask_client(scheduler=None, workers=None, malloc_trim=False, timeout=START_T
     if not malloc_trim:
         config["distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_"] = None
         config["distributed.worker.multiprocessing-method"] = "forkserver"
-        start_fork_server()
     cluster = client = None
     try:
         with dask.config.set(config):
