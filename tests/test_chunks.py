@@ -9,7 +9,7 @@ import pytest
 
 from openfdk.fdk.analysis import run_fdk
 from openfdk.jobs import load_trajectories, run_job
-from openfdk.io.modelfile import load_model
+from openfdk.io.modelfile import load_model_and_settings
 from openfdk.study.chunks import plan_segments
 from openfdk.study.cli import run_chunked_job
 
@@ -65,16 +65,16 @@ def test_chunked_fdk_agrees_with_serial_to_the_fdk_tolerance(files, serial_fdk):
     kc, dc, ic = run_chunked_job(files / "tmj.yaml", files / "trial.c3d", 3, workers=0, progress=False, overlap=2)
     assert ic["chunks"] == 3 and [s["keep"] for s in ic["segments"]] == [[0, 8], [8, 16], [16, 24]]
     np.testing.assert_array_equal(kc.time, kin.time)
-    tol = fdk_settings(load_model(files / "tmj.yaml")).tolerance
+    model, settings = load_model_and_settings(files / "tmj.yaml")
+    tol = fdk_settings(model, settings).tolerance
     assert info["fdk"]["converged_frames"] == N_FRAMES and ic["fdk"]["converged_frames"] == N_FRAMES
     f_chunked = np.column_stack([dc.extra["columns"][f"fdk.{d}.residual"] for d in FDK_DOFS])
     assert np.all(np.abs(f_chunked) < tol)
 
     # ‖J⁻¹‖ at every frame of the serial solution (central differences, h = 0.2 µm)
-    model = load_model(files / "tmj.yaml")
-    _, traj = load_trajectories(model, files / "trial.c3d")
+    _, traj = load_trajectories(model, files / "trial.c3d", settings=settings)
     system = ConstraintSystem(model)
-    ctx = FDKContext(model, InverseDynamics(model, system), MarkerTracker(system, TrackingSettings()),
+    ctx = FDKContext(model, InverseDynamics(model, system, settings), MarkerTracker(system, TrackingSettings()),
                      [traj.evaluate(t) for t in kin.time], kin.time)
     alpha_s, alpha_c = _alpha(dyn), _alpha(dc)
     state = model.initial_state()
@@ -104,9 +104,9 @@ def test_segment_ends_use_the_real_neighbouring_frames(files, serial_fdk):
     np.testing.assert_allclose(kc.vdot[boundary], kin.vdot[boundary], atol=1e-6 * scale)
     np.testing.assert_allclose(kc.v[boundary], kin.v[boundary], atol=1e-6 * np.max(np.abs(kin.v)))
     # the same segment without the extra frame after it: its last frame is one-sided
-    model = load_model(files / "tmj.yaml")
-    _, traj = load_trajectories(model, files / "trial.c3d")
-    naive = run_fdk(model, traj, kin.time[:12])
+    model, settings = load_model_and_settings(files / "tmj.yaml")
+    _, traj = load_trajectories(model, files / "trial.c3d", settings=settings)
+    naive = run_fdk(model, traj, kin.time[:12], settings)
     assert np.max(np.abs(naive.kinematics.vdot[11] - kin.vdot[11])) > 1e-3 * scale
 
 

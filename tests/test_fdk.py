@@ -112,17 +112,28 @@ def test_frame_without_restoring_force_is_flagged_and_run_continues():
 
 
 @pytest.fixture(scope="module")
-def tmj_model(tmp_path_factory):
-    from openfdk.io.modelfile import model_from_dict
+def tmj(tmp_path_factory):
+    """(Model, AnalysisSettings) of the TMJ FDK model, recruitment solved to 1e-13."""
+    from openfdk.io.modelfile import model_and_settings_from_dict
     from openfdk.fixtures.synthetic_jaw import jaw_fdk_model_dict, write_jaw_meshes
 
     d = write_jaw_meshes(tmp_path_factory.mktemp("tmj"))
     data = jaw_fdk_model_dict(str(d))
     data["recruitment"]["tolerance"] = 1e-13
-    return model_from_dict(data, "tmj.yaml", base_dir="/")
+    return model_and_settings_from_dict(data, "tmj.yaml", base_dir="/")
 
 
-def _tmj_context(model, n_frames=30):
+@pytest.fixture(scope="module")
+def tmj_model(tmj):
+    return tmj[0]
+
+
+@pytest.fixture(scope="module")
+def tmj_settings(tmj):
+    return tmj[1]
+
+
+def _tmj_context(model, settings, n_frames=30):
     from openfdk.analysis.inverse_dynamics import InverseDynamics
     from openfdk.fdk.residual import FDKContext
     from openfdk.io.c3d import MarkerTrial
@@ -135,16 +146,16 @@ def _tmj_context(model, n_frames=30):
     traj = MarkerTrajectories(MarkerTrial(tuple(labels), 100.0, t, x), cutoff_hz=8.0)
     system = ConstraintSystem(model)
     tracker = MarkerTracker(system, TrackingSettings(tol_step=1e-13, tol_constraint=1e-13, max_iter=60))
-    return FDKContext(model, InverseDynamics(model, system), tracker, [traj.evaluate(tt) for tt in t], t), traj, t
+    return FDKContext(model, InverseDynamics(model, system, settings), tracker, [traj.evaluate(tt) for tt in t], t), traj, t
 
 
-def test_analytic_jacobian_matches_central_differences_on_tmj_model(tmj_model):
+def test_analytic_jacobian_matches_central_differences_on_tmj_model(tmj_model, tmj_settings):
     """At several frames and α (in contact), the chain-rule Jacobian agrees with central
     differences of full residual evaluations (inner solvers tight) to 1e-4 relative."""
     from openfdk.fdk.jacobian import analytic_jacobian, central_jacobian
     from openfdk.fdk.residual import FrameWorkspace
 
-    ctx, _, _ = _tmj_context(tmj_model)
+    ctx, _, _ = _tmj_context(tmj_model, tmj_settings)
     state0 = tmj_model.initial_state()
     ctx.tracker.initial_guess(state0, ctx.meas[0][0], ctx.meas[0][3])
     checked = 0
@@ -163,12 +174,12 @@ def test_analytic_jacobian_matches_central_differences_on_tmj_model(tmj_model):
     assert checked == 3
 
 
-def test_analytic_and_central_fdk_converge_to_same_alpha(tmj_model):
+def test_analytic_and_central_fdk_converge_to_same_alpha(tmj_model, tmj_settings):
 
-    _, traj, t = _tmj_context(tmj_model, n_frames=20)
+    _, traj, t = _tmj_context(tmj_model, tmj_settings, n_frames=20)
     # a fresh Jacobian at every iteration, as in the paper
-    ra = run_fdk(tmj_model, traj, t, jacobian="analytic", reuse_jacobian=False)
-    rc = run_fdk(tmj_model, traj, t, jacobian="central", reuse_jacobian=False)
+    ra = run_fdk(tmj_model, traj, t, tmj_settings, jacobian="analytic", reuse_jacobian=False)
+    rc = run_fdk(tmj_model, traj, t, tmj_settings, jacobian="central", reuse_jacobian=False)
     assert ra.converged.all() and rc.converged.all()
     # α agree to the force tolerance over the joint stiffness (≥ 1e4 N/m): < 1e-7 m
     np.testing.assert_allclose(ra.alpha, rc.alpha, atol=1e-7)
@@ -177,12 +188,12 @@ def test_analytic_and_central_fdk_converge_to_same_alpha(tmj_model):
 
 
 @pytest.mark.parametrize("jacobian", ["analytic", "central"])
-def test_reused_broyden_jacobian_converges_to_the_fresh_jacobian_alpha(tmj_model, jacobian):
+def test_reused_broyden_jacobian_converges_to_the_fresh_jacobian_alpha(tmj_model, tmj_settings, jacobian):
     """Carrying J between iterations and frames (Broyden updates) is a different path to
     the same root: α agree to tolerance / stiffness, with far fewer Jacobians."""
-    _, traj, t = _tmj_context(tmj_model, n_frames=20)
-    fresh = run_fdk(tmj_model, traj, t, jacobian=jacobian, reuse_jacobian=False)
-    reused = run_fdk(tmj_model, traj, t, jacobian=jacobian, reuse_jacobian=True)
+    _, traj, t = _tmj_context(tmj_model, tmj_settings, n_frames=20)
+    fresh = run_fdk(tmj_model, traj, t, tmj_settings, jacobian=jacobian, reuse_jacobian=False)
+    reused = run_fdk(tmj_model, traj, t, tmj_settings, jacobian=jacobian, reuse_jacobian=True)
     assert fresh.converged.all() and reused.converged.all()
     assert np.abs(reused.f_fdk).max() < reused.settings.tolerance
     np.testing.assert_allclose(reused.alpha, fresh.alpha, atol=1e-7)

@@ -9,7 +9,7 @@ from openfdk.forces.elements import add_external_load
 from openfdk.forces.force_laws import (
     Blankevoort1991Spring, PolynomialSpring, TabulatedSpring, add_bushing, add_nonlinear_spring,
 )
-from openfdk.forces.passive import PassiveElements
+from openfdk.forces.forceset import ForceElements
 from openfdk.model.builder import ModelBuilder
 from openfdk.model.model import ModelError
 from openfdk.numdiff import manifold_jacobian
@@ -97,12 +97,12 @@ def test_stiffness_matches_finite_differences(law):
     add_nonlinear_spring(b, "s", b.distance("ground.origin", "a.p"), law)
     model = b.build()
     state = model.initial_state()
-    passive = PassiveElements(model)
+    passive = ForceElements(model)
     Q, out, K = passive.generalized_forces(state, 0.0, want_stiffness=True)
     K_fd = manifold_jacobian(lambda s: passive.generalized_forces(s, 0.0)[0], state, 1e-7)
-    assert abs(out.spring_force[0]) > 0.1
+    assert abs(out["springs"].force[0]) > 0.1
     np.testing.assert_allclose(K, K_fd, atol=2e-5 * np.abs(K_fd).max())
-    x = out.spring_value[0]
+    x = out["springs"].value[0]
     h = 1e-7
     dF = (law.force(x + h) - law.force(x - h)) / (2 * h)
     assert law.dforce_dmeasure(x) == pytest.approx(dF, rel=1e-6)

@@ -14,7 +14,7 @@ from openfdk.forces.elements import add_spring
 from openfdk.jobs import load_trajectories
 from openfdk.kinematics.system import ConstraintSystem
 from openfdk.model.builder import ModelBuilder
-from openfdk.io.modelfile import load_model
+from openfdk.io.modelfile import load_model_and_settings
 
 from models import write_jaw_files
 
@@ -39,10 +39,10 @@ def _tracking_fdk_frame(tmp_path):
     """The TMJ FDK context on the synthetic jaw trial, frame k = 3, its warm-start
     workspace and the initial α: (ctx, times (nf,) s, k, ws, alpha (n_fdk,))."""
     write_jaw_files(tmp_path, 8)
-    model = load_model(tmp_path / "tmj.yaml")
-    _, traj = load_trajectories(model, tmp_path / "trial.c3d")
+    model, settings = load_model_and_settings(tmp_path / "tmj.yaml")
+    _, traj = load_trajectories(model, tmp_path / "trial.c3d", settings=settings)
     times = np.asarray(traj.time)
-    ctx = fdk_context(model, traj, times)
+    ctx = fdk_context(model, traj, times, settings=settings)
     state = model.initial_state()
     ctx.tracker.initial_guess(state, ctx.meas[0][0], ctx.meas[0][3])
     k = 3
@@ -101,9 +101,9 @@ def test_tracking_and_inverse_dynamics_run_assembles_phi_q_once_per_pose(tmp_pat
     from openfdk.analysis.run import run_trial
 
     write_jaw_files(tmp_path, 8)
-    model = load_model(tmp_path / "pop.yaml")
-    _, traj = load_trajectories(model, tmp_path / "trial.c3d")
-    kin, dyn, _ = run_trial(model, traj, np.asarray(traj.time))
+    model, settings = load_model_and_settings(tmp_path / "pop.yaml")
+    _, traj = load_trajectories(model, tmp_path / "trial.c3d", settings=settings)
+    kin, dyn, _ = run_trial(model, traj, np.asarray(traj.time), settings=settings)
     assert kin.converged.all() and dyn.converged.all()
     assert max(phi_q_counts.values(), default=0) <= 1, phi_q_counts.most_common(3)
 

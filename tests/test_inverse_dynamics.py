@@ -67,7 +67,8 @@ def test_driven_pendulum_reaction_includes_centripetal_term():
 
 
 def two_muscle_hinge(s1, s2, a1, a2, M, p=3.0):
-    """A bar hinged about world z at the origin, held by a driver without reaction; two
+    """(Model, its AnalysisSettings: polynomial recruitment of power p). A bar hinged
+    about world z at the origin, held by a driver without reaction; two
     constant-strength muscles pull in +y at distances a1, a2 along the bar (moment arms
     a1, a2 about z); an external moment −M about z. No gravity."""
     b = ModelBuilder("hinge", gravity=(0, 0, 0))
@@ -83,31 +84,60 @@ def two_muscle_hinge(s1, s2, a1, a2, M, p=3.0):
     add_muscle(b, "m2", ["ground.o2", "bar.i2"], ConstantStrengthMuscle(s2, "m2"))
     add_external_load(b, "load", "bar.origin", moment=[0, 0, -M])
     set_recruitment(b, "polynomial", p)
-    return b.build()
+    return b.build(), b.settings()
+
+
+def _two_muscle_closed_form(s1, s2, a1, a2, M, p):
+    """min Σ (f_i/s_i)^p s.t. a1 f1 + a2 f2 = M: the stationarity condition
+    p f_i^(p−1)/s_i^p = λ a_i gives f_i = k (a_i s_i^p)^(1/(p−1)), k from the moment."""
+    u = np.array([(a1 * s1**p) ** (1 / (p - 1)), (a2 * s2**p) ** (1 / (p - 1))])
+    return M / (a1 * u[0] + a2 * u[1]) * u
 
 
 @pytest.mark.parametrize("p", [2.0, 3.0])
 def test_two_muscles_closed_form(p):
-    """min Σ (f_i/s_i)^p s.t. a1 f1 + a2 f2 = M: the stationarity condition
-    p f_i^(p−1)/s_i^p = λ a_i gives f_i = k (a_i s_i^p)^(1/(p−1)), k from the moment."""
+    """The closed form of :func:`_two_muscle_closed_form` for the model's settings."""
     s1, s2, a1, a2, M = 100.0, 300.0, 0.05, 0.12, 6.0
-    model = two_muscle_hinge(s1, s2, a1, a2, M, p)
+    model, settings = two_muscle_hinge(s1, s2, a1, a2, M, p)
     kin = run_determinate(model, np.array([0.0]))
-    res = run_inverse_dynamics(model, kin)
+    res = run_inverse_dynamics(model, kin, settings=settings)
     assert res.converged.all(), res.messages
-    u = np.array([(a1 * s1**p) ** (1 / (p - 1)), (a2 * s2**p) ** (1 / (p - 1))])
-    k = M / (a1 * u[0] + a2 * u[1])
-    np.testing.assert_allclose(res.forces[0, :2], k * u, rtol=1e-7)
+    f = _two_muscle_closed_form(s1, s2, a1, a2, M, p)
+    np.testing.assert_allclose(res.forces[0, :2], f, rtol=1e-7)
     # the hinge carries the muscles' pull: reaction y = −(f1 + f2)
     col = {n: i for i, n in enumerate(res.column_names)}
-    assert res.forces[0, col["hinge.y"]] == pytest.approx(-(k * u).sum(), rel=1e-7)
+    assert res.forces[0, col["hinge.y"]] == pytest.approx(-f.sum(), rel=1e-7)
+
+
+def test_one_model_analysed_with_two_settings():
+    """The settings are apart from the model: one Model object analysed with power 2 and
+    then power 3 gives each power's closed form, the defaults (power 3) the power-3
+    result, and the model is left as it was (its fields are the same objects)."""
+    import dataclasses
+
+    from openfdk.forces.elements import RecruitmentSettings
+    from openfdk.model.settings import AnalysisSettings
+
+    s1, s2, a1, a2, M = 100.0, 300.0, 0.05, 0.12, 6.0
+    model, _ = two_muscle_hinge(s1, s2, a1, a2, M, 3.0)
+    before = {f.name: getattr(model, f.name) for f in dataclasses.fields(model)}
+    kin = run_determinate(model, np.array([0.0]))
+    forces = {}
+    for p in (2.0, 3.0):
+        settings = AnalysisSettings(recruitment=RecruitmentSettings("polynomial", p))
+        forces[p] = run_inverse_dynamics(model, kin, settings=settings).forces[0, :2]
+        np.testing.assert_allclose(forces[p], _two_muscle_closed_form(s1, s2, a1, a2, M, p), rtol=1e-7)
+    assert np.abs(forces[2.0] - forces[3.0]).max() > 1.0  # the two criteria really differ
+    np.testing.assert_allclose(run_inverse_dynamics(model, kin).forces[0, :2], forces[3.0], rtol=1e-9)
+    assert all(getattr(model, name) is value for name, value in before.items())
+    assert not hasattr(model, "settings")
 
 
 def test_weak_muscle_saturates_at_strength():
     """The cubic criterion activates muscle i in proportion to sqrt(a_i s_i), so the
     muscle with the larger a·s saturates first: f1 = s1 and f2 carries the rest."""
     s1, s2, a1, a2, M = 100.0, 20.0, 0.12, 0.05, 12.8
-    model = two_muscle_hinge(s1, s2, a1, a2, M, 3.0)
+    model, _ = two_muscle_hinge(s1, s2, a1, a2, M, 3.0)
     res = run_inverse_dynamics(model, run_determinate(model, np.array([0.0])))
     assert res.converged.all()
     f1 = res.forces[0, 0]
@@ -120,7 +150,7 @@ def test_weak_muscle_saturates_at_strength():
 
 def test_infeasible_frame_is_flagged_and_run_continues():
     """Moment larger than both muscles can deliver: flagged, not a crash."""
-    model = two_muscle_hinge(10.0, 10.0, 0.05, 0.12, 100.0)
+    model, _ = two_muscle_hinge(10.0, 10.0, 0.05, 0.12, 100.0)
     res = run_inverse_dynamics(model, run_determinate(model, np.array([0.0, 0.1])))
     assert not res.converged.any()
     assert "bar.Mz" in res.messages[0]

@@ -10,7 +10,7 @@ import pytest
 import yaml
 
 from openfdk.fdk.analysis import run_fdk
-from openfdk.io.modelfile import model_from_dict
+from openfdk.io.modelfile import model_and_settings_from_dict
 
 KNEE = Path(__file__).resolve().parents[1] / "examples" / "knee"
 G = 9.81
@@ -20,7 +20,8 @@ def _load(name, flexion_deg=None):
     data = yaml.safe_load((KNEE / name).read_text())
     if flexion_deg is not None:
         data["drivers"]["flexion"]["function"] = {"type": "constant", "value": float(flexion_deg)}
-    return model_from_dict(data, source=name, base_dir=str(KNEE)), data
+    model, settings = model_and_settings_from_dict(data, source=name, base_dir=str(KNEE))
+    return model, settings, data
 
 
 def _cross(a, b):
@@ -84,8 +85,8 @@ def planar_knee_statics(data, flexion_rad):
 
 @pytest.mark.parametrize("flexion_deg", [-5.0, -40.0, -70.0])
 def test_springs_knee_matches_independent_planar_statics(flexion_deg):
-    model, data = _load("knee_springs.yaml", flexion_deg)
-    res = run_fdk(model, None, np.array([0.0]), jacobian="analytic")
+    model, settings, data = _load("knee_springs.yaml", flexion_deg)
+    res = run_fdk(model, None, np.array([0.0]), settings, jacobian="analytic")
     assert res.converged.all(), res.messages
     alpha, F, wraps = planar_knee_statics(data, np.radians(flexion_deg))
     names = [d.name for d in model.fdk_dofs]

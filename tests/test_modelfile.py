@@ -86,6 +86,7 @@ def test_units_are_converted_at_the_boundary(tmp_path):
         ("bodies: {arm: {mass: 1, inertia: [1, 1, 1], markers: {M1: [0, 0]}}}", "bodies.arm.markers.M1: expected 3 numbers"),
         ("bodies: {arm: {mass: 1, inertia: [1, 1, 1]}}\nspring: {}", "(top level).spring: unknown key; did you mean 'springs'"),
         ("openfdk: 7\nbodies: {arm: {mass: 1, inertia: [1, 1, 1]}}", "openfdk: unsupported format version 7"),
+        ("bodies: {arm: {mass: 1, inertia: [1, 1, 1]}}\nfdk: {restart: sometimes}", "fdk.restart: expected true or false, got 'sometimes'"),
     ],
 )
 def test_bad_entries_are_named(tmp_path, bad, expected):

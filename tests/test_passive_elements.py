@@ -11,7 +11,7 @@ import trimesh
 
 from openfdk.contact.mesh import MeshWarning
 from openfdk.contact.shapes import flat_patch
-from openfdk.forces.passive import PassiveElements
+from openfdk.forces.forceset import ForceElements
 from openfdk.model.model import ModelError
 from openfdk.io.modelfile import load_model
 from openfdk.numdiff import manifold_jacobian
@@ -81,14 +81,14 @@ def test_contact_ligament_spring_forces_closed_form(block_model):
     Blankevoort's law; spring at rest (x = 0): no force."""
     model = block_model
     state = model.initial_state()
-    Q, out, _ = PassiveElements(model).generalized_forces(state, 0.0)
-    contact = out.contact["floor"]
+    Q, out, _ = ForceElements(model).generalized_forces(state, 0.0)
+    contact = out["contacts"]["floor"]
     assert contact.force_W[2] == pytest.approx(100.0, rel=1e-6)
     l0, k, eps_l = 0.020, 500.0, 0.03
     eps = (0.0251 - l0) / l0
     T = k * l0 * (eps - eps_l) if eps > 2 * eps_l else k * l0 * eps**2 / (4 * eps_l)
-    assert out.ligament_force[0] == pytest.approx(T, rel=1e-9)
-    assert out.spring_force[0] == pytest.approx(0.0, abs=1e-12)
+    assert out["ligaments"].force[0] == pytest.approx(T, rel=1e-9)
+    assert out["springs"].force[0] == pytest.approx(0.0, abs=1e-12)
     np.testing.assert_allclose(Q[:3], [0.0, 0.0, 100.0 + T], rtol=1e-6, atol=1e-9)
 
 
@@ -97,7 +97,7 @@ def test_passive_stiffness_matches_manifold_finite_differences(block_model):
     state = model.initial_state()
     # tilt and shift a little so every element and every block of K is active
     state.displace(np.r_[0.0005, -0.0003, 0.00002, 0.01, -0.02, 0.3])
-    passive = PassiveElements(model)
+    passive = ForceElements(model)
     _, _, K = passive.generalized_forces(state, 0.0, want_stiffness=True)
     K_fd = manifold_jacobian(lambda s: passive.generalized_forces(s, 0.0)[0], state, eps=1e-8)
     assert np.abs(K).max() > 1e5  # contact stiffness p A ≈ 1e6 N/m
@@ -179,23 +179,23 @@ def test_spring_forces_and_stiffness_batched_and_measure_by_measure():
     add_spring(b, "z_in_a", b._select(vec, [2]), 150.0, rest_value=-0.01)
     model = b.build()
     state = model.initial_state()
-    passive = PassiveElements(model)
-    assert passive._spring_rows.batched is not None
+    passive = ForceElements(model)
+    assert passive.by_kind["springs"].rows.batched is not None
     Q, out, K = passive.generalized_forces(state, 0.0, want_stiffness=True)
     expect = np.zeros(model.n_coords)
-    for k, (spr, m0, stiff) in enumerate(zip(passive.springs, [0.005, -0.01], [300.0, 150.0])):
+    for k, (spr, m0, stiff) in enumerate(zip(model.springs, [0.005, -0.01], [300.0, 150.0])):
         m, M, _ = spr.measure.evaluate(state, 1)
-        assert out.spring_force[k] == pytest.approx(-stiff * (m[0] - m0), rel=1e-12)  # restoring
-        expect += M[0] * out.spring_force[k]
-    assert np.abs(out.spring_force).min() > 1.0
+        assert out["springs"].force[k] == pytest.approx(-stiff * (m[0] - m0), rel=1e-12)  # restoring
+        expect += M[0] * out["springs"].force[k]
+    assert np.abs(out["springs"].force).min() > 1.0
     np.testing.assert_allclose(Q, expect, rtol=1e-12, atol=1e-12)
     K_fd = manifold_jacobian(lambda s: passive.generalized_forces(s, 0.0)[0], state, eps=1e-7)
     K_material = sum(np.outer(M, M) * k for M, k in
-                     zip([s.measure.evaluate(state, 1)[1][0] for s in passive.springs], [300.0, 150.0]))
+                     zip([s.measure.evaluate(state, 1)[1][0] for s in model.springs], [300.0, 150.0]))
     assert np.abs(K - K_material).max() > 1e-2  # the geometric part is exercised
     np.testing.assert_allclose(K, K_fd, atol=1e-5 * np.abs(K).max())
-    slow = PassiveElements(model)
-    slow._spring_rows.batched = None  # measure by measure
+    slow = ForceElements(model)
+    slow.by_kind["springs"].rows.batched = None  # measure by measure
     Q2, _, K2 = slow.generalized_forces(state, 0.0, want_stiffness=True)
     np.testing.assert_allclose(Q2, Q, rtol=0, atol=1e-13)
     # K's geometric part is a forward difference (ε = 1e-7): round-off of the two
@@ -221,16 +221,16 @@ def test_ligaments_law_on_arrays_equals_each_law():
         add_ligament(b, f"lig{k}", ["ground.o", "a.p"], stiffness=1000.0 * (k + 1), slack_length=length / (1 + eps))
     model = b.build()
     state = model.initial_state()
-    fast = PassiveElements(model)
-    slow = PassiveElements(model)
-    assert fast._blankevoort is not None
-    slow._blankevoort = None  # law object by law object
+    fast = ForceElements(model)
+    slow = ForceElements(model)
+    assert fast.by_kind["ligaments"].blankevoort is not None
+    slow.by_kind["ligaments"].blankevoort = None  # law object by law object
     Q, out, K = fast.generalized_forces(state, 0.0, want_stiffness=True)
     Q2, out2, K2 = slow.generalized_forces(state, 0.0, want_stiffness=True)
-    np.testing.assert_allclose(out.ligament_strain, strains, rtol=1e-12)
+    np.testing.assert_allclose(out["ligaments"].strain, strains, rtol=1e-12)
     k_l0 = np.array([1000.0 * (k + 1) * length / (1 + e) for k, e in enumerate(strains)])
     expect = [0.0, k_l0[1] * 0.02**2 / (4 * 0.03), k_l0[2] * (0.10 - 0.03)]
-    np.testing.assert_allclose(out.ligament_force, expect, rtol=1e-12, atol=1e-12)
-    for x, y in ((out.ligament_force, out2.ligament_force), (out.ligament_strain, out2.ligament_strain), (Q, Q2)):
+    np.testing.assert_allclose(out["ligaments"].force, expect, rtol=1e-12, atol=1e-12)
+    for x, y in ((out["ligaments"].force, out2["ligaments"].force), (out["ligaments"].strain, out2["ligaments"].strain), (Q, Q2)):
         np.testing.assert_allclose(x, y, rtol=1e-13, atol=1e-12)
     np.testing.assert_allclose(K, K2, rtol=1e-12, atol=1e-9)

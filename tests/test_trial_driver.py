@@ -14,7 +14,7 @@ import pytest
 from openfdk.analysis.run import run_trial
 from openfdk.cli import main
 from openfdk.jobs import load_trajectories
-from openfdk.io.modelfile import load_model
+from openfdk.io.modelfile import load_model_and_settings
 from openfdk.trial.status import FrameStatus, Reason
 
 from models import write_jaw_files
@@ -44,10 +44,10 @@ def test_tracking_and_inverse_dynamics_equal_a_plain_per_frame_loop(files):
     from openfdk.kinematics.system import ConstraintSystem
     from openfdk.kinematics.tracking import MarkerTracker
 
-    model = load_model(files / "pop.yaml")
-    _, traj = load_trajectories(model, files / "trial.c3d")
+    model, settings = load_model_and_settings(files / "pop.yaml")
+    _, traj = load_trajectories(model, files / "trial.c3d", settings=settings)
     times = np.asarray(traj.time)[:N_FRAMES]
-    kin, dyn, fdk = run_trial(model, traj, times)
+    kin, dyn, fdk = run_trial(model, traj, times, settings=settings)
     assert fdk is None and kin.converged.all() and dyn.converged.all()
     assert all(r.status is FrameStatus.CONVERGED and r.reason is Reason.CONVERGED for r in kin.reports)
 
@@ -91,13 +91,13 @@ def test_fdk_equals_a_plain_newton_loop_with_central_differences(files):
     from openfdk.fdk.residual import FrameWorkspace
     from openfdk.fdk.settings import fdk_settings
 
-    model = load_model(files / "tmj.yaml")
-    _, traj = load_trajectories(model, files / "trial.c3d")
+    model, settings = load_model_and_settings(files / "tmj.yaml")
+    _, traj = load_trajectories(model, files / "trial.c3d", settings=settings)
     times = np.asarray(traj.time)[:6]
-    kin, dyn, res = run_trial(model, traj, times)
+    kin, dyn, res = run_trial(model, traj, times, settings=settings)
     assert res.converged.all() and all(r.reason is Reason.CONVERGED for r in res.reports)
-    tol = fdk_settings(model).tolerance
-    ctx = fdk_context(model, traj, times)
+    tol = fdk_settings(model, settings).tolerance
+    ctx = fdk_context(model, traj, times, settings=settings)
     state = model.initial_state()
     ctx.tracker.initial_guess(state, ctx.meas[0][0], ctx.meas[0][3])
     alpha = np.array([d.initial for d in model.fdk_dofs])

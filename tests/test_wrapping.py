@@ -9,7 +9,7 @@ from scipy.optimize import minimize
 
 from openfdk.forces.elements import add_ligament, add_muscle, add_wrap_surface
 from openfdk.forces.hill import ConstantStrengthMuscle
-from openfdk.forces.passive import PassiveElements
+from openfdk.forces.forceset import ForceElements
 from openfdk.forces.pathset import PathSet
 from openfdk.model.builder import ModelBuilder
 from openfdk.numdiff import manifold_jacobian
@@ -291,9 +291,9 @@ def test_ligament_stiffness_over_a_wrap_matches_finite_differences():
     add_ligament(b, "lig", ["ground.o", "drum", "arm.i"], stiffness=2000.0, reference_strain=0.05)
     model = b.build()
     state = model.initial_state()
-    passive = PassiveElements(model)
+    passive = ForceElements(model)
     Q, out, K = passive.generalized_forces(state, 0.0, want_stiffness=True)
-    assert out.ligament_force[0] > 1.0
+    assert out["ligaments"].force[0] > 1.0
     K_fd = manifold_jacobian(lambda s: passive.generalized_forces(s, 0.0)[0], state, 1e-6)
     np.testing.assert_allclose(K, K_fd, atol=1e-4 * np.abs(K_fd).max())
     assert np.abs(K).max() > 10

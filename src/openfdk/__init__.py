@@ -7,7 +7,7 @@ numbers (Andersen et al., J Biomech Eng 2017) in the code comments.
 __version__ = "0.1.0"
 
 #: the notebook API (openfdk.api), imported on first use so that ``import openfdk`` stays light
-_API = ("load_model", "load_trial", "run", "read_results")
+_API = ("load_model", "load_settings", "load_trial", "run", "read_results")
 
 
 def __getattr__(name):

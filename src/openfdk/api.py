@@ -3,7 +3,9 @@
     import openfdk
     model = openfdk.load_model("model.yaml")
     trial = openfdk.load_trial("trial.c3d")          # or .trc
-    result = openfdk.run(model, trial)               # kinematics, inverse dynamics, FDK
+    result = openfdk.run(model, trial)               # kinematics, inverse dynamics, FDK (the file's settings)
+    settings = openfdk.load_settings("model.yaml")   # AnalysisSettings, apart from the model
+    other = openfdk.run(model, trial, settings=dataclasses.replace(settings, recruitment=...))
     result.kinematics, result.forces, result.fdk     # pandas DataFrames indexed by time (s)
     result.save("out"); openfdk.read_results("out")
 
@@ -16,22 +18,34 @@ import os
 import weakref
 from pathlib import Path
 
-__all__ = ["load_model", "load_trial", "run", "read_results"]
+__all__ = ["load_model", "load_settings", "load_trial", "run", "read_results"]
 
 RUN_OPTIONS = ("cutoff_hz", "start", "end", "progress")
 #: Model -> absolute path of the file it was loaded from (recorded in summary.json, so
 #: that a saved run finds its model again for figures and the OpenSim export)
 _MODEL_FILES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: Model -> the AnalysisSettings of the file it was loaded from (the default of run())
+_MODEL_SETTINGS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def load_model(path):
-    """Read and validate a model file (YAML, docs/model-file.md) into a Model.
-    Raises ModelError (a ValueError) naming the file and the entry."""
-    from .io.modelfile import load_model as _load
+    """Read and validate a model file (YAML, docs/model-file.md) into a Model (purely
+    physical; the file's analysis settings: :func:`load_settings`, used by :func:`run`
+    by default). Raises ModelError (a ValueError) naming the file and the entry."""
+    from .io.modelfile import load_model_and_settings
 
-    model = _load(path)
+    model, settings = load_model_and_settings(path)
     _MODEL_FILES[model] = str(Path(path).resolve())
+    _MODEL_SETTINGS[model] = settings
     return model
+
+
+def load_settings(path):
+    """The analysis settings of a model file (sections ``analysis``, ``recruitment``,
+    ``fdk``): an :class:`~openfdk.model.settings.AnalysisSettings`."""
+    from .io.modelfile import load_settings as _load
+
+    return _load(path)
 
 
 def load_trial(path):
@@ -43,7 +57,7 @@ def load_trial(path):
     return read_trial(path)
 
 
-def run(model, trial=None, **options):
+def run(model, trial=None, settings=None, **options):
     """Kinematics then inverse dynamics with muscle recruitment; force-dependent
     kinematics when the model declares FDK DOFs (as ``openfdk run``).
 
@@ -51,6 +65,8 @@ def run(model, trial=None, **options):
         model: a Model (:func:`load_model`) or a model file path.
         trial: a MarkerTrial (:func:`load_trial`) or a C3D/TRC path; None for a
             determinate (driven) model over its ``analysis`` interval.
+        settings: AnalysisSettings (:func:`load_settings`); default: those of the file
+            the model was loaded from, else the defaults. The model is not modified.
         options: ``cutoff_hz`` (marker low-pass, Hz; 0 = none; default: the model
             file's, else 6 Hz), ``start``/``end`` (analysed window, s), ``progress``
             (progress bars, default False).
@@ -69,9 +85,11 @@ def run(model, trial=None, **options):
     model_file = _MODEL_FILES.get(model)
     if isinstance(trial, (str, os.PathLike)):
         trial = load_trial(trial)
+    if settings is None:
+        settings = _MODEL_SETTINGS.get(model)
     kin, dyn, info = run_job(model, trial, cutoff_hz=options.get("cutoff_hz"),
                              progress=bool(options.get("progress", False)),
-                             start=options.get("start"), end=options.get("end"))
+                             start=options.get("start"), end=options.get("end"), settings=settings)
     if model_file:
         info["model_file"] = model_file
     return RunResults.from_analysis(kin, dyn, info, model)

@@ -195,6 +195,8 @@ def _cmd_run(args):
              f"  FDK: {fdk['converged_frames']}/{fdk['frames']} frames converged, "
              f"{fdk['mean_residual_evaluations_per_frame']:.2f} residual evaluations per frame, "
              f"{fdk['frames_per_second'] or 0:.0f} frames/s ({fdk['jacobian']} Jacobian)"
+             + (f", {fdk['restarted_frames']} frame(s) restarted from another starting α"
+                if fdk.get("restarted_frames") else "")
              )
     from .outputs_cli import after_run
 

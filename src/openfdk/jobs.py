@@ -1,6 +1,9 @@
 """End-to-end jobs behind the CLI: load inputs, run an analysis, return results.
 
 These functions only use the public layers below them, so a user script can do the same.
+They take the model file's analysis settings (``settings``: an
+:class:`~openfdk.model.settings.AnalysisSettings`, kept apart from the Model); a job
+given a model file path reads them from the file.
 """
 
 from __future__ import annotations
@@ -9,14 +12,25 @@ from pathlib import Path
 
 import numpy as np
 
-from .io.modelfile import load_model
+from .io.modelfile import load_model_and_settings
+from .model.settings import AnalysisSettings
 
 DEFAULT_CUTOFF_HZ = 6.0
 
 
-def load_trajectories(model, trial_path, cutoff_hz=None):
+def model_and_settings(model, settings=None):
+    """(Model, AnalysisSettings, label) of a model file path (its settings unless
+    ``settings`` is given) or of a Model (``settings`` or the defaults)."""
+    if hasattr(model, "bodies"):
+        return model, settings or AnalysisSettings(), model.name
+    loaded, file_settings = load_model_and_settings(model)
+    return loaded, settings or file_settings, str(model)
+
+
+def load_trajectories(model, trial_path, cutoff_hz=None, settings=None):
     """Read a C3D or TRC trial, pick the model's markers (by label, in model order) and build
-    filtered, interpolated trajectories. A model marker absent from the file is an
+    filtered, interpolated trajectories (cut-off: ``cutoff_hz``, else the settings'
+    ``analysis.marker_cutoff_hz``, else 6 Hz). A model marker absent from the file is an
     error naming it (MissingMarkerError)."""
     from .io.c3d import MarkerTrial
     from .io.markers import MarkerTrajectories
@@ -27,7 +41,7 @@ def load_trajectories(model, trial_path, cutoff_hz=None):
         raise ValueError(f"model {model.name!r} has no markers; a trial cannot be tracked")
     trial = trial.select(list(model.markers.labels))
     if cutoff_hz is None:
-        cutoff_hz = model.settings.kinematics.get("marker_cutoff_hz", DEFAULT_CUTOFF_HZ)
+        cutoff_hz = (settings or AnalysisSettings()).kinematics.get("marker_cutoff_hz", DEFAULT_CUTOFF_HZ)
     cutoff = None if (cutoff_hz is None or float(cutoff_hz) <= 0) else float(cutoff_hz)
     return trial, MarkerTrajectories(trial, cutoff_hz=cutoff)
 
@@ -37,11 +51,12 @@ def _trial_label(trial):
     return str(Path(trial.source)) if trial.source != "<memory>" else trial.source
 
 
-def analysis_window(model, times, start=None, end=None):
-    """Sample times within [start, end] (defaults: model file ``analysis.start/end``)."""
-    settings = model.settings.kinematics
-    start = settings.get("start") if start is None else start
-    end = settings.get("end") if end is None else end
+def analysis_window(model, times, start=None, end=None, settings=None):
+    """Sample times within [start, end] (defaults: the settings' ``analysis.start/end``,
+    from the model file)."""
+    window = (settings or AnalysisSettings()).kinematics
+    start = window.get("start") if start is None else start
+    end = window.get("end") if end is None else end
     _check_order(start, end)
     keep = np.ones(len(times), dtype=bool)
     if start is not None:
@@ -59,49 +74,52 @@ def _check_order(start, end):
                          "give start <= end (--start/--end or the model file's analysis section)")
 
 
-def determinate_times(model, start=None, end=None):
-    """Analysis times (nf,) s of a determinate run: [start, end] (defaults: model file
+def determinate_times(model, start=None, end=None, settings=None):
+    """Analysis times (nf,) s of a determinate run: [start, end] (defaults: the settings'
     ``analysis.start/end``, else 0 and 1 s) with ``analysis.frames`` frames (default 101)."""
     from .kinematics.analysis import analysis_times
 
-    a = model.settings.kinematics
+    a = (settings or AnalysisSettings()).kinematics
     t0 = float(a.get("start", 0.0) if start is None else start)
     t1 = float(a.get("end", 1.0) if end is None else end)
     _check_order(t0, t1)
     return analysis_times(t0, t1, int(a.get("frames", 101)))
 
 
-def trial_window(model, trial_path, cutoff_hz=None, start=None, end=None):
+def trial_window(model, trial_path, cutoff_hz=None, start=None, end=None, settings=None):
     """The C3D trial, its filtered trajectories and the analysed times (nf,) s; warns
     (PlausibilityWarning) about markers never visible in the window or far from the
     model at its first frame. Returns (trial, trajectories, times, info dict)."""
     from .model.plausibility import check_trial_markers
 
-    trial, traj = load_trajectories(model, trial_path, cutoff_hz)
-    times = analysis_window(model, np.asarray(trial.time, dtype=float), start, end)
+    trial, traj = load_trajectories(model, trial_path, cutoff_hz, settings)
+    times = analysis_window(model, np.asarray(trial.time, dtype=float), start, end, settings)
     check_trial_markers(model, trial, times)
     return trial, traj, times, {"trial": _trial_label(trial), "rate_hz": trial.rate, "markers": list(trial.labels)}
 
 
-def analysis_inputs(model, trial_path=None, cutoff_hz=None, start=None, end=None):
+def analysis_inputs(model, trial_path=None, cutoff_hz=None, start=None, end=None, settings=None):
     """(trajectories or None, times (nf,) s, info): the trial's samples within the
     analysis window (:func:`trial_window`), or for determinate kinematics the model
-    file's ``analysis`` start/end/frames (:func:`determinate_times`)."""
+    file's ``analysis`` start/end/frames (:func:`determinate_times`); settings : the
+    model file's AnalysisSettings."""
     if trial_path is None:
-        return None, determinate_times(model, start, end), {}
-    _, traj, times, info = trial_window(model, trial_path, cutoff_hz, start, end)
+        return None, determinate_times(model, start, end, settings), {}
+    _, traj, times, info = trial_window(model, trial_path, cutoff_hz, start, end, settings)
     return traj, times, info
 
 
-def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=None, end=None, alpha=None):
-    """Kinematics of a model file over a C3D trial (marker tracking), or over the model
-    file's ``analysis`` interval (determinate) when ``trial_path`` is None.
+def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=None, end=None, alpha=None,
+                   settings=None):
+    """Kinematics of a model file (or Model) over a C3D trial (marker tracking), or over
+    the model file's ``analysis`` interval (determinate) when ``trial_path`` is None;
+    settings : AnalysisSettings (default: the file's, see :func:`model_and_settings`).
     Returns (KinematicsResult, info dict for the summary)."""
     from .kinematics.analysis import run_determinate, run_tracking
 
-    model = load_model(model_path) if not hasattr(model_path, "bodies") else model_path
-    info = {"model": str(model_path) if not hasattr(model_path, "bodies") else model.name}
-    traj, times, more = analysis_inputs(model, trial_path, cutoff_hz, start, end)
+    model, settings, label = model_and_settings(model_path, settings)
+    info = {"model": label}
+    traj, times, more = analysis_inputs(model, trial_path, cutoff_hz, start, end, settings)
     info.update(more)
     if traj is None:
         return run_determinate(model, times, alpha=alpha, progress=progress), info
@@ -109,20 +127,20 @@ def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, s
 
 
 def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=None, end=None, checkpoints=None,
-            resume=False):
+            resume=False, settings=None):
     """Kinematics then inverse dynamics with muscle recruitment; when the model declares
     FDK DOFs, force-dependent kinematics (each frame's α found so that the FDK residual
     forces vanish). Returns (KinematicsResult, InverseDynamicsResult, info); for FDK,
     info["fdk"] holds the FDK summary. checkpoints, resume: see
     :func:`openfdk.analysis.run.run_trial` (Ctrl-C raises TrialInterrupted whose
-    ``partial`` is (kin, dyn, info) of the finished frames)."""
+    ``partial`` is (kin, dyn, info) of the finished frames). settings :
+    AnalysisSettings (default: the model file's, see :func:`model_and_settings`)."""
     from .analysis.run import run_trial
     from .model.plausibility import warn_pulling_contacts
     from .trial import TrialInterrupted
 
-    model = load_model(model_path) if not hasattr(model_path, "bodies") else model_path
-    label = str(model_path) if not hasattr(model_path, "bodies") else model.name
-    traj, times, info = analysis_inputs(model, trial_path, cutoff_hz, start, end)
+    model, settings, label = model_and_settings(model_path, settings)
+    traj, times, info = analysis_inputs(model, trial_path, cutoff_hz, start, end, settings)
     info = {"model": label, **info}
 
     def with_info(kin, dyn, fdk):
@@ -132,7 +150,8 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
         return kin, dyn, out
 
     try:
-        kin, dyn, fdk = run_trial(model, traj, times, progress=progress, checkpoints=checkpoints, resume=resume)
+        kin, dyn, fdk = run_trial(model, traj, times, settings=settings, progress=progress, checkpoints=checkpoints,
+                                  resume=resume)
     except TrialInterrupted as exc:
         exc.partial = with_info(*exc.partial)
         raise

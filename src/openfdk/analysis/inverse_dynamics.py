@@ -63,13 +63,15 @@ class DynamicsStep:
         self.warm = carry
 
 
-def run_inverse_dynamics(model, kin, progress=False, solver=None):
-    """Inverse dynamics for every frame of a KinematicsResult ``kin``.
+def run_inverse_dynamics(model, kin, progress=False, solver=None, settings=None):
+    """Inverse dynamics for every frame of a KinematicsResult ``kin``; settings :
+    AnalysisSettings (its recruitment; default: the default criterion), or a ready
+    ``solver`` (InverseDynamics).
 
     Frames whose kinematics failed are flagged ("kinematics failed: ...") with NaN forces.
     """
     t0 = _time.perf_counter()
-    solver = solver or InverseDynamics(model)
+    solver = solver or InverseDynamics(model, settings=settings)
     step = DynamicsStep(model, solver, kin.time, kin.q, kin.v, kin.vdot, kin.reports, kin.alpha)
 
     def build(rec):

@@ -52,9 +52,10 @@ class KinematicsDynamicsStep:
         self.dynamics.restore(carry[1])
 
 
-def run_trial(model, trajectories, times, *, progress=False, checkpoints=None, resume=False):
+def run_trial(model, trajectories, times, *, settings=None, progress=False, checkpoints=None, resume=False):
     """Kinematics + inverse dynamics (or FDK when the model has FDK DOFs) over ``times``
-    (nf,) s; ``trajectories`` None means determinate kinematics.
+    (nf,) s; ``trajectories`` None means determinate kinematics; settings :
+    AnalysisSettings (recruitment, ``fdk``; default: the defaults).
 
     checkpoints, resume : see :func:`openfdk.trial.drive`. Returns (KinematicsResult,
     InverseDynamicsResult, FDKResult or None). Ctrl-C raises
@@ -67,12 +68,12 @@ def run_trial(model, trajectories, times, *, progress=False, checkpoints=None, r
         from ..fdk.analysis import FDKStep, fdk_context, fdk_result
         from ..fdk.settings import fdk_settings
 
-        settings = fdk_settings(model)
-        ctx = fdk_context(model, trajectories, times)
-        step = FDKStep(model, ctx, settings)
+        solver_settings = fdk_settings(model, settings)
+        ctx = fdk_context(model, trajectories, times, settings=settings)
+        step = FDKStep(model, ctx, solver_settings)
 
         def build(rec):
-            res = fdk_result(rec, model, ctx, settings, times[: rec.n_frames], _time.perf_counter() - t0)
+            res = fdk_result(rec, model, ctx, solver_settings, times[: rec.n_frames], _time.perf_counter() - t0)
             return res.kinematics, res.forces, res
 
         return drive(step, len(times), build, progress=progress, desc="FDK", checkpoints=checkpoints, resume=resume)
@@ -84,7 +85,7 @@ def run_trial(model, trajectories, times, *, progress=False, checkpoints=None, r
             raise ValueError(f"model {model.name!r} has no markers to track")
         times = tracking_times(trajectories, times)
         kin_step, mode = TrackingStep(model, trajectories, times, alpha), "tracking"
-    solver = InverseDynamics(model)
+    solver = InverseDynamics(model, settings=settings)
     step = KinematicsDynamicsStep(kin_step, DynamicsStep(model, solver, times, None, None, None, None, alpha))
 
     def build(rec):

@@ -20,24 +20,24 @@ def run(quick=False):
     from ..fdk.analysis import run_fdk
     from ..io.c3d import MarkerTrial
     from ..io.markers import MarkerTrajectories
-    from ..io.modelfile import model_from_dict
+    from ..io.modelfile import model_and_settings_from_dict
     from ..fixtures.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, write_jaw_meshes
 
     n_frames = 40 if quick else 300
     repeats = 1 if quick else 3
     with tempfile.TemporaryDirectory() as d:
         write_jaw_meshes(d)
-        model = model_from_dict(jaw_fdk_model_dict(d), "tmj_fdk.yaml", base_dir="/")
+        model, settings = model_and_settings_from_dict(jaw_fdk_model_dict(d), "tmj_fdk.yaml", base_dir="/")
     t, labels, x, _ = jaw_markers(n_frames, noise=1e-4, seed=5)
     traj = MarkerTrajectories(MarkerTrial(tuple(labels), 100.0, t, x, "synthetic"), cutoff_hz=8.0)
     out = []
     for jac in ("analytic", "central"):
-        run_fdk(model, traj, t[:5], jacobian=jac)  # warm-up
+        run_fdk(model, traj, t[:5], settings, jacobian=jac)  # warm-up
         for reuse in (True, False):
             rates, evals, jacs, conv = [], [], [], []
             for _ in range(repeats if jac == "analytic" else 1):
                 t0 = time.process_time()
-                res = run_fdk(model, traj, t, jacobian=jac, reuse_jacobian=reuse)
+                res = run_fdk(model, traj, t, settings, jacobian=jac, reuse_jacobian=reuse)
                 rates.append(n_frames / (time.process_time() - t0))
                 evals.append(res.evaluations.mean())
                 jacs.append(res.jacobians.mean())

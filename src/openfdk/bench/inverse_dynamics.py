@@ -17,21 +17,21 @@ def run(quick=False):
     from ..io.c3d import MarkerTrial
     from ..io.markers import MarkerTrajectories
     from ..kinematics.analysis import run_tracking
-    from ..io.modelfile import model_from_dict
+    from ..io.modelfile import model_and_settings_from_dict
     from ..fixtures.synthetic_jaw import jaw_markers, jaw_model_dict
 
     n_frames = 100 if quick else 1000
     repeats = 1 if quick else 3
-    model = model_from_dict(jaw_model_dict(), "synthetic_jaw.yaml")
+    model, settings = model_and_settings_from_dict(jaw_model_dict(), "synthetic_jaw.yaml")
     t, labels, x, _ = jaw_markers(n_frames, noise=1e-4, seed=2)
     traj = MarkerTrajectories(MarkerTrial(tuple(labels), 100.0, t, x, "synthetic"), cutoff_hz=8.0)
-    run_inverse_dynamics(model, run_tracking(model, traj, t[:10]))  # warm-up
+    run_inverse_dynamics(model, run_tracking(model, traj, t[:10]), settings=settings)  # warm-up
     rates, id_rates = [], []
     for _ in range(repeats):
         t0 = time.perf_counter()
         kin = run_tracking(model, traj, t)
         t1 = time.perf_counter()
-        dyn = run_inverse_dynamics(model, kin)
+        dyn = run_inverse_dynamics(model, kin, settings=settings)
         t2 = time.perf_counter()
         if not dyn.converged.all():
             raise RuntimeError(f"benchmark trial did not converge: {dyn.failed_frames()[:1]}")
@@ -39,7 +39,7 @@ def run(quick=False):
         id_rates.append(n_frames / (t2 - t1))
     from ..analysis.inverse_dynamics import InverseDynamics
 
-    muscles = InverseDynamics(model).muscle_set
+    muscles = InverseDynamics(model).muscles.strength_models
     l = np.array([m.optimal_fibre_length + m.tendon_slack_length for m in muscles.muscles]) * 1.05
     v = np.linspace(-0.05, 0.05, len(l))
     muscles.evaluate(l, v)

@@ -22,7 +22,7 @@ def run(quick=False):
     import importlib.util
 
     from ..fdk.analysis import run_fdk
-    from ..io.modelfile import load_model
+    from ..io.modelfile import load_model_and_settings
 
     if not (EXAMPLE / "knee_contact.yaml").is_file():
         return [{"name": "knee_example_contact_fdk_fps", "value": float("nan"), "unit": "frames/s",
@@ -34,13 +34,13 @@ def run(quick=False):
         d = Path(d)
         shutil.copy(EXAMPLE / "knee_contact.yaml", d / "knee_contact.yaml")
         make_meshes.write_meshes(d / "meshes")
-        model = load_model(str(d / "knee_contact.yaml"))
+        model, settings = load_model_and_settings(str(d / "knee_contact.yaml"))
         times = np.linspace(0.0, 1.0, 11 if quick else 51)
-        run_fdk(model, None, times[:3])  # first call: cached kernels loaded
+        run_fdk(model, None, times[:3], settings)  # first call: cached kernels loaded
         rates, conv = [], 0.0
         for _ in range(1 if quick else 3):
             t0 = time.perf_counter()
-            res = run_fdk(model, None, times)
+            res = run_fdk(model, None, times, settings)
             rates.append(len(times) / (time.perf_counter() - t0))
             conv = float(res.converged.mean())
     return [{"name": "knee_example_contact_fdk_fps", "value": statistics.median(rates), "unit": "frames/s",

@@ -24,7 +24,7 @@ def run(quick=False):
     from ..fdk.analysis import run_fdk
     from ..analysis.inverse_dynamics import run_inverse_dynamics
     from ..kinematics.analysis import run_tracking
-    from ..io.modelfile import load_model
+    from ..io.modelfile import load_model_and_settings
     from ..mandible.demo import run_demo
     from ..mandible.experiment import record_experiment
     from ..mandible.generator import create_subject
@@ -42,15 +42,15 @@ def run(quick=False):
         paths = write_models(subject, reg, d / "models")
         trial = d / "subject" / "trials" / "open_close.c3d"
         for kind in ("fdk", "pop"):
-            model = load_model(paths[kind])
-            _, traj = load_trajectories(model, trial)
+            model, settings = load_model_and_settings(paths[kind])
+            _, traj = load_trajectories(model, trial, settings=settings)
             times = traj.time[: (60 if quick else 400)]
 
             def analyse(frames):
                 if kind == "fdk":
-                    return float(run_fdk(model, traj, frames).converged.mean())
+                    return float(run_fdk(model, traj, frames, settings).converged.mean())
                 kin = run_tracking(model, traj, frames)
-                return float(run_inverse_dynamics(model, kin).converged.mean())
+                return float(run_inverse_dynamics(model, kin, settings=settings).converged.mean())
 
             # first call: numba's cached kernels are loaded from disk (once per process)
             t0 = time.perf_counter()

@@ -1,6 +1,6 @@
 """A contact pair as a model force element: scatter Q (12,) and K (12, 12) into q̂.
 
-The passive-force assembly (:mod:`openfdk.forces.passive`) calls
+The contacts' force set (:mod:`openfdk.forces.contact_forces`) calls
 ``element.generalized_forces(state, want_stiffness)`` on every entry of
 ``model.contacts``; this adapter evaluates an :class:`ElasticFoundation`
 at the two bodies' poses from a :class:`~openfdk.model.state.BodyStates` workspace and

@@ -1,7 +1,8 @@
 """Inverse dynamics of one frame: equilibrium and muscle recruitment (paper Eqs. 11–14).
 
 Per frame (DESIGN.md §3 data flow): kinematic state (q, v, v̇) → muscle lengths, speeds,
-strengths s and passive forces → passive elements and external loads → C f = d →
+strengths s and passive tension → every force set's applied loads
+(:mod:`openfdk.forces.forceset`) → C f = d →
 recruitment (min G(f^M) s.t. C f = d, 0 ≤ f^M ≤ s) → muscle, reaction and FDK residual
 forces. Infeasible frames are flagged with the solver's message naming the rows that
 cannot be balanced. The loop over a trial is :mod:`openfdk.analysis.inverse_dynamics`.
@@ -17,26 +18,22 @@ from ..model.framedata import FrameData
 from .equilibrium import assemble, equilibrium_layout, inertial_minus_gravity
 from .stages import equilibrium_stage, recruitment_stage
 from ..forces.elements import RecruitmentSettings
-from ..forces.passive import PassiveElements
-from ..forces.pathset import PathSet
+from ..forces.forceset import ForceElements
+from ..forces.muscle_forces import MIN_STRENGTH, MuscleOutputs
 from ..kinematics.system import ConstraintSystem
-
-#: strengths below this (N) are raised to it so that the recruitment stays defined; a
-#: muscle shorter than its tendon slack length thus delivers (numerically) nothing.
-MIN_STRENGTH = 1e-6
 
 
 @dataclass
 class FrameForces:
     """Forces of one frame. f : (n_columns,) N (columns: layout.column_names);
-    muscle_* : (n_muscles,); converged, status, message, iterations; recruitment result."""
+    muscle_* : (n_muscles,); forces : the force sets' outputs by kind; converged, status, message, iterations; recruitment result."""
 
     f: np.ndarray
     muscle_length: np.ndarray
     muscle_speed: np.ndarray
     muscle_strength: np.ndarray
     muscle_passive: np.ndarray
-    passive: object
+    forces: dict
     converged: bool
     status: str
     message: str
@@ -51,50 +48,42 @@ class InverseDynamics:
     """Per-frame inverse dynamics of a model (holds the layout and solver settings).
 
     The model is not modified; all per-frame data live in the returned FrameForces.
+    settings : AnalysisSettings (its ``recruitment``; default: the default criterion).
     """
 
-    def __init__(self, model, system=None):
-        from ..forces.hill import MuscleSet
-
+    def __init__(self, model, system=None, settings=None):
         self.model = model
         self.system = system or ConstraintSystem(model)
         self.layout = equilibrium_layout(model, self.system)
-        muscles = self.layout.muscles
-        self.muscle_set = MuscleSet([m.law for m in muscles]) if muscles else None
-        self.paths = PathSet(muscles) if muscles else None
-        self.passive = PassiveElements(model)
-        self.settings = model.settings.recruitment or RecruitmentSettings()
+        self.forces = ForceElements(model)
+        self.muscles = self.forces.by_kind.get("muscles")  # MuscleForces or None
+        #: the RecruitmentSettings used
+        self.settings = (settings.recruitment if settings is not None else None) or RecruitmentSettings()
         self.unilateral_strength = np.array([u[2] for u in self.layout.unilateral], dtype=float)
         if len(self.layout.eq_coords) == 0:
             raise ValueError(f"model {model.name!r}: no body has equilibrium: true; nothing to solve")
 
-    def muscle_states(self, state):
-        """Muscle lengths l (nm,) m, path Jacobians L (nm, n), speeds L v (nm,) m/s."""
-        if self.paths is None:
-            return np.zeros(0), np.zeros((0, state.n_coords)), np.zeros(0)
-        l, L = self.paths.evaluate(state)
-        return l, L, L @ state.get_v()
-
-    def equilibrium(self, state, vdot, t, alpha=None, A=None, elements=True):
-        """C, d, strengths s (n_bounded,), and the muscle/passive states of the frame.
-        A : Φ_q̂ (m, n) at this pose when the position stage has it (else evaluated);
-        elements : include the passive elements in d (False: only external loads and
-        passive muscle tension, for the analytic FDK Jacobian)."""
+    def equilibrium(self, state, vdot, t, alpha=None, A=None, forces=True):
+        """C, d, strengths s (n_bounded,), the muscles' MuscleOutputs and the force
+        sets' outputs by kind. A : Φ_q̂ (m, n) at this pose when the position stage has
+        it (else evaluated); forces : include the applied loads of every force set in d
+        (False: inertial terms only, muscles' C and s kept; for the analytic FDK
+        Jacobian, which takes the sets' part from their stiffness)."""
         if A is None:
             A = self.system.jacobian(state)
-        l, L, speed = self.muscle_states(state)
-        if self.muscle_set is not None:
-            s_m, f_p = self.muscle_set.evaluate(l, speed)
-            s_m = np.maximum(s_m, MIN_STRENGTH)
+        n = state.n_coords
+        Q = np.zeros(n)
+        if forces:
+            outputs = self.forces.accumulate(state, t, Q)  # forces stage (Eq. 13)
+            muscles = outputs.get("muscles")
         else:
-            s_m = f_p = np.zeros(0)
-        Q, passive_out, _ = self.passive.generalized_forces(state, t, elements=elements)
-        if len(f_p):
-            Q -= L.T @ f_p  # passive muscle tension is an applied load
+            outputs, muscles = {}, self.muscles.states(state) if self.muscles is not None else None
+        if muscles is None:
+            muscles = MuscleOutputs.empty(n)
         d_full = inertial_minus_gravity(self.model, state, vdot) - Q
-        C, d = assemble(self.layout, A, L, d_full)
-        s = np.concatenate([s_m, self.unilateral_strength])
-        return C, d, s, (l, speed, s_m, f_p, passive_out)
+        C, d = assemble(self.layout, A, muscles.L, d_full)
+        s = np.concatenate([muscles.strength, self.unilateral_strength])
+        return C, d, s, muscles, outputs
 
     def recruit(self, C, d, s, warm=None):
         """Solve the recruitment problem with the model's criterion."""
@@ -119,5 +108,5 @@ class InverseDynamics:
         recruitment_stage(self, data, warm)
         res = data.recruitment
         return FrameForces(res.f, data.muscle_length, data.muscle_speed, data.muscle_strength, data.muscle_passive,
-                           data.passive, bool(res.converged), res.status, "" if res.converged else res.message,
+                           data.forces, bool(res.converged), res.status, "" if res.converged else res.message,
                            int(res.iterations), res, data.C, data.d, data.s)

@@ -70,8 +70,8 @@ class InverseDynamicsResult:
 
 def forces_fields(solver, prefix="dyn."):
     """Declared per-frame fields {name: (shape, dtype, fill)} of a solver's forces."""
-    lay, p = solver.layout, solver.passive
-    nm, nl, ns = lay.n_muscles, len(p.ligaments), len(p.springs)
+    lay, model = solver.layout, solver.model
+    nm, nl, ns = lay.n_muscles, len(model.ligaments), len(model.springs)
     shapes = {"f": (lay.n_columns,), "muscle_length": (nm,), "muscle_speed": (nm,), "muscle_strength": (nm,),
               "muscle_passive": (nm,), "ligament_length": (nl,), "ligament_strain": (nl,),
               "ligament_force": (nl,), "spring_force": (ns,)}
@@ -85,11 +85,14 @@ def forces_fields(solver, prefix="dyn."):
 def forces_values(fr, prefix="dyn.", report=None, status=None):
     """Per-frame values of a solved frame (fr: FrameForces). ``report``/``status``
     replace the recruitment's own (FDK marks frames whose α did not converge)."""
-    po = fr.passive
+    lig, spr = fr.forces.get("ligaments"), fr.forces.get("springs")
+    none = np.zeros(0)
     values = {"f": fr.f, "muscle_length": fr.muscle_length, "muscle_speed": fr.muscle_speed,
               "muscle_strength": fr.muscle_strength, "muscle_passive": fr.muscle_passive,
-              "ligament_length": po.ligament_length, "ligament_strain": po.ligament_strain,
-              "ligament_force": po.ligament_force, "spring_force": po.spring_force,
+              "ligament_length": none if lig is None else lig.length,
+              "ligament_strain": none if lig is None else lig.strain,
+              "ligament_force": none if lig is None else lig.force,
+              "spring_force": none if spr is None else spr.force,
               "status": fr.status if status is None else status, "iterations": fr.iterations}
     if report is None:
         res = fr.recruitment
@@ -97,7 +100,7 @@ def forces_values(fr, prefix="dyn.", report=None, status=None):
         report = (FrameReport.ok(fr.iterations, resid) if fr.converged
                   else FrameReport.failed(Reason.RECRUITMENT, fr.message, fr.iterations, resid))
     values["report"] = report
-    for name, c in po.contact.items():
+    for name, c in fr.forces.get("contacts", {}).items():
         # force on the vertex body (world, N), centre of pressure (m), area (m²), peak
         # pressure (Pa), vertices in contact
         for key, v in (("Fx_N", c.force_W[0]), ("Fy_N", c.force_W[1]), ("Fz_N", c.force_W[2]),
@@ -114,7 +117,7 @@ def forces_failure(report, status, prefix="dyn."):
 
 def forces_result(rec, solver, time, wall_time, prefix="dyn.", extra_columns=None):
     """The InverseDynamicsResult of a Recording (frames in ``time`` (nf,) s)."""
-    lay, p = solver.layout, solver.passive
+    lay, model = solver.layout, solver.model
     a = {k: rec.array(prefix + k) for k in _ARRAYS}
     reports = rec.objects(prefix + "report")
     cols = {name[len(prefix + COLUMN):]: rec.array(name) for name in rec.names()
@@ -125,7 +128,7 @@ def forces_result(rec, solver, time, wall_time, prefix="dyn.", extra_columns=Non
     return InverseDynamicsResult(
         np.asarray(time), lay.column_names, tuple(m.name for m in lay.muscles), lay.n_bounded, a["f"],
         a["muscle_length"], a["muscle_speed"], a["muscle_strength"], a["muscle_passive"],
-        tuple(x.name for x in p.ligaments), a["ligament_length"], a["ligament_strain"], a["ligament_force"],
-        tuple(x.name for x in p.springs), a["spring_force"], converged, rec.objects(prefix + "status"), reports,
+        tuple(x.name for x in model.ligaments), a["ligament_length"], a["ligament_strain"], a["ligament_force"],
+        tuple(x.name for x in model.springs), a["spring_force"], converged, rec.objects(prefix + "status"), reports,
         rec.array(prefix + "iterations"), wall_time, {"columns": cols},
     )

@@ -6,12 +6,14 @@ from __future__ import annotations
 
 
 def equilibrium_stage(solver, data, state):
-    """Forces (path lengths and Jacobians, strengths, passive forces) and C, d, s from
-    the data's Φ_q̂ and v̇ (``state`` holds q and v); solver : InverseDynamics."""
-    C, d, s, (l, speed, s_m, f_p, passive) = solver.equilibrium(state, data.vdot, data.t, data.alpha, data.Phi_q)
+    """Forces (every force set of the model: path lengths and Jacobians, strengths,
+    applied loads) and C, d, s from the data's Φ_q̂ and v̇ (``state`` holds q and v);
+    solver : InverseDynamics."""
+    C, d, s, muscles, outputs = solver.equilibrium(state, data.vdot, data.t, data.alpha, data.Phi_q)
     data.C, data.d, data.s = C, d, s
-    data.muscle_length, data.muscle_speed, data.muscle_strength, data.muscle_passive = l, speed, s_m, f_p
-    data.passive = passive
+    data.muscle_length, data.L, data.muscle_speed = muscles.length, muscles.L, muscles.speed
+    data.muscle_strength, data.muscle_passive = muscles.strength, muscles.passive
+    data.forces = outputs
     return data
 
 

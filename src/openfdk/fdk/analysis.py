@@ -2,9 +2,11 @@
 
 Warm start: α of frame k starts from the linear extrapolation 2 α_{k−1} − α_{k−2} of two
 converged predecessors (or α_{k−1}, or the DOFs' initial values), and the poses of the
-previous frame's solution. Every frame reports converged, Newton iterations, residual
-evaluations (each a recruitment solve), final max |f^FDK| and α; a frame that does not
-converge keeps its best iterate, is flagged with the reason, and the run goes on.
+previous frame's solution. A frame that fails from there is solved again from α_{k−1} and
+from the DOFs' initial values (setting ``restart``, :func:`~.newton.solve_frame_from`).
+Every frame reports converged, Newton iterations, residual evaluations (each a
+recruitment solve), final max |f^FDK| and α; a frame that does not converge keeps its
+best iterate, is flagged with the reason, and the run goes on.
 
 The loop is the trial driver's (:mod:`openfdk.trial`); :class:`FDKStep` is one frame.
 """
@@ -23,7 +25,7 @@ from ..kinematics.system import ConstraintSystem
 from ..kinematics.tracking import MarkerTracker, TrackingSettings
 from ..trial import drive
 from ..trial.status import FrameReport, Reason, frame_messages
-from .newton import solve_frame
+from .newton import solve_frame_from
 from .residual import FDKContext, FrameWorkspace
 from .settings import fdk_settings
 
@@ -32,7 +34,8 @@ from .settings import fdk_settings
 class FDKResult:
     """kinematics : KinematicsResult at the final α of each frame; forces :
     InverseDynamicsResult; alpha, f_fdk : (nf, n_fdk) SI; converged (nf,); iterations,
-    evaluations (residual evaluations), jacobians (Jacobians computed) (nf,) int;
+    evaluations (residual evaluations), jacobians (Jacobians computed), restarts (further
+    starting α solved after the warm start failed, fdk/newton.py) (nf,) int;
     reports : FrameReport per frame (reasons, messages: their codes and texts);
     dof_names; settings."""
 
@@ -48,6 +51,7 @@ class FDKResult:
     settings: object
     wall_time: float
     jacobians: np.ndarray = None  # (nf,) int: Jacobians computed per frame
+    restarts: np.ndarray = None  # (nf,) int: restarts per frame (0: solved from the warm start)
 
     @property
     def reasons(self):
@@ -70,6 +74,7 @@ class FDKResult:
             "mean_jacobians_per_frame": (float(self.jacobians.mean()) if nf and self.jacobians is not None
                                          else None),
             "reuse_jacobian": self.settings.reuse_jacobian,
+            "restarted_frames": int(np.count_nonzero(self.restarts)) if self.restarts is not None else 0,
             "max_final_residual": float(np.nanmax(np.abs(self.f_fdk))) if nf else 0.0,
             "jacobian": self.settings.jacobian,
             "tolerance": self.settings.tolerance,
@@ -92,6 +97,8 @@ class FDKResult:
         cols["fdk_evaluations"] = self.evaluations
         if self.jacobians is not None:
             cols["fdk_jacobians"] = self.jacobians
+        if self.restarts is not None:
+            cols["fdk_restarts"] = self.restarts
         cols["fdk_reason"] = list(self.reasons)
         return cols
 
@@ -124,7 +131,8 @@ class FDKStep:
         out.update(forces_fields(self.ctx.solver))
         out.update({"fdk.alpha": ((n_fdk,), float, np.nan), "fdk.f_fdk": ((n_fdk,), float, np.nan),
                     "fdk.iterations": ((), int, 0), "fdk.evaluations": ((), int, 0),
-                    "fdk.jacobians": ((), int, 0), "fdk.report": ((), object, None)})
+                    "fdk.jacobians": ((), int, 0), "fdk.restarts": ((), int, 0),
+                    "fdk.report": ((), object, None)})
         return out
 
     def step(self, k):
@@ -137,7 +145,8 @@ class FDKStep:
             a0 = history[-1][1].copy()
         else:
             a0 = self.a_init.copy()
-        sol = solve_frame(ctx, k, a0, ws, settings, self.warm, self.J_carry)
+        starts = [a0] + ([history[-1][1]] if history else []) + [self.a_init]
+        sol = solve_frame_from(ctx, k, starts, ws, settings, self.warm, self.J_carry)
         self.J_carry = sol.jacobian if sol.converged else None
         ev = sol.best
         if sol.converged:
@@ -146,7 +155,7 @@ class FDKStep:
             report = FrameReport.failed(Reason(sol.reason), f"FDK not converged: {sol.message}", sol.iterations,
                                         ev.norm)
         values = {"fdk.alpha": ev.alpha, "fdk.iterations": sol.iterations, "fdk.evaluations": sol.evaluations,
-                  "fdk.jacobians": sol.jacobians, "fdk.report": report}
+                  "fdk.jacobians": sol.jacobians, "fdk.restarts": sol.restarts, "fdk.report": report}
         if ev.ok:
             values["fdk.f_fdk"] = ev.f_fdk
         if ev.state is not None:
@@ -180,11 +189,12 @@ class FDKStep:
         self.last_state, self.history = last_state.copy(), list(history)
 
 
-def fdk_context(model, trajectories, times, tracking=None):
-    """The FDKContext of a trial (system with FDK rows, inverse dynamics, tracker and
-    the measured markers at ``times`` (nf,) s, or determinate kinematics)."""
+def fdk_context(model, trajectories, times, tracking=None, settings=None):
+    """The FDKContext of a trial (system with FDK rows, inverse dynamics with the
+    recruitment of ``settings`` (AnalysisSettings), tracker and the measured markers at
+    ``times`` (nf,) s, or determinate kinematics)."""
     system = ConstraintSystem(model)
-    solver = InverseDynamics(model, system)
+    solver = InverseDynamics(model, system, settings)
     tracker, meas = None, None
     if trajectories is not None:
         tracker = MarkerTracker(system, tracking or TrackingSettings())
@@ -203,7 +213,7 @@ def fdk_result(rec, model, ctx, settings, times, wall_time):
                             "fdk-tracking" if ctx.tracker is not None else "fdk-determinate")
     names = tuple(d.name for d in model.fdk_dofs)
     args = (names, alpha, rec.array("fdk.f_fdk"), ok, rec.array("fdk.iterations"), rec.array("fdk.evaluations"),
-            reports, settings, wall_time, rec.array("fdk.jacobians"))
+            reports, settings, wall_time, rec.array("fdk.jacobians"), rec.array("fdk.restarts"))
     forces = forces_result(rec, ctx.solver, times, wall_time, extra_columns=FDKResult(kin, None, *args).columns())
     return FDKResult(kin, forces, *args)
 
@@ -213,16 +223,20 @@ def run_fdk(model, trajectories=None, times=None, settings=None, progress=False,
 
     trajectories : marker trajectories (``evaluate(t)``) in model marker order, or None
     for determinate kinematics (drivers); times : (nf,) s, uniform (default: the trial's
-    sample times); settings : FDKSettings (default: the model's ``fdk`` section).
+    sample times); settings : AnalysisSettings (recruitment and the ``fdk`` section;
+    default: AnalysisSettings(), the defaults), e.g. the model file's
+    (:func:`openfdk.io.modelfile.load_model_and_settings`); overrides : FDKSettings
+    fields (``jacobian="central"``, …). The model is not modified.
     """
     t0 = _time.perf_counter()
     if not model.fdk_dofs:
         raise ValueError(f"model {model.name!r} declares no FDK DOFs (section fdk_dofs)")
-    settings = settings or fdk_settings(model, **overrides)
+    analysis_settings = settings
+    settings = fdk_settings(model, analysis_settings, **overrides)
     if times is None:
         times = np.asarray(trajectories.time, dtype=float)
     times = np.asarray(times, dtype=float)
-    ctx = fdk_context(model, trajectories, times, tracking)
+    ctx = fdk_context(model, trajectories, times, tracking, analysis_settings)
     step = FDKStep(model, ctx, settings)
 
     def build(rec):

@@ -9,10 +9,11 @@
      determinate: Φ_q̂ dq̂ = E dα (E selects the FDK rows Φ^FDK − α);
      tracking: [[H, Φ_q̂ᵀ], [Φ_q̂, 0]] [dq̂; dλ] = [0; E] dα with H = ∂/∂q̂ (Ψ_q̂ᵀ W Ψ +
      Φ_q̂ᵀ λ) the Hessian of the Lagrangian of Eqs. 4–5;
-  2. along each u_j = dq̂/dα_j: the force elements' stiffness dQ = K u_j (contacts,
-     ligaments, springs; analytic, :mod:`openfdk.forces.passive`), and the change of the
-     coefficient matrix C, of the remaining right-hand side (inertial terms with v, v̇
-     held, external loads, passive muscle tension) and of the muscle strengths s;
+  2. along each u_j = dq̂/dα_j: the applied loads' stiffness dQ = K u_j (every force
+     set of the model — muscles' passive tension, ligaments, springs, loads, contacts —
+     through one interface, :mod:`openfdk.forces.forceset`), and the change of the
+     coefficient matrix C, of the inertial terms (v, v̇ held) and of the muscle
+     strengths s;
   3. the sensitivity of the recruitment solution at its active set (KKT of Eq. 11,
      :func:`openfdk.recruitment.recruitment_sensitivity`), whose FDK columns give
      ∂f^FDK/∂α_j.
@@ -90,9 +91,9 @@ def kinematic_sensitivity(ctx, ev):
 
 
 def _geometry_terms(ctx, state, vdot, t, alpha):
-    """C, the right-hand side without the passive elements (inertial − loads − passive
-    muscle tension), and the strengths s at ``state`` (velocities held)."""
-    C, d, s, _ = ctx.solver.equilibrium(state, vdot, t, alpha, elements=False)
+    """C, the right-hand side without the applied loads (inertial terms only) and the
+    strengths s at ``state`` (velocities held)."""
+    C, d, s, _, _ = ctx.solver.equilibrium(state, vdot, t, alpha, forces=False)
     return C, d, s
 
 
@@ -104,9 +105,9 @@ def analytic_jacobian(ctx, k, ev):
         return None, 0, "analytic FDK Jacobian needs the polynomial recruitment criterion"
     u_all = kinematic_sensitivity(ctx, ev)  # (n, n_fdk)
     rows = ctx.solver.layout.eq_coords
-    # the elements' stiffness from what the forces stage left at this pose (ligament and
-    # spring Jacobians are not evaluated again; contacts are: K comes with their Q)
-    K = ctx.solver.passive.stiffness(ev.state, ev.data.passive)
+    # the force sets' stiffness from what the forces stage left at this pose (path and
+    # measure Jacobians are not evaluated again; contacts are: K comes with their Q)
+    K = ctx.solver.forces.stiffness(ev.state, ev.data.forces)
     n_fdk = len(ev.alpha)
     dC, dd, ds = [], [], []
     for j in range(n_fdk):
@@ -119,7 +120,7 @@ def analytic_jacobian(ctx, k, ev):
         Cp, dp, s_p = _geometry_terms(ctx, sp, ev.vdot, t, ev.alpha)
         Cm, dm, s_mn = _geometry_terms(ctx, sm, ev.vdot, t, ev.alpha)
         dC.append((Cp - Cm) / (2 * eps))
-        # d = d_geometry − Q_elements: the elements' part by their analytic stiffness
+        # d = d_inertial − Q: the applied loads' part by their stiffness (Eq. 13)
         dd.append((dp - dm) / (2 * eps) - (K @ u)[rows])
         ds.append((s_p - s_mn) / (2 * eps))
     p = ctx.solver.settings.power

@@ -17,6 +17,24 @@ computes J, as in the paper.
 
 A frame that does not converge keeps its best iterate and says why: line search failed, iteration limit, recruitment infeasible,
 kinematics failed, or a singular Jacobian (no restoring force along a DOF).
+
+Restarts (setting ``restart``, default on; :func:`solve_frame_from`). A Newton method
+globalised by a line search on the merit ‖f^FDK‖₂ converges to a stationary point of the
+merit, J(α)ᵀ f(α) = 0 (or a kink of f where no direction descends), which is a root only
+when J is regular there (Nocedal & Wright, "Numerical Optimization", 2nd ed., §11.2,
+Theorem 11.6 and the discussion after it; the usual remedy for a stall at a non-root
+minimiser of the merit is to start again from another point). f^FDK(α) is continuous but only
+piecewise smooth: its slope jumps where a muscle enters or leaves the recruitment's
+active set (paper Eq. 11, bounds 0 ≤ f^M ≤ s). Measured on the wide realistic chewing
+(docs/fdk.md, "Restarts"): the equilibrium moves up to 4 mm along the soft medio-lateral
+DOF (stiffness ≈ 0.5 N/mm against ≈ 60 N/mm along the normals) from one 10 ms frame to
+the next, and the extrapolated warm start then lies in the basin of such a non-root
+minimiser (‖f‖ ≈ 0.5 N at a muscle's active-set kink) that remains of the branch the
+previous frames followed. When the solve from the warm start fails, the frame is solved
+again from the previous frame's α and then from the DOFs' declared initial values (the
+model's neutral α), each with a fresh Jacobian; the first start that converges gives the
+frame's α, otherwise the best iterate of all starts is reported with the warm start's
+reason. A restart never changes a frame that converges from its warm start.
 """
 
 from __future__ import annotations
@@ -45,6 +63,7 @@ class FrameSolution:
     workspace: object = None
     jacobian: object = None  # the last J (n_fdk, n_fdk), for reuse in the next frame
     jacobians: int = 0  # Jacobians computed in this frame
+    restarts: int = 0  # further starts solved after the warm start failed (solve_frame_from)
 
 
 def _norm2(ev):
@@ -129,6 +148,45 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None) -> Frame
     return done(best, False, settings.max_iterations,
                 f"iteration limit ({settings.max_iterations}) reached, max |f^FDK| = {best.norm:.4g}",
                 "iteration_limit", best_ws)
+
+
+def solve_frame_from(ctx, k, starts, ws, settings, warm=None, jacobian=None) -> FrameSolution:
+    """:func:`solve_frame` from ``starts[0]`` (the warm start, with the carried
+    ``jacobian``); if that fails and ``settings.restart``, from each further start (n_fdk,)
+    in turn — fresh Jacobian, poses from a copy of ``ws`` as given — until one converges.
+
+    starts : sequence of (n_fdk,) α in SI units; repeats of an earlier start are skipped.
+    Returns the converged FrameSolution (``restarts`` = further starts solved), or the
+    best iterate of all starts (smallest max |f^FDK|) with the first start's message and
+    reason. ``iterations``, ``evaluations`` and ``jacobians`` are totals over all starts.
+    """
+    ws0 = ws.copy()
+    first = solve_frame(ctx, k, starts[0], ws, settings, warm, jacobian)
+    if first.converged or not settings.restart:
+        return first
+    tried = [np.asarray(starts[0], dtype=float)]
+    best, restarts = first, 0
+    totals = np.array([first.iterations, first.evaluations, first.jacobians])
+    for alpha0 in starts[1:]:
+        alpha0 = np.asarray(alpha0, dtype=float)
+        if any(np.array_equal(alpha0, a) for a in tried):
+            continue
+        tried.append(alpha0)
+        restarts += 1
+        sol = solve_frame(ctx, k, alpha0, ws0.copy(), settings, warm, None)
+        totals += (sol.iterations, sol.evaluations, sol.jacobians)
+        if sol.converged:
+            best = sol
+            break
+        if sol.best.norm < best.best.norm:
+            best = sol
+    it, n_ev, n_jac = (int(x) for x in totals)
+    if best.converged:
+        return FrameSolution(best.best, True, it, n_ev, "", "converged", best.workspace, best.jacobian, n_jac,
+                             restarts)
+    message = f"{first.message}; {restarts} restart(s) from other starting α did not converge either"
+    return FrameSolution(best.best, False, it, n_ev, message if restarts else first.message, first.reason,
+                         best.workspace, None, n_jac, restarts)
 
 
 def _jacobian(ctx, k, ev, ws, settings):

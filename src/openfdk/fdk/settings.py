@@ -8,6 +8,8 @@ fdk:
   reuse_jacobian: true     # carry J between iterations and frames with Broyden updates
   line_search: true        # golden-section search on the step length when the full step fails
   extrapolate: true        # warm start α by linear extrapolation of the two previous frames
+  restart: true            # a frame that fails from its warm start is solved again from the
+                           # previous frame's α, then from the DOFs' initial values
 fdk_dofs:
   tmj_r_normal: {measure: ..., max_step: 0.5, perturbation: 1.0e-3}   # file units
 ```
@@ -34,7 +36,9 @@ DEFAULT_PERTURBATION = {"length": 1e-6, "angle": 1e-6}
 class FDKSettings:
     """tolerance : N or N m on max |f^FDK|; max_iterations; jacobian : "analytic" or
     "central"; line_search; reuse_jacobian (Broyden-updated J carried between
-    iterations and frames, fdk/newton.py); extrapolate; max_step, perturbation : (n_fdk,) SI."""
+    iterations and frames, fdk/newton.py); extrapolate; restart (solve a failed frame
+    again from the previous frame's α and from the DOFs' initial values,
+    :func:`openfdk.fdk.newton.solve_frame_from`); max_step, perturbation : (n_fdk,) SI."""
 
     tolerance: float = 1e-3
     max_iterations: int = 25
@@ -42,14 +46,17 @@ class FDKSettings:
     line_search: bool = True
     reuse_jacobian: bool = True
     extrapolate: bool = True
+    restart: bool = True
     max_step: tuple = ()
     perturbation: tuple = ()
     golden_section_evaluations: int = 8
 
 
-def fdk_settings(model, **overrides) -> FDKSettings:
-    """Settings of a model: its ``fdk`` section, per-DOF values and defaults by unit."""
-    base = dict(model.settings.fdk)
+def fdk_settings(model, settings=None, **overrides) -> FDKSettings:
+    """FDK solver settings of a model analysed with ``settings`` (AnalysisSettings: the
+    model file's ``fdk`` section; default none), the per-DOF values and defaults by
+    unit, and keyword ``overrides``."""
+    base = dict(settings.fdk) if settings is not None else {}
     base.update(overrides)
     steps, perts = [], []
     for dof in model.fdk_dofs:
@@ -69,7 +76,8 @@ def fdk_settings(model, **overrides) -> FDKSettings:
 
 
 def load_fdk(b, data, ctx):
-    ctx.keys(data, FDK, ["tolerance", "max_iterations", "jacobian", "line_search", "reuse_jacobian", "extrapolate"])
+    ctx.keys(data, FDK, ["tolerance", "max_iterations", "jacobian", "line_search", "reuse_jacobian", "extrapolate",
+                         "restart"])
     out = {}
     if "tolerance" in data:
         out["tolerance"] = ctx.number(data["tolerance"], "fdk.tolerance", positive=True)
@@ -82,7 +90,7 @@ def load_fdk(b, data, ctx):
         if data["jacobian"] not in ("analytic", "central"):
             raise ctx.error("fdk.jacobian", f"expected 'analytic' or 'central', got {data['jacobian']!r}")
         out["jacobian"] = data["jacobian"]
-    for key in ("line_search", "reuse_jacobian", "extrapolate"):
+    for key in ("line_search", "reuse_jacobian", "extrapolate", "restart"):
         if key in data:
             if not isinstance(data[key], bool):
                 raise ctx.error(f"fdk.{key}", f"expected true or false, got {data[key]!r}")

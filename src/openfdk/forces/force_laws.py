@@ -4,7 +4,7 @@ A law gives the generalized force ``f(m)`` conjugate to a scalar measure m (N fo
 length, N m for an angle) and ``df/dm`` (the stiffness the analytic FDK Jacobian needs),
 with the same interface as :class:`~openfdk.forces.spring.LinearSpring`, so a law is the
 ``law`` of a :class:`~openfdk.forces.elements.Spring` element: Q = Mᵀ f,
-K = Mᵀ (df/dm) M + f ∂Mᵀ/∂q̂ (:mod:`openfdk.forces.passive`).
+K = Mᵀ (df/dm) M + f ∂Mᵀ/∂q̂ (:mod:`openfdk.forces.spring_forces`).
 
 Each law is written as a *resisting* force F(m) (positive when it pushes m back down,
 like a spring's k (m − m_rest)) and acts as f = −F(m):

@@ -493,6 +493,12 @@ class MuscleSet:
         out = self._run(l_MT, v_MT, False)
         return out[0], out[1]
 
+    def evaluate_with_passive_slope(self, l_MT, v_MT):
+        """(strength (n_muscles,) N, passive force f_P (n_muscles,) N, df_P/dl_MT
+        (n_muscles,) N/m) of all muscles; l_MT (n_muscles,) m, v_MT (n_muscles,) m/s."""
+        out = self._run(l_MT, v_MT, False)
+        return out[0], out[1], out[4]
+
     def evaluate_states(self, l_MT, v_MT):
         """Like :meth:`evaluate` but returns the full :class:`MuscleStates` (derivatives,
         fibre lengths, status); l_MT (n_muscles,) m, v_MT (n_muscles,) m/s."""

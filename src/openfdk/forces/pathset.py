@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..model.kernels import path_lengths
+from ..numdiff import manifold_jacobian
+from .path_stiffness import add_path_geometric_stiffness
 from .wrapping import WrapNodes, WrappedPath
 
 
@@ -50,3 +52,19 @@ class PathSet:
         if self.wrapped is not None:
             l[self.wrapped_rows], L[self.wrapped_rows] = self.wrapped.evaluate(state)
         return l, L
+
+    def add_geometric_stiffness(self, state, T, L, K):
+        """K (n, n) −= Σ_p T_p ∂L_pᵀ/∂q̂ at ``state`` for tensions T (n_paths,) N, the
+        geometric stiffness of Q = −Lᵀ T; L (n_paths, n): the Jacobians at ``state``.
+        Straight paths in closed form (:mod:`.path_stiffness`); wrapped paths by one
+        batched forward difference of their analytic Jacobians on the manifold."""
+        T = np.ascontiguousarray(T, dtype=float)
+        straight = T.copy()
+        if self.wrapped is not None:
+            straight[self.wrapped_rows] = 0.0
+            T_w = T[self.wrapped_rows]
+            if np.any(T_w):
+                K -= manifold_jacobian(lambda s: T_w @ self.wrapped.evaluate(s)[1], state, 1e-7, central=False,
+                                       f0=T_w @ L[self.wrapped_rows])
+        add_path_geometric_stiffness(state.p_WB, state.R_WB, state.column, self.seg_a, self.s_a, self.seg_b,
+                                     self.s_b, self.seg_path, straight, K)

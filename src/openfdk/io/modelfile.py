@@ -1,4 +1,6 @@
-"""YAML model files -> :class:`~openfdk.model.model.Model` (format: docs/model-file.md).
+"""YAML model files -> :class:`~openfdk.model.model.Model` and, apart from it, the
+file's :class:`~openfdk.model.settings.AnalysisSettings` (sections ``analysis``,
+``recruitment``, ``fdk``, ``units``; format: docs/model-file.md).
 
 The file is data: it is read with a safe YAML loader and nothing in it is evaluated.
 Lengths are in the file's declared unit (``units.length``: m, cm or mm) and angles in
@@ -23,6 +25,7 @@ from ..forces.sections import (load_bushings, load_ligaments, load_loads, load_m
                                load_recruitment, load_springs, load_wrapping)
 from ..model.model import Model, ModelError
 from ..model.modelfile import build, read_core
+from ..model.settings import AnalysisSettings
 from ..model.plausibility import check_model
 from .yamlfile import read_yaml
 
@@ -42,19 +45,36 @@ SECTIONS = (
 )
 
 
-def load_model(path) -> Model:
-    """Read, validate and build a model file. Raises ModelError naming the entry."""
+def load_model_and_settings(path) -> tuple[Model, AnalysisSettings]:
+    """Read, validate and build a model file: (the physical Model, the file's analysis
+    settings). Raises ModelError naming the entry."""
     path = Path(path)
     data = read_yaml(path, ModelError, "model file")
-    model = model_from_dict(data, source=path.name, base_dir=path.parent)
-    check_model(model, path.name, model.settings.units["length"])  # plausibility warnings
-    return model
+    model, settings = model_and_settings_from_dict(data, source=path.name, base_dir=path.parent)
+    check_model(model, path.name, settings.units["length"])  # plausibility warnings
+    return model, settings
 
 
-def model_from_dict(data, source="<dict>", base_dir=None) -> Model:
-    """Build a model from the parsed YAML mapping (see docs/model-file.md)."""
+def load_model(path) -> Model:
+    """The Model of a model file (its settings: :func:`load_settings`)."""
+    return load_model_and_settings(path)[0]
+
+
+def load_settings(path) -> AnalysisSettings:
+    """The analysis settings of a model file (the whole file is read and validated)."""
+    return load_model_and_settings(path)[1]
+
+
+def model_and_settings_from_dict(data, source="<dict>", base_dir=None) -> tuple[Model, AnalysisSettings]:
+    """(Model, AnalysisSettings) from the parsed YAML mapping (see docs/model-file.md)."""
     b, ctx = read_core(data, source, base_dir, [name for name, _ in SECTIONS])
     for name, loader in SECTIONS:
         if name in data:
             loader(b, data[name], ctx)
-    return build(b, ctx)
+    return build(b, ctx), b.settings()
+
+
+def model_from_dict(data, source="<dict>", base_dir=None) -> Model:
+    """The Model of a parsed YAML mapping (its settings:
+    :func:`model_and_settings_from_dict`)."""
+    return model_and_settings_from_dict(data, source, base_dir)[0]

@@ -431,12 +431,18 @@ class ModelBuilder:
         """Model keyword arguments from the kinds collected in ``self.elements``."""
         rest = dict(self.elements)
         out = {kind: tuple(rest.pop(kind, ())) for kind in self.ELEMENT_FIELDS}
-        settings = {name: rest.pop(kind) for kind, name in self.SETTING_FIELDS.items() if kind in rest}
-        if rest:
-            raise ModelError(f"unknown force-element or settings kinds {sorted(rest)}; known: "
+        unknown = sorted(set(rest) - set(self.SETTING_FIELDS))
+        if unknown:
+            raise ModelError(f"unknown force-element or settings kinds {unknown}; known: "
                              f"{list(self.ELEMENT_FIELDS) + list(self.SETTING_FIELDS)}")
-        out["settings"] = AnalysisSettings(**settings)
         return out
+
+    def settings(self) -> AnalysisSettings:
+        """The analysis settings collected while building (model-file sections
+        ``analysis``, ``recruitment``, ``fdk``, ``units``; :func:`set_recruitment`), apart
+        from the Model that :meth:`build` returns."""
+        return AnalysisSettings(**{name: self.elements[kind] for kind, name in self.SETTING_FIELDS.items()
+                                   if kind in self.elements})
 
 
 def _stack(parts):

@@ -57,7 +57,7 @@ class FrameData:
     muscle_speed: np.ndarray = None  #: (n_muscles,) m/s, L v
     muscle_strength: np.ndarray = None  #: (n_muscles,) N, s of the Hill model
     muscle_passive: np.ndarray = None  #: (n_muscles,) N, parallel-element force
-    passive: object = None  #: PassiveOutputs (ligaments, springs, contacts)
+    forces: dict = None  #: outputs of the model's force sets by kind (:mod:`openfdk.forces.forceset`)
 
     # -- 4. equilibrium stage --------------------------------------------------------
     C: np.ndarray = None  #: (n_eq, n_cols) coefficient matrix (Eq. 12)

@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from .components import GROUND, Body, Frame
 from .constraints import Constraint, FDKDof, MarkerSet
-from .settings import AnalysisSettings
 from .state import BodyStates
 
 
@@ -31,10 +30,9 @@ class Model:
     fdk_dofs : tuple of FDKDof
     gravity_W : (3,) m/s²
 
-    Force elements, each kind a typed field (tuples, in declaration order). Ligaments,
-    springs, contacts and loads share one interface at the set level
-    (:class:`openfdk.forces.passive.PassiveElements`): generalised forces Q (n,) on the
-    bodies and, when asked, their stiffness ∂Q/∂q̂ (n, n).
+    Force elements, each kind a typed field (tuples, in declaration order). Every kind
+    is one force set with one interface (:mod:`openfdk.forces.forceset`): generalised
+    forces Q (n,) on the bodies and, when asked, their stiffness ∂Q/∂q̂ (n, n).
 
     muscles : Muscle (path + strength model; recruited)
     ligaments : Ligament (path + Blankevoort1991Ligament)
@@ -43,8 +41,10 @@ class Model:
     loads : ExternalLoad (force and moment time functions at a body point)
     unilateral_reactions : UnilateralReaction (one-sided joint rows, recruited)
     visuals : Visual (display meshes of bodies, for the viewer; no forces)
-    settings : AnalysisSettings (kinematics window, recruitment, fdk), not part of the
-        physical description
+
+    The model is purely physical: how it is analysed (kinematics window, recruitment,
+    FDK solver) is an :class:`~openfdk.model.settings.AnalysisSettings` kept apart and
+    passed to the analyses (``settings=``).
     """
 
     name: str
@@ -62,7 +62,6 @@ class Model:
     loads: tuple = ()
     unilateral_reactions: tuple = ()
     visuals: tuple = ()
-    settings: AnalysisSettings = field(default_factory=AnalysisSettings)
     source: str = ""
 
     # -- look-ups -------------------------------------------------------------------
@@ -121,4 +120,4 @@ class Model:
         return "\n".join(lines)
 
 
-__all__ = ["Model", "ModelError", "GROUND", "Constraint", "FDKDof", "AnalysisSettings"]
+__all__ = ["Model", "ModelError", "GROUND", "Constraint", "FDKDof"]

@@ -51,14 +51,16 @@ def completed_record(folder, fingerprint):
 
 
 def build_case_model(case):
-    """(model, trial path or None, model label) of a case: the kind's prepare, then the
-    overrides applied to the model mapping, then the model built."""
-    from ..io.modelfile import model_from_dict
+    """(model, its AnalysisSettings, trial path or None, model label) of a case: the
+    kind's prepare, then the overrides applied to the model mapping (settings sections
+    included), then the model and its settings built."""
+    from ..io.modelfile import model_and_settings_from_dict
 
     prepared = import_callable(case.prepare)(case)
     data = apply_overrides(prepared.model_data, case.overrides, source=prepared.source)
-    model = model_from_dict(data, source=f"{prepared.source} [case {case.case_id}]", base_dir=prepared.base_dir)
-    return model, prepared.trial, str(Path(prepared.base_dir) / prepared.source)
+    model, settings = model_and_settings_from_dict(data, source=f"{prepared.source} [case {case.case_id}]",
+                                                   base_dir=prepared.base_dir)
+    return model, settings, prepared.trial, str(Path(prepared.base_dir) / prepared.source)
 
 
 def write_run_outputs(out, kin, dyn, info, frames_planned=None):
@@ -153,18 +155,18 @@ def run_case(case, out_root, force=False):
     if done is not None:
         return with_metrics(done, out_root, case)
     t0 = _time.perf_counter()
-    model, trial, label = build_case_model(case)
+    model, settings, trial, label = build_case_model(case)
     opts = case.options
-    traj, times, info = analysis_inputs(model, trial, opts.cutoff_hz, opts.start, opts.end)
+    traj, times, info = analysis_inputs(model, trial, opts.cutoff_hz, opts.start, opts.end, settings)
     if opts.chunks > 1:
         segments = plan_segments(len(times), opts.chunks, opts.overlap)
-        parts = [solve_segment(model, traj, times, s) for s in segments]
+        parts = [solve_segment(model, traj, times, s, settings=settings) for s in segments]
         kin, dyn, fdk = stitch(parts, _time.perf_counter() - t0)
         info.update(chunk_info(parts, opts.overlap))
     else:
         from .chunks import analyse
 
-        kin, dyn, fdk = analyse(model, traj, times)
+        kin, dyn, fdk = analyse(model, traj, times, settings)
     info = {"model": label, **info}
     if fdk is not None:
         info["fdk"] = fdk.summary()
@@ -184,11 +186,11 @@ def segment_task(case, index, checks=True):
     with warnings.catch_warnings() if not checks else contextlib.nullcontext():
         if not checks:
             warnings.simplefilter("ignore", PlausibilityWarning)
-        model, trial, label = build_case_model(case)
+        model, settings, trial, label = build_case_model(case)
         opts = case.options
-        traj, times, info = analysis_inputs(model, trial, opts.cutoff_hz, opts.start, opts.end)
+        traj, times, info = analysis_inputs(model, trial, opts.cutoff_hz, opts.start, opts.end, settings)
         segment = plan_segments(len(times), opts.chunks, opts.overlap)[index]
-        return solve_segment(model, traj, times, segment, {"model": label, **info})
+        return solve_segment(model, traj, times, segment, {"model": label, **info}, settings)
 
 
 def finish_chunked_case(case, out_root, started, force, *segment_results):

@@ -54,12 +54,13 @@ def plan_segments(n_frames: int, chunks: int, overlap: int = DEFAULT_OVERLAP) ->
             for k, (a, b) in enumerate(itertools.pairwise(edges))]
 
 
-def analysis_inputs(model, trial_path=None, cutoff_hz=None, start=None, end=None):
+def analysis_inputs(model, trial_path=None, cutoff_hz=None, start=None, end=None, settings=None):
     """(trajectories or None, times (nf,) s, info) exactly as :func:`openfdk.jobs.run_job`
-    chooses them (:func:`openfdk.jobs.analysis_inputs`)."""
+    chooses them (:func:`openfdk.jobs.analysis_inputs`; settings : the model file's
+    AnalysisSettings)."""
     from ..jobs import analysis_inputs as inputs
 
-    return inputs(model, trial_path, cutoff_hz, start, end)
+    return inputs(model, trial_path, cutoff_hz, start, end, settings)
 
 
 @dataclass(frozen=True)
@@ -76,19 +77,20 @@ class SegmentResult:
     info: dict = field(default_factory=dict)
 
 
-def analyse(model, trajectories, times):
+def analyse(model, trajectories, times, settings=None):
     """Kinematics, inverse dynamics and (when the model has FDK DOFs) FDK over ``times``
-    (nf,) s, as :func:`openfdk.jobs.run_job` does (one pass of the trial driver).
-    Returns (kin, dyn, fdk or None)."""
+    (nf,) s with ``settings`` (AnalysisSettings), as :func:`openfdk.jobs.run_job` does
+    (one pass of the trial driver). Returns (kin, dyn, fdk or None)."""
     from ..analysis.run import run_trial
 
-    return run_trial(model, trajectories, times)
+    return run_trial(model, trajectories, times, settings=settings)
 
 
-def solve_segment(model, trajectories, times, segment: Segment, info=None) -> SegmentResult:
-    """Analyse the solved range of one segment (times: all analysed times (nf,) s)."""
+def solve_segment(model, trajectories, times, segment: Segment, info=None, settings=None) -> SegmentResult:
+    """Analyse the solved range of one segment (times: all analysed times (nf,) s)
+    with ``settings`` (AnalysisSettings)."""
     t0 = _time.perf_counter()
-    kin, dyn, fdk = analyse(model, trajectories, times[segment.solve_start:segment.solve_stop])
+    kin, dyn, fdk = analyse(model, trajectories, times[segment.solve_start:segment.solve_stop], settings)
     return SegmentResult(segment, kin, dyn, fdk, _time.perf_counter() - t0, dict(info or {}))
 
 

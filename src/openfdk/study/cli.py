@@ -148,12 +148,12 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
     case = job_case(model_path, trial_path, chunks, overlap, cutoff_hz, start, end)
     # the plausibility checks of the whole trial, here once (the segments skip them):
     # model (on loading), trial markers in the window, and the pulling contacts below
-    from ..io.modelfile import load_model
+    from ..io.modelfile import load_model_and_settings
     from ..jobs import analysis_inputs
     from ..model.plausibility import warn_pulling_contacts
 
-    model = load_model(model_path)
-    analysis_inputs(model, trial_path, cutoff_hz, start, end)
+    model, settings = load_model_and_settings(model_path)
+    analysis_inputs(model, trial_path, cutoff_hz, start, end, settings)
     done = {}
     if checkpoints is not None:
         if resume:

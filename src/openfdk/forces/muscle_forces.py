@@ -1,0 +1,75 @@
+"""Muscles as one force set (:mod:`.forceset`): path lengths l (n_m,) m, Jacobians
+L = ∂l/∂q̂ (n_m, n), lengthening speeds L v, strengths s and passive (parallel-elastic)
+tensions f_P(l) of the strength models (:class:`.hill.MuscleSet`). The active forces are
+unknowns of the recruitment (columns −Lᵀ of C, paper Eq. 12); the passive tension is an
+applied load (Eq. 13):
+
+    Q = −Lᵀ f_P,   K = −Lᵀ diag(df_P/dl) L − Σ_k f_P,k ∂L_kᵀ/∂q̂,
+
+df_P/dl from the strength model's implicit derivative of its passive equilibrium, the
+geometric term from :meth:`.pathset.PathSet.add_geometric_stiffness` (only when some
+f_P ≠ 0).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .hill import MuscleSet
+from .pathset import PathSet
+
+#: strengths below this (N) are raised to it so that the recruitment stays defined; a
+#: muscle shorter than its tendon slack length thus delivers (numerically) nothing.
+MIN_STRENGTH = 1e-6
+
+
+@dataclass
+class MuscleOutputs:
+    """length (n_m,) m; L (n_m, n) ∂l/∂q̂; speed (n_m,) m/s; strength (n_m,) N (≥
+    MIN_STRENGTH); passive (n_m,) N, f_P; dpassive (n_m,) N/m, df_P/dl."""
+
+    length: np.ndarray
+    L: np.ndarray
+    speed: np.ndarray
+    strength: np.ndarray
+    passive: np.ndarray
+    dpassive: np.ndarray
+
+    @classmethod
+    def empty(cls, n):
+        """No muscles, n coordinates."""
+        z = np.zeros(0)
+        return cls(z, np.zeros((0, n)), z, z, z, z)
+
+
+class MuscleForces:
+    """The muscles (tuple of :class:`~.elements.Muscle`) of a model."""
+
+    kind = "muscles"
+
+    def __init__(self, muscles):
+        self.muscles = tuple(muscles)
+        self.paths = PathSet(self.muscles)
+        self.strength_models = MuscleSet([m.law for m in self.muscles])
+
+    def states(self, state):
+        """The muscles' :class:`MuscleOutputs` at ``state`` (q and v)."""
+        l, L = self.paths.evaluate(state)
+        speed = L @ state.get_v()
+        s, f_p, df_p = self.strength_models.evaluate_with_passive_slope(l, speed)
+        return MuscleOutputs(l, L, speed, np.maximum(s, MIN_STRENGTH), f_p, df_p)
+
+    def accumulate(self, state, t, Q, K=None):
+        out = self.states(state)
+        Q -= out.L.T @ out.passive  # passive tension is an applied load
+        if K is not None:
+            self.stiffness(state, out, K)
+        return out
+
+    def stiffness(self, state, out, K):
+        L = out.L
+        K -= L.T @ (L * out.dpassive[:, None])
+        if np.any(out.passive):
+            self.paths.add_geometric_stiffness(state, out.passive, L, K)  # −Σ f_P,k ∂L_kᵀ/∂q̂
