@@ -8,10 +8,8 @@ import numpy as np
 
 from .components import GROUND, Body, Frame
 from .constraints import Constraint, FDKDof, MarkerSet
+from .errors import ModelError  # defined in a light module (study drivers), re-exported here
 from .state import BodyStates
-
-
-from .errors import ModelError  # noqa: E402 — defined in a light module, re-exported here
 
 
 @dataclass(frozen=True, eq=False)
