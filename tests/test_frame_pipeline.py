@@ -182,3 +182,29 @@ def test_determinate_fdk_evaluation_evaluates_rows_twice_at_the_solved_pose(row_
     solved = ev.state.p_WB.tobytes() + ev.state.R_WB.tobytes()
     assert row_evaluations[solved] == 2, row_evaluations.most_common(3)
     assert sum(row_evaluations.values()) == 2
+
+
+def test_tracking_evaluates_the_markers_once_per_solved_pose(tmp_path, monkeypatch):
+    """Marker tracking on the POP jaw: outside the Gauss–Newton kernel, the markers are
+    evaluated once per frame, at its solved pose (δ of Eq. 7 and Ψ_q̂ of Eqs. 8–10 both
+    come from that evaluation), apart from the one-off observability check."""
+    from openfdk.kinematics.analysis import run_tracking
+    from openfdk.model.constraints import MarkerSet
+
+    write_jaw_files(tmp_path, 8)
+    model, _ = load_model_and_settings(tmp_path / "pop.yaml")
+    _, traj = load_trajectories(model, tmp_path / "trial.c3d")
+    counts = Counter()
+    for name in ("evaluate", "positions"):
+        original = getattr(MarkerSet, name)
+
+        def counting(self, state, *args, _original=original, **kw):
+            counts[(state.p_WB.tobytes(), state.R_WB.tobytes())] += 1
+            return _original(self, state, *args, **kw)
+
+        monkeypatch.setattr(MarkerSet, name, counting)
+    kin = run_tracking(model, traj)
+    assert kin.converged.all()
+    n = len(kin.time)
+    assert n <= sum(counts.values()) <= n + 1  # + the observability check, once per pattern
+    assert max(counts.values()) == 1, counts.most_common(2)

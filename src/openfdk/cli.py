@@ -47,6 +47,7 @@ def _cmd_check(args):
     from .model_check import check_model
 
     model = load_model(args.model)
+    _announce_kernels(args, check=True)
     report = check_model(model)
     _say(args, "\n".join(report.lines))
     if not report.ok:
@@ -70,6 +71,20 @@ def _cmd_cache(args):
         return 0
     print(f"distance-grid cache {folder}: {n} grid files, {size / 2**20:.1f} MB")
     return 0
+
+
+def _announce_kernels(args, check=False):
+    """One line on stderr when numba's kernel cache is cold (first run after install or
+    upgrade), unless --quiet, once the inputs are read and before the first kernel call:
+    now for ``check`` (model read), else when the analysis has read the model and trial
+    (:func:`openfdk.jobs.analysis_inputs`). The progress displays then start after each
+    stage's first (compiling) frame."""
+    from .kernel_cache import CHECK_KERNEL_MODULES, announce_cold_cache, arm
+
+    if check:
+        announce_cold_cache(quiet=getattr(args, "quiet", False), modules=CHECK_KERNEL_MODULES)
+    else:
+        arm(quiet=getattr(args, "quiet", False))
 
 
 def _say(args, text):
@@ -122,6 +137,7 @@ def _cmd_kinematics(args):
 
     _check_window(args)
     _prepare_out(args)
+    _announce_kernels(args)
     result, info = kinematics_job(
         args.model, args.trial, cutoff_hz=args.cutoff, progress=_progress_on(args),
         start=args.start, end=args.end,
@@ -160,6 +176,7 @@ def _cmd_run(args):
         raise UserError("--checkpoint-frames must be >= 1 and --checkpoint-seconds > 0")
     _check_window(args)
     _prepare_out(args)
+    _announce_kernels(args)
     if args.chunks > 1:
         from .study.cli import run_chunked_job
 
@@ -245,6 +262,7 @@ def _cmd_demo(args):
     # before any computation: the demo folder (subject reused) and its study results
     check_output_dir(args.out)
     check_output_dir(Path(args.out) / "study", force=args.force)
+    _announce_kernels(args)
     result = run_demo(args.out, quick=args.quick, progress=_progress_on(args), workers=args.workers)
     return _failed_tasks_exit(result, f"{args.out}/study")
 
@@ -286,6 +304,7 @@ def _cmd_subject(args):
 
         out = args.out or f"{args.directory.rstrip('/')}-study"
         check_output_dir(out, force=args.force)  # before any computation
+        _announce_kernels(args)
         cycles = 5 if args.cycles is None else (None if args.cycles == "all" else args.cycles)
         result = run_study(args.directory, out, n_cycles=cycles, quick=args.quick, progress=_progress_on(args),
                            workers=args.workers, scheduler=args.scheduler,
@@ -487,7 +506,7 @@ def main(argv=None):
     import numpy as np
 
     args = build_parser().parse_args(argv)
-    from .progress import set_quiet
+    from .progress import set_quiet, set_warmup
 
     set_quiet(getattr(args, "quiet", False))
     old_show, old_err = warnings.showwarning, np.seterr(all="ignore")
@@ -510,6 +529,10 @@ def main(argv=None):
         warnings.showwarning = old_show
         np.seterr(**old_err)
         set_quiet(False)
+        set_warmup(False)
+        from .kernel_cache import disarm
+
+        disarm()
 
 
 if __name__ == "__main__":  # pragma: no cover

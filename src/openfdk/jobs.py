@@ -102,10 +102,16 @@ def analysis_inputs(model, trial_path=None, cutoff_hz=None, start=None, end=None
     """(trajectories or None, times (nf,) s, info): the trial's samples within the
     analysis window (:func:`trial_window`), or for determinate kinematics the model
     file's ``analysis`` start/end/frames (:func:`determinate_times`); settings : the
-    model file's AnalysisSettings."""
+    model file's AnalysisSettings. Once the inputs are read, a cold kernel cache is
+    announced if the CLI asked for it (:func:`openfdk.kernel_cache.arm`)."""
+    from .kernel_cache import announce_armed
+
     if trial_path is None:
-        return None, determinate_times(model, start, end, settings), {}
+        times = determinate_times(model, start, end, settings)
+        announce_armed()
+        return None, times, {}
     _, traj, times, info = trial_window(model, trial_path, cutoff_hz, start, end, settings)
+    announce_armed()
     return traj, times, info
 
 
@@ -136,6 +142,7 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
     ``partial`` is (kin, dyn, info) of the finished frames). settings :
     AnalysisSettings (default: the model file's, see :func:`model_and_settings`)."""
     from .analysis.run import run_trial
+    from .contact.rim import warn_contact_rims
     from .model.plausibility import warn_pulling_contacts
     from .trial import TrialInterrupted
 
@@ -156,4 +163,5 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
         exc.partial = with_info(*exc.partial)
         raise
     warn_pulling_contacts(model, kin, dyn)
+    warn_contact_rims(model, kin)
     return with_info(kin, dyn, fdk)

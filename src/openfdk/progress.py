@@ -4,6 +4,9 @@ On a terminal it is a bar (tqdm) that redraws one line. When stderr is not a ter
 (a log file, a pipe, a batch job) it is one plain line per 10 % — no carriage returns,
 so logs stay readable. ``set_quiet(True)`` (the CLI's ``--quiet``) turns every display
 off.
+``set_warmup(True)`` (the CLI, when numba's kernel cache is cold) makes each display start
+after its first step — the step that compiles the kernels — so the elapsed time and the
+rate count frames, not compilation.
 
     with progress(total=n, desc="kinematics", unit="frame", enabled=True) as bar:
         for ...:
@@ -16,6 +19,7 @@ import sys
 import time
 
 _QUIET = False
+_WARMUP = False
 
 
 def set_quiet(quiet: bool) -> None:
@@ -26,6 +30,13 @@ def set_quiet(quiet: bool) -> None:
 
 def is_quiet() -> bool:
     return _QUIET
+
+
+def set_warmup(warmup: bool) -> None:
+    """True: the next displays show nothing until their first ``update`` (the first frame,
+    which compiles the numba kernels on a cold cache) and start their clock after it."""
+    global _WARMUP
+    _WARMUP = bool(warmup)
 
 
 class _Silent:
@@ -68,16 +79,43 @@ class _Lines(_Silent):
             self.stream.flush()
 
 
+class _AfterFirstStep(_Silent):
+    """Silent until the first ``update(n)``; then a display made by ``make(initial)`` with
+    ``initial`` = the steps done so far, whose clock starts there."""
+
+    def __init__(self, make, initial):
+        self.make, self.initial, self.shown = make, int(initial), None
+
+    def update(self, n=1):
+        if self.shown is None:
+            self.shown = self.make(self.initial + int(n))
+        else:
+            self.shown.update(n)
+
+    def set_postfix(self, **kw):
+        if self.shown is not None:
+            self.shown.set_postfix(**kw)
+
+    def close(self):
+        if self.shown is not None:
+            self.shown.close()
+
+
 def progress(total, desc="", unit="frame", enabled=True, initial=0, stream=None):
     """A progress display with ``update(n)`` and ``close()`` (also a context manager):
     a tqdm bar when ``stream`` (default stderr) is a terminal, one line per 10 % when it
-    is not, nothing when ``enabled`` is False or the display is quiet."""
+    is not, nothing when ``enabled`` is False or the display is quiet. After
+    ``set_warmup(True)`` the display appears after the first step, timed from there."""
     if not enabled or _QUIET:
         return _Silent()
     stream = sys.stderr if stream is None else stream
     isatty = getattr(stream, "isatty", None)
-    if isatty is not None and isatty():
-        from tqdm.auto import tqdm
 
-        return tqdm(total=total, desc=desc, unit=unit, leave=False, initial=initial, file=stream)
-    return _Lines(total, desc, unit, stream, initial)
+    def make(initial):
+        if isatty is not None and isatty():
+            from tqdm.auto import tqdm
+
+            return tqdm(total=total, desc=desc, unit=unit, leave=False, initial=initial, file=stream)
+        return _Lines(total, desc, unit, stream, initial)
+
+    return _AfterFirstStep(make, initial) if _WARMUP else make(initial)

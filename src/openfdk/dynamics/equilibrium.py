@@ -125,7 +125,7 @@ def _inertial_minus_gravity(column, mass, inertia, index, w_BB, vdot, g, out):
 def inertial_minus_gravity(model, state, vdot):
     """[m (r̈ − g); J ω̇' + ω̃' J ω'] per moving body, stacked (n,) [N, N m] (Eq. 13)."""
     column, mass, inertia, index = _body_arrays(model)
-    out = np.zeros(model.n_coords)
+    out = np.zeros(state.n_coords)
     _inertial_minus_gravity(column, mass, inertia, index, state.w_BB,
                             np.ascontiguousarray(vdot, dtype=float), np.asarray(model.gravity_W, float), out)
     return out
@@ -137,16 +137,33 @@ def assemble(layout, A, L_muscles, d_full):
     A : (n_sys_rows, n) constraint Jacobian incl. FDK rows; L_muscles : (n_muscles, n)
     path-length Jacobians; d_full : (n,) right-hand side for all coordinates.
     Columns: −Lᵀ (muscles), ±Φ_q̂ᵀ (unilateral reactions), Φ̃_q̂ᵀ (joint reactions),
-    Φ^FDK_q̂ᵀ (FDK residual forces).
+    Φ^FDK_q̂ᵀ (FDK residual forces). One compiled loop (:func:`_assemble`).
     """
     rows = layout.eq_coords
     sel, sign = _reaction_rows(layout)
     nm = layout.n_muscles
     C = np.empty((len(rows), nm + len(sel)))
-    if nm:
-        np.negative(L_muscles.take(rows, 1).T, out=C[:, :nm])
-    np.multiply(A.take(sel, 0).take(rows, 1).T, sign, out=C[:, nm:])
-    return C, d_full[rows]
+    d = np.empty(len(rows))
+    L = L_muscles if nm else np.zeros((0, A.shape[1]))
+    _assemble(np.asarray(L, dtype=float), np.asarray(A, dtype=float), rows, sel, sign,
+              np.asarray(d_full, dtype=float), C, d)
+    return C, d
+
+
+@njit(cache=True)
+def _assemble(L, A, rows, sel, sign, d_full, C, d):
+    """C[r] ← [−L[:, c]ᵀ, sign ∘ A[sel, c]ᵀ], d[r] ← d_full[c] for each equilibrium row
+    r with coordinate c = rows[r] (Eq. 12). L (n_muscles, n) m/m or m/rad; A (m_rows, n);
+    rows (n_eq,), sel (n_react,) int; sign (n_react,) ±1; d_full (n,) [N, N m];
+    outputs C (n_eq, n_muscles + n_react), d (n_eq,)."""
+    nm = L.shape[0]
+    for r in range(rows.shape[0]):
+        c = rows[r]
+        for j in range(nm):
+            C[r, j] = -L[j, c]
+        for k in range(sel.shape[0]):
+            C[r, nm + k] = A[sel[k], c] * sign[k]
+        d[r] = d_full[c]
 
 
 _REACTION_ROWS = weakref.WeakKeyDictionary()

@@ -60,6 +60,11 @@ class InverseDynamics:
         #: the RecruitmentSettings used
         self.settings = (settings.recruitment if settings is not None else None) or RecruitmentSettings()
         self.unilateral_strength = np.array([u[2] for u in self.layout.unilateral], dtype=float)
+        if self.settings.criterion == "minmax":
+            from ..recruitment import solve_minmax as solve
+        else:
+            from ..recruitment.polynomial import solve_polynomial as solve
+        self._solve = solve  # the recruitment solver of the model's criterion (Eq. 11)
         if len(self.layout.eq_coords) == 0:
             raise ValueError(f"model {model.name!r}: no body has equilibrium: true; nothing to solve")
 
@@ -86,16 +91,13 @@ class InverseDynamics:
         return C, d, s, muscles, outputs
 
     def recruit(self, C, d, s, warm=None):
-        """Solve the recruitment problem with the model's criterion."""
+        """Solve the recruitment problem with the model's criterion (C (n_eq, n_cols),
+        d (n_eq,) [N, N m], s (n_bounded,) N; warm: a previous RecruitmentResult)."""
         lay, st = self.layout, self.settings
-        kw = dict(row_names=lay.row_names, column_names=lay.column_names)
         if st.criterion == "minmax":
-            from ..recruitment import solve_minmax
-
-            return solve_minmax(C, d, lay.n_bounded, s, **kw)
-        from ..recruitment.polynomial import solve_polynomial
-
-        return solve_polynomial(C, d, lay.n_bounded, s, st.power, x0=warm, tol=st.tolerance, **kw)
+            return self._solve(C, d, lay.n_bounded, s, row_names=lay.row_names, column_names=lay.column_names)
+        return self._solve(C, d, lay.n_bounded, s, st.power, x0=warm, tol=st.tolerance, row_names=lay.row_names,
+                           column_names=lay.column_names)
 
     def frame(self, state, vdot, t, alpha=None, warm=None, A=None, data=None):
         """Inverse dynamics of one frame; ``state`` holds q and v, ``vdot`` (n,);

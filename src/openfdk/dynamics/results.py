@@ -96,7 +96,7 @@ def forces_values(fr, prefix="dyn.", report=None, status=None):
               "status": fr.status if status is None else status, "iterations": fr.iterations}
     if report is None:
         res = fr.recruitment
-        resid = float(np.max(np.abs(res.residual))) if res is not None and np.size(res.residual) else np.nan
+        resid = float(np.abs(res.residual).max()) if res is not None and np.size(res.residual) else np.nan
         report = (FrameReport.ok(fr.iterations, resid) if fr.converged
                   else FrameReport.failed(Reason.RECRUITMENT, fr.message, fr.iterations, resid))
     values["report"] = report

@@ -79,6 +79,7 @@ class FDKContext:
         self.dt = float(self.times[1] - self.times[0]) if len(self.times) > 1 else 1.0
         names = solver.layout.column_names
         self.fdk_columns = np.array([names.index(f"fdk.{d.name}") for d in model.fdk_dofs], dtype=int)
+        self._rates_frame, self._rates_k = None, None  # _measured_rates of the frame in work
 
     def frames_needed(self, k):
         """Frame k and (tracking) its existing neighbours."""
@@ -122,10 +123,18 @@ class FDKContext:
         x, xd, xdd, vis = self.meas[k]
         state = ws.states[k]
         data.x_M, data.visible, data.delta = x, vis, delta[k]
-        velocity_stage_tracking(self.tracker, data, state, _zero_nan(xd), _zero_nan(xdd), d1, d2)
+        velocity_stage_tracking(self.tracker, data, state, *self._measured_rates(k), d1, d2)
         ev = self._dynamics(k, alpha, state, data, warm_recruitment)
         ev.kkt, ev.lam, ev.delta, ev.x, ev.visible = data.kkt, data.lam, delta[k], x, vis
         return ev
+
+    def _measured_rates(self, k):
+        """(ẋ, ẍ) (n_markers, 3) [m/s, m/s²] of frame k with occluded markers' NaN set to
+        0: the same for every α, so built once per frame (the last frame's kept)."""
+        if self._rates_frame != k:
+            _, xd, xdd, _ = self.meas[k]
+            self._rates_frame, self._rates_k = k, (_zero_nan(xd), _zero_nan(xdd))
+        return self._rates_k
 
     def _rates(self, k, delta):
         """δ̇, δ̈ (n_markers, 3) at frame k from the residuals of k and its neighbours

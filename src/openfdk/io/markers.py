@@ -202,6 +202,10 @@ class MarkerTrajectories:
         # interval k with t_k ≤ t < t_k+1, clipped to the trial
         k = min(max(bisect.bisect_right(time, t) - 1, 0), n_intervals - 1)
         tau = t - time[k]
+        if self._all_valid[k] and tau == 0.0:
+            # at a sample (the usual analysis times): p = c0, ṗ = c1, p̈ = 2 c2 exactly
+            c = self._coef[k].reshape(4, n, 3)
+            return c[0].copy(), c[1].copy(), 2.0 * c[2], np.ones(n, dtype=bool)
         if self._all_valid[k]:
             # [p; ṗ; p̈] = T(τ) c with T = [[1, τ, τ², τ³], [0, 1, 2τ, 3τ²], [0, 0, 2, 6τ]]
             T = np.array([[1.0, tau, tau * tau, tau * tau * tau],

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..model.framedata import FrameData
+from ..model.kernels import extrapolate_poses
 from ..trial import drive
 from ..trial.status import frame_messages
 from .determinate import check_square, solve_positions, solve_velocities_accelerations
@@ -116,15 +117,10 @@ def alpha_inputs(model, alpha):
 
 def _extrapolate(state, q_prev):
     """state ← state ⊕ (state ⊖ q_prev): first-order prediction of the next frame's pose
-    (translations linearly, rotations by the same body-frame increment)."""
-    from ..spatial import normalize_quat, quat_conjugate, quat_multiply, rotation_matrix
-
-    qp = np.asarray(q_prev).reshape(-1, 7)
-    for k, i in enumerate(state.moving):
-        state.p_WB[i] = 2 * state.p_WB[i] - qp[k, :3]
-        dq = quat_multiply(quat_conjugate(qp[k, 3:]), state.quat_WB[i])
-        state.quat_WB[i] = normalize_quat(quat_multiply(state.quat_WB[i], dq))
-        state.R_WB[i] = rotation_matrix(state.quat_WB[i])
+    (translations linearly, rotations by the same body-frame increment; one kernel,
+    :func:`openfdk.model.kernels.extrapolate_poses`). q_prev (7 n_moving,) [m, -]."""
+    extrapolate_poses(state.p_WB, state.quat_WB, state.R_WB, state.moving,
+                      np.ascontiguousarray(q_prev, dtype=float).reshape(-1))
 
 
 def kinematics_fields(model, n_markers, prefix="kin."):
@@ -223,10 +219,14 @@ class TrackingStep:
             tracker.initial_guess(state, x, vis)
             self.guessed = True
         res, K, _ = tracker.solve_positions(state, t, x, vis, self.alpha)
-        frame = {"res": res, "meas": (x, xd, xdd, vis), "K": None, "q": None,
+        frame = {"res": res, "meas": (xd, xdd), "q": None, "state": None, "data": None,
                  "delta": np.full((self.model.markers.size, 3), np.nan)}
         if res.converged:
-            frame.update(K=K, q=state.get_q(), delta=np.where(vis[:, None], tracker.residuals(state, x), np.nan))
+            # the position stage at the solved pose, once: the markers' p_WM and Ψ_q̂ give
+            # δ = p_WM − x (Eq. 7) now and the velocity stage (Eqs. 8–10) at frame k + 1
+            data = marker_stage(tracker.markers, FrameData(t=t, alpha=self.alpha, kkt=K, visible=vis), state)
+            data.delta = np.where(vis[:, None], data.p_M.reshape(-1, 3) - x, np.nan)
+            frame.update(q=state.get_q(), state=state.copy(), data=data, delta=data.delta)
             self.last_good = state.copy()
             # warm start of the next frame: linear extrapolation on the manifold
             if self.q_prev is not None:
@@ -256,12 +256,10 @@ class TrackingStep:
         prev, nxt = self.pending.get(j - 1), self.pending.get(j + 1)
         d1, d2 = residual_rates(None if prev is None else prev["delta"], fr["delta"],
                                 None if nxt is None else nxt["delta"], self.dt)
-        x, xd, xdd, vis = fr["meas"]
-        state = self.model.initial_state()
-        state.set_q(fr["q"])
-        data = marker_stage(self.tracker.markers, FrameData(t=self.times[j], alpha=self.alpha), state)
-        data.kkt, data.visible = fr["K"], vis
-        velocity_stage_tracking(self.tracker, data, state, np.nan_to_num(xd), np.nan_to_num(xdd), d1, d2)
+        xd, xdd = fr["meas"]
+        state, data = fr["state"], fr["data"]  # the solved pose of frame j (its own copy: the stage sets v)
+        # occluded markers' NaN ẋ, ẍ are masked out of the targets by the stage (weight 0)
+        velocity_stage_tracking(self.tracker, data, state, xd, xdd, d1, d2)
         self.frame_data[j] = data
         values.update({P + "q": fr["q"], P + "v": data.v, P + "vdot": data.vdot})
         return values

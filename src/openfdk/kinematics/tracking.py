@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from ..spatial import quat_from_matrix
 from ..trial.status import Reason
@@ -52,13 +53,20 @@ class MarkerTracker:
     def _weights(self, visible):
         """Per-row weights (3 n_markers,) from marker weights and visibility (cached per
         visibility pattern; read-only)."""
+        return self._pattern(visible)[0]
+
+    def _pattern(self, visible):
+        """(per-row weights (3 n_markers,), per-row visibility (3 n_markers,) bool) of a
+        visibility pattern (n_markers,) bool, built once per pattern; read-only."""
         key = visible.tobytes()
-        w = self._weight_cache.get(key)
-        if w is None:
+        out = self._weight_cache.get(key)
+        if out is None:
             w = np.repeat(np.where(visible, self.markers.weight, 0.0), 3)
+            vis3 = np.repeat(visible, 3)
             w.setflags(write=False)
-            self._weight_cache[key] = w
-        return w
+            vis3.setflags(write=False)
+            out = self._weight_cache[key] = (w, vis3)
+        return out
 
     def observability_message(self, state, t, visible, alpha=None):
         """'' if the visible markers plus constraints fix the pose, else a message
@@ -187,8 +195,7 @@ class MarkerTracker:
         ν = ḟ (m,) at the pose, from that evaluation.
         """
         n = self.system.n_coords
-        w = self._weights(visible)
-        vis3 = np.repeat(visible, 3)
+        w, vis3 = self._pattern(visible)
         f, df, ddf = self.system.targets(t, alpha)
         if J is None:
             J = self.markers.evaluate(state, 1)[1]
@@ -215,17 +222,41 @@ def residual_rates(prev, cur, nxt, dt):
     """δ̇ and δ̈ (nm, 3) of one frame from the residuals δ (nm, 3) m of the frame and its
     neighbours (Eq. 7 and its second-order analogue): central where all three are known,
     one-sided where a neighbour is missing (None: outside the trial) or NaN (failed
-    frame, occluded marker), 0 otherwise."""
-    good = np.isfinite(cur)
-    none = np.zeros_like(good)
-    good_p = np.isfinite(prev) if prev is not None else none
-    good_n = np.isfinite(nxt) if nxt is not None else none
-    D = np.where(good, cur, 0.0)
-    Dp = np.where(good_p, prev, 0.0) if prev is not None else D
-    Dn = np.where(good_n, nxt, 0.0) if nxt is not None else D
-    both = good & good_p & good_n
-    d1 = np.where(both, (Dn - Dp) / (2 * dt), 0.0)
-    d2 = np.where(both, (Dn - 2 * D + Dp) / dt**2, 0.0)
-    d1 = np.where(good & good_n & ~good_p, (Dn - D) / dt, d1)
-    d1 = np.where(good & good_p & ~good_n, (D - Dp) / dt, d1)
+    frame, occluded marker), 0 otherwise. A neighbour whose set of visible markers differs
+    from this frame's counts as missing for every marker: its pose solves another
+    least-squares problem, so the residuals step between the two frames and a difference
+    across that step is ±step/Δt² of spurious acceleration (tests/test_tracking_gap.py).
+    dt : frame spacing, s. One compiled loop (:func:`_residual_rates`)."""
+    cur = np.ascontiguousarray(cur, dtype=float)
+    d1, d2 = np.empty_like(cur), np.empty_like(cur)
+    _residual_rates(cur if prev is None else np.ascontiguousarray(prev, dtype=float), prev is not None,
+                    cur, cur if nxt is None else np.ascontiguousarray(nxt, dtype=float), nxt is not None,
+                    float(dt), d1.reshape(-1), d2.reshape(-1))
     return d1, d2
+
+
+@njit(cache=True)
+def _residual_rates(prev, has_prev, cur, nxt, has_next, dt, d1, d2):
+    """d1, d2 (3 nm,) ← δ̇, δ̈ of :func:`residual_rates` (prev, cur, nxt (nm, 3) m; a
+    neighbour counts as missing everywhere when ``has_*`` is False or when its finite
+    entries are not this frame's)."""
+    p, c, x = prev.reshape(-1), cur.reshape(-1), nxt.reshape(-1)
+    for i in range(c.shape[0]):  # another visible set: the neighbour is missing everywhere
+        if has_prev and np.isfinite(p[i]) != np.isfinite(c[i]):
+            has_prev = False
+        if has_next and np.isfinite(x[i]) != np.isfinite(c[i]):
+            has_next = False
+    for i in range(c.shape[0]):
+        d1[i] = 0.0
+        d2[i] = 0.0
+        if not np.isfinite(c[i]):
+            continue
+        good_p = has_prev and np.isfinite(p[i])
+        good_n = has_next and np.isfinite(x[i])
+        if good_p and good_n:
+            d1[i] = (x[i] - p[i]) / (2 * dt)
+            d2[i] = (x[i] - 2 * c[i] + p[i]) / dt**2
+        elif good_n:
+            d1[i] = (x[i] - c[i]) / dt
+        elif good_p:
+            d1[i] = (c[i] - p[i]) / dt

@@ -72,17 +72,29 @@ def displace_poses(p_WB, quat_WB, R_WB, moving, column, dq_hat):
         else:
             s = np.sin(0.5 * angle) / angle
         d0, d1, d2, d3 = np.cos(0.5 * angle), s * x, s * y, s * z
-        p0, p1, p2, p3 = quat_WB[i, 0], quat_WB[i, 1], quat_WB[i, 2], quat_WB[i, 3]
-        e0 = p0 * d0 - p1 * d1 - p2 * d2 - p3 * d3
-        e1 = p0 * d1 + p1 * d0 + p2 * d3 - p3 * d2
-        e2 = p0 * d2 - p1 * d3 + p2 * d0 + p3 * d1
-        e3 = p0 * d3 + p1 * d2 - p2 * d1 + p3 * d0
-        norm = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2 + e3 * e3)
-        if e0 < 0:
-            norm = -norm
-        e0, e1, e2, e3 = e0 / norm, e1 / norm, e2 / norm, e3 / norm
-        quat_WB[i, 0], quat_WB[i, 1], quat_WB[i, 2], quat_WB[i, 3] = e0, e1, e2, e3
-        _set_rotation(R_WB, i, e0, e1, e2, e3)
+        _set_times(quat_WB, R_WB, i, d0, d1, d2, d3)
+
+
+@njit(cache=True)
+def _quat_product(p0, p1, p2, p3, d0, d1, d2, d3):
+    """p ⊗ d of two quaternions (scalar first), as four numbers."""
+    return (p0 * d0 - p1 * d1 - p2 * d2 - p3 * d3,
+            p0 * d1 + p1 * d0 + p2 * d3 - p3 * d2,
+            p0 * d2 - p1 * d3 + p2 * d0 + p3 * d1,
+            p0 * d3 + p1 * d2 - p2 * d1 + p3 * d0)
+
+
+@njit(cache=True)
+def _set_times(quat_WB, R_WB, i, d0, d1, d2, d3):
+    """quat_WB[i] ← p ⊗ d normalised with scalar part ≥ 0 (p = quat_WB[i], d a
+    quaternion as four numbers), R_WB[i] ← R of it; quat_WB (nb, 4), R_WB (nb, 3, 3)."""
+    e0, e1, e2, e3 = _quat_product(quat_WB[i, 0], quat_WB[i, 1], quat_WB[i, 2], quat_WB[i, 3], d0, d1, d2, d3)
+    norm = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2 + e3 * e3)
+    if e0 < 0:
+        norm = -norm
+    e0, e1, e2, e3 = e0 / norm, e1 / norm, e2 / norm, e3 / norm
+    quat_WB[i, 0], quat_WB[i, 1], quat_WB[i, 2], quat_WB[i, 3] = e0, e1, e2, e3
+    _set_rotation(R_WB, i, e0, e1, e2, e3)
 
 
 @njit(cache=True)
@@ -250,3 +262,42 @@ def set_velocities(v, column, moving, v_WB, w_BB):
         for r in range(3):
             v_WB[i, r] = v[c + r]
             w_BB[i, r] = v[c + 3 + r]
+
+
+@njit(cache=True)
+def get_poses(p_WB, quat_WB, moving, q):
+    """q ← [r_1, p_1, r_2, p_2, …] (7 n_moving,) [m, -] of the moving bodies."""
+    for k in range(moving.shape[0]):
+        i = moving[k]
+        for r in range(3):
+            q[7 * k + r] = p_WB[i, r]
+        for r in range(4):
+            q[7 * k + 3 + r] = quat_WB[i, r]
+
+
+@njit(cache=True)
+def get_velocities(v_WB, w_BB, column, moving, v):
+    """v[c:c+3] ← ṙ_i, v[c+3:c+6] ← ω'_i for every moving body i (c = column[i]);
+    v (6 n_moving,) [m/s, rad/s]. Inverse of :func:`set_velocities`."""
+    for i in moving:
+        c = column[i]
+        for r in range(3):
+            v[c + r] = v_WB[i, r]
+            v[c + 3 + r] = w_BB[i, r]
+
+
+@njit(cache=True)
+def extrapolate_poses(p_WB, quat_WB, R_WB, moving, q_prev):
+    """In place, for every moving body: r ← 2 r − r_prev and p ← p ⊗ (p_prev* ⊗ p)
+    (normalised, scalar part ≥ 0), R ← R(p): the next frame's pose predicted linearly
+    on the manifold (the same body-frame rotation increment again). q_prev
+    (7 n_moving,) [m, -] the previous frame's pose in :func:`get_poses` layout."""
+    for k in range(moving.shape[0]):
+        i = moving[k]
+        for r in range(3):
+            p_WB[i, r] = 2 * p_WB[i, r] - q_prev[7 * k + r]
+        # d = p_prev* ⊗ p, then p ← p ⊗ d
+        d0, d1, d2, d3 = _quat_product(q_prev[7 * k + 3], -q_prev[7 * k + 4], -q_prev[7 * k + 5],
+                                       -q_prev[7 * k + 6], quat_WB[i, 0], quat_WB[i, 1], quat_WB[i, 2],
+                                       quat_WB[i, 3])
+        _set_times(quat_WB, R_WB, i, d0, d1, d2, d3)

@@ -113,6 +113,19 @@ def _wrap(ctx, path, fn):
         raise ctx.error(path, msg) from None
 
 
+def _angles(ctx, value, path):
+    """Three angles in the file's angle unit -> rad (3,). Warns when the file's angles are
+    in rad but a value exceeds a full turn (2π): such numbers are almost always degrees."""
+    v = ctx.vector(value, path, n=3)
+    if ctx.angle == 1.0 and np.any(np.abs(v) > 2 * np.pi):
+        from .plausibility import warn_plausibility
+
+        big = float(v[np.argmax(np.abs(v))])
+        warn_plausibility(f"{ctx.source}: {path}: {big:g} rad is more than a full turn; the file's angles are in rad "
+                          "(the default): are these degrees? (set units: {angle: deg})")
+    return v * ctx.angle
+
+
 def _orientation(value, path, ctx):
     """Cardan x-y-z angles (file angle unit), or {quaternion: [...]}, {matrix: [[...]]},
     {rotation_vector: [...]} -> rotation matrix (3, 3)."""
@@ -124,11 +137,11 @@ def _orientation(value, path, ctx):
             raise ctx.error(path, "give exactly one of xyz, quaternion, matrix, rotation_vector")
         kind, v = next(iter(value.items()))
         if kind == "xyz":
-            return rotation_matrix_xyz(ctx.vector(v, f"{path}.xyz", n=3) * ctx.angle)
+            return rotation_matrix_xyz(_angles(ctx, v, f"{path}.xyz"))
         if kind == "rotation_vector":
             from ..spatial import rotation_matrix
 
-            return rotation_matrix(quat_from_rotvec(ctx.vector(v, f"{path}.{kind}", n=3) * ctx.angle))
+            return rotation_matrix(quat_from_rotvec(_angles(ctx, v, f"{path}.{kind}")))
         if kind == "quaternion":
             from ..spatial import normalize_quat, rotation_matrix
 
@@ -137,7 +150,7 @@ def _orientation(value, path, ctx):
         if not np.allclose(M @ M.T, np.eye(3), atol=1e-6) or np.linalg.det(M) <= 0:
             raise ctx.error(f"{path}.matrix", "is not a rotation matrix")
         return M
-    return rotation_matrix_xyz(ctx.vector(value, path, n=3) * ctx.angle)
+    return rotation_matrix_xyz(_angles(ctx, value, path))
 
 
 def _load_bodies(b, bodies, ctx):

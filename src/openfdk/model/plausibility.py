@@ -48,6 +48,11 @@ def _warn(msg):
     warnings.warn(msg, PlausibilityWarning, stacklevel=3)
 
 
+def warn_plausibility(msg):
+    """Issue one plausibility warning (printed by the CLI as ``openfdk: warning: msg``)."""
+    warnings.warn(msg, PlausibilityWarning, stacklevel=3)
+
+
 # -- model ------------------------------------------------------------------------------
 
 def check_model(model, source="", length_unit="m"):
@@ -56,7 +61,8 @@ def check_model(model, source="", length_unit="m"):
     check_mass_properties(model, source)
     check_length_magnitudes(model, source, length_unit)
     check_contact_facing(model, source)
-    check_passive_muscles(model, source)
+    check_passive_muscles(model, source, length_unit)
+    check_fdk_held(model, source)
 
 
 def _where(source, path):
@@ -167,9 +173,22 @@ def check_contact_facing(model, source=""):
                       "flip_normals: true if the file is wound the other way")
 
 
-def check_passive_muscles(model, source=""):
+def check_fdk_held(model, source=""):
+    """Warn when a model has FDK DOFs but no spring, bushing, ligament or contact: then
+    only the muscles act along the DOFs, the FDK residual (Eq. 16) has no restoring
+    force and the Newton iteration cannot converge."""
+    if model.fdk_dofs and not (model.springs or model.ligaments or model.contacts):
+        names = [d.name for d in model.fdk_dofs]
+        _warn(f"{_where(source, 'fdk_dofs')}: no spring, bushing, ligament or contact in the model holds the FDK "
+              f"DOFs {names}: their residual has no restoring force and FDK will not converge; add springs "
+              "(the paper uses 0.1 N/m), ligaments or contact")
+
+
+def check_passive_muscles(model, source="", length_unit="m"):
     """Warn for each Hill muscle whose passive force at the reference pose exceeds
-    PASSIVE_FRACTION of its maximum isometric force F0."""
+    PASSIVE_FRACTION of its maximum isometric force F0. When Lf0 + Lt0 is under 1 % of
+    the path length, the warning says that these lengths are in the file's length unit
+    ``length_unit`` (metres written in a mm file are 1000x too short)."""
     muscles = [m for m in model.muscles if hasattr(m.law, "passive_shape_factor")]
     if not muscles:
         return
@@ -183,7 +202,18 @@ def check_passive_muscles(model, source=""):
         if np.isfinite(passive) and passive > PASSIVE_FRACTION * F0:
             _warn(f"{_where(source, f'muscles.{m.name}')}: passive force {passive:.4g} N at the reference pose is "
                   f"{100 * passive / F0:.0f} % of max_isometric_force ({F0:g} N); check optimal_fibre_length and "
-                  f"tendon_slack_length (path length {length * 1e3:.1f} mm)")
+                  f"tendon_slack_length (path length {length * 1e3:.1f} mm){_muscle_unit_hint(m.law, length, length_unit)}")
+
+
+def _muscle_unit_hint(law, length, length_unit):
+    """A hint when Lf0 + Lt0 (m) is under 1 % of the path ``length`` (m): the muscle's
+    lengths were probably written in m in a file whose length unit is smaller."""
+    total = float(law.optimal_fibre_length + law.tendon_slack_length)
+    if total >= 0.01 * length:
+        return ""
+    scale = LENGTH_SCALES.get(length_unit, 1.0)
+    return (f"; optimal_fibre_length + tendon_slack_length = {total / scale:g} {length_unit} as written: muscle "
+            f"lengths are in the file's length unit ({length_unit}), not in m")
 
 
 # -- trial against model ----------------------------------------------------------------
@@ -219,10 +249,15 @@ def check_trial_markers(model, trial, times):
         factor = 10 ** round(np.log10(ratio))
         _warn(f"{trial.source}: at the first frame (t = {times[0]:g} s) the markers spread {s_trial:.4g} m around "
               f"their centroid, {ratio:.3g}x the model's markers ({s_model:.4g} m): likely the wrong units "
-              f"(a factor {factor:g}; check POINT:UNITS)")
+              f"(a factor {factor:g}; check {_units_field(trial.source)})")
     elif gap > max(FAR_FROM_MODEL, 20 * s_model):
         _warn(f"{trial.source}: at the first frame (t = {times[0]:g} s) the markers' centroid is {gap:.3g} m from "
               "the model's markers at the reference pose; check the units and the lab frame")
+
+
+def _units_field(source):
+    """Where a trial file declares its marker units: TRC line 3 (Units), C3D POINT:UNITS."""
+    return "Units on line 3" if str(source).lower().endswith(".trc") else "POINT:UNITS"
 
 
 # -- run results ------------------------------------------------------------------------

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..spatial import rotation_matrix
-from .kernels import displace_poses, set_poses, set_velocities
+from .kernels import displace_poses, get_poses, get_velocities, set_poses, set_velocities
 
 
 class BodyStates:
@@ -51,8 +51,9 @@ class BodyStates:
     # -- coordinates --------------------------------------------------------------
     def get_q(self):
         """Positions as a flat vector [r_1, p_1, r_2, p_2, …] (7 n_moving,) (m, -)."""
-        m = self.moving
-        return np.concatenate([self.p_WB[m], self.quat_WB[m]], axis=1).ravel()
+        q = np.empty(7 * len(self.moving))
+        get_poses(self.p_WB, self.quat_WB, self.moving, q)
+        return q
 
     def set_q(self, q):
         """Inverse of :meth:`get_q`; q (7 n_moving,). Quaternions are normalised (scalar
@@ -75,10 +76,7 @@ class BodyStates:
     def get_v(self):
         """Generalised velocity (6 n_moving,) [m/s, rad/s]."""
         v = np.empty(self.n_coords)
-        for i in self.moving:
-            c = self.column[i]
-            v[c : c + 3] = self.v_WB[i]
-            v[c + 3 : c + 6] = self.w_BB[i]
+        get_velocities(self.v_WB, self.w_BB, self.column, self.moving, v)
         return v
 
     def set_v(self, v):

@@ -8,6 +8,7 @@ and parameters (never as expressions to evaluate, DESIGN.md §4).
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from scipy.interpolate import CubicSpline
 
 __all__ = ["Constant", "Polynomial", "Fourier", "SplineThroughData", "TimeFunction"]
@@ -82,13 +83,24 @@ class Fourier(TimeFunction):
         self._kw = np.arange(1, self.a.shape[0], dtype=float) * self.omega  # (n,) rad/s
 
     def derivatives(self, t):
-        kw = self._kw
-        c, s = np.cos(kw * t), np.sin(kw * t)
-        ak, bk = self.a[1:], self.b
-        f = self.a[0] + c @ ak + s @ bk
-        df = (-kw * s) @ ak + (kw * c) @ bk
-        ddf = -((kw * kw * c) @ ak + (kw * kw * s) @ bk)
+        f, df, ddf = np.empty(self.size), np.empty(self.size), np.empty(self.size)
+        _fourier(self._kw, self.a, self.b, float(t), f, df, ddf)
         return f, df, ddf
+
+
+@njit(cache=True)
+def _fourier(kw, a, b, t, f, df, ddf):
+    """f, ḟ, f̈ (size,) of the Fourier series at t (s): kw (n,) rad/s the harmonics'
+    k ω, a (n+1, size), b (n, size) (one compiled loop)."""
+    for j in range(f.shape[0]):
+        v, dv, ddv = a[0, j], 0.0, 0.0
+        for k in range(kw.shape[0]):
+            w = kw[k]
+            c, s = np.cos(w * t), np.sin(w * t)
+            v += c * a[k + 1, j] + s * b[k, j]
+            dv += -w * s * a[k + 1, j] + w * c * b[k, j]
+            ddv -= w * w * c * a[k + 1, j] + w * w * s * b[k, j]
+        f[j], df[j], ddf[j] = v, dv, ddv
 
 
 class SplineThroughData(TimeFunction):

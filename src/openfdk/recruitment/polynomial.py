@@ -186,7 +186,7 @@ def _warm_start(x0, n_eq, n_var, n_bounded, s):
         return 0, np.zeros(n_eq), np.zeros(n_bounded)
     if isinstance(x0, RecruitmentResult):
         lam = np.asarray(x0.multipliers, dtype=np.float64)
-        if x0.converged and lam.shape == (n_eq,) and np.all(np.isfinite(lam)):
+        if x0.converged and lam.shape == (n_eq,) and np.isfinite(lam).all():
             return 1, np.ascontiguousarray(lam), np.zeros(n_bounded)
         x0 = x0.f
     x0 = np.asarray(x0, dtype=np.float64)

@@ -20,6 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from numba import njit
 
 __all__ = [
     "RecruitmentResult",
@@ -156,10 +157,10 @@ def check_problem(C, d, n_bounded, s, row_names=None, column_names=None):
         raise RecruitmentInputError(
             f"s (strengths) must have shape ({n_bounded},) = (n_bounded,); got {s.shape}"
         )
-    # NaN and inf propagate through a sum (cheaper than an element-wise isfinite)
-    if not (np.isfinite(C.sum()) and np.isfinite(d.sum())):
+    cd_finite, s_ok = _value_checks(C, d, s)
+    if not cd_finite:
         raise RecruitmentInputError("C and d must be finite (found NaN or inf)")
-    if n_bounded and not (s.min() >= 0.0 and np.isfinite(s.sum())):
+    if not s_ok:
         j = int(np.flatnonzero(~(np.isfinite(s) & (s >= 0.0)))[0])
         raise RecruitmentInputError(
             f"strength of {column_label(j, column_names)} must be finite and ≥ 0 N; got {s[j]!r}"
@@ -171,6 +172,24 @@ def check_problem(C, d, n_bounded, s, row_names=None, column_names=None):
             f"column_names must have {n_var} entries; got {len(column_names)}"
         )
     return C, d, s
+
+
+@njit(cache=True)
+def _value_checks(C, d, s):
+    """(all of C (n_eq, n_var) and d (n_eq,) finite, all strengths s (n_bounded,) N
+    finite and ≥ 0): one pass over the values, no temporaries."""
+    cd_finite = True
+    for i in range(C.shape[0]):
+        if not np.isfinite(d[i]):
+            cd_finite = False
+        for j in range(C.shape[1]):
+            if not np.isfinite(C[i, j]):
+                cd_finite = False
+    s_ok = True
+    for j in range(s.shape[0]):
+        if not (np.isfinite(s[j]) and s[j] >= 0.0):
+            s_ok = False
+    return cd_finite, s_ok
 
 
 def rank_deficiency_error(null_vectors, n_bounded, column_names):

@@ -150,6 +150,7 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
     # model (on loading), trial markers in the window, and the pulling contacts below
     from ..io.modelfile import load_model_and_settings
     from ..jobs import analysis_inputs
+    from ..contact.rim import warn_contact_rims
     from ..model.plausibility import warn_pulling_contacts
 
     model, settings = load_model_and_settings(model_path)
@@ -196,6 +197,7 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
     wall = _time.perf_counter() - t0
     kin, dyn, fdk = stitch(results, wall)
     warn_pulling_contacts(model, kin, dyn)
+    warn_contact_rims(model, kin)
     info = {**results[0].info, **chunk_info(results, overlap)}
     info["model"] = str(model_path)
     if fdk is not None:

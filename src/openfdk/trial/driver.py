@@ -51,16 +51,22 @@ class Recording:
 
     def record(self, k, values):
         """Store frame k's values (dict name -> value) and mark it finished."""
+        arrays, objects = self._arrays, self._objects
         for name, value in values.items():
-            if name not in self._arrays and name not in self._objects:
+            a = arrays.get(name)
+            if a is not None:
+                a[k] = value
+                continue
+            o = objects.get(name)
+            if o is None:
                 if isinstance(value, (str, FrameReport)) or value is None:
                     self._declare(name, (), object, None)
                 else:
                     self._declare(name, np.shape(value), float, np.nan)
-            if name in self._objects:
-                self._objects[name][k] = value
-            else:
-                self._arrays[name][k] = value
+                    arrays[name][k] = value
+                    continue
+                o = objects[name]
+            o[k] = value
         self.done[k] = True
 
     @property
@@ -109,12 +115,12 @@ class TrialInterrupted(KeyboardInterrupt):
         self.frames_planned = frames_planned
 
 
-def _progress(total, enabled, desc):
+def _progress(total, enabled, desc, initial=0):
     if not enabled:
         return None
     from ..progress import progress
 
-    return progress(total, desc, "frame")
+    return progress(total, desc, "frame", initial=initial)
 
 
 def drive(step, n_frames, build, *, progress=False, desc="frames", checkpoints=None, resume=False):
@@ -138,9 +144,7 @@ def drive(step, n_frames, build, *, progress=False, desc="frames", checkpoints=N
             start = saved.next_frame
     elif checkpoints is not None:
         checkpoints.clear()  # another run's parts must not mix with this one's
-    bar = _progress(n_frames, progress, desc)
-    if bar is not None and start:
-        bar.update(start)
+    bar = _progress(n_frames, progress, desc, initial=start)
     pending = []
     stop = _StopOnSigint()
     try:
@@ -148,7 +152,8 @@ def drive(step, n_frames, build, *, progress=False, desc="frames", checkpoints=N
             for k in range(start, n_frames):
                 for j, values in step.step(k):
                     rec.record(j, values)
-                    pending.append((j, values))
+                    if checkpoints is not None:
+                        pending.append((j, values))
                 if checkpoints is not None and checkpoints.due(len(pending)):
                     checkpoints.save(pending, step.carry(), k + 1)
                     pending = []

@@ -1,0 +1,136 @@
+"""Is numba's on-disk cache of the frame kernels cold (fresh install, upgrade, new cache folder)?
+
+The numerical kernels are ``numba.njit(cache=True)`` functions. numba keeps, per function,
+an index file (``<module>.<function>-<line>.pyXY.nbi``) in the module's ``__pycache__`` (or
+under ``NUMBA_CACHE_DIR``) that records the source file's stamp (mtime, size) and the
+compiled signatures. When that index is missing, or its stamp no longer matches the source
+(an upgrade rewrote the file), the first call compiles — 1–2 min for all the kernels of a
+run — and nothing is shown while it does.
+
+:func:`cache_is_cold` reads those index files (a few kB of pickles, milliseconds) through
+each dispatcher's own cache object, so it sees the same folder and staleness rule numba
+applies, and :func:`announce_cold_cache` prints one informational line before the first
+kernel call of a CLI command (``check`` after reading the model; the analyses after reading
+the model and the trial, through :func:`arm` and :func:`announce_armed`).
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+#: Modules whose kernels ``openfdk check`` calls for every model (the constraint program).
+CHECK_KERNEL_MODULES = (
+    "openfdk.model.compiled",
+    "openfdk.model.kernels",
+)
+#: ... and those every kinematic, inverse-dynamics and FDK frame calls (kinematic frame
+#: solve, equilibrium, the default polynomial recruitment).
+FRAME_KERNEL_MODULES = CHECK_KERNEL_MODULES + (
+    "openfdk.kinematics.frame_kernels",
+    "openfdk.dynamics.equilibrium",
+    "openfdk.recruitment.polynomial",
+    "openfdk.recruitment.interior_point",
+)
+
+MESSAGE = ("openfdk: compiling numerical kernels (first run after install, about 1–2 min; "
+           "cached afterwards)")
+
+
+def cached_dispatchers(module):
+    """The ``cache=True`` numba dispatchers defined in ``module`` (a module object)."""
+    out = []
+    for value in vars(module).values():
+        cache = getattr(value, "_cache", None)
+        py_func = getattr(value, "py_func", None)
+        if py_func is None or getattr(py_func, "__module__", None) != module.__name__:
+            continue
+        if getattr(cache, "_cache_file", None) is not None:
+            out.append(value)
+    return out
+
+
+def _index_is_fresh(dispatcher):
+    """True when numba's index for ``dispatcher`` exists, is of this numba's format, matches
+    the current source stamp and lists at least one compiled signature."""
+    try:
+        return bool(dispatcher._cache._cache_file._load_index())
+    except Exception:  # unreadable / other numba layout: count as cold, numba will recompile
+        return False
+
+
+def _module_counts(modules):
+    """[(cold kernels, cached kernels)] per module of ``modules`` (names or module objects)."""
+    counts = []
+    for module in modules:
+        if isinstance(module, str):
+            module = importlib.import_module(module)
+        fresh = [_index_is_fresh(d) for d in cached_dispatchers(module)]
+        counts.append((len(fresh) - sum(fresh), len(fresh)))
+    return counts
+
+
+def cold_fraction(modules=FRAME_KERNEL_MODULES):
+    """(number of cached kernels without a fresh index, number of cached kernels) over
+    ``modules`` (names or module objects)."""
+    counts = _module_counts(modules)
+    return sum(c for c, _ in counts), sum(n for _, n in counts)
+
+
+def cache_is_cold(modules=FRAME_KERNEL_MODULES):
+    """True when a module of ``modules`` has no compiled kernel at all (never used since
+    the install or the last upgrade of its source), or when at least half of the kernels of
+    ``modules`` have no fresh index.
+
+    A model calls only some kernels of a module (no wrapping, one recruitment path…), so a
+    warm cache still has never-compiled entries; but every module listed is used by every
+    run, so a module with none compiled means its first call compiles."""
+    counts = _module_counts(modules)
+    n_cold, n_total = sum(c for c, _ in counts), sum(n for _, n in counts)
+    if any(n and c == n for c, n in counts):
+        return True
+    return n_total > 0 and 2 * n_cold >= n_total
+
+
+def announce_cold_cache(quiet=False, stream=None, modules=None):
+    """Print :data:`MESSAGE` to ``stream`` (stderr) when the kernel cache of ``modules``
+    (default :data:`FRAME_KERNEL_MODULES`) is cold and not ``quiet``; tell the progress
+    displays to start their clocks after their first step (the one that compiles).
+    Returns whether the cache was cold."""
+    from .progress import set_warmup
+
+    try:
+        cold = cache_is_cold(FRAME_KERNEL_MODULES if modules is None else modules)
+    except Exception:  # numba missing or its internals changed: say nothing, run as usual
+        return False
+    set_warmup(cold)
+    if cold and not quiet:
+        stream = sys.stderr if stream is None else stream
+        print(MESSAGE, file=stream)
+        stream.flush()
+    return cold
+
+
+_ARMED = None  # (quiet, modules) set by the CLI, used once the inputs are read
+
+
+def arm(quiet=False, modules=None):
+    """Ask for :func:`announce_cold_cache` at the next :func:`announce_armed` (the analysis
+    calls it after reading the model and trial, so bad input still gives one line)."""
+    global _ARMED
+    _ARMED = (bool(quiet), modules)
+
+
+def disarm():
+    global _ARMED
+    _ARMED = None
+
+
+def announce_armed(stream=None):
+    """:func:`announce_cold_cache` once if :func:`arm` was called; else nothing."""
+    global _ARMED
+    if _ARMED is None:
+        return False
+    quiet, modules = _ARMED
+    _ARMED = None
+    return announce_cold_cache(quiet=quiet, stream=stream, modules=modules)
