@@ -29,8 +29,9 @@ worker, openfdk's analysis layers, and numba's cached kernels loaded
 workers, and those a nanny restarts, begin with all of it done. The server lives as
 long as this process and serves its later clusters. Its environment, fixed when it
 starts, is :data:`FORK_SERVER_ENVIRONMENT` (one BLAS thread, as Dask's nanny sets); the
-driver's other environment variables are passed to each worker as it starts. With ``malloc_trim=True`` (which must be in the
-environment when a process starts) the workers are spawned as Dask does by default.
+driver's other environment variables are passed to each worker as it starts. With
+``malloc_trim=True`` (which must be in the environment when a process starts) the
+workers are spawned as Dask does by default.
 In each worker, the case layer keeps the meshes and parsed model files of the cases it
 ran (:mod:`openfdk.contact.mesh_cache`, :func:`openfdk.study.kinds.read_model_mapping`)
 and the distance grids (:mod:`openfdk.contact.grid_cache`), so a worker loads a model's
