@@ -133,3 +133,28 @@ def test_study_driver_imports_no_analysis_layer():
         warnings.simplefilter("error")
         from openfdk.model.errors import ModelError as light
     assert light is ModelError
+
+
+def test_a_second_local_cluster_starts_without_the_busy_port_warning():
+    """Port 8787 held by another program (another cluster's HTTP endpoint): the local
+    cluster takes any free port, so Dask's 'Port 8787 is already in use' never reaches
+    the user, and the cluster still runs a task."""
+    import socket
+
+    from openfdk.study.cluster import dask_client
+
+    holder = socket.socket()
+    try:
+        holder.bind(("127.0.0.1", 8787))
+        holder.listen()
+    except OSError:
+        pass  # already held by someone else: the situation this test needs
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            with dask_client(workers=1) as client:
+                assert client.submit(sum, [1, 2, 3]).result() == 6
+        busy = [w for w in caught if "already in use" in str(w.message)]
+        assert busy == []
+    finally:
+        holder.close()

@@ -139,6 +139,9 @@ def dask_client(scheduler=None, workers=None, malloc_trim=False, timeout=START_T
             cluster = LocalCluster(
                 n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
                 dashboard_address=None, worker_dashboard_address=None, silence_logs=logging.ERROR,
+                # the scheduler always serves HTTP (health, metrics); without an address it
+                # takes :8787 and warns when another cluster holds it: any free local port
+                scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
                 env=None if malloc_trim else _forwarded_environment(),
             )
             client = Client(cluster, timeout=f"{timeout}s", set_as_default=False)
