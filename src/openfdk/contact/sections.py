@@ -29,7 +29,8 @@ from ..model.modelfile import _orientation, _wrap
 from ..model.model import ModelError
 from .elastic_foundation import DEFAULT_GRID_SPACING, DEFAULT_MAX_DEPTH, ElasticFoundation
 from .element import ContactElement
-from .mesh import MeshError, MeshWarning, check_scale, load_mesh, offset
+from .mesh import MeshError, MeshWarning, check_scale, offset
+from .mesh_cache import cached_load_mesh
 
 CONTACTS = "contacts"
 #: typical size (m) of a meshed joint region, for the mm-vs-m order-of-magnitude warning
@@ -82,8 +83,8 @@ def _surface(spec, path, ctx):
         placement = (t, _orientation(pl.get("orientation"), f"{path}.placement.orientation", ctx))
     mesh_path = ctx.base_dir / str(spec["mesh"])
     try:
-        mesh = load_mesh(mesh_path, units=units, placement=placement, flip_normals=bool(spec.get("flip_normals", False)),
-                         name=str(spec["mesh"]))
+        mesh = cached_load_mesh(mesh_path, units=units, placement=placement,
+                                flip_normals=bool(spec.get("flip_normals", False)), name=str(spec["mesh"]))
     except MeshError as exc:
         raise ctx.error(f"{path}.mesh", str(exc)) from None
     check_scale(mesh, JOINT_REGION_SIZE)

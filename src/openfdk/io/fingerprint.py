@@ -55,3 +55,18 @@ def run_fingerprint(model_path, trial_path=None, options=()) -> str:
         h.update(b"\0trial\0" + Path(trial_path).read_bytes())
     h.update(repr(tuple(options)).encode())
     return h.hexdigest()
+
+
+def file_stamp(path):
+    """(resolved path, size in bytes, modification time in ns) of an existing file — the
+    key of the per-process caches of parsed model files and loaded meshes (a changed
+    file gets a new key) — or None when it cannot be read (the caller then loads the file
+    itself and reports the problem)."""
+    import os
+
+    try:
+        real = os.path.realpath(os.fspath(path))
+        st = os.stat(real)
+    except (OSError, TypeError, ValueError):
+        return None
+    return real, st.st_size, st.st_mtime_ns

@@ -8,11 +8,8 @@ import numpy as np
 
 from .components import GROUND, Body, Frame
 from .constraints import Constraint, FDKDof, MarkerSet
+from .errors import ModelError  # defined in a light module (study drivers), re-exported here
 from .state import BodyStates
-
-
-class ModelError(ValueError):
-    """A model description is invalid; the message names the offending entry."""
 
 
 @dataclass(frozen=True, eq=False)

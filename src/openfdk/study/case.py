@@ -130,6 +130,22 @@ def publish_case(out_root, case, kin, dyn, info, wall_time, force=False):
     return record
 
 
+def with_metrics(record, out_root, case):
+    """The case.json ``record`` of a complete case plus its summary metrics
+    (:func:`.summary.case_metrics` of its folder, with the columns of
+    ``case.options.metrics``): ``metrics``, ``metric_warnings`` and ``metric_columns``.
+    Computed in the worker that ran the case, so that the driver, which shares the cores
+    with the workers, only collects them. A folder whose metrics cannot be read returns
+    ``record`` unchanged (the driver then reads them itself and reports the problem)."""
+    from .summary import case_metrics
+
+    try:
+        metrics, warnings = case_metrics(case_dir(out_root, case.case_id), case.options.metrics)
+    except (OSError, ValueError, KeyError):
+        return record
+    return {**record, "metrics": metrics, "metric_warnings": warnings, "metric_columns": list(case.options.metrics)}
+
+
 def run_case(case, out_root, force=False):
     """Dask task / serial step: run one case (its chunks one after the other when
     ``options.chunks`` > 1) and publish its folder; a complete folder is returned as it
@@ -137,7 +153,7 @@ def run_case(case, out_root, force=False):
     retries, then records them)."""
     done = None if force else completed_record(case_dir(out_root, case.case_id), case.fingerprint)
     if done is not None:
-        return done
+        return with_metrics(done, out_root, case)
     t0 = _time.perf_counter()
     model, settings, trial, label = build_case_model(case)
     opts = case.options
@@ -154,7 +170,7 @@ def run_case(case, out_root, force=False):
     info = {"model": label, **info}
     if fdk is not None:
         info["fdk"] = fdk.summary()
-    return publish_case(out_root, case, kin, dyn, info, _time.perf_counter() - t0, force)
+    return with_metrics(publish_case(out_root, case, kin, dyn, info, _time.perf_counter() - t0, force), out_root, case)
 
 
 def segment_task(case, index, checks=True):
@@ -183,10 +199,10 @@ def finish_chunked_case(case, out_root, started, force, *segment_results):
     :func:`run_case`."""
     done = None if force else completed_record(case_dir(out_root, case.case_id), case.fingerprint)
     if done is not None:
-        return done
+        return with_metrics(done, out_root, case)
     wall = _time.time() - started
     kin, dyn, fdk = stitch(segment_results, wall)
     info = {**segment_results[0].info, **chunk_info(segment_results, case.options.overlap)}
     if fdk is not None:
         info["fdk"] = fdk.summary()
-    return publish_case(out_root, case, kin, dyn, info, wall, force)
+    return with_metrics(publish_case(out_root, case, kin, dyn, info, wall, force), out_root, case)

@@ -18,6 +18,24 @@ every 10 ms for the dashboard's profiler and runs several periodic callbacks; ea
 the GIL, which the analysis thread holds almost all the time. On the 2-core machine the
 FDK cases ran ≈9 % faster with the profiler off and the housekeeping intervals
 lengthened (:data:`WORKER_CONFIG`, applied to openfdk's LocalCluster workers only).
+
+Worker start-up (once per worker, not per case): Dask spawns each worker as a fresh
+interpreter by default, which then imports Dask and, at its first case, openfdk's
+analysis layers (≈ 1.5 s of CPU each), while the driver idles. openfdk's LocalCluster
+instead forks its workers from a *fork server* (``multiprocessing`` "forkserver"),
+started before Dask is imported, which imports :data:`WORKER_MODULES` once — Dask's
+worker, openfdk's analysis layers, and numba's cached kernels loaded
+(:mod:`.worker_start`) — while the driver imports Dask and starts the scheduler; the
+workers, and those a nanny restarts, begin with all of it done. The server lives as
+long as this process and serves its later clusters. Its environment, fixed when it
+starts, is :data:`FORK_SERVER_ENVIRONMENT` (one BLAS thread, as Dask's nanny sets); the
+driver's other environment variables are passed to each worker as it starts. With
+``malloc_trim=True`` (which must be in the environment when a process starts) the
+workers are spawned as Dask does by default.
+In each worker, the case layer keeps the meshes and parsed model files of the cases it
+ran (:mod:`openfdk.contact.mesh_cache`, :func:`openfdk.study.kinds.read_model_mapping`)
+and the distance grids (:mod:`openfdk.contact.grid_cache`), so a worker loads a model's
+files once, not once per case.
 """
 
 from __future__ import annotations
@@ -37,8 +55,52 @@ WORKER_CONFIG = {
     "distributed.admin.system-monitor.interval": "2s",
     "distributed.worker.memory.monitor-interval": "1s",
 }
+#: what a LocalCluster worker needs before its first case: the Dask worker, and openfdk's
+#: case and analysis layers with their compiled kernels loaded (:mod:`.worker_start`).
+#: Imported once, by the fork server (module docstring), instead of once per worker.
+WORKER_MODULES = ("distributed", "openfdk.study.worker_start")
+#: environment of the fork server, hence of every worker forked from it (what Dask's nanny
+#: sets before spawning a worker: one BLAS/OpenMP thread, a fixed hash seed)
+FORK_SERVER_ENVIRONMENT = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
+                           "PYTHONHASHSEED": "6640"}
 START_TIMEOUT_S = 60
 CLOSE_TIMEOUT_S = 20
+
+
+def start_fork_server():
+    """Start (once per process) the fork server that openfdk's LocalCluster workers are
+    forked from, importing :data:`WORKER_MODULES` with the environment
+    :data:`FORK_SERVER_ENVIRONMENT` and without ``MALLOC_TRIM_THRESHOLD_``. Returns at
+    once: the server imports while the caller starts the scheduler. Later clusters of
+    this process reuse it."""
+    import multiprocessing
+    import multiprocessing.forkserver
+
+    ctx = multiprocessing.get_context("forkserver")
+    saved = {k: os.environ.get(k) for k in (*FORK_SERVER_ENVIRONMENT, "MALLOC_TRIM_THRESHOLD_")}
+    try:
+        os.environ.update(FORK_SERVER_ENVIRONMENT)
+        os.environ.pop("MALLOC_TRIM_THRESHOLD_", None)
+        ctx.set_forkserver_preload(list(WORKER_MODULES))
+        multiprocessing.forkserver.ensure_running()
+    finally:
+        _restore(saved)
+
+
+def _forwarded_environment():
+    """This process's environment variables as they are now, minus those the fork server
+    fixes: a worker forked from the (earlier started) server sets them before it starts,
+    so it sees e.g. an ``OPENFDK_CACHE_DIR`` set since, as a spawned worker would."""
+    skip = {*FORK_SERVER_ENVIRONMENT, "MALLOC_TRIM_THRESHOLD_"}
+    return {k: v for k, v in os.environ.items() if k not in skip}
+
+
+def _restore(saved):
+    for k, v in saved.items():
+        if v is None:
+            os.environ.pop(k, None)
+        else:
+            os.environ[k] = v
 
 
 @contextlib.contextmanager
@@ -50,6 +112,8 @@ def dask_client(scheduler=None, workers=None, malloc_trim=False, timeout=START_T
     LocalCluster of ``workers`` processes (default: the number of CPUs) on 127.0.0.1;
     malloc_trim : keep Dask's MALLOC_TRIM_THRESHOLD_ in the local workers; timeout : s
     allowed for the cluster to start / the scheduler to answer."""
+    if scheduler is None and not malloc_trim:
+        start_fork_server()  # first: it imports while this process imports Dask and starts the scheduler
     import dask
     from distributed import Client, LocalCluster
 
@@ -68,12 +132,17 @@ def dask_client(scheduler=None, workers=None, malloc_trim=False, timeout=START_T
     config = dict(WORKER_CONFIG)
     if not malloc_trim:
         config["distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_"] = None
+        config["distributed.worker.multiprocessing-method"] = "forkserver"
     cluster = client = None
     try:
         with dask.config.set(config):
             cluster = LocalCluster(
                 n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
                 dashboard_address=None, worker_dashboard_address=None, silence_logs=logging.ERROR,
+                # the scheduler always serves HTTP (health, metrics); without an address it
+                # takes :8787 and warns when another cluster holds it: any free local port
+                scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
+                env=None if malloc_trim else _forwarded_environment(),
             )
             client = Client(cluster, timeout=f"{timeout}s", set_as_default=False)
         yield client
@@ -84,8 +153,4 @@ def dask_client(scheduler=None, workers=None, malloc_trim=False, timeout=START_T
         if cluster is not None:
             with contextlib.suppress(Exception):
                 cluster.close(timeout=CLOSE_TIMEOUT_S)
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
+        _restore(saved)

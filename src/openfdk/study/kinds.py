@@ -22,12 +22,14 @@ process that drives the study (workers only import ``prepare``).
 
 from __future__ import annotations
 
+import copy
 import importlib
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..io.fingerprint import file_stamp
 from ..io.yamlfile import read_yaml
-from ..model.model import ModelError
+from ..model.errors import ModelError
 
 
 @dataclass(frozen=True)
@@ -86,13 +88,29 @@ def import_callable(spec: str):
     return fn
 
 
+#: parsed model files of this process: file_stamp -> mapping (read_model_mapping), at
+#: most MAPPING_SLOTS, the oldest dropped
+_MAPPINGS: dict = {}
+MAPPING_SLOTS = 8
+
+
 def read_model_mapping(path) -> dict:
-    """The parsed YAML mapping of a model file (safe loader; errors name the file)."""
+    """The parsed YAML mapping of a model file (safe loader; errors name the file), a
+    fresh copy that the caller may change. The file is parsed once per process and
+    content (its :func:`~openfdk.io.fingerprint.file_stamp`: path, size, modification
+    time), so the cases of a study that share a model file do not parse it again."""
     path = Path(path)
-    data = read_yaml(path, ModelError, "model file")
-    if not isinstance(data, dict):
-        raise ModelError(f"{path.name}: a model file must contain a mapping of sections")
-    return data
+    stamp = file_stamp(path)
+    data = _MAPPINGS.get(stamp) if stamp is not None else None
+    if data is None:
+        data = read_yaml(path, ModelError, "model file")
+        if not isinstance(data, dict):
+            raise ModelError(f"{path.name}: a model file must contain a mapping of sections")
+        if stamp is not None:
+            _MAPPINGS[stamp] = data
+            while len(_MAPPINGS) > MAPPING_SLOTS:
+                _MAPPINGS.pop(next(iter(_MAPPINGS)))  # the oldest
+    return copy.deepcopy(data)
 
 
 def prepare_model_case(case) -> PreparedCase:

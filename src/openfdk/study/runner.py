@@ -116,6 +116,19 @@ def _serial(pending, out, retries, force):
                     yield case, attempt, None, (exc, traceback.format_exc())
 
 
+def longest_first(cases):
+    """``cases`` in the order they are given to the workers: longest analysed window
+    (``options.end − options.start``, s, start None counting as 0; a case whose window
+    has no end — the whole trial — counts as longest) first, study order among equals.
+    The last cases to finish are then the short ones, so the workers run out of work at
+    nearly the same time (longest processing time first)."""
+    def window(case):
+        o = case.options
+        return float("inf") if o.end is None else float(o.end) - float(o.start or 0.0)
+
+    return sorted(cases, key=window, reverse=True)
+
+
 def _dask(client, pending, out, retries, force):
     """Cases as Dask tasks (a chunked case: K segment tasks + a stitching task); yields
     (case, attempts, record, error) as cases finish."""
@@ -137,7 +150,7 @@ def _dask(client, pending, out, retries, force):
         meta[fut.key] = (case, attempt, segments)
         return fut
 
-    queue = as_completed([submit(c, 1) for c in pending], loop=client.loop)
+    queue = as_completed([submit(c, 1) for c in longest_first(pending)], loop=client.loop)
     for fut in queue:
         case, attempt, segments = meta.pop(fut.key)
         try:
@@ -165,7 +178,10 @@ def _record(case, out, result, error, attempts, reused, metrics_columns):
         return rec
     rec.update(status="completed", wall_time_s=result.get("wall_time_s"), worker=result.get("worker"))
     try:
-        metrics, warnings = case_metrics(case_dir(out, case.case_id), metrics_columns)
+        if "metrics" in result and result.get("metric_columns") == list(metrics_columns):
+            metrics, warnings = result["metrics"], result["metric_warnings"]  # read by the worker
+        else:
+            metrics, warnings = case_metrics(case_dir(out, case.case_id), metrics_columns)
         rec["metrics"] = metrics
         if warnings:
             rec["warnings"] = warnings

@@ -15,9 +15,10 @@ evaluations per frame), ``rms_marker_residual_m``, ``wall_time_s``, ``attempts``
   kinematics.csv): ``<column>.mean``, ``.min`` and ``.max``.
 
 ``summary.json`` holds the same records plus the study, the execution (scheduler,
-workers) and, for failed cases, the traceback. Metrics are computed here, by the process
-that drives the study, from the case folders, so a reused case is summarised the same
-way as a new one.
+workers) and, for failed cases, the traceback. Metrics are computed by
+:func:`case_metrics` from the case folders, so a reused case is summarised the same way
+as a new one: for a case run now, by the worker right after it wrote the folder
+(:func:`openfdk.study.case.with_metrics`), else by the driver.
 """
 
 from __future__ import annotations

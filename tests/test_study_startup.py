@@ -1,0 +1,160 @@
+"""Start-up work done once per process rather than once per study case: meshes and
+parsed model files memoised by file stamp, metrics computed in the worker, cases handed
+out longest first, and a study driver that does not import the analysis layers."""
+
+import os
+import subprocess
+import sys
+import time
+import warnings
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import trimesh
+import yaml
+
+from openfdk.contact.mesh import MeshWarning, load_mesh
+from openfdk.contact.mesh_cache import cached_load_mesh, clear_mesh_cache, mesh_cache_size
+from openfdk.contact.shapes import sphere_cap
+from openfdk.fixtures.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, write_jaw_meshes
+from openfdk.io.c3d import write_c3d
+from openfdk.model.model import ModelError
+from openfdk.study.case import case_dir, run_case
+from openfdk.study.kinds import read_model_mapping
+from openfdk.study.runner import longest_first
+from openfdk.study.spec import study_from_dict
+from openfdk.study.summary import case_metrics
+
+
+def _touch_later(path):
+    """Give ``path`` a modification time 2 s later than now (file stamps change even on
+    file systems with a coarse clock)."""
+    t = time.time() + 2.0
+    os.utime(path, (t, t))
+
+
+def test_mesh_is_read_once_and_the_same_as_an_uncached_load(tmp_path):
+    cap = sphere_cap(10.0, 0.6, 1.0, pole=(0.0, 0.0, 1.0))
+    path = tmp_path / "cap.ply"
+    trimesh.Trimesh(cap.vertices_B, cap.faces, process=False).export(path)
+    clear_mesh_cache()
+    placement = (np.array([0.01, 0.0, -0.02]), np.eye(3))
+    first = cached_load_mesh(path, units="mm", placement=placement, name="cap")
+    again = cached_load_mesh(path, units="mm", placement=placement, name="cap")
+    assert again is first and mesh_cache_size() == 1
+    reference = load_mesh(path, units="mm", placement=placement, name="cap")
+    np.testing.assert_array_equal(first.vertices_B, reference.vertices_B)
+    np.testing.assert_array_equal(first.faces, reference.faces)
+    np.testing.assert_array_equal(first.vertex_areas, reference.vertex_areas)
+    # other options are other meshes: 1 mm = 1e-3 m, so the "m" mesh is 1000 times larger
+    in_m = cached_load_mesh(path, units="m", placement=placement, name="cap")
+    assert in_m is not first and mesh_cache_size() == 2
+    assert in_m.area == pytest.approx(first.area * 1e6, rel=1e-12)
+    # an edited file is read again: the same cap scaled by 2 has 4 times the area
+    trimesh.Trimesh(2.0 * cap.vertices_B, cap.faces, process=False).export(path)
+    _touch_later(path)
+    edited = cached_load_mesh(path, units="mm", placement=placement, name="cap")
+    assert edited is not first
+    assert edited.area == pytest.approx(4.0 * first.area, rel=1e-9)
+
+
+def test_cached_mesh_repeats_its_repair_warnings(tmp_path):
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [2, 2, 0], [3, 3, 0.0]])
+    F = np.array([[0, 1, 2], [1, 3, 2], [0, 3, 4], [3, 4, 5]])  # the last two are collinear
+    path = tmp_path / "degenerate.obj"
+    trimesh.Trimesh(V, F, process=False).export(path)
+    clear_mesh_cache()
+    for _ in range(2):  # every model built from the file reports the repair
+        with pytest.warns(MeshWarning, match="degenerate.obj.*removed 2 degenerate"):
+            mesh = cached_load_mesh(path, units="mm")
+        assert mesh.n_faces == 2
+    with pytest.raises(Exception, match="does not exist"):
+        cached_load_mesh(tmp_path / "missing.stl")
+
+
+def test_model_mapping_is_parsed_once_and_each_caller_gets_its_own_copy(tmp_path):
+    path = tmp_path / "m.yaml"
+    path.write_text("bodies: {a: {mass: 1.0}}\n")
+    first = read_model_mapping(path)
+    first["bodies"]["a"]["mass"] = 99.0  # a caller edits its copy
+    assert read_model_mapping(path) == {"bodies": {"a": {"mass": 1.0}}}
+    path.write_text("bodies: {a: {mass: 2.5}}\n")
+    _touch_later(path)
+    assert read_model_mapping(path) == {"bodies": {"a": {"mass": 2.5}}}
+    path.write_text("- not a mapping\n")
+    _touch_later(path)
+    with pytest.raises(ModelError, match="m.yaml: a model file must contain a mapping"):
+        read_model_mapping(path)
+
+
+def _jaw_study(d, windows):
+    write_jaw_meshes(d / "meshes")
+    (d / "tmj.yaml").write_text(yaml.safe_dump(jaw_fdk_model_dict("meshes"), sort_keys=False))
+    _t, labels, x, _ = jaw_markers(40, noise=1e-4, seed=11)
+    write_c3d(d / "trial.c3d", labels, x, 100.0)
+    cases = []
+    for end in windows:
+        data = {"openfdk_study": 1, "name": "t", "models": {"tmj": "tmj.yaml"}, "trials": {"oc": "trial.c3d"},
+                "parameters": {"k": "ligaments.tmj_ligament_*.stiffness"}, "grid": {"k": [40.0]},
+                "run": {"end": end, "metrics": ["tmj_r.Fz_N"]}}
+        cases += study_from_dict(data, "t.yaml", d).cases
+    return cases
+
+
+def test_cases_go_to_the_workers_longest_window_first(tmp_path):
+    cases = _jaw_study(tmp_path, [0.1, 0.3, 0.2, 0.3])
+    order = [c.options.end for c in longest_first(cases)]
+    assert order == [0.3, 0.3, 0.2, 0.1]
+    assert longest_first(cases)[0] is cases[1]  # equal windows keep the study order
+    whole = replace(cases[0], options=replace(cases[0].options, end=None))
+    assert longest_first([*cases, whole])[0] is whole  # an open window counts as longest
+
+
+def test_worker_metrics_are_the_driver_metrics_of_the_folder(tmp_path):
+    (case,) = _jaw_study(tmp_path, [0.05])
+    record = run_case(case, tmp_path / "out", force=True)
+    metrics, warns = case_metrics(case_dir(tmp_path / "out", case.case_id), ["tmj_r.Fz_N"])
+    assert record["metric_columns"] == ["tmj_r.Fz_N"] and record["metric_warnings"] == warns == []
+    assert record["metrics"] == metrics
+    assert metrics["frames"] == 6 and metrics["convergence_rate"] == 1.0
+    assert metrics["tmj_r.Fz_N.min"] <= metrics["tmj_r.Fz_N.mean"] <= metrics["tmj_r.Fz_N.max"]
+    assert abs(metrics["tmj_r.Fz_N.mean"]) > 0.1  # N: the contact carries load
+
+
+def test_study_driver_imports_no_analysis_layer():
+    """The driver of a study (runner, case folders, the study benchmark's script) starts
+    without numba, scipy or trimesh: only the workers need them."""
+    code = ("import sys, openfdk.study.runner, openfdk.bench.study\n"
+            "print(sorted(m for m in ('numba', 'scipy', 'trimesh', 'openfdk.model.model') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        from openfdk.model.errors import ModelError as light
+    assert light is ModelError
+
+
+def test_a_second_local_cluster_starts_without_the_busy_port_warning():
+    """Port 8787 held by another program (another cluster's HTTP endpoint): the local
+    cluster takes any free port, so Dask's 'Port 8787 is already in use' never reaches
+    the user, and the cluster still runs a task."""
+    import socket
+
+    from openfdk.study.cluster import dask_client
+
+    holder = socket.socket()
+    try:
+        holder.bind(("127.0.0.1", 8787))
+        holder.listen()
+    except OSError:
+        pass  # already held by someone else: the situation this test needs
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            with dask_client(workers=1) as client:
+                assert client.submit(sum, [1, 2, 3]).result() == 6
+        busy = [w for w in caught if "already in use" in str(w.message)]
+        assert busy == []
+    finally:
+        holder.close()
