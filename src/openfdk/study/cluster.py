@@ -138,7 +138,10 @@ def dask_client(scheduler=None, workers=None, malloc_trim=False, timeout=START_T
         with dask.config.set(config):
             cluster = LocalCluster(
                 n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                dashboard_address=None, worker_dashboard_address=None, silence_logs=logging.ERROR,
+                # worker-side failures reach the driver through the futures (one line per
+                # case); Dask's ERROR logs would print tracebacks, e.g. a heartbeat racing
+                # the scheduler's close at the end of a study
+                dashboard_address=None, worker_dashboard_address=None, silence_logs=logging.CRITICAL,
                 # the scheduler always serves HTTP (health, metrics); without an address it
                 # takes :8787 and warns when another cluster holds it: any free local port
                 scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
