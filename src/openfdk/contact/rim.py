@@ -75,6 +75,15 @@ class RimCheck:
         self._seg_B = (B.vertices_B[eB[:, 0]], B.vertices_B[eB[:, 1]])
         self._n_rim_B = B.face_normals_B[fB]  # (r, 3) normal of each rim edge's triangle
         self._distance_B = OpenSurfaceDistance(B) if self.B_is_open else None
+        if self.B_is_open:
+            from scipy.spatial import cKDTree
+
+            # a point within max_depth of a rim point on edge (u, v) is within
+            # max_depth + |uv|/2 of u or v: candidates for the exact query, found at once
+            ends = np.unique(eB.ravel())
+            self._rim_tree_B = cKDTree(B.vertices_B[ends])
+            half = 0.5 * float(np.linalg.norm(self._seg_B[1] - self._seg_B[0], axis=1).max())
+            self._rim_reach_B = pair.max_depth + half
         V = B.vertices_B
         self._box_B = (V.min(axis=0) - pair.max_depth, V.max(axis=0) + pair.max_depth)
 
@@ -96,6 +105,11 @@ class RimCheck:
         y = (self.pair._s_A @ R_Wa.T + np.asarray(r_Wa, float) - np.asarray(r_Wb, float)) @ R_Wb  # b's frame
         lo, hi = self._box_B
         near = np.flatnonzero(np.all((y >= lo) & (y <= hi), axis=1))
+        if near.size:
+            gap = self._rim_tree_B.query(y[near], distance_upper_bound=self._rim_reach_B)[0]
+            near = near[np.isfinite(gap)]
+        if near.size == 0:
+            return on_A, 0.0
         phi, _, valid, c = self._distance_B.query(y[near])
         cut = np.flatnonzero(~valid & (np.abs(phi) <= self.pair.max_depth))
         if cut.size == 0:
