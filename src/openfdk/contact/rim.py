@@ -80,12 +80,11 @@ class RimCheck:
 
             # a point within max_depth of a rim point on edge (u, v) is within
             # max_depth + |uv|/2 of u or v: candidates for the exact query, found at once
-            ends = np.unique(eB.ravel())
-            self._rim_tree_B = cKDTree(B.vertices_B[ends])
+            # (A's vertices in a k-d tree once; each frame queries B's few rim vertices)
+            self._rim_V_B = B.vertices_B[np.unique(eB.ravel())]
+            self._tree_A = cKDTree(pair._s_A)
             half = 0.5 * float(np.linalg.norm(self._seg_B[1] - self._seg_B[0], axis=1).max())
             self._rim_reach_B = pair.max_depth + half
-        V = B.vertices_B
-        self._box_B = (V.min(axis=0) - pair.max_depth, V.max(axis=0) + pair.max_depth)
 
     @property
     def is_open(self):
@@ -103,12 +102,10 @@ class RimCheck:
         a = self.pair._a_A
         R_Wa, R_Wb = np.asarray(R_Wa, float), np.asarray(R_Wb, float)
         y = (self.pair._s_A @ R_Wa.T + np.asarray(r_Wa, float) - np.asarray(r_Wb, float)) @ R_Wb  # b's frame
-        lo, hi = self._box_B
-        near = np.flatnonzero(np.all((y >= lo) & (y <= hi), axis=1))
-        if near.size:
-            gap = self._rim_tree_B.query(y[near], distance_upper_bound=self._rim_reach_B)[0]
-            near = near[np.isfinite(gap)]
-        if near.size == 0:
+        rim_in_A = (self._rim_V_B @ R_Wb.T + np.asarray(r_Wb, float) - np.asarray(r_Wa, float)) @ R_Wa
+        near = self._tree_A.query_ball_point(rim_in_A, self._rim_reach_B)
+        near = np.unique(np.concatenate([np.asarray(n, dtype=np.int64) for n in near])) if len(near) else near
+        if len(near) == 0:
             return on_A, 0.0
         phi, _, valid, c = self._distance_B.query(y[near])
         cut = np.flatnonzero(~valid & (np.abs(phi) <= self.pair.max_depth))
