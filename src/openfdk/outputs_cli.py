@@ -15,7 +15,7 @@ from pathlib import Path
 
 
 def _cmd_plot(args):
-    from .runplots import make_figures, save_figures
+    from .runplots import iter_figures, save_figures
     from .runresults import read_results
 
     results = read_results(args.result_dir)
@@ -24,7 +24,7 @@ def _cmd_plot(args):
 
         results._model = load_model(args.model)
     out = Path(args.out) if args.out else Path(args.result_dir) / "plots"
-    paths = save_figures(make_figures(results, measures=args.measures), out)
+    paths = save_figures(iter_figures(results, measures=args.measures), out)
     print(f"plot: {len(paths)} figures -> {out}/ ({', '.join(p.name for p in paths)})")
     return 0
 

@@ -27,7 +27,7 @@ import numpy as np
 
 from .runresults import conjugate_unit, measure_unit
 
-__all__ = ["make_figures", "save_figures", "write_plots", "DISPLAY"]
+__all__ = ["iter_figures", "make_figures", "save_figures", "write_plots", "DISPLAY"]
 
 #: measure kind -> (display factor from SI, display unit)
 DISPLAY = {"length": (1e3, "mm"), "angle": (180.0 / np.pi, "deg"), "1": (1.0, "–")}
@@ -327,39 +327,46 @@ def _name(results):
 
 
 # ---------------------------------------------------------------------------- API
-def make_figures(results, measures=None) -> dict:
-    """Figures of a run (a :class:`~openfdk.runresults.RunResults`): dict name ->
-    matplotlib Figure, one per topic the run has data for (see the module docstring).
+def iter_figures(results, measures=None):
+    """The figures of a run, built one at a time: yields (name, matplotlib Figure), one
+    per topic the run has data for (see the module docstring). Writing them as they come
+    keeps one figure of a long run in memory, not all of them.
 
     measures: names of the run's measures to plot (measures.csv; default:
     :func:`default_measures`; an empty list plots none)."""
     t = results.time
     failed = _failed(results)
-    figs = {"kinematics": _kinematics(results, t, failed)}
+    yield "kinematics", _kinematics(results, t, failed)
     if results.fdk_dofs():
-        figs["fdk_dofs"] = _fdk(results, t, failed)
+        yield "fdk_dofs", _fdk(results, t, failed)
     if measures is None:
         measures = default_measures(results.measure_names())
     if measures:
-        figs["measures"] = _measures(results, t, failed, list(measures))
+        yield "measures", _measures(results, t, failed, list(measures))
     if results.muscles():
-        figs["muscles"] = _muscles(results, t, failed)
+        yield "muscles", _muscles(results, t, failed)
     if results.ligaments() or results.springs():
-        figs["ligaments"] = _ligaments(results, t, failed)
+        yield "ligaments", _ligaments(results, t, failed)
     if results.contacts():
-        figs["contact"] = _contact(results, t, failed)
+        yield "contact", _contact(results, t, failed)
     if results.reactions():
-        figs["reactions"] = _reactions(results, t, failed)
-    figs["convergence"] = _convergence(results, t, failed)
-    return figs
+        yield "reactions", _reactions(results, t, failed)
+    yield "convergence", _convergence(results, t, failed)
 
 
-def save_figures(figures: dict, directory, dpi=110) -> list[Path]:
-    """Write each figure as ``<name>.png`` into ``directory`` (created)."""
+def make_figures(results, measures=None) -> dict:
+    """Figures of a run (a :class:`~openfdk.runresults.RunResults`): dict name ->
+    matplotlib Figure (:func:`iter_figures`)."""
+    return dict(iter_figures(results, measures))
+
+
+def save_figures(figures, directory, dpi=110) -> list[Path]:
+    """Write each figure as ``<name>.png`` into ``directory`` (created); figures: a dict
+    name -> Figure or an iterable of (name, Figure) pairs (:func:`iter_figures`)."""
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
     paths = []
-    for name, fig in figures.items():
+    for name, fig in figures.items() if isinstance(figures, dict) else figures:
         paths.append(d / f"{name}.png")
         fig.savefig(paths[-1], dpi=dpi)
     return paths
@@ -370,7 +377,7 @@ def write_plots(result_dir, out_dir=None, measures=None) -> list[Path]:
     from .runresults import read_results
 
     results = read_results(result_dir)
-    return save_figures(make_figures(results, measures), out_dir or Path(result_dir) / "plots")
+    return save_figures(iter_figures(results, measures), out_dir or Path(result_dir) / "plots")
 
 
 __all__ += ["default_measures", "measure_series", "measure_unit"]

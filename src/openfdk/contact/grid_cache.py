@@ -22,7 +22,9 @@ from __future__ import annotations
 import hashlib
 import os
 import tempfile
+import struct
 import warnings
+import zipfile
 from collections import OrderedDict
 from pathlib import Path
 
@@ -57,9 +59,31 @@ def _key(mesh: SurfaceMesh, spacing: float, max_depth: float) -> str:
     return digest.hexdigest()
 
 
+def _mapped_member(path: Path, name: str):
+    """The array ``name`` of the uncompressed ``.npz`` at ``path`` as a read-only memory
+    map (np.savez stores members uncompressed), or None if it is compressed. Only the
+    pages a run touches — the cells near the contact — become resident."""
+    with zipfile.ZipFile(path) as zf:
+        info = zf.getinfo(f"{name}.npy")
+    if info.compress_type != zipfile.ZIP_STORED:
+        return None
+    with open(path, "rb") as fh:
+        fh.seek(info.header_offset)
+        local = fh.read(30)  # the member's local file header: name and extra-field lengths at 26
+        n_name, n_extra = struct.unpack("<HH", local[26:30])
+        fh.seek(info.header_offset + 30 + n_name + n_extra)
+        version = np.lib.format.read_magic(fh)
+        read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+        shape, fortran, dtype = read_header(fh)
+        offset = fh.tell()
+    return np.memmap(path, dtype=dtype, mode="r", offset=offset, shape=shape, order="F" if fortran else "C")
+
+
 def _read(path: Path, mesh_name: str) -> SignedDistanceGrid:
     with np.load(path) as z:
-        values, cell_valid, origin = z["values"], z["cell_valid"], z["origin_B"]
+        values = _mapped_member(path, "values")
+        values = z["values"] if values is None else values
+        cell_valid, origin = z["cell_valid"], z["origin_B"]
         spacing, max_depth, n_evaluated = float(z["spacing"]), float(z["max_depth"]), int(z["n_evaluated"])
     if values.ndim != 4 or values.shape[3] != 4 or cell_valid.shape != tuple(n - 1 for n in values.shape[:3]):
         raise ValueError("inconsistent array shapes")
