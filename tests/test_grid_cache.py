@@ -45,6 +45,8 @@ def test_grid_read_from_disk_equals_the_built_grid(cache_dir, cap, monkeypatch):
     np.testing.assert_array_equal(again.origin_B, built.origin_B)
     assert (again.spacing, again.max_depth, again.n_evaluated) == (SPACING, DEPTH, built.n_evaluated)
     assert not again.values.flags.writeable
+    # read from the disk cache as a memory map of the .npz member (only touched pages resident)
+    assert isinstance(again.values, np.memmap) and not isinstance(built.values, np.memmap)
     p = np.array([[0.0, 0.0, -0.0095], [0.001, -0.002, -0.009]])  # inside the ball, near the cap
     np.testing.assert_array_equal(again.query(p)[0], built.query(p)[0])
     assert np.all(np.isfinite(built.query(p)[0]))
