@@ -14,7 +14,10 @@ The key is a SHA-1 of the mesh's body-frame vertices and faces, the spacing, the
 and :data:`GRID_FORMAT` (raised whenever the builder changes its output), so a changed
 mesh or setting never meets a stale grid. Files are written under a temporary name and
 renamed, so concurrent workers cannot read a half-written grid; a file that cannot be
-read is rebuilt and replaced.
+read is rebuilt and replaced. A grid read from disk is a read-only memory map of the
+file's ``values`` member (stored uncompressed), so a run keeps resident only the pages of
+the cells it samples — the band around the contact — not the whole grid (≈ 80 MB for a
+fossa at the default resolution).
 """
 
 from __future__ import annotations
