@@ -217,9 +217,11 @@ def _cmd_run(args):
              )
     from .outputs_cli import after_run
 
+    failed = dyn.failed_frames(), dyn.converged, dyn.status, dyn.messages
+    del kin, dyn, info  # written: the figures read them back, so the arrays need not stay
     after_run(args)
-    _print_failed(args, dyn.failed_frames())
-    return failed_frames_exit(dyn.converged, dyn.status, dyn.messages, args.max_failed)
+    _print_failed(args, failed[0])
+    return failed_frames_exit(*failed[1:], args.max_failed)
 
 
 def _progress_on(args):
