@@ -9,6 +9,7 @@ $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e ".[test]"
+	$(PY) -m compileall -q src  # bytecode of the editable sources (not written when PYTHONDONTWRITEBYTECODE is set)
 	touch $@
 
 demo: $(VENV)/.installed

@@ -7,7 +7,8 @@ spline").
 
 Per marker, per contiguous run of visible samples (a *segment*):
 
-1. Filter: ``scipy.signal.sosfiltfilt`` of an order-``order`` Butterworth low-pass
+1. Filter: zero-lag filtering (:func:`openfdk.io.butterworth.sosfiltfilt`, what
+   ``scipy.signal.sosfiltfilt`` computes) with an order-``order`` Butterworth low-pass
    designed at ``cutoff_hz``.  Running it forward and backward cancels the phase (zero
    lag) and squares the magnitude, so the effective order is 2·``order`` and the gain is
 
@@ -47,8 +48,8 @@ from collections.abc import Sequence
 
 import numpy as np
 from scipy.interpolate import CubicSpline
-from scipy.signal import butter, sosfiltfilt
 
+from openfdk.io.butterworth import butter_lowpass_sos, filtfilt_padlen, sosfiltfilt
 from openfdk.io.c3d import MarkerTrial
 
 __all__ = ["MarkerTrajectories", "visible_segments"]
@@ -103,11 +104,9 @@ class MarkerTrajectories:
             raise ValueError(f"{trial.source}: filtering needs samples spaced uniformly at "
                              f"1/rate = {1.0 / trial.rate:g} s")
 
-        sos = (None if cutoff_hz is None else
-               butter(self.order, self.cutoff_hz, btype="low", fs=trial.rate, output="sos"))
-        # scipy's default sosfiltfilt padding length; shorter segments stay unfiltered
-        self.min_filtered_samples = (None if sos is None else 1 + 3 * (
-            2 * len(sos) + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))))
+        sos = None if cutoff_hz is None else butter_lowpass_sos(self.order, self.cutoff_hz, trial.rate)
+        # more samples than the odd-extension padding; shorter segments stay unfiltered
+        self.min_filtered_samples = None if sos is None else 1 + filtfilt_padlen(sos)
 
         n_frames, n_markers = trial.n_frames, trial.n_markers
         # coef[k, i, m, :] = c_i of marker m on [t_k, t_k+1]: p = Σ c_i (t − t_k)^i
@@ -122,7 +121,7 @@ class MarkerTrajectories:
             for a, b in runs:
                 x = p_m[a:b]
                 if sos is not None and b - a >= self.min_filtered_samples:
-                    x = sosfiltfilt(sos, x, axis=0)
+                    x = sosfiltfilt(sos, x)
                 spline = CubicSpline(time[a:b], x, axis=0, bc_type="not-a-knot")
                 # spline.c: (4, pieces, 3), highest power first
                 coef[a:b - 1, :, m] = np.transpose(spline.c[::-1], (1, 0, 2))

@@ -24,9 +24,10 @@ interpreter by default, which then imports Dask and, at its first case, openfdk'
 analysis layers (≈ 1.5 s of CPU each), while the driver idles. openfdk's LocalCluster
 instead forks its workers from a *fork server* (``multiprocessing`` "forkserver"),
 started before Dask is imported, which imports :data:`WORKER_MODULES` once — Dask's
-worker, openfdk's analysis layers, and numba's cached kernels loaded
-(:mod:`.worker_start`) — while the driver imports Dask and starts the scheduler; the
-workers, and those a nanny restarts, begin with all of it done. The server lives as
+worker and openfdk's analysis layers (:mod:`.worker_start`) — while the driver imports
+Dask and starts the scheduler; the workers, and those a nanny restarts, begin with the
+imports done, and each loads the compiled kernels its cases call from numba's cache.
+The server lives as
 long as this process and serves its later clusters. Its environment, fixed when it
 starts, is :data:`FORK_SERVER_ENVIRONMENT` (one BLAS thread, as Dask's nanny sets); the
 driver's other environment variables are passed to each worker as it starts. With
@@ -56,7 +57,7 @@ WORKER_CONFIG = {
     "distributed.worker.memory.monitor-interval": "1s",
 }
 #: what a LocalCluster worker needs before its first case: the Dask worker, and openfdk's
-#: case and analysis layers with their compiled kernels loaded (:mod:`.worker_start`).
+#: case and analysis layers (:mod:`.worker_start`).
 #: Imported once, by the fork server (module docstring), instead of once per worker.
 WORKER_MODULES = ("distributed", "openfdk.study.worker_start")
 #: environment of the fork server, hence of every worker forked from it (what Dask's nanny
