@@ -22,7 +22,7 @@ from openfdk.io.c3d import write_c3d
 from openfdk.model.model import ModelError
 from openfdk.study.case import case_dir, run_case
 from openfdk.study.kinds import read_model_mapping
-from openfdk.study.runner import longest_first
+from openfdk.study.runner import analysed_duration_s, longest_first, recorded_duration_s
 from openfdk.study.spec import study_from_dict
 from openfdk.study.summary import case_metrics
 
@@ -109,6 +109,47 @@ def test_cases_go_to_the_workers_longest_window_first(tmp_path):
     assert longest_first(cases)[0] is cases[1]  # equal windows keep the study order
     whole = replace(cases[0], options=replace(cases[0].options, end=None))
     assert longest_first([*cases, whole])[0] is whole  # an open window counts as longest
+
+
+def test_whole_trial_cases_go_longest_recording_first(tmp_path):
+    """Open windows are ranked by the trial's recorded length (read from its header),
+    and a window's end past the recording counts only up to the recording's end."""
+    write_jaw_meshes(tmp_path / "meshes")
+    (tmp_path / "tmj.yaml").write_text(yaml.safe_dump(jaw_fdk_model_dict("meshes"), sort_keys=False))
+    for name, n in (("short", 40), ("long", 100)):
+        _t, labels, x, _ = jaw_markers(n, noise=1e-4, seed=11)
+        write_c3d(tmp_path / f"{name}.c3d", labels, x, 100.0)
+    cases = []
+    for end in (None, 5.0, 0.5):
+        data = {"openfdk_study": 1, "name": "t", "models": {"tmj": "tmj.yaml"},
+                "trials": {"short": "short.c3d", "long": "long.c3d"},
+                "parameters": {"k": "ligaments.tmj_ligament_*.stiffness"}, "grid": {"k": [40.0]},
+                "run": {"end": end}}
+        cases += study_from_dict(data, "t.yaml", tmp_path).cases
+    assert recorded_duration_s(tmp_path / "short.c3d") == pytest.approx(0.39, abs=1e-9)   # (40 − 1)/100 Hz
+    assert recorded_duration_s(tmp_path / "long.c3d") == pytest.approx(0.99, abs=1e-9)
+    durations = [round(analysed_duration_s(c), 6) for c in cases]
+    trials = [c.names["trials"] for c in cases]
+    assert sorted(zip(trials, durations)) == sorted([("short", 0.39), ("long", 0.99), ("short", 0.39),
+                                                     ("long", 0.99), ("short", 0.39), ("long", 0.5)])
+    order = longest_first(cases)
+    assert [round(analysed_duration_s(c), 6) for c in order] == [0.99, 0.99, 0.5, 0.39, 0.39, 0.39]
+    assert [c.options.end for c in order if c.names["trials"] == "short"] == [None, 5.0, 0.5]  # study order
+
+
+def test_recorded_duration_from_a_trc_header_and_unknown_files(tmp_path):
+    trc = tmp_path / "t.trc"
+    trc.write_text("PathFileType\t4\t(X/Y/Z)\tt.trc\n"
+                   "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\n"
+                   "250\t250\t501\t1\tmm\n"
+                   "Frame#\tTime\tA\n\t\tX1\tY1\tZ1\n")
+    assert recorded_duration_s(trc) == pytest.approx(2.0)            # (501 − 1)/250 Hz
+    (tmp_path / "bad.trc").write_text("PathFileType\n")
+    (tmp_path / "bad.c3d").write_bytes(b"not a c3d")
+    assert recorded_duration_s(tmp_path / "bad.trc") is None
+    assert recorded_duration_s(tmp_path / "bad.c3d") is None
+    assert recorded_duration_s(tmp_path / "missing.c3d") is None
+    assert recorded_duration_s(tmp_path / "t.csv") is None
 
 
 def test_worker_metrics_are_the_driver_metrics_of_the_folder(tmp_path):

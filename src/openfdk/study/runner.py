@@ -116,17 +116,59 @@ def _serial(pending, out, retries, force):
                     yield case, attempt, None, (exc, traceback.format_exc())
 
 
-def longest_first(cases):
-    """``cases`` in the order they are given to the workers: longest analysed window
-    (``options.end − options.start``, s, start None counting as 0; a case whose window
-    has no end — the whole trial — counts as longest) first, study order among equals.
-    The last cases to finish are then the short ones, so the workers run out of work at
-    nearly the same time (longest processing time first)."""
-    def window(case):
-        o = case.options
-        return float("inf") if o.end is None else float(o.end) - float(o.start or 0.0)
+def recorded_duration_s(path):
+    """Recorded duration (s) of a trial file from its header only — C3D: (frames − 1)/rate
+    from the header (:func:`openfdk.io.c3d.inspect_c3d`, pure Python); TRC: (NumFrames −
+    1)/DataRate from lines 2–3 — or None when it cannot be told (another format, an
+    unreadable header: the case reports such a file itself when it runs)."""
+    name = str(path)
+    try:
+        if name.lower().endswith(".c3d"):
+            from ..io.c3d import inspect_c3d
 
-    return sorted(cases, key=window, reverse=True)
+            layout = inspect_c3d(name)
+            return max(layout.n_frames - 1, 0) / layout.rate if layout.rate > 0 else None
+        if name.lower().endswith(".trc"):
+            from ..io.trc import _cells
+
+            with open(name, encoding="utf-8", errors="replace") as fh:
+                head = [next(fh, "") for _ in range(3)]
+            header = dict(zip(_cells(head[1]), _cells(head[2])))
+            rate, frames = float(header["DataRate"]), int(float(header["NumFrames"]))
+            return max(frames - 1, 0) / rate if rate > 0 else None
+    except (OSError, ValueError, KeyError, ZeroDivisionError):
+        return None
+    return None
+
+
+def analysed_duration_s(case, recorded=recorded_duration_s):
+    """Length (s) of the part of its trial a case analyses: ``options.end`` (or the
+    trial's end) − ``options.start`` (or 0), the end clipped to the recorded duration when
+    the case names a trial file (``inputs["trials"]``, the ``model`` kind) whose header
+    tells it; ``inf`` for a case with no end whose trial's length is unknown."""
+    o = case.options
+    start = float(o.start or 0.0)
+    trial = case.inputs.get("trials") if isinstance(case.inputs, dict) else None
+    duration = None if trial is None else recorded(trial)
+    end = float("inf") if o.end is None else float(o.end)
+    if duration is not None:
+        end = min(end, duration)
+    return max(end - start, 0.0)
+
+
+def longest_first(cases):
+    """``cases`` in the order they are given to the workers: longest analysed part of the
+    trial (:func:`analysed_duration_s`) first, study order among equals. The last cases
+    to finish are then the short ones, so the workers run out of work at nearly the same
+    time (longest processing time first). Each trial file's header is read once."""
+    durations = {}
+
+    def recorded(path):
+        if path not in durations:
+            durations[path] = recorded_duration_s(path)
+        return durations[path]
+
+    return sorted(cases, key=lambda case: analysed_duration_s(case, recorded), reverse=True)
 
 
 def _dask(client, pending, out, retries, force):
