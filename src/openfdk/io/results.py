@@ -35,10 +35,22 @@ def write_table(path, columns: dict, time_key="time"):
     with open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(names)
-        cols = [columns[k] for k in names]
-        for i in range(nf):
-            w.writerow([_fmt(c[i]) for c in cols])
+        w.writerows(zip(*(_format_column(columns[k]) for k in names)))
     os.replace(tmp, path)
+
+
+def _format_column(values):
+    """The cells of one column, formatted as :func:`_fmt` formats each value, a whole
+    numeric array at once (one ``tolist`` instead of a numpy scalar per cell)."""
+    if isinstance(values, np.ndarray) and values.ndim == 1:
+        kind = values.dtype.kind
+        if kind == "f":
+            return [f"{v:.10g}" for v in values.tolist()]
+        if kind == "b":
+            return [int(v) for v in values.tolist()]
+        if kind in "iu":
+            return values.tolist()
+    return [_fmt(v) for v in values]
 
 
 def _fmt(x):
