@@ -40,3 +40,31 @@ def test_a_short_column_is_refused(tmp_path):
     with pytest.raises(ValueError, match="column 'b' has 2 rows, expected 3"):
         write_table(tmp_path / "t.csv", {"time": np.zeros(3), "b": np.zeros(2)})
     assert not (tmp_path / "t.csv").exists()
+
+
+def test_read_table_gives_back_numbers_and_text(tmp_path):
+    from openfdk.io.results import read_table
+
+    t = np.linspace(0.0, 1.0, 7)
+    columns = {"time": t, "F_N": np.sin(t) * 1e3, "ok": np.arange(7) % 2 == 0, "reason": ["a, b"] * 7}
+    write_table(tmp_path / "t.csv", columns)
+    back = read_table(tmp_path / "t.csv")
+    assert list(back) == ["time", "F_N", "ok", "reason"]
+    np.testing.assert_allclose(back["F_N"], columns["F_N"], rtol=1e-9)   # 10 significant digits
+    np.testing.assert_array_equal(back["ok"], columns["ok"].astype(float))
+    assert back["reason"] == ["a, b"] * 7
+
+
+def test_table_columns_empty_cells_short_rows_and_no_rows():
+    from openfdk.io.results import table_columns
+
+    header = ["time", "x", "note"]
+    body = [["0", "1.5", "ok"], ["0.1", "", "late"], ["0.2", "nan"]]          # a short last row
+    strict = table_columns(header, body)
+    assert strict["x"] == ["1.5", "", "nan"] and strict["note"] == ["ok", "late", ""]
+    np.testing.assert_array_equal(strict["time"], [0.0, 0.1, 0.2])
+    lenient = table_columns(header, body, empty_is_nan=True)
+    np.testing.assert_array_equal(lenient["x"], [1.5, np.nan, np.nan])
+    assert lenient["note"] == ["ok", "late", ""]                                # text stays text
+    empty = table_columns(header, [])
+    assert all(isinstance(c, np.ndarray) and c.size == 0 for c in empty.values())

@@ -63,6 +63,43 @@ def _fmt(x):
     return f"{float(x):.10g}"
 
 
+def read_rows(path) -> list[list[str]]:
+    """The rows of a CSV file as lists of str (OSError if it cannot be read)."""
+    with open(path, newline="") as fh:
+        return list(csv.reader(fh))
+
+
+def table_columns(header, body, empty_is_nan=False) -> dict:
+    """{name: column} of a table read by :func:`read_rows` (header row, body rows): a
+    ``(nf,)`` float array where every cell is a number ('nan' and 'inf' included; with
+    ``empty_is_nan`` an empty cell too, as NaN), else the cells as a list of str. Rows
+    shorter than the header count as empty cells. Each column is converted by numpy at
+    once (the same strings parse as with ``float``)."""
+    n = len(header)
+    if any(len(r) != n for r in body):
+        body = [(list(r) + [""] * n)[:n] for r in body]
+    cells = list(zip(*body)) if body else [()] * n
+    out = {}
+    for name, col in zip(header, cells):
+        try:
+            out[name] = np.array(col, dtype=float)
+        except ValueError:
+            try:
+                if not empty_is_nan:
+                    raise
+                out[name] = np.array([c if c != "" else "nan" for c in col], dtype=float)
+            except ValueError:
+                out[name] = list(col)
+    return out
+
+
+def read_table(path, empty_is_nan=False) -> dict:
+    """A CSV written by :func:`write_table` (or ``summary.csv``) as {name: column}, the
+    columns as in :func:`table_columns`; {} for an empty file."""
+    rows = read_rows(path)
+    return table_columns(rows[0], rows[1:], empty_is_nan) if rows else {}
+
+
 def write_json(path, data):
     atomic_write_text(path, json.dumps(data, indent=2, default=_json_default) + "\n")
 

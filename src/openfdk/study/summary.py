@@ -32,26 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.results import atomic_write_text, write_json
+from ..io.results import atomic_write_text, read_table, write_json
 from .case import CASES
-
-
-def read_table(path):
-    """A CSV written by openfdk as {column: array}: float arrays where every entry is a
-    number ('nan' allowed), lists of str otherwise."""
-    with open(path, newline="") as fh:
-        rows = list(csv.reader(fh))
-    if not rows:
-        return {}
-    header, body = rows[0], rows[1:]
-    out = {}
-    for j, name in enumerate(header):
-        col = [r[j] if j < len(r) else "" for r in body]
-        try:
-            out[name] = np.array([float(x) for x in col])
-        except ValueError:
-            out[name] = col
-    return out
 
 
 def _stat(fn, x):

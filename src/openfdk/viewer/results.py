@@ -9,12 +9,13 @@ model file.
 
 from __future__ import annotations
 
-import csv
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from ..io.results import read_rows, table_columns
 
 
 class ViewError(ValueError):
@@ -45,12 +46,13 @@ class RunResults:
 
 
 def read_table(path):
-    """A CSV written by :func:`openfdk.io.results.write_table`: name -> (nf,) float array,
-    or a list of str for a column that is not numeric ('message', 'status', ...)."""
+    """A CSV written by :func:`openfdk.io.results.write_table`: name -> (nf,) float array
+    (an empty cell read as NaN), or a list of str for a column that is not numeric
+    ('message', 'status', ...). Raises ViewError naming the file for an unreadable file, a
+    first column other than 'time', a row of the wrong length or a non-numeric time."""
     path = Path(path)
     try:
-        with open(path, newline="") as fh:
-            rows = list(csv.reader(fh))
+        rows = read_rows(path)
     except OSError as exc:
         raise ViewError(f"{path}: cannot read ({exc.strerror or exc})") from None
     if not rows or not rows[0] or rows[0][0] != "time":
@@ -59,15 +61,9 @@ def read_table(path):
     for k, r in enumerate(body):
         if len(r) != len(names):
             raise ViewError(f"{path}: row {k + 2} has {len(r)} fields, the header {len(names)}")
-    cols = {}
-    for j, name in enumerate(names):
-        raw = [r[j] for r in body]
-        try:
-            cols[name] = np.array([float(x) if x != "" else np.nan for x in raw], dtype=float)
-        except ValueError:
-            if name == "time":
-                raise ViewError(f"{path}: column 'time' is not numeric") from None
-            cols[name] = raw
+    cols = table_columns(names, body, empty_is_nan=True)
+    if not isinstance(cols["time"], np.ndarray):
+        raise ViewError(f"{path}: column 'time' is not numeric")
     return cols
 
 
