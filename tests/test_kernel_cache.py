@@ -188,3 +188,25 @@ def test_analysis_announces_after_reading_the_trial(tmp_path, capsys, monkeypatc
     assert main(["kinematics", str(model), str(good), "--out", str(tmp_path / "o2"), "--no-progress"]) == 0
     assert capsys.readouterr().err.count(kernel_cache.MESSAGE) == 1
     assert kernel_cache._ARMED is None and not progress._WARMUP
+
+
+@pytest.mark.parametrize("cold", [True, False])
+def test_frame_rate_line_says_when_it_includes_compilation(tmp_path, capsys, monkeypatch, cold):
+    """The frames/s figure of a command that found the kernel cache cold includes the
+    compilation; the line says so (and only then)."""
+    import yaml
+
+    from openfdk.cli import main
+    from openfdk.fixtures.synthetic import synthetic_markers, two_body_model_dict
+    from openfdk.io.c3d import write_c3d
+
+    monkeypatch.setattr(kernel_cache, "cache_is_cold", lambda modules: cold)
+    model = tmp_path / "m.yaml"
+    model.write_text(yaml.safe_dump(two_body_model_dict(), sort_keys=False))
+    t, labels, x, _ = synthetic_markers(n_frames=20)
+    write_c3d(tmp_path / "t.c3d", labels, x, 100.0, units="mm")
+    assert main(["kinematics", str(model), str(tmp_path / "t.c3d"), "--out", str(tmp_path / "o"),
+                 "--no-progress"]) == 0
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("kinematics:"))
+    assert "frames/s" in line
+    assert ("including the kernels' first compilation" in line) is cold

@@ -87,6 +87,15 @@ def _announce_kernels(args, check=False):
         arm(quiet=getattr(args, "quiet", False))
 
 
+def _rate(frames_per_second):
+    """"N frames/s", saying so when the figure includes compiling numba's kernels (this
+    command found their cache cold, see openfdk.kernel_cache)."""
+    from .progress import warming_up
+
+    text = f"{frames_per_second or 0:.0f} frames/s"
+    return text + (", including the kernels' first compilation" if warming_up() else "")
+
+
 def _say(args, text):
     """An informational line on stdout, unless --quiet."""
     if not getattr(args, "quiet", False):
@@ -146,7 +155,7 @@ def _cmd_kinematics(args):
     _write_measures(args.out, args.model, result)
     s = result.summary()
     _say(args, f"kinematics: {s['converged_frames']}/{s['frames']} frames converged in {s['wall_time_s']:.2f} s "
-               f"({s['frames_per_second'] or 0:.0f} frames/s) -> {args.out}/kinematics.csv")
+               f"({_rate(s['frames_per_second'])}) -> {args.out}/kinematics.csv")
     from .outputs_cli import after_run
 
     after_run(args, plots=False)
@@ -211,7 +220,7 @@ def _cmd_run(args):
         _say(args,
              f"  FDK: {fdk['converged_frames']}/{fdk['frames']} frames converged, "
              f"{fdk['mean_residual_evaluations_per_frame']:.2f} residual evaluations per frame, "
-             f"{fdk['frames_per_second'] or 0:.0f} frames/s ({fdk['jacobian']} Jacobian)"
+             f"{_rate(fdk['frames_per_second'])} ({fdk['jacobian']} Jacobian)"
              + (f", {fdk['restarted_frames']} frame(s) restarted from another starting α"
                 if fdk.get("restarted_frames") else "")
              )

@@ -32,6 +32,11 @@ def is_quiet() -> bool:
     return _QUIET
 
 
+def warming_up() -> bool:
+    """True while the current command runs on a cold kernel cache (:func:`set_warmup`)."""
+    return _WARMUP
+
+
 def set_warmup(warmup: bool) -> None:
     """True: the next displays show nothing until their first ``update`` (the first frame,
     which compiles the numba kernels on a cold cache) and start their clock after it."""
