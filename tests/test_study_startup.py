@@ -22,7 +22,8 @@ from openfdk.io.c3d import write_c3d
 from openfdk.model.model import ModelError
 from openfdk.study.case import case_dir, run_case
 from openfdk.study.kinds import read_model_mapping
-from openfdk.study.runner import analysed_duration_s, longest_first, recorded_duration_s
+from openfdk.io.trials import recorded_duration_s
+from openfdk.study.runner import analysed_duration_s, longest_first
 from openfdk.study.spec import study_from_dict
 from openfdk.study.summary import case_metrics
 

@@ -59,6 +59,7 @@ def write_inputs(d: Path, n_frames: int | None, quick: bool, cycles: int = 2) ->
     ``n_frames`` frames of each task (None: the whole recording), in ``d``. The study (a
     Study object: its cases carry the analysis window) is pickled to ``d/study.pkl``,
     whose path is returned."""
+    from ..io.trials import recorded_duration_s
     from ..mandible.experiment import record_experiment
     from ..mandible.generator import create_subject
     from ..mandible.models import write_models
@@ -75,13 +76,8 @@ def write_inputs(d: Path, n_frames: int | None, quick: bool, cycles: int = 2) ->
     windows = {}
     for task in tasks:
         trial = subject_dir / "trials" / f"{task}.c3d"
-        if n_frames is None:
-            from ..io.c3d import read_c3d
-
-            t_s = read_c3d(trial).time
-            windows[task] = (trial, 0.0, float(t_s[-1] - t_s[0]))
-        else:
-            windows[task] = (trial, 0.0, (n_frames - 1) / 100.0)
+        end = recorded_duration_s(trial) if n_frames is None else (n_frames - 1) / 100.0
+        windows[task] = (trial, 0.0, end)
     study = parameter_study(models["fdk"], windows, quick=quick)
     from ..io.modelfile import load_model
 

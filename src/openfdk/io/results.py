@@ -79,18 +79,16 @@ def table_columns(header, body, empty_is_nan=False) -> dict:
     if any(len(r) != n for r in body):
         body = [(list(r) + [""] * n)[:n] for r in body]
     cells = list(zip(*body)) if body else [()] * n
-    out = {}
-    for name, col in zip(header, cells):
-        try:
-            out[name] = np.array(col, dtype=float)
-        except ValueError:
-            try:
-                if not empty_is_nan:
-                    raise
-                out[name] = np.array([c if c != "" else "nan" for c in col], dtype=float)
-            except ValueError:
-                out[name] = list(col)
-    return out
+    return {name: _numeric(col, empty_is_nan) for name, col in zip(header, cells)}
+
+
+def _numeric(col, empty_is_nan):
+    """A column of cells (str) as a float array, or the cells as a list of str when one
+    is not a number (with ``empty_is_nan`` an empty cell reads as NaN)."""
+    try:
+        return np.array([c or "nan" for c in col] if empty_is_nan else col, dtype=float)
+    except ValueError:
+        return list(col)
 
 
 def read_table(path, empty_is_nan=False) -> dict:

@@ -60,6 +60,14 @@ def _count(cell: str, name: str, line_no: int, what: str) -> int:
     return int(v)
 
 
+def header_fields(path: str | os.PathLike) -> dict:
+    """The header fields of a TRC file, {name on line 2: value on line 3} (str), reading
+    its first three lines only. Raises OSError when the file cannot be read."""
+    with open(os.fspath(path), encoding="utf-8", errors="replace") as fh:
+        head = [next(fh, "") for _ in range(3)]
+    return dict(zip(_cells(head[1]), _cells(head[2])))
+
+
 def read_trc(path: str | os.PathLike) -> MarkerTrial:
     """Read a TRC file into a :class:`~openfdk.io.c3d.MarkerTrial` (SI units).
 

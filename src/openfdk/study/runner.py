@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..io.results import atomic_write_text
+from ..io.trials import recorded_duration_s
 from .case import CASES, case_dir, completed_record, finish_chunked_case, run_case, segment_task
 from .spec import Study, StudyError, load_study
 from .summary import case_metrics, write_summary
@@ -114,31 +115,6 @@ def _serial(pending, out, retries, force):
             except Exception as exc:  # noqa: BLE001 — recorded, the study goes on
                 if attempt == retries + 1:
                     yield case, attempt, None, (exc, traceback.format_exc())
-
-
-def recorded_duration_s(path):
-    """Recorded duration (s) of a trial file from its header only — C3D: (frames − 1)/rate
-    from the header (:func:`openfdk.io.c3d.inspect_c3d`, pure Python); TRC: (NumFrames −
-    1)/DataRate from lines 2–3 — or None when it cannot be told (another format, an
-    unreadable header: the case reports such a file itself when it runs)."""
-    name = str(path)
-    try:
-        if name.lower().endswith(".c3d"):
-            from ..io.c3d import inspect_c3d
-
-            layout = inspect_c3d(name)
-            return max(layout.n_frames - 1, 0) / layout.rate if layout.rate > 0 else None
-        if name.lower().endswith(".trc"):
-            from ..io.trc import _cells
-
-            with open(name, encoding="utf-8", errors="replace") as fh:
-                head = [next(fh, "") for _ in range(3)]
-            header = dict(zip(_cells(head[1]), _cells(head[2])))
-            rate, frames = float(header["DataRate"]), int(float(header["NumFrames"]))
-            return max(frames - 1, 0) / rate if rate > 0 else None
-    except (OSError, ValueError, KeyError, ZeroDivisionError):
-        return None
-    return None
 
 
 def analysed_duration_s(case, recorded=recorded_duration_s):
