@@ -229,3 +229,49 @@ def test_undirected_edge_keys_match_lexicographic_edge_rows():
     np.testing.assert_array_equal(inv_keys.ravel(), inv_rows.ravel())
     np.testing.assert_array_equal(cnt_keys, cnt_rows)
     assert len(u_keys) == len(u_rows) < len(ends)
+
+
+@pytest.mark.parametrize("file_type", ["stl", "stl_ascii"])
+def test_stl_reader_gives_what_trimesh_gives(tmp_path, file_type):
+    """openfdk.contact.stl reads STL without importing trimesh; trimesh's own reader (with
+    its vertex merging) is the independent reference: same vertices in the same order,
+    same faces."""
+    from openfdk.contact.stl import read_stl
+
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=12.5)
+    path = tmp_path / f"ball.{file_type}.stl"
+    trimesh.Trimesh(ball.vertices + [1.0, -2.0, 30.0], ball.faces, process=False).export(path, file_type=file_type)
+    reference = trimesh.load(path, force="mesh", process=True)
+    vertices, faces = read_stl(path)
+    assert vertices.dtype == np.float64 and faces.dtype == np.int64
+    assert len(vertices) == len(ball.vertices) == len(reference.vertices)   # shared corners merged
+    np.testing.assert_array_equal(vertices, reference.vertices)
+    np.testing.assert_array_equal(faces, reference.faces)
+
+
+def test_bad_stl_files_name_the_file(tmp_path):
+    cases = {
+        "binary_cut.stl": b"\0" * 80 + np.uint32(3).tobytes() + b"\0" * 100,    # 3 records announced, 2 present
+        "latin1.stl": "solid é\nendsolid\n".encode("latin-1"),
+        "quad.stl": b"solid q\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 1 1 0\n"
+                    b"vertex 0 1 0\nendloop\nendfacet\nendsolid q\n",
+        "words.stl": b"solid w\nfacet normal 0 0 1\nouter loop\nvertex 0 0 zero\nvertex 1 0 0\nvertex 1 1 0\n"
+                     b"endloop\nendfacet\nendsolid w\n",
+    }
+    for name, data in cases.items():
+        (tmp_path / name).write_bytes(data)
+        with pytest.raises(MeshError, match=f"could not read mesh file '.*{name}'"):
+            load_mesh(tmp_path / name)
+
+
+def test_loading_an_stl_does_not_import_trimesh(tmp_path, cap_mm):
+    import subprocess
+    import sys
+
+    path = tmp_path / "cap.stl"
+    trimesh.Trimesh(cap_mm.vertices_B, cap_mm.faces, process=False).export(path)
+    code = ("import sys\nfrom openfdk.contact.mesh import load_mesh\n"
+            f"assert load_mesh({str(path)!r}, units='mm').n_faces == {cap_mm.n_faces}\n"
+            "print(sorted(k for k in sys.modules if k == 'trimesh' or k.startswith('scipy.sparse')))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"

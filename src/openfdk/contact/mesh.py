@@ -24,6 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .stl import read_stl
+
 __all__ = [
     "MeshError",
     "MeshWarning",
@@ -150,9 +152,6 @@ def _orient_consistently(faces, face_areas):
     afterwards, in each component, the orientation held by the larger area of the
     *original* triangles is kept. Returns (faces, number of triangles flipped).
     """
-    import scipy.sparse as sp
-    from scipy.sparse.csgraph import breadth_first_order, connected_components
-
     m = faces.shape[0]
     # directed half-edges (a -> b) of each face
     a = faces[:, [0, 1, 2]].ravel()
@@ -171,6 +170,9 @@ def _orient_consistently(faces, face_areas):
     f0, f1, consistent = f0[keep], f1[keep], consistent[keep]
     if consistent.all():
         return faces, 0
+    import scipy.sparse as sp  # here: only meshes to repair need it (≈ 0.15 s of imports)
+    from scipy.sparse.csgraph import breadth_first_order, connected_components
+
     # weight 1 = keep relative orientation, 2 = flip
     w = np.where(consistent, 1, 2)
     graph = sp.coo_matrix((np.r_[w, w], (np.r_[f0, f1], np.r_[f1, f0])), shape=(m, m)).tocsr()
@@ -337,8 +339,6 @@ def load_mesh(path, units="m", placement=None, *, flip_normals=False, name=None)
     Raises :class:`MeshError` naming the file when it does not exist, cannot be read, or
     has no usable triangles.
     """
-    import trimesh
-
     path = os.fspath(path)
     label = name or os.path.basename(path)
     if not isinstance(units, str) or units not in LENGTH_UNITS:
@@ -348,12 +348,7 @@ def load_mesh(path, units="m", placement=None, *, flip_normals=False, name=None)
         )
     if not os.path.isfile(path):
         raise MeshError(f"mesh file '{path}' does not exist")
-    try:
-        loaded = trimesh.load(path, force="mesh", process=True)
-    except Exception as exc:  # trimesh raises many exception types
-        raise MeshError(f"could not read mesh file '{path}': {exc}") from exc
-    faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))))
-    vertices = np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=float)
+    vertices, faces = _read_triangles(path)
     if faces.size == 0:
         raise MeshError(f"mesh file '{path}' contains no triangles (empty or unreadable)")
     R, t = _placement_transform(placement, label)
@@ -373,6 +368,22 @@ def load_mesh(path, units="m", placement=None, *, flip_normals=False, name=None)
             )
             mesh = surface_mesh(mesh.vertices_B, mesh.faces[:, ::-1], name=label, repair=False)
     return mesh
+
+
+def _read_triangles(path):
+    """(vertices (n, 3) file units, faces (m, 3) int) of a mesh file: STL by
+    :mod:`.stl`, other formats by trimesh (imported only for them: ≈ 0.25 s), with
+    duplicate vertices merged. Raises MeshError naming the file."""
+    try:
+        if path.lower().endswith(".stl"):
+            return read_stl(path)
+        import trimesh
+
+        loaded = trimesh.load(path, force="mesh", process=True)
+    except Exception as exc:  # trimesh raises many exception types; StlError, OSError
+        raise MeshError(f"could not read mesh file '{path}': {exc}") from exc
+    return (np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=float),
+            np.asarray(getattr(loaded, "faces", np.zeros((0, 3)))))
 
 
 def undirected_edge_keys(ends) -> np.ndarray:

@@ -1,6 +1,6 @@
 """Surface meshes memoised per process, keyed by the mesh file's fingerprint.
 
-Loading a mesh (:func:`~.mesh.load_mesh`: reading the file with trimesh, merging
+Loading a mesh (:func:`~.mesh.load_mesh`: reading the file (:mod:`.stl` or trimesh), merging
 vertices, checking and repairing the triangles, normals and tributary areas) takes tens
 of milliseconds per mesh. A study runs many models that share their meshes (the
 mandible parameter study: 45 cases × 4 meshes in 2 worker processes), so each process

@@ -25,7 +25,8 @@ Per marker, per contiguous run of visible samples (a *segment*):
    ≈ f_s/(2 f_c) samples of every segment carry an end transient (≈ 1 mm for that
    motion at 6 Hz, vs 0.08 mm of attenuation in the middle).
 2. Interpolate: a C² cubic spline through the (filtered) samples with not-a-knot ends
-   (``scipy.interpolate.CubicSpline``), so position, velocity and acceleration are
+   (:mod:`openfdk.cubic_spline`, the spline ``scipy.interpolate.CubicSpline`` computes,
+   without its ≈ 0.2 s of imports), so position, velocity and acceleration are
    continuous inside a segment.
 
 A marker is *visible* at t iff t lies in [first sample time, last sample time] of one of
@@ -47,8 +48,8 @@ import bisect
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
+from openfdk.cubic_spline import not_a_knot_coefficients
 from openfdk.io.butterworth import butter_lowpass_sos, filtfilt_padlen, sosfiltfilt
 from openfdk.io.c3d import MarkerTrial
 
@@ -122,9 +123,7 @@ class MarkerTrajectories:
                 x = p_m[a:b]
                 if sos is not None and b - a >= self.min_filtered_samples:
                     x = sosfiltfilt(sos, x)
-                spline = CubicSpline(time[a:b], x, axis=0, bc_type="not-a-knot")
-                # spline.c: (4, pieces, 3), highest power first
-                coef[a:b - 1, :, m] = np.transpose(spline.c[::-1], (1, 0, 2))
+                coef[a:b - 1, :, m] = not_a_knot_coefficients(time[a:b], x)   # (pieces, 4, 3)
                 filtered[a:b, m] = x
         self._coef = coef
         self._valid = np.isfinite(coef[:, 0, :, 0])        # (n_frames − 1, n_markers)

@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
-from scipy.interpolate import CubicSpline
+
+from openfdk.cubic_spline import NotAKnotSpline
 
 __all__ = ["Constant", "Polynomial", "Fourier", "SplineThroughData", "TimeFunction"]
 
@@ -121,10 +122,10 @@ class SplineThroughData(TimeFunction):
         self.size = values.shape[1]
         self.t_range = (times[0], times[-1])
         self.extrapolate = extrapolate
-        self._s = CubicSpline(times, values, axis=0)
+        self._s = NotAKnotSpline(times, values)
 
     def derivatives(self, t):
         lo, hi = self.t_range
         if not self.extrapolate and not (lo - 1e-12 <= t <= hi + 1e-12):
             raise ValueError(f"spline driver evaluated at t = {t} s outside its data [{lo}, {hi}] s")
-        return self._s(t), self._s(t, 1), self._s(t, 2)
+        return self._s.derivatives(t)

@@ -29,7 +29,6 @@ the one-sided derivative for the current active set.
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
 
 from openfdk.kinematics.frame_kernels import small_solve
 from openfdk.recruitment.result import RecruitmentInputError, RecruitmentResult
@@ -158,7 +157,7 @@ def recruitment_sensitivity(result: RecruitmentResult, C, d, s, p, dC, dd, ds=No
         solution = small_solve(kkt_scaled, rhs_scaled)  # compiled LU, no BLAS call
         if not np.all(np.isfinite(solution)):
             raise np.linalg.LinAlgError("singular KKT matrix")
-    except (np.linalg.LinAlgError, ValueError, scipy.linalg.LinAlgWarning):
+    except (np.linalg.LinAlgError, ValueError):
         # degenerate active set (too few interior forces to span the rows): minimum norm
         solution = np.linalg.lstsq(kkt_scaled, rhs_scaled, rcond=None)[0]
     solution = solution * equilibrate[:, None]

@@ -1,0 +1,84 @@
+"""STL triangle meshes (binary and ASCII) read without trimesh.
+
+STL is the format bone and implant surfaces come in, and importing trimesh costs
+≈ 0.25 s (it brings scipy.spatial, scipy.sparse and scipy.optimize) in every process
+that loads a mesh — each ``openfdk`` command and each study worker. :func:`read_stl`
+gives what ``trimesh.load(path, process=True)`` gives for an STL file (the same vertices
+in the same order, the same faces: tests/test_contact_mesh.py compares them); other
+formats still go through trimesh (:func:`openfdk.contact.mesh.load_mesh`).
+
+Format (the 3D Systems specification, "StereoLithography Interface Specification", 1989):
+
+* binary: an 80-byte header, a little-endian uint32 triangle count n, then n records of
+  50 bytes: normal (3 float32), three vertices (3 × 3 float32), a uint16 attribute. A
+  file is binary when its size is exactly 84 + 50 n (an ASCII file's size is not, in
+  practice; binary headers may begin with "solid" too);
+* ASCII: ``solid name``, then per triangle ``facet normal nx ny nz / outer loop /
+  vertex x y z`` (three times) ``/ endloop / endfacet``, then ``endsolid``.
+
+The stored normals are ignored (the winding defines the orientation). An STL stores each
+triangle's corners separately; corners with exactly the same coordinates are merged into
+one vertex, numbered in the order of their first appearance.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["StlError", "read_stl"]
+
+_RECORD = np.dtype([("normal", "<f4", (3,)), ("corners", "<f4", (3, 3)), ("attribute", "<u2")])
+
+
+class StlError(ValueError):
+    """An STL file that cannot be read; the message says why (the caller names the file)."""
+
+
+def read_stl(path) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices ``(n_vertices, 3)`` float64 (the file's length unit) and faces
+    ``(n_faces, 3)`` int64 (vertex indices, the file's winding) of the STL file ``path``.
+    Raises OSError when the file cannot be opened and :class:`StlError` when it is not an
+    STL file; an STL file without triangles gives empty arrays."""
+    data = Path(path).read_bytes()
+    if len(data) >= 84:
+        n = int(np.frombuffer(data, dtype="<u4", count=1, offset=80)[0])
+        if len(data) == 84 + 50 * n:
+            corners = np.frombuffer(data, dtype=_RECORD, count=n, offset=84)["corners"]
+            return _merge_corners(corners.reshape(-1, 3).astype(np.float64))
+    return _merge_corners(_ascii_corners(data))
+
+
+def _ascii_corners(data: bytes) -> np.ndarray:
+    """Corner coordinates ``(3 n_faces, 3)`` of an ASCII STL file's bytes."""
+    try:
+        tokens = data.decode("ascii").split()
+    except UnicodeDecodeError:
+        raise StlError("neither a binary STL (size is not 84 + 50 × triangle count) nor ASCII text") from None
+    if not tokens or tokens[0].lower() != "solid":
+        raise StlError("neither a binary STL (size is not 84 + 50 × triangle count) nor an ASCII STL "
+                       "(does not begin with 'solid')")
+    lowered = [t.lower() for t in tokens]
+    at = [i for i, t in enumerate(lowered) if t == "vertex"]
+    n_facets = lowered.count("facet")
+    if len(at) != 3 * n_facets:
+        raise StlError(f"ASCII STL with {n_facets} facets but {len(at)} vertices (STL facets are triangles)")
+    try:
+        corners = np.array([[float(tokens[i + 1]), float(tokens[i + 2]), float(tokens[i + 3])] for i in at],
+                           dtype=np.float64).reshape(-1, 3)
+    except (ValueError, IndexError):
+        raise StlError("ASCII STL with a 'vertex' line that does not hold three numbers") from None
+    return corners
+
+
+def _merge_corners(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices, faces) from corners ``(3 n_faces, 3)``: equal corners become one
+    vertex, vertices in order of first appearance."""
+    if corners.shape[0] == 0:
+        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
+    unique, first, inverse = np.unique(corners, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first, kind="stable")
+    number = np.empty_like(order)
+    number[order] = np.arange(order.shape[0])
+    return unique[order], number[inverse.ravel()].reshape(-1, 3).astype(np.int64)
