@@ -200,3 +200,56 @@ def test_a_second_local_cluster_starts_without_the_busy_port_warning():
         assert busy == []
     finally:
         holder.close()
+
+
+def test_workers_are_pinned_only_when_each_can_have_a_cpu(monkeypatch):
+    from openfdk.study.cluster import PIN_ENVIRONMENT, pinnable_cpus
+
+    if not hasattr(os, "sched_getaffinity"):
+        pytest.skip("no CPU affinity on this platform")
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {5, 2, 7})
+    monkeypatch.delenv(PIN_ENVIRONMENT, raising=False)
+    assert pinnable_cpus(2) == [2, 5, 7] and pinnable_cpus(3) == [2, 5, 7]
+    assert pinnable_cpus(4) is None          # more workers than CPUs: the OS balances them
+    assert pinnable_cpus(1) is None          # one worker: nothing to keep apart
+    monkeypatch.setenv(PIN_ENVIRONMENT, "0")
+    assert pinnable_cpus(2) is None
+
+
+def test_core_pinning_pins_every_thread_of_the_worker_process():
+    """Run in a child process (pinning is per process): a thread started before and one
+    started after setup() end up on the worker's CPU, worker k on cpus[k % len]."""
+    if not hasattr(os, "sched_getaffinity"):
+        pytest.skip("no CPU affinity on this platform")
+    code = (
+        "import os, threading, types\n"
+        "from openfdk.study.pinning import CorePinning\n"
+        "cpus = sorted(os.sched_getaffinity(0))\n"
+        "stop = threading.Event()\n"
+        "before = threading.Thread(target=stop.wait); before.start()\n"
+        "CorePinning(cpus).setup(types.SimpleNamespace(name=len(cpus) + 1))\n"
+        "seen = {}\n"
+        "after = threading.Thread(target=lambda: seen.update(a=os.sched_getaffinity(0))); after.start(); after.join()\n"
+        "pinned = {frozenset(os.sched_getaffinity(int(t))) for t in os.listdir('/proc/self/task')}\n"
+        "stop.set(); before.join()\n"
+        "want = {cpus[(len(cpus) + 1) % len(cpus)]}\n"
+        "print(pinned == {frozenset(want)} and seen['a'] == want)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "True"
+
+
+def test_local_cluster_workers_run_on_cpus_of_their_own():
+    from openfdk.study.cluster import dask_client, pinnable_cpus
+
+    if pinnable_cpus(2) is None:
+        pytest.skip("fewer than 2 CPUs available, or pinning turned off")
+
+    def affinities():
+        return {frozenset(os.sched_getaffinity(int(t))) for t in os.listdir("/proc/self/task")}
+
+    with dask_client(workers=2) as client:
+        per_worker = list(client.run(affinities).values())
+        task_thread = client.submit(lambda: frozenset(os.sched_getaffinity(0)), pure=False).result()
+    assert all(len(a) == 1 for a in per_worker)                        # each worker: one CPU for all threads
+    assert len(set().union(*per_worker)) == 2                         # and not the same one
+    assert {task_thread} in per_worker                                # the analysis thread is on it too
