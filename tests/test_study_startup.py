@@ -209,9 +209,13 @@ def test_workers_are_pinned_only_when_each_can_have_a_cpu(monkeypatch):
         pytest.skip("no CPU affinity on this platform")
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {5, 2, 7})
     monkeypatch.delenv(PIN_ENVIRONMENT, raising=False)
-    assert pinnable_cpus(2) == [2, 5, 7] and pinnable_cpus(3) == [2, 5, 7]
+    assert pinnable_cpus(3) == [2, 5, 7]     # one worker per CPU: each gets its own
     assert pinnable_cpus(4) is None          # more workers than CPUs: the OS balances them
+    assert pinnable_cpus(2) is None          # a CPU to spare: pinned workers could leave it idle
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0})
     assert pinnable_cpus(1) is None          # one worker: nothing to keep apart
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1})
+    assert pinnable_cpus(2) == [0, 1]
     monkeypatch.setenv(PIN_ENVIRONMENT, "0")
     assert pinnable_cpus(2) is None
 
@@ -242,7 +246,7 @@ def test_local_cluster_workers_run_on_cpus_of_their_own():
     from openfdk.study.cluster import dask_client, pinnable_cpus
 
     if pinnable_cpus(2) is None:
-        pytest.skip("fewer than 2 CPUs available, or pinning turned off")
+        pytest.skip("pinning needs exactly 2 usable CPUs for 2 workers (and not turned off)")
 
     def affinities():
         return {frozenset(os.sched_getaffinity(int(t))) for t in os.listdir("/proc/self/task")}

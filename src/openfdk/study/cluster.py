@@ -33,8 +33,8 @@ starts, is :data:`FORK_SERVER_ENVIRONMENT` (one BLAS thread, as Dask's nanny set
 driver's other environment variables are passed to each worker as it starts. With
 ``malloc_trim=True`` (which must be in the environment when a process starts) the
 workers are spawned as Dask does by default.
-Core pinning: with no more workers than CPUs this process may use, each LocalCluster
-worker (every thread of it: the analysis thread and Dask's event loop) is pinned to a
+Core pinning: with as many workers as CPUs this process may use (the default), each
+LocalCluster worker (every thread of it: the analysis thread and Dask's event loop) is pinned to a
 CPU of its own (:class:`.pinning.CorePinning`, a Dask worker plugin, so a worker the
 nanny restarts is pinned again). Unpinned, the analysis thread moved between cores whenever
 the worker's event loop woke (heartbeats, monitors: ≈ 10 times a second) and ran
@@ -101,13 +101,14 @@ def start_fork_server():
 
 
 def pinnable_cpus(n_workers):
-    """The CPUs (sorted ids) this process may run on, if each of ``n_workers`` workers
-    can have one of its own and pinning is available (Linux) and not turned off
-    (:data:`PIN_ENVIRONMENT`); else None."""
+    """The CPUs (sorted ids) this process may run on, if there are exactly
+    ``n_workers`` ≥ 2 of them (the cluster then uses every CPU, so pinning leaves none
+    idle, also when another cluster runs beside it), pinning is available (Linux) and
+    not turned off (:data:`PIN_ENVIRONMENT`); else None."""
     if os.environ.get(PIN_ENVIRONMENT, "1") == "0" or not hasattr(os, "sched_getaffinity"):
         return None
     cpus = sorted(os.sched_getaffinity(0))
-    return cpus if 1 < n_workers <= len(cpus) else None
+    return cpus if 1 < n_workers == len(cpus) else None
 
 
 def _forwarded_environment():
