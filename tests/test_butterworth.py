@@ -69,21 +69,3 @@ def test_bad_arguments_are_refused():
     sos = butter_lowpass_sos(2, 6.0, 100.0)
     with pytest.raises(ValueError, match="more than 9 samples"):
         sosfiltfilt(sos, np.zeros(9))
-
-
-def test_reading_and_filtering_a_trial_does_not_import_scipy_signal():
-    """The reason for this module: scipy.signal (with scipy.stats) costs ≈ 0.3 s of imports
-    in every process that reads markers (each study worker, every openfdk command)."""
-    import subprocess
-    import sys
-
-    code = ("import sys, numpy as np\n"
-            "from openfdk.io.c3d import MarkerTrial\n"
-            "from openfdk.io.markers import MarkerTrajectories\n"
-            "t = np.arange(200) / 100.0\n"
-            "p = np.stack([np.sin(t), np.cos(t), t], axis=1)[:, None, :]\n"
-            "m = MarkerTrajectories(MarkerTrial(('a',), 100.0, t, p, source='x'), cutoff_hz=6.0)\n"
-            "assert np.isfinite(m.filtered_positions).all()\n"
-            "print(sorted(k for k in sys.modules if k.startswith('scipy.signal') or k == 'scipy.stats'))\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.strip() == "[]"

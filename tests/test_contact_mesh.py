@@ -262,16 +262,3 @@ def test_bad_stl_files_name_the_file(tmp_path):
         (tmp_path / name).write_bytes(data)
         with pytest.raises(MeshError, match=f"could not read mesh file '.*{name}'"):
             load_mesh(tmp_path / name)
-
-
-def test_loading_an_stl_does_not_import_trimesh(tmp_path, cap_mm):
-    import subprocess
-    import sys
-
-    path = tmp_path / "cap.stl"
-    trimesh.Trimesh(cap_mm.vertices_B, cap_mm.faces, process=False).export(path)
-    code = ("import sys\nfrom openfdk.contact.mesh import load_mesh\n"
-            f"assert load_mesh({str(path)!r}, units='mm').n_faces == {cap_mm.n_faces}\n"
-            "print(sorted(k for k in sys.modules if k == 'trimesh' or k.startswith('scipy.sparse')))\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.strip() == "[]"

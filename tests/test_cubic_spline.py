@@ -3,9 +3,6 @@ reproduces any cubic, and three points give their parabola), its defining invari
 at every knot, C³ at the second and second-last knots, interpolation) and
 scipy.interpolate.CubicSpline (an independent implementation, LAPACK's banded solver)."""
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
 from scipy.interpolate import CubicSpline
@@ -141,19 +138,3 @@ def test_spline_driver_uses_it():
 def test_bad_knots_are_refused(x, y, message):
     with pytest.raises(ValueError, match=message):
         not_a_knot_coefficients(x, y)
-
-
-def test_reading_a_trial_does_not_import_scipy_interpolate_or_optimize():
-    """The reason for this module: scipy.interpolate (with scipy.special and
-    scipy.optimize) costs ≈ 0.2 s of imports in every process that reads markers."""
-    code = ("import sys, numpy as np\n"
-            "from openfdk.io.c3d import MarkerTrial\n"
-            "from openfdk.io.markers import MarkerTrajectories\n"
-            "t = np.arange(50) / 100.0\n"
-            "p = np.stack([np.sin(t), np.cos(t), t], axis=1)[:, None, :] * np.ones((1, 2, 1))\n"
-            "m = MarkerTrajectories(MarkerTrial(('a', 'b'), 100.0, t, p, 'x.c3d'))\n"
-            "m.positions(0.2)\n"
-            "import openfdk.model.timefunctions, openfdk.recruitment\n"
-            "print(sorted(k for k in sys.modules if k in ('scipy.interpolate', 'scipy.optimize')))\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.strip() == "[]"

@@ -177,6 +177,31 @@ def test_study_driver_imports_no_analysis_layer():
     assert light is ModelError
 
 
+def test_a_case_path_imports_none_of_the_libraries_openfdk_replaced(tmp_path):
+    """Reading and filtering a trial (openfdk.io.butterworth, openfdk.cubic_spline),
+    loading an STL mesh (openfdk.contact.stl) and importing the spline drivers and the
+    recruitment do not import scipy.signal/stats (≈ 0.3 s), scipy.interpolate (≈ 0.2 s,
+    with scipy.special and scipy.optimize), scipy.sparse or trimesh (≈ 0.25 s): each
+    was used for one function and cost every openfdk process its import time."""
+    cap = sphere_cap(10.0, 0.6, 1.0, pole=(0.0, 0.0, 1.0))
+    stl = tmp_path / "cap.stl"
+    trimesh.Trimesh(cap.vertices_B, cap.faces, process=False).export(stl)
+    code = ("import sys, numpy as np\n"
+            "from openfdk.io.c3d import MarkerTrial\n"
+            "from openfdk.io.markers import MarkerTrajectories\n"
+            "from openfdk.contact.mesh import load_mesh\n"
+            "import openfdk.model.timefunctions, openfdk.recruitment\n"
+            "t = np.arange(200) / 100.0\n"
+            "p = np.stack([np.sin(t), np.cos(t), t], axis=1)[:, None, :] * np.ones((1, 2, 1))\n"
+            "m = MarkerTrajectories(MarkerTrial(('a', 'b'), 100.0, t, p, 'x.c3d'), cutoff_hz=6.0)\n"
+            "assert np.isfinite(m.filtered_positions).all() and np.isfinite(m.positions(0.2)).all()\n"
+            f"assert load_mesh({str(stl)!r}, units='mm').n_faces == {cap.n_faces}\n"
+            "heavy = ('scipy.signal', 'scipy.stats', 'scipy.interpolate', 'scipy.optimize', 'scipy.sparse', 'trimesh')\n"
+            "print(sorted(k for k in sys.modules if k in heavy))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+
+
 def test_a_second_local_cluster_starts_without_the_busy_port_warning():
     """Port 8787 held by another program (another cluster's HTTP endpoint): the local
     cluster takes any free port, so Dask's 'Port 8787 is already in use' never reaches
