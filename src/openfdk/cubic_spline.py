@@ -24,7 +24,10 @@ to Splines*, rev. ed., Ch. IV):
 The end rows are not diagonally dominant (|h_1| < |h_0 + h_1|), so they are first
 subtracted from the C² rows at x_1 and x_{n−2}, which removes m_0 and m_{n−1}:
 
-  (h_0 + h_1) m_1 + h_0 m_2 = r_1 − r_0,   h_{n−2} m_{n−3} + (h_{n−3} + h_{n−2}) m_{n−2} = r_{n−2} − r_{n−1}.
+  (h_0 + h_1) m_1 + h_0 m_2 = r_1 − r_0,
+  h_{n−2} m_{n−3} + (h_{n−3} + h_{n−2}) m_{n−2} = r_{n−2} − r_{n−1},
+
+r_i being the right-hand side of the C² row i (r_0, r_{n−1}: of the end rows).
 
 The remaining tridiagonal system in m_1 … m_{n−2} is strictly diagonally dominant for
 any knot spacing and is solved by forward elimination and back substitution without

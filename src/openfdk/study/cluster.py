@@ -33,15 +33,16 @@ starts, is :data:`FORK_SERVER_ENVIRONMENT` (one BLAS thread, as Dask's nanny set
 driver's other environment variables are passed to each worker as it starts. With
 ``malloc_trim=True`` (which must be in the environment when a process starts) the
 workers are spawned as Dask does by default.
+
 Core pinning: with as many workers as CPUs this process may use (the default), each
-LocalCluster worker (every thread of it: the analysis thread and Dask's event loop) is pinned to a
-CPU of its own (:class:`.pinning.CorePinning`, a Dask worker plugin, so a worker the
-nanny restarts is pinned again). Unpinned, the analysis thread moved between cores whenever
-the worker's event loop woke (heartbeats, monitors: ≈ 10 times a second) and ran
-≈ 6 % slower than in a plain process; pinned, the event loop takes the analysis
-thread's core for its few milliseconds and the analysis keeps its caches (one worker,
-13 FDK cases: 6.34 → 5.98 s of CPU, a plain process 5.88 s; docs/studies.md).
-``OPENFDK_PIN_WORKERS=0`` turns it off.
+LocalCluster worker — every thread of it, the analysis thread and Dask's event loop —
+is pinned to a CPU of its own (:class:`.pinning.CorePinning`, a Dask worker plugin, so
+a worker the nanny restarts is pinned again). Unpinned, the analysis thread moved
+between cores whenever the worker's event loop woke (heartbeats, monitors: ≈ 10 times
+a second) and ran ≈ 6 % slower than in a plain process; pinned, the event loop takes
+the analysis thread's core for its few milliseconds and the analysis keeps its caches
+(one worker, 13 FDK cases: 6.34 → 5.98 s of CPU, a plain process 5.88 s;
+docs/studies.md). ``OPENFDK_PIN_WORKERS=0`` turns it off.
 
 In each worker, the case layer keeps the meshes and parsed model files of the cases it
 ran (:mod:`openfdk.contact.mesh_cache`, :func:`openfdk.study.kinds.read_model_mapping`)
