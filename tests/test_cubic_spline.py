@@ -134,6 +134,8 @@ def test_spline_driver_uses_it():
     ([0.0, 1.0, 1.0], [1.0, 2.0, 3.0], "increase strictly"),
     ([0.0, 2.0, 1.0], [1.0, 2.0, 3.0], "increase strictly"),
     ([0.0, 1.0], [1.0, 2.0, 3.0], "2 knots but values"),
+    ([0.0, 1.0], 2.0, "2 knots but values of shape"),
+    ([0.0, 1.0], np.zeros((2, 3, 1)), "2 knots but values of shape"),
 ])
 def test_bad_knots_are_refused(x, y, message):
     with pytest.raises(ValueError, match=message):

@@ -57,9 +57,9 @@ def not_a_knot_coefficients(x, y) -> np.ndarray:
     y = np.asarray(y, dtype=np.float64)
     if x.ndim != 1 or x.shape[0] < 2:
         raise ValueError(f"spline: needs at least 2 knots in a 1-D array, got shape {x.shape}")
-    Y = np.ascontiguousarray(y.reshape(y.shape[0], -1) if y.ndim != 1 else y[:, None])
-    if Y.shape[0] != x.shape[0] or y.ndim > 2:
+    if y.ndim not in (1, 2) or y.shape[0] != x.shape[0]:
         raise ValueError(f"spline: {x.shape[0]} knots but values of shape {y.shape}")
+    Y = np.ascontiguousarray(y if y.ndim == 2 else y[:, None])
     h = np.diff(x)
     if not np.all(h > 0.0):
         raise ValueError("spline: knots must increase strictly")
