@@ -230,9 +230,7 @@ def test_a_second_local_cluster_starts_without_the_busy_port_warning():
 def test_workers_are_pinned_only_when_each_can_have_a_cpu(monkeypatch):
     from openfdk.study.cluster import PIN_ENVIRONMENT, pinnable_cpus
 
-    if not hasattr(os, "sched_getaffinity"):
-        pytest.skip("no CPU affinity on this platform")
-    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {5, 2, 7})
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {5, 2, 7}, raising=False)
     monkeypatch.delenv(PIN_ENVIRONMENT, raising=False)
     assert pinnable_cpus(3) == [2, 5, 7]     # one worker per CPU: each gets its own
     assert pinnable_cpus(4) is None          # more workers than CPUs: the OS balances them
@@ -247,9 +245,8 @@ def test_workers_are_pinned_only_when_each_can_have_a_cpu(monkeypatch):
 
 def test_core_pinning_pins_every_thread_of_the_worker_process():
     """Run in a child process (pinning is per process): a thread started before and one
-    started after setup() end up on the worker's CPU, worker k on cpus[k % len]."""
-    if not hasattr(os, "sched_getaffinity"):
-        pytest.skip("no CPU affinity on this platform")
+    started after setup() end up on the worker's CPU, worker k on cpus[k % len]. (openfdk
+    pins on Linux only: /proc and sched_setaffinity.)"""
     code = (
         "import os, threading, types\n"
         "from openfdk.study.pinning import CorePinning\n"
@@ -267,18 +264,31 @@ def test_core_pinning_pins_every_thread_of_the_worker_process():
     assert out.strip() == "True"
 
 
-def test_local_cluster_workers_run_on_cpus_of_their_own():
-    from openfdk.study.cluster import dask_client, pinnable_cpus
+def test_local_cluster_workers_run_on_cpus_of_their_own(monkeypatch):
+    """A 2-worker cluster started from a process allowed 2 CPUs (this one, restricted to
+    its first two for the test): every thread of each worker on one CPU, the two workers
+    on different CPUs. On a 1-CPU machine pinning must stay off and the cluster still
+    runs its task there."""
+    from openfdk.study.cluster import PIN_ENVIRONMENT, dask_client, pinnable_cpus
 
-    if pinnable_cpus(2) is None:
-        pytest.skip("pinning needs exactly 2 usable CPUs for 2 workers (and not turned off)")
+    monkeypatch.delenv(PIN_ENVIRONMENT, raising=False)
+    allowed = sorted(os.sched_getaffinity(0))
 
     def affinities():
         return {frozenset(os.sched_getaffinity(int(t))) for t in os.listdir("/proc/self/task")}
 
-    with dask_client(workers=2) as client:
-        per_worker = list(client.run(affinities).values())
-        task_thread = client.submit(lambda: frozenset(os.sched_getaffinity(0)), pure=False).result()
+    try:
+        os.sched_setaffinity(0, allowed[:2])
+        expected = pinnable_cpus(2)
+        with dask_client(workers=2) as client:
+            per_worker = list(client.run(affinities).values())
+            task_thread = client.submit(lambda: frozenset(os.sched_getaffinity(0)), pure=False).result()
+    finally:
+        os.sched_setaffinity(0, allowed)
+    if len(allowed) == 1:
+        assert expected is None and task_thread == frozenset(allowed)
+        return
+    assert expected == allowed[:2]
     assert all(len(a) == 1 for a in per_worker)                        # each worker: one CPU for all threads
-    assert len(set().union(*per_worker)) == 2                         # and not the same one
+    assert set().union(*per_worker) == {frozenset({allowed[0]}), frozenset({allowed[1]})}  # not the same one
     assert {task_thread} in per_worker                                # the analysis thread is on it too
