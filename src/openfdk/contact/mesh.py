@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .stl import read_stl
+from .unique_rows import first_appearance_rows
 
 __all__ = [
     "MeshError",
@@ -272,15 +273,13 @@ def surface_mesh(vertices_B, faces, name="mesh", *, repair=True) -> SurfaceMesh:
 def _drop_duplicate_faces(faces, normals, areas, name):
     """Remove triangles on the same three vertices as an earlier one (any order), with a
     MeshWarning giving the count; (faces, normals, areas) of the rest."""
-    key = np.sort(faces, axis=1)
-    _, first = np.unique(key, axis=0, return_index=True)
+    first, _ = first_appearance_rows(np.sort(faces, axis=1))
     n_dup = faces.shape[0] - first.size
     if n_dup == 0:
         return faces, normals, areas
     warnings.warn(f"mesh '{name}': {n_dup} duplicate triangle(s) (the same three vertices as another) removed",
                   MeshWarning, stacklevel=3)
-    keep = np.sort(first)
-    return faces[keep], normals[keep], areas[keep]
+    return faces[first], normals[first], areas[first]
 
 
 def _warn_non_manifold(faces, name):

@@ -27,6 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .unique_rows import first_appearance_rows
+
 __all__ = ["StlError", "read_stl"]
 
 _RECORD = np.dtype([("normal", "<f4", (3,)), ("corners", "<f4", (3, 3)), ("attribute", "<u2")])
@@ -75,10 +77,5 @@ def _ascii_corners(data: bytes) -> np.ndarray:
 def _merge_corners(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(vertices, faces) from corners ``(3 n_faces, 3)``: equal corners become one
     vertex, vertices in order of first appearance."""
-    if corners.shape[0] == 0:
-        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
-    unique, first, inverse = np.unique(corners, axis=0, return_index=True, return_inverse=True)
-    order = np.argsort(first, kind="stable")
-    number = np.empty_like(order)
-    number[order] = np.arange(order.shape[0])
-    return unique[order], number[inverse.ravel()].reshape(-1, 3).astype(np.int64)
+    first, inverse = first_appearance_rows(corners)
+    return corners[first].reshape(-1, 3), inverse.reshape(-1, 3)
