@@ -78,4 +78,4 @@ def _merge_corners(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(vertices, faces) from corners ``(3 n_faces, 3)``: equal corners become one
     vertex, vertices in order of first appearance."""
     first, inverse = first_appearance_rows(corners)
-    return corners[first].reshape(-1, 3), inverse.reshape(-1, 3)
+    return corners[first], inverse.reshape(-1, 3)

@@ -46,4 +46,4 @@ def first_appearance_rows(rows) -> tuple[np.ndarray, np.ndarray]:
     renumber[by_appearance] = np.arange(first_sorted.size)
     inverse = np.empty(n, dtype=np.int64)
     inverse[order] = renumber[group_sorted]
-    return first_sorted[by_appearance].astype(np.int64), inverse
+    return first_sorted[by_appearance].astype(np.int64, copy=False), inverse
