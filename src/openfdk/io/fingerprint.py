@@ -20,6 +20,14 @@ def referenced_files(model_path) -> list:
     name an existing file relative to the model's folder, in file order, each once."""
     model_path = Path(model_path)
     base, found, seen = model_path.parent, [], set()
+    from .opensim import is_osim
+
+    if is_osim(model_path):  # an OpenSim model: its overlay (--with), if any
+        from .opensim.overlay import _REGISTERED, _key
+
+        opts = _REGISTERED.get(_key(model_path))
+        overlay = None if opts is None else opts.overlay
+        return [("--with", overlay)] if overlay is not None else []
 
     def walk(value):
         if isinstance(value, dict):

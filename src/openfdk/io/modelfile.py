@@ -47,9 +47,19 @@ SECTIONS = (
 
 def load_model_and_settings(path) -> tuple[Model, AnalysisSettings]:
     """Read, validate and build a model file: (the physical Model, the file's analysis
-    settings). Raises ModelError naming the entry."""
+    settings). Raises ModelError naming the entry. An OpenSim ``.osim`` is read by
+    :mod:`openfdk.io.opensim` (with the overlay and options registered for it by
+    :func:`openfdk.io.opensim.overlay.register`); a YAML file with an ``opensim:`` key is
+    an overlay on the ``.osim`` it names (docs/opensim-import.md)."""
     path = Path(path)
-    data = read_yaml(path, ModelError, "model file")
+    from .opensim.overlay import imported_model_data
+
+    data = imported_model_data(path)
+    if data is None:
+        data = read_yaml(path, ModelError, "model file")
+        from .opensim.overlay import overlay_model_data
+
+        data = overlay_model_data(path, data)
     model, settings = model_and_settings_from_dict(data, source=path.name, base_dir=path.parent)
     check_model(model, path.name, settings.units["length"])  # plausibility warnings
     return model, settings

@@ -108,13 +108,13 @@ def _geometry(model, out_dir):
                        f"{model.bodies[body].name!r} frame, metres")
             attached.setdefault(body, []).append((f"{c.name}_{side}", f"{GEOMETRY_DIR}/{fname}", ""))
     if visuals:
-        from ..contact.mesh import load_mesh
+        from ..model.visuals import visual_mesh_B
 
     for k, v in enumerate(visuals):
-        mesh = load_mesh(v.path, units=v.units, placement=(v.p_BF, v.R_BF))   # file -> body frame, m
+        vertices_B, faces = visual_mesh_B(v)   # .stl/.vtp/.obj/.ply file -> body frame, m (units, scale, placement)
         body = model.body(v.body).index
         fname = f"{v.body}_visual_{k}.obj"
-        _write_obj(out_dir / GEOMETRY_DIR / fname, mesh.vertices_B, mesh.faces,
+        _write_obj(out_dir / GEOMETRY_DIR / fname, vertices_B, faces,
                    f"openfdk visual mesh {v.entry} ({Path(v.path).name}), body {v.body!r} frame, metres")
         attached.setdefault(body, []).append((f"{v.body}_visual_{k}", f"{GEOMETRY_DIR}/{fname}", v.color))
     return attached

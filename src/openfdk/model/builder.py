@@ -424,7 +424,8 @@ class ModelBuilder:
         )
 
     #: element kinds collected in ``self.elements`` -> Model field
-    ELEMENT_FIELDS = ("muscles", "ligaments", "springs", "contacts", "loads", "unilateral_reactions", "visuals")
+    ELEMENT_FIELDS = ("muscles", "ligaments", "springs", "contacts", "loads", "unilateral_reactions", "visuals",
+                      "coordinates")
     SETTING_FIELDS = {"analysis": "kinematics", "recruitment": "recruitment", "fdk": "fdk", "units": "units"}
 
     def _typed_elements(self):

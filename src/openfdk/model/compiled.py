@@ -28,6 +28,8 @@ OP_ANGLES      body_a, body_b                           R_aFa (9), R_bFb (9) row
 OP_LINEAR      n_terms, child_1 … child_n               offset (size), C_1 … C_n row-major
 OP_ROTATION_   body_a, body_b, axes i, j, k             R_aFa (9), R_bFb (9), sign (3)
 ANGLES         (any Euler/Cardan sequence, JCS angles)
+OP_FUNCTION    node_u (a 1-row node)                    f as PiecewisePolynomial.to_params()
+               (m = f(u): OpenSim's coupled joint rows and coordinate couplers)
 =============  =======================================  =============================
 
 The maths of each op is the one of the measure class of the same name in
@@ -58,11 +60,13 @@ import numpy as np
 from numba import njit
 
 from .measures import AxisDot, Distance, Linear, PointPosition, RelativeAngles, RelativeVector
+from .coordinate_functions import pp_evaluate
+from .function_measure import FunctionOf
 from .rotation_angles import RotationAngles, rotation_angles
 
 __all__ = ["CompiledMeasures", "MeasureCompileError", "register", "evaluate_program"]
 
-OP_POINT, OP_VECTOR, OP_DISTANCE, OP_AXIS_DOT, OP_ANGLES, OP_LINEAR, OP_ROTATION_ANGLES = 0, 1, 2, 3, 4, 5, 6
+OP_POINT, OP_VECTOR, OP_DISTANCE, OP_AXIS_DOT, OP_ANGLES, OP_LINEAR, OP_ROTATION_ANGLES, OP_FUNCTION = range(8)
 
 #: error codes returned by the kernel (with the failing node)
 ERR_NONE, ERR_COINCIDENT, ERR_GIMBAL = 0, 1, 2
@@ -91,6 +95,7 @@ register(RelativeAngles, lambda m, child: (
 register(RotationAngles, lambda m, child: (
     OP_ROTATION_ANGLES, [m.body_a, m.body_b] + [int(x) for x in m.seq],
     list(np.ravel(m.R_aFa)) + list(np.ravel(m.R_bFb)) + list(m.sign)))
+register(FunctionOf, lambda m, child: (OP_FUNCTION, [child(m.measure)], list(m.function.to_params())))
 register(Linear, lambda m, child: (
     OP_LINEAR, [len(m.terms)] + [child(sub) for _, sub in m.terms],
     list(m.offset) + [x for C, _ in m.terms for x in np.ravel(C)]))
@@ -464,6 +469,17 @@ def evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fparams
                         M[row + r, c] = Mr[r, c]
                 if order >= 2:
                     b[row + r] = br[r]
+        elif o == OP_FUNCTION:
+            # m = f(u): M = f'(u) M_u, b = f''(u) u̇² + f'(u) b_u (openfdk.model.function_measure)
+            ru = node_row[iparams[ip]]
+            f, df, d2f = pp_evaluate(fparams, fp, val[ru])
+            val[row] = f
+            if order >= 1:
+                for c in range(n):
+                    M[row, c] = df * M[ru, c]
+                if order >= 2:
+                    du = _rate(M, v, ru, n)
+                    b[row] = d2f * du * du + df * b[ru]
         else:  # OP_LINEAR: m = Σ_j C_j m_j + offset
             size = node_size[k]
             n_terms = iparams[ip]

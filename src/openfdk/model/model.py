@@ -39,6 +39,8 @@ class Model:
     loads : ExternalLoad (force and moment time functions at a body point)
     unilateral_reactions : UnilateralReaction (one-sided joint rows, recruited)
     visuals : Visual (display meshes of bodies, for the viewer; no forces)
+    coordinates : Coordinate (OpenSim-style joint coordinates, each a named measure;
+        :mod:`openfdk.model.coordinate_joint`)
 
     The model is purely physical: how it is analysed (kinematics window, recruitment,
     FDK solver) is an :class:`~openfdk.model.settings.AnalysisSettings` kept apart and
@@ -60,6 +62,7 @@ class Model:
     loads: tuple = ()
     unilateral_reactions: tuple = ()
     visuals: tuple = ()
+    coordinates: tuple = ()
     source: str = ""
 
     # -- look-ups -------------------------------------------------------------------

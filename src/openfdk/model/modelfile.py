@@ -20,6 +20,7 @@ from ..io.yamlfile import YamlContext
 
 from ..spatial import quat_from_rotvec, rotation_matrix_xyz
 from .builder import ModelBuilder
+from .coordinates_section import finish_coordinates, load_couplers, load_custom_joint, read_coordinates
 from .components import GROUND
 from .measures import Linear
 from .model import Model, ModelError
@@ -31,7 +32,7 @@ FORMAT_VERSION = 1
 
 CORE_SECTIONS = (
     "openfdk", "name", "units", "gravity", "bodies", "measures", "joints",
-    "constraints", "drivers", "fdk_dofs", "analysis", "description",
+    "constraints", "drivers", "fdk_dofs", "analysis", "description", "coordinates", "couplers",
 )
 
 
@@ -67,8 +68,14 @@ def read_core(data, source="<dict>", base_dir=None, sections=()):
     _load_bodies(b, data["bodies"], ctx)
     for name, spec in (ctx.mapping(data.get("measures") or {}, "measures")).items():
         _wrap(ctx, f"measures.{name}", lambda: b.add_measure(name, _measure(b, spec, f"measures.{name}", ctx)))
+    coordinates = read_coordinates(data.get("coordinates"), ctx)
     for name, spec in (ctx.mapping(data.get("joints") or {}, "joints")).items():
-        _load_joint(b, name, spec, ctx)
+        if isinstance(spec, dict) and spec.get("type") == "custom":
+            load_custom_joint(b, name, spec, coordinates, ctx, _wrap)
+        else:
+            _load_joint(b, name, spec, ctx)
+    finish_coordinates(b, coordinates, ctx, _wrap)
+    load_couplers(b, data.get("couplers"), coordinates, ctx, _wrap)
     for name, spec in (ctx.mapping(data.get("constraints") or {}, "constraints")).items():
         _load_constraint(b, name, spec, ctx)
     for name, spec in (ctx.mapping(data.get("drivers") or {}, "drivers")).items():

@@ -11,8 +11,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..contact.mesh import MeshError, load_mesh
 from ..model.measures import Distance, Linear
+from ..model.visuals import visual_mesh_B
 from .decimate import decimate
 from .pack import index_kind, pack
 from .results import ViewError
@@ -59,7 +59,8 @@ def _path_points(model, measure):
 
 def build_scene(model, max_vertices=MAX_MESH_VERTICES):
     """Scene of ``model``: bodies (name, fixed, colour, reference pose), meshes (contact
-    surfaces and visual meshes, decimated to ≤ max_vertices), markers (body, p_BM),
+    surfaces and visual meshes (read by :func:`~openfdk.model.visuals.visual_mesh_B`:
+    STL, VTP, OBJ or PLY, with their scale and placement), decimated to ≤ max_vertices), markers (body, p_BM),
     paths (muscles, ligaments, path springs: body points; wrapped paths: a slice of the
     per-frame world points, see :mod:`.wrapview`), contacts (vertex-surface mesh
     index) and the FDK DOF names. Raises ViewError naming a visual mesh that cannot be
@@ -81,11 +82,11 @@ def build_scene(model, max_vertices=MAX_MESH_VERTICES):
         points += [_world(model, c.body_a, va), _world(model, c.body_b, vb)]
     for vis in model.visuals:
         try:
-            mesh = load_mesh(vis.path, units=vis.units, placement=(vis.p_BF, vis.R_BF), name=vis.entry)
-        except MeshError as exc:
+            vertices_B, faces = visual_mesh_B(vis)   # .stl, .vtp, .obj, .ply; units, scale, placement
+        except ValueError as exc:
             raise ViewError(f"{model.source}: {vis.entry}.mesh: {exc}") from None
         body = model.body(vis.body).index
-        entry, _, v = _mesh_entry(mesh.vertices_B, mesh.faces, body, "visual", vis.entry,
+        entry, _, v = _mesh_entry(vertices_B, faces, body, "visual", vis.entry,
                                   vis.color or bodies[body]["color"], max_vertices)
         meshes.append(entry)
         points.append(_world(model, body, v))

@@ -1,0 +1,109 @@
+"""Wavefront OBJ triangle meshes (text): the ``v`` and ``f`` statements.
+
+* ``v x y z [w]`` (optionally followed by colour components): a vertex, numbered from 1
+  in the order of the file; only x, y, z are used;
+* ``f c1 c2 c3 …``: a polygon of 3 or more corners, each ``i``, ``i/t``, ``i//n`` or
+  ``i/t/n`` (vertex, texture and normal indices; only the vertex index i is used). A
+  negative i counts back from the latest vertex (-1 is the vertex defined last before
+  this line). Polygons are fan-triangulated from their first corner (:mod:`.polygons`).
+
+Comments (``#`` to the end of the line), lines continued by a trailing backslash, and all
+other statements (``vt``, ``vn``, ``g``, ``o``, ``s``, ``l``, ``usemtl``, ``mtllib`` …)
+are accepted and ignored. Every problem raises one ``ValueError`` line
+``<file>: line <k>: <what is wrong>``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .polygons import fan_triangles
+
+__all__ = ["read_obj"]
+
+_MAX_INDEX = 2**53
+
+
+def read_obj(path) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices ``(n, 3)`` float64 (the file's length unit, in file order) and triangles
+    ``(m, 3)`` int64 (0-based vertex indices, the file's winding) of the Wavefront OBJ
+    file ``path``. Raises ``ValueError("<path>: <what is wrong>")`` (one line)."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
+    try:
+        return _parse(data)
+    except (ValueError, OverflowError, MemoryError) as exc:
+        raise ValueError(f"{path}: {' '.join(str(exc).split())}") from None
+
+
+def _lines(data: bytes):
+    """(line number, statement tokens) of the non-empty lines, comments removed and
+    backslash continuations joined."""
+    if b"\0" in data:
+        raise ValueError("is a binary file, not a Wavefront OBJ text file")
+    text = data.decode("utf-8", errors="replace")
+    pending, first = "", 0
+    for k, line in enumerate(text.splitlines(), start=1):
+        line = line.split("#", 1)[0]
+        if line.rstrip().endswith("\\"):
+            first = first or k
+            pending += line.rstrip()[:-1] + " "
+            continue
+        line, at = pending + line, first or k
+        pending, first = "", 0
+        tokens = line.split()
+        if tokens:
+            yield at, tokens
+    if pending.split():
+        yield first, pending.split()
+
+
+def _parse(data: bytes):
+    vertices, corners, ends, face_lines = [], [], [], []
+    for k, tokens in _lines(data):
+        key = tokens[0]
+        if key == "v":
+            if len(tokens) < 4:
+                raise ValueError(f"line {k}: a vertex needs x y z, got {' '.join(tokens)!r}")
+            try:
+                xyz = [float(t) for t in tokens[1:4]]
+            except ValueError:
+                raise ValueError(f"line {k}: vertex coordinates {' '.join(tokens[1:4])!r} are not numbers") from None
+            if not all(np.isfinite(xyz)):
+                raise ValueError(f"line {k}: vertex {len(vertices) + 1} has a non-finite coordinate {xyz}")
+            vertices.append(xyz)
+        elif key == "f":
+            if len(tokens) < 4:
+                raise ValueError(f"line {k}: a face needs at least 3 corners, got {len(tokens) - 1}")
+            for t in tokens[1:]:
+                try:
+                    i = int(t.split("/", 1)[0])
+                except ValueError:
+                    raise ValueError(f"line {k}: face corner {t!r} does not begin with a vertex index") from None
+                if abs(i) > _MAX_INDEX:
+                    raise ValueError(f"line {k}: face corner {t!r} is beyond any vertex of the file")
+                if i == 0:
+                    raise ValueError(f"line {k}: face corner {t!r}: vertex indices start at 1 (or -1)")
+                if i < 0:
+                    i += len(vertices)
+                    if i < 0:
+                        raise ValueError(f"line {k}: face corner {t!r} counts back beyond the first vertex "
+                                         f"({len(vertices)} defined so far)")
+                else:
+                    i -= 1
+                corners.append(i)
+            ends.append(len(corners))
+            face_lines.append(k)
+    v = np.array(vertices, dtype=np.float64).reshape(-1, 3)
+    conn = np.array(corners, dtype=np.int64)
+    bad = conn >= len(v)
+    if bad.any():
+        face = int(np.searchsorted(np.array(ends), int(np.argmax(bad)), side="right"))
+        raise ValueError(f"line {face_lines[face]}: face vertex index {conn[bad][0] + 1} is beyond the "
+                         f"{len(v)} vertices of the file")
+    return v, fan_triangles(conn, np.array(ends, dtype=np.int64), "face")

@@ -1,0 +1,41 @@
+"""OpenSim models in: ``.osim`` files (OpenSim 3.x and 4.x) read into openfdk models.
+
+One more way into the same :class:`~openfdk.model.builder.ModelBuilder` (DESIGN.md §3):
+the XML is read into records (:mod:`.document`), the records become an openfdk model
+mapping in the model-file format (:mod:`.to_model`), and the model-file loader builds
+it. After ``build()`` nothing downstream knows where the model came from. Coverage,
+element by element: docs/opensim-import.md.
+"""
+
+from __future__ import annotations
+
+from .errors import OsimError
+
+__all__ = ["OsimError", "read_osim", "is_osim"]
+
+
+def is_osim(path) -> bool:
+    """Whether ``path`` names an OpenSim model (by its suffix, ``.osim``)."""
+    return str(path).lower().endswith(".osim")
+
+
+def read_osim(path, ignore=(), mesh_dirs=()):
+    """(model mapping, info) of an ``.osim``: the mapping is in openfdk's model-file
+    format (SI units); info has ``dropped`` (type, name, line) of the elements left out
+    on request (``ignore``: element types such as ``Thelen2003Muscle``, ``Mesh`` or
+    ``forces``) and ``merged_bodies`` {welded body: body it is part of}. Any element
+    openfdk does not read and that is not ignored raises OsimError naming its type, name
+    and line."""
+    from .document import read_document
+    from .to_model import model_dict
+
+    doc = read_document(path, ignore=ignore)
+    if doc.unsupported:
+        kind, name, line = doc.unsupported[0]
+        more = f" (and {len(doc.unsupported) - 1} more unsupported elements)" if len(doc.unsupported) > 1 else ""
+        label = f"{kind} {name!r}" if name else kind
+        raise OsimError(f"{doc.source}: line {line}: {label} is not supported by openfdk's OpenSim import{more}; "
+                        f"leave it out with --ignore {kind}")
+    data, info = model_dict(doc, mesh_dirs, ignore)
+    info["dropped"] = [{"type": k, "name": n, "line": line} for k, n, line in doc.ignored]
+    return data, info

@@ -1,0 +1,655 @@
+"""An OpenSim model file (``.osim``, OpenSim 3.x or 4.x) read into plain records.
+
+The XML is parsed by lxml with entity resolution and network access off; the reader
+walks the elements it knows and lists every other element it meets. Both layouts are
+read into the same records:
+
+* OpenSim 4.x (``Version`` ≥ 40000): ``Ground``, ``BodySet``, ``JointSet`` (joints with
+  ``socket_parent_frame``/``socket_child_frame`` naming ``PhysicalOffsetFrame``\\ s in the
+  joint's ``frames``, the bodies' ``components`` or the model's ``ComponentSet``),
+  ``ConstraintSet``, ``MarkerSet`` (``socket_parent_frame``), ``attached_geometry``;
+* OpenSim 3.x (``Version`` < 40000): joints nested in the child body
+  (``Body/Joint/CustomJoint`` with ``parent_body``, ``location_in_parent``,
+  ``orientation_in_parent``, ``location``, ``orientation``), the ground a body named
+  ``ground``, markers with ``body``, geometry as ``VisibleObject``/``DisplayGeometry``
+  or ``geometry_files``.
+
+Units: OpenSim files are in m, kg, rad (``length_units`` other than meters is refused).
+Orientations (``orientation``, ``orientation_in_parent``) are body-fixed X-Y-Z Euler
+angles, rad. Nothing here builds an openfdk model: :mod:`openfdk.io.opensim.joints`
+and :mod:`openfdk.io.opensim.to_model` do.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import OsimError, where
+from .functions import function_element, function_spec
+
+#: OpenSim joint types and their SpatialTransform (rotation axes, translation axes,
+#: with the coordinate index of each axis or None): OpenSim's own definitions (Joint
+#: classes' documentation; checked against OpenSim 4.6 in tests/test_opensim_import.py)
+_X, _Y, _Z = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
+JOINT_TRANSFORMS = {
+    "PinJoint": (((_Z, 0), (_X, None), (_Y, None)), ((_X, None), (_Y, None), (_Z, None))),
+    "SliderJoint": (((_X, None), (_Y, None), (_Z, None)), ((_X, 0), (_Y, None), (_Z, None))),
+    "UniversalJoint": (((_X, 0), (_Y, 1), (_Z, None)), ((_X, None), (_Y, None), (_Z, None))),
+    "GimbalJoint": (((_X, 0), (_Y, 1), (_Z, 2)), ((_X, None), (_Y, None), (_Z, None))),
+    "BallJoint": (((_X, 0), (_Y, 1), (_Z, 2)), ((_X, None), (_Y, None), (_Z, None))),
+    "FreeJoint": (((_X, 0), (_Y, 1), (_Z, 2)), ((_X, 3), (_Y, 4), (_Z, 5))),
+    "PlanarJoint": (((_Z, 0), (_X, None), (_Y, None)), ((_X, 1), (_Y, 2), (_Z, None))),
+    "WeldJoint": (((_X, None), (_Y, None), (_Z, None)), ((_X, None), (_Y, None), (_Z, None))),
+}
+JOINT_TYPES = ("CustomJoint",) + tuple(JOINT_TRANSFORMS)
+CONSTRAINT_TYPES = ("CoordinateCouplerConstraint", "WeldConstraint", "PointConstraint")
+#: elements that carry no physics or kinematics (display settings, metadata)
+_METADATA = {
+    "credits", "publications", "length_units", "force_units", "assembly_accuracy", "defaults",
+    "validatedMarkers", "FrameGeometry", "frame_geometry", "Appearance", "appearance", "VisibleObject",
+    "gravity", "BodySet", "JointSet", "ConstraintSet", "MarkerSet", "Ground", "ComponentSet", "ContactGeometrySet",
+    "ProbeSet", "ControllerSet", "ForceSet", "components", "attached_geometry",
+}
+
+
+@dataclass
+class OsimFrame:
+    """A frame: ``body`` (OpenSim body name, "ground" for the ground), X_BF as
+    ``p_BF (3,) m`` and ``R_BF (3, 3)`` in that body's OpenSim frame."""
+
+    name: str
+    body: str
+    p_BF: np.ndarray
+    R_BF: np.ndarray
+    line: int = 0
+
+
+@dataclass
+class OsimGeometry:
+    """A display mesh: ``file`` as named in the model, on ``frame`` (an OsimFrame name
+    or a body name), ``scale (3,)``."""
+
+    file: str
+    frame: str
+    scale: np.ndarray
+    p_FG: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    R_FG: np.ndarray = field(default_factory=lambda: np.eye(3))
+    line: int = 0
+
+
+@dataclass
+class OsimBody:
+    """mass kg, mass_center (3,) m in the body frame, inertia (3, 3) kg m² about the
+    centre of mass in the body frame."""
+
+    name: str
+    mass: float
+    mass_center: np.ndarray
+    inertia: np.ndarray
+    line: int = 0
+
+
+@dataclass
+class OsimCoordinate:
+    """default (rad or m), range (2,), clamped, locked, prescribed (+ function spec of
+    time), motion_type ("rotational", "translational", "coupled"; from the axes when the
+    file does not say), joint name."""
+
+    name: str
+    joint: str
+    default: float
+    range: tuple
+    clamped: bool
+    locked: bool
+    prescribed: bool
+    prescribed_function: dict | None
+    motion_type: str
+    line: int = 0
+
+
+@dataclass
+class OsimAxis:
+    """One TransformAxis: unit ``axis (3,)`` (normalised), ``coordinates`` (names),
+    ``function`` (spec dict of :func:`openfdk.model.coordinate_functions.function_from_spec`)."""
+
+    name: str
+    axis: np.ndarray
+    coordinates: tuple
+    function: dict
+    line: int = 0
+
+
+@dataclass
+class OsimJoint:
+    """A joint: ``type`` (OpenSim class), ``parent``/``child`` frame names (OsimFrame),
+    ``coordinates`` (names, in the joint's order), ``rotations`` and ``translations``
+    (3 OsimAxis each, OpenSim's SpatialTransform)."""
+
+    name: str
+    type: str
+    parent: str
+    child: str
+    coordinates: tuple
+    rotations: tuple
+    translations: tuple
+    line: int = 0
+
+
+@dataclass
+class OsimConstraint:
+    """A constraint: CoordinateCouplerConstraint (``independent``, ``dependent``,
+    ``function``), WeldConstraint (``frames``) or PointConstraint (``frames``: two
+    frames whose origins coincide)."""
+
+    name: str
+    type: str
+    independent: tuple = ()
+    dependent: str = ""
+    function: dict | None = None
+    frames: tuple = ()
+    line: int = 0
+
+
+@dataclass
+class OsimMarker:
+    name: str
+    body: str
+    location: np.ndarray
+    frame: str = ""
+    line: int = 0
+
+
+@dataclass
+class OsimDocument:
+    """The records of one model file (see the module docstring)."""
+
+    source: str
+    path: Path
+    name: str
+    version: int
+    gravity: np.ndarray
+    bodies: dict
+    frames: dict
+    joints: list
+    coordinates: dict
+    constraints: list
+    markers: list
+    geometry: list
+    unsupported: list  # (type, name, line) of elements openfdk does not read
+    ignored: list = field(default_factory=list)  # the same, left out on request (--ignore)
+
+
+def _parser():
+    from lxml import etree
+
+    return etree.XMLParser(resolve_entities=False, no_network=True, huge_tree=False, remove_comments=True,
+                           remove_pis=True)
+
+
+def read_document(path, ignore=()) -> OsimDocument:
+    """Read ``path`` (an ``.osim``) into an OsimDocument; ``ignore``: element types (tag
+    names, or ``forces`` for the ForceSet and wrap objects) to leave out, listed in
+    ``OsimDocument.ignored``. Raises OsimError (one line naming file, line, element)."""
+    from lxml import etree
+
+    path = Path(path)
+    source = path.name
+    try:
+        tree = etree.parse(str(path), _parser())
+    except OSError as exc:
+        raise OsimError(f"{source}: cannot read the file ({exc})") from None
+    except etree.XMLSyntaxError as exc:
+        raise OsimError(f"{source}: not well-formed XML: {exc.msg} (line {exc.lineno})") from None
+    root = tree.getroot()
+    if root.tag != "OpenSimDocument":
+        raise OsimError(f"{source}: line {root.sourceline}: the root element is <{root.tag}>, not <OpenSimDocument>: "
+                        "not an OpenSim model")
+    try:
+        version = int(root.get("Version", "0"))
+    except ValueError:
+        raise OsimError(f"{source}: line {root.sourceline}: OpenSimDocument Version {root.get('Version')!r} is not "
+                        "a number") from None
+    model = root.find("Model")
+    if model is None:
+        raise OsimError(f"{source}: line {root.sourceline}: no <Model> in the OpenSimDocument")
+    reader = _Reader(source, path, set(ignore))
+    return reader.read(model, version)
+
+
+def numbers(element, source, n=None, what=None):
+    """The whitespace-separated numbers of an element's text -> float array; ``n``: the
+    count required. Errors name the element and its line."""
+    text = (element.text or "").split()
+    try:
+        arr = np.array([float(x) for x in text])
+    except ValueError:
+        raise OsimError(f"{where(source, element, what)}: expected numbers, got {element.text!r}") from None
+    if n is not None and arr.shape != (n,):
+        raise OsimError(f"{where(source, element, what)}: expected {n} numbers, got {len(arr)}")
+    if not np.all(np.isfinite(arr)):
+        raise OsimError(f"{where(source, element, what)}: non-finite number in {element.text!r}")
+    return arr
+
+
+def rotation_xyz(angles):
+    """R = Rx(a0) Ry(a1) Rz(a2): body-fixed X-Y-Z Euler angles (rad) -> (3, 3)."""
+    out = np.eye(3)
+    for k, a in enumerate(angles):
+        c, s = np.cos(a), np.sin(a)
+        i, j = (k + 1) % 3, (k + 2) % 3
+        R = np.eye(3)
+        R[i, i], R[i, j], R[j, i], R[j, j] = c, -s, s, c
+        out = out @ R
+    return out
+
+
+class _Reader:
+    def __init__(self, source, path, ignore):
+        self.source = source
+        self.path = path
+        self.ignore = ignore
+        self.bodies, self.frames, self.coordinates = {}, {}, {}
+        self.joints, self.constraints, self.markers, self.geometry = [], [], [], []
+        self.unsupported, self.ignored = [], []
+
+    # -- small helpers ----------------------------------------------------------------
+    def err(self, element, msg, what=None):
+        return OsimError(f"{where(self.source, element, what)}: {msg}")
+
+    def child_numbers(self, element, tag, n, default=None):
+        e = element.find(tag)
+        if e is None or not (e.text or "").strip():
+            if default is None:
+                raise self.err(element, f"missing <{tag}>")
+            return np.array(default, dtype=float)
+        return numbers(e, self.source, n, f"{element.tag} {element.get('name')!r} <{tag}>"
+                       if element.get("name") else f"{element.tag} <{tag}>")
+
+    def child_text(self, element, tag, default=None):
+        e = element.find(tag)
+        if e is None or e.text is None or not e.text.strip():
+            if default is None:
+                raise self.err(element, f"missing <{tag}>")
+            return default
+        return e.text.strip()
+
+    def child_bool(self, element, tag, default):
+        text = self.child_text(element, tag, "")
+        if text == "":
+            return default
+        if text.lower() not in ("true", "false"):
+            raise self.err(element, f"<{tag}> must be true or false, got {text!r}")
+        return text.lower() == "true"
+
+    def skip(self, element, kind=None):
+        """An element openfdk does not read: ignored on request, else listed."""
+        kind = kind or element.tag
+        entry = (kind, element.get("name") or "", element.sourceline)
+        if kind in self.ignore or ("forces" in self.ignore and (kind == "ForceSet" or kind.startswith("Wrap"))):
+            self.ignored.append(entry)
+        else:
+            self.unsupported.append(entry)
+
+    @staticmethod
+    def objects(element):
+        """The children of a Set's <objects> (or of the element itself)."""
+        if element is None:
+            return []
+        objs = element.find("objects")
+        return list(objs) if objs is not None else list(element)
+
+    @staticmethod
+    def last(path):
+        """The component name at the end of an OpenSim path ('/bodyset/femur_r' -> 'femur_r')."""
+        return path.rstrip("/").split("/")[-1] if path else path
+
+    # -- the model --------------------------------------------------------------------
+    def read(self, model, version):
+        name = model.get("name") or self.path.stem
+        units = self.child_text(model, "length_units", "meters")
+        if units.lower() not in ("meters", "m"):
+            raise self.err(model.find("length_units"), f"length unit {units!r}: openfdk reads OpenSim models in meters")
+        gravity = self.child_numbers(model, "gravity", 3, [0.0, -9.80665, 0.0])
+        legacy = version < 40000
+        ground = model.find("Ground")
+        if ground is not None:
+            self.body_geometry(ground, "ground")
+        self.bodies_ground = "ground" if ground is None else (ground.get("name") or "ground")
+        for body in self.objects(model.find("BodySet")):
+            if body.tag != "Body":
+                self.skip(body)
+                continue
+            self.read_body(body, legacy)
+        if not legacy:
+            for joint in self.objects(model.find("JointSet")):
+                self.read_joint(joint, legacy=False)
+        for comp in self.objects(model.find("ComponentSet")):
+            if comp.tag == "PhysicalOffsetFrame":
+                self.read_offset_frame(comp)
+            else:
+                self.skip(comp)
+        for c in self.objects(model.find("ConstraintSet")):
+            self.read_constraint(c, legacy)
+        for m in self.objects(model.find("MarkerSet")):
+            self.read_marker(m, legacy)
+        for tag in ("ForceSet", "ContactGeometrySet", "ProbeSet", "ControllerSet"):
+            for e in self.objects(model.find(tag)):
+                if tag == "ForceSet" and "forces" in self.ignore:
+                    self.ignored.append((e.tag, e.get("name") or "", e.sourceline))
+                else:
+                    self.skip(e)
+        for e in model:
+            if not isinstance(e.tag, str):
+                continue
+            if e.tag not in _METADATA:
+                self.skip(e)
+        for j in self.joints:
+            for f in (j.parent, j.child):
+                if f not in self.frames:
+                    raise OsimError(f"{self.source}: line {j.line}: {j.type} {j.name!r}: frame {f!r} is neither a "
+                                    "body nor a PhysicalOffsetFrame of the model")
+        return OsimDocument(self.source, self.path, name, version, gravity, self.bodies, self.frames, self.joints,
+                            self.coordinates, self.constraints, self.markers, self.geometry, self.unsupported,
+                            self.ignored)
+
+    def add_frame(self, frame, element):
+        if frame.name in self.frames and self.frames[frame.name] is not frame:
+            old = self.frames[frame.name]
+            if not (old.body == frame.body and np.allclose(old.p_BF, frame.p_BF) and np.allclose(old.R_BF, frame.R_BF)):
+                raise self.err(element, f"a second frame named {frame.name!r} (first at line {old.line}); "
+                                        "openfdk needs frame names unique within the model")
+        self.frames[frame.name] = frame
+
+    def read_body(self, body, legacy):
+        name = body.get("name")
+        if not name:
+            raise self.err(body, "a body without a name")
+        if legacy and name == "ground":
+            self.add_frame(OsimFrame("ground", "ground", np.zeros(3), np.eye(3), body.sourceline), body)
+            self.body_geometry(body, "ground")
+            return
+        mass = float(self.child_numbers(body, "mass", 1)[0])
+        com = self.child_numbers(body, "mass_center", 3, [0, 0, 0])
+        if body.find("inertia") is not None:
+            i = self.child_numbers(body, "inertia", 6)
+        else:
+            i = np.array([float(self.child_numbers(body, f"inertia_{k}", 1, [0.0])[0])
+                          for k in ("xx", "yy", "zz", "xy", "xz", "yz")])
+        inertia = np.array([[i[0], i[3], i[4]], [i[3], i[1], i[5]], [i[4], i[5], i[2]]])
+        if name in self.bodies:
+            raise self.err(body, f"a second body named {name!r}")
+        self.bodies[name] = OsimBody(name, mass, com, inertia, body.sourceline)
+        self.add_frame(OsimFrame(name, name, np.zeros(3), np.eye(3), body.sourceline), body)
+        self.body_geometry(body, name)
+        for comp in self.objects(body.find("components")):
+            if comp.tag == "PhysicalOffsetFrame":
+                self.read_offset_frame(comp, default_parent=name)
+            else:
+                self.skip(comp)
+        wraps = body.find("WrapObjectSet")
+        for w in self.objects(wraps):
+            self.skip(w)
+        for e in body:
+            if isinstance(e.tag, str) and e.tag not in (
+                    "mass", "mass_center", "inertia", "inertia_xx", "inertia_yy", "inertia_zz", "inertia_xy",
+                    "inertia_xz", "inertia_yz", "attached_geometry", "components", "WrapObjectSet", "Joint",
+                    "VisibleObject", "FrameGeometry", "frame_geometry", "GeometrySet"):
+                self.skip(e)
+        if legacy:
+            holder = body.find("Joint")
+            for joint in list(holder) if holder is not None else []:
+                if isinstance(joint.tag, str):
+                    self.read_joint(joint, legacy=True, child_body=name)
+
+    def body_geometry(self, element, frame):
+        """attached_geometry (4.x) or VisibleObject (3.x) of a body or frame."""
+        for g in self.objects(element.find("attached_geometry")):
+            if g.tag == "Mesh":
+                f = self.child_text(g, "mesh_file", "")
+                if f:
+                    self.geometry.append(OsimGeometry(f, frame, self.child_numbers(g, "scale_factors", 3, [1, 1, 1]),
+                                                      line=g.sourceline))
+            # analytic display shapes (Sphere, Cylinder, Brick, …) are display only: not drawn yet
+        vis = element.find("VisibleObject")
+        if vis is None:
+            return
+        scale = self.child_numbers(vis, "scale_factors", 3, [1, 1, 1])
+        for f in (self.child_text(vis, "geometry_files", "") or "").split():
+            self.geometry.append(OsimGeometry(f, frame, scale, line=vis.sourceline))
+        for g in self.objects(vis.find("GeometrySet")):
+            if g.tag != "DisplayGeometry":
+                continue
+            f = self.child_text(g, "geometry_file", "")
+            t = self.child_numbers(g, "transform", 6, [0, 0, 0, 0, 0, 0])
+            s = self.child_numbers(g, "scale_factors", 3, [1, 1, 1])
+            if f:
+                self.geometry.append(OsimGeometry(f, frame, s * scale, t[3:], rotation_xyz(t[:3]), g.sourceline))
+
+    def read_offset_frame(self, element, default_parent=None):
+        name = element.get("name")
+        parent = self.last(self.child_text(element, "socket_parent", default_parent or ""))
+        if not name or not parent:
+            raise self.err(element, "a PhysicalOffsetFrame needs a name and a <socket_parent>")
+        frame = OsimFrame(name, parent, self.child_numbers(element, "translation", 3, [0, 0, 0]),
+                          rotation_xyz(self.child_numbers(element, "orientation", 3, [0, 0, 0])), element.sourceline)
+        self.add_frame(frame, element)
+        self.body_geometry(element, name)
+        return frame
+
+    # -- joints -----------------------------------------------------------------------
+    def read_joint(self, joint, legacy, child_body=None):
+        kind = joint.tag
+        if kind not in JOINT_TYPES:
+            raise self.err(joint, f"joint type {kind} is not supported by openfdk (supported: {', '.join(JOINT_TYPES)})")
+        name = joint.get("name")
+        if not name:
+            raise self.err(joint, "a joint without a name")
+        if self.child_bool(joint, "reverse", False):
+            raise self.err(joint, "<reverse>true</reverse> joints are not supported")
+        if legacy:
+            parent_body = self.child_text(joint, "parent_body")
+            parent = OsimFrame(f"{name}_parent", parent_body, self.child_numbers(joint, "location_in_parent", 3, [0, 0, 0]),
+                               rotation_xyz(self.child_numbers(joint, "orientation_in_parent", 3, [0, 0, 0])),
+                               joint.sourceline)
+            child = OsimFrame(f"{name}_child", child_body, self.child_numbers(joint, "location", 3, [0, 0, 0]),
+                              rotation_xyz(self.child_numbers(joint, "orientation", 3, [0, 0, 0])), joint.sourceline)
+            self.add_frame(parent, joint)
+            self.add_frame(child, joint)
+            coord_elements = self.objects(joint.find("CoordinateSet"))
+            parent_name, child_name = parent.name, child.name
+        else:
+            for f in self.objects(joint.find("frames")):
+                if f.tag == "PhysicalOffsetFrame":
+                    self.read_offset_frame(f)
+                else:
+                    self.skip(f)
+            parent_name = self.last(self.child_text(joint, "socket_parent_frame"))
+            child_name = self.last(self.child_text(joint, "socket_child_frame"))
+            coord_elements = self.objects(joint.find("coordinates"))
+        coords = []
+        for c in coord_elements:
+            if c.tag != "Coordinate":
+                self.skip(c)
+                continue
+            coords.append(self.read_coordinate(c, name))
+        names = tuple(c.name for c in coords)
+        if kind == "CustomJoint":
+            rotations, translations = self.spatial_transform(joint, names)
+        else:
+            rotations, translations = self.fixed_transform(joint, kind, names)
+        used = {c for ax in rotations + translations for c in ax.coordinates}
+        for c in coords:
+            if c.name not in used:
+                raise self.err(joint, f"coordinate {c.name!r} moves no axis of the joint")
+            rot = any(c.name in ax.coordinates for ax in rotations)
+            tra = any(c.name in ax.coordinates for ax in translations)
+            if not c.motion_type:
+                c.motion_type = "coupled" if rot and tra else "rotational" if rot else "translational"
+        self.joints.append(OsimJoint(name, kind, parent_name, child_name, names, rotations, translations,
+                                     joint.sourceline))
+
+    def read_coordinate(self, c, joint):
+        name = c.get("name")
+        if not name:
+            raise self.err(c, "a coordinate without a name")
+        if name in self.coordinates:
+            raise self.err(c, f"a second coordinate named {name!r}")
+        rng = self.child_numbers(c, "range", 2, [-np.inf, np.inf]) if c.find("range") is not None else (-np.inf, np.inf)
+        if rng[0] > rng[1]:
+            raise self.err(c, f"range {list(rng)} has its lower bound above the upper")
+        prescribed = self.child_bool(c, "prescribed", False)
+        fn = None
+        holder = c.find("prescribed_function")
+        if holder is not None and len(holder):
+            fn = function_spec(function_element(holder, self.source), self.source)
+        if prescribed and fn is None:
+            raise self.err(c, "prescribed but no <prescribed_function>")
+        motion = self.child_text(c, "motion_type", "")
+        if motion and motion not in ("rotational", "translational", "coupled"):
+            raise self.err(c, f"motion_type {motion!r}: expected rotational, translational or coupled")
+        coord = OsimCoordinate(name, joint, float(self.child_numbers(c, "default_value", 1, [0.0])[0]),
+                               (float(rng[0]), float(rng[1])), self.child_bool(c, "clamped", False),
+                               self.child_bool(c, "locked", False), prescribed, fn, motion, c.sourceline)
+        self.coordinates[name] = coord
+        return coord
+
+    def spatial_transform(self, joint, names):
+        st = joint.find("SpatialTransform")
+        if st is None:
+            raise self.err(joint, "a CustomJoint without a <SpatialTransform>")
+        axes = {}
+        for ta in st:
+            if not isinstance(ta.tag, str):
+                continue
+            if ta.tag != "TransformAxis":
+                raise self.err(ta, f"unexpected <{ta.tag}> in a SpatialTransform")
+            label = ta.get("name")
+            if label not in ("rotation1", "rotation2", "rotation3", "translation1", "translation2", "translation3"):
+                raise self.err(ta, f"TransformAxis name {label!r}: expected rotation1-3 or translation1-3")
+            axes[label] = ta
+        out = []
+        for kind in ("rotation", "translation"):
+            row = []
+            for k in (1, 2, 3):
+                ta = axes.get(f"{kind}{k}")
+                if ta is None:  # an absent axis does not move the joint
+                    default = (_X, _Y, _Z)[k - 1]
+                    row.append(OsimAxis(f"{kind}{k}", np.array(default), (), {"type": "constant", "value": 0.0},
+                                        joint.sourceline))
+                    continue
+                coords = tuple(self.child_text(ta, "coordinates", "").split())
+                for cname in coords:
+                    if cname not in names:
+                        raise self.err(ta, f"coordinate {cname!r} is not one of the joint's coordinates {list(names)}",
+                                       f"TransformAxis '{ta.get('name')}' of {joint.tag} '{joint.get('name')}'")
+                axis = self.child_numbers(ta, "axis", 3)
+                fe = function_element(ta, self.source, required=False)
+                if fe is None:
+                    spec = {"type": "linear", "slope": 1.0, "intercept": 0.0} if coords else \
+                        {"type": "constant", "value": 0.0}
+                else:
+                    spec = function_spec(fe, self.source)
+                if len(coords) > 1:
+                    raise self.err(ta, f"a function of {len(coords)} coordinates {list(coords)}: openfdk reads "
+                                       "transform axes driven by one coordinate",
+                                   f"TransformAxis '{ta.get('name')}' of {joint.tag} '{joint.get('name')}'")
+                if not coords and spec["type"] != "constant":
+                    raise self.err(ta, "a non-constant function without a coordinate",
+                                   f"TransformAxis '{ta.get('name')}' of {joint.tag} '{joint.get('name')}'")
+                norm = float(np.linalg.norm(axis))
+                if norm == 0.0:
+                    if coords or spec.get("value", 0.0) != 0.0:
+                        raise self.err(ta, "a zero axis", f"TransformAxis '{ta.get('name')}' of {joint.tag} "
+                                                          f"'{joint.get('name')}'")
+                    axis, norm = np.array((_X, _Y, _Z)[k - 1]), 1.0
+                row.append(OsimAxis(f"{kind}{k}", axis / norm, coords, spec, ta.sourceline))
+            out.append(tuple(row))
+        return out[0], out[1]
+
+    def fixed_transform(self, joint, kind, names):
+        rot, tra = JOINT_TRANSFORMS[kind]
+        needed = 1 + max([k for _, k in rot + tra if k is not None], default=-1)
+        if len(names) != needed:
+            raise self.err(joint, f"a {kind} has {needed} coordinates, the file gives {len(names)}")
+        out = []
+        for kind_name, axes in (("rotation", rot), ("translation", tra)):
+            row = []
+            for k, (axis, ci) in enumerate(axes):
+                if ci is None:
+                    row.append(OsimAxis(f"{kind_name}{k + 1}", np.array(axis), (), {"type": "constant", "value": 0.0},
+                                        joint.sourceline))
+                else:
+                    row.append(OsimAxis(f"{kind_name}{k + 1}", np.array(axis), (names[ci],),
+                                        {"type": "linear", "slope": 1.0, "intercept": 0.0}, joint.sourceline))
+            out.append(tuple(row))
+        return out[0], out[1]
+
+    # -- constraints and markers ------------------------------------------------------
+    def read_constraint(self, c, legacy):
+        kind, name = c.tag, c.get("name") or ""
+        if kind not in CONSTRAINT_TYPES:
+            self.skip(c)
+            return
+        enforced = self.child_bool(c, "isEnforced", True) and not self.child_bool(c, "isDisabled", False)
+        if not enforced:
+            self.ignored.append((kind, name, c.sourceline))  # disabled in the file: OpenSim does not apply it
+            return
+        if kind == "CoordinateCouplerConstraint":
+            indep = tuple(self.child_text(c, "independent_coordinate_names").split())
+            dep = self.child_text(c, "dependent_coordinate_name")
+            holder = c.find("coupled_coordinates_function")
+            if holder is None:
+                raise self.err(c, "no <coupled_coordinates_function>")
+            spec = function_spec(function_element(holder, self.source), self.source)
+            scale = self.child_text(c, "scale_factor", "1")
+            try:
+                scale = float(scale)
+            except ValueError:
+                raise self.err(c, f"scale_factor {scale!r} is not a number") from None
+            if scale != 1.0:
+                spec = {"type": "multiplier", "scale": scale, "function": spec}
+            if len(indep) != 1:
+                raise self.err(c, f"{len(indep)} independent coordinates {list(indep)}: openfdk reads couplers with "
+                                  "one independent coordinate")
+            self.constraints.append(OsimConstraint(name, kind, indep, dep, spec, line=c.sourceline))
+            return
+        if kind == "WeldConstraint":
+            if legacy:
+                frames = []
+                for k in (1, 2):
+                    body = self.child_text(c, f"body_{k}")
+                    f = OsimFrame(f"{name}_frame{k}", body, self.child_numbers(c, f"location_body_{k}", 3, [0, 0, 0]),
+                                  rotation_xyz(self.child_numbers(c, f"orientation_body_{k}", 3, [0, 0, 0])),
+                                  c.sourceline)
+                    self.add_frame(f, c)
+                    frames.append(f.name)
+            else:
+                for f in self.objects(c.find("frames")):
+                    if f.tag == "PhysicalOffsetFrame":
+                        self.read_offset_frame(f)
+                frames = [self.last(self.child_text(c, "socket_frame1")), self.last(self.child_text(c, "socket_frame2"))]
+            self.constraints.append(OsimConstraint(name, kind, frames=tuple(frames), line=c.sourceline))
+            return
+        # PointConstraint: body_1 + location_body_1, body_2 + location_body_2
+        frames = []
+        for k in (1, 2):
+            body = self.last(self.child_text(c, f"socket_body_{k}", "") or self.child_text(c, f"body_{k}"))
+            f = OsimFrame(f"{name}_point{k}", body, self.child_numbers(c, f"location_body_{k}", 3, [0, 0, 0]),
+                          np.eye(3), c.sourceline)
+            self.add_frame(f, c)
+            frames.append(f.name)
+        self.constraints.append(OsimConstraint(name, kind, frames=tuple(frames), line=c.sourceline))
+
+    def read_marker(self, m, legacy):
+        if m.tag != "Marker":
+            self.skip(m)
+            return
+        name = m.get("name")
+        if not name:
+            raise self.err(m, "a marker without a name")
+        frame = self.last(self.child_text(m, "body") if legacy and m.find("body") is not None
+                          else self.child_text(m, "socket_parent_frame"))
+        self.markers.append(OsimMarker(name, frame, self.child_numbers(m, "location", 3), frame, m.sourceline))

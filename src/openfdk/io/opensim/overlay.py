@@ -1,0 +1,132 @@
+"""What an ``.osim`` cannot say — drivers, FDK DOFs, analysis settings — added by a
+small YAML *overlay*, and the options of an import (``--ignore``, ``--geometry``).
+
+Two ways to give them, one path through the loader:
+
+* ``openfdk run model.osim trial.trc --with overlay.yaml --ignore Thelen2003Muscle``:
+  the command line registers the options for that ``.osim`` (:func:`register`) before
+  anything reads it;
+* an overlay file that names its model, run as the model itself
+  (``openfdk run overlay.yaml trial.trc``)::
+
+      opensim: gait2392_simbody.osim     # relative to this file
+      ignore: [Thelen2003Muscle, Mesh]   # element types left out (listed in summary.json)
+      geometry: [../Geometry]            # more folders to look for meshes in
+      drivers: {...}                     # any model-file section but the model's own
+      fdk_dofs: {...}
+      analysis: {marker_cutoff_hz: 6}
+
+The overlay's sections are merged into the imported model mapping; a name the model
+already defines is an error naming the overlay's entry. Overlay values are in SI units
+(m, rad), the unit of the imported mapping. The ``.osim`` itself is never edited.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ...model.errors import ModelError
+
+#: overlay keys that are import options, not model-file sections
+OPTION_KEYS = ("opensim", "ignore", "geometry")
+#: model-file sections an overlay may not set (the .osim defines them)
+MODEL_SECTIONS = ("bodies", "coordinates", "couplers", "units", "gravity", "name", "openfdk")
+
+
+@dataclass
+class ImportOptions:
+    """``ignore``: element types to leave out; ``mesh_dirs``: more mesh folders;
+    ``overlay``: path of an overlay YAML (or None)."""
+
+    ignore: tuple = ()
+    mesh_dirs: tuple = ()
+    overlay: Path | None = None
+    info: dict = field(default_factory=dict)
+
+
+_REGISTERED: dict = {}
+
+
+def _key(path):
+    return str(Path(path).resolve())
+
+
+def register(path, ignore=(), mesh_dirs=(), overlay=None):
+    """Options for the ``.osim`` at ``path`` in this process (the command line's
+    ``--ignore``, ``--geometry`` and ``--with``)."""
+    _REGISTERED[_key(path)] = ImportOptions(tuple(ignore), tuple(mesh_dirs), None if overlay is None else Path(overlay))
+
+
+def import_info(path):
+    """What the last import of ``path`` dropped and merged ({dropped, merged_bodies}),
+    for summary.json; {} if it was not an OpenSim import."""
+    opts = _REGISTERED.get(_key(path))
+    return dict(opts.info) if opts else {}
+
+
+def imported_model_data(path):
+    """The model mapping of an ``.osim`` with its registered options, or None when
+    ``path`` is not an ``.osim``."""
+    from . import is_osim, read_osim
+    from ..yamlfile import read_yaml
+
+    if not is_osim(path):
+        return None
+    opts = _REGISTERED.setdefault(_key(path), ImportOptions())
+    data, info = read_osim(path, opts.ignore, opts.mesh_dirs)
+    opts.info = info
+    if opts.overlay is not None:
+        overlay = read_yaml(opts.overlay, ModelError, "overlay file")
+        data = merge_overlay(data, overlay, Path(opts.overlay).name, allow_options=False)
+    return data
+
+
+def overlay_model_data(path, data):
+    """``data`` itself, or for an overlay file (an ``opensim:`` key) the imported model
+    with the overlay merged in."""
+    if not isinstance(data, dict) or "opensim" not in data:
+        return data
+    source = Path(path).name
+    target = data["opensim"]
+    if not isinstance(target, str) or not target:
+        raise ModelError(f"{source}: opensim: expected the path of an .osim file, got {target!r}")
+    osim = Path(path).parent / target
+    for key in ("ignore", "geometry"):
+        value = data.get(key, [])
+        if not isinstance(value, list) or not all(isinstance(v, str) and v for v in value):
+            raise ModelError(f"{source}: {key}: expected a list of names, got {value!r}")
+    register(osim, data.get("ignore", []), [str(Path(path).parent / d) for d in data.get("geometry", [])])
+    if not osim.is_file():
+        raise ModelError(f"{source}: opensim: {target!r} does not exist")
+    base = imported_model_data(osim)
+    return merge_overlay(base, data, source, allow_options=True)
+
+
+def merge_overlay(data, overlay, source, allow_options):
+    """The imported mapping ``data`` with the sections of ``overlay`` added (module
+    docstring); errors name the overlay file and the entry."""
+    if not isinstance(overlay, dict):
+        raise ModelError(f"{source}: an overlay must be a mapping of model-file sections")
+    out = dict(data)
+    for key, value in overlay.items():
+        if key in OPTION_KEYS:
+            if not allow_options:
+                raise ModelError(f"{source}: {key}: give it on the command line (--ignore, --geometry) or run the "
+                                 "overlay itself as the model")
+            continue
+        if key in MODEL_SECTIONS:
+            raise ModelError(f"{source}: {key}: an overlay cannot change the OpenSim model's {key} "
+                             "(overlay values are in SI units: m, rad)")
+        if key not in out:
+            out[key] = value
+            continue
+        if not isinstance(value, dict) or not isinstance(out[key], dict):
+            raise ModelError(f"{source}: {key}: expected a mapping")
+        merged = dict(out[key])
+        for name, entry in value.items():
+            if name in merged:
+                raise ModelError(f"{source}: {key}.{name}: already defined by the OpenSim model")
+            merged[name] = entry
+        out[key] = merged
+    return out

@@ -1,0 +1,167 @@
+"""An OpenSim document as an openfdk model mapping (the model-file format of
+docs/model-file.md, in SI units), so that an ``.osim`` and the file
+``openfdk import-opensim`` writes are read by the same loader.
+
+* Bodies: one openfdk body per OpenSim body that is not welded to another (welded ones
+  are merged, :class:`~openfdk.io.opensim.tree.Tree`); openfdk's body frame has the
+  OpenSim body's axes and its origin at the centre of mass, so every point of the body
+  moves by −mass_center. The reference pose is the forward kinematics at the
+  coordinates' default values.
+* Joints: ``type: custom`` with OpenSim's SpatialTransform (every joint type is one);
+  coordinates under ``coordinates``; CoordinateCouplerConstraints under ``couplers``;
+  WeldConstraint and PointConstraint as weld and spherical joints.
+* Markers: OpenSim names may hold characters openfdk names may not ('.', spaces): the
+  name is made safe and the trial label stays the OpenSim name.
+* Geometry: ``visual`` entries with the mesh file found next to the model, in its
+  ``Geometry`` folder, or in ``../Geometry`` (the layout of opensim-models); a missing
+  mesh is an error unless ``Mesh`` is ignored.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from .document import OsimDocument
+from .errors import OsimError
+from .tree import Tree
+
+_SAFE = re.compile(r"[^A-Za-z0-9_\-]")
+
+
+def safe_name(name):
+    """An openfdk name for an OpenSim one ('R.ASIS' -> 'R_ASIS')."""
+    return _SAFE.sub("_", name)
+
+
+def _pose(p, R):
+    return {"position": [float(x) for x in p], "orientation": {"matrix": np.asarray(R, float).tolist()}}
+
+
+def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
+    """The openfdk model mapping of ``doc`` (SI units; module docstring). Returns
+    (mapping, info) where info lists the merged bodies and the dropped elements."""
+    tree = Tree(doc)
+    X = tree.poses()
+    names = {}
+
+    def unique(kind, name):
+        safe = safe_name(name)
+        key = (kind, safe)
+        if key in names and names[key] != name:
+            raise OsimError(f"{doc.source}: {kind} names {names[key]!r} and {name!r} both become {safe!r} in openfdk")
+        names[key] = name
+        return safe
+
+    bodies = {"ground": {}}
+    com = {"ground": np.zeros(3)}
+    for j in tree.order:
+        b = tree.root[tree.frame_body(j.child)[0]]
+        mass, c, inertia = tree.mass_properties(b)
+        if mass <= 0.0:
+            raise OsimError(f"{doc.source}: line {doc.bodies[b].line}: Body {b!r}: mass {mass:g} kg; openfdk needs a "
+                            "positive mass for every body that moves")
+        if np.any(np.linalg.eigvalsh(inertia) <= 0.0):
+            raise OsimError(f"{doc.source}: line {doc.bodies[b].line}: Body {b!r}: its inertia about the centre of "
+                            f"mass {inertia.round(9).tolist()} is not positive definite")
+        p_WB, R_WB = X[b]
+        com[b] = c
+        bodies[unique("body", b)] = {"mass": mass, "inertia": inertia.tolist(), **_pose(p_WB + R_WB @ c, R_WB)}
+
+    def frame_of(frame_name, label, kind="frame"):
+        """Add an openfdk frame for an OpenSim frame; returns "body.frame"."""
+        root, p, R = tree.frame_in_root(frame_name)
+        body = bodies["ground" if root == tree.ground else safe_name(root)]
+        frames = body.setdefault("frames", {})
+        fname = unique(f"frame of {root}", label)
+        frames[fname] = _pose(p - com[root], R)
+        return f"{'ground' if root == tree.ground else safe_name(root)}.{fname}"
+
+    coordinates, joints, couplers = {}, {}, {}
+    for j in tree.order:
+        parent = frame_of(j.parent, f"{j.name}_parent")
+        child = frame_of(j.child, f"{j.name}_child")
+        spec = {"type": "custom", "parent": parent, "child": child}
+        for kind, axes in (("rotations", j.rotations), ("translations", j.translations)):
+            items = []
+            for ax in axes:
+                if ax.coordinates:
+                    items.append({"axis": ax.axis.tolist(), "coordinate": safe_name(ax.coordinates[0]),
+                                  "function": ax.function})
+                else:
+                    items.append({"axis": ax.axis.tolist(), "value": float(ax.function["value"])})
+            spec[kind] = items
+        joints[unique("joint", j.name)] = spec
+        for cname in j.coordinates:
+            c = doc.coordinates[cname]
+            entry = {"motion": c.motion_type, "default": c.default, "clamped": c.clamped, "locked": c.locked}
+            if np.all(np.isfinite(c.range)):
+                entry["range"] = list(c.range)
+            if c.prescribed:
+                entry["prescribed"] = c.prescribed_function
+            coordinates[unique("coordinate", cname)] = entry
+    for c in doc.constraints:
+        if c.type == "CoordinateCouplerConstraint":
+            for q in c.independent + (c.dependent,):
+                if q not in doc.coordinates:
+                    raise OsimError(f"{doc.source}: line {c.line}: {c.type} {c.name!r}: unknown coordinate {q!r}")
+            couplers[unique("constraint", c.name)] = {"independent": safe_name(c.independent[0]),
+                                                       "dependent": safe_name(c.dependent), "function": c.function}
+        else:
+            f1 = frame_of(c.frames[0], f"{c.name}_1")
+            f2 = frame_of(c.frames[1], f"{c.name}_2")
+            if f1.split(".")[0] == f2.split(".")[0]:
+                continue  # both frames on one (merged) body: the constraint holds by construction
+            joints[unique("joint", c.name)] = {
+                "type": "weld" if c.type == "WeldConstraint" else "spherical", "parent": f1, "child": f2}
+    for m in doc.markers:
+        root, p, _ = tree.frame_in_root(m.frame)
+        body = "ground" if root == tree.ground else safe_name(root)
+        if body == "ground":
+            raise OsimError(f"{doc.source}: line {m.line}: Marker {m.name!r} is fixed to the ground; openfdk tracks "
+                            "markers on moving bodies")
+        entry = {"position": (p + tree.frame_in_root(m.frame)[2] @ m.location - com[root]).tolist()}
+        safe = unique("marker", m.name)
+        if safe != m.name:
+            entry["label"] = m.name
+        bodies[body].setdefault("markers", {})[safe] = entry
+    for g in doc.geometry:
+        path = find_mesh(doc, g, mesh_dirs, "Mesh" in ignore)
+        if path is None:
+            doc.ignored.append(("Mesh", g.file, g.line))
+            continue
+        root, p, R = tree.frame_in_root(g.frame)
+        body = "ground" if root == tree.ground else safe_name(root)
+        p_BG = p + R @ g.p_FG - com[root]
+        bodies[body].setdefault("visual", []).append(
+            {"mesh": str(path), "units": "m", "scale": [float(s) for s in g.scale],
+             "placement": {"position": p_BG.tolist(), "orientation": {"matrix": (R @ g.R_FG).tolist()}}})
+    out = {"openfdk": 1, "name": safe_name(doc.name), "units": {"length": "m", "angle": "rad"},
+           "gravity": [float(x) for x in doc.gravity], "bodies": bodies}
+    if coordinates:
+        out["coordinates"] = coordinates
+    out["joints"] = joints
+    if couplers:
+        out["couplers"] = couplers
+    merged = {b: tree.root[b] for b in doc.bodies if tree.root[b] != b}
+    return out, {"merged_bodies": merged}
+
+
+def find_mesh(doc, geometry, mesh_dirs=(), ignore_missing=False):
+    """The mesh file of an OsimGeometry: next to the model, in its Geometry folder, in
+    ../Geometry or in ``mesh_dirs``; None when it is missing and ``ignore_missing``."""
+    base = doc.path.parent
+    file = geometry.file
+    name = Path(file)
+    candidates = [name] if name.is_absolute() else [base / name, base / "Geometry" / name,
+                                                     base.parent / "Geometry" / name] + \
+        [Path(d) / name for d in mesh_dirs]
+    for c in candidates:
+        if c.is_file():
+            return c.resolve()
+    if ignore_missing:
+        return None
+    raise OsimError(f"{doc.source}: line {geometry.line}: Mesh {file!r} not found (looked in {', '.join(str(c.parent) for c in candidates)}); "
+                    "give its folder with --geometry DIR, or leave the meshes out with --ignore Mesh")

@@ -1,0 +1,153 @@
+"""Model-file sections of OpenSim-style joints: ``coordinates``, joints of type
+``custom`` and ``couplers`` (docs/model-file.md, "Joint coordinates"; what they mean:
+:mod:`openfdk.model.coordinate_joint`).
+
+::
+
+    coordinates:
+      knee_angle_r: {motion: rotational, default: 0, range: [-120, 10], clamped: true}
+    joints:
+      knee_r:
+        type: custom
+        parent: femur_r.knee_r_in_parent
+        child: tibia_r.knee_r_in_child
+        rotations:                       # OpenSim's rotation1-3 (intrinsic sequence)
+          - {axis: [0, 0, 1], coordinate: knee_angle_r}          # linear, slope 1
+          - {axis: [1, 0, 0], value: 0}                           # constant
+          - {axis: [0, 1, 0], value: 0}
+        translations:                    # OpenSim's translation1-3 (in the parent frame)
+          - {axis: [1, 0, 0], coordinate: knee_angle_r,
+             function: {type: simm_spline, x: [-120, 0, 10], y: [-0.003, 0, 0.001]}}
+          - {axis: [0, 1, 0], value: 0}
+          - {axis: [0, 0, 1], value: 0}
+    couplers:
+      patella: {independent: knee_angle_r, dependent: patella_angle, function: {type: linear, slope: 1, intercept: 0}}
+
+Units: a coordinate's values are in the file's angle unit (rotational, coupled) or
+length unit (translational); a function's x in its coordinate's unit and y in the axis'
+unit (angle for rotations, length for translations); ``value`` likewise.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .coordinate_functions import function_from_spec
+from .coordinate_joint import (COORDINATE_UNITS, Axis, Coordinate, CoordinateTimeFunction, add_coordinate_joint,
+                               add_coupler)
+
+COORDINATE_KEYS = ["motion", "default", "range", "clamped", "locked", "prescribed"]
+AXIS_KEYS = ["axis", "coordinate", "function", "value"]
+
+
+def read_coordinates(spec, ctx):
+    """The ``coordinates`` section -> {name: dict(motion, unit, default, range, clamped,
+    locked, prescribed)} in SI (not yet measures: the joints define those)."""
+    out = {}
+    for name, c in ctx.mapping(spec or {}, "coordinates").items():
+        p = f"coordinates.{name}"
+        c = ctx.keys(c or {}, p, COORDINATE_KEYS)
+        motion = ctx.choice(c.get("motion", "rotational"), f"{p}.motion", COORDINATE_UNITS, "motion type")
+        unit = COORDINATE_UNITS[motion]
+        scale = ctx.angle if unit == "angle" else ctx.length
+        rng = (-np.inf, np.inf)
+        if "range" in c:
+            rng = tuple(ctx.vector(c["range"], f"{p}.range", n=2) * scale)
+            if rng[0] > rng[1]:
+                raise ctx.error(f"{p}.range", f"lower bound above the upper: {c['range']!r}")
+        out[name] = dict(motion=motion, unit=unit, default=ctx.number(c.get("default", 0.0), f"{p}.default") * scale,
+                         range=rng, clamped=ctx.boolean(c.get("clamped", False), f"{p}.clamped"),
+                         locked=ctx.boolean(c.get("locked", False), f"{p}.locked"), prescribed=None)
+        if c.get("prescribed") is not None:
+            fn = function_from_spec(c["prescribed"], f"{p}.prescribed", ctx.error)
+            out[name]["prescribed"] = fn.scaled(1.0, scale)
+    return out
+
+
+def _scales(ctx, unit):
+    return ctx.angle if unit == "angle" else ctx.length
+
+
+def load_custom_joint(b, name, spec, coordinates, ctx, wrap):
+    """A joint of type ``custom`` (module docstring); defines its coordinates' measures."""
+    p = f"joints.{name}"
+    ctx.keys(spec, p, ["type", "parent", "child", "rotations", "translations"], required=("type", "parent", "child"))
+    axes = {}
+    mine = {}
+    for kind in ("rotations", "translations"):
+        items = spec.get(kind) or []
+        if not isinstance(items, list) or len(items) > 3:
+            raise ctx.error(f"{p}.{kind}", "expected a list of at most 3 axes")
+        defaults = np.eye(3)
+        out = []
+        for k in range(3):
+            ap = f"{p}.{kind}[{k}]"
+            a = ctx.keys(items[k], ap, AXIS_KEYS) if k < len(items) else {"axis": defaults[k].tolist(), "value": 0.0}
+            axis = ctx.vector(a.get("axis", defaults[k].tolist()), f"{ap}.axis", n=3)
+            norm = float(np.linalg.norm(axis))
+            axis_unit = "angle" if kind == "rotations" else "length"
+            label = f"{kind[:-1]}{k + 1}"
+            coord = a.get("coordinate")
+            if coord is None:
+                if "function" in a:
+                    raise ctx.error(ap, "a function needs a 'coordinate'")
+                value = ctx.number(a.get("value", 0.0), f"{ap}.value") * _scales(ctx, axis_unit)
+                if norm == 0.0 and value != 0.0:
+                    raise ctx.error(f"{ap}.axis", "a zero axis")
+                out.append(Axis(label, axis / (norm or 1.0), None, value))
+                continue
+            if "value" in a:
+                raise ctx.error(ap, "give either 'value' (a constant axis) or 'coordinate' (and 'function')")
+            if coord not in coordinates:
+                raise ctx.error(f"{ap}.coordinate", f"unknown coordinate {coord!r}; declare it under coordinates:")
+            if norm == 0.0:
+                raise ctx.error(f"{ap}.axis", "a zero axis")
+            cunit = coordinates[coord]["unit"]
+            fspec = a.get("function", {"type": "linear", "slope": 1.0, "intercept": 0.0})
+            fn = function_from_spec(fspec, f"{ap}.function", ctx.error)
+            fn = fn.scaled(_scales(ctx, cunit), _scales(ctx, axis_unit))
+            out.append(Axis(label, axis / norm, coord, fn))
+            mine[coord] = cunit
+        axes[kind] = out
+    defined = wrap(ctx, p, lambda: add_coordinate_joint(b, name, spec["parent"], spec["child"], axes["rotations"],
+                                                        axes["translations"], mine))
+    for cname, measure in defined.items():
+        c = coordinates[cname]
+        if c.get("joint"):
+            raise ctx.error(p, f"coordinate {cname!r} is already moved by joint {c['joint']!r}")
+        c["joint"], c["measure"] = name, measure
+
+
+def finish_coordinates(b, coordinates, ctx, wrap):
+    """After the joints: every declared coordinate has a joint; locked ones get a row
+    ``{name}.locked``, prescribed ones a driver ``{name}.prescribed``; the Coordinate
+    records go to ``model.coordinates``."""
+    records = []
+    for name, c in coordinates.items():
+        p = f"coordinates.{name}"
+        if "measure" not in c:
+            raise ctx.error(p, "no joint of type custom moves this coordinate")
+        if c["locked"] and c["prescribed"] is not None:
+            raise ctx.error(p, "a coordinate cannot be both locked and prescribed")
+        if c["locked"]:
+            wrap(ctx, p, lambda: b.add_constraint(f"{name}_locked", c["measure"], [c["default"]]))
+        if c["prescribed"] is not None:
+            wrap(ctx, p, lambda: b.add_driver(f"{name}_prescribed", c["measure"],
+                                              CoordinateTimeFunction(c["prescribed"]), reaction=True))
+        records.append(Coordinate(name, c["joint"], c["motion"], c["unit"], c["measure"], c["default"], c["range"],
+                                  c["clamped"], c["locked"], c["prescribed"] is not None))
+    b.elements["coordinates"] = records
+
+
+def load_couplers(b, spec, coordinates, ctx, wrap):
+    """The ``couplers`` section: {name: {independent, dependent, function}}."""
+    for name, c in ctx.mapping(spec or {}, "couplers").items():
+        p = f"couplers.{name}"
+        ctx.keys(c, p, ["independent", "dependent", "function"], required=("independent", "dependent", "function"))
+        for key in ("independent", "dependent"):
+            if c[key] not in coordinates:
+                raise ctx.error(f"{p}.{key}", f"unknown coordinate {c[key]!r}; declare it under coordinates:")
+        fn = function_from_spec(c["function"], f"{p}.function", ctx.error)
+        fn = fn.scaled(_scales(ctx, coordinates[c["independent"]]["unit"]),
+                       _scales(ctx, coordinates[c["dependent"]]["unit"]))
+        wrap(ctx, p, lambda: add_coupler(b, name, c["independent"], c["dependent"], fn))
