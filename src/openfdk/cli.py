@@ -373,7 +373,7 @@ def _cmd_bench(args):
 
 def _trial_arguments(p):
     """Arguments shared by the commands that analyse a model over a trial."""
-    p.add_argument("model", help="model file (YAML)")
+    p.add_argument("model", help="model file (YAML or OpenSim .osim)")
     p.add_argument("trial", nargs="?",
                    help="C3D or TRC file with the model's markers (omit for determinate kinematics)")
     p.add_argument("--out", required=True, help="output folder (checked for writability before any computation)")
@@ -386,6 +386,40 @@ def _trial_arguments(p):
                    help=f"largest fraction of failed frames that still exits with 0 (default {DEFAULT_MAX_FAILED}); "
                         "more failed frames exit with 3")
     _display_arguments(p)
+    _import_arguments(p)
+
+
+def _import_arguments(p):
+    """--with, --ignore and --geometry: the options of a model read from an OpenSim .osim."""
+    g = p.add_argument_group("OpenSim models (.osim)")
+    g.add_argument("--with", dest="overlay", default=None, metavar="OVERLAY.yaml",
+                   help="overlay file adding drivers, FDK DOFs and analysis settings to the .osim (SI units)")
+    g.add_argument("--ignore", action="append", default=[], metavar="TYPE",
+                   help="leave out every element of this OpenSim type (e.g. Thelen2003Muscle, Mesh; 'forces' for the "
+                        "ForceSet and wrap objects); repeatable; the dropped elements are listed in summary.json")
+    g.add_argument("--geometry", action="append", default=[], metavar="DIR",
+                   help="another folder to look for the model's mesh files in (repeatable)")
+
+
+def _register_import(args):
+    """Register the OpenSim import options of ``args.model`` before anything reads it."""
+    model = getattr(args, "model", None)
+    if model is None or not hasattr(args, "overlay"):
+        return
+    from .io.opensim import is_osim
+
+    if not is_osim(model):
+        if args.overlay or args.ignore or args.geometry:
+            raise UserError(f"{model}: --with, --ignore and --geometry apply to OpenSim models (.osim) only")
+        return
+    if args.overlay is not None:
+        from pathlib import Path
+
+        if not Path(args.overlay).is_file():
+            raise UserError(f"--with: overlay file {args.overlay!r} does not exist")
+    from .io.opensim.overlay import register
+
+    register(model, args.ignore, args.geometry, args.overlay)
 
 
 def _display_arguments(p, top=False):
@@ -417,8 +451,10 @@ def build_parser():
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     c = sub.add_parser("check", help="validate a model file and print a summary")
-    c.add_argument("model", help="model file (YAML) to validate: errors exit with 2, plausibility warnings go to stderr")
+    c.add_argument("model", help="model file (YAML or OpenSim .osim) to validate: errors exit with 2, plausibility "
+                                 "warnings go to stderr")
     _display_arguments(c)
+    _import_arguments(c)
     c.set_defaults(func=_cmd_check)
 
     ca = sub.add_parser("cache", help="the on-disk distance-grid cache: size (info) or delete it (clear)")
@@ -526,6 +562,7 @@ def main(argv=None):
         with warnings.catch_warnings():
             warnings.simplefilter("default")
             warnings.showwarning = _show_warning
+            _register_import(args)
             return args.func(args)
     except KeyboardInterrupt:
         print("openfdk: interrupted", file=sys.stderr)

@@ -53,7 +53,8 @@ def read_display_mesh(path) -> tuple[np.ndarray, np.ndarray]:
     if not len(triangles):
         raise ValueError(f"{path}: contains no triangles")
     if not np.all(np.isfinite(vertices)):
-        raise ValueError(f"{path}: vertex {int(np.argmax(~np.isfinite(vertices).all(axis=1)))} has a non-finite coordinate")
+        i = int(np.argmax(~np.isfinite(vertices).all(axis=1)))
+        raise ValueError(f"{path}: vertex {i} has a non-finite coordinate {vertices[i].tolist()}")
     if triangles.min() < 0 or triangles.max() >= len(vertices):
         raise ValueError(f"{path}: a triangle refers to a vertex beyond the {len(vertices)} of the file")
     return vertices, triangles

@@ -64,42 +64,28 @@ def _lines(data: bytes):
 
 
 def _parse(data: bytes):
-    vertices, corners, ends, face_lines = [], [], [], []
+    vertices, vertex_lines, corners, ends, face_lines = [], [], [], [], []
     for k, tokens in _lines(data):
         key = tokens[0]
         if key == "v":
             if len(tokens) < 4:
                 raise ValueError(f"line {k}: a vertex needs x y z, got {' '.join(tokens)!r}")
             try:
-                xyz = [float(t) for t in tokens[1:4]]
+                vertices.append((float(tokens[1]), float(tokens[2]), float(tokens[3])))
             except ValueError:
                 raise ValueError(f"line {k}: vertex coordinates {' '.join(tokens[1:4])!r} are not numbers") from None
-            if not all(np.isfinite(xyz)):
-                raise ValueError(f"line {k}: vertex {len(vertices) + 1} has a non-finite coordinate {xyz}")
-            vertices.append(xyz)
+            vertex_lines.append(k)
         elif key == "f":
             if len(tokens) < 4:
                 raise ValueError(f"line {k}: a face needs at least 3 corners, got {len(tokens) - 1}")
-            for t in tokens[1:]:
-                try:
-                    i = int(t.split("/", 1)[0])
-                except ValueError:
-                    raise ValueError(f"line {k}: face corner {t!r} does not begin with a vertex index") from None
-                if abs(i) > _MAX_INDEX:
-                    raise ValueError(f"line {k}: face corner {t!r} is beyond any vertex of the file")
-                if i == 0:
-                    raise ValueError(f"line {k}: face corner {t!r}: vertex indices start at 1 (or -1)")
-                if i < 0:
-                    i += len(vertices)
-                    if i < 0:
-                        raise ValueError(f"line {k}: face corner {t!r} counts back beyond the first vertex "
-                                         f"({len(vertices)} defined so far)")
-                else:
-                    i -= 1
-                corners.append(i)
+            corners.extend(_face(tokens[1:], len(vertices), k))
             ends.append(len(corners))
             face_lines.append(k)
     v = np.array(vertices, dtype=np.float64).reshape(-1, 3)
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ValueError(f"line {vertex_lines[i]}: vertex {i + 1} has a non-finite coordinate {v[i].tolist()}")
     conn = np.array(corners, dtype=np.int64)
     bad = conn >= len(v)
     if bad.any():
@@ -107,3 +93,31 @@ def _parse(data: bytes):
         raise ValueError(f"line {face_lines[face]}: face vertex index {conn[bad][0] + 1} is beyond the "
                          f"{len(v)} vertices of the file")
     return v, fan_triangles(conn, np.array(ends, dtype=np.int64), "face")
+
+
+def _face(tokens, n_before, k):
+    """0-based vertex indices of the corners ``tokens`` of a face on line k, after
+    n_before vertices (negative indices count back from there)."""
+    try:
+        idx = [int(t) for t in tokens]   # the common plain form "f i j k"
+    except ValueError:
+        idx = []
+        for t in tokens:
+            try:
+                idx.append(int(t.split("/", 1)[0]))
+            except ValueError:
+                raise ValueError(f"line {k}: face corner {t!r} does not begin with a vertex index") from None
+    out = []
+    for t, i in zip(tokens, idx):
+        if abs(i) > _MAX_INDEX:
+            raise ValueError(f"line {k}: face corner {t!r} is beyond any vertex of the file")
+        if i > 0:
+            out.append(i - 1)
+        elif i < 0 and i + n_before >= 0:
+            out.append(i + n_before)
+        elif i < 0:
+            raise ValueError(f"line {k}: face corner {t!r} counts back beyond the first vertex "
+                             f"({n_before} defined so far)")
+        else:
+            raise ValueError(f"line {k}: face corner {t!r}: vertex indices start at 1 (or -1)")
+    return out

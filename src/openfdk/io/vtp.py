@@ -38,7 +38,10 @@ Hostile files: the XML is parsed by lxml without entity expansion, network acces
 huge-tree mode, and a DOCTYPE is refused; every count is checked against the declared
 ``NumberOf…`` attributes and capped at :data:`MAX_VALUES` values per array; zlib blocks
 are inflated at most to their declared size, which must equal what the declared counts
-need. Every problem raises one ``ValueError`` line ``<file>: <what is wrong>``.
+need. Without huge-tree mode one text node holds at most 10 MB (an ascii array of about
+200 000 points as VTK writes them, a binary one of about 600 000); larger arrays are
+refused. Every problem raises one
+``ValueError`` line ``<file>: <what is wrong>``.
 """
 
 from __future__ import annotations
@@ -76,7 +79,7 @@ def read_vtp(path) -> tuple[np.ndarray, np.ndarray]:
         raise ValueError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
     try:
         return _parse(data)
-    except (ValueError, OverflowError, TypeError, MemoryError, zlib.error, binascii.Error) as exc:
+    except (ValueError, OverflowError, MemoryError, zlib.error, binascii.Error) as exc:
         raise ValueError(f"{path}: {' '.join(str(exc).split())}") from None
 
 
@@ -87,7 +90,11 @@ def _parse(data: bytes):
     try:
         root = etree.fromstring(data, parser)
     except etree.XMLSyntaxError as exc:
-        raise ValueError(f"not a well-formed XML file ({exc})") from None
+        msg = getattr(exc, "msg", None) or str(exc)
+        if "Text node too long" in msg:
+            raise ValueError(f"a data array holds more than 10 MB of text, beyond what is read without "
+                             f"huge-tree mode ({msg}); save the mesh with binary (zlib) data arrays") from None
+        raise ValueError(f"not a well-formed XML file ({msg})") from None
     if root is None:
         raise ValueError("not an XML file")
     if root.getroottree().docinfo.doctype:
@@ -206,12 +213,14 @@ def _array(da, enc, count, types, what, components) -> np.ndarray:
         try:
             values = np.array(tokens, dtype=target) if tokens else np.zeros(0, target)
         except (ValueError, OverflowError):
-            raise ValueError(f"{what} DataArray holds a value that is not {'a number' if target is np.float64 else 'an integer'}") from None
+            expected = "a number" if target is np.float64 else "an integer"
+            raise ValueError(f"{what} DataArray holds a value that is not {expected}") from None
         return values
     if fmt == "binary":
         dtype = np.dtype(enc.order + _TYPES[kind])
         raw = _b64decode("".join(text.split()), what)
-        payload = _inflate(raw, enc, count * dtype.itemsize, what) if enc.compressor else _plain(raw, enc, count * dtype.itemsize, what)
+        unpack = _inflate if enc.compressor else _plain
+        payload = unpack(raw, enc, count * dtype.itemsize, what)
         values = np.frombuffer(payload, dtype=dtype)
         if kind in _FLOATS:
             return values.astype(np.float64)

@@ -84,19 +84,25 @@ class PiecewisePolynomial:
     * ``left (6,)``: below breaks[0], f(x) = Σ_k left[k]·(x − breaks[0])^k.
     * ``right (6,)``: above breaks[-1], f(x) = Σ_k right[k]·(x − breaks[-1])^k.
 
+    * ``right_continuous``: which polynomial holds at x = a break, as OpenSim decides for
+      the function type (it matters only where a derivative jumps: piecewise linear
+      functions). False: the piece OpenSim's SimmSpline/PiecewiseLinearFunction binary
+      search reaches (SimmSpline.cpp: it stops at the first k with
+      breaks[k] ≤ x ≤ breaks[k+1]), and the last piece at breaks[-1]. True (GCVSpline,
+      GCVSPL's SEARCH): the piece starting at x, and ``right`` at breaks[-1].
+
     ``left`` and ``right`` carry OpenSim's extrapolation rule of the function type (the
     end tangent for SimmSpline and PiecewiseLinearFunction, the degree-(m−1) natural
     continuation for GCVSpline). A function given by one polynomial everywhere
     (constant, linear, polynomial) has no pieces: ``breaks = [0.0]``, ``coeffs (0, 6)``
-    and ``left = right`` = its coefficients in powers of x. At an interior break the
-    piece is chosen by OpenSim's own binary search (SimmSpline.cpp/PiecewiseLinearFunction.cpp),
-    which matters only where f′ jumps (piecewise linear); at breaks[-1] the last piece.
+    and ``left = right`` = its coefficients in powers of x.
     """
 
     breaks: np.ndarray
     coeffs: np.ndarray
     left: np.ndarray
     right: np.ndarray
+    right_continuous: bool = False
 
     def __post_init__(self):
         breaks = np.array(self.breaks, dtype=np.float64, ndmin=1)
@@ -117,6 +123,7 @@ class PiecewisePolynomial:
         for name, value in (("breaks", breaks), ("coeffs", coeffs), ("left", left), ("right", right)):
             value.setflags(write=False)
             object.__setattr__(self, name, value)
+        object.__setattr__(self, "right_continuous", bool(self.right_continuous))
         object.__setattr__(self, "_params", self._flatten())
 
     @property
@@ -126,15 +133,16 @@ class PiecewisePolynomial:
     def _flatten(self) -> np.ndarray:
         n = self.n_pieces
         rows = np.vstack([self.left[None, :], self.coeffs, self.right[None, :]])
-        out = np.concatenate([[float(n)], self.breaks, rows.ravel()])
+        out = np.concatenate([[float(n), float(self.right_continuous)], self.breaks, rows.ravel()])
         out.setflags(write=False)
         return out
 
     def to_params(self) -> np.ndarray:
-        """The function as one float64 array of length 7n + 14 (n pieces), read by
+        """The function as one float64 array of length 7n + 15 (n pieces), read by
         :func:`pp_evaluate`::
 
-            [n, breaks[0] … breaks[n], left (6), coeffs[0] (6) … coeffs[n−1] (6), right (6)]
+            [n, right_continuous (0 or 1), breaks[0] … breaks[n],
+             left (6), coeffs[0] (6) … coeffs[n−1] (6), right (6)]
 
         i.e. after the n + 1 breaks come n + 2 rows of 6 coefficients: row 0 is ``left``,
         row i + 1 is piece i, row n + 1 is ``right``."""
@@ -161,12 +169,12 @@ class PiecewisePolynomial:
             raise ValueError(f"piecewise polynomial: scaled needs a finite sy, got {sy}")
         factor = sy / sx ** np.arange(PP_WIDTH, dtype=np.float64)
         return PiecewisePolynomial(self.breaks * sx, self.coeffs * factor, self.left * factor,
-                                   self.right * factor)
+                                   self.right * factor, self.right_continuous)
 
 
 def pp_params_size(n_pieces: int) -> int:
     """Length of :meth:`PiecewisePolynomial.to_params` for ``n_pieces`` pieces."""
-    return 1 + (n_pieces + 1) + PP_WIDTH * (n_pieces + 2)
+    return 2 + (n_pieces + 1) + PP_WIDTH * (n_pieces + 2)
 
 
 @njit(cache=True)
@@ -174,17 +182,32 @@ def pp_evaluate(fparams, start, x):  # pragma: no cover - compiled (numba); test
     """(f, f′, f″) at the scalar ``x`` of the function stored at ``fparams[start:]`` in the
     layout of :meth:`PiecewisePolynomial.to_params`."""
     n = int(fparams[start])
-    b = start + 1                       # breaks fparams[b] … fparams[b + n]
+    b = start + 2                       # breaks fparams[b] … fparams[b + n]
     rows = b + n + 1                    # coefficient row r at fparams[rows + 6 r]
     if x < fparams[b]:
         r = 0
         x0 = fparams[b]
+    elif fparams[start + 1] != 0.0:     # right-continuous (GCVSPL's SEARCH)
+        if n == 0 or x >= fparams[b + n]:
+            r = n + 1
+            x0 = fparams[b + n]
+        else:                           # breaks[i] <= x < breaks[j]
+            i = 0
+            j = n
+            while j - i > 1:
+                k = (i + j) // 2
+                if x < fparams[b + k]:
+                    j = k
+                else:
+                    i = k
+            r = i + 1
+            x0 = fparams[b + i]
     elif n == 0 or x > fparams[b + n]:
         r = n + 1
         x0 = fparams[b + n]
     else:
         # the binary search of OpenSim's SimmSpline/PiecewiseLinearFunction::calcValue over
-        # the n + 1 knots: ends with breaks[k] <= x <= breaks[k + 1]
+        # the n + 1 knots: stops at the first k it tries with breaks[k] <= x <= breaks[k + 1]
         i = 0
         j = n + 1
         k = 0
@@ -479,7 +502,7 @@ def function_from_spec(spec, path: str, error) -> PiecewisePolynomial:
     if not isinstance(spec, dict):
         raise error(path, f"a function must be a mapping with a 'type', got {spec!r}")
     kind = spec.get("type")
-    if kind not in _KEYS:
+    if not isinstance(kind, str) or kind not in _KEYS:
         raise error(path, f"unknown function type {kind!r} (expected one of {', '.join(FUNCTION_TYPES)})")
     expected = set(_KEYS[kind])
     given = set(spec) - {"type"}
@@ -493,11 +516,24 @@ def function_from_spec(spec, path: str, error) -> PiecewisePolynomial:
             parts.append(f"unexpected {', '.join(map(str, extra))}")
         raise error(path, f"{kind} function: {'; '.join(parts)} "
                           f"(a {kind} function has {', '.join(_KEYS[kind])})")
+    return _build(kind, spec, path, error)
+
+
+def _made(make, path, error, *args):
+    """``make(*args)`` with its ValueError (input the checks above cannot see, such as too
+    large a spline) raised as ``error(path, …)``."""
+    try:
+        return make(*args)
+    except ValueError as exc:
+        raise error(path, str(exc)) from None
+
+
+def _build(kind, spec, path, error):
     if kind == "constant":
-        return constant(_number(spec["value"], path, "value", error))
+        return _made(constant, path, error, _number(spec["value"], path, "value", error))
     if kind == "linear":
-        return polynomial([_number(spec["slope"], path, "slope", error),
-                           _number(spec["intercept"], path, "intercept", error)])
+        return _made(polynomial, path, error, [_number(spec["slope"], path, "slope", error),
+                                               _number(spec["intercept"], path, "intercept", error)])
     if kind == "polynomial":
         c = _numbers(spec["coefficients"], path, "coefficients", error)
         if not c:
@@ -505,11 +541,11 @@ def function_from_spec(spec, path: str, error) -> PiecewisePolynomial:
         if len(c) > PP_WIDTH:
             raise error(path, f"polynomial function: unsupported degree {len(c) - 1} "
                               f"(openfdk supports degree <= {PP_WIDTH - 1})")
-        return polynomial(c)
+        return _made(polynomial, path, error, c)
     if kind in ("simm_spline", "natural_cubic_spline"):
-        return simm_spline(*_knots(spec, path, error, 2))
+        return _made(simm_spline, path, error, *_knots(spec, path, error, 2))
     if kind == "piecewise_linear":
-        return piecewise_linear(*_knots(spec, path, error, 2))
+        return _made(piecewise_linear, path, error, *_knots(spec, path, error, 2))
     if kind == "gcv_spline":
         degree = spec["degree"]
         if isinstance(degree, bool) or not isinstance(degree, (int, np.integer)):
@@ -517,8 +553,8 @@ def function_from_spec(spec, path: str, error) -> PiecewisePolynomial:
         if degree not in GCV_DEGREES:
             raise error(path, f"gcv_spline function: unsupported degree {degree} "
                               f"(openfdk supports {', '.join(map(str, GCV_DEGREES))})")
-        return natural_spline(*_knots(spec, path, error, degree + 1), degree)
+        return _made(natural_spline, path, error, *_knots(spec, path, error, degree + 1), degree)
     # multiplier
     scale = _number(spec["scale"], path, "scale", error)
-    inner = function_from_spec(spec["function"], f"{path}.function", error)
+    inner = function_from_spec(spec["function"], f"{path}.function" if path else "function", error)
     return inner.scaled(1.0, scale)

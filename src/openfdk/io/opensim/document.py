@@ -57,8 +57,11 @@ _METADATA = {
 
 @dataclass
 class OsimFrame:
-    """A frame: ``body`` (OpenSim body name, "ground" for the ground), X_BF as
-    ``p_BF (3,) m`` and ``R_BF (3, 3)`` in that body's OpenSim frame."""
+    """A frame: ``body`` (the frame it is attached to: a body, the ground or another
+    frame, by its key in ``OsimDocument.frames``), X_BF as ``p_BF (3,) m`` and
+    ``R_BF (3, 3)`` in that frame. Keys are scoped by their owner: a joint's or a body's
+    PhysicalOffsetFrame is ``"owner/name"`` (OpenSim names them uniquely per owner only),
+    bodies and the ground are their names."""
 
     name: str
     body: str
@@ -254,6 +257,8 @@ class _Reader:
         self.bodies, self.frames, self.coordinates = {}, {}, {}
         self.joints, self.constraints, self.markers, self.geometry = [], [], [], []
         self.unsupported, self.ignored = [], []
+        self.pending = []  # (frame key, socket path, scope): frames whose parent is resolved after reading
+        self.joint_sockets = []  # (joint, parent path, child path, scope)
 
     # -- small helpers ----------------------------------------------------------------
     def err(self, element, msg, what=None):
@@ -346,6 +351,14 @@ class _Reader:
                 continue
             if e.tag not in _METADATA:
                 self.skip(e)
+        for key, path, scope in self.pending:
+            self.frames[key].body = self.resolve(path, scope)
+        for j, scope in self.joint_sockets:
+            j.parent, j.child = self.resolve(j.parent, scope), self.resolve(j.child, scope)
+        for m in self.markers:
+            m.frame = m.body = self.resolve(m.frame)
+        for g in self.geometry:
+            g.frame = self.resolve(g.frame)
         for j in self.joints:
             for f in (j.parent, j.child):
                 if f not in self.frames:
@@ -354,6 +367,23 @@ class _Reader:
         return OsimDocument(self.source, self.path, name, version, gravity, self.bodies, self.frames, self.joints,
                             self.coordinates, self.constraints, self.markers, self.geometry, self.unsupported,
                             self.ignored)
+
+    def resolve(self, path, scope=""):
+        """The key in ``self.frames`` of a socket path, read in ``scope`` (the owner of
+        the element holding the socket): ``scope/name`` first, then a body or model-level
+        frame of that name, then the single frame of that name anywhere."""
+        parts = [x for x in path.strip().split("/") if x and x != ".."]
+        if not parts:
+            return path
+        last = parts[-1]
+        if len(parts) >= 2 and f"{parts[-2]}/{last}" in self.frames:
+            return f"{parts[-2]}/{last}"
+        if scope and f"{scope}/{last}" in self.frames:
+            return f"{scope}/{last}"
+        if last in self.frames:
+            return last
+        found = [k for k in self.frames if k.endswith(f"/{last}")]
+        return found[0] if len(found) == 1 else last
 
     def add_frame(self, frame, element):
         if frame.name in self.frames and self.frames[frame.name] is not frame:
@@ -386,7 +416,7 @@ class _Reader:
         self.body_geometry(body, name)
         for comp in self.objects(body.find("components")):
             if comp.tag == "PhysicalOffsetFrame":
-                self.read_offset_frame(comp, default_parent=name)
+                self.read_offset_frame(comp, scope=name, default_parent=name)
             else:
                 self.skip(comp)
         wraps = body.find("WrapObjectSet")
@@ -428,15 +458,16 @@ class _Reader:
             if f:
                 self.geometry.append(OsimGeometry(f, frame, s * scale, t[3:], rotation_xyz(t[:3]), g.sourceline))
 
-    def read_offset_frame(self, element, default_parent=None):
+    def read_offset_frame(self, element, scope="", default_parent=None):
         name = element.get("name")
-        parent = self.last(self.child_text(element, "socket_parent", default_parent or ""))
+        parent = self.child_text(element, "socket_parent", default_parent or "")
         if not name or not parent:
             raise self.err(element, "a PhysicalOffsetFrame needs a name and a <socket_parent>")
-        frame = OsimFrame(name, parent, self.child_numbers(element, "translation", 3, [0, 0, 0]),
+        self.pending.append((name if not scope else f"{scope}/{name}", parent, scope))
+        frame = OsimFrame(name if not scope else f"{scope}/{name}", parent, self.child_numbers(element, "translation", 3, [0, 0, 0]),
                           rotation_xyz(self.child_numbers(element, "orientation", 3, [0, 0, 0])), element.sourceline)
         self.add_frame(frame, element)
-        self.body_geometry(element, name)
+        self.body_geometry(element, frame.name)
         return frame
 
     # -- joints -----------------------------------------------------------------------
@@ -463,11 +494,11 @@ class _Reader:
         else:
             for f in self.objects(joint.find("frames")):
                 if f.tag == "PhysicalOffsetFrame":
-                    self.read_offset_frame(f)
+                    self.read_offset_frame(f, scope=name)
                 else:
                     self.skip(f)
-            parent_name = self.last(self.child_text(joint, "socket_parent_frame"))
-            child_name = self.last(self.child_text(joint, "socket_child_frame"))
+            parent_name = self.child_text(joint, "socket_parent_frame")
+            child_name = self.child_text(joint, "socket_child_frame")
             coord_elements = self.objects(joint.find("coordinates"))
         coords = []
         for c in coord_elements:
@@ -490,6 +521,8 @@ class _Reader:
                 c.motion_type = "coupled" if rot and tra else "rotational" if rot else "translational"
         self.joints.append(OsimJoint(name, kind, parent_name, child_name, names, rotations, translations,
                                      joint.sourceline))
+        if not legacy:
+            self.joint_sockets.append((self.joints[-1], name))
 
     def read_coordinate(self, c, joint):
         name = c.get("name")
@@ -504,7 +537,8 @@ class _Reader:
         fn = None
         holder = c.find("prescribed_function")
         if holder is not None and len(holder):
-            fn = function_spec(function_element(holder, self.source), self.source)
+            fe = function_element(holder, self.source)
+            fn = None if fe is None else function_spec(fe, self.source)
         if prescribed and fn is None:
             raise self.err(c, "prescribed but no <prescribed_function>")
         motion = self.child_text(c, "motion_type", "")
@@ -546,7 +580,7 @@ class _Reader:
                         raise self.err(ta, f"coordinate {cname!r} is not one of the joint's coordinates {list(names)}",
                                        f"TransformAxis '{ta.get('name')}' of {joint.tag} '{joint.get('name')}'")
                 axis = self.child_numbers(ta, "axis", 3)
-                fe = function_element(ta, self.source, required=False)
+                fe = function_element(ta, self.source)
                 if fe is None:
                     spec = {"type": "linear", "slope": 1.0, "intercept": 0.0} if coords else \
                         {"type": "constant", "value": 0.0}
@@ -600,10 +634,10 @@ class _Reader:
         if kind == "CoordinateCouplerConstraint":
             indep = tuple(self.child_text(c, "independent_coordinate_names").split())
             dep = self.child_text(c, "dependent_coordinate_name")
-            holder = c.find("coupled_coordinates_function")
-            if holder is None:
+            fe = function_element(c, self.source)
+            if fe is None:
                 raise self.err(c, "no <coupled_coordinates_function>")
-            spec = function_spec(function_element(holder, self.source), self.source)
+            spec = function_spec(fe, self.source)
             scale = self.child_text(c, "scale_factor", "1")
             try:
                 scale = float(scale)
@@ -629,8 +663,9 @@ class _Reader:
             else:
                 for f in self.objects(c.find("frames")):
                     if f.tag == "PhysicalOffsetFrame":
-                        self.read_offset_frame(f)
-                frames = [self.last(self.child_text(c, "socket_frame1")), self.last(self.child_text(c, "socket_frame2"))]
+                        self.read_offset_frame(f, scope=name)
+                frames = [self.resolve(self.child_text(c, "socket_frame1"), name),
+                          self.resolve(self.child_text(c, "socket_frame2"), name)]
             self.constraints.append(OsimConstraint(name, kind, frames=tuple(frames), line=c.sourceline))
             return
         # PointConstraint: body_1 + location_body_1, body_2 + location_body_2
@@ -650,6 +685,6 @@ class _Reader:
         name = m.get("name")
         if not name:
             raise self.err(m, "a marker without a name")
-        frame = self.last(self.child_text(m, "body") if legacy and m.find("body") is not None
-                          else self.child_text(m, "socket_parent_frame"))
+        frame = (self.child_text(m, "body") if legacy and m.find("body") is not None
+                 else self.child_text(m, "socket_parent_frame"))
         self.markers.append(OsimMarker(name, frame, self.child_numbers(m, "location", 3), frame, m.sourceline))
