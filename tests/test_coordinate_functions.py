@@ -73,10 +73,22 @@ def _ours_from_file(path):
 
 
 def _roundtrip(f, tmp_path, name="printed.xml"):
-    """OpenSim writes ``f``; openfdk reads what it wrote."""
+    """OpenSim writes ``f``; openfdk and OpenSim read what it wrote: (ours, the function
+    element, OpenSim's function). OpenSim writes the number lists of SimmSpline,
+    GCVSpline, PiecewiseLinearFunction and LinearFunction with 6 significant digits, so
+    the tests draw their data with 6 digits (``_r6``) where they compare with ``f``."""
     path = tmp_path / name
     assert f.printToXML(str(path))
-    return _ours_from_file(path)
+    ours, element = _ours_from_file(path)
+    osim = _osim()
+    obj = osim.OpenSimObject.makeObjectFromFile(str(path))
+    _KEEP.append(obj)
+    return ours, element, osim.Function.safeDownCast(obj)
+
+
+def _r6(values):
+    """``values`` rounded to the 6 significant digits OpenSim writes number lists with."""
+    return np.array([float(f"{v:.6g}") for v in np.ravel(values)])
 
 
 def _opensim_eval(f, xs):
@@ -114,8 +126,8 @@ def _assert_matches(ours, theirs, xs, lo, hi, what):
 
 
 def _knots(rng, n, lo=-1.5):
-    """n strictly increasing knots with steps between 0.2 and 1.2 (uneven)."""
-    return lo + np.concatenate([[0.0], np.cumsum(rng.uniform(0.2, 1.2, n - 1))])
+    """n strictly increasing knots with steps between 0.2 and 1.2 (uneven), 6 digits."""
+    return _r6(lo + np.concatenate([[0.0], np.cumsum(rng.uniform(0.2, 1.2, n - 1))]))
 
 
 # --------------------------------------------------------------------------------------
@@ -130,9 +142,10 @@ def test_constant_linear_polynomial_match_opensim(tmp_path):
     for k in range(1, 7):                                      # degree 0 … 5
         cases.append((f"polynomial{k}", osim.PolynomialFunction(osim.Vector(list(rng.normal(size=k))))))
     for name, f in cases:
-        ours, element = _roundtrip(f, tmp_path, f"{name}.xml")
+        ours, element, reread = _roundtrip(f, tmp_path, f"{name}.xml")
         assert ours.n_pieces == 0
         _assert_matches(ours, f, xs, -2.0, 2.0, name)
+        _assert_matches(ours, reread, xs, -2.0, 2.0, name)
     # the XML order of PolynomialFunction is highest power first
     spec = function_spec(etree.fromstring("<PolynomialFunction><coefficients>1 2 3</coefficients>"
                                           "</PolynomialFunction>"), "p.xml")
@@ -144,13 +157,15 @@ def test_constant_linear_polynomial_match_opensim(tmp_path):
 def test_simm_spline_matches_opensim(tmp_path, n):
     osim = _osim()
     rng = np.random.default_rng(10 + n)
-    x, y = _knots(rng, n), rng.normal(size=n)
+    x, y = _knots(rng, n), _r6(rng.normal(size=n))
     f = osim.SimmSpline()
     for a, b in zip(x, y):
         f.addPoint(float(a), float(b))
-    ours, element = _roundtrip(f, tmp_path)
+    ours, element, reread = _roundtrip(f, tmp_path)
     assert element.tag == "SimmSpline" and function_spec(element, "f.xml")["type"] == "simm_spline"
-    _assert_matches(ours, f, _sample(x[0], x[-1], rng, knots=x), x[0], x[-1], f"SimmSpline n={n}")
+    xs = _sample(x[0], x[-1], rng, knots=x)
+    _assert_matches(ours, f, xs, x[0], x[-1], f"SimmSpline n={n}")
+    _assert_matches(ours, reread, xs, x[0], x[-1], f"SimmSpline n={n} as read by OpenSim")
     if n >= 3:                                   # beyond the ends: the tangent, f'' = 0
         _, df, d2f = ours.evaluate(np.array([x[0] - 1.0, x[-1] + 1.0]))
         assert np.all(d2f == 0.0) and np.all(df != 0.0)
@@ -158,13 +173,11 @@ def test_simm_spline_matches_opensim(tmp_path, n):
 
 def test_simm_spline_tiny_step_as_opensim(tmp_path):
     """Steps below 1e-7 are replaced by 1e-7 in OpenSim's coefficients (TINY_NUMBER)."""
-    osim = _osim()
     x = [0.0, 1.0, 1.0 + 4e-8, 2.0, 3.5]
     y = [0.0, 0.4, 0.41, -0.2, 1.0]
-    f = osim.SimmSpline()
-    for a, b in zip(x, y):
-        f.addPoint(a, b)
-    ours, _ = _roundtrip(f, tmp_path)
+    f = _opensim_from_xml(tmp_path, f"<SimmSpline><x>{_numbers(x)}</x><y>{_numbers(y)}</y></SimmSpline>",
+                          name="tiny.xml")
+    ours, _ = _ours_from_file(tmp_path / "tiny.xml")
     rng = np.random.default_rng(3)
     xs = np.concatenate([_sample(0.0, 3.5, rng), rng.uniform(1.0, 1.0 + 4e-8, 20)])
     _assert_matches(ours, f, xs, 0.0, 3.5, "SimmSpline with a 4e-8 step")
@@ -192,14 +205,15 @@ def test_gcv_spline_matches_opensim(tmp_path, half_order, n):
     """GCVSpline (error variance 0) is the interpolating natural spline of degree 2m − 1,
     continued outside the knots by a polynomial of degree m − 1."""
     rng = np.random.default_rng(100 * half_order + n)
-    x, y = _knots(rng, n), rng.normal(size=n)
+    x, y = _knots(rng, n), _r6(rng.normal(size=n))
     body = (f'<GCVSpline name="g"><half_order>{half_order}</half_order>'
             f'<x>{_numbers(x)}</x><y>{_numbers(y)}</y></GCVSpline>')
     theirs = _opensim_from_xml(tmp_path, body, name="gcv.xml")
-    ours, element = _roundtrip(theirs, tmp_path)            # as OpenSim writes it
+    ours, element, reread = _roundtrip(theirs, tmp_path)    # as OpenSim writes it
     assert function_spec(element, "f.xml")["degree"] == 2 * half_order - 1
     xs = _sample(x[0], x[-1], rng, knots=x)
     _assert_matches(ours, theirs, xs, x[0], x[-1], f"GCVSpline half_order={half_order} n={n}")
+    _assert_matches(ours, reread, xs, x[0], x[-1], f"GCVSpline half_order={half_order} n={n} re-read")
     # beyond the ends: a polynomial of degree m − 1 (its derivative m vanishes)
     outside = np.array([x[0] - 0.7, x[-1] + 0.9])
     f, df, d2f = ours.evaluate(outside)
@@ -228,18 +242,20 @@ def test_gcv_spline_with_weights_and_coefficients_as_opensim(tmp_path):
 def test_piecewise_linear_matches_opensim(tmp_path, n):
     osim = _osim()
     rng = np.random.default_rng(20 + n)
-    x, y = _knots(rng, n), rng.normal(size=n)
+    x, y = _knots(rng, n), _r6(rng.normal(size=n))
     f = osim.PiecewiseLinearFunction()
     for a, b in zip(x, y):
         f.addPoint(float(a), float(b))
-    ours, _ = _roundtrip(f, tmp_path)
+    ours, _, reread = _roundtrip(f, tmp_path)
     # the knots are sampled too: f' jumps there and the piece follows OpenSim's search
-    _assert_matches(ours, f, _sample(x[0], x[-1], rng, knots=x), x[0], x[-1], f"PiecewiseLinearFunction n={n}")
+    xs = _sample(x[0], x[-1], rng, knots=x)
+    _assert_matches(ours, f, xs, x[0], x[-1], f"PiecewiseLinearFunction n={n}")
+    _assert_matches(ours, reread, xs, x[0], x[-1], f"PiecewiseLinearFunction n={n} re-read")
 
 
 def test_multiplier_function_matches_opensim(tmp_path):
     rng = np.random.default_rng(8)
-    x, y = _knots(rng, 6), rng.normal(size=6)
+    x, y = _knots(rng, 6), _r6(rng.normal(size=6))
     inner = {
         "simm": f"<SimmSpline name='s'><x>{_numbers(x)}</x><y>{_numbers(y)}</y></SimmSpline>",
         "linear": "<LinearFunction><coefficients>0.5 -0.25</coefficients></LinearFunction>",
@@ -250,9 +266,11 @@ def test_multiplier_function_matches_opensim(tmp_path):
     for name, body in inner.items():
         theirs = _opensim_from_xml(tmp_path, f"<MultiplierFunction name='m'><function>{body}</function>"
                                              f"<scale>0.3</scale></MultiplierFunction>", name=f"m_{name}.xml")
-        ours, element = _roundtrip(theirs, tmp_path, f"m_{name}_printed.xml")
+        ours, element, reread = _roundtrip(theirs, tmp_path, f"m_{name}_printed.xml")
         assert function_spec(element, "f.xml")["scale"] == 0.3
-        _assert_matches(ours, theirs, _sample(x[0], x[-1], rng, knots=x), x[0], x[-1], f"MultiplierFunction {name}")
+        xs = _sample(x[0], x[-1], rng, knots=x)
+        _assert_matches(ours, theirs, xs, x[0], x[-1], f"MultiplierFunction {name}")
+        _assert_matches(ours, reread, xs, x[0], x[-1], f"MultiplierFunction {name} re-read")
     # scale left out: OpenSim's default 1
     theirs = _opensim_from_xml(tmp_path, f"<MultiplierFunction><function>{inner['simm']}</function>"
                                          "</MultiplierFunction>", name="m_default.xml")

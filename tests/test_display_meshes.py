@@ -307,6 +307,18 @@ def test_malformed_vtp_gives_one_line_naming_the_file(tmp_path, case):
     assert time.perf_counter() - t0 < 5.0
 
 
+def test_text_beyond_the_parser_limit_is_refused_in_one_line(tmp_path):
+    """lxml without huge-tree mode stops at a text node of 10 MB: an ascii array that long
+    is refused (quickly), with the remedy."""
+    text = _good().replace(">\n0.0 0.0 0.0 1.0", ">\n" + "0 " * 5_100_000 + "0.0 0.0 0.0 1.0")
+    path = tmp_path / "long.vtp"
+    path.write_text(text)
+    with pytest.raises(ValueError) as err:
+        read_vtp(path)
+    msg = str(err.value)
+    assert "\n" not in msg and msg.startswith(f"{path}: ") and "more than 10 MB of text" in msg, msg
+
+
 OBJ_BAD = {
     "index-out-of-range": ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\n", "line 5: face vertex index 4 is beyond the 3"),
     "index-zero": ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", "line 4: face corner '0'"),

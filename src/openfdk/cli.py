@@ -173,11 +173,16 @@ def _print_failed(args, failed):
 
 
 def _write_measures(out_dir, model_path, kinematics):
-    """measures.csv: the model's named measures (joint measures included) per frame."""
+    """measures.csv: the model's named measures (joint measures included) per frame;
+    coordinates.csv and coordinates.mot: its joint coordinates (OpenSim models)."""
     from .io.measure_outputs import write_measures
     from .io.modelfile import load_model
 
-    write_measures(out_dir, load_model(model_path), kinematics)
+    from .io.coordinate_outputs import write_coordinates
+
+    model = load_model(model_path)
+    write_measures(out_dir, model, kinematics)
+    write_coordinates(out_dir, model, kinematics)
 
 
 def _cmd_run(args):
@@ -399,6 +404,8 @@ def _import_arguments(p):
                         "ForceSet and wrap objects); repeatable; the dropped elements are listed in summary.json")
     g.add_argument("--geometry", action="append", default=[], metavar="DIR",
                    help="another folder to look for the model's mesh files in (repeatable)")
+    g.add_argument("--ik-tasks", default=None, metavar="FILE",
+                   help="OpenSim IK setup (Setup_IK.xml) or tasks file: its marker weights and coordinate tasks")
 
 
 def _register_import(args):
@@ -409,17 +416,18 @@ def _register_import(args):
     from .io.opensim import is_osim
 
     if not is_osim(model):
-        if args.overlay or args.ignore or args.geometry:
-            raise UserError(f"{model}: --with, --ignore and --geometry apply to OpenSim models (.osim) only")
+        if args.overlay or args.ignore or args.geometry or args.ik_tasks:
+            raise UserError(f"{model}: --with, --ignore, --geometry and --ik-tasks apply to OpenSim models (.osim) "
+                            "only")
         return
-    if args.overlay is not None:
-        from pathlib import Path
+    from pathlib import Path
 
-        if not Path(args.overlay).is_file():
-            raise UserError(f"--with: overlay file {args.overlay!r} does not exist")
+    for option, value in (("--with", args.overlay), ("--ik-tasks", args.ik_tasks)):
+        if value is not None and not Path(value).is_file():
+            raise UserError(f"{option}: file {value!r} does not exist")
     from .io.opensim.overlay import register
 
-    register(model, args.ignore, args.geometry, args.overlay)
+    register(model, args.ignore, args.geometry, args.overlay, args.ik_tasks)
 
 
 def _display_arguments(p, top=False):

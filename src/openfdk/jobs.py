@@ -115,6 +115,20 @@ def analysis_inputs(model, trial_path=None, cutoff_hz=None, start=None, end=None
     return traj, times, info
 
 
+def _import_info(model_path):
+    """{"opensim_import": {dropped, merged_bodies}} for a model read from an .osim (the
+    elements left out with --ignore are listed in summary.json), else {}."""
+    from .io.opensim import is_osim
+
+    if not isinstance(model_path, (str, bytes)) and not hasattr(model_path, "__fspath__"):
+        return {}
+    if not is_osim(model_path):
+        return {}
+    from .io.opensim.overlay import import_info
+
+    return {"opensim_import": import_info(model_path)}
+
+
 def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=None, end=None, alpha=None,
                    settings=None):
     """Kinematics of a model file (or Model) over a C3D trial (marker tracking), or over
@@ -124,7 +138,7 @@ def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, s
     from .kinematics.analysis import run_determinate, run_tracking
 
     model, settings, label = model_and_settings(model_path, settings)
-    info = {"model": label}
+    info = {"model": label, **_import_info(model_path)}
     traj, times, more = analysis_inputs(model, trial_path, cutoff_hz, start, end, settings)
     info.update(more)
     if traj is None:
@@ -148,7 +162,7 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
 
     model, settings, label = model_and_settings(model_path, settings)
     traj, times, info = analysis_inputs(model, trial_path, cutoff_hz, start, end, settings)
-    info = {"model": label, **info}
+    info = {"model": label, **_import_info(model_path), **info}
 
     def with_info(kin, dyn, fdk):
         out = dict(info)

@@ -22,12 +22,14 @@ def referenced_files(model_path) -> list:
     base, found, seen = model_path.parent, [], set()
     from .opensim import is_osim
 
-    if is_osim(model_path):  # an OpenSim model: its overlay (--with), if any
+    if is_osim(model_path):  # an OpenSim model: its overlay (--with) and IK tasks, and the import options
         from .opensim.overlay import _REGISTERED, _key
 
         opts = _REGISTERED.get(_key(model_path))
-        overlay = None if opts is None else opts.overlay
-        return [("--with", overlay)] if overlay is not None else []
+        if opts is None:
+            return []
+        files = [(flag, p) for flag, p in (("--with", opts.overlay), ("--ik-tasks", opts.ik_tasks)) if p is not None]
+        return files + [(f"--ignore {kind}", model_path) for kind in opts.ignore]
 
     def walk(value):
         if isinstance(value, dict):

@@ -104,3 +104,40 @@ def csv_to_sto(csv_path, sto_path=None, name=None) -> Path | None:
     if dropped:
         comments.append(f"Text columns not stored: {', '.join(dropped)}")
     return write_storage(sto_path, time, numeric, name=name or csv_path.stem, comments=comments)
+
+
+def read_storage(path):
+    """Read an OpenSim ``.sto``/``.mot`` file: (time (n,) s, {label: (n,) values},
+    in_degrees bool). Values are as in the file (angles in degrees when ``inDegrees=yes``).
+    Errors are one line naming the file and the line."""
+    path = Path(path)
+    try:
+        lines = path.read_text(errors="replace").splitlines()
+    except OSError as exc:
+        raise ValueError(f"{path.name}: cannot read the file ({exc.strerror or exc})") from None
+    try:
+        end = next(i for i, line in enumerate(lines) if line.strip().lower() == "endheader")
+    except StopIteration:
+        raise ValueError(f"{path.name}: no 'endheader' line: not an OpenSim storage file") from None
+    in_degrees = any(line.strip().replace(" ", "").lower() == "indegrees=yes" for line in lines[:end])
+    if end + 1 >= len(lines):
+        raise ValueError(f"{path.name}: no column labels after 'endheader'")
+    labels = lines[end + 1].split("\t") if "\t" in lines[end + 1] else lines[end + 1].split()
+    labels = [x.strip() for x in labels]
+    if not labels or labels[0].lower() != "time":
+        raise ValueError(f"{path.name}: line {end + 2}: the first column must be 'time', got {labels[:1]}")
+    rows = []
+    for k, line in enumerate(lines[end + 2:], start=end + 3):
+        if not line.strip():
+            continue
+        cells = line.split()
+        if len(cells) != len(labels):
+            raise ValueError(f"{path.name}: line {k}: {len(cells)} values for {len(labels)} columns")
+        try:
+            rows.append([float(c) for c in cells])
+        except ValueError:
+            raise ValueError(f"{path.name}: line {k}: a value is not a number") from None
+    data = np.array(rows, dtype=float).reshape(-1, len(labels))
+    if not np.all(np.isfinite(data[:, 0])) or np.any(np.diff(data[:, 0]) <= 0):
+        raise ValueError(f"{path.name}: the times are not finite and increasing")
+    return data[:, 0], {label: data[:, j] for j, label in enumerate(labels) if j > 0}, in_degrees

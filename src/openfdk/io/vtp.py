@@ -40,8 +40,7 @@ huge-tree mode, and a DOCTYPE is refused; every count is checked against the dec
 are inflated at most to their declared size, which must equal what the declared counts
 need. Without huge-tree mode one text node holds at most 10 MB (an ascii array of about
 200 000 points as VTK writes them, a binary one of about 600 000); larger arrays are
-refused. Every problem raises one
-``ValueError`` line ``<file>: <what is wrong>``.
+refused. Every problem raises one ``ValueError`` line ``<file>: <what is wrong>``.
 """
 
 from __future__ import annotations
@@ -195,6 +194,8 @@ def _piece(piece, enc, label):
 
 def _array(da, enc, count, types, what, components) -> np.ndarray:
     """The ``count`` values (float64 or int64, flat) of a <DataArray>, checked."""
+    if count > MAX_VALUES:
+        raise ValueError(f"{what} DataArray would hold {count} values, beyond {MAX_VALUES}")
     kind = da.get("type")
     if kind not in types:
         raise ValueError(f"{what} DataArray type {kind!r} is not one of {list(types)}")

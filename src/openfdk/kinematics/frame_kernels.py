@@ -193,16 +193,48 @@ def rates_from_jacobian(op, node_row, node_size, i_start, iparams, f_start, fpar
 
 
 @njit(cache=True)
+def _soft_rows(p_WB, R_WB, w_BB, v_WB, column, marker_body, p_BM, n, order,
+               top, tnode_row, tnode_size, ti_start, tiparams, tf_start, tfparams, tout_rows, tn_node_rows):
+    """The soft rows Ψ of Eq. 4 at the pose: the markers' 3 nm positions, then the nt
+    task measures (coordinate tasks) of the task program ``t*``. Returns (p (3 nm + nt,),
+    J (3 nm + nt, n), b (3 nm + nt,) (order 2), failing task node or −1, error code)."""
+    pm, Jm, bm = marker_positions_jacobian(p_WB, R_WB, w_BB, column, marker_body, p_BM, n, order)
+    nt = tout_rows.shape[0]
+    if nt == 0:
+        return pm, Jm, bm, -1, 0
+    rows = pm.shape[0]
+    p = np.empty(rows + nt)
+    J = np.empty((rows + nt, n))
+    b = np.zeros(rows + nt)
+    p[:rows] = pm
+    J[:rows] = Jm
+    b[:rows] = bm
+    tv = np.empty(nt)
+    tJ = np.empty((nt, n))
+    tb = np.empty(nt)
+    e_node, e_kind = evaluate_into(top, tnode_row, tnode_size, ti_start, tiparams, tf_start, tfparams, tout_rows,
+                                   tn_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, order, tv, tJ, tb)
+    p[rows:] = tv
+    J[rows:] = tJ
+    if order >= 2:
+        b[rows:] = tb
+    return p, J, b, e_node, e_kind
+
+
+@njit(cache=True)
 def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows, n_node_rows,
                        p_WB, quat_WB, R_WB, w_BB, v_WB, column, moving, f, angle,
-                       marker_body, p_BM, w, x, tol_step, tol_constraint, max_iter, K, lam):
+                       marker_body, p_BM, w, x, tol_step, tol_constraint, max_iter, K, lam,
+                       top, tnode_row, tnode_size, ti_start, tiparams, tf_start, tfparams, tout_rows, tn_node_rows):
     """Gauss–Newton SQP of marker tracking (Eqs. 4–5) from the state (in place).
 
-    marker_body (nm,), p_BM (nm, 3) m; w (3 nm,) row weights; x (3 nm,) m measured
-    positions (0 where w = 0); K (n + m, n + m) output, the last KKT matrix (reused by
-    Eqs. 8–10); lam (m,) output multipliers. Converged when max |Δq̂| < tol_step and
-    max |Φ| ≤ tol_constraint at the start of that step. Returns (status, iterations,
-    max |Φ|, last step, failing node, error code)."""
+    marker_body (nm,), p_BM (nm, 3) m; w (3 nm + nt,) row weights; x (3 nm + nt,) m
+    measured positions, then the nt task targets (rad, m) (0 where w = 0); the task
+    program ``t*`` (coordinate tasks, empty without); K (n + m, n + m) output, the last
+    KKT matrix (reused by Eqs. 8–10); lam (m,) output multipliers. Converged when
+    max |Δq̂| < tol_step and max |Φ| ≤ tol_constraint at the start of that step.
+    Returns (status, iterations, max |Φ|, last step, failing node, error code); a
+    failing task node is reported as −2 − node."""
     m = out_rows.shape[0]
     n = 6 * moving.shape[0]
     val = np.empty(m)
@@ -212,7 +244,11 @@ def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fpara
     step = np.inf
     res = np.inf
     for it in range(1, max_iter + 1):
-        p, J, _ = marker_positions_jacobian(p_WB, R_WB, w_BB, column, marker_body, p_BM, n, 1)
+        p, J, _, t_node, t_kind = _soft_rows(p_WB, R_WB, w_BB, v_WB, column, marker_body, p_BM, n, 1, top, tnode_row,
+                                             tnode_size, ti_start, tiparams, tf_start, tfparams, tout_rows,
+                                             tn_node_rows)
+        if t_node >= 0:
+            return MEASURE_ERROR, it, np.inf, step, -2 - t_node, t_kind
         e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
                                        n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 1, val, A, bias)
         if e_node >= 0:
@@ -233,17 +269,28 @@ def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fpara
 @njit(cache=True)
 def tracking_rates(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows, n_node_rows,
                    p_WB, R_WB, w_BB, v_WB, column, moving, df, ddf, marker_body, p_BM, w,
-                   target_v, target_a, K, J, f, angle, v, vdot, A, Phi):
+                   target_v, target_a, K, J, f, angle, v, vdot, A, Phi,
+                   top, tnode_row, tnode_size, ti_start, tiparams, tf_start, tfparams, tout_rows, tn_node_rows):
     """Velocities (Eqs. 8–9) and accelerations (Eq. 10) with the KKT matrix K (n + m,
     n + m) of the position solve: K [v; ·] = [Ψ_q̂ᵀ W (ẋ + δ̇); ν], sets the state's
     velocities, then K [v̇; ·] = [Ψ_q̂ᵀ W (ẍ + δ̈ − b_Ψ); γ]. target_v, target_a (3 nm,)
-    (0 where occluded). J (3 nm, n): the marker Jacobian Ψ_q̂ at this pose (the position
-    stage's). The rows are evaluated once here, at order 2 (b needs v): outputs A (m, n)
-    Φ_q̂ and Phi (m,) Φ = m − f (angle rows wrapped) at the pose, for the later stages.
-    Returns (status, failing node, error code)."""
+    (0 where occluded), then the nt task rows' ḟ and f̈. J (3 nm, n): the marker Jacobian
+    Ψ_q̂ at this pose (the position stage's); the task rows (program ``t*``) are evaluated
+    here with their bias. The rows are evaluated once here, at order 2 (b needs v):
+    outputs A (m, n) Φ_q̂ and Phi (m,) Φ = m − f (angle rows wrapped) at the pose, for the
+    later stages. Returns (status, failing node, error code)."""
     m = out_rows.shape[0]
     n = 6 * moving.shape[0]
+    nt = tout_rows.shape[0]
     rows = marker_body.shape[0] * 3
+    tv = np.empty(nt)
+    tJ = np.empty((nt, n))
+    tb = np.empty(nt)
+    if nt > 0:
+        e_node, e_kind = evaluate_into(top, tnode_row, tnode_size, ti_start, tiparams, tf_start, tfparams, tout_rows,
+                                       tn_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 1, tv, tJ, tb)
+        if e_node >= 0:
+            return MEASURE_ERROR, -2 - e_node, e_kind
     val = np.empty(m)
     bias = np.empty(m)
     piv = np.empty(n + m, np.int64)
@@ -255,6 +302,8 @@ def tracking_rates(op, node_row, node_size, i_start, iparams, f_start, fparams, 
         s = 0.0
         for k in range(rows):
             s += J[k, c] * w[k] * target_v[k]
+        for k in range(nt):
+            s += tJ[k, c] * w[rows + k] * target_v[rows + k]
         rhs[c] = s
     for r in range(m):
         rhs[n + r] = df[r]
@@ -268,11 +317,18 @@ def tracking_rates(op, node_row, node_size, i_start, iparams, f_start, fparams, 
     if e_node >= 0:
         return MEASURE_ERROR, e_node, e_kind
     _residual(val, f, angle, Phi)
+    if nt > 0:  # the task rows' bias, now that v is known
+        e_node, e_kind = evaluate_into(top, tnode_row, tnode_size, ti_start, tiparams, tf_start, tfparams, tout_rows,
+                                       tn_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 2, tv, tJ, tb)
+        if e_node >= 0:
+            return MEASURE_ERROR, -2 - e_node, e_kind
     for c in range(n):
         s = 0.0
         for k in range(rows):
             if w[k] != 0.0:
                 s += J[k, c] * w[k] * (target_a[k] - b_m[k])
+        for k in range(nt):
+            s += tJ[k, c] * w[rows + k] * (target_a[rows + k] - tb[k])
         rhs[c] = s
     for r in range(m):
         rhs[n + r] = ddf[r] - bias[r]

@@ -42,17 +42,42 @@ class MarkerTracker:
     """
 
     def __init__(self, system: ConstraintSystem, settings: TrackingSettings | None = None):
+        from ..model.compiled import CompiledMeasures
+
         self.system = system
         self.markers = system.model.markers
         self.settings = settings or TrackingSettings()
         self._observable_cache = {}
         self._weight_cache = {}
         self.coord_names = system.model.coordinate_names()
+        # coordinate tasks: soft rows of Eq. 4 beside the markers (model.tasks)
+        self.tasks = tuple(system.model.tasks)
+        self.task_program = CompiledMeasures([tk.measure for tk in self.tasks])
+        self.task_weights = np.array([tk.weight for tk in self.tasks], dtype=float)
+        self._task_args = self.task_program.program + (self.task_program.n_node_rows,)
+
+    def task_targets(self, t):
+        """(f, ḟ, f̈) each (nt,) of the coordinate tasks at time t (s), rad or m."""
+        nt = len(self.tasks)
+        f, df, ddf = np.zeros(nt), np.zeros(nt), np.zeros(nt)
+        for k, tk in enumerate(self.tasks):
+            a, b, c = tk.function.derivatives(t)
+            f[k], df[k], ddf[k] = a[0], b[0], c[0]
+        return f, df, ddf
+
+    def _task_jacobian(self, state):
+        """J of the task rows (nt, n) at the pose."""
+        if not self.tasks:
+            return np.zeros((0, self.system.n_coords))
+        return self.task_program.evaluate(state, 1)[1]
+
+    def _raise_task_error(self, e_node, e_kind, state):
+        self.task_program.raise_error(-2 - e_node, e_kind, state)
 
     # -- helpers ------------------------------------------------------------------
     def _weights(self, visible):
-        """Per-row weights (3 n_markers,) from marker weights and visibility (cached per
-        visibility pattern; read-only)."""
+        """Per-row weights (3 n_markers + n_tasks,) from marker weights and visibility,
+        then the coordinate tasks' weights (cached per visibility pattern; read-only)."""
         return self._pattern(visible)[0]
 
     def _pattern(self, visible):
@@ -61,8 +86,8 @@ class MarkerTracker:
         key = visible.tobytes()
         out = self._weight_cache.get(key)
         if out is None:
-            w = np.repeat(np.where(visible, self.markers.weight, 0.0), 3)
-            vis3 = np.repeat(visible, 3)
+            w = np.concatenate([np.repeat(np.where(visible, self.markers.weight, 0.0), 3), self.task_weights])
+            vis3 = np.concatenate([np.repeat(visible, 3), np.ones(len(self.tasks), bool)])
             w.setflags(write=False)
             vis3.setflags(write=False)
             out = self._weight_cache[key] = (w, vis3)
@@ -76,6 +101,7 @@ class MarkerTracker:
         key = visible.tobytes()
         if key not in self._observable_cache:
             _, J, _ = self.markers.evaluate(state, 1)
+            J = np.vstack([J, self._task_jacobian(state)])
             _, A, _, _ = self.system.evaluate(state, t, alpha, order=1)
             self._observability(J, A, visible)
         return self._observable_cache[key]
@@ -139,6 +165,8 @@ class MarkerTracker:
             return FrameSolve(False, 0, np.nan, msg, Reason.UNOBSERVABLE), None, None
         w = self._weights(visible)
         x = np.where(visible[:, None], x_WM, 0.0).ravel()
+        if self.tasks:
+            x = np.concatenate([x, self.task_targets(t)[0]])
         n, m = self.system.n_coords, self.system.n_rows
         K = np.zeros((n + m, n + m))
         lam = np.zeros(m)
@@ -149,10 +177,12 @@ class MarkerTracker:
             status, it, res, step, e_node, e_kind = tracking_positions(
                 *prog.program, prog.n_node_rows, state.p_WB, state.quat_WB, state.R_WB, state.w_BB, state.v_WB,
                 state.column, state.moving, f, self.system.angle_rows, self.markers.body, self.markers.p_BM,
-                w, x, s.tol_step, s.tol_constraint, s.max_iter, K, lam)
+                w, x, s.tol_step, s.tol_constraint, s.max_iter, K, lam, *self._task_args)
         except np.linalg.LinAlgError as exc:
             return FrameSolve(False, 0, np.nan, f"KKT system singular: {exc}", Reason.SINGULAR), None, None
         if status == MEASURE_ERROR:
+            if e_node <= -2:
+                self._raise_task_error(e_node, e_kind, state)
             prog.raise_error(e_node, e_kind, state)
         if status == SINGULAR:
             return FrameSolve(False, int(it), np.nan, "KKT system singular (non-finite step)", Reason.SINGULAR), None, None
@@ -168,6 +198,7 @@ class MarkerTracker:
         """The KKT matrix (n + m, n + m) at the current pose (for Eqs. 8–10)."""
         n, m = self.system.n_coords, self.system.n_rows
         _, J, _ = self.markers.evaluate(state, 1)
+        J = np.vstack([J, self._task_jacobian(state)])
         _, A, _, _ = self.system.evaluate(state, t, alpha, order=1)
         w = self._weights(visible)
         K = np.zeros((n + m, n + m))
@@ -201,15 +232,23 @@ class MarkerTracker:
             J = self.markers.evaluate(state, 1)[1]
         m = self.system.n_rows
         A, Phi = np.empty((m, n)), np.empty(m)
-        target_v = np.where(vis3, (xdot + d_delta).ravel(), 0.0)
-        target_a = np.where(vis3, (xddot + dd_delta).ravel(), 0.0)
+        target_v = (xdot + d_delta).ravel()
+        target_a = (xddot + dd_delta).ravel()
+        if self.tasks:
+            _, tdf, tddf = self.task_targets(t)
+            target_v, target_a = np.concatenate([target_v, tdf]), np.concatenate([target_a, tddf])
+        target_v = np.where(vis3, target_v, 0.0)
+        target_a = np.where(vis3, target_a, 0.0)
         v, vdot = np.empty(n), np.empty(n)
         prog = self.system.program
         status, e_node, e_kind = tracking_rates(
             *prog.program, prog.n_node_rows, state.p_WB, state.R_WB, state.w_BB, state.v_WB, state.column,
             state.moving, df, ddf, self.markers.body, self.markers.p_BM, w, target_v, target_a,
-            np.ascontiguousarray(K), np.ascontiguousarray(J), f, self.system.angle_rows, v, vdot, A, Phi)
+            np.ascontiguousarray(K), np.ascontiguousarray(J), f, self.system.angle_rows, v, vdot, A, Phi,
+            *self._task_args)
         if status == MEASURE_ERROR:
+            if e_node <= -2:
+                self._raise_task_error(e_node, e_kind, state)
             prog.raise_error(e_node, e_kind, state)
         if status == SINGULAR:
             raise np.linalg.LinAlgError("Singular matrix")

@@ -41,6 +41,8 @@ class Model:
     visuals : Visual (display meshes of bodies, for the viewer; no forces)
     coordinates : Coordinate (OpenSim-style joint coordinates, each a named measure;
         :mod:`openfdk.model.coordinate_joint`)
+    tasks : CoordinateTask (soft rows of marker tracking beside the markers, Eq. 4:
+        OpenSim's IKCoordinateTasks; :mod:`openfdk.model.tasks`)
 
     The model is purely physical: how it is analysed (kinematics window, recruitment,
     FDK solver) is an :class:`~openfdk.model.settings.AnalysisSettings` kept apart and
@@ -63,6 +65,7 @@ class Model:
     unilateral_reactions: tuple = ()
     visuals: tuple = ()
     coordinates: tuple = ()
+    tasks: tuple = ()
     source: str = ""
 
     # -- look-ups -------------------------------------------------------------------

@@ -33,6 +33,7 @@ FORMAT_VERSION = 1
 CORE_SECTIONS = (
     "openfdk", "name", "units", "gravity", "bodies", "measures", "joints",
     "constraints", "drivers", "fdk_dofs", "analysis", "description", "coordinates", "couplers",
+    "tasks",
 )
 
 
@@ -82,6 +83,10 @@ def read_core(data, source="<dict>", base_dir=None, sections=()):
         _load_driver(b, name, spec, ctx)
     for name, spec in (ctx.mapping(data.get("fdk_dofs") or {}, "fdk_dofs")).items():
         _load_fdk(b, name, spec, ctx)
+    from .tasks import load_tasks
+
+    load_tasks(b, data.get("tasks"), ctx, lambda spec, path: _measure(b, spec, path, ctx),
+               lambda spec, units, path: _function(spec, units, path, ctx), _wrap)
     b.elements["analysis"] = _analysis(data.get("analysis") or {}, ctx)
     b.elements["units"] = {"length": lu, "angle": au}
     return b, ctx

@@ -12,6 +12,7 @@ Two ways to give them, one path through the loader:
       opensim: gait2392_simbody.osim     # relative to this file
       ignore: [Thelen2003Muscle, Mesh]   # element types left out (listed in summary.json)
       geometry: [../Geometry]            # more folders to look for meshes in
+      ik_tasks: Setup_IK.xml             # OpenSim's IK marker weights and coordinate tasks
       drivers: {...}                     # any model-file section but the model's own
       fdk_dofs: {...}
       analysis: {marker_cutoff_hz: 6}
@@ -29,7 +30,7 @@ from pathlib import Path
 from ...model.errors import ModelError
 
 #: overlay keys that are import options, not model-file sections
-OPTION_KEYS = ("opensim", "ignore", "geometry")
+OPTION_KEYS = ("opensim", "ignore", "geometry", "ik_tasks")
 #: model-file sections an overlay may not set (the .osim defines them)
 MODEL_SECTIONS = ("bodies", "coordinates", "couplers", "units", "gravity", "name", "openfdk")
 
@@ -37,11 +38,13 @@ MODEL_SECTIONS = ("bodies", "coordinates", "couplers", "units", "gravity", "name
 @dataclass
 class ImportOptions:
     """``ignore``: element types to leave out; ``mesh_dirs``: more mesh folders;
-    ``overlay``: path of an overlay YAML (or None)."""
+    ``overlay``: path of an overlay YAML (or None); ``ik_tasks``: an OpenSim IK setup or
+    tasks file (:mod:`.ik_tasks`), or None."""
 
     ignore: tuple = ()
     mesh_dirs: tuple = ()
     overlay: Path | None = None
+    ik_tasks: Path | None = None
     info: dict = field(default_factory=dict)
 
 
@@ -52,10 +55,11 @@ def _key(path):
     return str(Path(path).resolve())
 
 
-def register(path, ignore=(), mesh_dirs=(), overlay=None):
+def register(path, ignore=(), mesh_dirs=(), overlay=None, ik_tasks=None):
     """Options for the ``.osim`` at ``path`` in this process (the command line's
-    ``--ignore``, ``--geometry`` and ``--with``)."""
-    _REGISTERED[_key(path)] = ImportOptions(tuple(ignore), tuple(mesh_dirs), None if overlay is None else Path(overlay))
+    ``--ignore``, ``--geometry``, ``--with`` and ``--ik-tasks``)."""
+    _REGISTERED[_key(path)] = ImportOptions(tuple(ignore), tuple(mesh_dirs), None if overlay is None else Path(overlay),
+                                            None if ik_tasks is None else Path(ik_tasks))
 
 
 def import_info(path):
@@ -76,6 +80,11 @@ def imported_model_data(path):
     opts = _REGISTERED.setdefault(_key(path), ImportOptions())
     data, info = read_osim(path, opts.ignore, opts.mesh_dirs)
     opts.info = info
+    if opts.ik_tasks is not None:
+        from .ik_tasks import apply_ik_tasks
+
+        data = apply_ik_tasks(data, opts.ik_tasks, data.get("coordinates", {}))
+        info["ik_tasks"] = str(opts.ik_tasks)
     if opts.overlay is not None:
         overlay = read_yaml(opts.overlay, ModelError, "overlay file")
         data = merge_overlay(data, overlay, Path(opts.overlay).name, allow_options=False)
@@ -96,7 +105,11 @@ def overlay_model_data(path, data):
         value = data.get(key, [])
         if not isinstance(value, list) or not all(isinstance(v, str) and v for v in value):
             raise ModelError(f"{source}: {key}: expected a list of names, got {value!r}")
-    register(osim, data.get("ignore", []), [str(Path(path).parent / d) for d in data.get("geometry", [])])
+    tasks = data.get("ik_tasks")
+    if tasks is not None and (not isinstance(tasks, str) or not (Path(path).parent / tasks).is_file()):
+        raise ModelError(f"{source}: ik_tasks: expected the path of an existing IK setup or tasks file, got {tasks!r}")
+    register(osim, data.get("ignore", []), [str(Path(path).parent / d) for d in data.get("geometry", [])],
+             ik_tasks=None if tasks is None else Path(path).parent / tasks)
     if not osim.is_file():
         raise ModelError(f"{source}: opensim: {target!r} does not exist")
     base = imported_model_data(osim)

@@ -1,0 +1,73 @@
+"""``coordinates.csv`` and ``coordinates.mot``: a model's joint coordinates (OpenSim's,
+for a model read from an ``.osim``) over a trial, so that openfdk's marker tracking can
+be compared with OpenSim's IK ``.mot`` column by column.
+
+* ``coordinates.csv``: ``time`` then one column per coordinate, ``name_rad`` or
+  ``name_m`` (SI); a frame whose kinematics did not converge is NaN.
+* ``coordinates.mot``: OpenSim's motion file (``inDegrees=yes``): rotational
+  coordinates in degrees, translational in metres, columns named exactly as the
+  model's coordinates; frames that did not converge are left out (their poses are not
+  solutions) and a header comment says how many.
+
+Angles are unwrapped along time (a coordinate measured as a Cardan angle is returned in
+(−π, π]; OpenSim's coordinate continues past ±π), starting from the first converged
+frame's value taken nearest the coordinate's default.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .results import write_table
+from .storage import write_storage
+
+
+def coordinate_values(model, kinematics):
+    """{name: (nf,) rad or m} of every coordinate at the poses of ``kinematics`` (a
+    KinematicsResult: time (nf,), q (nf, 7 n_moving), converged (nf,)); NaN where a
+    frame did not converge."""
+    from ..model.compiled import CompiledMeasures
+
+    coords = list(model.coordinates)
+    nf = len(kinematics.time)
+    out = np.full((nf, len(coords)), np.nan)
+    if not coords:
+        return {}
+    program = CompiledMeasures([c.measure for c in coords])
+    state = model.initial_state()
+    for i in range(nf):
+        if kinematics.converged[i]:
+            state.set_q(kinematics.q[i])
+            out[i] = program.evaluate(state, 0)[0]
+    for k, c in enumerate(coords):
+        if c.unit == "angle":
+            ok = np.isfinite(out[:, k])
+            if ok.any():
+                col = np.unwrap(out[ok, k])
+                # the branch nearest the default value (a coordinate beyond ±π)
+                col += 2 * np.pi * np.round((c.default - col[0]) / (2 * np.pi))
+                out[ok, k] = col
+    return {c.name: out[:, k] for k, c in enumerate(coords)}
+
+
+def write_coordinates(out_dir, model, kinematics):
+    """Write ``coordinates.csv`` and ``coordinates.mot`` into ``out_dir`` when the model
+    has joint coordinates; returns the paths written."""
+    values = coordinate_values(model, kinematics)
+    if not values:
+        return []
+    out_dir = Path(out_dir)
+    units = {c.name: c.unit for c in model.coordinates}
+    cols = {"time": np.asarray(kinematics.time, float)}
+    for name, v in values.items():
+        cols[f"{name}_{'rad' if units[name] == 'angle' else 'm'}"] = v
+    csv_path = out_dir / "coordinates.csv"
+    write_table(csv_path, cols)
+    ok = np.asarray(kinematics.converged, bool)
+    mot = {name: np.degrees(v[ok]) if units[name] == "angle" else v[ok] for name, v in values.items()}
+    comments = [] if ok.all() else [f"openfdk: {int((~ok).sum())} frames whose kinematics failed are left out"]
+    mot_path = write_storage(out_dir / "coordinates.mot", np.asarray(kinematics.time, float)[ok], mot,
+                             name=f"{model.name} coordinates (openfdk)", in_degrees=True, comments=comments)
+    return [csv_path, mot_path]

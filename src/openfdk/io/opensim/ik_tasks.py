@@ -1,0 +1,139 @@
+"""OpenSim's IK tasks (``--ik-tasks FILE``): the IKTaskSet of a ``Setup_IK.xml``
+(``<InverseKinematicsTool>``) or of a tasks ``.xml`` (``<IKTaskSet>``), as openfdk's
+marker weights and coordinate tasks (:mod:`openfdk.model.tasks`).
+
+* ``IKMarkerTask``: the marker's weight; ``apply`` false, or a model marker with no
+  task, gives weight 0 (OpenSim's IK tracks only the markers of its task set).
+* ``IKCoordinateTask`` with ``apply`` true: a task row q − f(t) with its ``weight``;
+  ``value_type`` ``default_value`` (the coordinate's default), ``manual_value``
+  (``value``, rad or m as OpenSim stores it) or ``from_file`` (the coordinate's column of
+  the setup's ``coordinate_file``, a ``.mot``/``.sto``; degrees converted when the file
+  says ``inDegrees=yes``), as a spline through the file's samples.
+
+OpenSim's IK cost is Σ w_m |p_m − x_m|² + Σ w_q (q − f)²; openfdk's tracking minimises
+½ Ψᵀ W Ψ over the same rows with the same weights, so both solve the same problem.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .document import _parser
+from .errors import OsimError, where
+
+
+def read_ik_tasks(path):
+    """(marker weights {OpenSim marker name: weight}, coordinate tasks {coordinate:
+    {weight, value_type, value, column (times, values) or None}}) of a setup or tasks
+    file. Errors name the file, the line and the task."""
+    from lxml import etree
+
+    path = Path(path)
+    source = path.name
+    try:
+        root = etree.parse(str(path), _parser()).getroot()
+    except OSError as exc:
+        raise OsimError(f"{source}: cannot read the file ({exc})") from None
+    except etree.XMLSyntaxError as exc:
+        raise OsimError(f"{source}: not well-formed XML: {exc.msg} (line {exc.lineno})") from None
+    tool = root.find(".//InverseKinematicsTool")
+    taskset = root.find(".//IKTaskSet")
+    if taskset is None:
+        raise OsimError(f"{source}: line {root.sourceline}: no <IKTaskSet>: not an OpenSim IK setup or tasks file")
+    coordinate_file = None
+    if tool is not None:
+        text = (tool.findtext("coordinate_file") or "").strip()
+        if text and text.lower() != "unassigned":
+            coordinate_file = path.parent / text
+    objects = taskset.find("objects")
+    markers, coords = {}, {}
+    for task in (objects if objects is not None else taskset):
+        if not isinstance(task.tag, str):
+            continue
+        name = task.get("name")
+        if task.tag not in ("IKMarkerTask", "IKCoordinateTask"):
+            raise OsimError(f"{where(source, task)}: not an IK task (IKMarkerTask or IKCoordinateTask)")
+        if not name:
+            raise OsimError(f"{where(source, task)}: a task without a name")
+        apply = (task.findtext("apply") or "true").strip().lower()
+        if apply not in ("true", "false"):
+            raise OsimError(f"{where(source, task)}: <apply> must be true or false, got {apply!r}")
+        try:
+            weight = float((task.findtext("weight") or "1").strip())
+        except ValueError:
+            raise OsimError(f"{where(source, task)}: <weight> is not a number") from None
+        if not np.isfinite(weight) or weight < 0:
+            raise OsimError(f"{where(source, task)}: <weight> must be finite and >= 0, got {weight}")
+        if task.tag == "IKMarkerTask":
+            markers[name] = weight if apply == "true" else 0.0
+            continue
+        if apply != "true":
+            continue
+        kind = (task.findtext("value_type") or "default_value").strip()
+        entry = {"weight": weight, "value_type": kind, "value": None, "line": task.sourceline}
+        if kind == "manual_value":
+            try:
+                entry["value"] = float((task.findtext("value") or "0").strip())
+            except ValueError:
+                raise OsimError(f"{where(source, task)}: <value> is not a number") from None
+        elif kind == "from_file":
+            if coordinate_file is None:
+                raise OsimError(f"{where(source, task)}: value_type from_file needs the setup's <coordinate_file>")
+            entry["file"] = coordinate_file
+        elif kind != "default_value":
+            raise OsimError(f"{where(source, task)}: value_type {kind!r}: expected default_value, manual_value or "
+                            "from_file")
+        coords[name] = entry
+    return markers, coords
+
+
+def apply_ik_tasks(data, path, doc_coordinates):
+    """The model mapping ``data`` (imported from an .osim) with the marker weights and
+    coordinate tasks of the IK setup or tasks file ``path``. ``doc_coordinates``:
+    {name: default (SI) and motion} of the model's coordinates."""
+    from ..storage import read_storage
+
+    source = Path(path).name
+    weights, tasks = read_ik_tasks(path)
+    by_label = {}
+    for body in data["bodies"].values():
+        for mname, m in (body.get("markers") or {}).items():
+            by_label[m.get("label", mname)] = m
+    for name in weights:
+        if name not in by_label:
+            raise OsimError(f"{source}: IKMarkerTask {name!r}: the model has no marker of that name")
+    for label, m in by_label.items():
+        m["weight"] = float(weights.get(label, 0.0))
+    out = dict(data.get("tasks") or {})
+    files = {}
+    for name, t in tasks.items():
+        if name not in doc_coordinates:
+            raise OsimError(f"{source}: line {t['line']}: IKCoordinateTask {name!r}: the model has no coordinate of "
+                            "that name")
+        coord = doc_coordinates[name]
+        if t["value_type"] == "default_value":
+            value = coord["default"]
+        elif t["value_type"] == "manual_value":
+            value = t["value"]
+        else:
+            f = t["file"]
+            if f not in files:
+                try:
+                    files[f] = read_storage(f)
+                except ValueError as exc:
+                    raise OsimError(f"{source}: coordinate_file: {exc}") from None
+            times, columns, in_degrees = files[f]
+            if name not in columns:
+                raise OsimError(f"{source}: line {t['line']}: IKCoordinateTask {name!r}: no column {name!r} in "
+                                f"{Path(f).name}")
+            values = columns[name]
+            if in_degrees and coord["motion"] != "translational":
+                values = np.radians(values)
+            value = {"type": "spline", "times": times.tolist(), "values": values.tolist()}
+        out[name] = {"measure": name, "weight": t["weight"], "value": value}
+    if out:
+        data = dict(data)
+        data["tasks"] = out
+    return data
