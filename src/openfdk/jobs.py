@@ -31,7 +31,8 @@ def load_trajectories(model, trial_path, cutoff_hz=None, settings=None):
     """Read a C3D or TRC trial, pick the model's markers (by label, in model order) and build
     filtered, interpolated trajectories (cut-off: ``cutoff_hz``, else the settings'
     ``analysis.marker_cutoff_hz``, else 6 Hz). A model marker absent from the file is an
-    error naming it (MissingMarkerError)."""
+    error naming it (MissingMarkerError), unless its weight is 0 (not tracked: OpenSim's
+    IK tasks leave such markers out)."""
     from .io.c3d import MarkerTrial
     from .io.markers import MarkerTrajectories
     from .io.trials import read_trial
@@ -39,7 +40,8 @@ def load_trajectories(model, trial_path, cutoff_hz=None, settings=None):
     trial = trial_path if isinstance(trial_path, MarkerTrial) else read_trial(trial_path)
     if model.markers.size == 0:
         raise ValueError(f"model {model.name!r} has no markers; a trial cannot be tracked")
-    trial = trial.select(list(model.markers.labels))
+    untracked = [lab for lab, w in zip(model.markers.labels, model.markers.weight) if w == 0]
+    trial = trial.select(list(model.markers.labels), optional=untracked)
     if cutoff_hz is None:
         cutoff_hz = (settings or AnalysisSettings()).kinematics.get("marker_cutoff_hz", DEFAULT_CUTOFF_HZ)
     cutoff = None if (cutoff_hz is None or float(cutoff_hz) <= 0) else float(cutoff_hz)

@@ -100,11 +100,15 @@ def check_model(model):
                           f"redundant or inconsistent rows {redundant}")
     if model.markers.size:
         _, Psi_q, _ = model.markers.evaluate(state, 1)
-        free = undetermined_coordinates(np.vstack([A, Psi_q]), model.coordinate_names())
+        Psi_q = Psi_q[np.repeat(model.markers.weight > 0, 3)]  # a marker of weight 0 is not tracked
+        tasks = [np.atleast_2d(t.measure.evaluate(state, 1)[1]) for t in model.tasks if t.weight > 0]
+        free = undetermined_coordinates(np.vstack([A, Psi_q, *tasks]), model.coordinate_names())
+        what = "markers and coordinate tasks" if model.tasks else "markers"
         if free:
-            rep.errors.append(f"constraints and markers leave coordinates free at the reference pose: {free}")
+            hint = " (give OpenSim's IK tasks with --ik-tasks, or lock the coordinates)" if model.coordinates else ""
+            rep.errors.append(f"constraints and {what} leave coordinates free at the reference pose: {free}{hint}")
         else:
-            rep.lines.append("  kinematics: marker tracking; constraints and markers determine every coordinate")
+            rep.lines.append(f"  kinematics: marker tracking; constraints and {what} determine every coordinate")
     else:
         free = undetermined_coordinates(A, model.coordinate_names())
         if free:

@@ -144,14 +144,17 @@ class MarkerTrial:
                 f"(available: {', '.join(self.labels)})",
                 [label], self.source, self.labels) from None
 
-    def select(self, labels: Sequence[str]) -> MarkerTrial:
-        """The trial restricted to ``labels``, in that order.
+    def select(self, labels: Sequence[str], optional: Sequence[str] = ()) -> MarkerTrial:
+        """The trial restricted to ``labels``, in that order; a label of ``optional`` (a
+        marker the analysis does not track, weight 0) absent from the file is an all-NaN
+        column (never visible).
 
         Raises :class:`MissingMarkerError` naming every missing label, the file and the
         labels available.
         """
         labels = [str(lab) for lab in labels]
-        missing = [lab for lab in labels if lab not in self._index]
+        optional = {str(lab) for lab in optional}
+        missing = [lab for lab in labels if lab not in self._index and lab not in optional]
         if missing:
             hints = [f"{lab!r} ~ {', '.join(repr(n) for n in self._near_matches(lab))}"
                      for lab in missing if self._near_matches(lab)]
@@ -161,9 +164,12 @@ class MarkerTrial:
                 f"{', '.join(repr(m) for m in missing)}{hint}. "
                 f"Available: {', '.join(self.labels)}",
                 missing, self.source, self.labels)
-        columns = [self._index[lab] for lab in labels]
+        columns = [self._index.get(lab, -1) for lab in labels]
+        positions = self.positions[:, [max(c, 0) for c in columns], :].copy() if self.positions.size else \
+            np.full((self.n_frames, len(labels), 3), np.nan)
+        positions[:, [k for k, c in enumerate(columns) if c < 0], :] = np.nan
         return MarkerTrial(labels=tuple(labels), rate=self.rate, time=self.time,
-                           positions=self.positions[:, columns, :], source=self.source)
+                           positions=positions, source=self.source)
 
 
 # --------------------------------------------------------------------------------------

@@ -68,6 +68,18 @@ def header_fields(path: str | os.PathLike) -> dict:
     return dict(zip(_cells(head[1]), _cells(head[2])))
 
 
+def _uniform_times(times, rate, decimals):
+    """The Time column on the exact grid t_0 + k/rate when it is that grid rounded to the
+    file's printed decimals (OpenSim's example files print 60 Hz times to 1 ms), else as
+    read. times (n,) s; rate Hz; decimals: the most decimals of a time cell."""
+    if len(times) < 2 or not rate > 0 or decimals <= 0:
+        return times
+    grid = times[0] + np.arange(len(times)) / rate
+    if np.max(np.abs(times - grid)) <= 0.5 * 10.0 ** (-decimals) * (1 + 1e-9) + 1e-12:
+        return grid
+    return times
+
+
 def read_trc(path: str | os.PathLike) -> MarkerTrial:
     """Read a TRC file into a :class:`~openfdk.io.c3d.MarkerTrial` (SI units).
 
@@ -119,7 +131,7 @@ def read_trc(path: str | os.PathLike) -> MarkerTrial:
 
     n_markers = len(labels)
     n_values = 2 + 3 * n_markers
-    times, rows = [], []
+    times, rows, decimals = [], [], 0
     for line_no, line in enumerate(lines[5:], start=6):
         if not line.strip():
             continue
@@ -129,6 +141,7 @@ def read_trc(path: str | os.PathLike) -> MarkerTrial:
                            f"(frame, time and x y z of {n_markers} markers)")
         cells = cells + [""] * (n_values - len(cells))
         times.append(_number(cells[1], name, line_no, "the time"))
+        decimals = max(decimals, len(cells[1].split(".")[1].rstrip("0")) if "." in cells[1] and "e" not in cells[1].lower() else 0)
         row = np.full(3 * n_markers, np.nan)
         for j, cell in enumerate(cells[2:n_values]):
             if cell != "" and cell.lower() != "nan":
@@ -141,10 +154,11 @@ def read_trc(path: str | os.PathLike) -> MarkerTrial:
         if declared != len(rows):
             raise TRCError(f"{name}: NumFrames on line 3 is {declared}, the file has {len(rows)} data rows")
 
+    times = _uniform_times(np.array(times), rate, decimals)
     p = np.array(rows).reshape(len(rows), n_markers, 3) * UNIT_TO_METRE[units]
     # a sample is missing when any coordinate is: the marker is seen or not as a whole
     p[~np.all(np.isfinite(p), axis=2)] = np.nan
     try:
-        return MarkerTrial(labels=tuple(labels), rate=rate, time=np.array(times), positions=p, source=name)
+        return MarkerTrial(labels=tuple(labels), rate=rate, time=times, positions=p, source=name)
     except ValueError as exc:
         raise TRCError(str(exc)) from None

@@ -228,7 +228,7 @@ def check_trial_markers(model, trial, times):
     window = (t >= times[0] - tol) & (t <= times[-1] + tol)
     P = trial.positions[window]
     seen = np.isfinite(P).all(axis=2).any(axis=0) if len(P) else np.zeros(trial.n_markers, bool)
-    never = [lab for lab, s in zip(trial.labels, seen) if not s]
+    never = [lab for lab, s, w in zip(trial.labels, seen, model.markers.weight) if not s and w > 0]
     if never:
         _warn(f"{trial.source}: marker(s) {', '.join(repr(n) for n in never)} never visible in the analysis window "
               f"[{times[0]:g}, {times[-1]:g}] s")

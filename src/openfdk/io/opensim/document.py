@@ -237,6 +237,20 @@ def numbers(element, source, n=None, what=None):
     return arr
 
 
+def _constant_value(spec):
+    """The value of a function spec that is constant everywhere (a MultiplierFunction of a
+    Constant, a degree-0 polynomial, …), else None."""
+    from ...model.coordinate_functions import function_from_spec
+
+    def error(path, msg):
+        return OsimError(f"{path}: {msg}")
+
+    f = function_from_spec(spec, "function", error)
+    if f.n_pieces == 0 and np.array_equal(f.left, f.right) and not np.any(f.left[1:]):
+        return float(f.left[0])
+    return None
+
+
 def rotation_xyz(angles):
     """R = Rx(a0) Ry(a1) Rz(a2): body-fixed X-Y-Z Euler angles (rad) -> (3, 3)."""
     out = np.eye(3)
@@ -591,8 +605,11 @@ class _Reader:
                                        "transform axes driven by one coordinate",
                                    f"TransformAxis '{ta.get('name')}' of {joint.tag} '{joint.get('name')}'")
                 if not coords and spec["type"] != "constant":
-                    raise self.err(ta, "a non-constant function without a coordinate",
-                                   f"TransformAxis '{ta.get('name')}' of {joint.tag} '{joint.get('name')}'")
+                    value = _constant_value(spec)
+                    if value is None:
+                        raise self.err(ta, "a non-constant function without a coordinate",
+                                       f"TransformAxis '{ta.get('name')}' of {joint.tag} '{joint.get('name')}'")
+                    spec = {"type": "constant", "value": value}
                 norm = float(np.linalg.norm(axis))
                 if norm == 0.0:
                     if coords or spec.get("value", 0.0) != 0.0:
