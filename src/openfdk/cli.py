@@ -6,6 +6,7 @@
     openfdk plot RESULT_DIR                             figures of a run
     openfdk export-opensim RESULT_DIR --out DIR         OpenSim .osim + .mot of a run
     openfdk check MODEL.yaml                            validate a model file
+    openfdk import-opensim MODEL.osim --out DIR         an OpenSim model as an openfdk model file
     openfdk cache info|clear                            the distance-grid cache on disk
     openfdk view RESULT_DIR [--out view.html]           3D viewer of a run (one HTML file)
     openfdk demo [--out DIR] [--quick]                  the mandible study on the virtual subject
@@ -55,6 +56,24 @@ def _cmd_check(args):
         for extra in report.errors[1:]:
             print(f"openfdk: error: {args.model}: {extra}", file=sys.stderr)
         raise UserError(f"{args.model}: {report.errors[0]}")
+    return 0
+
+
+def _cmd_import_opensim(args):
+    from .io.opensim.overlay import imported_model_data, import_info
+    from .io.opensim.write_yaml import write_imported
+    from .io.outdir import check_output_dir
+
+    check_output_dir(args.out, force=args.force)
+    data = imported_model_data(args.model)
+    path = write_imported(data, args.out, args.model, import_info(args.model))
+    from .io.modelfile import load_model
+
+    model = load_model(path)  # the written file must read back
+    dropped = import_info(args.model).get("dropped", [])
+    _say(args, f"import-opensim: {len(model.moving_bodies)} bodies, {len(model.coordinates)} coordinates, "
+               f"{model.markers.size} markers -> {path}"
+               + (f" ({len(dropped)} elements left out, counted at the top of the file)" if dropped else ""))
     return 0
 
 
@@ -464,6 +483,14 @@ def build_parser():
     _display_arguments(c)
     _import_arguments(c)
     c.set_defaults(func=_cmd_check)
+
+    io = sub.add_parser("import-opensim", help="an OpenSim .osim as a readable openfdk model file plus its meshes")
+    io.add_argument("model", help="OpenSim model (.osim, OpenSim 3.x or 4.x)")
+    io.add_argument("--out", required=True, help="output folder (the model file and a Geometry folder)")
+    io.add_argument("--force", action="store_true", help="overwrite an earlier import in --out")
+    _display_arguments(io)
+    _import_arguments(io)
+    io.set_defaults(func=_cmd_import_opensim)
 
     ca = sub.add_parser("cache", help="the on-disk distance-grid cache: size (info) or delete it (clear)")
     ca.add_argument("action", choices=["info", "clear"], help="info: folder, number of grids and size; clear: delete them")
