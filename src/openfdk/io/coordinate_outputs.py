@@ -63,6 +63,7 @@ def write_coordinates(out_dir, model, kinematics):
     cols = {"time": np.asarray(kinematics.time, float)}
     for name, v in values.items():
         cols[f"{name}_{'rad' if units[name] == 'angle' else 'm'}"] = v
+    _warn_ranges(model, kinematics, values)
     csv_path = out_dir / "coordinates.csv"
     write_table(csv_path, cols)
     ok = np.asarray(kinematics.converged, bool)
@@ -71,3 +72,22 @@ def write_coordinates(out_dir, model, kinematics):
     mot_path = write_storage(out_dir / "coordinates.mot", np.asarray(kinematics.time, float)[ok], mot,
                              name=f"{model.name} coordinates (openfdk)", in_degrees=True, comments=comments)
     return [csv_path, mot_path]
+
+
+def _warn_ranges(model, kinematics, values):
+    """One warning per clamped coordinate that leaves its range: OpenSim's IK keeps a
+    clamped coordinate within its range (a bound of its optimiser), openfdk's tracking
+    does not bound it, so the two differ at those frames."""
+    import warnings
+
+    for c in model.coordinates:
+        v = values[c.name]
+        lo, hi = c.range
+        out = np.isfinite(v) & ((v < lo - 1e-9) | (v > hi + 1e-9))
+        if c.clamped and out.any():
+            scale, unit = (180 / np.pi, "deg") if c.unit == "angle" else (1.0, "m")
+            worst = v[out][np.argmax(np.maximum(lo - v[out], v[out] - hi))]
+            warnings.warn(f"coordinate {c.name!r} (clamped to [{lo * scale:.4g}, {hi * scale:.4g}] {unit}) leaves its "
+                          f"range at {int(out.sum())} of {len(v)} frames (up to {worst * scale:.4g} {unit}, first at "
+                          f"t = {np.asarray(kinematics.time)[out][0]:.4g} s); openfdk does not bound it, OpenSim's IK "
+                          "would")
