@@ -33,18 +33,27 @@ def kkt_step(J, w, p, x, A, Phi, K):
     m = A.shape[0]
     rows = J.shape[0]
     rhs = np.zeros(n + m)
+    # Ψ_q̂ᵀ W Ψ_q̂ and the gradient row by row (J is row-major): a marker row has nonzeros
+    # in its body's 6 columns only, so zero entries are skipped
     for i in range(n):
-        for j in range(i, n):
-            s = 0.0
-            for k in range(rows):
-                s += J[k, i] * w[k] * J[k, j]
-            K[i, j] = s
-            K[j, i] = s
-        g = 0.0
-        for k in range(rows):
-            if w[k] != 0.0:
-                g += J[k, i] * w[k] * (p[k] - x[k])
-        rhs[i] = -g
+        for j in range(n):
+            K[i, j] = 0.0
+    for k in range(rows):
+        wk = w[k]
+        if wk == 0.0:
+            continue
+        rk = wk * (p[k] - x[k])
+        for i in range(n):
+            a = J[k, i]
+            if a == 0.0:
+                continue
+            rhs[i] -= a * rk
+            a *= wk
+            for j in range(i, n):
+                K[i, j] += a * J[k, j]
+    for i in range(n):
+        for j in range(i + 1, n):
+            K[j, i] = K[i, j]
     res = 0.0
     for a in range(m):
         for j in range(n):
