@@ -258,14 +258,27 @@ def custom_model(path, seed=2):
     return path
 
 
+def xyz_angles(R):
+    """Body-fixed X-Y-Z angles (a, b, c) of R = Rx(a) Ry(b) Rz(c), |b| < π/2."""
+    return np.array([np.arctan2(-R[1, 2], R[2, 2]), np.arcsin(np.clip(R[0, 2], -1.0, 1.0)),
+                     np.arctan2(-R[0, 1], R[0, 0])])
+
+
 def constraints_model(path, seed=3):
     """Couplers, a WeldConstraint and a PointConstraint:
 
     ground -Pin(q1)- a -Pin(q2)- b, coupler q2 = SimmSpline(q1);
-    ground -Slider(qs)- s, coupler qs = 0.7·(0.2 q1 + 0.05) (LinearFunction, scale factor 0.7
-    added to the XML: the Python API has no setter);
+    ground -Slider(qs)- s, coupler qs = 0.7·(0.2 q1 + 0.05) (LinearFunction; the scale
+    factor 0.7 is added to the XML: the Python API has no setter);
     ground -Free- w, WeldConstraint between offset frames of b and w;
     ground -Free- p, PointConstraint between a point of b and a point of p.
+
+    The coordinates of w and p's translations are free to satisfy the constraints
+    (``is_free_to_satisfy_constraints``: no assembly goal), so that OpenSim's assembly
+    keeps q1 and p's rotations and places the rest. The defaults satisfy every
+    constraint: Simbody's weld condition (three perpendicular axis pairs) has spurious
+    solutions, and OpenSim's assembly started far away can end on one of them; the tests
+    move there from the defaults in small steps (continuation).
     """
     rng = np.random.default_rng(seed)
     m = osim.Model()
@@ -277,7 +290,7 @@ def constraints_model(path, seed=3):
     m.addJoint(fixed_joint(osim.PinJoint, "j1", g, B["a"], rng, [(-1.5, 1.5)]))
     m.addJoint(fixed_joint(osim.PinJoint, "j2", B["a"], B["b"], rng, [(-3.0, 3.0)]))
     m.addJoint(fixed_joint(osim.SliderJoint, "js", g, B["s"], rng, [(-1.0, 1.0)]))
-    m.addJoint(fixed_joint(osim.FreeJoint, "jw", g, B["w"], rng, [(-3.0, 3.0)] * 3 + [(-2.0, 2.0)] * 3))
+    m.addJoint(osim.FreeJoint("jw", g, vec3([0, 0, 0]), vec3([0, 0, 0]), B["w"], vec3([0, 0, 0]), vec3([0, 0, 0])))
     m.addJoint(fixed_joint(osim.FreeJoint, "jp", g, B["p"], rng, BALL_RANGES + [(-2.0, 2.0)] * 3))
     x = np.linspace(-1.6, 1.6, 7)
     spline = spline_points(osim.SimmSpline(), r6(x), r6(0.8 * np.sin(1.2 * x) + 0.3))
@@ -293,15 +306,30 @@ def constraints_model(path, seed=3):
     c2.setDependentCoordinateName("js_coord_0")
     c2.setFunction(osim.LinearFunction(0.2, 0.05))
     m.addConstraint(c2)
-    R1, R2 = osim.Rotation(), osim.Rotation()
-    R1.setRotationToBodyFixedXYZ(vec3([0.3, -0.2, 0.5]))
-    R2.setRotationToBodyFixedXYZ(vec3([-0.4, 0.1, 0.2]))
-    X1 = osim.Transform(R1, vec3([0.05, -0.1, 0.02]))
-    X2 = osim.Transform(R2, vec3([-0.03, 0.04, 0.08]))
+    # defaults on the couplers, then w's defaults on the weld
+    m.finalizeFromProperties()
+    cs = m.updCoordinateSet()
+    q1 = cs.get("j1_coord_0").getDefaultValue()
+    cs.get("j2_coord_0").setDefaultValue(spline.calcValue(osim.Vector(1, q1)))
+    cs.get("js_coord_0").setDefaultValue(0.7 * (0.2 * q1 + 0.05))
+    state = m.initSystem()
+    Xb = B["b"].getTransformInGround(state)
+    p_Gb, R_Gb = np3(Xb.p()), np33(Xb.R())
+    R1, R2 = rotvec_matrix([0.3, -0.2, 0.5]), rotvec_matrix([-0.4, 0.1, 0.2])
+    p1, p2 = np.array([0.05, -0.1, 0.02]), np.array([-0.03, 0.04, 0.08])
+    R_Gw = R_Gb @ R1 @ R2.T
+    p_Gw = p_Gb + R_Gb @ p1 - R_Gw @ p2
+    for k, v in enumerate(np.concatenate([xyz_angles(R_Gw), p_Gw])):
+        cs.get(f"jw_coord_{k}").setDefaultValue(float(v))
+    X1 = osim.Transform(osim.Rotation(osim.Mat33(*R1.ravel())), vec3(p1))
+    X2 = osim.Transform(osim.Rotation(osim.Mat33(*R2.ravel())), vec3(p2))
     m.addConstraint(osim.WeldConstraint("weld_bw", B["b"], X1, B["w"], X2))
     m.addConstraint(osim.PointConstraint(B["b"], vec3([0.1, 0.05, -0.04]), B["p"], vec3([-0.02, 0.07, 0.03])))
     for b in B.values():
         add_markers(m, b, rng)
+    m.finalizeFromProperties()
+    for name in [f"jw_coord_{k}" for k in range(6)] + [f"jp_coord_{k}" for k in (3, 4, 5)]:
+        m.updCoordinateSet().get(name).set_is_free_to_satisfy_constraints(True)
     write(m, path)
     # the scale factor (a property the Python API does not set)
     tree = etree.parse(str(path))
@@ -313,12 +341,15 @@ def constraints_model(path, seed=3):
 
 def weld_chain_model(path, seed=4):
     """A WeldJoint chain: ground -Pin- a -Weld- b -Weld- c, a -Pin- d, c -Ball- e (with
-    offsets and rotations on every joint): b and c are merged into a."""
+    offsets and rotations on every joint): b and c are merged into a. Also frames on
+    frames: d owns an offset frame f1 (a body component, ``socket_parent`` ``..``), the
+    model owns f2 on f1 (a model component), f2 carries a marker and is the parent frame
+    of the PinJoint of body g; d's coordinate is prescribed (a SimmSpline of time)."""
     rng = np.random.default_rng(seed)
     m = osim.Model()
     m.setName("weld_chain")
     g = m.getGround()
-    B = {n: random_body(n, rng) for n in ("a", "b", "c", "d", "e")}
+    B = {n: random_body(n, rng) for n in ("a", "b", "c", "d", "e", "g")}
     for b in B.values():
         m.addBody(b)
     m.addJoint(fixed_joint(osim.PinJoint, "ja", g, B["a"], rng, [(-2.0, 2.0)]))
@@ -326,8 +357,21 @@ def weld_chain_model(path, seed=4):
     m.addJoint(fixed_joint(osim.WeldJoint, "jc", B["b"], B["c"], rng))
     m.addJoint(fixed_joint(osim.PinJoint, "jd", B["a"], B["d"], rng, [(-2.0, 2.0)]))
     m.addJoint(fixed_joint(osim.BallJoint, "je", B["c"], B["e"], rng, BALL_RANGES))
+    R1, R2 = osim.Rotation(), osim.Rotation()
+    R1.setRotationToBodyFixedXYZ(vec3([0.2, -0.3, 0.4]))
+    R2.setRotationToBodyFixedXYZ(vec3([-0.5, 0.1, 0.3]))
+    f1 = osim.PhysicalOffsetFrame("f1", B["d"], osim.Transform(R1, vec3([0.1, 0.02, -0.05])))
+    B["d"].addComponent(f1)
+    f2 = osim.PhysicalOffsetFrame("f2", f1, osim.Transform(R2, vec3([-0.03, 0.06, 0.01])))
+    m.addComponent(f2)
+    m.addJoint(fixed_joint(osim.PinJoint, "jg", f2, B["g"], rng, [(-2.0, 2.0)]))
+    m.addMarker(osim.Marker("f2.M", f2, vec3([0.01, 0.02, 0.03])))
     for b in B.values():
         add_markers(m, b, rng)
+    m.finalizeFromProperties()
+    c = m.updCoordinateSet().get("jd_coord_0")
+    c.setPrescribedFunction(spline_points(osim.SimmSpline(), [0.0, 0.5, 1.0, 1.5], [0.1, 0.9, 0.2, -0.6]))
+    c.setDefaultIsPrescribed(True)
     return write(m, path)
 
 
@@ -337,8 +381,10 @@ def weld_chain_model(path, seed=4):
 class Oracle:
     """OpenSim's model of a file (``opensim.Model(path)``) and its state."""
 
-    def __init__(self, path):
+    def __init__(self, path, assembly_accuracy=None):
         self.model = osim.Model(str(path))
+        if assembly_accuracy is not None:
+            self.model.set_assembly_accuracy(assembly_accuracy)
         self.state = self.model.initSystem()
         cs = self.model.getCoordinateSet()
         self.coords = {cs.get(i).getName(): cs.get(i) for i in range(cs.getSize())}
@@ -351,6 +397,10 @@ class Oracle:
     def _q_indices(self):
         """The index in the State's q of each coordinate (found by setting it alone)."""
         s = self.state
+        q0 = osim.Vector(s.getQ())
+        locked = [c for c in self.coords.values() if c.getLocked(s)]
+        for c in locked:
+            c.setLocked(s, False)
         out = {}
         for name, c in self.coords.items():
             for other in self.coords.values():
@@ -359,6 +409,10 @@ class Oracle:
             q = np.array(s.getQ().to_numpy())
             (idx,) = np.flatnonzero(np.abs(q - 0.123456) < 1e-12)
             out[name] = int(idx)
+        s.setQ(q0)  # back to the assembled defaults
+        for c in locked:
+            c.setLocked(s, True)
+        self.model.realizeVelocity(s)
         return out
 
     def ranges(self):
@@ -373,14 +427,23 @@ class Oracle:
             out[n] = float(rng.uniform(lo, hi))
         return out
 
-    def set(self, q, u=None):
-        """Coordinate values (and speeds, u: OpenSim's generalized speeds) -> the state
-        realized to velocity; returns q̇ of every coordinate {name: dq/dt}."""
+    def set(self, q, u=None, t=None):
+        """Coordinate values (and speeds, u: OpenSim's generalized speeds) at time t (the
+        state's time if None; prescribed coordinates take their function's value and
+        derivative) -> the state realized to velocity; returns q̇ of every coordinate
+        {name: dq/dt}."""
         s = self.state
+        if t is not None:
+            s.setTime(float(t))
+        x = osim.Vector(1, s.getTime())
         for n, v in q.items():
             self.coords[n].setValue(s, v, False)
         for n, c in self.coords.items():
             c.setSpeedValue(s, 0.0 if u is None else u.get(n, 0.0))
+            if c.isPrescribed(s):
+                f = c.getPrescribedFunction()
+                c.setValue(s, f.calcValue(x), False)
+                c.setSpeedValue(s, f.calcDerivative(osim.StdVectorInt([0]), x))
         self.model.realizeVelocity(s)
         qdot = np.array(s.getQDot().to_numpy())
         return {n: float(qdot[i]) for n, i in self.q_index.items()}
@@ -399,3 +462,245 @@ class Oracle:
 
     def marker_velocity(self, name):
         return np3(self.markers[name].getVelocityInGround(self.state))
+
+
+# -------------------------------------------------------------------------- OpenSim 3.x
+
+def _coordinate_3x(name, default, lo, hi, locked=False, motion="rotational"):
+    return f"""
+                <Coordinate name="{name}">
+                  <motion_type>{motion}</motion_type>
+                  <default_value>{default}</default_value>
+                  <default_speed_value>0</default_speed_value>
+                  <range>{lo} {hi}</range>
+                  <clamped>false</clamped>
+                  <locked>{'true' if locked else 'false'}</locked>
+                  <prescribed_function />
+                  <prescribed>false</prescribed>
+                </Coordinate>"""
+
+
+def _axis_3x(label, axis, coordinate="", function="<Constant><value>0</value></Constant>"):
+    return f"""
+              <TransformAxis name="{label}">
+                <function>{function}</function>
+                <coordinates>{coordinate}</coordinates>
+                <axis>{axis}</axis>
+              </TransformAxis>"""
+
+
+def _linear(slope=1, intercept=0):
+    return f"<LinearFunction><coefficients>{slope} {intercept}</coefficients></LinearFunction>"
+
+
+def _body_3x(name, mass, com, inertia, joint=""):
+    xx, yy, zz, xy, xz, yz = inertia
+    return f"""
+      <Body name="{name}">
+        <mass>{mass}</mass>
+        <mass_center>{com}</mass_center>
+        <inertia_xx>{xx}</inertia_xx>
+        <inertia_yy>{yy}</inertia_yy>
+        <inertia_zz>{zz}</inertia_zz>
+        <inertia_xy>{xy}</inertia_xy>
+        <inertia_xz>{xz}</inertia_xz>
+        <inertia_yz>{yz}</inertia_yz>
+        <Joint>{joint}
+        </Joint>
+        <VisibleObject>
+          <geometry_files />
+          <scale_factors>1 1 1</scale_factors>
+        </VisibleObject>
+        <WrapObjectSet><objects /></WrapObjectSet>
+      </Body>"""
+
+
+def _frames_3x(parent, loc_in_parent, ori_in_parent, loc, ori):
+    return f"""
+            <parent_body>{parent}</parent_body>
+            <location_in_parent>{loc_in_parent}</location_in_parent>
+            <orientation_in_parent>{ori_in_parent}</orientation_in_parent>
+            <location>{loc}</location>
+            <orientation>{ori}</orientation>"""
+
+
+KNEE_X_3X = "-2.0944 -1.74533 -1.39626 -1.0472 -0.698132 -0.349066 -0.174533 0.197344 0.337395 0.490178 1.52146 2.0944"
+KNEE_TX_3X = "-0.0032 0.00179 0.00411 0.0041 0.00212 -0.001 -0.0031 -0.005227 -0.005435 -0.005574 -0.005435 -0.00525"
+KNEE_TY_3X = "-0.4226 -0.4082 -0.399 -0.3976 -0.3966 -0.3971 -0.3972 -0.397401 -0.401963 -0.4 -0.3932 -0.39"
+
+
+def model_3x_text():
+    """An OpenSim 3.x model (``Version="30000"``), written by hand in the 3.x layout:
+    joints nested in their child body (``Body/Joint/…`` with ``parent_body``,
+    ``location_in_parent``, ``orientation_in_parent``, ``location``, ``orientation`` and a
+    ``CoordinateSet``), the ground a Body named ``ground``, inertia as ``inertia_xx`` …,
+    functions wrapped in ``<function>``, markers with ``<body>``, and a ConstraintSet with
+    a CoordinateCouplerConstraint (``scale_factor``, ``isDisabled``), a WeldConstraint
+    (``body_1``, ``location_body_1``, ``orientation_body_1`` …) and a PointConstraint.
+
+    pelvis (6-dof CustomJoint from ground) → femur (CustomJoint hip, hip_rotation locked)
+    → tibia (CustomJoint knee: translations SimmSpline and NaturalCubicSpline of
+    knee_angle) → foot (PinJoint ankle) → toes (WeldJoint, merged into foot);
+    tibia → patella (CustomJoint, patella_angle = 1.2·spline(knee_angle), a coupler);
+    tibia → brace (FreeJoint whose frames are the WeldConstraint's: welded at q = 0);
+    foot → plate (FreeJoint; PointConstraint between foot and plate: its translations
+    follow its rotations)."""
+    lin = _linear()
+    c0 = "<Constant><value>0</value></Constant>"
+    pelvis_joint = f"""
+          <CustomJoint name="ground_pelvis">{_frames_3x("ground", "0 0.9 0", "0 0 0", "0 0 0", "0 0 0")}
+            <CoordinateSet>
+              <objects>{_coordinate_3x("pelvis_tilt", 0.05, -1.0, 1.0)}{_coordinate_3x("pelvis_list", -0.03, -0.5, 0.5)}{_coordinate_3x("pelvis_rotation", 0.1, -1.0, 1.0)}{_coordinate_3x("pelvis_tx", 0.2, -1.0, 1.0, motion="translational")}{_coordinate_3x("pelvis_ty", 0.93, 0.5, 1.2, motion="translational")}{_coordinate_3x("pelvis_tz", -0.1, -0.5, 0.5, motion="translational")}
+              </objects>
+            </CoordinateSet>
+            <reverse>false</reverse>
+            <SpatialTransform>{_axis_3x("rotation1", "0 0 1", "pelvis_tilt", lin)}{_axis_3x("rotation2", "1 0 0", "pelvis_list", lin)}{_axis_3x("rotation3", "0 1 0", "pelvis_rotation", lin)}{_axis_3x("translation1", "1 0 0", "pelvis_tx", lin)}{_axis_3x("translation2", "0 1 0", "pelvis_ty", lin)}{_axis_3x("translation3", "0 0 1", "pelvis_tz", lin)}
+            </SpatialTransform>
+          </CustomJoint>"""
+    hip_joint = f"""
+          <CustomJoint name="hip_r">{_frames_3x("pelvis", "-0.0707 -0.0661 0.0835", "0.05 -0.1 0.2", "0.01 0.02 -0.03", "-0.1 0.05 0.15")}
+            <CoordinateSet>
+              <objects>{_coordinate_3x("hip_flexion_r", 0.2, -1.2, 2.0)}{_coordinate_3x("hip_adduction_r", -0.05, -0.8, 0.4)}{_coordinate_3x("hip_rotation_r", 0.1, -0.7, 0.7, locked=True)}
+              </objects>
+            </CoordinateSet>
+            <reverse>false</reverse>
+            <SpatialTransform>{_axis_3x("rotation1", "0 0 1", "hip_flexion_r", lin)}{_axis_3x("rotation2", "1 0 0", "hip_adduction_r", lin)}{_axis_3x("rotation3", "0 1 0", "hip_rotation_r", lin)}{_axis_3x("translation1", "1 0 0")}{_axis_3x("translation2", "0 1 0")}{_axis_3x("translation3", "0 0 1")}
+            </SpatialTransform>
+          </CustomJoint>"""
+    knee_tx = f"<SimmSpline name=\"f1\"><x> {KNEE_X_3X}</x><y> {KNEE_TX_3X}</y></SimmSpline>"
+    knee_ty = f"<NaturalCubicSpline><x> {KNEE_X_3X}</x><y> {KNEE_TY_3X}</y></NaturalCubicSpline>"
+    knee_joint = f"""
+          <CustomJoint name="knee_r">{_frames_3x("femur_r", "0 0 0", "0.02 -0.03 0.04", "0.005 0.01 -0.02", "0.03 0.02 -0.05")}
+            <CoordinateSet>
+              <objects>{_coordinate_3x("knee_angle_r", -0.4, -2.0, 0.15)}
+              </objects>
+            </CoordinateSet>
+            <reverse>false</reverse>
+            <SpatialTransform>{_axis_3x("rotation1", "0 0 1", "knee_angle_r", lin)}{_axis_3x("rotation2", "1 0 0", "", c0)}{_axis_3x("rotation3", "0 1 0", "", c0)}{_axis_3x("translation1", "1 0 0", "knee_angle_r", knee_tx)}{_axis_3x("translation2", "0 1 0", "knee_angle_r", knee_ty)}{_axis_3x("translation3", "0 0 1", "", "<Constant><value>0.002</value></Constant>")}
+            </SpatialTransform>
+          </CustomJoint>"""
+    patella_joint = f"""
+          <CustomJoint name="patellofemoral_r">{_frames_3x("tibia_r", "0.05 -0.02 0.003", "0 0 0.1", "0 0.03 0", "0 0 0")}
+            <CoordinateSet>
+              <objects>{_coordinate_3x("patella_angle_r", -0.2, -3.0, 3.0)}
+              </objects>
+            </CoordinateSet>
+            <reverse>false</reverse>
+            <SpatialTransform>{_axis_3x("rotation1", "0 0 1", "patella_angle_r", lin)}{_axis_3x("rotation2", "1 0 0", "", c0)}{_axis_3x("rotation3", "0 1 0", "", c0)}{_axis_3x("translation1", "1 0 0", "", "<Constant><value>0.01</value></Constant>")}{_axis_3x("translation2", "0 1 0", "", "<Constant><value>-0.02</value></Constant>")}{_axis_3x("translation3", "0 0 1")}
+            </SpatialTransform>
+          </CustomJoint>"""
+    ankle_joint = f"""
+          <PinJoint name="ankle_r">{_frames_3x("tibia_r", "0 -0.43 0", "0.175895 -0.105208 0.0186622", "0.01 0.02 0.005", "-0.05 0.1 0.02")}
+            <CoordinateSet>
+              <objects>{_coordinate_3x("ankle_angle_r", 0.1, -0.7, 0.5)}
+              </objects>
+            </CoordinateSet>
+            <reverse>false</reverse>
+          </PinJoint>"""
+    toes_joint = f"""
+          <WeldJoint name="mtp_r">{_frames_3x("foot_r", "0.1788 -0.002 0.00108", "-0.1 0.2 0.05", "0.005 0 -0.01", "0.1 0 0.3")}
+            <CoordinateSet><objects /></CoordinateSet>
+            <reverse>false</reverse>
+          </WeldJoint>"""
+    weld_frames = ("0.03 -0.2 0.04", "0.2 -0.1 0.3", "-0.02 0.05 0.01", "0.1 0.4 -0.2")
+    brace_joint = f"""
+          <FreeJoint name="brace_free">{_frames_3x("tibia_r", *weld_frames)}
+            <CoordinateSet>
+              <objects>{"".join(_coordinate_3x(f"brace_{k}", 0, -3.14159, 3.14159, motion=m) for k, m in (("rx", "rotational"), ("ry", "rotational"), ("rz", "rotational"), ("tx", "translational"), ("ty", "translational"), ("tz", "translational")))}
+              </objects>
+            </CoordinateSet>
+            <reverse>false</reverse>
+          </FreeJoint>"""
+    point = ("0.05 0.02 -0.03", "-0.01 0.04 0.02")
+    plate_joint = f"""
+          <FreeJoint name="plate_free">{_frames_3x("foot_r", point[0], "0 0 0", point[1], "0 0 0")}
+            <CoordinateSet>
+              <objects>{_coordinate_3x("plate_rx", 0, -1.5, 1.5)}{_coordinate_3x("plate_ry", 0, -1.2, 1.2)}{_coordinate_3x("plate_rz", 0, -1.5, 1.5)}{"".join(_coordinate_3x(f"plate_{k}", 0, -1, 1, motion="translational") for k in ("tx", "ty", "tz"))}
+              </objects>
+            </CoordinateSet>
+            <reverse>false</reverse>
+          </FreeJoint>"""
+    bodies = "".join([
+        _body_3x("ground", 0, "0 0 0", (0, 0, 0, 0, 0, 0)),
+        _body_3x("pelvis", 11.777, "-0.0707 0 0", (0.1028, 0.0871, 0.0579, 0.001, -0.002, 0.003), pelvis_joint),
+        _body_3x("femur_r", 9.3014, "0 -0.17 0", (0.1339, 0.0351, 0.1412, 0, 0, 0), hip_joint),
+        _body_3x("tibia_r", 3.7075, "0 -0.1867 0", (0.0504, 0.0051, 0.0511, 0, 0, 0), knee_joint),
+        _body_3x("patella_r", 0.0862, "0.0018 0.0264 0", (2.87e-06, 1.311e-05, 1.311e-05, 0, 0, 0), patella_joint),
+        _body_3x("foot_r", 1.25, "0.1 0.03 0", (0.0014, 0.0039, 0.0041, 0, 0, 0), ankle_joint),
+        _body_3x("toes_r", 0.2166, "0.0346 0.006 -0.0175", (0.0001, 0.0002, 0.0001, 0, 0, 0), toes_joint),
+        _body_3x("brace", 0.5, "0.01 -0.02 0.03", (0.002, 0.001, 0.002, 0.0001, 0, 0), brace_joint),
+        _body_3x("plate", 0.3, "0.02 0.01 -0.01", (0.001, 0.0015, 0.002, 0, 0.0001, 0), plate_joint),
+    ])
+    markers = [("R.ASIS", "pelvis", "0.0148 0.0 0.128"), ("V.Sacral", "pelvis", "-0.175 0.01 0"),
+               ("R.Thigh", "femur_r", "0.01 -0.2 0.07"), ("R.Knee.Lat", "femur_r", "0 -0.404 0.05"),
+               ("R.Shank", "tibia_r", "0.02 -0.2 0.05"), ("R.Ankle.Lat", "tibia_r", "-0.005 -0.41 0.053"),
+               ("R.Heel", "foot_r", "-0.02 0.01 -0.005"), ("R.Toe.Tip", "toes_r", "0.06 -0.005 0.01"),
+               ("R.Patella", "patella_r", "0.01 0.02 0.0"), ("Brace.M", "brace", "0.02 0.03 -0.01"),
+               ("Plate.M", "plate", "0.05 -0.01 0.02")]
+    marker_xml = "".join(f"""
+        <Marker name="{n}">
+          <body>{b}</body>
+          <location>{loc}</location>
+          <fixed>false</fixed>
+        </Marker>""" for n, b, loc in markers)
+    patella_spline = ("<SimmSpline><x> -2.0944 -1.5 -1.0 -0.5 0 0.2</x>"
+                      "<y> -1.8 -1.3 -0.88 -0.42 0 0.15</y></SimmSpline>")
+    constraints = f"""
+        <CoordinateCouplerConstraint name="patella_coupler">
+          <isDisabled>false</isDisabled>
+          <coupled_coordinates_function>{patella_spline}</coupled_coordinates_function>
+          <independent_coordinate_names>knee_angle_r</independent_coordinate_names>
+          <dependent_coordinate_name>patella_angle_r</dependent_coordinate_name>
+          <scale_factor>1.2</scale_factor>
+        </CoordinateCouplerConstraint>
+        <WeldConstraint name="brace_weld">
+          <isDisabled>false</isDisabled>
+          <body_1>tibia_r</body_1>
+          <body_2>brace</body_2>
+          <location_body_1>{weld_frames[0]}</location_body_1>
+          <orientation_body_1>{weld_frames[1]}</orientation_body_1>
+          <location_body_2>{weld_frames[2]}</location_body_2>
+          <orientation_body_2>{weld_frames[3]}</orientation_body_2>
+        </WeldConstraint>
+        <PointConstraint name="plate_point">
+          <isDisabled>false</isDisabled>
+          <body_1>foot_r</body_1>
+          <body_2>plate</body_2>
+          <location_body_1>{point[0]}</location_body_1>
+          <location_body_2>{point[1]}</location_body_2>
+        </PointConstraint>"""
+    return f"""<?xml version="1.0" encoding="UTF-8" ?>
+<OpenSimDocument Version="30000">
+  <Model name="leg3x">
+    <defaults />
+    <credits>openfdk tests</credits>
+    <publications />
+    <length_units>meters</length_units>
+    <force_units>N</force_units>
+    <gravity> 0 -9.80665 0</gravity>
+    <BodySet>
+      <objects>{bodies}
+      </objects>
+      <groups />
+    </BodySet>
+    <ConstraintSet>
+      <objects>{constraints}
+      </objects>
+      <groups />
+    </ConstraintSet>
+    <ForceSet>
+      <objects />
+      <groups />
+    </ForceSet>
+    <MarkerSet>
+      <objects>{marker_xml}
+      </objects>
+      <groups />
+    </MarkerSet>
+  </Model>
+</OpenSimDocument>
+"""
+
+
+#: coordinates of the 3.x model that OpenSim's assembly places (no goal)
+FREE_3X = tuple(f"brace_{k}" for k in ("rx", "ry", "rz", "tx", "ty", "tz")) + ("plate_tx", "plate_ty", "plate_tz")

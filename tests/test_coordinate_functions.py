@@ -11,7 +11,8 @@ zero crossing from turning round-off into a huge relative error.
 
 import subprocess
 import sys
-from math import pi
+from fractions import Fraction
+from math import factorial, pi
 
 import numpy as np
 import pytest
@@ -413,6 +414,62 @@ def test_derivatives_by_finite_differences():
         df, d2f = _fd_check(build(spec), xs, name)
         assert bool(np.any(df != 0.0)) == bool(curved1), name
         assert bool(np.any(d2f != 0.0)) == bool(curved2), name
+
+
+def _natural_spline_exact(x, y, m):
+    """Power coefficients (in x − x_i) of the interpolating natural spline of degree 2m − 1,
+    solved in exact rationals from the defining conditions (values at both ends of each
+    piece, C^(2m−2) at interior knots, derivatives m … 2m−2 zero at the end knots)."""
+    x = [Fraction(v) for v in x]
+    y = [Fraction(v) for v in y]
+    n, size = len(x), 2 * m
+    unknowns = size * (n - 1)
+
+    def row(piece, j, t):
+        r = [Fraction(0)] * unknowns
+        for k in range(j, size):
+            r[piece * size + k] = Fraction(factorial(k), factorial(k - j)) * t ** (k - j)
+        return r
+
+    rows, rhs = [], []
+    for i in range(n - 1):
+        rows += [row(i, 0, Fraction(0)), row(i, 0, x[i + 1] - x[i])]
+        rhs += [y[i], y[i + 1]]
+    for i in range(1, n - 1):
+        for j in range(1, size - 1):
+            a, b = row(i - 1, j, x[i] - x[i - 1]), row(i, j, Fraction(0))
+            rows.append([p - q for p, q in zip(a, b)])
+            rhs.append(Fraction(0))
+    for j in range(m, size - 1):
+        rows += [row(0, j, Fraction(0)), row(n - 2, j, x[n - 1] - x[n - 2])]
+        rhs += [Fraction(0), Fraction(0)]
+    aug = [r + [v] for r, v in zip(rows, rhs)]
+    for c in range(unknowns):                      # Gauss–Jordan, exact
+        piv = next(r for r in range(c, unknowns) if aug[r][c] != 0)
+        aug[c], aug[piv] = aug[piv], aug[c]
+        aug[c] = [v / aug[c][c] for v in aug[c]]
+        for r in range(unknowns):
+            if r != c and aug[r][c] != 0:
+                f = aug[r][c]
+                aug[r] = [a - f * b for a, b in zip(aug[r], aug[c])]
+    return np.array([[float(aug[i * size + k][-1]) for k in range(size)] for i in range(n - 1)])
+
+
+@pytest.mark.parametrize("degree", [3, 5])
+def test_natural_spline_against_exact_arithmetic(degree):
+    """The GCVSpline model is the natural spline to round-off, also with a step 130 times
+    shorter than its neighbour."""
+    x = [0.0, 0.9, 1.0, 2.3, 2.31, 3.5, 5.0]
+    y = [0.3, -1.0, 0.2, 0.8, 0.75, -0.4, 0.1]
+    m = (degree + 1) // 2
+    exact = _natural_spline_exact(x, y, m)
+    pp = build({"type": "gcv_spline", "x": x, "y": y, "degree": degree})
+    for i in range(len(x) - 1):
+        scale = np.max(np.abs(exact[i]) * (x[i + 1] - x[i]) ** np.arange(2 * m))
+        assert np.allclose(pp.coeffs[i, :2 * m], exact[i], rtol=0,
+                           atol=1e-14 * scale / (x[i + 1] - x[i]) ** np.arange(2 * m)), i
+    assert np.all(pp.coeffs[:, 2 * m:] == 0.0)
+    assert np.allclose(pp.left[:m], exact[0, :m], rtol=1e-14) and np.all(pp.left[m:] == 0.0)
 
 
 def test_scaled_by_hand():

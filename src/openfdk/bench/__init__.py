@@ -15,6 +15,7 @@ BENCHMARK_MODULES = [
     "openfdk.bench.fdk",
     "openfdk.bench.mandible",
     "openfdk.bench.knee",
+    "openfdk.bench.full_body",
     "openfdk.bench.study",
     "openfdk.bench.fuzz",
     "openfdk.bench.memory",

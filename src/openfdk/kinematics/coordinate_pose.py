@@ -2,7 +2,8 @@
 ``Coordinate.setValue`` (and its speeds and accelerations), solved on openfdk's rows.
 
 The model's coordinates (``model.coordinates``, OpenSim-style joints) are driven as
-q(t) = q + q̇ t + ½ q̈ t² and determinate kinematics (Eqs. 1–3) is solved at t = 0:
+q(τ) = q + q̇ (τ − t) + ½ q̈ (τ − t)² and determinate kinematics (Eqs. 1–3) is solved at
+τ = t (t matters to prescribed coordinates, functions of time):
 the bodies' poses, velocities v (Eq. 2) and accelerations v̇ (Eq. 3). Used by the tests
 against OpenSim and by users who want the model at given coordinates.
 """
@@ -50,7 +51,9 @@ def pose_from_coordinates(model, q, qdot=None, qddot=None, t=0.0, state=None, to
     driven = driven_model(model, free)
     for con in driven.constraints[len(model.constraints):]:
         name = con.name[: -len(".value")]
-        object.__setattr__(con, "function", Polynomial([q[name], qdot.get(name, 0.0), 0.5 * qddot.get(name, 0.0)]))
+        # q(τ) = q + q̇ (τ − t) + ½ q̈ (τ − t)², in powers of τ: the values at τ = t
+        a, v, c = q[name], qdot.get(name, 0.0), 0.5 * qddot.get(name, 0.0)
+        object.__setattr__(con, "function", Polynomial([a - v * t + c * t * t, v - 2.0 * c * t, c]))
     system = ConstraintSystem(driven)
     state = model.initial_state() if state is None else state
     solve = solve_positions(system, state, t, tol=tol, max_iter=100)

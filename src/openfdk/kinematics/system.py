@@ -129,7 +129,9 @@ def dependent_rows(A, row_names, tol=1e-9):
     """
     if A.shape[0] == 0:
         return 0, []
-    U, s, _ = np.linalg.svd(A)
+    # the left null space needs all of U only when A has more rows than columns; a full
+    # SVD of a tall matrix costs 100x more (and starts BLAS threads)
+    U, s, _ = np.linalg.svd(A, full_matrices=A.shape[0] > A.shape[1])
     scale = s[0] if s.size and s[0] > 0 else 1.0
     rank = int(np.sum(s > tol * scale))
     left_null = U[:, rank:]
@@ -143,7 +145,8 @@ def undetermined_coordinates(A, coord_names, tol=1e-9):
     """Names of q̂ components that A (m, n) leaves free (right null space)."""
     if A.shape[0] == 0:
         return list(coord_names)
-    _, s, Vt = np.linalg.svd(A)
+    # the right null space needs all of Vt only when A has fewer rows than columns
+    _, s, Vt = np.linalg.svd(A, full_matrices=A.shape[0] < A.shape[1])
     scale = s[0] if s.size and s[0] > 0 else 1.0
     rank = int(np.sum(s > tol * scale))
     null = Vt[rank:].T

@@ -34,9 +34,11 @@ they are (OpenSim 4.6 sources, ``OpenSim/Common``; checked numerically against t
   degree 2m − 1 (m = ``half_order``): C^{2m−2}, f^{(j)} = 0 at both end knots for
   j = m … 2m − 2, and outside the knots the polynomial of degree m − 1 that continues it
   (Woltring 1986, *Adv. Eng. Software* 8(2):104–113; de Boor, *A Practical Guide to
-  Splines*, Ch. XIV). That spline is built here exactly; the remaining difference from
-  OpenSim is the 1e-15 smoothing, far below the tests' 1e-12. Degrees 1, 3 and 5 are
-  supported (7, half_order 4, would need a degree-7 piece).
+  Splines*, Ch. XIV). That spline is built here to ≈ 1e-15 (the tests compare it
+  with exact rational arithmetic); OpenSim's own values differ from it by its
+  1e-15 smoothing and B-spline round-off, ≲ 1e-12 relative (≈ 1e-14 … 6e-13 on uneven
+  test knots). Degrees 1, 3 and 5 are supported (7, half_order 4, would need a degree-7
+  piece). At a knot GCVSPL takes the piece to the right (it matters for degree 1 only).
 * ``MultiplierFunction`` — scale × inner function.
 
 Functions are declared as plain dicts (:func:`function_from_spec`, the form of openfdk's
@@ -83,7 +85,6 @@ class PiecewisePolynomial:
       (unit of y per unit of x^k).
     * ``left (6,)``: below breaks[0], f(x) = Σ_k left[k]·(x − breaks[0])^k.
     * ``right (6,)``: above breaks[-1], f(x) = Σ_k right[k]·(x − breaks[-1])^k.
-
     * ``right_continuous``: which polynomial holds at x = a break, as OpenSim decides for
       the function type (it matters only where a derivative jumps: piecewise linear
       functions). False: the piece OpenSim's SimmSpline/PiecewiseLinearFunction binary
@@ -106,7 +107,11 @@ class PiecewisePolynomial:
 
     def __post_init__(self):
         breaks = np.array(self.breaks, dtype=np.float64, ndmin=1)
-        coeffs = np.array(self.coeffs, dtype=np.float64).reshape(-1, PP_WIDTH)
+        coeffs = np.array(self.coeffs, dtype=np.float64)
+        if coeffs.size == 0:
+            coeffs = coeffs.reshape(0, PP_WIDTH)
+        if coeffs.ndim != 2 or coeffs.shape[1] != PP_WIDTH:
+            raise ValueError(f"piecewise polynomial: coeffs must have shape (n, {PP_WIDTH}), got {coeffs.shape}")
         left = np.array(self.left, dtype=np.float64)
         right = np.array(self.right, dtype=np.float64)
         n = coeffs.shape[0]
@@ -133,9 +138,7 @@ class PiecewisePolynomial:
     def _flatten(self) -> np.ndarray:
         n = self.n_pieces
         rows = np.vstack([self.left[None, :], self.coeffs, self.right[None, :]])
-        out = np.concatenate([[float(n), float(self.right_continuous)], self.breaks, rows.ravel()])
-        out.setflags(write=False)
-        return out
+        return np.concatenate([[float(n), float(self.right_continuous)], self.breaks, rows.ravel()])
 
     def to_params(self) -> np.ndarray:
         """The function as one float64 array of length 7n + 15 (n pieces), read by
@@ -205,9 +208,13 @@ def pp_evaluate(fparams, start, x):  # pragma: no cover - compiled (numba); test
     elif n == 0 or x > fparams[b + n]:
         r = n + 1
         x0 = fparams[b + n]
+    elif x == fparams[b + n]:           # the last knot: the last piece
+        r = n
+        x0 = fparams[b + n - 1]
     else:
         # the binary search of OpenSim's SimmSpline/PiecewiseLinearFunction::calcValue over
         # the n + 1 knots: stops at the first k it tries with breaks[k] <= x <= breaks[k + 1]
+        # (x < breaks[n] here, so k + 1 <= n)
         i = 0
         j = n + 1
         k = 0
@@ -297,7 +304,7 @@ def simm_spline(x, y) -> PiecewisePolynomial:
     and the end rows −h_0 σ_0 + h_0 σ_1 = h_0² Δ³_0 and h_{n−2} σ_{n−2} − h_{n−2} σ_{n−1}
     = −h_{n−2}² Δ³_{n−1} (Δ³: the third divided difference of the four end points; zero
     for three points) are solved by elimination without pivoting in OpenSim's order, so the
-    coefficients agree with OpenSim's to the last bits. Piece i is
+    coefficients agree with OpenSim's to round-off. Piece i is
     y_i + b_i d + 3σ_i d² + (σ_{i+1} − σ_i)/h_i d³ with b_i = δ_i − h_i (σ_{i+1} + 2σ_i)."""
     x, y = _points(x, y, 2, "SimmSpline")
     n = len(x)
@@ -371,9 +378,9 @@ def natural_spline(x, y, degree: int) -> PiecewisePolynomial:
     continuity of derivatives 1 … 2m−2 at the interior knots (each row multiplied by
     min(h_{i−1}, h_i)^j so that it is O(1) whatever the steps) and the vanishing of
     derivatives m … 2m−2 at both end knots. The dense system is solved with partial
-    pivoting; in this form it stays well conditioned for uneven steps (the elimination to
-    knot derivatives does not: a step 100 times shorter than its neighbour cost five
-    digits). At most :data:`NATURAL_SPLINE_MAX_UNKNOWNS` unknowns. Outside the knots: the
+    pivoting; in this form it stays well conditioned for uneven steps (eliminating first to
+    the knot derivatives, the textbook route, lost five digits when one step was 100 times
+    shorter than its neighbour). At most :data:`NATURAL_SPLINE_MAX_UNKNOWNS` unknowns. Outside the knots: the
     Taylor polynomial of degree m − 1 at the end knot. At a knot the piece to its right
     is used, as GCVSPL's SEARCH does (matters for degree 1 only)."""
     degree = int(degree)

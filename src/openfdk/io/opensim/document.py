@@ -6,7 +6,8 @@ read into the same records:
 
 * OpenSim 4.x (``Version`` ≥ 40000): ``Ground``, ``BodySet``, ``JointSet`` (joints with
   ``socket_parent_frame``/``socket_child_frame`` naming ``PhysicalOffsetFrame``\\ s in the
-  joint's ``frames``, the bodies' ``components`` or the model's ``ComponentSet``),
+  joint's ``frames``, the bodies' ``components`` or the model's ``components`` or
+  ``ComponentSet``),
   ``ConstraintSet``, ``MarkerSet`` (``socket_parent_frame``), ``attached_geometry``;
 * OpenSim 3.x (``Version`` < 40000): joints nested in the child body
   (``Body/Joint/CustomJoint`` with ``parent_body``, ``location_in_parent``,
@@ -334,7 +335,8 @@ class _Reader:
         gravity = self.child_numbers(model, "gravity", 3, [0.0, -9.80665, 0.0])
         legacy = version < 40000
         ground = model.find("Ground")
-        if ground is not None:
+        if ground is not None:  # a frame of its own: joints and markers may name "/ground" directly
+            self.add_frame(OsimFrame("ground", "ground", np.zeros(3), np.eye(3), ground.sourceline), ground)
             self.body_geometry(ground, "ground")
         self.bodies_ground = "ground" if ground is None else (ground.get("name") or "ground")
         for body in self.objects(model.find("BodySet")):
@@ -345,7 +347,9 @@ class _Reader:
         if not legacy:
             for joint in self.objects(model.find("JointSet")):
                 self.read_joint(joint, legacy=False)
-        for comp in self.objects(model.find("ComponentSet")):
+        # model-level components: <components> (what Model::addComponent writes) and the
+        # older <ComponentSet>
+        for comp in self.objects(model.find("ComponentSet")) + self.objects(model.find("components")):
             if comp.tag == "PhysicalOffsetFrame":
                 self.read_offset_frame(comp)
             else:
@@ -387,8 +391,8 @@ class _Reader:
         the element holding the socket): ``scope/name`` first, then a body or model-level
         frame of that name, then the single frame of that name anywhere."""
         parts = [x for x in path.strip().split("/") if x and x != ".."]
-        if not parts:
-            return path
+        if not parts:  # ".." (what OpenSim writes for a body's own frames): the owner itself
+            return scope or path
         last = parts[-1]
         if len(parts) >= 2 and f"{parts[-2]}/{last}" in self.frames:
             return f"{parts[-2]}/{last}"
@@ -531,8 +535,8 @@ class _Reader:
                 raise self.err(joint, f"coordinate {c.name!r} moves no axis of the joint")
             rot = any(c.name in ax.coordinates for ax in rotations)
             tra = any(c.name in ax.coordinates for ax in translations)
-            if not c.motion_type:
-                c.motion_type = "coupled" if rot and tra else "rotational" if rot else "translational"
+            if not c.motion_type:  # OpenSim 4: rotational when it moves a rotation axis
+                c.motion_type = "rotational" if rot else "translational"
         self.joints.append(OsimJoint(name, kind, parent_name, child_name, names, rotations, translations,
                                      joint.sourceline))
         if not legacy:
@@ -550,8 +554,8 @@ class _Reader:
         prescribed = self.child_bool(c, "prescribed", False)
         fn = None
         holder = c.find("prescribed_function")
-        if holder is not None and len(holder):
-            fe = function_element(holder, self.source)
+        if holder is not None and len(holder):  # (3.x files write an empty <prescribed_function/>)
+            fe = function_element(c, self.source)
             fn = None if fe is None else function_spec(fe, self.source)
         if prescribed and fn is None:
             raise self.err(c, "prescribed but no <prescribed_function>")

@@ -26,11 +26,16 @@ and property names; OpenSim 3.x and 4.x files):
 ===========================  =========================================================
 
 A property element left out takes OpenSim's default (OpenSim writes only properties that
-differ from their defaults). Any other function type (``StepFunction``, ``Sine``,
-``PiecewiseConstantFunction``, ``MultivariatePolynomialFunction``, …) is refused by name,
-as is an element OpenSim's class does not have. Every error is an :class:`OsimError` of one
-line: file, line, the element and what is wrong; the dicts returned are already checked
-by ``function_from_spec`` (x increasing, enough points, …) so that those errors, too, name
+differ from their defaults). OpenSim 4.6 writes the number lists of these functions
+(``x``, ``y``, a LinearFunction's ``coefficients``) with 6 significant digits, but the
+scalars and a PolynomialFunction's ``coefficients`` with 17; openfdk, like OpenSim on
+reading, takes the numbers as the file has them.
+
+Any other function type (``StepFunction``, ``Sine``, ``PiecewiseConstantFunction``,
+``MultivariatePolynomialFunction``, …) is refused by name, as is an element OpenSim's
+class does not have. Every error is an :class:`OsimError` of one line: file, line, the
+element and what is wrong; the dicts returned are already checked by
+``function_from_spec`` (x increasing, enough points, …) so that those errors, too, name
 the element's line.
 """
 
@@ -68,6 +73,7 @@ UNSUPPORTED_FUNCTION_TAGS = (
 _FUNCTION_PROPERTY = {
     "TransformAxis": ("function", True),
     "CoordinateCouplerConstraint": ("coupled_coordinates_function", False),
+    "Coordinate": ("prescribed_function", False),
     "MultiplierFunction": ("function", False),
 }
 
@@ -101,13 +107,13 @@ def _elements(element):
 
 
 def _label(source, element) -> str:
-    """``where(source, element)`` followed by the nearest named owner and its owner, e.g.
+    """``where(source, element)`` followed by the nearest two named (or function) owners, e.g.
     ``gait.osim: line 812: SimmSpline (TransformAxis 'translation1' of CustomJoint 'knee_r')``."""
     owners = []
     node = element.getparent()
     while node is not None and len(owners) < 2:
-        if isinstance(node.tag, str) and node.get("name"):
-            owners.append(f"{node.tag} {node.get('name')!r}")
+        if isinstance(node.tag, str) and (node.get("name") or node.tag in FUNCTION_TAGS):
+            owners.append(f"{node.tag} {node.get('name')!r}" if node.get("name") else node.tag)
         node = node.getparent()
     text = where(source, element)
     return f"{text} ({' of '.join(owners)})" if owners else text
@@ -115,8 +121,9 @@ def _label(source, element) -> str:
 
 def function_element(parent, source):
     """The function element of ``parent`` — a ``TransformAxis``, a
-    ``CoordinateCouplerConstraint`` or a ``MultiplierFunction`` — or None when it has none
-    (the caller then applies OpenSim's default: ``Constant(0)`` for a TransformAxis).
+    ``CoordinateCouplerConstraint``, a ``Coordinate`` (its ``prescribed_function``) or a
+    ``MultiplierFunction`` — or None when it has none (the caller then applies OpenSim's
+    default: ``Constant(0)`` for a TransformAxis).
 
     The forms OpenSim 4.6 reads (``AbstractProperty::readFromXMLParentElement`` and
     ``Object::updateFromXMLNode``; checked with the ``opensim`` package):
@@ -183,7 +190,6 @@ def function_spec(element, source) -> dict:
 
     allowed = _PROPERTIES[tag]
     texts = {}
-    inner = None
     for child in _elements(element):
         name = child.tag
         if tag == "MultiplierFunction" and (name == "function" or _is_function_tag(name)):

@@ -57,8 +57,8 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
 
     bodies = {"ground": {}}
     com = {"ground": np.zeros(3)}
-    for j in tree.order:
-        b = tree.root[tree.frame_body(j.child)[0]]
+    moving = {tree.root[tree.frame_body(j.child)[0]] for j in tree.order}
+    for b in (b for b in doc.bodies if b in moving):  # in the file's order (OpenSim's BodySet)
         mass, c, inertia = tree.mass_properties(b)
         if mass <= 0.0:
             raise OsimError(f"{doc.source}: line {doc.bodies[b].line}: Body {b!r}: mass {mass:g} kg; openfdk needs a "
@@ -102,6 +102,8 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
             if c.prescribed:
                 entry["prescribed"] = c.prescribed_function
             coordinates[unique("coordinate", cname)] = entry
+    # in the file's order (OpenSim's CoordinateSet), not the tree's
+    coordinates = {safe_name(c): coordinates[safe_name(c)] for c in doc.coordinates if safe_name(c) in coordinates}
     for c in doc.constraints:
         if c.type == "CoordinateCouplerConstraint":
             for q in c.independent + (c.dependent,):
