@@ -599,9 +599,8 @@ class _Reader:
                                        f"TransformAxis '{ta.get('name')}' of {joint.tag} '{joint.get('name')}'")
                 axis = self.child_numbers(ta, "axis", 3)
                 fe = function_element(ta, self.source)
-                if fe is None:
-                    spec = {"type": "linear", "slope": 1.0, "intercept": 0.0} if coords else \
-                        {"type": "constant", "value": 0.0}
+                if fe is None:  # OpenSim 4.6 reads an axis without a function as Constant(0)
+                    spec = {"type": "constant", "value": 0.0}
                 else:
                     spec = function_spec(fe, self.source)
                 if len(coords) > 1:
