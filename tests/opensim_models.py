@@ -192,7 +192,10 @@ def custom_model(path, seed=2):
       translation3 a MultiplierFunction of a PolynomialFunction — all of knee_angle;
     * ``ankle`` (tibia → foot): a Constant rotation about a non-orthogonal axis first,
       then two linear rotations; a translational coordinate (slope 0.5) along a
-      non-unit axis, a constant translation and a PolynomialFunction of the ankle angle.
+      non-unit axis, a constant translation and a PolynomialFunction of the ankle angle;
+    * ``mtp`` (foot → toe): a translational coordinate (a LinearFunction of slope 1 on
+      translation1) that also turns rotation1 through a SimmSpline;
+    * markers on two joint frames of the same name (``femur_offset`` of hip and knee).
     """
     rng = np.random.default_rng(seed)
     m = osim.Model()
@@ -244,11 +247,27 @@ def custom_model(path, seed=2):
         ((0, 0, 1), "ankle_angle", osim.PolynomialFunction(osim.Vector([0.01, -0.02, 0.003]))),
     ])
     m.addJoint(ankle)
+    toe = random_body("toe", rng)
+    m.addBody(toe)
+    xs = np.linspace(-0.06, 0.06, 7)
+    mtp = custom_joint("mtp", foot, toe, rng, [
+        ((0, 0, 1), "mtp_slide", spline_points(osim.SimmSpline(), r6(xs), r6(8.0 * xs + 40.0 * xs ** 2))),
+        ((1, 0, 0), None, const(0.0)),
+        ((0, 1, 0), None, const(0.0)),
+        ((1, 0, 0), "mtp_slide", osim.LinearFunction(1.0, 0.0)),
+        ((0, 1, 0), None, const(0.004)),
+        ((0, 0, 1), None, const(0.0)),
+    ])
+    m.addJoint(mtp)
     set_ranges(m, {"hip_flexion": (-1.0, 1.5), "hip_adduction": (-0.4, 0.4), "hip_rotation": (-0.8, 0.8),
                    "knee_angle": KNEE_RANGE, "ankle_angle": (-0.7, 0.5), "subtalar": (-0.5, 0.5),
-                   "ankle_slide": (-0.05, 0.05)}, rng)
-    for b in (femur, tibia, foot):
+                   "ankle_slide": (-0.05, 0.05), "mtp_slide": (-0.05, 0.05)}, rng)
+    for b in (femur, tibia, foot, toe):
         add_markers(m, b, rng)
+    # markers on joint frames: both are named femur_offset (the hip's child frame and the
+    # knee's parent frame), told apart by their paths /jointset/<joint>/femur_offset
+    m.addMarker(osim.Marker("hip.F", hip.getChildFrame(), vec3([0.02, -0.01, 0.03])))
+    m.addMarker(osim.Marker("knee.F", knee.getParentFrame(), vec3([-0.01, 0.02, 0.015])))
     write(m, path)
     # the knee's rotation3 as a NaturalCubicSpline (OpenSim reads it as a SimmSpline)
     tree = etree.parse(str(path))
@@ -443,7 +462,7 @@ class Oracle:
             if c.isPrescribed(s):
                 f = c.getPrescribedFunction()
                 c.setValue(s, f.calcValue(x), False)
-                c.setSpeedValue(s, f.calcDerivative(osim.StdVectorInt([0]), x))
+                c.setSpeedValue(s, f.calcDerivative([0], x))
         self.model.realizeVelocity(s)
         qdot = np.array(s.getQDot().to_numpy())
         return {n: float(qdot[i]) for n, i in self.q_index.items()}
@@ -489,8 +508,34 @@ def _axis_3x(label, axis, coordinate="", function="<Constant><value>0</value></C
               </TransformAxis>"""
 
 
-def _linear(slope=1, intercept=0):
-    return f"<LinearFunction><coefficients>{slope} {intercept}</coefficients></LinearFunction>"
+LINEAR_3X = "<LinearFunction><coefficients>1 0</coefficients></LinearFunction>"
+
+
+def _constant(value):
+    return f"<Constant><value>{value}</value></Constant>"
+
+
+def _joint_3x(tag, name, parent, frames, coordinates, axes=()):
+    """A 3.x joint element: ``frames`` (location_in_parent, orientation_in_parent,
+    location, orientation) as text, ``coordinates`` the Coordinate elements, ``axes``
+    the six TransformAxis elements of a CustomJoint."""
+    loc_in_parent, ori_in_parent, loc, ori = frames
+    transform = f"""
+            <SpatialTransform>{"".join(axes)}
+            </SpatialTransform>""" if axes else ""
+    return f"""
+          <{tag} name="{name}">
+            <parent_body>{parent}</parent_body>
+            <location_in_parent>{loc_in_parent}</location_in_parent>
+            <orientation_in_parent>{ori_in_parent}</orientation_in_parent>
+            <location>{loc}</location>
+            <orientation>{ori}</orientation>
+            <CoordinateSet>
+              <objects>{"".join(coordinates)}
+              </objects>
+            </CoordinateSet>
+            <reverse>false</reverse>{transform}
+          </{tag}>"""
 
 
 def _body_3x(name, mass, com, inertia, joint=""):
@@ -515,18 +560,24 @@ def _body_3x(name, mass, com, inertia, joint=""):
       </Body>"""
 
 
-def _frames_3x(parent, loc_in_parent, ori_in_parent, loc, ori):
-    return f"""
-            <parent_body>{parent}</parent_body>
-            <location_in_parent>{loc_in_parent}</location_in_parent>
-            <orientation_in_parent>{ori_in_parent}</orientation_in_parent>
-            <location>{loc}</location>
-            <orientation>{ori}</orientation>"""
+def _spline(tag, x, y):
+    return f"<{tag}><x> {x}</x><y> {y}</y></{tag}>"
 
 
 KNEE_X_3X = "-2.0944 -1.74533 -1.39626 -1.0472 -0.698132 -0.349066 -0.174533 0.197344 0.337395 0.490178 1.52146 2.0944"
 KNEE_TX_3X = "-0.0032 0.00179 0.00411 0.0041 0.00212 -0.001 -0.0031 -0.005227 -0.005435 -0.005574 -0.005435 -0.00525"
 KNEE_TY_3X = "-0.4226 -0.4082 -0.399 -0.3976 -0.3966 -0.3971 -0.3972 -0.397401 -0.401963 -0.4 -0.3932 -0.39"
+#: the brace's FreeJoint frames are the WeldConstraint's frames (welded at q = 0)
+WELD_FRAMES_3X = ("0.03 -0.2 0.04", "0.2 -0.1 0.3", "-0.02 0.05 0.01", "0.1 0.4 -0.2")
+#: the plate's FreeJoint locations are the PointConstraint's points
+POINT_3X = ("0.05 0.02 -0.03", "-0.01 0.04 0.02")
+#: coordinates of the 3.x model that OpenSim's assembly places (no goal)
+FREE_3X = tuple(f"brace_{k}" for k in ("rx", "ry", "rz", "tx", "ty", "tz")) + ("plate_tx", "plate_ty", "plate_tz")
+
+
+def _free_coordinates_3x(prefix, rotation_ranges):
+    out = [_coordinate_3x(f"{prefix}_r{a}", 0, lo, hi) for a, (lo, hi) in zip("xyz", rotation_ranges)]
+    return out + [_coordinate_3x(f"{prefix}_t{a}", 0, -1, 1, motion="translational") for a in "xyz"]
 
 
 def model_3x_text():
@@ -545,91 +596,65 @@ def model_3x_text():
     tibia → brace (FreeJoint whose frames are the WeldConstraint's: welded at q = 0);
     foot → plate (FreeJoint; PointConstraint between foot and plate: its translations
     follow its rotations)."""
-    lin = _linear()
-    c0 = "<Constant><value>0</value></Constant>"
-    pelvis_joint = f"""
-          <CustomJoint name="ground_pelvis">{_frames_3x("ground", "0 0.9 0", "0 0 0", "0 0 0", "0 0 0")}
-            <CoordinateSet>
-              <objects>{_coordinate_3x("pelvis_tilt", 0.05, -1.0, 1.0)}{_coordinate_3x("pelvis_list", -0.03, -0.5, 0.5)}{_coordinate_3x("pelvis_rotation", 0.1, -1.0, 1.0)}{_coordinate_3x("pelvis_tx", 0.2, -1.0, 1.0, motion="translational")}{_coordinate_3x("pelvis_ty", 0.93, 0.5, 1.2, motion="translational")}{_coordinate_3x("pelvis_tz", -0.1, -0.5, 0.5, motion="translational")}
-              </objects>
-            </CoordinateSet>
-            <reverse>false</reverse>
-            <SpatialTransform>{_axis_3x("rotation1", "0 0 1", "pelvis_tilt", lin)}{_axis_3x("rotation2", "1 0 0", "pelvis_list", lin)}{_axis_3x("rotation3", "0 1 0", "pelvis_rotation", lin)}{_axis_3x("translation1", "1 0 0", "pelvis_tx", lin)}{_axis_3x("translation2", "0 1 0", "pelvis_ty", lin)}{_axis_3x("translation3", "0 0 1", "pelvis_tz", lin)}
-            </SpatialTransform>
-          </CustomJoint>"""
-    hip_joint = f"""
-          <CustomJoint name="hip_r">{_frames_3x("pelvis", "-0.0707 -0.0661 0.0835", "0.05 -0.1 0.2", "0.01 0.02 -0.03", "-0.1 0.05 0.15")}
-            <CoordinateSet>
-              <objects>{_coordinate_3x("hip_flexion_r", 0.2, -1.2, 2.0)}{_coordinate_3x("hip_adduction_r", -0.05, -0.8, 0.4)}{_coordinate_3x("hip_rotation_r", 0.1, -0.7, 0.7, locked=True)}
-              </objects>
-            </CoordinateSet>
-            <reverse>false</reverse>
-            <SpatialTransform>{_axis_3x("rotation1", "0 0 1", "hip_flexion_r", lin)}{_axis_3x("rotation2", "1 0 0", "hip_adduction_r", lin)}{_axis_3x("rotation3", "0 1 0", "hip_rotation_r", lin)}{_axis_3x("translation1", "1 0 0")}{_axis_3x("translation2", "0 1 0")}{_axis_3x("translation3", "0 0 1")}
-            </SpatialTransform>
-          </CustomJoint>"""
-    knee_tx = f"<SimmSpline name=\"f1\"><x> {KNEE_X_3X}</x><y> {KNEE_TX_3X}</y></SimmSpline>"
-    knee_ty = f"<NaturalCubicSpline><x> {KNEE_X_3X}</x><y> {KNEE_TY_3X}</y></NaturalCubicSpline>"
-    knee_joint = f"""
-          <CustomJoint name="knee_r">{_frames_3x("femur_r", "0 0 0", "0.02 -0.03 0.04", "0.005 0.01 -0.02", "0.03 0.02 -0.05")}
-            <CoordinateSet>
-              <objects>{_coordinate_3x("knee_angle_r", -0.4, -2.0, 0.15)}
-              </objects>
-            </CoordinateSet>
-            <reverse>false</reverse>
-            <SpatialTransform>{_axis_3x("rotation1", "0 0 1", "knee_angle_r", lin)}{_axis_3x("rotation2", "1 0 0", "", c0)}{_axis_3x("rotation3", "0 1 0", "", c0)}{_axis_3x("translation1", "1 0 0", "knee_angle_r", knee_tx)}{_axis_3x("translation2", "0 1 0", "knee_angle_r", knee_ty)}{_axis_3x("translation3", "0 0 1", "", "<Constant><value>0.002</value></Constant>")}
-            </SpatialTransform>
-          </CustomJoint>"""
-    patella_joint = f"""
-          <CustomJoint name="patellofemoral_r">{_frames_3x("tibia_r", "0.05 -0.02 0.003", "0 0 0.1", "0 0.03 0", "0 0 0")}
-            <CoordinateSet>
-              <objects>{_coordinate_3x("patella_angle_r", -0.2, -3.0, 3.0)}
-              </objects>
-            </CoordinateSet>
-            <reverse>false</reverse>
-            <SpatialTransform>{_axis_3x("rotation1", "0 0 1", "patella_angle_r", lin)}{_axis_3x("rotation2", "1 0 0", "", c0)}{_axis_3x("rotation3", "0 1 0", "", c0)}{_axis_3x("translation1", "1 0 0", "", "<Constant><value>0.01</value></Constant>")}{_axis_3x("translation2", "0 1 0", "", "<Constant><value>-0.02</value></Constant>")}{_axis_3x("translation3", "0 0 1")}
-            </SpatialTransform>
-          </CustomJoint>"""
-    ankle_joint = f"""
-          <PinJoint name="ankle_r">{_frames_3x("tibia_r", "0 -0.43 0", "0.175895 -0.105208 0.0186622", "0.01 0.02 0.005", "-0.05 0.1 0.02")}
-            <CoordinateSet>
-              <objects>{_coordinate_3x("ankle_angle_r", 0.1, -0.7, 0.5)}
-              </objects>
-            </CoordinateSet>
-            <reverse>false</reverse>
-          </PinJoint>"""
-    toes_joint = f"""
-          <WeldJoint name="mtp_r">{_frames_3x("foot_r", "0.1788 -0.002 0.00108", "-0.1 0.2 0.05", "0.005 0 -0.01", "0.1 0 0.3")}
-            <CoordinateSet><objects /></CoordinateSet>
-            <reverse>false</reverse>
-          </WeldJoint>"""
-    weld_frames = ("0.03 -0.2 0.04", "0.2 -0.1 0.3", "-0.02 0.05 0.01", "0.1 0.4 -0.2")
-    brace_joint = f"""
-          <FreeJoint name="brace_free">{_frames_3x("tibia_r", *weld_frames)}
-            <CoordinateSet>
-              <objects>{"".join(_coordinate_3x(f"brace_{k}", 0, -3.14159, 3.14159, motion=m) for k, m in (("rx", "rotational"), ("ry", "rotational"), ("rz", "rotational"), ("tx", "translational"), ("ty", "translational"), ("tz", "translational")))}
-              </objects>
-            </CoordinateSet>
-            <reverse>false</reverse>
-          </FreeJoint>"""
-    point = ("0.05 0.02 -0.03", "-0.01 0.04 0.02")
-    plate_joint = f"""
-          <FreeJoint name="plate_free">{_frames_3x("foot_r", point[0], "0 0 0", point[1], "0 0 0")}
-            <CoordinateSet>
-              <objects>{_coordinate_3x("plate_rx", 0, -1.5, 1.5)}{_coordinate_3x("plate_ry", 0, -1.2, 1.2)}{_coordinate_3x("plate_rz", 0, -1.5, 1.5)}{"".join(_coordinate_3x(f"plate_{k}", 0, -1, 1, motion="translational") for k in ("tx", "ty", "tz"))}
-              </objects>
-            </CoordinateSet>
-            <reverse>false</reverse>
-          </FreeJoint>"""
+    lin, c0 = LINEAR_3X, _constant(0)
+    pelvis = _joint_3x("CustomJoint", "ground_pelvis", "ground", ("0 0.9 0", "0 0 0", "0 0 0", "0 0 0"), [
+        _coordinate_3x("pelvis_tilt", 0.05, -1.0, 1.0), _coordinate_3x("pelvis_list", -0.03, -0.5, 0.5),
+        _coordinate_3x("pelvis_rotation", 0.1, -1.0, 1.0),
+        _coordinate_3x("pelvis_tx", 0.2, -1.0, 1.0, motion="translational"),
+        _coordinate_3x("pelvis_ty", 0.93, 0.5, 1.2, motion="translational"),
+        _coordinate_3x("pelvis_tz", -0.1, -0.5, 0.5, motion="translational"),
+    ], [
+        _axis_3x("rotation1", "0 0 1", "pelvis_tilt", lin), _axis_3x("rotation2", "1 0 0", "pelvis_list", lin),
+        _axis_3x("rotation3", "0 1 0", "pelvis_rotation", lin), _axis_3x("translation1", "1 0 0", "pelvis_tx", lin),
+        _axis_3x("translation2", "0 1 0", "pelvis_ty", lin), _axis_3x("translation3", "0 0 1", "pelvis_tz", lin),
+    ])
+    hip = _joint_3x("CustomJoint", "hip_r", "pelvis",
+                    ("-0.0707 -0.0661 0.0835", "0.05 -0.1 0.2", "0.01 0.02 -0.03", "-0.1 0.05 0.15"), [
+        _coordinate_3x("hip_flexion_r", 0.2, -1.2, 2.0), _coordinate_3x("hip_adduction_r", -0.05, -0.8, 0.4),
+        _coordinate_3x("hip_rotation_r", 0.1, -0.7, 0.7, locked=True),
+    ], [
+        _axis_3x("rotation1", "0 0 1", "hip_flexion_r", lin), _axis_3x("rotation2", "1 0 0", "hip_adduction_r", lin),
+        _axis_3x("rotation3", "0 1 0", "hip_rotation_r", lin), _axis_3x("translation1", "1 0 0"),
+        _axis_3x("translation2", "0 1 0"), _axis_3x("translation3", "0 0 1"),
+    ])
+    knee = _joint_3x("CustomJoint", "knee_r", "femur_r",
+                     ("0 0 0", "0.02 -0.03 0.04", "0.005 0.01 -0.02", "0.03 0.02 -0.05"), [
+        _coordinate_3x("knee_angle_r", -0.4, -2.0, 0.15),
+    ], [
+        _axis_3x("rotation1", "0 0 1", "knee_angle_r", lin), _axis_3x("rotation2", "1 0 0", "", c0),
+        _axis_3x("rotation3", "0 1 0", "", c0),
+        _axis_3x("translation1", "1 0 0", "knee_angle_r", _spline('SimmSpline name="f1"', KNEE_X_3X, KNEE_TX_3X)
+                 .replace('</SimmSpline name="f1">', "</SimmSpline>")),
+        _axis_3x("translation2", "0 1 0", "knee_angle_r", _spline("NaturalCubicSpline", KNEE_X_3X, KNEE_TY_3X)),
+        _axis_3x("translation3", "0 0 1", "", _constant(0.002)),
+    ])
+    patella = _joint_3x("CustomJoint", "patellofemoral_r", "tibia_r",
+                        ("0.05 -0.02 0.003", "0 0 0.1", "0 0.03 0", "0 0 0"), [
+        _coordinate_3x("patella_angle_r", -0.2, -3.0, 3.0),
+    ], [
+        _axis_3x("rotation1", "0 0 1", "patella_angle_r", lin), _axis_3x("rotation2", "1 0 0", "", c0),
+        _axis_3x("rotation3", "0 1 0", "", c0), _axis_3x("translation1", "1 0 0", "", _constant(0.01)),
+        _axis_3x("translation2", "0 1 0", "", _constant(-0.02)), _axis_3x("translation3", "0 0 1"),
+    ])
+    ankle = _joint_3x("PinJoint", "ankle_r", "tibia_r",
+                      ("0 -0.43 0", "0.175895 -0.105208 0.0186622", "0.01 0.02 0.005", "-0.05 0.1 0.02"),
+                      [_coordinate_3x("ankle_angle_r", 0.1, -0.7, 0.5)])
+    toes = _joint_3x("WeldJoint", "mtp_r", "foot_r", ("0.1788 -0.002 0.00108", "-0.1 0.2 0.05", "0.005 0 -0.01",
+                                                       "0.1 0 0.3"), [])
+    brace = _joint_3x("FreeJoint", "brace_free", "tibia_r", WELD_FRAMES_3X,
+                      _free_coordinates_3x("brace", [(-3.14159, 3.14159)] * 3))
+    plate = _joint_3x("FreeJoint", "plate_free", "foot_r", (POINT_3X[0], "0 0 0", POINT_3X[1], "0 0 0"),
+                      _free_coordinates_3x("plate", [(-1.5, 1.5), (-1.2, 1.2), (-1.5, 1.5)]))
     bodies = "".join([
         _body_3x("ground", 0, "0 0 0", (0, 0, 0, 0, 0, 0)),
-        _body_3x("pelvis", 11.777, "-0.0707 0 0", (0.1028, 0.0871, 0.0579, 0.001, -0.002, 0.003), pelvis_joint),
-        _body_3x("femur_r", 9.3014, "0 -0.17 0", (0.1339, 0.0351, 0.1412, 0, 0, 0), hip_joint),
-        _body_3x("tibia_r", 3.7075, "0 -0.1867 0", (0.0504, 0.0051, 0.0511, 0, 0, 0), knee_joint),
-        _body_3x("patella_r", 0.0862, "0.0018 0.0264 0", (2.87e-06, 1.311e-05, 1.311e-05, 0, 0, 0), patella_joint),
-        _body_3x("foot_r", 1.25, "0.1 0.03 0", (0.0014, 0.0039, 0.0041, 0, 0, 0), ankle_joint),
-        _body_3x("toes_r", 0.2166, "0.0346 0.006 -0.0175", (0.0001, 0.0002, 0.0001, 0, 0, 0), toes_joint),
-        _body_3x("brace", 0.5, "0.01 -0.02 0.03", (0.002, 0.001, 0.002, 0.0001, 0, 0), brace_joint),
-        _body_3x("plate", 0.3, "0.02 0.01 -0.01", (0.001, 0.0015, 0.002, 0, 0.0001, 0), plate_joint),
+        _body_3x("pelvis", 11.777, "-0.0707 0 0", (0.1028, 0.0871, 0.0579, 0.001, -0.002, 0.003), pelvis),
+        _body_3x("femur_r", 9.3014, "0 -0.17 0", (0.1339, 0.0351, 0.1412, 0, 0, 0), hip),
+        _body_3x("tibia_r", 3.7075, "0 -0.1867 0", (0.0504, 0.0051, 0.0511, 0, 0, 0), knee),
+        _body_3x("patella_r", 0.0862, "0.0018 0.0264 0", (2.87e-06, 1.311e-05, 1.311e-05, 0, 0, 0), patella),
+        _body_3x("foot_r", 1.25, "0.1 0.03 0", (0.0014, 0.0039, 0.0041, 0, 0, 0), ankle),
+        _body_3x("toes_r", 0.2166, "0.0346 0.006 -0.0175", (0.0001, 0.0002, 0.0001, 0, 0, 0), toes),
+        _body_3x("brace", 0.5, "0.01 -0.02 0.03", (0.002, 0.001, 0.002, 0.0001, 0, 0), brace),
+        _body_3x("plate", 0.3, "0.02 0.01 -0.01", (0.001, 0.0015, 0.002, 0, 0.0001, 0), plate),
     ])
     markers = [("R.ASIS", "pelvis", "0.0148 0.0 0.128"), ("V.Sacral", "pelvis", "-0.175 0.01 0"),
                ("R.Thigh", "femur_r", "0.01 -0.2 0.07"), ("R.Knee.Lat", "femur_r", "0 -0.404 0.05"),
@@ -643,8 +668,7 @@ def model_3x_text():
           <location>{loc}</location>
           <fixed>false</fixed>
         </Marker>""" for n, b, loc in markers)
-    patella_spline = ("<SimmSpline><x> -2.0944 -1.5 -1.0 -0.5 0 0.2</x>"
-                      "<y> -1.8 -1.3 -0.88 -0.42 0 0.15</y></SimmSpline>")
+    patella_spline = _spline("SimmSpline", "-2.0944 -1.5 -1.0 -0.5 0 0.2", "-1.8 -1.3 -0.88 -0.42 0 0.15")
     constraints = f"""
         <CoordinateCouplerConstraint name="patella_coupler">
           <isDisabled>false</isDisabled>
@@ -657,17 +681,17 @@ def model_3x_text():
           <isDisabled>false</isDisabled>
           <body_1>tibia_r</body_1>
           <body_2>brace</body_2>
-          <location_body_1>{weld_frames[0]}</location_body_1>
-          <orientation_body_1>{weld_frames[1]}</orientation_body_1>
-          <location_body_2>{weld_frames[2]}</location_body_2>
-          <orientation_body_2>{weld_frames[3]}</orientation_body_2>
+          <location_body_1>{WELD_FRAMES_3X[0]}</location_body_1>
+          <orientation_body_1>{WELD_FRAMES_3X[1]}</orientation_body_1>
+          <location_body_2>{WELD_FRAMES_3X[2]}</location_body_2>
+          <orientation_body_2>{WELD_FRAMES_3X[3]}</orientation_body_2>
         </WeldConstraint>
         <PointConstraint name="plate_point">
           <isDisabled>false</isDisabled>
           <body_1>foot_r</body_1>
           <body_2>plate</body_2>
-          <location_body_1>{point[0]}</location_body_1>
-          <location_body_2>{point[1]}</location_body_2>
+          <location_body_1>{POINT_3X[0]}</location_body_1>
+          <location_body_2>{POINT_3X[1]}</location_body_2>
         </PointConstraint>"""
     return f"""<?xml version="1.0" encoding="UTF-8" ?>
 <OpenSimDocument Version="30000">
@@ -700,7 +724,3 @@ def model_3x_text():
   </Model>
 </OpenSimDocument>
 """
-
-
-#: coordinates of the 3.x model that OpenSim's assembly places (no goal)
-FREE_3X = tuple(f"brace_{k}" for k in ("rx", "ry", "rz", "tx", "ty", "tz")) + ("plate_tx", "plate_ty", "plate_tz")

@@ -94,10 +94,9 @@ def _r6(values):
 
 def _opensim_eval(f, xs):
     osim = _osim()
-    one, two = osim.StdVectorInt(), osim.StdVectorInt()
-    one.append(0)
-    two.append(0)
-    two.append(0)
+    # plain lists: SWIG converts them to std::vector<int> (osim.StdVectorInt is the class of
+    # whichever of OpenSim's modules was imported last, which another test may change)
+    one, two = [0], [0, 0]
     out = np.empty((3, len(xs)))
     for k, x in enumerate(xs):
         v = osim.Vector(1, float(x))
