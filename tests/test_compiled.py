@@ -7,6 +7,8 @@ import pytest
 
 from openfdk.model.builder import ModelBuilder
 from openfdk.model.compiled import CompiledMeasures, MeasureCompileError
+from openfdk.model.coordinate_functions import polynomial, simm_spline
+from openfdk.model.function_measure import FunctionOf
 from openfdk.model.measures import Linear, Measure
 from openfdk.numdiff import manifold_jacobian, second_derivative_along
 from openfdk.spatial import quat_from_rotvec
@@ -37,6 +39,13 @@ def _joint_measures(seed=7):
     measures["angles_zxz"] = b.angles("a.j", "b.j", sequence="zxz")
     measures["jcs_knee_left"] = b.jcs_angles("a.j", "b.j", joint="knee", side="left")
     measures["fdk_row"] = Linear([(np.array([[0.0, 0.0, 1.0]]), b.vector("a.j", "b.j", expressed_in="a"))])
+    # OP_FUNCTION: a spline of a Cardan angle (an OpenSim knee translation) and a coupler
+    # row q_dep − f(q_indep) (a distance coupled to an angle by a polynomial)
+    x = np.linspace(-4.0, 4.0, 9)
+    angle = Linear([(np.array([[0.0, 1.0, 0.0]]), measures["angles_zxz"])])
+    measures["function_of"] = FunctionOf(simm_spline(x, 0.05 * np.sin(1.3 * x) + 0.01 * x**2), angle, "length")
+    coupled = FunctionOf(polynomial([0.3, -0.2, 0.05]), Linear([(np.array([[1.0, 0.0, 0.0]]), measures["angles_zxz"])]))
+    measures["coupler_row"] = Linear([(np.ones((1, 1)), b.distance("a.j", "b.origin")), (-np.ones((1, 1)), coupled)])
     return model, state, measures
 
 
@@ -45,6 +54,7 @@ def _cases():
     out += [("joints", f"j_{jt}") for jt in JOINTS]
     out += [("joints", "drive"), ("joints", "via_point_path"), ("joints", "fdk_row")]
     out += [("joints", "angles_zxz"), ("joints", "jcs_knee_left")]
+    out += [("joints", "function_of"), ("joints", "coupler_row")]
     return out
 
 

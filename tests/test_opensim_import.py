@@ -173,10 +173,6 @@ def solve_driven(model, q, state=None):
     return state
 
 
-def wrap(a):
-    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
-
-
 def compare_positions(errs, orc, ours, st, q=None):
     """Bodies, markers and (sampled) coordinates of openfdk's state vs OpenSim's."""
     for b in orc.bodies:
@@ -224,14 +220,16 @@ def check_free_model(path, n, seed, label, fd_velocity_bodies=()):
     errs = Errors()
     free = [c.name for c in ours.model.coordinates if not (c.locked or c.prescribed)]
     prescribed = [c.name for c in ours.model.coordinates if c.prescribed]
+    before = len(FALLBACKS)
     body_of_marker = {m: orc.markers[m].getParentFrame().findBaseFrame().getName() for m in orc.markers}
     for _ in range(n):
         q = orc.sample(rng, free)
-        u = {c: float(rng.normal()) for c in q}
+        u = {c: float(rng.normal()) * 0.5 * np.ptp(orc.ranges()[c]) for c in q}  # speeds on the ranges' scale
         t = float(rng.uniform(0.0, 1.5))
         qdot = orc.set(q, u, t)  # OpenSim's q̇ of speeds u (Ball and Free joints: u is not q̇)
-        st, _ = pose_at(ours.model, q, {n: qdot[n] for n in q}, t)
-        compare_positions(errs, orc, ours, st, {**q, **{n: orc.coords[n].getValue(orc.state) for n in prescribed}})
+        st, _ = pose_at(ours.model, q, {name: qdot[name] for name in q}, t)
+        compare_positions(errs, orc, ours, st,
+                          {**q, **{name: orc.coords[name].getValue(orc.state) for name in prescribed}})
         fd_bodies, fd_markers = (opensim_fd_velocity(orc, q, qdot) if fd_velocity_bodies else ({}, {}))
         orc.set(q, u)
         for b in orc.bodies:
@@ -244,8 +242,20 @@ def check_free_model(path, n, seed, label, fd_velocity_bodies=()):
         for name, (_, v) in ours.markers(st).items():
             vo = fd_markers[name] if body_of_marker[name] in fd_velocity_bodies else orc.marker_velocity(name)
             errs.add("marker velocity", v, vo)
-    errs.check(f"{label} ({n} samples)")
+    errs.check(f"{label} ({n} samples; Newton from the reference pose failed at {len(FALLBACKS) - before})")
     return ours, orc
+
+
+def check_motion_types(ours, orc):
+    """openfdk's motion type of each coordinate is OpenSim's where OpenSim says
+    rotational or translational; where OpenSim says coupled (no axis is a LinearFunction
+    of slope 1 of it), openfdk names the kind of axis that measures it; the unit follows."""
+    kinds = {int(opensim.Coordinate.Rotational): "rotational", int(opensim.Coordinate.Translational): "translational",
+             int(opensim.Coordinate.Coupled): "coupled"}
+    for c in ours.model.coordinates:
+        theirs = kinds[int(orc.coords[c.name].getMotionType())]
+        assert theirs == "coupled" or c.motion == theirs, (c.name, c.motion, theirs)
+        assert c.unit == {"rotational": "angle", "translational": "length"}[c.motion], c.name
 
 
 # ----------------------------------------------------------------------------- 1. joints
@@ -257,6 +267,7 @@ def test_every_joint_type_matches_opensim(files):
     both sides, a body welded to a moving body and one welded to the ground): poses,
     markers, velocities and coordinates at 60 random samples."""
     ours, orc = check_free_model(files["joints"], 60, 11, "joint types")
+    check_motion_types(ours, orc)
     # the welded bodies are merged: into their parent, and into the ground
     assert ours.tree.root["welded"] == "planar" and ours.tree.root["on_ground"] == "ground"
     assert {b.name for b in ours.model.bodies} == {"ground"} | set(orc.bodies) - {"welded", "on_ground"}
@@ -272,17 +283,21 @@ def test_custom_joints_match_opensim(files):
     """CustomJoints with every OpenSim function (Constant, LinearFunction with slope and
     intercept, SimmSpline, NaturalCubicSpline, GCVSpline, PiecewiseLinearFunction,
     MultiplierFunction, PolynomialFunction), non-unit axes (0 0 2, 0 2 0, 0 1.5 0.5),
-    non-orthogonal constant axes and a translational coordinate: 60 samples.
+    non-orthogonal constant axes, translational coordinates (one of them also turning a
+    rotation axis through a spline) and markers on joint frames: 60 samples; the
+    coordinates' motion types and units as OpenSim reports them.
 
-    The foot's velocities are compared with the derivative of OpenSim's positions, not
-    with OpenSim's velocities: its ankle starts with a constant rotation, and Simbody's
-    MobilizedBody::FunctionBased builds its velocity Jacobian H with the constant
-    rotation's angle left at 0 (``CacheInfo::buildH`` evaluates the functions of axes
-    with coordinates only), so OpenSim's own velocities there are not the derivative of
-    its positions (by ~0.04 m/s, 0.4 rad/s here) while its positions are right."""
-    ours, orc = check_free_model(files["custom"], 60, 12, "custom joints", fd_velocity_bodies=("foot",))
-    coords = {c.name: c for c in ours.model.coordinates}
-    assert coords["ankle_slide"].unit == "length" and coords["knee_angle"].unit == "angle"
+    The foot's and toe's velocities are compared with the derivative of OpenSim's
+    positions, not with OpenSim's velocities: the ankle starts with a constant rotation,
+    and Simbody's MobilizedBody::FunctionBased builds its velocity Jacobian H with the
+    constant rotation's angle left at 0 (``CacheInfo::buildH`` evaluates only the
+    functions of axes with coordinates), so OpenSim's own velocities there are not the
+    derivative of its positions (by tenths of a rad/s at speeds of 1 rad/s) while its
+    positions are right."""
+    ours, orc = check_free_model(files["custom"], 60, 12, "custom joints", fd_velocity_bodies=("foot", "toe"))
+    check_motion_types(ours, orc)
+    units = {c.name: c.unit for c in ours.model.coordinates}
+    assert units["ankle_slide"] == units["mtp_slide"] == "length" and units["knee_angle"] == "angle"
 
 
 # ----------------------------------------------------------------------------- 7. merged bodies
@@ -367,8 +382,8 @@ def assemble_along(orc, q, step=0.05):
 
 
 def frames_coincide(errs, orc, constraint, kind):
-    """OpenSim's own check of its assembly: the weld's frames (the point constraint's
-    points) coincide in ground."""
+    """OpenSim's own check of its assembly: its constraint errors vanish and (a weld) the
+    two frames coincide in ground."""
     s = orc.state
     c = orc.model.getConstraintSet().get(constraint)
     if kind == "weld":
@@ -457,7 +472,8 @@ def _row_is_function(m, k):
 @pytest.mark.slow
 def test_function_rows_jacobian_and_bias_against_finite_differences(files):
     """The rows holding FunctionOf measures — the knee's five spline/polynomial axes, the
-    ankle's PolynomialFunction translation and the two couplers — at random poses and
+    ankle's PolynomialFunction translation, the mtp's spline rotation of a translational
+    coordinate and the two couplers — at random poses and
     random velocities: compiled = Python reference; Jacobian and bias = finite
     differences on the manifold; neither vanishes."""
     rng = np.random.default_rng(31)
@@ -469,7 +485,7 @@ def test_function_rows_jacobian_and_bias_against_finite_differences(files):
         st, _ = pose_from_coordinates(custom.model, q)
         st.set_v(rng.normal(size=custom.model.n_coords))
         checked |= set(_check_rows(custom.model, st, "custom"))
-    assert checked == {"knee", "ankle"}
+    assert checked == {"knee", "ankle", "mtp"}
     constrained = Ours(files["constraints"])
     model = constrained.model
     st = solve_driven(model, {"j1_coord_0": 0.4, "jp_coord_0": 0.2, "jp_coord_1": -0.3, "jp_coord_2": 0.5})
@@ -537,47 +553,62 @@ def test_opensim_3x_file_matches_opensim_and_its_4x_conversion(workdir):
 
 @pytest.mark.slow
 def test_export_opensim_reads_back_to_the_same_poses(files, workdir):
-    """openfdk's export (``export-opensim``'s .osim: one FreeJoint per body, defaults at
-    the exported frame) of the custom-joint model at a random pose, read back with
-    openfdk's reader: the reference pose is that pose (bodies, markers, 1e-12), every
-    body has its mass and inertia, and OpenSim puts the bodies in the same place."""
-    from openfdk.io.osim import build_osim, free_joint_coordinates
+    """``export_opensim`` (what ``openfdk export-opensim`` runs: an .osim with one
+    FreeJoint per body, defaults at the first frame, and a .mot of the FreeJoint
+    coordinates) of a three-frame run of the custom-joint model at random poses, read
+    back with openfdk's reader: the reference pose is the first frame (bodies, markers;
+    1e-12), the .mot's coordinates put every body where the run had it, masses and
+    inertias are kept, and OpenSim reads the export to the same poses."""
+    import pandas as pd
+
+    from openfdk.io.osim import export_opensim
+    from openfdk.io.storage import read_storage
+    from openfdk.runresults import RunResults
 
     ours = Ours(files["custom"])
     model = ours.model
     orc = om.Oracle(files["custom"])
-    q = orc.sample(np.random.default_rng(51))
-    st, _ = pose_from_coordinates(model, q)
-    coords = free_joint_coordinates(st.p_WB, st.quat_WB)
-    tree = build_osim(model, {b.name: coords[b.index] for b in model.bodies[1:]})
-    path = workdir / "exported.osim"
-    tree.write(path, encoding="UTF-8", xml_declaration=True)
-    back, _ = load_model_and_settings(path)
+    rng = np.random.default_rng(51)
+    states = [pose_at(model, orc.sample(rng))[0] for _ in range(3)]
+    columns = {}
+    for b in model.bodies[1:]:
+        for k, c in enumerate("xyz"):
+            columns[f"{b.name}.{c}_m"] = [st.p_WB[b.index, k] for st in states]
+        for k in range(4):
+            columns[f"{b.name}.e{k}"] = [st.quat_WB[b.index, k] for st in states]
+    columns["converged"] = [1, 1, 1]
+    kinematics = pd.DataFrame(columns, index=pd.Index([0.0, 0.01, 0.02], name="time"))
+    out = export_opensim(RunResults(kinematics, None, {}, model=model), workdir / "export", model=model)
+    assert out["frames"] == 3 and not out["skipped_frames"]
+    back, _ = load_model_and_settings(out["osim"])
     assert [b.name for b in back.bodies] == [b.name for b in model.bodies]
-    st2 = back.initial_state()
     errs = Errors()
     for b, b2 in zip(model.bodies[1:], back.bodies[1:]):
         assert b2.mass == b.mass
         errs.add("inertia", b2.inertia_B, b.inertia_B)
-        errs.add("body position", st2.p_WB[b2.index], st.p_WB[b.index])
-        errs.add("body rotation", st2.R_WB[b2.index], st.R_WB[b.index])
+    st0, ref = states[0], back.initial_state()
+    errs.add("body position", ref.p_WB[1:], st0.p_WB[1:])
+    errs.add("body rotation", ref.R_WB[1:], st0.R_WB[1:])
     mk, mk2 = model.markers, back.markers
     for j in range(mk.size):
-        x = st.p_WB[mk.body[j]] + st.R_WB[mk.body[j]] @ mk.p_BM[j]
         k = list(mk2.labels).index(mk.labels[j])
-        errs.add("marker position", st2.p_WB[mk2.body[k]] + st2.R_WB[mk2.body[k]] @ mk2.p_BM[k], x)
-    # the exported FreeJoint coordinates also move openfdk's read-back model there
-    q2 = {c.name: c.default for c in back.coordinates}
-    st3, _ = pose_from_coordinates(back, q2)
-    errs.add("body position", st3.p_WB, st.p_WB)
-    errs.add("body rotation", st3.R_WB, st.R_WB)
-    # and OpenSim reads the export to the same poses
-    exported = om.Oracle(path)
+        errs.add("marker position", ref.p_WB[mk2.body[k]] + ref.R_WB[mk2.body[k]] @ mk2.p_BM[k],
+                 st0.p_WB[mk.body[j]] + st0.R_WB[mk.body[j]] @ mk.p_BM[j])
+    # every frame of the .mot: openfdk's read-back model at those coordinates
+    time, values, in_degrees = read_storage(out["mot"])
+    assert not in_degrees and len(time) == 3
+    for i, st in enumerate(states):
+        q = {c.name: float(values[c.name][i]) for c in back.coordinates}
+        st2, _ = pose_from_coordinates(back, q)
+        errs.add("body position", st2.p_WB[1:], st.p_WB[1:])
+        errs.add("body rotation", st2.R_WB[1:], st.R_WB[1:])
+    # and OpenSim reads the export to the first frame's poses
+    exported = om.Oracle(out["osim"])
     for b in model.bodies[1:]:
         p, R = exported.body_pose(b.name)
-        errs.add("OpenSim body position", p, st.p_WB[b.index])
-        errs.add("OpenSim body rotation", R, st.R_WB[b.index])
-    errs.check("export-opensim round trip", tol=1e-12)
+        errs.add("OpenSim body position", p, st0.p_WB[b.index])
+        errs.add("OpenSim body rotation", R, st0.R_WB[b.index])
+    errs.check("export-opensim round trip (3 frames)", tol=1e-12)
 
 
 # ----------------------------------------------------------------------------- 6. malformed files
@@ -637,8 +668,12 @@ def _ellipsoid_joint(tree):
 MUSCLE = """<Thelen2003Muscle name="vastus">
   <GeometryPath name="path">
     <PathPointSet><objects>
-      <PathPoint name="p1"><location>0 0 0</location><socket_parent_frame>/bodyset/pin</socket_parent_frame></PathPoint>
-      <PathPoint name="p2"><location>0 0.1 0</location><socket_parent_frame>/bodyset/slider</socket_parent_frame></PathPoint>
+      <PathPoint name="p1">
+        <location>0 0 0</location><socket_parent_frame>/bodyset/pin</socket_parent_frame>
+      </PathPoint>
+      <PathPoint name="p2">
+        <location>0 0.1 0</location><socket_parent_frame>/bodyset/slider</socket_parent_frame>
+      </PathPoint>
     </objects></PathPointSet>
   </GeometryPath>
   <max_isometric_force>1000</max_isometric_force>
@@ -710,3 +745,92 @@ def test_cli_check_reports_bad_files_in_one_line_and_ignore_skips_muscles(files,
     assert "error" not in out.err
     _, info = read_osim(ignored, ignore=("Thelen2003Muscle",))
     assert [d["type"] for d in info["dropped"]] == ["Thelen2003Muscle"]
+
+
+# ----------------------------------------------------------------------------- meshes
+
+BONE_VTP = """<?xml version="1.0"?>
+<VTKFile type="PolyData" version="0.1" byte_order="LittleEndian">
+  <PolyData>
+    <Piece NumberOfPoints="4" NumberOfVerts="0" NumberOfLines="0" NumberOfStrips="0" NumberOfPolys="2">
+      <Points>
+        <DataArray type="Float32" NumberOfComponents="3" format="ascii">0 0 0 0.1 0 0 0 0.2 0 0 0 0.05</DataArray>
+      </Points>
+      <Polys>
+        <DataArray type="Int32" Name="connectivity" format="ascii">0 1 2 0 2 3</DataArray>
+        <DataArray type="Int32" Name="offsets" format="ascii">3 6</DataArray>
+      </Polys>
+    </Piece>
+  </PolyData>
+</VTKFile>
+"""
+
+
+def _add_meshes(tree):
+    """A scaled Mesh on the welded body b and one on the model-level frame f2."""
+    for owner, scale in ((tree.xpath("//Body[@name='b']")[0], "1 2 0.5"),
+                         (tree.xpath("/OpenSimDocument/Model/components/PhysicalOffsetFrame[@name='f2']")[0], "1 1 1")):
+        holder = owner.find("attached_geometry")
+        if holder is None:
+            holder = etree.SubElement(owner, "attached_geometry")
+        mesh = etree.SubElement(holder, "Mesh", name=f"{owner.get('name')}_bone")
+        etree.SubElement(mesh, "socket_frame").text = ".."
+        etree.SubElement(mesh, "scale_factors").text = scale
+        etree.SubElement(mesh, "mesh_file").text = "bone.vtp"
+    return mesh
+
+
+def test_meshes_are_found_and_placed_as_opensim_places_them(files, workdir, monkeypatch):
+    """Mesh files are looked for next to the model, in its Geometry folder and in
+    ../Geometry — also for a model named relative to the cwd — and a mesh on a welded
+    body and one on an offset frame of an offset frame land where OpenSim puts their
+    frames (with the scale factors), at a random pose."""
+    from openfdk.model.visuals import visual_mesh_B
+
+    (workdir / "Geometry").mkdir(exist_ok=True)
+    (workdir / "Geometry" / "bone.vtp").write_text(BONE_VTP)
+    models = workdir / "models"
+    models.mkdir(exist_ok=True)
+    _edit(files["weld_chain"], models / "meshes.osim", _add_meshes)
+    monkeypatch.chdir(models)
+    model, _ = load_model_and_settings("meshes.osim")  # relative: ../Geometry from the cwd's parent
+    assert len(model.visuals) == 2
+    assert all(v.path == str((workdir / "Geometry" / "bone.vtp").resolve()) for v in model.visuals)
+    orc = om.Oracle(models / "meshes.osim")
+    rng = np.random.default_rng(61)
+    free = [c.name for c in model.coordinates if not c.prescribed]
+    q = orc.sample(rng, free)
+    orc.set(q, t=0.7)
+    st, _ = pose_from_coordinates(model, q, t=0.7)
+    vertices = np.array([[0, 0, 0], [0.1, 0, 0], [0, 0.2, 0], [0, 0, 0.05]])
+    errs = Errors()
+    for vis, (frame, scale) in zip(model.visuals, ((orc.bodies["b"], [1, 2, 0.5]),
+                                                   (opensim.PhysicalFrame.safeDownCast(orc.model.getComponent("/f2")),
+                                                    [1, 1, 1]))):
+        v_B, _ = visual_mesh_B(vis)
+        i = [b.name for b in model.bodies].index(vis.body)
+        ours = st.p_WB[i] + v_B @ st.R_WB[i].T
+        X = frame.getTransformInGround(orc.state)
+        theirs = om.np3(X.p()) + (vertices * scale) @ om.np33(X.R()).T
+        errs.add("mesh vertices", ours, theirs)
+    assert [v.body for v in model.visuals] == ["a", "d"]
+    errs.check("meshes")
+
+
+def test_disabled_constraint_is_left_out_and_listed(files, workdir):
+    """A constraint with ``<isEnforced>false</isEnforced>`` is not applied by OpenSim, and
+    openfdk leaves it out and lists it among the dropped elements; its dependent
+    coordinate is then free in both."""
+    path = workdir / "disabled.osim"
+
+    def disable(tree):
+        c = tree.xpath("//CoordinateCouplerConstraint[@name='couple_s']")[0]
+        etree.SubElement(c, "isEnforced").text = "false"
+        return c
+
+    line = _edit(files["constraints"], path, disable)
+    orc = om.Oracle(path)
+    assert not orc.model.getConstraintSet().get("couple_s").isEnforced(orc.state)
+    data, info = read_osim(path)
+    assert "couple_s" not in data.get("couplers", {}) and "couple_b" in data["couplers"]
+    assert {"type": "CoordinateCouplerConstraint", "name": "couple_s", "line": line} in info["dropped"]

@@ -40,15 +40,23 @@ def driven_model(model, names):
 def pose_from_coordinates(model, q, qdot=None, qddot=None, t=0.0, state=None, tol=1e-12):
     """The state (BodyStates, poses and velocities set) and v̇ (6 n_moving,) of ``model``
     at coordinate values ``q`` {name: rad or m}, speeds ``qdot`` and accelerations
-    ``qddot`` (same keys; default 0). Every free coordinate must be given. ``state``: the
-    starting pose (default: the model's reference pose). Raises KinematicsError when the
-    rows cannot be solved."""
+    ``qddot`` (same keys; default 0). The given coordinates are driven: give every
+    independent one (a coupler's dependent coordinate follows its coupler and is left
+    out; locked and prescribed coordinates follow their rows). ``state``: the starting
+    pose (default: the model's reference pose). Raises KinematicsError when the rows
+    cannot be solved, ModelError when the given coordinates do not determine the pose."""
     qdot, qddot = qdot or {}, qddot or {}
-    free = [c.name for c in model.coordinates if not (c.locked or c.prescribed)]
-    missing = [n for n in free if n not in q]
-    if missing:
-        raise ModelError(f"pose_from_coordinates: no value for the coordinates {missing}")
+    free = [c.name for c in model.coordinates if not (c.locked or c.prescribed) and c.name in q]
+    unknown = sorted(set(q) - {c.name for c in model.coordinates})
+    if unknown:
+        raise ModelError(f"pose_from_coordinates: model {model.name!r} has no coordinates {unknown}")
     driven = driven_model(model, free)
+    rows = sum(c.size for c in driven.constraints)
+    if rows != driven.n_coords:
+        given = set(q)
+        missing = [c.name for c in model.coordinates if c.name not in given and not (c.locked or c.prescribed)]
+        raise ModelError(f"pose_from_coordinates: the given coordinates and the model's rows fix {rows} of "
+                         f"{driven.n_coords} pose components; coordinates not given: {missing}")
     for con in driven.constraints[len(model.constraints):]:
         name = con.name[: -len(".value")]
         # q(τ) = q + q̇ (τ − t) + ½ q̈ (τ − t)², in powers of τ: the values at τ = t

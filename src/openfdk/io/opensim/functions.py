@@ -92,8 +92,8 @@ _PROPERTIES = {
 }
 
 # a decimal number as OpenSim writes it; no nan, inf, hex or digit separators
-_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?\Z")
-_INTEGER = re.compile(r"[+-]?\d+\Z")
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?\Z", re.ASCII)   # ASCII digits only
+_INTEGER = re.compile(r"[+-]?\d+\Z", re.ASCII)
 
 
 def _is_function_tag(tag) -> bool:
@@ -122,8 +122,9 @@ def _label(source, element) -> str:
 def function_element(parent, source):
     """The function element of ``parent`` — a ``TransformAxis``, a
     ``CoordinateCouplerConstraint``, a ``Coordinate`` (its ``prescribed_function``) or a
-    ``MultiplierFunction`` — or None when it has none (the caller then applies OpenSim's
-    default: ``Constant(0)`` for a TransformAxis).
+    ``MultiplierFunction`` — or None when it has none; the caller then applies OpenSim's
+    default (for a TransformAxis of a 4.x file OpenSim 4.6 keeps its property default,
+    ``Constant(0)``, even when the axis names a coordinate: checked with ``opensim``).
 
     The forms OpenSim 4.6 reads (``AbstractProperty::readFromXMLParentElement`` and
     ``Object::updateFromXMLNode``; checked with the ``opensim`` package):
@@ -169,7 +170,7 @@ def _numbers(text, label, name):
     tokens = (text or "").split()
     for tok in tokens:
         if not _NUMBER.match(tok):
-            raise OsimError(f"{label}: <{name}>: {tok!r} is not a finite number")
+            raise OsimError(f"{label}: <{name}>: {tok[:40]!r} is not a finite number")
     return [float(tok) for tok in tokens]
 
 
@@ -225,8 +226,8 @@ def function_spec(element, source) -> dict:
         spec = {"type": kind, "coefficients": _numbers(get("coefficients"), label, "coefficients")}
     elif kind == "gcv_spline":
         half = get("half_order").strip()
-        if not _INTEGER.match(half):
-            raise OsimError(f"{label}: <half_order> must be an integer, got {half!r}")
+        if not _INTEGER.match(half) or len(half) > 9:   # (int() refuses over 4300 digits)
+            raise OsimError(f"{label}: <half_order> must be an integer from 1 to 3, got {half[:20]!r}")
         half = int(half)
         if half < 1:
             raise OsimError(f"{label}: <half_order> must be at least 1, got {half}")

@@ -52,6 +52,8 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         key = (kind, safe)
         if key in names and names[key] != name:
             raise OsimError(f"{doc.source}: {kind} names {names[key]!r} and {name!r} both become {safe!r} in openfdk")
+        if key in names:  # e.g. a WeldConstraint named as a joint: one would replace the other
+            raise OsimError(f"{doc.source}: two {kind}s named {name!r}")
         names[key] = name
         return safe
 
@@ -63,7 +65,10 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         if mass <= 0.0:
             raise OsimError(f"{doc.source}: line {doc.bodies[b].line}: Body {b!r}: mass {mass:g} kg; openfdk needs a "
                             "positive mass for every body that moves")
-        if np.any(np.linalg.eigvalsh(inertia) <= 0.0):
+        if not (np.isfinite(mass) and np.all(np.isfinite(c)) and np.all(np.isfinite(inertia))):
+            raise OsimError(f"{doc.source}: line {doc.bodies[b].line}: Body {b!r}: its mass, centre of mass or "
+                            "inertia (with the bodies welded to it) overflows: the numbers are too large")
+        if np.any(np.linalg.eigvalsh(inertia / (np.max(np.abs(inertia)) or 1.0)) <= 0.0):  # (scaled: no overflow)
             raise OsimError(f"{doc.source}: line {doc.bodies[b].line}: Body {b!r}: its inertia about the centre of "
                             f"mass {inertia.round(9).tolist()} is not positive definite")
         p_WB, R_WB = X[b]
@@ -109,6 +114,9 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
             for q in c.independent + (c.dependent,):
                 if q not in doc.coordinates:
                     raise OsimError(f"{doc.source}: line {c.line}: {c.type} {c.name!r}: unknown coordinate {q!r}")
+            if c.dependent in c.independent:
+                raise OsimError(f"{doc.source}: line {c.line}: {c.type} {c.name!r}: the dependent coordinate "
+                                f"{c.dependent!r} is also its independent coordinate")
             couplers[unique("constraint", c.name)] = {"independent": safe_name(c.independent[0]),
                                                        "dependent": safe_name(c.dependent), "function": c.function}
         else:
@@ -154,16 +162,31 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
 def find_mesh(doc, geometry, mesh_dirs=(), ignore_missing=False):
     """The mesh file of an OsimGeometry: next to the model, in its Geometry folder, in
     ../Geometry or in ``mesh_dirs``; None when it is missing and ``ignore_missing``."""
-    base = doc.path.parent
+    import os
+
+    from ..meshfiles import DISPLAY_MESH_SUFFIXES
+
+    base = doc.path.resolve().parent  # absolute: "../Geometry" of a model named relative to the cwd
     file = geometry.file
     name = Path(file)
+    shown = file if len(file) <= 200 else f"{file[:200]}… ({len(file)} characters)"
+    if name.suffix.lower() not in DISPLAY_MESH_SUFFIXES:  # refused before any file is read or copied
+        if ignore_missing:
+            return None
+        raise OsimError(f"{doc.source}: line {geometry.line}: Mesh {shown!r}: unknown mesh format {name.suffix!r} "
+                        f"(openfdk reads {', '.join(DISPLAY_MESH_SUFFIXES)}); leave the meshes out with --ignore Mesh")
     candidates = [name] if name.is_absolute() else [base / name, base / "Geometry" / name,
                                                      base.parent / "Geometry" / name] + \
         [Path(d) / name for d in mesh_dirs]
     for c in candidates:
-        if c.is_file():
-            return c.resolve()
+        try:
+            if c.is_file():  # a regular file (not a FIFO or a device), through symlinks
+                return Path(os.path.realpath(c))
+        except OSError:  # e.g. a name too long for the file system: not there
+            pass
     if ignore_missing:
         return None
-    raise OsimError(f"{doc.source}: line {geometry.line}: Mesh {file!r} not found (looked in {', '.join(str(c.parent) for c in candidates)}); "
-                    "give its folder with --geometry DIR, or leave the meshes out with --ignore Mesh")
+    folders = dict.fromkeys(os.path.realpath(c.parent) for c in candidates)  # each once (a model in the cwd)
+    raise OsimError(f"{doc.source}: line {geometry.line}: Mesh {shown!r} not found (looked in "
+                    f"{', '.join(f[:200] for f in folders)}); give its folder with --geometry DIR, or leave the "
+                    "meshes out with --ignore Mesh")
