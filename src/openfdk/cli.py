@@ -66,8 +66,14 @@ def _cmd_import_opensim(args):
 
     check_output_dir(args.out, force=args.force)
     data = imported_model_data(args.model)
-    path = write_imported(data, args.out, args.model, import_info(args.model))
-    from .io.modelfile import load_model
+    if data is None:
+        raise UserError(f"{args.model}: not an OpenSim model (.osim)")
+    from pathlib import Path
+
+    from .io.modelfile import load_model, model_and_settings_from_dict
+
+    model_and_settings_from_dict(data, source=Path(args.model).name)  # errors name the .osim; nothing written yet
+    path = write_imported(data, args.out, args.model, import_info(args.model), force=args.force)
 
     model = load_model(path)  # the written file must read back
     dropped = import_info(args.model).get("dropped", [])
@@ -204,6 +210,24 @@ def _write_measures(out_dir, model_path, kinematics):
     write_coordinates(out_dir, model, kinematics)
 
 
+def _write_generalized_forces(out_dir, model_path, dyn):
+    """generalized_forces.csv/.sto of a run whose coordinates are driven (--motion), and
+    the residuals in summary.json."""
+    from pathlib import Path
+
+    from .io.generalized_forces import write_generalized_forces
+    from .io.modelfile import load_model
+    from .io.results import write_json
+
+    summary = write_generalized_forces(out_dir, load_model(model_path), dyn)
+    if summary is None:
+        return
+    path = Path(out_dir) / "summary.json"
+    data = json.loads(path.read_text())
+    data["residuals"] = summary
+    write_json(path, data)
+
+
 def _cmd_run(args):
     if args.checkpoint_frames < 1 or not args.checkpoint_seconds > 0:
         raise UserError("--checkpoint-frames must be >= 1 and --checkpoint-seconds > 0")
@@ -235,6 +259,7 @@ def _cmd_run(args):
         write_run_outputs(args.out, kin, dyn, info)
         checkpoints.clear()
     _write_measures(args.out, args.model, kin)
+    _write_generalized_forces(args.out, args.model, dyn)
     fdk = info.get("fdk")
     _say(args,
          f"run: kinematics {int(kin.converged.sum())}/{len(kin.time)} frames, inverse dynamics "
@@ -425,6 +450,13 @@ def _import_arguments(p):
                    help="another folder to look for the model's mesh files in (repeatable)")
     g.add_argument("--ik-tasks", default=None, metavar="FILE",
                    help="OpenSim IK setup (Setup_IK.xml) or tasks file: its marker weights and coordinate tasks")
+    g.add_argument("--external-loads", default=None, metavar="LOADS.xml",
+                   help="OpenSim ExternalLoads file (ground reactions) with its data file, applied as OpenSim does")
+    g.add_argument("--motion", default=None, metavar="FILE.mot",
+                   help="drive every coordinate from this coordinate file (an IK .mot): inverse dynamics then gives "
+                        "each coordinate's generalised force (generalized_forces.csv), as OpenSim's ID")
+    g.add_argument("--motion-cutoff", type=argtypes.nonnegative, default=None, metavar="HZ",
+                   help="low-pass filter the --motion coordinates (OpenSim's lowpass_cutoff_frequency_for_coordinates)")
 
 
 def _register_import(args):
@@ -435,18 +467,20 @@ def _register_import(args):
     from .io.opensim import is_osim
 
     if not is_osim(model):
-        if args.overlay or args.ignore or args.geometry or args.ik_tasks:
-            raise UserError(f"{model}: --with, --ignore, --geometry and --ik-tasks apply to OpenSim models (.osim) "
-                            "only")
+        if args.overlay or args.ignore or args.geometry or args.ik_tasks or args.external_loads or args.motion:
+            raise UserError(f"{model}: --with, --ignore, --geometry, --ik-tasks, --external-loads and --motion apply "
+                            "to OpenSim models (.osim) only")
         return
     from pathlib import Path
 
-    for option, value in (("--with", args.overlay), ("--ik-tasks", args.ik_tasks)):
+    for option, value in (("--with", args.overlay), ("--ik-tasks", args.ik_tasks),
+                          ("--external-loads", args.external_loads), ("--motion", args.motion)):
         if value is not None and not Path(value).is_file():
             raise UserError(f"{option}: file {value!r} does not exist")
     from .io.opensim.overlay import register
 
-    register(model, args.ignore, args.geometry, args.overlay, args.ik_tasks)
+    register(model, args.ignore, args.geometry, args.overlay, args.ik_tasks, args.external_loads, args.motion,
+             args.motion_cutoff or None)
 
 
 def _display_arguments(p, top=False):

@@ -26,6 +26,7 @@ from typing import Protocol
 import numpy as np
 
 from .contact_forces import ContactForces
+from .data_loads import DataLoadForces
 from .ligament_forces import LigamentForces
 from .load_forces import LoadForces
 from .muscle_forces import MuscleForces
@@ -37,6 +38,7 @@ FORCE_KINDS = (
     ("ligaments", LigamentForces),
     ("springs", SpringForces),
     ("loads", LoadForces),
+    ("external_loads", DataLoadForces),
     ("contacts", ContactForces),
 )
 

@@ -28,7 +28,9 @@ def referenced_files(model_path) -> list:
         opts = _REGISTERED.get(_key(model_path))
         if opts is None:
             return []
-        files = [(flag, p) for flag, p in (("--with", opts.overlay), ("--ik-tasks", opts.ik_tasks)) if p is not None]
+        files = [(flag, p) for flag, p in (("--with", opts.overlay), ("--ik-tasks", opts.ik_tasks),
+                                           ("--external-loads", opts.external_loads), ("--motion", opts.motion))
+                 if p is not None]
         return files + [(f"--ignore {kind}", model_path) for kind in opts.ignore]
 
     def walk(value):

@@ -21,6 +21,7 @@ from pathlib import Path
 
 from ..contact.sections import load_contacts
 from ..fdk.settings import load_fdk
+from ..forces.data_load_section import load_external_loads
 from ..forces.sections import (load_bushings, load_ligaments, load_loads, load_muscles, load_reactions,
                                load_recruitment, load_springs, load_wrapping)
 from ..model.model import Model, ModelError
@@ -39,6 +40,7 @@ SECTIONS = (
     ("bushings", load_bushings),
     ("reactions", load_reactions),
     ("loads", load_loads),
+    ("external_loads", load_external_loads),
     ("recruitment", load_recruitment),
     ("contacts", load_contacts),
     ("fdk", load_fdk),

@@ -33,6 +33,8 @@ def check_output_dir(path, force=False, resume=False) -> Path:
     or holds results of an earlier run while neither ``force`` (overwrite them) nor
     ``resume`` (continue that run) is set. Creates the folder when missing.
     """
+    if not str(path).strip():
+        raise OutputDirError("the output folder is empty (--out ''); give a folder name")
     p = Path(path)
     if p.exists() and not p.is_dir():
         raise OutputDirError(f"output folder {str(p)!r} is a file, not a folder")

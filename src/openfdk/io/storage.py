@@ -24,6 +24,9 @@ from __future__ import annotations
 import csv
 import math
 import os
+import re
+import stat
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -106,12 +109,19 @@ def csv_to_sto(csv_path, sto_path=None, name=None) -> Path | None:
     return write_storage(sto_path, time, numeric, name=name or csv_path.stem, comments=comments)
 
 
+#: a value of a storage file: a decimal number, or NaN / Inf as :func:`write_storage` writes
+#: them (not '1_000', hexadecimal or non-ASCII digits, which Python's float reads)
+_VALUE = re.compile(r"[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|nan|inf|infinity)\Z", re.ASCII | re.IGNORECASE)
+
+
 def read_storage(path):
     """Read an OpenSim ``.sto``/``.mot`` file: (time (n,) s, {label: (n,) values},
     in_degrees bool). Values are as in the file (angles in degrees when ``inDegrees=yes``).
     Errors are one line naming the file and the line."""
     path = Path(path)
     try:
+        if not stat.S_ISREG(os.stat(path).st_mode):  # a FIFO or a device would block or never end
+            raise ValueError(f"{path.name}: cannot read the file (not a regular file)")
         lines = path.read_text(errors="replace").splitlines()
     except OSError as exc:
         raise ValueError(f"{path.name}: cannot read the file ({exc.strerror or exc})") from None
@@ -119,13 +129,24 @@ def read_storage(path):
         end = next(i for i, line in enumerate(lines) if line.strip().lower() == "endheader")
     except StopIteration:
         raise ValueError(f"{path.name}: no 'endheader' line: not an OpenSim storage file") from None
-    in_degrees = any(line.strip().replace(" ", "").lower() == "indegrees=yes" for line in lines[:end])
+    in_degrees = False
+    for k, line in enumerate(lines[:end], start=1):
+        key, _, value = "".join(line.split()).lower().partition("=")
+        if key == "indegrees":
+            if value not in ("yes", "no"):
+                raise ValueError(f"{path.name}: line {k}: inDegrees must be yes or no, got {line.strip()[:40]!r}")
+            in_degrees = value == "yes"
     if end + 1 >= len(lines):
         raise ValueError(f"{path.name}: no column labels after 'endheader'")
     labels = lines[end + 1].split("\t") if "\t" in lines[end + 1] else lines[end + 1].split()
     labels = [x.strip() for x in labels]
+    while labels and not labels[-1]:  # trailing tabs (OpenSim's example GRF files end their lines with one)
+        labels.pop()
     if not labels or labels[0].lower() != "time":
         raise ValueError(f"{path.name}: line {end + 2}: the first column must be 'time', got {labels[:1]}")
+    twice = [x for x, n in Counter(labels).items() if n > 1]
+    if twice:
+        raise ValueError(f"{path.name}: line {end + 2}: column {twice[0]!r} is given twice")
     rows = []
     for k, line in enumerate(lines[end + 2:], start=end + 3):
         if not line.strip():
@@ -133,10 +154,9 @@ def read_storage(path):
         cells = line.split()
         if len(cells) != len(labels):
             raise ValueError(f"{path.name}: line {k}: {len(cells)} values for {len(labels)} columns")
-        try:
-            rows.append([float(c) for c in cells])
-        except ValueError:
-            raise ValueError(f"{path.name}: line {k}: a value is not a number") from None
+        if not all(_VALUE.match(c) for c in cells):
+            raise ValueError(f"{path.name}: line {k}: a value is not a number")
+        rows.append([float(c) for c in cells])
     data = np.array(rows, dtype=float).reshape(-1, len(labels))
     if not np.all(np.isfinite(data[:, 0])) or np.any(np.diff(data[:, 0]) <= 0):
         raise ValueError(f"{path.name}: the times are not finite and increasing")

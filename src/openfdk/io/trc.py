@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 import os
+import stat
 
 import numpy as np
 
@@ -89,6 +90,8 @@ def read_trc(path: str | os.PathLike) -> MarkerTrial:
     """
     name = os.fspath(path)
     try:
+        if not stat.S_ISREG(os.stat(name).st_mode):  # a FIFO or a device would block or never end
+            raise TRCError(f"{name}: cannot read the file: not a regular file")
         with open(name, encoding="utf-8", errors="replace") as fh:
             lines = fh.readlines()
     except OSError as exc:
@@ -141,6 +144,8 @@ def read_trc(path: str | os.PathLike) -> MarkerTrial:
                            f"(frame, time and x y z of {n_markers} markers)")
         cells = cells + [""] * (n_values - len(cells))
         times.append(_number(cells[1], name, line_no, "the time"))
+        if not math.isfinite(times[-1]):
+            raise TRCError(f"{name}: line {line_no}: the time is {cells[1]!r}, expected a finite number")
         decimals = max(decimals, len(cells[1].split(".")[1].rstrip("0")) if "." in cells[1] and "e" not in cells[1].lower() else 0)
         row = np.full(3 * n_markers, np.nan)
         for j, cell in enumerate(cells[2:n_values]):

@@ -489,7 +489,12 @@ def _knots(spec, path, error, min_points):
     return x, y
 
 
-def function_from_spec(spec, path: str, error) -> PiecewisePolynomial:
+#: the deepest nesting of multiplier functions read (deeper specs are refused rather than
+#: exhausting Python's recursion limit; an .osim cannot nest deeper: lxml's depth limit)
+MAX_NESTING = 200
+
+
+def function_from_spec(spec, path: str, error, _depth=0) -> PiecewisePolynomial:
     """The :class:`PiecewisePolynomial` of a function declared as a plain dict, in the
     units of the declaration (convert with :meth:`PiecewisePolynomial.scaled`):
 
@@ -523,7 +528,7 @@ def function_from_spec(spec, path: str, error) -> PiecewisePolynomial:
             parts.append(f"unexpected {', '.join(map(str, extra))}")
         raise error(path, f"{kind} function: {'; '.join(parts)} "
                           f"(a {kind} function has {', '.join(_KEYS[kind])})")
-    return _build(kind, spec, path, error)
+    return _build(kind, spec, path, error, _depth)
 
 
 def _made(make, path, error, *args):
@@ -535,7 +540,7 @@ def _made(make, path, error, *args):
         raise error(path, str(exc)) from None
 
 
-def _build(kind, spec, path, error):
+def _build(kind, spec, path, error, depth=0):
     if kind == "constant":
         return _made(constant, path, error, _number(spec["value"], path, "value", error))
     if kind == "linear":
@@ -563,5 +568,10 @@ def _build(kind, spec, path, error):
         return _made(natural_spline, path, error, *_knots(spec, path, error, degree + 1), degree)
     # multiplier
     scale = _number(spec["scale"], path, "scale", error)
-    inner = function_from_spec(spec["function"], f"{path}.function" if path else "function", error)
-    return inner.scaled(1.0, scale)
+    if depth >= MAX_NESTING:
+        raise error(path, f"multiplier functions nested more than {MAX_NESTING} deep")
+    inner = function_from_spec(spec["function"], f"{path}.function" if path else "function", error, depth + 1)
+    try:
+        return inner.scaled(1.0, scale)
+    except ValueError:
+        raise error(path, f"scale {scale:g} times the function overflows (the numbers are too large)") from None

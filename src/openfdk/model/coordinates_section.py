@@ -60,12 +60,20 @@ def read_coordinates(spec, ctx):
                          locked=ctx.boolean(c.get("locked", False), f"{p}.locked"), prescribed=None)
         if c.get("prescribed") is not None:
             fn = function_from_spec(c["prescribed"], f"{p}.prescribed", ctx.error)
-            out[name]["prescribed"] = fn.scaled(1.0, scale)
+            out[name]["prescribed"] = _scaled(fn, 1.0, scale, f"{p}.prescribed", ctx)
     return out
 
 
 def _scales(ctx, unit):
     return ctx.angle if unit == "angle" else ctx.length
+
+
+def _scaled(fn, sx, sy, path, ctx):
+    """``fn.scaled(sx, sy)``, or the file's error when the unit change overflows."""
+    try:
+        return fn.scaled(sx, sy)
+    except ValueError as exc:
+        raise ctx.error(path, f"{exc} in SI units (the numbers are too large)") from None
 
 
 def load_custom_joint(b, name, spec, coordinates, ctx, wrap):
@@ -85,6 +93,9 @@ def load_custom_joint(b, name, spec, coordinates, ctx, wrap):
             a = ctx.keys(items[k], ap, AXIS_KEYS) if k < len(items) else {"axis": defaults[k].tolist(), "value": 0.0}
             axis = ctx.vector(a.get("axis", defaults[k].tolist()), f"{ap}.axis", n=3)
             norm = float(np.linalg.norm(axis))
+            if not np.isfinite(norm):  # components near the float limit: scale down first
+                axis = axis / np.max(np.abs(axis))
+                norm = float(np.linalg.norm(axis))
             axis_unit = "angle" if kind == "rotations" else "length"
             label = f"{kind[:-1]}{k + 1}"
             coord = a.get("coordinate")
@@ -98,14 +109,14 @@ def load_custom_joint(b, name, spec, coordinates, ctx, wrap):
                 continue
             if "value" in a:
                 raise ctx.error(ap, "give either 'value' (a constant axis) or 'coordinate' (and 'function')")
-            if coord not in coordinates:
+            if not isinstance(coord, str) or coord not in coordinates:
                 raise ctx.error(f"{ap}.coordinate", f"unknown coordinate {coord!r}; declare it under coordinates:")
             if norm == 0.0:
                 raise ctx.error(f"{ap}.axis", "a zero axis")
             cunit = coordinates[coord]["unit"]
             fspec = a.get("function", {"type": "linear", "slope": 1.0, "intercept": 0.0})
             fn = function_from_spec(fspec, f"{ap}.function", ctx.error)
-            fn = fn.scaled(_scales(ctx, cunit), _scales(ctx, axis_unit))
+            fn = _scaled(fn, _scales(ctx, cunit), _scales(ctx, axis_unit), f"{ap}.function", ctx)
             out.append(Axis(label, axis / norm, coord, fn))
             mine[coord] = cunit
         axes[kind] = out
@@ -145,9 +156,12 @@ def load_couplers(b, spec, coordinates, ctx, wrap):
         p = f"couplers.{name}"
         ctx.keys(c, p, ["independent", "dependent", "function"], required=("independent", "dependent", "function"))
         for key in ("independent", "dependent"):
-            if c[key] not in coordinates:
+            if not isinstance(c[key], str) or c[key] not in coordinates:
                 raise ctx.error(f"{p}.{key}", f"unknown coordinate {c[key]!r}; declare it under coordinates:")
+        if c["independent"] == c["dependent"]:
+            raise ctx.error(f"{p}.dependent", f"{c['dependent']!r} is also the independent coordinate; a coupler "
+                                              "relates two coordinates")
         fn = function_from_spec(c["function"], f"{p}.function", ctx.error)
-        fn = fn.scaled(_scales(ctx, coordinates[c["independent"]]["unit"]),
-                       _scales(ctx, coordinates[c["dependent"]]["unit"]))
+        fn = _scaled(fn, _scales(ctx, coordinates[c["independent"]]["unit"]),
+                     _scales(ctx, coordinates[c["dependent"]]["unit"]), f"{p}.function", ctx)
         wrap(ctx, p, lambda: add_coupler(b, name, c["independent"], c["dependent"], fn))

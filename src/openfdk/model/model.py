@@ -41,6 +41,8 @@ class Model:
     visuals : Visual (display meshes of bodies, for the viewer; no forces)
     coordinates : Coordinate (OpenSim-style joint coordinates, each a named measure;
         :mod:`openfdk.model.coordinate_joint`)
+    external_loads : DataLoad (measured loads from a sampled file, e.g. ground
+        reactions; :mod:`openfdk.forces.data_loads`)
     tasks : CoordinateTask (soft rows of marker tracking beside the markers, Eq. 4:
         OpenSim's IKCoordinateTasks; :mod:`openfdk.model.tasks`)
 
@@ -66,6 +68,7 @@ class Model:
     visuals: tuple = ()
     coordinates: tuple = ()
     tasks: tuple = ()
+    external_loads: tuple = ()
     source: str = ""
 
     # -- look-ups -------------------------------------------------------------------

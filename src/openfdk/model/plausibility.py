@@ -77,7 +77,8 @@ def check_mass_properties(model, source=""):
         where = _where(source, f"bodies.{b.name}")
         if b.mass > MAX_MASS:
             raise ModelError(f"{where}.mass: {b.mass:g} kg is not a plausible body mass (at most {MAX_MASS:g} kg)")
-        I = np.linalg.eigvalsh(0.5 * (b.inertia_B + b.inertia_B.T))
+        scale = float(np.max(np.abs(b.inertia_B))) or 1.0  # eigvalsh fails on entries near the float limit
+        I = np.linalg.eigvalsh(0.5 * (b.inertia_B / scale + b.inertia_B.T / scale)) * scale
         if I[-1] > MAX_INERTIA:
             raise ModelError(f"{where}.inertia: principal moment {I[-1]:g} kg m² is not plausible "
                              f"(at most {MAX_INERTIA:g} kg m²)")

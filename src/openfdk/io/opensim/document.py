@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import OsimError, where
-from .functions import function_element, function_spec
+from .functions import _NUMBER, function_element, function_spec
 
 #: OpenSim joint types and their SpatialTransform (rotation axes, translation axes,
 #: with the coordinate index of each axis or None): OpenSim's own definitions (Joint
@@ -197,24 +197,16 @@ def read_document(path, ignore=()) -> OsimDocument:
     """Read ``path`` (an ``.osim``) into an OsimDocument; ``ignore``: element types (tag
     names, or ``forces`` for the ForceSet and wrap objects) to leave out, listed in
     ``OsimDocument.ignored``. Raises OsimError (one line naming file, line, element)."""
-    from lxml import etree
-
     path = Path(path)
     source = path.name
-    try:
-        tree = etree.parse(str(path), _parser())
-    except OSError as exc:
-        raise OsimError(f"{source}: cannot read the file ({exc})") from None
-    except etree.XMLSyntaxError as exc:
-        raise OsimError(f"{source}: not well-formed XML: {exc.msg} (line {exc.lineno})") from None
-    root = tree.getroot()
+    root = parse_xml(path, source).getroot()
     if root.tag != "OpenSimDocument":
         raise OsimError(f"{source}: line {root.sourceline}: the root element is <{root.tag}>, not <OpenSimDocument>: "
                         "not an OpenSim model")
     try:
         version = int(root.get("Version", "0"))
     except ValueError:
-        raise OsimError(f"{source}: line {root.sourceline}: OpenSimDocument Version {root.get('Version')!r} is not "
+        raise OsimError(f"{source}: line {root.sourceline}: OpenSimDocument Version {_clip(root.get('Version'))!r} is not "
                         "a number") from None
     model = root.find("Model")
     if model is None:
@@ -223,18 +215,48 @@ def read_document(path, ignore=()) -> OsimDocument:
     return reader.read(model, version)
 
 
+def parse_xml(path, source):
+    """The lxml tree of the XML file ``path`` (an .osim or an OpenSim setup file), or
+    OsimError naming ``source``: the file must be a regular file (not a FIFO or a device,
+    which would block or never end) and have no DOCTYPE (OpenSim writes none; its
+    entities, unexpanded here, would silently drop or change values)."""
+    import os
+    import stat
+
+    from lxml import etree
+
+    try:
+        if not stat.S_ISREG(os.stat(path).st_mode):
+            raise OsimError(f"{source}: cannot read the file (not a regular file)")
+        tree = etree.parse(str(path), _parser())
+    except OSError as exc:
+        raise OsimError(f"{source}: cannot read the file ({exc.strerror or exc})") from None
+    except etree.XMLSyntaxError as exc:
+        raise OsimError(f"{source}: not well-formed XML: {exc.msg} (line {exc.lineno})") from None
+    if tree.docinfo.doctype:
+        raise OsimError(f"{source}: has a DOCTYPE declaration ({_clip(tree.docinfo.doctype)}); OpenSim files have "
+                        "none (refused: its entities could hide or change values)")
+    return tree
+
+
+def _clip(text, n=80):
+    """``text`` cut to ``n`` characters for a message."""
+    text = str(text)
+    return text if len(text) <= n else f"{text[:n]}… ({len(text)} characters)"
+
+
 def numbers(element, source, n=None, what=None):
     """The whitespace-separated numbers of an element's text -> float array; ``n``: the
-    count required. Errors name the element and its line."""
+    count required. Errors name the element and its line. Numbers are decimal as OpenSim
+    writes them (no '1_000', hexadecimal or non-ASCII digits, which Python's float reads)."""
     text = (element.text or "").split()
-    try:
-        arr = np.array([float(x) for x in text])
-    except ValueError:
-        raise OsimError(f"{where(source, element, what)}: expected numbers, got {element.text!r}") from None
+    if not all(_NUMBER.match(x) or x.lower().lstrip("+-") in ("nan", "inf", "infinity") for x in text):
+        raise OsimError(f"{where(source, element, what)}: expected numbers, got {_clip(element.text)!r}")
+    arr = np.array([float(x) for x in text])
     if n is not None and arr.shape != (n,):
         raise OsimError(f"{where(source, element, what)}: expected {n} numbers, got {len(arr)}")
     if not np.all(np.isfinite(arr)):
-        raise OsimError(f"{where(source, element, what)}: non-finite number in {element.text!r}")
+        raise OsimError(f"{where(source, element, what)}: non-finite number in {_clip(element.text)!r}")
     return arr
 
 
@@ -250,6 +272,18 @@ def _constant_value(spec):
     if f.n_pieces == 0 and np.array_equal(f.left, f.right) and not np.any(f.left[1:]):
         return float(f.left[0])
     return None
+
+
+def _affine_in(axis, coordinate):
+    """Whether the OsimAxis ``axis`` is an affine function of ``coordinate`` with a
+    non-zero slope (a LinearFunction, a MultiplierFunction of one, …)."""
+    from ...model.coordinate_functions import function_from_spec
+    from ...model.coordinate_joint import affine
+
+    if coordinate not in axis.coordinates:
+        return False
+    line = affine(function_from_spec(axis.function, axis.name, lambda path, msg: OsimError(f"{path}: {msg}")))
+    return line is not None and line[0] != 0.0
 
 
 def rotation_xyz(angles):
@@ -274,10 +308,18 @@ class _Reader:
         self.unsupported, self.ignored = [], []
         self.pending = []  # (frame key, socket path, scope): frames whose parent is resolved after reading
         self.joint_sockets = []  # (joint, parent path, child path, scope)
+        self.seen = set()  # (kind, name) of the joints, constraints and markers: each name once
 
     # -- small helpers ----------------------------------------------------------------
     def err(self, element, msg, what=None):
         return OsimError(f"{where(self.source, element, what)}: {msg}")
+
+    def once(self, element, kind, name):
+        """Refuse a second joint, constraint or marker of the same name (OpenSim's
+        names are unique within a set; openfdk would keep one of them)."""
+        if (kind, name) in self.seen:
+            raise self.err(element, f"a second {kind} named {name!r}")
+        self.seen.add((kind, name))
 
     def child_numbers(self, element, tag, n, default=None):
         e = element.find(tag)
@@ -382,6 +424,22 @@ class _Reader:
                 if f not in self.frames:
                     raise OsimError(f"{self.source}: line {j.line}: {j.type} {j.name!r}: frame {f!r} is neither a "
                                     "body nor a PhysicalOffsetFrame of the model")
+        for key, f in self.frames.items():  # every frame ends on a body or the ground
+            if f.body == key and key not in self.bodies and key != "ground":
+                raise OsimError(f"{self.source}: line {f.line}: frame {key!r} is attached to itself")
+            if f.body not in self.frames and f.body != "ground":
+                raise OsimError(f"{self.source}: line {f.line}: frame {key!r} is attached to {f.body!r}, which is "
+                                "neither a body nor a frame of the model")
+        for what, items in (("Marker", self.markers), ("Mesh", self.geometry)):
+            for m in items:
+                if m.frame not in self.frames and m.frame != "ground":
+                    raise OsimError(f"{self.source}: line {m.line}: {what} {getattr(m, 'name', None) or m.file!r}: "
+                                    f"frame {m.frame!r} is neither a body nor a frame of the model")
+        for c in self.constraints:
+            for f in c.frames:
+                if f not in self.frames and f != "ground":
+                    raise OsimError(f"{self.source}: line {c.line}: {c.type} {c.name!r}: frame {f!r} is neither a "
+                                    "body nor a frame of the model")
         return OsimDocument(self.source, self.path, name, version, gravity, self.bodies, self.frames, self.joints,
                             self.coordinates, self.constraints, self.markers, self.geometry, self.unsupported,
                             self.ignored)
@@ -415,6 +473,8 @@ class _Reader:
         name = body.get("name")
         if not name:
             raise self.err(body, "a body without a name")
+        if not legacy and name == "ground":
+            raise self.err(body, "a body named 'ground', the name of the model's ground")
         if legacy and name == "ground":
             self.add_frame(OsimFrame("ground", "ground", np.zeros(3), np.eye(3), body.sourceline), body)
             self.body_geometry(body, "ground")
@@ -496,6 +556,7 @@ class _Reader:
         name = joint.get("name")
         if not name:
             raise self.err(joint, "a joint without a name")
+        self.once(joint, "joint", name)
         if self.child_bool(joint, "reverse", False):
             raise self.err(joint, "<reverse>true</reverse> joints are not supported")
         if legacy:
@@ -533,10 +594,15 @@ class _Reader:
         for c in coords:
             if c.name not in used:
                 raise self.err(joint, f"coordinate {c.name!r} moves no axis of the joint")
-            rot = any(c.name in ax.coordinates for ax in rotations)
-            tra = any(c.name in ax.coordinates for ax in translations)
-            if not c.motion_type:  # OpenSim 4: rotational when it moves a rotation axis
-                c.motion_type = "rotational" if rot else "translational"
+            if not c.motion_type:
+                # the kind of the axis that is the coordinate itself (an affine function
+                # of it; rotations first): what OpenSim 4 reports when that function is a
+                # LinearFunction of slope 1 (it says "coupled" otherwise), and the axis
+                # that measures the coordinate in openfdk (coordinate_joint), so its unit
+                c.motion_type = ("rotational" if any(_affine_in(ax, c.name) for ax in rotations) else
+                                 "translational" if any(_affine_in(ax, c.name) for ax in translations) else
+                                 "rotational" if any(c.name in ax.coordinates for ax in rotations) else
+                                 "translational")
         self.joints.append(OsimJoint(name, kind, parent_name, child_name, names, rotations, translations,
                                      joint.sourceline))
         if not legacy:
@@ -614,6 +680,9 @@ class _Reader:
                                        f"TransformAxis '{ta.get('name')}' of {joint.tag} '{joint.get('name')}'")
                     spec = {"type": "constant", "value": value}
                 norm = float(np.linalg.norm(axis))
+                if not np.isfinite(norm):  # components near the float limit: scale down first
+                    axis = axis / np.max(np.abs(axis))
+                    norm = float(np.linalg.norm(axis))
                 if norm == 0.0:
                     if coords or spec.get("value", 0.0) != 0.0:
                         raise self.err(ta, "a zero axis", f"TransformAxis '{ta.get('name')}' of {joint.tag} "
@@ -651,6 +720,7 @@ class _Reader:
         if not enforced:
             self.ignored.append((kind, name, c.sourceline))  # disabled in the file: OpenSim does not apply it
             return
+        self.once(c, "constraint", name)
         if kind == "CoordinateCouplerConstraint":
             indep = tuple(self.child_text(c, "independent_coordinate_names").split())
             dep = self.child_text(c, "dependent_coordinate_name")
@@ -658,11 +728,7 @@ class _Reader:
             if fe is None:
                 raise self.err(c, "no <coupled_coordinates_function>")
             spec = function_spec(fe, self.source)
-            scale = self.child_text(c, "scale_factor", "1")
-            try:
-                scale = float(scale)
-            except ValueError:
-                raise self.err(c, f"scale_factor {scale!r} is not a number") from None
+            scale = float(self.child_numbers(c, "scale_factor", 1, [1.0])[0])
             if scale != 1.0:
                 spec = {"type": "multiplier", "scale": scale, "function": spec}
             if len(indep) != 1:
@@ -705,6 +771,7 @@ class _Reader:
         name = m.get("name")
         if not name:
             raise self.err(m, "a marker without a name")
+        self.once(m, "marker", name)
         frame = (self.child_text(m, "body") if legacy and m.find("body") is not None
                  else self.child_text(m, "socket_parent_frame"))
         self.markers.append(OsimMarker(name, frame, self.child_numbers(m, "location", 3), frame, m.sourceline))

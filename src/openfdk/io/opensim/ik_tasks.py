@@ -20,24 +20,30 @@ from pathlib import Path
 
 import numpy as np
 
-from .document import _parser
+from .document import parse_xml
 from .errors import OsimError, where
+from .functions import _NUMBER
+
+
+def _number(task, tag, default, source):
+    """The finite number of a task's <tag> (``default`` when absent), decimal as OpenSim
+    writes it; errors name the file, the line and the task."""
+    text = (task.findtext(tag) or default).strip()
+    if not _NUMBER.match(text):
+        raise OsimError(f"{where(source, task)}: <{tag}> is not a finite number: {text[:40]!r}")
+    value = float(text)
+    if not np.isfinite(value):
+        raise OsimError(f"{where(source, task)}: <{tag}> is not a finite number: {text[:40]!r}")
+    return value
 
 
 def read_ik_tasks(path):
     """(marker weights {OpenSim marker name: weight}, coordinate tasks {coordinate:
     {weight, value_type, value, column (times, values) or None}}) of a setup or tasks
     file. Errors name the file, the line and the task."""
-    from lxml import etree
-
     path = Path(path)
     source = path.name
-    try:
-        root = etree.parse(str(path), _parser()).getroot()
-    except OSError as exc:
-        raise OsimError(f"{source}: cannot read the file ({exc})") from None
-    except etree.XMLSyntaxError as exc:
-        raise OsimError(f"{source}: not well-formed XML: {exc.msg} (line {exc.lineno})") from None
+    root = parse_xml(path, source).getroot()
     tool = root.find(".//InverseKinematicsTool")
     taskset = root.find(".//IKTaskSet")
     if taskset is None:
@@ -48,7 +54,7 @@ def read_ik_tasks(path):
         if text and text.lower() != "unassigned":
             coordinate_file = path.parent / text
     objects = taskset.find("objects")
-    markers, coords = {}, {}
+    markers, coords, seen = {}, {}, set()
     for task in (objects if objects is not None else taskset):
         if not isinstance(task.tag, str):
             continue
@@ -57,15 +63,15 @@ def read_ik_tasks(path):
             raise OsimError(f"{where(source, task)}: not an IK task (IKMarkerTask or IKCoordinateTask)")
         if not name:
             raise OsimError(f"{where(source, task)}: a task without a name")
+        if (task.tag, name) in seen:
+            raise OsimError(f"{where(source, task)}: a second {task.tag} named {name!r}")
+        seen.add((task.tag, name))
         apply = (task.findtext("apply") or "true").strip().lower()
         if apply not in ("true", "false"):
             raise OsimError(f"{where(source, task)}: <apply> must be true or false, got {apply!r}")
-        try:
-            weight = float((task.findtext("weight") or "1").strip())
-        except ValueError:
-            raise OsimError(f"{where(source, task)}: <weight> is not a number") from None
-        if not np.isfinite(weight) or weight < 0:
-            raise OsimError(f"{where(source, task)}: <weight> must be finite and >= 0, got {weight}")
+        weight = _number(task, "weight", "1", source)
+        if weight < 0:
+            raise OsimError(f"{where(source, task)}: <weight> must be >= 0, got {weight}")
         if task.tag == "IKMarkerTask":
             markers[name] = weight if apply == "true" else 0.0
             continue
@@ -74,10 +80,7 @@ def read_ik_tasks(path):
         kind = (task.findtext("value_type") or "default_value").strip()
         entry = {"weight": weight, "value_type": kind, "value": None, "line": task.sourceline}
         if kind == "manual_value":
-            try:
-                entry["value"] = float((task.findtext("value") or "0").strip())
-            except ValueError:
-                raise OsimError(f"{where(source, task)}: <value> is not a number") from None
+            entry["value"] = _number(task, "value", "0", source)
         elif kind == "from_file":
             if coordinate_file is None:
                 raise OsimError(f"{where(source, task)}: value_type from_file needs the setup's <coordinate_file>")
@@ -129,6 +132,12 @@ def apply_ik_tasks(data, path, doc_coordinates):
                 raise OsimError(f"{source}: line {t['line']}: IKCoordinateTask {name!r}: no column {name!r} in "
                                 f"{Path(f).name}")
             values = columns[name]
+            bad = np.flatnonzero(~np.isfinite(values))
+            if len(bad) or len(times) < 2:
+                problem = (f"the value at t = {times[bad[0]]:g} s is {values[bad[0]]}" if len(bad) else
+                           f"{len(times)} rows; a coordinate task from a file needs at least 2")
+                raise OsimError(f"{source}: line {t['line']}: IKCoordinateTask {name!r}: column {name!r} of "
+                                f"{Path(f).name}: {problem}")
             if in_degrees and coord["motion"] != "translational":
                 values = np.radians(values)
             value = {"type": "spline", "times": times.tolist(), "values": values.tolist()}

@@ -45,6 +45,9 @@ class ImportOptions:
     mesh_dirs: tuple = ()
     overlay: Path | None = None
     ik_tasks: Path | None = None
+    external_loads: Path | None = None
+    motion: Path | None = None
+    motion_cutoff_hz: float | None = None
     info: dict = field(default_factory=dict)
 
 
@@ -52,21 +55,29 @@ _REGISTERED: dict = {}
 
 
 def _key(path):
-    return str(Path(path).resolve())
+    import os
+
+    return os.path.realpath(path)  # (Path.resolve raises on a symlink loop; the reader then says what is wrong)
 
 
-def register(path, ignore=(), mesh_dirs=(), overlay=None, ik_tasks=None):
+def register(path, ignore=(), mesh_dirs=(), overlay=None, ik_tasks=None, external_loads=None, motion=None,
+             motion_cutoff_hz=None):
     """Options for the ``.osim`` at ``path`` in this process (the command line's
     ``--ignore``, ``--geometry``, ``--with`` and ``--ik-tasks``)."""
+    for d in mesh_dirs:
+        if not Path(d).is_dir():
+            raise ModelError(f"--geometry: folder {str(d)!r} does not exist")
     _REGISTERED[_key(path)] = ImportOptions(tuple(ignore), tuple(mesh_dirs), None if overlay is None else Path(overlay),
-                                            None if ik_tasks is None else Path(ik_tasks))
+                                            None if ik_tasks is None else Path(ik_tasks),
+                                            None if external_loads is None else Path(external_loads),
+                                            None if motion is None else Path(motion), motion_cutoff_hz)
 
 
 def import_info(path):
     """What the last import of ``path`` dropped and merged ({dropped, merged_bodies}),
     for summary.json; {} if it was not an OpenSim import."""
     opts = _REGISTERED.get(_key(path))
-    return dict(opts.info) if opts else {}
+    return {k: v for k, v in opts.info.items() if k != "body_frames"} if opts else {}
 
 
 def imported_model_data(path):
@@ -85,9 +96,20 @@ def imported_model_data(path):
 
         data = apply_ik_tasks(data, opts.ik_tasks, data.get("coordinates", {}))
         info["ik_tasks"] = str(opts.ik_tasks)
+    if opts.external_loads is not None:
+        from .external_loads import read_external_loads
+
+        data = read_external_loads(opts.external_loads, data, info)
+        info["external_loads"] = str(opts.external_loads)
+    if opts.motion is not None:
+        from .motion import motion_drivers
+
+        data = motion_drivers(opts.motion, data, opts.motion_cutoff_hz)
+        info["motion"] = str(opts.motion)
     if opts.overlay is not None:
         overlay = read_yaml(opts.overlay, ModelError, "overlay file")
-        data = merge_overlay(data, overlay, Path(opts.overlay).name, allow_options=False)
+        data = merge_overlay(data, overlay, Path(opts.overlay).name, allow_options=False,
+                             base_dir=Path(opts.overlay).parent, info=info)
     return data
 
 
@@ -98,13 +120,18 @@ def overlay_model_data(path, data):
         return data
     source = Path(path).name
     target = data["opensim"]
-    if not isinstance(target, str) or not target:
+    from . import is_osim
+
+    if not isinstance(target, str) or not is_osim(target):
         raise ModelError(f"{source}: opensim: expected the path of an .osim file, got {target!r}")
     osim = Path(path).parent / target
     for key in ("ignore", "geometry"):
         value = data.get(key, [])
         if not isinstance(value, list) or not all(isinstance(v, str) and v for v in value):
             raise ModelError(f"{source}: {key}: expected a list of names, got {value!r}")
+    for d in data.get("geometry", []):
+        if not (Path(path).parent / d).is_dir():
+            raise ModelError(f"{source}: geometry: folder {d!r} does not exist")
     tasks = data.get("ik_tasks")
     if tasks is not None and (not isinstance(tasks, str) or not (Path(path).parent / tasks).is_file()):
         raise ModelError(f"{source}: ik_tasks: expected the path of an existing IK setup or tasks file, got {tasks!r}")
@@ -113,16 +140,48 @@ def overlay_model_data(path, data):
     if not osim.is_file():
         raise ModelError(f"{source}: opensim: {target!r} does not exist")
     base = imported_model_data(osim)
-    return merge_overlay(base, data, source, allow_options=True)
+    return merge_overlay(base, data, source, allow_options=True, base_dir=Path(path).parent,
+                         info=_REGISTERED[_key(osim)].info)
 
 
-def merge_overlay(data, overlay, source, allow_options):
+def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None):
     """The imported mapping ``data`` with the sections of ``overlay`` added (module
-    docstring); errors name the overlay file and the entry."""
+    docstring); errors name the overlay file and the entry. ``external_loads: FILE.xml``
+    (OpenSim's ExternalLoads), ``motion: FILE.mot`` and ``motion_cutoff_hz`` are read
+    relative to ``base_dir`` (the overlay's folder)."""
+    from ...model.modelfile import CORE_SECTIONS
+    from ..modelfile import SECTIONS
+
     if not isinstance(overlay, dict):
         raise ModelError(f"{source}: an overlay must be a mapping of model-file sections")
+    overlay = dict(overlay)
+    base_dir = Path(base_dir or ".")
+    info = {} if info is None else info
+    if isinstance(overlay.get("external_loads"), str):
+        from .external_loads import read_external_loads
+
+        xml = base_dir / overlay.pop("external_loads")
+        if not xml.is_file():
+            raise ModelError(f"{source}: external_loads: {str(xml)!r} does not exist")
+        data = read_external_loads(xml, data, info)
+    cutoff = overlay.pop("motion_cutoff_hz", None)
+    if cutoff is not None and (isinstance(cutoff, bool) or not isinstance(cutoff, (int, float)) or not cutoff > 0):
+        raise ModelError(f"{source}: motion_cutoff_hz: expected a positive number (Hz), got {cutoff!r}")
+    if "motion" in overlay:
+        from .motion import motion_drivers
+
+        motion = overlay.pop("motion")
+        if not isinstance(motion, str) or not (base_dir / motion).is_file():
+            raise ModelError(f"{source}: motion: expected an existing .mot/.sto file, got {motion!r}")
+        data = motion_drivers(base_dir / motion, data, cutoff)
+    known = [k for k in CORE_SECTIONS + tuple(name for name, _ in SECTIONS) if k not in MODEL_SECTIONS]
     out = dict(data)
     for key, value in overlay.items():
+        if key not in known + list(OPTION_KEYS) + list(MODEL_SECTIONS):
+            raise ModelError(f"{source}: {key}: not a model-file section an overlay can add (sections: "
+                             f"{', '.join(known)})")
+        if key not in OPTION_KEYS + MODEL_SECTIONS + ("description",) and not isinstance(value, dict):
+            raise ModelError(f"{source}: {key}: expected a mapping, got {type(value).__name__}")
         if key in OPTION_KEYS:
             if not allow_options:
                 raise ModelError(f"{source}: {key}: give it on the command line (--ignore, --geometry) or run the "

@@ -156,7 +156,13 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
     if couplers:
         out["couplers"] = couplers
     merged = {b: tree.root[b] for b in doc.bodies if tree.root[b] != b}
-    return out, {"merged_bodies": merged}
+    # each OpenSim body frame in its openfdk body (for data given in a body's frame)
+    body_frames = {}
+    for b in list(doc.bodies) + [tree.ground]:
+        root = tree.root[b]
+        p, R = tree.X_root[b]
+        body_frames[b] = ("ground" if root == tree.ground else safe_name(root), (p - com[root]).tolist(), R.tolist())
+    return out, {"merged_bodies": merged, "body_frames": body_frames}
 
 
 def find_mesh(doc, geometry, mesh_dirs=(), ignore_missing=False):

@@ -42,6 +42,9 @@ class Tree:
         joints_by_child = {}
         for j in doc.joints:
             child_body = self.frame_body(j.child)[0]
+            if child_body == self.ground:
+                raise OsimError(f"{doc.source}: line {j.line}: {j.type} {j.name!r}: its child frame {j.child!r} is "
+                                "the ground or fixed to it; a joint's child must be a body")
             if child_body in joints_by_child:
                 raise OsimError(f"{doc.source}: line {j.line}: {j.type} {j.name!r}: body {child_body!r} is already the "
                                 f"child of joint {joints_by_child[child_body].name!r}; closed loops need a constraint")

@@ -9,6 +9,7 @@ floats with Python's shortest round-trip representation, so nothing is rounded.
 
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
@@ -35,14 +36,33 @@ _Dumper.add_representer(list, _represent_list)
 _Dumper.add_representer(float, _represent_float)
 
 
-def write_imported(data, out_dir, source_name, info=None):
+def write_imported(data, out_dir, source_name, info=None, force=False):
     """Write ``data`` (an imported model mapping) as ``out_dir/<name>.yaml`` and copy its
     visual meshes into ``out_dir/Geometry`` (paths in the file made relative). Returns
-    the model file's path."""
+    the model file's path. Files of an earlier import (the model file, a mesh of the same
+    name) are overwritten only with ``force``; otherwise, and for a target that is a
+    folder, OutputDirError names it before anything is written."""
+    from ..outdir import OutputDirError
+
     out_dir = Path(out_dir)
+    name = data.get("name") or Path(source_name).stem
+    if len(name) > 100:  # a model name too long for a file name: the .osim's own name
+        name = Path(source_name).stem
+    name = f"{name}.yaml"
+    meshes = _mesh_targets(data)
+    for target in [name, "Geometry"] + sorted(set(meshes.values())):
+        path = out_dir / target
+        if target == "Geometry":
+            if os.path.lexists(path) and not path.is_dir():
+                raise OutputDirError(f"output folder {str(out_dir)!r}: {target} is a file, not a folder")
+            continue
+        if path.is_dir():
+            raise OutputDirError(f"output folder {str(out_dir)!r}: {target} is a folder")
+        if os.path.lexists(path) and not force:
+            raise OutputDirError(f"output folder {str(out_dir)!r} already holds {target} (an earlier import?); "
+                                 "use --force to overwrite it or choose another --out")
     out_dir.mkdir(parents=True, exist_ok=True)
-    data = _copy_meshes(data, out_dir)
-    name = f"{data.get('name') or Path(source_name).stem}.yaml"
+    data = _copy_meshes(data, out_dir, meshes)
     header = [f"# openfdk model imported from the OpenSim model {source_name} by openfdk import-opensim.",
               "# Units are SI (m, rad, kg); joints of type custom are OpenSim's SpatialTransforms",
               "# (docs/opensim-import.md)."]
@@ -59,27 +79,41 @@ def write_imported(data, out_dir, source_name, info=None):
     return path
 
 
-def _copy_meshes(data, out_dir):
-    """The mapping with every visual mesh copied to out_dir/Geometry (unique names)."""
-    bodies = {}
+def _mesh_targets(data):
+    """{mesh file: its path in the output folder, "Geometry/<name>"} (unique names)."""
     used = {}
+    for body in data["bodies"].values():
+        for v in body.get("visual", ()):
+            src = Path(v["mesh"])
+            if str(src) not in used:
+                target = f"Geometry/{src.name}"
+                k = 1
+                while target in used.values():
+                    target = f"Geometry/{src.stem}_{k}{src.suffix}"
+                    k += 1
+                used[str(src)] = target
+    return used
+
+
+def _copy_meshes(data, out_dir, targets):
+    """The mapping with every visual mesh copied to out_dir/Geometry (``targets``:
+    :func:`_mesh_targets`). A file is copied to a temporary name and renamed, so that a
+    symlink already at the target is replaced rather than written through."""
+    bodies = {}
     for bname, body in data["bodies"].items():
         body = dict(body)
         if "visual" in body:
-            visuals = []
-            for v in body["visual"]:
-                src = Path(v["mesh"])
-                target = used.get(str(src))
-                if target is None:
-                    target = f"Geometry/{src.name}"
-                    k = 1
-                    while target in used.values():
-                        target = f"Geometry/{src.stem}_{k}{src.suffix}"
-                        k += 1
-                    (out_dir / "Geometry").mkdir(exist_ok=True)
-                    shutil.copyfile(src, out_dir / target)
-                    used[str(src)] = target
-                visuals.append({**v, "mesh": target})
-            body["visual"] = visuals
+            body["visual"] = [{**v, "mesh": targets[str(Path(v["mesh"]))]} for v in body["visual"]]
         bodies[bname] = body
+    for src, target in targets.items():
+        dest = out_dir / target
+        dest.parent.mkdir(exist_ok=True)
+        try:
+            if os.path.samefile(src, dest):
+                continue  # --out is the model's own folder: the mesh is already there
+        except OSError:  # no such file (yet)
+            pass
+        tmp = dest.with_name(f".{dest.name}.tmp")
+        shutil.copyfile(src, tmp)
+        os.replace(tmp, dest)
     return {**data, "bodies": bodies}

@@ -1,0 +1,97 @@
+"""The model-file section ``external_loads``: measured loads (ground reactions) from a
+sampled file, applied as OpenSim's ExternalForce applies them (:mod:`.data_loads`).
+
+::
+
+    external_loads:
+      right_grf:
+        body: calcn_r                  # the body the load is applied to
+        frame: calcn_r.osim_frame      # the frame of "body" components (default: the body's frame)
+        force_frame: world             # world (ground) or body: the force's and torque's components
+        point_frame: world             # world or body: the point's components
+        file: walk_grf.mot             # an OpenSim .mot/.sto (relative to the model file)
+        force: [ground_force_vx, ground_force_vy, ground_force_vz]       # N
+        point: [ground_force_px, ground_force_py, ground_force_pz]       # m (default: the frame's origin)
+        torque: [ground_torque_x, ground_torque_y, ground_torque_z]      # N m (default: 0)
+
+The columns are interpolated by a cubic spline through the samples (exact at the
+sample times); a frame outside the file's time range fails with a message naming the
+load. ``openfdk run MODEL.osim TRIAL --external-loads LOADS.xml`` writes this section
+from OpenSim's ExternalLoads file (:mod:`openfdk.io.opensim.external_loads`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..model.timefunctions import Constant, SplineThroughData
+from .data_loads import DataLoad
+
+KEYS = ["body", "frame", "force_frame", "point_frame", "file", "force", "point", "torque"]
+
+
+def _columns(ctx, spec, key, path, columns, required):
+    names = spec.get(key)
+    if names is None:
+        if required:
+            raise ctx.error(path, f"missing required key {key!r} (three column names)")
+        return None
+    if not (isinstance(names, list) and len(names) == 3 and all(isinstance(x, str) for x in names)):
+        raise ctx.error(f"{path}.{key}", f"expected three column names, got {names!r}")
+    missing = [x for x in names if x not in columns]
+    if missing:
+        raise ctx.error(f"{path}.{key}", f"no column {missing[0]!r} in {spec['file']}")
+    return np.column_stack([columns[x] for x in names])
+
+
+def load_external_loads(b, data, ctx):
+    """The ``external_loads`` section into ``b.elements["external_loads"]``."""
+    from ..io.storage import read_storage
+
+    files = {}
+    out = []
+    for name, spec in ctx.mapping(data or {}, "external_loads").items():
+        p = f"external_loads.{name}"
+        ctx.keys(spec, p, KEYS, required=("body", "file", "force"))
+        body = ctx.string(spec["body"], f"{p}.body")
+        try:
+            index = b._body_index(body, f"{p}.body")
+        except ValueError as exc:
+            raise ctx.error(f"{p}.body", str(exc)) from None
+        if index == 0:
+            raise ctx.error(f"{p}.body", "a load on the ground does nothing; name the body it acts on")
+        frame = b.frame(spec.get("frame", body)) if isinstance(spec.get("frame", body), str) else None
+        if frame is None or frame.body != body:
+            raise ctx.error(f"{p}.frame", f"expected a frame of body {body!r}, got {spec.get('frame')!r}")
+        frames = {}
+        for key in ("force_frame", "point_frame"):
+            frames[key] = ctx.choice(spec.get(key, "world"), f"{p}.{key}", ("world", "body"), "frame")
+        file = spec["file"]
+        if not isinstance(file, str) or not file:
+            raise ctx.error(f"{p}.file", f"expected a file name, got {file!r}")
+        path = Path(file) if Path(file).is_absolute() else ctx.base_dir / file
+        if path not in files:
+            try:
+                files[path] = read_storage(path)
+            except ValueError as exc:
+                raise ctx.error(f"{p}.file", str(exc)) from None
+        times, columns, _ = files[path]
+        if len(times) < 2:
+            raise ctx.error(f"{p}.file", f"{file} has fewer than 2 samples")
+        F = _columns(ctx, spec, "force", p, columns, True)
+        P = _columns(ctx, spec, "point", p, columns, False)
+        T = _columns(ctx, spec, "torque", p, columns, False)
+        for label, arr in (("force", F), ("point", P), ("torque", T)):
+            if arr is not None and not np.all(np.isfinite(arr)):
+                k = int(np.flatnonzero(~np.all(np.isfinite(arr), axis=1))[0])
+                raise ctx.error(f"{p}.{label}", f"non-finite value in {file} at t = {times[k]:g} s")
+        if P is None and frames["point_frame"] == "world":
+            raise ctx.error(f"{p}.point", "a load without a point acts at the frame's origin: set point_frame: body")
+        out.append(DataLoad(
+            name, index, SplineThroughData(times, F),
+            Constant(np.zeros(3)) if P is None else SplineThroughData(times, P),
+            Constant(np.zeros(3)) if T is None else SplineThroughData(times, T),
+            frames["force_frame"], frames["point_frame"], np.asarray(frame.p_BF, float), np.asarray(frame.R_BF, float)))
+    b.elements["external_loads"] = out

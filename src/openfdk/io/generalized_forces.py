@@ -1,0 +1,91 @@
+"""``generalized_forces.csv`` and ``.sto``: the generalised force along each OpenSim
+coordinate of a run driven by a coordinate file (``--motion``), with OpenSim's column
+names, so that they compare column by column with OpenSim's inverse dynamics output
+(``InverseDynamics.sto``): ``{coordinate}_moment`` (N m) for rotational coordinates,
+``{coordinate}_force`` (N) for translational ones.
+
+Each value is the reaction of the coordinate's driver (:mod:`openfdk.io.opensim.motion`):
+the generalised force an actuator on that coordinate must apply, conjugate to the
+coordinate (the virtual work τ δq), as OpenSim's InverseDynamicsSolver reports it.
+
+The root joint's coordinates (the joint whose parent is the ground) carry the residuals:
+the forces and moments the ground reaction and the model's loads do not balance.
+``summary.json`` reports their RMS and peak (``residuals``), and a warning is given when
+a residual force exceeds 5 % of the body weight (total mass · g), the usual threshold
+for a dynamically consistent gait trial.
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from .results import write_table
+from .storage import write_storage
+
+SUFFIX = "_motion"
+RESIDUAL_FORCE_FRACTION = 0.05
+
+
+def generalized_forces(model, dyn):
+    """{OpenSim column name: (nf,) N m or N} of the driven coordinates of ``dyn`` (an
+    InverseDynamicsResult), in the model's coordinate order; {} without driven ones."""
+    index = {name: k for k, name in enumerate(dyn.column_names)}
+    out = {}
+    for c in model.coordinates:
+        k = index.get(f"{c.name}{SUFFIX}")
+        if k is None:
+            k = index.get(f"{c.name}{SUFFIX}.reaction")
+        if k is None:
+            continue
+        out[f"{c.name}_{'moment' if c.unit == 'angle' else 'force'}"] = np.asarray(dyn.forces[:, k], float)
+    return out
+
+
+def residual_summary(model, columns):
+    """RMS and peak of the root joint's generalised forces {column: {rms, peak}}, the
+    body weight (N) and the threshold of the residual forces (N)."""
+    roots = {c.joint for c in model.coordinates if _is_root(model, c)}
+    weight = float(sum(b.mass for b in model.moving_bodies) * np.linalg.norm(model.gravity_W))
+    out = {}
+    for c in model.coordinates:
+        if c.joint not in roots:
+            continue
+        key = f"{c.name}_{'moment' if c.unit == 'angle' else 'force'}"
+        if key in columns:
+            v = columns[key][np.isfinite(columns[key])]
+            if v.size:
+                out[key] = {"rms": float(np.sqrt(np.mean(v * v))), "peak": float(np.max(np.abs(v)))}
+    return {"columns": out, "body_weight_N": weight, "force_threshold_N": RESIDUAL_FORCE_FRACTION * weight}
+
+
+def _is_root(model, coordinate):
+    """Whether the coordinate's joint connects a body to the ground."""
+    con = next((c for c in model.constraints if c.name == coordinate.joint), None)
+    bodies = coordinate.measure.bodies()
+    return 0 in bodies or (con is not None and 0 in con.measure.bodies())
+
+
+def write_generalized_forces(out_dir, model, dyn):
+    """Write generalized_forces.csv and .sto when the run drove coordinates; returns the
+    residual summary (or None), and warns when a residual force is above threshold."""
+    columns = generalized_forces(model, dyn)
+    if not columns:
+        return None
+    out_dir = Path(out_dir)
+    time = np.asarray(dyn.time, float)
+    write_table(out_dir / "generalized_forces.csv", {"time": time, **columns})
+    ok = np.asarray(dyn.converged, bool)
+    write_storage(out_dir / "generalized_forces.sto", time[ok], {k: v[ok] for k, v in columns.items()},
+                  name="Inverse Dynamics (openfdk)",
+                  comments=[] if ok.all() else [f"openfdk: {int((~ok).sum())} failed frames left out"])
+    summary = residual_summary(model, columns)
+    threshold = summary["force_threshold_N"]
+    for key, stats in summary["columns"].items():
+        if key.endswith("_force") and stats["peak"] > threshold:
+            warnings.warn(f"residual {key} peaks at {stats['peak']:.4g} N (RMS {stats['rms']:.4g} N), above 5 % of the "
+                          f"body weight ({threshold:.4g} N): the ground reactions and the motion are not dynamically "
+                          "consistent (check the force-plate assignment, the model's mass and the filtering)")
+    return summary

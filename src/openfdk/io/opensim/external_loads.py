@@ -1,0 +1,107 @@
+"""OpenSim's ExternalLoads (``--external-loads LOADS.xml``): each ExternalForce as an
+entry of the model-file section ``external_loads`` (:mod:`openfdk.forces.data_load_section`),
+applied exactly as OpenSim applies it:
+
+* ``applied_to_body`` — the body the load acts on (a welded body: its merged body, with
+  the welded body's frame);
+* ``force_expressed_in_body`` / ``point_expressed_in_body`` — ``ground`` (world) or the
+  applied body (its OpenSim frame, whose origin is the body origin, not the centre of
+  mass); another body is refused by name;
+* ``force_identifier``, ``point_identifier``, ``torque_identifier`` — column prefixes
+  of the data file (``ground_force_v`` -> ``ground_force_vx``, ``…vy``, ``…vz``); an
+  empty point applies the force at the body's origin, an empty torque is zero;
+* ``datafile`` of the ExternalLoads (or each force's ``data_source_name`` when it names
+  a file), a ``.mot``/``.sto`` relative to the XML file.
+
+Disabled forces (``isDisabled`` true, ``appliesForce`` false) are left out and listed.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .document import _parser
+from .errors import OsimError, where
+
+
+def _text(element, tag):
+    e = element.find(tag)
+    return "" if e is None or e.text is None else e.text.strip()
+
+
+def read_external_loads(path, data, info):
+    """The model mapping ``data`` (an imported .osim) with the ExternalForces of
+    ``path`` as its ``external_loads`` section; ``info`` is the import's info (body
+    frames). Errors name the file, the line and the force."""
+    from lxml import etree
+
+    path = Path(path)
+    source = path.name
+    try:
+        root = etree.parse(str(path), _parser()).getroot()
+    except OSError as exc:
+        raise OsimError(f"{source}: cannot read the file ({exc})") from None
+    except etree.XMLSyntaxError as exc:
+        raise OsimError(f"{source}: not well-formed XML: {exc.msg} (line {exc.lineno})") from None
+    loads = root if root.tag == "ExternalLoads" else root.find(".//ExternalLoads")
+    if loads is None:
+        raise OsimError(f"{source}: line {root.sourceline}: no <ExternalLoads>: not an OpenSim external loads file")
+    datafile = _text(loads, "datafile")
+    objects = loads.find("objects")
+    body_frames = info.get("body_frames", {})
+    section = dict(data.get("external_loads") or {})
+    bodies = data["bodies"]
+    dropped = info.setdefault("dropped", [])
+    for force in (objects if objects is not None else []):
+        if not isinstance(force.tag, str):
+            continue
+        name = force.get("name") or ""
+        if force.tag != "ExternalForce":
+            raise OsimError(f"{where(source, force)}: not supported in an ExternalLoads file (ExternalForce only)")
+        disabled = _text(force, "isDisabled").lower() == "true" or _text(force, "appliesForce").lower() == "false"
+        if disabled:
+            dropped.append({"type": "ExternalForce", "name": name, "line": force.sourceline})
+            continue
+        body = _text(force, "applied_to_body") or _text(force, "socket_applied_to_body")
+        body = body.rstrip("/").split("/")[-1]
+        if body not in body_frames or body == "ground":
+            raise OsimError(f"{where(source, force)}: applied_to_body {body!r} is not a body of the model")
+        frames = {}
+        for key, tag in (("force_frame", "force_expressed_in_body"), ("point_frame", "point_expressed_in_body")):
+            value = (_text(force, tag) or "ground").rstrip("/").split("/")[-1]
+            if value == "ground":
+                frames[key] = "world"
+            elif value == body:
+                frames[key] = "body"
+            else:
+                raise OsimError(f"{where(source, force)}: {tag} {value!r}: openfdk reads loads expressed in the ground "
+                                f"or in the applied body {body!r}")
+        file = datafile
+        own = _text(force, "data_source_name")
+        if own and own.lower() != "unassigned" and (path.parent / own).is_file():
+            file = own
+        if not file:
+            raise OsimError(f"{where(source, force)}: no data file (<datafile> of the ExternalLoads)")
+        root_body, p, R = body_frames[body]
+        frame_name = f"{body}_osim"
+        bodies[root_body].setdefault("frames", {})[frame_name] = {"position": p, "orientation": {"matrix": R}}
+        entry = {"body": root_body, "frame": f"{root_body}.{frame_name}", **frames,
+                 "file": str((path.parent / file).resolve())}
+        for key, tag in (("force", "force_identifier"), ("point", "point_identifier"),
+                         ("torque", "torque_identifier")):
+            prefix = _text(force, tag)
+            if prefix:
+                entry[key] = [f"{prefix}{c}" for c in "xyz"]
+        if "force" not in entry:
+            raise OsimError(f"{where(source, force)}: no <force_identifier>")
+        if "point" not in entry:
+            entry["point_frame"] = "body"
+        key = name or f"ExternalForce_{len(section) + 1}"
+        if key in section:
+            raise OsimError(f"{where(source, force)}: a second external force named {key!r}")
+        section[key] = entry
+    if not section:
+        raise OsimError(f"{source}: no ExternalForce applied")
+    out = dict(data)
+    out["external_loads"] = section
+    return out

@@ -1,0 +1,81 @@
+"""A model moved by a coordinate file (``--motion ik.mot``): every coordinate of an
+OpenSim ``.mot``/``.sto`` becomes a driver with its reaction, so that inverse dynamics
+gives the generalised force along each coordinate — what OpenSim's InverseDynamicsTool
+computes from its ``coordinates_file``.
+
+* Each driver is named ``{coordinate}_motion``; its function is a cubic spline through
+  the file's samples (rotational columns converted from degrees when the file says
+  ``inDegrees=yes``), after an optional zero-lag low-pass filter (``--motion-cutoff HZ``,
+  OpenSim's ``lowpass_cutoff_frequency_for_coordinates``; default none, as OpenSim's −1).
+* Its reaction is the generalised force that moves the coordinate (N m for rotational,
+  N for translational): ``generalized_forces.csv`` names it ``{coordinate}_moment`` or
+  ``{coordinate}_force`` as OpenSim does. The root joint's ones (``pelvis_tx_force``, …)
+  are the residuals.
+* Sample times within 5 % of a sample interval of a uniform grid are put on it (files
+  that print times rounded, such as OpenSim's IK output of a 60 Hz TRC timed to 1 ms).
+* Every free coordinate must be in the file (locked and prescribed ones follow their
+  own rows, couplers' dependent coordinates follow the coupler and are not driven);
+  a column naming no coordinate is ignored, as OpenSim ignores it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .errors import OsimError
+
+SUFFIX = "_motion"
+
+
+def motion_drivers(path, data, cutoff_hz=None):
+    """The model mapping ``data`` with a driver per coordinate from the motion file
+    ``path`` (module docstring)."""
+    from ..butterworth import butter_lowpass_sos, filtfilt_padlen, sosfiltfilt
+    from ..storage import read_storage
+
+    source = Path(path).name
+    try:
+        times, columns, in_degrees = read_storage(path)
+    except ValueError as exc:
+        raise OsimError(f"--motion: {exc}") from None
+    if len(times) > 2:  # times printed rounded (OpenSim's IK keeps the TRC's 1 ms times at 60 Hz): the grid
+        grid = times[0] + np.arange(len(times)) * (times[-1] - times[0]) / (len(times) - 1)
+        if np.max(np.abs(times - grid)) < 0.05 * (grid[1] - grid[0]):
+            times = grid
+    coords = data.get("coordinates") or {}
+    dependent = {c["dependent"] for c in (data.get("couplers") or {}).values()}
+    drivers = dict(data.get("drivers") or {})
+    rate = (len(times) - 1) / (times[-1] - times[0]) if len(times) > 1 else 0.0
+    sos = None
+    if cutoff_hz:
+        if not 0 < cutoff_hz < rate / 2:
+            raise OsimError(f"--motion-cutoff: {cutoff_hz:g} Hz must be positive and below the Nyquist frequency "
+                            f"{rate / 2:g} Hz of {source}")
+        if np.max(np.abs(np.diff(times) * rate - 1.0)) > 1e-6:
+            raise OsimError(f"{source}: filtering needs uniformly spaced samples")
+        sos = butter_lowpass_sos(4, cutoff_hz, rate)
+        if len(times) <= filtfilt_padlen(sos):
+            raise OsimError(f"{source}: {len(times)} samples are too few to filter")
+    missing = []
+    for name, c in coords.items():
+        if c.get("locked") or c.get("prescribed") is not None or name in dependent:
+            continue
+        if name not in columns:
+            missing.append(name)
+            continue
+        values = np.asarray(columns[name], float)
+        if not np.all(np.isfinite(values)):
+            raise OsimError(f"{source}: column {name!r} has non-finite values")
+        if in_degrees and c.get("motion", "rotational") != "translational":
+            values = np.radians(values)
+        if sos is not None:
+            values = sosfiltfilt(sos, values)
+        drivers[f"{name}{SUFFIX}"] = {"measure": name, "reaction": True,
+                                      "function": {"type": "spline", "times": times.tolist(), "values": values.tolist()}}
+    if missing:
+        raise OsimError(f"{source}: no column for the coordinates {missing}; a motion file drives every free coordinate")
+    out = dict(data)
+    out["drivers"] = drivers
+    return out
