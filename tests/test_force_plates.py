@@ -140,7 +140,7 @@ def patch_analog_offset(path, offsets):
 
 def write_plates(path, plates, values, *, point_rate=100.0, ratio=10, scale=None,
                  offset=None, gen_scale=1.0, units=None, zero=(0, 0), point_units="mm",
-                 exact=True):
+                 exact=True, points=None, labels=None):
     """A C3D file whose analog channels hold ``values (n_samples, n_channels)`` after
     scaling ((stored − offset) × scale × gen_scale); ``plates``: dicts with ``type``,
     ``corners (4, 3)``, ``origin (3,)``, ``channel`` (1-based), optional ``cal (6, 6)``."""
@@ -158,9 +158,14 @@ def write_plates(path, plates, values, *, point_rate=100.0, ratio=10, scale=None
     c3d = ezc3d.c3d()
     point = c3d["parameters"]["POINT"]
     point["RATE"]["value"] = [point_rate]
-    point["LABELS"]["value"] = ["M1"]
+    point["LABELS"]["value"] = ["M1"] if labels is None else list(labels)
     point["UNITS"]["value"] = [point_units]
-    c3d["data"]["points"] = np.ones((4, 1, n_frames))
+    if points is None:
+        c3d["data"]["points"] = np.ones((4, 1, n_frames))
+    else:  # (n_markers, n_frames, 3) in point units
+        pts = np.ones((4, points.shape[0], n_frames))
+        pts[:3] = np.transpose(points, (2, 0, 1))
+        c3d["data"]["points"] = pts
     analog = c3d["parameters"]["ANALOG"]
     analog["RATE"]["value"] = [point_rate * ratio]
     analog["LABELS"]["value"] = [f"A{i + 1}" for i in range(n_channels)]

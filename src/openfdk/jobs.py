@@ -117,6 +117,26 @@ def analysis_inputs(model, trial_path=None, cutoff_hz=None, start=None, end=None
     return traj, times, info
 
 
+def _with_ground_reactions(model, settings, trial_path, traj, cutoff_hz, info):
+    """The model with the trial's force plates as loads on its feet when the settings
+    assign them (``ground_reactions``; :mod:`openfdk.io.ground_reactions`); the
+    assignment of every stance goes to ``info["ground_reactions"]``."""
+    spec = getattr(settings, "ground_reactions", None)
+    if not spec:
+        return model
+    if traj is None or not str(trial_path).lower().endswith(".c3d"):
+        raise ValueError(f"ground_reactions: the force plates come from a C3D trial; {trial_path!r} is not one")
+    from dataclasses import replace
+
+    from .io.ground_reactions import plate_loads
+
+    if cutoff_hz is None:
+        cutoff_hz = settings.kinematics.get("marker_cutoff_hz", DEFAULT_CUTOFF_HZ)
+    loads, report = plate_loads(model, trial_path, spec, traj.trial, cutoff_hz)
+    info["ground_reactions"] = report
+    return replace(model, external_loads=tuple(model.external_loads) + loads)
+
+
 def _import_info(model_path):
     """{"opensim_import": {dropped, merged_bodies}} for a model read from an .osim (the
     elements left out with --ignore are listed in summary.json), else {}."""
@@ -143,6 +163,7 @@ def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, s
     info = {"model": label, **_import_info(model_path)}
     traj, times, more = analysis_inputs(model, trial_path, cutoff_hz, start, end, settings)
     info.update(more)
+    model = _with_ground_reactions(model, settings, trial_path, traj, cutoff_hz, info)
     if traj is None:
         return run_determinate(model, times, alpha=alpha, progress=progress), info
     return run_tracking(model, traj, times, alpha=alpha, progress=progress), info
@@ -165,6 +186,7 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
     model, settings, label = model_and_settings(model_path, settings)
     traj, times, info = analysis_inputs(model, trial_path, cutoff_hz, start, end, settings)
     info = {"model": label, **_import_info(model_path), **info}
+    model = _with_ground_reactions(model, settings, trial_path, traj, cutoff_hz, info)
 
     def with_info(kin, dyn, fdk):
         out = dict(info)

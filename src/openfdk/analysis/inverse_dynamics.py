@@ -44,6 +44,12 @@ class DynamicsStep:
         if not kin_report.converged:
             return forces_failure(FrameReport.failed(Reason.KINEMATICS, f"kinematics failed: {kin_report.message}"),
                                   "kinematics_failed")
+        if self.model.external_loads:
+            from ..forces.data_loads import invalid_reason
+
+            reason = invalid_reason(self.model.external_loads, self.time[k])
+            if reason:
+                return forces_failure(FrameReport.failed(Reason.FAILED, reason), "loads_unknown")
         self.state.set_q(q)
         self.state.set_v(v)
         fr = self.solver.frame(self.state, vdot, self.time[k], self.alpha, self.warm, A=Phi_q)

@@ -39,7 +39,9 @@ class DataLoad:
     functions of 3 components (N; m; N m), ``force_frame`` and ``point_frame`` "world" or
     "body" (the torque is in the force's frame); ``p_BF (3,) m`` and ``R_BF (3, 3)``: the
     frame F of the "body" components in openfdk's body frame (OpenSim gives them in its
-    body frame, whose origin is not the centre of mass)."""
+    body frame, whose origin is not the centre of mass); ``invalid``: ((t0 s, t1 s,
+    reason), …) intervals where the load is not known (a force plate struck by both
+    feet): frames there fail with the reason (:func:`invalid_reason`)."""
 
     name: str
     body: int
@@ -50,6 +52,17 @@ class DataLoad:
     point_frame: str = "world"
     p_BF: np.ndarray = None
     R_BF: np.ndarray = None
+    invalid: tuple = ()
+
+
+def invalid_reason(loads, t):
+    """The reason why the loads are not known at time t (s), or '' (frames whose
+    ground reaction cannot be assigned fail, never silently without it)."""
+    for load in loads:
+        for t0, t1, reason in load.invalid:
+            if t0 - 1e-9 <= t <= t1 + 1e-9:
+                return reason
+    return ""
 
 
 class DataLoadForces:

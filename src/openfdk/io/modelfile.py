@@ -41,6 +41,7 @@ SECTIONS = (
     ("reactions", load_reactions),
     ("loads", load_loads),
     ("external_loads", load_external_loads),
+    ("ground_reactions", lambda b, data, ctx: b.elements.__setitem__("ground_reactions", data)),
     ("recruitment", load_recruitment),
     ("contacts", load_contacts),
     ("fdk", load_fdk),
@@ -63,6 +64,12 @@ def load_model_and_settings(path) -> tuple[Model, AnalysisSettings]:
 
         data = overlay_model_data(path, data)
     model, settings = model_and_settings_from_dict(data, source=path.name, base_dir=path.parent)
+    if settings.ground_reactions:
+        from dataclasses import replace
+
+        from .ground_reactions import check_spec
+
+        settings = replace(settings, ground_reactions=check_spec(settings.ground_reactions, model, path.name))
     check_model(model, path.name, settings.units["length"])  # plausibility warnings
     return model, settings
 

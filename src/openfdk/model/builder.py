@@ -426,7 +426,8 @@ class ModelBuilder:
     #: element kinds collected in ``self.elements`` -> Model field
     ELEMENT_FIELDS = ("muscles", "ligaments", "springs", "contacts", "loads", "unilateral_reactions", "visuals",
                       "coordinates", "tasks", "external_loads")
-    SETTING_FIELDS = {"analysis": "kinematics", "recruitment": "recruitment", "fdk": "fdk", "units": "units"}
+    SETTING_FIELDS = {"analysis": "kinematics", "recruitment": "recruitment", "fdk": "fdk", "units": "units",
+                      "ground_reactions": "ground_reactions"}
 
     def _typed_elements(self):
         """Model keyword arguments from the kinds collected in ``self.elements``."""

@@ -18,9 +18,12 @@ class AnalysisSettings:
     recruitment : :class:`openfdk.forces.elements.RecruitmentSettings` or None (the
     default criterion); fdk : the ``fdk`` section (tolerance, max_iterations, jacobian,
     …; see :func:`openfdk.fdk.settings.fdk_settings`); units : the file's declared
-    units {"length": …, "angle": …}."""
+    units {"length": …, "angle": …}; ground_reactions : the force plates' assignment
+    to bodies (:mod:`openfdk.io.ground_reactions`), {} when the trial's plates are not
+    used."""
 
     kinematics: dict = field(default_factory=dict)
     recruitment: object = None
     fdk: dict = field(default_factory=dict)
     units: dict = field(default_factory=dict)
+    ground_reactions: dict = field(default_factory=dict)
