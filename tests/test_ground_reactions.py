@@ -62,9 +62,11 @@ def _trial(folder, n_frames=40, ratio=10, feet=None):
 def test_a_plate_under_a_welded_block_gives_the_closed_form_reaction(tmp_path, capsys):
     trial, want = _trial(tmp_path)
     model = _model(tmp_path, {"plates": {"plate1": {"body": "foot"}}, "threshold_n": 20.0, "cutoff_hz": 0})
-    code = main(["run", str(model), str(trial), "--out", str(tmp_path / "out"), "--no-plots", "-q"])
+    code = main(["run", str(model), str(trial), "--out", str(tmp_path / "out"), "-q"])
     assert code == 0, capsys.readouterr().err
     forces = read_table(tmp_path / "out" / "forces.csv")
+    grf = read_table(tmp_path / "out" / "grf.csv")
+    assert (tmp_path / "out" / "plots" / "grf.png").is_file() and (tmp_path / "out" / "grf.sto").is_file()
     t = forces["time"]
     k = np.round(t * 100).astype(int) * 10  # the plate's analog sample at each frame (ratio 10)
     F = want["force"][k]
@@ -73,6 +75,10 @@ def test_a_plate_under_a_welded_block_gives_the_closed_form_reaction(tmp_path, c
     reaction = np.column_stack([forces[f"fix.{c}.reaction"] for c in "xyz"])
     expected_reaction = -(MASS * np.array([0, 0, -9.81]) + F)
     np.testing.assert_allclose(reaction, expected_reaction, atol=1e-6)
+    # grf.csv: the plate's reading at the frames (COP exact where loaded)
+    np.testing.assert_allclose(np.column_stack([grf[f"FP1.F{c}_N"] for c in "xyz"]), want["force"][k], atol=1e-9)
+    cop = np.column_stack([grf[f"FP1.cop{c}_m"] for c in "xyz"])
+    np.testing.assert_allclose(cop[loaded], want["cop"][k][loaded], atol=1e-9)
     assert loaded.sum() > 10 and (~loaded).sum() > 5  # both cases happen
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     (stances,) = summary["input"]["ground_reactions"].values()  # the plate's name in the file: FP1

@@ -70,12 +70,16 @@ def _cmd_import_opensim(args):
         raise UserError(f"{args.model}: not an OpenSim model (.osim)")
     from pathlib import Path
 
-    from .io.modelfile import load_model, model_and_settings_from_dict
+    from .io.modelfile import model_and_settings_from_dict
+    from .io.yamlfile import read_yaml
+    from .model.model import ModelError
+    from .model.plausibility import check_model
 
-    model_and_settings_from_dict(data, source=Path(args.model).name)  # errors name the .osim; nothing written yet
+    model, settings = model_and_settings_from_dict(data, source=Path(args.model).name)
+    check_model(model, Path(args.model).name, settings.units["length"])  # errors name the .osim; nothing written yet
     path = write_imported(data, args.out, args.model, import_info(args.model), force=args.force)
-
-    model = load_model(path)  # the written file must read back
+    model = model_and_settings_from_dict(read_yaml(path, ModelError, "model file"), source=path.name,
+                                         base_dir=path.parent)[0]  # the written file must read back
     dropped = import_info(args.model).get("dropped", [])
     _say(args, f"import-opensim: {len(model.moving_bodies)} bodies, {len(model.coordinates)} coordinates, "
                f"{model.markers.size} markers -> {path}"
@@ -210,6 +214,24 @@ def _write_measures(out_dir, model_path, kinematics):
     write_coordinates(out_dir, model, kinematics)
 
 
+def _write_grf(args, info, dyn):
+    """grf.csv/.sto and plots/grf.png when the trial's force plates were applied."""
+    if "ground_reactions" not in info:
+        return
+    from pathlib import Path
+
+    from .io.ground_reactions import grf_figure, write_grf
+    from .io.modelfile import load_settings
+    from .jobs import DEFAULT_CUTOFF_HZ
+
+    settings = load_settings(args.model)
+    cutoff = args.cutoff if args.cutoff is not None else settings.kinematics.get("marker_cutoff_hz", DEFAULT_CUTOFF_HZ)
+    path = write_grf(args.out, args.trial, settings.ground_reactions, info["ground_reactions"], dyn.time, cutoff)
+    if not getattr(args, "no_plots", False):
+        (Path(args.out) / "plots").mkdir(exist_ok=True)
+        grf_figure(path).savefig(Path(args.out) / "plots" / "grf.png", dpi=110)
+
+
 def _write_generalized_forces(out_dir, model_path, dyn):
     """generalized_forces.csv/.sto of a run whose coordinates are driven (--motion), and
     the residuals in summary.json."""
@@ -260,6 +282,7 @@ def _cmd_run(args):
         checkpoints.clear()
     _write_measures(args.out, args.model, kin)
     _write_generalized_forces(args.out, args.model, dyn)
+    _write_grf(args, info, dyn)
     fdk = info.get("fdk")
     _say(args,
          f"run: kinematics {int(kin.converged.sum())}/{len(kin.time)} frames, inverse dynamics "

@@ -168,3 +168,65 @@ def _nearest_foot(feet, trial, plate, a, b):
         return None, (f"struck by both feet ({names[best]} nearest on average, another foot nearer at "
                       f"{100 * other_nearer:.0f} % of the stance's frames); not split between them")
     return names[best], f"nearest foot (mean distance of its markers to the centre of pressure {mean[best]:.3f} m)"
+
+
+def write_grf(out_dir, trial_path, spec, report, times, default_cutoff_hz):
+    """``grf.csv`` (and ``grf.sto``, numbers only) at the run's frame ``times`` (nf,) s:
+    per plate the force on the subject (N), the centre of pressure (m), the free moment
+    (N m), all in the lab frame, and the body the stance was assigned to ('' when
+    unloaded or not assigned). Returns the path."""
+    from pathlib import Path
+
+    from .force_plates import read_force_plates
+    from .results import write_table
+    from .storage import write_storage
+
+    cutoff = spec["cutoff_hz"] if spec["cutoff_hz"] is not None else default_cutoff_hz
+    plates = read_force_plates(trial_path, threshold_n=spec["threshold_n"], cutoff_hz=cutoff or 0)
+    times = np.asarray(times, float)
+    cols = {"time": times}
+    for plate in plates:
+        idx = np.clip(np.searchsorted(plate.time, times - 1e-9), 0, len(plate.time) - 1)
+        for label, arr in (("F", plate.force), ("cop", plate.cop), ("T", plate.free_moment)):
+            unit = {"F": "N", "cop": "m", "T": "N_m"}[label]
+            for j, c in enumerate("xyz"):
+                cols[f"{plate.name}.{label}{c}_{unit}"] = arr[idx, j]
+        body = np.full(len(times), "", dtype=object)
+        for e in report.get(plate.name, []):
+            if e["start_s"] is not None:
+                body[(times >= e["start_s"] - 1e-9) & (times <= e["end_s"] + 1e-9)] = e["body"] or "unassigned"
+        cols[f"{plate.name}.body"] = list(body)
+    path = Path(out_dir) / "grf.csv"
+    write_table(path, cols)
+    write_storage(Path(out_dir) / "grf.sto", times, {k: np.asarray(v, float) for k, v in cols.items()
+                                                      if k != "time" and not k.endswith(".body")}, name="ground reactions")
+    return path
+
+
+def grf_figure(grf_csv):
+    """A matplotlib Figure of grf.csv: per plate the three force components and the
+    centre of pressure's path in the lab's x-y plane."""
+    from matplotlib.figure import Figure
+
+    from .results import read_table
+
+    data = read_table(grf_csv)
+    plates = sorted({k.split(".")[0] for k in data if k != "time" and k.endswith("_N") and ".F" in k})
+    fig = Figure(figsize=(11.0, 1.5 + 2.6 * max(1, len(plates))))
+    axes = fig.subplots(max(1, len(plates)), 2, squeeze=False)
+    t = np.asarray(data["time"], float)
+    for row, name in zip(axes, plates):
+        for c in "xyz":
+            row[0].plot(t, data[f"{name}.F{c}_N"], label=f"F{c}")
+        row[0].set_title(f"{name}: force on the subject (lab frame)", fontsize=9)
+        row[0].set_xlabel("time (s)")
+        row[0].set_ylabel("N")
+        row[0].legend(fontsize=7)
+        row[1].plot(data[f"{name}.copx_m"], data[f"{name}.copy_m"], ".-", ms=2)
+        row[1].set_title(f"{name}: centre of pressure (lab x-y)", fontsize=9)
+        row[1].set_xlabel("x (m)")
+        row[1].set_ylabel("y (m)")
+        row[1].set_aspect("equal", adjustable="datalim")
+    fig.suptitle("Ground reactions (grf.csv)", fontsize=11)
+    fig.set_layout_engine("constrained")
+    return fig
