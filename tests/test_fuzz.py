@@ -1,6 +1,6 @@
-"""Fuzz suite, quick version (issue 16): mutated model, subject and study files and C3D
-trials either load or raise the loader's documented error naming the file — never
-anything else. The long run (>= 10 000 inputs per kind) is
+"""Fuzz suite, quick version (issue 16): mutated model, subject and study files, C3D and
+TRC trials, OpenSim models and IK setup files either load or raise the loader's
+documented error naming the file — never anything else. The long run (>= 10 000 inputs per kind) is
 ``python -m openfdk.bench.fuzz_inputs 10000``; its counts are in the closing note."""
 
 import warnings
@@ -11,7 +11,8 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from openfdk.bench.fuzz_inputs import KINDS, Bases, _load, _paths, documented_error, fuzz, mutate_bytes, mutate_yaml
+from openfdk.bench.fuzz_inputs import (KINDS, Bases, _load, _paths, documented_error, fuzz, mutate_bytes, mutate_xml,
+                                       mutate_yaml)
 
 
 @pytest.fixture(scope="module")
@@ -71,6 +72,19 @@ def test_hypothesis_mutated_c3d(bases, seed):
         _outcome("c3d", bases)
     finally:
         path.write_bytes(bases.c3d_bytes)
+
+
+@pytest.mark.parametrize("kind", ["osim", "ik"])
+@_SETTINGS
+@given(seed=st.integers(0, 2**63 - 1))
+def test_hypothesis_mutated_opensim_xml(kind, bases, seed):
+    """Mutated OpenSim models and IK setup files (numbers, elements, names, text)."""
+    path = bases.paths[kind]
+    try:
+        path.write_text(mutate_xml(bases.texts[kind], np.random.default_rng(seed)))
+        _outcome(kind, bases)
+    finally:
+        path.write_text(bases.texts[kind])
 
 
 _ANY = st.one_of(st.none(), st.booleans(), st.integers(), st.floats(), st.text(max_size=6),

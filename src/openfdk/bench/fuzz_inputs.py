@@ -14,14 +14,23 @@ names the file):
   :class:`~openfdk.io.c3d.C3DError`;
 - ``trc``: a TRC trial -> :func:`openfdk.io.trc.read_trc` raises
   :class:`~openfdk.io.trc.TRCError` (text mutations, as for YAML files, plus numbers
-  replaced).
+  replaced);
+- ``osim``: an OpenSim model (three bodies, a PinJoint, a CustomJoint with a SimmSpline,
+  a CoordinateCouplerConstraint, markers, a mesh) -> :func:`openfdk.io.modelfile.load_model`
+  raises :class:`~openfdk.model.model.ModelError` (its subclass
+  :class:`~openfdk.io.opensim.OsimError` for the reader's own checks);
+- ``ik``: an OpenSim IK setup file with marker and coordinate tasks and its coordinate
+  file, applied to that model (``--ik-tasks``) -> ``ModelError`` as well.
 
 Mutations of YAML files act on the parsed tree (a value replaced by one of another type
 or magnitude, scaled by 1000 or 1/1000 as a unit mistake would, negated, a key deleted,
 misspelt or added, a unit changed, a list shortened or lengthened) or on the text (cut
 short, a line repeated — a duplicate key — or dropped, a byte changed). C3D mutations act
 on the bytes (bytes changed, header and parameter words set to edge values, floats set
-to NaN or huge, the file cut short or lengthened).
+to NaN or huge, the file cut short or lengthened). OpenSim XML mutations act on the
+element tree (a number replaced by NaN, inf, a huge, negative or malformed value, an
+element deleted, duplicated, emptied or renamed, a name attribute changed to a duplicate
+or a name with '/', '.' or '..') or on the text.
 """
 
 from __future__ import annotations
@@ -35,7 +44,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-KINDS = ("model", "subject", "study", "c3d", "trc")
+KINDS = ("model", "subject", "study", "c3d", "trc", "osim", "ik")
 
 _VALUES = (None, True, False, 0, -1, 1, 2, 5, 1.5, -2.5, 1e300, -1e300, 1e-300, float("nan"), float("inf"),
            "", "abc", "1e3", "m", "mm", "deg", [], {}, [1, 2], [0, 0, 0], [1, 2, 3, 4], [[1, 2, 3]], {"a": 1},
@@ -114,6 +123,19 @@ class Bases:
         if "trc" in kinds:
             self.texts["trc"] = _trc_text()
             self.paths["trc"] = self.dir / "trial.trc"
+        if "osim" in kinds or "ik" in kinds:
+            self.texts["osim"] = OSIM_TEXT
+            self.paths["osim"] = self.dir / "leg.osim"
+            self.paths["osim"].write_text(OSIM_TEXT)
+            (self.dir / "Geometry").mkdir()
+            (self.dir / "Geometry" / "thigh.obj").write_text("v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\n"
+                                                             "f 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n")
+        if "ik" in kinds:
+            self.texts["ik"] = IK_SETUP_TEXT
+            self.paths["ik"] = self.dir / "Setup_IK.xml"
+            self.paths["ik"].write_text(IK_SETUP_TEXT)
+            (self.dir / "coords.mot").write_text("coords\nversion=1\nnRows=3\nnColumns=3\ninDegrees=yes\nendheader\n"
+                                                 "time\thip_q\tknee\n0\t1\t-30\n0.05\t2\t-29\n0.1\t3\t-28\n")
 
     def close(self):
         shutil.rmtree(self.dir, ignore_errors=True)
@@ -146,6 +168,155 @@ def mutate_text(text, rng):
             text = "\t".join(cells)
         else:
             text = _text_mutation(text, rng)
+    return text
+
+
+#: a valid OpenSim 4.x model (as OpenSim 4.6 writes it, display elements left out): a
+#: PinJoint hip, a CustomJoint knee with a SimmSpline translation, a patella coupled to the
+#: knee, six markers and a mesh (Geometry/thigh.obj)
+OSIM_TEXT = """<?xml version="1.0" encoding="UTF-8" ?>
+<OpenSimDocument Version="40600">
+ <Model name="leg">
+  <Ground name="ground"/>
+  <BodySet name="bodyset"><objects>
+   <Body name="thigh">
+    <attached_geometry><Mesh name="thigh_geom_1"><mesh_file>thigh.obj</mesh_file></Mesh></attached_geometry>
+    <mass>5</mass><mass_center>0.01 -0.2 0</mass_center><inertia>0.1 0.02 0.1 0.001 0.002 0.003</inertia>
+   </Body>
+   <Body name="shank"><mass>3</mass><mass_center>0 -0.18 0.01</mass_center><inertia>0.05 0.01 0.05 0 0 0</inertia></Body>
+   <Body name="patella"><mass>0.1</mass><mass_center>0 0 0</mass_center><inertia>0.001 0.001 0.001 0 0 0</inertia></Body>
+  </objects></BodySet>
+  <JointSet name="jointset"><objects>
+   <PinJoint name="hip">
+    <socket_parent_frame>ground_offset</socket_parent_frame>
+    <socket_child_frame>thigh_offset</socket_child_frame>
+    <coordinates><Coordinate name="hip_q"><range>-2 2</range></Coordinate></coordinates>
+    <frames>
+     <PhysicalOffsetFrame name="ground_offset"><socket_parent>/ground</socket_parent>
+      <translation>0 1 0</translation><orientation>0.1 0.2 0.3</orientation></PhysicalOffsetFrame>
+     <PhysicalOffsetFrame name="thigh_offset"><socket_parent>/bodyset/thigh</socket_parent>
+      <translation>0 0.05 0</translation><orientation>0 0 0</orientation></PhysicalOffsetFrame>
+    </frames>
+   </PinJoint>
+   <CustomJoint name="knee_j">
+    <socket_parent_frame>thigh_offset</socket_parent_frame>
+    <socket_child_frame>shank_offset</socket_child_frame>
+    <coordinates><Coordinate name="knee"><default_value>-0.5</default_value></Coordinate></coordinates>
+    <frames>
+     <PhysicalOffsetFrame name="thigh_offset"><socket_parent>/bodyset/thigh</socket_parent>
+      <translation>0 -0.4 0</translation><orientation>0 0 0.1</orientation></PhysicalOffsetFrame>
+     <PhysicalOffsetFrame name="shank_offset"><socket_parent>/bodyset/shank</socket_parent>
+      <translation>0 0.02 0</translation><orientation>0 0 0</orientation></PhysicalOffsetFrame>
+    </frames>
+    <SpatialTransform>
+     <TransformAxis name="rotation1"><coordinates>knee</coordinates><axis>0 0 1</axis>
+      <LinearFunction name="function"><coefficients>1 0</coefficients></LinearFunction></TransformAxis>
+     <TransformAxis name="rotation2"><coordinates/><axis>1 0 0</axis></TransformAxis>
+     <TransformAxis name="rotation3"><coordinates/><axis>0 1 0</axis></TransformAxis>
+     <TransformAxis name="translation1"><coordinates>knee</coordinates><axis>1 0 0</axis>
+      <SimmSpline name="function"><x>-2 -1.58333 -1.16667 -0.75 -0.333333 0.0833333 0.5</x>
+       <y>-0.00909297 -0.00999921 -0.00919445 -0.00681639 -0.00327195 0.000832369 0.00479426</y></SimmSpline>
+     </TransformAxis>
+     <TransformAxis name="translation2"><coordinates/><axis>0 1 0</axis></TransformAxis>
+     <TransformAxis name="translation3"><coordinates/><axis>0 0 1</axis></TransformAxis>
+    </SpatialTransform>
+   </CustomJoint>
+   <PinJoint name="pat_j">
+    <socket_parent_frame>shank_offset</socket_parent_frame>
+    <socket_child_frame>patella_offset</socket_child_frame>
+    <coordinates><Coordinate name="pat_q"/></coordinates>
+    <frames>
+     <PhysicalOffsetFrame name="shank_offset"><socket_parent>/bodyset/shank</socket_parent>
+      <translation>0.05 0 0</translation><orientation>0 0 0</orientation></PhysicalOffsetFrame>
+     <PhysicalOffsetFrame name="patella_offset"><socket_parent>/bodyset/patella</socket_parent>
+      <translation>0 0 0</translation><orientation>0 0 0</orientation></PhysicalOffsetFrame>
+    </frames>
+   </PinJoint>
+  </objects></JointSet>
+  <ConstraintSet name="constraintset"><objects>
+   <CoordinateCouplerConstraint name="pat_cc">
+    <coupled_coordinates_function><LinearFunction><coefficients>0.5 0.1</coefficients></LinearFunction>
+    </coupled_coordinates_function>
+    <independent_coordinate_names>knee</independent_coordinate_names>
+    <dependent_coordinate_name>pat_q</dependent_coordinate_name>
+   </CoordinateCouplerConstraint>
+  </objects></ConstraintSet>
+  <MarkerSet name="markerset"><objects>
+   <Marker name="T1"><socket_parent_frame>/bodyset/thigh</socket_parent_frame><location>0.05 -0.1 0.02</location></Marker>
+   <Marker name="T2"><socket_parent_frame>/bodyset/thigh</socket_parent_frame><location>-0.04 -0.25 0.03</location></Marker>
+   <Marker name="T3"><socket_parent_frame>/bodyset/thigh</socket_parent_frame><location>0.02 -0.3 -0.05</location></Marker>
+   <Marker name="R.S1"><socket_parent_frame>/bodyset/shank</socket_parent_frame><location>0.03 -0.2 0.05</location></Marker>
+   <Marker name="S2"><socket_parent_frame>/bodyset/shank</socket_parent_frame><location>-0.03 -0.3 0.04</location></Marker>
+   <Marker name="S3"><socket_parent_frame>/bodyset/shank</socket_parent_frame><location>0.02 -0.1 -0.05</location></Marker>
+  </objects></MarkerSet>
+ </Model>
+</OpenSimDocument>
+"""
+
+#: an OpenSim IK setup for :data:`OSIM_TEXT`: marker weights and coordinate tasks of all
+#: three value types (``from_file``: coords.mot beside it, in degrees)
+IK_SETUP_TEXT = """<?xml version="1.0" encoding="UTF-8" ?>
+<OpenSimDocument Version="40000">
+ <InverseKinematicsTool name="ik">
+  <coordinate_file>coords.mot</coordinate_file>
+  <IKTaskSet name="tasks"><objects>
+   <IKMarkerTask name="T1"><apply>true</apply><weight>1</weight></IKMarkerTask>
+   <IKMarkerTask name="T2"><apply>true</apply><weight>2</weight></IKMarkerTask>
+   <IKMarkerTask name="T3"><apply>true</apply><weight>1</weight></IKMarkerTask>
+   <IKMarkerTask name="R.S1"><apply>true</apply><weight>1</weight></IKMarkerTask>
+   <IKMarkerTask name="S2"><apply>false</apply><weight>1</weight></IKMarkerTask>
+   <IKCoordinateTask name="knee"><apply>true</apply><weight>0.1</weight><value_type>from_file</value_type></IKCoordinateTask>
+   <IKCoordinateTask name="hip_q"><apply>true</apply><weight>0.1</weight><value_type>manual_value</value_type>
+    <value>0.1</value></IKCoordinateTask>
+   <IKCoordinateTask name="pat_q"><apply>true</apply><weight>1</weight><value_type>default_value</value_type>
+   </IKCoordinateTask>
+  </objects></IKTaskSet>
+ </InverseKinematicsTool>
+</OpenSimDocument>
+"""
+
+_XML_VALUES = ("NaN", "inf", "-inf", "1e308", "-1e308", "1e-320", "-1", "0", "", "abc", "0x10", "1_0", "1e999",
+               "true", "maybe", " ", "/ground", "..", "ground", "knee", "hip_q", "T1")
+
+
+def mutate_xml(text, rng, n_mutations=None):
+    """A mutated copy of XML ``text``: 1–3 mutations of the element tree (a number or a
+    text replaced by an edge value, an element deleted, duplicated, emptied or renamed, a
+    name attribute changed) or of the text (as for YAML files)."""
+    from lxml import etree
+
+    for _ in range(int(rng.integers(1, 4)) if n_mutations is None else n_mutations):
+        try:
+            root = etree.fromstring(text.encode(), etree.XMLParser(resolve_entities=False, no_network=True))
+        except etree.XMLSyntaxError:
+            root = None
+        elements = [] if root is None else [e for e in root.iter() if isinstance(e.tag, str)][1:]
+        if not elements or rng.random() < 0.15:
+            text = _text_mutation(text, rng)
+            continue
+        e = elements[int(rng.integers(len(elements)))]
+        op = int(rng.integers(7))
+        if op == 0 and (e.text or "").strip():                     # one number or the whole text replaced
+            tokens = e.text.split()
+            tokens[int(rng.integers(len(tokens)))] = str(rng.choice(_XML_VALUES))
+            e.text = " ".join(tokens) if rng.random() < 0.7 else str(rng.choice(_XML_VALUES))
+        elif op == 1 and e.getparent() is not None:
+            e.getparent().remove(e)
+        elif op == 2 and e.getparent() is not None:                # duplicated: a second element, same name
+            e.addnext(etree.fromstring(etree.tostring(e)))
+        elif op == 3:
+            for c in list(e):
+                e.remove(c)
+            e.text = None
+        elif op == 4:
+            e.tag = str(rng.choice(["Body", "PinJoint", "WeldJoint", "Marker", "Constant", "SimmSpline", "Foo",
+                                    "PhysicalOffsetFrame", "MultiplierFunction", "IKMarkerTask"]))
+        elif op == 5 and e.get("name") is not None:
+            e.set("name", str(rng.choice(["thigh", "shank", "hip", "knee", "knee_j", "T1", "a/b", "..", "R_S1",
+                                          "ground", "x" * 300, ""])))
+        else:
+            e.text = str(rng.choice(_XML_VALUES))
+        text = etree.tostring(root, encoding="unicode")
     return text
 
 
@@ -297,6 +468,10 @@ def documented_error(kind):
         from ..io.trc import TRCError
 
         return TRCError
+    if kind in ("osim", "ik"):
+        from ..model.model import ModelError
+
+        return ModelError
     from ..io.c3d import C3DError
 
     return C3DError
@@ -319,6 +494,13 @@ def _load(kind, path):
         from ..io.trc import read_trc
 
         return read_trc(path)
+    if kind in ("osim", "ik"):
+        from ..io.modelfile import load_model
+        from ..io.opensim.overlay import register
+
+        model = path.parent / "leg.osim"
+        register(model, ik_tasks=path if kind == "ik" else None)
+        return load_model(model)
     from ..io.c3d import read_c3d
 
     return read_c3d(path)
@@ -344,6 +526,8 @@ def fuzz(kind, n, seed=0, bases=None, time_limit=None):
                 target.write_bytes(mutate_bytes(bases.c3d_bytes, rng))
             elif kind == "trc":
                 target.write_text(mutate_text(bases.texts[kind], rng), encoding="utf-8")
+            elif kind in ("osim", "ik"):
+                target.write_text(mutate_xml(bases.texts[kind], rng), encoding="utf-8")
             else:
                 target.write_text(mutate_yaml(bases.texts[kind], rng), encoding="utf-8")
             counts["inputs"] += 1
@@ -377,7 +561,8 @@ def reproduce(kind, seed, index, bases):
     out = None
     for _ in range(index + 1):
         out = (mutate_bytes(bases.c3d_bytes, rng) if kind == "c3d" else mutate_text(bases.texts[kind], rng)
-               if kind == "trc" else mutate_yaml(bases.texts[kind], rng))
+               if kind == "trc" else mutate_xml(bases.texts[kind], rng) if kind in ("osim", "ik")
+               else mutate_yaml(bases.texts[kind], rng))
     return out
 
 

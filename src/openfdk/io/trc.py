@@ -63,7 +63,10 @@ def _count(cell: str, name: str, line_no: int, what: str) -> int:
 
 def header_fields(path: str | os.PathLike) -> dict:
     """The header fields of a TRC file, {name on line 2: value on line 3} (str), reading
-    its first three lines only. Raises OSError when the file cannot be read."""
+    its first three lines only. Raises OSError when the file cannot be read (or is not a
+    regular file: a FIFO would block)."""
+    if not stat.S_ISREG(os.stat(os.fspath(path)).st_mode):
+        raise OSError(f"{os.fspath(path)}: not a regular file")
     with open(os.fspath(path), encoding="utf-8", errors="replace") as fh:
         head = [next(fh, "") for _ in range(3)]
     return dict(zip(_cells(head[1]), _cells(head[2])))

@@ -568,8 +568,9 @@ def _build(kind, spec, path, error, depth=0):
         return _made(natural_spline, path, error, *_knots(spec, path, error, degree + 1), degree)
     # multiplier
     scale = _number(spec["scale"], path, "scale", error)
-    if depth >= MAX_NESTING:
-        raise error(path, f"multiplier functions nested more than {MAX_NESTING} deep")
+    if depth >= MAX_NESTING:  # (named at the outermost function, not at .function.function…)
+        top = path[:-len(".function") * depth] if path.endswith(".function") else path
+        raise error(top, f"multiplier functions nested more than {MAX_NESTING} deep")
     inner = function_from_spec(spec["function"], f"{path}.function" if path else "function", error, depth + 1)
     try:
         return inner.scaled(1.0, scale)

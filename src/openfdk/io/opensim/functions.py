@@ -244,7 +244,7 @@ def function_spec(element, source) -> dict:
         inner = function_element(element, source)
         if inner is None:
             raise OsimError(f"{label}: no function to multiply")
-        return {"type": kind, "scale": one_number("scale"), "function": function_spec(inner, source)}
+        spec = {"type": kind, "scale": one_number("scale"), "function": function_spec(inner, source)}
     else:                                             # the x-y functions
         spec = {"type": kind, "x": _numbers(get("x"), label, "x"), "y": _numbers(get("y"), label, "y")}
 
