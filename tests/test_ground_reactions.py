@@ -83,6 +83,14 @@ def test_a_plate_under_a_welded_block_gives_the_closed_form_reaction(tmp_path, c
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     (stances,) = summary["input"]["ground_reactions"].values()  # the plate's name in the file: FP1
     assert len(stances) == 1 and stances[0]["body"] == "foot"
+    # the viewer draws the plate's force at its centre of pressure
+    from openfdk.viewer.frames import grf_frames
+    from openfdk.viewer.results import read_results
+
+    (plate,) = grf_frames(read_results(tmp_path / "out"))
+    assert plate["name"] == "FP1"
+    assert main(["view", str(tmp_path / "out"), "--out", str(tmp_path / "view.html")]) == 0
+    assert "ground reaction" in (tmp_path / "view.html").read_text()
 
 
 def _feet(n_frames, cop_mm, both):

@@ -111,6 +111,28 @@ def contact_frames(model, scene, results, poses):
     return out
 
 
+def grf_frames(results):
+    """Per force plate of the run's ``grf.csv`` (ground reactions applied to the model):
+    the force on the subject (nf, 3) N and its centre of pressure (nf, 3) m, world; NaN
+    where the plate is unloaded. [] without grf.csv or when its rows are not the run's."""
+    from pathlib import Path
+
+    from ..io.results import read_table
+
+    folder = getattr(results, "directory", None)
+    if folder is None or not (Path(folder) / "grf.csv").is_file():
+        return []
+    data = read_table(Path(folder) / "grf.csv")
+    if len(data["time"]) != results.n_frames:
+        return []
+    out = []
+    for name in sorted({k.split(".")[0] for k in data if k.endswith("_N") and ".F" in k}):
+        F = np.stack([np.asarray(data[f"{name}.F{a}_N"], float) for a in "xyz"], axis=1)
+        cop = np.stack([np.asarray(data[f"{name}.cop{a}_m"], float) for a in "xyz"], axis=1)
+        out.append({"name": name, "force": pack(F), "cop": pack(cop)})
+    return out
+
+
 def panel_series(model, results, measured, scene_paths=()):
     """Side-panel series: FDK α (mm or deg) and residual f^FDK (N or N m) per DOF, the
     forces of springs that are not drawn as paths, FDK convergence and iterations, kinematics/forces convergence, marker RMS residual (mm).
@@ -172,6 +194,7 @@ def build_frames(model, scene, results):
         "path_force": pack(forces), "path_fmax": fmax,
         "wrap_points": pack(wrapped_polylines(model, scene.wrapped, poses)),
         "contacts": contact_frames(model, scene, results, poses),
+        "grf": grf_frames(results),
         "panel": panel_series(model, results, measured, scene.data["paths"]),
         "failed": failed_frames(results),
     }

@@ -163,6 +163,17 @@
     if (f > fContactMax) fContactMax = f;
   }
   for (const c of contacts) { scene.add(c.arrow); layers.contact.push(c.arrow); }
+  // ground reactions (grf.csv): a green arrow per plate at its centre of pressure
+  const grfs = (F.grf || []).map((g) => ({
+    name: g.name, force: arr(g.force), cop: arr(g.cop),
+    arrow: new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 1, 0x1a8c1a),
+  }));
+  let fGrfMax = 0;
+  for (const g of grfs) for (let k = 0; k < nf; k++) {
+    const f = Math.hypot(g.force[3 * k], g.force[3 * k + 1], g.force[3 * k + 2]);
+    if (f > fGrfMax) fGrfMax = f;
+  }
+  for (const g of grfs) { scene.add(g.arrow); layers.contact.push(g.arrow); }
 
   // colour maps: pressure/force 0..1 -> blue, cyan, green, yellow, red
   const STOPS = [[0.19, 0.30, 0.75], [0.10, 0.70, 0.85], [0.30, 0.75, 0.30], [0.95, 0.85, 0.15], [0.85, 0.10, 0.10]];
@@ -177,6 +188,7 @@
   const legend = [];
   for (const k of Object.keys(kindMax)) legend.push(`${k} force <span class="bar" style="background:${grad}"></span> 0–${kindMax[k].toPrecision(3)} ${k === 'spring' ? '' : 'N'}`);
   if (contacts.length) legend.push(`contact pressure <span class="bar" style="background:${grad}"></span> 0–${(Math.max(...contacts.map((c) => c.p_max)) / 1e6).toPrecision(3)} MPa; arrow: force on the vertex body`);
+  if (grfs.length) legend.push(`<b style="color:#1a8c1a">ground reaction</b> arrows at the centre of pressure: the longest is ${fGrfMax.toPrecision(3)} N`);
   if (nm) legend.push('markers: <b style="color:#1f5fbf">model</b>, <b style="color:#f08c00">measured</b>, <b style="color:#d00000">residual</b>');
   $('legend').innerHTML = legend.join('<br>');
   if (!legend.length) $('legend').style.display = 'none';
@@ -296,6 +308,16 @@
         c.arrow.setDirection(v.set(fx, fy, fz).normalize());
         c.arrow.setLength(len, 0.25 * len, 0.12 * len);
       } else c.arrow.visible = false;
+    }
+    for (const g of grfs) {
+      const fx = g.force[3 * frame], fy = g.force[3 * frame + 1], fz = g.force[3 * frame + 2];
+      const fm = Math.hypot(fx, fy, fz), cx = g.cop[3 * frame];
+      if (fm > 0 && Number.isFinite(cx) && visible(g.arrow)) {
+        const len = scale * 0.35 * fm / (fGrfMax || 1);
+        g.arrow.position.set(cx, g.cop[3 * frame + 1], g.cop[3 * frame + 2]);
+        g.arrow.setDirection(v.set(fx, fy, fz).normalize());
+        g.arrow.setLength(len, 0.25 * len, 0.12 * len);
+      } else g.arrow.visible = false;
     }
     // panel, clock, banner
     series.forEach((sr, j) => {
