@@ -15,11 +15,10 @@ are accepted and ignored. Every problem raises one ``ValueError`` line
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 
-from .polygons import fan_triangles
+from .polygons import fan_triangles, parse_mesh_file
 
 __all__ = ["read_obj"]
 
@@ -30,15 +29,7 @@ def read_obj(path) -> tuple[np.ndarray, np.ndarray]:
     """Vertices ``(n, 3)`` float64 (the file's length unit, in file order) and triangles
     ``(m, 3)`` int64 (0-based vertex indices, the file's winding) of the Wavefront OBJ
     file ``path``. Raises ``ValueError("<path>: <what is wrong>")`` (one line)."""
-    path = Path(path)
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise ValueError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
-    try:
-        return _parse(data)
-    except (ValueError, OverflowError, MemoryError) as exc:
-        raise ValueError(f"{path}: {' '.join(str(exc).split())}") from None
+    return parse_mesh_file(path, _parse)
 
 
 def _lines(data: bytes):

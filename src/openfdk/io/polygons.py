@@ -65,3 +65,20 @@ def strip_triangles(connectivity, ends, what="strip") -> np.ndarray:
     odd = (i % 2).astype(bool)
     a, b = connectivity[at], connectivity[at + 1]
     return np.stack([np.where(odd, b, a), np.where(odd, a, b), connectivity[at + 2]], axis=1)
+
+
+def parse_mesh_file(path, parse, errors=()):
+    """``parse(bytes)`` of the file ``path``, every failure as one line
+    ``ValueError("<path>: <what is wrong>")``: the file cannot be read, or ``parse``
+    raised ValueError, OverflowError, MemoryError or one of ``errors``."""
+    from pathlib import Path
+
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
+    try:
+        return parse(data)
+    except (ValueError, OverflowError, MemoryError, *errors) as exc:
+        raise ValueError(f"{path}: {' '.join(str(exc).split())}") from None

@@ -48,11 +48,10 @@ from __future__ import annotations
 import base64
 import binascii
 import zlib
-from pathlib import Path
 
 import numpy as np
 
-from .polygons import fan_triangles, strip_triangles
+from .polygons import fan_triangles, parse_mesh_file, strip_triangles
 
 __all__ = ["MAX_VALUES", "read_vtp"]
 
@@ -71,15 +70,7 @@ def read_vtp(path) -> tuple[np.ndarray, np.ndarray]:
     int64 (vertex indices, the file's winding) of the VTK XML PolyData file ``path``.
     Raises ``ValueError("<path>: <what is wrong>")`` (one line) when the file cannot be
     read or is not a valid PolyData file of the supported kind."""
-    path = Path(path)
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise ValueError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
-    try:
-        return _parse(data)
-    except (ValueError, OverflowError, MemoryError, zlib.error, binascii.Error) as exc:
-        raise ValueError(f"{path}: {' '.join(str(exc).split())}") from None
+    return parse_mesh_file(path, _parse, (zlib.error, binascii.Error))
 
 
 def _parse(data: bytes):

@@ -157,23 +157,23 @@
     index: arr(c.index), level: arr(c.level),
     arrow: new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 1, 0xc00000),
   }));
-  let fContactMax = 0;
-  for (const c of contacts) for (let k = 0; k < nf; k++) {
-    const f = Math.hypot(c.force[3 * k], c.force[3 * k + 1], c.force[3 * k + 2]);
-    if (f > fContactMax) fContactMax = f;
+  // the largest force over the trial of force arrows {force, arrow}: their length scale
+  function forceArrows(items) {
+    let fmax = 0;
+    for (const c of items) for (let k = 0; k < nf; k++) {
+      const f = Math.hypot(c.force[3 * k], c.force[3 * k + 1], c.force[3 * k + 2]);
+      if (f > fmax) fmax = f;
+    }
+    for (const c of items) { scene.add(c.arrow); layers.contact.push(c.arrow); }
+    return fmax;
   }
-  for (const c of contacts) { scene.add(c.arrow); layers.contact.push(c.arrow); }
+  const fContactMax = forceArrows(contacts);
   // ground reactions (grf.csv): a green arrow per plate at its centre of pressure
   const grfs = (F.grf || []).map((g) => ({
     name: g.name, force: arr(g.force), cop: arr(g.cop),
     arrow: new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 1, 0x1a8c1a),
   }));
-  let fGrfMax = 0;
-  for (const g of grfs) for (let k = 0; k < nf; k++) {
-    const f = Math.hypot(g.force[3 * k], g.force[3 * k + 1], g.force[3 * k + 2]);
-    if (f > fGrfMax) fGrfMax = f;
-  }
-  for (const g of grfs) { scene.add(g.arrow); layers.contact.push(g.arrow); }
+  const fGrfMax = forceArrows(grfs);
 
   // colour maps: pressure/force 0..1 -> blue, cyan, green, yellow, red
   const STOPS = [[0.19, 0.30, 0.75], [0.10, 0.70, 0.85], [0.30, 0.75, 0.30], [0.95, 0.85, 0.15], [0.85, 0.10, 0.10]];
@@ -242,6 +242,17 @@
   const zero = new THREE.Vector3(1e-9, 1e-9, 1e-9), rgb = [0, 0, 0];
   function worldPoint(body, x, y, z, out) { return out.set(x, y, z).applyMatrix4(groups[body].matrixWorld); }
   function visible(obj) { obj.visible = !obj.userData.hidden; return obj.visible; }
+  // a force arrow {force, cop, arrow} at its centre of pressure, length by the trial's largest force
+  function placeArrow(c, fmax) {
+    const fx = c.force[3 * frame], fy = c.force[3 * frame + 1], fz = c.force[3 * frame + 2];
+    const fm = Math.hypot(fx, fy, fz), cx = c.cop[3 * frame];
+    if (fm > 0 && Number.isFinite(cx) && visible(c.arrow)) {
+      const len = scale * 0.35 * fm / (fmax || 1);
+      c.arrow.position.set(cx, c.cop[3 * frame + 1], c.cop[3 * frame + 2]);
+      c.arrow.setDirection(v.set(fx, fy, fz).normalize());
+      c.arrow.setLength(len, 0.25 * len, 0.12 * len);
+    } else c.arrow.visible = false;
+  }
   let frame = 0;
   function setFrame(k) {
     frame = Math.max(0, Math.min(nf - 1, k | 0));
@@ -300,25 +311,9 @@
         col[3 * i] = rgb[0]; col[3 * i + 1] = rgb[1]; col[3 * i + 2] = rgb[2]; mo.lit.push(i);
       }
       mo.obj.geometry.attributes.color.needsUpdate = true;
-      const fx = c.force[3 * frame], fy = c.force[3 * frame + 1], fz = c.force[3 * frame + 2];
-      const fm = Math.hypot(fx, fy, fz), cx = c.cop[3 * frame];
-      if (fm > 0 && Number.isFinite(cx) && visible(c.arrow)) {
-        const len = scale * 0.35 * fm / (fContactMax || 1);
-        c.arrow.position.set(cx, c.cop[3 * frame + 1], c.cop[3 * frame + 2]);
-        c.arrow.setDirection(v.set(fx, fy, fz).normalize());
-        c.arrow.setLength(len, 0.25 * len, 0.12 * len);
-      } else c.arrow.visible = false;
+      placeArrow(c, fContactMax);
     }
-    for (const g of grfs) {
-      const fx = g.force[3 * frame], fy = g.force[3 * frame + 1], fz = g.force[3 * frame + 2];
-      const fm = Math.hypot(fx, fy, fz), cx = g.cop[3 * frame];
-      if (fm > 0 && Number.isFinite(cx) && visible(g.arrow)) {
-        const len = scale * 0.35 * fm / (fGrfMax || 1);
-        g.arrow.position.set(cx, g.cop[3 * frame + 1], g.cop[3 * frame + 2]);
-        g.arrow.setDirection(v.set(fx, fy, fz).normalize());
-        g.arrow.setLength(len, 0.25 * len, 0.12 * len);
-      } else g.arrow.visible = false;
-    }
+    for (const g of grfs) placeArrow(g, fGrfMax);
     // panel, clock, banner
     series.forEach((sr, j) => {
       const x = sr.v[frame], cell = $('s-' + j);
