@@ -134,3 +134,21 @@ def test_automatic_assignment_and_a_plate_struck_by_both_feet(tmp_path, capsys, 
         assert stances[0]["body"] is None and "both feet" in stances[0]["reason"]
         assert np.all(forces["converged"][inside] == 0) and np.all(forces["converged"][~inside] == 1)
         assert "struck by both feet" in err
+
+
+def test_nan_plate_data_fails_those_frames_with_the_reason(tmp_path, capsys):
+    import ezc3d as e
+
+    trial, _ = _trial(tmp_path)
+    c = e.c3d(str(trial))
+    analogs = c["data"]["analogs"]
+    analogs[0, 2, 150:170] = np.nan  # Fz of frames 15-16 (10 analog samples per frame)
+    c["data"]["analogs"] = analogs
+    c.write(str(trial))
+    model = _model(tmp_path, {"plates": {"plate1": {"body": "foot"}}, "cutoff_hz": 0})
+    code = main(["run", str(model), str(trial), "--out", str(tmp_path / "out"), "--no-plots", "-q"])
+    err = capsys.readouterr().err
+    assert code == 3 and "non-finite analog data" in err, err
+    forces = read_table(tmp_path / "out" / "forces.csv")
+    failed = np.flatnonzero(forces["converged"] == 0)
+    np.testing.assert_array_equal(failed, [15, 16])

@@ -18,6 +18,8 @@ subject, centre of pressure and free moment, in the lab frame, at the marker rat
 on its body as a load expressed in the ground at the centre of pressure, with the free
 moment as its torque (:mod:`openfdk.forces.data_loads`), exactly as OpenSim applies a
 GRF ``ExternalForce``. Below the threshold the plate is unloaded: its load is zero.
+Frames with non-finite analog data on a plate fail with that reason (the reaction is
+unknown there, never taken as zero).
 
 Automatic assignment, per stance (a run of loaded frames): the mean distance of each
 foot's marker centroid to the centre of pressure over the stance; the nearest foot takes
@@ -122,6 +124,10 @@ def plate_loads(model, trial_path, spec, marker_trial, default_cutoff_hz):
             entries.append({"start_s": None, "end_s": None, "body": None, "reason": "never loaded"})
         invalid = tuple((e["start_s"], e["end_s"], f"force plate {plate.name}: {e['reason']}")
                         for e in entries if e["body"] is None and e["start_s"] is not None)
+        # frames with NaN analog data: the ground reaction is unknown there, never taken as 0
+        bad = np.asarray(plate.invalid, bool) | ~np.all(np.isfinite(plate.force), axis=1)
+        invalid += tuple((float(plate.time[a]), float(plate.time[b]),
+                          f"force plate {plate.name}: non-finite analog data") for a, b in _stances(bad))
         for body in sorted({o for o in owner if o is not None}):
             on = owner == body
             F = np.where(on[:, None], plate.force, 0.0)
@@ -130,7 +136,7 @@ def plate_loads(model, trial_path, spec, marker_trial, default_cutoff_hz):
             loads.append(DataLoad(f"{plate.name}_{body}", index[body], SplineThroughData(plate.time, F),
                                   SplineThroughData(plate.time, cop), SplineThroughData(plate.time, T),
                                   "world", "world", np.zeros(3), np.eye(3), invalid))
-        if invalid and not any(o is not None for o in owner):
+        if invalid and not any(o is not None for o in owner):  # carry the reasons on a zero load
             some = next(b.index for b in model.moving_bodies)
             z = np.zeros((len(plate.time), 3))
             loads.append(DataLoad(f"{plate.name}_unassigned", some, SplineThroughData(plate.time, z),
