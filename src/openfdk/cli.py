@@ -421,8 +421,14 @@ def _cmd_bench(args):
     from .bench import BENCHMARK_MODULES
 
     failures = 0
-    for name in BENCHMARK_MODULES:
-        if args.only and not any(o in name.rsplit(".", 1)[-1] for o in args.only):
+    short = [name.rsplit(".", 1)[-1] for name in BENCHMARK_MODULES]
+
+    def selected(module):
+        # a --only that names a module exactly selects that one; otherwise it is a substring
+        return any(o == module if o in short else o in module for o in args.only)
+
+    for name, module in zip(BENCHMARK_MODULES, short):
+        if args.only and not selected(module):
             continue
         try:
             mod = importlib.import_module(name)
@@ -621,7 +627,8 @@ def build_parser():
     b = sub.add_parser("bench", help="run the benchmarks")
     b.add_argument("--quick", action="store_true", help="short runs (for tests)")
     b.add_argument("--json", action="store_true", help="one JSON object per line")
-    b.add_argument("--only", nargs="*", help="substrings of benchmark module names to run")
+    b.add_argument("--only", nargs="*", help="benchmark modules to run: a module's name (full_body) or a substring of "
+                                            "names (arm)")
     _display_arguments(b)
     b.set_defaults(func=_cmd_bench)
     return p

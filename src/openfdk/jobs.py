@@ -78,13 +78,20 @@ def _check_order(start, end):
 
 def determinate_times(model, start=None, end=None, settings=None):
     """Analysis times (nf,) s of a determinate run: [start, end] (defaults: the settings'
-    ``analysis.start/end``, else 0 and 1 s) with ``analysis.frames`` frames (default 101)."""
+    ``analysis.start/end``, else 0 and 1 s) with ``analysis.frames`` frames (default 101),
+    or every 1/``analysis.rate_hz`` s from the settings' start."""
     from .kinematics.analysis import analysis_times
 
     a = (settings or AnalysisSettings()).kinematics
     t0 = float(a.get("start", 0.0) if start is None else start)
     t1 = float(a.get("end", 1.0) if end is None else end)
     _check_order(t0, t1)
+    if "rate_hz" in a:  # frames on the grid start + k / rate_hz (a --motion file's samples)
+        origin, rate = float(a.get("start", 0.0)), float(a["rate_hz"])
+        k0, k1 = np.ceil((t0 - origin) * rate - 1e-6), np.floor((t1 - origin) * rate + 1e-6)
+        if k1 < k0:
+            raise ValueError(f"no frame of the {rate:g} Hz grid within [{t0:g}, {t1:g}] s")
+        return origin + np.arange(int(k0), int(k1) + 1) / rate
     return analysis_times(t0, t1, int(a.get("frames", 101)))
 
 

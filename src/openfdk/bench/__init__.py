@@ -16,6 +16,7 @@ BENCHMARK_MODULES = [
     "openfdk.bench.mandible",
     "openfdk.bench.knee",
     "openfdk.bench.full_body",
+    "openfdk.bench.full_body_id",
     "openfdk.bench.force_plates",
     "openfdk.bench.study",
     "openfdk.bench.fuzz",

@@ -99,8 +99,9 @@ def build(b, ctx) -> Model:
 
 def _analysis(spec, ctx):
     """The ``analysis`` section: marker_cutoff_hz (Hz, >= 0), start and end (s, start <=
-    end) and frames (an integer >= 1)."""
-    spec = ctx.keys(spec, "analysis", ["marker_cutoff_hz", "start", "end", "frames"])
+    end) and frames (an integer >= 1) or rate_hz (determinate frames every 1/rate_hz s
+    from start: the samples of a ``--motion`` file)."""
+    spec = ctx.keys(spec, "analysis", ["marker_cutoff_hz", "start", "end", "frames", "rate_hz"])
     out = {}
     if "marker_cutoff_hz" in spec:
         out["marker_cutoff_hz"] = ctx.number(spec["marker_cutoff_hz"], "analysis.marker_cutoff_hz", "Hz", nonnegative=True)
@@ -111,6 +112,10 @@ def _analysis(spec, ctx):
         raise ctx.error("analysis", f"start ({out['start']:g} s) is after end ({out['end']:g} s)")
     if "frames" in spec:
         out["frames"] = ctx.integer(spec["frames"], "analysis.frames", low=1, high=10_000_000)
+    if "rate_hz" in spec:
+        if "frames" in spec:
+            raise ctx.error("analysis", "give frames or rate_hz, not both")
+        out["rate_hz"] = ctx.number(spec["rate_hz"], "analysis.rate_hz", "Hz", positive=True, high=1e6)
     return out
 
 

@@ -13,6 +13,8 @@ computes from its ``coordinates_file``.
   are the residuals.
 * Sample times within 5 % of a sample interval of a uniform grid are put on it (files
   that print times rounded, such as OpenSim's IK output of a 60 Hz TRC timed to 1 ms).
+* The run's frames are the file's samples (``analysis`` start, end and ``rate_hz``), unless
+  the model or overlay gives its own window; ``--start``/``--end`` keep the file's grid.
 * Every free coordinate must be in the file (locked and prescribed ones follow their
   own rows, couplers' dependent coordinates follow the coupler and are not driven);
   a column naming no coordinate is ignored, as OpenSim ignores it.
@@ -78,4 +80,8 @@ def motion_drivers(path, data, cutoff_hz=None):
         raise OsimError(f"{source}: no column for the coordinates {missing}; a motion file drives every free coordinate")
     out = dict(data)
     out["drivers"] = drivers
+    analysis = dict(data.get("analysis") or {})
+    if not any(k in analysis for k in ("start", "end", "frames", "rate_hz")):  # the file's samples
+        analysis.update(start=float(times[0]), end=float(times[-1]), rate_hz=float(rate))
+    out["analysis"] = analysis
     return out
