@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..model.framedata import FrameData
-from ..model.kernels import extrapolate_poses
+from ..model.kernels import displace_poses, extrapolate_poses
 from ..trial import drive
 from ..trial.status import frame_messages
 from .determinate import check_square, solve_positions, solve_velocities_accelerations
@@ -147,7 +147,8 @@ def kinematics_result(rec, model, times, alpha, wall_time, mode, prefix="kin."):
 
 class DeterminateStep:
     """Trial-driver step of determinate kinematics (Eqs. 1–3): Newton–Raphson from the
-    previous frame's pose (the last converged one after a failure)."""
+    previous frame's pose carried forward by its velocity and acceleration,
+    q ⊕ (v Δt + ½ v̇ Δt²) on the manifold (the last converged pose after a failure)."""
 
     def __init__(self, model, times, alpha, prefix="kin."):
         self.model, self.times, self.alpha, self.prefix = model, times, alpha, prefix
@@ -155,6 +156,7 @@ class DeterminateStep:
         check_square(self.system)
         self.state = model.initial_state()
         self.last_good = self.state.copy()
+        self.rates = None  # (t, v, v̇) of the previous converged frame: the warm start's Taylor step
         self.frame_data = {}  # frame -> FrameData of the frame just finished (for the dynamics)
 
     def fields(self):
@@ -164,6 +166,11 @@ class DeterminateStep:
         t, P = self.times[k], self.prefix
         self.frame_data = {}
         data = FrameData()
+        if self.rates is not None:
+            dt = t - self.rates[0]
+            st = self.state
+            displace_poses(st.p_WB, st.quat_WB, st.R_WB, st.moving, st.column,
+                           self.rates[1] * dt + 0.5 * dt * dt * self.rates[2])
         res = solve_positions(self.system, self.state, t, self.alpha, data=data)
         values = {P + "iterations": res.iterations, P + "constraint_violation": res.residual,
                   P + "report": res.report()}
@@ -172,18 +179,21 @@ class DeterminateStep:
             self.frame_data = {k: data}
             values.update({P + "q": self.state.get_q(), P + "v": v, P + "vdot": vd})
             self.last_good = self.state.copy()
+            self.rates = (t, v, vd) if np.all(np.isfinite(v)) and np.all(np.isfinite(vd)) else None
         else:
             self.state = self.last_good.copy()
+            self.rates = None
         return [(k, values)]
 
     def finish(self):
         return []
 
     def carry(self):
-        return self.state.copy(), self.last_good.copy()
+        return self.state.copy(), self.last_good.copy(), self.rates
 
     def restore(self, carry):
         self.state, self.last_good = carry[0].copy(), carry[1].copy()
+        self.rates = carry[2] if len(carry) > 2 else None
 
 
 class TrackingStep:

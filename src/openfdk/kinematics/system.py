@@ -54,6 +54,7 @@ class ConstraintSystem:
                 self._drivers.append((r, c))
             r += c.size
         self._n_joint_rows = r
+        self._spline_groups, self._drivers = _spline_groups(self._drivers)
         self._targets_key = None
         self._targets = None
 
@@ -69,6 +70,9 @@ class ConstraintSystem:
         ddf = np.zeros(self.n_rows)
         for r, c in self._drivers:
             f[r : r + c.size], df[r : r + c.size], ddf[r : r + c.size] = c.function.derivatives(t)
+        for rows, check, spline in self._spline_groups:  # spline drivers on one knot grid: one evaluation
+            check.derivatives_range_check(t)
+            f[rows], df[rows], ddf[rows] = spline.derivatives(t)
         f[self._n_joint_rows :] = alpha
         self._targets_key, self._targets = key, (f, df, ddf)
         return self._targets
@@ -119,6 +123,35 @@ class ConstraintSystem:
         nu = df.copy()  # Eq. 2: Φ_t = −ḟ
         gamma = ddf - b if order >= 2 else None  # Eq. 3
         return Phi, M, nu, gamma
+
+
+def _spline_groups(drivers):
+    """(groups, other drivers): drivers whose functions are cubic splines through data on
+    the same knots (a --motion file drives every coordinate so) evaluated as one spline of
+    all their columns — one knot search per time instead of one per driver. Each group is
+    (rows (k,) int, the first driver's function (its time-range check), NotAKnotSpline)."""
+    from ..cubic_spline import NotAKnotSpline
+    from ..model.timefunctions import SplineThroughData
+
+    by_knots, rest = {}, []
+    for r, c in drivers:
+        fn = c.function
+        if type(fn) is SplineThroughData:
+            by_knots.setdefault((fn._s.x.tobytes(), fn.extrapolate), []).append((r, c))
+        else:
+            rest.append((r, c))
+    groups = []
+    for members in by_knots.values():
+        if len(members) == 1:
+            rest += members
+            continue
+        first = members[0][1].function
+        spline = NotAKnotSpline.__new__(NotAKnotSpline)
+        spline.x, spline._knots = first._s.x, first._s._knots
+        spline.coef = np.concatenate([c.function._s.coef for _, c in members], axis=2)
+        rows = np.concatenate([np.arange(r, r + c.size) for r, c in members])
+        groups.append((rows, first, spline))
+    return groups, rest
 
 
 def dependent_rows(A, row_names, tol=1e-9):

@@ -124,8 +124,12 @@ class SplineThroughData(TimeFunction):
         self.extrapolate = extrapolate
         self._s = NotAKnotSpline(times, values)
 
-    def derivatives(self, t):
+    def derivatives_range_check(self, t):
+        """Raise ValueError when t (s) is outside the data and extrapolation is off."""
         lo, hi = self.t_range
         if not self.extrapolate and not (lo - 1e-12 <= t <= hi + 1e-12):
             raise ValueError(f"spline driver evaluated at t = {t} s outside its data [{lo}, {hi}] s")
+
+    def derivatives(self, t):
+        self.derivatives_range_check(t)
         return self._s.derivatives(t)

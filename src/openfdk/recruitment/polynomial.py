@@ -236,6 +236,17 @@ def solve_polynomial(C, d, n_bounded, s, p=3.0, *, x0=None, tol=1e-10, max_iter=
         raise RecruitmentInputError(f"exponent p must be a finite number ≥ 2; got {p!r}")
     n_eq, n_var = C.shape
     n_bounded = int(n_bounded)
+    if n_bounded == 0 and n_eq == n_var:
+        # no recruited column and as many free columns as rows (e.g. every coordinate
+        # driven, OpenSim's inverse dynamics): C f = d has one solution, G = 0, λ = 0
+        fast = _square_free_solution(C, d)
+        if fast is not None:
+            f, residual = fast
+            zero = np.zeros(n_var, bool)
+            return RecruitmentResult(
+                f=f, converged=True, status=STATUS_OPTIMAL, message="optimal", iterations=0, objective=0.0,
+                multipliers=np.zeros(n_eq), active_upper=zero, active_lower=zero.copy(), infeasible_rows=(),
+                residual=residual, n_bounded=0, criterion="polynomial", p=p)
     warm_mode, lam_start, x_start = _warm_start(x0, n_eq, n_var, n_bounded, s)
     f, lam, active_upper, active_lower, residual, objective, code, iterations = \
         _solve_polynomial_kernel(
@@ -255,6 +266,22 @@ def solve_polynomial(C, d, n_bounded, s, p=3.0, *, x0=None, tol=1e-10, max_iter=
         )
     return failed_result(C, d, n_bounded, s, p, iterations, row_names, "polynomial",
                          f"polynomial recruitment (p = {p:g})")
+
+
+def _square_free_solution(C, d):
+    """(f, residual C f − d) of a square system of free columns by one LU, or None when
+    it is singular or ill-conditioned (the kernel then names the dependent columns)."""
+    from ..kinematics.frame_kernels import small_solve
+
+    try:
+        f = small_solve(C, d)
+    except np.linalg.LinAlgError:
+        return None
+    residual = C @ f - d
+    scale = max(float(np.max(np.abs(d), initial=0.0)), 1.0)
+    if not np.all(np.isfinite(f)) or np.max(np.abs(residual)) > 1e-8 * scale:
+        return None
+    return f, residual
 
 
 def failed_result(C, d, n_bounded, s, p, iterations, row_names, criterion, what):
