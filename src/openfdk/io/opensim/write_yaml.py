@@ -53,8 +53,10 @@ def write_imported(data, out_dir, source_name, info=None, force=False):
     for target in [name, "Geometry"] + sorted(set(meshes.values())):
         path = out_dir / target
         if target == "Geometry":
-            if os.path.lexists(path) and not path.is_dir():
-                raise OutputDirError(f"output folder {str(out_dir)!r}: {target} is a file, not a folder")
+            # a symlink would put the meshes outside --out
+            if os.path.lexists(path) and (path.is_symlink() or not path.is_dir()):
+                raise OutputDirError(f"output folder {str(out_dir)!r}: {target} is not a folder of its own "
+                                     "(a file or a symlink)")
             continue
         if path.is_dir():
             raise OutputDirError(f"output folder {str(out_dir)!r}: {target} is a folder")
