@@ -505,7 +505,7 @@ def _register_import(args):
     for option, value in (("--with", args.overlay), ("--ik-tasks", args.ik_tasks),
                           ("--external-loads", args.external_loads), ("--motion", args.motion)):
         if value is not None and not Path(value).is_file():
-            raise UserError(f"{option}: file {value!r} does not exist")
+            raise UserError(f"{option}: {value!r} does not exist or is not a regular file")
     from .io.opensim.overlay import register
 
     register(model, args.ignore, args.geometry, args.overlay, args.ik_tasks, args.external_loads, args.motion,

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .document import _parser
+from .document import parse_xml
 from .errors import OsimError, where
 
 
@@ -33,16 +33,9 @@ def read_external_loads(path, data, info):
     """The model mapping ``data`` (an imported .osim) with the ExternalForces of
     ``path`` as its ``external_loads`` section; ``info`` is the import's info (body
     frames). Errors name the file, the line and the force."""
-    from lxml import etree
-
     path = Path(path)
     source = path.name
-    try:
-        root = etree.parse(str(path), _parser()).getroot()
-    except OSError as exc:
-        raise OsimError(f"{source}: cannot read the file ({exc})") from None
-    except etree.XMLSyntaxError as exc:
-        raise OsimError(f"{source}: not well-formed XML: {exc.msg} (line {exc.lineno})") from None
+    root = parse_xml(path, source).getroot()
     loads = root if root.tag == "ExternalLoads" else root.find(".//ExternalLoads")
     if loads is None:
         raise OsimError(f"{source}: line {root.sourceline}: no <ExternalLoads>: not an OpenSim external loads file")
