@@ -1,0 +1,71 @@
+"""Hostile inputs of the gait readers: OpenSim ExternalLoads files, their data files
+and coordinate (--motion) files. Each ends in exit code 2 with one line naming the file
+and the entry; none is accepted silently."""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from openfdk.cli import main
+from openfdk.fixtures.full_body_osim import write_full_body_osim
+
+GRF = "grf\nversion=1\nnRows=3\nnColumns=4\ninDegrees=no\nendheader\ntime\tf_vx\tf_vy\tf_vz\n0\t1\t2\t3\n0.5\t1\t2\t3\n1\t1\t2\t3\n"
+LOADS = ("<OpenSimDocument Version=\"40000\"><ExternalLoads><objects><ExternalForce name=\"a\">"
+         "<applied_to_body>tibia_r</applied_to_body><force_expressed_in_body>ground</force_expressed_in_body>"
+         "<point_expressed_in_body>tibia_r</point_expressed_in_body><force_identifier>f_v</force_identifier>"
+         "</ExternalForce></objects><datafile>grf.mot</datafile></ExternalLoads></OpenSimDocument>")
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    return write_full_body_osim(tmp_path_factory.mktemp("m") / "full_body.osim")
+
+
+CASES = {
+    "unknown body": (LOADS.replace(">tibia_r</applied", ">hand_r</applied"), GRF, "hand_r"),
+    "point in another body": (LOADS.replace("<point_expressed_in_body>tibia_r", "<point_expressed_in_body>femur_r"),
+                              GRF, "femur_r"),
+    "unknown column": (LOADS.replace(">f_v<", ">g_v<"), GRF, "g_vx"),
+    "missing data file": (LOADS.replace("grf.mot", "nothere.mot"), GRF, "nothere.mot"),
+    "no datafile": (LOADS.replace("<datafile>grf.mot</datafile>", ""), GRF, "no data file"),
+    "NaN force": (LOADS, GRF.replace("0.5\t1\t2", "0.5\tnan\t2"), "non-finite"),
+    "one sample": (LOADS, "grf\nendheader\ntime\tf_vx\tf_vy\tf_vz\n0\t1\t2\t3\n", "fewer than 2 samples"),
+    "DOCTYPE": ("<!DOCTYPE x [<!ENTITY a \"b\">]>" + LOADS, GRF, "DOCTYPE"),
+    "not ExternalLoads": ("<OpenSimDocument Version=\"40000\"><Model/></OpenSimDocument>", GRF, "ExternalLoads"),
+    "two forces, one name": (LOADS.replace("</objects>", LOADS.split("<objects>")[1].split("</objects>")[0]
+                                           + "</objects>"), GRF, "second external force"),
+    "times not increasing": (LOADS, GRF.replace("0.5\t1", "0\t1"), "increasing"),
+}
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_bad_external_loads_end_in_one_line(model, tmp_path, capsys, case):
+    xml, mot, words = CASES[case]
+    (tmp_path / "loads.xml").write_text(xml)
+    (tmp_path / "grf.mot").write_text(mot)
+    code = main(["check", str(model), "--ignore", "Mesh", "--external-loads", str(tmp_path / "loads.xml"), "-q"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and words in err[0], err
+    assert "Traceback" not in err[0]
+
+
+@pytest.mark.parametrize("text, words", [
+    ("m\nendheader\ntime\tpelvis_tilt\n0\t1\n1\t2\n", "no column for the coordinates"),
+    ("m\nendheader\ntime\tfoo\n0\t1\n", "no column"),
+    ("not a storage file\n", "endheader"),
+])
+def test_bad_motion_files_end_in_one_line(model, tmp_path, capsys, text, words):
+    (tmp_path / "m.mot").write_text(text)
+    code = main(["check", str(model), "--motion", str(tmp_path / "m.mot"), "-q"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and words in err[0], err
+
+
+def test_a_fifo_is_refused_without_blocking(model, tmp_path, capsys):
+    fifo = tmp_path / "loads.xml"
+    os.mkfifo(fifo)
+    code = main(["check", str(model), "--external-loads", str(fifo), "-q"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "regular file" in err[0], err
