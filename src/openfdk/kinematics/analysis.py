@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..model.framedata import FrameData
-from ..model.kernels import displace_poses, extrapolate_poses
+from ..model.kernels import displace_by_rates, extrapolate_poses
 from ..trial import drive
 from ..trial.status import frame_messages
 from .determinate import check_square, solve_positions, solve_velocities_accelerations
@@ -167,10 +167,9 @@ class DeterminateStep:
         self.frame_data = {}
         data = FrameData()
         if self.rates is not None:
-            dt = t - self.rates[0]
             st = self.state
-            displace_poses(st.p_WB, st.quat_WB, st.R_WB, st.moving, st.column,
-                           self.rates[1] * dt + 0.5 * dt * dt * self.rates[2])
+            displace_by_rates(st.p_WB, st.quat_WB, st.R_WB, st.moving, st.column, self.rates[1], self.rates[2],
+                              t - self.rates[0])
         res = solve_positions(self.system, self.state, t, self.alpha, data=data)
         values = {P + "iterations": res.iterations, P + "constraint_violation": res.residual,
                   P + "report": res.report()}
@@ -179,7 +178,7 @@ class DeterminateStep:
             self.frame_data = {k: data}
             values.update({P + "q": self.state.get_q(), P + "v": v, P + "vdot": vd})
             self.last_good = self.state.copy()
-            self.rates = (t, v, vd) if np.all(np.isfinite(v)) and np.all(np.isfinite(vd)) else None
+            self.rates = (t, v, vd)
         else:
             self.state = self.last_good.copy()
             self.rates = None

@@ -76,6 +76,20 @@ def displace_poses(p_WB, quat_WB, R_WB, moving, column, dq_hat):
 
 
 @njit(cache=True)
+def displace_by_rates(p_WB, quat_WB, R_WB, moving, column, v, vdot, dt):
+    """In place: the poses carried forward by a second-order Taylor step,
+    q ⊕ (v Δt + ½ v̇ Δt²) (the determinate warm start). v, vdot (6 n_moving,) [m/s,
+    rad/s; m/s², rad/s²]; dt s. Returns False (poses untouched) if v or v̇ is not finite."""
+    dq = np.empty(v.shape[0])
+    for k in range(v.shape[0]):
+        dq[k] = v[k] * dt + 0.5 * dt * dt * vdot[k]
+        if not np.isfinite(dq[k]):
+            return False
+    displace_poses(p_WB, quat_WB, R_WB, moving, column, dq)
+    return True
+
+
+@njit(cache=True)
 def _quat_product(p0, p1, p2, p3, d0, d1, d2, d3):
     """p ⊗ d of two quaternions (scalar first), as four numbers."""
     return (p0 * d0 - p1 * d1 - p2 * d2 - p3 * d3,
