@@ -665,7 +665,8 @@ def _ellipsoid_joint(tree):
     return joint
 
 
-MUSCLE = """<Thelen2003Muscle name="vastus">
+#: a muscle class openfdk does not read yet (Thelen2003Muscle is read: tests/test_opensim_muscles.py)
+MUSCLE = """<Millard2012EquilibriumMuscle name="vastus">
   <GeometryPath name="path">
     <PathPointSet><objects>
       <PathPoint name="p1">
@@ -677,7 +678,7 @@ MUSCLE = """<Thelen2003Muscle name="vastus">
     </objects></PathPointSet>
   </GeometryPath>
   <max_isometric_force>1000</max_isometric_force>
-</Thelen2003Muscle>"""
+</Millard2012EquilibriumMuscle>"""
 
 
 def _muscle(tree):
@@ -692,7 +693,7 @@ def _muscle(tree):
     ("unsorted_knots", "custom", _unsort_knots, "SimmSpline"),
     ("unknown_coordinate", "constraints", _unknown_coupler_coordinate, "no_such_coordinate"),
     ("ellipsoid_joint", "joints", _ellipsoid_joint, "EllipsoidJoint"),
-    ("muscle", "joints", _muscle, "Thelen2003Muscle 'vastus'"),
+    ("muscle", "joints", _muscle, "Millard2012EquilibriumMuscle 'vastus'"),
 ])
 def test_malformed_files_are_one_line_errors(files, workdir, case, source, edit, words):
     """Each malformed file raises OsimError (a ValueError) with one line naming the file,
@@ -724,7 +725,7 @@ def test_not_xml_and_not_opensim_are_one_line_errors(workdir):
 
 def test_cli_check_reports_bad_files_in_one_line_and_ignore_skips_muscles(files, workdir, capsys):
     """``openfdk check bad.osim`` exits 2 with one line on stderr; ``--ignore
-    Thelen2003Muscle`` reads the model without its muscle."""
+    Millard2012EquilibriumMuscle`` reads the model without its muscle."""
     from openfdk.cli import main
 
     bad = workdir / "cli_mesh.osim"
@@ -737,14 +738,14 @@ def test_cli_check_reports_bad_files_in_one_line_and_ignore_skips_muscles(files,
     line = _edit(files["joints"], muscle, _muscle)
     assert main(["check", str(muscle)]) == 2
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and f"line {line}:" in err and "--ignore Thelen2003Muscle" in err, err
+    assert len(err.splitlines()) == 1 and f"line {line}:" in err and "--ignore Millard2012EquilibriumMuscle" in err, err
     ignored = workdir / "cli_muscle_ignored.osim"
     _edit(files["joints"], ignored, _muscle)
-    assert main(["check", str(ignored), "--ignore", "Thelen2003Muscle"]) == 0
+    assert main(["check", str(ignored), "--ignore", "Millard2012EquilibriumMuscle"]) == 0
     out = capsys.readouterr()
     assert "error" not in out.err
-    _, info = read_osim(ignored, ignore=("Thelen2003Muscle",))
-    assert [d["type"] for d in info["dropped"]] == ["Thelen2003Muscle"]
+    _, info = read_osim(ignored, ignore=("Millard2012EquilibriumMuscle",))
+    assert [d["type"] for d in info["dropped"]] == ["Millard2012EquilibriumMuscle"]
 
 
 # ----------------------------------------------------------------------------- meshes

@@ -15,6 +15,10 @@ read into the same records:
   ``ground``, markers with ``body``, geometry as ``VisibleObject``/``DisplayGeometry``
   or ``geometry_files``.
 
+ForceSet: ``Thelen2003Muscle`` with a GeometryPath of ``PathPoint``\\ s (4.x:
+``socket_parent_frame``; 3.x: ``body``) is read into OsimMuscle records; every other
+force, and a muscle whose path holds anything but PathPoints, is listed as unsupported.
+
 Units: OpenSim files are in m, kg, rad (``length_units`` other than meters is refused).
 Orientations (``orientation``, ``orientation_in_parent``) are body-fixed X-Y-Z Euler
 angles, rad. Nothing here builds an openfdk model: :mod:`openfdk.io.opensim.joints`
@@ -166,6 +170,50 @@ class OsimMarker:
     line: int = 0
 
 
+#: the muscle classes read from the ForceSet (every other force is refused by name)
+MUSCLE_TYPES = ("Thelen2003Muscle",)
+#: Thelen2003Muscle properties and OpenSim 4.6's defaults (a property absent from the
+#: file has its default, as OpenSim reads it)
+THELEN_DEFAULTS = {
+    "max_isometric_force": 1000.0, "optimal_fiber_length": 0.1, "tendon_slack_length": 0.2,
+    "pennation_angle_at_optimal": 0.0, "max_contraction_velocity": 10.0, "FmaxTendonStrain": 0.04,
+    "FmaxMuscleStrain": 0.6, "KshapeActive": 0.45, "KshapePassive": 5.0, "Af": 0.25, "Flen": 1.4,
+    # read and reported, not used by openfdk's recruitment (docs/opensim-import.md)
+    "min_control": 0.01, "max_control": 1.0, "optimal_force": 1.0, "default_activation": 0.05,
+    "default_fiber_length": 0.1, "fv_linear_extrap_threshold": 0.95, "maximum_pennation_angle": 1.4706289056333368,
+    "activation_time_constant": 0.015, "deactivation_time_constant": 0.05, "minimum_activation": 0.01,
+}
+#: boolean properties of a muscle, read and reported
+_MUSCLE_FLAGS = {"ignore_tendon_compliance": False, "ignore_activation_dynamics": False}
+#: muscle children that carry no physics (display, empty component lists)
+_MUSCLE_METADATA = {"components", "appliesForce", "isDisabled", "GeometryPath", "Appearance", "time_scale"}
+_PATH_METADATA = {"PathPointSet", "PathWrapSet", "Appearance", "default_color", "display", "components",
+                  "VisibleObject"}
+
+
+@dataclass
+class OsimPathPoint:
+    """A PathPoint: ``location (3,)`` m in ``frame`` (an OsimFrame key once resolved)."""
+
+    name: str
+    frame: str
+    location: np.ndarray
+    line: int = 0
+
+
+@dataclass
+class OsimMuscle:
+    """A muscle of the ForceSet: ``type`` (OpenSim class), ``points`` (OsimPathPoint,
+    in the path's order), ``parameters`` {OpenSim property: value} (every property of
+    THELEN_DEFAULTS and the flags, the file's value or OpenSim's default)."""
+
+    name: str
+    type: str
+    points: list
+    parameters: dict
+    line: int = 0
+
+
 @dataclass
 class OsimDocument:
     """The records of one model file (see the module docstring)."""
@@ -184,6 +232,7 @@ class OsimDocument:
     geometry: list
     unsupported: list  # (type, name, line) of elements openfdk does not read
     ignored: list = field(default_factory=list)  # the same, left out on request (--ignore)
+    muscles: list = field(default_factory=list)  # OsimMuscle, in the ForceSet's order
 
 
 def _parser():
@@ -305,6 +354,7 @@ class _Reader:
         self.ignore = ignore
         self.bodies, self.frames, self.coordinates = {}, {}, {}
         self.joints, self.constraints, self.markers, self.geometry = [], [], [], []
+        self.muscles = []
         self.unsupported, self.ignored = [], []
         self.pending = []  # (frame key, socket path, scope): frames whose parent is resolved after reading
         self.joint_sockets = []  # (joint, parent path, child path, scope)
@@ -346,10 +396,10 @@ class _Reader:
             raise self.err(element, f"<{tag}> must be true or false, got {text!r}")
         return text.lower() == "true"
 
-    def skip(self, element, kind=None):
+    def skip(self, element, kind=None, name=None):
         """An element openfdk does not read: ignored on request, else listed."""
         kind = kind or element.tag
-        entry = (kind, element.get("name") or "", element.sourceline)
+        entry = (kind, name or element.get("name") or "", element.sourceline)
         if kind in self.ignore or ("forces" in self.ignore and (kind == "ForceSet" or kind.startswith("Wrap"))):
             self.ignored.append(entry)
         else:
@@ -404,6 +454,8 @@ class _Reader:
             for e in self.objects(model.find(tag)):
                 if tag == "ForceSet" and "forces" in self.ignore:
                     self.ignored.append((e.tag, e.get("name") or "", e.sourceline))
+                elif tag == "ForceSet" and e.tag in MUSCLE_TYPES and e.tag not in self.ignore:
+                    self.read_muscle(e, legacy)
                 else:
                     self.skip(e)
         for e in model:
@@ -417,6 +469,12 @@ class _Reader:
             j.parent, j.child = self.resolve(j.parent, scope), self.resolve(j.child, scope)
         for m in self.markers:
             m.frame = m.body = self.resolve(m.frame)
+        for mu in self.muscles:
+            for pt in mu.points:
+                pt.frame = self.resolve(pt.frame)
+                if pt.frame not in self.frames and pt.frame != "ground":
+                    raise OsimError(f"{self.source}: line {pt.line}: {mu.type} {mu.name!r}: PathPoint {pt.name!r}: "
+                                    f"frame {pt.frame!r} is neither a body nor a frame of the model")
         for g in self.geometry:
             g.frame = self.resolve(g.frame)
         for j in self.joints:
@@ -442,7 +500,7 @@ class _Reader:
                                     "body nor a frame of the model")
         return OsimDocument(self.source, self.path, name, version, gravity, self.bodies, self.frames, self.joints,
                             self.coordinates, self.constraints, self.markers, self.geometry, self.unsupported,
-                            self.ignored)
+                            self.ignored, self.muscles)
 
     def resolve(self, path, scope=""):
         """The key in ``self.frames`` of a socket path, read in ``scope`` (the owner of
@@ -775,3 +833,74 @@ class _Reader:
         frame = (self.child_text(m, "body") if legacy and m.find("body") is not None
                  else self.child_text(m, "socket_parent_frame"))
         self.markers.append(OsimMarker(name, frame, self.child_numbers(m, "location", 3), frame, m.sourceline))
+
+    # -- muscles ----------------------------------------------------------------------
+    def read_muscle(self, m, legacy):
+        """A muscle of MUSCLE_TYPES with a path of PathPoints. A muscle whose path holds
+        anything else (ConditionalPathPoint, MovingPathPoint, a PathWrap) is left out as
+        a whole: that element is refused by name (or, ignored with --ignore, listed as
+        dropped together with its muscle) — never imported without it."""
+        kind, name = m.tag, m.get("name")
+        if not name:
+            raise self.err(m, "a muscle without a name")
+        self.once(m, "muscle", name)
+        enabled = self.child_bool(m, "appliesForce", True) and not self.child_bool(m, "isDisabled", False)
+        if not enabled:
+            self.ignored.append((kind, name, m.sourceline))  # OpenSim does not apply it either
+            return
+        label = f"{kind} {name!r}"
+        params = {}
+        for tag, default in THELEN_DEFAULTS.items():
+            params[tag] = float(self.child_numbers(m, tag, 1, [default])[0])
+        for tag, default in _MUSCLE_FLAGS.items():
+            params[tag] = self.child_bool(m, tag, default)
+        seen = set()
+        for e in m:
+            if not isinstance(e.tag, str):
+                continue
+            if e.tag in seen:  # which one OpenSim would use is not the file's to leave open
+                raise self.err(e, f"{label}: property <{e.tag}> given twice")
+            seen.add(e.tag)
+            if e.tag in THELEN_DEFAULTS or e.tag in _MUSCLE_FLAGS:
+                continue
+            if e.tag == "components" and len(e):
+                for comp in e:
+                    if isinstance(comp.tag, str):
+                        self.skip(comp)
+            elif e.tag not in _MUSCLE_METADATA:
+                raise self.err(e, f"{label}: property <{e.tag}> is not read by openfdk; leave the muscle out with "
+                                  f"--ignore {kind}")
+        path = m.find("GeometryPath")
+        if path is None:
+            raise self.err(m, "no <GeometryPath>")
+        refused = []
+        for e in path:
+            if isinstance(e.tag, str) and e.tag not in _PATH_METADATA:
+                refused.append(e)
+        points = []
+        for p in self.objects(path.find("PathPointSet")):
+            if p.tag != "PathPoint":
+                refused.append(p)
+                continue
+            pname = p.get("name") or f"point{len(points) + 1}"
+            if legacy and p.find("body") is not None:
+                frame = self.child_text(p, "body")
+            else:
+                frame = self.child_text(p, "socket_parent_frame")
+            for e in p:
+                if isinstance(e.tag, str) and e.tag not in ("location", "socket_parent_frame", "body", "Appearance",
+                                                             "display", "components"):
+                    raise self.err(e, f"{label}: PathPoint {pname!r}: property <{e.tag}> is not read by openfdk; "
+                                      f"leave the muscle out with --ignore {kind}")
+            points.append(OsimPathPoint(pname, frame, self.child_numbers(p, "location", 3), p.sourceline))
+        refused += list(self.objects(path.find("PathWrapSet")))
+        if refused:
+            before = len(self.unsupported)
+            for e in refused:  # named by their place, "muscle/point", as OpenSim's component paths
+                self.skip(e, name=f"{name}/{e.get('name') or ''}")
+            if len(self.unsupported) == before:  # all of them ignored on request: the muscle goes with them
+                self.ignored.append((kind, name, m.sourceline))
+            return
+        if len(points) < 2:
+            raise self.err(m, f"its path needs at least 2 PathPoints, the file gives {len(points)}")
+        self.muscles.append(OsimMuscle(name, kind, points, params, m.sourceline))

@@ -12,6 +12,11 @@ docs/model-file.md, in SI units), so that an ``.osim`` and the file
   WeldConstraint and PointConstraint as weld and spherical joints.
 * Markers: OpenSim names may hold characters openfdk names may not ('.', spaces): the
   name is made safe and the trial label stays the OpenSim name.
+* Muscles: a Thelen2003Muscle becomes a Hill muscle of the ``muscles`` section
+  (:func:`hill_parameters`, every parameter mapped); its PathPoints become frames on
+  their (merged) bodies, named ``<muscle>_<point>``, and its path lists them in order.
+  The settings openfdk's recruitment does not use (activation floor, time constants, …)
+  are returned in ``info["muscle_settings"]``.
 * Geometry: ``visual`` entries with the mesh file found next to the model, in its
   ``Geometry`` folder, or in ``../Geometry`` (the layout of opensim-models); a missing
   mesh is an error unless ``Mesh`` is ignored.
@@ -137,6 +142,18 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         if safe != m.name:
             entry["label"] = m.name
         bodies[body].setdefault("markers", {})[safe] = entry
+    muscles, settings = {}, {}
+    for mu in doc.muscles:
+        safe = unique("muscle", mu.name)
+        path = [frame_of(pt.frame, f"{mu.name}_{pt.name}", kind="path point") for pt in mu.points]
+        # a PathPoint is a frame at its location, axes of its parent frame
+        for pt, ref in zip(mu.points, path):
+            body, fname = ref.split(".", 1)
+            _, _, R = tree.frame_in_root(pt.frame)
+            frame = bodies[body]["frames"][fname]
+            frame["position"] = (np.asarray(frame["position"]) + R @ pt.location).tolist()
+        muscles[safe] = {"model": "hill", "path": path, **hill_parameters(mu, doc.source)}
+        settings[safe] = {k: v for k, v in mu.parameters.items() if k in RECRUITMENT_SETTINGS}
     for g in doc.geometry:
         path = find_mesh(doc, g, mesh_dirs, "Mesh" in ignore)
         if path is None:
@@ -155,6 +172,8 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
     out["joints"] = joints
     if couplers:
         out["couplers"] = couplers
+    if muscles:
+        out["muscles"] = muscles
     merged = {b: tree.root[b] for b in doc.bodies if tree.root[b] != b}
     # each OpenSim body frame in its openfdk body (for data given in a body's frame)
     body_frames = {}
@@ -162,7 +181,49 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         root = tree.root[b]
         p, R = tree.X_root[b]
         body_frames[b] = ("ground" if root == tree.ground else safe_name(root), (p - com[root]).tolist(), R.tolist())
-    return out, {"merged_bodies": merged, "body_frames": body_frames}
+    return out, {"merged_bodies": merged, "body_frames": body_frames, "muscle_settings": settings}
+
+
+#: Thelen2003Muscle properties -> openfdk Hill keys (docs/opensim-import.md); Af is
+#: mapped separately (fast_fibre_fraction)
+THELEN_TO_HILL = {
+    "max_isometric_force": "max_isometric_force", "optimal_fiber_length": "optimal_fibre_length",
+    "tendon_slack_length": "tendon_slack_length", "pennation_angle_at_optimal": "pennation_angle_at_optimal",
+    "max_contraction_velocity": "max_contraction_velocity", "FmaxTendonStrain": "tendon_strain_at_max_force",
+    "FmaxMuscleStrain": "passive_strain_at_max_force", "KshapeActive": "force_length_width",
+    "KshapePassive": "passive_shape_factor", "Flen": "max_eccentric_force",
+}
+#: Thelen2003Muscle properties read but not used by openfdk's recruitment (reported)
+RECRUITMENT_SETTINGS = ("min_control", "max_control", "optimal_force", "default_activation", "default_fiber_length",
+                        "fv_linear_extrap_threshold", "maximum_pennation_angle", "activation_time_constant",
+                        "deactivation_time_constant", "minimum_activation", "ignore_tendon_compliance",
+                        "ignore_activation_dynamics")
+
+
+def hill_parameters(muscle, source):
+    """The ``muscles`` entry keys of an OsimMuscle (Thelen2003Muscle), in SI units.
+
+    Thelen's force–velocity curve at full activation is Hill's hyperbola
+    (1 + ṽ)/(1 − ṽ/Af), openfdk's with curvature A = 0.1 + 0.4·ff: so
+    ff = (Af − 0.1)/0.4, and an Af outside [0.1, 0.5] (ff outside [0, 1]) is refused.
+    Every value is checked by :class:`~openfdk.forces.hill.Hill3ElementMuscle`; an
+    invalid one raises OsimError naming the muscle and its line."""
+    from ...forces.hill import Hill3ElementMuscle
+
+    p = muscle.parameters
+    label = f"{source}: line {muscle.line}: {muscle.type} {muscle.name!r}"
+    out = {hill: p[osim] for osim, hill in THELEN_TO_HILL.items()}
+    af = p["Af"]
+    if not 0.1 <= af <= 0.5:
+        raise OsimError(f"{label}: Af {af:g}: openfdk's Hill curvature A = 0.1 + 0.4·fast_fibre_fraction covers "
+                        "Af in [0.1, 0.5]")
+    out["fast_fibre_fraction"] = min(1.0, max(0.0, (af - 0.1) / 0.4))
+    try:
+        Hill3ElementMuscle(name=muscle.name, **out)
+    except ValueError as exc:
+        named = [osim for osim, hill in THELEN_TO_HILL.items() if hill in str(exc)]
+        raise OsimError(f"{label}: {exc}" + (f" (the file's {named[0]})" if named else "")) from None
+    return out
 
 
 def find_mesh(doc, geometry, mesh_dirs=(), ignore_missing=False):
