@@ -77,6 +77,16 @@ def ready_info(log):
     return json.loads(m[-1])
 
 
+def camera_info(log):
+    """The page's camera as last reported: at ready, updated by the last resize (the
+    headless window is resized to the screenshot size after load)."""
+    info = ready_info(log)
+    sizes = re.findall(r'openfdk-view: size \d+ \d+ (\{.*?\})", source', log)
+    if sizes:
+        info.update(json.loads(sizes[-1]))
+    return info
+
+
 def _console(log):
     return "\n".join(line for line in log.splitlines() if "CONSOLE" in line)[-3000:]
 
@@ -178,9 +188,10 @@ def test_network_check_sees_a_page_request(tmp_path):
 
 
 # -- the TMJ-like FDK model: contact, ligaments, muscles, springs, markers, visual mesh -------
-def write_jaw_result(d, n_frames, rate=100.0, visual_subdivisions=3):
+def write_jaw_result(d, n_frames, rate=100.0, visual_subdivisions=3, offset=(0.0, 0.0, 0.0)):
     """A result folder for the TMJ-like FDK model (openfdk.fixtures.synthetic_jaw) whose poses are
-    the model's known open–close motion, plus known forces; returns (folder, model path)."""
+    the model's known open–close motion (both bodies moved by ``offset`` m, as in a lab-frame
+    trial), plus known forces; returns (folder, model path)."""
     import trimesh
 
     from openfdk.fixtures.synthetic_jaw import jaw_fdk_model_dict, jaw_true_motion, write_jaw_meshes
@@ -198,7 +209,7 @@ def write_jaw_result(d, n_frames, rate=100.0, visual_subdivisions=3):
         p, R = poses[body]
         q = np.array([quat_from_matrix(r) for r in R])
         for j, c in enumerate("xyz"):
-            cols[f"{body}.{c}_m"] = p[:, j]
+            cols[f"{body}.{c}_m"] = p[:, j] + offset[j]
         for j in range(4):
             cols[f"{body}.e{j}"] = q[:, j]
     for m in ("S1", "S2", "S3", "S4", "J1", "J2", "J3", "J4"):
@@ -226,7 +237,7 @@ def write_jaw_result(d, n_frames, rate=100.0, visual_subdivisions=3):
     for c in model.contacts:
         for a, v in zip("xyz", (0.0, 0.0, -50.0)):
             f[f"{c.name}.F{a}_N"] = np.full(n_frames, v)
-            f[f"{c.name}.cop_{a}_m"] = np.full(n_frames, 0.0)
+            f[f"{c.name}.cop_{a}_m"] = np.full(n_frames, offset["xyz".index(a)])
     for dof in model.fdk_dofs:
         f[f"fdk.{dof.name}.alpha"] = np.full(n_frames, 1e-4)
         f[f"fdk.{dof.name}.residual"] = np.full(n_frames, 1e-6)
@@ -326,6 +337,260 @@ def test_browser_shows_the_fdk_jaw_without_errors(jaw_result, tmp_path):
     red = (img[..., 0] > 0.6) & (img[..., 1] < 0.2) & (img[..., 2] < 0.25)
     assert red.sum() > 30
     assert np.any(np.abs(img - BACKGROUND) > 0.08, axis=2).mean() > 0.02
+
+
+# -- framing: a lab-frame trial (the bodies ~1.2 m from the origin) --------------------------
+LAB_OFFSET = (0.30, 0.20, 1.15)
+
+
+@pytest.fixture(scope="module")
+def lab_result(tmp_path_factory):
+    return write_jaw_result(tmp_path_factory.mktemp("view-lab"), 12, offset=LAB_OFFSET)
+
+
+def _body_points_W(scene, poses, f):
+    """World points (k, 3) m of the moving bodies at frame f: origins, named points, mesh
+    vertices, model markers, path points."""
+    pts = []
+    for i in range(len(scene["bodies"])):
+        if scene["bodies"][i]["fixed"]:  # the ground, at the origin: not what is framed
+            continue
+        q = poses[f, i].astype(float)
+        p_B = [np.zeros((1, 3))] + [unpack(m["vertices"]).reshape(-1, 3) for m in scene["meshes"] if m["body"] == i]
+        p_B += [np.array([p]) for b, p in zip(scene["markers"]["body"], scene["markers"]["p_B"]) if b == i]
+        p_B += [np.array(scene["bodies"][i]["points"]).reshape(-1, 3)]
+        p_B += [np.array([a[1:]]) for path in scene["paths"] for a in path["points"] if a[0] == i]
+        pts.append(q[:3] + np.concatenate(p_B) @ rotation_matrix(q[3:]).T)
+    return np.concatenate(pts)
+
+
+def test_bounds_hold_the_motion_over_all_frames_and_skip_failed_ones(lab_result):
+    out, _ = lab_result
+    data, _ = view_data(out)
+    scene, frames = data["scene"], data["frames"]
+    poses = unpack(frames["poses"])
+    lo, hi = np.array(frames["bounds"]["min"]), np.array(frames["bounds"]["max"])
+    assert np.all(np.isfinite(lo)) and np.all(np.isfinite(hi))  # frame 3 (NaN poses) is skipped
+    every = np.concatenate([_body_points_W(scene, poses, f) for f in range(len(poses)) if f != 3])
+    every = np.concatenate([every, unpack(frames["measured"]).reshape(-1, 3)])
+    every = every[np.all(np.isfinite(every), axis=1)]
+    # the box is the box of all the geometry (extreme points of each body: exact on the axes' extremes
+    # up to the 50-direction sampling of the rotated meshes, here < 1 mm)
+    np.testing.assert_allclose(lo, every.min(0), atol=1e-3)
+    np.testing.assert_allclose(hi, every.max(0), atol=1e-3)
+    # it is around the lab-frame position, not the model's reference pose near the origin
+    assert np.linalg.norm(0.5 * (lo + hi) - LAB_OFFSET) < 0.06
+    assert np.linalg.norm(np.array(scene["center"]) - LAB_OFFSET) > 1.0
+
+
+def _coverage(info, pts, w, h):
+    """Fraction of the free canvas (info["visible"]) covered by the projected bounding box of
+    ``pts`` seen by the page's camera (view offset included), and the box (x0, y0, x1, y1)."""
+    eye, target, up = (np.array(info[k]) for k in ("eye", "target", "up"))
+    xy = np.array([project(p, eye, target, up, info["fov"], w, h) for p in pts]) - np.array(info["offset"])
+    x0, y0 = xy.min(0)
+    x1, y1 = xy.max(0)
+    vx0, vy0, vx1, vy1 = info["visible"]
+    inter = max(0.0, min(x1, vx1) - max(x0, vx0)) * max(0.0, min(y1, vy1) - max(y0, vy0))
+    return inter / ((vx1 - vx0) * (vy1 - vy0)), (x0, y0, x1, y1)
+
+
+@needs_browser
+@pytest.mark.parametrize("view", ["", "anterior", "left", "superior"])
+def test_browser_frames_a_lab_frame_trial_in_the_canvas_outside_the_panel(lab_result, tmp_path, view):
+    """At the first frame and mid-trial, the projected box of the bodies covers ≥ 30 % of
+    the canvas the side panel leaves free, and lies inside it (the default view and the
+    presets). The projection is checked against the pixels: the mandible's origin (probe
+    disc) is drawn where the camera reported by the page puts it."""
+    out, _ = lab_result
+    page = write_view(out, tmp_path / "lab.html")
+    data, _ = view_data(out)
+    poses = unpack(data["frames"]["poses"])
+    names = [b["name"] for b in data["scene"]["bodies"]]
+    for frame in (0, 6):
+        tag = f"lab-{view or 'default'}-{frame}"
+        img, log, requests = browse(f"{page.as_uri()}#frame={frame}&probe=mandible" + (f"&view={view}" if view else ""),
+                                    tmp_path, tag, size=(1000, 700))
+        info = camera_info(log)
+        assert "openfdk-view: error" not in log and requests == [], _console(log)
+        h, w = img.shape[:2]
+        vx0, vy0, vx1, vy1 = info["visible"]
+        assert vx1 < w - 250 and (vx0, vy0, vy1) == (0, 0, h)  # the panel (right) is not free canvas
+        cover, (x0, y0, x1, y1) = _coverage(info, _body_points_W(data["scene"], poses, frame), w, h)
+        assert cover >= 0.30, (cover, (x0, y0, x1, y1), info["visible"])
+        assert x0 >= vx0 - 1 and x1 <= vx1 + 1 and y0 >= -1 and y1 <= h + 1, ((x0, y0, x1, y1), info["visible"])
+        q = poses[frame, names.index("mandible")].astype(float)
+        expected = _coverage(info, [q[:3]], w, h)[1][:2]
+        centroid, _mask = magenta_centroid(img)
+        assert np.linalg.norm(centroid - expected) < 2.0, (centroid, expected)
+
+
+@needs_browser
+def test_browser_fit_key_frames_the_motion_again(lab_result, tmp_path):
+    """A camera aimed elsewhere (cam=…) is brought back on the motion by the F key
+    (fit=1 in the URL presses it once the page is ready)."""
+    out, _ = lab_result
+    page = write_view(out, tmp_path / "lab.html")
+    data, _ = view_data(out)
+    poses = unpack(data["frames"]["poses"])
+    img, log, _ = browse(f"{page.as_uri()}#frame=0&cam=3,3,3,-2,-2,-2&fit=1", tmp_path, "lab-fit", size=(1000, 700))
+    info = camera_info(log)
+    cover, _box = _coverage(info, _body_points_W(data["scene"], poses, 0), img.shape[1], img.shape[0])
+    assert cover >= 0.30
+    d = np.array(info["eye"]) - np.array(info["target"])  # the direction of view is kept
+    np.testing.assert_allclose(d / np.linalg.norm(d), np.ones(3) / np.sqrt(3), atol=1e-6)
+
+
+# -- colours and force-arrow scale ------------------------------------------------------------
+def _neutral(hex_colour):
+    r, g, b = (int(hex_colour[i:i + 2], 16) for i in (1, 3, 5))
+    return max(r, g, b) - min(r, g, b) <= 4
+
+
+def test_body_colours_are_neutral_greys_and_the_contact_arrow_scale_is_packed(lab_result):
+    out, _ = lab_result
+    data, _ = view_data(out)
+    assert all(_neutral(b["color"]) for b in data["scene"]["bodies"])
+    sc = data["frames"]["arrow_scale"]
+    assert sc["grf"] is None  # no grf.csv
+    assert sc["contact"]["fmax"] == pytest.approx(50.0)  # |(0, 0, -50)| N, every frame
+    assert sc["contact"]["length_m"] == pytest.approx(0.35 * data["scene"]["scale"])
+
+
+@needs_browser
+def test_browser_draws_sticks_in_grey(slider_view, tmp_path):
+    """The slider-crank bodies have no meshes: a stick from each origin to each of its
+    points. Near each stick's middle, the darkest pixel is grey (no hue)."""
+    data, _ = view_data(slider_view / "run")
+    poses = unpack(data["frames"]["poses"])
+    eye, target, up, fov = np.array([0.05, 0.35, 0.8]), np.array([0.3, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]), 40.0
+    cam = ",".join(f"{v:g}" for v in (*eye, *target))
+    url = (slider_view / "run" / "view.html").as_uri()
+    img, log, _ = browse(f"{url}#frame=0&cam={cam}&fov={fov:g}&ui=0", tmp_path, "sticks")
+    h, w = img.shape[:2]
+    checked = 0
+    for i, b in enumerate(data["scene"]["bodies"]):
+        q = poses[0, i].astype(float)
+        for p_B in b["points"]:
+            mid = q[:3] + rotation_matrix(q[3:]) @ (0.5 * np.array(p_B))
+            x, y = project(mid, eye, target, up, fov, w, h).astype(int)
+            if not (3 <= x < w - 3 and 3 <= y < h - 3) or np.linalg.norm(p_B) < 0.02:
+                continue
+            patch = img[y - 2:y + 3, x - 2:x + 3].reshape(-1, 3)
+            px = patch[np.argmin(patch.sum(axis=1))]
+            assert np.all(BACKGROUND - px > 0.1), (b["name"], px)  # a line is there
+            assert np.ptp(px) < 0.06, (b["name"], px)  # and it is grey
+            checked += 1
+    assert checked >= 2
+
+
+@needs_browser
+def test_browser_contact_arrow_has_its_scale_in_the_legend(lab_result, tmp_path):
+    """The legend gives the contact arrow's scale (length = force); the arrow head is drawn
+    where that scale puts it: 0.85 of the length from the centre of pressure, along F."""
+    out, _ = lab_result
+    page = write_view(out, tmp_path / "lab.html")
+    data, _ = view_data(out)
+    sc = data["frames"]["arrow_scale"]["contact"]
+    img, log, _ = browse(f"{page.as_uri()}#frame=0&view=anterior&hide=frames,meshes,markers,paths", tmp_path,
+                         "arrow", size=(1000, 700))
+    info = camera_info(log)
+    assert f"{sc['length_m'] * 1e3:.3g} mm = 50.0 N" in info["legend"]
+    h, w = img.shape[:2]
+    cop = np.array(LAB_OFFSET)
+    head = cop + 0.85 * sc["length_m"] * np.array([0.0, 0.0, -1.0])  # F = (0, 0, -50) N = fmax
+    x, y = _coverage(info, [head], w, h)[1][:2]
+    patch = img[int(y) - 2:int(y) + 3, int(x) - 2:int(x) + 3].reshape(-1, 3)
+    red = (patch[:, 0] > 0.5) & (patch[:, 1] < 0.25) & (patch[:, 2] < 0.25)
+    assert red.sum() >= 5, patch
+    beyond = cop + 1.2 * sc["length_m"] * np.array([0.0, 0.0, -1.0])  # past the tip: no arrow
+    x, y = _coverage(info, [beyond], w, h)[1][:2]
+    patch = img[int(y) - 2:int(y) + 3, int(x) - 2:int(x) + 3].reshape(-1, 3)
+    assert not np.any((patch[:, 0] > 0.5) & (patch[:, 1] < 0.25) & (patch[:, 2] < 0.25)), patch
+
+
+# -- muscles and ligaments as tubes, width by strength, name and force on hover ----------------
+def test_path_tube_radius_grows_with_strength(lab_result):
+    from openfdk.io.modelfile import load_model
+    from openfdk.viewer.scene import TUBE_RADIUS
+
+    out, model_path = lab_result
+    data, _ = view_data(out)
+    paths, scale = data["scene"]["paths"], data["scene"]["scale"]
+    model = load_model(model_path)
+    f0 = {m.name: m.law.max_isometric_force for m in model.muscles}
+    k = {g.name: g.law.stiffness for g in model.ligaments}
+    lo, hi = TUBE_RADIUS
+    for kind, strength, unit in (("muscle", f0, "N"), ("ligament", k, "N/m")):
+        top = max(strength.values())
+        for p in (p for p in paths if p["kind"] == kind):
+            assert p["strength"] == pytest.approx(strength[p["name"]]) and p["strength_unit"] == unit
+            frac = np.sqrt(strength[p["name"]] / top)
+            assert p["radius_m"] == pytest.approx(scale * (lo + (hi - lo) * frac))
+    radii = [p["radius_m"] for p in paths if p["kind"] == "muscle"]
+    assert max(radii) > 1.5 * min(radii)  # the jaw muscles differ in strength: so do the tubes
+
+
+def _segments_px(info, scene, poses, f, w, h):
+    """[(path index, a_px, b_px, a_W, b_W)] of every straight path segment at frame f."""
+    out = []
+    for j, p in enumerate(scene["paths"]):
+        pts = []
+        for a in p["points"]:
+            q = poses[f, a[0]].astype(float)
+            pts.append(q[:3] + rotation_matrix(q[3:]) @ np.array(a[1:]))
+        for a, b in zip(pts[:-1], pts[1:]):
+            out.append((j, *(_coverage(info, [x], w, h)[1][:2] for x in (a, b)), a, b))
+    return [(j, np.array(a), np.array(b), aw, bw) for j, a, b, aw, bw in out]
+
+
+def _dist_to_segment(x, a, b):
+    t = np.clip((x - a) @ (b - a) / max((b - a) @ (b - a), 1e-12), 0, 1)
+    return np.linalg.norm(x - (a + t * (b - a)))
+
+
+@needs_browser
+def test_browser_hover_names_the_muscle_and_its_force_and_tubes_are_wide(lab_result, tmp_path):
+    out, _ = lab_result
+    page = write_view(out, tmp_path / "lab.html")
+    data, _ = view_data(out)
+    scene, poses = data["scene"], unpack(data["frames"]["poses"])
+    img, log, _ = browse(f"{page.as_uri()}#frame=0&view=left", tmp_path, "tubes", size=(1000, 700))
+    info = camera_info(log)
+    h, w = img.shape[:2]
+    segs = _segments_px(info, scene, poses, 0, w, h)
+    vx1 = info["visible"][2]
+    best = None  # the midpoint of a muscle segment farthest from every other path's segments
+    for j, a, b, aw, bw in segs:
+        mid = 0.5 * (a + b)
+        if scene["paths"][j]["kind"] != "muscle" or not (60 < mid[0] < vx1 - 20 and 90 < mid[1] < h - 160):
+            continue
+        clear = min((_dist_to_segment(mid, a2, b2) for j2, a2, b2, _, _ in segs if j2 != j), default=1e9)
+        if best is None or clear > best[0]:
+            best = (clear, j, mid, a, b, aw, bw)
+    clear, j, mid, a, b, aw, bw = best
+    assert clear > 8, best
+    # the tube's width on screen: its projected diameter (±40 %, ≥ 3 px)
+    eye = np.array(info["eye"])
+    depth = np.linalg.norm(0.5 * (aw + bw) - eye)
+    f_px = 0.5 * h / np.tan(np.radians(info["fov"]) / 2)
+    expected = 2 * scene["paths"][j]["radius_m"] * f_px / depth
+    n = np.array([-(b - a)[1], (b - a)[0]]) / np.linalg.norm(b - a)
+    along = [img[int(round(y)), int(round(x))] for x, y in (mid + t * n for t in np.arange(-15, 15.5, 0.5))]
+    width = 0.5 * sum(np.abs(px - BACKGROUND).max() > 0.1 for px in along)
+    assert width >= 3 and abs(width - expected) < 0.4 * expected + 1.5, (width, expected)
+    # hovering the middle of the tube names the muscle and its force at this frame
+    _img, log, _ = browse(f"{page.as_uri()}#frame=0&view=left&hover={mid[0]:.1f},{mid[1]:.1f}", tmp_path,
+                          "hover", size=(1000, 700))
+    assert camera_info(log)["eye"] == pytest.approx(info["eye"])
+    hov = json.loads(re.findall(r'openfdk-view: hover (\{.*?\})", source', log)[-1])
+    name = scene["paths"][j]["name"]
+    force = unpack(data["frames"]["path_force"])[0, j]
+    assert hov["hit"]["name"] == name and hov["hit"]["force"] == pytest.approx(force, rel=1e-6)
+    m = re.fullmatch(rf"{name} \(muscle\): ([-0-9.e+]+) N; strength ([0-9.e+]+) N", hov["tip"])
+    assert m, hov["tip"]
+    assert float(m.group(1)) == pytest.approx(force, rel=1e-3)
+    assert float(m.group(2)) == pytest.approx(scene["paths"][j]["strength"], rel=1e-2)
 
 
 # -- mesh decimation ----------------------------------------------------------------------------

@@ -179,22 +179,72 @@ def failed_frames(results):
     return sorted(out.items())
 
 
+#: frames sampled (evenly, first and last included) for the bounds of body geometry
+BOUNDS_FRAMES = 400
+
+
+def motion_bounds(scene, poses, measured=None, wrap_points=None):
+    """{"min", "max"} (3,) m world bounding box of what moves over the whole trial: the
+    origins of the moving bodies at every frame, their geometry (``scene.hull_B``: mesh
+    vertices, markers, points; at ≤ BOUNDS_FRAMES evenly spaced frames), the measured
+    markers and wrapped-path points. Fixed bodies count only when no body moves. NaN
+    frames (failed kinematics) are skipped; None when no frame has a pose."""
+    poses = np.asarray(poses, float)
+    nf = len(poses)
+    moving = [i for i, b in enumerate(scene.data["bodies"]) if not b["fixed"]] or list(range(poses.shape[1]))
+    chunks = [poses[:, moving, :3].reshape(-1, 3)]
+    sample = np.unique(np.linspace(0, nf - 1, min(nf, BOUNDS_FRAMES)).round().astype(int)) if nf else []
+    for i in moving:
+        hull = scene.hull_B[i] if i < len(scene.hull_B) else np.zeros((1, 3))
+        q = poses[sample, i]
+        chunks.append((q[:, None, :3] + np.einsum("fij,kj->fki", rotations(q[:, 3:]), hull)).reshape(-1, 3))
+    for extra in (measured, wrap_points):
+        if extra is not None and np.size(extra):
+            chunks.append(np.asarray(extra, float).reshape(-1, 3))
+    allp = np.concatenate(chunks)
+    allp = allp[np.all(np.isfinite(allp), axis=1)]
+    if not len(allp):
+        return None
+    return {"min": allp.min(0).tolist(), "max": allp.max(0).tolist()}
+
+
+#: a force arrow's length for the largest force of its kind over the trial, × scene scale
+ARROW_FRACTION = 0.35
+
+
+def arrow_scale(items, scale):
+    """{"fmax": N, "length_m": m} of force arrows (packed (nf, 3) N "force" of each item):
+    the largest force magnitude over the trial and the arrow length that stands for it
+    (ARROW_FRACTION × the model's size ``scale``); None without items or force."""
+    from .pack import unpack
+
+    f = [np.linalg.norm(unpack(c["force"]).astype(float).reshape(-1, 3), axis=1) for c in items]
+    f = np.concatenate(f) if f else np.zeros(0)
+    f = f[np.isfinite(f)]
+    if not len(f) or f.max() <= 0:
+        return None
+    return {"fmax": float(f.max()), "length_m": ARROW_FRACTION * float(scale)}
+
+
 def build_frames(model, scene, results):
     """JSON-able per-frame data of the view (see the module docstring)."""
     poses = body_poses(model, results)
     measured = measured_markers(model, results, poses)
     forces = path_forces(scene, results)
+    wrap = wrapped_polylines(model, scene.wrapped, poses)
     with np.errstate(invalid="ignore"):
         fmax = [float(np.nanmax(np.abs(forces[:, j]))) if np.any(np.isfinite(forces[:, j])) else 0.0
                 for j in range(forces.shape[1])]
+    contacts, grf = contact_frames(model, scene, results, poses), grf_frames(results)
     return {
         "time": pack(results.time),
         "poses": pack(poses),
         "measured": pack(measured) if measured is not None else None,
         "path_force": pack(forces), "path_fmax": fmax,
-        "wrap_points": pack(wrapped_polylines(model, scene.wrapped, poses)),
-        "contacts": contact_frames(model, scene, results, poses),
-        "grf": grf_frames(results),
+        "wrap_points": pack(wrap),
+        "bounds": motion_bounds(scene, poses, measured, wrap),
+        "contacts": contacts, "grf": grf,
+        "arrow_scale": {"contact": arrow_scale(contacts, scene.scale), "grf": arrow_scale(grf, scene.scale)},
         "panel": panel_series(model, results, measured, scene.data["paths"]),
         "failed": failed_frames(results),
     }

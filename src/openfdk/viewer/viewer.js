@@ -5,6 +5,9 @@
 //   view=anterior|posterior|left|right|superior|inferior|oblique
 //   cam=ex,ey,ez,tx,ty,tz   camera eye and target (m, world); fov=DEG (vertical)
 //   ui=0                    hide the panels;  play=1  start playing;  speed=X
+//   fit=1                   press F (fit) once ready
+//   hide=LAYER,...          start with these layers off (frames, meshes, markers, paths, contact, ...)
+//   hover=X,Y               show (and log) the tooltip of the path under css pixel X,Y
 //   probe=BODY              draw BODY's origin as an unlit magenta disc on top (tests)
 (async function () {
   'use strict';
@@ -38,7 +41,7 @@
   const S = D.scene, F = D.frames;
   const time = arr(F.time), nf = time.length, nb = S.bodies.length;
   const poses = arr(F.poses), measured = arr(F.measured), pathForce = arr(F.path_force);
-  const scale = S.scale, center = new THREE.Vector3(...S.center);
+  const scale = S.scale;
   const probe = params.get('probe');
   const showUI = params.get('ui') !== '0';
   if (!showUI) for (const id of ['panel', 'controls', 'views', 'legend']) $(id).style.display = 'none';
@@ -65,21 +68,73 @@
   const controls = new OrbitControls(camera, canvas);
   controls.enableDamping = false;
   controls.addEventListener('change', () => render());
+  controls.addEventListener('start', () => { autoFramed = false; });
 
   const PRESETS = {
     anterior: [anterior, up], posterior: [anterior.clone().negate(), up], left: [left, up],
     right: [left.clone().negate(), up], superior: [up, anterior], inferior: [up.clone().negate(), anterior],
     oblique: [anterior.clone().add(left.clone().multiplyScalar(0.8)).add(up.clone().multiplyScalar(0.5)).normalize(), up],
   };
-  function setView(name) {
-    const [dir, u] = PRESETS[name] || PRESETS.oblique;
-    const dist = 0.5 * scale / Math.tan(THREE.MathUtils.degToRad(fov) / 2) * 1.3;
+  // framing: the box of what moves over the trial (F.bounds, m world), seen in the part of
+  // the canvas the side panel leaves free; the view centre is shifted there (setViewOffset)
+  const B = F.bounds || { min: S.center.map((c) => c - scale / 2), max: S.center.map((c) => c + scale / 2) };
+  const boxMin = new THREE.Vector3(...B.min), boxMax = new THREE.Vector3(...B.max);
+  const center = boxMin.clone().add(boxMax).multiplyScalar(0.5);
+  const extent = Math.max(boxMax.distanceTo(boxMin), scale * 0.1, 1e-3);
+  const FILL = 0.85;  // the box fills this fraction of the free canvas in its tighter direction
+  function visibleRect() {  // [x0, y0, x1, y1] css px of the canvas not covered by the side panel
+    const W = window.innerWidth, H = window.innerHeight, p = $('panel');
+    if (!showUI || p.style.display === 'none') return [0, 0, W, H];
+    const r = p.getBoundingClientRect();
+    return r.left > W * 0.3 ? [0, 0, r.left, H] : [0, 0, W, H];
+  }
+  function applyOffset() {
+    const W = window.innerWidth, H = window.innerHeight, [x0, , x1] = visibleRect();
+    const dx = W / 2 - (x0 + x1) / 2;  // the principal point at the centre of the free part
+    if (dx !== 0) camera.setViewOffset(W, H, dx, 0, W, H); else camera.clearViewOffset();
+    camera.aspect = W / H; camera.updateProjectionMatrix();
+  }
+  // eye distance along dir (unit, target -> eye) so that the box fits the free canvas
+  function fitDistance(dir, u) {
+    const f = dir.clone().negate(), r = new THREE.Vector3().crossVectors(f, u).normalize();
+    const uu = new THREE.Vector3().crossVectors(r, f);
+    const [x0, y0, x1, y1] = visibleRect();
+    const tanV = Math.tan(THREE.MathUtils.degToRad(fov) / 2), H = window.innerHeight;
+    const tanY = tanV * (y1 - y0) / H * FILL, tanX = tanV * (x1 - x0) / H * FILL;
+    let d = 0;
+    const p = new THREE.Vector3();
+    for (let c = 0; c < 8; c++) {
+      p.set(c & 1 ? boxMax.x : boxMin.x, c & 2 ? boxMax.y : boxMin.y, c & 4 ? boxMax.z : boxMin.z).sub(center);
+      const z = p.dot(f);
+      d = Math.max(d, Math.abs(p.dot(r)) / tanX - z, Math.abs(p.dot(uu)) / tanY - z);
+    }
+    return Math.max(d, extent * 0.6);
+  }
+  let autoFramed = false;  // the camera is where a preset/fit put it: re-fit on resize
+  function frameView(dir, u) {
+    autoFramed = true;
+    const dist = fitDistance(dir, u);
+    camera.near = Math.max(dist * 1e-3, 1e-5); camera.far = dist * 50 + extent * 10;
+    applyOffset();
     camera.up.copy(u);
     camera.position.copy(center).addScaledVector(dir, dist);
     controls.target.copy(center);
     camera.lookAt(center);
     controls.update();
     render();
+  }
+  function cameraInfo() {  // what the tests need to project points as the page does
+    return { width: window.innerWidth, height: window.innerHeight, fov, eye: camera.position.toArray(),
+      target: controls.target.toArray(), up: camera.up.toArray(), visible: visibleRect(),
+      offset: camera.view && camera.view.enabled ? [camera.view.offsetX, camera.view.offsetY] : [0, 0],
+      bounds: [boxMin.toArray(), boxMax.toArray()] };
+  }
+  function setView(name) { const [dir, u] = PRESETS[name] || PRESETS.oblique; frameView(dir, u); }
+  // fit (F): keep the direction of view, frame the motion again
+  function fit() {
+    const dir = camera.position.clone().sub(controls.target);
+    if (dir.lengthSq() === 0) dir.copy(PRESETS.oblique[0]);
+    frameView(dir.normalize(), camera.up.clone());
   }
 
   // -- bodies: frames (axes + origin sphere) and meshes --------------------------------
@@ -91,7 +146,7 @@
     const axes = new THREE.AxesHelper(scale * 0.08); grp.add(axes); layers.frames.push(axes);
     const isProbe = probe === b.name;
     const dot = new THREE.Mesh(new THREE.SphereGeometry(scale * (isProbe ? 0.03 : 0.012), 20, 12),
-      isProbe ? new THREE.MeshBasicMaterial({ color: 0xff00ff, depthTest: false })
+      isProbe ? new THREE.MeshBasicMaterial({ color: 0xff00ff, depthTest: false, transparent: true })  // drawn last, over translucent meshes
               : new THREE.MeshStandardMaterial({ color: b.color }));
     if (isProbe) dot.renderOrder = 10; else layers.frames.push(dot);
     grp.add(dot);
@@ -146,8 +201,35 @@
   pathGeo.setAttribute('position', new THREE.BufferAttribute(new Float32Array(6 * Math.max(nseg, 1)), 3));
   pathGeo.setAttribute('color', new THREE.BufferAttribute(new Float32Array(6 * Math.max(nseg, 1)), 3));
   pathGeo.setDrawRange(0, 2 * nseg);
-  const pathLines = new THREE.LineSegments(pathGeo, new THREE.LineBasicMaterial({ vertexColors: true }));
-  pathLines.frustumCulled = false; scene.add(pathLines); layers.paths.push(pathLines);
+  // drawn as tubes: one open cylinder per segment (instanced), radius p.radius_m by strength
+  const tubeGeo = new THREE.CylinderGeometry(1, 1, 1, 10, 1, true);
+  const tubes = new THREE.InstancedMesh(tubeGeo, new THREE.MeshStandardMaterial({ color: 0xffffff, roughness: 0.6 }),
+    Math.max(nseg, 1));
+  tubes.count = nseg; tubes.frustumCulled = false;
+  const segPath = new Int32Array(Math.max(nseg, 1));
+  { let s0 = 0; S.paths.forEach((p, j) => { for (let e = 0; e + 1 < nPoints(p); e++) segPath[s0++] = j; }); }
+  if (nseg) tubes.setColorAt(0, new THREE.Color());
+  scene.add(tubes); layers.paths.push(tubes);
+  const yAxis = new THREE.Vector3(0, 1, 0), segA = new THREE.Vector3(), segB = new THREE.Vector3();
+  const segMid = new THREE.Vector3(), segDir = new THREE.Vector3(), segQ = new THREE.Quaternion(), segS = new THREE.Vector3();
+  const segC = new THREE.Color();
+  function placeTubes() {
+    const pp = pathGeo.attributes.position.array, pc = pathGeo.attributes.color.array;
+    for (let k = 0; k < nseg; k++) {
+      const r = S.paths[segPath[k]].radius_m || scale * 0.003;
+      segA.fromArray(pp, 6 * k); segB.fromArray(pp, 6 * k + 3);
+      segDir.subVectors(segB, segA);
+      const len = segDir.length();
+      segMid.addVectors(segA, segB).multiplyScalar(0.5);
+      if (len > 0) segQ.setFromUnitVectors(yAxis, segDir.divideScalar(len)); else segQ.identity();
+      segS.set(len > 0 ? r : 0, len, len > 0 ? r : 0);
+      tubes.setMatrixAt(k, m4.compose(segMid, segQ, segS));
+      tubes.setColorAt(k, segC.setRGB(pc[6 * k], pc[6 * k + 1], pc[6 * k + 2]));
+    }
+    tubes.instanceMatrix.needsUpdate = true;
+    if (tubes.instanceColor) tubes.instanceColor.needsUpdate = true;
+    tubes.computeBoundingSphere();
+  }
   const kindMax = {};
   S.paths.forEach((p, j) => { kindMax[p.kind] = Math.max(kindMax[p.kind] || 0, F.path_fmax[j] || 0); });
 
@@ -157,23 +239,22 @@
     index: arr(c.index), level: arr(c.level),
     arrow: new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 1, 0xc00000),
   }));
-  // the largest force over the trial of force arrows {force, arrow}: their length scale
-  function forceArrows(items) {
-    let fmax = 0;
-    for (const c of items) for (let k = 0; k < nf; k++) {
-      const f = Math.hypot(c.force[3 * k], c.force[3 * k + 1], c.force[3 * k + 2]);
-      if (f > fmax) fmax = f;
-    }
+  // force arrows {force, arrow}: the largest force over the trial of their kind is drawn
+  // ARROW.length_m long (F.arrow_scale, written by Python)
+  const ARROWS = F.arrow_scale || {};
+  function forceArrows(items, kind) {
     for (const c of items) { scene.add(c.arrow); layers.contact.push(c.arrow); }
-    return fmax;
+    return ARROWS[kind] || { fmax: 0, length_m: scale * 0.35 };
   }
-  const fContactMax = forceArrows(contacts);
+  const fContactMax = forceArrows(contacts, 'contact');
   // ground reactions (grf.csv): a green arrow per plate at its centre of pressure
   const grfs = (F.grf || []).map((g) => ({
     name: g.name, force: arr(g.force), cop: arr(g.cop),
     arrow: new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 1, 0x1a8c1a),
   }));
-  const fGrfMax = forceArrows(grfs);
+  const fGrfMax = forceArrows(grfs, 'grf');
+  // legend text of an arrow scale: "<length> mm = <force> N"
+  const arrowText = (a) => `${(a.length_m * 1e3).toPrecision(3)} mm = ${a.fmax.toPrecision(3)} N`;
 
   // colour maps: pressure/force 0..1 -> blue, cyan, green, yellow, red
   const STOPS = [[0.19, 0.30, 0.75], [0.10, 0.70, 0.85], [0.30, 0.75, 0.30], [0.95, 0.85, 0.15], [0.85, 0.10, 0.10]];
@@ -187,17 +268,20 @@
   const grad = 'linear-gradient(to right,' + [0, 0.25, 0.5, 0.75, 1].map(css).join(',') + ')';
   const legend = [];
   for (const k of Object.keys(kindMax)) legend.push(`${k} force <span class="bar" style="background:${grad}"></span> 0–${kindMax[k].toPrecision(3)} ${k === 'spring' ? '' : 'N'}`);
-  if (contacts.length) legend.push(`contact pressure <span class="bar" style="background:${grad}"></span> 0–${(Math.max(...contacts.map((c) => c.p_max)) / 1e6).toPrecision(3)} MPa; arrow: force on the vertex body`);
-  if (grfs.length) legend.push(`<b style="color:#1a8c1a">ground reaction</b> arrows at the centre of pressure: the longest is ${fGrfMax.toPrecision(3)} N`);
+  if (contacts.length) legend.push(`contact pressure <span class="bar" style="background:${grad}"></span> 0–${(Math.max(...contacts.map((c) => c.p_max)) / 1e6).toPrecision(3)} MPa; <b style="color:#c00000">arrow</b>: force on the vertex body` +
+    (fContactMax.fmax > 0 ? `, ${arrowText(fContactMax)}` : ''));
+  if (grfs.length) legend.push(`<b style="color:#1a8c1a">ground reaction</b> arrows at the centre of pressure, ${arrowText(fGrfMax)}`);
   if (nm) legend.push('markers: <b style="color:#1f5fbf">model</b>, <b style="color:#f08c00">measured</b>, <b style="color:#d00000">residual</b>');
   $('legend').innerHTML = legend.join('<br>');
   if (!legend.length) $('legend').style.display = 'none';
 
-  // layer toggles
+  // layer toggles (hide=a,b in the URL: start with those layers off)
+  const hidden = new Set((params.get('hide') || '').split(',').filter(Boolean));
   for (const [name, objs] of Object.entries(layers)) {
     if (!objs.length) continue;
     const lab = document.createElement('label'), box = document.createElement('input');
-    box.type = 'checkbox'; box.checked = true;
+    box.type = 'checkbox'; box.checked = !hidden.has(name);
+    for (const o of objs) o.userData.hidden = !box.checked;
     box.addEventListener('change', () => { for (const o of objs) o.userData.hidden = !box.checked; setFrame(frame); });
     lab.append(box, ' ' + name); $('layers').append(lab);
   }
@@ -243,11 +327,11 @@
   function worldPoint(body, x, y, z, out) { return out.set(x, y, z).applyMatrix4(groups[body].matrixWorld); }
   function visible(obj) { obj.visible = !obj.userData.hidden; return obj.visible; }
   // a force arrow {force, cop, arrow} at its centre of pressure, length by the trial's largest force
-  function placeArrow(c, fmax) {
+  function placeArrow(c, sc) {
     const fx = c.force[3 * frame], fy = c.force[3 * frame + 1], fz = c.force[3 * frame + 2];
     const fm = Math.hypot(fx, fy, fz), cx = c.cop[3 * frame];
     if (fm > 0 && Number.isFinite(cx) && visible(c.arrow)) {
-      const len = scale * 0.35 * fm / (fmax || 1);
+      const len = sc.length_m * fm / (sc.fmax || 1);
       c.arrow.position.set(cx, c.cop[3 * frame + 1], c.cop[3 * frame + 2]);
       c.arrow.setDirection(v.set(fx, fy, fz).normalize());
       c.arrow.setLength(len, 0.25 * len, 0.12 * len);
@@ -301,6 +385,7 @@
       }
     });
     pathGeo.attributes.position.needsUpdate = true; pathGeo.attributes.color.needsUpdate = true;
+    placeTubes();
     // contact pressure on the vertex surface, force arrow at the centre of pressure
     for (const c of contacts) {
       const mo = meshObjects[c.spec.mesh], col = mo.col;
@@ -330,6 +415,35 @@
   }
   function render() { renderer.render(scene, camera); }
 
+  // -- hover: name, force and strength of the path under the pointer ----------------------
+  const ray = new THREE.Raycaster(), ndc = new THREE.Vector2();
+  function pick(x, y) {  // css px in the canvas -> {name, kind, force, unit, strength} or null
+    const rect = canvas.getBoundingClientRect();
+    ndc.set((x - rect.left) / rect.width * 2 - 1, -((y - rect.top) / rect.height) * 2 + 1);
+    ray.setFromCamera(ndc, camera);
+    if (!tubes.visible || !nseg) return null;
+    const hit = ray.intersectObject(tubes, false)[0];
+    if (!hit) return null;
+    const j = segPath[hit.instanceId], p = S.paths[j], f = pathForce[frame * S.paths.length + j];
+    return { name: p.name, kind: p.kind, force: Number.isFinite(f) ? f : null, unit: p.kind === 'spring' ? '' : 'N',
+      strength: p.strength, strength_unit: p.strength_unit };
+  }
+  function showTip(x, y) {
+    const h = pick(x, y), tip = $('tip');
+    if (!h) { tip.style.display = 'none'; return h; }
+    const st = h.strength != null ? `; ${h.kind === 'ligament' ? 'stiffness' : 'strength'} ${h.strength.toPrecision(3)} ${h.strength_unit}` : '';
+    tip.textContent = `${h.name} (${h.kind}): ${h.force === null ? '–' : h.force.toPrecision(4) + ' ' + h.unit}${st}`;
+    tip.style.left = (x + 12) + 'px'; tip.style.top = (y + 12) + 'px'; tip.style.display = 'block';
+    return h;
+  }
+  function hoverParam() {  // tests: what the pointer at x,y (css px) would show (again after a resize)
+    if (!params.has('hover')) return;
+    const [hx, hy] = params.get('hover').split(',').map(Number);
+    say('hover ' + JSON.stringify({ x: hx, y: hy, hit: showTip(hx, hy), tip: $('tip').textContent }));
+  }
+  canvas.addEventListener('pointermove', (e) => { if (!e.buttons) showTip(e.clientX, e.clientY); });
+  canvas.addEventListener('pointerleave', () => { $('tip').style.display = 'none'; });
+
   // -- playback -----------------------------------------------------------------------
   let playing = false, speed = parseFloat(params.get('speed') || '1'), simTime = 0, last = null;
   $('speed').value = String(speed);
@@ -354,12 +468,18 @@
   $('slider').max = String(nf - 1);
   $('slider').addEventListener('input', (e) => { setFrame(+e.target.value); simTime = time[frame]; });
   $('speed').addEventListener('change', (e) => { speed = parseFloat(e.target.value); });
-  window.addEventListener('keydown', (e) => { if (e.code === 'Space') { setPlaying(!playing); e.preventDefault(); } });
+  window.addEventListener('keydown', (e) => {
+    if (e.target instanceof HTMLInputElement || e.target instanceof HTMLSelectElement) return;
+    if (e.code === 'Space') { setPlaying(!playing); e.preventDefault(); }
+    if (e.code === 'KeyF') { fit(); e.preventDefault(); }
+  });
+  $('fit').addEventListener('click', () => fit());
   for (const bt of document.querySelectorAll('[data-view]')) bt.addEventListener('click', () => setView(bt.dataset.view));
   window.addEventListener('resize', () => {
-    camera.aspect = window.innerWidth / window.innerHeight; camera.updateProjectionMatrix();
-    renderer.setSize(window.innerWidth, window.innerHeight, false); render();
-    say('size ' + window.innerWidth + ' ' + window.innerHeight);
+    renderer.setSize(window.innerWidth, window.innerHeight, false);
+    if (autoFramed) fit(); else { applyOffset(); render(); }
+    say('size ' + window.innerWidth + ' ' + window.innerHeight + ' ' + JSON.stringify(cameraInfo()));
+    hoverParam();
   });
 
   // -- start ------------------------------------------------------------------------------
@@ -373,13 +493,14 @@
   if (params.has('cam')) {
     const c = params.get('cam').split(',').map(Number);
     camera.position.set(c[0], c[1], c[2]); controls.target.set(c[3], c[4], c[5]);
-    camera.lookAt(controls.target); controls.update();
+    camera.lookAt(controls.target); controls.update(); autoFramed = false;
   }
   setFrame(start);
+  if (params.get('fit') === '1') window.dispatchEvent(new KeyboardEvent('keydown', { code: 'KeyF' }));
+  hoverParam();
   if (params.get('play') === '1') setPlaying(true);
   requestAnimationFrame(tick);
   document.body.dataset.status = 'ready';
-  say('ready ' + JSON.stringify({ width: window.innerWidth, height: window.innerHeight, frame, time: time[frame],
-    fov, eye: camera.position.toArray(), target: controls.target.toArray(), up: camera.up.toArray(),
-    bodies: nb, meshes: S.meshes.length, markers: nm, paths: S.paths.length, wrapped: S.paths.filter((p) => p.wrap).length, contacts: contacts.length }));
+  say('ready ' + JSON.stringify({ ...cameraInfo(), frame, time: time[frame],
+    legend: $('legend').textContent, bodies: nb, meshes: S.meshes.length, markers: nm, paths: S.paths.length, wrapped: S.paths.filter((p) => p.wrap).length, contacts: contacts.length }));
 })();
