@@ -292,15 +292,22 @@ def write_inputs(directory, quick=False, seed=0):
     return model_path, trc_path
 
 
-def _child(directory, flags, env):
-    """The records printed by ``python -m openfdk.bench.full_body directory *flags``."""
-    cmd = [sys.executable, "-m", "openfdk.bench.full_body", str(directory)] + list(flags)
+def child_records(module, directory, flags, env, what="full-body benchmark"):
+    """The records (a JSON list on the last line starting with '[{') printed by
+    ``python -m <module> directory *flags`` in a child process with environment ``env``
+    (OpenSim's log lines, which also start with '[', are skipped)."""
+    cmd = [sys.executable, "-m", module, str(directory)] + list(flags)
     proc = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=directory, timeout=1800, check=False)
-    lines = [x for x in proc.stdout.splitlines() if x.startswith("[")]
+    lines = [x for x in proc.stdout.splitlines() if x.startswith("[{")]
     if proc.returncode != 0 or not lines:
         tail = (proc.stderr.strip().splitlines() or ["no output"])[-1]
-        raise RuntimeError(f"the full-body benchmark process failed (exit {proc.returncode}): {tail}")
+        raise RuntimeError(f"the {what} process failed (exit {proc.returncode}): {tail}")
     return json.loads(lines[-1])
+
+
+def _child(directory, flags, env):
+    """The records printed by ``python -m openfdk.bench.full_body directory *flags``."""
+    return child_records("openfdk.bench.full_body", directory, flags, env)
 
 
 def measure_default_threads(directory, quick=False):

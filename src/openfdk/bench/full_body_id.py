@@ -100,7 +100,6 @@ import json
 import os
 import re
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -391,15 +390,10 @@ def measure(directory, quick=False):
 
 
 def _child(directory, flags, env):
-    """The records printed by ``python -m openfdk.bench.full_body_id directory *flags``
-    (OpenSim's log lines, which also start with '[', are skipped)."""
-    cmd = [sys.executable, "-m", "openfdk.bench.full_body_id", str(directory)] + list(flags)
-    proc = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=directory, timeout=1800, check=False)
-    lines = [x for x in proc.stdout.splitlines() if x.startswith("[{")]
-    if proc.returncode != 0 or not lines:
-        tail = (proc.stderr.strip().splitlines() or ["no output"])[-1]
-        raise RuntimeError(f"the full-body inverse dynamics benchmark process failed (exit {proc.returncode}): {tail}")
-    return json.loads(lines[-1])
+    """The records printed by ``python -m openfdk.bench.full_body_id directory *flags``."""
+    from .full_body import child_records
+
+    return child_records("openfdk.bench.full_body_id", directory, flags, env, "full-body inverse dynamics benchmark")
 
 
 def run(quick=False):
