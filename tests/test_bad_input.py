@@ -257,6 +257,9 @@ def test_unwritable_out_is_found_before_computation(files, tmp_path, capsys, mon
         check_output_dir(tmp_path / "afile", force=True)
     (tmp_path / "r").mkdir()
     (tmp_path / "r" / "summary.json").write_text("{}")
+    with pytest.raises(OutputDirError, match="no checkpoint to resume"):  # finished results: nothing to resume
+        check_output_dir(tmp_path / "r", resume=True)
+    (tmp_path / "r" / ".checkpoint").mkdir()
     assert check_output_dir(tmp_path / "r", resume=True) == tmp_path / "r"
 
 

@@ -14,9 +14,17 @@ import sys
 from pathlib import Path
 
 
+def refuse_empty_out(args):
+    """``--out ''`` is refused (it would write into the current folder)."""
+    if args.out is not None and not str(args.out).strip():
+        raise ValueError("the output is empty (--out ''); give a folder or file name")
+
+
 def _cmd_plot(args):
     from .runplots import iter_figures, save_figures
     from .runresults import read_results
+
+    refuse_empty_out(args)
 
     results = read_results(args.result_dir)
     if args.model:
@@ -31,6 +39,8 @@ def _cmd_plot(args):
 
 def _cmd_export_opensim(args):
     from .io.osim import export_opensim
+
+    refuse_empty_out(args)
 
     model = None
     if args.model:

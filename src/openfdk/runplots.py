@@ -363,12 +363,19 @@ def make_figures(results, measures=None) -> dict:
 def save_figures(figures, directory, dpi=110) -> list[Path]:
     """Write each figure as ``<name>.png`` into ``directory`` (created); figures: a dict
     name -> Figure or an iterable of (name, Figure) pairs (:func:`iter_figures`)."""
+    import io
+
+    from .io.outdir import refuse_link, write_new_file
+
     d = Path(directory)
+    refuse_link(d)  # a planted link is refused, never followed
     d.mkdir(parents=True, exist_ok=True)
     paths = []
     for name, fig in figures.items() if isinstance(figures, dict) else figures:
         paths.append(d / f"{name}.png")
-        fig.savefig(paths[-1], dpi=dpi)
+        buf = io.BytesIO()
+        fig.savefig(buf, dpi=dpi, format="png")
+        write_new_file(paths[-1], buf.getvalue())
     return paths
 
 

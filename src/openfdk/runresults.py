@@ -41,14 +41,60 @@ def _frame(columns: dict):
     return df.set_index("time")
 
 
-def _read_csv(path):
+def _check_rows(path):
+    """ValueError naming ``path`` and the line when a row has another number of fields
+    than the header (a file cut mid-row, or not a table written by openfdk)."""
+    import csv
+
+    with open(path, newline="", encoding="utf-8", errors="replace") as fh:
+        rows = csv.reader(fh)
+        header = next(rows, None)
+        if not header:
+            raise ValueError(f"{path}: empty file; not an openfdk result table")
+        for line, row in enumerate(rows, start=2):
+            if len(row) != len(header):
+                raise ValueError(f"{path}: line {line}: {len(row)} fields where the header has {len(header)} "
+                                 f"(file cut short or not written by openfdk)")
+
+
+def _read_csv(path, required=("time",)):
     import pandas as pd
 
-    df = pd.read_csv(path, keep_default_na=False, na_values=["nan", "NaN"],
-                     dtype={k: str for k in TEXT_COLUMNS})
+    _check_rows(path)
+    try:
+        df = pd.read_csv(path, keep_default_na=False, na_values=["nan", "NaN"],
+                         dtype={k: str for k in TEXT_COLUMNS})
+    except (ValueError, pd.errors.ParserError) as exc:
+        raise ValueError(f"{path}: not a readable table: {' '.join(str(exc).split())}") from None
     if df.columns[0] != "time":
         raise ValueError(f"{path}: the first column must be 'time', got {df.columns[0]!r}")
+    missing = [c for c in required if c not in df.columns]
+    if missing:
+        raise ValueError(f"{path}: column {missing[0]!r} missing; not a table written by openfdk")
+    for c in df.columns:
+        if c not in TEXT_COLUMNS and not pd.api.types.is_numeric_dtype(df[c]):
+            raise ValueError(f"{path}: column {c!r}: values must be numbers")
     return df.set_index("time")
+
+
+def _read_summary(path):
+    """summary.json checked against its schema: an object whose ``input``,
+    ``kinematics``, ``inverse_dynamics`` and ``fdk`` entries are objects and whose input
+    file names (``input.model``, ``model_file``, ``trial``, ``trial_file``) are text."""
+    try:
+        summary = json.loads(path.read_text(encoding="utf-8"))
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(summary, dict):
+        raise ValueError(f"{path}: must be a JSON object, got {type(summary).__name__}")
+    for key in ("input", "kinematics", "inverse_dynamics", "fdk"):
+        if key in summary and summary[key] is not None and not isinstance(summary[key], dict):
+            raise ValueError(f"{path}: {key}: must be a JSON object, got {type(summary[key]).__name__}")
+    for key in ("model", "model_file", "trial", "trial_file"):
+        value = (summary.get("input") or {}).get(key)
+        if value is not None and not isinstance(value, str):
+            raise ValueError(f"{path}: input.{key}: must be a file name (text), got {json.dumps(value)}")
+    return summary
 
 
 class RunResults:
@@ -100,10 +146,10 @@ class RunResults:
         d = Path(directory)
         if not (d / KINEMATICS_CSV).is_file():
             raise FileNotFoundError(f"{d}: no {KINEMATICS_CSV}; is this an openfdk result folder?")
-        summary = json.loads((d / SUMMARY_JSON).read_text()) if (d / SUMMARY_JSON).is_file() else {}
-        forces = _read_csv(d / FORCES_CSV) if (d / FORCES_CSV).is_file() else None
+        summary = _read_summary(d / SUMMARY_JSON) if (d / SUMMARY_JSON).is_file() else {}
+        forces = _read_csv(d / FORCES_CSV, ("time", "converged")) if (d / FORCES_CSV).is_file() else None
         measures = _read_csv(d / MEASURES_CSV) if (d / MEASURES_CSV).is_file() else None
-        return cls(_read_csv(d / KINEMATICS_CSV), forces, summary, None, d, measures)
+        return cls(_read_csv(d / KINEMATICS_CSV, ("time", "converged")), forces, summary, None, d, measures)
 
     def save(self, directory, sto: bool = True):
         """Write kinematics.csv, forces.csv, measures.csv, summary.json (and the ``.sto``

@@ -52,7 +52,12 @@ class DynamicsStep:
                 return forces_failure(FrameReport.failed(Reason.FAILED, reason), "loads_unknown")
         self.state.set_q(q)
         self.state.set_v(v)
-        fr = self.solver.frame(self.state, vdot, self.time[k], self.alpha, self.warm, A=Phi_q)
+        try:
+            fr = self.solver.frame(self.state, vdot, self.time[k], self.alpha, self.warm, A=Phi_q)
+        except FloatingPointError as exc:  # a pose where a path or measure is undefined (e.g. inside a wrap)
+            self.warm = None
+            return forces_failure(FrameReport.failed(Reason.FAILED, str(exc)),
+                                  "failed")
         self.warm = fr.recruitment if fr.converged else None
         return forces_values(fr)
 

@@ -84,7 +84,8 @@ def _surface(spec, path, ctx):
     mesh_path = ctx.base_dir / str(spec["mesh"])
     try:
         mesh = cached_load_mesh(mesh_path, units=units, placement=placement,
-                                flip_normals=bool(spec.get("flip_normals", False)), name=str(spec["mesh"]))
+                                flip_normals=ctx.boolean(spec.get("flip_normals", False), f"{path}.flip_normals"),
+                                name=str(spec["mesh"]))
     except MeshError as exc:
         raise ctx.error(f"{path}.mesh", str(exc)) from None
     check_scale(mesh, JOINT_REGION_SIZE)

@@ -145,7 +145,11 @@ class FDKContext:
     def _dynamics(self, k, alpha, state, data, warm):
         """Equilibrium and recruitment stages from the data's Φ_q̂ and v̇; f^FDK."""
         state = state.copy()  # the workspace moves on with later evaluations
-        fr = self.solver.frame(state, data.vdot, self.times[k], alpha, warm, data=data)
+        try:
+            fr = self.solver.frame(state, data.vdot, self.times[k], alpha, warm, data=data)
+        except FloatingPointError as exc:  # a pose where a measure or a path is undefined (e.g. inside a wrap)
+            return Evaluation(alpha, False, np.full(len(alpha), np.nan), str(exc), "failed", state, data.vdot,
+                              data=data)
         if not fr.converged:
             return Evaluation(alpha, False, np.full(len(alpha), np.nan), f"recruitment infeasible: {fr.message}",
                               "recruitment", state, data.vdot, fr, data=data)

@@ -33,7 +33,13 @@ def referenced_files(model_path) -> list:
                  if p is not None]
         return files + [(f"--ignore {kind}", model_path) for kind in opts.ignore]
 
+    walked = set()  # YAML aliases share containers: each is walked once (an alias bomb stays linear)
+
     def walk(value):
+        if isinstance(value, (dict, list)):
+            if id(value) in walked:
+                return
+            walked.add(id(value))
         if isinstance(value, dict):
             for v in value.values():
                 walk(v)

@@ -87,9 +87,24 @@ def _write_obj(path, vertices, faces, comment):
     lines = [f"# {comment}"]
     lines += [f"v {_vec(v)}" for v in vertices]
     lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in np.asarray(faces, dtype=int)]
+    from .outdir import refuse_link, write_new_file
+
+    refuse_link(path.parent)
+    refuse_link(path)
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    tmp.write_text("\n".join(lines) + "\n")
+    write_new_file(tmp, ("\n".join(lines) + "\n").encode())
     os.replace(tmp, path)
+
+
+def _geometry_path(out_dir, fname):
+    """``out_dir/Geometry/fname``; ValueError when ``fname`` (made of model names) is not a
+    plain file name (a '/', '..' or control character would leave the output folder)."""
+    from ..model.modelfile import name_problem
+
+    problem = name_problem(fname)
+    if problem or Path(fname).name != fname:
+        raise ValueError(f"cannot export mesh file {fname!r}: {problem or 'not a plain file name'}")
+    return out_dir / GEOMETRY_DIR / fname
 
 
 def _geometry(model, out_dir):
@@ -103,7 +118,7 @@ def _geometry(model, out_dir):
     for c in contacts:
         for side, body, surface in (("vertices", c.body_a, c.pair.surface_A), ("surface", c.body_b, c.pair.surface_B)):
             fname = f"{c.name}_{side}.obj"
-            _write_obj(out_dir / GEOMETRY_DIR / fname, surface.vertices_B, surface.faces,
+            _write_obj(_geometry_path(out_dir, fname), surface.vertices_B, surface.faces,
                        f"openfdk contact {c.name!r} {side} mesh ({surface.name}), body "
                        f"{model.bodies[body].name!r} frame, metres")
             attached.setdefault(body, []).append((f"{c.name}_{side}", f"{GEOMETRY_DIR}/{fname}", ""))
@@ -114,7 +129,7 @@ def _geometry(model, out_dir):
         vertices_B, faces = visual_mesh_B(v)   # .stl/.vtp/.obj/.ply file -> body frame, m (units, scale, placement)
         body = model.body(v.body).index
         fname = f"{v.body}_visual_{k}.obj"
-        _write_obj(out_dir / GEOMETRY_DIR / fname, vertices_B, faces,
+        _write_obj(_geometry_path(out_dir, fname), vertices_B, faces,
                    f"openfdk visual mesh {v.entry} ({Path(v.path).name}), body {v.body!r} frame, metres")
         attached.setdefault(body, []).append((f"{v.body}_visual_{k}", f"{GEOMETRY_DIR}/{fname}", v.color))
     return attached

@@ -37,6 +37,48 @@ CORE_SECTIONS = (
 )
 
 
+#: sections whose keys are names of model items (bodies, elements, …); those names end up
+#: in file names and XML of exports (export-opensim), so they are checked at load
+NAMED_SECTIONS = ("bodies", "measures", "joints", "constraints", "drivers", "fdk_dofs", "coordinates", "couplers",
+                  "muscles", "ligaments", "springs", "bushings", "contacts", "loads", "reactions", "wrapping")
+#: characters a name may not contain: path separators and XML's reserved characters
+#: (control characters are refused too)
+NAME_FORBIDDEN = set('/\\<>&"')
+
+
+def name_problem(name):
+    """Why ``name`` cannot name a model item (None when it can): a path separator, an XML
+    reserved character or a control character, or ``..``."""
+    if not isinstance(name, str):
+        return None  # the section readers report non-text names
+    bad = sorted({c for c in name if c in NAME_FORBIDDEN or ord(c) < 32 or ord(c) == 127})
+    if bad:
+        return f"name {name!r} contains {', '.join(repr(c) for c in bad)}; names may not contain '/', '\\', " \
+               f"'<', '>', '&', '\"' or control characters (they become file names and XML in exports)"
+    if ".." in name:
+        return f"name {name!r} contains '..'"
+    return None
+
+
+def _check_names(data, ctx):
+    """Refuse names (keys of :data:`NAMED_SECTIONS`, and of a body's frames, points and
+    markers) that :func:`name_problem` rejects, naming the entry."""
+    for section in NAMED_SECTIONS:
+        items = data.get(section)
+        if not isinstance(items, dict):
+            continue
+        for name, spec in items.items():
+            problem = name_problem(name)
+            if problem:
+                raise ctx.error(f"{section}.{name}", problem)
+            if section == "bodies" and isinstance(spec, dict):
+                for sub in ("frames", "points", "markers"):
+                    for sname in (spec.get(sub) or {}) if isinstance(spec.get(sub), dict) else ():
+                        problem = name_problem(sname)
+                        if problem:
+                            raise ctx.error(f"bodies.{name}.{sub}.{sname}", problem)
+
+
 class Ctx(YamlContext):
     """Where we are in the file (for messages) and the unit scales: the shared YAML
     context (:class:`~openfdk.io.yamlfile.YamlContext`) raising :class:`ModelError`."""
@@ -55,8 +97,9 @@ def read_core(data, source="<dict>", base_dir=None, sections=()):
     if not isinstance(data, dict):
         raise ModelError(f"{source}: the file must contain a mapping with sections {list(CORE_SECTIONS)}")
     ctx.keys(data, "(top level)", list(CORE_SECTIONS) + list(sections), required=("bodies",))
+    _check_names(data, ctx)
     version = data.get("openfdk", FORMAT_VERSION)
-    if version != FORMAT_VERSION:
+    if isinstance(version, bool) or version != FORMAT_VERSION:  # `openfdk: true` is not version 1
         raise ctx.error("openfdk", f"unsupported format version {version!r}; this openfdk reads version {FORMAT_VERSION}")
     units = ctx.keys(data.get("units", {}) or {}, "units", ["length", "angle"])
     lu, au = units.get("length", "m"), units.get("angle", "rad")
@@ -183,7 +226,7 @@ def _load_bodies(b, bodies, ctx):
             if spec.get("fixed", True) is not True:
                 raise ctx.error(f"{p}.fixed", "the ground is always fixed")
             spec = {k: v for k, v in spec.items() if k != "fixed"}
-        fixed = bool(spec.get("fixed", False)) or name == GROUND
+        fixed = ctx.boolean(spec.get("fixed", False), f"{p}.fixed") or name == GROUND
         if not fixed and name != GROUND and "mass" not in spec:
             raise ctx.error(p, "missing required key 'mass' (kg)")
         mass = ctx.number(spec.get("mass", 0.0), f"{p}.mass", positive=not fixed, nonnegative=True)
@@ -195,7 +238,7 @@ def _load_bodies(b, bodies, ctx):
         if name != GROUND:
             _wrap(ctx, p, lambda: b.add_body(
                 name, mass, inertia, ctx.position(spec.get("position", [0, 0, 0]), f"{p}.position"), R,
-                fixed=fixed, equilibrium=bool(spec.get("equilibrium", not fixed))))
+                fixed=fixed, equilibrium=ctx.boolean(spec.get("equilibrium", not fixed), f"{p}.equilibrium")))
         for section in ("frames", "points"):
             for fname, fspec in (ctx.mapping(spec.get(section) or {}, f"{p}.{section}")).items():
                 fp = f"{p}.{section}.{fname}"
@@ -251,8 +294,11 @@ def _measure(b, spec, path, ctx):
     if kind == "angles":
         return _wrap(ctx, path, lambda: b.angles(spec["frame"], spec["of"], sequence=spec.get("sequence", "xyz")))
     if kind == "jcs":
-        return _wrap(ctx, path, lambda: b.jcs_angles(spec["frame"], spec["of"], spec.get("joint", "knee"),
-                                                     spec.get("side", "right")))
+        from .rotation_angles import JCS_CONVENTIONS
+
+        joint = ctx.choice(spec.get("joint", "knee"), f"{path}.joint", sorted(JCS_CONVENTIONS), "joint convention")
+        side = ctx.choice(spec.get("side", "right"), f"{path}.side", ["left", "right"], "side")
+        return _wrap(ctx, path, lambda: b.jcs_angles(spec["frame"], spec["of"], joint, side))
     if kind == "axis_dot":
         return _wrap(ctx, path, lambda: b.axis_dot(
             spec["frame_a"], ctx.vector(spec["axis_a"], f"{path}.axis_a", n=3),
@@ -299,7 +345,7 @@ LENGTH_ROWS = ("x", "y", "z", "n")
 
 def _load_joint(b, name, spec, ctx):
     """A joint; ``fdk`` (list of row labels, or label -> {initial, max_step,
-    perturbation, spring}) makes rows FDK DOFs, ``reaction`` (label -> bool) switches
+    perturbation}) makes rows FDK DOFs, ``reaction`` (label -> bool) switches
     single rows' reactions (docs/model-file.md, joints)."""
     p = f"joints.{name}"
     ctx.keys(spec, p, ["type", "parent", "child", "normal", "fdk", "reaction"], required=("type", "parent", "child"))
@@ -316,11 +362,12 @@ def _load_joint(b, name, spec, ctx):
             for k in ("initial", "max_step", "perturbation"):
                 if k in settings:
                     out[label][k] = ctx.number(settings[k], f"{lp}.{k}", positive=(k != "initial")) * scale
-            if "spring" in settings:
-                out[label]["spring"] = settings["spring"]
         fdk = out
     elif fdk is not None and not (isinstance(fdk, list) and all(isinstance(x, str) for x in fdk)):
         raise ctx.error(f"{p}.fdk", f"expected a list of row labels (e.g. [x, y]) or a mapping, got {fdk!r}")
+    elif fdk is not None and len(set(fdk)) != len(fdk):
+        dup = next(x for x in fdk if fdk.count(x) > 1)
+        raise ctx.error(f"{p}.fdk", f"row {dup!r} is given twice")
     reaction = spec.get("reaction")
     if reaction is not None and not isinstance(reaction, dict):
         raise ctx.error(f"{p}.reaction", f"expected a mapping row label -> true/false, got {reaction!r}")
@@ -339,7 +386,8 @@ def _load_constraint(b, name, spec, ctx):
         if value.shape != (len(units),):
             raise ctx.error(f"{p}.value", f"expected {len(units)} values, got {value.size}")
         value = value * np.array([_unit_scale(u, ctx) for u in units])
-    _wrap(ctx, p, lambda: b.add_constraint(name, m, value, comps, reaction=bool(spec.get("reaction", True))))
+    reaction = ctx.boolean(spec.get("reaction", True), f"{p}.reaction")  # `"false"` is text, not false
+    _wrap(ctx, p, lambda: b.add_constraint(name, m, value, comps, reaction=reaction))
 
 
 FUNCTION_KEYS = {
@@ -391,10 +439,11 @@ def _load_driver(b, name, spec, ctx):
     m = _measure(b, spec["measure"], f"{p}.measure", ctx)
     comps, units = _components(spec, m, p, ctx)
     f = _function(spec["function"], units, f"{p}.function", ctx)
-    _wrap(ctx, p, lambda: b.add_driver(name, m, f, comps, reaction=bool(spec.get("reaction", False))))
+    reaction = ctx.boolean(spec.get("reaction", False), f"{p}.reaction")
+    _wrap(ctx, p, lambda: b.add_driver(name, m, f, comps, reaction=reaction))
 
 
-FDK_SETTING_KEYS = ["max_step", "perturbation", "spring"]
+FDK_SETTING_KEYS = ["max_step", "perturbation"]
 
 
 def _load_fdk(b, name, spec, ctx):

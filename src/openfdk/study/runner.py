@@ -79,6 +79,10 @@ def _acquire_lock(out):
                 other = json.loads(path.read_text())
             except (OSError, ValueError):
                 other = {}
+            if not isinstance(other, dict):  # a lock that is not a JSON object (e.g. `[]`): its owner is unknown
+                other = {}
+            if not isinstance(other.get("pid"), int) or isinstance(other.get("pid"), bool):
+                other = {k: v for k, v in other.items() if k != "pid"}
             if other.get("host") == me["host"] and not _pid_alive(int(other.get("pid", -1))):
                 path.unlink(missing_ok=True)  # stale: its process is gone
                 continue
@@ -226,6 +230,8 @@ def run_study(study, out_dir, *, scheduler=None, workers=None, client=None, prog
     t0 = _time.perf_counter()
     if not isinstance(study, Study):
         study = load_study(study)
+    if not str(out_dir).strip():
+        raise StudyError("the output folder is empty (--out ''); give a folder name")
     out = Path(out_dir).resolve()
     out.mkdir(parents=True, exist_ok=True)
     lock = _acquire_lock(out)

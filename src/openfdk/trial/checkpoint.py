@@ -7,13 +7,30 @@ point. It is written under a temporary name and renamed, so a part under its fin
 is always whole. Every part carries the run's fingerprint (model, trial and options);
 parts of another run are refused. The folder is removed when the final files are
 written.
+
+A checkpoint folder is untrusted input (``--resume`` reads whatever is in OUT), so:
+
+- each part has a JSON sidecar ``part-NNNNNN.json`` (written first) with the fingerprint
+  and the SHA-256 of the part's bytes; the sidecar is read and the fingerprint and hash
+  checked *before* the part is unpickled;
+- the part is unpickled by :class:`_SafeUnpickler`, which resolves only numpy arrays,
+  dtypes and scalars, plain containers and openfdk's dataclasses and enums (and
+  ``BodyStates``) — no functions, no ``os``/``subprocess``/``builtins.eval`` — so a
+  crafted part cannot run code;
+- a truncated or otherwise unreadable part is a :class:`CheckpointError` naming it;
+- files are created with ``O_EXCL | O_NOFOLLOW`` and a symlinked ``.checkpoint`` folder
+  or part is refused, so a planted link never redirects a write.
 """
 
 from __future__ import annotations
 
+import hashlib
+import io
+import json
 import os
 import pickle
 import shutil
+import stat
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,22 +44,125 @@ class CheckpointError(ValueError):
     """Saved checkpoints that cannot be used (another run's, or parts missing)."""
 
 
+def _refuse_link(path):
+    """CheckpointError when ``path`` is a symbolic link (a planted link is never followed)."""
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        return
+    if stat.S_ISLNK(st.st_mode):
+        raise CheckpointError(f"{path}: is a symbolic link; openfdk does not follow links in the output folder "
+                              f"(remove it)")
+
+
+def _prepare_folder(folder):
+    """Create the checkpoint folder (not following a planted link)."""
+    _refuse_link(folder.parent)
+    _refuse_link(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    if not folder.is_dir():
+        raise CheckpointError(f"{folder}: is not a folder")
+
+
+def _write_new(path, data):
+    """Write bytes ``data`` to a new file ``path`` (O_EXCL | O_NOFOLLOW: never an existing
+    file or a link)."""
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0)
+    fd = os.open(path, flags, 0o644)
+    with os.fdopen(fd, "wb") as fh:
+        fh.write(data)
+
+
 def _write_atomic(final, payload):
     """Pickle ``payload`` to ``final`` under a temporary name, then rename (a file under
-    its final name is always whole)."""
-    tmp = final.parent / f".{final.name}.tmp-{os.getpid()}"
-    with open(tmp, "wb") as fh:
-        pickle.dump(payload, fh, protocol=pickle.HIGHEST_PROTOCOL)
-    os.replace(tmp, final)
+    its final name is always whole). The JSON sidecar (fingerprint, next frame and the
+    part's SHA-256) is written first, so a part under its final name always has one."""
+    data = pickle.dumps(payload, protocol=pickle.HIGHEST_PROTOCOL)
+    side = {"fingerprint": payload["fingerprint"], "sha256": hashlib.sha256(data).hexdigest()}
+    if "next_frame" in payload:
+        side["next_frame"] = payload["next_frame"]
+    for path, content in ((final.with_suffix(".json"), json.dumps(side).encode()), (final, data)):
+        _refuse_link(path)
+        tmp = path.parent / f".{path.name}.tmp-{os.getpid()}"
+        if os.path.lexists(tmp):
+            os.remove(tmp)  # a leftover of a killed run of this process id (a link is removed, not followed)
+        _write_new(tmp, content)
+        os.replace(tmp, path)
+
+
+_NUMPY_NAMES = {"dtype", "ndarray", "_reconstruct", "scalar", "_frombuffer"}
+_NUMPY_MODULES = {"numpy", "numpy.core.multiarray", "numpy._core.multiarray", "numpy.core.numeric",
+                  "numpy._core.numeric"}
+_SAFE_BUILTINS = {"list", "dict", "tuple", "set", "frozenset", "complex", "slice", "range", "bytearray", "bytes",
+                  "str", "int", "float", "bool"}
+
+
+class _SafeUnpickler(pickle.Unpickler):
+    """Unpickler that resolves only numpy arrays/dtypes/scalars, plain containers and
+    openfdk's record classes (:func:`_plain_record`) — never a function such as
+    ``os.system`` or ``eval``."""
+
+    def find_class(self, module, name):
+        if module in _NUMPY_MODULES and name in _NUMPY_NAMES:
+            return super().find_class(module, name)
+        if module == "builtins" and name in _SAFE_BUILTINS:
+            return super().find_class(module, name)
+        if (module, name) in {("collections", "OrderedDict"), ("copyreg", "_reconstructor")}:
+            return super().find_class(module, name)
+        if (module == "openfdk" or module.startswith("openfdk.")) and "." not in name:
+            obj = super().find_class(module, name)
+            if isinstance(obj, type) and getattr(obj, "__module__", None) == module and _plain_record(obj):
+                return obj
+        raise pickle.UnpicklingError(f"refused to load {module}.{name}")
+
+
+#: openfdk classes in checkpoints that are neither dataclasses nor enums (their
+#: constructors only store arrays)
+_PLAIN_CLASSES = {("openfdk.model.state", "BodyStates")}
+
+
+def _plain_record(cls):
+    """True for the openfdk classes a checkpoint may hold: dataclasses, enums and
+    :data:`_PLAIN_CLASSES` (constructing them runs no code beyond storing values)."""
+    import dataclasses
+    import enum
+
+    return (dataclasses.is_dataclass(cls) or issubclass(cls, enum.Enum)
+            or (cls.__module__, cls.__qualname__) in _PLAIN_CLASSES)
 
 
 def _read_own(path, fingerprint):
-    """The payload of our checkpoint file ``path``; CheckpointError if another run's."""
-    with open(path, "rb") as fh:
-        payload = pickle.load(fh)  # our own files, written by _write_atomic
+    """The payload of our checkpoint file ``path``; CheckpointError if another run's,
+    if its sidecar is missing or does not match its bytes, or if it cannot be read. The
+    fingerprint is checked from the JSON sidecar before anything is unpickled."""
+    path = Path(path)
+    side_path = path.with_suffix(".json")
+    other = (f"{path}: the checkpoint belongs to another run (model, meshes, trial or options differ); "
+             f"start again with --force")
+    try:
+        _refuse_link(path)
+        _refuse_link(side_path)
+        side = json.loads(side_path.read_text(encoding="utf-8"))
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise CheckpointError(f"{path}: the checkpoint part has no sidecar {side_path.name} (written by another "
+                              f"openfdk version or incomplete); start again with --force") from None
+    except (OSError, ValueError) as exc:
+        raise CheckpointError(f"{side_path}: unreadable checkpoint sidecar ({exc}); start again with --force") from None
+    if not isinstance(side, dict) or not isinstance(side.get("fingerprint"), str):
+        raise CheckpointError(f"{side_path}: not a checkpoint sidecar (no 'fingerprint'); start again with --force")
+    if side["fingerprint"] != fingerprint:
+        raise CheckpointError(other)
+    if side.get("sha256") != hashlib.sha256(data).hexdigest():
+        raise CheckpointError(f"{path}: the checkpoint part does not match its sidecar (cut short or changed); "
+                              f"start again with --force")
+    try:
+        payload = _SafeUnpickler(io.BytesIO(data)).load()
+    except Exception as exc:  # noqa: BLE001 - any malformed part is one error naming it
+        raise CheckpointError(f"{path}: unreadable checkpoint part ({type(exc).__name__}: {exc}); "
+                              f"start again with --force") from None
     if not isinstance(payload, dict) or payload.get("fingerprint") != fingerprint:
-        raise CheckpointError(f"{path}: the checkpoint belongs to another run (model, meshes, trial or options "
-                              f"differ); start again with --force")
+        raise CheckpointError(other)
     return payload
 
 
@@ -75,7 +195,7 @@ class Checkpoints:
     def _parts(self):
         if not self.folder.is_dir():
             return []
-        return sorted(p for p in self.folder.glob("part-*.pkl"))
+        return sorted(p for p in self.folder.glob("part-[0-9][0-9][0-9][0-9][0-9][0-9].pkl"))
 
     def due(self, n_pending):
         """True when ``n_pending`` finished frames should be written now."""
@@ -85,7 +205,7 @@ class Checkpoints:
 
     def save(self, records, carry, next_frame):
         """Write one part atomically (temporary name, then rename)."""
-        self.folder.mkdir(parents=True, exist_ok=True)
+        _prepare_folder(self.folder)
         payload = {"fingerprint": self.fingerprint, "next_frame": int(next_frame), "records": records, "carry": carry}
         _write_atomic(self.folder / f"part-{self._index:06d}.pkl", payload)
         self._index += 1
@@ -97,14 +217,20 @@ class Checkpoints:
     def load(self):
         """Saved (all parts joined) or None when there is none. Raises CheckpointError
         for another run's parts or a gap."""
+        _refuse_link(self.folder)
         parts = self._parts()
         if not parts:
             return None
         records, carry, next_frame = [], None, 0
         for p in parts:
             payload = _read_own(p, self.fingerprint)
+            records_ok = isinstance(payload.get("records"), list) and all(
+                isinstance(r, tuple) and len(r) == 2 and isinstance(r[0], int) and isinstance(r[1], dict)
+                for r in payload["records"])
+            if not records_ok or not isinstance(payload.get("next_frame"), int):
+                raise CheckpointError(f"{p}: not a checkpoint part of openfdk run; start again with --force")
             records += payload["records"]
-            carry, next_frame = payload["carry"], payload["next_frame"]
+            carry, next_frame = payload.get("carry"), payload["next_frame"]
         self._index = len(parts)
         return Saved(records, carry, next_frame)
 
@@ -123,16 +249,17 @@ class SegmentCheckpoints:
 
     def save(self, index, result):
         """Keep the finished segment ``index`` (its result, any picklable object)."""
-        self.folder.mkdir(parents=True, exist_ok=True)
+        _prepare_folder(self.folder)
         _write_atomic(self.folder / f"chunk-{int(index):06d}.pkl", {"fingerprint": self.fingerprint, "result": result})
 
     def load(self):
         """{segment index: result} of the segments kept (empty when none); raises
         CheckpointError for another run's files."""
+        _refuse_link(self.folder)
         if not self.folder.is_dir():
             return {}
         return {int(p.stem.split("-")[1]): _read_own(p, self.fingerprint)["result"]
-                for p in sorted(self.folder.glob("chunk-*.pkl"))}
+                for p in sorted(self.folder.glob("chunk-[0-9][0-9][0-9][0-9][0-9][0-9].pkl"))}
 
     def clear(self):
         shutil.rmtree(self.folder, ignore_errors=True)

@@ -22,9 +22,15 @@ from .scene import MAX_MESH_VERTICES, build_scene
 __all__ = ["write_view", "view_data", "ViewError"]
 
 
+#: the smallest ``max_vertices`` (a displayed mesh keeps at least one triangle)
+MIN_MESH_VERTICES = 3
+
+
 def view_data(result_dir, model=None, max_vertices=MAX_MESH_VERTICES):
     """(data dict {meta, scene, frames}, title) of a result folder. ``model``: a model
     file path (default: the one named in summary.json) or a loaded Model."""
+    if isinstance(max_vertices, bool) or not isinstance(max_vertices, int) or max_vertices < MIN_MESH_VERTICES:
+        raise ValueError(f"max_vertices must be a whole number >= {MIN_MESH_VERTICES}, got {max_vertices!r}")
     from ..io.modelfile import load_model
 
     results = read_results(result_dir)
@@ -57,8 +63,11 @@ def write_view(result_dir, out=None, model=None, max_vertices=MAX_MESH_VERTICES)
     returns its Path. Raises ViewError naming the file/entry on bad input."""
     data, title = view_data(result_dir, model, max_vertices)
     out = Path(out) if out is not None else Path(result_dir) / "view.html"
+    from ..io.outdir import refuse_link, write_new_file
+
     out.parent.mkdir(parents=True, exist_ok=True)
+    refuse_link(out)
     tmp = out.with_name(f".{out.name}.tmp")
-    tmp.write_text(render_page(data, title), encoding="utf-8")
+    write_new_file(tmp, render_page(data, title).encode("utf-8"))  # a planted link is refused, not followed
     tmp.replace(out)
     return out

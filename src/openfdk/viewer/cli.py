@@ -4,8 +4,10 @@ from __future__ import annotations
 
 
 def _cmd_view(args):
+    from ..outputs_cli import refuse_empty_out
     from . import write_view
 
+    refuse_empty_out(args)
     out = write_view(args.result_dir, args.out, model=args.model, max_vertices=args.max_vertices)
     size = out.stat().st_size / 1e6
     print(f"view: {out} ({size:.1f} MB); open it in a web browser (works offline)")
@@ -17,7 +19,11 @@ def add_view_parser(sub):
     v.add_argument("result_dir", help="folder written by 'openfdk run' (kinematics.csv, forces.csv, summary.json)")
     v.add_argument("--out", default=None, help="HTML file to write (default RESULT_DIR/view.html)")
     v.add_argument("--model", default=None, help="model file (default: the one recorded in summary.json)")
-    v.add_argument("--max-vertices", type=int, default=4000,
-                   help="meshes with more vertices are decimated for display (default 4000)")
+    from ..argtypes import count
+    from . import MIN_MESH_VERTICES
+
+    v.add_argument("--max-vertices", type=count(MIN_MESH_VERTICES), default=4000,
+                   help=f"meshes with more vertices are decimated for display (default 4000, at least "
+                        f"{MIN_MESH_VERTICES})")
     v.set_defaults(func=_cmd_view)
     return v

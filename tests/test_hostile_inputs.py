@@ -1,0 +1,463 @@
+"""Issue 30's hostile inputs, one test each: the exact exit code and the one-line message
+naming the file and the entry; no traceback, no hang, nothing written outside --out, no
+code run from a data file. Exit codes: 0 success, 2 bad input, 3 too many failed frames."""
+
+import hashlib
+import json
+import os
+import pickle
+import shutil
+import time
+
+import pytest
+import yaml
+
+from openfdk.cli import main
+from openfdk.fixtures.synthetic import synthetic_markers, two_body_model_dict
+from openfdk.io.c3d import write_c3d
+
+ARM = """\
+units: {length: mm, angle: deg}
+bodies:
+  arm: {mass: 1.0, inertia: [0.01, 0.01, 0.01], position: [0, -200, 0], frames: {pivot: [0, 200, 0], insertion: [10, 150, 0]}}
+  ground: {frames: {origin_point: [5, 5, 0]}}
+joints:
+  pin: {type: revolute, parent: ground.origin, child: arm.pivot}
+drivers:
+  swing: {measure: pin.angle, function: {type: constant, value: 0}}
+analysis: {start: 0, end: 0.02}
+"""
+
+
+def _run(capsys, *argv):
+    code = main([*map(str, argv)])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def _error_line(err):
+    lines = [ln for ln in err.splitlines() if ln.startswith("openfdk: error:")]
+    assert len(lines) == 1, err
+    assert "Traceback" not in err
+    return lines[0]
+
+
+def _write(path, text):
+    path.write_text(text)
+    return path
+
+
+def _snapshot(folder):
+    """{relative path: (mtime_ns, bytes)} of every file under ``folder``."""
+    return {str(p.relative_to(folder)): (p.stat().st_mtime_ns, p.read_bytes())
+            for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture
+def watched(tmp_path):
+    """A sibling folder that no command may change; compare with _snapshot afterwards."""
+    d = tmp_path / "watched"
+    d.mkdir()
+    (d / "target.txt").write_text("precious\n")
+    (d / "sub").mkdir()
+    (d / "sub" / "other.txt").write_text("also precious\n")
+    return d
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    """(model path, trial path, result folder) of one finished two-body run."""
+    d = tmp_path_factory.mktemp("finished")
+    model = _write(d / "model.yaml", yaml.safe_dump(two_body_model_dict(), sort_keys=False))
+    _t, labels, x, _truth = synthetic_markers(20, rate=100.0, noise=0.0)
+    write_c3d(d / "trial.c3d", labels, x, 100.0, units="mm")
+    out = d / "res"
+    assert main(["run", str(model), str(d / "trial.c3d"), "--out", str(out), "--no-progress", "--no-plots",
+                 "--max-failed", "1"]) == 0
+    return model, d / "trial.c3d", out
+
+
+@pytest.fixture
+def result(finished, tmp_path):
+    """A private copy of the finished result folder."""
+    res = tmp_path / "res"
+    shutil.copytree(finished[2], res)
+    return res
+
+
+# -- hangs ----------------------------------------------------------------------------
+
+def test_run_on_a_yaml_alias_bomb_is_refused_at_once(tmp_path, capsys):
+    lines = ["openfdk: 1", "a0: &a0 [x, x, x, x, x, x, x, x, x, x]"]
+    lines += [f"a{i}: &a{i} [" + ", ".join([f"*a{i - 1}"] * 10) + "]" for i in range(1, 12)]
+    bomb = _write(tmp_path / "bomb.yaml", "\n".join(lines) + "\n")   # 10^12 leaves when expanded
+    t0 = time.perf_counter()
+    code, _, err = _run(capsys, "run", bomb, "--out", tmp_path / "out")
+    assert time.perf_counter() - t0 < 20
+    assert code == 2
+    assert "bomb.yaml: (top level).a0: unknown key" in _error_line(err)
+
+
+@pytest.mark.parametrize("value", ["0", "-5", "2"])
+def test_view_max_vertices_below_the_minimum_is_refused(result, capsys, value):
+    with pytest.raises(SystemExit) as exc:
+        main(["view", str(result), "--max-vertices", value])
+    assert exc.value.code == 2
+    assert f"--max-vertices: expected a whole number >= 3, got '{value}'" in capsys.readouterr().err
+
+
+def test_view_data_refuses_a_max_vertices_below_the_minimum(result):
+    from openfdk.viewer import view_data
+
+    with pytest.raises(ValueError, match="max_vertices must be a whole number >= 3, got 0"):
+        view_data(result, max_vertices=0)
+
+
+# -- tracebacks -----------------------------------------------------------------------
+
+def test_a_path_point_inside_a_wrapping_cylinder_gives_failed_frames_not_a_traceback(tmp_path, capsys):
+    model = _write(tmp_path / "wrap.yaml", ARM + """\
+wrapping:
+  drum: {type: cylinder, frame: ground.origin, radius: 30}
+muscles:
+  m: {path: [ground.origin_point, drum, arm.insertion], strength: 100}
+""")
+    code, _, err = _run(capsys, "run", model, "--out", tmp_path / "out", "--no-progress", "--no-plots")
+    assert code == 3
+    assert "Traceback" not in err
+    assert "path 'm': a path point lies inside the wrapping surface" in err
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["inverse_dynamics"]["converged_frames"] == 0
+
+
+def test_jcs_joint_given_as_a_list_is_refused(tmp_path, capsys):
+    model = _write(tmp_path / "model.yaml", ARM + """\
+measures:
+  ang: {type: jcs, frame: ground.origin, of: arm.pivot, joint: [knee]}
+""")
+    code, _, err = _run(capsys, "check", model)
+    assert code == 2
+    assert "model.yaml: measures.ang.joint: unknown joint convention ['knee']" in _error_line(err)
+
+
+@pytest.mark.parametrize("content", ["[]", '{"host": 5, "pid": "x"}', "not json"])
+def test_a_study_lock_that_is_not_an_object_is_reported(tmp_path, content):
+    from openfdk.study import StudyError
+    from openfdk.study.runner import _acquire_lock
+
+    (tmp_path / ".study.lock").write_text(content)
+    with pytest.raises(StudyError, match=r"is in use by a study running on .*delete '.*\.study\.lock'"):
+        _acquire_lock(tmp_path)
+
+
+@pytest.mark.parametrize("command", ["plot", "export-opensim"])
+@pytest.mark.parametrize("tamper, expected", [
+    (lambda s: [], "summary.json: must be a JSON object, got list"),
+    (lambda s: {**s, "input": []}, "summary.json: input: must be a JSON object, got list"),
+    (lambda s: {**s, "input": {**s["input"], "model_file": 5}},
+     "summary.json: input.model_file: must be a file name (text), got 5"),
+])
+def test_tampered_summary_json_is_refused(result, tmp_path, capsys, command, tamper, expected):
+    path = result / "summary.json"
+    path.write_text(json.dumps(tamper(json.loads(path.read_text()))))
+    code, _, err = _run(capsys, command, result, "--out", tmp_path / "out")
+    assert code == 2
+    assert expected in _error_line(err)
+
+
+@pytest.mark.parametrize("command", ["plot", "export-opensim"])
+def test_a_foreign_kinematics_csv_is_refused(result, tmp_path, capsys, command):
+    (result / "kinematics.csv").write_text("time,x,y\n0,1,2\n0.01,1,2\n")
+    code, _, err = _run(capsys, command, result, "--out", tmp_path / "out")
+    assert code == 2
+    assert "kinematics.csv: column 'converged' missing; not a table written by openfdk" in _error_line(err)
+
+
+def test_a_half_written_checkpoint_part_is_refused_on_resume(finished, tmp_path, capsys):
+    model, trial, _ = finished
+    out = tmp_path / "out"
+    args = [model, trial, "--out", out, "--no-progress", "--no-plots", "--max-failed", "1"]
+    part = _checkpoint_part(args)
+    part.write_bytes(part.read_bytes()[:40])   # cut short
+    code, _, err = _run(capsys, "run", *args, "--resume")
+    assert code == 2
+    assert "part-000000.pkl: the checkpoint part does not match its sidecar (cut short or changed)" in _error_line(err)
+
+
+def _checkpoint_part(argv):
+    """Write one genuine checkpoint part for ``openfdk run argv`` and return its path."""
+    from openfdk.cli import _run_checkpoints, build_parser
+
+    args = build_parser().parse_args(["run", *map(str, argv)])
+    ck = _run_checkpoints(args)
+    ck.save([], None, 0)
+    return ck.folder / "part-000000.pkl"
+
+
+class _Evil:
+    def __init__(self, marker):
+        self.marker = marker
+
+    def __reduce__(self):
+        return (os.system, (f"touch {self.marker}",))
+
+
+@pytest.mark.parametrize("genuine_fingerprint", [True, False])
+def test_a_crafted_checkpoint_part_runs_no_code_on_resume(finished, tmp_path, capsys, genuine_fingerprint):
+    """A part that would create a file when unpickled: `--resume` refuses it and the
+    file never exists, whether or not the attacker wrote the right fingerprint."""
+    model, trial, _ = finished
+    out = tmp_path / "out"
+    args = [model, trial, "--out", out, "--no-progress", "--no-plots", "--max-failed", "1"]
+    part = _checkpoint_part(args)
+    side = json.loads(part.with_suffix(".json").read_text())
+    marker = tmp_path / "pwned"
+    fingerprint = side["fingerprint"] if genuine_fingerprint else "0" * 64
+    data = pickle.dumps({"fingerprint": fingerprint, "next_frame": 1, "records": [], "carry": _Evil(marker)})
+    part.write_bytes(data)
+    part.with_suffix(".json").write_text(json.dumps({"fingerprint": fingerprint,
+                                                     "sha256": hashlib.sha256(data).hexdigest()}))
+    code, _, err = _run(capsys, "run", *args, "--resume")
+    assert code == 2
+    line = _error_line(err)
+    if genuine_fingerprint:
+        assert "part-000000.pkl: unreadable checkpoint part (UnpicklingError: refused to load" in line
+    else:
+        assert "part-000000.pkl: the checkpoint belongs to another run" in line
+    assert not marker.exists()
+
+
+def test_a_checkpoint_part_without_its_sidecar_is_refused(finished, tmp_path, capsys):
+    model, trial, _ = finished
+    args = [model, trial, "--out", tmp_path / "out", "--no-progress", "--no-plots", "--max-failed", "1"]
+    part = _checkpoint_part(args)
+    part.with_suffix(".json").unlink()
+    code, _, err = _run(capsys, "run", *args, "--resume")
+    assert code == 2
+    assert "part-000000.pkl: the checkpoint part has no sidecar part-000000.json" in _error_line(err)
+
+
+# -- silently accepted ----------------------------------------------------------------
+
+@pytest.mark.parametrize("section, extra, entry", [
+    ("drivers", "", "drivers.swing.reaction"),
+    ("constraints", "constraints:\n  c: {measure: pin.angle, components: [0], reaction: \"false\"}\n",
+     "constraints.c.reaction"),
+])
+def test_reaction_given_as_text_is_refused(tmp_path, capsys, section, extra, entry):
+    text = ARM + extra
+    if section == "drivers":
+        text = text.replace("value: 0}}", "value: 0}, reaction: \"false\"}")
+    model = _write(tmp_path / "model.yaml", text)
+    code, _, err = _run(capsys, "check", model)
+    assert code == 2
+    assert f"model.yaml: {entry}: expected true or false, got 'false'" in _error_line(err)
+
+
+def test_body_fixed_given_as_text_is_refused(tmp_path, capsys):
+    model = _write(tmp_path / "model.yaml", ARM.replace("arm: {mass: 1.0,", "arm: {fixed: \"no\", mass: 1.0,"))
+    code, _, err = _run(capsys, "check", model)
+    assert code == 2
+    assert "model.yaml: bodies.arm.fixed: expected true or false, got 'no'" in _error_line(err)
+
+
+def test_an_unknown_spring_key_under_an_fdk_dof_is_refused(tmp_path, capsys):
+    model = _write(tmp_path / "model.yaml", ARM + "fdk_dofs:\n  a: {measure: pin.angle, spring: {stiffness: 1}}\n")
+    code, _, err = _run(capsys, "check", model)
+    assert code == 2
+    assert "model.yaml: fdk_dofs.a.spring: unknown key" in _error_line(err)
+
+
+def test_an_unknown_spring_key_under_a_joint_fdk_row_is_refused(tmp_path, capsys):
+    data = two_body_model_dict()
+    data["joints"]["tmj"]["fdk"] = {"x": {"spring": 1.0}}
+    model = _write(tmp_path / "model.yaml", yaml.safe_dump(data))
+    code, _, err = _run(capsys, "check", model)
+    assert code == 2
+    assert "model.yaml: joints.tmj.fdk.x.spring: unknown key" in _error_line(err)
+
+
+def test_duplicate_fdk_rows_are_refused(tmp_path, capsys):
+    data = two_body_model_dict()
+    data["joints"]["tmj"]["fdk"] = ["x", "x"]
+    model = _write(tmp_path / "model.yaml", yaml.safe_dump(data))
+    code, _, err = _run(capsys, "check", model)
+    assert code == 2
+    assert "model.yaml: joints.tmj.fdk: row 'x' is given twice" in _error_line(err)
+
+
+def test_format_version_true_is_not_version_1(tmp_path, capsys):
+    model = _write(tmp_path / "model.yaml", "openfdk: true\n" + ARM)
+    code, _, err = _run(capsys, "check", model)
+    assert code == 2
+    assert "model.yaml: openfdk: unsupported format version True" in _error_line(err)
+
+
+@pytest.mark.parametrize("name, shown", [("ar\x01m", "'ar\\x01m'"), ("a/b", "'/'"), ("a<b", "'<'"), ("a..b", "'..'")])
+def test_a_bad_character_in_a_body_name_is_refused_at_load(tmp_path, capsys, name, shown):
+    data = two_body_model_dict()
+    data["bodies"] = {(name if k == "jaw" else k): v for k, v in data["bodies"].items()}
+    model = _write(tmp_path / "model.yaml", json.dumps(data))
+    code, _, err = _run(capsys, "check", model)
+    assert code == 2
+    line = _error_line(err)
+    assert "model.yaml: bodies." in line and shown in line
+
+
+def test_a_contact_name_with_a_slash_is_refused_at_load(tmp_path, capsys, watched):
+    data = two_body_model_dict()
+    data["contacts"] = {str(watched / "evil"): {"vertices": {"body": "jaw"}, "surface": {"body": "skull"},
+                                                "pressure_modulus": 1}}
+    model = _write(tmp_path / "model.yaml", yaml.safe_dump(data))
+    before = _snapshot(watched)
+    code, _, err = _run(capsys, "check", model)
+    assert code == 2
+    assert f"model.yaml: contacts.{watched}/evil: name" in _error_line(err)
+    assert _snapshot(watched) == before
+
+
+@pytest.mark.parametrize("fname", ["../x.obj", "/etc/x.obj", "a/b_vertices.obj", "a\x01_surface.obj"])
+def test_an_export_mesh_name_leaving_geometry_is_refused(tmp_path, fname):
+    from openfdk.io.osim import _geometry_path
+
+    with pytest.raises(ValueError, match="cannot export mesh file"):
+        _geometry_path(tmp_path, fname)
+    assert _geometry_path(tmp_path, "jaw_visual_0.obj") == tmp_path / "Geometry" / "jaw_visual_0.obj"
+
+
+def test_an_export_mesh_file_link_is_refused(tmp_path, watched):
+    import numpy as np
+
+    from openfdk.io.osim import _write_obj
+
+    (tmp_path / "g.obj").symlink_to(watched / "target.txt")
+    before = _snapshot(watched)
+    with pytest.raises(ValueError, match="g.obj' is a symbolic link"):
+        _write_obj(tmp_path / "g.obj", np.zeros((3, 3)), [[0, 1, 2]], "x")
+    assert _snapshot(watched) == before
+
+
+def test_a_kinematics_csv_cut_mid_row_is_refused(result, tmp_path, capsys):
+    path = result / "kinematics.csv"
+    text = path.read_text()
+    path.write_text(text[: len(text) - 200])   # the last row cut short
+    n_lines = len(path.read_text().splitlines())
+    code, _, err = _run(capsys, "export-opensim", result, "--out", tmp_path / "out")
+    assert code == 2
+    assert f"kinematics.csv: line {n_lines}: " in _error_line(err)
+    assert "where the header has" in _error_line(err)
+
+
+@pytest.mark.parametrize("command", ["plot", "export-opensim", "view"])
+def test_an_empty_out_is_refused(result, tmp_path, capsys, monkeypatch, command):
+    monkeypatch.chdir(tmp_path)
+    code, _, err = _run(capsys, command, result, "--out", "")
+    assert code == 2
+    assert "the output is empty (--out '')" in _error_line(err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["res"]
+
+
+def test_run_with_an_empty_out_is_refused(finished, capsys):
+    code, _, err = _run(capsys, "run", finished[0], finished[1], "--out", "")
+    assert code == 2
+    assert "the output folder is empty (--out '')" in _error_line(err)
+
+
+# -- lost results ---------------------------------------------------------------------
+
+def test_resume_without_a_checkpoint_keeps_finished_results(finished, result, tmp_path, capsys):
+    other = _write(tmp_path / "other.yaml", finished[0].read_text().replace("two-body jaw", "other"))
+    before = _snapshot(result)
+    code, _, err = _run(capsys, "run", other, finished[1], "--resume", "--out", result, "--no-progress")
+    assert code == 2
+    assert "already holds results (summary.json, kinematics.csv, forces.csv) and no checkpoint to resume" \
+        in _error_line(err)
+    assert _snapshot(result) == before
+
+
+# -- nothing written outside --out ----------------------------------------------------
+
+def test_a_planted_view_tmp_link_is_refused(result, watched, capsys):
+    (result / ".view.html.tmp").symlink_to(watched / "target.txt")
+    before = _snapshot(watched)
+    code, _, err = _run(capsys, "view", result)
+    assert code == 2
+    assert ".view.html.tmp' is a symbolic link" in _error_line(err)
+    assert _snapshot(watched) == before
+
+
+@pytest.mark.parametrize("entry, target", [(".checkpoint", "sub"), ("plots", "sub"), ("forces.csv", "target.txt")])
+def test_a_planted_link_in_the_run_output_folder_is_refused(finished, tmp_path, watched, capsys, entry, target):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / entry).symlink_to(watched / target)
+    before = _snapshot(watched)
+    code, _, err = _run(capsys, "run", finished[0], finished[1], "--out", out, "--no-progress", "--force")
+    assert code == 2
+    assert f"{entry}' is a symbolic link" in _error_line(err)
+    assert _snapshot(watched) == before
+
+
+def test_a_planted_link_at_a_figure_file_is_refused(result, watched, capsys):
+    (result / "plots").mkdir()
+    (result / "plots" / "kinematics.png").symlink_to(watched / "target.txt")
+    before = _snapshot(watched)
+    code, _, err = _run(capsys, "plot", result)
+    assert code == 2
+    assert "kinematics.png' is a symbolic link" in _error_line(err)
+    assert _snapshot(watched) == before
+
+
+def test_a_planted_figure_folder_link_is_refused_by_plot(result, watched, capsys):
+    (result / "plots").symlink_to(watched / "sub")
+    before = _snapshot(watched)
+    code, _, err = _run(capsys, "plot", result)
+    assert code == 2
+    assert "plots' is a symbolic link" in _error_line(err)
+    assert _snapshot(watched) == before
+
+
+def test_a_planted_checkpoint_link_is_refused_when_saving(tmp_path, watched):
+    from openfdk.trial.checkpoint import CheckpointError, Checkpoints
+
+    (tmp_path / ".checkpoint").symlink_to(watched / "sub")
+    before = _snapshot(watched)
+    with pytest.raises(CheckpointError, match=r"\.checkpoint: is a symbolic link"):
+        Checkpoints(tmp_path / ".checkpoint", "run").save([], None, 0)
+    with pytest.raises(CheckpointError, match=r"\.checkpoint: is a symbolic link"):
+        Checkpoints(tmp_path / ".checkpoint", "run").load()
+    assert _snapshot(watched) == before
+
+
+# -- documentation agrees with the CLI ------------------------------------------------
+
+def test_studies_doc_gives_the_cli_exit_code_for_failed_cases():
+    from pathlib import Path
+
+    from openfdk.cli import EXIT_FAILED_FRAMES
+
+    text = (Path(__file__).parents[1] / "docs" / "studies.md").read_text()
+    assert f"* {EXIT_FAILED_FRAMES}: some case failed" in text
+    assert "* 1: some case failed" not in text
+
+
+def test_study_with_an_empty_out_is_refused(finished, tmp_path, capsys, monkeypatch):
+    model, trial, _ = finished
+    study = _write(tmp_path / "s.yaml", f"openfdk_study: 1\nmodels: {{m: {model}}}\ntrials: {{t: {trial}}}\n")
+    monkeypatch.chdir(tmp_path)
+    code, _, err = _run(capsys, "study", study, "--out", "")
+    assert code == 2
+    assert "the output folder is empty (--out '')" in _error_line(err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.yaml"]
+
+
+@pytest.mark.parametrize("module, name", [("os", "system"), ("builtins", "eval"), ("builtins", "getattr"),
+                                          ("subprocess", "Popen"), ("openfdk.io.outdir", "write_new_file"),
+                                          ("openfdk.io.outdir", "os"), ("openfdk.cli", "main")])
+def test_the_checkpoint_unpickler_resolves_no_callable_that_could_run_code(module, name):
+    import io
+
+    from openfdk.trial.checkpoint import _SafeUnpickler
+
+    with pytest.raises(pickle.UnpicklingError, match=f"refused to load {module}.{name}"):
+        _SafeUnpickler(io.BytesIO(b"")).find_class(module, name)
