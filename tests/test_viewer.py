@@ -752,6 +752,12 @@ def test_wrapped_quadriceps_polyline_has_the_model_length_and_lies_on_the_cylind
         r = np.linalg.norm(rel - np.outer(rel @ axis_W, axis_W), axis=1)
         np.testing.assert_allclose(r, 0.025, atol=1e-6)
     assert wrapped_frames >= 4  # wraps in flexion (the test is not vacuous)
+    # the condyle cylinder itself is drawn on the thigh: on the knee frame, radius 25 mm
+    (cyl,) = scene["wrap_surfaces"]
+    assert cyl["kind"] == "cylinder" and cyl["body"] == thigh
+    np.testing.assert_allclose(cyl["p_BS"], [0.0, -0.2, 0.0], atol=1e-12)
+    np.testing.assert_allclose(cyl["dims"], [0.025] * 3, atol=1e-12)
+    assert cyl["length"] == pytest.approx(0.1)
 
 
 @needs_browser

@@ -129,10 +129,29 @@ def build_scene(model, max_vertices=MAX_MESH_VERTICES):
     scale = float(np.linalg.norm(allp.max(0) - allp.min(0))) or 0.1
     path_widths(paths, drawn, scale)
     data = {"bodies": bodies, "meshes": meshes, "markers": markers, "paths": paths, "contacts": contacts,
+            "wrap_surfaces": wrap_surfaces(wrapped, scale),
             "fdk_dofs": [d.name for d in model.fdk_dofs], "gravity": model.gravity_W.tolist(),
             "center": (0.5 * (allp.max(0) + allp.min(0))).tolist(), "scale": scale}
     hull = [extreme_points(np.concatenate([np.asarray(g, float).reshape(-1, 3) for g in geo])) for geo in geometry_B]
     return Scene(data, labels, scale, wrapped, hull)
+
+
+def wrap_surfaces(wrapped, scale):
+    """The wrapping surfaces the drawn paths use, once each: {name, kind, body, p_BS (3,)
+    m, R_BS (3, 3) row-major, dims (3,) m (radius ×3 or semi-axes), length m (a
+    cylinder's drawn length: 4 radii, at most 0.3 × the scene scale; the surface is
+    infinite along its z)}. Drawn semi-transparent on their bodies."""
+    out, seen = [], set()
+    for w in wrapped:
+        for node in w.nodes:
+            if not hasattr(node, "kind") or node.name in seen:
+                continue
+            seen.add(node.name)
+            dims = np.asarray(node.dims, float)
+            out.append({"name": node.name, "kind": node.kind, "body": int(node.body),
+                        "p_BS": np.asarray(node.p_BS, float).tolist(), "R_BS": np.asarray(node.R_BS, float).tolist(),
+                        "dims": dims.tolist(), "length": float(min(4.0 * dims[0], 0.3 * scale))})
+    return out
 
 
 #: tube radius of a path, × scene scale: the weakest … strongest of its kind (∝ √strength)

@@ -177,6 +177,21 @@
     meshObjects.push({ obj, base, col, lit: [] });
     (m.kind === 'visual' ? layers.meshes : layers.contact).push(obj);
   }
+  // wrapping surfaces, semi-transparent on their bodies (a cylinder's axis is its frame's z)
+  for (const w of S.wrap_surfaces || []) {
+    const geo = w.kind === 'cylinder'
+      ? new THREE.CylinderGeometry(w.dims[0], w.dims[0], w.length, 32, 1, true).rotateX(Math.PI / 2)
+      : new THREE.SphereGeometry(1, 32, 16).scale(w.dims[0], w.dims[1], w.dims[2]);
+    const obj = new THREE.Mesh(geo, new THREE.MeshStandardMaterial({ color: 0x8fb3d9, transparent: true, opacity: 0.3,
+      depthWrite: false, side: THREE.DoubleSide, roughness: 0.9 }));
+    const R = w.R_BS;
+    obj.quaternion.setFromRotationMatrix(new THREE.Matrix4().set(R[0][0], R[0][1], R[0][2], 0, R[1][0], R[1][1], R[1][2], 0,
+      R[2][0], R[2][1], R[2][2], 0, 0, 0, 0, 1));
+    obj.position.set(w.p_BS[0], w.p_BS[1], w.p_BS[2]);
+    obj.userData.name = `wrapping surface ${w.name} (${w.kind})`;
+    groups[w.body].add(obj);
+    layers.paths.push(obj);
+  }
 
   // -- markers and residual lines --------------------------------------------------------
   const nm = S.markers.names.length;
