@@ -181,7 +181,7 @@ def test_a_half_written_checkpoint_part_is_refused_on_resume(finished, tmp_path,
     part.write_bytes(part.read_bytes()[:40])   # cut short
     code, _, err = _run(capsys, "run", *args, "--resume")
     assert code == 2
-    assert "part-000000.pkl: the checkpoint part does not match its sidecar (cut short or changed)" in _error_line(err)
+    assert "part-000000.npz: the checkpoint part does not match its sidecar (cut short or changed)" in _error_line(err)
 
 
 def _checkpoint_part(argv):
@@ -191,7 +191,7 @@ def _checkpoint_part(argv):
     args = build_parser().parse_args(["run", *map(str, argv)])
     ck = _run_checkpoints(args)
     ck.save([], None, 0)
-    return ck.folder / "part-000000.pkl"
+    return ck.folder / "part-000000.npz"
 
 
 class _Evil:
@@ -202,10 +202,43 @@ class _Evil:
         return (os.system, (f"touch {self.marker}",))
 
 
+def _crafted(kind, marker):
+    """Bytes of a crafted checkpoint part that would create ``marker`` if anything in it
+    were run (a pickle, an .npz holding a pickled object array or a structure naming a
+    callable), or junk."""
+    import io
+
+    import numpy as np
+
+    evil = _Evil(marker)
+    if kind == "pickle":
+        return pickle.dumps({"fingerprint": "x", "next_frame": 1, "records": [], "carry": evil})
+    if kind == "junk":
+        return b"\x00\xffnot a checkpoint" * 10
+    structure = {"format": "openfdk-checkpoint-1",
+                 "root": {"t": "dict", "v": [["carry", {"t": "nd", "a": "a0", "ro": False}]]}}
+    arrays = {"a0": np.array([evil, 1], dtype=object)}
+    if kind == "npy_pickle":  # a single .npy whose data is a pickle
+        buf = io.BytesIO()
+        np.save(buf, np.array([evil, 1], dtype=object), allow_pickle=True)
+        return buf.getvalue()
+    if kind == "unknown_tag":
+        structure["root"] = {"t": "call", "f": "os.system", "v": [f"touch {marker}"]}
+    if kind == "unknown_class":
+        structure["root"] = {"t": "obj", "c": "Popen", "f": {"args": f"touch {marker}"}}
+    buf = io.BytesIO()
+    np.savez(buf, structure=np.frombuffer(json.dumps(structure).encode(), dtype=np.uint8), **arrays)
+    return buf.getvalue()
+
+
+@pytest.mark.parametrize("kind", ["pickle", "junk", "npy_pickle", "npz_object_array", "unknown_tag",
+                                  "unknown_class"])
 @pytest.mark.parametrize("genuine_fingerprint", [True, False])
-def test_a_crafted_checkpoint_part_runs_no_code_on_resume(finished, tmp_path, capsys, genuine_fingerprint):
-    """A part that would create a file when unpickled: `--resume` refuses it and the
-    file never exists, whether or not the attacker wrote the right fingerprint."""
+def test_a_crafted_checkpoint_part_runs_no_code_on_resume(finished, tmp_path, capsys, genuine_fingerprint, kind):
+    """A crafted part (any bytes: a pickle, pickled object arrays, unknown type tags) with
+    a matching sidecar: `--resume` refuses it in one line naming the part and nothing in
+    it runs (the file it would create never exists), whether or not the attacker wrote
+    the right fingerprint."""
     model, trial, _ = finished
     out = tmp_path / "out"
     args = [model, trial, "--out", out, "--no-progress", "--no-plots", "--max-failed", "1"]
@@ -213,7 +246,7 @@ def test_a_crafted_checkpoint_part_runs_no_code_on_resume(finished, tmp_path, ca
     side = json.loads(part.with_suffix(".json").read_text())
     marker = tmp_path / "pwned"
     fingerprint = side["fingerprint"] if genuine_fingerprint else "0" * 64
-    data = pickle.dumps({"fingerprint": fingerprint, "next_frame": 1, "records": [], "carry": _Evil(marker)})
+    data = _crafted(kind, marker)
     part.write_bytes(data)
     part.with_suffix(".json").write_text(json.dumps({"fingerprint": fingerprint,
                                                      "sha256": hashlib.sha256(data).hexdigest()}))
@@ -221,9 +254,9 @@ def test_a_crafted_checkpoint_part_runs_no_code_on_resume(finished, tmp_path, ca
     assert code == 2
     line = _error_line(err)
     if genuine_fingerprint:
-        assert "part-000000.pkl: unreadable checkpoint part (UnpicklingError: refused to load" in line
+        assert "part-000000.npz: unreadable checkpoint part (" in line
     else:
-        assert "part-000000.pkl: the checkpoint belongs to another run" in line
+        assert "part-000000.npz: the checkpoint belongs to another run" in line
     assert not marker.exists()
 
 
@@ -234,7 +267,7 @@ def test_a_checkpoint_part_without_its_sidecar_is_refused(finished, tmp_path, ca
     part.with_suffix(".json").unlink()
     code, _, err = _run(capsys, "run", *args, "--resume")
     assert code == 2
-    assert "part-000000.pkl: the checkpoint part has no sidecar part-000000.json" in _error_line(err)
+    assert "part-000000.npz: the checkpoint part has no sidecar part-000000.json" in _error_line(err)
 
 
 # -- silently accepted ----------------------------------------------------------------
@@ -451,13 +484,47 @@ def test_study_with_an_empty_out_is_refused(finished, tmp_path, capsys, monkeypa
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.yaml"]
 
 
-@pytest.mark.parametrize("module, name", [("os", "system"), ("builtins", "eval"), ("builtins", "getattr"),
-                                          ("subprocess", "Popen"), ("openfdk.io.outdir", "write_new_file"),
-                                          ("openfdk.io.outdir", "os"), ("openfdk.cli", "main")])
-def test_the_checkpoint_unpickler_resolves_no_callable_that_could_run_code(module, name):
+@pytest.mark.parametrize("node, message", [
+    ({"t": "call", "f": "os.system"}, "unknown type tag 'call'"),
+    ({"t": "obj", "c": "Popen", "f": {}}, "unknown class 'Popen'"),
+    ({"t": "enum", "c": "system", "v": 1}, "unknown class 'system'"),
+    ({"t": "obj", "c": "FrameReport", "f": {"status": None}}, "the fields of FrameReport do not match"),
+    ({"t": "nd", "a": "structure"}, "no array 'structure'"),
+    ([1, 2], "not a node"),
+])
+def test_the_checkpoint_decoder_accepts_only_known_type_tags(node, message):
     import io
 
-    from openfdk.trial.checkpoint import _SafeUnpickler
+    import numpy as np
 
-    with pytest.raises(pickle.UnpicklingError, match=f"refused to load {module}.{name}"):
-        _SafeUnpickler(io.BytesIO(b"")).find_class(module, name)
+    from openfdk.trial.checkpoint_format import FormatError, decode
+
+    buf = io.BytesIO()
+    doc = {"format": "openfdk-checkpoint-1", "root": node}
+    np.savez(buf, structure=np.frombuffer(json.dumps(doc).encode(), dtype=np.uint8))
+    with pytest.raises(FormatError, match=message):
+        decode(buf.getvalue())
+
+
+def test_the_checkpoint_format_round_trips_what_a_checkpoint_holds():
+    import numpy as np
+
+    from openfdk.model.state import BodyStates
+    from openfdk.recruitment.result import RecruitmentResult
+    from openfdk.trial.checkpoint_format import decode, encode
+    from openfdk.trial.status import NOT_RUN, FrameReport, Reason
+
+    state = BodyStates(np.zeros((2, 3)), [[1, 0, 0, 0]] * 2, [-1, 0])
+    q = np.arange(3.0)
+    rr = RecruitmentResult(np.ones(2), True, "optimal", "", 3, 0.5, np.zeros(1), np.zeros(2, bool), np.zeros(2, bool))
+    payload = {"records": [(0, {"a": np.float64(1.5), "b": 2, "c": float("nan"), "r": NOT_RUN, "s": "x",
+                                "f": FrameReport.failed(Reason.SINGULAR, "m", 2, 0.1)})],
+               "carry": (state, q, {3: {"q": q}}, None, True, [rr])}
+    back = decode(encode(payload))
+    rec = back["records"][0]
+    assert isinstance(rec, tuple) and type(rec[1]["a"]) is np.float64 and rec[1]["a"] == 1.5
+    assert repr(rec[1]["r"]) == repr(NOT_RUN) and rec[1]["f"] == FrameReport.failed(Reason.SINGULAR, "m", 2, 0.1)
+    st, q2, pending, none, flag, (rr2,) = back["carry"]
+    assert isinstance(st, BodyStates) and np.array_equal(st.R_WB, state.R_WB) and list(st.moving) == [1]
+    assert pending[3]["q"] is q2 and np.array_equal(q2, q) and none is None and flag is True
+    assert isinstance(rr2, RecruitmentResult) and np.array_equal(rr2.f, rr.f) and rr2.criterion == "polynomial"

@@ -157,11 +157,11 @@ def test_kill_9_then_resume_gives_the_uninterrupted_files(files, tmp_path, model
 
     out = tmp_path / "killed"
     proc = _run([*common, "--out", out])
-    _wait_for(out / ".checkpoint" / "part-000002.pkl", proc)
+    _wait_for(out / ".checkpoint" / "part-000002.npz", proc)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     assert not (out / "forces.csv").exists()  # killed midway: nothing final yet
-    parts = sorted((out / ".checkpoint").glob("part-*.pkl"))
+    parts = sorted((out / ".checkpoint").glob("part-*.npz"))
     assert 3 <= len(parts) < n_frames // 4
     proc = _run([*common, "--out", out, "--resume"])
     _stdout, stderr = proc.communicate(timeout=600)
@@ -178,7 +178,7 @@ def test_ctrl_c_writes_the_finished_frames_marked_partial(files, tmp_path):
     common = [files / "pop.yaml", files / "trial.c3d", "--end", (n_frames - 1) / 100.0, "--checkpoint-frames", 4]
     out = tmp_path / "interrupted"
     proc = _run([*common, "--out", out])
-    _wait_for(out / ".checkpoint" / "part-000002.pkl", proc)
+    _wait_for(out / ".checkpoint" / "part-000002.npz", proc)
     proc.send_signal(signal.SIGINT)
     _stdout, stderr = proc.communicate(timeout=120)
     assert proc.returncode == 130, stderr
@@ -241,7 +241,7 @@ def test_a_changed_mesh_refuses_the_resume(tmp_path, capsys):
     assert _run_checkpoints(args).fingerprint != before.fingerprint
     assert main([*argv, "--resume"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "part-000000.pkl: the checkpoint belongs to another run" in err[0]
+    assert len(err) == 1 and "part-000000.npz: the checkpoint belongs to another run" in err[0]
     assert not (out / "forces.csv").exists()
 
 
@@ -271,7 +271,7 @@ def test_chunked_run_keeps_finished_chunks_and_resume_reuses_them(tmp_path, caps
     solved[:] = ["stop"]
     assert main([*common, "--out", str(out)]) == 130
     assert solved == ["stop", 0, 1]
-    assert sorted(p.name for p in (out / ".checkpoint").glob("*.pkl")) == ["chunk-000000.pkl", "chunk-000001.pkl"]
+    assert sorted(p.name for p in (out / ".checkpoint").glob("*.npz")) == ["chunk-000000.npz", "chunk-000001.npz"]
     assert not (out / "forces.csv").exists()
     solved[:] = []
     assert main([*common, "--out", str(out), "--resume"]) == 0
@@ -285,4 +285,4 @@ def test_chunked_run_keeps_finished_chunks_and_resume_reuses_them(tmp_path, caps
     assert main([*common, "--out", str(other)]) == 130
     capsys.readouterr()
     assert main([*common, "--out", str(other), "--resume", "--overlap", "3"]) == 2
-    assert "chunk-000000.pkl: the checkpoint belongs to another run" in capsys.readouterr().err
+    assert "chunk-000000.npz: the checkpoint belongs to another run" in capsys.readouterr().err

@@ -1,7 +1,7 @@
 """Checkpoints of a running trial: finished frames written to the output folder as the
 run goes, in parts, atomically, so that a killed run can be resumed.
 
-A part ``OUT/.checkpoint/part-NNNNNN.pkl`` holds the frames finished since the previous
+A part ``OUT/.checkpoint/part-NNNNNN.npz`` holds the frames finished since the previous
 part, the index of the next frame to process and the step's warm-start state at that
 point. It is written under a temporary name and renamed, so a part under its final name
 is always whole. Every part carries the run's fingerprint (model, trial and options);
@@ -12,11 +12,12 @@ A checkpoint folder is untrusted input (``--resume`` reads whatever is in OUT), 
 
 - each part has a JSON sidecar ``part-NNNNNN.json`` (written first) with the fingerprint
   and the SHA-256 of the part's bytes; the sidecar is read and the fingerprint and hash
-  checked *before* the part is unpickled;
-- the part is unpickled by :class:`_SafeUnpickler`, which resolves only numpy arrays,
-  dtypes and scalars, plain containers and openfdk's dataclasses and enums (and
-  ``BodyStates``) — no functions, no ``os``/``subprocess``/``builtins.eval`` — so a
-  crafted part cannot run code;
+  checked *before* the part is read;
+- the part is not a pickle: it is an ``.npz`` of named arrays plus a JSON structure
+  (:mod:`openfdk.trial.checkpoint_format`), read with ``numpy.load(allow_pickle=False)``
+  and decoded by explicit type tags (only plain values, containers, numpy arrays and
+  scalars and a fixed list of openfdk classes, rebuilt without calling code), so a
+  crafted part — a pickle included — cannot run code;
 - a truncated or otherwise unreadable part is a :class:`CheckpointError` naming it;
 - files are created with ``O_EXCL | O_NOFOLLOW`` and a symlinked ``.checkpoint`` folder
   or part is refused, so a planted link never redirects a write.
@@ -25,15 +26,15 @@ A checkpoint folder is untrusted input (``--resume`` reads whatever is in OUT), 
 from __future__ import annotations
 
 import hashlib
-import io
 import json
 import os
-import pickle
 import shutil
 import stat
 import time
 from dataclasses import dataclass
 from pathlib import Path
+
+from .checkpoint_format import FormatError, decode, encode
 
 CHECKPOINT_DIR = ".checkpoint"
 DEFAULT_EVERY_FRAMES = 1000
@@ -74,10 +75,11 @@ def _write_new(path, data):
 
 
 def _write_atomic(final, payload):
-    """Pickle ``payload`` to ``final`` under a temporary name, then rename (a file under
-    its final name is always whole). The JSON sidecar (fingerprint, next frame and the
+    """Write ``payload`` (:func:`openfdk.trial.checkpoint_format.encode`, no pickle) to
+    ``final`` under a temporary name, then rename (a file under its final name is always
+    whole). The JSON sidecar (fingerprint, next frame and the
     part's SHA-256) is written first, so a part under its final name always has one."""
-    data = pickle.dumps(payload, protocol=pickle.HIGHEST_PROTOCOL)
+    data = encode(payload)
     side = {"fingerprint": payload["fingerprint"], "sha256": hashlib.sha256(data).hexdigest()}
     if "next_frame" in payload:
         side["next_frame"] = payload["next_frame"]
@@ -90,51 +92,10 @@ def _write_atomic(final, payload):
         os.replace(tmp, path)
 
 
-_NUMPY_NAMES = {"dtype", "ndarray", "_reconstruct", "scalar", "_frombuffer"}
-_NUMPY_MODULES = {"numpy", "numpy.core.multiarray", "numpy._core.multiarray", "numpy.core.numeric",
-                  "numpy._core.numeric"}
-_SAFE_BUILTINS = {"list", "dict", "tuple", "set", "frozenset", "complex", "slice", "range", "bytearray", "bytes",
-                  "str", "int", "float", "bool"}
-
-
-class _SafeUnpickler(pickle.Unpickler):
-    """Unpickler that resolves only numpy arrays/dtypes/scalars, plain containers and
-    openfdk's record classes (:func:`_plain_record`) — never a function such as
-    ``os.system`` or ``eval``."""
-
-    def find_class(self, module, name):
-        if module in _NUMPY_MODULES and name in _NUMPY_NAMES:
-            return super().find_class(module, name)
-        if module == "builtins" and name in _SAFE_BUILTINS:
-            return super().find_class(module, name)
-        if (module, name) in {("collections", "OrderedDict"), ("copyreg", "_reconstructor")}:
-            return super().find_class(module, name)
-        if (module == "openfdk" or module.startswith("openfdk.")) and "." not in name:
-            obj = super().find_class(module, name)
-            if isinstance(obj, type) and getattr(obj, "__module__", None) == module and _plain_record(obj):
-                return obj
-        raise pickle.UnpicklingError(f"refused to load {module}.{name}")
-
-
-#: openfdk classes in checkpoints that are neither dataclasses nor enums (their
-#: constructors only store arrays)
-_PLAIN_CLASSES = {("openfdk.model.state", "BodyStates")}
-
-
-def _plain_record(cls):
-    """True for the openfdk classes a checkpoint may hold: dataclasses, enums and
-    :data:`_PLAIN_CLASSES` (constructing them runs no code beyond storing values)."""
-    import dataclasses
-    import enum
-
-    return (dataclasses.is_dataclass(cls) or issubclass(cls, enum.Enum)
-            or (cls.__module__, cls.__qualname__) in _PLAIN_CLASSES)
-
-
 def _read_own(path, fingerprint):
     """The payload of our checkpoint file ``path``; CheckpointError if another run's,
     if its sidecar is missing or does not match its bytes, or if it cannot be read. The
-    fingerprint is checked from the JSON sidecar before anything is unpickled."""
+    fingerprint is checked from the JSON sidecar before the part is decoded."""
     path = Path(path)
     side_path = path.with_suffix(".json")
     other = (f"{path}: the checkpoint belongs to another run (model, meshes, trial or options differ); "
@@ -157,10 +118,9 @@ def _read_own(path, fingerprint):
         raise CheckpointError(f"{path}: the checkpoint part does not match its sidecar (cut short or changed); "
                               f"start again with --force")
     try:
-        payload = _SafeUnpickler(io.BytesIO(data)).load()
-    except Exception as exc:  # noqa: BLE001 - any malformed part is one error naming it
-        raise CheckpointError(f"{path}: unreadable checkpoint part ({type(exc).__name__}: {exc}); "
-                              f"start again with --force") from None
+        payload = decode(data)
+    except FormatError as exc:  # any malformed part is one error naming it
+        raise CheckpointError(f"{path}: unreadable checkpoint part ({exc}); start again with --force") from None
     if not isinstance(payload, dict) or payload.get("fingerprint") != fingerprint:
         raise CheckpointError(other)
     return payload
@@ -195,7 +155,7 @@ class Checkpoints:
     def _parts(self):
         if not self.folder.is_dir():
             return []
-        return sorted(p for p in self.folder.glob("part-[0-9][0-9][0-9][0-9][0-9][0-9].pkl"))
+        return sorted(p for p in self.folder.glob("part-[0-9][0-9][0-9][0-9][0-9][0-9].npz"))
 
     def due(self, n_pending):
         """True when ``n_pending`` finished frames should be written now."""
@@ -207,7 +167,7 @@ class Checkpoints:
         """Write one part atomically (temporary name, then rename)."""
         _prepare_folder(self.folder)
         payload = {"fingerprint": self.fingerprint, "next_frame": int(next_frame), "records": records, "carry": carry}
-        _write_atomic(self.folder / f"part-{self._index:06d}.pkl", payload)
+        _write_atomic(self.folder / f"part-{self._index:06d}.npz", payload)
         self._index += 1
         self._last = time.monotonic()
 
@@ -240,7 +200,7 @@ class Checkpoints:
 
 class SegmentCheckpoints:
     """Finished segments of a chunked run (``openfdk run --chunks K``), one file each:
-    ``folder/chunk-KKKKKK.pkl`` holding the fingerprint and the segment's result, written
+    ``folder/chunk-KKKKKK.npz`` (same format as the parts) holding the fingerprint and the segment's result, written
     atomically as each segment finishes; :meth:`load` gives them back for ``--resume``."""
 
     def __init__(self, folder, fingerprint):
@@ -248,9 +208,9 @@ class SegmentCheckpoints:
         self.fingerprint = str(fingerprint)
 
     def save(self, index, result):
-        """Keep the finished segment ``index`` (its result, any picklable object)."""
+        """Keep the finished segment ``index`` (its SegmentResult)."""
         _prepare_folder(self.folder)
-        _write_atomic(self.folder / f"chunk-{int(index):06d}.pkl", {"fingerprint": self.fingerprint, "result": result})
+        _write_atomic(self.folder / f"chunk-{int(index):06d}.npz", {"fingerprint": self.fingerprint, "result": result})
 
     def load(self):
         """{segment index: result} of the segments kept (empty when none); raises
@@ -259,7 +219,7 @@ class SegmentCheckpoints:
         if not self.folder.is_dir():
             return {}
         return {int(p.stem.split("-")[1]): _read_own(p, self.fingerprint)["result"]
-                for p in sorted(self.folder.glob("chunk-[0-9][0-9][0-9][0-9][0-9][0-9].pkl"))}
+                for p in sorted(self.folder.glob("chunk-[0-9][0-9][0-9][0-9][0-9][0-9].npz"))}
 
     def clear(self):
         shutil.rmtree(self.folder, ignore_errors=True)

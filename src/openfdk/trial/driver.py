@@ -7,7 +7,8 @@ An analysis supplies a *step* object (its per-frame solver with its warm starts)
   ``[(k, …)]``; marker tracking finishes frame k − 1 once frame k's pose is known,
   because Eq. 7 needs the residuals at t ± Δt);
 * ``finish()`` → the frames still pending after the last one;
-* ``carry()`` / ``restore(carry)`` → its warm-start state (picklable), for checkpoints.
+* ``carry()`` / ``restore(carry)`` → its warm-start state, for checkpoints (only the
+  types of :mod:`openfdk.trial.checkpoint_format`).
 
 :func:`drive` owns the loop, the progress display, the recording (a
 :class:`Recording`, frozen when the loop ends), periodic checkpoints and Ctrl-C: the
