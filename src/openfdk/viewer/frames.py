@@ -133,6 +133,42 @@ def grf_frames(results):
     return out
 
 
+def reaction_frames(model, results, poses):
+    """Per one-sided reaction on a point_on_plane joint (the POP model's TMJ contacts): the
+    force on the child body (nf, 3) N, world, and its point of application (nf, 3) m, the
+    child's point on the plane, so that POP and FDK runs compare by eye. The reaction f
+    (forces.csv ``<name>.reaction``) acts along ``direction`` × the plane normal n_W (the
+    row n·(p_child − p_parent), in the parent frame, has the gradient n_W on the child's
+    point). [] when the model has none."""
+    from ..model.measures import Linear, RelativeVector
+
+    out = []
+    nf, f = results.n_frames, results.forces
+    by_name = {c.name: c for c in model.constraints}
+    for u in model.unilateral_reactions:
+        c = by_name.get(u.constraint)
+        if c is None or c.joint_type != "point_on_plane" or not isinstance(c.measure, Linear):
+            continue
+        C, rel = c.measure.terms[0]
+        a = np.asarray(C, float)[u.row]
+        if isinstance(rel, Linear):  # a parent frame turned in its body: n_B = R_BF a
+            RT, rel = rel.terms[0]
+            a = np.asarray(RT, float).T @ a
+        if not isinstance(rel, RelativeVector) or rel.frame is None:
+            continue
+        k, child = rel.frame, rel.point_b
+        mag = _col(f, f"{u.name}.reaction", nf)
+        F, P = np.full((nf, 3), np.nan), np.full((nf, 3), np.nan)
+        for i in range(nf):
+            qk, qc = poses[i, k], poses[i, child.body]
+            if not (np.all(np.isfinite(qk)) and np.all(np.isfinite(qc)) and np.isfinite(mag[i])):
+                continue
+            F[i] = u.direction * mag[i] * (rotation_matrix(qk[3:]) @ a)
+            P[i] = qc[:3] + rotation_matrix(qc[3:]) @ child.p_BP
+        out.append({"name": u.name, "force": pack(F), "cop": pack(P)})
+    return out
+
+
 def panel_series(model, results, measured, scene_paths=()):
     """Side-panel series: FDK α (mm or deg) and residual f^FDK (N or N m) per DOF, the
     forces of springs that are not drawn as paths, FDK convergence and iterations, kinematics/forces convergence, marker RMS residual (mm).
@@ -236,6 +272,7 @@ def build_frames(model, scene, results):
         fmax = [float(np.nanmax(np.abs(forces[:, j]))) if np.any(np.isfinite(forces[:, j])) else 0.0
                 for j in range(forces.shape[1])]
     contacts, grf = contact_frames(model, scene, results, poses), grf_frames(results)
+    reactions = reaction_frames(model, results, poses)
     return {
         "time": pack(results.time),
         "poses": pack(poses),
@@ -243,8 +280,9 @@ def build_frames(model, scene, results):
         "path_force": pack(forces), "path_fmax": fmax,
         "wrap_points": pack(wrap),
         "bounds": motion_bounds(scene, poses, measured, wrap),
-        "contacts": contacts, "grf": grf,
-        "arrow_scale": {"contact": arrow_scale(contacts, scene.scale), "grf": arrow_scale(grf, scene.scale)},
+        "contacts": contacts, "grf": grf, "reactions": reactions,
+        "arrow_scale": {"contact": arrow_scale(contacts, scene.scale), "grf": arrow_scale(grf, scene.scale),
+                        "reaction": arrow_scale(reactions, scene.scale)},
         "panel": panel_series(model, results, measured, scene.data["paths"]),
         "failed": failed_frames(results),
     }

@@ -268,6 +268,12 @@
     arrow: new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 1, 0x1a8c1a),
   }));
   const fGrfMax = forceArrows(grfs, 'grf');
+  // one-sided joint reactions of POP models (the TMJ contacts): a purple arrow at the point on the plane
+  const reacts = (F.reactions || []).map((g) => ({
+    name: g.name, force: arr(g.force), cop: arr(g.cop),
+    arrow: new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 1, 0x8a2be2),
+  }));
+  const fReactMax = forceArrows(reacts, 'reaction');
   // legend text of an arrow scale: "<length> mm = <force> N"
   const arrowText = (a) => `${(a.length_m * 1e3).toPrecision(3)} mm = ${a.fmax.toPrecision(3)} N`;
 
@@ -285,6 +291,7 @@
   for (const k of Object.keys(kindMax)) legend.push(`${k} force <span class="bar" style="background:${grad}"></span> 0–${kindMax[k].toPrecision(3)} ${k === 'spring' ? '' : 'N'}`);
   if (contacts.length) legend.push(`contact pressure <span class="bar" style="background:${grad}"></span> 0–${(Math.max(...contacts.map((c) => c.p_max)) / 1e6).toPrecision(3)} MPa; <b style="color:#c00000">arrow</b>: force on the vertex body` +
     (fContactMax.fmax > 0 ? `, ${arrowText(fContactMax)}` : ''));
+  if (reacts.length) legend.push(`<b style="color:#8a2be2">joint reaction</b> arrows (one-sided, on the child's point), ${arrowText(fReactMax)}`);
   if (grfs.length) legend.push(`<b style="color:#1a8c1a">ground reaction</b> arrows at the centre of pressure, ${arrowText(fGrfMax)}`);
   if (nm) legend.push('markers: <b style="color:#1f5fbf">model</b>, <b style="color:#f08c00">measured</b>, <b style="color:#d00000">residual</b>');
   $('legend').innerHTML = legend.join('<br>');
@@ -414,6 +421,7 @@
       placeArrow(c, fContactMax);
     }
     for (const g of grfs) placeArrow(g, fGrfMax);
+    for (const g of reacts) placeArrow(g, fReactMax);
     // panel, clock, banner
     series.forEach((sr, j) => {
       const x = sr.v[frame], cell = $('s-' + j);
