@@ -14,6 +14,7 @@ import pytest
 import trimesh
 import yaml
 
+from cli_helpers import error_line, run_cli
 from openfdk.cli import build_parser, main
 from openfdk.contact.shapes import flat_patch
 from openfdk.io.c3d import write_c3d
@@ -35,17 +36,7 @@ def files(tmp_path):
     return model, tmp_path / "trial.c3d", (labels, x)
 
 
-def _run(capsys, *argv):
-    code = main([*map(str, argv)])
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
-def _error_line(err):
-    lines = [ln for ln in err.splitlines() if ln.startswith("openfdk: error:")]
-    assert len(lines) == 1, err
-    assert "Traceback" not in err
-    return lines[0]
+_run, _error_line = run_cli, error_line
 
 
 # -- crashes that were tracebacks ----------------------------------------------------

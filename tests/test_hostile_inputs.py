@@ -12,6 +12,7 @@ import time
 import pytest
 import yaml
 
+from cli_helpers import error_line, run_cli
 from openfdk.cli import main
 from openfdk.fixtures.synthetic import synthetic_markers, two_body_model_dict
 from openfdk.io.c3d import write_c3d
@@ -29,17 +30,7 @@ analysis: {start: 0, end: 0.02}
 """
 
 
-def _run(capsys, *argv):
-    code = main([*map(str, argv)])
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
-def _error_line(err):
-    lines = [ln for ln in err.splitlines() if ln.startswith("openfdk: error:")]
-    assert len(lines) == 1, err
-    assert "Traceback" not in err
-    return lines[0]
+_run, _error_line = run_cli, error_line
 
 
 def _write(path, text):
