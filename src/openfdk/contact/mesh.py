@@ -372,17 +372,25 @@ def load_mesh(path, units="m", placement=None, *, flip_normals=False, name=None)
 def _read_triangles(path):
     """(vertices (n, 3) file units, faces (m, 3) int) of a mesh file: STL by
     :mod:`.stl`, other formats by trimesh (imported only for them: ≈ 0.25 s), with
-    duplicate vertices merged. Raises MeshError naming the file."""
+    duplicate vertices merged. Raises MeshError naming the file, also for a mesh above
+    the size limits (:mod:`openfdk.io.limits`: a binary STL's header count and the other
+    files' size are checked before reading)."""
+    from ..io import limits
+
     try:
         if path.lower().endswith(".stl"):
             return read_stl(path)
+        limits.check_file_bytes(path, "MESH_FILE_BYTES", f"mesh file '{path}'", MeshError)
         import trimesh
 
         loaded = trimesh.load(path, force="mesh", process=True)
+    except MeshError:
+        raise
     except Exception as exc:  # trimesh raises many exception types; StlError, OSError
         raise MeshError(f"could not read mesh file '{path}': {exc}") from exc
-    return (np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=float),
-            np.asarray(getattr(loaded, "faces", np.zeros((0, 3)))))
+    faces = np.asarray(getattr(loaded, "faces", np.zeros((0, 3))))
+    limits.check_count(len(faces), "MESH_TRIANGLES", f"mesh file '{path}'", "", "triangles", MeshError)
+    return np.asarray(getattr(loaded, "vertices", np.zeros((0, 3))), dtype=float), faces
 
 
 def undirected_edge_keys(ends) -> np.ndarray:

@@ -23,7 +23,7 @@ one vertex, numbered in the order of their first appearance.
 
 from __future__ import annotations
 
-from pathlib import Path
+import os
 
 import numpy as np
 
@@ -42,13 +42,23 @@ def read_stl(path) -> tuple[np.ndarray, np.ndarray]:
     """Vertices ``(n_vertices, 3)`` float64 (the file's length unit) and faces
     ``(n_faces, 3)`` int64 (vertex indices, the file's winding) of the STL file ``path``.
     Raises OSError when the file cannot be opened and :class:`StlError` when it is not an
-    STL file; an STL file without triangles gives empty arrays."""
-    data = Path(path).read_bytes()
-    if len(data) >= 84:
-        n = int(np.frombuffer(data, dtype="<u4", count=1, offset=80)[0])
-        if len(data) == 84 + 50 * n:
-            corners = np.frombuffer(data, dtype=_RECORD, count=n, offset=84)["corners"]
+    STL file or is above a size limit (checked before the triangles are read: a binary
+    file's triangle count from its header against :data:`openfdk.io.limits.MESH_TRIANGLES`,
+    an ASCII file's size against :data:`openfdk.io.limits.MESH_FILE_BYTES`); an STL file
+    without triangles gives empty arrays."""
+    from ..io import limits
+
+    with open(path, "rb") as f:
+        size = os.fstat(f.fileno()).st_size
+        head = f.read(84)
+        n = int(np.frombuffer(head, dtype="<u4", count=1, offset=80)[0]) if len(head) == 84 else -1
+        if n >= 0 and size == 84 + 50 * n:
+            limits.check_count(n, "MESH_TRIANGLES", "", "", "triangles (binary STL header)", StlError)
+            data = f.read()
+            corners = np.frombuffer(data, dtype=_RECORD, count=n)["corners"]
             return _merge_corners(corners.reshape(-1, 3).astype(np.float64))
+        limits.check_count(size, "MESH_FILE_BYTES", "", "", "bytes of ASCII STL text", StlError)
+        data = head + f.read()
     return _merge_corners(_ascii_corners(data))
 
 

@@ -11,7 +11,9 @@
 
 The readers are imported only when a file of their kind is read. Whatever the format,
 the result is checked: finite coordinates, vertex indices in range, at least one
-triangle. Display only: contact meshes are loaded by :mod:`openfdk.contact.mesh`.
+triangle and at most :data:`openfdk.io.limits.MESH_TRIANGLES` (a binary STL's count is
+checked from its header, the other formats' file size against
+:data:`openfdk.io.limits.MESH_FILE_BYTES`, before reading). Display only: contact meshes are loaded by :mod:`openfdk.contact.mesh`.
 """
 
 from __future__ import annotations
@@ -19,6 +21,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+
+from . import limits
 
 __all__ = ["DISPLAY_MESH_SUFFIXES", "read_display_mesh"]
 
@@ -50,6 +54,7 @@ def read_display_mesh(path) -> tuple[np.ndarray, np.ndarray]:
                          f"{', '.join(DISPLAY_MESH_SUFFIXES)}")
     vertices = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
     triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    limits.check_count(len(triangles), "MESH_TRIANGLES", str(path), "", "triangles")
     if not len(triangles):
         raise ValueError(f"{path}: contains no triangles")
     if not np.all(np.isfinite(vertices)):
@@ -72,6 +77,7 @@ def _read_stl(path):
 
 
 def _read_ply(path):
+    limits.check_file_bytes(path, "MESH_FILE_BYTES", str(path))
     try:
         import trimesh
 

@@ -70,10 +70,14 @@ def strip_triangles(connectivity, ends, what="strip") -> np.ndarray:
 def parse_mesh_file(path, parse, errors=()):
     """``parse(bytes)`` of the file ``path``, every failure as one line
     ``ValueError("<path>: <what is wrong>")``: the file cannot be read, or ``parse``
-    raised ValueError, OverflowError, MemoryError or one of ``errors``."""
+    raised ValueError, OverflowError, MemoryError or one of ``errors``; a file above
+    :data:`openfdk.io.limits.MESH_FILE_BYTES` is refused before it is read."""
     from pathlib import Path
 
+    from . import limits
+
     path = Path(path)
+    limits.check_file_bytes(path, "MESH_FILE_BYTES", str(path))
     try:
         data = path.read_bytes()
     except OSError as exc:

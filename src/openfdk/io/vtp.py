@@ -36,7 +36,10 @@ ignored. Several ``<Piece>`` elements are joined into one mesh.
 
 Hostile files: the XML is parsed by lxml without entity expansion, network access or
 huge-tree mode, and a DOCTYPE is refused; every count is checked against the declared
-``NumberOf…`` attributes and capped at :data:`MAX_VALUES` values per array; zlib blocks
+``NumberOf…`` attributes and capped at :data:`MAX_VALUES` values per array (and at
+:data:`openfdk.io.limits.MESH_TRIANGLES` triangles per cell kind, from the offsets,
+before the connectivity is decoded; the file at :data:`openfdk.io.limits.MESH_FILE_BYTES`
+before it is read); zlib blocks
 are inflated at most to their declared size, which must equal what the declared counts
 need. Without huge-tree mode one text node holds at most 10 MB (an ascii array of about
 200 000 points as VTK writes them, a binary one of about 600 000); larger arrays are
@@ -51,12 +54,13 @@ import zlib
 
 import numpy as np
 
+from . import limits
 from .polygons import fan_triangles, parse_mesh_file, strip_triangles
 
 __all__ = ["MAX_VALUES", "read_vtp"]
 
-#: most values one DataArray may hold (10 million points × 3 coordinates)
-MAX_VALUES = 30_000_000
+#: most values one DataArray may hold: :data:`openfdk.io.limits.VTP_ARRAY_VALUES`
+MAX_VALUES = limits.VTP_ARRAY_VALUES
 
 _TYPES = {"Float32": "f4", "Float64": "f8", "Int8": "i1", "UInt8": "u1", "Int16": "i2", "UInt16": "u2",
           "Int32": "i4", "UInt32": "u4", "Int64": "i8", "UInt64": "u8"}
@@ -136,8 +140,8 @@ def _count(el, attr, label, default=None) -> int:
         n = int(text.strip())
     except ValueError:
         raise ValueError(f"{label}<{el.tag}> {attr}={text!r} is not a count") from None
-    if not 0 <= n <= MAX_VALUES:
-        raise ValueError(f"{label}<{el.tag}> {attr}={n} is out of range [0, {MAX_VALUES}]")
+    if not 0 <= n <= limits.VTP_ARRAY_VALUES:
+        raise ValueError(f"{label}<{el.tag}> {attr}={n} is out of range [0, {limits.VTP_ARRAY_VALUES}]")
     return n
 
 
@@ -172,8 +176,10 @@ def _piece(piece, enc, label):
         if np.any(np.diff(ends) <= 0) or ends[0] <= 0:
             i = int(np.argmax(np.diff(np.concatenate([[0], ends])) <= 0))
             raise ValueError(f"{label}{tag} offsets are not increasing (offset {i} is {ends[i]})")
-        if ends[-1] > MAX_VALUES:
-            raise ValueError(f"{label}{tag} offsets end at {ends[-1]}, beyond {MAX_VALUES} indices")
+        if ends[-1] > limits.VTP_ARRAY_VALUES:
+            raise ValueError(f"{label}{tag} offsets end at {ends[-1]}, beyond {limits.VTP_ARRAY_VALUES} indices")
+        n_triangles = int(ends[-1]) - 2 * n_cells   # k - 2 per cell of k corners
+        limits.check_count(n_triangles, "MESH_TRIANGLES", "", f"{label}<{tag}>", "triangles")
         conn = _array(arrays["connectivity"], enc, int(ends[-1]), _INTS, f"{label}{tag} connectivity", 1)
         if len(conn) and (conn.min() < 0 or conn.max() >= n_points):
             i = int(np.argmax((conn < 0) | (conn >= n_points)))
@@ -185,8 +191,8 @@ def _piece(piece, enc, label):
 
 def _array(da, enc, count, types, what, components) -> np.ndarray:
     """The ``count`` values (float64 or int64, flat) of a <DataArray>, checked."""
-    if count > MAX_VALUES:
-        raise ValueError(f"{what} DataArray would hold {count} values, beyond {MAX_VALUES}")
+    if count > limits.VTP_ARRAY_VALUES:
+        raise ValueError(f"{what} DataArray would hold {count} values, beyond {limits.VTP_ARRAY_VALUES}")
     kind = da.get("type")
     if kind not in types:
         raise ValueError(f"{what} DataArray type {kind!r} is not one of {list(types)}")

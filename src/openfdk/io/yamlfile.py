@@ -10,7 +10,10 @@ Reading (:func:`read_yaml`, :func:`parse_yaml`):
   and both line numbers (PyYAML would silently keep the last one);
 - ``1e10`` and ``1.0e10`` are numbers (YAML 1.1 reads them as strings);
 - malformed YAML, undecodable text and nesting too deep are one-line errors with the
-  line and column.
+  line and column;
+- a file above :data:`openfdk.io.limits.INPUT_FILE_BYTES` is refused before it is read,
+  and a document with too many aliases, a recursive alias or too many nodes once its
+  aliases are expanded before any value is built (:mod:`.yamlgraph`).
 
 Validating (:class:`YamlContext`): typed getters (mapping with allowed and required
 keys and a suggestion for a misspelt key, number with its unit and bounds, integer,
@@ -27,8 +30,11 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-#: largest plausible coordinate (m); beyond it squared distances overflow
-MAX_LENGTH = 1e6
+from . import limits
+from .yamlgraph import check_graph
+
+#: largest plausible coordinate (m): :data:`openfdk.io.limits.MAX_COORDINATE`
+MAX_LENGTH = limits.MAX_COORDINATE
 _BASE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 
@@ -75,12 +81,15 @@ def duplicate_keys(node, path="") -> list:
 
 def parse_yaml(text: str, source: str, error=ValueError):
     """The parsed content of YAML ``text``; ``source`` names it in messages. Raises
-    ``error`` (an exception class) with a one-line message."""
+    ``error`` (an exception class) with a one-line message. The document's aliases and
+    expanded size are checked (:func:`.yamlgraph.check_graph`) before it is built."""
+    limits.check_count(len(text), "INPUT_FILE_BYTES", source, "", "characters", error)
     loader = _Loader(text)
     try:
         node = loader.get_single_node()
         if node is None:
             return None
+        check_graph(node, source, error)
         dups = duplicate_keys(node)
         if dups:
             where, a, b = dups[0]
@@ -104,11 +113,13 @@ def read_yaml(path, error=ValueError, what="file", source=None):
     class) with a one-line message when the file is missing ("<what> '<path>' does not
     exist"), unreadable, not UTF-8 text, malformed ("<name>: malformed YAML at line L,
     column C: <problem>") or has a duplicate key ("<name>: <entry>: duplicate key, given
-    at lines A and B"). ``source`` (default: the file name) names the file in messages."""
+    at lines A and B"), or is above a size limit (:mod:`openfdk.io.limits`; the file size is
+    checked before reading). ``source`` (default: the file name) names the file in messages."""
     path = Path(path)
     source = path.name if source is None else source
     if not path.is_file():
         raise error(f"{what} {str(path)!r} does not exist")
+    limits.check_file_bytes(path, "INPUT_FILE_BYTES", source, error)
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
@@ -230,10 +241,11 @@ class YamlContext:
         return arr
 
     def position(self, value, path):
-        """A length triple in the file unit -> (3,) m, each at most MAX_LENGTH m."""
+        """A length triple in the file unit -> (3,) m, each at most
+        :data:`openfdk.io.limits.MAX_COORDINATE` m."""
         p = self.vector(value, path, n=3) * self.length
-        if np.max(np.abs(p)) > MAX_LENGTH:
-            raise self.error(path, f"coordinates beyond {MAX_LENGTH:g} m are not plausible, got {value!r}")
+        if np.max(np.abs(p)) > limits.MAX_COORDINATE:
+            raise self.error(path, f"coordinates beyond {limits.MAX_COORDINATE:g} m are not plausible, got {value!r}")
         return p
 
 

@@ -18,10 +18,12 @@ import difflib
 import hashlib
 import itertools
 import json
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..io import limits
 from ..io.yamlfile import YamlContext, read_yaml
 
 from .defaults import DEFAULT_OVERLAP, DEFAULT_RETRIES
@@ -178,8 +180,10 @@ def _parameters(ctx, data):
     return params
 
 
-def _parameter_sets(ctx, data, params):
-    """[{parameter or path: value}] from ``grid`` (product, last varies fastest) then ``cases``."""
+def _parameter_sets(ctx, data, params, n_inputs=1):
+    """[{parameter or path: value}] from ``grid`` (product, last varies fastest) then
+    ``cases``. ``n_inputs`` (the number of input combinations) times the number of sets
+    is checked against :data:`openfdk.io.limits.STUDY_CASES` before the sets are made."""
     sets = []
     grid = data.get("grid")
     if grid is not None:
@@ -188,12 +192,15 @@ def _parameter_sets(ctx, data, params):
         for k, values in grid.items():
             if not isinstance(values, list) or not values:
                 raise ctx.error(f"grid.{k}", f"expected a non-empty list of values, got {values!r}")
-        keys = [str(k) for k in grid]
-        sets += [dict(zip(keys, combo)) for combo in itertools.product(*grid.values())]
     listed = data.get("cases")
     if listed is not None:
         if not isinstance(listed, list) or not all(isinstance(c, dict) for c in listed):
             raise ctx.error("cases", "expected a list of mappings parameter -> value")
+    _check_case_count(ctx, grid, listed, n_inputs)
+    if grid is not None:
+        keys = [str(k) for k in grid]
+        sets += [dict(zip(keys, combo)) for combo in itertools.product(*grid.values())]
+    if listed is not None:
         sets += [{str(k): v for k, v in c.items()} for c in listed]
     for i, s in enumerate(sets):
         for k in s:
@@ -204,6 +211,22 @@ def _parameter_sets(ctx, data, params):
                 raise ctx.error(where, "unknown parameter (not declared under 'parameters' and not a dotted "
                                        f"path){hint}")
     return sets
+
+
+def _check_case_count(ctx, grid, listed, n_inputs):
+    """Refuse a study of more than :data:`openfdk.io.limits.STUDY_CASES` cases, naming
+    the grid (or the case list, or the inputs) and how the count comes about."""
+    n_grid = math.prod(len(v) for v in grid.values()) if grid else 0
+    n_listed = len(listed) if listed else 0
+    n_sets = n_grid + n_listed
+    total = n_inputs * max(1, n_sets)
+    if total <= limits.STUDY_CASES:
+        return
+    entry = "grid" if n_grid else "cases" if n_listed else ""
+    parts = ([" × ".join(str(len(v)) for v in grid.values()) + " grid points"] if n_grid else []) + \
+        ([f"{n_listed} listed cases"] if n_listed else [])
+    how = f"{n_inputs} input combination{'s' if n_inputs != 1 else ''} × ({' + '.join(parts) or '1'})"
+    limits.check_count(total, "STUDY_CASES", ctx.source, entry, f"cases ({how})", StudyError)
 
 
 def _overrides(pset, params):
@@ -306,7 +329,7 @@ def study_from_dict(data, source="<study>", base_dir=".", check_overrides=True) 
             raise ctx.error("", f"missing section {section!r} (kind {kind.name!r} needs {list(kind.inputs)})")
         inputs[section] = _entries(ctx, data[section], section, section in kind.paths, base_dir)
     params = _parameters(ctx, data.get("parameters"))
-    psets = _parameter_sets(ctx, data, params)
+    psets = _parameter_sets(ctx, data, params, math.prod(len(v) for v in inputs.values()))
     options = _run_options(ctx, data.get("run"))
     sections = list(inputs)
     combos = list(itertools.product(*[list(inputs[s].items()) for s in sections]))

@@ -267,16 +267,21 @@ def read_document(path, ignore=()) -> OsimDocument:
 def parse_xml(path, source):
     """The lxml tree of the XML file ``path`` (an .osim or an OpenSim setup file), or
     OsimError naming ``source``: the file must be a regular file (not a FIFO or a device,
-    which would block or never end) and have no DOCTYPE (OpenSim writes none; its
-    entities, unexpanded here, would silently drop or change values)."""
+    which would block or never end), be at most :data:`openfdk.io.limits.INPUT_FILE_BYTES`
+    (checked before parsing) and have no DOCTYPE (OpenSim writes none; its entities,
+    unexpanded here, would silently drop or change values)."""
     import os
     import stat
 
     from lxml import etree
 
+    from .. import limits
+
     try:
-        if not stat.S_ISREG(os.stat(path).st_mode):
+        st = os.stat(path)
+        if not stat.S_ISREG(st.st_mode):
             raise OsimError(f"{source}: cannot read the file (not a regular file)")
+        limits.check_count(st.st_size, "INPUT_FILE_BYTES", source, "", "bytes", OsimError)
         tree = etree.parse(str(path), _parser())
     except OSError as exc:
         raise OsimError(f"{source}: cannot read the file ({exc.strerror or exc})") from None
