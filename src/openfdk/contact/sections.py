@@ -41,7 +41,11 @@ def add_contact(b, name, body_a, surface_a, body_b, surface_b, pressure_modulus,
                 grid_spacing=None, max_depth=DEFAULT_MAX_DEPTH):
     """Add an elastic-foundation contact: vertices of ``surface_a`` (SurfaceMesh in body_a's
     frame) against ``surface_b`` (in body_b's frame); pressure modulus in N/m³.
-    Warns (MeshWarning) when the two surfaces are far apart in the reference pose."""
+    Warns (MeshWarning) when the two surfaces are far apart in the reference pose.
+    The name must pass :func:`~openfdk.model.names.name_problem` (it names exported files)."""
+    from ..model.names import check_name
+
+    check_name(name, "contact")
     ia, ib = b._body_index(body_a, f"contact {name!r}"), b._body_index(body_b, f"contact {name!r}")
     if ia == ib:
         raise ModelError(f"contact {name!r}: both surfaces are on body {body_a!r}")

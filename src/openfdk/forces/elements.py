@@ -122,11 +122,13 @@ def add_wrap_surface(b, name, kind, frame, dims, side=None):
     kind : "cylinder" | "sphere" (dims = radius, m) or "ellipsoid" (dims = 3 semi-axes,
     m); side : None or a direction (3,) in the surface frame on which paths must pass.
     Referenced by name in muscle and ligament paths (docs/muscles.md, wrapping)."""
+    from ..model.names import check_name
     from .wrapping import SURFACE_KINDS, WrapSurface
 
     surfaces = b.__dict__.setdefault("wrap_surfaces", {})
     if not isinstance(name, str) or not name or "." in name:
         raise ModelError(f"wrapping surface name {name!r} must be a non-empty string without '.'")
+    check_name(name, "wrapping surface")
     if name in surfaces:
         raise ModelError(f"wrapping surface {name!r} is defined twice")
     if kind not in SURFACE_KINDS:
@@ -174,6 +176,9 @@ def wrapped_path_measure(b, entries, name=""):
 
 
 def _append(b, kind, element):
+    from ..model.names import check_name
+
+    check_name(element.name, "force element")
     items = list(b.elements.get(kind, ()))
     all_names = {e.name for k in (MUSCLES, LIGAMENTS, SPRINGS, REACTIONS, LOADS) for e in b.elements.get(k, ())}
     if element.name in all_names:

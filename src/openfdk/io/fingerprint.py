@@ -59,18 +59,30 @@ def referenced_files(model_path) -> list:
     return found
 
 
+def _hash_file(h, path):
+    """Feed the file's bytes to the hash ``h`` in 1 MiB blocks (a referenced mesh or a
+    trial may be large; it is never held whole in memory). Returns ``h``."""
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(2**20), b""):
+            h.update(block)
+    return h
+
+
 def run_fingerprint(model_path, trial_path=None, options=()) -> str:
     """SHA-256 (hex) of the model file, the files it refers to (name and bytes), the
-    trial file (None: determinate run) and ``repr(options)``."""
-    files = referenced_files(model_path)  # a missing or malformed model file: its one-line error
+    trial file (None: determinate run) and ``repr(options)``. The model file is read
+    (and checked against its size limits, :mod:`openfdk.io.limits`) before anything
+    else; the other files are hashed block by block."""
+    files = referenced_files(model_path)  # a missing, malformed or too large model file: its one-line error
     h = hashlib.sha256()
-    h.update(Path(model_path).read_bytes())
+    _hash_file(h, model_path)
     for name, path in files:
-        h.update(b"\0" + name.encode() + b"\0" + hashlib.sha256(path.read_bytes()).digest())
+        h.update(b"\0" + name.encode() + b"\0" + _hash_file(hashlib.sha256(), path).digest())
     if trial_path is not None:
         if not Path(trial_path).is_file():
             raise FileNotFoundError(f"trial file {str(trial_path)!r} does not exist")
-        h.update(b"\0trial\0" + Path(trial_path).read_bytes())
+        h.update(b"\0trial\0")
+        _hash_file(h, trial_path)
     h.update(repr(tuple(options)).encode())
     return h.hexdigest()
 

@@ -99,12 +99,27 @@ def _write_obj(path, vertices, faces, comment):
 def _geometry_path(out_dir, fname):
     """``out_dir/Geometry/fname``; ValueError when ``fname`` (made of model names) is not a
     plain file name (a '/', '..' or control character would leave the output folder)."""
-    from ..model.modelfile import name_problem
+    from ..model.names import name_problem
 
     problem = name_problem(fname)
     if problem or Path(fname).name != fname:
         raise ValueError(f"cannot export mesh file {fname!r}: {problem or 'not a plain file name'}")
     return out_dir / GEOMETRY_DIR / fname
+
+
+def _check_exported_names(model):
+    """ValueError naming the model and the item when a name written to the ``.osim`` (a
+    body, a contact, a marker's label) is not safe in XML and file names — a Model made
+    without the builder (whose ``build`` checks them) could carry one."""
+    from ..model.names import label_problem, name_problem
+
+    named = [("body", b.name) for b in model.bodies] + [("contact", c.name) for c in getattr(model, "contacts", ())]
+    for what, name in named:
+        if name_problem(name):
+            raise ValueError(f"model {model.name!r}: {what} {name_problem(name)}")
+    for label in model.markers.labels:
+        if label_problem(label):
+            raise ValueError(f"model {model.name!r}: marker {label_problem(label)}")
 
 
 def _geometry(model, out_dir):
@@ -220,6 +235,7 @@ def export_opensim(results, out_dir, model=None) -> dict:
         where = results.directory / "summary.json" if results.directory else "the run"
         raise ValueError(f"{where}: the model file of this run cannot be found "
                          f"(input.model = {results.summary.get('input', {}).get('model')!r}); pass --model")
+    _check_exported_names(model)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     k = results.kinematics
