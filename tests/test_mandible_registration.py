@@ -123,3 +123,84 @@ def test_rms_above_1_mm_warns_and_bad_inputs_raise(subject):
         register(subject, None, "static_trial")
     with pytest.raises(RegistrationError, match="unknown registration method"):
         register(subject, trial, "laser")
+
+
+def _in_frame(subject, R, t):
+    """The subject with both braces given in another frame: x' = R x + t (the brace
+    scan's frame instead of the subject frame)."""
+    import dataclasses
+    from types import MappingProxyType
+
+    braces = {b: dataclasses.replace(subject.braces[b], positions=subject.braces[b].positions @ R.T + t)
+              for b in ("skull", "mandible")}
+    return dataclasses.replace(subject, braces=MappingProxyType(braces))
+
+
+def test_braces_in_the_wrong_frame_fit_as_well_but_the_static_pose_check_warns(subject):
+    """Both braces given in a frame T (10°/5° turned, 110 mm behind and 40 mm above the
+    subject frame): each brace still fits the static trial to round-off (a rigid
+    change of both nominal geometries is invisible to a rigid fit), but the brace fits
+    then measure T P T⁻¹ instead of the true static pose P (the true 5° opening). The
+    condyle-top shift and the incisal drop the check reports are those of T P T⁻¹,
+    derived here from P and T alone; they put the condyles millimetres away from their
+    fossae, so a RegistrationWarning with the numbers fires. The correct braces: no
+    warning, joint spaces within 0.3 mm of the reference pose's."""
+    from openfdk.spatial import rotation_matrix_xyz
+
+    trial, _, truth = _static(subject, TruthOptions.exact(), seed=7)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        good = register_from_braces(subject, trial)
+    assert not [w for w in caught if issubclass(w.category, RegistrationWarning)] and not good.warnings
+    check = good.pose_check
+    assert check.plausible
+    for side in ("r", "l"):
+        reference, static = check.joint_space_m[side]
+        assert abs(static - reference) < 3e-4
+    R_T, t_T = rotation_matrix_xyz(np.deg2rad([0.0, 10.0, 5.0])), np.array([-0.110, 0.0, 0.040])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        wrong = register_from_braces(_in_frame(subject, R_T, t_T), trial)
+    for body in ("skull", "mandible"):
+        assert wrong.rms_m[body] < 1e-9                       # the fits cannot see it
+    # the scan-frame coordinates are taken as subject-frame ones, so the fits measure
+    # M = T P T⁻¹: R_M = R_T R_P R_Tᵀ, p_M = R_T p_P + t_T − R_M t_T
+    P_R, P_p = truth.R_SM[0], truth.p_SM[0]
+    M_R = R_T @ P_R @ R_T.T
+    M_p = R_T @ P_p + t_T - M_R @ t_T
+    np.testing.assert_allclose(wrong.static_pose.R_SM, M_R, atol=1e-9)
+    np.testing.assert_allclose(wrong.static_pose.p_SM, M_p, atol=1e-9)
+    incisor = subject.landmarks["incisal_point"]
+    for side in ("r", "l"):
+        top = subject.condyle_top(side)
+        np.testing.assert_allclose(wrong.pose_check.condyle_shift_m[side], M_R @ top + M_p - top, atol=1e-9)
+    assert wrong.pose_check.incisal_gap_m == pytest.approx(-(M_R @ incisor + M_p - incisor)[2], abs=1e-9)
+    assert not wrong.pose_check.plausible
+    hits = [str(w.message) for w in caught if issubclass(w.category, RegistrationWarning)]
+    assert len(hits) == 1 and "implausible" in hits[0] and "subject frame" in hits[0]
+    assert "farther from its fossa" in hits[0] and "mm" in hits[0]
+    assert wrong.to_dict()["static_pose_check"]["plausible"] is False
+    assert wrong.to_dict()["static_pose_check"]["problems"]
+
+
+def test_static_pose_check_limits_follow_their_definitions(subject):
+    """The check on poses built by hand: the reference pose and a 5° opening about the
+    intercondylar axis are plausible (condyle tops on the axis do not move); the
+    mandible lowered by 3 mm moves each condyle 3 mm from its fossa (3 mm > 2 mm); an
+    opening whose incisal drop is just above max_incisal_gap fails on the incisors
+    only."""
+    from openfdk.mandible.registration import check_static_pose
+
+    assert check_static_pose(subject, StaticPose.occlusion()).plausible
+    five = check_static_pose(subject, StaticPose.from_opening(subject, 5.0))
+    assert five.plausible
+    lowered = check_static_pose(subject, StaticPose(np.eye(3), np.array([0.0, 0.0, -3e-3])))
+    for side in ("r", "l"):
+        reference, static = lowered.joint_space_m[side]
+        # a vertical drop d changes the smallest distance by between d cos(45°) and d
+        # (the closest fossa point faces the eminence's slope, ≤ 45°)
+        assert 3e-3 * np.cos(np.pi / 4) - 1e-4 < static - reference < 3e-3 + 1e-4
+    assert len(lowered.problems) == 2 and all("farther from its fossa" in p for p in lowered.problems)
+    wide = check_static_pose(subject, StaticPose.from_incisal_gap(subject, 8e-3), max_incisal_gap=7e-3)
+    assert wide.incisal_gap_m == pytest.approx(8e-3, abs=1e-12)
+    assert len(wide.problems) == 1 and "8.0 mm apart" in wide.problems[0]

@@ -223,14 +223,18 @@ class TaskTruth:
 def simulate_task(subject: Subject, joint: TrueJoint, markers_true: dict, task: str, *,
                   cycles: int = 5, rate: float = 100.0, head_motion: bool = True,
                   rng=None, frequency: float | None = None, working_side: str = "l",
-                  amplitudes: dict | None = None, static_opening_deg: float = 0.0) -> TaskTruth:
+                  amplitudes: dict | None = None, static_opening_deg: float = 0.0,
+                  rest_opening_deg: float = 0.0) -> TaskTruth:
     """True motion of one trial ("reference" or a key of :data:`TASKS`).
 
     Args: ``markers_true`` body → (4, 3) m true brace markers (mandible/skull frames);
     ``rate`` Hz; ``working_side`` 'r'/'l' for chewing; ``amplitudes``: the task's
     movement amplitudes (an entry of :data:`AMPLITUDES`, the default);
     ``static_opening_deg``: the reference trial's opening (deg; 0 = occlusion; the
-    condyles stay on the true fossae). Returns a :class:`TaskTruth`.
+    condyles stay on the true fossae); ``rest_opening_deg``: a movement task's rest
+    opening (deg, added to the task's opening; e.g. braces between the teeth hold the
+    mouth a few degrees open, so the rest is not the CT's occlusion). Returns a
+    :class:`TaskTruth`.
     """
     rng = rng if rng is not None else np.random.default_rng(0)
     if task == "reference":
@@ -250,6 +254,7 @@ def simulate_task(subject: Subject, joint: TrueJoint, markers_true: dict, task: 
         opening = np.full(len(t), static_opening_deg * _DEG)
     else:
         x, y, yaw, opening = _prescribe(task, phase, amplitude, working_side, intercondylar, amplitudes)
+        opening = opening + rest_opening_deg * _DEG
     solution = solve_contact(joint, x, y, yaw, opening)
     R_SM, p_SM = solution.R_SM, solution.p_SM
     R_LS, p_LS = _head_pose(rng, t, head_motion)

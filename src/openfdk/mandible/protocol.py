@@ -67,8 +67,9 @@ class StudyProtocol:
 
     ``trials``: task → :class:`TrialSpec` in file order; ``registration_method``:
     "braces" or "static_trial"; ``static_trial``: task name of the static trial used
-    (None: none); ``static_pose``: None, ``{"opening": rad, "translation": (3,) m}`` or
-    ``{"incisal_gap": m}``; ``condyle_points``: 'r'/'l' → landmark name;
+    (None: none); ``static_pose``: None, ``{"opening": rad, "translation": (3,) m}``,
+    ``{"rotation": (3, 3), "translation": (3,) m}`` or ``{"incisal_gap": m}``;
+    ``max_incisal_gap``: m or None (the registration check's default); ``condyle_points``: 'r'/'l' → landmark name;
     ``calibration_opening`` rad and ``calibration_translation`` (3,) m;
     ``hyoid_muscles``: tuple of names or None (named like supra-hyoid muscles);
     ``hyoid_follow``: fraction in [0, 1]; ``file``: subject.yaml path (for messages).
@@ -78,6 +79,7 @@ class StudyProtocol:
     registration_method: str = "braces"
     static_trial: str | None = None
     static_pose: dict | None = None
+    max_incisal_gap: float | None = None
     condyle_points: MappingProxyType = field(
         default_factory=lambda: MappingProxyType({"r": "condyle_top_r", "l": "condyle_top_l"}))
     calibration_opening: float = float(np.deg2rad(CALIBRATION_OPENING_DEG))
@@ -172,7 +174,7 @@ def parse_protocol(ctx, data: dict, directory: Path, landmarks: dict, muscle_nam
     trials = _trials(ctx, data.get("trials"), Path(directory))
     statics = [t for t, spec in trials.items() if spec.kind == STATIC]
     reg = ctx.mapping(data.get("registration") or {}, "registration",
-                      allowed={"method", "static_trial", "static_pose"})
+                      allowed={"method", "static_trial", "static_pose", "max_incisal_gap"})
     method = reg.get("method", "braces")
     if method not in ("braces", "static_trial"):
         raise ctx.error("registration.method", f"expected 'braces' or 'static_trial', got {method!r}")
@@ -187,6 +189,9 @@ def parse_protocol(ctx, data: dict, directory: Path, landmarks: dict, muscle_nam
             raise ctx.error("registration.static_pose", "only used with method: static_trial (the braces "
                             "method measures the static pose)")
         pose = _static_pose(ctx, reg["static_pose"], "registration.static_pose")
+    max_gap = None
+    if "max_incisal_gap" in reg:
+        max_gap = ctx.length * ctx.number(reg["max_incisal_gap"], "registration.max_incisal_gap", positive=True)
     points = ctx.mapping(data.get("condyle_point") or {}, "condyle_point", allowed={"r", "l"})
     condyle_points = {side: str(points.get(side, f"condyle_top_{side}")) for side in ("r", "l")}
     for side, name in condyle_points.items():
@@ -208,6 +213,6 @@ def parse_protocol(ctx, data: dict, directory: Path, landmarks: dict, muscle_nam
             raise ctx.error("hyoid.muscles", f"unknown muscle(s) {unknown}")
         hyoid_muscles = tuple(names)
     follow = ctx.number(hyoid.get("follow", HYOID_FOLLOW), "hyoid.follow", low=0.0, high=1.0)
-    return StudyProtocol(MappingProxyType(trials), method, static, pose, MappingProxyType(condyle_points),
+    return StudyProtocol(MappingProxyType(trials), method, static, pose, max_gap, MappingProxyType(condyle_points),
                          float(opening), tuple(float(v) for v in translation), hyoid_muscles, float(follow),
                          ctx.file)

@@ -23,6 +23,19 @@ mandible frame M (which coincides with S at the reference/CT pose). Two methods:
 Both return a :class:`Registration` that records the method, the positions, the fit RMS
 per brace, the static pose and the assumption; the study writes it to
 ``registration.yaml`` and ``summary.json``.
+
+**Plausibility of the measured static pose** (:func:`check_static_pose`). A rigid fit
+cannot see brace coordinates given in the wrong frame (e.g. the brace scan's frame
+instead of the subject frame): both braces fit the static trial as well as before, but
+the static pose they measure, T P T⁻¹ instead of P, is the true pose seen from the
+wrong frame. So the pose the braces measure is checked against the anatomy: each
+condyle must still sit in its fossa (the bone-to-bone joint space, the smallest signed
+distance from the condyle mesh to the fossa mesh, within ``PLAUSIBLE_JOINT_SPACE_CHANGE_M``
+= 2 mm of its value in the reference pose), and the incisors may be apart by at most
+what the braces between the teeth allow (the incisal point at most ``max_incisal_gap``,
+default 12 mm, below its reference position and not more than 1 mm above it, where
+the teeth would overlap). A failed check is a :class:`RegistrationWarning` with the
+numbers; the numbers are in ``registration.yaml`` either way (``static_pose_check``).
 """
 
 from __future__ import annotations
@@ -36,11 +49,21 @@ from ..io.c3d import MarkerTrial
 from ..io.trials import read_trial
 from .experiment import rigid_fit
 
-__all__ = ["Registration", "RegistrationError", "RegistrationWarning", "StaticPose", "WARN_RMS_M",
+__all__ = ["DEFAULT_MAX_INCISAL_GAP_M", "PLAUSIBLE_JOINT_SPACE_CHANGE_M", "PoseCheck", "Registration",
+           "RegistrationError", "RegistrationWarning", "StaticPose", "WARN_RMS_M", "check_static_pose",
            "register", "register_braces", "register_from_braces", "register_from_static_trial"]
 
 #: RMS residual of a brace fit above which the registration warns, m
 WARN_RMS_M = 1e-3
+#: change of a condyle's joint space (static pose vs reference pose) above which the
+#: measured static pose is implausible, m ("condyles more than about 2 mm from the fossa")
+PLAUSIBLE_JOINT_SPACE_CHANGE_M = 2e-3
+#: default largest drop of the incisal point in a static trial (braces between the
+#: teeth), m; ``registration.max_incisal_gap`` of subject.yaml sets it per subject
+DEFAULT_MAX_INCISAL_GAP_M = 12e-3
+#: the incisal point may rise at most this far above its reference position, m (the
+#: lower incisor would pass into the upper one)
+INCISAL_OVERLAP_M = 1e-3
 OCCLUSION_ASSUMPTION = ("the static trial is in occlusion: the mandible is at its reference (CT) pose "
                         "relative to the skull")
 
@@ -50,7 +73,8 @@ class RegistrationError(ValueError):
 
 
 class RegistrationWarning(UserWarning):
-    """A brace fit's RMS residual is above 1 mm: the braces or the static trial are off."""
+    """A brace fit's RMS residual is above 1 mm, or the static pose the brace fits
+    measure is anatomically implausible: the braces or the static trial are off."""
 
 
 @dataclass(frozen=True)
@@ -103,6 +127,96 @@ class StaticPose:
 
 
 @dataclass(frozen=True)
+class PoseCheck:
+    """Plausibility of a static pose (:func:`check_static_pose`).
+
+    ``joint_space_m``: side 'r'/'l' → (reference, static) bone-to-bone joint space, m
+    (smallest signed distance from the condyle mesh to the fossa mesh; None when no
+    condyle vertex lies over the fossa); ``condyle_shift_m``: side → (3,) m
+    displacement of the condyle top; ``incisal_gap_m``: drop of the incisal point below
+    its reference position, m (positive = teeth apart); ``incisal_shift_m`` (3,) m;
+    ``max_incisal_gap_m``: the allowance used; ``problems``: one phrase per failed
+    check (empty: plausible)."""
+
+    joint_space_m: dict
+    condyle_shift_m: dict
+    incisal_gap_m: float
+    incisal_shift_m: np.ndarray
+    max_incisal_gap_m: float
+    problems: tuple
+
+    @property
+    def plausible(self) -> bool:
+        return not self.problems
+
+    def to_dict(self) -> dict:
+        """mm, for registration.yaml."""
+        def mm(v):
+            return None if v is None else round(1e3 * float(v), 3)
+
+        return {"plausible": self.plausible,
+                "joint_space_mm": {side: {"reference": mm(ref), "static": mm(now),
+                                          "change": None if now is None else mm(now - ref)}
+                                   for side, (ref, now) in self.joint_space_m.items()},
+                "condyle_shift_mm": {side: np.round(1e3 * v, 3).tolist() for side, v in self.condyle_shift_m.items()},
+                "incisal_gap_mm": mm(self.incisal_gap_m),
+                "incisal_shift_mm": np.round(1e3 * self.incisal_shift_m, 3).tolist(),
+                "max_incisal_gap_mm": mm(self.max_incisal_gap_m),
+                "problems": list(self.problems)}
+
+
+def _joint_space(subject, side, R, p):
+    """Smallest signed distance (m) from the condyle mesh of ``side``, moved by (R, p),
+    to the fossa mesh (positive: in front of the fossa, i.e. apart); None when no
+    condyle vertex lies over the fossa (every closest point on the fossa's rim)."""
+    from ..contact.mesh import surface_mesh
+    from ..contact.signed_distance import OpenSurfaceDistance
+
+    fossa = subject.surfaces[f"fossa_{side}"]
+    condyle = subject.surfaces[f"condyle_{side}"]
+    distance = OpenSurfaceDistance(surface_mesh(fossa.vertices, fossa.faces, fossa.name, repair=False))
+    phi, _, valid, _ = distance.query(condyle.vertices @ R.T + p)
+    return float(phi[valid].min()) if np.any(valid) else None
+
+
+def check_static_pose(subject, pose: "StaticPose", max_incisal_gap: float | None = None) -> PoseCheck:
+    """Is the mandible's static pose anatomically plausible? (module docstring)
+
+    Args: subject (its condyle and fossa meshes, condyle tops and incisal point);
+    pose: the static pose (R_SM, p_SM); max_incisal_gap: largest drop (m) of the
+    incisal point the braces allow (default :data:`DEFAULT_MAX_INCISAL_GAP_M`).
+    Returns a :class:`PoseCheck`; its ``problems`` name each failed check with numbers."""
+    limit = DEFAULT_MAX_INCISAL_GAP_M if max_incisal_gap is None else float(max_incisal_gap)
+    R, p = np.asarray(pose.R_SM, float), np.asarray(pose.p_SM, float)
+    problems, spaces, shifts = [], {}, {}
+    for side, name in (("r", "right"), ("l", "left")):
+        reference = _joint_space(subject, side, np.eye(3), np.zeros(3))
+        static = _joint_space(subject, side, R, p)
+        spaces[side] = (reference, static)
+        top = subject.condyle_top(side)
+        shifts[side] = R @ top + p - top
+        shift = ", ".join(f"{1e3 * v:+.1f}" for v in shifts[side])
+        if static is None:
+            problems.append(f"the {name} condyle is off its fossa (no condyle vertex lies over the fossa mesh; "
+                            f"condyle top moved [{shift}] mm)")
+        elif reference is not None and abs(static - reference) > PLAUSIBLE_JOINT_SPACE_CHANGE_M:
+            problems.append(f"the {name} condyle is {abs(1e3 * (static - reference)):.1f} mm "
+                            f"{'farther from' if static > reference else 'deeper into'} its fossa than in the "
+                            f"reference pose (joint space {1e3 * static:.1f} mm, reference {1e3 * reference:.1f} mm; "
+                            f"limit {1e3 * PLAUSIBLE_JOINT_SPACE_CHANGE_M:.0f} mm; condyle top moved [{shift}] mm)")
+    incisor = subject.landmarks["incisal_point"]
+    incisal_shift = R @ incisor + p - incisor
+    gap = -float(incisal_shift[2])
+    if gap > limit:
+        problems.append(f"the incisors are {1e3 * gap:.1f} mm apart, more than the braces allow "
+                        f"({1e3 * limit:.0f} mm; registration.max_incisal_gap)")
+    elif gap < -INCISAL_OVERLAP_M:
+        problems.append(f"the lower incisor is {-1e3 * gap:.1f} mm above its occlusal position "
+                        "(the teeth would overlap)")
+    return PoseCheck(spaces, shifts, gap, incisal_shift, limit, tuple(problems))
+
+
+@dataclass(frozen=True)
 class Registration:
     """Registered brace markers and how they were obtained.
 
@@ -124,6 +238,7 @@ class Registration:
     assumption: str = ""
     static_trial: str | None = None
     warnings: tuple = field(default_factory=tuple)
+    pose_check: PoseCheck | None = None
 
     def __getitem__(self, key):
         if key in ("skull", "mandible"):
@@ -146,6 +261,7 @@ class Registration:
             "assumption": self.assumption,
             "rms_mm": {k: (None if v is None else round(1e3 * v, 6)) for k, v in self.rms_m.items()},
             "static_pose": pose,
+            "static_pose_check": None if self.pose_check is None else self.pose_check.to_dict(),
             "markers_mm": {body: {lab: np.round(1e3 * p, 6).tolist() for lab, p in zip(*getattr(self, body))}
                            for body in ("skull", "mandible")},
             "warnings": list(self.warnings),
@@ -194,7 +310,8 @@ def _warn(messages, body, rms, source, warn_rms):
         messages.append(msg)
 
 
-def register_from_braces(subject, static_trial=None, *, warn_rms=WARN_RMS_M, min_frames=10) -> Registration:
+def register_from_braces(subject, static_trial=None, *, warn_rms=WARN_RMS_M, min_frames=10,
+                         max_incisal_gap=None) -> Registration:
     """Registration from the subject's scanned braces (``subject.braces``, the paper's method).
 
     Args:
@@ -203,7 +320,9 @@ def register_from_braces(subject, static_trial=None, *, warn_rms=WARN_RMS_M, min
         static_trial : optional MarkerTrial or C3D path of a static trial, used only to
             check the braces: each brace is fitted to its mean measured markers; the RMS
             of each fit is reported and a :class:`RegistrationWarning` is issued above
-            ``warn_rms`` (m). The mandible's static pose is measured from the two fits.
+            ``warn_rms`` (m). The mandible's static pose is measured from the two fits
+            and checked (:func:`check_static_pose`, ``max_incisal_gap`` m); an
+            implausible pose is a :class:`RegistrationWarning` with the numbers.
     Returns: :class:`Registration` (method "braces").
     """
     skull = (subject.braces["skull"].labels, np.array(subject.braces["skull"].positions))
@@ -221,9 +340,19 @@ def register_from_braces(subject, static_trial=None, *, warn_rms=WARN_RMS_M, min
     R_SM = np.einsum("nji,njk->nik", R_LS, R_LM)
     p_SM = np.einsum("nji,nj->ni", R_LS, p_LM - p_LS)
     pose = StaticPose(_mean_rotation(R_SM), np.nanmean(p_SM, axis=0), "measured by the brace fits")
+    check = check_static_pose(subject, pose, max_incisal_gap)
+    if check.problems:
+        msg = (f"{trial.source}: the static pose measured by the brace fits is implausible: "
+               + "; ".join(check.problems)
+               + f" (pose: {pose.opening_deg():.2f}° rotation, translation "
+               + "[" + ", ".join(f"{1e3 * v:.1f}" for v in pose.p_SM) + "] mm). The brace fits alone cannot "
+               "see this: check that both braces in subject.yaml are in the subject frame, not the brace "
+               "scan's frame (docs/subject-folder.md, 'braces')")
+        warnings.warn(msg, RegistrationWarning, stacklevel=2)
+        messages.append(msg)
     return Registration("braces", skull, mandible, {"skull": rms_s, "mandible": rms_m}, pose,
                         "none: the braces of subject.yaml are the registered positions; the static trial "
-                        "only checks them", str(trial.source), tuple(messages))
+                        "only checks them", str(trial.source), tuple(messages), check)
 
 
 def register_from_static_trial(subject, static_trial, static_pose: StaticPose | None = None, *,
@@ -271,6 +400,7 @@ def register(subject, static_trial=None, method: str = "braces", static_pose: St
     if method == "static_trial":
         if static_trial is None:
             raise RegistrationError("the static_trial registration needs a static trial")
+        kw.pop("max_incisal_gap", None)             # the static pose is an input there, not measured
         return register_from_static_trial(subject, static_trial, static_pose, **kw)
     raise RegistrationError(f"unknown registration method {method!r}; expected 'braces' or 'static_trial'")
 

@@ -114,7 +114,7 @@ def register_subject(subject, method: str | None = None, pose: StaticPose | None
             raise StudyError(f"{protocol.file}: the static_trial registration needs the static trial "
                              f"{static.relative if static else '(none declared)'}, which is missing")
         return register(subject, path, "static_trial", pose if pose is not None else static_pose(subject))
-    return register(subject, path, "braces")
+    return register(subject, path, "braces", max_incisal_gap=protocol.max_incisal_gap)
 
 
 # --------------------------------------------------------------------------------------
@@ -143,10 +143,41 @@ def measured_series(subject, registration, trial, cutoff_hz=MARKER_CUTOFF_HZ):
     return time, {side: p[:, k] for k, side in enumerate(SIDE_TAGS)}, p[:, -1]
 
 
-def opening_signal(subject, incisor):
-    """Incisal displacement (n,) m from the closed (reference-pose) incisal point, the
-    signal whose minima separate the cycles of every task; incisor (n, 3) m."""
-    return np.linalg.norm(incisor - subject.landmarks["incisal_point"], axis=1)
+#: share of a record's frames, those with the condyles nearest their reference
+#: positions, whose median incisal point is the record's rest pose (:func:`rest_incisor`)
+REST_SHARE = 0.10
+
+
+def rest_incisor(subject, condyles, incisor, share=REST_SHARE):
+    """The record's own rest incisal point (3,) m, in the skull frame.
+
+    At rest the condyles sit in their fossae whatever the incisal opening (braces
+    between the teeth hold the mouth a few degrees open, a rotation about the
+    intercondylar axis that leaves the condyles in place), and every task moves them
+    forward, down or sideways from there. So the rest frames are the ``share`` of the
+    record's frames whose condyle points are nearest their reference positions (the
+    mean of both sides' distances), and the rest incisal point is the median incisal
+    point over them. A registration error shifts every frame alike and does not change
+    which frames these are.
+
+    Args: subject; condyles {side: (n, 3) m} and incisor (n, 3) m as
+    :func:`measured_series` returns them (NaN where unmeasured).
+    Returns (3,) m; the reference (CT) incisal point when no frame is measured."""
+    ref = {side: compared_condyle_point(subject, tag) for side, tag in SIDE_TAGS.items()}
+    shift = np.mean([np.linalg.norm(np.asarray(p) - ref[side], axis=1) for side, p in condyles.items()], axis=0)
+    ok = np.isfinite(shift) & np.all(np.isfinite(incisor), axis=1)
+    if not ok.any():
+        return np.array(subject.landmarks["incisal_point"], dtype=float)
+    limit = np.quantile(shift[ok], share)
+    return np.median(np.asarray(incisor)[ok & (shift <= limit)], axis=0)
+
+
+def opening_signal(subject, incisor, rest=None):
+    """Incisal displacement (n,) m from the rest incisal point ``rest`` (3,) m
+    (:func:`rest_incisor`; default the reference-pose (CT) incisal point), the signal
+    whose minima separate the cycles of every task; incisor (n, 3) m."""
+    rest = subject.landmarks["incisal_point"] if rest is None else np.asarray(rest, dtype=float)
+    return np.linalg.norm(incisor - rest, axis=1)
 
 
 @dataclass(frozen=True)
@@ -156,7 +187,9 @@ class TaskCycles:
     ``time`` (n,) s of the record; ``cycles`` (start, stop) indices into ``time``, the
     ones analysed; ``found`` complete cycles on the record; ``requested`` int or None
     (all); ``window`` (start, end) s analysed: the chosen cycles ± the margin;
-    ``message``: a warning when fewer than requested were found, else ""."""
+    ``message``: a warning when fewer than requested were found, else "";
+    ``rest_offset`` (3,) m: the record's rest incisal point (:func:`rest_incisor`, the
+    point the cycle signal is measured from) minus the reference (CT) incisal point."""
 
     time: np.ndarray
     cycles: list
@@ -164,26 +197,29 @@ class TaskCycles:
     requested: int | None
     window: tuple
     message: str
+    rest_offset: np.ndarray | None = None
 
 
 def task_cycles(subject, registration, task, n_cycles=5, margin=CYCLE_MARGIN_S) -> TaskCycles:
     """Find the cycles of ``task`` (name or TrialSpec) on its whole record (within the
     task's ``window`` when given) and choose the first ``n_cycles`` (None or "all":
-    every complete one; the task's ``cycles`` entry wins over ``n_cycles``). Fewer than
-    requested: those found are kept and ``message`` says so. Raises StudyError when
-    none is found."""
+    every complete one; the task's ``cycles`` entry wins over ``n_cycles``). The cycle
+    signal is the incisal displacement from the record's own rest pose
+    (:func:`rest_incisor`), not from the CT's occlusion. Fewer than requested: those
+    found are kept and ``message`` says so. Raises StudyError when none is found."""
     spec = _spec(subject, task)
     if not spec.file.is_file():
         raise StudyError(f"task {spec.task!r}: trial file {spec.relative} not found in {spec.file.parent}")
     requested = spec.cycles if spec.cycles is not None else n_cycles
     requested = None if requested in (None, "all") else int(requested)
-    time, _, incisor = measured_series(subject, registration, spec.file)
+    time, condyles, incisor = measured_series(subject, registration, spec.file)
     keep = np.ones(len(time), dtype=bool)
     if spec.window is not None:
         keep = (time >= spec.window[0] - 1e-9) & (time <= spec.window[1] + 1e-9)
     offset = int(np.argmax(keep))
+    rest = rest_incisor(subject, {side: p[keep] for side, p in condyles.items()}, incisor[keep])
     try:
-        split = find_cycles(time[keep], opening_signal(subject, incisor[keep]))
+        split = find_cycles(time[keep], opening_signal(subject, incisor[keep], rest))
     except CycleError as exc:
         raise StudyError(f"task {spec.task!r} ({spec.relative}): {exc}") from None
     if not split.cycles:
@@ -196,7 +232,8 @@ def task_cycles(subject, registration, task, n_cycles=5, margin=CYCLE_MARGIN_S) 
     cycles = [(a + offset, b + offset) for a, b in chosen]
     lo = max(time[cycles[0][0]] - margin, time[offset])
     hi = min(time[cycles[-1][1]] + margin, time[offset + int(keep.sum()) - 1])
-    return TaskCycles(time, cycles, len(split.cycles), requested, (float(lo), float(hi)), message)
+    return TaskCycles(time, cycles, len(split.cycles), requested, (float(lo), float(hi)), message,
+                      rest - subject.landmarks["incisal_point"])
 
 
 def analyse_trial(subject, registration, models, trial, out_dir, *, start=None, end=None, progress=False):
@@ -262,7 +299,8 @@ def analyse_task(subject, registration, models, task, out_dir, progress=False, n
                                  start=found.window[0], end=found.window[1], progress=progress)
     first = int(np.argmin(np.abs(found.time - series["time"][0])))
     cycles = [(a - first, b - first) for a, b in found.cycles]
-    found = TaskCycles(series["time"], cycles, found.found, found.requested, found.window, found.message)
+    found = TaskCycles(series["time"], cycles, found.found, found.requested, found.window, found.message,
+                       found.rest_offset)
     return series, runs, found
 
 
@@ -392,7 +430,8 @@ def run_study(subject_dir, out_dir, tasks=None, n_cycles=5, quick=False, paramet
         series[task], runs[task] = s, task_runs
         per_task[task] = cycle_arrays(s, cycles.cycles)
         cycle_info[task] = {"analysed": len(cycles.cycles), "found": cycles.found, "requested": cycles.requested,
-                            "window_s": list(cycles.window), "warning": cycles.message or None}
+                            "window_s": list(cycles.window), "warning": cycles.message or None,
+                            "rest_incisal_offset_mm": np.round(1e3 * cycles.rest_offset, 3).tolist()}
     bands = {}
     if parameter_study and per_task:
         bands, runs["parameter_study"] = _parameter_study(subject, models, out, per_task, series, quick, workers,
@@ -418,5 +457,5 @@ def run_study(subject_dir, out_dir, tasks=None, n_cycles=5, quick=False, paramet
 
 __all__ = ["CycleWarning", "StudyError", "TASKS", "TaskCycles", "DEFAULT_STIFFNESS", "DEFAULT_STRAIN",
            "analyse_task", "analyse_trial", "check_trials", "cycle_arrays", "measured_series", "opening_signal",
-           "register_subject", "run_study", "static_pose", "study_tables", "task_cycles", "write_figures",
+           "register_subject", "rest_incisor", "run_study", "static_pose", "study_tables", "task_cycles", "write_figures",
            "write_tables"]
