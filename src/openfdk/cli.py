@@ -486,6 +486,9 @@ def _import_arguments(p):
                         "each coordinate's generalised force (generalized_forces.csv), as OpenSim's ID")
     g.add_argument("--motion-cutoff", type=argtypes.nonnegative, default=None, metavar="HZ",
                    help="low-pass filter the --motion coordinates (OpenSim's lowpass_cutoff_frequency_for_coordinates)")
+    g.add_argument("--actuators", default=None, metavar="ACTUATORS.xml",
+                   help="OpenSim actuator file (reserve and residual CoordinateActuators): recruited beside the "
+                        "muscles, weighted by their optimal force, as in OpenSim's static optimisation")
 
 
 def _register_import(args):
@@ -496,20 +499,22 @@ def _register_import(args):
     from .io.opensim import is_osim
 
     if not is_osim(model):
-        if args.overlay or args.ignore or args.geometry or args.ik_tasks or args.external_loads or args.motion:
-            raise UserError(f"{model}: --with, --ignore, --geometry, --ik-tasks, --external-loads and --motion apply "
-                            "to OpenSim models (.osim) only")
+        if args.overlay or args.ignore or args.geometry or args.ik_tasks or args.external_loads or args.motion \
+                or args.actuators:
+            raise UserError(f"{model}: --with, --ignore, --geometry, --ik-tasks, --external-loads, --motion and "
+                            "--actuators apply to OpenSim models (.osim) only")
         return
     from pathlib import Path
 
     for option, value in (("--with", args.overlay), ("--ik-tasks", args.ik_tasks),
-                          ("--external-loads", args.external_loads), ("--motion", args.motion)):
+                          ("--external-loads", args.external_loads), ("--motion", args.motion),
+                          ("--actuators", args.actuators)):
         if value is not None and not Path(value).is_file():
             raise UserError(f"{option}: {value!r} does not exist or is not a regular file")
     from .io.opensim.overlay import register
 
     register(model, args.ignore, args.geometry, args.overlay, args.ik_tasks, args.external_loads, args.motion,
-             args.motion_cutoff or None)
+             args.motion_cutoff or None, args.actuators)
 
 
 def _display_arguments(p, top=False):

@@ -243,6 +243,10 @@ class RunResults:
     def contacts(self) -> list[str]:
         return self._force_names(".Fx_N")
 
+    def actuators(self) -> list[str]:
+        """Actuators (reserve and residual actuators; columns ``.actuator``, ``.control``)."""
+        return self._force_names(".actuator")
+
     def reactions(self) -> list[str]:
         """Joint/constraint reaction rows (FDK residual columns excluded)."""
         return self._force_names(".reaction", exclude_prefix="fdk.")

@@ -10,12 +10,18 @@ where Q^applied collects external loads and every passive element (ligaments, sp
 contacts, passive muscle tension). Unknown columns (Eq. 12):
 
 * muscles: C^M = −(∂l/∂q̂)ᵀ (a tension shortens the path), 0 ≤ f^M ≤ s;
+* actuators (:mod:`openfdk.forces.actuators`): C^A = +(∂u/∂q̂)ᵀ of the coordinate u they
+  act along, weighted by their optimal force, signed (split in two by the recruitment);
 * unilateral reactions (one-sided joint rows): ±Φ_q̂ᵀ of the row, 0 ≤ f ≤ strength;
 * joint reactions: C^R = Φ̃_q̂ᵀ for the rows of constraints that carry reactions (free);
 * FDK residual forces: C^FDK = Φ^FDK_q̂ᵀ, one free column per FDK DOF (Eq. 14).
 
-Column order: [muscles, unilateral reactions | joint reactions, FDK residuals], the
-first group bounded (the recruitment's n_bounded).
+Column order: [muscles, actuators, unilateral reactions | joint reactions, FDK
+residuals], the first group bounded (the recruitment's n_bounded).
+
+A driver of a coordinate that an actuator acts on carries no reaction column: the
+actuators (and the muscles) balance that coordinate, as in OpenSim's static
+optimisation; a driver without one is an ideal, cost-free actuator (inverse dynamics).
 """
 
 from __future__ import annotations
@@ -33,7 +39,8 @@ class EquilibriumLayout:
     """Rows and columns of C f = d for one model.
 
     eq_coords : (n_rows,) q̂ indices of the equilibrium rows; row_names;
-    muscles : tuple of Muscle; unilateral : tuple of (system row, sign, strength, name);
+    muscles : tuple of Muscle; actuators : tuple of CoordinateActuator (columns right
+    after the muscles'); unilateral : tuple of (system row, sign, strength, name);
     free_rows : (n_free_reactions,) system rows of free joint reactions;
     fdk_rows : system rows of the FDK DOFs; column_names; n_bounded.
     """
@@ -41,6 +48,7 @@ class EquilibriumLayout:
     eq_coords: np.ndarray
     row_names: tuple
     muscles: tuple
+    actuators: tuple
     unilateral: tuple
     free_rows: np.ndarray
     fdk_rows: np.ndarray
@@ -50,6 +58,10 @@ class EquilibriumLayout:
     @property
     def n_muscles(self):
         return len(self.muscles)
+
+    @property
+    def n_actuators(self):
+        return len(self.actuators)
 
     @property
     def n_columns(self):
@@ -75,17 +87,18 @@ def equilibrium_layout(model, system):
     one_sided = {u[0] for u in unilateral}
     # a reaction acts in equilibrium only if its constraint touches a body with rows
     balanced = {b.index for b in model.moving_bodies if b.equilibrium}
+    actuated = {id(a.measure) for a in model.actuators}
     free_rows = [offsets[c.name] + k for c in model.constraints
-                 if c.reaction and balanced.intersection(c.measure.bodies()) for k in range(c.size)
-                 if offsets[c.name] + k not in one_sided]
+                 if c.reaction and balanced.intersection(c.measure.bodies()) and id(c.measure) not in actuated
+                 for k in range(c.size) if offsets[c.name] + k not in one_sided]
     n_joint = sum(c.size for c in model.constraints)
     fdk_rows = list(range(n_joint, n_joint + len(model.fdk_dofs)))
-    names = [m.name for m in muscles] + [u[3] for u in unilateral]
+    names = [m.name for m in muscles] + [a.name for a in model.actuators] + [u[3] for u in unilateral]
     names += [system.row_names[i] for i in free_rows] + [f"fdk.{d.name}" for d in model.fdk_dofs]
     return EquilibriumLayout(
-        np.array(eq_coords, dtype=int), tuple(row_names), muscles, unilateral,
+        np.array(eq_coords, dtype=int), tuple(row_names), muscles, tuple(model.actuators), unilateral,
         np.array(free_rows, dtype=int), np.array(fdk_rows, dtype=int), tuple(names),
-        len(muscles) + len(unilateral),
+        len(muscles) + len(model.actuators) + len(unilateral),
     )
 
 
@@ -131,20 +144,24 @@ def inertial_minus_gravity(model, state, vdot):
     return out
 
 
-def assemble(layout, A, L_muscles, d_full):
+def assemble(layout, A, L_muscles, d_full, U_actuators=None):
     """C (n_rows, n_cols) and d (n_rows,) restricted to the equilibrium rows (Eq. 12).
 
     A : (n_sys_rows, n) constraint Jacobian incl. FDK rows; L_muscles : (n_muscles, n)
-    path-length Jacobians; d_full : (n,) right-hand side for all coordinates.
-    Columns: −Lᵀ (muscles), ±Φ_q̂ᵀ (unilateral reactions), Φ̃_q̂ᵀ (joint reactions),
-    Φ^FDK_q̂ᵀ (FDK residual forces). One compiled loop (:func:`_assemble`).
+    path-length Jacobians; d_full : (n,) right-hand side for all coordinates;
+    U_actuators : (n_actuators, n) ∂u/∂q̂ of the actuators' coordinates.
+    Columns: −Lᵀ (muscles), +Uᵀ (actuators), ±Φ_q̂ᵀ (unilateral reactions), Φ̃_q̂ᵀ (joint
+    reactions), Φ^FDK_q̂ᵀ (FDK residual forces). One compiled loop (:func:`_assemble`).
     """
     rows = layout.eq_coords
     sel, sign = _reaction_rows(layout)
     nm = layout.n_muscles
+    L = L_muscles if nm else np.zeros((0, A.shape[1]))
+    if layout.n_actuators:
+        L = np.concatenate([L, -np.asarray(U_actuators, float)])  # −(−U)ᵀ = +Uᵀ
+        nm += layout.n_actuators
     C = np.empty((len(rows), nm + len(sel)))
     d = np.empty(len(rows))
-    L = L_muscles if nm else np.zeros((0, A.shape[1]))
     _assemble(np.asarray(L, dtype=float), np.asarray(A, dtype=float), rows, sel, sign,
               np.asarray(d_full, dtype=float), C, d)
     return C, d

@@ -17,7 +17,9 @@ import numpy as np
 from ..model.framedata import FrameData
 from .equilibrium import assemble, equilibrium_layout, inertial_minus_gravity
 from .stages import equilibrium_stage, recruitment_stage
+from ..forces.actuators import ActuatorColumns, expand_columns, fold_result
 from ..forces.elements import RecruitmentSettings
+from ..recruitment.result import RecruitmentResult
 from ..forces.forceset import ForceElements
 from ..forces.muscle_forces import MIN_STRENGTH, MuscleOutputs
 from ..kinematics.system import ConstraintSystem
@@ -60,6 +62,12 @@ class InverseDynamics:
         #: the RecruitmentSettings used
         self.settings = (settings.recruitment if settings is not None else None) or RecruitmentSettings()
         self.unilateral_strength = np.array([u[2] for u in self.layout.unilateral], dtype=float)
+        self.actuators = ActuatorColumns(model.actuators)
+        if self.actuators and self.settings.criterion != "polynomial":
+            raise ValueError(f"model {model.name!r}: actuators ({', '.join(self.actuators.names[:3])}"
+                             f"{', …' if len(self.actuators) > 3 else ''}) are weighted by their optimal force in the "
+                             f"polynomial criterion; the {self.settings.criterion} criterion has no such weight "
+                             "(recruitment: criterion: polynomial)")
         if self.settings.criterion == "minmax":
             from ..recruitment import solve_minmax as solve
         else:
@@ -86,8 +94,8 @@ class InverseDynamics:
         if muscles is None:
             muscles = MuscleOutputs.empty(n)
         d_full = inertial_minus_gravity(self.model, state, vdot) - Q
-        C, d = assemble(self.layout, A, muscles.L, d_full)
-        s = np.concatenate([muscles.strength, self.unilateral_strength])
+        C, d = assemble(self.layout, A, muscles.L, d_full, self.actuators.jacobian(state))
+        s = np.concatenate([muscles.strength, self.actuators.optimal_force, self.unilateral_strength])
         return C, d, s, muscles, outputs
 
     def recruit(self, C, d, s, warm=None):
@@ -96,6 +104,17 @@ class InverseDynamics:
         lay, st = self.layout, self.settings
         if st.criterion == "minmax":
             return self._solve(C, d, lay.n_bounded, s, row_names=lay.row_names, column_names=lay.column_names)
+        if self.actuators:
+            # each actuator as τ⁺ and τ⁻ columns (forces/actuators.py), folded back after
+            first, na = lay.n_muscles, lay.n_actuators
+            C_x, s_x, upper, nb = expand_columns(C, s, lay.n_bounded, first, self.actuators)
+            names = lay.column_names[:lay.n_bounded] + tuple(f"{a}(-)" for a in self.actuators.names) + \
+                lay.column_names[lay.n_bounded:]
+            if warm is not None and not (isinstance(warm, RecruitmentResult) and warm.converged):
+                warm = None  # (a converged result's multipliers are all a warm start uses)
+            res = self._solve(C_x, d, nb, s_x, st.power, x0=warm, tol=st.tolerance, row_names=lay.row_names,
+                              column_names=names, upper=upper)
+            return fold_result(res, lay.n_bounded, first, na)
         return self._solve(C, d, lay.n_bounded, s, st.power, x0=warm, tol=st.tolerance, row_names=lay.row_names,
                            column_names=lay.column_names)
 

@@ -26,7 +26,9 @@ class InverseDynamicsResult:
     muscle_length/speed/strength/passive : (nf, n_muscles); ligament_* and spring_* :
     (nf, n); converged (nf,) bool; status (recruitment status code per frame);
     reports : FrameReport per frame; iterations (nf,) recruitment iterations;
-    messages : per-frame text from the reports ('' when converged)."""
+    messages : per-frame text from the reports ('' when converged);
+    actuator_names : the actuators (their columns follow the muscles'), with their
+    optimal forces actuator_optimal_force (n_act,) N or N m."""
 
     time: np.ndarray
     column_names: tuple
@@ -49,6 +51,8 @@ class InverseDynamicsResult:
     iterations: np.ndarray
     wall_time: float = 0.0
     extra: dict = field(default_factory=dict)
+    actuator_names: tuple = ()
+    actuator_optimal_force: np.ndarray = None
 
     @property
     def messages(self):
@@ -131,4 +135,5 @@ def forces_result(rec, solver, time, wall_time, prefix="dyn.", extra_columns=Non
         tuple(x.name for x in model.ligaments), a["ligament_length"], a["ligament_strain"], a["ligament_force"],
         tuple(x.name for x in model.springs), a["spring_force"], converged, rec.objects(prefix + "status"), reports,
         rec.array(prefix + "iterations"), wall_time, {"columns": cols},
+        tuple(a.name for a in lay.actuators), np.array([a.optimal_force for a in lay.actuators], float),
     )

@@ -9,7 +9,11 @@ the generalised force an actuator on that coordinate must apply, conjugate to th
 coordinate (the virtual work τ δq), as OpenSim's InverseDynamicsSolver reports it.
 
 The root joint's coordinates (the joint whose parent is the ground) carry the residuals:
-the forces and moments the ground reaction and the model's loads do not balance.
+the forces and moments the ground reaction and the model's loads do not balance. When
+actuators act on a root coordinate (``reserves:`` makes ``residual_<coordinate>``, or
+OpenSim's residual CoordinateActuators), that coordinate's driver carries no reaction
+and the residual is the sum of its actuators' recruited forces, weighted by their
+optimal force as in OpenSim's static optimisation.
 ``summary.json`` reports their RMS and peak (``residuals``), and a warning is given when
 a residual force exceeds 5 % of the body weight (total mass · g), the usual threshold
 for a dynamically consistent gait trial.
@@ -44,6 +48,20 @@ def generalized_forces(model, dyn):
     return out
 
 
+def actuator_forces(model, dyn):
+    """{OpenSim column name: (nf,) N m or N} of the coordinates that actuators act on:
+    the sum of their recruited forces (``dyn``: an InverseDynamicsResult)."""
+    index = {name: k for k, name in enumerate(dyn.column_names)}
+    units = {c.name: c.unit for c in model.coordinates}
+    out = {}
+    for a in model.actuators:
+        if a.coordinate not in units or a.name not in index:
+            continue
+        key = f"{a.coordinate}_{'moment' if units[a.coordinate] == 'angle' else 'force'}"
+        out[key] = out.get(key, 0.0) + np.asarray(dyn.forces[:, index[a.name]], float)
+    return out
+
+
 def residual_summary(model, columns):
     """RMS and peak of the root joint's generalised forces {column: {rms, peak}}, the
     body weight (N) and the threshold of the residual forces (N)."""
@@ -72,16 +90,18 @@ def write_generalized_forces(out_dir, model, dyn):
     """Write generalized_forces.csv and .sto when the run drove coordinates; returns the
     residual summary (or None), and warns when a residual force is above threshold."""
     columns = generalized_forces(model, dyn)
-    if not columns:
+    actuated = actuator_forces(model, dyn)
+    if not columns and not actuated:
         return None
     out_dir = Path(out_dir)
     time = np.asarray(dyn.time, float)
-    write_table(out_dir / "generalized_forces.csv", {"time": time, **columns})
-    ok = np.asarray(dyn.converged, bool)
-    write_storage(out_dir / "generalized_forces.sto", time[ok], {k: v[ok] for k, v in columns.items()},
-                  name="Inverse Dynamics (openfdk)",
-                  comments=[] if ok.all() else [f"openfdk: {int((~ok).sum())} failed frames left out"])
-    summary = residual_summary(model, columns)
+    if columns:
+        write_table(out_dir / "generalized_forces.csv", {"time": time, **columns})
+        ok = np.asarray(dyn.converged, bool)
+        write_storage(out_dir / "generalized_forces.sto", time[ok], {k: v[ok] for k, v in columns.items()},
+                      name="Inverse Dynamics (openfdk)",
+                      comments=[] if ok.all() else [f"openfdk: {int((~ok).sum())} failed frames left out"])
+    summary = residual_summary(model, {**actuated, **columns})
     threshold = summary["force_threshold_N"]
     for key, stats in summary["columns"].items():
         if key.endswith("_force") and stats["peak"] > threshold:

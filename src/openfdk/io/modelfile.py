@@ -21,6 +21,7 @@ from pathlib import Path
 
 from ..contact.sections import load_contacts
 from ..fdk.settings import load_fdk
+from ..forces.actuator_section import load_actuators, load_reserves
 from ..forces.data_load_section import load_external_loads
 from ..forces.sections import (load_bushings, load_ligaments, load_loads, load_muscles, load_reactions,
                                load_recruitment, load_springs, load_wrapping)
@@ -40,6 +41,8 @@ SECTIONS = (
     ("bushings", load_bushings),
     ("reactions", load_reactions),
     ("loads", load_loads),
+    ("actuators", load_actuators),
+    ("reserves", load_reserves),
     ("external_loads", load_external_loads),
     ("ground_reactions", lambda b, data, ctx: b.elements.__setitem__("ground_reactions", data)),
     ("recruitment", load_recruitment),

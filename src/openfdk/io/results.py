@@ -166,7 +166,11 @@ def forces_columns(res):
         cols[f"{name}.passive_N"] = res.muscle_passive[:, k]
         cols[f"{name}.strength_N"] = res.muscle_strength[:, k]
         cols[f"{name}.length_m"] = res.muscle_length[:, k]
-    for k in range(nm, len(res.column_names)):
+    na = len(res.actuator_names)
+    for j, name in enumerate(res.actuator_names):  # signed, N or N m; control = τ / optimal force
+        cols[f"{name}.actuator"] = res.forces[:, nm + j]
+        cols[f"{name}.control"] = res.forces[:, nm + j] / res.actuator_optimal_force[j]
+    for k in range(nm + na, len(res.column_names)):
         cols[f"{res.column_names[k]}.reaction"] = res.forces[:, k]
     for k, name in enumerate(res.ligament_names):
         cols[f"{name}.force_N"] = res.ligament_force[:, k]

@@ -425,7 +425,7 @@ class ModelBuilder:
 
     #: element kinds collected in ``self.elements`` -> Model field
     ELEMENT_FIELDS = ("muscles", "ligaments", "springs", "contacts", "loads", "unilateral_reactions", "visuals",
-                      "coordinates", "tasks", "external_loads")
+                      "coordinates", "tasks", "external_loads", "actuators")
     SETTING_FIELDS = {"analysis": "kinematics", "recruitment": "recruitment", "fdk": "fdk", "units": "units",
                       "ground_reactions": "ground_reactions"}
 

@@ -43,6 +43,8 @@ class Model:
         :mod:`openfdk.model.coordinate_joint`)
     external_loads : DataLoad (measured loads from a sampled file, e.g. ground
         reactions; :mod:`openfdk.forces.data_loads`)
+    actuators : CoordinateActuator (recruitment columns weighted by their optimal force:
+        OpenSim's reserve and residual actuators; :mod:`openfdk.forces.actuators`)
     tasks : CoordinateTask (soft rows of marker tracking beside the markers, Eq. 4:
         OpenSim's IKCoordinateTasks; :mod:`openfdk.model.tasks`)
 
@@ -69,6 +71,7 @@ class Model:
     coordinates: tuple = ()
     tasks: tuple = ()
     external_loads: tuple = ()
+    actuators: tuple = ()
     source: str = ""
 
     # -- look-ups -------------------------------------------------------------------

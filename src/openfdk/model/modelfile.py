@@ -40,7 +40,8 @@ CORE_SECTIONS = (
 #: sections whose keys are names of model items (bodies, elements, …); those names end up
 #: in file names and XML of exports (export-opensim), so they are checked at load
 NAMED_SECTIONS = ("bodies", "measures", "joints", "constraints", "drivers", "fdk_dofs", "coordinates", "couplers",
-                  "muscles", "ligaments", "springs", "bushings", "contacts", "loads", "reactions", "wrapping")
+                  "muscles", "ligaments", "springs", "bushings", "contacts", "loads", "reactions", "wrapping",
+                  "actuators")
 #: characters a name may not contain: path separators and XML's reserved characters
 #: (control characters are refused too)
 NAME_FORBIDDEN = set('/\\<>&"')

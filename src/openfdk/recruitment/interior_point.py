@@ -2,20 +2,24 @@
 
 Solves the reduced recruitment problem (see :mod:`openfdk.recruitment.reduction`)
 
-    minimise G(x) = Σ_i x_i^p   s.t.   A x = b,   0 ≤ x ≤ 1,            (p ≥ 2)
+    minimise G(x) = Σ_i x_i^p   s.t.   A x = b,   0 ≤ x ≤ u,            (p ≥ 2)
 
-with A (r, n) having orthonormal rows. KKT conditions, with equality multipliers μ and
-bound multipliers z (x ≥ 0), w (x ≤ 1):
+with A (r, n) having orthonormal rows and upper bounds u_i > 0 (1 for muscles and
+one-sided reactions; an actuator's control limit, possibly +∞). KKT conditions, with
+equality multipliers μ and bound multipliers z (x ≥ 0), w (x ≤ u):
 
     r_d = ∇G(x) − Aᵀμ − z + w = 0,   r_p = A x − b = 0,
-    x_i z_i = 0,   (1 − x_i) w_i = 0,   z, w ≥ 0.
+    x_i z_i = 0,   (u_i − x_i) w_i = 0,   z, w ≥ 0.
+
+A variable without an upper bound (u_i = +∞) has w_i = 0 throughout, and its terms of
+the upper bound drop out of Σ, ρ and the complementarity.
 
 Algorithm: Mehrotra's predictor–corrector primal–dual path-following method (Mehrotra,
 SIAM J Optim 2(4), 1992; S. J. Wright, "Primal-Dual Interior-Point Methods", SIAM 1997,
 ch. 10; Nocedal & Wright, "Numerical Optimization", 2nd ed., Alg. 16.4 for the QP case and
 §19.3 for the nonlinear Newton step). Each Newton step eliminates the bound multipliers,
 
-    Σ = ∇²G + Z X⁻¹ + W (I − X)⁻¹               (diagonal, > 0)
+    Σ = ∇²G + Z X⁻¹ + W (U − X)⁻¹               (diagonal, > 0)
     (A Σ⁻¹ Aᵀ) Δμ = −r_p − A Σ⁻¹ ρ,   Δx = Σ⁻¹ (ρ + Aᵀ Δμ),
 
 so the only factorisation is an r × r Cholesky (r ≤ 6 for one body). Predictor and
@@ -45,14 +49,14 @@ IPM_FAILED = 2
 
 
 @njit(cache=True, error_model="numpy")
-def _max_primal_step(x, dx):
-    """Largest α ≤ 1 keeping 0 ≤ x + αΔx ≤ 1."""
+def _max_primal_step(x, dx, u):
+    """Largest α ≤ 1 keeping 0 ≤ x + αΔx ≤ u (u_i may be +∞)."""
     alpha = 1.0
     for i in range(x.shape[0]):
         if dx[i] < 0.0:
             alpha = min(alpha, -x[i] / dx[i])
         elif dx[i] > 0.0:
-            alpha = min(alpha, (1.0 - x[i]) / dx[i])
+            alpha = min(alpha, (u[i] - x[i]) / dx[i])
     return alpha
 
 
@@ -88,23 +92,27 @@ def _newton_direction(A, L_K, Sigma, rho, r_p, dx, dmu, rhs_r):
 
 
 @njit(cache=True, error_model="numpy")
-def ipm_starting_point(A, b, p):
+def ipm_starting_point(A, b, p, u):
     """Starting point (x, z, w, μ) of :func:`power_box_ipm`.
 
-    x = least-norm solution Aᵀb of A x = b (A Aᵀ = I) clipped to [0.05, 0.5] — typical
-    activities are small, so this starts closer to the solution than the box centre;
-    z = w = 0.1; μ = A(∇G(x) − z + w), the least-squares fit of r_d = 0.
+    x = least-norm solution Aᵀb of A x = b (A Aᵀ = I) clipped to [0.05, 0.5] · min(u, 1)
+    — typical activities are small, so this starts closer to the solution than the box
+    centre; z = 0.1, w = 0.1 (0 without an upper bound); μ = A(∇G(x) − z + w), the
+    least-squares fit of r_d = 0. u : (n,) upper bounds > 0 (+∞ allowed).
     Returns x (n,), z (n,), w (n,), μ (r,).
     """
     r, n = A.shape
     x = np.empty(n)
+    z = np.full(n, 0.1)
+    w = np.full(n, 0.1)
     for i in range(n):
         acc = 0.0
         for a in range(r):
             acc += A[a, i] * b[a]
-        x[i] = min(max(acc, 0.05), 0.5)
-    z = np.full(n, 0.1)
-    w = np.full(n, 0.1)
+        scale = min(u[i], 1.0)
+        x[i] = min(max(acc, 0.05 * scale), 0.5 * scale)
+        if np.isinf(u[i]):
+            w[i] = 0.0
     mu = np.zeros(r)
     for a in range(r):
         acc = 0.0
@@ -115,8 +123,8 @@ def ipm_starting_point(A, b, p):
 
 
 @njit(cache=True, error_model="numpy")
-def power_box_ipm(A, b, p, x, z, w, mu, tol, max_iter):
-    """Mehrotra predictor–corrector IPM for min Σ x^p s.t. A x = b, 0 ≤ x ≤ 1.
+def power_box_ipm(A, b, p, u, x, z, w, mu, tol, max_iter):
+    """Mehrotra predictor–corrector IPM for min Σ x^p s.t. A x = b, 0 ≤ x ≤ u.
 
     Iterates in place from (x, z, w, μ) — use :func:`ipm_starting_point`, or the state
     left by a previous call with a looser tolerance to continue.
@@ -124,6 +132,7 @@ def power_box_ipm(A, b, p, x, z, w, mu, tol, max_iter):
     Parameters
     ----------
     A : (r, n) dimensionless, orthonormal rows; b : (r,); p : float ≥ 2;
+    u : (n,) upper bounds > 0 (+∞: none; then w_i = 0);
     x, z, w : (n,) strictly inside their bounds; mu : (r,) (all modified in place);
     tol : tolerance on ‖r_p‖∞, ‖r_d‖∞/(1+‖∇G‖∞) and the mean complementarity;
     max_iter : int.
@@ -149,6 +158,13 @@ def power_box_ipm(A, b, p, x, z, w, mu, tol, max_iter):
     dmu = np.empty(r)
     rhs_r = np.empty(r)
     K = np.empty((r, r))
+    # 1/(u − x) of the upper bounds, 0 where there is none (u = +∞, w = 0)
+    bounded = np.empty(n, dtype=np.bool_)
+    n_pairs = n
+    for i in range(n):
+        bounded[i] = not np.isinf(u[i])
+        if bounded[i]:
+            n_pairs += 1
 
     status = IPM_MAX_ITER
     iteration = 0
@@ -171,8 +187,10 @@ def power_box_ipm(A, b, p, x, z, w, mu, tol, max_iter):
             r_d[i] = acc
             if abs(acc) > rd_max:
                 rd_max = abs(acc)
-            tau += x[i] * z[i] + (1.0 - x[i]) * w[i]
-        tau /= 2.0 * n
+            tau += x[i] * z[i]
+            if bounded[i]:
+                tau += (u[i] - x[i]) * w[i]
+        tau /= n_pairs
         rp_max = 0.0
         for a in range(r):
             acc = -b[a]
@@ -189,9 +207,11 @@ def power_box_ipm(A, b, p, x, z, w, mu, tol, max_iter):
             break
         iteration += 1
 
-        # Σ = ∇²G + Z X⁻¹ + W (I − X)⁻¹, K = A Σ⁻¹ Aᵀ
+        # Σ = ∇²G + Z X⁻¹ + W (U − X)⁻¹, K = A Σ⁻¹ Aᵀ
         for i in range(n):
-            Sigma[i] = hess[i] + z[i] / x[i] + w[i] / (1.0 - x[i])
+            Sigma[i] = hess[i] + z[i] / x[i]
+            if bounded[i]:
+                Sigma[i] += w[i] / (u[i] - x[i])
             inv_Sigma[i] = 1.0 / Sigma[i]
         weighted_gram(A, inv_Sigma, K)
         if not cholesky_in_place(K, 1e-14):
@@ -204,30 +224,34 @@ def power_box_ipm(A, b, p, x, z, w, mu, tol, max_iter):
         _newton_direction(A, K, Sigma, rho, r_p, dx_aff, dmu, rhs_r)
         for i in range(n):
             dz_aff[i] = -z[i] - z[i] * dx_aff[i] / x[i]
-            dw_aff[i] = -w[i] + w[i] * dx_aff[i] / (1.0 - x[i])
-        alpha_p = _max_primal_step(x, dx_aff)
+            dw_aff[i] = (-w[i] + w[i] * dx_aff[i] / (u[i] - x[i])) if bounded[i] else 0.0
+        alpha_p = _max_primal_step(x, dx_aff, u)
         alpha_d = _max_dual_step(z, dz_aff, w, dw_aff)
         tau_aff = 0.0
         for i in range(n):
             tau_aff += (x[i] + alpha_p * dx_aff[i]) * (z[i] + alpha_d * dz_aff[i])
-            tau_aff += (1.0 - x[i] - alpha_p * dx_aff[i]) * (w[i] + alpha_d * dw_aff[i])
-        tau_aff /= 2.0 * n
+            if bounded[i]:
+                tau_aff += (u[i] - x[i] - alpha_p * dx_aff[i]) * (w[i] + alpha_d * dw_aff[i])
+        tau_aff /= n_pairs
         sigma = (tau_aff / tau) ** 3
         target = sigma * tau
 
-        # corrector: r_l = x z + Δx_a Δz_a − στ, r_u = (1−x) w − Δx_a Δw_a − στ
+        # corrector: r_l = x z + Δx_a Δz_a − στ, r_u = (u−x) w − Δx_a Δw_a − στ
         for i in range(n):
             r_l = x[i] * z[i] + dx_aff[i] * dz_aff[i] - target
-            r_u = (1.0 - x[i]) * w[i] - dx_aff[i] * dw_aff[i] - target
-            rho[i] = -r_d[i] - r_l / x[i] + r_u / (1.0 - x[i])
+            rho[i] = -r_d[i] - r_l / x[i]
+            r_u = 0.0
+            if bounded[i]:
+                r_u = (u[i] - x[i]) * w[i] - dx_aff[i] * dw_aff[i] - target
+                rho[i] += r_u / (u[i] - x[i])
             # keep r_l, r_u for Δz, Δw below (stored in dz, dw temporarily)
             dz[i] = r_l
             dw[i] = r_u
         _newton_direction(A, K, Sigma, rho, r_p, dx, dmu, rhs_r)
         for i in range(n):
             dz[i] = (-dz[i] - z[i] * dx[i]) / x[i]
-            dw[i] = (-dw[i] + w[i] * dx[i]) / (1.0 - x[i])
-        alpha_p = min(1.0, 0.995 * _max_primal_step(x, dx))
+            dw[i] = ((-dw[i] + w[i] * dx[i]) / (u[i] - x[i])) if bounded[i] else 0.0
+        alpha_p = min(1.0, 0.995 * _max_primal_step(x, dx, u))
         alpha_d = min(1.0, 0.995 * _max_dual_step(z, dz, w, dw))
         for i in range(n):
             z[i] += alpha_d * dz[i]

@@ -1,10 +1,14 @@
-"""Polynomial muscle recruitment (paper Eq. 11): min Σ (f_i/s_i)^p s.t. C f = d, 0 ≤ f_B ≤ s.
+"""Polynomial muscle recruitment (paper Eq. 11): min Σ (f_i/s_i)^p s.t. C f = d, 0 ≤ f_B ≤ u s.
+
+u is 1 for muscles and one-sided reactions (the paper's 0 ≤ f ≤ s); an actuator (OpenSim's
+reserve and residual actuators, :mod:`openfdk.forces.actuators`) has s = its optimal force
+(its weight) and u = its control limit, possibly +∞.
 
 Pipeline (all numerical work in one numba call):
 
 1. :func:`~openfdk.recruitment.reduction.reduce_problem` eliminates the free forces
    (joint reactions, FDK residual forces) and redundant rows, leaving
-   min Σ x^p s.t. A_r x = b_r, 0 ≤ x ≤ 1 in the activities x = f_B/s.
+   min Σ x^p s.t. A_r x = b_r, 0 ≤ x ≤ u in the activities x = f_B/s.
 2. Cold start: Mehrotra predictor–corrector primal–dual interior-point method
    (:mod:`~openfdk.recruitment.interior_point`; Wright 1997, ch. 10; Nocedal & Wright
    2006, Alg. 16.4 / §19.3) to a moderate tolerance, then
@@ -71,9 +75,10 @@ _WARM_MAX_ITER = 20
 
 
 @njit(cache=True, error_model="numpy")
-def _solve_polynomial_kernel(C, d, n_bounded, s, p, warm_mode, lam_start, x_start, tol,
+def _solve_polynomial_kernel(C, d, n_bounded, s, upper, p, warm_mode, lam_start, x_start, tol,
                              max_iter):
-    """Numba driver; warm_mode 0 cold, 1 from multipliers λ (m,), 2 from activities x (n_B,).
+    """Numba driver; upper (n_B,) activity bounds u (+∞ allowed); warm_mode 0 cold, 1 from
+    multipliers λ (m,), 2 from activities x (n_B,).
 
     Returns f (n,) N, λ (m,), active_upper (n,) bool, active_lower (n,) bool,
     residual C f − d (m,), objective G, status code, iterations.
@@ -102,29 +107,29 @@ def _solve_polynomial_kernel(C, d, n_bounded, s, p, warm_mode, lam_start, x_star
             if warm_mode == 1:
                 mu_start = multiplier_to_reduced(lam_start, Sigma_r, Q2U_r)
             else:
-                mu_start = multipliers_from_primal(A_r, x_start, p)
-            x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, mu_start, tol,
+                mu_start = multipliers_from_primal(A_r, x_start, p, upper)
+            x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, upper, mu_start, tol,
                                                            _WARM_MAX_ITER)
             iterations += it
             solved = dual_status == DUAL_CONVERGED
         if not solved:
             # interior point to a loose tolerance, then the dual Newton polish
-            x_ipm, z_ipm, w_ipm, mu_ipm = ipm_starting_point(A_r, b_r, p)
-            ipm_status, it = power_box_ipm(A_r, b_r, p, x_ipm, z_ipm, w_ipm, mu_ipm,
+            x_ipm, z_ipm, w_ipm, mu_ipm = ipm_starting_point(A_r, b_r, p, upper)
+            ipm_status, it = power_box_ipm(A_r, b_r, p, upper, x_ipm, z_ipm, w_ipm, mu_ipm,
                                            max(tol, _IPM_LOOSE_TOL), max_iter)
             iterations += it
             if ipm_status == IPM_CONVERGED:
-                x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, mu_ipm, tol,
+                x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, upper, mu_ipm, tol,
                                                                _POLISH_MAX_ITER)
                 iterations += it
                 solved = dual_status == DUAL_CONVERGED
             if not solved and ipm_status == IPM_CONVERGED:
                 # continue the interior point to ``tol`` and polish again
-                ipm_status, it = power_box_ipm(A_r, b_r, p, x_ipm, z_ipm, w_ipm, mu_ipm,
+                ipm_status, it = power_box_ipm(A_r, b_r, p, upper, x_ipm, z_ipm, w_ipm, mu_ipm,
                                                tol, max(max_iter - iterations, 1))
                 iterations += it
                 if ipm_status == IPM_CONVERGED:
-                    x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, mu_ipm, tol,
+                    x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, upper, mu_ipm, tol,
                                                                    _WARM_MAX_ITER)
                     iterations += it
                     solved = dual_status == DUAL_CONVERGED
@@ -138,7 +143,7 @@ def _solve_polynomial_kernel(C, d, n_bounded, s, p, warm_mode, lam_start, x_star
                         for j in range(n_bounded):
                             if z_ipm[j] > x_ipm[j]:
                                 bound_state[j] = -1
-                            elif w_ipm[j] > 1.0 - x_ipm[j]:
+                            elif w_ipm[j] > upper[j] - x_ipm[j]:
                                 bound_state[j] = 1
             if not solved:
                 status = _NUMERICAL_FAILURE if ipm_status == IPM_FAILED else _MAX_ITER
@@ -152,7 +157,7 @@ def _solve_polynomial_kernel(C, d, n_bounded, s, p, warm_mode, lam_start, x_star
         objective += power(x[j], p)
         if from_dual:
             active_lower[j] = x[j] <= 0.0
-            active_upper[j] = x[j] >= 1.0
+            active_upper[j] = x[j] >= upper[j]
         else:
             active_lower[j] = bound_state[j] < 0
             active_upper[j] = bound_state[j] > 0
@@ -198,8 +203,8 @@ def _warm_start(x0, n_eq, n_var, n_bounded, s):
 
 
 def solve_polynomial(C, d, n_bounded, s, p=3.0, *, x0=None, tol=1e-10, max_iter=100,
-                     row_names=None, column_names=None) -> RecruitmentResult:
-    """Polynomial recruitment: minimise G = Σ_{i<n_bounded} (f_i/s_i)^p s.t. C f = d, 0 ≤ f_B ≤ s.
+                     row_names=None, column_names=None, upper=None) -> RecruitmentResult:
+    """Polynomial recruitment: minimise G = Σ_{i<n_bounded} (f_i/s_i)^p s.t. C f = d, 0 ≤ f_B ≤ u s.
 
     Parameters
     ----------
@@ -215,6 +220,8 @@ def solve_polynomial(C, d, n_bounded, s, p=3.0, *, x0=None, tol=1e-10, max_iter=
         after the free forces are eliminated; optimality and bounds hold exactly.
     max_iter : maximal interior-point iterations.
     row_names : optional (n_eq,) names used in messages; column_names : optional (n_var,).
+    upper : optional (n_bounded,) activity bounds u > 0 (default 1: f_B ≤ s), +∞ for none:
+        an actuator weighted by its optimal force s with control limit u.
 
     Returns
     -------
@@ -227,10 +234,11 @@ def solve_polynomial(C, d, n_bounded, s, p=3.0, *, x0=None, tol=1e-10, max_iter=
     columns are linearly dependent.
     """
     C, d, s = check_problem(C, d, n_bounded, s, row_names, column_names)
+    upper = activity_bounds(upper, n_bounded)
     if n_bounded and s.min() == 0.0:
         return solve_without_zero_strength(solve_polynomial, C, d, int(n_bounded), s,
                                            column_names=column_names, p=p, x0=x0, tol=tol,
-                                           max_iter=max_iter, row_names=row_names)
+                                           max_iter=max_iter, row_names=row_names, upper=upper)
     p = float(p)
     if not (np.isfinite(p) and p >= 2.0):
         raise RecruitmentInputError(f"exponent p must be a finite number ≥ 2; got {p!r}")
@@ -250,7 +258,7 @@ def solve_polynomial(C, d, n_bounded, s, p=3.0, *, x0=None, tol=1e-10, max_iter=
     warm_mode, lam_start, x_start = _warm_start(x0, n_eq, n_var, n_bounded, s)
     f, lam, active_upper, active_lower, residual, objective, code, iterations = \
         _solve_polynomial_kernel(
-            C, d, n_bounded, s, p, warm_mode, lam_start, x_start, float(tol), int(max_iter)
+            C, d, n_bounded, s, upper, p, warm_mode, lam_start, x_start, float(tol), int(max_iter)
         )
     if code == _RANK_DEFICIENT_FREE:
         _, sigma, VT = np.linalg.svd(C[:, n_bounded:])
@@ -265,7 +273,7 @@ def solve_polynomial(C, d, n_bounded, s, p=3.0, *, x0=None, tol=1e-10, max_iter=
             residual=residual, n_bounded=n_bounded, criterion="polynomial", p=p,
         )
     return failed_result(C, d, n_bounded, s, p, iterations, row_names, "polynomial",
-                         f"polynomial recruitment (p = {p:g})")
+                         f"polynomial recruitment (p = {p:g})", upper=upper)
 
 
 def _square_free_solution(C, d):
@@ -284,14 +292,27 @@ def _square_free_solution(C, d):
     return f, residual
 
 
-def failed_result(C, d, n_bounded, s, p, iterations, row_names, criterion, what):
+def activity_bounds(upper, n_bounded):
+    """The activity bounds u (n_bounded,) of :func:`solve_polynomial`: ones by default;
+    each > 0 (+∞ allowed), else RecruitmentInputError."""
+    if upper is None:
+        return np.ones(int(n_bounded))
+    upper = np.ascontiguousarray(upper, dtype=np.float64)
+    if upper.shape != (int(n_bounded),):
+        raise RecruitmentInputError(f"upper must have shape ({n_bounded},) = (n_bounded,); got {upper.shape}")
+    if np.isnan(upper).any() or (upper <= 0.0).any():
+        raise RecruitmentInputError("upper (activity bounds) must be > 0 (+inf for none)")
+    return upper
+
+
+def failed_result(C, d, n_bounded, s, p, iterations, row_names, criterion, what, upper=None):
     """Result for a frame the solver could not solve: diagnose with the phase-1 LP.
 
     Returns RecruitmentResult with converged=False; status ``infeasible`` (rows named) or
     ``not_converged`` (the problem is feasible but the solver failed).
     """
     n_eq, n_var = C.shape
-    diagnosis = diagnose_infeasibility(C, d, n_bounded, s, row_names)
+    diagnosis = diagnose_infeasibility(C, d, n_bounded, s, row_names, upper=upper)
     nan_lam = np.full(n_eq, np.nan)
     no_mask = np.zeros(n_var, dtype=bool)
     if diagnosis.feasible:

@@ -125,7 +125,9 @@ def recruitment_sensitivity(result: RecruitmentResult, C, d, s, p, dC, dd, ds=No
 
     # H_i = p (p−1) f_i^(p−2) / s_i^p on the interior bounded forces
     f_I = f[interior]
-    hessian_I = p * (p - 1.0) * f_I ** (p - 2.0) / s[interior] ** p
+    # (|f| and sign(f) |f|^(p−1): an actuator's folded column may be negative, its
+    # criterion is |f/s|^p — :mod:`openfdk.forces.actuators`)
+    hessian_I = p * (p - 1.0) * np.abs(f_I) ** (p - 2.0) / s[interior] ** p
     C_I = C[:, interior]
     C_F = C[:, free]
     CI_Hinv = C_I / hessian_I  # C_I H_I⁻¹
@@ -141,7 +143,7 @@ def recruitment_sensitivity(result: RecruitmentResult, C, d, s, p, dC, dd, ds=No
     dC_F = dC[:, :, free]
     dCI_T_lam = np.einsum("kei,e->ki", dC_I, lam)  # dC_Iᵀ λ (k, n_I)
     # strength change of interior forces: −∂∇G_I/∂s ds = p² f^(p−1)/s^(p+1) ds
-    dCI_T_lam = dCI_T_lam + p * p * f_I ** (p - 1.0) / s[interior] ** (p + 1.0) * ds[:, interior]
+    dCI_T_lam = dCI_T_lam + p * p * np.sign(f_I) * np.abs(f_I) ** (p - 1.0) / s[interior] ** (p + 1.0) * ds[:, interior]
     dd = dd - ds[:, upper] @ C[:, upper].T  # forces at their strength move with it
     rhs = np.zeros((n_eq + n_free, k))
     rhs[:n_eq] = (dd - dC @ f - dCI_T_lam @ CI_Hinv.T).T

@@ -16,7 +16,8 @@ read into the same records:
   or ``geometry_files``.
 
 ForceSet: ``Thelen2003Muscle`` with a GeometryPath of ``PathPoint``\\ s (4.x:
-``socket_parent_frame``; 3.x: ``body``) is read into OsimMuscle records; every other
+``socket_parent_frame``; 3.x: ``body``) is read into OsimMuscle records and a
+``CoordinateActuator`` into an ``actuators`` entry (:mod:`.actuators`); every other
 force, and a muscle whose path holds anything but PathPoints, is listed as unsupported.
 
 Units: OpenSim files are in m, kg, rad (``length_units`` other than meters is refused).
@@ -233,6 +234,7 @@ class OsimDocument:
     unsupported: list  # (type, name, line) of elements openfdk does not read
     ignored: list = field(default_factory=list)  # the same, left out on request (--ignore)
     muscles: list = field(default_factory=list)  # OsimMuscle, in the ForceSet's order
+    actuators: dict = field(default_factory=dict)  # CoordinateActuators {name: actuators-section entry}
 
 
 def _parser():
@@ -360,6 +362,7 @@ class _Reader:
         self.bodies, self.frames, self.coordinates = {}, {}, {}
         self.joints, self.constraints, self.markers, self.geometry = [], [], [], []
         self.muscles = []
+        self.actuators = {}
         self.unsupported, self.ignored = [], []
         self.pending = []  # (frame key, socket path, scope): frames whose parent is resolved after reading
         self.joint_sockets = []  # (joint, parent path, child path, scope)
@@ -455,12 +458,21 @@ class _Reader:
             self.read_constraint(c, legacy)
         for m in self.objects(model.find("MarkerSet")):
             self.read_marker(m, legacy)
+        from .actuators import ACTUATOR_TYPES, read_coordinate_actuator  # (imports this module)
+
         for tag in ("ForceSet", "ContactGeometrySet", "ProbeSet", "ControllerSet"):
             for e in self.objects(model.find(tag)):
                 if tag == "ForceSet" and "forces" in self.ignore:
                     self.ignored.append((e.tag, e.get("name") or "", e.sourceline))
                 elif tag == "ForceSet" and e.tag in MUSCLE_TYPES and e.tag not in self.ignore:
                     self.read_muscle(e, legacy)
+                elif tag == "ForceSet" and e.tag in ACTUATOR_TYPES and e.tag not in self.ignore:
+                    name, entry = read_coordinate_actuator(e, self.source)
+                    if entry is None:
+                        self.ignored.append((e.tag, name, e.sourceline))  # disabled: OpenSim skips it too
+                    else:
+                        self.once(e, "actuator", name)
+                        self.actuators[name] = entry
                 else:
                     self.skip(e)
         for e in model:
@@ -505,7 +517,7 @@ class _Reader:
                                     "body nor a frame of the model")
         return OsimDocument(self.source, self.path, name, version, gravity, self.bodies, self.frames, self.joints,
                             self.coordinates, self.constraints, self.markers, self.geometry, self.unsupported,
-                            self.ignored, self.muscles)
+                            self.ignored, self.muscles, self.actuators)
 
     def resolve(self, path, scope=""):
         """The key in ``self.frames`` of a socket path, read in ``scope`` (the owner of

@@ -48,6 +48,7 @@ class ImportOptions:
     external_loads: Path | None = None
     motion: Path | None = None
     motion_cutoff_hz: float | None = None
+    actuators: Path | None = None
     info: dict = field(default_factory=dict)
 
 
@@ -61,7 +62,7 @@ def _key(path):
 
 
 def register(path, ignore=(), mesh_dirs=(), overlay=None, ik_tasks=None, external_loads=None, motion=None,
-             motion_cutoff_hz=None):
+             motion_cutoff_hz=None, actuators=None):
     """Options for the ``.osim`` at ``path`` in this process (the command line's
     ``--ignore``, ``--geometry``, ``--with`` and ``--ik-tasks``)."""
     for d in mesh_dirs:
@@ -70,7 +71,8 @@ def register(path, ignore=(), mesh_dirs=(), overlay=None, ik_tasks=None, externa
     _REGISTERED[_key(path)] = ImportOptions(tuple(ignore), tuple(mesh_dirs), None if overlay is None else Path(overlay),
                                             None if ik_tasks is None else Path(ik_tasks),
                                             None if external_loads is None else Path(external_loads),
-                                            None if motion is None else Path(motion), motion_cutoff_hz)
+                                            None if motion is None else Path(motion), motion_cutoff_hz,
+                                            None if actuators is None else Path(actuators))
 
 
 def import_info(path):
@@ -106,6 +108,11 @@ def imported_model_data(path):
 
         data = motion_drivers(opts.motion, data, opts.motion_cutoff_hz)
         info["motion"] = str(opts.motion)
+    if opts.actuators is not None:
+        from .actuators import read_actuator_file
+
+        data = read_actuator_file(opts.actuators, data, info)
+        info["actuators"] = str(opts.actuators)
     if opts.overlay is not None:
         overlay = read_yaml(opts.overlay, ModelError, "overlay file")
         data = merge_overlay(data, overlay, Path(opts.overlay).name, allow_options=False,
@@ -147,8 +154,9 @@ def overlay_model_data(path, data):
 def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None):
     """The imported mapping ``data`` with the sections of ``overlay`` added (module
     docstring); errors name the overlay file and the entry. ``external_loads: FILE.xml``
-    (OpenSim's ExternalLoads), ``motion: FILE.mot`` and ``motion_cutoff_hz`` are read
-    relative to ``base_dir`` (the overlay's folder)."""
+    (OpenSim's ExternalLoads), ``motion: FILE.mot``, ``motion_cutoff_hz`` and
+    ``actuators: FILE.xml`` (an OpenSim actuator file) are read relative to ``base_dir``
+    (the overlay's folder)."""
     from ...model.modelfile import CORE_SECTIONS
     from ..modelfile import SECTIONS
 
@@ -174,6 +182,13 @@ def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None
         if not isinstance(motion, str) or not (base_dir / motion).is_file():
             raise ModelError(f"{source}: motion: expected an existing .mot/.sto file, got {motion!r}")
         data = motion_drivers(base_dir / motion, data, cutoff)
+    if isinstance(overlay.get("actuators"), str):
+        from .actuators import read_actuator_file
+
+        xml = base_dir / overlay.pop("actuators")
+        if not xml.is_file():
+            raise ModelError(f"{source}: actuators: {str(xml)!r} does not exist")
+        data = read_actuator_file(xml, data, info)
     known = [k for k in CORE_SECTIONS + tuple(name for name, _ in SECTIONS) if k not in MODEL_SECTIONS]
     out = dict(data)
     for key, value in overlay.items():

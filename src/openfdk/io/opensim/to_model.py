@@ -174,6 +174,10 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         out["couplers"] = couplers
     if muscles:
         out["muscles"] = muscles
+    if doc.actuators:
+        from .actuators import add_actuators
+
+        out = add_actuators(out, doc.actuators, coordinates, doc.source)
     merged = {b: tree.root[b] for b in doc.bodies if tree.root[b] != b}
     # each OpenSim body frame in its openfdk body (for data given in a body's frame)
     body_frames = {}
