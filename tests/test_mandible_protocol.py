@@ -156,3 +156,46 @@ def test_a_failing_task_is_reported_and_the_others_are_written(subject_dir, tmp_
     assert {r["task"] for r in rows} == {"open_close"} and {r["n_cycles"] for r in rows} == {"2"}
     assert (out / "figures" / "open_close_kinematics.png").is_file()
     assert not (out / "figures" / "still_kinematics.png").exists()
+
+
+def test_static_pose_takes_the_rotation_and_translation_registration_yaml_reports(subject_dir, tmp_path):
+    """The static pose a braces registration measures, written to registration.yaml
+    (R_SM rounded to 9 digits, p_SM in mm to 6), pasted as it is into
+    registration.static_pose: the static_trial registration uses that pose (to the
+    printed digits), and carries the static trial's mandible markers to the subject's
+    braces as the braces registration does. A rotation in the file's length unit
+    ({rotation, translation}) is read too; a matrix that is not a rotation is refused."""
+    from openfdk.mandible.experiment import simulate_task, true_marker_positions
+    from openfdk.mandible.generator import load_anatomy
+    from openfdk.mandible.registration import register_from_braces
+    from openfdk.mandible.study import register_subject, static_pose
+    from openfdk.mandible.truth import TrueJoint, TruthOptions
+
+    base = load_subject(subject_dir)
+    rng = np.random.default_rng(2)
+    anatomy = load_anatomy(subject_dir)
+    joint = TrueJoint.build(anatomy.condyles, anatomy.fossae, base.cartilage_offset, TruthOptions.exact(), rng)
+    markers = true_marker_positions(base, TruthOptions.exact(), rng)
+    truth = simulate_task(base, joint, markers, "reference", rng=rng, static_opening_deg=4.6)
+    trial = MarkerTrial(base.marker_labels, 100.0, truth.time, truth.markers_L, "static.c3d")
+    reported = yaml.safe_load(yaml.safe_dump(register_from_braces(base, trial).to_dict()))["static_pose"]
+    folder = _with(subject_dir, tmp_path, trials={"reference": {"file": "trials/static.c3d", "kind": "static"}},
+                   registration={"method": "static_trial", "static_pose": reported})
+    from openfdk.io.c3d import write_c3d
+
+    (folder / "trials").mkdir(exist_ok=True)
+    write_c3d(folder / "trials" / "static.c3d", base.marker_labels, truth.markers_L, 100.0, units="mm")
+    subject = load_subject(folder)
+    pose = static_pose(subject)
+    np.testing.assert_allclose(pose.R_SM, truth.R_SM[0], atol=2e-9)
+    np.testing.assert_allclose(pose.p_SM, truth.p_SM[0], atol=2e-9)
+    reg = register_subject(subject)
+    assert reg.method == "static_trial"
+    # float32 C3D coordinates (lab positions near 1 m: ≈ 6e-8 m resolution)
+    np.testing.assert_allclose(reg["mandible"][1], base.braces["mandible"].positions, atol=1e-6)
+    folder2 = _with(subject_dir, tmp_path / "b", registration={"method": "static_trial", "static_pose": {
+        "rotation": reported["R_SM"], "translation": reported["p_SM_mm"]}})
+    np.testing.assert_allclose(static_pose(load_subject(folder2)).p_SM, truth.p_SM[0], atol=2e-9)
+    bad = dict(reported, R_SM=[[1, 0, 0], [0, 1, 0], [0, 0, 2]])
+    with pytest.raises(SubjectError, match=r"registration\.static_pose\.R_SM: expected a rotation matrix"):
+        load_subject(_with(subject_dir, tmp_path / "c", registration={"method": "static_trial", "static_pose": bad}))

@@ -156,14 +156,44 @@ def _trials(ctx, data, directory: Path) -> dict:
     return out
 
 
+#: keys of a static pose given as registration.yaml reports it (``R_SM``, ``p_SM_mm``;
+#: ``description`` and ``rotation_deg`` are accepted so that the block can be pasted)
+_REPORTED_POSE = {"R_SM", "p_SM_mm", "description", "rotation_deg"}
+
+
+def _rotation(ctx, value, where) -> np.ndarray:
+    """A proper rotation matrix (3, 3) from a list of 3 rows; rows orthonormal to 1e-6."""
+    from ..io.yamlfile import YamlContext
+
+    R = YamlContext.vector(ctx, value, where, None, (3, 3))
+    if np.max(np.abs(R @ R.T - np.eye(3))) > 1e-6 or np.linalg.det(R) <= 0:
+        raise ctx.error(where, "expected a rotation matrix (3 orthonormal rows, determinant +1)")
+    U, _, Vt = np.linalg.svd(R)                 # remove the round-off of the printed digits
+    return U @ Vt
+
+
 def _static_pose(ctx, data, where):
-    data = ctx.mapping(data, where, allowed={"opening", "translation", "incisal_gap"})
-    if "incisal_gap" in data:
-        if set(data) != {"incisal_gap"}:
+    """``{incisal_gap}``, ``{opening, translation}``, ``{rotation, translation}`` (a 3 × 3
+    matrix and the file's length unit) or registration.yaml's ``{R_SM, p_SM_mm}``."""
+    data = ctx.mapping(data, where, allowed={"opening", "rotation", "translation", "incisal_gap"} | _REPORTED_POSE)
+    given = set(data)
+    if "incisal_gap" in given:
+        if given != {"incisal_gap"}:
             raise ctx.error(where, "give either incisal_gap or opening/translation, not both")
         return {"incisal_gap": ctx.length * ctx.number(data["incisal_gap"], f"{where}.incisal_gap", low=0.0)}
+    if given & _REPORTED_POSE:
+        if not {"R_SM", "p_SM_mm"} <= given or given - _REPORTED_POSE:
+            raise ctx.error(where, "the form registration.yaml reports needs R_SM (3 rows) and p_SM_mm (mm), "
+                                   "without opening/rotation/translation")
+        return {"rotation": _rotation(ctx, data["R_SM"], f"{where}.R_SM"),
+                "translation": tuple(1e-3 * ctx.vector(data["p_SM_mm"], f"{where}.p_SM_mm"))}
+    translation = tuple(ctx.length * ctx.vector(data.get("translation", [0, 0, 0]), f"{where}.translation"))
+    if "rotation" in given:
+        if "opening" in given:
+            raise ctx.error(where, "give either opening or rotation, not both")
+        return {"rotation": _rotation(ctx, data["rotation"], f"{where}.rotation"), "translation": translation}
     return {"opening": ctx.angle * ctx.number(data.get("opening", 0.0), f"{where}.opening"),
-            "translation": tuple(ctx.length * ctx.vector(data.get("translation", [0, 0, 0]), f"{where}.translation"))}
+            "translation": translation}
 
 
 def parse_protocol(ctx, data: dict, directory: Path, landmarks: dict, muscle_names) -> StudyProtocol:

@@ -94,6 +94,10 @@ def static_pose(subject) -> StaticPose | None:
         return None
     if "incisal_gap" in pose:
         return StaticPose.from_incisal_gap(subject, pose["incisal_gap"])
+    if "rotation" in pose:      # x_S = R_SM x_M + p_SM, as registration.yaml reports it
+        t_mm = ", ".join(f"{1e3 * v:.4g}" for v in pose["translation"])
+        return StaticPose(np.array(pose["rotation"]), np.array(pose["translation"]),
+                          f"rotation R_SM and translation p_SM [{t_mm}] mm")
     return StaticPose.from_opening(subject, np.rad2deg(pose["opening"]), pose["translation"])
 
 
