@@ -97,6 +97,30 @@ def _read_summary(path):
     return summary
 
 
+#: the columns of a body's pose in kinematics.csv (position, m, and quaternion)
+POSE_COLUMNS = ("x_m", "y_m", "z_m", "e0", "e1", "e2", "e3")
+
+
+def _check_tables(d, kinematics, others):
+    """ValueError naming the file when a body's pose in kinematics.csv is incomplete, or
+    when another table (forces.csv, measures.csv) has other frames than kinematics.csv."""
+    for c in kinematics.columns:
+        if c.endswith(".x_m"):
+            body = c[:-4]
+            missing = [f"{body}.{p}" for p in POSE_COLUMNS if f"{body}.{p}" not in kinematics.columns]
+            if missing:
+                raise ValueError(f"{d / KINEMATICS_CSV}: column {missing[0]!r} missing; the pose of body {body!r} "
+                                 f"is incomplete (not a table written by openfdk)")
+    t = kinematics.index.to_numpy()
+    for name, df in others.items():
+        if df is None:
+            continue
+        u = df.index.to_numpy()
+        if len(u) != len(t) or not np.array_equal(u, t):
+            raise ValueError(f"{d / name}: {len(u)} frames whose times differ from the {len(t)} frames of "
+                             f"{KINEMATICS_CSV} (file cut short or from another run)")
+
+
 class RunResults:
     """One run: kinematics, forces, FDK and convergence, as pandas DataFrames.
 
@@ -149,7 +173,9 @@ class RunResults:
         summary = _read_summary(d / SUMMARY_JSON) if (d / SUMMARY_JSON).is_file() else {}
         forces = _read_csv(d / FORCES_CSV, ("time", "converged")) if (d / FORCES_CSV).is_file() else None
         measures = _read_csv(d / MEASURES_CSV) if (d / MEASURES_CSV).is_file() else None
-        return cls(_read_csv(d / KINEMATICS_CSV, ("time", "converged")), forces, summary, None, d, measures)
+        kinematics = _read_csv(d / KINEMATICS_CSV, ("time", "converged"))
+        _check_tables(d, kinematics, {FORCES_CSV: forces, MEASURES_CSV: measures})
+        return cls(kinematics, forces, summary, None, d, measures)
 
     def save(self, directory, sto: bool = True):
         """Write kinematics.csv, forces.csv, measures.csv, summary.json (and the ``.sto``

@@ -44,7 +44,9 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-KINDS = ("model", "subject", "study", "c3d", "trc", "osim", "ik")
+from .fuzz_kinds import NEW_KINDS
+
+KINDS = ("model", "subject", "study", "c3d", "trc", "osim", "ik") + NEW_KINDS
 
 _VALUES = (None, True, False, 0, -1, 1, 2, 5, 1.5, -2.5, 1e300, -1e300, 1e-300, float("nan"), float("inf"),
            "", "abc", "1e3", "m", "mm", "deg", [], {}, [1, 2], [0, 0, 0], [1, 2, 3, 4], [[1, 2, 3]], {"a": 1},
@@ -90,8 +92,10 @@ class Bases:
     """Valid base files of every kind in a temporary folder (removed by :meth:`close`)."""
 
     def __init__(self, kinds=KINDS):
+        from . import fuzz_kinds
+
         self.dir = Path(tempfile.mkdtemp(prefix="openfdk-fuzz-"))
-        self.texts, self.paths = {}, {}
+        self.texts, self.paths, self.originals = {}, {}, {}
         if "model" in kinds or "study" in kinds:
             self.texts["model"] = _dump(base_model_dict())
             self.paths["model"] = self.dir / "model.yaml"
@@ -123,7 +127,7 @@ class Bases:
         if "trc" in kinds:
             self.texts["trc"] = _trc_text()
             self.paths["trc"] = self.dir / "trial.trc"
-        if "osim" in kinds or "ik" in kinds:
+        if {"osim", "ik", "external_loads", "grf_mot", "sto"} & set(kinds):
             self.texts["osim"] = OSIM_TEXT
             self.paths["osim"] = self.dir / "leg.osim"
             self.paths["osim"].write_text(OSIM_TEXT)
@@ -136,6 +140,7 @@ class Bases:
             self.paths["ik"].write_text(IK_SETUP_TEXT)
             (self.dir / "coords.mot").write_text("coords\nversion=1\nnRows=3\nnColumns=3\ninDegrees=yes\nendheader\n"
                                                  "time\thip_q\tknee\n0\t1\t-30\n0.05\t2\t-29\n0.1\t3\t-28\n")
+        fuzz_kinds.build(self, kinds)
 
     def close(self):
         shutil.rmtree(self.dir, ignore_errors=True)
@@ -157,15 +162,15 @@ def _trc_text():
     return "\n".join(head + rows) + "\n"
 
 
-def mutate_text(text, rng):
-    """A mutated copy of a text table: 1–3 line/character mutations or a number replaced
-    by an edge value (NaN, inf, huge, negative, text)."""
+def mutate_text(text, rng, sep="\t"):
+    """A mutated copy of a text table (cells separated by ``sep``): 1–3 line/character
+    mutations or a number replaced by an edge value (NaN, inf, huge, negative, text)."""
     for _ in range(int(rng.integers(1, 4))):
-        cells = text.split("\t")
+        cells = text.split(sep)
         if rng.random() < 0.4 and len(cells) > 1:
             i = int(rng.integers(len(cells)))
             cells[i] = str(rng.choice(["NaN", "inf", "-1", "0", "1e308", "abc", "", "1e-320", "mm", "m", "7"]))
-            text = "\t".join(cells)
+            text = sep.join(cells)
         else:
             text = _text_mutation(text, rng)
     return text
@@ -277,12 +282,15 @@ IK_SETUP_TEXT = """<?xml version="1.0" encoding="UTF-8" ?>
 
 _XML_VALUES = ("NaN", "inf", "-inf", "1e308", "-1e308", "1e-320", "-1", "0", "", "abc", "0x10", "1_0", "1e999",
                "true", "maybe", " ", "/ground", "..", "ground", "knee", "hip_q", "T1")
+_XML_TAGS = ("Body", "PinJoint", "WeldJoint", "Marker", "Constant", "SimmSpline", "Foo", "PhysicalOffsetFrame",
+             "MultiplierFunction", "IKMarkerTask")
 
 
-def mutate_xml(text, rng, n_mutations=None):
+def mutate_xml(text, rng, n_mutations=None, values=_XML_VALUES, tags=_XML_TAGS):
     """A mutated copy of XML ``text``: 1–3 mutations of the element tree (a number or a
-    text replaced by an edge value, an element deleted, duplicated, emptied or renamed, a
-    name attribute changed) or of the text (as for YAML files)."""
+    text replaced by an edge value from ``values``, an element deleted, duplicated,
+    emptied or renamed to one of ``tags``, a name attribute changed) or of the text (as
+    for YAML files)."""
     from lxml import etree
 
     for _ in range(int(rng.integers(1, 4)) if n_mutations is None else n_mutations):
@@ -298,8 +306,8 @@ def mutate_xml(text, rng, n_mutations=None):
         op = int(rng.integers(7))
         if op == 0 and (e.text or "").strip():                     # one number or the whole text replaced
             tokens = e.text.split()
-            tokens[int(rng.integers(len(tokens)))] = str(rng.choice(_XML_VALUES))
-            e.text = " ".join(tokens) if rng.random() < 0.7 else str(rng.choice(_XML_VALUES))
+            tokens[int(rng.integers(len(tokens)))] = str(rng.choice(values))
+            e.text = " ".join(tokens) if rng.random() < 0.7 else str(rng.choice(values))
         elif op == 1 and e.getparent() is not None:
             e.getparent().remove(e)
         elif op == 2 and e.getparent() is not None:                # duplicated: a second element, same name
@@ -309,13 +317,12 @@ def mutate_xml(text, rng, n_mutations=None):
                 e.remove(c)
             e.text = None
         elif op == 4:
-            e.tag = str(rng.choice(["Body", "PinJoint", "WeldJoint", "Marker", "Constant", "SimmSpline", "Foo",
-                                    "PhysicalOffsetFrame", "MultiplierFunction", "IKMarkerTask"]))
+            e.tag = str(rng.choice(tags))
         elif op == 5 and e.get("name") is not None:
             e.set("name", str(rng.choice(["thigh", "shank", "hip", "knee", "knee_j", "T1", "a/b", "..", "R_S1",
                                           "ground", "x" * 300, ""])))
         else:
-            e.text = str(rng.choice(_XML_VALUES))
+            e.text = str(rng.choice(values))
         text = etree.tostring(root, encoding="unicode")
     return text
 
@@ -452,6 +459,10 @@ def mutate_bytes(data: bytes, rng, n_mutations=None) -> bytes:
 
 def documented_error(kind):
     """The exception class a loader of ``kind`` raises for bad input."""
+    if kind in NEW_KINDS:
+        from .fuzz_kinds import documented_error as new_kind_error
+
+        return new_kind_error(kind)
     if kind == "model":
         from ..model.model import ModelError
 
@@ -477,7 +488,11 @@ def documented_error(kind):
     return C3DError
 
 
-def _load(kind, path):
+def _load(kind, path, reader=None):
+    if kind in NEW_KINDS:
+        from .fuzz_kinds import load
+
+        return load(kind, path, reader)
     if kind == "model":
         from ..io.modelfile import load_model
 
@@ -510,6 +525,8 @@ def fuzz(kind, n, seed=0, bases=None, time_limit=None):
     """Load ``n`` mutated inputs of ``kind``; returns a dict with counts ``inputs``,
     ``loaded``, ``refused`` (documented error naming the file) and ``unexpected``
     (a list of (seed, repr of the exception) for anything else), and ``seconds``."""
+    from . import fuzz_kinds
+
     own = bases is None
     bases = bases or Bases((kind,))
     error = documented_error(kind)
@@ -522,7 +539,10 @@ def fuzz(kind, n, seed=0, bases=None, time_limit=None):
         for i in range(n):
             if time_limit is not None and time.perf_counter() - t0 > time_limit:
                 break
-            if kind == "c3d":
+            reader = None
+            if kind in NEW_KINDS:
+                reader = fuzz_kinds.mutate(kind, bases, rng)
+            elif kind == "c3d":
                 target.write_bytes(mutate_bytes(bases.c3d_bytes, rng))
             elif kind == "trc":
                 target.write_text(mutate_text(bases.texts[kind], rng), encoding="utf-8")
@@ -535,7 +555,7 @@ def fuzz(kind, n, seed=0, bases=None, time_limit=None):
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
                     with np.errstate(all="ignore"):
-                        _load(kind, target)
+                        _load(kind, target, reader)
                 counts["loaded"] += 1
             except error as exc:
                 msg = str(exc)
@@ -546,7 +566,9 @@ def fuzz(kind, n, seed=0, bases=None, time_limit=None):
             except Exception as exc:  # noqa: BLE001 - this is what the fuzz looks for
                 counts["unexpected"].append((seed, i, f"{type(exc).__name__}: {str(exc)[:200]}"))
     finally:
-        if original is not None:
+        if kind in NEW_KINDS:
+            fuzz_kinds.restore(kind, bases)
+        elif original is not None:
             target.write_bytes(original)
         if own:
             bases.close()
@@ -556,9 +578,17 @@ def fuzz(kind, n, seed=0, bases=None, time_limit=None):
 
 def reproduce(kind, seed, index, bases):
     """The mutated input number ``index`` of a :func:`fuzz` run with ``seed`` (for
-    debugging an unexpected exception): str for YAML kinds, bytes for C3D."""
+    debugging an unexpected exception): str for YAML kinds, bytes for C3D; for the kinds
+    of :mod:`.fuzz_kinds`, the input is left written over the base files and the result
+    is {file name: bytes} of the files that differ from the base."""
+    from . import fuzz_kinds
+
     rng = np.random.default_rng(seed)
     out = None
+    if kind in NEW_KINDS:
+        for _ in range(index + 1):
+            fuzz_kinds.mutate(kind, bases, rng)
+        return fuzz_kinds.current_input(kind, bases)
     for _ in range(index + 1):
         out = (mutate_bytes(bases.c3d_bytes, rng) if kind == "c3d" else mutate_text(bases.texts[kind], rng)
                if kind == "trc" else mutate_xml(bases.texts[kind], rng) if kind in ("osim", "ik")

@@ -81,7 +81,8 @@ def _acquire_lock(out):
                 other = {}
             if not isinstance(other, dict):  # a lock that is not a JSON object (e.g. `[]`): its owner is unknown
                 other = {}
-            if not isinstance(other.get("pid"), int) or isinstance(other.get("pid"), bool):
+            pid = other.get("pid")
+            if not isinstance(pid, int) or isinstance(pid, bool) or not 0 < pid < 2 ** 31:  # not a process id
                 other = {k: v for k, v in other.items() if k != "pid"}
             if other.get("host") == me["host"] and not _pid_alive(int(other.get("pid", -1))):
                 path.unlink(missing_ok=True)  # stale: its process is gone

@@ -18,6 +18,7 @@ the result built from the frames finished so far.
 
 from __future__ import annotations
 
+import enum
 import signal
 import threading
 
@@ -105,6 +106,119 @@ class Recording:
         return out
 
 
+def _attributes(obj):
+    return getattr(type(obj), "__dataclass_fields__", None) or getattr(type(obj), "__slots__", ())
+
+
+def _examples(template, out=None):
+    """{class: an instance} of the openfdk objects found in ``template``."""
+    out = {} if out is None else out
+    if isinstance(template, (tuple, list)):
+        for v in template:
+            _examples(v, out)
+    elif isinstance(template, dict):
+        for v in template.values():
+            _examples(v, out)
+    elif _attributes(template) and not isinstance(template, np.ndarray):
+        out.setdefault(type(template), template)
+    return out
+
+
+def _plain(value, examples, depth=0):
+    """Whether ``value`` (in a slot the fresh state leaves None) is plain data: None,
+    a bool, a number, text or an enum member, a numeric array of at least one dimension
+    (NaN marks missing values), containers of these, or an openfdk object whose fields
+    are (one of a class the state holds must fit that instance)."""
+    if depth > 20:
+        return False
+    if value is None or isinstance(value, (bool, str, int, float, np.number, enum.Enum)):
+        return True
+    if isinstance(value, np.ndarray):
+        return value.ndim >= 1 and (value.dtype == bool or np.issubdtype(value.dtype, np.number))
+    if isinstance(value, (tuple, list)):
+        return all(_plain(v, examples, depth + 1) for v in value)
+    if isinstance(value, dict):
+        return all(isinstance(k, (int, str)) and _plain(v, examples, depth + 1) for k, v in value.items())
+    if type(value) in examples:
+        return _fits(value, examples[type(value)], examples)
+    names = _attributes(value)
+    return bool(names) and all(_plain(getattr(value, a, None), examples, depth + 1) for a in names)
+
+
+def _fits(value, template, examples):
+    """Whether a value read from a checkpoint has the structure of ``template``, the
+    step's own warm-start state: the same types, arrays of the same dtype and shape,
+    tuples of the same length, the same fields for openfdk's classes; where the template
+    holds None (state not yet set) or an empty container, plain data (:func:`_plain`)."""
+    if template is None:
+        return _plain(value, examples)
+    if isinstance(template, np.ndarray):
+        return isinstance(value, np.ndarray) and value.dtype == template.dtype and value.shape == template.shape
+    if type(value) is not type(template):
+        return isinstance(template, (int, float)) and not isinstance(template, bool) \
+            and isinstance(value, (int, float, np.number)) and not isinstance(value, bool)
+    if isinstance(template, tuple):
+        return len(value) == len(template) and all(_fits(v, t, examples) for v, t in zip(value, template))
+    if isinstance(template, list):
+        return all(_fits(v, template[0], examples) if template else _plain(v, examples) for v in value)
+    if isinstance(template, dict):
+        first = next(iter(template.values()), None)
+        return all(_fits(v, first, examples) if template else _plain(v, examples) for v in value.values())
+    return all(_fits(getattr(value, a, None), getattr(template, a, None), examples) for a in _attributes(template))
+
+
+def _restore_saved(saved, rec, step, folder):
+    """Put a checkpoint's finished frames into ``rec`` and its warm-start state into
+    ``step``; returns the frame to continue from. Parts that do not fit this run (frame
+    indices outside the trial, values of other shapes or types than the step records, a
+    state of another structure) are a CheckpointError naming the checkpoint folder."""
+    from .checkpoint import CheckpointError
+
+    def refuse(what):
+        return CheckpointError(f"{folder}: the checkpoint does not fit this run ({what}); start again with --force")
+
+    n = rec.n_frames
+    if isinstance(saved.next_frame, bool) or not 0 <= saved.next_frame <= n:
+        raise refuse(f"next frame {saved.next_frame} of {n}")
+    fields = step.fields()
+    for j, values in saved.records:
+        if isinstance(j, bool) or not 0 <= j < n:
+            raise refuse(f"frame {j} of {n}")
+        for name, value in values.items():
+            shape, dtype, _ = fields.get(name, (None, None, None))
+            if dtype is object or (shape is None and (isinstance(value, (str, FrameReport)) or value is None)):
+                if not (isinstance(value, (str, FrameReport)) or value is None):
+                    raise refuse(f"frame {j}: {str(name)[:60]!r} is a {type(value).__name__}")
+            elif not isinstance(value, (int, float, np.number, np.ndarray)) or isinstance(value, bool) \
+                    or (shape is not None and np.shape(value) != tuple(shape)) \
+                    or not np.issubdtype(np.asarray(value).dtype, np.number):
+                raise refuse(f"frame {j}: {str(name)[:60]!r} is not {'a number' if not shape else f'an array {shape}'}")
+    template = step.carry()
+    if not _fits(saved.carry, template, _examples(template)):
+        raise refuse("the solver state has another structure")
+    try:
+        for j, values in saved.records:
+            rec.record(j, values)
+        step.restore(saved.carry)
+    except (ValueError, TypeError, IndexError, KeyError, AttributeError) as exc:
+        raise refuse(f"{type(exc).__name__}: {' '.join(str(exc).split())[:120]}") from None
+    return saved.next_frame
+
+
+def _resumed_call(call, k, folder):
+    """``call(k)`` (or ``call()``) on the first frames after a resume, whose warm starts
+    come from the checkpoint: an exception there is a CheckpointError naming the folder
+    (the state restored from the parts is what differs from a fresh run)."""
+    from .checkpoint import CheckpointError
+
+    try:
+        return list(call() if k is None else call(k))
+    except Exception as exc:  # noqa: BLE001 - the restored state is untrusted input
+        at = "the last frames" if k is None else f"frame {k}"
+        raise CheckpointError(f"{folder}: resuming from the checkpoint failed at {at} ({type(exc).__name__}: "
+                              f"{' '.join(str(exc).split())[:120]}); start again with --force") from None
+
+
 class TrialInterrupted(KeyboardInterrupt):
     """Ctrl-C during a trial. ``partial`` is the result of the frames finished before
     the interruption (built by the analysis as for a complete run, with only those
@@ -135,14 +249,11 @@ def drive(step, n_frames, build, *, progress=False, desc="frames", checkpoints=N
     On KeyboardInterrupt raises TrialInterrupted(build(first finished frames)).
     """
     rec = Recording(n_frames, step.fields())
-    start = 0
+    start, resumed = 0, None
     if checkpoints is not None and resume:
         saved = checkpoints.load()
         if saved is not None:
-            for j, values in saved.records:
-                rec.record(j, values)
-            step.restore(saved.carry)
-            start = saved.next_frame
+            start = resumed = _restore_saved(saved, rec, step, checkpoints.folder)
     elif checkpoints is not None:
         checkpoints.clear()  # another run's parts must not mix with this one's
     bar = _progress(n_frames, progress, desc, initial=start)
@@ -151,7 +262,8 @@ def drive(step, n_frames, build, *, progress=False, desc="frames", checkpoints=N
     try:
         with stop:
             for k in range(start, n_frames):
-                for j, values in step.step(k):
+                near = resumed is not None and k < resumed + 2
+                for j, values in (_resumed_call(step.step, k, checkpoints.folder) if near else step.step(k)):
                     rec.record(j, values)
                     if checkpoints is not None:
                         pending.append((j, values))
@@ -162,7 +274,8 @@ def drive(step, n_frames, build, *, progress=False, desc="frames", checkpoints=N
                     bar.update()
                 if stop.requested:
                     raise KeyboardInterrupt
-            for j, values in step.finish():
+            near = resumed is not None and n_frames < resumed + 2
+            for j, values in (_resumed_call(step.finish, None, checkpoints.folder) if near else step.finish()):
                 rec.record(j, values)
     except KeyboardInterrupt:
         rec.interrupted = True

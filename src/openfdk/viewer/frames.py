@@ -53,6 +53,10 @@ def measured_markers(model, results, poses):
         cols = [f"{name}.residual_{c}_m" for c in "xyz"]
         if cols[0] not in kin:
             continue
+        missing = [c for c in cols if c not in kin]
+        if missing:
+            raise ViewError(f"{results.directory / 'kinematics.csv'}: column {missing[0]!r} missing; the residual "
+                            f"of marker {name!r} is incomplete")
         res = np.stack([kin[c] for c in cols], axis=1)
         b, p_B = int(model.markers.body[k]), model.markers.p_BM[k]
         out[:, k] = poses[:, b, :3] + np.einsum("fij,j->fi", rotations(poses[:, b, 3:]), p_B) - res

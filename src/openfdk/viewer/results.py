@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io.results import read_rows, table_columns
+from ..runresults import TEXT_COLUMNS
 
 
 class ViewError(ValueError):
@@ -48,8 +49,9 @@ class RunResults:
 def read_table(path):
     """A CSV written by :func:`openfdk.io.results.write_table`: name -> (nf,) float array
     (an empty cell read as NaN), or a list of str for a column that is not numeric
-    ('message', 'status', ...). Raises ViewError naming the file for an unreadable file, a
-    first column other than 'time', a row of the wrong length or a non-numeric time."""
+    ('message', 'status', 'fdk_reason'). Raises ViewError naming the file for an unreadable
+    file, a first column other than 'time', a row of the wrong length or another column
+    that is not numeric."""
     path = Path(path)
     try:
         rows = read_rows(path)
@@ -64,6 +66,9 @@ def read_table(path):
     cols = table_columns(names, body, empty_is_nan=True)
     if not isinstance(cols["time"], np.ndarray):
         raise ViewError(f"{path}: column 'time' is not numeric")
+    text = next((name for name, col in cols.items() if isinstance(col, list) and name not in TEXT_COLUMNS), None)
+    if text is not None:
+        raise ViewError(f"{path}: column {text!r}: values must be numbers")
     return cols
 
 
