@@ -162,11 +162,12 @@ _REPORTED_POSE = {"R_SM", "p_SM_mm", "description", "rotation_deg"}
 
 
 def _rotation(ctx, value, where) -> np.ndarray:
-    """A proper rotation matrix (3, 3) from a list of 3 rows; rows orthonormal to 1e-6."""
+    """A proper rotation matrix (3, 3) from a list of 3 rows, orthonormal to 1e-3 (rounded
+    digits), made exactly orthonormal (the closest rotation, SVD)."""
     from ..io.yamlfile import YamlContext
 
     R = YamlContext.vector(ctx, value, where, None, (3, 3))
-    if np.max(np.abs(R @ R.T - np.eye(3))) > 1e-6 or np.linalg.det(R) <= 0:
+    if np.max(np.abs(R @ R.T - np.eye(3))) > 1e-3 or np.linalg.det(R) <= 0:
         raise ctx.error(where, "expected a rotation matrix (3 orthonormal rows, determinant +1)")
     U, _, Vt = np.linalg.svd(R)                 # remove the round-off of the printed digits
     return U @ Vt
