@@ -318,6 +318,23 @@ def test_format_version_true_is_not_version_1(tmp_path, capsys):
     assert "model.yaml: openfdk: unsupported format version True" in _error_line(err)
 
 
+def test_study_format_version_true_is_not_version_1(finished, tmp_path, capsys):
+    study = _write(tmp_path / "s.yaml", f"openfdk_study: true\nmodels: {{m: {finished[0]}}}\n")
+    code, _, err = _run(capsys, "study", study, "--out", tmp_path / "out", "--list")
+    assert code == 2
+    assert "s.yaml: openfdk_study: unsupported version True; this openfdk reads 1" in _error_line(err)
+
+
+def test_subject_version_true_is_not_version_1(tmp_path):
+    from openfdk.mandible.subject import _TOP_REQUIRED, FORMAT_NAME, SubjectError, load_subject
+
+    data = {key: {} for key in _TOP_REQUIRED}
+    data.update(format=FORMAT_NAME, version=True)
+    (tmp_path / "subject.yaml").write_text(yaml.safe_dump(data))
+    with pytest.raises(SubjectError, match=r"subject\.yaml: version: unsupported version True; this openfdk reads 1"):
+        load_subject(tmp_path)
+
+
 @pytest.mark.parametrize("name, shown", [("ar\x01m", "'ar\\x01m'"), ("a/b", "'/'"), ("a<b", "'<'"), ("a..b", "'..'")])
 def test_a_bad_character_in_a_body_name_is_refused_at_load(tmp_path, capsys, name, shown):
     data = two_body_model_dict()

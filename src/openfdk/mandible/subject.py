@@ -482,7 +482,7 @@ def load_subject(directory: str | os.PathLike) -> Subject:
     ctx.mapping(data, "", allowed=_TOP_KEYS, required=_TOP_REQUIRED)
     if data["format"] != FORMAT_NAME:
         raise ctx.error("format", f"expected {FORMAT_NAME!r}, got {data['format']!r}")
-    if data["version"] != FORMAT_VERSION:
+    if isinstance(data["version"], bool) or data["version"] != FORMAT_VERSION:  # `version: true` is not 1
         raise ctx.error("version", f"unsupported version {data['version']!r}; this openfdk reads {FORMAT_VERSION}")
     landmarks = _landmarks(ctx, data["landmarks"])
     offset = ctx.length * ctx.number(data.get("cartilage_offset", 1.0 * 1e-3 / length), "cartilage_offset", low=0.0)

@@ -314,7 +314,7 @@ def study_from_dict(data, source="<study>", base_dir=".", check_overrides=True) 
     if not isinstance(data, dict):
         raise StudyError(f"{source}: a study file must contain a mapping (sections {list(TOP_LEVEL)} ...)")
     version = data.get("openfdk_study", FORMAT_VERSION)
-    if version != FORMAT_VERSION:
+    if isinstance(version, bool) or version != FORMAT_VERSION:  # `openfdk_study: true` is not version 1
         raise ctx.error("openfdk_study", f"unsupported version {version!r}; this openfdk reads {FORMAT_VERSION}")
     kind_name = data.get("kind", "model")
     kind = CASE_KINDS.get(kind_name) if isinstance(kind_name, str) else None
