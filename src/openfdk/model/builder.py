@@ -22,6 +22,7 @@ from .components import GROUND, Body, Frame, Marker
 from .constraints import DRIVER, JOINT, Constraint, FDKDof, MarkerSet
 from .measures import AxisDot, Distance, Linear, Measure, PointPosition, RelativeAngles, RelativeVector
 from .model import Model, ModelError
+from .names import check_name, label_problem
 from .settings import AnalysisSettings
 from .timefunctions import Constant, TimeFunction
 
@@ -31,8 +32,11 @@ _EX, _EY, _EZ = np.eye(3)
 
 
 def _check_name(name, what):
+    """A name of a body, frame, marker, measure or constraint: non-empty text without
+    '.', outer spaces or what :func:`~openfdk.model.names.name_problem` refuses."""
     if not isinstance(name, str) or not name or "." in name or name.strip() != name:
         raise ModelError(f"{what} name {name!r} must be a non-empty string without '.' or spaces")
+    check_name(name, what)
 
 
 def _orientation(value, what):
@@ -144,6 +148,8 @@ class ModelBuilder:
         p = np.asarray(position, dtype=float)
         if p.shape != (3,):
             raise ModelError(f"marker {name!r}: position must be 3 numbers")
+        if label_problem(label):
+            raise ModelError(f"marker {name!r}: {label_problem(label)}")
         self._markers.append(Marker(name, body, p, float(weight), label or name))
         return name
 
@@ -237,6 +243,7 @@ class ModelBuilder:
 
     # -- constraints ------------------------------------------------------------------
     def _add_constraint(self, c):
+        check_name(c.name, "constraint")
         if any(x.name == c.name for x in self._constraints):
             raise ModelError(f"constraint {c.name!r} is defined twice")
         self._constraints.append(c)
@@ -417,6 +424,7 @@ class ModelBuilder:
             raise ModelError(f"markers share trial labels {sorted(dup)}")
         if col == 0:
             raise ModelError(f"model {self.name!r} has no moving body")
+        self._check_all_names()
         return Model(
             self.name, tuple(bodies), dict(self._frames), markers, dict(self._measures),
             tuple(self._constraints), tuple(self._fdk), self.gravity_W.copy(), **self._typed_elements(),
@@ -428,6 +436,23 @@ class ModelBuilder:
                       "coordinates", "tasks", "external_loads", "actuators")
     SETTING_FIELDS = {"analysis": "kinematics", "recruitment": "recruitment", "fdk": "fdk", "units": "units",
                       "ground_reactions": "ground_reactions"}
+
+    def _check_all_names(self):
+        """Every name the model will carry — also of items put into the builder without
+        its ``add_…`` methods — passes :func:`~openfdk.model.names.name_problem`: names
+        become file names and XML in exports."""
+        named = [("body", r["name"]) for r in self._bodies] + [("frame", f) for f in self._frames]
+        named += [("marker", m.name) for m in self._markers] + [("measure", m) for m in self._measures]
+        named += [("constraint", c.name) for c in self._constraints] + [("FDK DOF", d.name) for d in self._fdk]
+        named += [("wrapping surface", w) for w in self.__dict__.get("wrap_surfaces", {})]
+        for kind, items in self.elements.items():
+            if isinstance(items, (tuple, list)):
+                named += [(kind.rstrip("s").replace("_", " "), getattr(e, "name", None)) for e in items]
+        for what, name in named:
+            check_name(name, what)
+        for m in self._markers:
+            if label_problem(m.label):
+                raise ModelError(f"marker {m.name!r}: {label_problem(m.label)}")
 
     def _typed_elements(self):
         """Model keyword arguments from the kinds collected in ``self.elements``."""

@@ -19,6 +19,7 @@ import numpy as np
 from ..io.yamlfile import YamlContext
 
 from ..spatial import quat_from_rotvec, rotation_matrix_xyz
+from . import names
 from .builder import ModelBuilder
 from .coordinates_section import finish_coordinates, load_couplers, load_custom_joint, read_coordinates
 from .components import GROUND
@@ -42,23 +43,9 @@ CORE_SECTIONS = (
 NAMED_SECTIONS = ("bodies", "measures", "joints", "constraints", "drivers", "fdk_dofs", "coordinates", "couplers",
                   "muscles", "ligaments", "springs", "bushings", "contacts", "loads", "reactions", "wrapping",
                   "actuators")
-#: characters a name may not contain: path separators and XML's reserved characters
-#: (control characters are refused too)
-NAME_FORBIDDEN = set('/\\<>&"')
-
-
-def name_problem(name):
-    """Why ``name`` cannot name a model item (None when it can): a path separator, an XML
-    reserved character or a control character, or ``..``."""
-    if not isinstance(name, str):
-        return None  # the section readers report non-text names
-    bad = sorted({c for c in name if c in NAME_FORBIDDEN or ord(c) < 32 or ord(c) == 127})
-    if bad:
-        return f"name {name!r} contains {', '.join(repr(c) for c in bad)}; names may not contain '/', '\\', " \
-               f"'<', '>', '&', '\"' or control characters (they become file names and XML in exports)"
-    if ".." in name:
-        return f"name {name!r} contains '..'"
-    return None
+#: the rule for names (shared with models built in Python): :mod:`openfdk.model.names`
+NAME_FORBIDDEN = names.NAME_FORBIDDEN
+name_problem = names.name_problem
 
 
 def _check_names(data, ctx):
