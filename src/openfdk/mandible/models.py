@@ -93,13 +93,15 @@ def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS
                reference_strain=DEFAULT_STRAIN, calibration_opening_deg=None,
                calibration_translation=None, mesh_dir=None,
                passive_strain_at_max_force=PASSIVE_STRAIN_AT_MAX_FORCE,
-               pressure_modulus=1.0e10, spring_stiffness=0.1, hyoid_follow=None):
+               pressure_modulus=1.0e10, spring_stiffness=0.1, hyoid_follow=None, contact_max_depth=None):
     """The POP (``kind="pop"``) or FDK (``kind="fdk"``) model of a subject as a model-file
     mapping (mm, deg). ``mesh_dir``: path written for the STL files (relative to where
     the model file will be written; default the subject folder, absolute).
     ``calibration_opening_deg`` (deg), ``calibration_translation`` ((3,) m) and
     ``hyoid_follow`` (fraction) default to the subject's ``muscle_calibration`` and
-    ``hyoid`` sections, else to the module defaults."""
+    ``hyoid`` sections, else to the module defaults. ``contact_max_depth`` (m): the
+    contacts' ``max_depth`` (default the subject's ``contact.max_depth``, else the
+    model file's default, 3 mm)."""
     if kind not in ("pop", "fdk"):
         raise ValueError(f"model kind must be 'pop' or 'fdk', got {kind!r}")
     protocol = getattr(subject, "protocol", None)
@@ -111,6 +113,8 @@ def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS
                                    else CALIBRATION_TRANSLATION)
     if hyoid_follow is None:
         hyoid_follow = protocol.hyoid_follow if protocol is not None else HYOID_FOLLOW
+    if contact_max_depth is None and protocol is not None:
+        contact_max_depth = protocol.contact_max_depth
     com = subject.mandible.center_of_mass
     skull_frames = {"incisal_point_skull": _mm(subject.landmarks["incisal_point"])}
     jaw_frames = {"ml_point": _mm(-com), "incisal_point": _mm(subject.landmarks["incisal_point"] - com)}
@@ -192,6 +196,8 @@ def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS
             "surface": {"body": "skull", "mesh": str(mesh_dir / fossa.path.name), "units": subject.length_unit},
             "pressure_modulus": float(pressure_modulus),
         }
+        if contact_max_depth is not None:
+            contacts[f"tmj_{tag}"]["max_depth"] = float(round(contact_max_depth * 1e3, 6))
     for lig in subject.ligaments:
         skull_frames[f"{lig.name}_origin"] = _mm(lig.origin)
         jaw_frames[f"{lig.name}_insertion"] = _mm(lig.insertion - com)

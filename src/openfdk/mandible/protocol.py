@@ -13,6 +13,8 @@ say how the mandible study uses the subject (docs/subject-folder.md, "Study sect
   (tendon slack lengths, :func:`.models.calibrated_tendon_slack`).
 * ``hyoid``: the muscles whose lower end is on the hyoid and the fraction of the
   mandible's motion the hyoid follows (:mod:`.models`).
+* ``contact``: ``max_depth`` of the FDK model's condyle–fossa contacts (vertices
+  deeper than it are ignored; default 3 mm, the model file's default).
 
 :func:`parse_protocol` reads them (positions and lengths converted to SI, angles to
 rad); every problem names the file and the entry.
@@ -37,7 +39,7 @@ STATIC = "static"
 DEFAULT_TRIALS = {"reference": ("trials/reference.c3d", STATIC),
                   **{k: (f"trials/{k}.c3d", k) for k in TASK_KINDS}}
 #: top-level keys of subject.yaml read here
-PROTOCOL_KEYS = ("trials", "registration", "condyle_point", "muscle_calibration", "hyoid")
+PROTOCOL_KEYS = ("trials", "registration", "condyle_point", "muscle_calibration", "hyoid", "contact")
 #: defaults of the muscle calibration pose (deg, mm) and of the hyoid's following fraction
 CALIBRATION_OPENING_DEG = 20.0
 CALIBRATION_TRANSLATION_MM = (9.0, 0.0, -5.0)
@@ -72,7 +74,8 @@ class StudyProtocol:
     ``max_incisal_gap``: m or None (the registration check's default); ``condyle_points``: 'r'/'l' → landmark name;
     ``calibration_opening`` rad and ``calibration_translation`` (3,) m;
     ``hyoid_muscles``: tuple of names or None (named like supra-hyoid muscles);
-    ``hyoid_follow``: fraction in [0, 1]; ``file``: subject.yaml path (for messages).
+    ``hyoid_follow``: fraction in [0, 1]; ``contact_max_depth``: m or None (the model
+    file's default, 3 mm); ``file``: subject.yaml path (for messages).
     """
 
     trials: MappingProxyType
@@ -87,6 +90,7 @@ class StudyProtocol:
     hyoid_muscles: tuple | None = None
     hyoid_follow: float = HYOID_FOLLOW
     file: Path | None = None
+    contact_max_depth: float | None = None
 
     @property
     def tasks(self) -> tuple:
@@ -244,6 +248,9 @@ def parse_protocol(ctx, data: dict, directory: Path, landmarks: dict, muscle_nam
             raise ctx.error("hyoid.muscles", f"unknown muscle(s) {unknown}")
         hyoid_muscles = tuple(names)
     follow = ctx.number(hyoid.get("follow", HYOID_FOLLOW), "hyoid.follow", low=0.0, high=1.0)
+    contact = ctx.mapping(data.get("contact") or {}, "contact", allowed={"max_depth"})
+    max_depth = (ctx.length * ctx.number(contact["max_depth"], "contact.max_depth", positive=True)
+                 if "max_depth" in contact else None)
     return StudyProtocol(MappingProxyType(trials), method, static, pose, max_gap, MappingProxyType(condyle_points),
                          float(opening), tuple(float(v) for v in translation), hyoid_muscles, float(follow),
-                         ctx.file)
+                         ctx.file, max_depth)

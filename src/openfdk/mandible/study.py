@@ -240,7 +240,26 @@ def task_cycles(subject, registration, task, n_cycles=5, margin=CYCLE_MARGIN_S) 
                       rest - subject.landmarks["incisal_point"])
 
 
-def analyse_trial(subject, registration, models, trial, out_dir, *, start=None, end=None, progress=False):
+def _task_warnings(caught, task, label):
+    """Re-issue the warnings ``caught`` during one analysis, a contact's depth warning
+    with the task and model named and the subject.yaml setting that raises the depth;
+    returns the messages (for summary.json)."""
+    from ..contact.limits import ContactDepthWarning
+
+    messages = []
+    for w in caught:
+        message = str(w.message)
+        if issubclass(w.category, ContactDepthWarning):
+            message = (f"task {task!r}, {label} model: {message.split('; vertices deeper')[0]}; vertices deeper than "
+                       "max_depth are ignored: raise it in subject.yaml, contact: {max_depth: MM} (length unit), "
+                       "or run_study(contact_max_depth=m)")
+        warnings.warn(message, w.category, stacklevel=3)
+        messages.append(message)
+    return messages
+
+
+def analyse_trial(subject, registration, models, trial, out_dir, *, start=None, end=None, progress=False,
+                  task=None):
     """POP and FDK over a trial (whole, or ``start``…``end`` s).
 
     Args: models {"pop": path, "fdk": path} (:func:`.models.write_models`); trial C3D
@@ -249,7 +268,8 @@ def analyse_trial(subject, registration, models, trial, out_dir, *, start=None, 
     {"measured"|"POP"|"FDK": {side: (n, 3) m}} condyle-point displacements from the
     reference pose in the skull frame, "forces": {"POP"|"FDK": {side: (n, 3) N}},
     "incisor" (n, 3) m}; runs = per model frames, converged frames, feasible share,
-    wall time."""
+    wall time, the warnings issued (``warnings``; a contact-depth warning names
+    ``task``, default the trial file's name, and the model)."""
     time, measured, incisor = measured_series(subject, registration, trial)
     keep = np.ones(len(time), dtype=bool)
     if start is not None:
@@ -262,7 +282,10 @@ def analyse_trial(subject, registration, models, trial, out_dir, *, start=None, 
     runs = {}
     for kind in ("pop", "fdk"):
         t0 = _time.perf_counter()
-        kin, dyn, info = run_job(models[kind], trial, progress=progress, start=start, end=end)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            kin, dyn, info = run_job(models[kind], trial, progress=progress, start=start, end=end)
+        issued = _task_warnings(caught, task or Path(trial).stem, kind.upper())
         if len(kin.time) != int(keep.sum()) or np.max(np.abs(kin.time - series["time"])) > 1e-6:
             raise StudyError(f"{trial}: the analysis window has {len(kin.time)} frames, the markers {int(keep.sum())}")
         out = Path(out_dir) / kind
@@ -275,7 +298,7 @@ def analyse_trial(subject, registration, models, trial, out_dir, *, start=None, 
         runs[label] = {"frames": n, "kinematics_converged": int(kin.converged.sum()),
                        "forces_converged": int(dyn.converged.sum()),
                        "feasible_share": float(dyn.converged.sum()) / max(n, 1),
-                       "wall_time_s": _time.perf_counter() - t0}
+                       "wall_time_s": _time.perf_counter() - t0, "warnings": issued}
         if "fdk" in info:
             runs[label]["fdk"] = {k: info["fdk"][k] for k in ("convergence_rate", "mean_residual_evaluations_per_frame",
                                                                "frames_per_second")}
@@ -300,7 +323,11 @@ def analyse_task(subject, registration, models, task, out_dir, progress=False, n
         if log is not None:
             log(f"  warning: {found.message}")
     series, runs = analyse_trial(subject, registration, models, spec.file, Path(out_dir) / spec.task,
-                                 start=found.window[0], end=found.window[1], progress=progress)
+                                 start=found.window[0], end=found.window[1], progress=progress, task=spec.task)
+    if log is not None:
+        for label in ("POP", "FDK"):
+            for message in runs[label]["warnings"]:
+                log(f"  warning: {message}")
     first = int(np.argmin(np.abs(found.time - series["time"][0])))
     cycles = [(a - first, b - first) for a, b in found.cycles]
     found = TaskCycles(series["time"], cycles, found.found, found.requested, found.window, found.message,
@@ -390,7 +417,7 @@ def _parameter_study(subject, models, out, per_task, series, quick, workers, sch
 
 
 def run_study(subject_dir, out_dir, tasks=None, n_cycles=5, quick=False, parameter_study=True, progress=True,
-              log=print, workers=None, scheduler=None):
+              log=print, workers=None, scheduler=None, contact_max_depth=None):
     """The whole study; returns {"summary", "table1", "table2", "figures", "failed"}
     (the summary is also written to summary.json).
 
@@ -401,7 +428,9 @@ def run_study(subject_dir, out_dir, tasks=None, n_cycles=5, quick=False, paramet
     log, and the others' tables and figures are still written. The parameter study runs
     as an :mod:`openfdk.study` study in ``out/parameter_study`` on a LocalCluster of
     ``workers`` processes (default one per CPU; 0 = in this process) or on the Dask
-    scheduler at ``scheduler``; a rerun skips its complete cases."""
+    scheduler at ``scheduler``; a rerun skips its complete cases. ``contact_max_depth``
+    (m): the FDK contacts' max_depth (default the subject's ``contact.max_depth``, else
+    3 mm); a penetration within 10 % of it is warned with the task named."""
     t_start = _time.perf_counter()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -416,15 +445,16 @@ def run_study(subject_dir, out_dir, tasks=None, n_cycles=5, quick=False, paramet
     for w in caught:
         log(f"  warning: {w.message}")
     (out / "registration.yaml").write_text(yaml.safe_dump(registration.to_dict(), sort_keys=False, width=120))
-    models = write_models(subject, registration, out / "models")
+    models = write_models(subject, registration, out / "models",
+                          **({} if contact_max_depth is None else {"contact_max_depth": contact_max_depth}))
     rms = ", ".join(f"{body} {'-' if v is None else f'{1e3 * v:.3f} mm'}" for body, v in registration.rms_m.items())
     log(f"  registration: {registration.method} (fit RMS {rms}); models: {models['pop']}, {models['fdk']}")
     per_task, series, runs, failed, cycle_info = {}, {}, {}, {}, {}
     for task in tasks:
         log(f"  {task}: POP and FDK ...")
         try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", CycleWarning)
+            with warnings.catch_warnings(record=True):      # logged by analyse_task, not repeated
+                warnings.simplefilter("always")
                 s, task_runs, cycles = analyse_task(subject, registration, models, task, out, progress,
                                                     n_cycles=n_cycles, log=log)
         except (ValueError, OSError) as exc:   # report the task, go on with the others
