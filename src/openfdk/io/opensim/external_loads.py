@@ -11,7 +11,9 @@ applied exactly as OpenSim applies it:
   of the data file (``ground_force_v`` -> ``ground_force_vx``, ``…vy``, ``…vz``); an
   empty point applies the force at the body's origin, an empty torque is zero;
 * ``datafile`` of the ExternalLoads (or each force's ``data_source_name`` when it names
-  a file), a ``.mot``/``.sto`` relative to the XML file.
+  a file), a ``.mot``/``.sto`` relative to the XML file,
+  read while importing: a file that cannot be read, or an identifier without its three
+  columns, is an error naming the XML file, the line and the force.
 
 Disabled forces (``isDisabled`` true, ``appliesForce`` false) are left out and listed.
 """
@@ -20,6 +22,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ...model.names import name_problem
 from .document import parse_xml
 from .errors import OsimError, where
 
@@ -27,6 +30,20 @@ from .errors import OsimError, where
 def _text(element, tag):
     e = element.find(tag)
     return "" if e is None or e.text is None else e.text.strip()
+
+
+def _data_columns(path, file, source, force, cache):
+    """The column labels of the data file ``file`` (relative to the ExternalLoads file
+    ``path``), read once; OsimError naming the XML file, the force and the data file."""
+    from ..storage import read_storage
+
+    p = path.parent / file
+    if p not in cache:
+        try:
+            cache[p] = set(read_storage(p)[1])
+        except ValueError as exc:
+            raise OsimError(f"{where(source, force)}: data file {file!r}: {exc}") from None
+    return cache[p]
 
 
 def read_external_loads(path, data, info):
@@ -45,6 +62,7 @@ def read_external_loads(path, data, info):
     section = dict(data.get("external_loads") or {})
     bodies = data["bodies"]
     dropped = info.setdefault("dropped", [])
+    files = {}
     for force in (objects if objects is not None else []):
         if not isinstance(force.tag, str):
             continue
@@ -75,6 +93,7 @@ def read_external_loads(path, data, info):
             file = own
         if not file:
             raise OsimError(f"{where(source, force)}: no data file (<datafile> of the ExternalLoads)")
+        columns = _data_columns(path, file, source, force, files)
         root_body, p, R = body_frames[body]
         frame_name = f"{body}_osim"
         bodies[root_body].setdefault("frames", {})[frame_name] = {"position": p, "orientation": {"matrix": R}}
@@ -85,11 +104,16 @@ def read_external_loads(path, data, info):
             prefix = _text(force, tag)
             if prefix:
                 entry[key] = [f"{prefix}{c}" for c in "xyz"]
+                missing = [c for c in entry[key] if c not in columns]
+                if missing:
+                    raise OsimError(f"{where(source, force)}: {tag} {prefix!r}: no column {missing[0]!r} in {file}")
         if "force" not in entry:
             raise OsimError(f"{where(source, force)}: no <force_identifier>")
         if "point" not in entry:
             entry["point_frame"] = "body"
         key = name or f"ExternalForce_{len(section) + 1}"
+        if name_problem(key):
+            raise OsimError(f"{where(source, force)}: {name_problem(key)}")
         if key in section:
             raise OsimError(f"{where(source, force)}: a second external force named {key!r}")
         section[key] = entry
