@@ -19,9 +19,12 @@ contacts, passive muscle tension). Unknown columns (Eq. 12):
 Column order: [muscles, actuators, unilateral reactions | joint reactions, FDK
 residuals], the first group bounded (the recruitment's n_bounded).
 
-A driver of a coordinate that an actuator acts on carries no reaction column: the
-actuators (and the muscles) balance that coordinate, as in OpenSim's static
-optimisation; a driver without one is an ideal, cost-free actuator (inverse dynamics).
+In a model with actuators, the drivers of joint coordinates (a ``--motion``, prescribed
+coordinates) carry no reaction column: the muscles and the actuators move the model, as
+in OpenSim's static optimisation, and a coordinate nothing can move makes the frame
+infeasible, with its row named. Without actuators each such driver carries its reaction,
+an ideal cost-free actuator: the coordinate's generalised force (inverse dynamics).
+Other drivers (of measures) keep their ``reaction`` setting.
 """
 
 from __future__ import annotations
@@ -32,6 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from ..model.constraints import DRIVER
+
 
 
 @dataclass(frozen=True, eq=False)
@@ -39,7 +44,7 @@ class EquilibriumLayout:
     """Rows and columns of C f = d for one model.
 
     eq_coords : (n_rows,) q̂ indices of the equilibrium rows; row_names;
-    muscles : tuple of Muscle; actuators : tuple of CoordinateActuator (columns right
+    muscles : tuple of Muscle; actuators : tuple of actuators (forces.actuators; columns right
     after the muscles'); unilateral : tuple of (system row, sign, strength, name);
     free_rows : (n_free_reactions,) system rows of free joint reactions;
     fdk_rows : system rows of the FDK DOFs; column_names; n_bounded.
@@ -87,9 +92,11 @@ def equilibrium_layout(model, system):
     one_sided = {u[0] for u in unilateral}
     # a reaction acts in equilibrium only if its constraint touches a body with rows
     balanced = {b.index for b in model.moving_bodies if b.equilibrium}
-    actuated = {id(a.measure) for a in model.actuators}
+    # with actuators, the drivers of coordinates carry no reaction (module docstring)
+    actuated = {id(c.measure) for c in model.coordinates} if model.actuators else set()
     free_rows = [offsets[c.name] + k for c in model.constraints
-                 if c.reaction and balanced.intersection(c.measure.bodies()) and id(c.measure) not in actuated
+                 if c.reaction and balanced.intersection(c.measure.bodies())
+                 and not (c.kind == DRIVER and id(c.measure) in actuated)
                  for k in range(c.size) if offsets[c.name] + k not in one_sided]
     n_joint = sum(c.size for c in model.constraints)
     fdk_rows = list(range(n_joint, n_joint + len(model.fdk_dofs)))

@@ -49,15 +49,27 @@ def generalized_forces(model, dyn):
 
 
 def actuator_forces(model, dyn):
-    """{OpenSim column name: (nf,) N m or N} of the coordinates that actuators act on:
-    the sum of their recruited forces (``dyn``: an InverseDynamicsResult)."""
+    """{column name: (nf,) N m or N} of the actuators' recruited forces
+    (``dyn``: an InverseDynamicsResult): per coordinate that coordinate actuators act on,
+    their sum (OpenSim's column name); a point or torque actuator on the root body by its
+    own name (``FX_force``, ``MX_moment``: OpenSim's residual actuators)."""
+    from ..forces.actuators import CoordinateActuator, PointActuator
+
     index = {name: k for k, name in enumerate(dyn.column_names)}
     units = {c.name: c.unit for c in model.coordinates}
+    roots = {b for c in model.coordinates if _is_root(model, c) for b in c.measure.bodies()} - {0}
     out = {}
     for a in model.actuators:
-        if a.coordinate not in units or a.name not in index:
+        if a.name not in index:
             continue
-        key = f"{a.coordinate}_{'moment' if units[a.coordinate] == 'angle' else 'force'}"
+        if isinstance(a, CoordinateActuator):
+            if a.coordinate not in units:
+                continue
+            key = f"{a.coordinate}_{'moment' if units[a.coordinate] == 'angle' else 'force'}"
+        elif a.body in roots:
+            key = f"{a.name}_{'force' if isinstance(a, PointActuator) else 'moment'}"
+        else:
+            continue
         out[key] = out.get(key, 0.0) + np.asarray(dyn.forces[:, index[a.name]], float)
     return out
 
@@ -67,11 +79,10 @@ def residual_summary(model, columns):
     body weight (N) and the threshold of the residual forces (N)."""
     roots = {c.joint for c in model.coordinates if _is_root(model, c)}
     weight = float(sum(b.mass for b in model.moving_bodies) * np.linalg.norm(model.gravity_W))
+    keys = [f"{c.name}_{'moment' if c.unit == 'angle' else 'force'}" for c in model.coordinates if c.joint in roots]
+    keys += [f"{a.name}_{kind}" for a in model.actuators for kind in ("force", "moment")]
     out = {}
-    for c in model.coordinates:
-        if c.joint not in roots:
-            continue
-        key = f"{c.name}_{'moment' if c.unit == 'angle' else 'force'}"
+    for key in keys:
         if key in columns:
             v = columns[key][np.isfinite(columns[key])]
             if v.size:

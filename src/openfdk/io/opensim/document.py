@@ -17,7 +17,7 @@ read into the same records:
 
 ForceSet: ``Thelen2003Muscle`` with a GeometryPath of ``PathPoint``\\ s (4.x:
 ``socket_parent_frame``; 3.x: ``body``) is read into OsimMuscle records and a
-``CoordinateActuator`` into an ``actuators`` entry (:mod:`.actuators`); every other
+Coordinate-, Point- or TorqueActuator into an ``actuators`` entry (:mod:`.actuators`); every other
 force, and a muscle whose path holds anything but PathPoints, is listed as unsupported.
 
 Units: OpenSim files are in m, kg, rad (``length_units`` other than meters is refused).
@@ -458,7 +458,7 @@ class _Reader:
             self.read_constraint(c, legacy)
         for m in self.objects(model.find("MarkerSet")):
             self.read_marker(m, legacy)
-        from .actuators import ACTUATOR_TYPES, read_coordinate_actuator  # (imports this module)
+        from .actuators import ACTUATOR_TYPES, read_actuator  # (imports this module)
 
         for tag in ("ForceSet", "ContactGeometrySet", "ProbeSet", "ControllerSet"):
             for e in self.objects(model.find(tag)):
@@ -467,7 +467,7 @@ class _Reader:
                 elif tag == "ForceSet" and e.tag in MUSCLE_TYPES and e.tag not in self.ignore:
                     self.read_muscle(e, legacy)
                 elif tag == "ForceSet" and e.tag in ACTUATOR_TYPES and e.tag not in self.ignore:
-                    name, entry = read_coordinate_actuator(e, self.source)
+                    name, entry = read_actuator(e, self.source)
                     if entry is None:
                         self.ignored.append((e.tag, name, e.sourceline))  # disabled: OpenSim skips it too
                     else:

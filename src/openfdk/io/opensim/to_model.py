@@ -174,10 +174,6 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         out["couplers"] = couplers
     if muscles:
         out["muscles"] = muscles
-    if doc.actuators:
-        from .actuators import add_actuators
-
-        out = add_actuators(out, doc.actuators, coordinates, doc.source)
     merged = {b: tree.root[b] for b in doc.bodies if tree.root[b] != b}
     # each OpenSim body frame in its openfdk body (for data given in a body's frame)
     body_frames = {}
@@ -185,6 +181,10 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         root = tree.root[b]
         p, R = tree.X_root[b]
         body_frames[b] = ("ground" if root == tree.ground else safe_name(root), (p - com[root]).tolist(), R.tolist())
+    if doc.actuators:
+        from .actuators import add_actuators
+
+        out = add_actuators(out, doc.actuators, body_frames, doc.source)
     return out, {"merged_bodies": merged, "body_frames": body_frames, "muscle_settings": settings}
 
 
