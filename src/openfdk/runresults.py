@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["RunResults", "read_results", "conjugate_unit", "measure_unit"]
+__all__ = ["RunResults", "read_results", "read_summary", "conjugate_unit", "measure_unit"]
 
 KINEMATICS_CSV, FORCES_CSV, MEASURES_CSV, SUMMARY_JSON = "kinematics.csv", "forces.csv", "measures.csv", "summary.json"
 #: per-frame text columns
@@ -77,7 +77,7 @@ def _read_csv(path, required=("time",)):
     return df.set_index("time")
 
 
-def _read_summary(path):
+def read_summary(path):
     """summary.json checked against its schema: an object whose ``input``,
     ``kinematics``, ``inverse_dynamics`` and ``fdk`` entries are objects and whose input
     file names (``input.model``, ``model_file``, ``trial``, ``trial_file``) are text."""
@@ -170,7 +170,7 @@ class RunResults:
         d = Path(directory)
         if not (d / KINEMATICS_CSV).is_file():
             raise FileNotFoundError(f"{d}: no {KINEMATICS_CSV}; is this an openfdk result folder?")
-        summary = _read_summary(d / SUMMARY_JSON) if (d / SUMMARY_JSON).is_file() else {}
+        summary = read_summary(d / SUMMARY_JSON) if (d / SUMMARY_JSON).is_file() else {}
         forces = _read_csv(d / FORCES_CSV, ("time", "converged")) if (d / FORCES_CSV).is_file() else None
         measures = _read_csv(d / MEASURES_CSV) if (d / MEASURES_CSV).is_file() else None
         kinematics = _read_csv(d / KINEMATICS_CSV, ("time", "converged"))

@@ -29,8 +29,9 @@ Kinds:
   (:func:`openfdk.jobs.run_job`); JSON mutations of a sidecar, of the structure inside a
   part or of its arrays, byte mutations of a part (with the sidecar's SHA-256 rewritten,
   as an attacker would, or not) -> ``CheckpointError``;
-- ``study_lock``: a ``.study.lock`` written by the study runner, JSON and text
-  mutations -> ``StudyError``.
+- ``study_lock``: a ``.study.lock`` written by the study runner (held by this process;
+  for 30 % of the inputs first made stale: the pid of a finished process), JSON and text
+  mutations -> ``StudyError`` (or the stale lock taken over).
 """
 
 from __future__ import annotations
@@ -41,6 +42,8 @@ import io
 import json
 import os
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -210,6 +213,9 @@ def build(bases, kinds):
         bases.paths["checkpoint"] = parts[0]
         bases.originals["checkpoint"] = {p: p.read_bytes() for p in parts}
         bases.paths["study_lock"] = run / "lock" / ".study.lock"
+        child = subprocess.Popen([sys.executable, "-c", ""])
+        child.wait()
+        bases.dead_pid = child.pid  # the lock of a study killed on this host (stale, taken over)
     for kind in kinds:
         if kind not in bases.originals:
             bases.originals[kind] = {bases.paths[kind]: bases.paths[kind].read_bytes()}
@@ -401,7 +407,12 @@ def mutate(kind, bases, rng):
         else:
             _write_part(part, mutate_bytes(originals[part], rng), rehash=op < 0.95)
     elif kind == "study_lock":
-        path.write_text(mutate_json(originals[path].decode(), rng), encoding="utf-8")
+        text = originals[path].decode()
+        if rng.random() < 0.3:                         # a stale lock: its process is gone, maybe more changed
+            text = json.dumps({**json.loads(text), "pid": bases.dead_pid})
+            path.write_text(mutate_json(text, rng, int(rng.integers(3))), encoding="utf-8")
+        else:
+            path.write_text(mutate_json(text, rng), encoding="utf-8")
     else:
         raise ValueError(f"not a new fuzz kind: {kind!r}")
     return None

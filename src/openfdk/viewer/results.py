@@ -9,14 +9,13 @@ model file.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..io.results import read_rows, table_columns
-from ..runresults import TEXT_COLUMNS
+from ..runresults import TEXT_COLUMNS, read_summary
 
 
 class ViewError(ValueError):
@@ -83,9 +82,9 @@ def read_results(directory):
     summary = {}
     if (d / "summary.json").is_file():
         try:
-            summary = json.loads((d / "summary.json").read_text())
+            summary = read_summary(d / "summary.json")  # the schema plot and export-opensim check
         except ValueError as exc:
-            raise ViewError(f"{d / 'summary.json'}: not valid JSON ({exc})") from None
+            raise ViewError(str(exc)) from None
     kin = read_table(kin_path)
     forces = read_table(d / "forces.csv") if (d / "forces.csv").is_file() else {}
     if forces and len(forces["time"]) != len(kin["time"]):
