@@ -249,8 +249,20 @@ def test_residual_point_and_torque_actuators(tmp_path, monkeypatch, capsys):
         assert np.max(np.abs(so[f"F{axis}.actuator"] - expected)) < 1e-7 * max(1.0, np.max(np.abs(expected)))
     assert np.max(np.abs(so["FY.actuator"])) > 100.0
     assert not any(k.startswith("reserve_pelvis") or k.startswith("residual_") for k in so)
-    res = json.loads((tmp_path / "so" / "summary.json").read_text())["residuals"]["columns"]
+    summary = json.loads((tmp_path / "so" / "summary.json").read_text())["residuals"]
+    res = summary["columns"]
     assert set(res) == {"FX_force", "FY_force", "FZ_force", "MX_moment", "MY_moment", "MZ_moment"}
+    # the actuators' figure: every actuator's force and control, the residual threshold
+    from openfdk.runplots import make_figures
+    from openfdk.runresults import RunResults
+
+    results = RunResults.read(tmp_path / "so")
+    fig = make_figures(results, measures=[])["actuators"]
+    force_axis, control_axis = fig.axes[:2]
+    n = len(results.actuators())
+    assert n == 6 + 17 and len(control_axis.lines) == n and len(force_axis.lines) == n + 2
+    threshold = force_axis.lines[0].get_ydata()[0]
+    assert threshold == pytest.approx(summary["force_threshold_N"]) and threshold > 0
     assert abs(res["FY_force"]["peak"] - np.max(np.abs(ref["pelvis_ty_force"]))) < 1e-6 * res["FY_force"]["peak"]
 
 

@@ -8,6 +8,8 @@ One PNG per topic, each only when the run has something to show:
 * ``measures.png`` — chosen kinematic measures evaluated on the tracked poses;
 * ``muscles.png`` — muscle forces (N) and activations f/s;
 * ``ligaments.png`` — ligament and spring forces;
+* ``actuators.png`` — reserve and residual actuators' forces (N or N·m) and controls
+  τ/F, with the residual-force threshold (5 % of the body weight);
 * ``contact.png`` — contact force (world components and magnitude), centre of pressure
   (world) and contact area;
 * ``reactions.png`` — joint and constraint reactions, grouped by unit;
@@ -226,6 +228,30 @@ def _muscles(results, t, failed):
     return _finish(fig, axes, t, failed, caption)
 
 
+def _actuators(results, t, failed):
+    f = results.forces
+    names = results.actuators()
+    peak = {n: np.nanmax(np.abs(_col(f, f"{n}.actuator")), initial=0.0) for n in names}
+    order = sorted(names, key=lambda n: -peak[n])
+    fig, axes = _figure(2, f"{_name(results)}: actuators ({len(names)}; legend: the {min(len(names), MAX_LEGEND)} "
+                           "largest)")
+    threshold = (results.summary.get("residuals") or {}).get("force_threshold_N")
+    if isinstance(threshold, (int, float)) and not isinstance(threshold, bool):  # first: always in the legend
+        for sign in (1, -1):
+            axes[0].axhline(sign * threshold, color="k", ls="--", lw=0.8,
+                            label="±5 % body weight (residual forces)" if sign > 0 else "_")
+    for n in order:
+        axes[0].plot(t, _col(f, f"{n}.actuator"), lw=1, label=n)
+        axes[1].plot(t, _col(f, f"{n}.control"), lw=1, label=f"_{n}")
+    axes[0].set_ylabel("actuator force\n(N or N·m)", fontsize=8)
+    axes[1].set_ylabel("control τ/F (–)", fontsize=8)
+    caption = ("Actuators (reserve and residual actuators, recruited beside the muscles and weighted by their optimal "
+               "force F): coordinate actuators along their coordinate (N·m or N), point actuators along their "
+               "direction (N), torque actuators about their axis (N·m). Control: force / F. Residual forces above the "
+               "dashed lines make the trial dynamically inconsistent.")
+    return _finish(fig, axes, t, failed, caption)
+
+
 def _ligaments(results, t, failed):
     f = results.forces
     ligs, springs = results.ligaments(), results.springs()
@@ -345,6 +371,8 @@ def iter_figures(results, measures=None):
         yield "measures", _measures(results, t, failed, list(measures))
     if results.muscles():
         yield "muscles", _muscles(results, t, failed)
+    if results.actuators():
+        yield "actuators", _actuators(results, t, failed)
     if results.ligaments() or results.springs():
         yield "ligaments", _ligaments(results, t, failed)
     if results.contacts():
