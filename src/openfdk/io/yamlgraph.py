@@ -27,47 +27,62 @@ def _key_text(node) -> str:
 
 
 def _children(node, path):
-    """(child node, entry path) of a mapping (keys and values) or sequence node, in file
-    order."""
+    """The child nodes of a mapping (keys and values) or sequence node in file order,
+    each with its entry path (``path`` None: no paths, None each)."""
     if isinstance(node, yaml.MappingNode):
+        if path is None:
+            return [(c, None) for kv in node.value for c in kv]
         out = []
         for k, v in node.value:
-            key = _key_text(k)
-            here = f"{path}.{key}" if path else key
+            here = f"{path}.{_key_text(k)}" if path else _key_text(k)
             out += [(k, here), (v, here)]
         return out
-    if isinstance(node, yaml.SequenceNode):
-        return [(v, f"{path}[{i}]") for i, v in enumerate(node.value)]
-    return []
+    if path is None:
+        return [(c, None) for c in node.value]
+    return [(v, f"{path}[{i}]") for i, v in enumerate(node.value)]
 
 
-def check_graph(node, source, error=ValueError):
-    """Raise ``error`` (one line: ``<source>: …, above the limit of … (openfdk.io.limits.
-    NAME)``) when the composed document ``node`` has too many aliases, is recursive, or
-    expands to too many nodes. Returns the expanded node count."""
-    size = {}        # id(node) -> expanded node count, once its subtree is done
-    open_ids = set()  # ids of the nodes whose subtree is being walked (the ancestors)
-    aliases, first_over = 0, None
-    stack = [(node, "(top level)", False)]
+def _walk(node, with_paths=False, stop_at_alias=None):
+    """Walk the graph once, each node once, depth first in file order. Returns (alias
+    references, expanded sizes by id, entry path of the alias number ``stop_at_alias``
+    or of a recursive alias (with_paths only), whether an alias is recursive)."""
+    size, open_ids, aliases = {}, set(), 0
+    stack = [(node, "" if with_paths else None, False)]
     while stack:
         n, path, leaving = stack.pop()
         key = id(n)
         if leaving:
             open_ids.discard(key)
-            size[key] = min(_CAP, 1 + sum(size[id(c)] for c, _ in _children(n, path)))
+            size[key] = min(_CAP, 1 + sum(size[id(c)] for c, _ in _children(n, None)))
             continue
-        if key in open_ids:
-            raise error(f"{source}: {path}: an alias refers to a node that contains it (the document would be "
-                        "infinite when expanded)")
         if key in size:
             aliases += 1
-            if aliases == limits.YAML_ALIASES + 1:
-                first_over = path
+            if aliases == stop_at_alias:
+                return aliases, size, path, False
+            continue
+        if key in open_ids:
+            return aliases, size, path, True
+        if isinstance(n, yaml.ScalarNode):
+            size[key] = 1
             continue
         open_ids.add(key)
         stack.append((n, path, True))
-        stack.extend((c, p, False) for c, p in reversed(_children(n, path if path != "(top level)" else "")))
-    if first_over is not None:
+        stack.extend((c, p, False) for c, p in reversed(_children(n, path)))
+    return aliases, size, None, False
+
+
+def check_graph(node, source, error=ValueError):
+    """Raise ``error`` (one line: ``<source>: …, above the limit of … (openfdk.io.limits.
+    NAME)``) when the composed document ``node`` has too many aliases, is recursive, or
+    expands to too many nodes. Returns the expanded node count. Entry paths are worked
+    out only for a message (a second walk)."""
+    aliases, size, _, recursive = _walk(node)
+    if recursive:
+        path = _walk(node, with_paths=True)[2] or "(top level)"
+        raise error(f"{source}: {path}: an alias refers to a node that contains it (the document would be "
+                    "infinite when expanded)")
+    if aliases > limits.YAML_ALIASES:
+        first_over = _walk(node, with_paths=True, stop_at_alias=limits.YAML_ALIASES + 1)[2]
         limits.check_count(aliases, "YAML_ALIASES", source, "",
                            f"aliases (alias number {limits.YAML_ALIASES + 1:,} at {first_over})".replace(",", " "),
                            error)
