@@ -202,6 +202,18 @@ def test_a_mesh_at_the_triangle_limit_is_read(tmp_path, monkeypatch):
         load_mesh(stl)
 
 
+def test_a_subject_mesh_above_the_triangle_limit_is_refused_from_its_header(tmp_path):
+    from openfdk.mandible import SubjectError, create_subject, load_subject
+
+    folder = create_subject(tmp_path / "virtual", resolution="coarse")
+    n = limits.MESH_TRIANGLES + 1
+    _sparse(folder / "fossa_l.stl", b"\0" * 80 + np.uint32(n).tobytes(), 84 + 50 * n)
+    with pytest.raises(SubjectError, match=r"surfaces\.fossa_l: mesh file 'fossa_l\.stl': 5 000 001 triangles "
+                                           r"\(binary STL header\), above the limit of 5 000 000 "
+                                           r"\(openfdk\.io\.limits\.MESH_TRIANGLES\)$"):
+        load_subject(folder)
+
+
 @pytest.mark.parametrize("name, head", [("big.stl", b"solid big\n"), ("big.obj", b"v 0 0 0\n"),
                                         ("big.vtp", b"<VTKFile"), ("big.ply", b"ply\n")])
 def test_a_mesh_file_above_the_byte_limit_is_refused_before_reading(tmp_path, name, head):

@@ -29,7 +29,7 @@ import numpy as np
 
 from .unique_rows import first_appearance_rows
 
-__all__ = ["StlError", "read_stl"]
+__all__ = ["StlError", "check_stl_size", "read_stl"]
 
 _RECORD = np.dtype([("normal", "<f4", (3,)), ("corners", "<f4", (3, 3)), ("attribute", "<u2")])
 
@@ -46,20 +46,39 @@ def read_stl(path) -> tuple[np.ndarray, np.ndarray]:
     file's triangle count from its header against :data:`openfdk.io.limits.MESH_TRIANGLES`,
     an ASCII file's size against :data:`openfdk.io.limits.MESH_FILE_BYTES`); an STL file
     without triangles gives empty arrays."""
+    with open(path, "rb") as f:
+        n = _checked_size(f)
+        if n >= 0:
+            corners = np.frombuffer(f.read(), dtype=_RECORD, count=n)["corners"]
+            return _merge_corners(corners.reshape(-1, 3).astype(np.float64))
+        data = f.read()
+    return _merge_corners(_ascii_corners(data))
+
+
+def check_stl_size(path):
+    """Raise :class:`StlError` when the STL file ``path`` is above the size limits (as
+    :func:`read_stl` checks them), reading only its header; OSError when it cannot be
+    opened. For readers of STL files other than :func:`read_stl` (trimesh)."""
+    with open(path, "rb") as f:
+        _checked_size(f)
+
+
+def _checked_size(f) -> int:
+    """The triangle count of a binary STL (from its header), or -1 for an ASCII one, of
+    the open file ``f`` (left positioned after the header, or at the start for ASCII),
+    after checking it against :data:`openfdk.io.limits.MESH_TRIANGLES` (binary) or the
+    file size against :data:`openfdk.io.limits.MESH_FILE_BYTES` (ASCII)."""
     from ..io import limits
 
-    with open(path, "rb") as f:
-        size = os.fstat(f.fileno()).st_size
-        head = f.read(84)
-        n = int(np.frombuffer(head, dtype="<u4", count=1, offset=80)[0]) if len(head) == 84 else -1
-        if n >= 0 and size == 84 + 50 * n:
-            limits.check_count(n, "MESH_TRIANGLES", "", "", "triangles (binary STL header)", StlError)
-            data = f.read()
-            corners = np.frombuffer(data, dtype=_RECORD, count=n)["corners"]
-            return _merge_corners(corners.reshape(-1, 3).astype(np.float64))
-        limits.check_count(size, "MESH_FILE_BYTES", "", "", "bytes of ASCII STL text", StlError)
-        data = head + f.read()
-    return _merge_corners(_ascii_corners(data))
+    size = os.fstat(f.fileno()).st_size
+    head = f.read(84)
+    n = int(np.frombuffer(head, dtype="<u4", count=1, offset=80)[0]) if len(head) == 84 else -1
+    if n >= 0 and size == 84 + 50 * n:
+        limits.check_count(n, "MESH_TRIANGLES", "", "", "triangles (binary STL header)", StlError)
+        return n
+    limits.check_count(size, "MESH_FILE_BYTES", "", "", "bytes of ASCII STL text", StlError)
+    f.seek(0)
+    return -1
 
 
 def _ascii_corners(data: bytes) -> np.ndarray:

@@ -366,6 +366,23 @@ def _ligaments(ctx: _Context, data) -> tuple:
     return tuple(ligaments)
 
 
+def _check_mesh_size(ctx: _Context, where: str, path: Path):
+    """The size limits of :mod:`openfdk.io.limits` before trimesh reads the mesh: a
+    binary STL's triangle count from its header, any other file's size."""
+    from ..contact.stl import StlError, check_stl_size
+    from ..io import limits
+
+    try:
+        if path.suffix.lower() in ("", ".stl"):
+            check_stl_size(path)
+        else:
+            limits.check_file_bytes(path, "MESH_FILE_BYTES", "", StlError)
+    except StlError as exc:
+        raise ctx.error(where, f"mesh file {path.name!r}: {exc}") from None
+    except OSError as exc:
+        raise ctx.error(where, f"mesh file {path.name!r} cannot be read: {exc.strerror or exc}") from None
+
+
 def _load_stl(ctx: _Context, where: str, path: Path, scale: float, placement, flip: bool):
     try:
         found, size = path.exists(), (path.stat().st_size if path.is_file() else 0)
@@ -375,6 +392,7 @@ def _load_stl(ctx: _Context, where: str, path: Path, scale: float, placement, fl
         raise ctx.error(where, f"mesh file {path.name!r} not found in {path.parent}")
     if size == 0:
         raise ctx.error(where, f"mesh file {path.name!r} is empty")
+    _check_mesh_size(ctx, where, path)
     import trimesh
 
     try:
