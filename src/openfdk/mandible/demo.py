@@ -46,17 +46,19 @@ def run_demo(out="openfdk-demo", quick=False, progress=True, log=print, workers=
 
 def report(result, study_dir, log=print):
     """Print Tables 1 and 2 of a finished study and where its files are."""
+    from .paper import format_table2_with_paper
     from .tables import format_text
 
     log("")
     log("Table 1: TMJ kinematics of the FDK and POP models vs measured (mean ± SD over cycles; RMSD in mm)")
     log(format_text(result["table1"]))
     log("")
-    log("Table 2: TMJ reaction forces, POP vs FDK (mean ± SD over cycles; RMSD in N)")
-    log(format_text(result["table2"]))
+    log("Table 2: TMJ reaction forces, POP vs FDK (mean ± SD over cycles; RMSD in N), beside the paper's")
+    log(format_table2_with_paper(result["table2"], result["summary"].get("task_kinds")))
     log("")
     log(f"tables: {study_dir}/table1.md, {study_dir}/table2.md (and .csv)")
-    log(f"parameter study: {study_dir}/parameter_study/summary.csv (one row per case)")
+    if "parameter_study" in result["summary"].get("runs", {}):      # not with --no-parameter-study
+        log(f"parameter study: {study_dir}/parameter_study/summary.csv (one row per case)")
     log(f"figures: {study_dir}/figures/")
     for f in result["figures"]:
         log(f"  {f}")

@@ -29,7 +29,10 @@ muscles' lower ends sit on a ``hyoid`` body that follows half of the mandible's 
 skull-fixed supra-hyoid ends, a 45 mm opening was infeasible on a third of the frames:
 the openers' moment arms vanish and the stretched elevators pull it shut
 (docs/mandible-study.md, "Muscle calibration and the hyoid"). The parallel-elastic strain
-at F0 is 1.0 (see :data:`PASSIVE_STRAIN_AT_MAX_FORCE`).
+at F0 is Thelen's (2003) 0.6 (see :data:`PASSIVE_STRAIN_AT_MAX_FORCE`; the subject's
+``muscle_calibration.passive_strain`` sets it): the passive tension of the stretched
+muscles is what loads the TMJ in unloaded movements, and with 0.6 the virtual study's
+TMJ forces and Table 2 are in the paper's range (docs/mandible-study.md, "TMJ forces").
 """
 
 from __future__ import annotations
@@ -50,12 +53,17 @@ DEFAULT_STIFFNESS, DEFAULT_STRAIN = 272.4, 0.0  # the paper's comparison model
 #: forward and down along the eminence (docs/mandible-study.md)
 CALIBRATION_OPENING_DEG = _protocol.CALIBRATION_OPENING_DEG
 CALIBRATION_TRANSLATION = tuple(1e-3 * float(v) for v in _protocol.CALIBRATION_TRANSLATION_MM)
-#: parallel-elastic strain at F0 of the jaw muscles (Thelen 2003 gives 0.6 for limb
-#: muscles of young adults; the reference table gives none). With 0.6 the stretched
-#: supra-hyoid muscles' passive tension exceeds what the openers can balance during
-#: protrusion (≈ 20 % of frames infeasible on the virtual subject); 1.0 keeps every task
-#: feasible. A model-level choice: edit the model file to study it.
-PASSIVE_STRAIN_AT_MAX_FORCE = 1.0
+#: parallel-elastic strain at F0 of the jaw muscles: Thelen (2003, J Biomech Eng
+#: 125:70, Eq. 3) ε0_M = 0.6 for young adults (the reference table gives none; openfdk's
+#: Hill default, docs/muscles.md). It sets the passive tension of the stretched muscles,
+#: which is most of the TMJ load in unloaded movements. Measured on the realistic
+#: virtual study (docs/mandible-study.md, "TMJ forces"): with 0.6, Table 2's RMSD is
+#: 0.79–19.7 N (paper 0.75–24.7 N) and open–close loads the TMJ with 18–20 N (median),
+#: but POP is infeasible beyond ≈ 42.6 mm of incisal opening (the openers cannot hold
+#: the passive closers; FDK stays feasible); 0.8 keeps every frame feasible up to 45 mm
+#: with RMSD 0.60–13.9 N; the earlier 1.0 gave 0.51–10.5 N. Per subject:
+#: ``muscle_calibration.passive_strain``.
+PASSIVE_STRAIN_AT_MAX_FORCE = 0.6
 #: fraction λ of the mandible's motion (at the hyoid's rest position) that the hyoid
 #: follows (0 = supra-hyoid lower ends fixed to the skull)
 HYOID_FOLLOW = _protocol.HYOID_FOLLOW
@@ -92,14 +100,14 @@ def calibrated_tendon_slack(subject, muscle, opening_deg, translation=(0.0, 0.0,
 def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS,
                reference_strain=DEFAULT_STRAIN, calibration_opening_deg=None,
                calibration_translation=None, mesh_dir=None,
-               passive_strain_at_max_force=PASSIVE_STRAIN_AT_MAX_FORCE,
+               passive_strain_at_max_force=None,
                pressure_modulus=1.0e10, spring_stiffness=0.1, hyoid_follow=None, contact_max_depth=None):
     """The POP (``kind="pop"``) or FDK (``kind="fdk"``) model of a subject as a model-file
     mapping (mm, deg). ``mesh_dir``: path written for the STL files (relative to where
     the model file will be written; default the subject folder, absolute).
     ``calibration_opening_deg`` (deg), ``calibration_translation`` ((3,) m) and
-    ``hyoid_follow`` (fraction) default to the subject's ``muscle_calibration`` and
-    ``hyoid`` sections, else to the module defaults. ``contact_max_depth`` (m): the
+    ``hyoid_follow`` (fraction) and ``passive_strain_at_max_force`` default to the
+    subject's ``muscle_calibration`` and ``hyoid`` sections, else to the module defaults. ``contact_max_depth`` (m): the
     contacts' ``max_depth`` (default the subject's ``contact.max_depth``, else the
     model file's default, 3 mm)."""
     if kind not in ("pop", "fdk"):
@@ -113,6 +121,8 @@ def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS
                                    else CALIBRATION_TRANSLATION)
     if hyoid_follow is None:
         hyoid_follow = protocol.hyoid_follow if protocol is not None else HYOID_FOLLOW
+    if passive_strain_at_max_force is None:
+        passive_strain_at_max_force = getattr(protocol, "passive_strain", None) or PASSIVE_STRAIN_AT_MAX_FORCE
     if contact_max_depth is None and protocol is not None:
         contact_max_depth = protocol.contact_max_depth
     com = subject.mandible.center_of_mass
@@ -155,7 +165,8 @@ def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS
         "name": f"{subject.name} {kind.upper()} TMJ model",
         "description": (f"written by openfdk.mandible.models from {subject.directory}; tendon slack lengths "
                         f"calibrated {float(calibration_opening_deg):g} deg open, condyles translated "
-                        f"{[round(1e3 * float(v), 3) for v in calibration_translation]} mm; "
+                        f"{[round(1e3 * float(v), 3) for v in calibration_translation]} mm, parallel-elastic "
+                        f"strain at F0 {float(passive_strain_at_max_force):g}; "
                         f"hyoid follows {float(hyoid_follow):g} of the mandible's motion"),
         "units": {"length": "mm", "angle": "deg"},
         "gravity": [0.0, 0.0, -9.81],

@@ -10,7 +10,8 @@ say how the mandible study uses the subject (docs/subject-folder.md, "Study sect
 * ``condyle_point``: the landmark per side whose kinematics Table 1 compares (default
   the condyle tops).
 * ``muscle_calibration``: the pose in which the fibres are at their optimal length
-  (tendon slack lengths, :func:`.models.calibrated_tendon_slack`).
+  (tendon slack lengths, :func:`.models.calibrated_tendon_slack`), and the muscles'
+  parallel-elastic strain at F0 (``passive_strain``).
 * ``hyoid``: the muscles whose lower end is on the hyoid and the fraction of the
   mandible's motion the hyoid follows (:mod:`.models`).
 * ``contact``: ``max_depth`` of the FDK model's condyle–fossa contacts (vertices
@@ -75,7 +76,8 @@ class StudyProtocol:
     ``calibration_opening`` rad and ``calibration_translation`` (3,) m;
     ``hyoid_muscles``: tuple of names or None (named like supra-hyoid muscles);
     ``hyoid_follow``: fraction in [0, 1]; ``contact_max_depth``: m or None (the model
-    file's default, 3 mm); ``file``: subject.yaml path (for messages).
+    file's default, 3 mm); ``passive_strain``: the muscles' parallel-elastic strain at
+    F0 or None (the models' default); ``file``: subject.yaml path (for messages).
     """
 
     trials: MappingProxyType
@@ -91,6 +93,7 @@ class StudyProtocol:
     hyoid_follow: float = HYOID_FOLLOW
     file: Path | None = None
     contact_max_depth: float | None = None
+    passive_strain: float | None = None
 
     @property
     def tasks(self) -> tuple:
@@ -232,7 +235,10 @@ def parse_protocol(ctx, data: dict, directory: Path, landmarks: dict, muscle_nam
     for side, name in condyle_points.items():
         if name not in landmarks:
             raise ctx.error(f"condyle_point.{side}", f"unknown landmark {name!r}; landmarks: {sorted(landmarks)}")
-    cal = ctx.mapping(data.get("muscle_calibration") or {}, "muscle_calibration", allowed={"opening", "translation"})
+    cal = ctx.mapping(data.get("muscle_calibration") or {}, "muscle_calibration",
+                      allowed={"opening", "translation", "passive_strain"})
+    passive_strain = (ctx.number(cal["passive_strain"], "muscle_calibration.passive_strain", positive=True)
+                      if "passive_strain" in cal else None)
     opening = ctx.angle * ctx.number(cal.get("opening", CALIBRATION_OPENING_DEG * np.pi / 180.0 / ctx.angle),
                                      "muscle_calibration.opening")
     translation = (ctx.vector(cal["translation"], "muscle_calibration.translation") * ctx.length
@@ -253,4 +259,4 @@ def parse_protocol(ctx, data: dict, directory: Path, landmarks: dict, muscle_nam
                  if "max_depth" in contact else None)
     return StudyProtocol(MappingProxyType(trials), method, static, pose, max_gap, MappingProxyType(condyle_points),
                          float(opening), tuple(float(v) for v in translation), hyoid_muscles, float(follow),
-                         ctx.file, max_depth)
+                         ctx.file, max_depth, passive_strain)

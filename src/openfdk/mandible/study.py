@@ -43,6 +43,7 @@ from ..jobs import run_job
 from .cycles import CycleError, find_cycles, normalize_cycles
 from .experiment import mandible_points_in_skull
 from .extract import SIDE_TAGS, compared_condyle_point, condyle_kinematics, fdk_forces, pop_forces
+from .ml_jumps import continuation_check, ml_jumps
 from .models import DEFAULT_STIFFNESS, DEFAULT_STRAIN, MARKER_CUTOFF_HZ, write_models
 from .protocol import TrialSpec
 from .registration import StaticPose, register
@@ -258,6 +259,22 @@ def _task_warnings(caught, task, label):
     return messages
 
 
+def _failed_frames(ok, time, opening):
+    """Where a run failed: {"frames": n, "spans_s": [[t0, t1], ...] (consecutive failed
+    frames), "incisal_opening_mm": [min, max] at them (None without failures)};
+    ok (n,) bool, time (n,) s, opening (n,) m."""
+    bad = ~np.asarray(ok, dtype=bool)
+    if not bad.any():
+        return {"frames": 0, "spans_s": [], "incisal_opening_mm": None}
+    idx = np.flatnonzero(bad)
+    breaks = np.flatnonzero(np.diff(idx) > 1)
+    starts, stops = np.r_[idx[0], idx[breaks + 1]], np.r_[idx[breaks], idx[-1]]
+    o = 1e3 * opening[bad]
+    return {"frames": int(bad.sum()), "spans_s": [[round(float(time[a]), 4), round(float(time[b]), 4)]
+                                                  for a, b in zip(starts, stops)],
+            "incisal_opening_mm": [round(float(np.nanmin(o)), 2), round(float(np.nanmax(o)), 2)]}
+
+
 def analyse_trial(subject, registration, models, trial, out_dir, *, start=None, end=None, progress=False,
                   task=None):
     """POP and FDK over a trial (whole, or ``start``…``end`` s).
@@ -268,8 +285,12 @@ def analyse_trial(subject, registration, models, trial, out_dir, *, start=None, 
     {"measured"|"POP"|"FDK": {side: (n, 3) m}} condyle-point displacements from the
     reference pose in the skull frame, "forces": {"POP"|"FDK": {side: (n, 3) N}},
     "incisor" (n, 3) m}; runs = per model frames, converged frames, feasible share,
-    wall time, the warnings issued (``warnings``; a contact-depth warning names
-    ``task``, default the trial file's name, and the model)."""
+    wall time, the FDK medio-lateral DOF's frame-to-frame jumps (``ml_jumps``:
+    largest, when, how many, and the continuation check at the largest,
+    :mod:`.ml_jumps`), the warnings issued (``warnings``; a contact-depth warning names
+    ``task``, default the trial file's name, and the model) and where the run failed
+    (``failed_frames``: count, time spans, incisal opening from the record's rest pose
+    at those frames; never hidden: the frames stay NaN in the series)."""
     time, measured, incisor = measured_series(subject, registration, trial)
     keep = np.ones(len(time), dtype=bool)
     if start is not None:
@@ -277,6 +298,8 @@ def analyse_trial(subject, registration, models, trial, out_dir, *, start=None, 
     if end is not None:
         keep &= time <= end + 1e-9
     ref = {side: compared_condyle_point(subject, tag) for side, tag in SIDE_TAGS.items()}
+    rest = rest_incisor(subject, {side: p[keep] for side, p in measured.items()}, incisor[keep])
+    opening = np.linalg.norm(incisor[keep] - rest, axis=1)
     series = {"time": time[keep], "incisor": incisor[keep], "forces": {},
               "kinematics": {"measured": {side: p[keep] - ref[side] for side, p in measured.items()}}}
     runs = {}
@@ -293,15 +316,26 @@ def analyse_trial(subject, registration, models, trial, out_dir, *, start=None, 
         write_forces(out, dyn)
         label = kind.upper()
         series["kinematics"][label] = {side: p - ref[side] for side, p in condyle_kinematics(kin, subject).items()}
-        series["forces"][label] = (pop_forces if kind == "pop" else fdk_forces)(dyn, kin, subject)
+        forces = (pop_forces if kind == "pop" else fdk_forces)(dyn, kin, subject)
+        # a failed frame's forces (the recruitment's closest, infeasible solution) are
+        # not forces of the model: NaN in the series, so the tables and figures leave
+        # them out; the frames are listed in failed_frames and forces.csv keeps them
+        failed = ~np.asarray(dyn.converged, dtype=bool)
+        series["forces"][label] = {side: np.where(failed[:, None], np.nan, F) for side, F in forces.items()}
         n = int(len(kin.time))
         runs[label] = {"frames": n, "kinematics_converged": int(kin.converged.sum()),
                        "forces_converged": int(dyn.converged.sum()),
                        "feasible_share": float(dyn.converged.sum()) / max(n, 1),
-                       "wall_time_s": _time.perf_counter() - t0, "warnings": issued}
+                       "wall_time_s": _time.perf_counter() - t0, "warnings": issued,
+                       "failed_frames": _failed_frames(dyn.converged, series["time"], opening)}
         if "fdk" in info:
             runs[label]["fdk"] = {k: info["fdk"][k] for k in ("convergence_rate", "mean_residual_evaluations_per_frame",
                                                                "frames_per_second")}
+            alpha_ml = dyn.extra["columns"].get("fdk.tmj_ml.alpha")
+            if alpha_ml is not None:        # the medio-lateral DOF's jumps (issue 28, :mod:`.ml_jumps`)
+                jumps = ml_jumps(kin.time, alpha_ml)
+                jumps["continuation_check"] = continuation_check(models[kind], trial, kin.time, jumps.pop("frames"))
+                runs[label]["ml_jumps"] = jumps
         write_json(out / "summary.json", {"input": info, "kinematics": kin.summary(), "inverse_dynamics": dyn.summary(),
                                           **({"fdk": info["fdk"]} if "fdk" in info else {})})
     return series, runs
@@ -327,7 +361,26 @@ def analyse_task(subject, registration, models, task, out_dir, progress=False, n
     if log is not None:
         for label in ("POP", "FDK"):
             for message in runs[label]["warnings"]:
-                log(f"  warning: {message}")
+                if message.startswith("task "):            # the contact-depth warning of this task
+                    log(f"  warning: {message}")
+            jumps = runs[label].get("ml_jumps")
+            if jumps and jumps["count"]:
+                checks = jumps["continuation_check"]
+                second = [c for c in checks if c["second_root"]]
+                verdict = (f"a second root at t = {', '.join(str(c['t_s']) for c in second)} s: continuing from the "
+                           "previous frame converges elsewhere (summary.json ml_jumps.continuation_check)" if second
+                           else f"continuation from the previous frame finds no second root at the {len(checks)} "
+                                "largest (the branch ends there: the jumps are the model's)")
+                log(f"  {spec.task}: FDK medio-lateral DOF: largest frame-to-frame jump {jumps['max_mm']:.2f} mm at "
+                    f"t = {jumps['at_s']:g} s ({jumps['count']} jumps > {jumps['threshold_mm']:g} mm); {verdict}")
+            failed = runs[label]["failed_frames"]
+            if failed["frames"]:
+                spans = ", ".join(f"{a:g}–{b:g}" for a, b in failed["spans_s"][:6])
+                more = f" and {len(failed['spans_s']) - 6} more" if len(failed["spans_s"]) > 6 else ""
+                lo, hi = failed["incisal_opening_mm"]
+                log(f"  {spec.task}: {label} failed on {failed['frames']} of {runs[label]['frames']} frames "
+                    f"(t = {spans}{more} s; incisal opening {lo:.1f}–{hi:.1f} mm from rest); they are NaN in "
+                    f"the series and tables, listed in summary.json (runs.{spec.task}.{label}.failed_frames)")
     first = int(np.argmin(np.abs(found.time - series["time"][0])))
     cycles = [(a - first, b - first) for a, b in found.cycles]
     found = TaskCycles(series["time"], cycles, found.found, found.requested, found.window, found.message,
@@ -466,6 +519,12 @@ def run_study(subject_dir, out_dir, tasks=None, n_cycles=5, quick=False, paramet
         cycle_info[task] = {"analysed": len(cycles.cycles), "found": cycles.found, "requested": cycles.requested,
                             "window_s": list(cycles.window), "warning": cycles.message or None,
                             "rest_incisal_offset_mm": np.round(1e3 * cycles.rest_offset, 3).tolist()}
+    seen = []                       # the models' other warnings (e.g. plausibility), once each
+    for task_runs in runs.values():
+        for label in ("POP", "FDK"):
+            seen += [m for m in task_runs[label]["warnings"] if not m.startswith("task ") and m not in seen]
+    for message in seen:
+        log(f"  warning: {message}")
     bands = {}
     if parameter_study and per_task:
         bands, runs["parameter_study"] = _parameter_study(subject, models, out, per_task, series, quick, workers,
@@ -478,11 +537,14 @@ def run_study(subject_dir, out_dir, tasks=None, n_cycles=5, quick=False, paramet
         figures = write_figures(per_task, out, bands)
     summary = {
         "subject": str(subject_dir), "tasks": list(tasks), "completed": list(per_task), "failed": failed,
+        "task_kinds": {task: subject.protocol.trial(task).kind for task in tasks},
         "cycles": cycle_info, "n_cycles_requested": n_cycles, "quick": quick,
         "registration": registration.to_dict(),
         "registration_rms_mm": (registration.rms_m["skull"] or math.nan) * 1e3,
         "feasible_share": {task: {k: r[k]["feasible_share"] for k in ("POP", "FDK")} for task, r in runs.items()
                            if task in per_task},
+        "fdk_ml_jump_max_mm": {task: r["FDK"].get("ml_jumps", {}).get("max_mm") for task, r in runs.items()
+                               if task in per_task},
         "runs": runs, "figures": [str(f) for f in figures], "wall_time_s": _time.perf_counter() - t_start,
     }
     write_json(out / "summary.json", summary)
