@@ -149,3 +149,204 @@ def test_trc_header_counts_nan_or_infinite_are_refused(bases, tmp_path):
         name = ("NumFrames", "NumMarkers")[field == 3]
         with pytest.raises(TRCError, match=rf"h\.trc: line 3: {name} is '{value}', expected a whole number"):
             read_trc(path)
+
+
+# -- issue 30: the kinds of openfdk.bench.fuzz_kinds and what their fuzzing found -------
+
+def test_plate_parameter_mutations_reach_the_plate_reader(bases):
+    """The parameter mutator changes FORCE_PLATFORM and ANALOG records in place, so the
+    refusals come from the plate reader's own checks, not only from the C3D header."""
+    from openfdk.bench.fuzz_kinds import mutate_plate_parameters
+    from openfdk.io.c3d import C3DError
+    from openfdk.io.force_plates import read_force_plates
+
+    base = bases.originals["force_plates"][bases.paths["force_plates"]]
+    assert len(read_force_plates(bases.paths["force_plates"])) == 4
+    rng, messages, loaded = np.random.default_rng(7), [], 0
+    path = bases.paths["force_plates"]
+    try:
+        for _ in range(60):
+            path.write_bytes(mutate_plate_parameters(base, rng, n_mutations=1))
+            try:
+                with warnings.catch_warnings(), np.errstate(all="ignore"):
+                    warnings.simplefilter("ignore")
+                    read_force_plates(path)
+                loaded += 1
+            except C3DError as exc:
+                messages.append(str(exc))
+    finally:
+        path.write_bytes(base)
+    assert loaded > 0
+    reached = {m.split(": ")[1].split(":")[1] for m in messages if ": FORCE_PLATFORM:" in m}
+    assert len(reached) >= 3, messages   # e.g. TYPE, CHANNEL, CORNERS, ORIGIN, CAL_MATRIX
+
+
+def test_a_study_lock_with_a_pid_out_of_range_is_reported(tmp_path):
+    """Found by the fuzz suite: a lock whose pid does not fit a C long raised OverflowError
+    from os.kill; an id that is no process id now means an unknown owner."""
+    import json
+    import socket
+
+    from openfdk.study import StudyError
+    from openfdk.study.runner import _acquire_lock
+
+    (tmp_path / ".study.lock").write_text(json.dumps({"host": socket.gethostname(), "pid": 10 ** 30}))
+    with pytest.raises(StudyError, match=r"is in use by a study running on .* \(pid None, .*delete '.*\.study\.lock'"):
+        _acquire_lock(tmp_path)
+
+
+@pytest.fixture
+def result(bases, tmp_path):
+    """A private copy of the fuzz run's result folder (two-body model, 6 frames)."""
+    import shutil
+
+    res = tmp_path / "res"
+    shutil.copytree(bases.paths["results"].parent, res)
+    return res
+
+
+def _edit_csv(path, edit):
+    import csv
+
+    rows = list(csv.reader(path.read_text().splitlines()))
+    path.write_text("\n".join(",".join(r) for r in edit(rows)) + "\n")
+
+
+def _drop_column(name):
+    def edit(rows):
+        j = rows[0].index(name)
+        return [r[:j] + r[j + 1:] for r in rows]
+    return edit
+
+
+@pytest.mark.parametrize("command", ["plot", "export-opensim", "view"])
+@pytest.mark.parametrize("table, edit, expected", [
+    ("forces.csv", lambda rows: rows[:-2], "forces.csv: 4 frames whose times differ from the 6 frames of kinematics.csv"),
+    ("kinematics.csv", _drop_column("jaw.e1"), "kinematics.csv: column 'jaw.e1' missing"),
+    ("kinematics.csv", lambda rows: [rows[0]] + [r[:4] + ["m"] + r[5:] for r in rows[1:]],
+     "kinematics.csv: column 'skull.x_m': values must be numbers"),
+])
+def test_result_tables_that_do_not_fit_are_refused(result, tmp_path, capsys, command, table, edit, expected):
+    """Found by the fuzz suite: forces.csv of other frames than kinematics.csv, a body
+    pose without one of its columns and text in a numeric column raised numpy's broadcast
+    ValueError, KeyError or UFuncTypeError in plot, export-opensim or view."""
+    from cli_helpers import error_line, run_cli
+
+    _edit_csv(result / table, edit)
+    args = [command, result] + (["--out", tmp_path / "out"] if command != "view" else [])
+    code, _, err = run_cli(capsys, *args)
+    line = error_line(err)
+    assert code == 2
+    if command == "view" and table == "forces.csv":
+        expected = "forces.csv: 4 rows, kinematics.csv has 6"
+    assert expected in line and str(result) in line
+
+
+def test_view_refuses_a_marker_residual_without_all_its_columns(result, capsys):
+    """Found by the fuzz suite (KeyError in the viewer's measured markers)."""
+    from cli_helpers import error_line, run_cli
+
+    _edit_csv(result / "kinematics.csv", _drop_column("S1.residual_y_m"))
+    code, _, err = run_cli(capsys, "view", result)
+    assert code == 2
+    assert "kinematics.csv: column 'S1.residual_y_m' missing; the residual of marker 'S1' is incomplete" \
+        in error_line(err)
+
+
+def test_view_checks_summary_json_like_plot(result, capsys):
+    """Found by the fuzz suite: ``"input": "x"`` gave AttributeError in view."""
+    import json
+
+    from cli_helpers import error_line, run_cli
+
+    summary = json.loads((result / "summary.json").read_text())
+    (result / "summary.json").write_text(json.dumps({**summary, "input": "x"}))
+    code, _, err = run_cli(capsys, "view", result)
+    assert code == 2
+    assert "summary.json: input: must be a JSON object, got str" in error_line(err)
+
+
+@pytest.fixture
+def resumable(bases, tmp_path):
+    """(model, trial, --out folder, run arguments) for ``openfdk run`` of the fuzz run's
+    model and trial, and the Checkpoints object that run uses."""
+    from openfdk.cli import _run_checkpoints, build_parser
+
+    run = bases.paths["results"].parent.parent
+    argv = [run / "model.yaml", run / "trial.c3d", "--out", tmp_path / "out", "--no-progress", "--no-plots",
+            "--max-failed", "1", "--end", "0.05"]
+    ck = _run_checkpoints(build_parser().parse_args(["run", *map(str, argv)]))
+    return argv, ck
+
+
+@pytest.mark.parametrize("records, carry, next_frame, expected", [
+    ([(0, {"kin.q": np.zeros(3)})], None, 1, "frame 0: 'kin.q' is not an array (14,)"),
+    ([(99, {})], None, 1, "frame 99 of 6"),
+    ([(0, {"kin.report": 5.0})], None, 1, "frame 0: 'kin.report' is a float"),
+    ([(0, {1.5: 1.0})], None, 1, "frame 0: a value named 1.5"),
+    ([], None, 7, "next frame 7 of 6"),
+    ([], ("x",), 0, "the solver state has another structure"),
+])
+def test_a_checkpoint_that_does_not_fit_the_run_is_refused_on_resume(resumable, capsys, records, carry, next_frame,
+                                                                      expected):
+    """Found by the fuzz suite: parts with this run's fingerprint and a matching hash but
+    frames, values or a solver state that do not fit the run raised ValueError,
+    AttributeError, ZeroDivisionError or numba's TypingError on --resume."""
+    from cli_helpers import error_line, run_cli
+
+    argv, ck = resumable
+    ck.save(records, carry, next_frame)
+    code, _, err = run_cli(capsys, "run", *argv, "--resume")
+    assert code == 2
+    line = error_line(err)
+    assert ".checkpoint: the checkpoint does not fit this run (" + expected in line, line
+
+
+def test_a_genuine_checkpoint_still_resumes(bases):
+    """The checks above accept what openfdk itself saved: the fuzz run's parts resume."""
+    from openfdk.bench.fuzz_kinds import load
+
+    kin, dyn, _ = load("checkpoint", bases.paths["checkpoint"])
+    assert len(kin.time) == 6 and kin.converged.all()
+
+
+def _osim_folder(bases, tmp_path):
+    import shutil
+
+    for name in ("leg.osim", "loads.xml", "grf.mot", "motion.sto"):
+        shutil.copy(bases.dir / name, tmp_path / name)
+    shutil.copytree(bases.dir / "Geometry", tmp_path / "Geometry")
+    return tmp_path
+
+
+@pytest.mark.parametrize("old, new, expected", [
+    ("<datafile>grf.mot</datafile>", "<datafile>true</datafile>",
+     "loads.xml: line 15: ExternalForce 'push': data file 'true': true: cannot read the file"),
+    ("<force_identifier>push_v</force_identifier>", "<force_identifier>push_w</force_identifier>",
+     "loads.xml: line 15: ExternalForce 'push': force_identifier 'push_w': no column 'push_wx' in grf.mot"),
+    ('<ExternalForce name="push">', '<ExternalForce name="..">',
+     "loads.xml: line 15: ExternalForce '..': name '..' contains '..'"),
+])
+def test_external_loads_errors_name_the_xml_file(bases, tmp_path, capsys, old, new, expected):
+    """Found by the fuzz suite: a data file that cannot be read and an unsafe force name
+    were reported as errors of ``leg.osim: external_loads.…``; they name the ExternalLoads
+    file, its line and the force now."""
+    from cli_helpers import error_line, run_cli
+
+    d = _osim_folder(bases, tmp_path)
+    (d / "loads.xml").write_text((d / "loads.xml").read_text().replace(old, new))
+    code, _, err = run_cli(capsys, "check", d / "leg.osim", "--external-loads", d / "loads.xml", "-q")
+    assert code == 2
+    assert expected in error_line(err)
+
+
+def test_a_motion_file_of_one_sample_is_refused(bases, tmp_path, capsys):
+    """Found by the fuzz suite: one sample gave a spline error naming the .osim's driver."""
+    from cli_helpers import error_line, run_cli
+
+    d = _osim_folder(bases, tmp_path)
+    lines = (d / "motion.sto").read_text().splitlines()
+    (d / "motion.sto").write_text("\n".join(lines[:lines.index("endheader") + 3]) + "\n")
+    code, _, err = run_cli(capsys, "check", d / "leg.osim", "--motion", d / "motion.sto", "-q")
+    assert code == 2
+    assert "motion.sto: 1 sample(s); a motion file needs at least 2" in error_line(err)

@@ -53,6 +53,8 @@ NEW_KINDS = ("external_loads", "grf_mot", "sto", "force_plates", "results", "che
 FINGERPRINT = "openfdk-fuzz"
 #: the result folder's name (errors name it)
 RESULTS_DIR = "fuzzres"
+#: the end of the fuzz run (s): a few frames keep a resume and the readers fast
+END_S = 0.05
 
 EXTERNAL_LOADS_TEXT = """<?xml version="1.0" encoding="UTF-8" ?>
 <OpenSimDocument Version="40000">
@@ -159,7 +161,8 @@ def _write_plates(path, n_frames=40, rate=100.0, ratio=5, seed=3):
 
 def _write_run(run_dir, model_text):
     """A small ``openfdk run`` in ``run_dir`` (model.yaml, trial.c3d, its result folder),
-    and its checkpoint parts kept from a second run that saved a part every 3 frames."""
+    and its checkpoint parts kept from a second run that saved a part every 2 frames
+    (frames 0 … END_S, 100 Hz)."""
     from ..cli import main
     from ..fixtures.synthetic import synthetic_markers
     from ..io.c3d import write_c3d
@@ -174,11 +177,11 @@ def _write_run(run_dir, model_text):
     write_c3d(run_dir / "trial.c3d", labels, x, 100.0, units="mm")
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
         code = main(["run", str(model), str(run_dir / "trial.c3d"), "--out", str(run_dir / RESULTS_DIR),
-                     "--no-progress", "--no-plots", "--max-failed", "1", "--end", "0.08"])
+                     "--no-progress", "--no-plots", "--max-failed", "1", "--end", str(END_S)])
         if code != 0:
             raise RuntimeError(f"the fuzz run exited with {code}")
-        ckpt = Checkpoints(run_dir / "ckpt" / CHECKPOINT_DIR, FINGERPRINT, every_frames=3)
-        run_job(model, run_dir / "trial.c3d", progress=False, end=0.08, checkpoints=ckpt)
+        ckpt = Checkpoints(run_dir / "ckpt" / CHECKPOINT_DIR, FINGERPRINT, every_frames=2)
+        run_job(model, run_dir / "trial.c3d", progress=False, end=END_S, checkpoints=ckpt)
     (run_dir / "lock").mkdir()
     _acquire_lock(run_dir / "lock")
 
@@ -209,9 +212,9 @@ def build(bases, kinds):
         bases.paths["results"] = res / "summary.json"
         bases.originals["results"] = {p: p.read_bytes() for p in
                                       (res / "summary.json", res / "kinematics.csv", res / "forces.csv")}
-        parts = sorted((run / "ckpt" / ".checkpoint").glob("part-*"))
+        parts = sorted((run / "ckpt" / ".checkpoint").glob("part-*.npz"))
         bases.paths["checkpoint"] = parts[0]
-        bases.originals["checkpoint"] = {p: p.read_bytes() for p in parts}
+        bases.originals["checkpoint"] = {p: p.read_bytes() for part in parts for p in (part, part.with_suffix(".json"))}
         bases.paths["study_lock"] = run / "lock" / ".study.lock"
         child = subprocess.Popen([sys.executable, "-c", ""])
         child.wait()
@@ -510,7 +513,7 @@ def load(kind, path, reader=None):
 
         run = path.parent.parent.parent
         ckpt = Checkpoints(path.parent, FINGERPRINT)
-        return run_job(run / "model.yaml", run / "trial.c3d", progress=False, end=0.08, checkpoints=ckpt,
+        return run_job(run / "model.yaml", run / "trial.c3d", progress=False, end=END_S, checkpoints=ckpt,
                        resume=True)
     if kind == "study_lock":
         from ..study.runner import _acquire_lock

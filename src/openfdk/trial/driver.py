@@ -185,6 +185,8 @@ def _restore_saved(saved, rec, step, folder):
         if isinstance(j, bool) or not 0 <= j < n:
             raise refuse(f"frame {j} of {n}")
         for name, value in values.items():
+            if not isinstance(name, str):
+                raise refuse(f"frame {j}: a value named {name!r}")
             shape, dtype, _ = fields.get(name, (None, None, None))
             if dtype is object or (shape is None and (isinstance(value, (str, FrameReport)) or value is None)):
                 if not (isinstance(value, (str, FrameReport)) or value is None):

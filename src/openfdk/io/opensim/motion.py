@@ -42,8 +42,6 @@ def motion_drivers(path, data, cutoff_hz=None):
         times, columns, in_degrees = read_storage(path)
     except ValueError as exc:
         raise OsimError(f"--motion: {exc}") from None
-    if len(times) < 2:
-        raise OsimError(f"{source}: {len(times)} sample(s); a motion file needs at least 2")
     if len(times) > 2:  # times printed rounded (OpenSim's IK keeps the TRC's 1 ms times at 60 Hz): the grid
         grid = times[0] + np.arange(len(times)) * (times[-1] - times[0]) / (len(times) - 1)
         if np.max(np.abs(times - grid)) < 0.05 * (grid[1] - grid[0]):
@@ -80,6 +78,8 @@ def motion_drivers(path, data, cutoff_hz=None):
                                       "function": {"type": "spline", "times": times.tolist(), "values": values.tolist()}}
     if missing:
         raise OsimError(f"{source}: no column for the coordinates {missing}; a motion file drives every free coordinate")
+    if len(times) < 2:
+        raise OsimError(f"{source}: {len(times)} sample(s); a motion file needs at least 2")
     out = dict(data)
     out["drivers"] = drivers
     analysis = dict(data.get("analysis") or {})
