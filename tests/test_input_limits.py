@@ -82,10 +82,12 @@ def test_a_subject_file_above_the_byte_limit_is_refused(tmp_path):
         load_subject(tmp_path / "subj")
 
 
-def test_an_osim_file_above_the_byte_limit_is_refused(tmp_path, capsys):
+@pytest.mark.parametrize("command", ["check", "run"])
+def test_an_osim_file_above_the_byte_limit_is_refused(tmp_path, capsys, command):
     model = _sparse(tmp_path / "big.osim", b'<?xml version="1.0"?>\n<OpenSimDocument Version="40000">',
                     limits.INPUT_FILE_BYTES + 1)
-    code, _, err = run_cli(capsys, "check", model)
+    extra = ["--out", tmp_path / "out"] if command == "run" else []
+    code, _, err = run_cli(capsys, command, model, *extra)
     assert code == 2
     assert "big.osim: 67 108 865 bytes, above the limit of 67 108 864 bytes (64 MiB) " \
            "(openfdk.io.limits.INPUT_FILE_BYTES)" in error_line(err)

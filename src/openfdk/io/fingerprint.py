@@ -73,6 +73,9 @@ def run_fingerprint(model_path, trial_path=None, options=()) -> str:
     trial file (None: determinate run) and ``repr(options)``. The model file is read
     (and checked against its size limits, :mod:`openfdk.io.limits`) before anything
     else; the other files are hashed block by block."""
+    from . import limits
+
+    limits.check_file_bytes(model_path, "INPUT_FILE_BYTES", Path(model_path).name)  # also an .osim, before hashing
     files = referenced_files(model_path)  # a missing, malformed or too large model file: its one-line error
     h = hashlib.sha256()
     _hash_file(h, model_path)
