@@ -1,6 +1,7 @@
-"""Fuzz suite, quick version (issue 16): mutated model, subject and study files, C3D and
-TRC trials, OpenSim models and IK setup files either load or raise the loader's
-documented error naming the file — never anything else. The long run (>= 10 000 inputs per kind) is
+"""Fuzz suite, quick version (issues 16 and 30): mutated model, subject and study files, C3D and
+TRC trials, OpenSim models and IK setup files, ExternalLoads with their GRF files, motion
+files, force-plate parameters, result folders, checkpoint parts and study locks either
+load or raise the loader's documented error naming the file — never anything else. The long run (>= 10 000 inputs per kind) is
 ``python -m openfdk.bench.fuzz_inputs 10000``; its counts are in the closing note."""
 
 import warnings

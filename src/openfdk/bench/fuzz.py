@@ -2,8 +2,10 @@
 (:mod:`openfdk.bench.fuzz_inputs`), and the number of unexpected exceptions (must be 0).
 
 Records:
-* ``fuzz_inputs_per_s`` — mutated inputs of all kinds (model, subject, study, C3D)
-  loaded or refused per second (the whole run over its wall time);
+* ``fuzz_inputs_per_s`` — mutated inputs of all kinds (:data:`~openfdk.bench.fuzz_inputs.KINDS`:
+  model, subject and study files, C3D and TRC trials, OpenSim models, IK setups,
+  ExternalLoads with their GRF files, motion files, force plates, result folders,
+  checkpoints, study locks) loaded or refused per second (the run over its time);
 * ``fuzz_<kind>_inputs_per_s`` — the same per file kind;
 * ``fuzz_unexpected_exceptions`` — loader outcomes other than success or the
   documented error naming the file.

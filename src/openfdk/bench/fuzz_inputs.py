@@ -20,7 +20,10 @@ names the file):
   raises :class:`~openfdk.model.model.ModelError` (its subclass
   :class:`~openfdk.io.opensim.OsimError` for the reader's own checks);
 - ``ik``: an OpenSim IK setup file with marker and coordinate tasks and its coordinate
-  file, applied to that model (``--ik-tasks``) -> ``ModelError`` as well.
+  file, applied to that model (``--ik-tasks``) -> ``ModelError`` as well;
+- ``external_loads``, ``grf_mot``, ``sto``, ``force_plates``, ``results``, ``checkpoint``
+  and ``study_lock`` (issue 30): their bases, mutators and loaders are in
+  :mod:`openfdk.bench.fuzz_kinds`.
 
 Mutations of YAML files act on the parsed tree (a value replaced by one of another type
 or magnitude, scaled by 1000 or 1/1000 as a unit mistake would, negated, a key deleted,
