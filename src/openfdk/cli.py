@@ -537,6 +537,52 @@ def _version():
         return __version__
 
 
+def _subject_parser(sub):
+    """``openfdk subject create|record|study``: one subcommand each, so that each
+    ``--help`` lists only its own options."""
+    s = sub.add_parser("subject", help="virtual mandible subject (create), its virtual experiment (record), and the "
+                                       "mandible study on any subject folder (study)",
+                       description="openfdk subject create|record|study DIR: see `openfdk subject ACTION --help`")
+    actions = s.add_subparsers(dest="action", metavar="ACTION", required=True)
+    folder = "subject folder (holding subject.yaml and its STL files)"
+    c = actions.add_parser("create", help="write a virtual subject (subject.yaml, STL files)",
+                           description="Write a virtual mandible subject folder (docs/subject-folder.md).")
+    c.add_argument("directory", help=folder)
+    c.add_argument("--resolution", default="default", choices=["coarse", "default", "fine"], help="mesh resolution")
+    c.add_argument("--asymmetric", action="store_true", help="perturb left and right shapes differently")
+    c.add_argument("--seed", type=int, default=0, help="random seed of the shapes")
+    _display_arguments(c)
+    r = actions.add_parser("record", help="record the virtual experiment of a virtual subject",
+                           description="Record the virtual experiment (C3D files and truth) of a virtual subject "
+                                       "folder (docs/virtual-experiment.md).")
+    r.add_argument("directory", help=folder)
+    r.add_argument("--cycles", type=_cycles_argument, default=None, help="cycles per task (default 5)")
+    r.add_argument("--realistic", action="store_true",
+                   help="realistic recordings (static trial 4.6° open, slow and wide tasks, 3 open-close cycles, "
+                        "extra markers, gaps, trial names declared in trials:)")
+    r.add_argument("--quick", action="store_true", help="with --realistic: fewer chewing and protrusion cycles")
+    r.add_argument("--noise", type=argtypes.nonnegative, default=0.15, help="marker noise in mm")
+    r.add_argument("--seed", type=int, default=0, help="random seed of the marker noise")
+    _display_arguments(r)
+    t = actions.add_parser("study", help="the mandible study (POP, FDK, tables, figures, parameter study)",
+                           description="Run the mandible study on a subject folder, virtual or real "
+                                       "(docs/mandible-study.md).")
+    t.add_argument("directory", help=folder)
+    t.add_argument("--out", default=None, help="output folder (default DIRECTORY-study; checked for writability "
+                                               "before any computation)")
+    t.add_argument("--force", action="store_true", help="overwrite the results already in the --out folder")
+    t.add_argument("--cycles", type=_cycles_argument, default=None,
+                   help="cycles analysed per task, a number or 'all' (default 5; a task's own count in trials: wins)")
+    t.add_argument("--workers", type=argtypes.count(0), default=None,
+                   help="parameter-study worker processes (default one per CPU, 0 = this process)")
+    t.add_argument("--scheduler", default=None, help="address of a running Dask scheduler")
+    t.add_argument("--quick", action="store_true",
+                   help="a 2-model parameter study on open-close only (as openfdk demo --quick)")
+    t.add_argument("--no-parameter-study", action="store_true", help="skip the ligament parameter study")
+    _display_arguments(t)
+    s.set_defaults(func=_cmd_subject)
+
+
 def build_parser():
     p = argparse.ArgumentParser(prog="openfdk", description="Force-dependent kinematics and musculoskeletal analysis",
                                 epilog="Exit codes: 0 success; 2 bad input; 3 more frames failed than --max-failed; "
@@ -601,33 +647,7 @@ def build_parser():
                    help="parameter-study worker processes (default one per CPU; 0 = this process)")
     d.set_defaults(func=_cmd_demo)
 
-    s = sub.add_parser("subject", help="create a virtual mandible subject or record its virtual experiment")
-    s.add_argument("action", choices=["create", "record", "study"],
-                   help="create: write a virtual subject; record: its virtual experiment; study: run the mandible "
-                        "study (POP, FDK, tables, figures, parameter study) on a subject folder")
-    s.add_argument("directory", help="subject folder (holding subject.yaml and its STL files)")
-    s.add_argument("--resolution", default="default", choices=["coarse", "default", "fine"], help="mesh resolution (create)")
-    s.add_argument("--asymmetric", action="store_true", help="perturb left and right shapes differently (create)")
-    s.add_argument("--cycles", type=_cycles_argument, default=None,
-                   help="record: cycles per task (default 5); study: cycles analysed per task, a number or 'all' "
-                        "(default 5; a task's own count in trials: wins)")
-    s.add_argument("--realistic", action="store_true",
-                   help="record: realistic recordings (static trial 4.6° open, slow and wide tasks, 3 open-close "
-                        "cycles, extra markers, gaps, trial names declared in trials:)")
-    s.add_argument("--out", default=None, help="output folder (study; default DIRECTORY-study; checked for "
-                                               "writability before any computation)")
-    s.add_argument("--force", action="store_true", help="study: overwrite the results already in the --out folder")
-    s.add_argument("--workers", type=argtypes.count(0), default=None,
-                   help="parameter-study worker processes (study; default one per CPU, 0 = this process)")
-    s.add_argument("--scheduler", default=None, help="address of a running Dask scheduler (study)")
-    s.add_argument("--quick", action="store_true",
-                   help="study: a 2-model parameter study on open-close only (as openfdk demo --quick); "
-                        "record --realistic: fewer chewing and protrusion cycles")
-    _display_arguments(s)
-    s.add_argument("--no-parameter-study", action="store_true", help="study: skip the ligament parameter study")
-    s.add_argument("--noise", type=argtypes.nonnegative, default=0.15, help="marker noise in mm (record)")
-    s.add_argument("--seed", type=int, default=0, help="random seed of the shapes (create) and marker noise (record)")
-    s.set_defaults(func=_cmd_subject)
+    _subject_parser(sub)
 
     b = sub.add_parser("bench", help="run the benchmarks")
     b.add_argument("--quick", action="store_true", help="short runs (for tests)")
