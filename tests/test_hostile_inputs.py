@@ -390,6 +390,31 @@ def test_a_kinematics_csv_cut_mid_row_is_refused(result, tmp_path, capsys):
     assert "where the header has" in _error_line(err)
 
 
+def _set_cell(path, column, row, value):
+    """Write ``value`` into ``column`` of data row ``row`` (0-based) of a result table."""
+    lines = path.read_text().splitlines()
+    k = lines[0].split(",").index(column)
+    cells = lines[row + 1].split(",")
+    cells[k] = value
+    lines[row + 1] = ",".join(cells)
+    path.write_text("\n".join(lines) + "\n")
+
+
+@pytest.mark.parametrize("command", ["plot", "export-opensim", "view"])
+@pytest.mark.parametrize("column, value, expected", [
+    ("converged", "7", "line 3: column 'converged': 7 is neither 0 nor 1"),
+    ("converged", "0.5", "line 3: column 'converged': 0.5 is neither 0 nor 1"),
+    ("time", "nan", "line 3: column 'time': nan is not a finite number of seconds"),
+])
+def test_a_result_table_with_a_bad_time_or_status_is_refused(result, tmp_path, capsys, command, column, value,
+                                                             expected):
+    _set_cell(result / "kinematics.csv", column, 1, value)
+    extra = ["--out", tmp_path / "out"] if command == "export-opensim" else []
+    code, _, err = _run(capsys, command, result, *extra)
+    assert code == 2
+    assert f"kinematics.csv: {expected}" in _error_line(err)
+
+
 @pytest.mark.parametrize("command", ["plot", "export-opensim", "view"])
 def test_an_empty_out_is_refused(result, tmp_path, capsys, monkeypatch, command):
     monkeypatch.chdir(tmp_path)

@@ -74,7 +74,25 @@ def _read_csv(path, required=("time",)):
     for c in df.columns:
         if c not in TEXT_COLUMNS and not pd.api.types.is_numeric_dtype(df[c]):
             raise ValueError(f"{path}: column {c!r}: values must be numbers")
+    check_time_and_status(path, df["time"].to_numpy(), df["converged"].to_numpy() if "converged" in df.columns
+                          else None)
     return df.set_index("time")
+
+
+def check_time_and_status(path, time, converged=None):
+    """ValueError naming the file, the column and the line (1-based, the header is line
+    1) of a time (s) that is not a finite number or a ``converged`` flag other than 0 or
+    1 (the readers of plot, export-opensim and view share it)."""
+    time = np.asarray(time, dtype=float)
+    if not np.all(np.isfinite(time)):
+        i = int(np.argmax(~np.isfinite(time)))
+        raise ValueError(f"{path}: line {i + 2}: column 'time': {time[i]:g} is not a finite number of seconds")
+    if converged is not None:
+        flags = np.asarray(converged, dtype=float)
+        bad = (flags != 0) & (flags != 1)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise ValueError(f"{path}: line {i + 2}: column 'converged': {flags[i]:g} is neither 0 nor 1")
 
 
 def read_summary(path):

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io.results import read_rows, table_columns
-from ..runresults import TEXT_COLUMNS, read_summary
+from ..runresults import TEXT_COLUMNS, check_time_and_status, read_summary
 
 
 class ViewError(ValueError):
@@ -49,8 +49,8 @@ def read_table(path):
     """A CSV written by :func:`openfdk.io.results.write_table`: name -> (nf,) float array
     (an empty cell read as NaN), or a list of str for a column that is not numeric
     ('message', 'status', 'fdk_reason'). Raises ViewError naming the file for an unreadable
-    file, a first column other than 'time', a row of the wrong length or another column
-    that is not numeric."""
+    file, a first column other than 'time', a row of the wrong length, another column
+    that is not numeric, a time that is not finite or a ``converged`` flag other than 0 or 1."""
     path = Path(path)
     try:
         rows = read_rows(path)
@@ -68,6 +68,10 @@ def read_table(path):
     text = next((name for name, col in cols.items() if isinstance(col, list) and name not in TEXT_COLUMNS), None)
     if text is not None:
         raise ViewError(f"{path}: column {text!r}: values must be numbers")
+    try:
+        check_time_and_status(path, cols["time"], cols.get("converged"))
+    except ValueError as exc:
+        raise ViewError(str(exc)) from None
     return cols
 
 
