@@ -250,6 +250,10 @@ CASES = [
      ["with.yaml: foo: not a model-file section"]),
     ("--with section not a mapping", write("with.yaml", "tasks: [1, 2]\n"), CHECK + ("--with", "with.yaml"),
      ["with.yaml: tasks: expected a mapping"]),
+    ("--with misspelt section", write("with.yaml", "analisys: {start: 0}\n"), CHECK + ("--with", "with.yaml"),
+     ["with.yaml: analisys: not a model-file section an overlay can add; did you mean 'analysis'?"]),
+    ("--with entry names the overlay", write("with.yaml", "drivers: {d: {measur: x}}\n"),
+     CHECK + ("--with", "with.yaml"), ["leg.osim with with.yaml: drivers.d.measur: unknown key; did you mean 'measure'?"]),
     ("import-opensim of an overlay", write("over.yaml", "opensim: leg.osim\n"),
      ("import-opensim", "over.yaml", "--out", "out"), ["over.yaml: not an OpenSim model"]),
     # import-opensim --out

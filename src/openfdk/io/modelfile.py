@@ -58,7 +58,7 @@ def load_model_and_settings(path) -> tuple[Model, AnalysisSettings]:
     :func:`openfdk.io.opensim.overlay.register`); a YAML file with an ``opensim:`` key is
     an overlay on the ``.osim`` it names (docs/opensim-import.md)."""
     path = Path(path)
-    from .opensim.overlay import imported_model_data
+    from .opensim.overlay import imported_model_data, model_source
 
     data = imported_model_data(path)
     if data is None:
@@ -66,7 +66,7 @@ def load_model_and_settings(path) -> tuple[Model, AnalysisSettings]:
         from .opensim.overlay import overlay_model_data
 
         data = overlay_model_data(path, data)
-    model, settings = model_and_settings_from_dict(data, source=path.name, base_dir=path.parent)
+    model, settings = model_and_settings_from_dict(data, source=model_source(path), base_dir=path.parent)
     if settings.ground_reactions:
         from dataclasses import replace
 

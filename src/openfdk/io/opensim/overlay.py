@@ -24,6 +24,7 @@ already defines is an error naming the overlay's entry. Overlay values are in SI
 
 from __future__ import annotations
 
+import difflib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -120,6 +121,15 @@ def imported_model_data(path):
     return data
 
 
+def model_source(path):
+    """How messages name the model file ``path``: its name, and for an ``.osim`` with a
+    registered ``--with`` overlay both files (``leg.osim with with.yaml``), since the
+    overlay's entries are read as entries of the model."""
+    opts = _REGISTERED.get(_key(path))
+    name = Path(path).name
+    return f"{name} with {Path(opts.overlay).name}" if opts is not None and opts.overlay is not None else name
+
+
 def overlay_model_data(path, data):
     """``data`` itself, or for an overlay file (an ``opensim:`` key) the imported model
     with the overlay merged in."""
@@ -193,7 +203,9 @@ def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None
     out = dict(data)
     for key, value in overlay.items():
         if key not in known + list(OPTION_KEYS) + list(MODEL_SECTIONS):
-            raise ModelError(f"{source}: {key}: not a model-file section an overlay can add (sections: "
+            hint = difflib.get_close_matches(str(key), known + list(OPTION_KEYS), n=1)
+            extra = f"; did you mean {hint[0]!r}?" if hint else ""
+            raise ModelError(f"{source}: {key}: not a model-file section an overlay can add{extra} (sections: "
                              f"{', '.join(known)})")
         if key not in OPTION_KEYS + MODEL_SECTIONS + ("description",) and not isinstance(value, dict):
             raise ModelError(f"{source}: {key}: expected a mapping, got {type(value).__name__}")
