@@ -106,9 +106,12 @@ def path_measure(b, points, name=""):
 
     Names without a dot are wrapping surfaces added with :func:`add_wrap_surface`; a path
     with any of them is a :class:`~openfdk.forces.wrapping.WrappedPath` (first and last
-    entries must be points)."""
+    entries must be points). Mappings are conditional or moving points
+    (:func:`coordinate_path_measure`)."""
     if len(points) < 2:
         raise ModelError(f"path {name!r}: needs at least 2 points, got {list(points)}")
+    if any(isinstance(p, dict) for p in points):
+        return coordinate_path_measure(b, points, name)
     if any(isinstance(p, str) and "." not in p for p in points):
         return wrapped_path_measure(b, points, name)
     terms = [(np.ones((1, 1)), b.distance(points[k], points[k + 1])) for k in range(len(points) - 1)]
@@ -173,6 +176,52 @@ def wrapped_path_measure(b, entries, name=""):
             f = b.frame(entry)
             nodes.append((b._body_index(f.body), np.asarray(f.p_BF, dtype=float)))
     return WrappedPath(nodes, name)
+
+
+def coordinate_path_measure(b, entries, name=""):
+    """A :class:`~openfdk.forces.coordinate_path.CoordinatePath` through fixed points
+    ("body.point") and mappings, in SI units:
+
+    * ``{"point": "body.point", "active": (coordinate, lo, hi)}`` — in the path while
+      lo ≤ coordinate ≤ hi (rad or m);
+    * ``{"frame": "body.frame", "moving": (coordinate, (f_x, f_y, f_z))}`` — at
+      (f_x(u), f_y(u), f_z(u)) m in the frame's axes, each f a PiecewisePolynomial of the
+      coordinate u (its value clamped to the coordinate's range) or a float (m).
+
+    ``coordinate`` names a scalar measure (a joint coordinate). Wrapping surfaces cannot
+    be combined with these points yet."""
+    from .coordinate_path import CoordinatePath, PathNode
+
+    ranges = {c.name: c.range for c in b.elements.get("coordinates", ())}
+
+    def coordinate(cname, what):
+        m = b.measure(cname)
+        if m.size != 1:
+            raise ModelError(f"path {name!r}: {what} coordinate {cname!r} has {m.size} rows; expected a scalar")
+        return m
+
+    nodes = []
+    for entry in entries:
+        if isinstance(entry, str):
+            if "." not in entry:
+                raise ModelError(f"path {name!r}: wrapping surface {entry!r} in a path with conditional or moving "
+                                 "points is not supported")
+            f = b.frame(entry)
+            nodes.append(PathNode(b._body_index(f.body), np.asarray(f.p_BF, float), np.eye(3)))
+        elif "active" in entry:
+            cname, lo, hi = entry["active"]
+            if not lo <= hi:
+                raise ModelError(f"path {name!r}: range [{lo:g}, {hi:g}] of {entry.get('point')!r} is empty")
+            f = b.frame(entry["point"])
+            nodes.append(PathNode(b._body_index(f.body), np.asarray(f.p_BF, float), np.eye(3),
+                                  condition=(coordinate(cname, "conditional point"), float(lo), float(hi))))
+        else:
+            cname, fns = entry["moving"]
+            f = b.frame(entry["frame"])
+            lo, hi = ranges.get(cname, (-np.inf, np.inf))
+            nodes.append(PathNode(b._body_index(f.body), np.asarray(f.p_BF, float), np.asarray(f.R_BF, float),
+                                  moving=(coordinate(cname, "moving point"), float(lo), float(hi), tuple(fns))))
+    return CoordinatePath(nodes, name)
 
 
 def _append(b, kind, element):
@@ -272,5 +321,5 @@ def set_recruitment(b, criterion="polynomial", power=3.0, tolerance=1e-10):
 __all__ = [
     "Muscle", "Ligament", "Spring", "UnilateralReaction", "ExternalLoad", "RecruitmentSettings",
     "add_muscle", "add_ligament", "add_spring", "add_unilateral_reaction", "add_external_load",
-    "set_recruitment", "path_measure", "add_wrap_surface", "wrapped_path_measure",
+    "set_recruitment", "path_measure", "add_wrap_surface", "wrapped_path_measure", "coordinate_path_measure",
 ]

@@ -4,7 +4,9 @@ A path is a chain of body points with straight segments (see :mod:`.elements`); 
 kernel :func:`openfdk.model.kernels.path_lengths` returns every path's length (m) and
 Jacobian L = ∂l/∂q̂ in one call. Paths over wrapping surfaces
 (:class:`~openfdk.forces.wrapping.WrappedPath`) go through one call of
-:func:`openfdk.forces.wrapping.wrapped_path_lengths`.
+:func:`openfdk.forces.wrapping.wrapped_path_lengths`, and paths with conditional or
+moving points (:class:`~openfdk.forces.coordinate_path.CoordinatePath`) through one call
+of :func:`openfdk.forces.coordinate_path.coordinate_path_lengths`.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ import numpy as np
 from ..model.kernels import path_lengths
 from ..numdiff import manifold_jacobian
 from .path_stiffness import add_path_geometric_stiffness
+from .coordinate_path import CoordinatePath, CoordinatePathNodes
 from .wrapping import WrapNodes, WrappedPath
 
 
@@ -26,8 +29,12 @@ class PathSet:
         wrapped = [k for k, el in enumerate(elements) if isinstance(el.path, WrappedPath)]
         self.wrapped_rows = np.array(wrapped, dtype=np.int64)
         self.wrapped = WrapNodes([elements[k].path.nodes for k in wrapped], [elements[k].name for k in wrapped]) if wrapped else None
+        moving = [k for k, el in enumerate(elements) if isinstance(el.path, CoordinatePath)]
+        self.moving_rows = np.array(moving, dtype=np.int64)
+        self.moving = CoordinatePathNodes([elements[k].path.nodes for k in moving],
+                                          [elements[k].name for k in moving]) if moving else None
         for k, el in enumerate(elements):
-            if isinstance(el.path, WrappedPath):
+            if isinstance(el.path, (WrappedPath, CoordinatePath)):
                 continue
             for C, dist in el.path.terms:
                 if C.shape != (1, 1) or C[0, 0] != 1.0 or not hasattr(dist, "vector"):
@@ -51,6 +58,8 @@ class PathSet:
                             self.s_b, self.seg_path, self.n_paths, state.n_coords)
         if self.wrapped is not None:
             l[self.wrapped_rows], L[self.wrapped_rows] = self.wrapped.evaluate(state)
+        if self.moving is not None:
+            l[self.moving_rows], L[self.moving_rows] = self.moving.evaluate(state)
         return l, L
 
     def add_geometric_stiffness(self, state, T, L, K):
@@ -60,11 +69,13 @@ class PathSet:
         batched forward difference of their analytic Jacobians on the manifold."""
         T = np.ascontiguousarray(T, dtype=float)
         straight = T.copy()
-        if self.wrapped is not None:
-            straight[self.wrapped_rows] = 0.0
-            T_w = T[self.wrapped_rows]
+        for nodes, rows in ((self.wrapped, self.wrapped_rows), (self.moving, self.moving_rows)):
+            if nodes is None:
+                continue
+            straight[rows] = 0.0
+            T_w = T[rows]
             if np.any(T_w):
-                K -= manifold_jacobian(lambda s: T_w @ self.wrapped.evaluate(s)[1], state, 1e-7, central=False,
-                                       f0=T_w @ L[self.wrapped_rows])
+                K -= manifold_jacobian(lambda s: T_w @ nodes.evaluate(s)[1], state, 1e-7, central=False,
+                                       f0=T_w @ L[rows])
         add_path_geometric_stiffness(state.p_WB, state.R_WB, state.column, self.seg_a, self.s_a, self.seg_b,
                                      self.s_b, self.seg_path, straight, K)

@@ -21,11 +21,59 @@ HILL_KEYS = (
 ) + HILL_LENGTH_KEYS
 
 
-def _points(ctx, value, path):
-    """A path: points 'body.point' and wrapping-surface names (no dot), ≥ 2 entries."""
-    if not isinstance(value, list) or len(value) < 2 or not all(isinstance(p, str) for p in value):
+def _points(ctx, value, path, b=None):
+    """A path: points 'body.point', wrapping-surface names (no dot), and conditional or
+    moving points (mappings, :func:`_path_node`), ≥ 2 entries."""
+    if not isinstance(value, list) or len(value) < 2 or not all(isinstance(p, (str, dict)) for p in value):
         raise ctx.error(path, f"expected a list of at least 2 points ('body.point') or wrapping surfaces, got {value!r}")
+    if b is not None and any(isinstance(p, dict) for p in value):
+        return [p if isinstance(p, str) else _path_node(b, ctx, p, f"{path}[{k}]") for k, p in enumerate(value)]
+    if not all(isinstance(p, str) for p in value):
+        raise ctx.error(path, "conditional and moving points are allowed in muscle paths only")
     return value
+
+
+def _path_node(b, ctx, spec, path):
+    """A conditional point ``{point, active: {coordinate, range}}`` or a moving point
+    ``{frame, moving: {coordinate, x, y, z}}`` (each axis a function of the coordinate,
+    in the file's units: x in the coordinate's unit, values in the length unit; or a
+    number) -> the builder's mapping in SI (forces.elements.coordinate_path_measure)."""
+    from ..model.coordinate_functions import function_from_spec
+    from ..model.coordinates_section import _scaled, _scales
+
+    units = {c.name: c.unit for c in b.elements.get("coordinates", ())}
+
+    def coordinate(c, p):
+        name = ctx.string(c, p)
+        try:
+            m = b.measure(name)
+        except ModelError:
+            raise ctx.error(p, f"unknown coordinate {name!r}") from None
+        unit = units.get(name, m.units[0] if m.size == 1 else "")
+        if unit not in ("angle", "length"):
+            raise ctx.error(p, f"{name!r} is not a scalar angle or length coordinate")
+        return name, _scales(ctx, unit)
+
+    if "active" in spec:
+        ctx.keys(spec, path, ["point", "active"], required=("point", "active"))
+        act = ctx.keys(spec["active"], f"{path}.active", ["coordinate", "range"], required=("coordinate", "range"))
+        name, scale = coordinate(act["coordinate"], f"{path}.active.coordinate")
+        lo, hi = ctx.vector(act["range"], f"{path}.active.range", n=2) * scale
+        if not lo <= hi:
+            raise ctx.error(f"{path}.active.range", f"expected [low, high], got {act['range']!r}")
+        return {"point": ctx.string(spec["point"], f"{path}.point"), "active": (name, float(lo), float(hi))}
+    ctx.keys(spec, path, ["frame", "moving"], required=("frame", "moving"))
+    mov = ctx.keys(spec["moving"], f"{path}.moving", ["coordinate", "x", "y", "z"], required=("coordinate",))
+    name, scale = coordinate(mov["coordinate"], f"{path}.moving.coordinate")
+    fns = []
+    for axis in "xyz":
+        f = mov.get(axis, 0.0)
+        p = f"{path}.moving.{axis}"
+        if isinstance(f, dict):
+            fns.append(_scaled(function_from_spec(f, p, ctx.error), scale, ctx.length, p, ctx))
+        else:
+            fns.append(ctx.number(f, p) * ctx.length)
+    return {"frame": ctx.string(spec["frame"], f"{path}.frame"), "moving": (name, tuple(fns))}
 
 
 SIDES = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0), "+z": (0, 0, 1), "-z": (0, 0, -1)}
@@ -62,7 +110,7 @@ def load_muscles(b, data, ctx):
         p = f"muscles.{name}"
         ctx.keys(spec, p, ["path", "model", "strength", *HILL_KEYS], required=("path",))
         kind = spec.get("model", "hill" if "max_isometric_force" in spec else "constant")
-        points = _points(ctx, spec["path"], f"{p}.path")
+        points = _points(ctx, spec["path"], f"{p}.path", b)
         if kind == "constant":
             if "strength" not in spec:
                 raise ctx.error(p, "a constant-strength muscle needs 'strength' (N)")

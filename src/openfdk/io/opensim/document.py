@@ -190,16 +190,31 @@ _MUSCLE_FLAGS = {"ignore_tendon_compliance": False, "ignore_activation_dynamics"
 _MUSCLE_METADATA = {"components", "appliesForce", "isDisabled", "GeometryPath", "Appearance", "time_scale"}
 _PATH_METADATA = {"PathPointSet", "PathWrapSet", "Appearance", "default_color", "display", "components",
                   "VisibleObject"}
+_POINT_METADATA = {"socket_parent_frame", "body", "Appearance", "display", "components"}
+#: the path points read, with their properties (OpenSim 4.x and 3.x names)
+_PATH_POINT_PROPERTIES = {
+    "PathPoint": _POINT_METADATA | {"location"},
+    "ConditionalPathPoint": _POINT_METADATA | {"location", "range", "socket_coordinate", "coordinate"},
+    "MovingPathPoint": _POINT_METADATA | {"location", "socket_x_coordinate", "socket_y_coordinate",
+                                          "socket_z_coordinate", "x_coordinate", "y_coordinate", "z_coordinate",
+                                          "x_location", "y_location", "z_location", "XAttachment", "YAttachment",
+                                          "ZAttachment"},
+}
 
 
 @dataclass
 class OsimPathPoint:
-    """A PathPoint: ``location (3,)`` m in ``frame`` (an OsimFrame key once resolved)."""
+    """A PathPoint: ``location (3,)`` m in ``frame`` (an OsimFrame key once resolved).
+    A ConditionalPathPoint has ``condition`` (coordinate, lo, hi) (rad or m); a
+    MovingPathPoint has ``moving`` (coordinate or None, (spec_x, spec_y, spec_z)): each a
+    function dict of the coordinate (m), ``location`` unused."""
 
     name: str
     frame: str
     location: np.ndarray
     line: int = 0
+    condition: tuple = None
+    moving: tuple = None
 
 
 @dataclass
@@ -852,6 +867,50 @@ class _Reader:
         self.markers.append(OsimMarker(name, frame, self.child_numbers(m, "location", 3), frame, m.sourceline))
 
     # -- muscles ----------------------------------------------------------------------
+    @staticmethod
+    def _point_error(label, msg):
+        return OsimError(f"{label}: {msg}; leave the muscle out with --ignore {label.split(': ')[-1].split()[0]}")
+
+    def _coordinate_of(self, p, tags, label):
+        """The coordinate named by the first of ``tags`` present (4.x socket path or 3.x
+        name), or None."""
+        for tag in tags:
+            text = self.child_text(p, tag, "")
+            if text:
+                return self.last(text)
+        return None
+
+    def conditional_point(self, p, label):
+        """(coordinate, lo, hi) of a ConditionalPathPoint (OpenSim's ``range``)."""
+        coordinate = self._coordinate_of(p, ("socket_coordinate", "coordinate"), label)
+        if coordinate is None:
+            raise self._point_error(label, "no coordinate (OpenSim would never activate it)")
+        lo, hi = self.child_numbers(p, "range", 2)
+        if not lo <= hi:
+            raise self._point_error(label, f"range [{lo:g}, {hi:g}] is empty")
+        return coordinate, float(lo), float(hi)
+
+    def moving_point(self, p, label):
+        """(coordinate or None, (spec_x, spec_y, spec_z)) of a MovingPathPoint: each axis
+        the function of its ``x_location`` … (default Constant 0). OpenSim requires the
+        three coordinates to be one; an axis without one is its function at 0."""
+        coords = [self._coordinate_of(p, (f"socket_{a}_coordinate", f"{a}_coordinate"), label) for a in "xyz"]
+        if len(set(coords)) != 1:
+            raise self._point_error(label, f"x, y and z must depend on the same coordinate (OpenSim's rule), got "
+                                           f"{coords}")
+        specs = []
+        for a, legacy_tag in zip("xyz", ("XAttachment", "YAttachment", "ZAttachment")):
+            holder = p.find(f"{a}_location")
+            holder = holder if holder is not None else p.find(legacy_tag)
+            if holder is None:
+                specs.append({"type": "constant", "value": 0.0})
+                continue
+            inner = [e for e in holder if isinstance(e.tag, str)]
+            if len(inner) != 1:
+                raise self._point_error(label, f"<{holder.tag}> must hold one function, it has {len(inner)}")
+            specs.append(function_spec(inner[0], self.source))
+        return coords[0], tuple(specs)
+
     def read_muscle(self, m, legacy):
         """A muscle of MUSCLE_TYPES with a path of PathPoints. A muscle whose path holds
         anything else (ConditionalPathPoint, MovingPathPoint, a PathWrap) is left out as
@@ -896,7 +955,7 @@ class _Reader:
                 refused.append(e)
         points = []
         for p in self.objects(path.find("PathPointSet")):
-            if p.tag != "PathPoint":
+            if p.tag not in _PATH_POINT_PROPERTIES or p.tag in self.ignore:
                 refused.append(p)
                 continue
             pname = p.get("name") or f"point{len(points) + 1}"
@@ -905,11 +964,18 @@ class _Reader:
             else:
                 frame = self.child_text(p, "socket_parent_frame")
             for e in p:
-                if isinstance(e.tag, str) and e.tag not in ("location", "socket_parent_frame", "body", "Appearance",
-                                                             "display", "components"):
-                    raise self.err(e, f"{label}: PathPoint {pname!r}: property <{e.tag}> is not read by openfdk; "
+                if isinstance(e.tag, str) and e.tag not in _PATH_POINT_PROPERTIES[p.tag]:
+                    raise self.err(e, f"{label}: {p.tag} {pname!r}: property <{e.tag}> is not read by openfdk; "
                                       f"leave the muscle out with --ignore {kind}")
-            points.append(OsimPathPoint(pname, frame, self.child_numbers(p, "location", 3), p.sourceline))
+            point = OsimPathPoint(pname, frame, np.zeros(3), p.sourceline)
+            where_ = f"{self.source}: line {p.sourceline}: {p.tag} '{name}/{pname}'"  # OpenSim's component path
+            if p.tag == "MovingPathPoint":
+                point.moving = self.moving_point(p, where_)
+            else:
+                point.location = self.child_numbers(p, "location", 3)
+            if p.tag == "ConditionalPathPoint":
+                point.condition = self.conditional_point(p, where_)
+            points.append(point)
         refused += list(self.objects(path.find("PathWrapSet")))
         if refused:
             before = len(self.unsupported)

@@ -29,11 +29,16 @@ from pathlib import Path
 
 import numpy as np
 
+from ...model.coordinate_functions import function_from_spec
 from .document import OsimDocument
 from .errors import OsimError
 from .tree import Tree
 
 _SAFE = re.compile(r"[^A-Za-z0-9_\-]")
+
+
+def _no_error(path, msg):  # the function dicts of the reader are checked already
+    return OsimError(f"{path}: {msg}")
 
 
 def safe_name(name):
@@ -146,12 +151,27 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
     for mu in doc.muscles:
         safe = unique("muscle", mu.name)
         path = [frame_of(pt.frame, f"{mu.name}_{pt.name}", kind="path point") for pt in mu.points]
-        # a PathPoint is a frame at its location, axes of its parent frame
-        for pt, ref in zip(mu.points, path):
+        # a PathPoint is a frame at its location, axes of its parent frame; a moving one
+        # is the parent frame itself, its functions give the location in its axes
+        for k, (pt, ref) in enumerate(zip(mu.points, path)):
             body, fname = ref.split(".", 1)
             _, _, R = tree.frame_in_root(pt.frame)
             frame = bodies[body]["frames"][fname]
-            frame["position"] = (np.asarray(frame["position"]) + R @ pt.location).tolist()
+            location = pt.location
+            if pt.moving is not None and pt.moving[0] is None:  # no coordinate: the functions at 0
+                location = np.array([function_from_spec(f, "", _no_error).evaluate(0.0)[0] for f in pt.moving[1]])
+            if pt.moving is None or pt.moving[0] is None:
+                frame["position"] = (np.asarray(frame["position"]) + R @ location).tolist()
+            label = f"{doc.source}: line {pt.line}: {mu.type} {mu.name!r}: point {pt.name!r}"
+            for spec in (pt.condition, pt.moving):
+                if spec is not None and spec[0] is not None and spec[0] not in coordinates:
+                    raise OsimError(f"{label}: unknown coordinate {spec[0]!r}")
+            if pt.condition is not None:
+                c, lo, hi = pt.condition
+                path[k] = {"point": ref, "active": {"coordinate": c, "range": [lo, hi]}}
+            elif pt.moving is not None and pt.moving[0] is not None:
+                c, (fx, fy, fz) = pt.moving
+                path[k] = {"frame": ref, "moving": {"coordinate": c, "x": fx, "y": fy, "z": fz}}
         muscles[safe] = {"model": "hill", "path": path, **hill_parameters(mu, doc.source)}
         settings[safe] = {k: v for k, v in mu.parameters.items() if k in RECRUITMENT_SETTINGS}
     for g in doc.geometry:
