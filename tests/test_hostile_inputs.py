@@ -302,6 +302,21 @@ def test_an_unknown_spring_key_under_a_joint_fdk_row_is_refused(tmp_path, capsys
     assert "model.yaml: joints.tmj.fdk.x.spring: unknown key" in _error_line(err)
 
 
+def test_a_misspelt_ground_reactions_key_gets_a_suggestion(tmp_path, capsys):
+    model = _write(tmp_path / "model.yaml", ARM + "ground_reactions: {plate: {}}\n")
+    code, _, err = _run(capsys, "check", model)
+    assert code == 2
+    assert "model.yaml: ground_reactions.plate: unknown key; did you mean 'plates'?" in _error_line(err)
+
+
+def test_a_misspelt_subject_unit_key_gets_a_suggestion(tmp_path):
+    from openfdk.mandible.subject import SubjectError, load_subject
+
+    (tmp_path / "subject.yaml").write_text("units: {lenght: mm}\n")
+    with pytest.raises(SubjectError, match=r"subject\.yaml: units\.lenght: unknown key; did you mean 'length'\?"):
+        load_subject(tmp_path)
+
+
 def test_duplicate_fdk_rows_are_refused(tmp_path, capsys):
     data = two_body_model_dict()
     data["joints"]["tmj"]["fdk"] = ["x", "x"]

@@ -48,7 +48,9 @@ def check_spec(spec, model, source):
         raise ModelError(f"{where}: expected a mapping with keys {list(KEYS)}")
     bad = [k for k in spec if k not in KEYS]
     if bad:
-        raise ModelError(f"{where}.{bad[0]}: unknown key; allowed: {list(KEYS)}")
+        from .yamlfile import unknown_key
+
+        raise ModelError(f"{where}.{bad[0]}: {unknown_key(bad[0], KEYS)}")
     bodies = {b.name for b in model.moving_bodies}
     labels = dict(zip(model.markers.names, model.markers.labels))
     plates = {}

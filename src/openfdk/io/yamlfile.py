@@ -129,6 +129,13 @@ def read_yaml(path, error=ValueError, what="file", source=None):
     return parse_yaml(text, source, error)
 
 
+def unknown_key(key, allowed) -> str:
+    """``unknown key; did you mean '<closest>'?`` (or ``; allowed: [...]`` when no
+    allowed key is close): the message for a key not in ``allowed``."""
+    hint = difflib.get_close_matches(str(key), [str(a) for a in allowed], n=1)
+    return "unknown key" + (f"; did you mean {hint[0]!r}?" if hint else f"; allowed: {sorted(map(str, allowed))}")
+
+
 def _unit(unit):
     return f" ({unit})" if unit else ""
 
@@ -166,9 +173,7 @@ class YamlContext:
             allowed = list(allowed)
             for k in value:
                 if k not in allowed:
-                    hint = difflib.get_close_matches(str(k), [str(a) for a in allowed], n=1)
-                    extra = f"; did you mean {hint[0]!r}?" if hint else f"; allowed: {sorted(map(str, allowed))}"
-                    raise self.error(_join(path, str(k)), f"unknown key{extra}")
+                    raise self.error(_join(path, str(k)), unknown_key(k, allowed))
         for k in required:
             if k not in value:
                 raise self.error(path or "(top level)", f"missing required key {k!r}")

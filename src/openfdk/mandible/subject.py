@@ -21,7 +21,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from ..io.yamlfile import YamlContext, read_yaml
+from ..io.yamlfile import YamlContext, read_yaml, unknown_key
 from ..spatial import rotation_matrix_xyz
 from .protocol import PROTOCOL_KEYS, StudyProtocol, parse_protocol
 
@@ -245,7 +245,7 @@ def _units(data: dict, file: Path) -> tuple[str, float, float]:
         raise SubjectError(f"{file}: units: expected a mapping like {{length: mm, angle: deg}}")
     for key in units:
         if key not in ("length", "angle"):
-            raise SubjectError(f"{file}: units.{key}: unknown key; allowed: ['angle', 'length'] "
+            raise SubjectError(f"{file}: units.{key}: {unknown_key(key, ('angle', 'length'))} "
                                f"(mass is kg, inertia kg m², force N)")
     length = str(units.get("length", "mm"))
     angle = str(units.get("angle", "deg"))
