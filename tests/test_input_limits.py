@@ -173,6 +173,21 @@ def test_a_study_at_the_case_limit_is_accepted(tmp_path, monkeypatch):
         load_study(study, check_overrides=False)
 
 
+def test_a_study_of_too_many_input_combinations_is_refused(tmp_path, monkeypatch):
+    from openfdk.study.spec import StudyError, study_from_dict
+
+    for name in ("a", "b"):
+        (tmp_path / f"{name}.yaml").write_text(MODEL)
+        (tmp_path / f"{name}.c3d").write_bytes(b"")
+    data = {"openfdk_study": 1, "models": ["a.yaml", "b.yaml"], "trials": ["a.c3d", "b.c3d"]}
+    monkeypatch.setattr(limits, "STUDY_CASES", 4)
+    assert len(study_from_dict(data, "s.yaml", tmp_path, check_overrides=False).cases) == 4
+    monkeypatch.setattr(limits, "STUDY_CASES", 3)
+    with pytest.raises(StudyError, match=r"^s\.yaml: 4 cases \(4 input combinations\), above the limit of 3 "
+                                         r"\(openfdk\.io\.limits\.STUDY_CASES\)$"):
+        study_from_dict(data, "s.yaml", tmp_path, check_overrides=False)
+
+
 # -- meshes -----------------------------------------------------------------------------
 
 def test_a_binary_stl_above_the_triangle_limit_is_refused_from_its_header(tmp_path, capsys):

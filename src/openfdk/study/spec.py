@@ -225,7 +225,7 @@ def _check_case_count(ctx, grid, listed, n_inputs):
     entry = "grid" if n_grid else "cases" if n_listed else ""
     parts = ([" × ".join(str(len(v)) for v in grid.values()) + " grid points"] if n_grid else []) + \
         ([f"{n_listed} listed cases"] if n_listed else [])
-    how = f"{n_inputs} input combination{'s' if n_inputs != 1 else ''} × ({' + '.join(parts) or '1'})"
+    how = f"{n_inputs} input combination{'s' if n_inputs != 1 else ''}" + (f" × ({' + '.join(parts)})" if parts else "")
     limits.check_count(total, "STUDY_CASES", ctx.source, entry, f"cases ({how})", StudyError)
 
 
