@@ -13,6 +13,9 @@ would have left it, so that messages are built in Python from the same pose.
 
 ``prog`` below is the tuple ``CompiledMeasures.program + (n_node_rows,)``; ``f, df, ddf``
 (m,) the rows' targets (Φ = m − f); ``angle`` (m,) bool rows compared modulo 2π.
+
+(numba caches these kernels with the code of :func:`~openfdk.model.compiled.evaluate_into`
+inlined: edit this file whenever that one changes — last: the program's column blocks.)
 """
 
 from __future__ import annotations

@@ -62,7 +62,7 @@ from numba import njit
 from .measures import AxisDot, Distance, Linear, PointPosition, RelativeAngles, RelativeVector
 from .coordinate_functions import pp_evaluate
 from .function_measure import FunctionOf
-from .rotation_angles import RotationAngles, rotation_angles
+from .rotation_angles import RotationAngles, inverse3, rotation_angle_blocks
 
 __all__ = ["CompiledMeasures", "MeasureCompileError", "register", "evaluate_program"]
 
@@ -190,23 +190,6 @@ def _cross(a0, a1, a2, b0, b1, b2):
 
 
 @njit(cache=True)
-def _inv3(B, out):
-    """out ← B⁻¹ for a 3×3 B (cofactors)."""
-    det = (B[0, 0] * (B[1, 1] * B[2, 2] - B[1, 2] * B[2, 1])
-           - B[0, 1] * (B[1, 0] * B[2, 2] - B[1, 2] * B[2, 0])
-           + B[0, 2] * (B[1, 0] * B[2, 1] - B[1, 1] * B[2, 0]))
-    out[0, 0] = (B[1, 1] * B[2, 2] - B[1, 2] * B[2, 1]) / det
-    out[0, 1] = (B[0, 2] * B[2, 1] - B[0, 1] * B[2, 2]) / det
-    out[0, 2] = (B[0, 1] * B[1, 2] - B[0, 2] * B[1, 1]) / det
-    out[1, 0] = (B[1, 2] * B[2, 0] - B[1, 0] * B[2, 2]) / det
-    out[1, 1] = (B[0, 0] * B[2, 2] - B[0, 2] * B[2, 0]) / det
-    out[1, 2] = (B[0, 2] * B[1, 0] - B[0, 0] * B[1, 2]) / det
-    out[2, 0] = (B[1, 0] * B[2, 1] - B[1, 1] * B[2, 0]) / det
-    out[2, 1] = (B[0, 1] * B[2, 0] - B[0, 0] * B[2, 1]) / det
-    out[2, 2] = (B[0, 0] * B[1, 1] - B[0, 1] * B[1, 0]) / det
-
-
-@njit(cache=True)
 def _add_axis_dot_columns(M, row, c, R, other, n0, n1, n2):
     """M[row, c+3:c+6] += n × (Rᵀ other): ∂(R n · other)/∂δπ' of the body at column c."""
     t0 = R[0, 0] * other[0] + R[1, 0] * other[1] + R[2, 0] * other[2]
@@ -219,12 +202,33 @@ def _add_axis_dot_columns(M, row, c, R, other, n0, n1, n2):
 
 
 @njit(cache=True)
-def _rate(M, v, row, n):
-    """ṁ of node row ``row``: M[row] · v."""
+def _rate(M, v, row, cols, ncol):
+    """ṁ of node row ``row``: M[row] · v over the node's column blocks ``cols[:ncol]``
+    (M is zero elsewhere)."""
     s = 0.0
-    for c in range(n):
-        s += M[row, c] * v[c]
+    for q in range(ncol):
+        for c in range(cols[q], cols[q] + 6):
+            s += M[row, c] * v[c]
     return s
+
+
+@njit(cache=True)
+def _bit(body):
+    """The bit of a body in a node's body set (none past 62: such models are dense)."""
+    return np.int64(1) << np.int64(body) if 0 <= body < 63 else np.int64(0)
+
+
+@njit(cache=True)
+def _node_columns(mask, column, cols):
+    """cols[:k] ← the first q̂ column of each moving body in the bit set ``mask`` (bit i:
+    body i; every moving body when the model has more than 63 bodies). Returns k."""
+    k = 0
+    dense = column.shape[0] > 63
+    for i in range(column.shape[0]):
+        if column[i] >= 0 and (dense or (mask >> np.int64(i)) & np.int64(1)):
+            cols[k] = column[i]
+            k += 1
+    return k
 
 
 @njit(cache=True)
@@ -235,7 +239,13 @@ def evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fparams
 
     p_WB (nb, 3) m, R_WB (nb, 3, 3), w_BB (nb, 3) rad/s (body frame), v_WB (nb, 3) m/s,
     column (nb,) first q̂ column of each body (−1: fixed). Returns (failing node or −1,
-    error code ERR_*)."""
+    error code ERR_*).
+
+    Sparsity: a node's rows depend on the bodies its sub-tree names (a point's body, an
+    angle's two bodies, the union of a vector's or a combination's children), so its
+    Jacobian rows are zero outside those bodies' 6 columns each. The node's body set is
+    a bit mask (``mask``), and every loop over Jacobian columns runs over its blocks
+    only: a joint's rows touch 12 of the 6 n_moving columns, whatever the model's size."""
     n = n_coords
     if order >= 1:
         M[:, :] = 0.0
@@ -250,15 +260,30 @@ def evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fparams
     u = np.zeros(3)
     tmp = np.zeros(3)
     B = np.zeros((3, 3))
-    Binv = np.zeros((3, 3))
     R_FaFb = np.zeros((3, 3))
     R_WFa = np.zeros((3, 3))
     R_WFb = np.zeros((3, 3))
+    mask = np.zeros(op.shape[0], np.int64)
+    cols = np.empty(column.shape[0], np.int64)
     for k in range(op.shape[0]):
         o = op[k]
         row = node_row[k]
         ip = i_start[k]
         fp = f_start[k]
+        if o == OP_POINT:
+            mk = _bit(iparams[ip])
+        elif o == OP_VECTOR:
+            mk = mask[iparams[ip]] | mask[iparams[ip + 1]] | _bit(iparams[ip + 2])
+        elif o == OP_DISTANCE or o == OP_FUNCTION:
+            mk = mask[iparams[ip]]
+        elif o == OP_LINEAR:
+            mk = np.int64(0)
+            for t in range(iparams[ip]):
+                mk |= mask[iparams[ip + 1 + t]]
+        else:  # the two bodies of OP_AXIS_DOT, OP_ANGLES, OP_ROTATION_ANGLES
+            mk = _bit(iparams[ip]) | _bit(iparams[ip + 1])
+        mask[k] = mk
+        ncol = _node_columns(mk, column, cols) if order >= 1 else 0
         if o == OP_POINT:
             # p = r + R s', ∂p/∂δr = I, ∂p/∂δπ' = −R s̃', b = R ω̃' ω̃' s' (DESIGN.md §1)
             i = iparams[ip]
@@ -291,8 +316,9 @@ def evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fparams
                     val[row + r] = u[r]
                 if order >= 1:
                     for r in range(3):
-                        for c in range(n):
-                            M[row + r, c] = M[rb + r, c] - M[ra + r, c]
+                        for q in range(ncol):
+                            for c in range(cols[q], cols[q] + 6):
+                                M[row + r, c] = M[rb + r, c] - M[ra + r, c]
                 if order >= 2:
                     for r in range(3):
                         b[row + r] = b[rb + r] - b[ra + r]
@@ -302,10 +328,11 @@ def evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fparams
                     val[row + r] = Rk[0, r] * u[0] + Rk[1, r] * u[1] + Rk[2, r] * u[2]
                 if order >= 1:
                     for r in range(3):
-                        for c in range(n):
-                            M[row + r, c] = (Rk[0, r] * (M[rb, c] - M[ra, c])
-                                             + Rk[1, r] * (M[rb + 1, c] - M[ra + 1, c])
-                                             + Rk[2, r] * (M[rb + 2, c] - M[ra + 2, c]))
+                        for q in range(ncol):
+                            for c in range(cols[q], cols[q] + 6):
+                                M[row + r, c] = (Rk[0, r] * (M[rb, c] - M[ra, c])
+                                                 + Rk[1, r] * (M[rb + 1, c] - M[ra + 1, c])
+                                                 + Rk[2, r] * (M[rb + 2, c] - M[ra + 2, c]))
                     ck = column[kb]
                     if ck >= 0:
                         w0, w1, w2 = val[row], val[row + 1], val[row + 2]
@@ -318,7 +345,7 @@ def evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fparams
                 if order >= 2:
                     # u̇ = (M_b − M_a) v in world, then expressed in k
                     for r in range(3):
-                        tmp[r] = _rate(M, v, rb + r, n) - _rate(M, v, ra + r, n)
+                        tmp[r] = _rate(M, v, rb + r, cols, ncol) - _rate(M, v, ra + r, cols, ncol)
                     d0 = Rk[0, 0] * tmp[0] + Rk[1, 0] * tmp[1] + Rk[2, 0] * tmp[2]
                     d1 = Rk[0, 1] * tmp[0] + Rk[1, 1] * tmp[1] + Rk[2, 1] * tmp[2]
                     d2 = Rk[0, 2] * tmp[0] + Rk[1, 2] * tmp[1] + Rk[2, 2] * tmp[2]
@@ -342,10 +369,13 @@ def evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fparams
                 if length == 0.0:
                     return k, ERR_COINCIDENT
                 e0, e1, e2 = val[ru] / length, val[ru + 1] / length, val[ru + 2] / length
-                for c in range(n):
-                    M[row, c] = e0 * M[ru, c] + e1 * M[ru + 1, c] + e2 * M[ru + 2, c]
+                for q in range(ncol):
+                    for c in range(cols[q], cols[q] + 6):
+                        M[row, c] = e0 * M[ru, c] + e1 * M[ru + 1, c] + e2 * M[ru + 2, c]
                 if order >= 2:
-                    du0, du1, du2 = _rate(M, v, ru, n), _rate(M, v, ru + 1, n), _rate(M, v, ru + 2, n)
+                    du0 = _rate(M, v, ru, cols, ncol)
+                    du1 = _rate(M, v, ru + 1, cols, ncol)
+                    du2 = _rate(M, v, ru + 2, cols, ncol)
                     edu = e0 * du0 + e1 * du1 + e2 * du2
                     b[row] = (e0 * b[ru] + e1 * b[ru + 1] + e2 * b[ru + 2]
                               + (du0 * du0 + du1 * du1 + du2 * du2 - edu * edu) / length)
@@ -411,7 +441,7 @@ def evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fparams
                 B[0, 0], B[0, 1], B[0, 2] = 1.0, 0.0, s1
                 B[1, 0], B[1, 1], B[1, 2] = 0.0, c0, -s0 * c1
                 B[2, 0], B[2, 1], B[2, 2] = 0.0, s0, c0 * c1
-                _inv3(B, Binv)
+                Binv, _ = inverse3(B)
                 ca, cb = column[ia], column[ib]
                 for r in range(3):
                     for c in range(3):
@@ -456,17 +486,22 @@ def evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fparams
                         b[row + r] = Binv[r, 0] * r0 + Binv[r, 1] * r1 + Binv[r, 2] * r2
         elif o == OP_ROTATION_ANGLES:
             # any intrinsic sequence (JCS angles): the kernel of openfdk.model.rotation_angles
-            theta, Mr, br, ok = rotation_angles(
-                R_WB, w_BB, column, iparams[ip], fparams[fp : fp + 9].copy().reshape(3, 3),
-                iparams[ip + 1], fparams[fp + 9 : fp + 18].copy().reshape(3, 3),
-                iparams[ip + 2 : ip + 5], fparams[fp + 18 : fp + 21], n, order)
+            ia, ib = iparams[ip], iparams[ip + 1]
+            theta, Ma, Mb, br, ok = rotation_angle_blocks(
+                R_WB[ia], fparams[fp : fp + 9].copy().reshape(3, 3), w_BB[ia],
+                R_WB[ib], fparams[fp + 9 : fp + 18].copy().reshape(3, 3), w_BB[ib],
+                iparams[ip + 2 : ip + 5], fparams[fp + 18 : fp + 21], order)
             if not ok:
                 return k, ERR_GIMBAL
+            ca, cb = column[ia], column[ib]
             for r in range(3):
                 val[row + r] = theta[r]
                 if order >= 1:
-                    for c in range(n):
-                        M[row + r, c] = Mr[r, c]
+                    for c in range(3):
+                        if ca >= 0:
+                            M[row + r, ca + 3 + c] += Ma[r, c]
+                        if cb >= 0:
+                            M[row + r, cb + 3 + c] += Mb[r, c]
                 if order >= 2:
                     b[row + r] = br[r]
         elif o == OP_FUNCTION:
@@ -475,10 +510,11 @@ def evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fparams
             f, df, d2f = pp_evaluate(fparams, fp, val[ru])
             val[row] = f
             if order >= 1:
-                for c in range(n):
-                    M[row, c] = df * M[ru, c]
+                for q in range(ncol):
+                    for c in range(cols[q], cols[q] + 6):
+                        M[row, c] = df * M[ru, c]
                 if order >= 2:
-                    du = _rate(M, v, ru, n)
+                    du = _rate(M, v, ru, cols, ncol)
                     b[row] = d2f * du * du + df * b[ru]
         else:  # OP_LINEAR: m = Σ_j C_j m_j + offset
             size = node_size[k]
@@ -499,8 +535,9 @@ def evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fparams
                             continue
                         val[row + r] += C * val[rc + j]
                         if order >= 1:
-                            for c in range(n):
-                                M[row + r, c] += C * M[rc + j, c]
+                            for q in range(ncol):
+                                for c in range(cols[q], cols[q] + 6):
+                                    M[row + r, c] += C * M[rc + j, c]
                         if order >= 2:
                             b[row + r] += C * b[rc + j]
                 cp += size * sc

@@ -98,49 +98,117 @@ def angles_from_matrix(R, i, j, k):
 
 
 @njit(cache=True)
-def rotation_angles(R_WB, w_BB, column, ia, R_aFa, ib, R_bFb, seq, sign, n_coords, order):
-    """Angles θ (3,) rad of F_b in F_a for the sequence ``seq`` (3,) int, multiplied by
-    ``sign`` (3,); M (3, n_coords); b (3,) (see the module docstring). Returns
-    (θ, M, b, ok) with ok False at gimbal lock (|det B| < 1e-9)."""
+def _mat3(A, B, transpose_a, transpose_b):
+    """A·B, Aᵀ·B or A·Bᵀ of 3×3 matrices as plain loops: numba's ``@`` calls BLAS, whose
+    call costs more than these 27 products."""
+    out = np.empty((3, 3))
+    for r in range(3):
+        for c in range(3):
+            s = 0.0
+            for j in range(3):
+                s += (A[j, r] if transpose_a else A[r, j]) * (B[c, j] if transpose_b else B[j, c])
+            out[r, c] = s
+    return out
+
+
+@njit(cache=True)
+def _vec3(A, x, transpose):
+    """A x or Aᵀ x for a 3×3 A and x (3,)."""
+    out = np.empty(3)
+    for r in range(3):
+        if transpose:
+            out[r] = A[0, r] * x[0] + A[1, r] * x[1] + A[2, r] * x[2]
+        else:
+            out[r] = A[r, 0] * x[0] + A[r, 1] * x[1] + A[r, 2] * x[2]
+    return out
+
+
+@njit(cache=True)
+def inverse3(B):
+    """(B⁻¹ (3, 3), det B) by cofactors (B⁻¹ = adj B / det B); B⁻¹ is NaN if det B = 0."""
+    det = (B[0, 0] * (B[1, 1] * B[2, 2] - B[1, 2] * B[2, 1])
+           - B[0, 1] * (B[1, 0] * B[2, 2] - B[1, 2] * B[2, 0])
+           + B[0, 2] * (B[1, 0] * B[2, 1] - B[1, 1] * B[2, 0]))
+    out = np.empty((3, 3))
+    inv = 1.0 / det if det != 0.0 else np.nan
+    out[0, 0] = (B[1, 1] * B[2, 2] - B[1, 2] * B[2, 1]) * inv
+    out[0, 1] = (B[0, 2] * B[2, 1] - B[0, 1] * B[2, 2]) * inv
+    out[0, 2] = (B[0, 1] * B[1, 2] - B[0, 2] * B[1, 1]) * inv
+    out[1, 0] = (B[1, 2] * B[2, 0] - B[1, 0] * B[2, 2]) * inv
+    out[1, 1] = (B[0, 0] * B[2, 2] - B[0, 2] * B[2, 0]) * inv
+    out[1, 2] = (B[0, 2] * B[1, 0] - B[0, 0] * B[1, 2]) * inv
+    out[2, 0] = (B[1, 0] * B[2, 1] - B[1, 1] * B[2, 0]) * inv
+    out[2, 1] = (B[0, 1] * B[2, 0] - B[0, 0] * B[2, 1]) * inv
+    out[2, 2] = (B[0, 0] * B[1, 1] - B[0, 1] * B[1, 0]) * inv
+    return out, det
+
+
+@njit(cache=True)
+def rotation_angle_blocks(R_Wa, R_aFa, w_a, R_Wb, R_bFb, w_b, seq, sign, order):
+    """The angles of :func:`rotation_angles` with their Jacobian as its two non-zero
+    blocks: θ (3,) rad, M_a (3, 3) on body a's rotation columns δπ'_a, M_b (3, 3) on body
+    b's, b (3,) rad/s² (order 2), ok. R_Wa, R_Wb (3, 3) the bodies' orientations, w_a,
+    w_b (3,) rad/s their body-frame angular velocities (module docstring for the maths)."""
     i, j, k = seq[0], seq[1], seq[2]
-    R_WFa = R_WB[ia] @ R_aFa
-    R_WFb = R_WB[ib] @ R_bFb
-    R = R_WFa.T @ R_WFb
+    R_WFa = _mat3(R_Wa, R_aFa, False, False)
+    R_WFb = _mat3(R_Wb, R_bFb, False, False)
+    R = _mat3(R_WFa, R_WFb, True, False)  # R_FaFb
     theta = angles_from_matrix(R, i, j, k)
-    M = np.zeros((3, n_coords))
+    Ma = np.zeros((3, 3))
+    Mb = np.zeros((3, 3))
     b = np.zeros(3)
     if order == 0:
-        return theta * sign, M, b, True
+        return theta * sign, Ma, Mb, b, True
     e = np.eye(3)
     R1 = _axis_rotation(i, theta[0])
     R2 = _axis_rotation(j, theta[1])
-    c2 = R1 @ e[j]
-    r2k = R2 @ e[k]
-    c3 = R1 @ r2k
+    c2 = _vec3(R1, e[j], False)
+    r2k = _vec3(R2, e[k], False)
+    c3 = _vec3(R1, r2k, False)
     B = np.empty((3, 3))
     B[:, 0] = e[i]
     B[:, 1] = c2
     B[:, 2] = c3
-    if abs(np.linalg.det(B)) < 1e-9:
-        return theta * sign, M, b, False
-    Binv = np.linalg.inv(B)
-    ca, cb = column[ia], column[ib]
-    if ca >= 0:
-        M[:, ca + 3 : ca + 6] -= Binv @ R_aFa.T
-    if cb >= 0:
-        M[:, cb + 3 : cb + 6] += Binv @ (R @ R_bFb.T)
+    Binv, det = inverse3(B)
+    if abs(det) < 1e-9:
+        return theta * sign, Ma, Mb, b, False
+    Ma = -_mat3(Binv, R_aFa, False, True)                       # −B⁻¹ R_aFaᵀ
+    Mb = _mat3(Binv, _mat3(R, R_bFb, False, True), False, False)  # B⁻¹ R_FaFb R_bFbᵀ
     if order >= 2:
-        w_Fa = R_aFa.T @ w_BB[ia]
-        w_Fb = R_bFb.T @ w_BB[ib]
-        Rw = R @ w_Fb
-        dtheta = Binv @ (Rw - w_Fa)
+        w_Fa = _vec3(R_aFa, w_a, True)
+        w_Fb = _vec3(R_bFb, w_b, True)
+        Rw = _vec3(R, w_Fb, False)
+        dtheta = _vec3(Binv, Rw - w_Fa, False)
         dB = dtheta[1] * dtheta[0] * _cross(e[i], c2) + dtheta[2] * (
-            dtheta[0] * _cross(e[i], c3) + dtheta[1] * (R1 @ _cross(e[j], r2k)))
-        b = Binv @ (-_cross(w_Fa, Rw) - dB)
+            dtheta[0] * _cross(e[i], c3) + dtheta[1] * _vec3(R1, _cross(e[j], r2k), False))
+        b = _vec3(Binv, -_cross(w_Fa, Rw) - dB, False)
     for r in range(3):
-        M[r] *= sign[r]
+        for c in range(3):
+            Ma[r, c] *= sign[r]
+            Mb[r, c] *= sign[r]
         b[r] *= sign[r]
-    return theta * sign, M, b, True
+    return theta * sign, Ma, Mb, b, True
+
+
+@njit(cache=True)
+def rotation_angles(R_WB, w_BB, column, ia, R_aFa, ib, R_bFb, seq, sign, n_coords, order):
+    """Angles θ (3,) rad of F_b in F_a for the sequence ``seq`` (3,) int, multiplied by
+    ``sign`` (3,); M (3, n_coords); b (3,) (see the module docstring). Returns
+    (θ, M, b, ok) with ok False at gimbal lock (|det B| < 1e-9). The blocks of M come
+    from :func:`rotation_angle_blocks`."""
+    theta, Ma, Mb, b, ok = rotation_angle_blocks(R_WB[ia], R_aFa, w_BB[ia], R_WB[ib], R_bFb, w_BB[ib], seq, sign,
+                                                 order)
+    M = np.zeros((3, n_coords))
+    if order == 0 or not ok:
+        return theta, M, np.zeros(3), ok
+    ca, cb = column[ia], column[ib]
+    for r in range(3):
+        for c in range(3):
+            if ca >= 0:
+                M[r, ca + 3 + c] += Ma[r, c]
+            if cb >= 0:
+                M[r, cb + 3 + c] += Mb[r, c]
+    return theta, M, b, ok
 
 
 class RotationAngles(Measure):
@@ -173,4 +241,5 @@ class RotationAngles(Measure):
         return theta, (M if order >= 1 else None), (b if order >= 2 else None)
 
 
-__all__ = ["RotationAngles", "JCS_CONVENTIONS", "parse_sequence", "angles_from_matrix", "rotation_angles"]
+__all__ = ["RotationAngles", "JCS_CONVENTIONS", "parse_sequence", "angles_from_matrix", "rotation_angles",
+           "rotation_angle_blocks", "inverse3"]
