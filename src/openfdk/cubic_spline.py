@@ -141,3 +141,13 @@ class NotAKnotSpline:
         return (c0 + tau * (c1 + tau * (c2 + tau * c3)),
                 c1 + tau * (2.0 * c2 + 3.0 * tau * c3),
                 2.0 * c2 + 6.0 * tau * c3)
+
+    def values(self, times):
+        """s at every entry of ``times`` (nf,) (unit of x): (nf, k) in units of y, the
+        values :meth:`derivatives` gives one time at a time (the same pieces, the same
+        arithmetic), for a whole trial's frames at once."""
+        times = np.asarray(times, dtype=np.float64).reshape(-1)
+        i = np.clip(np.searchsorted(self.x, times, side="right") - 1, 0, len(self.x) - 2)
+        tau = (times - self.x[i])[:, None]
+        c = self.coef[i]  # (nf, 4, k)
+        return c[:, 0] + tau * (c[:, 1] + tau * (c[:, 2] + tau * c[:, 3]))

@@ -34,6 +34,7 @@ class DynamicsStep:
         self.kin_reports, self.alpha = kin_reports, alpha
         self.state = model.initial_state()
         self.warm = None
+        solver.forces.prepare(time)  # measured loads sampled at every frame time at once
 
     def fields(self):
         return forces_fields(self.solver)

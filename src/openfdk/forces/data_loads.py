@@ -21,6 +21,13 @@ when P is given in the ground:
 
 Where the data have no point (OpenSim's point_identifier empty), OpenSim applies the
 force at B's origin: the section loader passes a constant point 0 in B's OpenSim frame.
+
+Per frame. A trial's analysis knows its frame times, so :meth:`DataLoadForces.prepare`
+samples every load's force, point and torque at all of them at once (a spline
+evaluated over an array of times, :meth:`openfdk.cubic_spline.NotAKnotSpline.values`);
+a frame then costs a dictionary look-up and one compiled call
+(:func:`apply_data_loads`: the frames' rotations, r × F and Q for every load). Times
+not prepared (a single frame, an FDK trial) are sampled when asked, as before.
 """
 
 from __future__ import annotations
@@ -28,8 +35,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
-from ..model.timefunctions import TimeFunction
+from ..model.timefunctions import Constant, SplineThroughData, TimeFunction
 from ..spatial import skew
 
 
@@ -65,6 +73,63 @@ def invalid_reason(loads, t):
     return ""
 
 
+def sample(function, times):
+    """(nf, 3) values of a load's time function at ``times`` (nf,) s, or None where one
+    cannot be given at once: a spline's times outside its data (its per-frame call then
+    raises the message naming them)."""
+    times = np.asarray(times, dtype=float)
+    if isinstance(function, Constant):
+        return np.broadcast_to(function.derivatives(0.0)[0], (len(times), 3)).copy()
+    if isinstance(function, SplineThroughData):
+        lo, hi = function.t_range
+        if not function.extrapolate and not np.all((lo - 1e-12 <= times) & (times <= hi + 1e-12)):
+            return None
+        return function._s.values(times)
+    return np.array([function.derivatives(float(t))[0] for t in times]).reshape(len(times), 3)
+
+
+@njit(cache=True)
+def apply_data_loads(body, column, in_body, p_BF, R_BF, p_WB, R_WB, S, Q, W):
+    """Q (n,) += every load's generalised forces (module docstring), in place.
+
+    body (nl,) int the loads' bodies; column (nb,) their first q̂ columns (−1: fixed,
+    skipped); in_body (nl, 2) bool: force (and torque), point given in the body frame F;
+    p_BF (nl, 3) m, R_BF (nl, 3, 3) the frame F in the body; p_WB (nb, 3) m, R_WB (nb, 3,
+    3) the poses; S (nl, 9) the samples [F (N), P (m), T (N m)] as given. Output W (nl,
+    9): [F_W, p_WP, T_W] in the world (N, m, N m)."""
+    for k in range(body.shape[0]):
+        i = body[k]
+        c = column[i]
+        if c < 0:
+            continue
+        R = R_WB[i]
+        R_WF = np.empty((3, 3))
+        for a in range(3):
+            for b in range(3):
+                R_WF[a, b] = R[a, 0] * R_BF[k, 0, b] + R[a, 1] * R_BF[k, 1, b] + R[a, 2] * R_BF[k, 2, b]
+        for a in range(3):
+            if in_body[k, 0]:  # x_W = R_WB R_BF x_F
+                W[k, a] = R_WF[a, 0] * S[k, 0] + R_WF[a, 1] * S[k, 1] + R_WF[a, 2] * S[k, 2]
+                W[k, 6 + a] = R_WF[a, 0] * S[k, 6] + R_WF[a, 1] * S[k, 7] + R_WF[a, 2] * S[k, 8]
+            else:
+                W[k, a] = S[k, a]
+                W[k, 6 + a] = S[k, 6 + a]
+            if in_body[k, 1]:  # p_W = r_WB + R_WB p_BF + R_WF p_F
+                W[k, 3 + a] = (p_WB[i, a] + R[a, 0] * p_BF[k, 0] + R[a, 1] * p_BF[k, 1] + R[a, 2] * p_BF[k, 2]
+                               + R_WF[a, 0] * S[k, 3] + R_WF[a, 1] * S[k, 4] + R_WF[a, 2] * S[k, 5])
+            else:
+                W[k, 3 + a] = S[k, 3 + a]
+        d0, d1, d2 = W[k, 3] - p_WB[i, 0], W[k, 4] - p_WB[i, 1], W[k, 5] - p_WB[i, 2]
+        f0, f1, f2 = W[k, 0], W[k, 1], W[k, 2]
+        # Q = [F_W ; R_WBᵀ (d_W × F_W + T_W)]
+        m0 = d1 * f2 - d2 * f1 + W[k, 6]
+        m1 = d2 * f0 - d0 * f2 + W[k, 7]
+        m2 = d0 * f1 - d1 * f0 + W[k, 8]
+        for a in range(3):
+            Q[c + a] += W[k, a]
+            Q[c + 3 + a] += R[0, a] * m0 + R[1, a] * m1 + R[2, a] * m2
+
+
 class DataLoadForces:
     """The measured external loads (``model.external_loads``). Outputs: dict load name ->
     (F_W (3,) N, p_WP (3,) m, T_W (3,) N m) at the frame's time."""
@@ -73,31 +138,54 @@ class DataLoadForces:
 
     def __init__(self, loads):
         self.loads = tuple(loads)
+        nl = len(self.loads)
+        self._body = np.array([load.body for load in self.loads], np.int64)
+        self._in_body = np.array([[load.force_frame == "body", load.point_frame == "body"] for load in self.loads],
+                                 bool).reshape(nl, 2)
+        self._p_BF = np.array([np.zeros(3) if load.p_BF is None else load.p_BF for load in self.loads],
+                              float).reshape(nl, 3)
+        self._R_BF = np.array([np.eye(3) if load.R_BF is None else load.R_BF for load in self.loads],
+                              float).reshape(nl, 3, 3)
+        self._samples = {}  # t (s) -> (nl, 9) [F, P, T] of every load at t (prepare)
 
-    def _vectors(self, load, state, t):
-        i = load.body
-        R, r = state.R_WB[i], state.p_WB[i]
-        F = load.force.derivatives(t)[0]
-        T = load.torque.derivatives(t)[0]
-        P = load.point.derivatives(t)[0]
-        R_WF = R @ load.R_BF
-        F_W = F if load.force_frame == "world" else R_WF @ F
-        T_W = T if load.force_frame == "world" else R_WF @ T
-        p_W = P if load.point_frame == "world" else r + R @ load.p_BF + R_WF @ P
-        return R, F_W, T_W, p_W - r, p_W
+    def prepare(self, times):
+        """Sample every load at the trial's frame times (nf,) s at once; a frame at one
+        of them then needs no spline evaluation (module docstring)."""
+        times = np.asarray(times, dtype=float).reshape(-1)
+        table = np.empty((len(times), len(self.loads), 9))
+        for k, load in enumerate(self.loads):
+            for j, function in enumerate((load.force, load.point, load.torque)):
+                values = sample(function, times)
+                if values is None:  # times outside the data: per frame (and its error)
+                    return
+                table[:, k, 3 * j : 3 * j + 3] = values
+        self._samples = {float(t): table[i] for i, t in enumerate(times)}
+
+    def _sampled(self, t, column):
+        """(nl, 9) [F, P, T] of every load at t (s), components as given (zero for a load
+        on a body that does not move, which is not applied)."""
+        S = self._samples.get(float(t))
+        if S is None:
+            S = np.zeros((len(self.loads), 9))
+            for k, load in enumerate(self.loads):
+                if column[load.body] >= 0:
+                    for j, function in enumerate((load.force, load.point, load.torque)):
+                        S[k, 3 * j : 3 * j + 3] = function.derivatives(t)[0]
+        return S
 
     def accumulate(self, state, t, Q, K=None):
+        W = np.zeros((len(self.loads), 9))
+        apply_data_loads(self._body, state.column, self._in_body, self._p_BF, self._R_BF, state.p_WB, state.R_WB,
+                         self._sampled(t, state.column), Q, W)
         out = {}
-        for load in self.loads:
+        for k, load in enumerate(self.loads):
             c = state.column[load.body]
             if c < 0:
                 continue
-            R, F_W, T_W, d_W, p_W = self._vectors(load, state, t)
-            Q[c : c + 3] += F_W
-            Q[c + 3 : c + 6] += R.T @ (np.cross(d_W, F_W) + T_W)
+            F_W, p_W, T_W = W[k, :3], W[k, 3:6], W[k, 6:]
             out[load.name] = (F_W, p_W, T_W)
             if K is not None:
-                self._add_stiffness(load, c, R, F_W, T_W, d_W, K)
+                self._add_stiffness(load, c, state.R_WB[load.body], F_W, T_W, p_W - state.p_WB[load.body], K)
         return out
 
     def stiffness(self, state, out, K):

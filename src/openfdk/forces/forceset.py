@@ -74,6 +74,13 @@ class ForceElements:
         """Add every set's Q (n,) [N, N m] (and K (n, n) if not None); outputs by kind."""
         return {fs.kind: fs.accumulate(state, t, Q, K) for fs in self.sets}
 
+    def prepare(self, times):
+        """Tell the sets that have a ``prepare(times)`` (time-sampled loads) the trial's
+        frame times (nf,) s, so that they evaluate their data for all frames at once."""
+        for fs in self.sets:
+            if hasattr(fs, "prepare"):
+                fs.prepare(times)
+
     def stiffness(self, state, outputs):
         """K = ∂Q/∂q̂ (n, n) of all sets from the outputs the forces stage left."""
         n = state.n_coords
