@@ -351,3 +351,17 @@ def test_a_motion_file_of_one_sample_is_refused(bases, tmp_path, capsys):
     code, _, err = run_cli(capsys, "check", d / "leg.osim", "--motion", d / "motion.sto", "-q")
     assert code == 2
     assert "motion.sto: 1 sample(s); a motion file needs at least 2" in error_line(err)
+
+
+def test_a_hill_muscle_length_too_small_to_compute_with_is_refused(bases, tmp_path, capsys):
+    """Found by the long fuzz run (model, input 3410): ``optimal_fibre_length: 1.0e-300``
+    (mm) made the plausibility check's fibre equilibrium raise ZeroDivisionError."""
+    from cli_helpers import error_line, run_cli
+
+    tree = yaml.safe_load(bases.texts["model"])
+    tree["muscles"]["m1"]["optimal_fibre_length"] = 1e-300
+    (tmp_path / "model.yaml").write_text(yaml.safe_dump(tree, sort_keys=False))
+    code, _, err = run_cli(capsys, "check", tmp_path / "model.yaml")
+    assert code == 2
+    assert "model.yaml: muscles.m1: Hill3ElementMuscle 'm1': optimal_fibre_length must be finite and >= 1e-09 m" \
+        in error_line(err)

@@ -322,6 +322,11 @@ class ConstantStrengthMuscle:
         return _evaluate_single(self, l_MT, v_MT)
 
 
+#: the shortest optimal fibre and tendon slack length, m (found by the fuzz suite: 1e-303 m
+#: made the fibre equilibrium divide by zero)
+MIN_LENGTH_M = 1e-9
+
+
 @dataclass(frozen=True)
 class Hill3ElementMuscle:
     """Hill-type 3-element muscle (contractile, parallel elastic, serial elastic tendon).
@@ -329,8 +334,8 @@ class Hill3ElementMuscle:
     Parameters (defaults and sources in docs/muscles.md):
 
     max_isometric_force : F0, N (> 0).
-    optimal_fibre_length : Lf0, m (> 0).
-    tendon_slack_length : Lt0, m (> 0).
+    optimal_fibre_length : Lf0, m (>= MIN_LENGTH_M, 1e-9).
+    tendon_slack_length : Lt0, m (>= MIN_LENGTH_M, 1e-9).
     tendon_strain_at_max_force : ε0_T, default 0.053 (tendon strain at F0).
     pennation_angle_at_optimal : α0, rad, default 0 (in [0, π/2)).
     fast_fibre_fraction : ff, default 0.4 (in [0, 1]); Hill curvature A = 0.1 + 0.4 ff.
@@ -358,10 +363,12 @@ class Hill3ElementMuscle:
     def __post_init__(self):
         label = _label("Hill3ElementMuscle", self.name)
         positive = (lambda x: x > 0.0, "> 0")
+        # a shorter length overflows the normalised lengths (l / Lf0) of any real path
+        length = (lambda x: x >= MIN_LENGTH_M, f">= {MIN_LENGTH_M:g}")
         for field, unit, (ok, expected) in (
             ("max_isometric_force", "N", positive),
-            ("optimal_fibre_length", "m", positive),
-            ("tendon_slack_length", "m", positive),
+            ("optimal_fibre_length", "m", length),
+            ("tendon_slack_length", "m", length),
             ("tendon_strain_at_max_force", "", positive),
             ("pennation_angle_at_optimal", "rad",
              (lambda x: 0.0 <= x < 0.5 * math.pi, "in [0, π/2)")),
