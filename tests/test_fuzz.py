@@ -1,8 +1,9 @@
 """Fuzz suite, quick version (issues 16 and 30): mutated model, subject and study files, C3D and
 TRC trials, OpenSim models and IK setup files, ExternalLoads with their GRF files, motion
 files, force-plate parameters, result folders, checkpoint parts and study locks either
-load or raise the loader's documented error naming the file — never anything else. The long run (>= 10 000 inputs per kind) is
-``python -m openfdk.bench.fuzz_inputs 10000``; its counts are in the closing note."""
+load or raise the loader's documented error naming the file — never anything else. The
+long run (>= 10 000 inputs per kind) is ``python -m openfdk.bench.fuzz_inputs 10000``;
+its counts are in the closing note."""
 
 import warnings
 
@@ -222,7 +223,8 @@ def _drop_column(name):
 
 @pytest.mark.parametrize("command", ["plot", "export-opensim", "view"])
 @pytest.mark.parametrize("table, edit, expected", [
-    ("forces.csv", lambda rows: rows[:-2], "forces.csv: 4 frames whose times differ from the 6 frames of kinematics.csv"),
+    ("forces.csv", lambda rows: rows[:-2],
+     "forces.csv: 4 frames whose times differ from the 6 frames of kinematics.csv"),
     ("kinematics.csv", _drop_column("jaw.e1"), "kinematics.csv: column 'jaw.e1' missing"),
     ("kinematics.csv", lambda rows: [rows[0]] + [r[:4] + ["m"] + r[5:] for r in rows[1:]],
      "kinematics.csv: column 'skull.x_m': values must be numbers"),

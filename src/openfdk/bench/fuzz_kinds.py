@@ -41,10 +41,8 @@ import hashlib
 import io
 import json
 import os
-import shutil
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 
@@ -522,8 +520,3 @@ def load(kind, path, reader=None):
         os.remove(lock)
         return lock
     raise ValueError(f"not a new fuzz kind: {kind!r}")
-
-
-def close(bases):
-    """Nothing to release beyond the fuzz folder (removed by :meth:`Bases.close`)."""
-    shutil.rmtree(bases.dir / "export", ignore_errors=True)

@@ -286,7 +286,7 @@ class TrackingStep:
     def restore(self, carry):
         state, last_good, q_prev, self.guessed, pending = carry
         if q_prev is not None and np.shape(q_prev) != np.shape(self.state.get_q()):
-            raise ValueError(f"previous pose of {np.shape(q_prev)} values, the model has {np.shape(self.state.get_q())}")
+            raise ValueError(f"previous pose of shape {np.shape(q_prev)}, the model's {np.shape(self.state.get_q())}")
         self.q_prev = q_prev
         self.state, self.last_good, self.pending = state.copy(), last_good.copy(), dict(pending)
 
