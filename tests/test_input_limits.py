@@ -104,8 +104,8 @@ def test_a_model_file_above_the_alias_limit_is_refused(tmp_path, capsys):
     model.write_text(_aliases(limits.YAML_ALIASES + 1))
     code, _, err = run_cli(capsys, "check", model)
     assert code == 2
-    assert error_line(err) == ("openfdk: error: model.yaml: 10 001 aliases (alias number 10 001 at lst[10000]), "
-                               "above the limit of 10 000 (openfdk.io.limits.YAML_ALIASES)")
+    assert error_line(err) == ("openfdk: error: model.yaml: line 3: 10 001 aliases (counted up to here), above the "
+                               "limit of 10 000 (openfdk.io.limits.YAML_ALIASES)")
 
 
 def test_a_yaml_file_at_the_alias_limit_is_read():
@@ -120,7 +120,27 @@ def test_a_file_expanding_above_the_node_limit_is_refused(tmp_path, capsys):
     code, _, err = run_cli(capsys, "run", model, "--out", tmp_path / "out")
     assert code == 2
     assert error_line(err) == ("openfdk: error: model.yaml: 10 010 004 YAML nodes with the aliases expanded (most "
-                               "under use), above the limit of 10 000 000 (openfdk.io.limits.YAML_NODES)")
+                               "under use), above the limit of 2 000 000 (openfdk.io.limits.YAML_NODES)")
+
+
+def test_a_file_of_too_many_nodes_is_refused_before_it_is_composed(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(limits, "YAML_NODES", 1000)   # the real limit's file (4 MB) takes 2 s to scan
+    model = tmp_path / "model.yaml"
+    model.write_text("openfdk: 1\nx: [" + ", ".join(["1"] * 1000) + "]\n")   # 1 003 nodes
+    monkeypatch.setattr("yaml.CSafeLoader.get_single_node", lambda self: pytest.fail("composed"), raising=False)
+    code, _, err = run_cli(capsys, "check", model)
+    assert code == 2
+    assert error_line(err) == ("openfdk: error: model.yaml: line 2: 1 001 YAML nodes (counted up to here), above "
+                               "the limit of 1 000 (openfdk.io.limits.YAML_NODES)")
+
+
+def test_a_file_at_the_node_limit_is_read(monkeypatch):
+    text = "x: [1, 2, 3]\n"                     # mapping, key, list, 3 items: 6 nodes
+    monkeypatch.setattr(limits, "YAML_NODES", 6)
+    assert parse_yaml(text, "t.yaml") == {"x": [1, 2, 3]}
+    monkeypatch.setattr(limits, "YAML_NODES", 5)
+    with pytest.raises(ValueError, match=r"^t\.yaml: line 1: 6 YAML nodes \(counted up to here\), above the limit of 5"):
+        parse_yaml(text, "t.yaml")
 
 
 def test_the_expanded_node_count_is_exact_and_the_limit_inclusive(monkeypatch):

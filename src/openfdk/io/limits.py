@@ -3,11 +3,12 @@
 
 An input above a limit is refused before the expensive work starts — the file size is
 taken from the file system before the file is read, a binary STL's triangle count from
-its header, a YAML file's aliases and expanded size from the composed node graph before
-any value is built, a study's case count from its grid and lists before the cases are
-made — with one line naming the file, the entry and the limit::
+its header, a YAML file's nodes and aliases from the parser's events before it is
+composed and its expanded size from the node graph before any value is built, a
+study's case count from its grid and lists before the cases are made — with one line
+naming the file, the entry and the limit::
 
-    model.yaml: 12 000 aliases (the 10 001st at a7[3]), above the limit of 10 000 (openfdk.io.limits.YAML_ALIASES)
+    model.yaml: line 3: 10 001 aliases (counted up to here), above the limit of 10 000 (openfdk.io.limits.YAML_ALIASES)
 
 The readers look the values up here at call time, so a program that really needs more
 may raise one (``openfdk.io.limits.MESH_TRIANGLES = 10_000_000``) before loading.
@@ -20,9 +21,12 @@ The values, and why:
   model file: a few kB); parsing holds about 10× the text in objects.
 * :data:`YAML_ALIASES` — alias references (``*name``) in one YAML file: 10 000. Model
   files use a handful (shared settings); an alias bomb needs many.
-* :data:`YAML_NODES` — YAML nodes of one file with every alias expanded (what a reader
-  that walks the values visits): 10 000 000, as many as a 64 MiB file of short numbers
-  holds without aliases. An alias bomb of a dozen lines expands to 10¹² nodes.
+* :data:`YAML_NODES` — YAML nodes of one file, counted from the parser's events before
+  composing and once more with every alias expanded (what a reader that walks the
+  values visits): 2 000 000. Composing, checking and building cost about 300 bytes and
+  5 µs a node (2 million nodes of a 5.7 MiB file: 620 MB), so a file of short numbers
+  within the byte limit would otherwise take gigabytes and minutes; a full-body model
+  file has a few thousand nodes. An alias bomb of a dozen lines expands to 10¹² nodes.
 * :data:`STUDY_CASES` — cases of one study (inputs × grid points and listed cases):
   100 000. Each case is a result folder and a row of the summary; a week of 6 s cases
   on 1 core.
@@ -55,8 +59,8 @@ __all__ = ["INPUT_FILE_BYTES", "YAML_ALIASES", "YAML_NODES", "STUDY_CASES", "MES
 INPUT_FILE_BYTES = 64 * 2**20
 #: alias references (``*name``) in one YAML file
 YAML_ALIASES = 10_000
-#: nodes of one YAML file with every alias expanded
-YAML_NODES = 10_000_000
+#: nodes of one YAML file (as written, and with every alias expanded)
+YAML_NODES = 2_000_000
 #: cases of one study (inputs × parameter sets)
 STUDY_CASES = 100_000
 #: triangles of one mesh file

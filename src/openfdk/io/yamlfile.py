@@ -31,7 +31,7 @@ import numpy as np
 import yaml
 
 from . import limits
-from .yamlgraph import check_graph
+from .yamlgraph import check_graph, scan_events
 
 #: largest plausible coordinate (m): :data:`openfdk.io.limits.MAX_COORDINATE`
 MAX_LENGTH = limits.MAX_COORDINATE
@@ -81,11 +81,14 @@ def duplicate_keys(node, path="") -> list:
 
 def parse_yaml(text: str, source: str, error=ValueError):
     """The parsed content of YAML ``text``; ``source`` names it in messages. Raises
-    ``error`` (an exception class) with a one-line message. The document's aliases and
-    expanded size are checked (:func:`.yamlgraph.check_graph`) before it is built."""
+    ``error`` (an exception class) with a one-line message. The document's nodes and
+    aliases are counted from the parser's events before it is composed
+    (:func:`.yamlgraph.scan_events`), its expanded size checked before it is built
+    (:func:`.yamlgraph.check_graph`)."""
     limits.check_count(len(text), "INPUT_FILE_BYTES", source, "", "characters", error)
     loader = _Loader(text)
     try:
+        scan_events(_Loader(text), source, error)
         node = loader.get_single_node()
         if node is None:
             return None
