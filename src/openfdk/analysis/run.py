@@ -85,7 +85,8 @@ def run_trial(model, trajectories, times, *, settings=None, progress=False, chec
             raise ValueError(f"model {model.name!r} has no markers to track")
         times = tracking_times(trajectories, times)
         kin_step, mode = TrackingStep(model, trajectories, times, alpha), "tracking"
-    solver = InverseDynamics(model, settings=settings)
+    # the kinematics' constraint program serves the equilibrium too (compiled once per run)
+    solver = InverseDynamics(model, system=getattr(kin_step, "system", None), settings=settings)
     step = KinematicsDynamicsStep(kin_step, DynamicsStep(model, solver, times, None, None, None, None, alpha))
 
     def build(rec):

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model.framedata import FrameData
+from .determinate_reactions import determinate_reactions, reactions_form
 from .equilibrium import assemble, equilibrium_layout, inertial_minus_gravity
 from .stages import equilibrium_stage, recruitment_stage
 from ..forces.actuators import ActuatorColumns, expand_columns, fold_result
@@ -57,12 +58,20 @@ class InverseDynamics:
         self.model = model
         self.system = system or ConstraintSystem(model)
         self.layout = equilibrium_layout(model, self.system)
-        self.forces = ForceElements(model)
-        self.muscles = self.forces.by_kind.get("muscles")  # MuscleForces or None
         #: the RecruitmentSettings used
         self.settings = (settings.recruitment if settings is not None else None) or RecruitmentSettings()
+        self.forces = ForceElements(model, self.settings.static_optimization)
+        self.muscles = self.forces.by_kind.get("muscles")  # MuscleForces or None
         self.unilateral_strength = np.array([u[2] for u in self.layout.unilateral], dtype=float)
         self.actuators = ActuatorColumns(model.actuators)
+        # activity bounds l ≤ f/s ≤ u of the bounded columns [muscles, actuators, unilateral]
+        opensim = self.settings.static_optimization == "opensim"
+        nm = self.layout.n_muscles
+        self.lower = np.zeros(self.layout.n_bounded)
+        self.upper = np.ones(self.layout.n_bounded)
+        if opensim:
+            self.lower[:nm] = [m.min_control for m in model.muscles]
+            self.upper[:nm] = [m.max_control for m in model.muscles]
         if self.actuators and self.settings.criterion != "polynomial":
             raise ValueError(f"model {model.name!r}: actuators ({', '.join(self.actuators.names[:3])}"
                              f"{', …' if len(self.actuators) > 3 else ''}) are weighted by their optimal force in the "
@@ -73,6 +82,9 @@ class InverseDynamics:
         else:
             from ..recruitment.polynomial import solve_polynomial as solve
         self._solve = solve  # the recruitment solver of the model's criterion (Eq. 11)
+        # statically determinate frames (no recruited column, square C): one block solve
+        self._determinate = reactions_form(self.system, self.layout) if self.settings.criterion == "polynomial" \
+            else None
         if len(self.layout.eq_coords) == 0:
             raise ValueError(f"model {model.name!r}: no body has equilibrium: true; nothing to solve")
 
@@ -102,21 +114,27 @@ class InverseDynamics:
         """Solve the recruitment problem with the model's criterion (C (n_eq, n_cols),
         d (n_eq,) [N, N m], s (n_bounded,) N; warm: a previous RecruitmentResult)."""
         lay, st = self.layout, self.settings
+        if self._determinate is not None:
+            res = determinate_reactions(C, d, self._determinate, st.power)
+            if res is not None:
+                return res
         if st.criterion == "minmax":
             return self._solve(C, d, lay.n_bounded, s, row_names=lay.row_names, column_names=lay.column_names)
         if self.actuators:
             # each actuator as τ⁺ and τ⁻ columns (forces/actuators.py), folded back after
             first, na = lay.n_muscles, lay.n_actuators
             C_x, s_x, upper, nb = expand_columns(C, s, lay.n_bounded, first, self.actuators)
+            lower = np.concatenate([self.lower, np.zeros(na)])
+            upper[:first] = self.upper[:first]
             names = lay.column_names[:lay.n_bounded] + tuple(f"{a}(-)" for a in self.actuators.names) + \
                 lay.column_names[lay.n_bounded:]
             if warm is not None and not (isinstance(warm, RecruitmentResult) and warm.converged):
                 warm = None  # (a converged result's multipliers are all a warm start uses)
             res = self._solve(C_x, d, nb, s_x, st.power, x0=warm, tol=st.tolerance, row_names=lay.row_names,
-                              column_names=names, upper=upper)
+                              column_names=names, upper=upper, lower=lower)
             return fold_result(res, lay.n_bounded, first, na)
         return self._solve(C, d, lay.n_bounded, s, st.power, x0=warm, tol=st.tolerance, row_names=lay.row_names,
-                           column_names=lay.column_names)
+                           column_names=lay.column_names, upper=self.upper, lower=self.lower)
 
     def frame(self, state, vdot, t, alpha=None, warm=None, A=None, data=None):
         """Inverse dynamics of one frame; ``state`` holds q and v, ``vdot`` (n,);

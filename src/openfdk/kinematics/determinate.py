@@ -76,7 +76,7 @@ def solve_positions(system: ConstraintSystem, state, t, alpha=None, tol=1e-10, m
     A, Phi = np.empty((system.n_rows, system.n_coords)), np.empty(system.n_rows)
     status, it, res, e_node, e_kind = newton_positions(
         *_kernel_args(system, state), state.p_WB, state.quat_WB, state.R_WB, state.w_BB, state.v_WB,
-        state.column, state.moving, f, system.angle_rows, tol, max_iter, A, Phi)
+        state.column, state.moving, f, system.angle_rows, tol, max_iter, A, Phi, system.block_args)
     if status == OK:
         if data is not None:  # the position stage, from the kernel's check at the solved pose
             data.t, data.alpha = t, alpha
@@ -108,12 +108,12 @@ def solve_velocities_accelerations(system: ConstraintSystem, state, t, alpha=Non
         gamma = np.empty(system.n_rows)
         status, e_node, e_kind = rates_from_jacobian(
             *_kernel_args(system, state), state.p_WB, state.R_WB, state.w_BB, state.v_WB, state.column,
-            state.moving, data.Phi_q, df, ddf, v, vdot, gamma)
+            state.moving, data.Phi_q, df, ddf, v, vdot, gamma, system.block_args)
         data.gamma = gamma
     else:
         status, e_node, e_kind = determinate_rates(
             *_kernel_args(system, state), state.p_WB, state.R_WB, state.w_BB, state.v_WB, state.column,
-            state.moving, df, ddf, v, vdot)
+            state.moving, df, ddf, v, vdot, system.block_args)
     if status == MEASURE_ERROR:
         system.program.raise_error(e_node, e_kind, state)
     if status == SINGULAR:

@@ -12,7 +12,10 @@ messages); a kernel returns a status code and leaves the state where the Python 
 would have left it, so that messages are built in Python from the same pose.
 
 ``prog`` below is the tuple ``CompiledMeasures.program + (n_node_rows,)``; ``f, df, ddf``
-(m,) the rows' targets (Φ = m − f); ``angle`` (m,) bool rows compared modulo 2π.
+(m,) the rows' targets (Φ = m − f); ``angle`` (m,) bool rows compared modulo 2π;
+``form`` the tuple (rows, cols, starts, ptr, earlier) of Φ_q̂'s block lower-triangular
+form (:class:`~.block_triangular.BlockForm`, ``ConstraintSystem.block_args``): the
+determinate solves factorise Φ_q̂ block by block (:func:`~.block_triangular.block_lu`).
 
 (numba caches these kernels with the code of :func:`~openfdk.model.compiled.evaluate_into`
 inlined: edit this file whenever that one changes — last: the program's column blocks.)
@@ -25,6 +28,7 @@ from numba import njit
 
 from ..model.compiled import evaluate_into
 from ..model.kernels import displace_poses, marker_positions_jacobian, set_velocities
+from .block_triangular import block_lu, block_solve
 from .kkt import kkt_step
 
 OK, SINGULAR, NOT_CONVERGED, MEASURE_ERROR = 0, 1, 2, 3
@@ -94,7 +98,7 @@ def _residual(val, f, angle, Phi):
 
 @njit(cache=True)
 def newton_positions(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows, n_node_rows,
-                     p_WB, quat_WB, R_WB, w_BB, v_WB, column, moving, f, angle, tol, max_iter, A_out, Phi_out):
+                     p_WB, quat_WB, R_WB, w_BB, v_WB, column, moving, f, angle, tol, max_iter, A_out, Phi_out, form):
     """Newton–Raphson on Φ(q, t) = 0 (Eq. 1), updates on the manifold, state in place.
 
     The convergence check evaluates the rows at order 1 at the solved pose: on OK,
@@ -111,7 +115,10 @@ def newton_positions(op, node_row, node_size, i_start, iparams, f_start, fparams
     bias = np.empty(m)
     Phi = np.empty(m)
     piv = np.empty(n, np.int64)
+    LU = np.empty((n, n))
+    rhs = np.empty(n)
     dq = np.empty(n)
+    rows, cols, starts, ptr, earlier = form
     res = 0.0
     for it in range(1, max_iter + 1):
         e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
@@ -119,11 +126,11 @@ def newton_positions(op, node_row, node_size, i_start, iparams, f_start, fparams
         if e_node >= 0:
             return MEASURE_ERROR, it, np.inf, e_node, e_kind
         res = _residual(val, f, angle, Phi)
-        if not lu_factor(A, piv):
+        if not block_lu(A, rows, cols, starts, LU, piv):
             return SINGULAR, it, res, -1, 0
         for r in range(n):
-            dq[r] = -Phi[r]
-        lu_solve(A, piv, dq)
+            rhs[r] = -Phi[r]
+        block_solve(LU, piv, rows, cols, starts, ptr, earlier, rhs, dq)
         displace_poses(p_WB, quat_WB, R_WB, moving, column, dq)
         step = 0.0
         for r in range(n):
@@ -146,7 +153,7 @@ def newton_positions(op, node_row, node_size, i_start, iparams, f_start, fparams
 
 @njit(cache=True)
 def determinate_rates(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows, n_node_rows,
-                      p_WB, R_WB, w_BB, v_WB, column, moving, df, ddf, v, vdot):
+                      p_WB, R_WB, w_BB, v_WB, column, moving, df, ddf, v, vdot, form):
     """Φ_q̂ v = ν = ḟ (Eq. 2), sets the state's velocities, then Φ_q̂ v̇ = γ = f̈ − b
     (Eq. 3), one LU factorisation for both; Φ_q̂ evaluated here (callers without a
     position stage). v, vdot (n,) outputs. Returns (status, failing node, error code)."""
@@ -160,12 +167,12 @@ def determinate_rates(op, node_row, node_size, i_start, iparams, f_start, fparam
     if e_node >= 0:
         return MEASURE_ERROR, e_node, e_kind
     return rates_from_jacobian(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows, n_node_rows,
-                               p_WB, R_WB, w_BB, v_WB, column, moving, A, df, ddf, v, vdot, np.empty(m))
+                               p_WB, R_WB, w_BB, v_WB, column, moving, A, df, ddf, v, vdot, np.empty(m), form)
 
 
 @njit(cache=True)
 def rates_from_jacobian(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows, n_node_rows,
-                        p_WB, R_WB, w_BB, v_WB, column, moving, A, df, ddf, v, vdot, gamma):
+                        p_WB, R_WB, w_BB, v_WB, column, moving, A, df, ddf, v, vdot, gamma, form):
     """Eqs. 2–3 with the position stage's Φ_q̂ = A (m, n) (not evaluated again): one LU
     factorisation of A, Φ_q̂ v = ḟ, the state's velocities set, one order-2 evaluation
     of the rows for b (it needs v), γ = f̈ − b (m,) output, Φ_q̂ v̇ = γ. v, vdot (n,)
@@ -176,12 +183,11 @@ def rates_from_jacobian(op, node_row, node_size, i_start, iparams, f_start, fpar
     A2 = np.empty((m, n))
     bias = np.empty(m)
     piv = np.empty(n, np.int64)
-    LU = A.copy()
-    if not lu_factor(LU, piv):
+    LU = np.empty((n, n))
+    rows, cols, starts, ptr, earlier = form
+    if not block_lu(A, rows, cols, starts, LU, piv):
         return SINGULAR, -1, 0
-    for r in range(n):
-        v[r] = df[r]
-    lu_solve(LU, piv, v)
+    block_solve(LU, piv, rows, cols, starts, ptr, earlier, df, v)
     set_velocities(v, column, moving, v_WB, w_BB)
     e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
                                    n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 2, val, A2, bias)
@@ -189,9 +195,7 @@ def rates_from_jacobian(op, node_row, node_size, i_start, iparams, f_start, fpar
         return MEASURE_ERROR, e_node, e_kind
     for r in range(m):
         gamma[r] = ddf[r] - bias[r]
-    for r in range(n):
-        vdot[r] = gamma[r]
-    lu_solve(LU, piv, vdot)
+    block_solve(LU, piv, rows, cols, starts, ptr, earlier, gamma, vdot)
     return OK, -1, 0
 
 

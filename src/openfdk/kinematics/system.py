@@ -11,6 +11,7 @@ import numpy as np
 
 from ..model.compiled import CompiledMeasures
 from ..model.model import Model
+from .block_triangular import block_triangular_form, dense_form
 
 
 class KinematicsError(ValueError):
@@ -57,6 +58,62 @@ class ConstraintSystem:
         self._spline_groups, self._drivers = _spline_groups(self._drivers)
         self._targets_key = None
         self._targets = None
+        self._block_form = None
+        self._checked_pattern = None
+
+    def jacobian_pattern(self):
+        """(m, 6 n_moving) bool: the entries of Φ_q̂ that can be non-zero, the 6 columns
+        of every moving body a row's measure names (``Measure.bodies``)."""
+        column = self.model.initial_state().column
+        P = np.zeros((self.n_rows, self.n_coords), dtype=bool)
+        r = 0
+        for measure, size in [(c.measure, c.size) for c in self.blocks] + [(d.measure, 1) for d in self.fdk]:
+            for body in measure.bodies():
+                c = column[body]
+                if c >= 0:
+                    P[r : r + size, c : c + 6] = True
+            r += size
+        return P
+
+    def checked_pattern(self):
+        """:meth:`jacobian_pattern` once it is checked against Φ_q̂ at a random pose, or
+        None (an entry outside the pattern, or a pose where the rows cannot be
+        evaluated): the pattern the block solves rely on. Computed once."""
+        if self._checked_pattern is None:
+            try:
+                pattern = self.jacobian_pattern()
+                ok = not np.any((self._random_jacobian() != 0.0) & ~pattern)
+            except (NotImplementedError, FloatingPointError, ValueError):
+                ok = False
+            self._checked_pattern = (pattern if ok else None,)
+        return self._checked_pattern[0]
+
+    @property
+    def block_form(self):
+        """The :class:`~.block_triangular.BlockForm` of a square Φ_q̂ (determinate
+        kinematics), found once from :meth:`checked_pattern`: one 6×6 block per body of
+        a tree of joints and drivers (without a checked pattern: one block, a plain LU)."""
+        if self._block_form is None:
+            n = self.n_coords
+            pattern = self.checked_pattern() if self.n_rows == n and n > 6 else None
+            self._block_form = dense_form(n) if pattern is None else block_triangular_form(pattern)
+        return self._block_form
+
+    def _random_jacobian(self):
+        """Φ_q̂ at the initial pose displaced by a random step (fixed seed), for
+        :attr:`block_form`'s check."""
+        from ..model.kernels import displace_poses
+
+        state = self.model.initial_state()
+        dq = np.random.default_rng(12345).uniform(-0.3, 0.3, self.n_coords)
+        displace_poses(state.p_WB, state.quat_WB, state.R_WB, state.moving, state.column, dq)
+        return self.program.evaluate(state, 1)[1]
+
+    @property
+    def block_args(self):
+        """:attr:`block_form` as the kernels take it: (rows, cols, starts, ptr, earlier)."""
+        f = self.block_form
+        return (f.rows, f.cols, f.starts, f.ptr, f.earlier)
 
     def targets(self, t, alpha=None):
         """(f, ḟ, f̈) each (n_rows,) at time t (s): the rows' targets, Φ = m − f (Eq. 1);
