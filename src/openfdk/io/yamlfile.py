@@ -31,7 +31,7 @@ import numpy as np
 import yaml
 
 from . import limits
-from .yamlgraph import check_graph, scan_events
+from .yamlgraph import check_graph, may_pass_limits, scan_events
 
 #: largest plausible coordinate (m): :data:`openfdk.io.limits.MAX_COORDINATE`
 MAX_LENGTH = limits.MAX_COORDINATE
@@ -88,7 +88,8 @@ def parse_yaml(text: str, source: str, error=ValueError):
     limits.check_count(len(text), "INPUT_FILE_BYTES", source, "", "characters", error)
     loader = _Loader(text)
     try:
-        scan_events(_Loader(text), source, error)
+        if may_pass_limits(text):  # a short text cannot: no second parse for it
+            scan_events(_Loader(text), source, error)
         node = loader.get_single_node()
         if node is None:
             return None

@@ -74,6 +74,14 @@ def _walk(node, with_paths=False):
     return aliases, size, None, False
 
 
+def may_pass_limits(text) -> bool:
+    """Whether ``text`` is long enough to hold more aliases or nodes than the limits
+    allow, so that :func:`scan_events` must count them: an alias takes at least 2
+    characters (``*a`` and a separator), a node at least half a character (``a:`` is a
+    mapping, a key and an empty value)."""
+    return len(text) > min(2 * limits.YAML_ALIASES, limits.YAML_NODES // 2)
+
+
 def scan_events(loader, source, error=ValueError):
     """Count the nodes and alias references of the document ``loader`` (a fresh PyYAML
     loader of the text; disposed of here) from its events and raise ``error`` at the
