@@ -200,6 +200,71 @@ def _shoot_residual(phi, s, P, Q, c0, rho, u1, u2, axes, A, n_steps):
     return np.array([w @ n, w @ b]), T1, x
 
 
+#: planes of the fan searched for the ellipsoid's initial path, and chords per arc
+FAN_PLANES, FAN_CHORDS = 72, 24
+
+
+@njit(cache=True)
+def _plane_fan(P1, Q1, axes, side):
+    """The shortest planar path over the ellipsoid among the planes through P and Q
+    (mapped points P1, Q1 (3,) on either side of the unit sphere, the segment crossing
+    it): each plane cuts the sphere in a circle, the path goes round it on one side of
+    the line (2-D tangents, :func:`circle_wrap`) and maps back to a planar path on the
+    ellipsoid (tangency is kept by the affine map). With a ``side`` only paths whose arc
+    midpoint lies on that side count. Returns (length m, T1 (3,) mapped, arc length m,
+    arc angle rad) of the shortest, length inf when none qualifies.
+
+    Planes through the centre alone (the sphere's great circle) miss the shortest path
+    when the line passes near the centre of an elongated ellipsoid: the path then goes
+    round the narrowest girth, whose plane holds the line but not the centre."""
+    d = Q1 - P1
+    d = d / np.sqrt(d @ d)
+    a = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    ea = a - (a @ d) * d
+    ea = ea / np.sqrt(ea @ ea)
+    eb = np.array([d[1] * ea[2] - d[2] * ea[1], d[2] * ea[0] - d[0] * ea[2], d[0] * ea[1] - d[1] * ea[0]])
+    has_side = side @ side > 0.0
+    best, T1b, sb, thb = np.inf, np.zeros(3), 0.0, 0.0
+    P = axes * P1
+    Q = axes * Q1
+    for k in range(FAN_PLANES):
+        psi = 2.0 * np.pi * k / FAN_PLANES
+        u = np.cos(psi) * ea + np.sin(psi) * eb
+        n = np.array([d[1] * u[2] - d[2] * u[1], d[2] * u[0] - d[0] * u[2], d[0] * u[1] - d[1] * u[0]])
+        delta = n @ P1
+        if abs(delta) >= 1.0:
+            continue
+        c = delta * n
+        rho = np.sqrt(1.0 - delta * delta)
+        # in the plane: x along d, y along u; the path passes on the +u side of the line,
+        # clockwise from P to Q in (x, y)
+        st, _, th, _, t1x, t1y, t2x, t2y = circle_wrap((P1 - c) @ d, (P1 - c) @ u, (Q1 - c) @ d, (Q1 - c) @ u,
+                                                       rho, -1)
+        if st != 1:
+            continue
+        a1 = np.arctan2(t1y, t1x)
+        prev = axes * (c + t1x * d + t1y * u)
+        T1 = prev / axes
+        arc = 0.0
+        mid = np.zeros(3)
+        for j in range(1, FAN_CHORDS + 1):
+            ang = a1 - th * j / FAN_CHORDS
+            cur = axes * (c + rho * (np.cos(ang) * d + np.sin(ang) * u))
+            if 2 * j == FAN_CHORDS:
+                mid = cur
+            w = cur - prev
+            arc += np.sqrt(w @ w)
+            prev = cur
+        if has_side and mid @ side < 0.0:
+            continue
+        w1 = axes * T1 - P
+        w2 = Q - prev
+        length = np.sqrt(w1 @ w1) + arc + np.sqrt(w2 @ w2)
+        if length < best:
+            best, T1b, sb, thb = length, T1, arc, th
+    return best, T1b, sb, thb
+
+
 @njit(cache=True)
 def ellipsoid_wrap(P, Q, axes, side, tol):
     """Wrap of P→Q (3,) m around the ellipsoid with semi-axes ``axes`` (3,) m along
@@ -239,9 +304,15 @@ def ellipsoid_wrap(P, Q, axes, side, tol):
             d = cur - prev
             s += np.sqrt(d @ d)
             prev = cur
+    phi = 0.0
+    if crosses(P, Q, axes):  # the shortest planar path of the fan of planes through P and Q
+        best, T1f, s_f, theta_f = _plane_fan(P1, Q1, Dinv, side)
+        if best < np.inf:
+            phi = np.arctan2((T1f - c0) @ u2, (T1f - c0) @ u1)
+            s = s_f
+            theta = max(theta, theta_f)
     n_steps = 48 + int(300.0 * theta / np.pi)
     scale = np.sqrt(P @ P) + np.sqrt(Q @ Q)
-    phi = 0.0
     converged = False
     for _ in range(60):
         res, T1c, x = _shoot_residual(phi, s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps)
@@ -288,9 +359,53 @@ STATUS_TEXT = {-1: "a path point lies inside the wrapping surface", -2: "the ell
 
 
 @njit(cache=True)
-def _wrap_one(kind, P_S, Q_S, dims, side):
+def crosses(P, Q, axes):
+    """Whether the straight segment P→Q (3,) m, both ends outside, crosses the ellipsoid
+    (or sphere) with semi-axes ``axes`` (3,) m: mapped to the unit sphere, the point of
+    the segment nearest the centre lies strictly between the ends and inside."""
+    P1 = P / axes
+    d = Q / axes - P1
+    dd = d @ d
+    if dd == 0.0:
+        return False
+    t = -(P1 @ d) / dd
+    if t <= 0.0 or t >= 1.0:
+        return False
+    x = P1 + t * d
+    return x @ x < 1.0
+
+
+#: flags of a surface (``limits[:, 1]`` of :func:`wrapped_path_lengths`)
+CROSSING_ONLY, INSIDE_STRAIGHT = 1, 2
+
+
+@njit(cache=True)
+def _wrap_one(kind, P_S, Q_S, dims, side, half_length, flags):
+    """One surface: the kernel of ``kind``; a cylinder of finite ``half_length`` (m) is
+    left (status 0, straight) when both tangent points lie beyond ±half_length along
+    its axis. ``flags``: CROSSING_ONLY, a sphere or ellipsoid wraps only while the
+    straight segment crosses it (OpenSim's rule), ``side`` then only picks the way
+    round; INSIDE_STRAIGHT, an anchor inside the surface leaves the path straight
+    (OpenSim's rule) instead of status −1."""
+    out = _wrap_rules(kind, P_S, Q_S, dims, side, half_length, flags & CROSSING_ONLY)
+    if out[0] == -1 and flags & INSIDE_STRAIGHT:
+        u = Q_S - P_S
+        return 0, np.sqrt(u @ u), P_S.copy(), Q_S.copy(), 0.0
+    return out
+
+
+@njit(cache=True)
+def _wrap_rules(kind, P_S, Q_S, dims, side, half_length, crossing_only):
     if kind == CYLINDER:
-        return cylinder_wrap(P_S, Q_S, dims[0], side)
+        out = cylinder_wrap(P_S, Q_S, dims[0], side)
+        if out[0] == 1 and abs(out[2][2]) > half_length and abs(out[3][2]) > half_length:
+            u = Q_S - P_S
+            return 0, np.sqrt(u @ u), P_S.copy(), Q_S.copy(), 0.0
+        return out
+    if crossing_only != 0 and (P_S / dims) @ (P_S / dims) > 1.0 and (Q_S / dims) @ (Q_S / dims) > 1.0 \
+            and not crosses(P_S, Q_S, dims):
+        u = Q_S - P_S
+        return 0, np.sqrt(u @ u), P_S.copy(), Q_S.copy(), 0.0
     if kind == SPHERE:
         return sphere_wrap(P_S, Q_S, dims[0], side)
     return ellipsoid_wrap(P_S, Q_S, dims, side, ELLIPSOID_TOL)
@@ -335,13 +450,15 @@ def _add_segment(L, p, column, p_WB, R_WB, ia, xa, ib, xb):
 
 
 @njit(cache=True)
-def wrapped_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, dims, sides, start, n_coords):
+def wrapped_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, dims, sides, limits, start, n_coords):
     """Lengths, Jacobians and tangent points of paths through points and surfaces.
 
     p_WB (nb, 3) m, R_WB (nb, 3, 3); column (nb,) first q̂ column of each body (−1 fixed);
     nodes of all paths concatenated: kinds (N,) (POINT, CYLINDER, SPHERE, ELLIPSOID),
     bodies (N,), p_B (N, 3) m (point, or surface origin, in the body frame), R_BS (N, 3, 3),
-    dims (N, 3) m, sides (N, 3); path k owns nodes start[k]:start[k+1].
+    dims (N, 3) m, sides (N, 3); limits (N, 2): a cylinder's half length (m, inf: infinite)
+    and the surface's flags (CROSSING_ONLY, INSIDE_STRAIGHT; :func:`_wrap_one`); path k owns
+    nodes start[k]:start[k+1].
     Returns l (n_paths,) m, L (n_paths, n_coords), status (n_paths,) (0 ok, < 0 see
     ``STATUS_TEXT``), T_W (N, 2, 3) m the world tangent points of each surface in
     contact (NaN when not in contact or for points).
@@ -380,7 +497,8 @@ def wrapped_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, dims, sid
                 P_W = _anchor(j, -1, kinds, active, X_W, T1_W, T2_W)
                 Q_W = _anchor(j, 1, kinds, active, X_W, T1_W, T2_W)
                 R = R_WS[j]
-                st, _, T1, T2, a = _wrap_one(kinds[j], R.T @ (P_W - X_W[j]), R.T @ (Q_W - X_W[j]), dims[j], sides[j])
+                st, _, T1, T2, a = _wrap_one(kinds[j], R.T @ (P_W - X_W[j]), R.T @ (Q_W - X_W[j]), dims[j], sides[j],
+                                             limits[j, 0], int(limits[j, 1]))
                 if st < 0:
                     status[p] = st
                     break

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model.measures import Measure
-from .wrap_kernels import POINT, STATUS_TEXT, SURFACE_KINDS, wrapped_path_lengths
+from .wrap_kernels import CROSSING_ONLY, INSIDE_STRAIGHT, POINT, STATUS_TEXT, SURFACE_KINDS, wrapped_path_lengths
 
 
 @dataclass(frozen=True, eq=False)
@@ -35,7 +35,13 @@ class WrapSurface:
     kind : "cylinder" (axis z_S, infinite), "sphere" or "ellipsoid" (semi-axes along
     x_S, y_S, z_S); body : body index; p_BS (3,) m and R_BS (3, 3): the surface frame S
     in the body frame; dims (3,) m: (r, r, r) or the semi-axes (a, b, c); side (3,): a
-    direction in S on which the path must pass (zeros: the shorter way).
+    direction in S on which the path must pass (zeros: the shorter way). half_length m:
+    a cylinder's half length (inf: infinite; finite: no wrap while both tangent points
+    lie beyond it, OpenSim's WrapCylinder ``length``); crossing_only: a sphere or
+    ellipsoid wraps only while the straight line between its anchors crosses it
+    (OpenSim's rule for WrapSphere and WrapEllipsoid), ``side`` then only picks the way
+    round; inside_straight: an anchor inside the surface leaves the path straight
+    (OpenSim's rule) instead of being an error.
     """
 
     name: str
@@ -45,6 +51,9 @@ class WrapSurface:
     R_BS: np.ndarray
     dims: np.ndarray
     side: np.ndarray
+    half_length: float = np.inf
+    crossing_only: bool = False
+    inside_straight: bool = False
 
 
 class WrapNodes:
@@ -55,7 +64,7 @@ class WrapNodes:
     """
 
     def __init__(self, paths, names):
-        kinds, bodies, p_B, R_BS, dims, sides, start = [], [], [], [], [], [], [0]
+        kinds, bodies, p_B, R_BS, dims, sides, limits, start = [], [], [], [], [], [], [], [0]
         for nodes in paths:
             for node in nodes:
                 if isinstance(node, WrapSurface):
@@ -65,6 +74,8 @@ class WrapNodes:
                     R_BS.append(node.R_BS)
                     dims.append(node.dims)
                     sides.append(node.side)
+                    limits.append((node.half_length, float(CROSSING_ONLY * node.crossing_only
+                                                               + INSIDE_STRAIGHT * node.inside_straight)))
                 else:
                     body, p_BP = node
                     kinds.append(POINT)
@@ -73,6 +84,7 @@ class WrapNodes:
                     R_BS.append(np.eye(3))
                     dims.append(np.zeros(3))
                     sides.append(np.zeros(3))
+                    limits.append((np.inf, 0.0))
             start.append(len(kinds))
         self.names = list(names)
         self.kinds = np.array(kinds, dtype=np.int64)
@@ -81,6 +93,7 @@ class WrapNodes:
         self.R_BS = np.array(R_BS, dtype=float).reshape(-1, 3, 3)
         self.dims = np.array(dims, dtype=float).reshape(-1, 3)
         self.sides = np.array(sides, dtype=float).reshape(-1, 3)
+        self.limits = np.array(limits, dtype=float).reshape(-1, 2)
         self.start = np.array(start, dtype=np.int64)
         self.n_paths = len(self.names)
 
@@ -89,7 +102,7 @@ class WrapNodes:
         path when a path cannot be formed (a point inside a surface, no convergence)."""
         l, L, status, T_W = wrapped_path_lengths(
             state.p_WB, state.R_WB, state.column, self.kinds, self.bodies, self.p_B, self.R_BS,
-            self.dims, self.sides, self.start, state.n_coords)
+            self.dims, self.sides, self.limits, self.start, state.n_coords)
         bad = np.flatnonzero(status)
         if len(bad):
             k = bad[0]
