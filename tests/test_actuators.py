@@ -292,6 +292,8 @@ def test_bad_actuators_end_in_one_line(tmp_path, capsys):
         ({"a": {"coordinate": "q", "optimal_force": 1.0, "gain": 2}}, None, "actuators.a.gain: unknown key"),
         ({"a": {"coordinate": "q", "optimal_force": 1.0}}, {"recruitment": {"criterion": "minmax"}},
          "polynomial criterion"),
+        ({}, {"recruitment": {"static_optimization": "anybody"}}, "recruitment.static_optimization"),
+        ({}, {"recruitment": {"static_optimization": "opensim", "criterion": "minmax"}}, "polynomial criterion"),
     ]
     for actuators, extra, expected in cases:
         path = _yaml_model(tmp_path, actuators, extra)
@@ -333,3 +335,38 @@ def test_actuator_files_of_opensim(tmp_path, monkeypatch, capsys):
         code = main(["check", str(model), "--actuators", file(body)])
         err = capsys.readouterr().err.strip().splitlines()
         assert code == 2 and len(err) == 1 and "act.xml" in err[0] and expected in err[0], err
+
+
+@pytest.mark.parametrize("p", [2.0, 3.0])
+def test_lower_activity_bounds_closed_form(p):
+    """A minimum activation l (OpenSim's min_control of a muscle): three muscles of
+    strengths s on one row d; with Σ x_i s_i = d and x_i ≥ l the optimum is the
+    closed form x_i ∝ s_i^(1/(p−1)) on the muscles above l, and l on the others (the
+    weak muscles held at their floor) — cold and warm started."""
+    s = np.array([100.0, 400.0, 5.0])
+    C = np.array([[1.0, 1.0, 1.0]])
+    lower = np.full(3, 0.05)
+    d = 30.0
+    res = solve_polynomial(C, np.array([d]), 3, s, p, lower=lower)
+    assert res.converged
+    x = res.f / s
+    # closed form (KKT): x_i = ρ s_i^(1/(p−1)) on the free set, l on the held set; move
+    # any free x_i below l to the held set until none is
+    held = np.zeros(3, bool)
+    while True:
+        rest = d - np.sum(lower[held] * s[held])
+        rho = rest / np.sum(s[~held] ** (p / (p - 1.0)))
+        expected = np.where(held, lower, rho * s ** (1.0 / (p - 1.0)))
+        if not np.any(expected[~held] < lower[~held]):
+            break
+        held |= expected < lower
+    np.testing.assert_allclose(x, expected, rtol=1e-9)
+    np.testing.assert_array_equal(res.active_lower, held)
+    assert held[2] and not held.all()
+    # without the floor the weakest muscle would be below it: the bound is active for real
+    free = solve_polynomial(C, np.array([d]), 3, s, p)
+    assert free.f[2] / s[2] < 0.05
+    warm = solve_polynomial(C, np.array([d]), 3, s, p, lower=lower, x0=res)
+    np.testing.assert_allclose(warm.f, res.f, rtol=1e-9)
+    with pytest.raises(ValueError, match="lower"):
+        solve_polynomial(C, np.array([d]), 3, s, p, lower=np.full(3, 1.5))

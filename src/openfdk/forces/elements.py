@@ -38,12 +38,16 @@ MUSCLES, LIGAMENTS, SPRINGS, REACTIONS, LOADS, RECRUITMENT = (
 
 @dataclass(frozen=True, eq=False)
 class Muscle:
-    """A muscle: path measure (length, m) and a strength model (constant or Hill)."""
+    """A muscle: path measure (length, m) and a strength model (constant or Hill);
+    min_control, max_control: its activation bounds in ``static_optimization: opensim``
+    (OpenSim's, e.g. a Thelen2003Muscle's 0.01 and 1; openfdk's own rule uses [0, 1])."""
 
     name: str
     path: Measure
     law: object
     points: tuple = ()
+    min_control: float = 0.0
+    max_control: float = 1.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -94,11 +98,16 @@ class ExternalLoad:
 
 @dataclass(frozen=True)
 class RecruitmentSettings:
-    """criterion: "polynomial" (power p ≥ 2; 3 as in the paper) or "minmax"."""
+    """criterion: "polynomial" (power p ≥ 2; 3 as in the paper) or "minmax";
+    static_optimization: "openfdk" (muscle strengths of :mod:`.hill`, passive forces
+    applied, activations in [0, 1]) or "opensim" (OpenSim's StaticOptimization:
+    :mod:`.rigid_tendon` strengths, no passive force, activations within each muscle's
+    [min_control, max_control])."""
 
     criterion: str = "polynomial"
     power: float = 3.0
     tolerance: float = 1e-10
+    static_optimization: str = "openfdk"
 
 
 def path_measure(b, points, name=""):
@@ -237,9 +246,15 @@ def _append(b, kind, element):
     return element
 
 
-def add_muscle(b, name, points, law):
-    """A muscle along ``points`` with a strength model from :mod:`openfdk.forces.hill`."""
-    return _append(b, MUSCLES, Muscle(name, path_measure(b, points, name), law, tuple(points)))
+def add_muscle(b, name, points, law, min_control=0.0, max_control=1.0):
+    """A muscle along ``points`` with a strength model from :mod:`openfdk.forces.hill`;
+    min_control < max_control in [0, 1]: its activation bounds in OpenSim's static
+    optimisation (``static_optimization: opensim``)."""
+    if not (0.0 <= min_control < max_control <= 1.0):
+        raise ModelError(f"muscle {name!r}: need 0 <= min_control < max_control <= 1, got [{min_control}, "
+                         f"{max_control}]")
+    return _append(b, MUSCLES, Muscle(name, path_measure(b, points, name), law, tuple(points), float(min_control),
+                                      float(max_control)))
 
 
 def reference_length(b, measure):
@@ -310,12 +325,16 @@ def add_external_load(b, name, point, force=None, moment=None, frame="world"):
     return _append(b, LOADS, ExternalLoad(name, body, f.p_BF, force, moment, frame))
 
 
-def set_recruitment(b, criterion="polynomial", power=3.0, tolerance=1e-10):
+def set_recruitment(b, criterion="polynomial", power=3.0, tolerance=1e-10, static_optimization="openfdk"):
     if criterion not in ("polynomial", "minmax"):
         raise ModelError(f"recruitment criterion must be 'polynomial' or 'minmax', got {criterion!r}")
     if criterion == "polynomial" and not (np.isfinite(power) and power >= 2):
         raise ModelError(f"recruitment power must be >= 2, got {power}")
-    b.elements[RECRUITMENT] = RecruitmentSettings(criterion, float(power), float(tolerance))
+    if static_optimization not in ("openfdk", "opensim"):
+        raise ModelError(f"recruitment static_optimization must be 'openfdk' or 'opensim', got {static_optimization!r}")
+    if static_optimization == "opensim" and criterion != "polynomial":
+        raise ModelError("static_optimization: opensim needs the polynomial criterion (OpenSim's Σ aᵖ)")
+    b.elements[RECRUITMENT] = RecruitmentSettings(criterion, float(power), float(tolerance), static_optimization)
 
 
 __all__ = [

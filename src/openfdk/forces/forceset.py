@@ -57,17 +57,19 @@ class ForceSet(Protocol):
         returned there (not evaluated again where the set can avoid it)."""
 
 
-def force_sets(model):
-    """The model's force sets, one per non-empty kind of :data:`FORCE_KINDS`."""
-    return tuple(cls(getattr(model, kind)) for kind, cls in FORCE_KINDS if getattr(model, kind))
+def force_sets(model, muscle_rule="openfdk"):
+    """The model's force sets, one per non-empty kind of :data:`FORCE_KINDS`;
+    muscle_rule: the muscles' strength rule (:class:`~.muscle_forces.MuscleForces`)."""
+    return tuple(cls(getattr(model, kind), muscle_rule) if cls is MuscleForces else cls(getattr(model, kind))
+                 for kind, cls in FORCE_KINDS if getattr(model, kind))
 
 
 class ForceElements:
     """Every force set of a model; outputs are a dict kind -> the set's outputs."""
 
-    def __init__(self, model):
+    def __init__(self, model, muscle_rule="openfdk"):
         self.model = model
-        self.sets = force_sets(model)
+        self.sets = force_sets(model, muscle_rule)
         self.by_kind = {fs.kind: fs for fs in self.sets}
 
     def accumulate(self, state, t, Q, K=None):

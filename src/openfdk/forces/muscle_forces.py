@@ -45,19 +45,28 @@ class MuscleOutputs:
 
 
 class MuscleForces:
-    """The muscles (tuple of :class:`~.elements.Muscle`) of a model."""
+    """The muscles (tuple of :class:`~.elements.Muscle`) of a model. rule : "openfdk"
+    (strengths and passive forces of :mod:`.hill`) or "opensim" (OpenSim's static
+    optimisation: :mod:`.rigid_tendon` strengths, no passive force)."""
 
     kind = "muscles"
 
-    def __init__(self, muscles):
+    def __init__(self, muscles, rule="openfdk"):
         self.muscles = tuple(muscles)
         self.paths = PathSet(self.muscles)
         self.strength_models = MuscleSet([m.law for m in self.muscles])
+        self.rule = rule
 
     def states(self, state):
         """The muscles' :class:`MuscleOutputs` at ``state`` (q and v)."""
         l, L = self.paths.evaluate(state)
         speed = L @ state.get_v()
+        if self.rule == "opensim":
+            from .rigid_tendon import opensim_strengths
+
+            zero = np.zeros(len(self.muscles))
+            return MuscleOutputs(l, L, speed, np.maximum(opensim_strengths(self.strength_models, l, speed),
+                                                         MIN_STRENGTH), zero, zero.copy())
         s, f_p, df_p = self.strength_models.evaluate_with_passive_slope(l, speed)
         return MuscleOutputs(l, L, speed, np.maximum(s, MIN_STRENGTH), f_p, df_p)
 

@@ -108,7 +108,8 @@ def load_wrapping(b, data, ctx):
 def load_muscles(b, data, ctx):
     for name, spec in ctx.mapping(data, "muscles").items():
         p = f"muscles.{name}"
-        ctx.keys(spec, p, ["path", "model", "strength", *HILL_KEYS], required=("path",))
+        ctx.keys(spec, p, ["path", "model", "strength", "min_control", "max_control", *HILL_KEYS],
+                 required=("path",))
         kind = spec.get("model", "hill" if "max_isometric_force" in spec else "constant")
         points = _points(ctx, spec["path"], f"{p}.path", b)
         if kind == "constant":
@@ -127,7 +128,9 @@ def load_muscles(b, data, ctx):
             law = _wrap(ctx, p, lambda: _hill(name, kw, ctx, p))
         else:
             raise ctx.error(f"{p}.model", f"unknown muscle model {kind!r}; expected 'constant' or 'hill'")
-        _wrap(ctx, p, lambda: el.add_muscle(b, name, points, law))
+        controls = [ctx.number(spec.get(k, d), f"{p}.{k}", low=0.0, high=1.0)
+                    for k, d in (("min_control", 0.0), ("max_control", 1.0))]
+        _wrap(ctx, p, lambda: el.add_muscle(b, name, points, law, *controls))
 
 
 def _hill(name, kw, ctx, path):
@@ -247,7 +250,9 @@ def load_loads(b, data, ctx):
 
 
 def load_recruitment(b, data, ctx):
-    ctx.keys(data, "recruitment", ["criterion", "power", "tolerance"])
+    ctx.keys(data, "recruitment", ["criterion", "power", "tolerance", "static_optimization"])
+    rule = ctx.choice(data.get("static_optimization", "openfdk"), "recruitment.static_optimization",
+                      ("openfdk", "opensim"), "static_optimization")
     _wrap(ctx, "recruitment", lambda: el.set_recruitment(
         b, data.get("criterion", "polynomial"), ctx.number(data.get("power", 3.0), "recruitment.power"),
-        ctx.number(data.get("tolerance", 1e-10), "recruitment.tolerance", positive=True)))
+        ctx.number(data.get("tolerance", 1e-10), "recruitment.tolerance", positive=True), rule))

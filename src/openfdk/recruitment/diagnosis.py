@@ -3,7 +3,7 @@
 Called only when a fast solver fails. It finds the forces within the bounds that come
 closest to equilibrium in the ℓ1 sense,
 
-    minimise Σ_k (ρ⁺_k + ρ⁻_k)   s.t.   C f + ρ⁺ − ρ⁻ = d,   0 ≤ f_B ≤ u s,   ρ± ≥ 0,
+    minimise Σ_k (ρ⁺_k + ρ⁻_k)   s.t.   C f + ρ⁺ − ρ⁻ = d,   l s ≤ f_B ≤ u s,   ρ± ≥ 0,
 
 (the standard phase-1 problem of the simplex method, Nocedal & Wright, "Numerical
 Optimization", 2nd ed., §13.5), solved with HiGHS through ``scipy.optimize.linprog``.
@@ -42,7 +42,7 @@ class InfeasibilityDiagnosis:
     iterations: int
 
 
-def diagnose_infeasibility(C, d, n_bounded, s, row_names=None, rtol=1e-7, upper=None):
+def diagnose_infeasibility(C, d, n_bounded, s, row_names=None, rtol=1e-7, upper=None, lower=None):
     """Solve the phase-1 LP and name the rows that cannot be balanced.
 
     Parameters
@@ -50,7 +50,7 @@ def diagnose_infeasibility(C, d, n_bounded, s, row_names=None, rtol=1e-7, upper=
     C : (n_eq, n_var); d : (n_eq,) N or N·m; n_bounded : int; s : (n_bounded,) N;
     row_names : optional sequence of n_eq names; rtol : a row counts as unbalanced when
     |residual| > rtol · (‖d‖∞ + max_kj |C_kj s_j|); upper : optional (n_bounded,) activity
-    bounds u (default 1; +∞ for none).
+    bounds u (default 1; +∞ for none); lower : optional (n_bounded,) activity bounds l (default 0).
 
     Returns InfeasibilityDiagnosis.
     """
@@ -63,7 +63,9 @@ def diagnose_infeasibility(C, d, n_bounded, s, row_names=None, rtol=1e-7, upper=
     cost = np.concatenate([np.zeros(n_var), np.ones(2 * n_eq)])
     A_eq = np.hstack([scaled, np.eye(n_eq), -np.eye(n_eq)])
     u = np.ones(n_bounded) if upper is None else np.asarray(upper, float)
-    bounds = ([(0.0, None if np.isinf(u_j) else float(u_j)) for u_j in u] + [(None, None)] * n_free
+    lo = np.zeros(n_bounded) if lower is None else np.asarray(lower, float)
+    bounds = ([(float(l_j), None if np.isinf(u_j) else float(u_j)) for l_j, u_j in zip(lo, u)]
+              + [(None, None)] * n_free
               + [(0.0, None)] * (2 * n_eq))
     from scipy.optimize import linprog  # here: only infeasible frames need it (≈ 0.2 s of imports)
 

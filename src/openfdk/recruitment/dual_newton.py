@@ -2,16 +2,16 @@
 
 Same reduced problem as :mod:`openfdk.recruitment.interior_point`:
 
-    minimise Σ_i x_i^p   s.t.   A x = b,   0 ≤ x ≤ ū,   A (r, n) with orthonormal rows,
+    minimise Σ_i x_i^p   s.t.   A x = b,   l ≤ x ≤ ū,   A (r, n) with orthonormal rows,
 
-with upper bounds ū_i > 0 (1 for muscles; an actuator's control limit, possibly +∞).
-The objective is separable, so the Lagrangian dual is explicit. For multipliers μ let
-u = Aᵀμ; each x_i minimises x^p − u_i x on [0, ū_i]:
+with lower bounds l_i ≥ 0 and upper bounds ū_i > l_i (1 for muscles; an actuator's
+control limit, possibly +∞). The objective is separable, so the Lagrangian dual is
+explicit. For multipliers μ let u = Aᵀμ; each x_i minimises x^p − u_i x on [l_i, ū_i]:
 
-    x_i(u_i) = clip((u_i / p)^(1/(p−1)), 0, ū_i)                     (stationarity)
+    x_i(u_i) = clip((max(u_i, 0) / p)^(1/(p−1)), l_i, ū_i)            (stationarity)
     h(μ) = Σ_i [x_i^p − u_i x_i] + μᵀ b                               (dual function)
     ∇h = b − A x(μ),   ∇²h = −A D Aᵀ,
-    D_ii = dx_i/du_i = x_i / ((p − 1) u_i) for 0 < x_i < ū_i, else 0.
+    D_ii = dx_i/du_i = x_i / ((p − 1) u_i) for l_i < x_i < ū_i, else 0.
 
 h is concave and C¹; we maximise it by (semismooth) Newton steps
 (A D Aᵀ + δ I) Δμ = b − A x with a Levenberg shift δ ∝ ‖∇h‖ and an Armijo backtracking
@@ -40,9 +40,9 @@ DUAL_FAILED = 2
 
 
 @njit(cache=True, error_model="numpy")
-def _primal_from_dual(A, mu, p, upper, x, D):
-    """x(μ) and D = dx/du (see module docstring); upper (n,) the bounds ū (+∞ allowed);
-    returns h(μ) − μᵀb = Σ x^p − u x."""
+def _primal_from_dual(A, mu, p, lower, upper, x, D):
+    """x(μ) and D = dx/du (see module docstring); lower, upper (n,) the bounds l, ū (+∞
+    allowed); returns h(μ) − μᵀb = Σ x^p − u x."""
     r, n = A.shape
     exponent = 1.0 / (p - 1.0)
     value = 0.0
@@ -51,7 +51,7 @@ def _primal_from_dual(A, mu, p, upper, x, D):
         for a in range(r):
             u += A[a, i] * mu[a]
         if u <= 0.0:
-            x[i] = 0.0
+            x[i] = lower[i]
             D[i] = 0.0
         else:
             x[i] = power(u / p, exponent)
@@ -59,18 +59,21 @@ def _primal_from_dual(A, mu, p, upper, x, D):
             if x[i] >= upper[i]:
                 x[i] = upper[i]
                 D[i] = 0.0
+            elif x[i] <= lower[i]:
+                x[i] = lower[i]
+                D[i] = 0.0
         value += power(x[i], p) - u * x[i]
     return value
 
 
 @njit(cache=True, error_model="numpy")
-def power_box_dual_newton(A, b, p, upper, mu_start, tol, max_iter):
+def power_box_dual_newton(A, b, p, lower, upper, mu_start, tol, max_iter):
     """Maximise the dual h(μ) from ``mu_start`` (see module docstring).
 
     Parameters
     ----------
-    A : (r, n) orthonormal rows; b : (r,); p : float ≥ 2; upper : (n,) bounds ū > 0
-    (+∞ allowed); mu_start : (r,);
+    A : (r, n) orthonormal rows; b : (r,); p : float ≥ 2; lower, upper : (n,) bounds
+    0 ≤ l < ū (+∞ allowed); mu_start : (r,);
     tol : tolerance on ‖A x − b‖∞; max_iter : int.
 
     Returns
@@ -88,7 +91,7 @@ def power_box_dual_newton(A, b, p, upper, mu_start, tol, max_iter):
     mu_trial = np.empty(r)
     K = np.empty((r, r))
 
-    value = _primal_from_dual(A, mu, p, upper, x, D)
+    value = _primal_from_dual(A, mu, p, lower, upper, x, D)
     for a in range(r):
         value += mu[a] * b[a]
     status = DUAL_MAX_ITER
@@ -134,7 +137,7 @@ def power_box_dual_newton(A, b, p, upper, mu_start, tol, max_iter):
         for _ in range(60):
             for a in range(r):
                 mu_trial[a] = mu[a] + alpha * step[a]
-            trial = _primal_from_dual(A, mu_trial, p, upper, x_trial, D_trial)
+            trial = _primal_from_dual(A, mu_trial, p, lower, upper, x_trial, D_trial)
             for a in range(r):
                 trial += mu_trial[a] * b[a]
             if not roundoff_level and trial >= value + 1e-4 * alpha * slope:
@@ -165,17 +168,17 @@ def power_box_dual_newton(A, b, p, upper, mu_start, tol, max_iter):
 
 
 @njit(cache=True, error_model="numpy")
-def multipliers_from_primal(A, x0, p, upper):
-    """Least-squares multipliers μ with (Aᵀμ)_i ≈ p x0_i^(p−1) on the interior x0_i ∈ (0, ū_i).
+def multipliers_from_primal(A, x0, p, lower, upper):
+    """Least-squares multipliers μ with (Aᵀμ)_i ≈ p x0_i^(p−1) on the interior x0_i ∈ (l_i, ū_i).
 
-    A : (r, n); x0 : (n,) dimensionless guess; upper : (n,) bounds ū (+∞ allowed). Returns μ (r,) — a warm start for the
+    A : (r, n); x0 : (n,) dimensionless guess; lower, upper : (n,) bounds (+∞ allowed). Returns μ (r,) — a warm start for the
     dual Newton method when only a previous primal solution is known.
     """
     r, n = A.shape
     K = np.zeros((r, r))
     rhs = np.zeros(r)
     for i in range(n):
-        if 0.0 < x0[i] < upper[i]:
+        if lower[i] < x0[i] < upper[i] and x0[i] > 0.0:
             g = p * power(x0[i], p - 1.0)
             for a in range(r):
                 rhs[a] += A[a, i] * g

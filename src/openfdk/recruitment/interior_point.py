@@ -2,14 +2,15 @@
 
 Solves the reduced recruitment problem (see :mod:`openfdk.recruitment.reduction`)
 
-    minimise G(x) = Σ_i x_i^p   s.t.   A x = b,   0 ≤ x ≤ u,            (p ≥ 2)
+    minimise G(x) = Σ_i x_i^p   s.t.   A x = b,   l ≤ x ≤ u,            (p ≥ 2)
 
-with A (r, n) having orthonormal rows and upper bounds u_i > 0 (1 for muscles and
-one-sided reactions; an actuator's control limit, possibly +∞). KKT conditions, with
-equality multipliers μ and bound multipliers z (x ≥ 0), w (x ≤ u):
+with A (r, n) having orthonormal rows, lower bounds l_i ≥ 0 (0, or a muscle's minimum
+activation in OpenSim's static optimisation) and upper bounds u_i > l_i (1 for muscles
+and one-sided reactions; an actuator's control limit, possibly +∞). KKT conditions, with
+equality multipliers μ and bound multipliers z (x ≥ l), w (x ≤ u):
 
     r_d = ∇G(x) − Aᵀμ − z + w = 0,   r_p = A x − b = 0,
-    x_i z_i = 0,   (u_i − x_i) w_i = 0,   z, w ≥ 0.
+    (x_i − l_i) z_i = 0,   (u_i − x_i) w_i = 0,   z, w ≥ 0.
 
 A variable without an upper bound (u_i = +∞) has w_i = 0 throughout, and its terms of
 the upper bound drop out of Σ, ρ and the complementarity.
@@ -19,7 +20,7 @@ SIAM J Optim 2(4), 1992; S. J. Wright, "Primal-Dual Interior-Point Methods", SIA
 ch. 10; Nocedal & Wright, "Numerical Optimization", 2nd ed., Alg. 16.4 for the QP case and
 §19.3 for the nonlinear Newton step). Each Newton step eliminates the bound multipliers,
 
-    Σ = ∇²G + Z X⁻¹ + W (U − X)⁻¹               (diagonal, > 0)
+    Σ = ∇²G + Z (X − L)⁻¹ + W (U − X)⁻¹         (diagonal, > 0)
     (A Σ⁻¹ Aᵀ) Δμ = −r_p − A Σ⁻¹ ρ,   Δx = Σ⁻¹ (ρ + Aᵀ Δμ),
 
 so the only factorisation is an r × r Cholesky (r ≤ 6 for one body). Predictor and
@@ -49,12 +50,12 @@ IPM_FAILED = 2
 
 
 @njit(cache=True, error_model="numpy")
-def _max_primal_step(x, dx, u):
-    """Largest α ≤ 1 keeping 0 ≤ x + αΔx ≤ u (u_i may be +∞)."""
+def _max_primal_step(x, dx, lo, u):
+    """Largest α ≤ 1 keeping l ≤ x + αΔx ≤ u (u_i may be +∞)."""
     alpha = 1.0
     for i in range(x.shape[0]):
         if dx[i] < 0.0:
-            alpha = min(alpha, -x[i] / dx[i])
+            alpha = min(alpha, (lo[i] - x[i]) / dx[i])
         elif dx[i] > 0.0:
             alpha = min(alpha, (u[i] - x[i]) / dx[i])
     return alpha
@@ -92,13 +93,13 @@ def _newton_direction(A, L_K, Sigma, rho, r_p, dx, dmu, rhs_r):
 
 
 @njit(cache=True, error_model="numpy")
-def ipm_starting_point(A, b, p, u):
+def ipm_starting_point(A, b, p, lo, u):
     """Starting point (x, z, w, μ) of :func:`power_box_ipm`.
 
-    x = least-norm solution Aᵀb of A x = b (A Aᵀ = I) clipped to [0.05, 0.5] · min(u, 1)
-    — typical activities are small, so this starts closer to the solution than the box
-    centre; z = 0.1, w = 0.1 (0 without an upper bound); μ = A(∇G(x) − z + w), the
-    least-squares fit of r_d = 0. u : (n,) upper bounds > 0 (+∞ allowed).
+    x = least-norm solution Aᵀb of A x = b (A Aᵀ = I) clipped to l + [0.05, 0.5] ·
+    min(u − l, 1) — typical activities are small, so this starts closer to the solution
+    than the box centre; z = 0.1, w = 0.1 (0 without an upper bound); μ = A(∇G(x) − z +
+    w), the least-squares fit of r_d = 0. lo, u : (n,) bounds, 0 ≤ l < u (+∞ allowed).
     Returns x (n,), z (n,), w (n,), μ (r,).
     """
     r, n = A.shape
@@ -109,8 +110,8 @@ def ipm_starting_point(A, b, p, u):
         acc = 0.0
         for a in range(r):
             acc += A[a, i] * b[a]
-        scale = min(u[i], 1.0)
-        x[i] = min(max(acc, 0.05 * scale), 0.5 * scale)
+        scale = min(u[i] - lo[i], 1.0)
+        x[i] = min(max(acc, lo[i] + 0.05 * scale), lo[i] + 0.5 * scale)
         if np.isinf(u[i]):
             w[i] = 0.0
     mu = np.zeros(r)
@@ -123,8 +124,8 @@ def ipm_starting_point(A, b, p, u):
 
 
 @njit(cache=True, error_model="numpy")
-def power_box_ipm(A, b, p, u, x, z, w, mu, tol, max_iter):
-    """Mehrotra predictor–corrector IPM for min Σ x^p s.t. A x = b, 0 ≤ x ≤ u.
+def power_box_ipm(A, b, p, lo, u, x, z, w, mu, tol, max_iter):
+    """Mehrotra predictor–corrector IPM for min Σ x^p s.t. A x = b, l ≤ x ≤ u.
 
     Iterates in place from (x, z, w, μ) — use :func:`ipm_starting_point`, or the state
     left by a previous call with a looser tolerance to continue.
@@ -132,7 +133,7 @@ def power_box_ipm(A, b, p, u, x, z, w, mu, tol, max_iter):
     Parameters
     ----------
     A : (r, n) dimensionless, orthonormal rows; b : (r,); p : float ≥ 2;
-    u : (n,) upper bounds > 0 (+∞: none; then w_i = 0);
+    lo : (n,) lower bounds ≥ 0; u : (n,) upper bounds > l (+∞: none; then w_i = 0);
     x, z, w : (n,) strictly inside their bounds; mu : (r,) (all modified in place);
     tol : tolerance on ‖r_p‖∞, ‖r_d‖∞/(1+‖∇G‖∞) and the mean complementarity;
     max_iter : int.
@@ -187,7 +188,7 @@ def power_box_ipm(A, b, p, u, x, z, w, mu, tol, max_iter):
             r_d[i] = acc
             if abs(acc) > rd_max:
                 rd_max = abs(acc)
-            tau += x[i] * z[i]
+            tau += (x[i] - lo[i]) * z[i]
             if bounded[i]:
                 tau += (u[i] - x[i]) * w[i]
         tau /= n_pairs
@@ -209,7 +210,7 @@ def power_box_ipm(A, b, p, u, x, z, w, mu, tol, max_iter):
 
         # Σ = ∇²G + Z X⁻¹ + W (U − X)⁻¹, K = A Σ⁻¹ Aᵀ
         for i in range(n):
-            Sigma[i] = hess[i] + z[i] / x[i]
+            Sigma[i] = hess[i] + z[i] / (x[i] - lo[i])
             if bounded[i]:
                 Sigma[i] += w[i] / (u[i] - x[i])
             inv_Sigma[i] = 1.0 / Sigma[i]
@@ -223,23 +224,23 @@ def power_box_ipm(A, b, p, u, x, z, w, mu, tol, max_iter):
             rho[i] = -r_d[i] - z[i] + w[i]
         _newton_direction(A, K, Sigma, rho, r_p, dx_aff, dmu, rhs_r)
         for i in range(n):
-            dz_aff[i] = -z[i] - z[i] * dx_aff[i] / x[i]
+            dz_aff[i] = -z[i] - z[i] * dx_aff[i] / (x[i] - lo[i])
             dw_aff[i] = (-w[i] + w[i] * dx_aff[i] / (u[i] - x[i])) if bounded[i] else 0.0
-        alpha_p = _max_primal_step(x, dx_aff, u)
+        alpha_p = _max_primal_step(x, dx_aff, lo, u)
         alpha_d = _max_dual_step(z, dz_aff, w, dw_aff)
         tau_aff = 0.0
         for i in range(n):
-            tau_aff += (x[i] + alpha_p * dx_aff[i]) * (z[i] + alpha_d * dz_aff[i])
+            tau_aff += (x[i] - lo[i] + alpha_p * dx_aff[i]) * (z[i] + alpha_d * dz_aff[i])
             if bounded[i]:
                 tau_aff += (u[i] - x[i] - alpha_p * dx_aff[i]) * (w[i] + alpha_d * dw_aff[i])
         tau_aff /= n_pairs
         sigma = (tau_aff / tau) ** 3
         target = sigma * tau
 
-        # corrector: r_l = x z + Δx_a Δz_a − στ, r_u = (u−x) w − Δx_a Δw_a − στ
+        # corrector: r_l = (x−l) z + Δx_a Δz_a − στ, r_u = (u−x) w − Δx_a Δw_a − στ
         for i in range(n):
-            r_l = x[i] * z[i] + dx_aff[i] * dz_aff[i] - target
-            rho[i] = -r_d[i] - r_l / x[i]
+            r_l = (x[i] - lo[i]) * z[i] + dx_aff[i] * dz_aff[i] - target
+            rho[i] = -r_d[i] - r_l / (x[i] - lo[i])
             r_u = 0.0
             if bounded[i]:
                 r_u = (u[i] - x[i]) * w[i] - dx_aff[i] * dw_aff[i] - target
@@ -249,9 +250,9 @@ def power_box_ipm(A, b, p, u, x, z, w, mu, tol, max_iter):
             dw[i] = r_u
         _newton_direction(A, K, Sigma, rho, r_p, dx, dmu, rhs_r)
         for i in range(n):
-            dz[i] = (-dz[i] - z[i] * dx[i]) / x[i]
+            dz[i] = (-dz[i] - z[i] * dx[i]) / (x[i] - lo[i])
             dw[i] = ((-dw[i] + w[i] * dx[i]) / (u[i] - x[i])) if bounded[i] else 0.0
-        alpha_p = min(1.0, 0.995 * _max_primal_step(x, dx, u))
+        alpha_p = min(1.0, 0.995 * _max_primal_step(x, dx, lo, u))
         alpha_d = min(1.0, 0.995 * _max_dual_step(z, dz, w, dw))
         for i in range(n):
             z[i] += alpha_d * dz[i]

@@ -75,10 +75,10 @@ _WARM_MAX_ITER = 20
 
 
 @njit(cache=True, error_model="numpy")
-def _solve_polynomial_kernel(C, d, n_bounded, s, upper, p, warm_mode, lam_start, x_start, tol,
+def _solve_polynomial_kernel(C, d, n_bounded, s, lower, upper, p, warm_mode, lam_start, x_start, tol,
                              max_iter):
-    """Numba driver; upper (n_B,) activity bounds u (+∞ allowed); warm_mode 0 cold, 1 from
-    multipliers λ (m,), 2 from activities x (n_B,).
+    """Numba driver; lower, upper (n_B,) activity bounds l, u (+∞ allowed); warm_mode 0
+    cold, 1 from multipliers λ (m,), 2 from activities x (n_B,).
 
     Returns f (n,) N, λ (m,), active_upper (n,) bool, active_lower (n,) bool,
     residual C f − d (m,), objective G, status code, iterations.
@@ -107,29 +107,29 @@ def _solve_polynomial_kernel(C, d, n_bounded, s, upper, p, warm_mode, lam_start,
             if warm_mode == 1:
                 mu_start = multiplier_to_reduced(lam_start, Sigma_r, Q2U_r)
             else:
-                mu_start = multipliers_from_primal(A_r, x_start, p, upper)
-            x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, upper, mu_start, tol,
+                mu_start = multipliers_from_primal(A_r, x_start, p, lower, upper)
+            x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, lower, upper, mu_start, tol,
                                                            _WARM_MAX_ITER)
             iterations += it
             solved = dual_status == DUAL_CONVERGED
         if not solved:
             # interior point to a loose tolerance, then the dual Newton polish
-            x_ipm, z_ipm, w_ipm, mu_ipm = ipm_starting_point(A_r, b_r, p, upper)
-            ipm_status, it = power_box_ipm(A_r, b_r, p, upper, x_ipm, z_ipm, w_ipm, mu_ipm,
+            x_ipm, z_ipm, w_ipm, mu_ipm = ipm_starting_point(A_r, b_r, p, lower, upper)
+            ipm_status, it = power_box_ipm(A_r, b_r, p, lower, upper, x_ipm, z_ipm, w_ipm, mu_ipm,
                                            max(tol, _IPM_LOOSE_TOL), max_iter)
             iterations += it
             if ipm_status == IPM_CONVERGED:
-                x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, upper, mu_ipm, tol,
+                x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, lower, upper, mu_ipm, tol,
                                                                _POLISH_MAX_ITER)
                 iterations += it
                 solved = dual_status == DUAL_CONVERGED
             if not solved and ipm_status == IPM_CONVERGED:
                 # continue the interior point to ``tol`` and polish again
-                ipm_status, it = power_box_ipm(A_r, b_r, p, upper, x_ipm, z_ipm, w_ipm, mu_ipm,
+                ipm_status, it = power_box_ipm(A_r, b_r, p, lower, upper, x_ipm, z_ipm, w_ipm, mu_ipm,
                                                tol, max(max_iter - iterations, 1))
                 iterations += it
                 if ipm_status == IPM_CONVERGED:
-                    x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, upper, mu_ipm, tol,
+                    x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, lower, upper, mu_ipm, tol,
                                                                    _WARM_MAX_ITER)
                     iterations += it
                     solved = dual_status == DUAL_CONVERGED
@@ -141,7 +141,7 @@ def _solve_polynomial_kernel(C, d, n_bounded, s, upper, p, warm_mode, lam_start,
                         from_dual = False
                         solved = True
                         for j in range(n_bounded):
-                            if z_ipm[j] > x_ipm[j]:
+                            if z_ipm[j] > x_ipm[j] - lower[j]:
                                 bound_state[j] = -1
                             elif w_ipm[j] > upper[j] - x_ipm[j]:
                                 bound_state[j] = 1
@@ -156,7 +156,7 @@ def _solve_polynomial_kernel(C, d, n_bounded, s, upper, p, warm_mode, lam_start,
     for j in range(n_bounded):
         objective += power(x[j], p)
         if from_dual:
-            active_lower[j] = x[j] <= 0.0
+            active_lower[j] = x[j] <= lower[j]
             active_upper[j] = x[j] >= upper[j]
         else:
             active_lower[j] = bound_state[j] < 0
@@ -203,8 +203,8 @@ def _warm_start(x0, n_eq, n_var, n_bounded, s):
 
 
 def solve_polynomial(C, d, n_bounded, s, p=3.0, *, x0=None, tol=1e-10, max_iter=100,
-                     row_names=None, column_names=None, upper=None) -> RecruitmentResult:
-    """Polynomial recruitment: minimise G = Σ_{i<n_bounded} (f_i/s_i)^p s.t. C f = d, 0 ≤ f_B ≤ u s.
+                     row_names=None, column_names=None, upper=None, lower=None) -> RecruitmentResult:
+    """Polynomial recruitment: minimise G = Σ_{i<n_bounded} (f_i/s_i)^p s.t. C f = d, l s ≤ f_B ≤ u s.
 
     Parameters
     ----------
@@ -222,6 +222,8 @@ def solve_polynomial(C, d, n_bounded, s, p=3.0, *, x0=None, tol=1e-10, max_iter=
     row_names : optional (n_eq,) names used in messages; column_names : optional (n_var,).
     upper : optional (n_bounded,) activity bounds u > 0 (default 1: f_B ≤ s), +∞ for none:
         an actuator weighted by its optimal force s with control limit u.
+    lower : optional (n_bounded,) activity bounds 0 ≤ l < u (default 0): a muscle's
+        minimum activation (OpenSim's static optimisation).
 
     Returns
     -------
@@ -235,10 +237,11 @@ def solve_polynomial(C, d, n_bounded, s, p=3.0, *, x0=None, tol=1e-10, max_iter=
     """
     C, d, s = check_problem(C, d, n_bounded, s, row_names, column_names)
     upper = activity_bounds(upper, n_bounded)
+    lower = lower_activity_bounds(lower, upper)
     if n_bounded and s.min() == 0.0:
         return solve_without_zero_strength(solve_polynomial, C, d, int(n_bounded), s,
                                            column_names=column_names, p=p, x0=x0, tol=tol,
-                                           max_iter=max_iter, row_names=row_names, upper=upper)
+                                           max_iter=max_iter, row_names=row_names, upper=upper, lower=lower)
     p = float(p)
     if not (np.isfinite(p) and p >= 2.0):
         raise RecruitmentInputError(f"exponent p must be a finite number ≥ 2; got {p!r}")
@@ -258,7 +261,7 @@ def solve_polynomial(C, d, n_bounded, s, p=3.0, *, x0=None, tol=1e-10, max_iter=
     warm_mode, lam_start, x_start = _warm_start(x0, n_eq, n_var, n_bounded, s)
     f, lam, active_upper, active_lower, residual, objective, code, iterations = \
         _solve_polynomial_kernel(
-            C, d, n_bounded, s, upper, p, warm_mode, lam_start, x_start, float(tol), int(max_iter)
+            C, d, n_bounded, s, lower, upper, p, warm_mode, lam_start, x_start, float(tol), int(max_iter)
         )
     if code == _RANK_DEFICIENT_FREE:
         _, sigma, VT = np.linalg.svd(C[:, n_bounded:])
@@ -273,7 +276,7 @@ def solve_polynomial(C, d, n_bounded, s, p=3.0, *, x0=None, tol=1e-10, max_iter=
             residual=residual, n_bounded=n_bounded, criterion="polynomial", p=p,
         )
     return failed_result(C, d, n_bounded, s, p, iterations, row_names, "polynomial",
-                         f"polynomial recruitment (p = {p:g})", upper=upper)
+                         f"polynomial recruitment (p = {p:g})", upper=upper, lower=lower)
 
 
 def _square_free_solution(C, d):
@@ -305,14 +308,27 @@ def activity_bounds(upper, n_bounded):
     return upper
 
 
-def failed_result(C, d, n_bounded, s, p, iterations, row_names, criterion, what, upper=None):
+def lower_activity_bounds(lower, upper):
+    """The lower activity bounds l (n_bounded,) of :func:`solve_polynomial`: zeros by
+    default; each 0 ≤ l < u, else RecruitmentInputError."""
+    if lower is None:
+        return np.zeros(upper.shape[0])
+    lower = np.ascontiguousarray(lower, dtype=np.float64)
+    if lower.shape != upper.shape:
+        raise RecruitmentInputError(f"lower must have shape {upper.shape} = (n_bounded,); got {lower.shape}")
+    if not (np.all(np.isfinite(lower)) and np.all(lower >= 0.0) and np.all(lower < upper)):
+        raise RecruitmentInputError("lower (activity bounds) must be finite, ≥ 0 and below upper")
+    return lower
+
+
+def failed_result(C, d, n_bounded, s, p, iterations, row_names, criterion, what, upper=None, lower=None):
     """Result for a frame the solver could not solve: diagnose with the phase-1 LP.
 
     Returns RecruitmentResult with converged=False; status ``infeasible`` (rows named) or
     ``not_converged`` (the problem is feasible but the solver failed).
     """
     n_eq, n_var = C.shape
-    diagnosis = diagnose_infeasibility(C, d, n_bounded, s, row_names, upper=upper)
+    diagnosis = diagnose_infeasibility(C, d, n_bounded, s, row_names, upper=upper, lower=lower)
     nan_lam = np.full(n_eq, np.nan)
     no_mask = np.zeros(n_var, dtype=bool)
     if diagnosis.feasible:

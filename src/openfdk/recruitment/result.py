@@ -225,8 +225,9 @@ def solve_without_zero_strength(solve, C, d, n_bounded, s, *, column_names=None,
     keep[:n_bounded] = s > 0.0
     kept_index = np.flatnonzero(keep)
     names = None if column_names is None else [column_names[j] for j in kept_index]
-    if options.get("upper") is not None:
-        options["upper"] = np.asarray(options["upper"], float)[keep[:n_bounded]]
+    for key in ("upper", "lower"):
+        if options.get(key) is not None:
+            options[key] = np.asarray(options[key], float)[keep[:n_bounded]]
     if x0 is not None:
         if isinstance(x0, RecruitmentResult) and x0.converged:
             options["x0"] = x0  # its multipliers (per row) are all that is used

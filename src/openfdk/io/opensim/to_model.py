@@ -172,7 +172,9 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
             elif pt.moving is not None and pt.moving[0] is not None:
                 c, (fx, fy, fz) = pt.moving
                 path[k] = {"frame": ref, "moving": {"coordinate": c, "x": fx, "y": fy, "z": fz}}
-        muscles[safe] = {"model": "hill", "path": path, **hill_parameters(mu, doc.source)}
+        muscles[safe] = {"model": "hill", "path": path, **hill_parameters(mu, doc.source),
+                         # activation bounds of OpenSim's static optimisation (static_optimization: opensim)
+                         "min_control": mu.parameters["min_control"], "max_control": mu.parameters["max_control"]}
         settings[safe] = {k: v for k, v in mu.parameters.items() if k in RECRUITMENT_SETTINGS}
     for g in doc.geometry:
         path = find_mesh(doc, g, mesh_dirs, "Mesh" in ignore)
