@@ -18,7 +18,8 @@ form (:class:`~.block_triangular.BlockForm`, ``ConstraintSystem.block_args``): t
 determinate solves factorise Φ_q̂ block by block (:func:`~.block_triangular.block_lu`).
 
 (numba caches these kernels with the code of :func:`~openfdk.model.compiled.evaluate_into`
-inlined: edit this file whenever that one changes — last: the program's column blocks.)
+inlined: edit this file whenever that one changes — last: the program's column blocks,
+linear chains folded.)
 """
 
 from __future__ import annotations

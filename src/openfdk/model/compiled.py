@@ -96,9 +96,41 @@ register(RotationAngles, lambda m, child: (
     OP_ROTATION_ANGLES, [m.body_a, m.body_b] + [int(x) for x in m.seq],
     list(np.ravel(m.R_aFa)) + list(np.ravel(m.R_bFb)) + list(m.sign)))
 register(FunctionOf, lambda m, child: (OP_FUNCTION, [child(m.measure)], list(m.function.to_params())))
-register(Linear, lambda m, child: (
-    OP_LINEAR, [len(m.terms)] + [child(sub) for _, sub in m.terms],
-    list(m.offset) + [x for C, _ in m.terms for x in np.ravel(C)]))
+
+
+def linear_terms(m):
+    """(offset (size,), [(C (size, size_k), measure_k)]) of a Linear measure with every
+    Linear sub-measure expanded: m = Σ_j C_j m_j + o with m_j = Σ_k D_jk n_k + o_j is
+    Σ_j Σ_k (C_j D_jk) n_k + o + Σ_j C_j o_j; terms on the same measure are summed. An
+    imported joint's coordinate is a selector of a selector of an angle; expanded, it is
+    one node of the program instead of a chain (the Jacobian rows copied once)."""
+    offset = np.array(m.offset, dtype=float)
+    terms = {}  # id(measure) -> [C, measure], in order of appearance
+
+    def add(C, sub):
+        if id(sub) in terms:
+            terms[id(sub)][0] = terms[id(sub)][0] + C
+        else:
+            terms[id(sub)] = [C, sub]
+
+    for C, sub in m.terms:
+        if type(sub) is Linear:
+            o, inner = linear_terms(sub)
+            offset = offset + C @ o
+            for D, n in inner:
+                add(C @ D, n)
+        else:
+            add(C, sub)
+    return offset, [(C, sub) for C, sub in terms.values()]
+
+
+def _compile_linear(m, child):
+    offset, terms = linear_terms(m)
+    return (OP_LINEAR, [len(terms)] + [child(sub) for _, sub in terms],
+            list(offset) + [x for C, _ in terms for x in np.ravel(C)])
+
+
+register(Linear, _compile_linear)
 
 
 class CompiledMeasures:
