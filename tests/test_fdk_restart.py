@@ -96,3 +96,37 @@ def test_restart_setting_is_read_from_the_model_file(tmp_path):
     (tmp_path / "off.yaml").write_text(text + "fdk: {restart: false}\n")
     assert fdk_settings(*load_model_and_settings(tmp_path / "on.yaml")).restart is True
     assert fdk_settings(*load_model_and_settings(tmp_path / "off.yaml")).restart is False
+
+
+def test_scan_starts_reach_a_root_beyond_the_previous_alphas_basin():
+    """A fold: the branch the previous frames followed ends, the root left is far away
+    (α* = −1.75 m). From the previous α (0.3 m) and the initial α (0.2 m) Newton stalls
+    at the kink (0.5 N); the scan starts α_prev ± 2 max_step, ± 4 max_step (max_step
+    0.5 m: −0.7, 1.3, −1.7, 2.3, nearest first) reach it from −1.7 m, the first start
+    in the slope-2 piece, at the fourth restart (0.2, −0.7, 1.3, −1.7)."""
+    from openfdk.fdk.analysis import scan_starts
+
+    starts = scan_starts(np.array([0.3]), (0.5,))
+    np.testing.assert_allclose(np.ravel(starts), [-0.7, 1.3, -1.7, 2.3])
+    settings = FDKSettings(tolerance=1e-9, jacobian="central", reuse_jacobian=False, max_step=(0.5,),
+                           perturbation=(1e-6,))
+    ctx = _KinkedResidual()
+    without = solve_frame_from(ctx, 0, [np.array([0.3]), np.array([0.2])], _Workspace(), settings)
+    assert not without.converged
+    sol = solve_frame_from(ctx, 0, [np.array([0.3]), np.array([0.2])] + starts, _Workspace(), settings)
+    assert sol.converged and sol.best.alpha[0] == pytest.approx(ROOT, abs=1e-9)
+    assert sol.restarts == 4
+
+
+def test_scan_starts_move_one_dof_at_a_time():
+    """Three DOFs with max_steps 0.5, 0.5, 1 mm: 12 starts, each differing from the
+    previous α in one DOF by ±2 or ±4 max_steps, the ±2 ones first."""
+    from openfdk.fdk.analysis import scan_starts
+
+    prev, step = np.array([1e-3, -2e-3, 0.0]), np.array([0.5e-3, 0.5e-3, 1e-3])
+    starts = np.array(scan_starts(prev, step))
+    assert starts.shape == (12, 3)
+    d = starts - prev
+    assert np.all(np.count_nonzero(d, axis=1) == 1)
+    multiples = np.abs(d).sum(axis=1) / step[np.argmax(np.abs(d), axis=1)]
+    np.testing.assert_allclose(multiples, [2] * 6 + [4] * 6)

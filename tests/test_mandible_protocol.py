@@ -38,8 +38,8 @@ def test_defaults_without_study_sections(subject_dir):
     assert p.trials["chewing"].file == subject_dir / "trials" / "chewing.c3d"
     assert p.registration_method == "braces" and p.static_pose is None
     assert dict(p.condyle_points) == {"r": "condyle_top_r", "l": "condyle_top_l"}
-    assert p.calibration_opening == pytest.approx(np.deg2rad(20.0))
-    np.testing.assert_allclose(p.calibration_translation, [9 * MM, 0, -5 * MM])
+    assert p.calibration_opening == pytest.approx(np.deg2rad(22.5))
+    np.testing.assert_allclose(p.calibration_translation, [10 * MM, 0, -5.5 * MM])
 
 
 def test_trials_section_names_kinds_windows_and_cycles(subject_dir, tmp_path):

@@ -146,8 +146,9 @@ def test_fdk_solves_99_5_percent_of_the_wide_chewing_frames(realistic):
 def test_fdk_restart_finds_the_root_where_the_warm_start_stalls_in_the_wide_chewing(realistic, tmp_path, capsys):
     """The mechanism of docs/fdk.md "Restarts" on the wide chewing: where the solution
     jumps by mm along the soft medio-lateral DOF between two frames, Newton from the
-    extrapolated warm start stalls at a non-root minimiser of ‖f^FDK‖ (≫ tolerance,
-    mm away from the root); the study's restarted α is a root of a fresh evaluation."""
+    run's warm start (the previous frame's α: the mandible FDK model continues without
+    extrapolating) stalls at a non-root minimiser of ‖f^FDK‖ (≫ tolerance, mm away from
+    the root); the study's restarted α is a root of a fresh evaluation."""
     from openfdk.fdk.analysis import FDKStep, fdk_context
     from openfdk.fdk.newton import solve_frame
     from openfdk.fdk.residual import FrameWorkspace
@@ -173,7 +174,8 @@ def test_fdk_restart_finds_the_root_where_the_warm_start_stalls_in_the_wide_chew
     for j in range(k):
         step.step(j)
     ws = FrameWorkspace({j: step.last_state for j in ctx.frames_needed(k)})
-    a0 = 2 * step.history[-1][1] - step.history[-2][1]
+    # the run's warm start: α_{k−1} (the mandible FDK model continues, extrapolate: false)
+    a0 = 2 * step.history[-1][1] - step.history[-2][1] if settings.extrapolate else step.history[-1][1]
     stalled = solve_frame(ctx, k, a0, ws.copy(), settings, step.warm, step.J_carry)
     assert not stalled.converged and stalled.best.norm > 100 * settings.tolerance
     root = np.array([float(rows[i][f"fdk.{d.name}.alpha"]) for d in model.fdk_dofs])
@@ -181,7 +183,7 @@ def test_fdk_restart_finds_the_root_where_the_warm_start_stalls_in_the_wide_chew
     ev = ctx.evaluate(k, root, ws.copy(), step.warm)
     assert ev.ok and ev.norm < 2 * settings.tolerance
     # `openfdk run` over the same frames says that a frame was restarted
-    code = main(["run", str(out / "models" / "fdk.yaml"), str(trial), "--start", f"{t - 0.05:.2f}", "--end",
+    code = main(["run", str(out / "models" / "fdk.yaml"), str(trial), "--start", f"{t - 0.1:.2f}", "--end",
                  f"{t + 0.01:.2f}", "--out", str(tmp_path / "run"), "--no-plots", "--no-progress"])
     assert code == 0
     assert "frame(s) restarted from another starting α" in capsys.readouterr().out

@@ -2,8 +2,13 @@
 
 Warm start: α of frame k starts from the linear extrapolation 2 α_{k−1} − α_{k−2} of two
 converged predecessors (or α_{k−1}, or the DOFs' initial values), and the poses of the
-previous frame's solution. A frame that fails from there is solved again from α_{k−1} and
-from the DOFs' initial values (setting ``restart``, :func:`~.newton.solve_frame_from`).
+previous frame's solution. A frame that fails from there is solved again from α_{k−1},
+from the DOFs' initial values, then from α_{k−1} moved along one DOF at a time by ±2
+and ±4 max_steps, nearest first (setting ``restart``, :func:`~.newton.solve_frame_from`;
+:func:`scan_starts`): where the branch the previous frames followed ends (a fold of
+f^FDK(α) = 0, e.g. a weakly held medio-lateral DOF snapping across the joint), the
+remaining root can lie millimetres away, beyond the basin of α_{k−1}; the nearest such
+start that converges is the continuation's choice, and the frame counts its restarts.
 Every frame reports converged, Newton iterations, residual evaluations (each a
 recruitment solve), final max |f^FDK| and α; a frame that does not converge keeps its
 best iterate, is flagged with the reason, and the run goes on.
@@ -103,6 +108,24 @@ class FDKResult:
         return cols
 
 
+#: multiples of a DOF's max_step by which :func:`scan_starts` moves α_{k−1}
+SCAN_STEPS = (2.0, 4.0)
+
+
+def scan_starts(previous, max_step):
+    """Restart points (list of (n_fdk,) α) around the previous frame's α: each DOF in
+    turn moved by ±m·max_step for m in :data:`SCAN_STEPS`, nearest first (module
+    docstring). ``previous`` (n_fdk,) SI, ``max_step`` (n_fdk,) SI."""
+    starts = []
+    for m in SCAN_STEPS:
+        for i, step in enumerate(np.asarray(max_step, dtype=float)):
+            for sign in (-1.0, 1.0):
+                a = np.array(previous, dtype=float)
+                a[i] += sign * m * step
+                starts.append(a)
+    return starts
+
+
 class FDKStep:
     """Trial-driver step of FDK: Newton on f^FDK(α) = 0 at frame k (fdk/newton.py).
 
@@ -146,6 +169,8 @@ class FDKStep:
         else:
             a0 = self.a_init.copy()
         starts = [a0] + ([history[-1][1]] if history else []) + [self.a_init]
+        if history:
+            starts += scan_starts(history[-1][1], settings.max_step)
         sol = solve_frame_from(ctx, k, starts, ws, settings, self.warm, self.J_carry)
         self.J_carry = sol.jacobian if sol.converged else None
         ev = sol.best

@@ -9,7 +9,8 @@ fdk:
   line_search: true        # golden-section search on the step length when the full step fails
   extrapolate: true        # warm start α by linear extrapolation of the two previous frames
   restart: true            # a frame that fails from its warm start is solved again from the
-                           # previous frame's α, then from the DOFs' initial values
+                           # previous frame's α, then from the DOFs' initial values, then
+                           # from the previous α moved by ±2, ±4 max_steps along one DOF
 fdk_dofs:
   tmj_r_normal: {measure: ..., max_step: 0.5, perturbation: 1.0e-3}   # file units
 ```

@@ -22,8 +22,8 @@ lines) and cubic recruitment. The brace markers are the registered positions
 Muscle calibration (as AnyBody's 3-element muscles, e.g. in the de Zee et al. 2007
 mandible model, are calibrated): each tendon slack length is set so that the fibres are
 at their optimal length in a calibration pose — the mandible opened by
-``calibration_opening_deg`` (default 20°) about the intercondylar axis and translated
-9 mm forward and 5 mm down (the subject's ``muscle_calibration``). The supra-hyoid
+``calibration_opening_deg`` (default 22.5°) about the intercondylar axis and translated
+10 mm forward and 5.5 mm down (the subject's ``muscle_calibration``). The supra-hyoid
 muscles' lower ends sit on a ``hyoid`` body that follows half of the mandible's motion
 (the subject's ``hyoid``; :func:`_add_hyoid`). With the earlier 5° calibration and
 skull-fixed supra-hyoid ends, a 45 mm opening was infeasible on a third of the frames:
@@ -56,12 +56,10 @@ CALIBRATION_TRANSLATION = tuple(1e-3 * float(v) for v in _protocol.CALIBRATION_T
 #: parallel-elastic strain at F0 of the jaw muscles: Thelen (2003, J Biomech Eng
 #: 125:70, Eq. 3) ε0_M = 0.6 for young adults (the reference table gives none; openfdk's
 #: Hill default, docs/muscles.md). It sets the passive tension of the stretched muscles,
-#: which is most of the TMJ load in unloaded movements. Measured on the realistic
-#: virtual study (docs/mandible-study.md, "TMJ forces"): with 0.6, Table 2's RMSD is
-#: 0.79–19.7 N (paper 0.75–24.7 N) and open–close loads the TMJ with 18–20 N (median),
-#: but POP is infeasible beyond ≈ 42.6 mm of incisal opening (the openers cannot hold
-#: the passive closers; FDK stays feasible); 0.8 keeps every frame feasible up to 45 mm
-#: with RMSD 0.60–13.9 N; the earlier 1.0 gave 0.51–10.5 N. Per subject:
+#: which is most of the TMJ load in unloaded movements; with the earlier 1.0 the TMJ
+#: carried a few newtons. With 0.6 the calibration pose moved from 20° to 22.5° open
+#: (the smallest tested opening at which POP stays feasible up to a 45 mm incisal
+#: opening); measurements in docs/mandible-study.md, "TMJ forces". Per subject:
 #: ``muscle_calibration.passive_strain``.
 PASSIVE_STRAIN_AT_MAX_FORCE = 0.6
 #: fraction λ of the mandible's motion (at the hyoid's rest position) that the hyoid
@@ -225,6 +223,11 @@ def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS
         "tmj_l_normal": {"measure": "gap_l", "initial": 0.0, "max_step": 0.5},
         "tmj_ml": {"measure": "ml", "component": 1, "initial": 0.0, "max_step": 0.5},
     }
+    # FDK continues from the previous frame's α (no linear extrapolation of the two
+    # previous ones): where the medio-lateral DOF's root moves fast, the extrapolated
+    # start passes over the branch the frames follow (issue 28; docs/mandible-study.md,
+    # "FDK's medio-lateral DOF")
+    data["fdk"] = {"extrapolate": False}
     data["springs"] = {
         "fdk_spring_r": {"measure": "gap_r", "stiffness": spring_stiffness},
         "fdk_spring_l": {"measure": "gap_l", "stiffness": spring_stiffness},

@@ -42,8 +42,8 @@ DEFAULT_TRIALS = {"reference": ("trials/reference.c3d", STATIC),
 #: top-level keys of subject.yaml read here
 PROTOCOL_KEYS = ("trials", "registration", "condyle_point", "muscle_calibration", "hyoid", "contact")
 #: defaults of the muscle calibration pose (deg, mm) and of the hyoid's following fraction
-CALIBRATION_OPENING_DEG = 20.0
-CALIBRATION_TRANSLATION_MM = (9.0, 0.0, -5.0)
+CALIBRATION_OPENING_DEG = 22.5
+CALIBRATION_TRANSLATION_MM = (10.0, 0.0, -5.5)
 HYOID_FOLLOW = 0.5
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
