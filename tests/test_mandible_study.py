@@ -69,8 +69,8 @@ def test_demo_quick_parameter_study_runs_through_the_study_machinery(demo_dir):
         assert (ps / "cases" / r["case_id"] / "forces.csv").is_file()
     peaks = [k for k in rows[0] if k.startswith("tmj_ligament") and k.endswith(".peak_force_N")]
     assert len(peaks) == 6
-    # the joint carries only a few newtons in this unloaded open–close (elevators slack
-    # below their 20° calibration opening), so a 4× stiffer ligament stretches slightly
+    # the ligaments are weak beside the joint's tens of newtons in this unloaded
+    # open–close (docs/mandible-study.md, "TMJ forces"), so a 4× stiffer ligament stretches slightly
     # less: the ratio is at most 4 (5 % tolerance) and well above 3 for every element
     for k in peaks:
         lo, hi = float(rows[0][k]), float(rows[1][k])
