@@ -19,7 +19,8 @@ determinate solves factorise Φ_q̂ block by block (:func:`~.block_triangular.bl
 
 (numba caches these kernels with the code of :func:`~openfdk.model.compiled.evaluate_into`
 inlined: edit this file whenever that one changes — last: the program's column blocks,
-linear chains folded.)
+linear chains folded,
+rotation angles without allocation.)
 """
 
 from __future__ import annotations

@@ -62,7 +62,7 @@ from numba import njit
 from .measures import AxisDot, Distance, Linear, PointPosition, RelativeAngles, RelativeVector
 from .coordinate_functions import pp_evaluate
 from .function_measure import FunctionOf
-from .rotation_angles import RotationAngles, inverse3, rotation_angle_blocks
+from .rotation_angles import RotationAngles, inverse3_into, rotation_angle_blocks
 
 __all__ = ["CompiledMeasures", "MeasureCompileError", "register", "evaluate_program"]
 
@@ -295,6 +295,10 @@ def evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fparams
     R_FaFb = np.zeros((3, 3))
     R_WFa = np.zeros((3, 3))
     R_WFb = np.zeros((3, 3))
+    Binv = np.zeros((3, 3))
+    # the rotation-angle nodes' frames, scratch and outputs (allocated once per call)
+    R_aFa, R_bFb, rot_work = np.empty((3, 3)), np.empty((3, 3)), np.empty((9, 3, 3))
+    theta, Ma, Mb, br = np.empty(3), np.empty((3, 3)), np.empty((3, 3)), np.empty(3)
     mask = np.zeros(op.shape[0], np.int64)
     cols = np.empty(column.shape[0], np.int64)
     for k in range(op.shape[0]):
@@ -473,7 +477,7 @@ def evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fparams
                 B[0, 0], B[0, 1], B[0, 2] = 1.0, 0.0, s1
                 B[1, 0], B[1, 1], B[1, 2] = 0.0, c0, -s0 * c1
                 B[2, 0], B[2, 1], B[2, 2] = 0.0, s0, c0 * c1
-                Binv, _ = inverse3(B)
+                inverse3_into(B, Binv)
                 ca, cb = column[ia], column[ib]
                 for r in range(3):
                     for c in range(3):
@@ -519,10 +523,13 @@ def evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fparams
         elif o == OP_ROTATION_ANGLES:
             # any intrinsic sequence (JCS angles): the kernel of openfdk.model.rotation_angles
             ia, ib = iparams[ip], iparams[ip + 1]
-            theta, Ma, Mb, br, ok = rotation_angle_blocks(
-                R_WB[ia], fparams[fp : fp + 9].copy().reshape(3, 3), w_BB[ia],
-                R_WB[ib], fparams[fp + 9 : fp + 18].copy().reshape(3, 3), w_BB[ib],
-                iparams[ip + 2 : ip + 5], fparams[fp + 18 : fp + 21], order)
+            for r in range(3):
+                for c in range(3):
+                    R_aFa[r, c] = fparams[fp + 3 * r + c]
+                    R_bFb[r, c] = fparams[fp + 9 + 3 * r + c]
+            ok = rotation_angle_blocks(R_WB[ia], R_aFa, w_BB[ia], R_WB[ib], R_bFb, w_BB[ib],
+                                       iparams[ip + 2 : ip + 5], fparams[fp + 18 : fp + 21], order, rot_work,
+                                       theta, Ma, Mb, br)
             if not ok:
                 return k, ERR_GIMBAL
             ca, cb = column[ia], column[ib]

@@ -61,20 +61,33 @@ def parse_sequence(sequence):
 
 
 @njit(cache=True)
-def _axis_rotation(axis, angle):
+def _axis_rotation_into(axis, angle, R):
+    """R (3, 3) ← the rotation by ``angle`` about the coordinate axis ``axis``."""
     c, s = np.cos(angle), np.sin(angle)
-    R = np.eye(3)
+    for r in range(3):
+        for q in range(3):
+            R[r, q] = 1.0 if r == q else 0.0
     j, k = (axis + 1) % 3, (axis + 2) % 3
     R[j, j] = c
     R[j, k] = -s
     R[k, j] = s
     R[k, k] = c
-    return R
 
 
 @njit(cache=True)
-def _cross(a, b):
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+def _angles_into(R, i, j, k, theta):
+    """theta (3,) ← θ rad of R = R_i(θ1) R_j(θ2) R_k(θ3) (k == i: proper Euler, θ2 ∈
+    [0, π]; else Cardan, θ2 ∈ [−π/2, π/2])."""
+    m = 3 - i - j
+    eps = 1.0 if (j - i) % 3 == 1 else -1.0
+    if k != i:  # m == k
+        theta[1] = np.arcsin(min(1.0, max(-1.0, eps * R[i, m])))
+        theta[0] = np.arctan2(-eps * R[j, m], R[m, m])
+        theta[2] = np.arctan2(-eps * R[i, j], R[i, i])
+    else:
+        theta[1] = np.arccos(min(1.0, max(-1.0, R[i, i])))
+        theta[0] = np.arctan2(R[j, i], -eps * R[m, i])
+        theta[2] = np.arctan2(R[i, j], eps * R[i, m])
 
 
 @njit(cache=True)
@@ -82,54 +95,43 @@ def angles_from_matrix(R, i, j, k):
     """θ (3,) rad of R = R_i(θ1) R_j(θ2) R_k(θ3) (k == i: proper Euler, θ2 ∈ [0, π];
     else Cardan, θ2 ∈ [−π/2, π/2])."""
     theta = np.zeros(3)
-    if k != i:
-        m = 3 - i - j  # == k
-        eps = 1.0 if (j - i) % 3 == 1 else -1.0
-        theta[1] = np.arcsin(min(1.0, max(-1.0, eps * R[i, m])))
-        theta[0] = np.arctan2(-eps * R[j, m], R[m, m])
-        theta[2] = np.arctan2(-eps * R[i, j], R[i, i])
-    else:
-        m = 3 - i - j
-        eps = 1.0 if (j - i) % 3 == 1 else -1.0
-        theta[1] = np.arccos(min(1.0, max(-1.0, R[i, i])))
-        theta[0] = np.arctan2(R[j, i], -eps * R[m, i])
-        theta[2] = np.arctan2(R[i, j], eps * R[i, m])
+    _angles_into(R, i, j, k, theta)
     return theta
 
 
 @njit(cache=True)
-def _mat3(A, B, transpose_a, transpose_b):
-    """A·B, Aᵀ·B or A·Bᵀ of 3×3 matrices as plain loops: numba's ``@`` calls BLAS, whose
-    call costs more than these 27 products."""
-    out = np.empty((3, 3))
+def _mat3_into(A, B, transpose_a, transpose_b, out):
+    """out (3, 3) ← A·B, Aᵀ·B or A·Bᵀ, as plain loops (numba's ``@`` calls BLAS, whose
+    call costs more than these 27 products)."""
     for r in range(3):
         for c in range(3):
             s = 0.0
             for j in range(3):
                 s += (A[j, r] if transpose_a else A[r, j]) * (B[c, j] if transpose_b else B[j, c])
             out[r, c] = s
-    return out
 
 
 @njit(cache=True)
-def _vec3(A, x, transpose):
-    """A x or Aᵀ x for a 3×3 A and x (3,)."""
-    out = np.empty(3)
+def _vec3_into(A, x0, x1, x2, transpose, out):
+    """out (3,) ← A x or Aᵀ x for a 3×3 A and x = (x0, x1, x2)."""
     for r in range(3):
         if transpose:
-            out[r] = A[0, r] * x[0] + A[1, r] * x[1] + A[2, r] * x[2]
+            out[r] = A[0, r] * x0 + A[1, r] * x1 + A[2, r] * x2
         else:
-            out[r] = A[r, 0] * x[0] + A[r, 1] * x[1] + A[r, 2] * x[2]
-    return out
+            out[r] = A[r, 0] * x0 + A[r, 1] * x1 + A[r, 2] * x2
 
 
 @njit(cache=True)
-def inverse3(B):
-    """(B⁻¹ (3, 3), det B) by cofactors (B⁻¹ = adj B / det B); B⁻¹ is NaN if det B = 0."""
+def _cross3(a0, a1, a2, b0, b1, b2):
+    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+
+
+@njit(cache=True)
+def inverse3_into(B, out):
+    """out (3, 3) ← B⁻¹ by cofactors (adj B / det B; NaN if det B = 0); returns det B."""
     det = (B[0, 0] * (B[1, 1] * B[2, 2] - B[1, 2] * B[2, 1])
            - B[0, 1] * (B[1, 0] * B[2, 2] - B[1, 2] * B[2, 0])
            + B[0, 2] * (B[1, 0] * B[2, 1] - B[1, 1] * B[2, 0]))
-    out = np.empty((3, 3))
     inv = 1.0 / det if det != 0.0 else np.nan
     out[0, 0] = (B[1, 1] * B[2, 2] - B[1, 2] * B[2, 1]) * inv
     out[0, 1] = (B[0, 2] * B[2, 1] - B[0, 1] * B[2, 2]) * inv
@@ -140,54 +142,77 @@ def inverse3(B):
     out[2, 0] = (B[1, 0] * B[2, 1] - B[1, 1] * B[2, 0]) * inv
     out[2, 1] = (B[0, 1] * B[2, 0] - B[0, 0] * B[2, 1]) * inv
     out[2, 2] = (B[0, 0] * B[1, 1] - B[0, 1] * B[1, 0]) * inv
-    return out, det
+    return det
 
 
 @njit(cache=True)
-def rotation_angle_blocks(R_Wa, R_aFa, w_a, R_Wb, R_bFb, w_b, seq, sign, order):
+def rotation_angle_blocks(R_Wa, R_aFa, w_a, R_Wb, R_bFb, w_b, seq, sign, order, work, theta, Ma, Mb, b):
     """The angles of :func:`rotation_angles` with their Jacobian as its two non-zero
-    blocks: θ (3,) rad, M_a (3, 3) on body a's rotation columns δπ'_a, M_b (3, 3) on body
-    b's, b (3,) rad/s² (order 2), ok. R_Wa, R_Wb (3, 3) the bodies' orientations, w_a,
-    w_b (3,) rad/s their body-frame angular velocities (module docstring for the maths)."""
+    blocks, into preallocated outputs (no allocation: the compiled program evaluates
+    this for every joint at every evaluation): θ (3,) rad, M_a (3, 3) on body a's
+    rotation columns δπ'_a, M_b (3, 3) on body b's, b (3,) rad/s² (order 2; zero
+    below). R_Wa, R_Wb (3, 3) the bodies' orientations, w_a, w_b (3,) rad/s their
+    body-frame angular velocities, work (9, 3, 3) scratch. Returns ok: False at gimbal
+    lock (|det B| < 1e-9). The maths: the module docstring."""
     i, j, k = seq[0], seq[1], seq[2]
-    R_WFa = _mat3(R_Wa, R_aFa, False, False)
-    R_WFb = _mat3(R_Wb, R_bFb, False, False)
-    R = _mat3(R_WFa, R_WFb, True, False)  # R_FaFb
-    theta = angles_from_matrix(R, i, j, k)
-    Ma = np.zeros((3, 3))
-    Mb = np.zeros((3, 3))
-    b = np.zeros(3)
-    if order == 0:
-        return theta * sign, Ma, Mb, b, True
-    e = np.eye(3)
-    R1 = _axis_rotation(i, theta[0])
-    R2 = _axis_rotation(j, theta[1])
-    c2 = _vec3(R1, e[j], False)
-    r2k = _vec3(R2, e[k], False)
-    c3 = _vec3(R1, r2k, False)
-    B = np.empty((3, 3))
-    B[:, 0] = e[i]
-    B[:, 1] = c2
-    B[:, 2] = c3
-    Binv, det = inverse3(B)
-    if abs(det) < 1e-9:
-        return theta * sign, Ma, Mb, b, False
-    Ma = -_mat3(Binv, R_aFa, False, True)                       # −B⁻¹ R_aFaᵀ
-    Mb = _mat3(Binv, _mat3(R, R_bFb, False, True), False, False)  # B⁻¹ R_FaFb R_bFbᵀ
-    if order >= 2:
-        w_Fa = _vec3(R_aFa, w_a, True)
-        w_Fb = _vec3(R_bFb, w_b, True)
-        Rw = _vec3(R, w_Fb, False)
-        dtheta = _vec3(Binv, Rw - w_Fa, False)
-        dB = dtheta[1] * dtheta[0] * _cross(e[i], c2) + dtheta[2] * (
-            dtheta[0] * _cross(e[i], c3) + dtheta[1] * _vec3(R1, _cross(e[j], r2k), False))
-        b = _vec3(Binv, -_cross(w_Fa, Rw) - dB, False)
+    R_WFa, R_WFb, R, R1, R2, B, Binv, T, V = (work[0], work[1], work[2], work[3], work[4], work[5], work[6],
+                                                work[7], work[8])
+    _mat3_into(R_Wa, R_aFa, False, False, R_WFa)
+    _mat3_into(R_Wb, R_bFb, False, False, R_WFb)
+    _mat3_into(R_WFa, R_WFb, True, False, R)  # R_FaFb
+    _angles_into(R, i, j, k, theta)
     for r in range(3):
+        b[r] = 0.0
+        for c in range(3):
+            Ma[r, c] = 0.0
+            Mb[r, c] = 0.0
+    ok = True
+    if order >= 1:
+        _axis_rotation_into(i, theta[0], R1)
+        _axis_rotation_into(j, theta[1], R2)
+        # B's columns: c1 = e_i, c2 = R1 e_j, c3 = R1 R2 e_k (V rows 0, 1, 2: c2, R2 e_k, c3)
+        for r in range(3):
+            V[0, r] = R1[r, j]
+            V[1, r] = R2[r, k]
+        _vec3_into(R1, V[1, 0], V[1, 1], V[1, 2], False, V[2])
+        for r in range(3):
+            B[r, 0] = 1.0 if r == i else 0.0
+            B[r, 1] = V[0, r]
+            B[r, 2] = V[2, r]
+        if abs(inverse3_into(B, Binv)) < 1e-9:
+            ok = False
+        else:
+            _mat3_into(Binv, R_aFa, False, True, Ma)  # −B⁻¹ R_aFaᵀ (negated below)
+            _mat3_into(R, R_bFb, False, True, T)
+            _mat3_into(Binv, T, False, False, Mb)     # B⁻¹ R_FaFb R_bFbᵀ
+            for r in range(3):
+                for c in range(3):
+                    Ma[r, c] = -Ma[r, c]
+            if order >= 2:
+                ei0, ei1, ei2 = (1.0 if i == 0 else 0.0), (1.0 if i == 1 else 0.0), (1.0 if i == 2 else 0.0)
+                ej0, ej1, ej2 = (1.0 if j == 0 else 0.0), (1.0 if j == 1 else 0.0), (1.0 if j == 2 else 0.0)
+                _vec3_into(R_aFa, w_a[0], w_a[1], w_a[2], True, T[0])     # ω_Fa
+                _vec3_into(R_bFb, w_b[0], w_b[1], w_b[2], True, T[1])     # ω_Fb
+                _vec3_into(R, T[1, 0], T[1, 1], T[1, 2], False, T[2])      # R_FaFb ω_Fb
+                _vec3_into(Binv, T[2, 0] - T[0, 0], T[2, 1] - T[0, 1], T[2, 2] - T[0, 2], False, V[1])  # θ̇
+                d0, d1, d2 = V[1, 0], V[1, 1], V[1, 2]
+                x0, x1, x2 = _cross3(ei0, ei1, ei2, V[0, 0], V[0, 1], V[0, 2])  # e_i × c2
+                y0, y1, y2 = _cross3(ei0, ei1, ei2, V[2, 0], V[2, 1], V[2, 2])  # e_i × c3
+                z0, z1, z2 = _cross3(ej0, ej1, ej2, R2[0, k], R2[1, k], R2[2, k])  # e_j × R2 e_k
+                _vec3_into(R1, z0, z1, z2, False, V[0])                     # R1 (e_j × R2 e_k)
+                # Ḃ θ̇ = θ̇2 θ̇1 (e_i × c2) + θ̇3 [θ̇1 (e_i × c3) + θ̇2 R1 (e_j × R2 e_k)]
+                g0 = d1 * d0 * x0 + d2 * (d0 * y0 + d1 * V[0, 0])
+                g1 = d1 * d0 * x1 + d2 * (d0 * y1 + d1 * V[0, 1])
+                g2 = d1 * d0 * x2 + d2 * (d0 * y2 + d1 * V[0, 2])
+                c0, c1, c2 = _cross3(T[0, 0], T[0, 1], T[0, 2], T[2, 0], T[2, 1], T[2, 2])  # ω_Fa × R ω_Fb
+                _vec3_into(Binv, -c0 - g0, -c1 - g1, -c2 - g2, False, b)
+    for r in range(3):
+        theta[r] *= sign[r]
         for c in range(3):
             Ma[r, c] *= sign[r]
             Mb[r, c] *= sign[r]
         b[r] *= sign[r]
-    return theta * sign, Ma, Mb, b, True
+    return ok
 
 
 @njit(cache=True)
@@ -196,8 +221,9 @@ def rotation_angles(R_WB, w_BB, column, ia, R_aFa, ib, R_bFb, seq, sign, n_coord
     ``sign`` (3,); M (3, n_coords); b (3,) (see the module docstring). Returns
     (θ, M, b, ok) with ok False at gimbal lock (|det B| < 1e-9). The blocks of M come
     from :func:`rotation_angle_blocks`."""
-    theta, Ma, Mb, b, ok = rotation_angle_blocks(R_WB[ia], R_aFa, w_BB[ia], R_WB[ib], R_bFb, w_BB[ib], seq, sign,
-                                                 order)
+    theta, Ma, Mb, b = np.empty(3), np.empty((3, 3)), np.empty((3, 3)), np.empty(3)
+    ok = rotation_angle_blocks(R_WB[ia], R_aFa, w_BB[ia], R_WB[ib], R_bFb, w_BB[ib], seq, sign, order,
+                               np.empty((9, 3, 3)), theta, Ma, Mb, b)
     M = np.zeros((3, n_coords))
     if order == 0 or not ok:
         return theta, M, np.zeros(3), ok
@@ -242,4 +268,4 @@ class RotationAngles(Measure):
 
 
 __all__ = ["RotationAngles", "JCS_CONVENTIONS", "parse_sequence", "angles_from_matrix", "rotation_angles",
-           "rotation_angle_blocks", "inverse3"]
+           "rotation_angle_blocks", "inverse3_into"]
