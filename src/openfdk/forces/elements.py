@@ -127,12 +127,20 @@ def path_measure(b, points, name=""):
     return Linear(terms, units=("length",), name=name)
 
 
-def add_wrap_surface(b, name, kind, frame, dims, side=None):
+def add_wrap_surface(b, name, kind, frame, dims, side=None, length=None, crossing_only=False, inside="error",
+                     one_segment=False):
     """A wrapping surface named ``name`` fixed to the body of ``frame`` ("body.frame" or
     "body"; the surface axes are the frame's axes, a cylinder's axis is its z).
 
     kind : "cylinder" | "sphere" (dims = radius, m) or "ellipsoid" (dims = 3 semi-axes,
-    m); side : None or a direction (3,) in the surface frame on which paths must pass.
+    m); side : None or a direction (3,) in the surface frame on which paths must pass;
+    length : a cylinder's length (m, centred on the frame; None: infinite), no wrap
+    while both tangent points lie beyond its ends; crossing_only : a sphere or ellipsoid
+    wraps only while the straight line crosses it (OpenSim's rule); inside : "error" (a
+    path point inside the surface is an error naming the path) or "straight" (the path
+    is straight there, OpenSim's rule); one_segment : a path that lists the surface in
+    several segments wraps one of them (the first whose straight line crosses it, else
+    the one that lengthens least: OpenSim's PathWrap over a range of points).
     Referenced by name in muscle and ligament paths (docs/muscles.md, wrapping)."""
     from ..model.names import check_name
     from .wrapping import SURFACE_KINDS, WrapSurface
@@ -160,9 +168,21 @@ def add_wrap_surface(b, name, kind, frame, dims, side=None):
         raise ModelError(f"wrapping surface {name!r}: side must be a direction of 3 numbers")
     if kind == "cylinder" and np.any(side) and not np.any(side[:2]):
         raise ModelError(f"wrapping surface {name!r}: a cylinder's side must not be along its axis (z)")
+    half = np.inf
+    if length is not None:
+        if kind != "cylinder":
+            raise ModelError(f"wrapping surface {name!r}: only a cylinder has a length")
+        if not (np.isfinite(length) and length > 0):
+            raise ModelError(f"wrapping surface {name!r}: length must be > 0 m, got {length!r}")
+        half = 0.5 * float(length)
+    if crossing_only and kind == "cylinder":
+        raise ModelError(f"wrapping surface {name!r}: crossing_only is for spheres and ellipsoids")
+    if inside not in ("error", "straight"):
+        raise ModelError(f"wrapping surface {name!r}: inside must be 'error' or 'straight', got {inside!r}")
     f = b.frame(frame if "." in frame else f"{frame}.origin")
     surface = WrapSurface(name, kind, b._body_index(f.body), np.asarray(f.p_BF, dtype=float),
-                          np.asarray(f.R_BF, dtype=float), dims, side)
+                          np.asarray(f.R_BF, dtype=float), dims, side, half, bool(crossing_only),
+                          inside == "straight", bool(one_segment))
     surfaces[name] = surface
     return surface
 

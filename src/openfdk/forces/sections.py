@@ -80,16 +80,24 @@ SIDES = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0), "
 
 
 def load_wrapping(b, data, ctx):
-    """``wrapping: {name: {type, frame, radius | semi_axes, side}}`` (docs/muscles.md)."""
+    """``wrapping: {name: {type, frame, radius | semi_axes, side, length (cylinder),
+    crossing_only (sphere, ellipsoid), inside, one_segment}}`` (docs/muscles.md)."""
     for name, spec in ctx.mapping(data, "wrapping").items():
         p = f"wrapping.{name}"
-        ctx.keys(spec, p, ["type", "frame", "radius", "semi_axes", "side"], required=("type", "frame"))
+        common = ["type", "frame", "side", "inside", "one_segment"]
+        ctx.keys(spec, p, common + ["radius", "semi_axes", "length", "crossing_only"], required=("type", "frame"))
         kind = spec["type"]
-        if kind in ("cylinder", "sphere"):
-            ctx.keys(spec, p, ["type", "frame", "radius", "side"], required=("radius",))
+        extra = {}
+        if kind == "cylinder":
+            ctx.keys(spec, p, common + ["radius", "length"], required=("radius",))
+            dims = ctx.number(spec["radius"], f"{p}.radius", positive=True) * ctx.length
+            if "length" in spec:
+                extra["length"] = ctx.number(spec["length"], f"{p}.length", positive=True) * ctx.length
+        elif kind == "sphere":
+            ctx.keys(spec, p, common + ["radius", "crossing_only"], required=("radius",))
             dims = ctx.number(spec["radius"], f"{p}.radius", positive=True) * ctx.length
         elif kind == "ellipsoid":
-            ctx.keys(spec, p, ["type", "frame", "semi_axes", "side"], required=("semi_axes",))
+            ctx.keys(spec, p, common + ["semi_axes", "crossing_only"], required=("semi_axes",))
             dims = ctx.vector(spec["semi_axes"], f"{p}.semi_axes", n=3) * ctx.length
         else:
             raise ctx.error(f"{p}.type", f"unknown wrapping surface {kind!r}; expected cylinder, sphere or ellipsoid")
@@ -100,9 +108,18 @@ def load_wrapping(b, data, ctx):
             side = SIDES[side]
         elif side is not None:
             side = ctx.vector(side, f"{p}.side", n=3)
+        for key in ("crossing_only", "one_segment"):
+            if key in spec:
+                if not isinstance(spec[key], bool):
+                    raise ctx.error(f"{p}.{key}", f"expected true or false, got {spec[key]!r}")
+                extra[key] = spec[key]
+        if "inside" in spec:
+            if spec["inside"] not in ("error", "straight"):
+                raise ctx.error(f"{p}.inside", f"expected 'error' or 'straight', got {spec['inside']!r}")
+            extra["inside"] = spec["inside"]
         if not isinstance(spec["frame"], str):
             raise ctx.error(f"{p}.frame", f"expected a frame name 'body.frame', got {spec['frame']!r}")
-        _wrap(ctx, p, lambda: el.add_wrap_surface(b, name, kind, spec["frame"], dims, side))
+        _wrap(ctx, p, lambda: el.add_wrap_surface(b, name, kind, spec["frame"], dims, side, **extra))
 
 
 def load_muscles(b, data, ctx):

@@ -412,6 +412,29 @@ def _wrap_rules(kind, P_S, Q_S, dims, side, half_length, crossing_only):
 
 
 @njit(cache=True)
+def _mandatory(kind, P, Q, dims, side):
+    """Whether OpenSim counts the wrap of P→Q (surface frame, m) as mandatory (the
+    straight line crosses the surface; with a quadrant, an end on its side): an
+    ellipsoid always (it wraps only where crossed), a sphere with a side, a cylinder
+    whose straight line crosses its circle in projection."""
+    if kind == ELLIPSOID:
+        return True
+    sided = side @ side > 0.0
+    on_side = (P @ side > 0.0) or (Q @ side > 0.0)
+    if kind == SPHERE:
+        return sided and on_side and crosses(P, Q, dims)
+    dx, dy = Q[0] - P[0], Q[1] - P[1]
+    dd = dx * dx + dy * dy
+    if dd == 0.0:
+        return False
+    t = -(P[0] * dx + P[1] * dy) / dd
+    if t <= 0.0 or t >= 1.0:
+        return False
+    x, y = P[0] + t * dx, P[1] + t * dy
+    return x * x + y * y < dims[0] * dims[0] and (not sided or on_side)
+
+
+@njit(cache=True)
 def _anchor(j, step, kinds, active, X_W, T1_W, T2_W):
     """Nearest node before (step −1) or after (+1) node j that the path touches: a point's
     position, or T2 (before) / T1 (after) of a surface in contact."""
@@ -456,9 +479,11 @@ def wrapped_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, dims, sid
     p_WB (nb, 3) m, R_WB (nb, 3, 3); column (nb,) first q̂ column of each body (−1 fixed);
     nodes of all paths concatenated: kinds (N,) (POINT, CYLINDER, SPHERE, ELLIPSOID),
     bodies (N,), p_B (N, 3) m (point, or surface origin, in the body frame), R_BS (N, 3, 3),
-    dims (N, 3) m, sides (N, 3); limits (N, 2): a cylinder's half length (m, inf: infinite)
-    and the surface's flags (CROSSING_ONLY, INSIDE_STRAIGHT; :func:`_wrap_one`); path k owns
-    nodes start[k]:start[k+1].
+    dims (N, 3) m, sides (N, 3); limits (N, 3): a cylinder's half length (m, inf: infinite),
+    the surface's flags (CROSSING_ONLY, INSIDE_STRAIGHT; :func:`_wrap_one`) and its group
+    (−1: none; the nodes of one group in a path are one surface listed in several
+    segments, of which one wraps: OpenSim's PathWrap over a range of points, see
+    :func:`_mandatory`); path k owns nodes start[k]:start[k+1].
     Returns l (n_paths,) m, L (n_paths, n_coords), status (n_paths,) (0 ok, < 0 see
     ``STATUS_TEXT``), T_W (N, 2, 3) m the world tangent points of each surface in
     contact (NaN when not in contact or for points).
@@ -479,20 +504,80 @@ def wrapped_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, dims, sid
     T1_W = np.zeros((N, 3))
     T2_W = np.zeros((N, 3))
     arc = np.zeros(N)
+    group = np.empty(N, dtype=np.int64)
+    for j in range(N):
+        group[j] = int(limits[j, 2])
     for p in range(n_paths):
         j0, j1 = start[p], start[p + 1]
         adjacent = False
+        grouped = False
         for j in range(j0 + 1, j1 - 1):
             if kinds[j] != POINT and kinds[j + 1] != POINT:
                 adjacent = True
+            if kinds[j] != POINT and group[j] >= 0:
+                grouped = True
         scale = 0.0
         for j in range(j0, j1):
             scale = max(scale, np.sqrt((X_W[j] - X_W[j0]) @ (X_W[j] - X_W[j0])))
         settled = False
-        for sweep in range(200 if adjacent else 1):
+        for sweep in range(200 if adjacent or grouped else 1):
             change = 0.0
             for j in range(j0 + 1, j1 - 1):
                 if kinds[j] == POINT:
+                    continue
+                g = group[j]
+                if g >= 0:
+                    first = j
+                    for k in range(j0 + 1, j):
+                        if kinds[k] != POINT and group[k] == g:
+                            first = k
+                            break
+                    if first != j:
+                        continue  # a candidate of a group already decided in this sweep
+                    # one segment of the group wraps (OpenSim's PathWrap): the first whose straight
+                    # line crosses the surface ("mandatory"), else the one that lengthens least
+                    was = -1
+                    for k in range(j, j1 - 1):
+                        if kinds[k] != POINT and group[k] == g:
+                            if active[k]:
+                                was = k
+                            active[k] = False
+                    win, best = -1, np.inf
+                    wT1, wT2, wa = np.zeros(3), np.zeros(3), 0.0
+                    for k in range(j, j1 - 1):
+                        if kinds[k] == POINT or group[k] != g:
+                            continue
+                        P_W = _anchor(k, -1, kinds, active, X_W, T1_W, T2_W)
+                        Q_W = _anchor(k, 1, kinds, active, X_W, T1_W, T2_W)
+                        R = R_WS[k]
+                        P_S = R.T @ (P_W - X_W[k])
+                        Q_S = R.T @ (Q_W - X_W[k])
+                        st, total, T1, T2, a = _wrap_one(kinds[k], P_S, Q_S, dims[k], sides[k], limits[k, 0],
+                                                         int(limits[k, 1]))
+                        if st < 0:
+                            status[p] = st
+                            break
+                        if st != 1:
+                            continue
+                        u = Q_S - P_S
+                        grow = total - np.sqrt(u @ u)
+                        if _mandatory(kinds[k], P_S, Q_S, dims[k], sides[k]):
+                            win, wT1, wT2, wa = k, X_W[k] + R @ T1, X_W[k] + R @ T2, a
+                            break
+                        if grow < best:
+                            win, best, wT1, wT2, wa = k, grow, X_W[k] + R @ T1, X_W[k] + R @ T2, a
+                    if status[p] < 0:
+                        break
+                    if win != was:
+                        change = np.inf
+                    elif win >= 0:
+                        change = max(change, np.sqrt((wT1 - T1_W[win]) @ (wT1 - T1_W[win])),
+                                     np.sqrt((wT2 - T2_W[win]) @ (wT2 - T2_W[win])))
+                    if win >= 0:
+                        active[win] = True
+                        T1_W[win] = wT1
+                        T2_W[win] = wT2
+                        arc[win] = wa
                     continue
                 P_W = _anchor(j, -1, kinds, active, X_W, T1_W, T2_W)
                 Q_W = _anchor(j, 1, kinds, active, X_W, T1_W, T2_W)
@@ -521,7 +606,7 @@ def wrapped_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, dims, sid
         if status[p] < 0:
             l[p] = np.nan
             continue
-        if adjacent and not settled:
+        if adjacent and not grouped and not settled:
             status[p] = -3
             l[p] = np.nan
             continue

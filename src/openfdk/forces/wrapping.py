@@ -41,7 +41,9 @@ class WrapSurface:
     ellipsoid wraps only while the straight line between its anchors crosses it
     (OpenSim's rule for WrapSphere and WrapEllipsoid), ``side`` then only picks the way
     round; inside_straight: an anchor inside the surface leaves the path straight
-    (OpenSim's rule) instead of being an error.
+    (OpenSim's rule) instead of being an error; one_segment: listed in several segments
+    of a path, the surface wraps one of them, the first whose straight line crosses it,
+    else the one that lengthens least (OpenSim's PathWrap over a range of points).
     """
 
     name: str
@@ -54,6 +56,17 @@ class WrapSurface:
     half_length: float = np.inf
     crossing_only: bool = False
     inside_straight: bool = False
+    one_segment: bool = False
+
+
+def _groups(nodes, path_name):
+    """{surface name: group id} of the ``one_segment`` surfaces a path lists more than
+    once (each a group; the kernel wraps one of its segments)."""
+    count = {}
+    for node in nodes:
+        if isinstance(node, WrapSurface) and node.one_segment:
+            count[node.name] = count.get(node.name, 0) + 1
+    return {name: k for k, name in enumerate(n for n, c in count.items() if c > 1)}
 
 
 class WrapNodes:
@@ -65,7 +78,8 @@ class WrapNodes:
 
     def __init__(self, paths, names):
         kinds, bodies, p_B, R_BS, dims, sides, limits, start = [], [], [], [], [], [], [], [0]
-        for nodes in paths:
+        for nodes, path_name in zip(paths, names):
+            groups = _groups(nodes, path_name)
             for node in nodes:
                 if isinstance(node, WrapSurface):
                     kinds.append(SURFACE_KINDS[node.kind])
@@ -75,7 +89,8 @@ class WrapNodes:
                     dims.append(node.dims)
                     sides.append(node.side)
                     limits.append((node.half_length, float(CROSSING_ONLY * node.crossing_only
-                                                               + INSIDE_STRAIGHT * node.inside_straight)))
+                                                               + INSIDE_STRAIGHT * node.inside_straight),
+                                   groups.get(node.name, -1)))
                 else:
                     body, p_BP = node
                     kinds.append(POINT)
@@ -84,7 +99,7 @@ class WrapNodes:
                     R_BS.append(np.eye(3))
                     dims.append(np.zeros(3))
                     sides.append(np.zeros(3))
-                    limits.append((np.inf, 0.0))
+                    limits.append((np.inf, 0.0, -1))
             start.append(len(kinds))
         self.names = list(names)
         self.kinds = np.array(kinds, dtype=np.int64)
@@ -93,7 +108,7 @@ class WrapNodes:
         self.R_BS = np.array(R_BS, dtype=float).reshape(-1, 3, 3)
         self.dims = np.array(dims, dtype=float).reshape(-1, 3)
         self.sides = np.array(sides, dtype=float).reshape(-1, 3)
-        self.limits = np.array(limits, dtype=float).reshape(-1, 2)
+        self.limits = np.array(limits, dtype=float).reshape(-1, 3)
         self.start = np.array(start, dtype=np.int64)
         self.n_paths = len(self.names)
 

@@ -217,6 +217,55 @@ class OsimPathPoint:
     moving: tuple = None
 
 
+#: OpenSim wrap objects read (WrapTorus and others are refused by name)
+WRAP_TYPES = {"WrapCylinder": "cylinder", "WrapSphere": "sphere", "WrapEllipsoid": "ellipsoid"}
+#: OpenSim's spellings of a WrapObject's ``quadrant`` -> (axis, sign); (None, 0): all
+QUADRANTS = {**{q: (None, 0) for q in ("all", "ALL", "All", "Unassigned")},
+             **{f"{s}{a}": ("xyz".index(a.lower()), -1 if s == "-" else 1)
+                for a in "xyzXYZ" for s in ("", "+", "-")}}
+#: the ellipsoid methods of a PathWrap (OpenSim's spellings)
+WRAP_METHODS = {m: m.lower() for base in ("hybrid", "midpoint", "axial")
+                for m in (base, base.capitalize(), base.upper())}
+_WRAP_PROPERTIES = {"active", "xyz_body_rotation", "translation", "quadrant", "Appearance", "display_preference",
+                    "color", "VisibleObject", "components"}
+_WRAP_DIMENSIONS = {"WrapCylinder": {"radius", "length"}, "WrapSphere": {"radius"}, "WrapEllipsoid": {"dimensions"}}
+
+
+@dataclass
+class OsimWrapObject:
+    """A WrapCylinder, WrapSphere or WrapEllipsoid: on ``frame`` (the body or frame whose
+    WrapObjectSet holds it), at ``p_FS (3,)`` m, axes ``R_FS (3, 3)`` (``translation``,
+    ``xyz_body_rotation``); ``quadrant`` (axis 0–2 or None, sign ±1 or 0); ``active``;
+    ``radius`` m (cylinder, sphere), ``length`` m (cylinder), ``dimensions (3,)`` m
+    (ellipsoid semi-axes)."""
+
+    name: str
+    type: str
+    frame: str
+    p_FS: np.ndarray
+    R_FS: np.ndarray
+    quadrant: tuple
+    quadrant_text: str
+    active: bool
+    radius: float = 0.0
+    length: float = 0.0
+    dimensions: np.ndarray = None
+    line: int = 0
+
+
+@dataclass
+class OsimPathWrap:
+    """A PathWrap of a GeometryPath: ``wrap_object`` (name), ``method`` (hybrid, midpoint
+    or axial: OpenSim's ellipsoid approximation; openfdk computes the geodesic),
+    ``range`` (first, last) 1-based PathPointSet indices, −1 (< 1): the path's end."""
+
+    name: str
+    wrap_object: str
+    method: str
+    range: tuple
+    line: int = 0
+
+
 @dataclass
 class OsimMuscle:
     """A muscle of the ForceSet: ``type`` (OpenSim class), ``points`` (OsimPathPoint,
@@ -228,6 +277,7 @@ class OsimMuscle:
     points: list
     parameters: dict
     line: int = 0
+    wraps: list = field(default_factory=list)  # OsimPathWrap, in the PathWrapSet's order
 
 
 @dataclass
@@ -250,6 +300,7 @@ class OsimDocument:
     ignored: list = field(default_factory=list)  # the same, left out on request (--ignore)
     muscles: list = field(default_factory=list)  # OsimMuscle, in the ForceSet's order
     actuators: dict = field(default_factory=dict)  # CoordinateActuators {name: actuators-section entry}
+    wrap_objects: dict = field(default_factory=dict)  # OsimWrapObject {name: record}
 
 
 def _parser():
@@ -378,6 +429,7 @@ class _Reader:
         self.joints, self.constraints, self.markers, self.geometry = [], [], [], []
         self.muscles = []
         self.actuators = {}
+        self.wrap_objects = {}
         self.unsupported, self.ignored = [], []
         self.pending = []  # (frame key, socket path, scope): frames whose parent is resolved after reading
         self.joint_sockets = []  # (joint, parent path, child path, scope)
@@ -453,6 +505,7 @@ class _Reader:
         if ground is not None:  # a frame of its own: joints and markers may name "/ground" directly
             self.add_frame(OsimFrame("ground", "ground", np.zeros(3), np.eye(3), ground.sourceline), ground)
             self.body_geometry(ground, "ground")
+            self.read_wrap_objects(ground, "ground")
         self.bodies_ground = "ground" if ground is None else (ground.get("name") or "ground")
         for body in self.objects(model.find("BodySet")):
             if body.tag != "Body":
@@ -507,6 +560,21 @@ class _Reader:
                 if pt.frame not in self.frames and pt.frame != "ground":
                     raise OsimError(f"{self.source}: line {pt.line}: {mu.type} {mu.name!r}: PathPoint {pt.name!r}: "
                                     f"frame {pt.frame!r} is neither a body nor a frame of the model")
+        for w in self.wrap_objects.values():
+            w.frame = self.resolve(w.frame)
+        ignored_wraps = {n for k, n, _ in self.ignored if k.startswith("Wrap")}
+        unsupported_wraps = {n for k, n, _ in self.unsupported if k.startswith("Wrap")}
+        for mu in list(self.muscles):
+            for pw in mu.wraps:
+                if pw.wrap_object in self.wrap_objects:
+                    continue
+                if pw.wrap_object in ignored_wraps | unsupported_wraps:  # refused by name, or left out on request
+                    self.muscles.remove(mu)
+                    self.ignored.append(("PathWrap", f"{mu.name}/{pw.name}", pw.line))
+                    self.ignored.append((mu.type, mu.name, mu.line))
+                    break
+                raise OsimError(f"{self.source}: line {pw.line}: PathWrap '{mu.name}/{pw.name}': unknown wrap object "
+                                f"{pw.wrap_object!r} (wrap objects of the model: {sorted(self.wrap_objects)})")
         for g in self.geometry:
             g.frame = self.resolve(g.frame)
         for j in self.joints:
@@ -532,7 +600,7 @@ class _Reader:
                                     "body nor a frame of the model")
         return OsimDocument(self.source, self.path, name, version, gravity, self.bodies, self.frames, self.joints,
                             self.coordinates, self.constraints, self.markers, self.geometry, self.unsupported,
-                            self.ignored, self.muscles, self.actuators)
+                            self.ignored, self.muscles, self.actuators, self.wrap_objects)
 
     def resolve(self, path, scope=""):
         """The key in ``self.frames`` of a socket path, read in ``scope`` (the owner of
@@ -587,9 +655,7 @@ class _Reader:
                 self.read_offset_frame(comp, scope=name, default_parent=name)
             else:
                 self.skip(comp)
-        wraps = body.find("WrapObjectSet")
-        for w in self.objects(wraps):
-            self.skip(w)
+        self.read_wrap_objects(body, name)
         for e in body:
             if isinstance(e.tag, str) and e.tag not in (
                     "mass", "mass_center", "inertia", "inertia_xx", "inertia_yy", "inertia_zz", "inertia_xy",
@@ -636,7 +702,65 @@ class _Reader:
                           rotation_xyz(self.child_numbers(element, "orientation", 3, [0, 0, 0])), element.sourceline)
         self.add_frame(frame, element)
         self.body_geometry(element, frame.name)
+        self.read_wrap_objects(element, frame.name)
         return frame
+
+    def read_wrap_objects(self, element, frame):
+        """The WrapObjectSet of a body, the ground or a PhysicalOffsetFrame: WrapCylinder,
+        WrapSphere and WrapEllipsoid are read (OsimWrapObject on ``frame``); any other
+        wrap object (WrapTorus, …) is unsupported, refused by name unless ignored."""
+        for w in self.objects(element.find("WrapObjectSet")):
+            if not isinstance(w.tag, str):
+                continue
+            if w.tag not in WRAP_TYPES or w.tag in self.ignore:
+                self.skip(w)
+                continue
+            name = w.get("name")
+            if not name:
+                raise self.err(w, "a wrap object without a name")
+            if name in self.wrap_objects:
+                raise self.err(w, f"a second wrap object named {name!r} (first at line "
+                                  f"{self.wrap_objects[name].line})")
+            for e in w:
+                if isinstance(e.tag, str) and e.tag not in _WRAP_PROPERTIES | _WRAP_DIMENSIONS[w.tag]:
+                    raise self.err(e, f"{w.tag} {name!r}: property <{e.tag}> is not read by openfdk; leave it out "
+                                      f"with --ignore {w.tag}")
+            text = self.child_text(w, "quadrant", "Unassigned")
+            if text not in QUADRANTS:
+                raise self.err(w, f"quadrant {text!r}: expected all, +x, -x, +y, -y, +z or -z (OpenSim's values)")
+            rec = OsimWrapObject(name, w.tag, frame, self.child_numbers(w, "translation", 3, [0, 0, 0]),
+                                 rotation_xyz(self.child_numbers(w, "xyz_body_rotation", 3, [0, 0, 0])),
+                                 QUADRANTS[text], text, self.child_bool(w, "active", True), line=w.sourceline)
+            if w.tag == "WrapEllipsoid":
+                rec.dimensions = self.child_numbers(w, "dimensions", 3, [0.05, 0.05, 0.05])  # OpenSim's default
+                bad = not np.all(rec.dimensions > 0)
+            else:
+                rec.radius = float(self.child_numbers(w, "radius", 1, [1.0 if w.tag == "WrapCylinder" else 0.05])[0])
+                rec.length = float(self.child_numbers(w, "length", 1, [1.0])[0]) if w.tag == "WrapCylinder" else 0.0
+                bad = not rec.radius > 0 or (w.tag == "WrapCylinder" and not rec.length > 0)
+            if bad:
+                raise self.err(w, "its radius, length or dimensions must be > 0 m")
+            self.wrap_objects[name] = rec
+
+    def path_wrap(self, pw, label):
+        """An OsimPathWrap of a PathWrap element (``wrap_object``, ``method``, ``range``)."""
+        for e in pw:
+            if isinstance(e.tag, str) and e.tag not in ("wrap_object", "method", "range", "components"):
+                raise self.err(e, f"{label}: property <{e.tag}> is not read by openfdk; leave the muscle out with "
+                                  "--ignore PathWrap")
+        obj = self.child_text(pw, "wrap_object", "")
+        if not obj:
+            raise self.err(pw, f"{label}: no <wrap_object>")
+        method = self.child_text(pw, "method", "hybrid")
+        if method == "Unassigned":
+            method = "hybrid"
+        if method not in WRAP_METHODS:
+            raise self.err(pw, f"{label}: method {method!r}: expected hybrid, midpoint or axial (OpenSim's values)")
+        rng = self.child_text(pw, "range", "-1 -1").split()
+        if len(rng) != 2 or not all(x.lstrip("+-").isdigit() for x in rng):
+            raise self.err(pw, f"{label}: range {' '.join(rng)!r}: expected two point numbers (-1: the path's end)")
+        return OsimPathWrap(pw.get("name") or "", obj, WRAP_METHODS[method], (int(rng[0]), int(rng[1])),
+                            pw.sourceline)
 
     # -- joints -----------------------------------------------------------------------
     def read_joint(self, joint, legacy, child_body=None):
@@ -976,7 +1100,14 @@ class _Reader:
             if p.tag == "ConditionalPathPoint":
                 point.condition = self.conditional_point(p, where_)
             points.append(point)
-        refused += list(self.objects(path.find("PathWrapSet")))
+        wraps = []
+        for pw in self.objects(path.find("PathWrapSet")):
+            if not isinstance(pw.tag, str):
+                continue
+            if pw.tag != "PathWrap" or pw.tag in self.ignore:
+                refused.append(pw)
+                continue
+            wraps.append(self.path_wrap(pw, f"{label}: PathWrap '{name}/{pw.get('name') or ''}'"))
         if refused:
             before = len(self.unsupported)
             for e in refused:  # named by their place, "muscle/point", as OpenSim's component paths
@@ -986,4 +1117,4 @@ class _Reader:
             return
         if len(points) < 2:
             raise self.err(m, f"its path needs at least 2 PathPoints, the file gives {len(points)}")
-        self.muscles.append(OsimMuscle(name, kind, points, params, m.sourceline))
+        self.muscles.append(OsimMuscle(name, kind, points, params, m.sourceline, wraps))

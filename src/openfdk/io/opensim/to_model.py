@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ...model.coordinate_functions import function_from_spec
-from .document import OsimDocument
+from .document import WRAP_TYPES, OsimDocument
 from .errors import OsimError
 from .tree import Tree
 
@@ -147,7 +147,33 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         if safe != m.name:
             entry["label"] = m.name
         bodies[body].setdefault("markers", {})[safe] = entry
-    muscles, settings = {}, {}
+    muscles, settings, wrapping = {}, {}, {}
+
+    def wrap_surface(wo):
+        """The ``wrapping`` entry of an OsimWrapObject (added once); returns its name."""
+        safe = safe_name(wo.name)
+        if safe in wrapping:
+            return safe
+        unique("wrapping surface", wo.name)
+        root, p, R = tree.frame_in_root(wo.frame)
+        body = "ground" if root == tree.ground else safe_name(root)
+        fname = unique(f"frame of {root}", f"wrap_{wo.name}")
+        bodies[body].setdefault("frames", {})[fname] = _pose(p + R @ wo.p_FS - com[root], R @ wo.R_FS)
+        entry = {"type": WRAP_TYPES[wo.type], "frame": f"{body}.{fname}", "inside": "straight", "one_segment": True}
+        if wo.type == "WrapEllipsoid":
+            entry["semi_axes"] = [float(x) for x in wo.dimensions]
+        else:
+            entry["radius"] = wo.radius
+        if wo.type == "WrapCylinder":
+            entry["length"] = wo.length
+        axis, sign = wo.quadrant
+        if axis is not None:
+            entry["side"] = f"{'+' if sign > 0 else '-'}{'xyz'[axis]}"
+            if wo.type != "WrapCylinder":
+                entry["crossing_only"] = True  # OpenSim wraps a sphere or ellipsoid only where the line crosses it
+        wrapping[safe] = entry
+        return safe
+
     for mu in doc.muscles:
         safe = unique("muscle", mu.name)
         path = [frame_of(pt.frame, f"{mu.name}_{pt.name}", kind="path point") for pt in mu.points]
@@ -172,6 +198,8 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
             elif pt.moving is not None and pt.moving[0] is not None:
                 c, (fx, fy, fz) = pt.moving
                 path[k] = {"frame": ref, "moving": {"coordinate": c, "x": fx, "y": fy, "z": fz}}
+        if mu.wraps:
+            path = _wrapped_path(doc, tree, mu, path, wrap_surface)
         muscles[safe] = {"model": "hill", "path": path, **hill_parameters(mu, doc.source),
                          # activation bounds of OpenSim's static optimisation (static_optimization: opensim)
                          "min_control": mu.parameters["min_control"], "max_control": mu.parameters["max_control"]}
@@ -194,6 +222,8 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
     out["joints"] = joints
     if couplers:
         out["couplers"] = couplers
+    if wrapping:
+        out["wrapping"] = wrapping
     if muscles:
         out["muscles"] = muscles
     merged = {b: tree.root[b] for b in doc.bodies if tree.root[b] != b}
@@ -208,6 +238,66 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
 
         out = add_actuators(out, doc.actuators, body_frames, doc.source)
     return out, {"merged_bodies": merged, "body_frames": body_frames, "muscle_settings": settings}
+
+
+def _wrapped_path(doc, tree, mu, path, wrap_surface):
+    """``path`` (the muscle's point entries) with its PathWraps' surfaces inserted.
+
+    OpenSim tries a PathWrap on every segment between the points of its ``range``
+    (1-based, −1: the path's end) and wraps one: the first whose straight line crosses
+    the object, else the one whose length grows least. The surface is listed in every
+    segment of the range and is ``one_segment``: the kernel applies the same rule.
+    Surfaces in one segment follow the PathWrapSet's order. An inactive wrap object is
+    left out, as OpenSim leaves it out."""
+    n = len(mu.points)
+    segments = [[] for _ in range(n - 1)]
+    for pw in mu.wraps:
+        label = f"{doc.source}: line {pw.line}: PathWrap '{mu.name}/{pw.name}'"
+        if any(pt.condition is not None or pt.moving is not None for pt in mu.points):
+            raise OsimError(f"{label}: a path with conditional or moving points cannot hold wrapping surfaces in "
+                            "openfdk yet; leave the muscle out with --ignore PathWrap")
+        wo = doc.wrap_objects[pw.wrap_object]
+        if wo.type == "WrapCylinder" and wo.quadrant[0] == 2:
+            raise OsimError(f"{doc.source}: line {wo.line}: WrapCylinder {wo.name!r}: quadrant {wo.quadrant_text!r} "
+                            "along the cylinder's axis is not supported (openfdk's side is across the axis: x or y); "
+                            "leave it out with --ignore WrapCylinder")
+        first = 0 if pw.range[0] < 1 else pw.range[0] - 1
+        last = n - 1 if pw.range[1] < 1 else pw.range[1] - 1
+        if first > n - 1 or last > n - 1:
+            raise OsimError(f"{label}: range {list(pw.range)} beyond the path's {n} points")
+        if not wo.active or last <= first:  # OpenSim never wraps it
+            doc.ignored.append(("PathWrap", f"{mu.name}/{pw.name}", pw.line))
+            continue
+        surface = wrap_surface(wo)
+        for k in range(first, last):
+            segments[k].append(surface)
+    out = [path[0]]
+    for k in range(n - 1):
+        if len(segments[k]) > MAX_WRAPS_PER_SEGMENT:
+            raise OsimError(f"{doc.source}: line {mu.line}: {mu.type} {mu.name!r}: {len(segments[k])} PathWraps "
+                            f"over one segment; openfdk imports at most {MAX_WRAPS_PER_SEGMENT}; leave the muscle "
+                            "out with --ignore PathWrap")
+        out += _any_order(segments[k]) + [path[k + 1]]
+    return out
+
+
+#: the most PathWraps a segment may have (its surfaces are listed 2ⁿ − 1 times)
+MAX_WRAPS_PER_SEGMENT = 4
+
+
+def _any_order(surfaces):
+    """A sequence in which one entry of each surface can be chosen in any order: each
+    PathWrap wraps the path as OpenSim left it, before or after the points of the ones
+    applied before it, so the surface applied last stands between every two others
+    ([A, B] -> [B, A, B]; [A, B, C] -> [C, B, C, A, C, B, C]); the kernel keeps one
+    entry of each (``one_segment``)."""
+    seq = []
+    for s in surfaces:
+        new = [s]
+        for x in seq:
+            new += [x, s]
+        seq = new
+    return seq
 
 
 #: Thelen2003Muscle properties -> openfdk Hill keys (docs/opensim-import.md); Af is
