@@ -131,7 +131,7 @@ def test_progress_clock_starts_after_the_first_step():
     finally:
         progress.set_warmup(False)
     last = out.getvalue().splitlines()[-1]
-    assert last.startswith("fdk: 100% (10/10 frame, ")
+    assert last.startswith("fdk: 100% (10/10 frames, ")
     assert float(last.split(", ")[1].split()[0]) < 0.3
     # warm cache: the clock starts at creation, as before
     out = io.StringIO()

@@ -131,6 +131,22 @@ def _say(args, text):
         print(text)
 
 
+def _log(args):
+    """The log of a long command (demo, subject study): ``print``, or with --quiet only
+    its warnings and failures, on stderr."""
+    if not getattr(args, "quiet", False):
+        return print
+
+    def log(text=""):
+        line = str(text).strip()
+        if line.startswith("warning:"):
+            print(f"openfdk: {line}", file=sys.stderr)
+        elif " failed" in line:
+            print(f"openfdk: {line}", file=sys.stderr)
+
+    return log
+
+
 def _check_window(args):
     if args.start is not None and args.end is not None and args.start > args.end:
         raise UserError(f"--start ({args.start:g} s) is after --end ({args.end:g} s)")
@@ -346,7 +362,7 @@ def _cmd_demo(args):
     check_output_dir(args.out)
     check_output_dir(Path(args.out) / "study", force=args.force)
     _announce_kernels(args)
-    result = run_demo(args.out, quick=args.quick, progress=_progress_on(args), workers=args.workers)
+    result = run_demo(args.out, quick=args.quick, progress=_progress_on(args), workers=args.workers, log=_log(args))
     return _failed_tasks_exit(result, f"{args.out}/study")
 
 
@@ -391,13 +407,13 @@ def _cmd_subject(args):
         cycles = 5 if args.cycles is None else (None if args.cycles == "all" else args.cycles)
         result = run_study(args.directory, out, n_cycles=cycles, quick=args.quick, progress=_progress_on(args),
                            workers=args.workers, scheduler=args.scheduler,
-                           parameter_study=not args.no_parameter_study)
+                           parameter_study=not args.no_parameter_study, log=_log(args))
         if result["table1"]:
-            report(result, out)
+            report(result, out, _log(args))
         return _failed_tasks_exit(result, out)
     elif args.action == "create":
         path = create_subject(args.directory, resolution=args.resolution, symmetric=not args.asymmetric, seed=args.seed)
-        print(f"virtual subject written to {path}/ (subject.yaml and STL files); next: openfdk subject record {path}")
+        _say(args, f"virtual subject written to {path}/ (subject.yaml and STL files); next: openfdk subject record {path}")
     elif args.realistic:
         from .mandible.realistic import record_realistic
 
@@ -405,13 +421,13 @@ def _cmd_subject(args):
             raise UserError("openfdk subject record --realistic: --cycles is fixed by the realistic protocol "
                             "(docs/virtual-experiment.md); drop it")
         files = record_realistic(args.directory, quick=args.quick, noise_mm=args.noise, seed=args.seed)
-        print(f"realistic virtual experiment written: {', '.join(sorted(str(k) for k in files))}")
+        _say(args, f"realistic virtual experiment written: {', '.join(sorted(str(k) for k in files))}")
     else:
         if args.cycles == "all":
             raise UserError("openfdk subject record: --cycles must be a whole number")
         files = record_experiment(args.directory, cycles=5 if args.cycles is None else args.cycles,
                                   noise_mm=args.noise, seed=args.seed)
-        print(f"virtual experiment written: {', '.join(sorted(str(k) for k in files))}")
+        _say(args, f"virtual experiment written: {', '.join(sorted(str(k) for k in files))}")
     return 0
 
 
@@ -517,10 +533,11 @@ def _register_import(args):
              args.motion_cutoff or None, args.actuators)
 
 
-def _display_arguments(p, top=False):
-    """--no-progress and --quiet (on the main parser and on every subcommand)."""
+def _display_arguments(p, top=False, progress=True):
+    """--no-progress and --quiet (on the main parser and on every subcommand; ``progress``
+    False: --quiet only, for a command without a progress display)."""
     default = False if top else argparse.SUPPRESS
-    if not top:
+    if not top and progress:
         p.add_argument("--no-progress", action="store_true", help="no progress display")
     p.add_argument("--quiet", "-q", action="store_true", default=default,
                    help="no progress display and no informational output (warnings and errors still go to stderr)")
@@ -591,14 +608,19 @@ def build_parser():
     _display_arguments(p, top=True)
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    c = sub.add_parser("check", help="validate a model file and print a summary")
+    c = sub.add_parser("check", help="validate a model file and print a summary",
+                       description="Read a model file (YAML or OpenSim .osim), check it (units, references, meshes, "
+                                   "the rank of the constraint rows at the reference pose) and print a summary. "
+                                   "Errors exit with 2, plausibility warnings go to stderr (docs/input-checks.md).")
     c.add_argument("model", help="model file (YAML or OpenSim .osim) to validate: errors exit with 2, plausibility "
                                  "warnings go to stderr")
     _display_arguments(c)
     _import_arguments(c)
     c.set_defaults(func=_cmd_check)
 
-    io = sub.add_parser("import-opensim", help="an OpenSim .osim as a readable openfdk model file plus its meshes")
+    io = sub.add_parser("import-opensim", help="an OpenSim .osim as a readable openfdk model file plus its meshes",
+                        description="Write an OpenSim model (.osim, 3.x or 4.x) as an openfdk YAML model file and "
+                                    "its meshes; unsupported elements are left out and counted (docs/opensim-import.md).")
     io.add_argument("model", help="OpenSim model (.osim, OpenSim 3.x or 4.x)")
     io.add_argument("--out", required=True, help="output folder (the model file and a Geometry folder)")
     io.add_argument("--force", action="store_true", help="overwrite an earlier import in --out")
@@ -606,16 +628,28 @@ def build_parser():
     _import_arguments(io)
     io.set_defaults(func=_cmd_import_opensim)
 
-    ca = sub.add_parser("cache", help="the on-disk distance-grid cache: size (info) or delete it (clear)")
+    ca = sub.add_parser("cache", help="the on-disk distance-grid cache: size (info) or delete it (clear)",
+                        description="The contact meshes' signed-distance grids are cached on disk (OPENFDK_CACHE_DIR; "
+                                    "'off' disables it). info: folder, number of grids and size; clear: delete them "
+                                    "(docs/contact.md).")
     ca.add_argument("action", choices=["info", "clear"], help="info: folder, number of grids and size; clear: delete them")
     _display_arguments(ca)
     ca.set_defaults(func=_cmd_cache)
 
-    k = sub.add_parser("kinematics", help="kinematic analysis: marker tracking (with a C3D trial) or determinate")
+    k = sub.add_parser("kinematics", help="kinematic analysis: marker tracking (with a C3D trial) or determinate",
+                       description="Kinematic analysis of a model over a trial: marker tracking (least squares on the "
+                                   "markers of a C3D or TRC trial, Eqs. 4-10) or, without a trial, determinate "
+                                   "kinematics from the model's drivers (Eqs. 1-3). Writes kinematics.csv/.sto, "
+                                   "measures.csv and summary.json to --out (docs/kinematics.md).")
     _trial_arguments(k)
     k.set_defaults(func=_cmd_kinematics)
 
-    r = sub.add_parser("run", help="kinematics, then inverse dynamics with muscle recruitment")
+    r = sub.add_parser("run", help="kinematics, then inverse dynamics with muscle recruitment",
+                       description="Kinematics, then inverse dynamics with muscle recruitment (Eqs. 11-14) and, for a "
+                                   "model with FDK DOFs, force-dependent kinematics (Eqs. 15-17). The model is checked "
+                                   "first as by `openfdk check`. Writes kinematics.csv, forces.csv (+ .sto), "
+                                   "measures.csv, summary.json and plots/ to --out (docs/inverse-dynamics.md, "
+                                   "docs/fdk.md, docs/outputs.md).")
     _trial_arguments(r)
     r.set_defaults(func=_cmd_run)
     from .study.cli import add_chunk_arguments, add_study_parser
@@ -637,7 +671,11 @@ def build_parser():
     add_output_parsers(sub)
     add_view_parser(sub)
 
-    d = sub.add_parser("demo", help="the mandible study on the virtual subject, end to end")
+    d = sub.add_parser("demo", help="the mandible study on the virtual subject, end to end",
+                       description="The paper's application end to end: a virtual mandible subject and its recorded "
+                                   "experiment (OUT/subject, reused when present), the POP and FDK TMJ models on every "
+                                   "task, Tables 1-2, Figures 5-7 and the ligament parameter study (OUT/study; "
+                                   "docs/mandible-study.md).")
     d.add_argument("--out", default="openfdk-demo", help="output directory (default ./openfdk-demo)")
     d.add_argument("--quick", action="store_true", help="a reduced run (coarse meshes, 2 cycles; for tests)")
     d.add_argument("--force", action="store_true",
@@ -649,7 +687,10 @@ def build_parser():
 
     _subject_parser(sub)
 
-    b = sub.add_parser("bench", help="run the benchmarks")
+    b = sub.add_parser("bench", help="run the benchmarks",
+                       description="Run the benchmarks: medians over repeats on one core, one line per record "
+                                   "(with --json one JSON object {name, value, unit} per line); --quick runs short "
+                                   "versions. A benchmark that fails is reported and the others go on (exit 1).")
     b.add_argument("--quick", action="store_true", help="short runs (for tests)")
     b.add_argument("--json", action="store_true", help="one JSON object per line")
     b.add_argument("--only", nargs="*", help="benchmark modules to run: a module's name (full_body) or a substring of "

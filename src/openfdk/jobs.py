@@ -27,6 +27,13 @@ def model_and_settings(model, settings=None):
     return loaded, settings or file_settings, str(model)
 
 
+def _refuse_redundant_rows(model, label):
+    """``openfdk check``'s rank test before any frame (:func:`openfdk.model_check.refuse_redundant_rows`)."""
+    from .model_check import refuse_redundant_rows
+
+    refuse_redundant_rows(model, label)
+
+
 def load_trajectories(model, trial_path, cutoff_hz=None, settings=None):
     """Read a C3D or TRC trial, pick the model's markers (by label, in model order) and build
     filtered, interpolated trajectories (cut-off: ``cutoff_hz``, else the settings'
@@ -167,6 +174,7 @@ def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, s
     from .kinematics.analysis import run_determinate, run_tracking
 
     model, settings, label = model_and_settings(model_path, settings)
+    _refuse_redundant_rows(model, label)
     info = {"model": label, **_import_info(model_path)}
     traj, times, more = analysis_inputs(model, trial_path, cutoff_hz, start, end, settings)
     info.update(more)
@@ -191,6 +199,7 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
     from .trial import TrialInterrupted
 
     model, settings, label = model_and_settings(model_path, settings)
+    _refuse_redundant_rows(model, label)
     traj, times, info = analysis_inputs(model, trial_path, cutoff_hz, start, end, settings)
     info = {"model": label, **_import_info(model_path), **info}
     model = _with_ground_reactions(model, settings, trial_path, traj, cutoff_hz, info)

@@ -53,6 +53,37 @@ def _label(element):
     return f"{element.name} over {'+'.join(surfaces)}" if surfaces else element.name
 
 
+def _reference_rank(model, state=None):
+    """(Φ_q̂, its rank, the names of the rows in a linear dependency) at the reference
+    pose, FDK DOFs at their initial α."""
+    system = ConstraintSystem(model)
+    alpha = np.array([d.initial for d in model.fdk_dofs], dtype=float)
+    _, A, _, _ = system.evaluate(model.initial_state() if state is None else state, 0.0, alpha, order=1)
+    rank, redundant = dependent_rows(A, system.row_names)
+    return A, rank, redundant
+
+
+def _redundant_message(rank, rows, redundant):
+    return (f"constraint Jacobian is singular at the reference pose (rank {rank} of {rows} rows): "
+            f"redundant or inconsistent rows {redundant}")
+
+
+def refuse_redundant_rows(model, source=""):
+    """``check``'s rank test, done by ``run`` and ``kinematics`` before the first frame:
+    a ModelError naming ``source`` (the model file) and the rows in a linear dependency
+    at the reference pose. A model whose constraints cannot be evaluated there is left
+    to the run (its frames report why)."""
+    from .model.model import ModelError
+
+    try:
+        A, rank, redundant = _reference_rank(model)
+    except (FloatingPointError, ValueError):
+        return
+    if redundant:
+        prefix = f"{source}: " if source else ""
+        raise ModelError(f"{prefix}{_redundant_message(rank, A.shape[0], redundant)} (see `openfdk check`)")
+
+
 def check_model(model):
     """Inventory, row count and rank at the reference pose of ``model`` (CheckReport)."""
     rep = CheckReport()
@@ -86,18 +117,14 @@ def check_model(model):
     rows = n_joint + n_driver + n_fdk
     rep.lines.append(f"  rows: {n_joint} joint/constraint + {n_driver} driver + {n_fdk} FDK = {rows}; "
                      f"coordinates: {n} (6 per moving body)")
-    system = ConstraintSystem(model)
-    alpha = np.array([d.initial for d in model.fdk_dofs], dtype=float)
     try:
-        _, A, _, _ = system.evaluate(state, 0.0, alpha, order=1)
+        A, rank, redundant = _reference_rank(model, state)
     except (FloatingPointError, ValueError) as exc:
         rep.errors.append(f"the constraints cannot be evaluated at the reference pose: {exc}")
         return rep
-    rank, redundant = dependent_rows(A, system.row_names)
     rep.lines.append(f"  rank of the constraint Jacobian at the reference pose: {rank} of {rows} rows")
     if redundant:
-        rep.errors.append(f"constraint Jacobian is singular at the reference pose (rank {rank} of {rows} rows): "
-                          f"redundant or inconsistent rows {redundant}")
+        rep.errors.append(_redundant_message(rank, rows, redundant))
     if model.markers.size:
         _, Psi_q, _ = model.markers.evaluate(state, 1)
         Psi_q = Psi_q[np.repeat(model.markers.weight > 0, 3)]  # a marker of weight 0 is not tracked
@@ -119,4 +146,4 @@ def check_model(model):
     return rep
 
 
-__all__ = ["CheckReport", "check_model"]
+__all__ = ["CheckReport", "check_model", "refuse_redundant_rows"]

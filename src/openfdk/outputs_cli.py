@@ -14,6 +14,12 @@ import sys
 from pathlib import Path
 
 
+def _say(args, text):
+    """An informational line on stdout, unless --quiet."""
+    if not getattr(args, "quiet", False):
+        print(text)
+
+
 def refuse_empty_out(args):
     """``--out ''`` is refused (it would write into the current folder)."""
     if args.out is not None and not str(args.out).strip():
@@ -33,7 +39,7 @@ def _cmd_plot(args):
         results._model = load_model(args.model)
     out = Path(args.out) if args.out else Path(args.result_dir) / "plots"
     paths = save_figures(iter_figures(results, measures=args.measures), out)
-    print(f"plot: {len(paths)} figures -> {out}/ ({', '.join(p.name for p in paths)})")
+    _say(args, f"plot: {len(paths)} figures -> {out}/ ({', '.join(p.name for p in paths)})")
     return 0
 
 
@@ -48,7 +54,7 @@ def _cmd_export_opensim(args):
 
         model = load_model(args.model)
     res = export_opensim(args.result_dir, args.out, model=model)
-    print(f"export-opensim: {res['osim']} and {res['mot']} ({res['frames']} frames"
+    _say(args, f"export-opensim: {res['osim']} and {res['mot']} ({res['frames']} frames"
           + (f", {len(res['skipped_frames'])} failed frames left out" if res["skipped_frames"] else "")
           + (f", {len(res['geometry'])} meshes in {Path(args.out) / 'Geometry'}" if res["geometry"] else "") + ")")
     return 0
@@ -56,19 +62,27 @@ def _cmd_export_opensim(args):
 
 def add_output_parsers(sub):
     """Register ``plot`` and ``export-opensim`` on the main parser's subparsers."""
-    p = sub.add_parser("plot", help="PNG figures of a run (kinematics, FDK, muscles, contact, reactions, convergence)")
+    from .cli import _display_arguments
+
+    p = sub.add_parser("plot", help="PNG figures of a run (kinematics, FDK, muscles, contact, reactions, convergence)",
+                       description="Draw the PNG figures of a result folder of openfdk run / kinematics (the same "
+                                   "figures `openfdk run` writes to RESULT_DIR/plots; docs/outputs.md#figures).")
     p.add_argument("result_dir", help="output folder of openfdk run / kinematics")
     p.add_argument("--out", default=None, help="figure folder (default RESULT_DIR/plots)")
     p.add_argument("--measures", nargs="*", default=None,
                    help="model measures to plot (default: the model's first named measures; none: --measures)")
     p.add_argument("--model", default=None, help="model file (default: the one recorded in summary.json)")
+    _display_arguments(p, progress=False)
     p.set_defaults(func=_cmd_plot)
 
     e = sub.add_parser("export-opensim", help="an OpenSim .osim model (free joints, meshes, markers) and a .mot "
-                                              "motion of a run")
+                                              "motion of a run",
+                       description="Write a run as an OpenSim model (.osim: bodies on free joints, meshes, markers) "
+                                   "and a .mot motion of its converged frames (docs/opensim.md).")
     e.add_argument("result_dir", help="output folder of openfdk run / kinematics")
     e.add_argument("--out", required=True, help="folder for the .osim, .mot and Geometry/")
     e.add_argument("--model", default=None, help="model file (default: the one recorded in summary.json)")
+    _display_arguments(e, progress=False)
     e.set_defaults(func=_cmd_export_opensim)
 
 

@@ -63,8 +63,15 @@ class _Silent:
         self.close()
 
 
+def plural(unit: str, n: int) -> str:
+    """``unit`` for n == 1, else its plural: ``frame`` -> ``frames``, ``case`` -> ``cases``."""
+    if n == 1 or not unit or unit.endswith("s"):
+        return unit
+    return unit[:-1] + "ies" if unit.endswith("y") and unit[-2:-1] not in "aeiou" else unit + "s"
+
+
 class _Lines(_Silent):
-    """One line per 10 % on a non-terminal stream: ``<desc>: 30% (15/50 frame, 2.1 s)``."""
+    """One line per 10 % on a non-terminal stream: ``<desc>: 30% (15/50 frames, 2.1 s)``."""
 
     def __init__(self, total, desc, unit, stream, initial=0):
         self.total, self.desc, self.unit, self.stream = max(int(total), 0), desc, unit, stream
@@ -79,7 +86,7 @@ class _Lines(_Silent):
         tenth = min(self._tenth(), 10)
         if tenth >= self.next_tenth:
             self.next_tenth = tenth + 1
-            self.stream.write(f"{self.desc}: {10 * tenth}% ({self.done}/{self.total} {self.unit}, "
+            self.stream.write(f"{self.desc}: {10 * tenth}% ({self.done}/{self.total} {plural(self.unit, self.total)}, "
                               f"{time.perf_counter() - self.t0:.1f} s)\n")
             self.stream.flush()
 

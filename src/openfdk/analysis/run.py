@@ -94,4 +94,5 @@ def run_trial(model, trajectories, times, *, settings=None, progress=False, chec
         kin = kinematics_result(rec, model, times[:n], alpha, wall, mode)
         return kin, forces_result(rec, solver, times[:n], wall), None
 
-    return drive(step, len(times), build, progress=progress, desc="frames", checkpoints=checkpoints, resume=resume)
+    return drive(step, len(times), build, progress=progress, desc="kinematics + inverse dynamics",
+                 checkpoints=checkpoints, resume=resume)

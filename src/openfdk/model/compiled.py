@@ -197,11 +197,12 @@ class CompiledMeasures:
         """Raise the Python reference's FloatingPointError for a kernel error code
         (``state``: the pose, for messages that quote values)."""
         m = self._node_measure[err_node]
-        if state is not None and isinstance(m, RotationAngles):
-            m.evaluate(state, 1)  # raises the reference's message (the middle angle)
+        if state is not None and isinstance(m, (RotationAngles, RelativeAngles)):
+            m.evaluate(state, 1)  # raises the reference's message (the middle angle and its value)
         if err_kind == ERR_COINCIDENT:
             raise FloatingPointError(f"distance measure {m.name!r}: the two points coincide")
-        raise FloatingPointError(f"relative angles {m.name!r}: gimbal lock (θ1 = ±90°)")
+        raise FloatingPointError(f"relative angles {m.name!r} (x-y'-z''): gimbal lock, the middle angle "
+                                 "(about y') is ±90 deg")
 
     def evaluate(self, state, order=1):
         """value (n_rows,), M (n_rows, n_coords) or None, b (n_rows,) or None."""

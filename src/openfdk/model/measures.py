@@ -240,7 +240,8 @@ class RelativeAngles(Measure):
         s1, c1 = np.sin(theta[1]), np.cos(theta[1])
         B = np.array([[1.0, 0.0, s1], [0.0, c0, -s0 * c1], [0.0, s0, c0 * c1]])
         if abs(c1) < 1e-9:
-            raise FloatingPointError(f"relative angles {self.name!r}: gimbal lock (θ1 = ±90°)")
+            raise FloatingPointError(f"relative angles {self.name!r} (x-y'-z''): gimbal lock, the middle angle "
+                                     f"(about y') is {np.degrees(theta[1]):.1f} deg")
         Binv = np.linalg.inv(B)
         M = np.zeros((3, state.n_coords))
         ca, cb = state.column[self.body_a], state.column[self.body_b]

@@ -149,11 +149,12 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
     # the plausibility checks of the whole trial, here once (the segments skip them):
     # model (on loading), trial markers in the window, and the pulling contacts below
     from ..io.modelfile import load_model_and_settings
-    from ..jobs import analysis_inputs
+    from ..jobs import _refuse_redundant_rows, analysis_inputs
     from ..contact.rim import warn_contact_rims
     from ..model.plausibility import warn_pulling_contacts
 
     model, settings = load_model_and_settings(model_path)
+    _refuse_redundant_rows(model, str(model_path))
     analysis_inputs(model, trial_path, cutoff_hz, start, end, settings)
     done = {}
     if checkpoints is not None:

@@ -10,12 +10,18 @@ def _cmd_view(args):
     refuse_empty_out(args)
     out = write_view(args.result_dir, args.out, model=args.model, max_vertices=args.max_vertices)
     size = out.stat().st_size / 1e6
-    print(f"view: {out} ({size:.1f} MB); open it in a web browser (works offline)")
+    if not getattr(args, "quiet", False):
+        print(f"view: {out} ({size:.1f} MB); open it in a web browser (works offline)")
     return 0
 
 
 def add_view_parser(sub):
-    v = sub.add_parser("view", help="write a self-contained 3D viewer (HTML) of a result folder")
+    from ..cli import _display_arguments
+
+    v = sub.add_parser("view", help="write a self-contained 3D viewer (HTML) of a result folder",
+                       description="Write one self-contained HTML file (works offline) showing a run in 3D: bodies "
+                                   "and meshes, markers, muscles and ligaments coloured by force, contact, FDK panel "
+                                   "(docs/viewer.md).")
     v.add_argument("result_dir", help="folder written by 'openfdk run' (kinematics.csv, forces.csv, summary.json)")
     v.add_argument("--out", default=None, help="HTML file to write (default RESULT_DIR/view.html)")
     v.add_argument("--model", default=None, help="model file (default: the one recorded in summary.json)")
@@ -25,5 +31,6 @@ def add_view_parser(sub):
     v.add_argument("--max-vertices", type=count(MIN_MESH_VERTICES), default=4000,
                    help=f"meshes with more vertices are decimated for display (default 4000, at least "
                         f"{MIN_MESH_VERTICES})")
+    _display_arguments(v, progress=False)
     v.set_defaults(func=_cmd_view)
     return v
