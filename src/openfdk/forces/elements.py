@@ -62,11 +62,14 @@ class Ligament:
 
 @dataclass(frozen=True, eq=False)
 class Spring:
-    """A linear spring on a scalar measure: generalised force −k (m − m_rest) along m."""
+    """A spring on a scalar measure: generalised force f(m) − c ṁ along m (a linear law:
+    f = −k (m − m_rest)); viscosity c ≥ 0 (N s/m or N m s/rad, OpenSim's
+    SpringGeneralizedForce)."""
 
     name: str
     measure: Measure
     law: LinearSpring
+    viscosity: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -300,13 +303,17 @@ def add_ligament(b, name, points, stiffness, slack_length=None, reference_length
     return _append(b, LIGAMENTS, Ligament(name, path, law, tuple(points)))
 
 
-def add_spring(b, name, measure, stiffness, rest_value=0.0, unit="m"):
-    """A linear spring on a scalar measure (k in N/m or N m/rad)."""
+def add_spring(b, name, measure, stiffness, rest_value=0.0, unit="m", viscosity=0.0):
+    """A linear spring on a scalar measure (k in N/m or N m/rad), with a damper of
+    viscosity c ≥ 0 (N s/m or N m s/rad) in parallel."""
     if isinstance(measure, str):
         measure = b.measure(measure)
     if measure.size != 1:
         raise ModelError(f"spring {name!r}: the measure must be scalar")
-    return _append(b, SPRINGS, Spring(name, measure, LinearSpring(stiffness, rest_value, unit, name=name)))
+    if not (np.isfinite(viscosity) and viscosity >= 0.0):
+        raise ModelError(f"spring {name!r}: viscosity must be a finite number >= 0, got {viscosity!r}")
+    return _append(b, SPRINGS, Spring(name, measure, LinearSpring(stiffness, rest_value, unit, name=name),
+                                      float(viscosity)))
 
 
 def add_unilateral_reaction(b, constraint, row=0, direction="push", strength=20e3, name=None):

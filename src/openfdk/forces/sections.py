@@ -183,7 +183,7 @@ def load_springs(b, data, ctx):
 
     for name, spec in ctx.mapping(data, "springs").items():
         p = f"springs.{name}"
-        ctx.keys(spec, p, ["measure", "component", "stiffness", "rest_value", "law"], required=("measure",))
+        ctx.keys(spec, p, ["measure", "component", "stiffness", "rest_value", "law", "viscosity"], required=("measure",))
         m = _measure(b, spec["measure"], f"{p}.measure", ctx)
         if "component" in spec:
             m = _wrap(ctx, p, lambda: b._select(m, [spec["component"]]))
@@ -195,8 +195,11 @@ def load_springs(b, data, ctx):
             if "stiffness" not in spec:
                 raise ctx.error(p, "missing required key 'stiffness' (or a 'law')")
             k = ctx.number(spec["stiffness"], f"{p}.stiffness", nonnegative=True)
-            _wrap(ctx, p, lambda: el.add_spring(b, name, m, k, rest, si_unit))
+            c = ctx.number(spec.get("viscosity", 0.0), f"{p}.viscosity", nonnegative=True)
+            _wrap(ctx, p, lambda: el.add_spring(b, name, m, k, rest, si_unit, c))
             continue
+        if "viscosity" in spec:
+            raise ctx.error(f"{p}.viscosity", "a damper goes with a linear spring ('stiffness'), not a 'law'")
         if "stiffness" in spec:
             raise ctx.error(f"{p}.stiffness", "give either 'stiffness' (linear) or 'law', not both")
         law = ctx.mapping(spec["law"], f"{p}.law")

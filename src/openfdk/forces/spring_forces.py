@@ -1,5 +1,7 @@
 """Springs on scalar measures as one force set (:mod:`.forceset`): a generalised force
-f(m) along the measure m acts as Q = Mᵀ f, M = ∂m/∂q̂ (n_springs, n); its stiffness is
+f(m) − c ṁ along the measure m (c the viscosity of a parallel damper, ṁ = M v) acts as
+Q = Mᵀ f, M = ∂m/∂q̂ (n_springs, n); its stiffness (v held, as the FDK Jacobian takes
+it) is
 
     K = Mᵀ diag(df/dm) M + Σ_k f_k ∂M_kᵀ/∂q̂,
 
@@ -35,6 +37,8 @@ class SpringForces:
     def __init__(self, springs):
         self.springs = tuple(springs)
         self.rows = ScalarRows([s.measure for s in self.springs])
+        self.viscosity = np.array([s.viscosity for s in self.springs], float)
+        self.damped = bool(np.any(self.viscosity))
 
     def _measures(self, state):
         """(values (n_springs,), M (n_springs, n)) of the springs' measures (row 0 each)."""
@@ -43,6 +47,8 @@ class SpringForces:
     def accumulate(self, state, t, Q, K=None):
         m, M = self._measures(state)
         f = np.array([float(spr.law.force(float(x))) for spr, x in zip(self.springs, m)])
+        if self.damped:
+            f -= self.viscosity * (M @ state.get_v())  # damper: −c ṁ
         Q += M.T @ f
         out = SpringOutputs(m, f, M)
         if K is not None:

@@ -301,6 +301,7 @@ class OsimDocument:
     muscles: list = field(default_factory=list)  # OsimMuscle, in the ForceSet's order
     actuators: dict = field(default_factory=dict)  # CoordinateActuators {name: actuators-section entry}
     wrap_objects: dict = field(default_factory=dict)  # OsimWrapObject {name: record}
+    springs: dict = field(default_factory=dict)  # SpringGeneralizedForces {name: springs-section entry}
 
 
 def _parser():
@@ -429,6 +430,7 @@ class _Reader:
         self.joints, self.constraints, self.markers, self.geometry = [], [], [], []
         self.muscles = []
         self.actuators = {}
+        self.springs = {}
         self.wrap_objects = {}
         self.unsupported, self.ignored = [], []
         self.pending = []  # (frame key, socket path, scope): frames whose parent is resolved after reading
@@ -527,6 +529,7 @@ class _Reader:
         for m in self.objects(model.find("MarkerSet")):
             self.read_marker(m, legacy)
         from .actuators import ACTUATOR_TYPES, read_actuator  # (imports this module)
+        from .passive_forces import PASSIVE_TYPES, read_spring
 
         for tag in ("ForceSet", "ContactGeometrySet", "ProbeSet", "ControllerSet"):
             for e in self.objects(model.find(tag)):
@@ -534,6 +537,13 @@ class _Reader:
                     self.ignored.append((e.tag, e.get("name") or "", e.sourceline))
                 elif tag == "ForceSet" and e.tag in MUSCLE_TYPES and e.tag not in self.ignore:
                     self.read_muscle(e, legacy)
+                elif tag == "ForceSet" and e.tag in PASSIVE_TYPES and e.tag not in self.ignore:
+                    name, entry = read_spring(e, self.source)
+                    if entry is None:
+                        self.ignored.append((e.tag, name, e.sourceline))  # disabled: OpenSim skips it too
+                    else:
+                        self.once(e, "spring", name)
+                        self.springs[name] = entry
                 elif tag == "ForceSet" and e.tag in ACTUATOR_TYPES and e.tag not in self.ignore:
                     name, entry = read_actuator(e, self.source)
                     if entry is None:
@@ -600,7 +610,7 @@ class _Reader:
                                     "body nor a frame of the model")
         return OsimDocument(self.source, self.path, name, version, gravity, self.bodies, self.frames, self.joints,
                             self.coordinates, self.constraints, self.markers, self.geometry, self.unsupported,
-                            self.ignored, self.muscles, self.actuators, self.wrap_objects)
+                            self.ignored, self.muscles, self.actuators, self.wrap_objects, self.springs)
 
     def resolve(self, path, scope=""):
         """The key in ``self.frames`` of a socket path, read in ``scope`` (the owner of

@@ -233,6 +233,10 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         root = tree.root[b]
         p, R = tree.X_root[b]
         body_frames[b] = ("ground" if root == tree.ground else safe_name(root), (p - com[root]).tolist(), R.tolist())
+    if doc.springs:
+        from .passive_forces import add_springs
+
+        out = add_springs(out, doc.springs, doc.source)
     if doc.actuators:
         from .actuators import add_actuators
 
