@@ -290,7 +290,7 @@ def analyse_trial(subject, registration, models, trial, out_dir, *, start=None, 
     :mod:`.ml_jumps`), the warnings issued (``warnings``; a contact-depth warning names
     ``task``, default the trial file's name, and the model) and where the run failed
     (``failed_frames``: count, time spans, incisal opening from the record's rest pose
-    at those frames; never hidden: the frames stay NaN in the series)."""
+    at those frames; never hidden: their forces are NaN in the series)."""
     time, measured, incisor = measured_series(subject, registration, trial)
     keep = np.ones(len(time), dtype=bool)
     if start is not None:
@@ -379,8 +379,9 @@ def analyse_task(subject, registration, models, task, out_dir, progress=False, n
                 more = f" and {len(failed['spans_s']) - 6} more" if len(failed["spans_s"]) > 6 else ""
                 lo, hi = failed["incisal_opening_mm"]
                 log(f"  {spec.task}: {label} failed on {failed['frames']} of {runs[label]['frames']} frames "
-                    f"(t = {spans}{more} s; incisal opening {lo:.1f}–{hi:.1f} mm from rest); they are NaN in "
-                    f"the series and tables, listed in summary.json (runs.{spec.task}.{label}.failed_frames)")
+                    f"(t = {spans}{more} s; incisal opening {lo:.1f}–{hi:.1f} mm from rest); their forces are "
+                    f"left out of Table 2 and the figures, listed in summary.json "
+                    f"(runs.{spec.task}.{label}.failed_frames)")
     first = int(np.argmin(np.abs(found.time - series["time"][0])))
     cycles = [(a - first, b - first) for a, b in found.cycles]
     found = TaskCycles(series["time"], cycles, found.found, found.requested, found.window, found.message,
