@@ -38,7 +38,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["LigamentParameterError", "Blankevoort1991Ligament"]
+__all__ = ["LigamentParameterError", "Blankevoort1991Ligament", "damped_tension"]
+
+#: the strain over which OpenSim fades a ligament's damping in (its SimTK::Function::Step(0, 1, 0, 0.01))
+OPENSIM_DAMPING_STRAIN = 0.01
+
+
+def damped_tension(f, strain, speed, damping, opensim):
+    """Tension with damping (arrays, N): f elastic (N), strain ε, speed l̇ (m/s), damping
+    c (N·s/m); opensim (bool or array): OpenSim's rule (only lengthening, faded in by the
+    quintic step over 0 ≤ ε ≤ 0.01) instead of c·l̇ while taut. Clipped at 0; 0 when slack."""
+    u = np.clip(strain / OPENSIM_DAMPING_STRAIN, 0.0, 1.0)
+    step = u * u * u * (10.0 + u * (6.0 * u - 15.0))
+    f_d = np.where(opensim, np.where(speed > 0.0, damping * speed * step, 0.0), damping * speed)
+    return np.where(strain > 0.0, np.maximum(f + f_d, 0.0), 0.0)
 
 
 class LigamentParameterError(ValueError):
@@ -65,6 +78,9 @@ class Blankevoort1991Ligament:
     damping : float, N·s/m, default 0.0
         ``c``: linear damping ``c·l̇`` added while the ligament is taut (ε > 0); the total
         force is clipped at 0 (a ligament cannot push).
+    damping_rule : "openfdk" (default: ``c·l̇`` while taut) or "opensim" (OpenSim's
+        Blankevoort1991Ligament: only while taut *and lengthening*, faded in by
+        Simbody's quintic step s(ε/0.01) = 10u³ − 15u⁴ + 6u⁵ over 0 ≤ ε ≤ 0.01).
     name : str, default ""
         Used in error messages.
 
@@ -76,8 +92,12 @@ class Blankevoort1991Ligament:
     transition_strain: float = 0.03
     damping: float = 0.0
     name: str = ""
+    damping_rule: str = "openfdk"
 
     def __post_init__(self):
+        if self.damping_rule not in ("openfdk", "opensim"):
+            raise LigamentParameterError(f"ligament '{self.name}': damping_rule must be 'openfdk' or 'opensim', "
+                                         f"got {self.damping_rule!r}")
         label = f"ligament '{self.name}'" if self.name else "ligament"
         checks = (
             ("stiffness", self.stiffness, "N/m", lambda x: x >= 0.0, ">= 0"),
@@ -147,9 +167,8 @@ class Blankevoort1991Ligament:
         """
         f = np.asarray(self.elastic_force(length), dtype=float)
         if lengthening_speed is not None and self.damping > 0.0:
-            taut = self.strain(length) > 0.0
-            f_damped = f + self.damping * np.asarray(lengthening_speed, dtype=float)
-            f = np.where(taut, np.maximum(f_damped, 0.0), 0.0)
+            f = np.asarray(damped_tension(f, self.strain(length), np.asarray(lengthening_speed, dtype=float),
+                                          self.damping, self.damping_rule == "opensim"))
         return f if f.ndim else float(f)
 
     def dforce_dlength(self, length):

@@ -290,16 +290,23 @@ def reference_length(b, measure):
 
 
 def add_ligament(b, name, points, stiffness, slack_length=None, reference_length_m=None,
-                 reference_strain=0.0, transition_strain=0.03):
+                 reference_strain=0.0, transition_strain=0.03, damping=0.0, damping_rule="openfdk"):
     """A Blankevoort ligament along ``points``. Slack length given directly (m), or from
     a reference length l_r (m; default: the path length in the reference pose) and a
-    reference strain ε_r: l0 = l_r / (1 + ε_r). stiffness k in N/m."""
+    reference strain ε_r: l0 = l_r / (1 + ε_r). stiffness k in N/m; damping c in N·s/m
+    with its rule (:class:`~.blankevoort.Blankevoort1991Ligament`)."""
     path = path_measure(b, points, name)
     if slack_length is not None:
-        law = Blankevoort1991Ligament(stiffness, slack_length, transition_strain, name=name)
+        law = Blankevoort1991Ligament(stiffness, slack_length, transition_strain, damping, name=name,
+                                      damping_rule=damping_rule)
     else:
         l_r = reference_length(b, path) if reference_length_m is None else reference_length_m
-        law = Blankevoort1991Ligament.from_reference(stiffness, l_r, reference_strain, transition_strain, name=name)
+        law = Blankevoort1991Ligament.from_reference(stiffness, l_r, reference_strain, transition_strain, damping,
+                                                     name=name)
+        if damping_rule != "openfdk":
+            from dataclasses import replace
+
+            law = replace(law, damping_rule=damping_rule)
     return _append(b, LIGAMENTS, Ligament(name, path, law, tuple(points)))
 
 

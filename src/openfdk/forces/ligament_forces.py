@@ -1,5 +1,7 @@
-"""Ligaments as one force set (:mod:`.forceset`): a tension T(l) ≥ 0 along a path of
-length l acts on the bodies as Q = −Lᵀ T, L = ∂l/∂q̂ (n_ligaments, n); its stiffness is
+"""Ligaments as one force set (:mod:`.forceset`): a tension T(l, l̇) ≥ 0 along a path of
+length l acts on the bodies as Q = −Lᵀ T, L = ∂l/∂q̂ (n_ligaments, n), l̇ = L v (the
+damping of :func:`.blankevoort.damped_tension`, when a ligament has any); its stiffness
+(v held) is
 
     K = −Lᵀ diag(dT/dl) L − Σ_k T_k ∂L_kᵀ/∂q̂,
 
@@ -15,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .blankevoort import Blankevoort1991Ligament
+from .blankevoort import Blankevoort1991Ligament, damped_tension
 from .pathset import PathSet
 
 
@@ -52,6 +54,10 @@ class LigamentForces:
         #: (slack length l0 (n,) m, k·l0 (n,) N, k (n,) N/m, transition strain ε_l (n,)),
         #: or None to evaluate law object by law object (the reference used by tests)
         self.blankevoort = None
+        #: damping c (n,) N·s/m and OpenSim's rule (n,) bool, or None when no ligament is damped
+        self.damping = None
+        if all(type(x) is Blankevoort1991Ligament for x in laws) and any(x.damping > 0.0 for x in laws):
+            self.damping = (np.array([x.damping for x in laws]), np.array([x.damping_rule == "opensim" for x in laws]))
         if all(type(x) is Blankevoort1991Ligament for x in laws):
             self.blankevoort = (np.array([x.slack_length for x in laws]),
                                 np.array([x.stiffness * x.slack_length for x in laws]),
@@ -70,6 +76,8 @@ class LigamentForces:
     def accumulate(self, state, t, Q, K=None):
         lengths, L = self.paths.evaluate(state)
         strain, T, _ = self._laws(lengths)
+        if self.damping is not None:
+            T = damped_tension(T, strain, L @ state.get_v(), *self.damping)
         Q -= L.T @ T
         out = LigamentOutputs(lengths, strain, T, L)
         if K is not None:

@@ -29,7 +29,7 @@ def _points(ctx, value, path, b=None):
     if b is not None and any(isinstance(p, dict) for p in value):
         return [p if isinstance(p, str) else _path_node(b, ctx, p, f"{path}[{k}]") for k, p in enumerate(value)]
     if not all(isinstance(p, str) for p in value):
-        raise ctx.error(path, "conditional and moving points are allowed in muscle paths only")
+        raise ctx.error(path, "conditional and moving points are allowed in muscle and ligament paths only")
     return value
 
 
@@ -161,15 +161,18 @@ def load_ligaments(b, data, ctx):
     for name, spec in ctx.mapping(data, "ligaments").items():
         p = f"ligaments.{name}"
         ctx.keys(spec, p, ["path", "stiffness", "slack_length", "reference_length", "reference_strain",
-                           "transition_strain"], required=("path", "stiffness"))
-        points = _points(ctx, spec["path"], f"{p}.path")
+                           "transition_strain", "damping", "damping_rule"], required=("path", "stiffness"))
+        points = _points(ctx, spec["path"], f"{p}.path", b)
         k = ctx.number(spec["stiffness"], f"{p}.stiffness", positive=True)
         slack = ctx.number(spec["slack_length"], f"{p}.slack_length", positive=True) * ctx.length if "slack_length" in spec else None
         lref = spec.get("reference_length", "reference_pose")
         lref = None if lref == "reference_pose" else ctx.number(lref, f"{p}.reference_length", positive=True) * ctx.length
         eps_r = ctx.number(spec.get("reference_strain", 0.0), f"{p}.reference_strain")
         eps_l = ctx.number(spec.get("transition_strain", 0.03), f"{p}.transition_strain", positive=True)
-        _wrap(ctx, p, lambda: el.add_ligament(b, name, points, k, slack, lref, eps_r, eps_l))
+        c = ctx.number(spec.get("damping", 0.0), f"{p}.damping", nonnegative=True)
+        rule = ctx.choice(spec.get("damping_rule", "openfdk"), f"{p}.damping_rule", ("openfdk", "opensim"),
+                          "damping rule")
+        _wrap(ctx, p, lambda: el.add_ligament(b, name, points, k, slack, lref, eps_r, eps_l, c, rule))
 
 
 LAW_KEYS = {"polynomial": ["coefficients"], "table": ["values", "forces"],

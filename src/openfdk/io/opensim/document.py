@@ -173,6 +173,11 @@ class OsimMarker:
 
 #: the muscle classes read from the ForceSet (every other force is refused by name)
 MUSCLE_TYPES = ("Thelen2003Muscle",)
+#: Blankevoort1991Ligament properties and OpenSim 4.6's defaults (slack_length has none)
+LIGAMENT_DEFAULTS = {"linear_stiffness": 1.0, "slack_length": 0.0, "transition_strain": 0.06,
+                     "damping_coefficient": 0.003}
+_LIGAMENT_PROPERTIES = set(LIGAMENT_DEFAULTS) | {"appliesForce", "isDisabled", "GeometryPath", "components",
+                                                 "Appearance"}
 #: Thelen2003Muscle properties and OpenSim 4.6's defaults (a property absent from the
 #: file has its default, as OpenSim reads it)
 THELEN_DEFAULTS = {
@@ -302,6 +307,7 @@ class OsimDocument:
     actuators: dict = field(default_factory=dict)  # CoordinateActuators {name: actuators-section entry}
     wrap_objects: dict = field(default_factory=dict)  # OsimWrapObject {name: record}
     springs: dict = field(default_factory=dict)  # SpringGeneralizedForces {name: springs-section entry}
+    ligaments: list = field(default_factory=list)  # Blankevoort1991Ligaments (OsimMuscle records), in order
 
 
 def _parser():
@@ -431,6 +437,7 @@ class _Reader:
         self.muscles = []
         self.actuators = {}
         self.springs = {}
+        self.ligaments = []
         self.wrap_objects = {}
         self.unsupported, self.ignored = [], []
         self.pending = []  # (frame key, socket path, scope): frames whose parent is resolved after reading
@@ -537,6 +544,8 @@ class _Reader:
                     self.ignored.append((e.tag, e.get("name") or "", e.sourceline))
                 elif tag == "ForceSet" and e.tag in MUSCLE_TYPES and e.tag not in self.ignore:
                     self.read_muscle(e, legacy)
+                elif tag == "ForceSet" and e.tag == "Blankevoort1991Ligament" and e.tag not in self.ignore:
+                    self.read_ligament(e, legacy)
                 elif tag == "ForceSet" and e.tag in PASSIVE_TYPES and e.tag not in self.ignore:
                     name, entry = read_spring(e, self.source)
                     if entry is None:
@@ -564,7 +573,7 @@ class _Reader:
             j.parent, j.child = self.resolve(j.parent, scope), self.resolve(j.child, scope)
         for m in self.markers:
             m.frame = m.body = self.resolve(m.frame)
-        for mu in self.muscles:
+        for mu in self.muscles + self.ligaments:
             for pt in mu.points:
                 pt.frame = self.resolve(pt.frame)
                 if pt.frame not in self.frames and pt.frame != "ground":
@@ -610,7 +619,8 @@ class _Reader:
                                     "body nor a frame of the model")
         return OsimDocument(self.source, self.path, name, version, gravity, self.bodies, self.frames, self.joints,
                             self.coordinates, self.constraints, self.markers, self.geometry, self.unsupported,
-                            self.ignored, self.muscles, self.actuators, self.wrap_objects, self.springs)
+                            self.ignored, self.muscles, self.actuators, self.wrap_objects, self.springs,
+                            self.ligaments)
 
     def resolve(self, path, scope=""):
         """The key in ``self.frames`` of a socket path, read in ``scope`` (the owner of
@@ -1080,6 +1090,17 @@ class _Reader:
             elif e.tag not in _MUSCLE_METADATA:
                 raise self.err(e, f"{label}: property <{e.tag}> is not read by openfdk; leave the muscle out with "
                                   f"--ignore {kind}")
+        read = self.read_path(m, kind, name, label, legacy)
+        if read is None:
+            return
+        points, wraps = read
+        self.muscles.append(OsimMuscle(name, kind, points, params, m.sourceline, wraps))
+
+    def read_path(self, m, kind, name, label, legacy):
+        """(points, wraps) of the GeometryPath of a muscle or ligament ``m``: PathPoint,
+        ConditionalPathPoint and MovingPathPoint records and PathWrap records, or None
+        when an element of it is refused (named, or with --ignore listed as dropped with
+        its owner, which is then left out as a whole)."""
         path = m.find("GeometryPath")
         if path is None:
             raise self.err(m, "no <GeometryPath>")
@@ -1122,9 +1143,36 @@ class _Reader:
             before = len(self.unsupported)
             for e in refused:  # named by their place, "muscle/point", as OpenSim's component paths
                 self.skip(e, name=f"{name}/{e.get('name') or ''}")
-            if len(self.unsupported) == before:  # all of them ignored on request: the muscle goes with them
+            if len(self.unsupported) == before:  # all of them ignored on request: the owner goes with them
                 self.ignored.append((kind, name, m.sourceline))
-            return
+            return None
         if len(points) < 2:
             raise self.err(m, f"its path needs at least 2 PathPoints, the file gives {len(points)}")
-        self.muscles.append(OsimMuscle(name, kind, points, params, m.sourceline, wraps))
+        return points, wraps
+
+    def read_ligament(self, m, legacy):
+        """A Blankevoort1991Ligament (OpenSim ≥ 4.1 core, and OpenSim-JAM's models): its
+        path as a muscle's, ``linear_stiffness`` (N per unit strain), ``slack_length`` (m),
+        ``transition_strain`` and ``damping_coefficient`` (OpenSim's defaults 1, —, 0.06,
+        0.003)."""
+        kind, name = m.tag, m.get("name")
+        if not name:
+            raise self.err(m, "a ligament without a name")
+        self.once(m, "ligament", name)
+        if not self.child_bool(m, "appliesForce", True) or self.child_bool(m, "isDisabled", False):
+            self.ignored.append((kind, name, m.sourceline))
+            return
+        label = f"{kind} {name!r}"
+        for e in m:
+            if isinstance(e.tag, str) and e.tag not in _LIGAMENT_PROPERTIES:
+                raise self.err(e, f"{label}: property <{e.tag}> is not read by openfdk; leave the ligament out "
+                                  f"with --ignore {kind}")
+        params = {tag: float(self.child_numbers(m, tag, 1, [default])[0]) for tag, default in
+                  LIGAMENT_DEFAULTS.items()}
+        if m.find("slack_length") is None:
+            raise self.err(m, f"{label}: no <slack_length>")
+        read = self.read_path(m, kind, name, label, legacy)
+        if read is None:
+            return
+        points, wraps = read
+        self.ligaments.append(OsimMuscle(name, kind, points, params, m.sourceline, wraps))

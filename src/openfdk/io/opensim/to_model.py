@@ -174,8 +174,8 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         wrapping[safe] = entry
         return safe
 
-    for mu in doc.muscles:
-        safe = unique("muscle", mu.name)
+    def path_of(mu):
+        """The ``path`` entries of a muscle's or ligament's points and wraps."""
         path = [frame_of(pt.frame, f"{mu.name}_{pt.name}", kind="path point") for pt in mu.points]
         # a PathPoint is a frame at its location, axes of its parent frame; a moving one
         # is the parent frame itself, its functions give the location in its axes
@@ -200,10 +200,19 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
                 path[k] = {"frame": ref, "moving": {"coordinate": c, "x": fx, "y": fy, "z": fz}}
         if mu.wraps:
             path = _wrapped_path(doc, tree, mu, path, wrap_surface)
+        return path
+
+    for mu in doc.muscles:
+        safe = unique("muscle", mu.name)
+        path = path_of(mu)
         muscles[safe] = {"model": "hill", "path": path, **hill_parameters(mu, doc.source),
                          # activation bounds of OpenSim's static optimisation (static_optimization: opensim)
                          "min_control": mu.parameters["min_control"], "max_control": mu.parameters["max_control"]}
         settings[safe] = {k: v for k, v in mu.parameters.items() if k in RECRUITMENT_SETTINGS}
+    ligaments = {}
+    for lig in doc.ligaments:
+        safe = unique("ligament", lig.name)
+        ligaments[safe] = {"path": path_of(lig), **ligament_parameters(lig, doc.source)}
     for g in doc.geometry:
         path = find_mesh(doc, g, mesh_dirs, "Mesh" in ignore)
         if path is None:
@@ -226,6 +235,8 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         out["wrapping"] = wrapping
     if muscles:
         out["muscles"] = muscles
+    if ligaments:
+        out["ligaments"] = ligaments
     merged = {b: tree.root[b] for b in doc.bodies if tree.root[b] != b}
     # each OpenSim body frame in its openfdk body (for data given in a body's frame)
     body_frames = {}
@@ -302,6 +313,25 @@ def _any_order(surfaces):
             new += [x, s]
         seq = new
     return seq
+
+
+def ligament_parameters(lig, source):
+    """The ``ligaments`` entry keys of a Blankevoort1991Ligament (SI): OpenSim's
+    ``linear_stiffness`` is per unit strain, openfdk's ``stiffness`` per metre (k = K/l0);
+    OpenSim's ``transition_strain`` ends the toe, openfdk's is half of it; OpenSim's
+    ``damping_coefficient`` is per unit strain rate, openfdk's ``damping`` per m/s
+    (c = C/l0), with OpenSim's rule (``damping_rule: opensim``). Invalid values raise
+    OsimError naming the ligament and its line."""
+    p = lig.parameters
+    label = f"{source}: line {lig.line}: {lig.type} {lig.name!r}"
+    l0 = p["slack_length"]
+    for key, ok in (("slack_length", l0 > 0), ("linear_stiffness", p["linear_stiffness"] >= 0),
+                    ("transition_strain", p["transition_strain"] > 0),
+                    ("damping_coefficient", p["damping_coefficient"] >= 0)):
+        if not ok:
+            raise OsimError(f"{label}: {key} {p[key]:g} is out of range")
+    return {"stiffness": p["linear_stiffness"] / l0, "slack_length": l0, "transition_strain": p["transition_strain"] / 2,
+            "damping": p["damping_coefficient"] / l0, "damping_rule": "opensim"}
 
 
 #: Thelen2003Muscle properties -> openfdk Hill keys (docs/opensim-import.md); Af is
