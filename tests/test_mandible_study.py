@@ -3,6 +3,8 @@ symmetry of a symmetric subject's open–close, and clear errors for broken inpu
 
 import csv
 import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -12,9 +14,22 @@ from openfdk.cli import main
 
 @pytest.fixture(scope="module")
 def demo_dir(tmp_path_factory):
+    """``openfdk demo --quick -q`` as a user runs it (its output kept in OUT.stdout/.stderr)."""
     out = tmp_path_factory.mktemp("demo")
-    assert main(["demo", "--quick", "--out", str(out), "--no-progress"]) == 0
+    done = subprocess.run([sys.executable, "-m", "openfdk.cli", "demo", "--quick", "-q", "--out", str(out)],
+                          capture_output=True, text=True, timeout=1800)
+    (out.parent / f"{out.name}.stdout").write_text(done.stdout)
+    (out.parent / f"{out.name}.stderr").write_text(done.stderr)
+    assert done.returncode == 0, done.stderr[-2000:]
     return out
+
+
+def test_demo_quick_quiet_prints_only_warnings(demo_dir):
+    """-q: nothing on stdout; stderr holds warnings (one line each) and nothing else."""
+    assert (demo_dir.parent / f"{demo_dir.name}.stdout").read_text() == ""
+    err = (demo_dir.parent / f"{demo_dir.name}.stderr").read_text().splitlines()
+    assert all(line.startswith("openfdk: warning: ") for line in err), [
+        line for line in err if not line.startswith("openfdk: warning: ")]
 
 
 def _rows(path):

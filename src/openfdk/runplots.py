@@ -38,6 +38,42 @@ MAX_DEFAULT_MEASURES = 6
 TIME_LABEL = "time (s)"
 
 
+#: a measure component whose range is below this fraction of max(1, |value|) (SI) is
+#: round-off around a constant (a constrained measure): not drawn, named constant
+CONSTANT_RTOL = 1e-9
+CAPTION_FONTSIZE = 7
+
+
+def line_styles(n):
+    """n distinct (colour, line style) pairs: tab10 colours up to 10 lines, tab20 up to 20,
+    then tab20 with solid, dashed, dotted and dash-dot lines (80 pairs), then a sampled
+    colour map — no two lines of a panel look alike."""
+    from matplotlib import colormaps
+
+    if n <= 10:
+        return [(colormaps["tab10"](i), "-") for i in range(n)]
+    if n <= 20:
+        return [(colormaps["tab20"](i), "-") for i in range(n)]
+    dashes = ("-", "--", ":", "-.")
+    if n <= 80:
+        return [(colormaps["tab20"](i % 20), dashes[i // 20]) for i in range(n)]
+    cmap = colormaps["turbo"]
+    return [(cmap(i / (n - 1)), dashes[i % 4]) for i in range(n)]
+
+
+def _is_constant(values):
+    """True when the finite ``values`` (SI) vary by less than round-off."""
+    v = values[np.isfinite(values)]
+    if v.size == 0:
+        return False
+    return float(np.ptp(v)) <= CONSTANT_RTOL * max(1.0, float(np.max(np.abs(v))))
+
+
+def _constant_entry(ax, label, value, unit):
+    """A legend entry (no line) for a component that is constant: not drawn as noise."""
+    ax.plot([], [], " ", label=f"{label}: constant {value:.4g} {unit}".rstrip())
+
+
 def _figure(n_rows, title, width=11.0, row_height=2.3):
     """A stand-alone matplotlib Figure (not registered with pyplot: no backend is chosen
     and nothing stays open; a notebook still displays it) with n_rows shared-x axes."""
@@ -67,12 +103,19 @@ def _finish(fig, axes, t, failed, caption):
             ax.legend(handles[:MAX_LEGEND], labels[:MAX_LEGEND], loc="upper left", bbox_to_anchor=(1.01, 1.0),
                       fontsize=7, borderaxespad=0.0)
     text = caption + (" Red bands: failed frames." if failed.any() else "")
-    n_lines = 1 + len(text) // 150
-    fig.text(0.01, 0.005, text, fontsize=7, wrap=True, va="bottom")
+    # wrapped here, at a width in characters that fits the figure, so that the room left
+    # for it below the axes is known in inches (matplotlib's own wrap is done at draw time)
+    import textwrap
+
+    width_in, height_in = fig.get_size_inches()
+    per_line = int(0.96 * width_in * 72.0 / (0.56 * CAPTION_FONTSIZE))
+    lines = textwrap.wrap(text, per_line)
+    fig.text(0.01, 0.06 / height_in, "\n".join(lines), fontsize=CAPTION_FONTSIZE, va="bottom", ha="left")
     # laid out when drawn (saved or shown), not now: a figure is drawn once
     from matplotlib.layout_engine import ConstrainedLayoutEngine
 
-    bottom = 0.025 * n_lines + 0.01                      # room for the caption
+    caption_in = len(lines) * 1.25 * CAPTION_FONTSIZE / 72.0 + 0.12  # the caption's lines and margins
+    bottom = caption_in / height_in
     fig.set_layout_engine(ConstrainedLayoutEngine(rect=(0.0, bottom, 1.0, 1.0 - bottom)))  # (x, y, w, h)
     return fig
 
@@ -98,7 +141,13 @@ def _kinematics(results, t, failed):
     for b, name in enumerate(bodies):
         ax_p, ax_r = axes[2 * b], axes[2 * b + 1]
         for c in "xyz":
-            ax_p.plot(t, 1e3 * _col(k, f"{name}.{c}_m"), label=c)
+            r = _col(k, f"{name}.{c}_m")
+            finite = np.flatnonzero(np.isfinite(r))
+            r0 = r[finite[0]] if finite.size else 0.0
+            if _is_constant(r):
+                _constant_entry(ax_p, c, 1e3 * r0, "mm")
+            else:  # displacement from the first frame: millimetres stay visible in a lab frame
+                ax_p.plot(t, 1e3 * (r - r0), label=f"{c} (from {1e3 * r0:.1f} mm)")
         quat = np.column_stack([_col(k, f"{name}.e{j}") for j in range(4)])
         angles = np.full((len(t), 3), np.nan)
         for i, q in enumerate(quat):
@@ -108,10 +157,14 @@ def _kinematics(results, t, failed):
         angles = np.degrees(np.unwrap(np.where(missing, 0.0, angles), axis=0))
         angles[missing] = np.nan
         for j, c in enumerate(("about x", "about y'", "about z''")):
-            ax_r.plot(t, angles[:, j], label=c)
-        ax_p.set_ylabel(f"{name} COM\nposition (mm, world W)", fontsize=8)
+            if _is_constant(np.radians(angles[:, j])):
+                _constant_entry(ax_r, c, angles[np.isfinite(angles[:, j]), j][0], "deg")
+            else:
+                ax_r.plot(t, angles[:, j], label=c)
+        ax_p.set_ylabel(f"{name} COM displacement\nfrom first frame (mm, world W)", fontsize=8)
         ax_r.set_ylabel(f"{name} orientation\nx-y-z angles (deg, W)", fontsize=8)
-    caption = ("Centre-of-mass position r_WB in the world frame W. Orientation: body-fixed x-y'-z'' Cardan angles "
+    caption = ("Centre-of-mass displacement r_WB(t) − r_WB(t0) from the first frame, world frame W (the legend gives "
+               "each component's first-frame position). Orientation: body-fixed x-y'-z'' Cardan angles "
                "of R_WB = Rx Ry Rz (right-hand rule, positive counter-clockwise), unwrapped over time.")
     return _finish(fig, axes, t, failed, caption)
 
@@ -187,16 +240,46 @@ def _measures(results, t, failed, chosen):
     fig, axes = _figure(len(chosen), f"{_name(results)}: kinematic measures")
     for ax, name in zip(axes, chosen):
         kinds = []
-        for label, kind, values in series[name]:
-            ax.plot(t, DISPLAY.get(kind, (1.0, ""))[0] * values, label=label)
+        labels = component_labels(model.measures.get(name) if model is not None else None, series[name])
+        for label, (_, kind, values) in zip(labels, series[name]):
+            factor, unit = DISPLAY.get(kind, (1.0, ""))
+            if len(series[name]) > 1 and _is_constant(values):
+                _constant_entry(ax, label, factor * values[np.isfinite(values)][0], unit)
+            else:
+                ax.plot(t, factor * values, label=label)
             kinds += [kind] if kind not in kinds else []
         units = ", ".join(DISPLAY.get(kd, (1, kd))[1] for kd in kinds)
         frame = _measure_frame(model.measures[name]) if model is not None and name in model.measures else "measure"
         ax.set_ylabel(f"{name}\n({units}, {frame})", fontsize=8)
-    caption = ("Named measures of the model (measures.csv) on the solved poses; [j] is component j. Vectors "
+    caption = ("Named measures of the model (measures.csv) on the solved poses; vector components x, y, z, angles "
+               "about x, y', z'' (or the measure's own sequence), [j] component j otherwise; a component that does "
+               "not change (a constrained one) is listed as constant, not drawn. Vectors "
                "point from their first to their second point; angles are x-y'-z'' Cardan angles of the second frame "
                "relative to the first.")
     return _finish(fig, axes, t, failed, caption)
+
+
+def component_labels(measure, series):
+    """Legend labels of a measure's components: x/y/z for a 3-vector of lengths, the
+    rotation axes of angles (x-y'-z'' Cardan angles, or a JCS/Euler sequence), else
+    ``[j]``; ``series``: :func:`measure_series` of the measure."""
+    n = len(series)
+    if n == 1:
+        return [series[0][0]]
+    kind = type(measure).__name__ if measure is not None else None
+    if kind == "RelativeAngles":
+        return ["about x", "about y'", "about z''"]
+    sequence = getattr(measure, "sequence", None)
+    if kind == "RotationAngles" and isinstance(sequence, str):
+        axes = [c for c in sequence.lower() if c in "xyz"]
+        if len(axes) == 3:
+            return [f"about {a}{'′' * j}" for j, a in enumerate(axes)]
+    kinds = {k for _, k, _ in series}
+    if n == 3 and (kind in ("PointPosition", "RelativeVector") or (measure is None and kinds == {"length"})):
+        return ["x", "y", "z"]
+    if n == 3 and measure is None and kinds == {"angle"}:
+        return ["about x", "about y'", "about z''"]
+    return [label for label, _, _ in series]
 
 
 def _measure_frame(m):
@@ -217,9 +300,9 @@ def _muscles(results, t, failed):
     order = sorted(names, key=lambda n: -peak[n])
     fig, axes = _figure(2, f"{_name(results)}: muscles ({len(names)}; legend: the {min(len(names), MAX_LEGEND)} "
                            f"strongest)")
-    for n in order:
-        axes[0].plot(t, _col(f, f"{n}.force_N"), lw=1, label=n)
-        axes[1].plot(t, _col(f, f"{n}.activation"), lw=1, label=f"_{n}")  # same colours: one legend
+    for n, (colour, ls) in zip(order, line_styles(len(order))):
+        axes[0].plot(t, _col(f, f"{n}.force_N"), lw=1, color=colour, ls=ls, label=n)
+        axes[1].plot(t, _col(f, f"{n}.activation"), lw=1, color=colour, ls=ls, label=f"_{n}")  # one legend
     axes[0].set_ylabel("muscle force (N,\ntension along path)", fontsize=8)
     axes[1].set_ylabel("activation f/s (–)", fontsize=8)
     caption = ("Muscle force: tension (≥ 0) along the muscle path, from the recruitment. Activation: force divided by "
@@ -240,9 +323,9 @@ def _actuators(results, t, failed):
         for sign in (1, -1):
             axes[0].axhline(sign * threshold, color="k", ls="--", lw=0.8,
                             label="±5 % body weight (residual forces)" if sign > 0 else "_")
-    for n in order:
-        axes[0].plot(t, _col(f, f"{n}.actuator"), lw=1, label=n)
-        axes[1].plot(t, _col(f, f"{n}.control"), lw=1, label=f"_{n}")
+    for n, (colour, ls) in zip(order, line_styles(len(order))):
+        axes[0].plot(t, _col(f, f"{n}.actuator"), lw=1, color=colour, ls=ls, label=n)
+        axes[1].plot(t, _col(f, f"{n}.control"), lw=1, color=colour, ls=ls, label=f"_{n}")
     axes[0].set_ylabel("actuator force\n(N or N·m)", fontsize=8)
     axes[1].set_ylabel("control τ/F (–)", fontsize=8)
     caption = ("Actuators (reserve and residual actuators, recruited beside the muscles and weighted by their optimal "
@@ -259,15 +342,15 @@ def _ligaments(results, t, failed):
                         f"{_name(results)}: ligaments and springs")
     i = 0
     if ligs:
-        for n in ligs:
-            axes[0].plot(t, _col(f, f"{n}.force_N"), label=n)
-            axes[1].plot(t, _col(f, f"{n}.strain"), label=n)
+        for n, (colour, ls) in zip(ligs, line_styles(len(ligs))):
+            axes[0].plot(t, _col(f, f"{n}.force_N"), color=colour, ls=ls, label=n)
+            axes[1].plot(t, _col(f, f"{n}.strain"), color=colour, ls=ls, label=n)
         axes[0].set_ylabel("ligament force\n(N, tension)", fontsize=8)
         axes[1].set_ylabel("ligament strain\n(l − l0)/l0 (–)", fontsize=8)
         i = 2
     if springs:
-        for n in springs:
-            axes[i].plot(t, _col(f, f"{n}.force"), label=n)
+        for n, (colour, ls) in zip(springs, line_styles(len(springs))):
+            axes[i].plot(t, _col(f, f"{n}.force"), color=colour, ls=ls, label=n)
         axes[i].set_ylabel("spring force\n(N or N·m, along measure)", fontsize=8)
     caption = ("Ligament force: tension ≥ 0 along the ligament path (Blankevoort 1991, zero when slack, strain < 0). "
                "Spring force f = −k (m − m_rest): generalized force along its measure, N for a length, N·m for an "
@@ -305,10 +388,10 @@ def _reactions(results, t, failed):
         groups.setdefault(conjugate_unit(kinds[n]) if n in kinds else "N or N·m", []).append(n)
     fig, axes = _figure(len(groups), f"{_name(results)}: joint and constraint reactions")
     for ax, (unit, rows) in zip(axes, groups.items()):
-        for n in rows:
-            ax.plot(t, _col(f, f"{n}.reaction"), lw=1, label=n)
-        what = "force" if unit == "N" else "moment" if unit == "N·m" else "reaction"
-        ax.set_ylabel(f"reaction {what}\n({unit}, constraint frame)", fontsize=8)
+        for n, (colour, ls) in zip(rows, line_styles(len(rows))):
+            ax.plot(t, _col(f, f"{n}.reaction"), lw=1, color=colour, ls=ls, label=n)
+        what = "reaction force" if unit == "N" else "reaction moment" if unit == "N·m" else "reaction"
+        ax.set_ylabel(f"{what}\n({unit}, constraint frame)", fontsize=8)
     caption = ("Reaction λ of each constraint row: the load Φ_qᵀλ acts on the bodies. For a joint's x/y/z rows "
                "(child origin − parent origin, in the parent joint frame) λ is the force on the child body along "
                "that axis of the parent frame, −λ on the parent; rotational rows are moments (N·m).")
@@ -316,35 +399,50 @@ def _reactions(results, t, failed):
 
 
 def _convergence(results, t, failed):
+    """Per-frame iterations (integer ticks) and residuals of each stage, one panel each;
+    a panel whose values are all zero (a stage without iterations) is not drawn and
+    the caption says so."""
+    from matplotlib.ticker import MaxNLocator
+
     k, f = results.kinematics, results.forces
     fdk = results.fdk
-    rows = 2 + (f is not None) + (fdk is not None)
-    fig, axes = _figure(rows, f"{_name(results)}: per-frame convergence")
-    axes[0].plot(t, _col(k, "iterations"), ".-", lw=0.8, label="kinematics")
-    axes[0].set_ylabel("kinematics\niterations (–)", fontsize=8)
     viol = np.abs(_col(k, "constraint_violation"))
-    axes[1].semilogy(t, np.where(viol > 0, viol, np.nan), ".-", lw=0.8, label="max |Φ|")
-    axes[1].set_ylabel("constraint\nviolation (m or rad)", fontsize=8)
-    i = 2
-    if f is not None:
-        axes[i].plot(t, _col(f, "recruitment_iterations"), ".-", lw=0.8, label="recruitment")
-        axes[i].set_ylabel("recruitment\niterations (–)", fontsize=8)
-        i += 1
+    panels = [("kinematics\niterations (–)", [("kinematics", _col(k, "iterations"))], "iterations"),
+              ("constraint\nviolation (m or rad)", [("max |Φ|", viol)], "log")]
+    if f is not None and "recruitment_iterations" in f.columns:
+        panels.append(("recruitment\niterations (–)", [("recruitment", _col(f, "recruitment_iterations"))],
+                       "iterations"))
     if fdk is not None:
-        axes[i].plot(t, _col(fdk, "fdk_iterations"), ".-", lw=0.8, label="FDK Newton iterations")
-        axes[i].plot(t, _col(fdk, "fdk_evaluations"), ".-", lw=0.8, label="FDK residual evaluations")
-        res = np.nanmax(np.abs(np.column_stack([_col(fdk, c) for c in fdk.columns if c.endswith(".residual")])),
-                        axis=1)
-        ax2 = axes[i].twinx()
-        ax2.set_xlabel(TIME_LABEL)
-        ax2.semilogy(t, np.where(res > 0, res, np.nan), "k:", lw=0.8)
-        ax2.set_ylabel("max |f^FDK|\n(N or N·m, dotted)", fontsize=8)
-        axes[i].set_ylabel("FDK iterations,\nevaluations (–)", fontsize=8)
+        panels.append(("FDK iterations,\nevaluations (–)", [("FDK Newton iterations", _col(fdk, "fdk_iterations")),
+                                                             ("FDK residual evaluations",
+                                                              _col(fdk, "fdk_evaluations"))], "iterations"))
+        columns = [c for c in fdk.columns if c.startswith("fdk.") and ".residual" in c]
+        if columns:
+            res = np.nanmax(np.abs(np.column_stack([_col(fdk, c) for c in columns])), axis=1)
+            panels.append(("max |f^FDK|\n(N or N·m)", [("max |f^FDK|", res)], "log"))
+    shown, dropped = [], []
+    for label, series, kind in panels:
+        values = np.concatenate([v for _, v in series])
+        if not np.any(np.nan_to_num(values) != 0):
+            dropped.append(label.split("\n")[0])
+        else:
+            shown.append((label, series, kind))
+    fig, axes = _figure(len(shown), f"{_name(results)}: per-frame convergence")
+    for ax, (label, series, kind) in zip(axes, shown):
+        for name, values in series:
+            if kind == "log":
+                ax.semilogy(t, np.where(values > 0, values, np.nan), ".-", lw=0.8, label=name)
+            else:
+                ax.plot(t, values, ".-", lw=0.8, label=name)
+        if kind == "iterations":
+            ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.set_ylabel(label, fontsize=8)
     bad = np.flatnonzero(failed)
-    if bad.size:
+    if bad.size and shown and shown[0][0].startswith("kinematics"):
         axes[0].plot(t[bad], _col(k, "iterations")[bad], "rx", ms=7, label="failed frame")
     caption = ("Iterations per frame of each stage; constraint violation max |Φ| after the position solve; FDK: Newton "
-               "iterations, residual evaluations and the final max |f^FDK| (dotted, right axis).")
+               "iterations, residual evaluations and the final max |f^FDK|."
+               + (f" Zero on every frame, not drawn: {', '.join(dropped)}." if dropped else ""))
     return _finish(fig, axes, t, failed, caption)
 
 

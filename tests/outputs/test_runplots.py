@@ -42,21 +42,30 @@ def test_run_writes_figures_for_the_slider_crank(slider_run):
     assert all(p.stat().st_size > 20_000 for p in (out / "plots").glob("*.png"))
     res = read_results(out)
     figs = make_figures(res)
-    assert check_axes(figs) == 2 * 3 + 6 + 2 + 3  # measures: crank_angles, small_end_offset, 4 joint measures
+    # measures: crank_angles, small_end_offset, 4 joint measures; convergence: kinematics iterations and
+    # constraint violation (no muscles: zero recruitment iterations on every frame, not drawn)
+    assert check_axes(figs) == 2 * 3 + 6 + 2 + 2
     f = res.forces
     # the drive torque is a moment (N·m, an angle driver); joint x/y rows are forces
     ax_force, ax_moment = figs["reactions"].axes
     assert "N," in ax_force.get_ylabel() and "N·m" in ax_moment.get_ylabel()
     np.testing.assert_array_equal(_lines(ax_moment)["crank_drive"], f["crank_drive.reaction"].to_numpy())
-    # positions are drawn in mm of the world frame: the crank centre circles at r = 50 mm
+    # positions are drawn in mm of the world frame, as displacements from the first frame
+    # (the legend gives where each component starts): the crank centre circles at r = 50 mm
     ax_pos = figs["kinematics"].axes[0]
-    assert "world W" in ax_pos.get_ylabel()
-    np.testing.assert_allclose(np.hypot(_lines(ax_pos)["x"], _lines(ax_pos)["y"]), 50.0, atol=1e-6)
+    assert "world W" in ax_pos.get_ylabel() and "displacement" in ax_pos.get_ylabel()
+    lines = {label.split()[0]: (y, float(re.search(r"from (-?[\d.]+) mm", label).group(1)))
+             for label, y in _lines(ax_pos).items() if len(y)}
+    assert sorted(lines) == ["x", "y"]  # z is constant: listed in the legend, not drawn
+    (x, x0), (y, y0) = lines["x"], lines["y"]
+    assert x[0] == y[0] == 0.0
+    np.testing.assert_allclose(np.hypot(x + x0, y + y0), 50.0, atol=0.06)  # x0, y0 printed to 0.1 mm
     # measures: crank_angles component 2 is the driven angle 360°/s·t (wrapped to ±180°)
     ax = figs["measures"].axes[0]
     assert ax.get_ylabel().startswith("crank_angles") and "deg" in ax.get_ylabel()
     assert [a.get_ylabel().split("\n")[0] for a in figs["measures"].axes][:2] == ["crank_angles", "small_end_offset"]
-    angle = _lines(ax)["[2]"]
+    assert {label for label, y in _lines(ax).items() if len(y)} == {"about z''"}  # about x and y' are constant (planar): not drawn
+    angle = _lines(ax)["about z''"]
     expected = (360.0 * res.time + 180.0) % 360.0 - 180.0
     ok = np.abs(np.abs(expected) - 180.0) > 1e-6
     np.testing.assert_allclose(angle[ok], expected[ok], atol=1e-6)
