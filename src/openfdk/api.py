@@ -79,7 +79,12 @@ def run(model, trial=None, settings=None, **options):
 
     unknown = sorted(set(options) - set(RUN_OPTIONS))
     if unknown:
-        raise TypeError(f"openfdk.run: unknown option(s) {unknown}; options are {list(RUN_OPTIONS)}")
+        import difflib
+
+        hints = [h for k in unknown for h in difflib.get_close_matches(k, RUN_OPTIONS, n=1)]
+        raise TypeError(f"openfdk.run: unknown option(s) {unknown}"
+                        + (f"; did you mean {', '.join(map(repr, hints))}?" if hints else "")
+                        + f" (options: {list(RUN_OPTIONS)})")
     if isinstance(model, (str, os.PathLike)):
         model = load_model(model)
     model_file = _MODEL_FILES.get(model)

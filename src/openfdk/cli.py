@@ -472,8 +472,9 @@ def _trial_arguments(p):
                    help="C3D or TRC file with the model's markers (omit for determinate kinematics)")
     p.add_argument("--out", required=True, help="output folder (checked for writability before any computation)")
     p.add_argument("--force", action="store_true", help="overwrite the results already in the --out folder")
-    p.add_argument("--cutoff", type=argtypes.nonnegative, default=None,
-                   help="marker low-pass cutoff in Hz (default: model file, else 6 Hz; 0 = no filter)")
+    p.add_argument("--cutoff-hz", "--cutoff", dest="cutoff", type=argtypes.nonnegative, default=None, metavar="HZ",
+                   help="marker low-pass cutoff in Hz, as the API's cutoff_hz (default: model file, else 6 Hz; "
+                        "0 = no filter; --cutoff is the same option)")
     p.add_argument("--start", type=argtypes.finite, default=None, help="first analysed time (s)")
     p.add_argument("--end", type=argtypes.finite, default=None, help="last analysed time (s)")
     p.add_argument("--max-failed", type=argtypes.fraction, default=DEFAULT_MAX_FAILED, metavar="FRACTION",

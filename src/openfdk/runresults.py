@@ -22,6 +22,14 @@ _SI = {"length": "m", "angle": "rad", "1": "1"}
 _CONJUGATE = {"length": "N", "angle": "N·m", "1": "N·m"}
 
 
+#: the FDK solver's per-frame columns of forces.csv (RunResults.fdk)
+FDK_FRAME_COLUMNS = ("fdk_converged", "fdk_iterations", "fdk_evaluations", "fdk_jacobians", "fdk_restarts",
+                     "fdk_reason")
+#: column-name unit suffixes of an FDK DOF of a measure kind, and of its residual force
+_SUFFIX = {"length": "m", "angle": "rad", "1": "1"}
+_CONJUGATE_SUFFIX = {"length": "N", "angle": "Nm", "1": "Nm"}
+
+
 def measure_unit(kind: str) -> str:
     """SI unit of a measure component of kind "length" / "angle" / "1"."""
     return _SI.get(kind, kind)
@@ -225,13 +233,42 @@ class RunResults:
 
     @property
     def fdk(self):
-        """DataFrame of the FDK columns of forces.csv (α, residual per DOF, per-frame
-        convergence), indexed by time; None when the model has no FDK DOFs."""
+        """DataFrame of the FDK solver's columns of forces.csv, indexed by time, the unit
+        in each DOF column's name: ``fdk.<dof>.alpha_m`` (``_rad`` for an angle, ``_1``
+        dimensionless), ``fdk.<dof>.residual_N`` (``_Nm`` conjugate to an angle), and the
+        per-frame ``fdk_converged``, ``fdk_iterations``, ``fdk_evaluations``,
+        ``fdk_jacobians``, ``fdk_restarts``, ``fdk_reason``. A model's force elements
+        whose names start with ``fdk`` (springs such as ``fdk_spring_r``) are not FDK
+        columns and stay in ``.forces``. Without the model the DOF columns keep the
+        names of forces.csv (``.alpha``, ``.residual``, SI). None without FDK DOFs."""
         if self.forces is None:
             return None
-        cols = [c for c in self.forces.columns
-                if (c.startswith("fdk.") and not c.endswith(".reaction")) or c.startswith("fdk_")]
-        return self.forces[cols] if cols else None
+        dofs = self.fdk_dofs()
+        if not dofs:
+            return None
+        cols = [c for d in dofs for c in (f"fdk.{d}.alpha", f"fdk.{d}.residual")]
+        cols += [c for c in FDK_FRAME_COLUMNS if c in self.forces.columns]
+        table = self.forces[cols]
+        kinds = self._fdk_kinds()
+        if kinds is None:
+            return table
+        names = {}
+        for d in dofs:
+            kind = kinds.get(d, "1")
+            names[f"fdk.{d}.alpha"] = f"fdk.{d}.alpha_{_SUFFIX[kind]}"
+            names[f"fdk.{d}.residual"] = f"fdk.{d}.residual_{_CONJUGATE_SUFFIX[kind]}"
+        return table.rename(columns=names)
+
+    def _fdk_kinds(self):
+        """FDK DOF name -> measure kind (length / angle / 1), from the model; None
+        without it."""
+        try:
+            model = self.model()
+        except Exception:  # a model file that no longer reads: the SI names of forces.csv
+            return None
+        if model is None:
+            return None
+        return {d.name: (d.measure.units[0] if d.measure.units else "1") for d in model.fdk_dofs}
 
     @property
     def failed_frames(self):

@@ -21,25 +21,33 @@ Defaults per DOF by unit: length DOFs max_step 1 mm, perturbation 1 µm; angle D
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..model.modelfile import _wrap
 from ..model.model import ModelError
+from ..model.settings import checked_keywords
 
 FDK = "fdk"
 DEFAULT_MAX_STEP = {"length": 1e-3, "angle": 0.05}
 DEFAULT_PERTURBATION = {"length": 1e-6, "angle": 1e-6}
 
 
+@checked_keywords
 @dataclass(frozen=True)
 class FDKSettings:
     """tolerance : N or N m on max |f^FDK|; max_iterations; jacobian : "analytic" or
     "central"; line_search; reuse_jacobian (Broyden-updated J carried between
     iterations and frames, fdk/newton.py); extrapolate; restart (solve a failed frame
     again from the previous frame's α and from the DOFs' initial values,
-    :func:`openfdk.fdk.newton.solve_frame_from`); max_step, perturbation : (n_fdk,) SI."""
+    :func:`openfdk.fdk.newton.solve_frame_from`); max_step, perturbation : (n_fdk,) SI,
+    empty for the DOFs' own values and the defaults by unit (:func:`fdk_settings`).
+
+    The model file's ``fdk`` section and ``AnalysisSettings.fdk``; exported as
+    ``openfdk.FDKSettings``. A misspelt keyword is refused naming it, with a
+    did-you-mean; a bad value (``jacobian``, ``tolerance``, ``max_iterations``) on
+    construction."""
 
     tolerance: float = 1e-3
     max_iterations: int = 25
@@ -52,25 +60,28 @@ class FDKSettings:
     perturbation: tuple = ()
     golden_section_evaluations: int = 8
 
+    def __post_init__(self):
+        if self.jacobian not in ("analytic", "central"):
+            raise ModelError(f"fdk.jacobian must be 'analytic' or 'central', got {self.jacobian!r}")
+        if not (self.tolerance > 0 and self.max_iterations >= 1):
+            raise ModelError("fdk.tolerance must be > 0 and fdk.max_iterations >= 1")
+
 
 def fdk_settings(model, settings=None, **overrides) -> FDKSettings:
     """FDK solver settings of a model analysed with ``settings`` (AnalysisSettings: the
     model file's ``fdk`` section; default none), the per-DOF values and defaults by
     unit, and keyword ``overrides``."""
-    base = dict(settings.fdk) if settings is not None else {}
-    base.update(overrides)
+    base = settings.fdk if settings is not None else FDKSettings()
+    if isinstance(base, dict):
+        base = FDKSettings(**base)
+    base = replace(base, **overrides)  # an unknown override is refused with a did-you-mean
     steps, perts = [], []
     for dof in model.fdk_dofs:
         unit = dof.measure.units[0]
         steps.append(float(dof.settings.get("max_step", DEFAULT_MAX_STEP.get(unit, 1e-3))))
         perts.append(float(dof.settings.get("perturbation", DEFAULT_PERTURBATION.get(unit, 1e-6))))
-    base.setdefault("max_step", tuple(steps))
-    base.setdefault("perturbation", tuple(perts))
-    settings = FDKSettings(**base)
-    if settings.jacobian not in ("analytic", "central"):
-        raise ModelError(f"fdk.jacobian must be 'analytic' or 'central', got {settings.jacobian!r}")
-    if not (settings.tolerance > 0 and settings.max_iterations >= 1):
-        raise ModelError("fdk.tolerance must be > 0 and fdk.max_iterations >= 1")
+    settings = replace(base, max_step=tuple(base.max_step) or tuple(steps),
+                       perturbation=tuple(base.perturbation) or tuple(perts))
     if np.any(np.asarray(settings.max_step) <= 0):
         raise ModelError("FDK max_step values must be > 0")
     return settings
