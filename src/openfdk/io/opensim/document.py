@@ -308,6 +308,8 @@ class OsimDocument:
     wrap_objects: dict = field(default_factory=dict)  # OsimWrapObject {name: record}
     springs: dict = field(default_factory=dict)  # SpringGeneralizedForces {name: springs-section entry}
     ligaments: list = field(default_factory=list)  # Blankevoort1991Ligaments (OsimMuscle records), in order
+    contact_meshes: dict = field(default_factory=dict)  # Smith2018ContactMesh records {name: dict}
+    contact_forces: dict = field(default_factory=dict)  # Smith2018ArticularContactForce records {name: dict}
 
 
 def _parser():
@@ -438,6 +440,8 @@ class _Reader:
         self.actuators = {}
         self.springs = {}
         self.ligaments = []
+        self.contact_meshes = {}
+        self.contact_forces = {}
         self.wrap_objects = {}
         self.unsupported, self.ignored = [], []
         self.pending = []  # (frame key, socket path, scope): frames whose parent is resolved after reading
@@ -537,6 +541,8 @@ class _Reader:
             self.read_marker(m, legacy)
         from .actuators import ACTUATOR_TYPES, read_actuator  # (imports this module)
         from .passive_forces import PASSIVE_TYPES, read_spring
+        from .contact import FORCE_TYPE as CONTACT_FORCE, MESH_TYPE as CONTACT_MESH, read_contact_force, \
+            read_contact_mesh
 
         for tag in ("ForceSet", "ContactGeometrySet", "ProbeSet", "ControllerSet"):
             for e in self.objects(model.find(tag)):
@@ -546,6 +552,17 @@ class _Reader:
                     self.read_muscle(e, legacy)
                 elif tag == "ForceSet" and e.tag == "Blankevoort1991Ligament" and e.tag not in self.ignore:
                     self.read_ligament(e, legacy)
+                elif tag == "ContactGeometrySet" and e.tag == CONTACT_MESH and e.tag not in self.ignore:
+                    name, record = read_contact_mesh(e, self.source)
+                    self.once(e, "contact mesh", name)
+                    self.contact_meshes[name] = record
+                elif tag == "ForceSet" and e.tag == CONTACT_FORCE and e.tag not in self.ignore:
+                    name, record = read_contact_force(e, self.source)
+                    if record is None:
+                        self.ignored.append((e.tag, name, e.sourceline))
+                    else:
+                        self.once(e, "contact force", name)
+                        self.contact_forces[name] = record
                 elif tag == "ForceSet" and e.tag in PASSIVE_TYPES and e.tag not in self.ignore:
                     name, entry = read_spring(e, self.source)
                     if entry is None:
@@ -573,6 +590,16 @@ class _Reader:
             j.parent, j.child = self.resolve(j.parent, scope), self.resolve(j.child, scope)
         for m in self.markers:
             m.frame = m.body = self.resolve(m.frame)
+        for name, mesh in self.contact_meshes.items():
+            mesh["frame"] = self.resolve(mesh["path"])
+            if mesh["frame"] not in self.frames and mesh["frame"] != "ground":
+                raise OsimError(f"{self.source}: line {mesh['line']}: Smith2018ContactMesh {name!r}: frame "
+                                f"{mesh['path']!r} is neither a body nor a frame of the model")
+        for name, force in self.contact_forces.items():
+            for key in ("target", "casting"):
+                if force[key] not in self.contact_meshes:
+                    raise OsimError(f"{self.source}: line {force['line']}: Smith2018ArticularContactForce {name!r}: "
+                                    f"no Smith2018ContactMesh {force[key]!r} (its {key} mesh)")
         for mu in self.muscles + self.ligaments:
             for pt in mu.points:
                 pt.frame = self.resolve(pt.frame)
@@ -620,7 +647,7 @@ class _Reader:
         return OsimDocument(self.source, self.path, name, version, gravity, self.bodies, self.frames, self.joints,
                             self.coordinates, self.constraints, self.markers, self.geometry, self.unsupported,
                             self.ignored, self.muscles, self.actuators, self.wrap_objects, self.springs,
-                            self.ligaments)
+                            self.ligaments, self.contact_meshes, self.contact_forces)
 
     def resolve(self, path, scope=""):
         """The key in ``self.frames`` of a socket path, read in ``scope`` (the owner of

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ...model.coordinate_functions import function_from_spec
-from .document import WRAP_TYPES, OsimDocument
+from .document import WRAP_TYPES, OsimDocument, OsimGeometry
 from .errors import OsimError
 from .tree import Tree
 
@@ -213,6 +213,26 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
     for lig in doc.ligaments:
         safe = unique("ligament", lig.name)
         ligaments[safe] = {"path": path_of(lig), **ligament_parameters(lig, doc.source)}
+    contacts = {}
+    for name, force in doc.contact_forces.items():
+        from .contact import pressure_modulus
+
+        sides = {}
+        for role, key in (("vertices", "casting"), ("surface", "target")):
+            mesh = doc.contact_meshes[force[key]]
+            file = find_mesh(doc, OsimGeometry(mesh["mesh_file"], mesh["frame"], np.ones(3), line=mesh["line"]),
+                             mesh_dirs)
+            root, p, R = tree.frame_in_root(mesh["frame"])
+            body = "ground" if root == tree.ground else safe_name(root)
+            sides[role] = {"body": body, "mesh": str(file), "units": "m",
+                           "placement": {"position": (p - com[root]).tolist(), "orientation": {"matrix": R.tolist()}}}
+        if sides["vertices"]["body"] == sides["surface"]["body"]:
+            raise OsimError(f"{doc.source}: line {force['line']}: Smith2018ArticularContactForce {name!r}: both meshes "
+                            "are on one body")
+        contacts[unique("contact", name)] = {
+            **sides, "pressure_modulus": pressure_modulus(doc.contact_meshes[force["target"]],
+                                                          doc.contact_meshes[force["casting"]]),
+            "max_depth": force["max_proximity"], "grid_spacing": IMPORT_GRID_SPACING_M}
     for g in doc.geometry:
         path = find_mesh(doc, g, mesh_dirs, "Mesh" in ignore)
         if path is None:
@@ -237,6 +257,8 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         out["muscles"] = muscles
     if ligaments:
         out["ligaments"] = ligaments
+    if contacts:
+        out["contacts"] = contacts
     merged = {b: tree.root[b] for b in doc.bodies if tree.root[b] != b}
     # each OpenSim body frame in its openfdk body (for data given in a body's frame)
     body_frames = {}
@@ -313,6 +335,11 @@ def _any_order(surfaces):
             new += [x, s]
         seq = new
     return seq
+
+
+#: the distance-grid spacing of imported contacts (m): implant surfaces span ~70 mm, and
+#: openfdk's default 0.3 mm would need gigabytes for them (docs/contact.md, memory)
+IMPORT_GRID_SPACING_M = 0.5e-3
 
 
 def ligament_parameters(lig, source):

@@ -1,0 +1,115 @@
+"""OpenSim-JAM's articular contact: ``Smith2018ContactMesh`` (in the ContactGeometrySet)
+and ``Smith2018ArticularContactForce`` (in the ForceSet) become an entry of the
+model-file section ``contacts`` (openfdk's elastic foundation, docs/contact.md).
+
+The elastic-foundation pressure of a layer of thickness h, Young's modulus E and
+Poisson's ratio ν pressed by a depth d (Bei & Fregly 2004; Smith et al. 2018):
+
+    linear:      p = K d / h,                K = E (1 − ν) / ((1 + ν)(1 − 2ν))
+    non-linear:  p = −K ln(1 − d/h)          (refused here: openfdk's foundation is linear)
+
+With a layer on each mesh (the target's and the casting mesh's), the two layers are
+springs in series, d = d₁ + d₂ at equal pressure: p = d / (h₁/K₁ + h₂/K₂). That is
+openfdk's pressure modulus (N/m³). The casting mesh (whose triangles OpenSim-JAM casts
+rays from) carries the vertices; the target is the opposite surface; ``max_proximity``
+(m) is the largest depth counted (openfdk's ``max_depth``); ``min_proximity`` must be 0.
+A mesh is read from its ``mesh_file`` as a display mesh is (next to the model, its
+Geometry folder, ``--geometry``), placed by its ``socket_frame`` in its body.
+
+Read and refused by name: ``scale_factors`` other than 1, ``mesh_back_file``,
+variable thickness, the non-linear formulation, a body-less (ground) pair.
+"""
+
+from __future__ import annotations
+
+import math
+
+from .actuators import _flag, _number, _text
+from .errors import OsimError, where
+
+MESH_TYPE = "Smith2018ContactMesh"
+FORCE_TYPE = "Smith2018ArticularContactForce"
+_MESH_PROPERTIES = {"socket_frame", "socket_scale_frame", "mesh_file", "elastic_modulus", "poissons_ratio",
+                    "thickness", "scale_factors", "Appearance", "components", "use_variable_thickness",
+                    "mesh_back_file", "min_thickness", "max_thickness", "display_preference", "color",
+                    "elastic_foundation_formulation"}
+_FORCE_PROPERTIES = {"socket_target_mesh", "socket_casting_mesh", "min_proximity", "max_proximity",
+                     "elastic_foundation_formulation", "use_lumped_contact_model", "appliesForce", "isDisabled",
+                     "components", "Appearance", "modulus_heterogeneity", "verbose"}
+
+
+def _check_properties(element, source, label, allowed):
+    for child in element:
+        if isinstance(child.tag, str) and child.tag not in allowed:
+            raise OsimError(f"{where(source, child)}: {label}: property <{child.tag}> is not read by openfdk")
+
+
+def read_contact_mesh(element, source):
+    """(name, record) of a Smith2018ContactMesh: frame (OpenSim path), mesh_file, E (Pa),
+    nu, h (m), line. Errors name the file, the line and the mesh."""
+    name = element.get("name") or ""
+    label = f"{MESH_TYPE} {name!r}"
+    if not name:
+        raise OsimError(f"{where(source, element)}: a {MESH_TYPE} without a name")
+    _check_properties(element, source, label, _MESH_PROPERTIES)
+    if _flag(element, "use_variable_thickness", source, label, False):
+        raise OsimError(f"{where(source, element)}: {label}: variable thickness is not supported by openfdk")
+    if _text(element, "mesh_back_file"):
+        raise OsimError(f"{where(source, element)}: {label}: a mesh_back_file is not supported by openfdk")
+    scale = (_text(element, "scale_factors") or "1 1 1").split()
+    if [float(x) for x in scale] != [1.0, 1.0, 1.0]:
+        raise OsimError(f"{where(source, element)}: {label}: scale_factors {' '.join(scale)} (openfdk reads "
+                        "unscaled contact meshes)")
+    frame, mesh = _text(element, "socket_frame"), _text(element, "mesh_file")
+    if not frame or not mesh:
+        raise OsimError(f"{where(source, element)}: {label}: needs a socket_frame and a mesh_file")
+    record = {"frame": frame.rstrip("/").split("/")[-1] if frame.startswith("/bodyset/") and frame.count("/") == 2
+              else frame, "path": frame, "mesh_file": mesh, "line": element.sourceline}
+    for tag, key, ok in (("elastic_modulus", "E", lambda x: x > 0), ("poissons_ratio", "nu", lambda x: -1 < x < 0.5),
+                         ("thickness", "h", lambda x: x > 0)):
+        value = _number(element, tag, source, label, math.nan)
+        if not (math.isfinite(value) and ok(value)):
+            raise OsimError(f"{where(source, element)}: {label}: {tag} {value:g} is out of range")
+        record[key] = value
+    return name, record
+
+
+def read_contact_force(element, source):
+    """(name, record or None if disabled) of a Smith2018ArticularContactForce: target,
+    casting (mesh names), max_proximity (m), line."""
+    name = element.get("name") or ""
+    label = f"{FORCE_TYPE} {name!r}"
+    if not name:
+        raise OsimError(f"{where(source, element)}: a {FORCE_TYPE} without a name")
+    _check_properties(element, source, label, _FORCE_PROPERTIES)
+    if not _flag(element, "appliesForce", source, label, True) or _flag(element, "isDisabled", source, label, False):
+        return name, None
+    formulation = (_text(element, "elastic_foundation_formulation") or "linear").strip()
+    if formulation != "linear":
+        raise OsimError(f"{where(source, element)}: {label}: the {formulation!r} elastic foundation is not supported "
+                        "by openfdk (its foundation is linear)")
+    if _flag(element, "modulus_heterogeneity", source, label, False):
+        raise OsimError(f"{where(source, element)}: {label}: modulus_heterogeneity is not supported by openfdk")
+    meshes = {}
+    for key in ("target", "casting"):
+        text = _text(element, f"socket_{key}_mesh")
+        if not text:
+            raise OsimError(f"{where(source, element)}: {label}: no socket_{key}_mesh")
+        meshes[key] = text.rstrip("/").split("/")[-1]
+    low = _number(element, "min_proximity", source, label, 0.0)
+    high = _number(element, "max_proximity", source, label, 0.01)
+    if low != 0.0 or not (0.0 < high < math.inf):
+        raise OsimError(f"{where(source, element)}: {label}: proximity range [{low:g}, {high:g}] m: openfdk needs "
+                        "min_proximity 0 and a positive max_proximity")
+    return name, {**meshes, "max_proximity": high, "line": element.sourceline}
+
+
+def layer_modulus(record):
+    """K/h (N/m³) of a mesh's layer: E (1 − ν) / ((1 + ν)(1 − 2ν) h)."""
+    E, nu, h = record["E"], record["nu"], record["h"]
+    return E * (1.0 - nu) / ((1.0 + nu) * (1.0 - 2.0 * nu) * h)
+
+
+def pressure_modulus(target, casting):
+    """openfdk's pressure modulus (N/m³) of two layers in series: 1 / (h₁/K₁ + h₂/K₂)."""
+    return 1.0 / (1.0 / layer_modulus(target) + 1.0 / layer_modulus(casting))

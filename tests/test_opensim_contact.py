@@ -1,0 +1,126 @@
+"""OpenSim-JAM's Smith2018ContactMesh / Smith2018ArticularContactForce imported as
+openfdk's elastic foundation, against closed forms (issue 25: "a rigid sphere pressed
+into a flat layer ... force, area and pressure given E and ν").
+
+Elastic-foundation pressure of a layer (Bei & Fregly 2004; Smith et al. 2018):
+p = K d / h, K = E (1 − ν)/((1 + ν)(1 − 2ν)); two layers in series (a layer on each
+mesh) give p = d / (h₁/K₁ + h₂/K₂). A sphere of radius R whose vertices press δ into a
+plane then carries F = π p_mod R δ² (docs/contact.md), on the cap area 2πRδ, with the
+peak pressure p_mod δ at the pole. The model (a ball on a slider above a plate) is built
+with OpenSim's API; the JAM elements are added to its XML, as OpenSim-JAM writes them
+(the standard OpenSim does not load them, and openfdk needs it not to).
+"""
+
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+import pytest
+from lxml import etree
+
+opensim = pytest.importorskip("opensim")
+
+from openfdk.contact.shapes import flat_patch, sphere_cap  # noqa: E402
+from openfdk.io.modelfile import model_from_dict  # noqa: E402
+from openfdk.io.opensim import OsimError, read_osim  # noqa: E402
+from openfdk.kinematics.coordinate_pose import pose_from_coordinates  # noqa: E402
+
+R, DELTA = 10e-3, 0.1e-3
+LAYERS = {"ball_mesh": (12e6, 0.45, 4e-3), "plate_mesh": (30e6, 0.40, 6e-3)}  # E (Pa), ν, h (m)
+
+
+def _stl(path, mesh):
+    """A binary STL of a SurfaceMesh (m)."""
+    tri = mesh.vertices_B[mesh.faces]
+    with open(path, "wb") as f:
+        f.write(b"openfdk test".ljust(80, b" ") + struct.pack("<I", len(tri)))
+        for t in tri:
+            n = np.cross(t[1] - t[0], t[2] - t[0])
+            n /= np.linalg.norm(n)
+            f.write(struct.pack("<12fH", *n, *t.ravel(), 0))
+
+
+def _modulus(E, nu, h):
+    return E * (1 - nu) / ((1 + nu) * (1 - 2 * nu) * h)
+
+
+def _model(folder, formulation="linear"):
+    m = opensim.Model()
+    m.setName("ball_on_plate")
+    ball = opensim.Body("ball", 1.0, opensim.Vec3(0), opensim.Inertia(1e-4, 1e-4, 1e-4))
+    m.addBody(ball)
+    turn = opensim.Vec3(0, -np.pi / 2, 0)  # the slider's x along the ground's z
+    slider = opensim.SliderJoint("slide", m.getGround(), opensim.Vec3(0), turn, ball, opensim.Vec3(0), turn)
+    slider.updCoordinate().setName("height")
+    m.addJoint(slider)
+    m.finalizeConnections()
+    m.initSystem()
+    m.printToXML(str(folder / "base.osim"))
+    a = np.sqrt(2 * R * DELTA)
+    _stl(folder / "ball.stl", sphere_cap(R, 1.5 * a / R, a / 5.0))   # pole −z, centre at the ball's origin
+    _stl(folder / "plate.stl", flat_patch(0.012, 0.012, 1e-3))       # z = 0, normal +z
+    tree = etree.parse(str(folder / "base.osim"))
+    model = tree.getroot().find("Model")
+    geometry = etree.SubElement(etree.SubElement(model, "ContactGeometrySet"), "objects")
+    for name, frame, file in (("ball_mesh", "/bodyset/ball", "ball.stl"), ("plate_mesh", "/ground", "plate.stl")):
+        E, nu, h = LAYERS[name]
+        etree.SubElement(geometry, "Smith2018ContactMesh", name=name).extend(
+            [etree.fromstring(f"<socket_frame>{frame}</socket_frame>"),
+             etree.fromstring(f"<mesh_file>{file}</mesh_file>"),
+             etree.fromstring(f"<elastic_modulus>{E}</elastic_modulus>"),
+             etree.fromstring(f"<poissons_ratio>{nu}</poissons_ratio>"),
+             etree.fromstring(f"<thickness>{h}</thickness>")])
+    forces = model.find("ForceSet/objects")
+    force = etree.SubElement(forces, "Smith2018ArticularContactForce", name="ball_contact")
+    for tag, text in (("socket_target_mesh", "/contactgeometryset/plate_mesh"),
+                      ("socket_casting_mesh", "/contactgeometryset/ball_mesh"), ("min_proximity", "0"),
+                      ("max_proximity", "0.001"), ("elastic_foundation_formulation", formulation)):
+        etree.SubElement(force, tag).text = text
+    tree.write(str(folder / "ball.osim"))
+    return folder / "ball.osim"
+
+
+def test_sphere_on_layer_matches_the_elastic_foundation(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    data, _ = read_osim(_model(tmp_path))
+    p_mod = 1.0 / sum(1.0 / _modulus(*layer) for layer in LAYERS.values())
+    spec = data["contacts"]["ball_contact"]
+    assert spec["vertices"]["body"] == "ball" and spec["surface"]["body"] == "ground"
+    assert spec["pressure_modulus"] == pytest.approx(p_mod, rel=1e-12) and spec["max_depth"] == 1e-3
+    model = model_from_dict(data, source="ball.osim")
+    state, _ = pose_from_coordinates(model, {"height": R - DELTA})
+    contact = model.contacts[0]
+    _, _, res = contact.generalized_forces(state, False)
+    assert res.force_W[2] == pytest.approx(np.pi * p_mod * R * DELTA**2, rel=0.0035)
+    np.testing.assert_allclose(res.force_W[:2], 0.0, atol=1e-9 * res.force_W[2])
+    assert res.area == pytest.approx(2 * np.pi * R * DELTA, rel=0.05)
+    # the pressure at the pole from E and ν: two layers in series, each compressed to
+    # the same pressure, d₁ + d₂ = δ
+    E1, nu1, h1 = LAYERS["ball_mesh"]
+    E2, nu2, h2 = LAYERS["plate_mesh"]
+    K1 = E1 * (1 - nu1) / ((1 + nu1) * (1 - 2 * nu1))
+    K2 = E2 * (1 - nu2) / ((1 + nu2) * (1 - 2 * nu2))
+    assert res.peak_pressure == pytest.approx(DELTA / (h1 / K1 + h2 / K2), rel=1e-5)  # (grid: φ in float32)
+    # no contact above the plate
+    state, _ = pose_from_coordinates(model, {"height": R + 1e-3})
+    assert contact.generalized_forces(state, False)[2].n_contact == 0
+
+
+def test_unsupported_contact_options_are_refused(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    path = _model(tmp_path, formulation="nonlinear")
+    with pytest.raises(OsimError) as exc:
+        read_osim(path)
+    msg = str(exc.value)
+    assert "\n" not in msg and "ball.osim: line" in msg and "Smith2018ArticularContactForce 'ball_contact'" in msg
+    assert "'nonlinear' elastic foundation" in msg
+    text = _model(tmp_path).read_text()
+    for old, new, words in (("<poissons_ratio>0.45", "<poissons_ratio>0.5", "poissons_ratio 0.5 is out of range"),
+                            ("/contactgeometryset/plate_mesh", "/contactgeometryset/nope", "no Smith2018ContactMesh 'nope'"),
+                            ("<min_proximity>0", "<min_proximity>0.001", "min_proximity 0")):
+        bad = tmp_path / "bad.osim"
+        bad.write_text(text.replace(old, new, 1))
+        with pytest.raises(OsimError) as exc:
+            read_osim(bad)
+        assert "\n" not in str(exc.value) and "bad.osim" in str(exc.value) and words in str(exc.value), exc.value
