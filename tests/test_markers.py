@@ -272,3 +272,20 @@ def test_visible_segments():
     assert visible_segments(np.array([0, 1, 1, 0, 1, 0, 0, 1, 1, 1], dtype=bool)) == [
         (1, 3), (4, 5), (7, 10)]
     assert visible_segments(np.zeros(4, dtype=bool)) == []
+
+
+def test_rounded_sample_times_are_uniform_enough_to_filter():
+    """A 120 Hz trial whose times are written with 6 decimals (a real TRC: 0.758333,
+    0.766667, …) is filtered: the spacing differs from 1/rate by 6e-5 of it, below the
+    0.1 % tolerance; a 1 % jitter is refused naming the file and the size of it. The
+    filtered signal of a constant marker stays constant (the filter is not disturbed)."""
+    t = np.round(0.75 + np.arange(60) / 120.0, 6)
+    p = np.tile([0.1, 0.2, 0.3], (60, 1))[:, None, :]
+    trial = MarkerTrial(labels=("M",), rate=120.0, time=t, positions=p, source="trial.trc")
+    markers = MarkerTrajectories(trial, cutoff_hz=6.0)
+    np.testing.assert_allclose(markers.filtered_positions[:, 0, :], p[:, 0, :], atol=1e-12)
+    jittered = t.copy()
+    jittered[30:] += 0.02 / 120.0
+    with pytest.raises(ValueError, match=r"trial\.trc: filtering needs samples spaced uniformly.*by up to 2 % of it"):
+        MarkerTrajectories(MarkerTrial(labels=("M",), rate=120.0, time=jittered, positions=p, source="trial.trc"),
+                           cutoff_hz=6.0)

@@ -32,7 +32,7 @@ from openfdk.study.cluster import dask_client
 from openfdk.study.kinds import prepare_model_case
 from openfdk.fixtures.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, write_jaw_meshes
 
-EPS_L = 0.03  # Blankevoort toe-region parameter ε_l (DESIGN.md §1)
+EPS_L = 0.03  # Blankevoort toe-region parameter ε_l (docs/design.md §1)
 LIGAMENTS = [f"tmj_ligament_{s}{e}" for s in "rl" for e in (1, 2, 3)]
 
 
@@ -187,7 +187,7 @@ def test_fingerprint_follows_parameters_options_and_model_content(files, tmp_pat
 def test_serial_study_overrides_reach_the_model(serial):
     """Every case's ligament forces follow the Blankevoort law with that case's
     per-element stiffness k/3, and its slack length l0 = l/(1+ε) satisfies
-    l0 (1 + ε_r) = l_r, the same reference length for every case (DESIGN.md §1)."""
+    l0 (1 + ε_r) = l_r, the same reference length for every case (docs/design.md §1)."""
     assert serial.ok and len(serial.records) == 4
     l_ref = {}
     for rec in serial.records:

@@ -1,7 +1,7 @@
 """Finite differences on the manifold of body poses (derivative checks, FD Jacobians).
 
 The perturbation of coordinate k is q ⊕ ε e_k: r ← r + ε e (translations) or
-R_WB ← R_WB Exp(ε e) (body-frame rotations), matching q̂ (DESIGN.md §1).
+R_WB ← R_WB Exp(ε e) (body-frame rotations), matching q̂ (docs/design.md §1).
 """
 
 from __future__ import annotations

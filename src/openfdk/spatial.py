@@ -1,6 +1,6 @@
 """Rotations, Euler parameters (unit quaternions) and the manifold update.
 
-Conventions (DESIGN.md §1, §4):
+Conventions (docs/design.md §1, §4):
 
 * A unit quaternion (Euler parameters) is ``p = [e0, e1, e2, e3]``, scalar first.
 * ``R_WB = rotation_matrix(p)`` maps vectors expressed in body frame B to the world

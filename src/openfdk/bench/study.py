@@ -1,6 +1,6 @@
 """Benchmark: the mandible study's ligament parameter study (the paper's 15 FDK models:
 whole-ligament stiffness 136.2 / 272.4 / 544.8 N/m × reference strain −0.04…0.04 step
-0.02, DESIGN.md §2, on the three tasks: 45 cases) on the virtual subject, run as an
+0.02, docs/design.md §2, on the three tasks: 45 cases) on the virtual subject, run as an
 openfdk.study study exactly as ``openfdk demo`` runs it
 (:mod:`openfdk.mandible.parameter_study`). To keep the benchmark to a few minutes each
 case analyses the first 300 frames (3 s) of its task instead of five cycles (433–1002 frames;
@@ -21,7 +21,7 @@ is busy):
   45/23 = 1.96);
 * ``mandible_parameter_study_2workers_warm_s`` / ``mandible_parameter_study_2workers_malloc_trim_warm_s``:
   the study on an already running, warmed-up 2-worker cluster without / with Dask's
-  ``MALLOC_TRIM_THRESHOLD_=65536`` in the workers (DESIGN.md §5; openfdk removes it).
+  ``MALLOC_TRIM_THRESHOLD_=65536`` in the workers (docs/design.md §5; openfdk removes it).
 
 The same study on whole five-cycle recordings (chewing 523, protrusion 1092, open–close
 722 frames per case, the size of the demo's study: 433–1002 frames), 2 alternations

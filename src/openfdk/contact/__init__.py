@@ -1,4 +1,4 @@
-"""Elastic-foundation contact between triangle meshes (DESIGN.md §1).
+"""Elastic-foundation contact between triangle meshes (docs/design.md §1).
 
 * :mod:`.mesh` — :class:`SurfaceMesh`, :func:`load_mesh` (STL/OBJ/PLY), :func:`check_scale`,
   :func:`offset`.

@@ -1,4 +1,4 @@
-"""Elastic-foundation contact between two triangle meshes (DESIGN.md §1; Andersen et al. 2017).
+"""Elastic-foundation contact between two triangle meshes (docs/design.md §1; Andersen et al. 2017).
 
 A pair couples a *vertex surface* A on body a with an *opposite surface* B on body b.
 For every vertex i of A at p_W = r_Wa + R_Wa s_i (s_i in a's frame):

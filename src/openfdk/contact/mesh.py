@@ -1,7 +1,7 @@
 """Triangle surface meshes for contact: loading, validation, vertex areas and normals.
 
 A :class:`SurfaceMesh` is a triangle mesh fixed in a body frame B (origin at the body's
-centre of mass, DESIGN.md §1), in metres. Meshes may be *open* — only the joint region of
+centre of mass, docs/design.md §1), in metres. Meshes may be *open* — only the joint region of
 a bone is usually meshed — and that is normal. What matters is the orientation: the
 triangle normals (right-hand rule on the vertex order of each face) must point **out of
 the bone, toward the joint space**. For a closed mesh this is the outward orientation and

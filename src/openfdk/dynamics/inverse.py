@@ -1,6 +1,6 @@
 """Inverse dynamics of one frame: equilibrium and muscle recruitment (paper Eqs. 11–14).
 
-Per frame (DESIGN.md §3 data flow): kinematic state (q, v, v̇) → muscle lengths, speeds,
+Per frame (docs/design.md §3 data flow): kinematic state (q, v, v̇) → muscle lengths, speeds,
 strengths s and passive tension → every force set's applied loads
 (:mod:`openfdk.forces.forceset`) → C f = d →
 recruitment (min G(f^M) s.t. C f = d, 0 ≤ f^M ≤ s) → muscle, reaction and FDK residual

@@ -1,4 +1,4 @@
-"""Dynamic stages of a frame (DESIGN.md §3, :mod:`openfdk.model.framedata`): forces and
+"""Dynamic stages of a frame (docs/design.md §3, :mod:`openfdk.model.framedata`): forces and
 equilibrium C f = d (Eqs. 12–14) from the position stage's Φ_q̂, then the recruitment
 (Eq. 11)."""
 

@@ -2,7 +2,7 @@
 
 This is the ligament law of the FDK paper (Andersen et al. 2017, "Introduction to
 Force-dependent Kinematics", J Biomech Eng 139:091001, TMJ ligaments) and of OpenSim's
-``Blankevoort1991Ligament`` (see DESIGN.md §1 "Ligaments" and docs/ligaments.md).
+``Blankevoort1991Ligament`` (see docs/design.md §1 "Ligaments" and docs/ligaments.md).
 
 Governing equations (tension positive, ligaments only pull)::
 

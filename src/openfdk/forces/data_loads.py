@@ -6,7 +6,7 @@ time series (s -> N, m, N m) whose components are expressed in the ground (world
 B itself (OpenSim's ``force_expressed_in_body`` and ``point_expressed_in_body``; the
 torque is expressed like the force). With F_W, T_W the world components and d_W = p_WP −
 r_WB (r_WB the centre of mass), the generalised forces on B's 6 columns
-(q̂ = [δr_W; δπ_B], DESIGN.md §1) are
+(q̂ = [δr_W; δπ_B], docs/design.md §1) are
 
     Q = [F_W ; d_B × F_B + T_B]        (N, N m),   x_B = R_WBᵀ x_W.
 

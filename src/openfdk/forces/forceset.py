@@ -9,7 +9,7 @@ A *force set* holds all elements of one kind of a model (one field of
     fs.stiffness(state, outputs, K)               # K += ∂Q_set/∂q̂ from the outputs accumulate left
 
 Q in N (force rows) and N m (moment rows), conjugate to q̂ = [δr_W; δπ_B] of each moving
-body (6 columns per body, DESIGN.md §1); K in N/m, N, N m/rad. ``outputs`` is the set's
+body (6 columns per body, docs/design.md §1); K in N/m, N, N m/rad. ``outputs`` is the set's
 per-frame record (lengths, tensions, contact results, …).
 
 The forces stage (:meth:`ForceElements.accumulate`, called by

@@ -1,6 +1,6 @@
 """Muscle strength models for inverse dynamics: constant strength and a Hill 3-element model.
 
-In the recruitment (DESIGN.md §1, paper Eq. 11) each muscle contributes an unknown active
+In the recruitment (docs/design.md §1, paper Eq. 11) each muscle contributes an unknown active
 force ``0 ≤ f^M ≤ s`` and a known passive force ``f_P`` (an applied load, tension
 positive). A model maps the muscle–tendon length ``l_MT`` (m) and lengthening speed
 ``v_MT`` (m/s, positive when lengthening) to ``(s, f_P)``. The full derivation, every

@@ -12,7 +12,7 @@ Jacobian (moment arms): the path is locally shortest, so by the envelope theorem
 ∂l/∂q̂ equals the derivative with the tangent points held fixed *in their surface's
 body*; the arcs are then rigid and only the straight segments count:
 L = Σ_segments eᵀ (M_B − M_A), e the unit segment direction, M the point Jacobians
-(DESIGN.md §1). This is exact for the closed-form cylinder and sphere arcs and as
+(docs/design.md §1). This is exact for the closed-form cylinder and sphere arcs and as
 accurate as the shooting tolerance for the ellipsoid. Lengthening speed l̇ = L v; a
 tension T acts as Q = −Lᵀ T. The acceleration bias b = L̇ v (needed only when a path
 length is driven or used as a constraint) is a central difference of L along v.

@@ -1,4 +1,4 @@
-"""Zero-lag Butterworth low-pass filter of sampled marker data (DESIGN.md §1: "zero-lag
+"""Zero-lag Butterworth low-pass filter of sampled marker data (docs/design.md §1: "zero-lag
 Butterworth low-pass + spline"), written for openfdk so that reading a trial does not
 import ``scipy.signal`` (≈ 0.3 s of imports — scipy.stats comes with it — on every
 ``openfdk`` command and every study worker). It computes what

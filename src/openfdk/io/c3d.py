@@ -2,10 +2,10 @@
 
 What is read: the 3D points of a C3D file (labels, positions, residuals, point rate,
 first frame, ``POINT:UNITS``); analog channels, force plates and events are ignored.
-Positions are converted once, at this boundary, to metres (DESIGN.md §4).
+Positions are converted once, at this boundary, to metres (docs/design.md §4).
 
 Safety: ezc3d is a C++ library and can crash the whole Python process on a malformed
-file (DESIGN.md §5), which no ``try`` can catch.  :func:`read_c3d` therefore first checks
+file (docs/design.md §5), which no ``try`` can catch.  :func:`read_c3d` therefore first checks
 the file in pure Python (:func:`inspect_c3d`) — header block, parameter section, and
 that the file is long enough for the data the header and parameters promise — and only
 then hands it to ezc3d.  Every problem is raised as :class:`C3DError` naming the file.

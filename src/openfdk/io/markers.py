@@ -1,8 +1,8 @@
 """Measured marker trajectories that can be evaluated at any time t.
 
 Over-determinate kinematics needs the measured marker positions, and the residual's
-time derivatives, at t and t ± Δt (DESIGN.md §1, paper Eqs. 7–10), so the samples are
-low-pass filtered and interpolated (DESIGN.md §1: "zero-lag Butterworth low-pass +
+time derivatives, at t and t ± Δt (docs/design.md §1, paper Eqs. 7–10), so the samples are
+low-pass filtered and interpolated (docs/design.md §1: "zero-lag Butterworth low-pass +
 spline").
 
 Per marker, per contiguous run of visible samples (a *segment*):
@@ -64,6 +64,12 @@ def visible_segments(visible: np.ndarray) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2])]
 
 
+#: largest relative deviation of a sample interval from 1/rate that filtering accepts:
+#: files write times rounded (a 120 Hz TRC with 6 decimals: 6e-5), and a Butterworth
+#: filter designed for the nominal rate is then off by as little
+UNIFORM_SPACING_TOLERANCE = 1e-3
+
+
 class MarkerTrajectories:
     """Filtered, interpolated marker positions of a trial, evaluable at any time.
 
@@ -101,9 +107,11 @@ class MarkerTrajectories:
         time = trial.time
         if np.any(np.diff(time) <= 0):
             raise ValueError(f"{trial.source}: sample times must increase strictly")
-        if cutoff_hz is not None and np.max(np.abs(np.diff(time) * trial.rate - 1.0)) > 1e-6:
+        jitter = np.max(np.abs(np.diff(time) * trial.rate - 1.0))
+        if cutoff_hz is not None and jitter > UNIFORM_SPACING_TOLERANCE:
             raise ValueError(f"{trial.source}: filtering needs samples spaced uniformly at "
-                             f"1/rate = {1.0 / trial.rate:g} s")
+                             f"1/rate = {1.0 / trial.rate:g} s (spacing differs by up to {100 * jitter:.3g} % "
+                             f"of it; allowed {100 * UNIFORM_SPACING_TOLERANCE:g} %)")
 
         sos = None if cutoff_hz is None else butter_lowpass_sos(self.order, self.cutoff_hz, trial.rate)
         # more samples than the odd-extension padding; shorter segments stay unfiltered

@@ -14,7 +14,7 @@ Layout (OpenSim documentation, "Marker (.trc) Files"), tab separated:
   which leaves its last markers missing.
 
 What is used: ``DataRate`` (Hz) is the trial's rate, ``Units`` (mm, cm or m) converts the
-positions to metres once, here (DESIGN.md §4); times are the ``Time`` column (which OpenSim
+positions to metres once, here (docs/design.md §4); times are the ``Time`` column (which OpenSim
 defines as (frame − OrigDataStartFrame)/DataRate).  The header fields are found by name,
 not position.  Every problem raises :class:`TRCError` naming the file and the line.
 """

@@ -1,4 +1,4 @@
-"""Kinematic stages of a frame (DESIGN.md §3, :mod:`openfdk.model.framedata`).
+"""Kinematic stages of a frame (docs/design.md §3, :mod:`openfdk.model.framedata`).
 
 Each stage evaluates the constraint rows at most once per pose (the compiled kernels of
 :mod:`.frame_kernels` hand their evaluations back):

@@ -1,7 +1,7 @@
 """Procedural temporomandibular-joint surfaces: analytic shapes and their meshes.
 
 The virtual subject's TMJ surfaces are smooth functions; the STL files of a subject
-folder are meshes of them (DESIGN.md §2; the numbers are in
+folder are meshes of them (docs/design.md §2; the numbers are in
 ``openfdk/data/mandible/generic_subject.yaml`` with their sources). Keeping the
 functions lets the virtual experiment put the condyles exactly on the fossa.
 

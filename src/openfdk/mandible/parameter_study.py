@@ -1,4 +1,4 @@
-"""The paper's TMJ ligament parameter study (DESIGN.md §2) run through openfdk's study
+"""The paper's TMJ ligament parameter study (docs/design.md §2) run through openfdk's study
 machinery (:mod:`openfdk.study`), and the grey bands of Figures 5–7 built from it.
 
 The 15 FDK models are the comparison model file ``fdk.yaml`` with two overrides on

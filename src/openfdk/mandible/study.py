@@ -1,4 +1,4 @@
-"""The mandible study end to end (DESIGN.md §2), and its steps as a Python API.
+"""The mandible study end to end (docs/design.md §2), and its steps as a Python API.
 
 Only public openfdk layers and ordinary model files are used, so a real subject folder
 (CT-segmented STL files, landmarks, C3D recordings named in ``trials:``) runs the same

@@ -4,7 +4,7 @@ A subject folder holds ``subject.yaml`` (landmarks, TMJ planes, mandible inertia
 muscles, ligaments, contact surfaces, dental braces) and the STL files it names. All
 positions are in the subject frame at the reference pose: origin midway between the
 most superior points of the two condyles, x anterior, y left, z up (Frankfurt
-horizontal); skull and mandible frames coincide there (DESIGN.md §2). The file declares
+horizontal); skull and mandible frames coincide there (docs/design.md §2). The file declares
 its length unit (m, cm, mm; default mm) and angle unit (deg, rad; default deg); mass is
 kg, inertia kg m², force N. :func:`load_subject` converts everything to SI once.
 

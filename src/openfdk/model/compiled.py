@@ -33,7 +33,7 @@ OP_FUNCTION    node_u (a 1-row node)                    f as PiecewisePolynomial
 =============  =======================================  =============================
 
 The maths of each op is the one of the measure class of the same name in
-:mod:`openfdk.model.measures` (DESIGN.md §1: ṁ = M v, m̈ = M v̇ + b). Rates of children
+:mod:`openfdk.model.measures` (docs/design.md §1: ṁ = M v, m̈ = M v̇ + b). Rates of children
 that a parent's bias needs (ẇ of a vector for a distance) are ṁ = M v, formed in the
 kernel from the node's Jacobian rows.
 
@@ -322,7 +322,7 @@ def evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fparams
         mask[k] = mk
         ncol = _node_columns(mk, column, cols) if order >= 1 else 0
         if o == OP_POINT:
-            # p = r + R s', ∂p/∂δr = I, ∂p/∂δπ' = −R s̃', b = R ω̃' ω̃' s' (DESIGN.md §1)
+            # p = r + R s', ∂p/∂δr = I, ∂p/∂δπ' = −R s̃', b = R ω̃' ω̃' s' (docs/design.md §1)
             i = iparams[ip]
             s0, s1, s2 = fparams[fp], fparams[fp + 1], fparams[fp + 2]
             R = R_WB[i]

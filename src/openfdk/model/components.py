@@ -1,6 +1,6 @@
 """Static model components: bodies, frames (points with orientation) and markers.
 
-A body's frame origin is its centre of mass (DESIGN.md §1: q_i = [r_i; p_i] with r_i the
+A body's frame origin is its centre of mass (docs/design.md §1: q_i = [r_i; p_i] with r_i the
 centre-of-mass position). All lengths in m, masses in kg, inertia in kg m² about the
 centre of mass, expressed in the body frame.
 """

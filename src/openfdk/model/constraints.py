@@ -94,7 +94,7 @@ class MarkerSet:
     def evaluate(self, state, order=1):
         """(p_WM (3n,) m, M (3n, 6 n_moving), b (3n,)) for all markers, stacked by marker.
 
-        ∂p/∂δr = I, ∂p/∂δπ' = −R_WB p̃_BM, b = R_WB ω̃' ω̃' p_BM (DESIGN.md §1); numba
+        ∂p/∂δr = I, ∂p/∂δπ' = −R_WB p̃_BM, b = R_WB ω̃' ω̃' p_BM (docs/design.md §1); numba
         kernel :func:`openfdk.model.kernels.marker_positions_jacobian`.
         """
         value, M, b = marker_positions_jacobian(

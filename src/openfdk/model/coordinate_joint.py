@@ -10,7 +10,7 @@ Planar joints are fixed choices of it):
     p_FM = g1(q) t1 + g2(q) t2 + g3(q) t3                     (in F)
 
 with unit axes a_i, t_i and functions f_i, g_i of the joint's coordinates q (constant,
-linear, splines, …). openfdk keeps the bodies' poses as its unknowns (DESIGN.md §1) and
+linear, splines, …). openfdk keeps the bodies' poses as its unknowns (docs/design.md §1) and
 turns this into measures and rows:
 
 1. Constant rotations are moved to the end: Rot(a, θ) after a constant C equals

@@ -1,5 +1,5 @@
 """Frame data: the workspace of one frame's analysis (Pinocchio's *Data*, MuJoCo's
-stages; DESIGN.md §3).
+stages; docs/design.md §3).
 
 The model (:class:`~openfdk.model.model.Model`) is never modified by an analysis.
 Everything a frame computes at one pose lives in a :class:`FrameData`, filled by stage

@@ -5,7 +5,7 @@ This is how a coupled joint row reads: OpenSim's knee translation "x = spline(kn
 flexion)" becomes the row x − f(θ) = 0 with θ the flexion measure, and a
 CoordinateCouplerConstraint q_dep = f(q_indep) the row q_dep − f(q_indep) = 0.
 
-Chain rule (DESIGN.md §1, ṁ = M v, m̈ = M v̇ + b):
+Chain rule (docs/design.md §1, ṁ = M v, m̈ = M v̇ + b):
 
     m = f(u),   M = f'(u) M_u,   b = f''(u) u̇² + f'(u) b_u,   u̇ = M_u v.
 

@@ -8,7 +8,7 @@ from numba import njit
 
 @njit(cache=True)
 def marker_positions_jacobian(p_WB, R_WB, w_BB, column, body, p_BM, n_coords, order):
-    """Stacked marker measure (DESIGN.md §1, a point fixed in a body):
+    """Stacked marker measure (docs/design.md §1, a point fixed in a body):
     p = r + R s', ∂p/∂δr = I, ∂p/∂δπ' = −R s̃', b = R ω̃' ω̃' s'.
 
     p_WB (nb, 3) m; R_WB (nb, 3, 3); w_BB (nb, 3) rad/s; column (nb,) int;
@@ -60,7 +60,7 @@ def _set_rotation(R_WB, i, e0, e1, e2, e3):
 @njit(cache=True)
 def displace_poses(p_WB, quat_WB, R_WB, moving, column, dq_hat):
     """In place: r ← r + δr, p ← p ⊗ exp(½ δπ') (normalised, scalar part ≥ 0), R ← R(p)
-    for every moving body (DESIGN.md §1). dq_hat (6 n_moving,) [m, rad]."""
+    for every moving body (docs/design.md §1). dq_hat (6 n_moving,) [m, rad]."""
     for i in moving:
         c = column[i]
         for r in range(3):
@@ -117,7 +117,7 @@ def relative_vector(p_WB, R_WB, w_BB, v_WB, column, ia, s_a, ib, s_b, k, n_coord
     expressed in body k's frame (world if k < 0): w = R_kᵀ u.
 
     M = R_kᵀ (M_b − M_a) (+ w̃ in k's rotation columns); b = R_kᵀ b_u − 2 ω'_k × (R_kᵀ u̇)
-    + ω'_k × (ω'_k × w) with b_u = R_b ω̃'_b ω̃'_b s_b − R_a ω̃'_a ω̃'_a s_a (DESIGN.md §1).
+    + ω'_k × (ω'_k × w) with b_u = R_b ω̃'_b ω̃'_b s_b − R_a ω̃'_a ω̃'_a s_a (docs/design.md §1).
     Returns value (3,), M (3, n_coords), b (3,), u̇ expressed like w (3,).
     """
     value = np.zeros(3)

@@ -1,6 +1,6 @@
 """Kinematic measures: value m(q), Jacobian M = ∂m/∂q̂ and acceleration bias b.
 
-DESIGN.md §1: every geometric quantity is a *measure* with ṁ = M v and m̈ = M v̇ + b,
+docs/design.md §1: every geometric quantity is a *measure* with ṁ = M v and m̈ = M v̇ + b,
 where v = [ṙ_i; ω'_i] per moving body and q̂ = [δr_i; δπ'_i] (body-frame rotation).
 Joints, drivers, marker residuals, muscle and ligament lengths and FDK DOFs are built from
 these. ``evaluate(state, order)`` returns ``(value, M, b)``:
@@ -62,7 +62,7 @@ class Measure:
 class PointPosition(Measure):
     """World position of a point fixed in a body: p_WP = r_WB + R_WB p_BP.
 
-    ∂p/∂δr = I, ∂p/∂δπ' = −R_WB p̃_BP, b = R_WB ω̃' ω̃' p_BP  (DESIGN.md §1).
+    ∂p/∂δr = I, ∂p/∂δπ' = −R_WB p̃_BP, b = R_WB ω̃' ω̃' p_BP  (docs/design.md §1).
     body : int body index; p_BP : (3,) m.
     """
 

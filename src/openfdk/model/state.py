@@ -68,7 +68,7 @@ class BodyStates:
     def displace(self, dq_hat):
         """Finite displacement on the manifold: r ← r + δr, p ← p ⊗ exp(½ δπ').
 
-        dq_hat : (6 n_moving,) [m, rad] in the q̂ convention of DESIGN.md §1.
+        dq_hat : (6 n_moving,) [m, rad] in the q̂ convention of docs/design.md §1.
         """
         displace_poses(self.p_WB, self.quat_WB, self.R_WB, self.moving, self.column,
                        np.ascontiguousarray(dq_hat, dtype=float))

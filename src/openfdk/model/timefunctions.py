@@ -2,7 +2,7 @@
 
 Each function maps t (s) to an array of ``size`` values (in the driven measure's SI
 units) and provides ``derivatives(t) -> (f, ḟ, f̈)``. Declared in model files by type
-and parameters (never as expressions to evaluate, DESIGN.md §4).
+and parameters (never as expressions to evaluate, docs/design.md §4).
 """
 
 from __future__ import annotations

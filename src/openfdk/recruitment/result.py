@@ -1,6 +1,6 @@
 """Result object, errors and input checks shared by the recruitment solvers.
 
-The recruitment problem (paper Eq. 11, DESIGN.md §1) is
+The recruitment problem (paper Eq. 11, docs/design.md §1) is
 
     minimise G(f_B)   subject to   C f = d,   0 ≤ f_B ≤ s,
 

@@ -1,6 +1,6 @@
 """Sensitivity of the polynomial recruitment solution to the equilibrium data C and d.
 
-Needed by the analytic FDK Jacobian (DESIGN.md §1): how the optimal forces f move when the
+Needed by the analytic FDK Jacobian (docs/design.md §1): how the optimal forces f move when the
 kinematics change C and d. With the active set held fixed — interior bounded forces I,
 bounded forces at a bound (f = 0 or f = s, unchanged), free forces F — the optimality
 conditions of paper Eq. 11 are

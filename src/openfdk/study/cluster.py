@@ -9,7 +9,7 @@ paths (a shared file system).
 
 Memory trimming: Dask's nanny sets ``MALLOC_TRIM_THRESHOLD_=65536`` in its workers by
 default (``distributed.nanny.pre-spawn-environ``), which makes glibc return freed memory
-to the system eagerly. DESIGN.md §5 measured numpy-heavy tasks ≈40 % slower inside Dask
+to the system eagerly. docs/design.md §5 measured numpy-heavy tasks ≈40 % slower inside Dask
 workers with it; openfdk's LocalCluster removes it unless ``malloc_trim=True``
 (docs/studies.md has the measurement on the FDK parameter study).
 

@@ -1,6 +1,6 @@
 """The one trial driver: times, per-frame steps, warm starts, progress, recording with a
 structured per-frame status, checkpoints and interruption. Used by kinematics, inverse
-dynamics, FDK and chunked runs; it depends on no analysis layer (DESIGN.md §3)."""
+dynamics, FDK and chunked runs; it depends on no analysis layer (docs/design.md §3)."""
 
 from .driver import Recording, TrialInterrupted, drive
 from .status import FrameReport, FrameStatus, Reason

@@ -5,7 +5,7 @@ the FDK side-panel series.
 Poses come from kinematics.csv (``<body>.x_m … <body>.e3``); measured marker positions
 are the model markers minus the residuals Ψ = p_WM(q) − x_M (kinematics.csv
 ``<marker>.residual_{x,y,z}_m``); forces from forces.csv. Contact pressures are not in
-the tables: they are re-evaluated here (elastic foundation, DESIGN.md §1) at each frame's
+the tables: they are re-evaluated here (elastic foundation, docs/design.md §1) at each frame's
 recorded poses, mapped onto the decimated display mesh (maximum over the vertices of a
 display cluster) and quantised to 255 levels of the trial's peak pressure.
 """

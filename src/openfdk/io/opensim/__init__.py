@@ -1,6 +1,6 @@
 """OpenSim models in: ``.osim`` files (OpenSim 3.x and 4.x) read into openfdk models.
 
-One more way into the same :class:`~openfdk.model.builder.ModelBuilder` (DESIGN.md §3):
+One more way into the same :class:`~openfdk.model.builder.ModelBuilder` (docs/design.md §3):
 the XML is read into records (:mod:`.document`), the records become an openfdk model
 mapping in the model-file format (:mod:`.to_model`), and the model-file loader builds
 it. After ``build()`` nothing downstream knows where the model came from. Coverage,
