@@ -15,6 +15,7 @@ vary with the pose.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from ..kinematics.block_triangular import block_lu, block_solve, block_triangular_form
 from ..recruitment.result import STATUS_OPTIMAL, RecruitmentResult
@@ -35,21 +36,39 @@ def reactions_form(system, layout):
     return block_triangular_form(pattern[sel][:, layout.eq_coords].T)
 
 
+@njit(cache=True)
+def _solve(C, d, rows, cols, starts, ptr, earlier, f, residual):
+    """f (n,) ← C⁻¹ d by blocks, residual (n,) ← C f − d; False when C is singular, f
+    not finite or the residual above 1e-8 max(|d|, 1) (one compiled call per frame)."""
+    n = C.shape[0]
+    LU, piv = np.empty((n, n)), np.empty(n, np.int64)
+    if not block_lu(C, rows, cols, starts, LU, piv):
+        return False
+    block_solve(LU, piv, rows, cols, starts, ptr, earlier, d, f)
+    scale = 1.0
+    for r in range(n):
+        scale = max(scale, abs(d[r]))
+    worst = 0.0
+    for r in range(n):
+        if not np.isfinite(f[r]):
+            return False
+        acc = -d[r]
+        for c in range(n):
+            acc += C[r, c] * f[c]
+        residual[r] = acc
+        worst = max(worst, abs(acc))
+    return worst <= 1e-8 * scale
+
+
 def determinate_reactions(C, d, form, p):
     """The RecruitmentResult of C f = d (C (n, n), d (n,) N, N m) solved by blocks
     (``form`` of :func:`reactions_form`; p the criterion's exponent, recorded), or None
     when C is singular or the solve is not accurate (residual > 1e-8 max(|d|, 1)): the
     recruitment solver then handles (and names) it."""
     n = C.shape[0]
-    C = np.ascontiguousarray(C, dtype=float)
-    LU, piv = np.empty((n, n)), np.empty(n, np.int64)
-    if not block_lu(C, form.rows, form.cols, form.starts, LU, piv):
-        return None
-    f = block_solve(LU, piv, form.rows, form.cols, form.starts, form.ptr, form.earlier,
-                    np.ascontiguousarray(d, dtype=float), np.empty(n))
-    residual = C @ f - d
-    scale = max(float(np.max(np.abs(d), initial=0.0)), 1.0)
-    if not np.all(np.isfinite(f)) or np.max(np.abs(residual)) > 1e-8 * scale:
+    f, residual = np.empty(n), np.empty(n)
+    if not _solve(np.ascontiguousarray(C, dtype=float), np.ascontiguousarray(d, dtype=float), form.rows,
+                  form.cols, form.starts, form.ptr, form.earlier, f, residual):
         return None
     zero = np.zeros(n, bool)
     return RecruitmentResult(

@@ -129,7 +129,7 @@ class ConstraintSystem:
             f[r : r + c.size], df[r : r + c.size], ddf[r : r + c.size] = c.function.derivatives(t)
         for rows, check, spline in self._spline_groups:  # spline drivers on one knot grid: one evaluation
             check.derivatives_range_check(t)
-            f[rows], df[rows], ddf[rows] = spline.derivatives(t)
+            spline.derivatives_into(t, rows, f, df, ddf)
         f[self._n_joint_rows :] = alpha
         self._targets_key, self._targets = key, (f, df, ddf)
         return self._targets
