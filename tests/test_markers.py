@@ -289,3 +289,19 @@ def test_rounded_sample_times_are_uniform_enough_to_filter():
     with pytest.raises(ValueError, match=r"trial\.trc: filtering needs samples spaced uniformly.*by up to 2 % of it"):
         MarkerTrajectories(MarkerTrial(labels=("M",), rate=120.0, time=jittered, positions=p, source="trial.trc"),
                            cutoff_hz=6.0)
+
+
+def test_tracking_times_of_a_rounded_trial_are_its_uniform_grid():
+    """The analysed times of a trial with rounded sample times are the uniform grid over
+    the same span (where the marker splines are evaluated); a real gap is refused."""
+    from types import SimpleNamespace
+
+    from openfdk.kinematics.analysis import tracking_times
+
+    t = np.round(0.75 + np.arange(40) / 120.0, 6)
+    times = tracking_times(SimpleNamespace(time=t), None)
+    np.testing.assert_allclose(times, 0.75 + np.arange(40) * (t[-1] - t[0]) / 39, rtol=0, atol=1e-15)
+    assert np.ptp(np.diff(times)) < 1e-12 and np.max(np.abs(times - t)) < 1e-6
+    gap = np.concatenate([t[:20], t[20:] + 0.5 / 120.0])
+    with pytest.raises(ValueError, match="uniformly spaced"):
+        tracking_times(SimpleNamespace(time=gap), None)

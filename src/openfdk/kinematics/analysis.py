@@ -306,10 +306,19 @@ def run_determinate(model, times, alpha=None, progress=False):
 
 
 def tracking_times(trajectories, times):
-    """The analysed times (nf,) s: ``times`` or the trial's samples; checked uniform."""
+    """The analysed times (nf,) s: ``times`` or the trial's samples; checked uniform.
+    Times rounded in the file (spacing within the markers' tolerance,
+    :data:`openfdk.io.markers.UNIFORM_SPACING_TOLERANCE`) become the uniform grid over
+    the same span, where the marker splines are evaluated."""
     if times is None:
-        times = np.asarray(trajectories.time, dtype=float)
+        times = trajectories.time
     times = np.asarray(times, dtype=float)
+    if len(times) > 2:
+        from ..io.markers import UNIFORM_SPACING_TOLERANCE
+
+        dt = (times[-1] - times[0]) / (len(times) - 1)
+        if dt > 0 and np.max(np.abs(np.diff(times) / dt - 1.0)) <= UNIFORM_SPACING_TOLERANCE:
+            times = np.linspace(times[0], times[-1], len(times))
     nf = len(times)
     dt = float(times[1] - times[0]) if nf > 1 else 1.0
     if nf > 2 and np.max(np.abs(np.diff(times) - dt)) > 1e-9 * max(1.0, abs(dt)):
