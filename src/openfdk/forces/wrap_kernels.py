@@ -304,16 +304,54 @@ def ellipsoid_wrap(P, Q, axes, side, tol):
             d = cur - prev
             s += np.sqrt(d @ d)
             prev = cur
-    phi = 0.0
-    if crosses(P, Q, axes):  # the shortest planar path of the fan of planes through P and Q
+    # starts (horizon angle, arc length): the shortest planar path of the fan of planes
+    # through P and Q on the side, the great circle, the shortest planar path on any side
+    # (when no geodesic on the side is found near the first two)
+    starts = np.zeros((3, 2))
+    n_starts = 0
+    if crosses(P, Q, axes):
         best, T1f, s_f, theta_f = _plane_fan(P1, Q1, Dinv, side)
         if best < np.inf:
-            phi = np.arctan2((T1f - c0) @ u2, (T1f - c0) @ u1)
-            s = s_f
+            starts[n_starts, 0] = np.arctan2((T1f - c0) @ u2, (T1f - c0) @ u1)
+            starts[n_starts, 1] = s_f
+            n_starts += 1
+            theta = max(theta, theta_f)
+    starts[n_starts, 1] = s
+    n_starts += 1
+    if crosses(P, Q, axes) and side @ side > 0.0:
+        best, T1f, s_f, theta_f = _plane_fan(P1, Q1, Dinv, np.zeros(3))
+        if best < np.inf:
+            starts[n_starts, 0] = np.arctan2((T1f - c0) @ u2, (T1f - c0) @ u1)
+            starts[n_starts, 1] = s_f
+            n_starts += 1
             theta = max(theta, theta_f)
     n_steps = 48 + int(300.0 * theta / np.pi)
     scale = np.sqrt(P @ P) + np.sqrt(Q @ Q)
+    tol = max(tol, 1e-13 * scale)  # (round-off of the residual of far anchors)
     converged = False
+    for k in range(n_starts):
+        phi, s = starts[k, 0], starts[k, 1]
+        converged, phi, s, T1c, x = _shoot_newton(phi, s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps, scale, tol)
+        if converged:
+            break
+    if not converged:
+        T1[:] = P
+        T2[:] = Q
+        return -2, np.nan, T1, T2, 0.0
+    T1[:] = T1c
+    T2[:] = x
+    a1 = T1c - P
+    a2 = Q - x
+    return 1, np.sqrt(a1 @ a1) + s + np.sqrt(a2 @ a2), T1, T2, s
+
+
+@njit(cache=True)
+def _shoot_newton(phi, s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps, scale, tol):
+    """Newton on (horizon angle φ, arc length s) from the given start until the end
+    residual is below ``tol`` (m): (converged, φ, s, T1, geodesic end)."""
+    converged = False
+    T1c = np.zeros(3)
+    x = np.zeros(3)
     for _ in range(60):
         res, T1c, x = _shoot_residual(phi, s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps)
         if np.sqrt(res @ res) < tol:
@@ -328,23 +366,22 @@ def ellipsoid_wrap(P, Q, axes, side, tol):
             break
         d_phi = -(r_s[1] * res[0] - r_s[0] * res[1]) / det
         d_s = -(-r_phi[1] * res[0] + r_phi[0] * res[1]) / det
-        # damping: at most 0.3 rad of horizon angle and half the arc per step
+        # damping: at most 0.3 rad of horizon angle and half the arc per step, then
+        # halved until the residual decreases (a backtracking line search)
         f = 1.0
         if abs(d_phi) > 0.3:
             f = 0.3 / abs(d_phi)
         if s + f * d_s < 0.5 * s:
             f = min(f, 0.5 * s / abs(d_s))
+        norm = np.sqrt(res @ res)
+        for _ in range(12):
+            trial = _shoot_residual(phi + f * d_phi, s + f * d_s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps)[0]
+            if np.sqrt(trial @ trial) < norm:
+                break
+            f *= 0.5
         phi += f * d_phi
         s += f * d_s
-    if not converged:
-        T1[:] = P
-        T2[:] = Q
-        return -2, np.nan, T1, T2, 0.0
-    T1[:] = T1c
-    T2[:] = x
-    a1 = T1c - P
-    a2 = Q - x
-    return 1, np.sqrt(a1 @ a1) + s + np.sqrt(a2 @ a2), T1, T2, s
+    return converged, phi, s, T1c, x
 
 
 # --- paths through points and surfaces (see openfdk.forces.wrapping) -----------------
