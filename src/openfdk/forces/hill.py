@@ -441,25 +441,36 @@ class MuscleStates:
 class MuscleSet:
     """Many muscles of mixed kinds evaluated at once (one compiled loop, no Python per muscle).
 
-    muscles : sequence of :class:`ConstantStrengthMuscle` / :class:`Hill3ElementMuscle`,
-    in the order of the recruitment's muscle columns. Non-empty names must be unique.
+    muscles : sequence of :class:`ConstantStrengthMuscle` / :class:`Hill3ElementMuscle` /
+    :class:`~.millard.MillardMuscle`, in the order of the recruitment's muscle columns. Non-empty names must be unique.
     """
 
     def __init__(self, muscles: Sequence):
+        from .millard import MillardMuscle
+
         muscles = tuple(muscles)
         seen = set()
         for i, muscle in enumerate(muscles):
-            if not isinstance(muscle, (ConstantStrengthMuscle, Hill3ElementMuscle)):
+            if not isinstance(muscle, (ConstantStrengthMuscle, Hill3ElementMuscle, MillardMuscle)):
                 raise MuscleParameterError(
-                    f"muscle {i} is a {type(muscle).__name__}; expected ConstantStrengthMuscle "
-                    "or Hill3ElementMuscle")
+                    f"muscle {i} is a {type(muscle).__name__}; expected ConstantStrengthMuscle, "
+                    "Hill3ElementMuscle or MillardMuscle")
             if muscle.name and muscle.name in seen:
                 raise MuscleParameterError(f"muscle name '{muscle.name}' appears twice in the set")
             seen.add(muscle.name)
         self.muscles = muscles
         self.names = tuple(m.name for m in muscles)
         self.n_muscles = len(muscles)
-        self._params = np.array([m._row() for m in muscles]).reshape(-1, _N_PARAMS)
+        # Millard muscles (wide rows, :mod:`.millard`) sit in the Hill table as placeholder
+        # constant rows and are evaluated by their own kernel; _millard_slot maps a muscle
+        # to its row of _millard_params (−1: not a Millard muscle)
+        is_millard = [isinstance(m, MillardMuscle) for m in muscles]
+        placeholder = ConstantStrengthMuscle(1.0)._row()
+        self._params = np.array([placeholder if mm else m._row()
+                                 for m, mm in zip(muscles, is_millard)]).reshape(-1, _N_PARAMS)
+        self._millard_slot = np.cumsum(is_millard, dtype=np.int64) - 1
+        self._millard_slot[~np.array(is_millard, dtype=bool)] = -1
+        self._millard_params = np.array([m._row() for m, mm in zip(muscles, is_millard) if mm])
         self._index = np.arange(self.n_muscles, dtype=np.int64)
 
     def _run(self, l_MT, v_MT, single):
@@ -485,6 +496,10 @@ class MuscleSet:
                 f"v_MT={v_MT[k]!r} m/s")
         out = np.empty((_N_OUT, l_MT.shape[0]))  # rows are contiguous (n,) results
         _evaluate_kernel(self._params, index, l_MT, v_MT, out)
+        if self._millard_params.size:
+            from .millard import millard_states
+
+            millard_states(self._millard_params, self._millard_slot[index], l_MT, v_MT, out)
         return out
 
     def _who(self, i):

@@ -20,6 +20,8 @@ cos α = x/l_f, h = Lf0 sin α0), the fibre velocity v_f = v_MT cos α, and Thel
     ṽ ≤ −1:                     f_V = 0 (OpenSim extrapolates to a negative force).
 
 The passive fibre force is not applied: an overridden muscle delivers exactly a · F_opt.
+Millard muscles (:class:`~.millard.MillardMuscle`) use OpenSim's rule for that muscle,
+:func:`.millard.opensim_so_strength` (the same F_opt with Millard's curves).
 Compared with openfdk's own rule (:mod:`.hill`: compliant tendon in equilibrium, the
 passive force an applied load, a C¹ eccentric branch) this is what a user needs to
 reproduce OpenSim's numbers. Verified against OpenSim 4.6's StaticOptimization
@@ -79,6 +81,10 @@ def rigid_tendon_strengths(params, l_mt, v_mt, threshold, out):
 def opensim_strengths(muscle_set, l_mt, v_mt):
     """F_opt (n_muscles,) N of a :class:`~.hill.MuscleSet` (module docstring)."""
     out = np.empty(muscle_set.n_muscles)
-    rigid_tendon_strengths(muscle_set._params, np.ascontiguousarray(l_mt, float), np.ascontiguousarray(v_mt, float),
-                           LINEAR_EXTRAPOLATION_THRESHOLD, out)
+    l_mt, v_mt = np.ascontiguousarray(l_mt, float), np.ascontiguousarray(v_mt, float)
+    rigid_tendon_strengths(muscle_set._params, l_mt, v_mt, LINEAR_EXTRAPOLATION_THRESHOLD, out)
+    if muscle_set._millard_params.size:  # Millard muscles: their own rule (.millard)
+        from .millard import millard_so_strengths
+
+        millard_so_strengths(muscle_set._millard_params, muscle_set._millard_slot, l_mt, v_mt, out)
     return out
