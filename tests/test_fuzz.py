@@ -367,3 +367,23 @@ def test_a_hill_muscle_length_too_small_to_compute_with_is_refused(bases, tmp_pa
     assert code == 2
     assert "model.yaml: muscles.m1: Hill3ElementMuscle 'm1': optimal_fibre_length must be finite and >= 1e-09 m" \
         in error_line(err)
+
+
+def test_a_point_rate_too_low_for_the_plate_filter_is_a_c3d_error(bases, tmp_path):
+    """Found by the long fuzz run (force_plates, input 5160 and four more): POINT:RATE
+    set to 3 or 5 Hz made the default 6 Hz low-pass impossible, reported as a plain ValueError
+    about ``cutoff_hz``; it is the documented C3DError naming the file and the rate."""
+    from openfdk.bench.fuzz_kinds import _parameter_records
+    from openfdk.io.c3d import C3DError
+    from openfdk.io.force_plates import read_force_plates
+
+    data = bytearray(bases.originals["force_plates"][bases.paths["force_plates"]])
+    records = _parameter_records(data)
+    for key, rate in (("POINT:RATE", 5.0), ("ANALOG:RATE", 25.0)):   # 5 analog samples per frame, as before
+        _, _, _, at, _, kind = records[key]
+        assert kind == 4
+        data[at:at + 4] = np.float32(rate).tobytes()
+    (tmp_path / "slow.c3d").write_bytes(bytes(data))
+    with pytest.raises(C3DError, match=r"slow\.c3d: cutoff_hz = 6 Hz must be 0 \(no filter\) or positive and "
+                                       r"below 2\.5 Hz, half the point rate \(POINT:RATE\)"):
+        read_force_plates(tmp_path / "slow.c3d")

@@ -330,9 +330,10 @@ def _cutoff(cutoff_hz, rate: str, analog: AnalogData) -> float | None:
     if cutoff == 0:
         return None
     nyquist = 0.5 * (analog.point_rate if rate == "point" else analog.rate)
-    if not (np.isfinite(cutoff) and 0 < cutoff < nyquist):
-        raise ValueError(f"{analog.source}: cutoff_hz = {cutoff:g} Hz must be 0 (no filter) or "
-                         f"positive and below {nyquist:g} Hz, half the {rate} rate")
+    if not (np.isfinite(cutoff) and 0 < cutoff < nyquist):   # the file's rate is part of it: a C3DError
+        key = "POINT:RATE" if rate == "point" else "ANALOG:RATE"
+        raise C3DError(f"{analog.source}: cutoff_hz = {cutoff:g} Hz must be 0 (no filter) or "
+                       f"positive and below {nyquist:g} Hz, half the {rate} rate ({key})")
     return cutoff
 
 
