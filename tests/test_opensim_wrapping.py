@@ -269,6 +269,18 @@ def test_sphere_equals_opensim(differences):
     assert d["dl"] <= 1e-12 and d["dr"] <= 1e-9 and d["exact"] <= 1e-12 and d["dr_self"] <= 1e-8
 
 
+@pytest.mark.parametrize("quadrant", ["+x", "-y", "+z"])
+def test_sphere_with_quadrant_equals_opensim(workdir, quadrant):
+    """A WrapSphere with a quadrant: OpenSim wraps only while the straight line crosses
+    the sphere and then goes round the quadrant's side (openfdk: ``crossing_only`` and
+    ``side``): lengths ≤ 1e-12 relative, moment arms ≤ 1e-9 m, wrapped and lifted off."""
+    wraps = [("WrapSphere", "head", "ground", (0.003, 1.0, 0.002), (0.3, 0.2, 0.1), quadrant, (0.03,))]
+    path = wrap_model(workdir / f"sphere{quadrant}.osim", wraps, {"delt": MUSCLES["delt"]})
+    d = compare(path, n=N_POSES)["delt"]
+    print(quadrant, d)
+    assert 0 < d["wrapped"] < N_POSES and d["dl"] <= 1e-12 and d["dr"] <= 1e-9
+
+
 @pytest.mark.parametrize("name", ["tri", "tri_back", "tri_short", "tri_long", "tri_all"])
 def test_cylinders_are_shortest_and_within_opensims_approximation(differences, name):
     """WrapCylinder without and with a quadrant, of finite length, over a one-segment
@@ -328,6 +340,7 @@ def _wrap_object(tree, name):
     (lambda t: _set(_path_wrap(t), "range", "1 9"), "range [1, 9] beyond the path's 2 points"),
     (lambda t: _set(_wrap_object(t, "elbow_cyl"), "quadrant", "+w"), "quadrant '+w'"),
     (lambda t: _set(_wrap_object(t, "elbow_cyl"), "quadrant", "z"), "along the cylinder's axis is not supported"),
+    (lambda t: _set(_wrap_object(t, "condyle"), "quadrant", "+x"), "quadrant '+x' is not supported"),
     (lambda t: _set(_wrap_object(t, "head"), "radius", "-0.01"), "must be > 0 m"),
     (lambda t: _set(_wrap_object(t, "head"), "scale", "2"), "property <scale> is not read"),
 ])
