@@ -19,6 +19,25 @@ HILL_KEYS = (
     "fast_fibre_fraction", "passive_shape_factor", "passive_strain_at_max_force",
     "max_contraction_velocity", "force_length_width", "max_eccentric_force",
 ) + HILL_LENGTH_KEYS
+#: model: millard (OpenSim's Millard2012EquilibriumMuscle; docs/muscles.md)
+MILLARD_KEYS = (
+    "max_isometric_force", "optimal_fibre_length", "tendon_slack_length", "pennation_angle_at_optimal",
+    "max_contraction_velocity", "maximum_pennation_angle", "fiber_damping", "ignore_tendon_compliance",
+    "minimum_activation", "active_force_length", "force_velocity", "fibre_force_length",
+    "tendon_force_length",
+)
+MILLARD_CURVE_KEYS = {
+    "active_force_length": ("min_norm_active_fiber_length", "transition_norm_fiber_length",
+                            "max_norm_active_fiber_length", "shallow_ascending_slope", "minimum_value"),
+    "force_velocity": ("concentric_slope_at_vmax", "concentric_slope_near_vmax", "isometric_slope",
+                       "eccentric_slope_at_vmax", "eccentric_slope_near_vmax",
+                       "max_eccentric_velocity_force_multiplier", "concentric_curviness",
+                       "eccentric_curviness"),
+    "fibre_force_length": ("strain_at_zero_force", "strain_at_one_norm_force", "stiffness_at_low_force",
+                           "stiffness_at_one_norm_force", "curviness"),
+    "tendon_force_length": ("strain_at_one_norm_force", "stiffness_at_one_norm_force",
+                            "norm_force_at_toe_end", "curviness"),
+}
 
 
 def _points(ctx, value, path, b=None):
@@ -125,10 +144,14 @@ def load_wrapping(b, data, ctx):
 def load_muscles(b, data, ctx):
     for name, spec in ctx.mapping(data, "muscles").items():
         p = f"muscles.{name}"
-        ctx.keys(spec, p, ["path", "model", "strength", "min_control", "max_control", *HILL_KEYS],
-                 required=("path",))
+        ctx.keys(spec, p, ["path", "model", "strength", "min_control", "max_control",
+                           *dict.fromkeys(HILL_KEYS + MILLARD_KEYS)], required=("path",))
         kind = spec.get("model", "hill" if "max_isometric_force" in spec else "constant")
         points = _points(ctx, spec["path"], f"{p}.path", b)
+        if kind != "millard":
+            for k in set(MILLARD_KEYS) - set(HILL_KEYS):
+                if k in spec:
+                    raise ctx.error(f"{p}.{k}", f"{k!r} belongs to 'model: millard'")
         if kind == "constant":
             if "strength" not in spec:
                 raise ctx.error(p, "a constant-strength muscle needs 'strength' (N)")
@@ -143,11 +166,48 @@ def load_muscles(b, data, ctx):
                 if k not in kw:
                     raise ctx.error(p, f"a Hill muscle needs {k!r}")
             law = _wrap(ctx, p, lambda: _hill(name, kw, ctx, p))
+        elif kind == "millard":
+            law = _millard(name, spec, ctx, p)
         else:
-            raise ctx.error(f"{p}.model", f"unknown muscle model {kind!r}; expected 'constant' or 'hill'")
+            raise ctx.error(f"{p}.model", f"unknown muscle model {kind!r}; expected 'constant', 'hill' or 'millard'")
         controls = [ctx.number(spec.get(k, d), f"{p}.{k}", low=0.0, high=1.0)
                     for k, d in (("min_control", 0.0), ("max_control", 1.0))]
         _wrap(ctx, p, lambda: el.add_muscle(b, name, points, law, *controls))
+
+
+def _millard(name, spec, ctx, p):
+    """A :class:`~.millard.MillardMuscle` from a ``model: millard`` entry."""
+    from . import millard_curves as mc
+    from .millard import MillardMuscle
+
+    for k in set(HILL_KEYS) - set(MILLARD_KEYS):
+        if k in spec:
+            raise ctx.error(f"{p}.{k}", f"{k!r} is a Hill-model key; a Millard muscle takes {list(MILLARD_KEYS)}")
+    kw = {}
+    for k in MILLARD_KEYS:
+        if k not in spec:
+            continue
+        if k in MILLARD_CURVE_KEYS:
+            curve = ctx.keys(spec[k], f"{p}.{k}", list(MILLARD_CURVE_KEYS[k]))
+            cls = {"active_force_length": mc.ActiveForceLengthCurve, "force_velocity": mc.ForceVelocityCurve,
+                   "fibre_force_length": mc.FiberForceLengthCurve,
+                   "tendon_force_length": mc.TendonForceLengthCurve}[k]
+            kw[k] = _wrap(ctx, p, lambda: cls(**{c: ctx.number(v, f"{p}.{k}.{c}") for c, v in curve.items()}))
+        elif k == "ignore_tendon_compliance":
+            if not isinstance(spec[k], bool):
+                raise ctx.error(f"{p}.{k}", f"expected true or false, got {spec[k]!r}")
+            kw[k] = spec[k]
+        else:
+            scale = (ctx.length if k in HILL_LENGTH_KEYS else
+                     ctx.angle if k in ("pennation_angle_at_optimal", "maximum_pennation_angle") else 1.0)
+            kw[k] = ctx.number(spec[k], f"{p}.{k}") * scale
+    for k in ("max_isometric_force", *HILL_LENGTH_KEYS):
+        if k not in kw:
+            raise ctx.error(p, f"a Millard muscle needs {k!r}")
+    try:
+        return MillardMuscle(name=name, **kw)
+    except ValueError as exc:
+        raise ctx.error(p, str(exc)) from None
 
 
 def _hill(name, kw, ctx, path):

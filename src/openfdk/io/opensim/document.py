@@ -15,7 +15,8 @@ read into the same records:
   ``ground``, markers with ``body``, geometry as ``VisibleObject``/``DisplayGeometry``
   or ``geometry_files``.
 
-ForceSet: ``Thelen2003Muscle`` with a GeometryPath of ``PathPoint``\\ s (4.x:
+ForceSet: ``Thelen2003Muscle`` and ``Millard2012EquilibriumMuscle`` (with its four curve
+objects) with a GeometryPath of ``PathPoint``\\ s (4.x:
 ``socket_parent_frame``; 3.x: ``body``) is read into OsimMuscle records and a
 Coordinate-, Point- or TorqueActuator into an ``actuators`` entry (:mod:`.actuators`); every other
 force, and a muscle whose path holds anything but PathPoints, is listed as unsupported.
@@ -172,7 +173,7 @@ class OsimMarker:
 
 
 #: the muscle classes read from the ForceSet (every other force is refused by name)
-MUSCLE_TYPES = ("Thelen2003Muscle",)
+MUSCLE_TYPES = ("Thelen2003Muscle", "Millard2012EquilibriumMuscle")
 #: Blankevoort1991Ligament properties and OpenSim 4.6's defaults (slack_length has none)
 LIGAMENT_DEFAULTS = {"linear_stiffness": 1.0, "slack_length": 0.0, "transition_strain": 0.06,
                      "damping_coefficient": 0.003}
@@ -189,6 +190,33 @@ THELEN_DEFAULTS = {
     "default_fiber_length": 0.1, "fv_linear_extrap_threshold": 0.95, "maximum_pennation_angle": 1.4706289056333368,
     "activation_time_constant": 0.015, "deactivation_time_constant": 0.05, "minimum_activation": 0.01,
 }
+#: Millard2012EquilibriumMuscle properties and OpenSim 4.6's defaults (Muscle's, and the
+#: Millard muscle's own constructProperties; min_control defaults to minimum_activation)
+MILLARD_DEFAULTS = {
+    "max_isometric_force": 1000.0, "optimal_fiber_length": 0.1, "tendon_slack_length": 0.2,
+    "pennation_angle_at_optimal": 0.0, "max_contraction_velocity": 10.0,
+    "maximum_pennation_angle": 1.4706289056333368, "fiber_damping": 0.1, "minimum_activation": 0.01,
+    # read and reported, not used by openfdk's recruitment (docs/opensim-import.md)
+    "min_control": 0.01, "max_control": 1.0, "optimal_force": 1.0, "default_activation": 0.05,
+    "default_fiber_length": 0.1, "activation_time_constant": 0.01, "deactivation_time_constant": 0.04,
+}
+#: the Millard muscle's curve objects and their properties (absent: OpenSim's default,
+#: applied by :mod:`openfdk.forces.millard_curves`)
+MILLARD_CURVES = {
+    "ActiveForceLengthCurve": ("min_norm_active_fiber_length", "transition_norm_fiber_length",
+                               "max_norm_active_fiber_length", "shallow_ascending_slope", "minimum_value"),
+    "ForceVelocityCurve": ("concentric_slope_at_vmax", "concentric_slope_near_vmax", "isometric_slope",
+                           "eccentric_slope_at_vmax", "eccentric_slope_near_vmax",
+                           "max_eccentric_velocity_force_multiplier", "concentric_curviness", "eccentric_curviness"),
+    "FiberForceLengthCurve": ("strain_at_zero_force", "strain_at_one_norm_force", "stiffness_at_low_force",
+                              "stiffness_at_one_norm_force", "curviness"),
+    "TendonForceLengthCurve": ("strain_at_one_norm_force", "stiffness_at_one_norm_force", "norm_force_at_toe_end",
+                               "curviness"),
+}
+#: OpenSim 3.x Millard curves that OpenSim 4.x no longer has (it drops them on reading)
+MILLARD_DROPPED = {"FiberCompressiveForceLengthCurve", "FiberCompressiveForceCosPennationCurve"}
+#: children of a curve object that carry no physics
+_CURVE_METADATA = {"components"}
 #: boolean properties of a muscle, read and reported
 _MUSCLE_FLAGS = {"ignore_tendon_compliance": False, "ignore_activation_dynamics": False}
 #: muscle children that carry no physics (display, empty component lists)
@@ -275,7 +303,9 @@ class OsimPathWrap:
 class OsimMuscle:
     """A muscle of the ForceSet: ``type`` (OpenSim class), ``points`` (OsimPathPoint,
     in the path's order), ``parameters`` {OpenSim property: value} (every property of
-    THELEN_DEFAULTS and the flags, the file's value or OpenSim's default)."""
+    THELEN_DEFAULTS or MILLARD_DEFAULTS and the flags, the file's value or OpenSim's
+    default; a Millard muscle's curves as {curve tag: {property: value}}, only the
+    properties the file gives)."""
 
     name: str
     type: str
@@ -544,6 +574,10 @@ class _Reader:
         from .contact import FORCE_TYPE as CONTACT_FORCE, MESH_TYPE as CONTACT_MESH, read_contact_force, \
             read_contact_mesh
 
+        # ForceSet elements read into one record each: tag -> (kind, reader, store)
+        readers = {CONTACT_FORCE: ("contact force", read_contact_force, self.contact_forces)}
+        readers.update({t: ("spring", read_spring, self.springs) for t in PASSIVE_TYPES})
+        readers.update({t: ("actuator", read_actuator, self.actuators) for t in ACTUATOR_TYPES})
         for tag in ("ForceSet", "ContactGeometrySet", "ProbeSet", "ControllerSet"):
             for e in self.objects(model.find(tag)):
                 if tag == "ForceSet" and "forces" in self.ignore:
@@ -556,27 +590,14 @@ class _Reader:
                     name, record = read_contact_mesh(e, self.source)
                     self.once(e, "contact mesh", name)
                     self.contact_meshes[name] = record
-                elif tag == "ForceSet" and e.tag == CONTACT_FORCE and e.tag not in self.ignore:
-                    name, record = read_contact_force(e, self.source)
-                    if record is None:
-                        self.ignored.append((e.tag, name, e.sourceline))
-                    else:
-                        self.once(e, "contact force", name)
-                        self.contact_forces[name] = record
-                elif tag == "ForceSet" and e.tag in PASSIVE_TYPES and e.tag not in self.ignore:
-                    name, entry = read_spring(e, self.source)
+                elif tag == "ForceSet" and e.tag in readers and e.tag not in self.ignore:
+                    kind, read, store = readers[e.tag]
+                    name, entry = read(e, self.source)
                     if entry is None:
                         self.ignored.append((e.tag, name, e.sourceline))  # disabled: OpenSim skips it too
                     else:
-                        self.once(e, "spring", name)
-                        self.springs[name] = entry
-                elif tag == "ForceSet" and e.tag in ACTUATOR_TYPES and e.tag not in self.ignore:
-                    name, entry = read_actuator(e, self.source)
-                    if entry is None:
-                        self.ignored.append((e.tag, name, e.sourceline))  # disabled: OpenSim skips it too
-                    else:
-                        self.once(e, "actuator", name)
-                        self.actuators[name] = entry
+                        self.once(e, kind, name)
+                        store[name] = entry
                 else:
                     self.skip(e)
         for e in model:
@@ -1097,8 +1118,12 @@ class _Reader:
             return
         label = f"{kind} {name!r}"
         params = {}
-        for tag, default in THELEN_DEFAULTS.items():
+        defaults = MILLARD_DEFAULTS if kind == "Millard2012EquilibriumMuscle" else THELEN_DEFAULTS
+        curves = MILLARD_CURVES if kind == "Millard2012EquilibriumMuscle" else {}
+        for tag, default in defaults.items():
             params[tag] = float(self.child_numbers(m, tag, 1, [default])[0])
+        if kind == "Millard2012EquilibriumMuscle" and m.find("min_control") is None:
+            params["min_control"] = params["minimum_activation"]  # OpenSim: setMinControl(minimum_activation)
         for tag, default in _MUSCLE_FLAGS.items():
             params[tag] = self.child_bool(m, tag, default)
         seen = set()
@@ -1108,9 +1133,13 @@ class _Reader:
             if e.tag in seen:  # which one OpenSim would use is not the file's to leave open
                 raise self.err(e, f"{label}: property <{e.tag}> given twice")
             seen.add(e.tag)
-            if e.tag in THELEN_DEFAULTS or e.tag in _MUSCLE_FLAGS:
+            if e.tag in defaults or e.tag in _MUSCLE_FLAGS:
                 continue
-            if e.tag == "components" and len(e):
+            if e.tag in curves:
+                params[e.tag] = self.read_curve(e, curves[e.tag], label)
+            elif curves and e.tag in MILLARD_DROPPED:
+                continue  # not a property of OpenSim 4.x's muscle: it has no effect there either
+            elif e.tag == "components" and len(e):
                 for comp in e:
                     if isinstance(comp.tag, str):
                         self.skip(comp)
@@ -1122,6 +1151,22 @@ class _Reader:
             return
         points, wraps = read
         self.muscles.append(OsimMuscle(name, kind, points, params, m.sourceline, wraps))
+
+    def read_curve(self, e, properties, label):
+        """{property: value} of a Millard curve object ``e`` (only the properties the file
+        gives; the rest take OpenSim's defaults); an unknown child is refused by name."""
+        out = {}
+        for c in e:
+            if not isinstance(c.tag, str) or c.tag in _CURVE_METADATA:
+                continue
+            if c.tag not in properties:
+                raise self.err(c, f"{label}: {e.tag} property <{c.tag}> is not read by openfdk (it reads "
+                                  f"{', '.join(properties)})")
+            if c.tag in out:
+                raise self.err(c, f"{label}: {e.tag} property <{c.tag}> given twice")
+            if (c.text or "").strip():
+                out[c.tag] = float(self.child_numbers(e, c.tag, 1)[0])
+        return out
 
     def read_path(self, m, kind, name, label, legacy):
         """(points, wraps) of the GeometryPath of a muscle or ligament ``m``: PathPoint,

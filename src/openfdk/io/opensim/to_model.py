@@ -13,7 +13,8 @@ docs/model-file.md, in SI units), so that an ``.osim`` and the file
 * Markers: OpenSim names may hold characters openfdk names may not ('.', spaces): the
   name is made safe and the trial label stays the OpenSim name.
 * Muscles: a Thelen2003Muscle becomes a Hill muscle of the ``muscles`` section
-  (:func:`hill_parameters`, every parameter mapped); its PathPoints become frames on
+  (:func:`hill_parameters`, every parameter mapped), a Millard2012EquilibriumMuscle a
+  ``model: millard`` muscle with its curves (:func:`millard_parameters`); its PathPoints become frames on
   their (merged) bodies, named ``<muscle>_<point>``, and its path lists them in order.
   The settings openfdk's recruitment does not use (activation floor, time constants, …)
   are returned in ``info["muscle_settings"]``.
@@ -205,10 +206,16 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
     for mu in doc.muscles:
         safe = unique("muscle", mu.name)
         path = path_of(mu)
-        muscles[safe] = {"model": "hill", "path": path, **hill_parameters(mu, doc.source),
+        if mu.type == "Millard2012EquilibriumMuscle":
+            law = {"model": "millard", **millard_parameters(mu, doc.source)}
+            reported = MILLARD_SETTINGS
+        else:
+            law = {"model": "hill", **hill_parameters(mu, doc.source)}
+            reported = RECRUITMENT_SETTINGS
+        muscles[safe] = {"path": path, **law,
                          # activation bounds of OpenSim's static optimisation (static_optimization: opensim)
                          "min_control": mu.parameters["min_control"], "max_control": mu.parameters["max_control"]}
-        settings[safe] = {k: v for k, v in mu.parameters.items() if k in RECRUITMENT_SETTINGS}
+        settings[safe] = {k: v for k, v in mu.parameters.items() if k in reported}
     ligaments = {}
     for lig in doc.ligaments:
         safe = unique("ligament", lig.name)
@@ -380,6 +387,43 @@ RECRUITMENT_SETTINGS = ("min_control", "max_control", "optimal_force", "default_
                         "fv_linear_extrap_threshold", "maximum_pennation_angle", "activation_time_constant",
                         "deactivation_time_constant", "minimum_activation", "ignore_tendon_compliance",
                         "ignore_activation_dynamics")
+
+
+#: Millard2012EquilibriumMuscle properties -> openfdk ``model: millard`` keys
+MILLARD_TO_OPENFDK = {
+    "max_isometric_force": "max_isometric_force", "optimal_fiber_length": "optimal_fibre_length",
+    "tendon_slack_length": "tendon_slack_length", "pennation_angle_at_optimal": "pennation_angle_at_optimal",
+    "max_contraction_velocity": "max_contraction_velocity", "maximum_pennation_angle": "maximum_pennation_angle",
+    "fiber_damping": "fiber_damping", "ignore_tendon_compliance": "ignore_tendon_compliance",
+    "minimum_activation": "minimum_activation",
+    "ActiveForceLengthCurve": "active_force_length", "ForceVelocityCurve": "force_velocity",
+    "FiberForceLengthCurve": "fibre_force_length", "TendonForceLengthCurve": "tendon_force_length",
+}
+#: Millard2012EquilibriumMuscle properties read but not used by openfdk's recruitment (reported)
+MILLARD_SETTINGS = ("min_control", "max_control", "optimal_force", "default_activation", "default_fiber_length",
+                    "activation_time_constant", "deactivation_time_constant", "ignore_activation_dynamics")
+
+
+def millard_parameters(muscle, source):
+    """The ``muscles`` entry keys (``model: millard``) of an OsimMuscle
+    (Millard2012EquilibriumMuscle), SI units; the curves as {property: value} with the
+    file's properties only (the rest OpenSim's defaults). Checked by
+    :class:`~openfdk.forces.millard.MillardMuscle`; an invalid value raises OsimError
+    naming the muscle and its line."""
+    from ...forces import millard_curves as mc
+    from ...forces.millard import MillardMuscle
+
+    p = muscle.parameters
+    label = f"{source}: line {muscle.line}: {muscle.type} {muscle.name!r}"
+    out = {ours: (dict(p[osim]) if isinstance(p[osim], dict) else p[osim])
+           for osim, ours in MILLARD_TO_OPENFDK.items() if osim in p}
+    classes = {"active_force_length": mc.ActiveForceLengthCurve, "force_velocity": mc.ForceVelocityCurve,
+               "fibre_force_length": mc.FiberForceLengthCurve, "tendon_force_length": mc.TendonForceLengthCurve}
+    try:
+        MillardMuscle(name=muscle.name, **{k: (classes[k](**v) if k in classes else v) for k, v in out.items()})
+    except (ValueError, TypeError) as exc:
+        raise OsimError(f"{label}: {exc}") from None
+    return out
 
 
 def hill_parameters(muscle, source):
