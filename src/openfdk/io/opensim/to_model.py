@@ -309,7 +309,7 @@ def _wrapped_path(doc, tree, mu, path, wrap_surface):
             raise OsimError(f"{doc.source}: line {wo.line}: WrapEllipsoid {wo.name!r}: quadrant {wo.quadrant_text!r} is "
                             "not supported: OpenSim forces the path over that half by reflecting its wrapping plane, "
                             "which openfdk's geodesic does not reproduce (up to 14 % longer in tests); leave the "
-                            "muscles over it out with --ignore PathWrap")
+                            "wrap object and the muscles over it out with --ignore WrapEllipsoid")
         first = 0 if pw.range[0] < 1 else pw.range[0] - 1
         last = n - 1 if pw.range[1] < 1 else pw.range[1] - 1
         if first > n - 1 or last > n - 1:
