@@ -272,20 +272,6 @@ class CoordinatePath(Measure):
         return tuple(sorted(out))
 
     def evaluate(self, state, order=1):
-        l, L = self.kernel.evaluate(state)
-        if order == 0:
-            return l, None, None
-        if order == 1:
-            return l, L, None
-        from .wrapping import _restore_pose
+        from .wrapping import path_evaluate
 
-        v = state.get_v()
-        h = 1e-6
-        base = state.copy()
-        state.displace(h * v)
-        Lp = self.kernel.evaluate(state)[1]
-        _restore_pose(state, base)
-        state.displace(-h * v)
-        Lm = self.kernel.evaluate(state)[1]
-        _restore_pose(state, base)
-        return l, L, ((Lp - Lm) / (2.0 * h)) @ v
+        return path_evaluate(self.kernel, state, order)
