@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 
-.PHONY: demo test bench clean
+.PHONY: demo test bench examples clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -20,6 +20,12 @@ test: $(VENV)/.installed
 
 bench: $(VENV)/.installed
 	$(VENV)/bin/openfdk bench --json
+
+# the generated inputs of the examples (meshes, trials; git-ignored): examples/README.md
+examples: $(VENV)/.installed
+	$(PY) examples/knee/make_meshes.py
+	$(PY) examples/shoulder/make_shoulder.py
+	$(PY) examples/studies/make_tmj_inputs.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info src/*.egg-info

@@ -108,10 +108,12 @@ def test_springs_example_runs_from_the_command_line(tmp_path):
     assert summary["fdk"]["converged_frames"] == summary["fdk"]["frames"] == 51
 
 
-def test_contact_example_with_generated_meshes_runs(tmp_path):
+def test_contact_example_with_generated_meshes_runs(tmp_path, capsys):
     """make_meshes.py writes the STL surfaces; every frame converges and the condyle
     carries the joint compression: the contact force balances the quadriceps' pull
-    along the shank at full extension."""
+    along the shank at full extension. The condyle's rounded ends keep the contact
+    line inside its mesh: no rim-truncation warning. The tutorial's table
+    (docs/tutorial-knee.md §6) holds."""
     import csv
     import shutil
     import subprocess
@@ -123,8 +125,25 @@ def test_contact_example_with_generated_meshes_runs(tmp_path):
     subprocess.run([sys.executable, str(KNEE / "make_meshes.py"), str(tmp_path / "meshes")], check=True,
                    capture_output=True)
     out = tmp_path / "out"
+    capsys.readouterr()
     assert main(["run", str(tmp_path / "knee_contact.yaml"), "--out", str(out), "--no-progress"]) == 0
+    assert "warning" not in capsys.readouterr().err
     rows = list(csv.DictReader(open(out / "forces.csv")))
+    # the tutorial's table: flexion (deg), quadriceps (N), α_x, α_y (mm), area (mm²), peak pressure (MPa)
+    table = [(0, 185.2, -1.26, 0.10, 375, 0.74), (18, 259.6, -2.42, 0.75, 420, 0.90),
+             (36, 219.7, -1.94, 1.37, 377, 0.78), (54, 159.4, -1.23, 1.65, 330, 0.59),
+             (72, 83.0, -0.42, 1.29, 203, 0.30), (90, 0.0, -1.80, 0.00, 0, 0.00)]
+    text = (Path(__file__).resolve().parents[1] / "docs" / "tutorial-knee.md").read_text()
+    for flexion, quad_n, ax, ay, area, peak in table:
+        r = rows[int(round(flexion / 90 * 50))]
+        assert float(r["quadriceps.force_N"]) == pytest.approx(quad_n, abs=0.1)
+        assert 1e3 * float(r["fdk.knee_x.alpha"]) == pytest.approx(ax, abs=0.01)
+        assert 1e3 * float(r["fdk.knee_y.alpha"]) == pytest.approx(ay, abs=0.01)
+        assert 1e6 * float(r["tibiofemoral.area_m2"]) == pytest.approx(area, abs=1)
+        assert 1e-6 * float(r["tibiofemoral.peak_pressure_Pa"]) == pytest.approx(peak, abs=0.01)
+        peak_text = f"{peak:.2f}" if peak else "0"
+        row = f"| {flexion} | {quad_n:.1f} | {ax:.2f} | {ay:.2f} | {area} | {peak_text} |".replace("-", "−")
+        assert row in text, row
     assert len(rows) == 51 and all(r["fdk_converged"] == "1" for r in rows)
     first = rows[0]
     # at full extension thigh and shank lie along the world x axis; the quadriceps pulls

@@ -7,8 +7,10 @@ their body frames (x anterior, y proximal, z lateral):
 
 * femoral_condyle.stl (thigh): the distal and posterior part of a cylinder of radius
   25 mm about the knee axis (z through the thigh's knee frame at y = -200 mm), from 60
-  degrees anterior of straight down to 110 degrees posterior of it, 40 mm wide; normals
-  point away from the axis.
+  degrees anterior of straight down to 110 degrees posterior of it, 40 mm wide, with
+  rounded ends: 4 mm of fillet of radius 5 mm on each side, which bend the surface 2 mm
+  toward the axis, so that the contact line of the cylinder ends inside the mesh instead
+  of at its border (48 mm wide in all); normals point away from the axis.
 * tibial_plateau.stl (shank): a shallow concave cylindrical trough of radius 40 mm whose
   lowest line lies 25 mm below the shank's knee frame (y = 175 mm) and touches the
   condyle at full extension, ±35 degrees wide in the sagittal plane, 50 mm wide; normals
@@ -37,18 +39,28 @@ KNEE_Y_THIGH = -200.0  # mm, the knee axis in the thigh frame
 PLATEAU_RADIUS = 40.0  # mm
 PLATEAU_LOW_Y = 175.0  # mm, the trough's lowest line in the shank frame
 EDGE = 1.0  # mm, target edge length
+CONDYLE_WIDTH = 40.0  # mm, the cylindrical part
+FILLET_RADIUS = 5.0  # mm, the rounded ends' radius ...
+FILLET_WIDTH = 4.0  # mm, ... and their extent along the axis on each side
 
 
-def cylinder_patch(radius, centre_xy, angle_from, angle_to, width, outward):
+def cylinder_patch(radius, centre_xy, angle_from, angle_to, width, outward, fillet=None):
     """Vertices (n, 3) mm and faces (m, 3) of a cylindrical patch about the z axis through
     centre_xy, angles in rad (0 = +x, counter-clockwise), z in ±width/2. ``outward``:
-    normals point away from the axis, else toward it."""
+    normals point away from the axis, else toward it. ``fillet`` (radius, extent) mm:
+    the patch goes on past ±width/2 by ``extent`` on each side, its radius falling as a
+    circle of that radius tangent to the cylinder (rounded ends)."""
     n_a = max(2, int(np.ceil(radius * abs(angle_to - angle_from) / EDGE)) + 1)
-    n_z = max(2, int(np.ceil(width / EDGE)) + 1)
+    half = width / 2 + (fillet[1] if fillet else 0.0)
+    n_z = max(2, int(np.ceil(2 * half / EDGE)) + 1)
     a = np.linspace(angle_from, angle_to, n_a)
-    z = np.linspace(-width / 2, width / 2, n_z)
+    z = np.linspace(-half, half, n_z)
     A, Z = np.meshgrid(a, z, indexing="ij")
-    V = np.stack([centre_xy[0] + radius * np.cos(A), centre_xy[1] + radius * np.sin(A), Z], axis=-1).reshape(-1, 3)
+    r = np.full_like(Z, radius)
+    if fillet:
+        past = np.clip(np.abs(Z) - width / 2, 0.0, None)
+        r = radius - (fillet[0] - np.sqrt(fillet[0] ** 2 - past**2))
+    V = np.stack([centre_xy[0] + r * np.cos(A), centre_xy[1] + r * np.sin(A), Z], axis=-1).reshape(-1, 3)
     idx = np.arange(n_a * n_z).reshape(n_a, n_z)
     q0, q1, q2, q3 = idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]
     # with angle increasing along i and z along j, (q0, q1, q2) winds with its normal
@@ -96,7 +108,8 @@ def write_meshes(out_dir):
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     down = -np.pi / 2
-    V, F = cylinder_patch(CONDYLE_RADIUS, (0.0, KNEE_Y_THIGH), down - np.radians(110), down + np.radians(60), 40.0, True)
+    V, F = cylinder_patch(CONDYLE_RADIUS, (0.0, KNEE_Y_THIGH), down - np.radians(110), down + np.radians(60),
+                          CONDYLE_WIDTH, True, fillet=(FILLET_RADIUS, FILLET_WIDTH))
     condyle = out / "femoral_condyle.stl"
     trimesh.Trimesh(V, F, process=False).export(condyle)
     V, F = cylinder_patch(PLATEAU_RADIUS, (0.0, PLATEAU_LOW_Y + PLATEAU_RADIUS), down - np.radians(35),
