@@ -327,3 +327,69 @@ def _element(tag, text):
     e = etree.Element(tag)
     e.text = text
     return e
+
+
+@pytest.mark.slow
+def test_muscle_forces_equal_opensims_static_optimization(tmp_path, monkeypatch, capsys):
+    """openfdk with ``recruitment: {power: 2, static_optimization: opensim}`` against
+    OpenSim 4.6's StaticOptimization on the Millard arm with a reserve actuator (optimal
+    force 1 N m) on each coordinate, on a smooth motion: muscle forces within 1 N. OpenSim
+    uses calcInextensibleTendonActiveFiberForce for Millard muscles too
+    (test_static_optimisation_strength_equals_opensims); the remaining difference is the
+    coordinates' accelerations (OpenSim's quintic GCV spline against openfdk's cubic
+    spline) and IPOPT's tolerance, as for the Thelen arm
+    (tests/test_opensim_static_optimization.py)."""
+    from openfdk.cli import main
+    from openfdk.io.results import read_table
+    from openfdk.io.storage import read_storage
+
+    monkeypatch.chdir(tmp_path)
+    model = opensim.Model(str(millard_arm(tmp_path / "arm.osim")))
+    for coordinate in ("q_shoulder", "q_elbow"):
+        reserve = opensim.CoordinateActuator(coordinate)
+        reserve.setName(f"reserve_{coordinate}")
+        reserve.setOptimalForce(1.0)
+        model.addForce(reserve)
+    model.finalizeConnections()
+    model.initSystem()
+    model.printToXML(str(tmp_path / "arm_so.osim"))
+    t = np.linspace(0, 1, 201)
+    q1 = 0.3 + 0.3 * np.sin(2 * np.pi * 0.8 * t)
+    q2 = 0.6 + 0.5 * np.sin(2 * np.pi * 1.1 * t + 0.5)
+    with open(tmp_path / "motion.mot", "w") as f:
+        f.write(f"motion\nversion=1\nnRows={len(t)}\nnColumns=3\ninDegrees=no\nendheader\ntime\tq_shoulder\tq_elbow\n")
+        for row in zip(t, q1, q2):
+            f.write("\t".join(f"{x:.12g}" for x in row) + "\n")
+    tool = opensim.AnalyzeTool()
+    tool.setModelFilename(str(tmp_path / "arm_so.osim"))
+    tool.setName("so")
+    tool.setCoordinatesFileName(str(tmp_path / "motion.mot"))
+    tool.setLowpassCutoffFrequency(-1)
+    tool.setInitialTime(0.1)
+    tool.setFinalTime(0.9)
+    tool.setResultsDir(str(tmp_path / "so"))
+    so = opensim.StaticOptimization()
+    so.setStartTime(0.1)
+    so.setEndTime(0.9)
+    so.setActivationExponent(2)
+    tool.getAnalysisSet().cloneAndAppend(so)
+    tool.printToXML(str(tmp_path / "setup.xml"))
+    opensim.AnalyzeTool(str(tmp_path / "setup.xml")).run()
+    t, theirs, _ = read_storage(tmp_path / "so" / "so_StaticOptimization_force.sto")
+    (tmp_path / "so.yaml").write_text("recruitment: {power: 2, static_optimization: opensim}\n")
+    code = main(["run", str(tmp_path / "arm_so.osim"), "--motion", str(tmp_path / "motion.mot"), "--with",
+                 str(tmp_path / "so.yaml"), "--out", str(tmp_path / "ours"), "--no-plots", "-q"])
+    assert code == 0, capsys.readouterr().err
+    ours = read_table(tmp_path / "ours" / "forces.csv")
+    worst = {}
+    for name in MUSCLES:
+        mine = name.replace(".", "_")
+        f = np.interp(t, ours["time"], ours[f"{mine}.force_N"])
+        worst[name] = float(np.max(np.abs(f - theirs[name])))
+        print(name, "largest force (N):", float(np.max(theirs[name])))
+        assert np.max(theirs[name]) > 5.0  # every muscle works
+    for name in ("reserve_q_shoulder", "reserve_q_elbow"):
+        f = np.interp(t, ours["time"], ours[f"{name}.actuator"])
+        worst[name] = float(np.max(np.abs(f - theirs[name])))
+    print("largest differences from OpenSim's StaticOptimization (N, N m):", worst)
+    assert max(worst.values()) < 1.0
