@@ -724,3 +724,61 @@ def model_3x_text():
   </Model>
 </OpenSimDocument>
 """
+
+
+# ------------------------------------------------------------ arms for the force tests
+
+def two_link_arm(name="arm"):
+    """A model with two pin joints (coordinates q1, q2): ``upper`` hangs from the ground
+    at (0, 1, 0), ``lower`` from ``upper`` at (0, −0.3, 0), offset and rotated frames and
+    off-axis mass properties. Returns (model, upper, lower), not finalised."""
+    m = osim.Model()
+    m.setName(name)
+    b1 = osim.Body("upper", 2.0, osim.Vec3(0, -0.15, 0.01), osim.Inertia(0.02, 0.005, 0.021, 0.001, 0, 0))
+    b2 = osim.Body("lower", 1.2, osim.Vec3(0.01, -0.12, 0), osim.Inertia(0.01, 0.003, 0.011, 0, 0.0005, 0))
+    m.addBody(b1)
+    m.addBody(b2)
+    j1 = osim.PinJoint("shoulder", m.getGround(), osim.Vec3(0, 1.0, 0), osim.Vec3(0.1, 0, 0), b1,
+                          osim.Vec3(0, 0, 0), osim.Vec3(0, 0, 0))
+    j2 = osim.PinJoint("elbow", b1, osim.Vec3(0, -0.3, 0), osim.Vec3(0, 0, 0), b2, osim.Vec3(0, 0, 0),
+                          osim.Vec3(0, 0.2, 0))
+    m.addJoint(j1)
+    m.addJoint(j2)
+    j1.updCoordinate().setName("q1")
+    j2.updCoordinate().setName("q2")
+    return m, b1, b2
+
+
+def write_motion(path, t, columns):
+    """A coordinate file (.mot, radians) of {name: (n,)} at times t (n,) s."""
+    names = list(columns)
+    with open(path, "w") as f:
+        f.write(f"motion\nversion=1\nnRows={len(t)}\nnColumns={len(names) + 1}\ninDegrees=no\nendheader\n"
+                + "\t".join(["time"] + names) + "\n")
+        for k in range(len(t)):
+            f.write("\t".join(f"{x:.12g}" for x in [t[k]] + [columns[n][k] for n in names]) + "\n")
+    return path
+
+
+def static_optimization(model_path, motion_path, folder, start=0.1, end=0.9, exponent=2):
+    """Run OpenSim's StaticOptimization (AnalyzeTool, unfiltered coordinates, the model's
+    force set) and return (times (n,), {actuator: forces (n,)}) of its force file."""
+    from openfdk.io.storage import read_storage
+
+    tool = osim.AnalyzeTool()
+    tool.setModelFilename(str(model_path))
+    tool.setName("so")
+    tool.setCoordinatesFileName(str(motion_path))
+    tool.setLowpassCutoffFrequency(-1)
+    tool.setInitialTime(start)
+    tool.setFinalTime(end)
+    tool.setResultsDir(str(folder / "so"))
+    so = osim.StaticOptimization()
+    so.setStartTime(start)
+    so.setEndTime(end)
+    so.setActivationExponent(exponent)
+    tool.getAnalysisSet().cloneAndAppend(so)
+    tool.printToXML(str(folder / "so_setup.xml"))
+    osim.AnalyzeTool(str(folder / "so_setup.xml")).run()
+    t, columns, _ = read_storage(folder / "so" / "so_StaticOptimization_force.sto")
+    return t, columns

@@ -62,20 +62,9 @@ def _arm(folder):
     (optimal forces 10 and 4 N m, 3 and 7 N m), two PointActuators and two
     TorqueActuators in every combination of frames, a smooth motion in a .mot."""
     opensim = pytest.importorskip("opensim")
-    m = opensim.Model()
-    m.setName("arm2")
-    b1 = opensim.Body("upper", 2.0, opensim.Vec3(0, -0.15, 0.01), opensim.Inertia(0.02, 0.005, 0.021, 0.001, 0, 0))
-    b2 = opensim.Body("lower", 1.2, opensim.Vec3(0.01, -0.12, 0), opensim.Inertia(0.01, 0.003, 0.011, 0, 0.0005, 0))
-    m.addBody(b1)
-    m.addBody(b2)
-    j1 = opensim.PinJoint("shoulder", m.getGround(), opensim.Vec3(0, 1.0, 0), opensim.Vec3(0.1, 0, 0), b1,
-                          opensim.Vec3(0, 0, 0), opensim.Vec3(0, 0, 0))
-    j2 = opensim.PinJoint("elbow", b1, opensim.Vec3(0, -0.3, 0), opensim.Vec3(0, 0, 0), b2, opensim.Vec3(0, 0, 0),
-                          opensim.Vec3(0, 0.2, 0))
-    m.addJoint(j1)
-    m.addJoint(j2)
-    j1.updCoordinate().setName("q1")
-    j2.updCoordinate().setName("q2")
+    import opensim_models as om
+
+    m, b1, b2 = om.two_link_arm("arm2")
     for name, coordinate, force in (("a1", "q1", 10.0), ("a1b", "q1", 4.0), ("a2", "q2", 3.0), ("a2b", "q2", 7.0)):
         a = opensim.CoordinateActuator(coordinate)
         a.setName(name)
@@ -113,13 +102,9 @@ def _arm(folder):
     m.initSystem()
     m.printToXML(str(folder / "arm2.osim"))
     t = np.linspace(0, 1, 201)
-    q1 = 0.3 + 0.5 * np.sin(2 * np.pi * 0.8 * t)
-    q2 = 0.8 + 0.4 * np.sin(2 * np.pi * 1.1 * t + 0.5)
-    with open(folder / "motion.mot", "w") as f:
-        f.write(f"motion\nversion=1\nnRows={len(t)}\nnColumns=3\ninDegrees=no\nendheader\ntime\tq1\tq2\n")
-        for row in zip(t, q1, q2):
-            f.write("\t".join(f"{x:.12g}" for x in row) + "\n")
-    return opensim, folder / "arm2.osim", folder / "motion.mot"
+    motion = om.write_motion(folder / "motion.mot", t, {"q1": 0.3 + 0.5 * np.sin(2 * np.pi * 0.8 * t),
+                                                        "q2": 0.8 + 0.4 * np.sin(2 * np.pi * 1.1 * t + 0.5)})
+    return opensim, folder / "arm2.osim", motion
 
 
 @pytest.mark.slow
@@ -132,24 +117,9 @@ def test_static_optimisation_equals_opensims(tmp_path, monkeypatch, capsys):
     the closed form's to round-off."""
     monkeypatch.chdir(tmp_path)
     opensim, model, motion = _arm(tmp_path)
-    tool = opensim.AnalyzeTool()
-    tool.setModelFilename(str(model))
-    tool.setName("so")
-    tool.setCoordinatesFileName(str(motion))
-    tool.setLowpassCutoffFrequency(-1)
-    tool.setInitialTime(0.1)
-    tool.setFinalTime(0.9)
-    tool.setResultsDir(str(tmp_path / "so"))
-    so = opensim.StaticOptimization()
-    so.setStartTime(0.1)
-    so.setEndTime(0.9)
-    so.setActivationExponent(2)
-    tool.getAnalysisSet().cloneAndAppend(so)
-    tool.printToXML(str(tmp_path / "setup.xml"))
-    opensim.AnalyzeTool(str(tmp_path / "setup.xml")).run()
-    from openfdk.io.storage import read_storage
+    import opensim_models as om
 
-    t, theirs, _ = read_storage(tmp_path / "so" / "so_StaticOptimization_force.sto")
+    t, theirs = om.static_optimization(model, motion, tmp_path)
 
     (tmp_path / "p2.yaml").write_text("recruitment: {power: 2}\n")
     code = main(["run", str(model), "--motion", str(motion), "--with", str(tmp_path / "p2.yaml"),

@@ -11,6 +11,8 @@ import yaml
 
 opensim = pytest.importorskip("opensim")
 
+import opensim_models as om  # noqa: E402  (tests/opensim_models.py)
+
 from openfdk.cli import main  # noqa: E402
 from openfdk.io.results import read_table  # noqa: E402
 
@@ -24,20 +26,7 @@ def _q(name, t, order=0):
 
 
 def _model(path, springs=True):
-    m = opensim.Model()
-    m.setName("arm")
-    b1 = opensim.Body("upper", 2.0, opensim.Vec3(0, -0.15, 0.01), opensim.Inertia(0.02, 0.005, 0.021, 0.001, 0, 0))
-    b2 = opensim.Body("lower", 1.2, opensim.Vec3(0.01, -0.12, 0), opensim.Inertia(0.01, 0.003, 0.011, 0, 0.0005, 0))
-    m.addBody(b1)
-    m.addBody(b2)
-    j1 = opensim.PinJoint("shoulder", m.getGround(), opensim.Vec3(0, 1, 0), opensim.Vec3(0.1, 0, 0), b1,
-                          opensim.Vec3(0, 0, 0), opensim.Vec3(0, 0, 0))
-    j2 = opensim.PinJoint("elbow", b1, opensim.Vec3(0, -0.3, 0), opensim.Vec3(0, 0, 0), b2, opensim.Vec3(0, 0, 0),
-                          opensim.Vec3(0, 0.2, 0))
-    m.addJoint(j1)
-    m.addJoint(j2)
-    j1.updCoordinate().setName("q1")
-    j2.updCoordinate().setName("q2")
+    m, _, _ = om.two_link_arm("arm")
     if springs:
         s1 = opensim.SpringGeneralizedForce("q1")
         s1.setName("spring_q1")

@@ -22,7 +22,7 @@ opensim = pytest.importorskip("opensim")
 
 from openfdk.cli import main  # noqa: E402
 from openfdk.io.results import read_table  # noqa: E402
-from openfdk.io.storage import read_storage  # noqa: E402
+import opensim_models as om  # noqa: E402  (tests/opensim_models.py)
 from test_opensim_muscles import arm_model  # noqa: E402
 
 MUSCLES = {"biceps.long": "biceps_long", "triceps": "triceps", "delt": "delt"}
@@ -39,28 +39,9 @@ def _setup(folder):
     model.initSystem()
     model.printToXML(str(folder / "arm_so.osim"))
     t = np.linspace(0, 1, 201)
-    q1 = 0.3 + 0.3 * np.sin(2 * np.pi * 0.8 * t)
-    q2 = 0.6 + 0.5 * np.sin(2 * np.pi * 1.1 * t + 0.5)
-    with open(folder / "motion.mot", "w") as f:
-        f.write(f"motion\nversion=1\nnRows={len(t)}\nnColumns=3\ninDegrees=no\nendheader\ntime\tq_shoulder\tq_elbow\n")
-        for row in zip(t, q1, q2):
-            f.write("\t".join(f"{x:.12g}" for x in row) + "\n")
-    tool = opensim.AnalyzeTool()
-    tool.setModelFilename(str(folder / "arm_so.osim"))
-    tool.setName("so")
-    tool.setCoordinatesFileName(str(folder / "motion.mot"))
-    tool.setLowpassCutoffFrequency(-1)
-    tool.setInitialTime(0.1)
-    tool.setFinalTime(0.9)
-    tool.setResultsDir(str(folder / "so"))
-    so = opensim.StaticOptimization()
-    so.setStartTime(0.1)
-    so.setEndTime(0.9)
-    so.setActivationExponent(2)
-    tool.getAnalysisSet().cloneAndAppend(so)
-    tool.printToXML(str(folder / "setup.xml"))
-    opensim.AnalyzeTool(str(folder / "setup.xml")).run()
-    return folder / "arm_so.osim", folder / "motion.mot", read_storage(folder / "so" / "so_StaticOptimization_force.sto")
+    motion = om.write_motion(folder / "motion.mot", t, {"q_shoulder": 0.3 + 0.3 * np.sin(2 * np.pi * 0.8 * t),
+                                                        "q_elbow": 0.6 + 0.5 * np.sin(2 * np.pi * 1.1 * t + 0.5)})
+    return folder / "arm_so.osim", motion, om.static_optimization(folder / "arm_so.osim", motion, folder)
 
 
 def _run(folder, model, motion, rule, capsys):
@@ -74,7 +55,7 @@ def _run(folder, model, motion, rule, capsys):
 @pytest.mark.slow
 def test_muscle_forces_equal_opensims_static_optimization(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
-    model, motion, (t, theirs, _) = _setup(tmp_path)
+    model, motion, (t, theirs) = _setup(tmp_path)
     ours = _run(tmp_path, model, motion, "opensim", capsys)
     worst = {}
     for name, mine in MUSCLES.items():
