@@ -48,6 +48,9 @@ def test_fdk_settings_are_typed_and_typos_are_named():
         dataclasses.replace(s.fdk, max_iteration=3)
     with pytest.raises(ValueError, match=r"^AnalysisSettings: unknown key 'recruitmnt'; did you mean 'recruitment'"):
         openfdk.AnalysisSettings(recruitmnt=None)
+    with pytest.raises(ValueError, match=r"^RecruitmentSettings: unknown key 'powr'; did you mean 'power'\?$"):
+        openfdk.RecruitmentSettings(powr=2)
+    assert openfdk.RecruitmentSettings(power=2).power == 2
     with pytest.raises(ValueError, match="fdk.jacobian must be 'analytic' or 'central', got 'centre'"):
         openfdk.FDKSettings(jacobian="centre")
 

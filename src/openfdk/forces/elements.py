@@ -27,6 +27,7 @@ import numpy as np
 
 from ..model.measures import Linear, Measure
 from ..model.model import ModelError
+from ..model.settings import checked_keywords
 from ..model.timefunctions import Constant, TimeFunction
 from .blankevoort import Blankevoort1991Ligament
 from .spring import LinearSpring
@@ -99,13 +100,15 @@ class ExternalLoad:
     frame: str = "world"
 
 
+@checked_keywords
 @dataclass(frozen=True)
 class RecruitmentSettings:
     """criterion: "polynomial" (power p ≥ 2; 3 as in the paper) or "minmax";
     static_optimization: "openfdk" (muscle strengths of :mod:`.hill`, passive forces
     applied, activations in [0, 1]) or "opensim" (OpenSim's StaticOptimization:
     :mod:`.rigid_tendon` strengths, no passive force, activations within each muscle's
-    [min_control, max_control])."""
+    [min_control, max_control]). Exported as ``openfdk.RecruitmentSettings``; a misspelt
+    keyword is refused naming it, with a did-you-mean."""
 
     criterion: str = "polynomial"
     power: float = 3.0
