@@ -42,7 +42,9 @@ force-dependent joint rows, …)
 ------------------------------------------------------------------------------------
 1. a ``Measure`` subclass with its Python ``evaluate`` (the reference);
 2. a new op-code constant and one ``elif`` branch in :func:`evaluate_program` that fills
-   the node's value, Jacobian rows and bias from its parameters and children's rows;
+   the node's value, Jacobian rows and bias from its parameters and children's rows, and
+   its body set in the node mask at the top of the loop (its Jacobian loops run over
+   those bodies' columns only);
 3. a compiler function ``f(measure, compile_child) -> (op, iparams, fparams)``
    registered with :func:`register`;
 4. an entry in the compiled-vs-Python and finite-difference test of tests/test_compiled.py.
