@@ -16,7 +16,7 @@ G = 9.81
 
 
 def reference_force(eps, k=K, l0=L0, eps_l=EPS_L):
-    """Paper/DESIGN.md law written out independently, one strain at a time."""
+    """The law of the paper and docs/design.md §1 written out independently, one strain at a time."""
     if eps < 0.0:
         return 0.0
     if eps <= 2.0 * eps_l:
