@@ -348,13 +348,15 @@ def ellipsoid_wrap(P, Q, axes, side, tol):
 @njit(cache=True)
 def _shoot_newton(phi, s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps, scale, tol):
     """Newton on (horizon angle φ, arc length s) from the given start until the end
-    residual is below ``tol`` (m): (converged, φ, s, T1, geodesic end)."""
+    residual is below ``tol`` (m): (converged, φ, s, T1, geodesic end). Each step is
+    damped (at most 0.3 rad of horizon angle, half the arc), then halved until the
+    residual decreases (a backtracking line search; the accepted shot is the next
+    iterate's residual, so a full step costs three shots as plain Newton)."""
     converged = False
-    T1c = np.zeros(3)
-    x = np.zeros(3)
+    res, T1c, x = _shoot_residual(phi, s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps)
     for _ in range(60):
-        res, T1c, x = _shoot_residual(phi, s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps)
-        if np.sqrt(res @ res) < tol:
+        norm = np.sqrt(res @ res)
+        if norm < tol:
             converged = True
             break
         h_phi = 1e-7
@@ -366,21 +368,20 @@ def _shoot_newton(phi, s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps, scale, tol):
             break
         d_phi = -(r_s[1] * res[0] - r_s[0] * res[1]) / det
         d_s = -(-r_phi[1] * res[0] + r_phi[0] * res[1]) / det
-        # damping: at most 0.3 rad of horizon angle and half the arc per step, then
-        # halved until the residual decreases (a backtracking line search)
         f = 1.0
         if abs(d_phi) > 0.3:
             f = 0.3 / abs(d_phi)
         if s + f * d_s < 0.5 * s:
             f = min(f, 0.5 * s / abs(d_s))
-        norm = np.sqrt(res @ res)
         for _ in range(12):
-            trial = _shoot_residual(phi + f * d_phi, s + f * d_s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps)[0]
-            if np.sqrt(trial @ trial) < norm:
+            res_t, T1_t, x_t = _shoot_residual(phi + f * d_phi, s + f * d_s, P, Q, c0, rho, u1, u2, Dinv, A,
+                                               n_steps)
+            if np.sqrt(res_t @ res_t) < norm:
                 break
             f *= 0.5
         phi += f * d_phi
         s += f * d_s
+        res, T1c, x = res_t, T1_t, x_t
     return converged, phi, s, T1c, x
 
 
