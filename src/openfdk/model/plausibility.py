@@ -186,11 +186,11 @@ def check_fdk_held(model, source=""):
 
 
 def check_passive_muscles(model, source="", length_unit="m"):
-    """Warn for each Hill muscle whose passive force at the reference pose exceeds
+    """Warn for each Hill or Millard muscle whose passive force at the reference pose exceeds
     PASSIVE_FRACTION of its maximum isometric force F0. When Lf0 + Lt0 is under 1 % of
     the path length, the warning says that these lengths are in the file's length unit
     ``length_unit`` (metres written in a mm file are 1000x too short)."""
-    muscles = [m for m in model.muscles if hasattr(m.law, "passive_shape_factor")]
+    muscles = [m for m in model.muscles if hasattr(m.law, "tendon_slack_length")]  # Hill, Millard
     if not muscles:
         return
     state = model.initial_state()
