@@ -311,6 +311,46 @@ def test_ellipsoid_within_opensims_approximation(differences):
     assert d["dl"] <= 1e-4 and d["dr"] <= 2e-3 and d["dr_self"] <= 1e-8
 
 
+@pytest.mark.parametrize("name", ["tri", "tri_back", "delt", "brach"])
+def test_lift_off_where_opensims(model, name):
+    """The pose where the path leaves the surface: bisected on OpenSim's (to 1e-10 rad
+    of the elbow or shoulder), openfdk's path is straight 1e-7 rad on one side and wraps
+    1e-7 rad on the other, and the lengths there equal OpenSim's to 1e-9 m (the arc is
+    then too short for OpenSim's approximations to show). Both lift off where the
+    straight line stops crossing the surface."""
+    data, _ = read_osim(model)
+    built = model_from_dict(data, source=str(model))
+    ours = {m.name: m for m in built.muscles}[name]
+    theirs = opensim.Model(str(model))
+    state = theirs.initSystem()
+    mu = theirs.getMuscles().get(name)
+    coordinate = "q_shoulder" if name == "delt" else "q_elbow"
+    other = "q_elbow" if name == "delt" else "q_shoulder"
+    c = theirs.getCoordinateSet().get(coordinate)
+    theirs.getCoordinateSet().get(other).setValue(state, 0.2, False)
+    n_points = mu.getGeometryPath().getPathPointSet().getSize()
+
+    def wraps(q):
+        c.setValue(state, q, False)
+        theirs.realizePosition(state)
+        return mu.getGeometryPath().getCurrentPath(state).getSize() > n_points
+
+    grid = np.linspace(-1.5, 1.5, 61)
+    flags = [wraps(q) for q in grid]
+    k = next(i for i in range(60) if flags[i] != flags[i + 1])
+    lo, hi = grid[k], grid[k + 1]
+    while hi - lo > 1e-10:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if wraps(mid) == flags[k] else (lo, mid)
+    for q, wrapped in ((lo - 1e-7, flags[k]), (hi + 1e-7, not flags[k])):
+        assert wraps(q) == wrapped
+        st, _ = pose_from_coordinates(built, {coordinate: q, other: 0.2})
+        _, _, T = ours.path.kernel.evaluate(st, with_tangents=True)
+        assert (not np.all(np.isnan(T))) == wrapped, (q, wrapped)
+        length = float(np.ravel(ours.path.evaluate(st, 0)[0])[0])
+        assert abs(length - mu.getLength(state)) <= 1e-9, (q, length - mu.getLength(state))
+
+
 def _edit(src, dst, edit):
     tree = etree.parse(str(src))
     element = edit(tree)
