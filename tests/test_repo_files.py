@@ -48,7 +48,7 @@ def test_design_document_is_the_repositorys_own_and_cited_sections_exist():
 
 def test_readme_durations_and_install_without_make():
     readme = (ROOT / "README.md").read_text()
-    head = readme.split("## What it does")[0]
+    head = " ".join(readme.split("## What it does")[0].split())
     assert re.search(r"`make demo` takes about \d+ min", head)
     assert "`make test` about 6 min" in head
     assert "pip install -e ." in head and "### Without make" in head
