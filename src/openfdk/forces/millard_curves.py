@@ -278,11 +278,14 @@ def curve_table(curve, who=None):
 def _bezier(u, p, k):
     """Quintic Bézier value and du-derivative of control points p[k:k+6]."""
     v = 1.0 - u
+    u2, v2 = u * u, v * v
+    u3, v3 = u2 * u, v2 * v
+    u4, v4 = u3 * u, v3 * v
     b0, b1, b2, b3, b4, b5 = p[k], p[k + 1], p[k + 2], p[k + 3], p[k + 4], p[k + 5]
-    val = (v ** 5 * b0 + 5.0 * v ** 4 * u * b1 + 10.0 * v ** 3 * u * u * b2
-           + 10.0 * v * v * u ** 3 * b3 + 5.0 * v * u ** 4 * b4 + u ** 5 * b5)
-    der = 5.0 * (v ** 4 * (b1 - b0) + 4.0 * v ** 3 * u * (b2 - b1) + 6.0 * v * v * u * u * (b3 - b2)
-                 + 4.0 * v * u ** 3 * (b4 - b3) + u ** 4 * (b5 - b4))
+    val = (v4 * v * b0 + 5.0 * v4 * u * b1 + 10.0 * v3 * u2 * b2
+           + 10.0 * v2 * u3 * b3 + 5.0 * v * u4 * b4 + u4 * u * b5)
+    der = 5.0 * (v4 * (b1 - b0) + 4.0 * v3 * u * (b2 - b1) + 6.0 * v2 * u2 * (b3 - b2)
+                 + 4.0 * v * u3 * (b4 - b3) + u4 * (b5 - b4))
     return val, der
 
 
@@ -320,7 +323,8 @@ def curve_value(c, o, x):
         u_new = u - f / df if df > 0.0 else -1.0
         if not (lo <= u_new <= hi):
             u_new = 0.5 * (lo + hi)
-        if u_new == u or hi - lo < 1e-17:
+        if abs(u_new - u) <= 4e-16 or hi - lo < 1e-17:  # at round-off (no further progress)
+            u = u_new
             break
         u = u_new
     dx, dxdu = _bezier(u, c, kx)
