@@ -71,6 +71,7 @@ def _is_constant(values):
 
 def _constant_entry(ax, label, value, unit):
     """A legend entry (no line) for a component that is constant: not drawn as noise."""
+    value = 0.0 if abs(value) < 1e-6 else value  # round-off around zero (display units) shown as 0
     ax.plot([], [], " ", label=f"{label}: constant {value:.4g} {unit}".rstrip())
 
 
@@ -243,7 +244,7 @@ def _measures(results, t, failed, chosen):
         labels = component_labels(model.measures.get(name) if model is not None else None, series[name])
         for label, (_, kind, values) in zip(labels, series[name]):
             factor, unit = DISPLAY.get(kind, (1.0, ""))
-            if len(series[name]) > 1 and _is_constant(values):
+            if _is_constant(values):
                 _constant_entry(ax, label, factor * values[np.isfinite(values)][0], unit)
             else:
                 ax.plot(t, factor * values, label=label)

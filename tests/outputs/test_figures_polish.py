@@ -100,6 +100,12 @@ def test_components_named_and_constant_components_listed(slider_run):
     for a in fig.axes:
         for t in a.get_legend().get_texts() if a.get_legend() else []:
             assert not t.get_text().startswith("["), t.get_text()
+    # small_end_offset is held at zero by the slider's constraint: ~1e-17 m of round-off in
+    # measures.csv, listed as constant zeros, nothing drawn
+    fig = make_figures(res, measures=["small_end_offset"])["measures"]
+    assert not [line for line in fig.axes[0].get_lines() if len(line.get_xdata())]
+    assert [t.get_text() for t in fig.axes[0].get_legend().get_texts()] == [
+        "x: constant 0 mm", "y: constant 0 mm", "z: constant 0 mm"]
     assert component_labels(None, [("[0]", "length", None)] * 3) == ["x", "y", "z"]
     assert component_labels(None, [("[0]", "1", None)] * 2) == ["[0]", "[0]"]
 
