@@ -83,7 +83,8 @@ def test_curves_equal_opensims(kind, ours, args):
     rng = np.random.default_rng(5)
     x = np.concatenate([np.linspace(lo, hi, 1000), rng.uniform(lo, hi, 500)])
     table = curve.table()
-    x = np.concatenate([x, table[7:7 + 12 * int(table[0])].reshape(-1, 12)[:, [0, 5]].ravel()])  # segment ends
+    w = mc.SEGMENT_WIDTH
+    x = np.concatenate([x, table[7:7 + w * int(table[0])].reshape(-1, w)[:, [0, 5]].ravel()])  # segment ends
     y, dy = mc.evaluate_curve(curve, x)
     ty = np.array([theirs.calcValue(float(v)) for v in x])
     tdy = np.array([theirs.calcDerivative(float(v), 1) for v in x])

@@ -50,7 +50,7 @@ MIN_NONZERO_DAMPING = 0.001
 _EPS = float(np.finfo(float).eps)
 _SIGNIFICANT = _EPS ** 0.875  # SimTK::SignificantReal ≈ 1.8e-14
 
-# row layout
+# row layout (the curves' layout is millard_curves.CURVE_WIDTH, SEGMENT_WIDTH = 21)
 _F0, _LF0, _LT0, _H, _VMAX, _LMIN, _XMIN, _PEN_LMIN, _PEN_XMIN, _MAXPEN, _ALPHA0, _RIGID, _EISO = range(1, 14)
 _FAL = 16
 _FV = _FAL + CURVE_WIDTH

@@ -15,6 +15,9 @@ with the curviness c = 0.1 + 0.8·curviness (curviness in [0, 1]). The corner mu
 finds the segment holding x, solves x(u) = x for u ∈ [0, 1] by safeguarded Newton, and
 returns y(u) and dy/dx = y'(u)/x'(u).
 
+For speed each segment also stores x(u) at nine values of u; the Newton iteration starts
+from the linear interpolation between them.
+
 The curves (normalised fibre length l̃ = l_f/Lf0, normalised fibre velocity ṽ =
 v_f/(V_max Lf0), tendon length l̃_T = l_T/Lt0; OpenSim's property names and defaults):
 
@@ -55,8 +58,16 @@ __all__ = [
 
 #: most Bézier segments of a curve (the active force–length has 5)
 MAX_SEGMENTS = 5
-#: length of a flattened curve: n, x0, x1, y0, y1, dydx0, dydx1, then per segment 6 x, 6 y
-CURVE_WIDTH = 7 + 12 * MAX_SEGMENTS
+# NOTE: the kernels of .millard are compiled (numba, cache=True) with this layout and
+# curve_value inside them; numba's on-disk cache does not see a change made here, so a
+# change of the layout or of curve_value must come with an edit of millard.py (or a
+# cleared __pycache__), else stale kernels read the old layout.
+#: x(u) samples per segment at u = j/N_SAMPLES (the Newton start for u(x))
+N_SAMPLES = 8
+#: numbers per segment: 6 x, 6 y control points, N_SAMPLES + 1 samples of x(u)
+SEGMENT_WIDTH = 12 + N_SAMPLES + 1
+#: length of a flattened curve: n, x0, x1, y0, y1, dydx0, dydx1, then the segments
+CURVE_WIDTH = 7 + SEGMENT_WIDTH * MAX_SEGMENTS
 _ROOT_EPS = math.sqrt(np.finfo(float).eps)
 
 
@@ -90,8 +101,11 @@ def _flatten(corners, x0, x1, y0, y1, dydx0, dydx1):
     out = np.zeros(CURVE_WIDTH)
     out[:7] = len(corners), x0, x1, y0, y1, dydx0, dydx1
     for i, (xs, ys) in enumerate(corners):
-        out[7 + 12 * i: 13 + 12 * i] = xs
-        out[13 + 12 * i: 19 + 12 * i] = ys
+        k = 7 + SEGMENT_WIDTH * i
+        out[k: k + 6] = xs
+        out[k + 6: k + 12] = ys
+        for j in range(N_SAMPLES + 1):
+            out[k + 12 + j] = _bezier(j / N_SAMPLES, out, k)[0]
     return out
 
 
@@ -302,15 +316,21 @@ def curve_value(c, o, x):
         return np.nan, np.nan
     seg = n - 1
     for i in range(n):
-        k = o + 7 + 12 * i
+        k = o + 7 + SEGMENT_WIDTH * i
         if c[k] <= x < c[k + 5]:
             seg = i
             break
-    kx = o + 7 + 12 * seg
+    kx = o + 7 + SEGMENT_WIDTH * seg
     ky = kx + 6
-    xa, xb = c[kx], c[kx + 5]
+    # start: linear between the samples x(j/N) around x
+    ks = kx + 12
+    j = 0
+    while j < N_SAMPLES - 1 and x >= c[ks + j + 1]:
+        j += 1
+    xa, xb = c[ks + j], c[ks + j + 1]
+    t = (x - xa) / (xb - xa) if xb > xa else 0.0
+    u = min(max((j + t) / N_SAMPLES, 0.0), 1.0)
     lo, hi = 0.0, 1.0
-    u = (x - xa) / (xb - xa) if xb > xa else 0.0
     for _ in range(100):
         f, df = _bezier(u, c, kx)
         f -= x
