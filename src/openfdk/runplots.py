@@ -368,15 +368,19 @@ def _contact(results, t, failed):
         for j, c in enumerate("xyz"):
             axes[0].plot(t, F[:, j], lw=1, label=f"{n} F{c}")
         axes[0].plot(t, np.linalg.norm(F, axis=1), "k" if len(names) == 1 else "-", lw=1.6, label=f"{n} |F|")
-        for c in "xyz":
-            axes[1].plot(t, 1e3 * _col(f, f"{n}.cop_{c}_m"), lw=1, label=f"{n} {c}")
+        for c in "xyz":  # from the first frame in contact: millimetres stay visible in a lab frame
+            cop = 1e3 * _col(f, f"{n}.cop_{c}_m")
+            finite = np.flatnonzero(np.isfinite(cop))
+            if finite.size:
+                axes[1].plot(t, cop - cop[finite[0]], lw=1, label=f"{n} {c} (from {cop[finite[0]]:.1f} mm)")
         axes[2].plot(t, 1e6 * _col(f, f"{n}.area_m2"), lw=1, label=n)
     axes[0].set_ylabel("contact force\n(N, world W)", fontsize=8)
-    axes[1].set_ylabel("centre of pressure\n(mm, world W)", fontsize=8)
+    axes[1].set_ylabel("centre of pressure, from\nfirst contact (mm, world W)", fontsize=8)
     axes[2].set_ylabel("contact area (mm²)", fontsize=8)
     caption = ("Contact force: resultant elastic-foundation force on the body carrying the contact's 'vertices' "
                "surface, world components (the opposite body receives −F). Centre of pressure: pressure-weighted "
-               "mean of the contact points, world frame, undefined (gap) without contact.")
+               "mean of the contact points, world frame, as displacement from the first frame in contact (the legend gives "
+               "where it starts), undefined (gap) without contact.")
     return _finish(fig, axes, t, failed, caption)
 
 

@@ -88,6 +88,20 @@ def test_lab_frame_positions_are_displacements(mandible_run):
         assert high - low < 100  # millimetre motion of a body ~1 m from the lab origin stays visible
 
 
+def test_centre_of_pressure_is_a_displacement(mandible_run):
+    res = read_results(mandible_run[0])
+    ax_cop = make_figures(res, measures=[])["contact"].axes[1]
+    f = res.forces
+    lines = [line for line in ax_cop.get_lines() if len(line.get_xdata())]
+    assert len(lines) == 3 * len(res.contacts())
+    for line in lines:
+        name, c = line.get_label().split()[:2]
+        cop = 1e3 * f[f"{name}.cop_{c}_m"].to_numpy()
+        first = cop[np.isfinite(cop)][0]
+        assert f"(from {first:.1f} mm)" in line.get_label()
+        np.testing.assert_allclose(line.get_ydata(), cop - first, atol=1e-9)
+
+
 def test_components_named_and_constant_components_listed(slider_run):
     res = read_results(slider_run[0])
     fig = make_figures(res, measures=["crank_angles", "small_end_offset"])["measures"]

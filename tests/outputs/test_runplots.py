@@ -86,7 +86,7 @@ def test_run_writes_figures_for_the_mandible_fdk_model(mandible_run):
         np.testing.assert_allclose(_lines(ax_alpha)[dof], 1e3 * f[f"fdk.{dof}.alpha"].to_numpy())
     # contact force in the world frame, centre of pressure in mm
     ax_F, ax_cop, _ = figs["contact"].axes
-    assert "world W" in ax_F.get_ylabel() and "(mm, world W)" in ax_cop.get_ylabel()
+    assert "world W" in ax_F.get_ylabel() and "from first contact (mm, world W)" in ax_cop.get_ylabel().replace("\n", " ")
     lines = _lines(ax_F)
     for c in res.contacts():
         F = np.column_stack([f[f"{c}.F{k}_N"] for k in "xyz"])
