@@ -420,6 +420,7 @@ def _set_cell(path, column, row, value):
     ("converged", "7", "line 3: column 'converged': 7 is neither 0 nor 1"),
     ("converged", "0.5", "line 3: column 'converged': 0.5 is neither 0 nor 1"),
     ("time", "nan", "line 3: column 'time': nan is not a finite number of seconds"),
+    ("time", "-1", "line 3: column 'time': -1 s does not follow"),
 ])
 def test_a_result_table_with_a_bad_time_or_status_is_refused(result, tmp_path, capsys, command, column, value,
                                                              expected):

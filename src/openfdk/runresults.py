@@ -89,12 +89,16 @@ def _read_csv(path, required=("time",)):
 
 def check_time_and_status(path, time, converged=None):
     """ValueError naming the file, the column and the line (1-based, the header is line
-    1) of a time (s) that is not a finite number or a ``converged`` flag other than 0 or
-    1 (the readers of plot, export-opensim and view share it)."""
+    1) of a time (s) that is not a finite number or does not increase, or a ``converged``
+    flag other than 0 or 1 (the readers of plot, export-opensim and view share it)."""
     time = np.asarray(time, dtype=float)
     if not np.all(np.isfinite(time)):
         i = int(np.argmax(~np.isfinite(time)))
         raise ValueError(f"{path}: line {i + 2}: column 'time': {time[i]:g} is not a finite number of seconds")
+    if time.size > 1 and np.any(np.diff(time) <= 0.0):
+        i = int(np.argmax(np.diff(time) <= 0.0)) + 1
+        raise ValueError(f"{path}: line {i + 2}: column 'time': {time[i]:g} s does not follow {time[i - 1]:g} s "
+                         "(times must increase)")
     if converged is not None:
         flags = np.asarray(converged, dtype=float)
         bad = (flags != 0) & (flags != 1)
