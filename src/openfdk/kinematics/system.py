@@ -7,6 +7,8 @@
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from ..model.compiled import CompiledMeasures
@@ -41,8 +43,8 @@ class ConstraintSystem:
         # the Cardan-angle measure returns values in (−π, π]
         self.angle_rows = np.array([u == "angle" for u in units], dtype=bool)
         self.has_angles = bool(self.angle_rows.any())
-        self.program = CompiledMeasures(
-            [c.measure for c in self.blocks] + [d.measure for d in self.fdk],
+        self.program, self._shared = _program(
+            model, include_fdk, [c.measure for c in self.blocks] + [d.measure for d in self.fdk],
             [range(c.size) for c in self.blocks] + [[0]] * len(self.fdk))
         # constant targets (joints, generic constraints); driver rows are filled per t
         self._f_const = np.zeros(self.n_rows)
@@ -59,7 +61,6 @@ class ConstraintSystem:
         self._targets_key = None
         self._targets = None
         self._block_form = None
-        self._checked_pattern = None
 
     def jacobian_pattern(self):
         """(m, 6 n_moving) bool: the entries of Φ_q̂ that can be non-zero, the 6 columns
@@ -79,14 +80,14 @@ class ConstraintSystem:
         """:meth:`jacobian_pattern` once it is checked against Φ_q̂ at a random pose, or
         None (an entry outside the pattern, or a pose where the rows cannot be
         evaluated): the pattern the block solves rely on. Computed once."""
-        if self._checked_pattern is None:
+        if "pattern" not in self._shared:  # once per model (and include_fdk)
             try:
                 pattern = self.jacobian_pattern()
                 ok = not np.any((self._random_jacobian() != 0.0) & ~pattern)
             except (NotImplementedError, FloatingPointError, ValueError):
                 ok = False
-            self._checked_pattern = (pattern if ok else None,)
-        return self._checked_pattern[0]
+            self._shared["pattern"] = pattern if ok else None
+        return self._shared["pattern"]
 
     @property
     def block_form(self):
@@ -180,6 +181,24 @@ class ConstraintSystem:
         nu = df.copy()  # Eq. 2: Φ_t = −ḟ
         gamma = ddf - b if order >= 2 else None  # Eq. 3
         return Phi, M, nu, gamma
+
+
+_PROGRAMS = weakref.WeakKeyDictionary()  # model -> {include_fdk: (measure ids, CompiledMeasures, shared dict)}
+
+
+def _program(model, include_fdk, measures, rows):
+    """(CompiledMeasures of the rows, a dict for data derived from it) built once per
+    model: a run builds several ConstraintSystems of one model (the model check, the
+    kinematics, the dynamics) and a program is never modified once built. Built again
+    when the model's measures are not those it was built from."""
+    ids = tuple(id(m) for m in measures)
+    per_model = _PROGRAMS.get(model)
+    if per_model is None:
+        per_model = _PROGRAMS[model] = {}
+    entry = per_model.get(include_fdk)
+    if entry is None or entry[0] != ids:
+        entry = per_model[include_fdk] = (ids, CompiledMeasures(measures, rows), {})
+    return entry[1], entry[2]
 
 
 def _spline_groups(drivers):
