@@ -65,22 +65,22 @@ of the whole ``run()`` (``opensim_tool_run_ms``), per frame.
 openfdk's run does more than the tool's solve: it solves the positions from the joints'
 constraint equations (Newton, 2 iterations per frame from a third-order Taylor step of
 the previous frames) and the reaction force of every joint and driver, which the tool
-does not compute. Measured per frame, December 2026 (≈ 0.21 ms against OpenSim's
-≈ 0.085, ratio 2.1–2.7 over four runs; 0.71–0.87 ms and 9.1–10.7 before this round, the
-two alternated in one session): the compiled parts ≈ 0.09 ms — the constraint program (86 nodes) evaluated at
-order 1 three times (Newton's two iterations and the check at the solved pose, ≈ 16 µs
-each: a node's Jacobian loops run over its bodies' columns only) and at order 2 once
-(≈ 23 µs, the accelerations' bias); Φ_q̂ (72×72) and the reactions' C factorised as
-twelve 6×6 diagonal blocks (:mod:`openfdk.kinematics.block_triangular`, a few µs, where
-the dense LU took ≈ 40 µs each time); the two loads ≈ 2 µs (their splines sampled at
-every frame time once per trial). The rest, ≈ 0.12 ms, is per-frame Python around those
-calls (with the per-run setup: the model check, the layouts): the trial driver and its
-step objects, the equilibrium's assembly (≈ 18 µs), the
-recruitment result and the recorded values (≈ 10 µs each), the frame reports. The target
-(≤ 0.5, ≈ 0.04 ms per frame) needs the frame loop itself compiled — one call per frame
-or per chunk of frames, from the coordinate splines to the reactions — and a
-coordinate-driven tree placed by forward kinematics (one pass from the root) rather than
-by Newton; both are left for a next step.
+does not compute. Measured per frame, December 2026 (≈ 0.21 ms against OpenSim's ≈
+0.085, ratio 2.1–2.7 over four runs; 0.71–0.87 ms and 9.1–10.7 before this round, the
+two alternated in one session): the compiled parts ≈ 0.09 ms — the constraint program
+(86 nodes) evaluated at order 1 three times (Newton's two iterations and the check at
+the solved pose, ≈ 16 µs each: a node's Jacobian loops run over its bodies' columns
+only) and at order 2 once (≈ 23 µs, the accelerations' bias); Φ_q̂ (72×72) and the
+reactions' C factorised as twelve 6×6 diagonal blocks
+(:mod:`openfdk.kinematics.block_triangular`, a few µs, where the dense LU took ≈ 40 µs
+each time); the two loads ≈ 2 µs (their splines sampled at every frame time once per
+trial). The rest, ≈ 0.12 ms, is per-frame Python around those calls (with the per-run
+setup: the model check, the layouts): the trial driver and its step objects, the
+equilibrium's assembly (≈ 18 µs), the recruitment result and the recorded values (≈ 10
+µs each), the frame reports. The target (≤ 0.5, ≈ 0.04 ms per frame) needs the frame
+loop itself compiled — one call per frame or per chunk of frames, from the coordinate
+splines to the reactions — and a coordinate-driven tree placed by forward kinematics
+(one pass from the root) rather than by Newton; both are left for a next step.
 
 Why the two differ. Both interpolate the same samples, so q is the same at every frame;
 q̇ and q̈ are not: OpenSim differentiates a quintic GCV spline (degree 5, error variance
