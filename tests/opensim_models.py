@@ -782,3 +782,22 @@ def static_optimization(model_path, motion_path, folder, start=0.1, end=0.9, exp
     osim.AnalyzeTool(str(folder / "so_setup.xml")).run()
     t, columns, _ = read_storage(folder / "so" / "so_StaticOptimization_force.sto")
     return t, columns
+
+
+def arm_static_optimization(model_path, folder):
+    """The arm at ``model_path`` (coordinates q_shoulder, q_elbow) with a reserve
+    CoordinateActuator (optimal force 1 N m) on each coordinate, written to
+    ``folder/arm_so.osim``, a smooth motion (201 samples over 1 s) and OpenSim's
+    StaticOptimization over 0.1–0.9 s with exponent 2. Returns (model path, motion path,
+    (times (n,), {actuator: forces (n,)}))."""
+    model = osim.Model(str(model_path))
+    for coordinate in ("q_shoulder", "q_elbow"):
+        reserve = osim.CoordinateActuator(coordinate)
+        reserve.setName(f"reserve_{coordinate}")
+        reserve.setOptimalForce(1.0)
+        model.addForce(reserve)
+    path = write(model, folder / "arm_so.osim")
+    t = np.linspace(0, 1, 201)
+    motion = write_motion(folder / "motion.mot", t, {"q_shoulder": 0.3 + 0.3 * np.sin(2 * np.pi * 0.8 * t),
+                                                     "q_elbow": 0.6 + 0.5 * np.sin(2 * np.pi * 1.1 * t + 0.5)})
+    return path, motion, static_optimization(path, motion, folder)

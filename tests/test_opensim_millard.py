@@ -342,43 +342,13 @@ def test_muscle_forces_equal_opensims_static_optimization(tmp_path, monkeypatch,
     (tests/test_opensim_static_optimization.py)."""
     from openfdk.cli import main
     from openfdk.io.results import read_table
-    from openfdk.io.storage import read_storage
+
+    import opensim_models as om
 
     monkeypatch.chdir(tmp_path)
-    model = opensim.Model(str(millard_arm(tmp_path / "arm.osim")))
-    for coordinate in ("q_shoulder", "q_elbow"):
-        reserve = opensim.CoordinateActuator(coordinate)
-        reserve.setName(f"reserve_{coordinate}")
-        reserve.setOptimalForce(1.0)
-        model.addForce(reserve)
-    model.finalizeConnections()
-    model.initSystem()
-    model.printToXML(str(tmp_path / "arm_so.osim"))
-    t = np.linspace(0, 1, 201)
-    q1 = 0.3 + 0.3 * np.sin(2 * np.pi * 0.8 * t)
-    q2 = 0.6 + 0.5 * np.sin(2 * np.pi * 1.1 * t + 0.5)
-    with open(tmp_path / "motion.mot", "w") as f:
-        f.write(f"motion\nversion=1\nnRows={len(t)}\nnColumns=3\ninDegrees=no\nendheader\ntime\tq_shoulder\tq_elbow\n")
-        for row in zip(t, q1, q2):
-            f.write("\t".join(f"{x:.12g}" for x in row) + "\n")
-    tool = opensim.AnalyzeTool()
-    tool.setModelFilename(str(tmp_path / "arm_so.osim"))
-    tool.setName("so")
-    tool.setCoordinatesFileName(str(tmp_path / "motion.mot"))
-    tool.setLowpassCutoffFrequency(-1)
-    tool.setInitialTime(0.1)
-    tool.setFinalTime(0.9)
-    tool.setResultsDir(str(tmp_path / "so"))
-    so = opensim.StaticOptimization()
-    so.setStartTime(0.1)
-    so.setEndTime(0.9)
-    so.setActivationExponent(2)
-    tool.getAnalysisSet().cloneAndAppend(so)
-    tool.printToXML(str(tmp_path / "setup.xml"))
-    opensim.AnalyzeTool(str(tmp_path / "setup.xml")).run()
-    t, theirs, _ = read_storage(tmp_path / "so" / "so_StaticOptimization_force.sto")
+    model, motion, (t, theirs) = om.arm_static_optimization(millard_arm(tmp_path / "arm.osim"), tmp_path)
     (tmp_path / "so.yaml").write_text("recruitment: {power: 2, static_optimization: opensim}\n")
-    code = main(["run", str(tmp_path / "arm_so.osim"), "--motion", str(tmp_path / "motion.mot"), "--with",
+    code = main(["run", str(model), "--motion", str(motion), "--with",
                  str(tmp_path / "so.yaml"), "--out", str(tmp_path / "ours"), "--no-plots", "-q"])
     assert code == 0, capsys.readouterr().err
     ours = read_table(tmp_path / "ours" / "forces.csv")

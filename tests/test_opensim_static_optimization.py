@@ -29,19 +29,7 @@ MUSCLES = {"biceps.long": "biceps_long", "triceps": "triceps", "delt": "delt"}
 
 
 def _setup(folder):
-    model = opensim.Model(str(arm_model(folder / "arm.osim")))
-    for coordinate in ("q_shoulder", "q_elbow"):
-        reserve = opensim.CoordinateActuator(coordinate)
-        reserve.setName(f"reserve_{coordinate}")
-        reserve.setOptimalForce(1.0)
-        model.addForce(reserve)
-    model.finalizeConnections()
-    model.initSystem()
-    model.printToXML(str(folder / "arm_so.osim"))
-    t = np.linspace(0, 1, 201)
-    motion = om.write_motion(folder / "motion.mot", t, {"q_shoulder": 0.3 + 0.3 * np.sin(2 * np.pi * 0.8 * t),
-                                                        "q_elbow": 0.6 + 0.5 * np.sin(2 * np.pi * 1.1 * t + 0.5)})
-    return folder / "arm_so.osim", motion, om.static_optimization(folder / "arm_so.osim", motion, folder)
+    return om.arm_static_optimization(arm_model(folder / "arm.osim"), folder)
 
 
 def _run(folder, model, motion, rule, capsys):

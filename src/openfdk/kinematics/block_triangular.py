@@ -196,27 +196,38 @@ def block_lu(A, rows, cols, starts, LU, piv):
         for j in range(n):
             LU[i, j] = A[ri, cols[j]]
     for b in range(starts.shape[0] - 1):
-        e = starts[b + 1]
-        for k in range(starts[b], e):
-            p = k
-            big = abs(LU[k, k])
-            for i in range(k + 1, e):
-                if abs(LU[i, k]) > big:
-                    big = abs(LU[i, k])
-                    p = i
-            piv[k] = p
-            if big == 0.0:
-                return False
-            if p != k:
-                for j in range(n):
-                    LU[k, j], LU[p, j] = LU[p, j], LU[k, j]
-            inv = 1.0 / LU[k, k]
-            for i in range(k + 1, e):
-                LU[i, k] *= inv
-                a = LU[i, k]
-                if a != 0.0:
-                    for j in range(k + 1, e):
-                        LU[i, j] -= a * LU[k, j]
+        if not lu_factor_range(LU, piv, starts[b], starts[b + 1]):
+            return False
+    return True
+
+
+@njit(cache=True)
+def lu_factor_range(A, piv, lo, hi):
+    """In place LU with partial pivoting of the diagonal block A[lo:hi, lo:hi] (rows
+    swapped across all of A's columns, so the coupling to later columns moves with
+    them); piv[lo:hi] int. False if a pivot is exactly zero (singular, as LAPACK getrf
+    reports it). lo = 0, hi = n: the LU of the whole matrix."""
+    n = A.shape[1]
+    for k in range(lo, hi):
+        p = k
+        big = abs(A[k, k])
+        for i in range(k + 1, hi):
+            if abs(A[i, k]) > big:
+                big = abs(A[i, k])
+                p = i
+        piv[k] = p
+        if big == 0.0:
+            return False
+        if p != k:
+            for j in range(n):
+                A[k, j], A[p, j] = A[p, j], A[k, j]
+        inv = 1.0 / A[k, k]
+        for i in range(k + 1, hi):
+            A[i, k] *= inv
+            a = A[i, k]
+            if a != 0.0:
+                for j in range(k + 1, hi):
+                    A[i, j] -= a * A[k, j]
     return True
 
 

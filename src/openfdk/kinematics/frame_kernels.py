@@ -30,7 +30,7 @@ from numba import njit
 
 from ..model.compiled import evaluate_into
 from ..model.kernels import displace_poses, marker_positions_jacobian, set_velocities
-from .block_triangular import block_lu, block_solve
+from .block_triangular import block_lu, block_solve, lu_factor_range
 from .kkt import kkt_step
 
 OK, SINGULAR, NOT_CONVERGED, MEASURE_ERROR = 0, 1, 2, 3
@@ -40,28 +40,7 @@ OK, SINGULAR, NOT_CONVERGED, MEASURE_ERROR = 0, 1, 2, 3
 def lu_factor(A, piv):
     """In place LU with partial pivoting of A (n, n); piv (n,) int. False if a pivot is
     exactly zero (singular, as LAPACK getrf reports it)."""
-    n = A.shape[0]
-    for k in range(n):
-        p = k
-        big = abs(A[k, k])
-        for i in range(k + 1, n):
-            if abs(A[i, k]) > big:
-                big = abs(A[i, k])
-                p = i
-        piv[k] = p
-        if big == 0.0:
-            return False
-        if p != k:
-            for j in range(n):
-                A[k, j], A[p, j] = A[p, j], A[k, j]
-        inv = 1.0 / A[k, k]
-        for i in range(k + 1, n):
-            A[i, k] *= inv
-            a = A[i, k]
-            if a != 0.0:
-                for j in range(k + 1, n):
-                    A[i, j] -= a * A[k, j]
-    return True
+    return lu_factor_range(A, piv, 0, A.shape[0])
 
 
 @njit(cache=True)
