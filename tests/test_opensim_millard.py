@@ -343,8 +343,6 @@ def test_muscle_forces_equal_opensims_static_optimization(tmp_path, monkeypatch,
     from openfdk.cli import main
     from openfdk.io.results import read_table
 
-    import opensim_models as om
-
     monkeypatch.chdir(tmp_path)
     model, motion, (t, theirs) = om.arm_static_optimization(millard_arm(tmp_path / "arm.osim"), tmp_path)
     (tmp_path / "so.yaml").write_text("recruitment: {power: 2, static_optimization: opensim}\n")
