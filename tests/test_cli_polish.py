@@ -171,3 +171,16 @@ def test_api_run_refuses_redundant_rows(tmp_path):
     model = _redundant_knee(tmp_path)
     with pytest.raises(ModelError, match=r"^knee-springs: constraint Jacobian is singular .* redundant or inconsistent rows"):
         openfdk.run(str(model))
+
+
+def test_a_non_square_system_fails_its_frames_instead_of_corrupting_memory(tmp_path, monkeypatch):
+    """Past the rank refusal (monkeypatched away), the redundant knee's determinate
+    system has 14 rows for 12 coordinates: the square-system kernels are never entered
+    (they do no bounds checks: this model crashed the process with a corrupted heap);
+    every frame fails with its reason."""
+    import openfdk.jobs as jobs
+
+    monkeypatch.setattr(jobs, "_refuse_redundant_rows", lambda model, label: None)
+    kin, _, _ = jobs.run_job(_redundant_knee(tmp_path), progress=False)
+    assert not kin.converged.any()
+    assert all("14 constraint rows for 12 coordinates" in m for m in kin.messages)

@@ -89,7 +89,8 @@ class KinematicsResult:
             "failed_frames": [
                 {"frame": int(i), "time": t, "reason": m} for i, t, m in self.failed_frames()
             ],
-            "max_constraint_violation": float(np.nanmax(self.constraint_violation)) if self.n_frames else 0.0,
+            "max_constraint_violation": float(np.nanmax(self.constraint_violation))
+            if np.any(np.isfinite(self.constraint_violation)) else (None if self.n_frames else 0.0),
             "rms_marker_residual_m": float(np.sqrt(np.nanmean(np.sum(self.marker_residual**2, axis=2))))
             if self.marker_residual.size and np.any(np.isfinite(self.marker_residual))
             else None,

@@ -72,6 +72,10 @@ def solve_positions(system: ConstraintSystem, state, t, alpha=None, tol=1e-10, m
     run in one kernel (:func:`.frame_kernels.newton_positions`); data : FrameData whose
     position stage (Φ, Φ_q̂, ν at the solved pose) is filled on convergence.
     """
+    if system.n_rows != system.n_coords:  # the kernels solve square systems (no bounds checks in them)
+        Phi_q = system.evaluate(state, t, alpha, order=1)[1]
+        return FrameSolve(False, 0, float("nan"), f"{system.n_rows} constraint rows for {system.n_coords} coordinates: "
+                          + diagnose_singular(system, Phi_q), Reason.SINGULAR)
     f, df, _ = system.targets(t, alpha)
     A, Phi = np.empty((system.n_rows, system.n_coords)), np.empty(system.n_rows)
     status, it, res, e_node, e_kind = newton_positions(
@@ -100,7 +104,9 @@ def solve_velocities_accelerations(system: ConstraintSystem, state, t, alpha=Non
     stage in ``data`` (data.Phi_q), Φ_q̂ is not evaluated again
     (:func:`.frame_kernels.rates_from_jacobian`).
 
-    Raises ``np.linalg.LinAlgError`` if Φ_q̂ is singular."""
+    Raises ``np.linalg.LinAlgError`` if Φ_q̂ is singular or not square."""
+    if system.n_rows != system.n_coords:  # the kernels solve square systems (no bounds checks in them)
+        raise np.linalg.LinAlgError(f"{system.n_rows} constraint rows for {system.n_coords} coordinates")
     _, df, ddf = system.targets(t, alpha)
     n = system.n_coords
     v, vdot = np.empty(n), np.empty(n)
