@@ -74,3 +74,38 @@ def test_residual_rates_not_differenced_across_a_visible_set_change():
     d1, d2 = residual_rates(same, cur, nxt, dt)  # same visible set: central differences
     np.testing.assert_allclose(d1[:, 0], [(3e-4 - 0.0) / (2 * dt), (3e-4 - 1e-4) / (2 * dt)])
     np.testing.assert_allclose(d2[:, 0], [(3e-4 - 2e-4 + 0.0) / dt**2, (3e-4 - 4e-4 + 1e-4) / dt**2])
+
+
+def test_initial_guess_moves_bodies_without_their_own_fit_with_the_model():
+    """A lab-frame trial far from the reference pose: the thigh (3 markers) is fitted by
+    itself, and the shank (1 marker: no fit of its own) moves with the whole model's
+    rigid fit instead of staying at the reference pose — a metre from its joint, where
+    Gauss–Newton diverged on the knee Grand Challenge model. Closed form: the markers
+    are the reference markers moved by one known rigid transform (R, p), so every body
+    must land at R X_ref + p."""
+    from openfdk.io.modelfile import model_from_dict
+    from openfdk.kinematics.system import ConstraintSystem
+    from openfdk.kinematics.tracking import MarkerTracker
+    from openfdk.spatial import rotation_matrix_xyz
+
+    model = model_from_dict({
+        "openfdk": 1, "units": {"length": "m", "angle": "rad"},
+        "bodies": {
+            "thigh": {"mass": 1.0, "inertia": [0.1, 0.1, 0.1], "position": [0, 0.8, 0],
+                      "frames": {"knee": [0, -0.2, 0]},
+                      "markers": {"T1": [0.05, 0.1, 0], "T2": [-0.04, 0.0, 0.03], "T3": [0.0, -0.1, -0.05]}},
+            "shank": {"mass": 1.0, "inertia": [0.1, 0.1, 0.1], "position": [0, 0.4, 0],
+                      "frames": {"knee": [0, 0.2, 0]}, "markers": {"S1": [0.05, -0.1, 0.0]}},
+        },
+        "joints": {"knee": {"type": "revolute", "parent": "thigh.knee", "child": "shank.knee"}},
+    }, source="leg.yaml")
+    tracker = MarkerTracker(ConstraintSystem(model))
+    state = model.initial_state()
+    ref = tracker.markers.evaluate(state, 0)[0].reshape(-1, 3)
+    R, p = rotation_matrix_xyz(np.array([0.3, -1.2, 2.0])), np.array([1.5, 0.2, -0.7])
+    x = ref @ R.T + p
+    p0, R0 = state.p_WB.copy(), state.R_WB.copy()
+    tracker.initial_guess(state, x, np.ones(len(x), bool))
+    for i in state.moving:
+        np.testing.assert_allclose(state.R_WB[i], R @ R0[i], atol=1e-12)
+        np.testing.assert_allclose(state.p_WB[i], R @ p0[i] + p, atol=1e-12)

@@ -25,6 +25,19 @@ from .frame_kernels import MEASURE_ERROR, OK, SINGULAR, tracking_positions, trac
 from .system import ConstraintSystem, undetermined_coordinates
 
 
+def _kabsch(P, X):
+    """The rotation R (3, 3) and translation p (3,) with X ≈ R P + p in least squares
+    (Kabsch), for points P, X (k, 3) m; None when P spans less than a plane."""
+    Pc, Xc = P - P.mean(0), X - X.mean(0)
+    H = Pc.T @ Xc
+    if np.linalg.matrix_rank(H, tol=1e-12 * max(1.0, np.abs(H).max())) < 2:
+        return None
+    U, _, Vt = np.linalg.svd(H)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))])
+    R = Vt.T @ D @ U.T
+    return R, X.mean(0) - R @ P.mean(0)
+
+
 @dataclass(frozen=True)
 class TrackingSettings:
     """tol_step : max |Δq̂| (m, rad) to stop; tol_constraint : max |Φ| (m, rad);
@@ -130,24 +143,34 @@ class MarkerTracker:
         return msg
 
     def initial_guess(self, state, x_WM, visible):
-        """Set each moving body's pose from a rigid least-squares fit (Kabsch) of its
-        visible markers (≥ 3 non-collinear); bodies with fewer keep their pose."""
+        """Set the pose from rigid least-squares fits (Kabsch) of the visible markers:
+        first the whole model as one rigid body (every visible marker at its position in
+        the current pose), so that a body with too few markers of its own moves with the
+        rest instead of staying where the reference pose put it (a knee's patella metres
+        from its femur in a lab-frame trial); then each moving body with ≥ 3
+        non-collinear markers by its own."""
         m = self.markers
+        sel = np.flatnonzero(visible & (state.column[m.body] >= 0))
+        if len(sel) >= 3:
+            P = np.einsum("kij,kj->ki", state.R_WB[m.body[sel]], m.p_BM[sel]) + state.p_WB[m.body[sel]]
+            fit = _kabsch(P, x_WM[sel])
+            if fit is not None:
+                R, p = fit  # x ≈ R P + p for the whole model
+                for i in state.moving:
+                    state.R_WB[i] = R @ state.R_WB[i]
+                    state.quat_WB[i] = quat_from_matrix(state.R_WB[i])
+                    state.p_WB[i] = R @ state.p_WB[i] + p
         for i in state.moving:
             sel = np.flatnonzero((m.body == i) & visible)
             if len(sel) < 3:
                 continue
-            P, X = m.p_BM[sel], x_WM[sel]
-            Pc, Xc = P - P.mean(0), X - X.mean(0)
-            H = Pc.T @ Xc
-            if np.linalg.matrix_rank(H, tol=1e-12 * max(1.0, np.abs(H).max())) < 2:
+            fit = _kabsch(m.p_BM[sel], x_WM[sel])
+            if fit is None:
                 continue
-            U, _, Vt = np.linalg.svd(H)
-            D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))])
-            R = Vt.T @ D @ U.T
+            R, p = fit
             state.quat_WB[i] = quat_from_matrix(R)
             state.R_WB[i] = R
-            state.p_WB[i] = X.mean(0) - R @ P.mean(0)
+            state.p_WB[i] = p
 
     # -- Eqs. 4-5 -----------------------------------------------------------------
     def solve_positions(self, state, t, x_WM, visible, alpha=None):
