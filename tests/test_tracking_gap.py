@@ -109,3 +109,18 @@ def test_initial_guess_moves_bodies_without_their_own_fit_with_the_model():
     for i in state.moving:
         np.testing.assert_allclose(state.R_WB[i], R @ R0[i], atol=1e-12)
         np.testing.assert_allclose(state.p_WB[i], R @ p0[i] + p, atol=1e-12)
+    # a thigh marker placed 0.5 m off in the trial: the thigh's own fit (RMS > 2 cm) is not
+    # used, and it keeps the whole model's pose
+    x_bad = x.copy()
+    x_bad[0] += [0.5, 0.0, 0.0]
+    state = model.initial_state()
+    tracker.initial_guess(state, x_bad, np.ones(len(x), bool))
+    # the whole model's least-squares rigid fit, computed independently (scipy)
+    from scipy.spatial.transform import Rotation
+
+    rot, _ = Rotation.align_vectors(x_bad - x_bad.mean(0), ref - ref.mean(0))
+    R_fit = rot.as_matrix()
+    p_fit = x_bad.mean(0) - R_fit @ ref.mean(0)
+    for i in state.moving:  # the thigh's own fit (RMS ≈ 0.2 m) was not used: every body moved as one
+        np.testing.assert_allclose(state.R_WB[i], R_fit @ R0[i], atol=1e-9)
+        np.testing.assert_allclose(state.p_WB[i], R_fit @ p0[i] + p_fit, atol=1e-9)

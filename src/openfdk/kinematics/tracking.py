@@ -25,6 +25,12 @@ from .frame_kernels import MEASURE_ERROR, OK, SINGULAR, tracking_positions, trac
 from .system import ConstraintSystem, undetermined_coordinates
 
 
+#: a body's own rigid marker fit is used for the first pose only below this RMS residual
+#: (m): markers placed wrongly in a model (the knee Grand Challenge's left foot: 0.43 m)
+#: would turn the body half round and Gauss–Newton would not come back
+INITIAL_FIT_RMS_M = 0.02
+
+
 def _kabsch(P, X):
     """The rotation R (3, 3) and translation p (3,) with X ≈ R P + p in least squares
     (Kabsch), for points P, X (k, 3) m; None when P spans less than a plane."""
@@ -148,8 +154,10 @@ class MarkerTracker:
         the current pose), so that a body with too few markers of its own moves with the
         rest instead of staying where the reference pose put it (a knee's patella metres
         from its femur in a lab-frame trial); then each moving body with ≥ 3
-        non-collinear markers by its own."""
+        non-collinear markers by its own, when they fit it rigidly (RMS below
+        :data:`INITIAL_FIT_RMS_M`). Markers of weight 0 (not tracked) are left out."""
         m = self.markers
+        visible = visible & (m.weight > 0)  # untracked markers (weight 0) may be anywhere
         sel = np.flatnonzero(visible & (state.column[m.body] >= 0))
         if len(sel) >= 3:
             P = np.einsum("kij,kj->ki", state.R_WB[m.body[sel]], m.p_BM[sel]) + state.p_WB[m.body[sel]]
@@ -168,6 +176,9 @@ class MarkerTracker:
             if fit is None:
                 continue
             R, p = fit
+            residual = x_WM[sel] - (m.p_BM[sel] @ R.T + p)
+            if np.sqrt(np.mean(np.sum(residual * residual, axis=1))) > INITIAL_FIT_RMS_M:
+                continue  # the body's markers do not fit it rigidly: keep the whole model's pose
             state.quat_WB[i] = quat_from_matrix(R)
             state.R_WB[i] = R
             state.p_WB[i] = p
