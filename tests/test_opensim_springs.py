@@ -1,7 +1,9 @@
 """OpenSim's SpringGeneralizedForce (stiffness, rest length, viscosity) imported as a
-linear spring with a parallel damper on its coordinate, against OpenSim 4.6's
-InverseDynamicsSolver on the same analytic motion (q, q̇, q̈ exact on both sides):
-the generalised forces agree to 1e-6 N m, and the springs change them."""
+linear spring with a parallel damper on its coordinate, and its CoordinateLimitForce
+(limits, stiffnesses and damping per degree, a smooth transition) as openfdk's limit
+law, against OpenSim 4.6's InverseDynamicsSolver on the same analytic motion (q, q̇, q̈
+exact on both sides): the generalised forces agree to 1e-6 N m, and the springs and
+limits change them."""
 
 from __future__ import annotations
 
@@ -25,7 +27,7 @@ def _q(name, t, order=0):
     return [a + b * np.sin(w * t + phi), b * w * np.cos(w * t + phi), -b * w * w * np.sin(w * t + phi)][order]
 
 
-def _model(path, springs=True):
+def _model(path, springs=True, limits=True):
     m, _, _ = om.two_link_arm("arm")
     if springs:
         s1 = opensim.SpringGeneralizedForce("q1")
@@ -38,6 +40,8 @@ def _model(path, springs=True):
         s2.setName("damper_q2")
         s2.setViscosity(0.8)
         m.addForce(s2)
+    if limits:  # q2 swings 0.4–1.2 rad: past both limits (35°, 60°) and through the 5° transitions
+        m.addForce(opensim.CoordinateLimitForce("q2", 60.0, 2.0, 35.0, 3.0, 0.05, 5.0))
     m.finalizeConnections()
     m.initSystem()
     m.printToXML(str(path))
@@ -68,24 +72,31 @@ def _opensim_id(path, times):
 def test_spring_generalized_forces_equal_opensims_inverse_dynamics(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     model = _model(tmp_path / "arm.osim")
-    times = np.linspace(0.1, 0.9, 9)
+    times = np.linspace(0.1, 0.9, 81)
     drivers = {f"{n}_motion": {"measure": n, "reaction": True, "function": {
         "type": "fourier", "frequency": f, "a": [a, float(b * np.sin(phi))], "b": [float(b * np.cos(phi))]}}
         for n, (a, b, f, phi) in MOTION.items()}
     (tmp_path / "motion.yaml").write_text(yaml.safe_dump(
-        {"drivers": drivers, "analysis": {"start": 0.1, "end": 0.9, "frames": 9}}))
+        {"drivers": drivers, "analysis": {"start": 0.1, "end": 0.9, "frames": 81}}))
     code = main(["run", str(model), "--with", "motion.yaml", "--out", "ours", "--no-plots", "-q"])
     assert code == 0, capsys.readouterr().err
     ours = read_table(tmp_path / "ours" / "generalized_forces.csv")
     theirs = _opensim_id(model, times)
-    bare = _opensim_id(_model(tmp_path / "bare.osim", springs=False), times)
+    bare = _opensim_id(_model(tmp_path / "bare.osim", springs=False, limits=False), times)
+    no_limits = _opensim_id(_model(tmp_path / "no_limits.osim", limits=False), times)
     for name in ("q1", "q2"):
         assert np.max(np.abs(ours[f"{name}_moment"] - theirs[name])) < 1e-6, name
-        # the spring and the damper are in the generalised forces: τ = τ_bare − f_spring
-        spring = -3.0 * (_q("q1", times) - 0.2) - 0.5 * _q("q1", times, 1) if name == "q1" else \
-            -0.8 * _q("q2", times, 1)
-        np.testing.assert_allclose(theirs[name], bare[name] - spring, atol=1e-9)
-        assert np.max(np.abs(spring)) > 0.1
+    # the spring and the damper are in the generalised forces: τ = τ_bare − f_spring
+    spring = -3.0 * (_q("q1", times) - 0.2) - 0.5 * _q("q1", times, 1)
+    np.testing.assert_allclose(theirs["q1"], bare["q1"] - spring, atol=1e-9)
+    np.testing.assert_allclose(no_limits["q2"], bare["q2"] + 0.8 * _q("q2", times, 1), atol=1e-9)
+    assert np.max(np.abs(spring)) > 0.1
+    # the motion crosses both transition bands (30–35° and 60–65°)
+    q2 = np.degrees(_q("q2", times))
+    assert np.any((q2 > 30) & (q2 < 35)) and np.any((q2 > 60) & (q2 < 65))
+    # the limit force acts (past the limits), and only on q2
+    assert np.max(np.abs(theirs["q2"] - no_limits["q2"])) > 0.5
+    np.testing.assert_allclose(theirs["q1"], no_limits["q1"], atol=1e-9)
 
 
 def test_bad_springs_are_one_line_errors(tmp_path, capsys):

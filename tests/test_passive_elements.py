@@ -234,3 +234,18 @@ def test_ligaments_law_on_arrays_equals_each_law():
     for x, y in ((out["ligaments"].force, out2["ligaments"].force), (out["ligaments"].strain, out2["ligaments"].strain), (Q, Q2)):
         np.testing.assert_allclose(x, y, rtol=1e-13, atol=1e-12)
     np.testing.assert_allclose(K, K2, rtol=1e-12, atol=1e-9)
+
+
+def test_coordinate_limit_law_slope_is_its_derivative():
+    """The limit law's df/dq equals a central difference of f at points inside, in the
+    transition bands and beyond both limits (non-zero there, zero inside)."""
+    from openfdk.forces.limit_force import CoordinateLimitLaw
+
+    law = CoordinateLimitLaw(1.0, 120.0, 0.5, 170.0, 0.09, 3.0)
+    h = 1e-7
+    for q in (0.3, 0.44, 0.47, 0.7, 1.04, 1.08, 1.3):
+        fd = (law.force(q + h) - law.force(q - h)) / (2 * h)
+        assert law.dforce_dmeasure(q) == pytest.approx(fd, rel=1e-6, abs=1e-6)
+    assert law.force(0.7) == 0.0 and law.dforce_dmeasure(0.7) == 0.0
+    assert law.force(1.3) == pytest.approx(-120.0 * 0.3) and law.force(0.3) == pytest.approx(170.0 * 0.2)
+    assert law.damping_force(1.3, 2.0) == pytest.approx(-6.0) and law.damping_force(0.7, 2.0) == 0.0

@@ -236,7 +236,11 @@ def load_ligaments(b, data, ctx):
 
 
 LAW_KEYS = {"polynomial": ["coefficients"], "table": ["values", "forces"],
-            "blankevoort": ["stiffness", "slack_length", "transition_strain"]}
+            "blankevoort": ["stiffness", "slack_length", "transition_strain"],
+            "coordinate_limit": ["upper_limit", "upper_stiffness", "lower_limit", "lower_stiffness", "transition",
+                                 "damping"]}
+#: keys of a law that are optional
+LAW_OPTIONAL = {"transition_strain", "damping"}
 
 
 def load_springs(b, data, ctx):
@@ -270,13 +274,20 @@ def load_springs(b, data, ctx):
         if kind not in LAW_KEYS:
             raise ctx.error(f"{p}.law.type", f"unknown force law {kind!r}; expected one of {list(LAW_KEYS)}")
         ctx.keys(law, f"{p}.law", ["type"] + LAW_KEYS[kind],
-                 required=[k for k in LAW_KEYS[kind] if k != "transition_strain"])
+                 required=[k for k in LAW_KEYS[kind] if k not in LAW_OPTIONAL])
         try:
             if kind == "polynomial":
                 fl = PolynomialSpring(ctx.vector(law["coefficients"], f"{p}.law.coefficients"), rest, si_unit, name)
             elif kind == "table":
                 fl = TabulatedSpring(ctx.vector(law["values"], f"{p}.law.values") * scale,
                                      ctx.vector(law["forces"], f"{p}.law.forces"), si_unit, name)
+            elif kind == "coordinate_limit":  # limits and transition in the measure's unit, the rest SI
+                from .limit_force import CoordinateLimitLaw
+
+                num = {k: ctx.number(law.get(k, 0.0), f"{p}.law.{k}") for k in LAW_KEYS[kind]}
+                fl = CoordinateLimitLaw(num["upper_limit"] * scale, num["upper_stiffness"], num["lower_limit"] * scale,
+                                        num["lower_stiffness"], num["transition"] * scale, num["damping"], si_unit,
+                                        name)
             else:
                 if unit != "length":
                     raise ctx.error(f"{p}.law", "the blankevoort law needs a length measure")

@@ -39,6 +39,8 @@ class SpringForces:
         self.rows = ScalarRows([s.measure for s in self.springs])
         self.viscosity = np.array([s.viscosity for s in self.springs], float)
         self.damped = bool(np.any(self.viscosity))
+        #: springs whose law has its own damper (damping_force(m, ṁ), e.g. a coordinate limit)
+        self.law_damped = [k for k, s in enumerate(self.springs) if hasattr(s.law, "damping_force")]
 
     def _measures(self, state):
         """(values (n_springs,), M (n_springs, n)) of the springs' measures (row 0 each)."""
@@ -47,8 +49,11 @@ class SpringForces:
     def accumulate(self, state, t, Q, K=None):
         m, M = self._measures(state)
         f = np.array([float(spr.law.force(float(x))) for spr, x in zip(self.springs, m)])
-        if self.damped:
-            f -= self.viscosity * (M @ state.get_v())  # damper: −c ṁ
+        if self.damped or self.law_damped:
+            rate = M @ state.get_v()
+            f -= self.viscosity * rate  # damper: −c ṁ
+            for k in self.law_damped:
+                f[k] += self.springs[k].law.damping_force(m[k], rate[k])
         Q += M.T @ f
         out = SpringOutputs(m, f, M)
         if K is not None:

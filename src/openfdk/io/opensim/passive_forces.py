@@ -1,7 +1,7 @@
-"""OpenSim's SpringGeneralizedForce: a generalised force −k (q − q_rest) − c q̇ on one
-coordinate, read from a model's ForceSet into an entry of the model-file section
-``springs`` (a linear spring with a parallel damper on the coordinate's measure,
-:mod:`openfdk.forces.spring_forces`).
+"""OpenSim's SpringGeneralizedForce (a generalised force −k (q − q_rest) − c q̇ on one
+coordinate) and CoordinateLimitForce (a coordinate's limit force,
+:mod:`openfdk.forces.limit_force`), read from a model's ForceSet into entries of the
+model-file section ``springs`` (:mod:`openfdk.forces.spring_forces`).
 
 Read: ``coordinate``, ``stiffness`` (default 0), ``rest_length`` (default 0; rad or m,
 the coordinate's unit), ``viscosity`` (default 0). Disabled ones (``appliesForce``
@@ -15,17 +15,25 @@ import math
 from .actuators import _flag, _number, _text
 from .errors import OsimError, where
 
-PASSIVE_TYPES = ("SpringGeneralizedForce",)
+PASSIVE_TYPES = ("SpringGeneralizedForce", "CoordinateLimitForce")
+_LIMIT_PROPERTIES = {"coordinate", "upper_stiffness", "upper_limit", "lower_stiffness", "lower_limit", "damping",
+                     "transition", "compute_dissipation_energy", "appliesForce", "isDisabled", "components"}
+#: OpenSim 4.6's defaults of a CoordinateLimitForce
+LIMIT_DEFAULTS = {"upper_stiffness": 1.0, "upper_limit": 0.0, "lower_stiffness": 1.0, "lower_limit": 0.0,
+                  "damping": 0.001, "transition": 0.1}
 _PROPERTIES = {"coordinate", "stiffness", "rest_length", "viscosity", "appliesForce", "isDisabled", "components"}
 
 
 def read_spring(element, source):
-    """(name, ``springs`` entry in OpenSim's terms) of a SpringGeneralizedForce, or
-    (name, None) when it is disabled; errors name the file, the line and the force."""
+    """(name, ``springs`` entry in OpenSim's terms) of a SpringGeneralizedForce or a
+    CoordinateLimitForce, or (name, None) when it is disabled; errors name the file, the
+    line and the force."""
     name = element.get("name") or ""
-    label = f"SpringGeneralizedForce {name!r}"
+    label = f"{element.tag} {name!r}"
     if not name:
-        raise OsimError(f"{where(source, element)}: a SpringGeneralizedForce without a name")
+        raise OsimError(f"{where(source, element)}: a {element.tag} without a name")
+    if element.tag == "CoordinateLimitForce":
+        return name, _read_limit(element, source, label)
     for child in element:
         if isinstance(child.tag, str) and child.tag not in _PROPERTIES:
             raise OsimError(f"{where(source, child)}: {label}: property <{child.tag}> is not read by openfdk")
@@ -45,6 +53,26 @@ def read_spring(element, source):
     return name, entry
 
 
+def _read_limit(element, source, label):
+    """The ``springs`` entry of a CoordinateLimitForce (or None when disabled), in
+    OpenSim's units (degrees for a rotational coordinate; converted by add_springs)."""
+    for child in element:
+        if isinstance(child.tag, str) and child.tag not in _LIMIT_PROPERTIES:
+            raise OsimError(f"{where(source, child)}: {label}: property <{child.tag}> is not read by openfdk")
+    if not _flag(element, "appliesForce", source, label, True) or _flag(element, "isDisabled", source, label, False):
+        return None
+    coordinate = _text(element, "coordinate")
+    if not coordinate:
+        raise OsimError(f"{where(source, element)}: {label}: no <coordinate>")
+    law = {key: _number(element, key, source, label, default) for key, default in LIMIT_DEFAULTS.items()}
+    if law["upper_stiffness"] <= 0 or law["lower_stiffness"] <= 0 or law["transition"] <= 0 or law["damping"] < 0 \
+            or law["lower_limit"] > law["upper_limit"]:
+        raise OsimError(f"{where(source, element)}: {label}: stiffnesses and transition must be > 0, damping >= 0 "
+                        f"and lower_limit <= upper_limit, got {law}")
+    return {"measure": coordinate, "law": {"type": "coordinate_limit", **law}, "line": element.sourceline,
+            "opensim_units": True}
+
+
 def add_springs(data, springs, source):
     """``data`` (a model mapping) with ``springs`` {OpenSim name: entry} added to its
     ``springs`` section; each must name a coordinate of the mapping."""
@@ -56,6 +84,16 @@ def add_springs(data, springs, source):
     for name, entry in springs.items():
         entry = dict(entry)
         line = entry.pop("line", None)
+        if entry.pop("opensim_units", False) and entry["measure"] in coordinates:
+            # OpenSim: a rotational coordinate's limits and transition in degrees, its
+            # stiffnesses and damping per degree; openfdk's law is in rad
+            w = 1.0 if coordinates[entry["measure"]].get("motion") == "translational" else math.pi / 180.0
+            law = dict(entry["law"])
+            for key in ("upper_limit", "lower_limit", "transition"):
+                law[key] *= w
+            for key in ("upper_stiffness", "lower_stiffness", "damping"):
+                law[key] /= w
+            entry["law"] = law
         if entry["measure"] not in coordinates:
             raise OsimError(f"{source}: line {line}: SpringGeneralizedForce {name!r}: unknown coordinate "
                             f"{entry['measure']!r}")
