@@ -1,7 +1,7 @@
 """OpenSim's SpringGeneralizedForce (stiffness, rest length, viscosity) imported as a
-linear spring with a parallel damper on its coordinate, and its CoordinateLimitForce
+linear spring with a parallel damper on its coordinate, its CoordinateLimitForce
 (limits, stiffnesses and damping per degree, a smooth transition) as openfdk's limit
-law, against OpenSim 4.6's InverseDynamicsSolver on the same analytic motion (q, q̇, q̈
+law and its ExpressionBasedCoordinateForce as a safely parsed expression, against OpenSim 4.6's InverseDynamicsSolver on the same analytic motion (q, q̇, q̈
 exact on both sides): the generalised forces agree to 1e-6 N m, and the springs and
 limits change them."""
 
@@ -42,6 +42,9 @@ def _model(path, springs=True, limits=True):
         m.addForce(s2)
     if limits:  # q2 swings 0.4–1.2 rad: past both limits (35°, 60°) and through the 5° transitions
         m.addForce(opensim.CoordinateLimitForce("q2", 60.0, 2.0, 35.0, 3.0, 0.05, 5.0))
+        expr = opensim.ExpressionBasedCoordinateForce("q1", "-2.5*(q-0.3)^3 - 0.4*qdot*abs(qdot) + 0.2*sin(q)")
+        expr.setName("expr_q1")
+        m.addForce(expr)
     m.finalizeConnections()
     m.initSystem()
     m.printToXML(str(path))
@@ -88,7 +91,7 @@ def test_spring_generalized_forces_equal_opensims_inverse_dynamics(tmp_path, mon
         assert np.max(np.abs(ours[f"{name}_moment"] - theirs[name])) < 1e-6, name
     # the spring and the damper are in the generalised forces: τ = τ_bare − f_spring
     spring = -3.0 * (_q("q1", times) - 0.2) - 0.5 * _q("q1", times, 1)
-    np.testing.assert_allclose(theirs["q1"], bare["q1"] - spring, atol=1e-9)
+    np.testing.assert_allclose(no_limits["q1"], bare["q1"] - spring, atol=1e-9)
     np.testing.assert_allclose(no_limits["q2"], bare["q2"] + 0.8 * _q("q2", times, 1), atol=1e-9)
     assert np.max(np.abs(spring)) > 0.1
     # the motion crosses both transition bands (30–35° and 60–65°)
@@ -96,14 +99,22 @@ def test_spring_generalized_forces_equal_opensims_inverse_dynamics(tmp_path, mon
     assert np.any((q2 > 30) & (q2 < 35)) and np.any((q2 > 60) & (q2 < 65))
     # the limit force acts (past the limits), and only on q2
     assert np.max(np.abs(theirs["q2"] - no_limits["q2"])) > 0.5
-    np.testing.assert_allclose(theirs["q1"], no_limits["q1"], atol=1e-9)
+    # the expression on q1: τ = τ_no_limits − f(q, q̇), its closed form
+    q1, q1d = _q("q1", times), _q("q1", times, 1)
+    expr = -2.5 * (q1 - 0.3) ** 3 - 0.4 * q1d * np.abs(q1d) + 0.2 * np.sin(q1)
+    np.testing.assert_allclose(theirs["q1"], no_limits["q1"] - expr, atol=1e-9)
+    assert np.max(np.abs(expr)) > 0.1
 
 
 def test_bad_springs_are_one_line_errors(tmp_path, capsys):
     model = _model(tmp_path / "arm.osim")
     text = model.read_text()
     for old, new, words in (("<viscosity>0.8", "<viscosity>-1", "viscosity must be"),
-                            ("<coordinate>q2", "<coordinate>q9", "unknown coordinate 'q9'")):
+                            ("<coordinate>q2", "<coordinate>q9", "unknown coordinate 'q9'"),
+                            ("<expression>", "<expression>__import__('os').getcwd() + ",
+                             "only the functions"),
+                            ("<expression>", "<expression>q.real + ", "Attribute is not allowed"),
+                            ("<expression>", "<expression>x + ", "unknown name 'x'")):
         bad = tmp_path / "bad.osim"
         bad.write_text(text.replace(old, new, 1))
         code = main(["check", str(bad)])

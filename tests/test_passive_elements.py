@@ -249,3 +249,24 @@ def test_coordinate_limit_law_slope_is_its_derivative():
     assert law.force(0.7) == 0.0 and law.dforce_dmeasure(0.7) == 0.0
     assert law.force(1.3) == pytest.approx(-120.0 * 0.3) and law.force(0.3) == pytest.approx(170.0 * 0.2)
     assert law.damping_force(1.3, 2.0) == pytest.approx(-6.0) and law.damping_force(0.7, 2.0) == 0.0
+
+
+def test_expression_law_is_parsed_safely_and_evaluates_like_python():
+    """An expression of q and qdot (OpenSim's Lepton syntax, ^ for power) evaluates to
+    the same numbers as the formula written in Python; its slope is its derivative; code
+    is refused without being run."""
+    from openfdk.forces.expression_force import ExpressionLaw
+    from openfdk.forces.force_laws import ForceLawError
+
+    law = ExpressionLaw("-3*(q-0.2)^2 + square(q)*exp(-q) - 0.5*qdot - max(q, 0.1)", name="e")
+    for q, qd in ((0.0, 1.0), (0.7, -2.0), (-1.3, 0.4)):
+        f = -3 * (q - 0.2) ** 2 + q * q * np.exp(-q) - 0.5 * qd - max(q, 0.1)
+        assert law.force(q) + law.damping_force(q, qd) == pytest.approx(f, rel=1e-14)
+        h = 1e-6
+        slope = (law.force(q + h) - law.force(q - h)) / (2 * h)
+        assert law.dforce_dmeasure(q) == pytest.approx(slope, rel=1e-6) and abs(slope) > 0.1
+    for bad in ("__import__('os').system('true')", "q.real", "[q][0]", "lambda: q", "y + q", "sin(q, q)", ""):
+        with pytest.raises(ForceLawError):
+            ExpressionLaw(bad, name="e")
+    with pytest.raises(FloatingPointError, match="spring 'e'"):
+        ExpressionLaw("log(q)", name="e").force(-1.0)

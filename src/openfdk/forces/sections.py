@@ -238,7 +238,8 @@ def load_ligaments(b, data, ctx):
 LAW_KEYS = {"polynomial": ["coefficients"], "table": ["values", "forces"],
             "blankevoort": ["stiffness", "slack_length", "transition_strain"],
             "coordinate_limit": ["upper_limit", "upper_stiffness", "lower_limit", "lower_stiffness", "transition",
-                                 "damping"]}
+                                 "damping"],
+            "expression": ["expression"]}
 #: keys of a law that are optional
 LAW_OPTIONAL = {"transition_strain", "damping"}
 
@@ -281,6 +282,10 @@ def load_springs(b, data, ctx):
             elif kind == "table":
                 fl = TabulatedSpring(ctx.vector(law["values"], f"{p}.law.values") * scale,
                                      ctx.vector(law["forces"], f"{p}.law.forces"), si_unit, name)
+            elif kind == "expression":  # f(q, qdot) in SI (OpenSim's ExpressionBasedCoordinateForce)
+                from .expression_force import ExpressionLaw
+
+                fl = ExpressionLaw(law["expression"], si_unit, name)
             elif kind == "coordinate_limit":  # limits and transition in the measure's unit, the rest SI
                 from .limit_force import CoordinateLimitLaw
 

@@ -1,6 +1,7 @@
 """OpenSim's SpringGeneralizedForce (a generalised force −k (q − q_rest) − c q̇ on one
-coordinate) and CoordinateLimitForce (a coordinate's limit force,
-:mod:`openfdk.forces.limit_force`), read from a model's ForceSet into entries of the
+coordinate) CoordinateLimitForce (a coordinate's limit force, :mod:`openfdk.forces.limit_force`)
+and ExpressionBasedCoordinateForce (f(q, qdot) parsed safely,
+:mod:`openfdk.forces.expression_force`), read from a model's ForceSet into entries of the
 model-file section ``springs`` (:mod:`openfdk.forces.spring_forces`).
 
 Read: ``coordinate``, ``stiffness`` (default 0), ``rest_length`` (default 0; rad or m,
@@ -15,7 +16,7 @@ import math
 from .actuators import _flag, _number, _text
 from .errors import OsimError, where
 
-PASSIVE_TYPES = ("SpringGeneralizedForce", "CoordinateLimitForce")
+PASSIVE_TYPES = ("SpringGeneralizedForce", "CoordinateLimitForce", "ExpressionBasedCoordinateForce")
 _LIMIT_PROPERTIES = {"coordinate", "upper_stiffness", "upper_limit", "lower_stiffness", "lower_limit", "damping",
                      "transition", "compute_dissipation_energy", "appliesForce", "isDisabled", "components"}
 #: OpenSim 4.6's defaults of a CoordinateLimitForce
@@ -34,6 +35,8 @@ def read_spring(element, source):
         raise OsimError(f"{where(source, element)}: a {element.tag} without a name")
     if element.tag == "CoordinateLimitForce":
         return name, _read_limit(element, source, label)
+    if element.tag == "ExpressionBasedCoordinateForce":
+        return name, _read_expression(element, source, label)
     for child in element:
         if isinstance(child.tag, str) and child.tag not in _PROPERTIES:
             raise OsimError(f"{where(source, child)}: {label}: property <{child.tag}> is not read by openfdk")
@@ -71,6 +74,28 @@ def _read_limit(element, source, label):
                         f"and lower_limit <= upper_limit, got {law}")
     return {"measure": coordinate, "law": {"type": "coordinate_limit", **law}, "line": element.sourceline,
             "opensim_units": True}
+
+
+def _read_expression(element, source, label):
+    """The ``springs`` entry of an ExpressionBasedCoordinateForce (or None when
+    disabled); the expression is checked here (parsed safely, never run as code)."""
+    from ...forces.expression_force import parse_expression
+    from ...forces.force_laws import ForceLawError
+
+    for child in element:
+        if isinstance(child.tag, str) and child.tag not in {"coordinate", "expression", "appliesForce", "isDisabled",
+                                                            "components"}:
+            raise OsimError(f"{where(source, child)}: {label}: property <{child.tag}> is not read by openfdk")
+    if not _flag(element, "appliesForce", source, label, True) or _flag(element, "isDisabled", source, label, False):
+        return None
+    coordinate, expression = _text(element, "coordinate"), _text(element, "expression") or "0.0"
+    if not coordinate:
+        raise OsimError(f"{where(source, element)}: {label}: no <coordinate>")
+    try:
+        parse_expression(expression, "expression")
+    except ForceLawError as exc:
+        raise OsimError(f"{where(source, element)}: {label}: {exc}") from None
+    return {"measure": coordinate, "law": {"type": "expression", "expression": expression}, "line": element.sourceline}
 
 
 def add_springs(data, springs, source):
