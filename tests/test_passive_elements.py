@@ -270,3 +270,33 @@ def test_expression_law_is_parsed_safely_and_evaluates_like_python():
             ExpressionLaw(bad, name="e")
     with pytest.raises(FloatingPointError, match="spring 'e'"):
         ExpressionLaw("log(q)", name="e").force(-1.0)
+
+
+def test_expression_parser_fuzz():
+    """2 000 random mutations of an expression: each is refused with ForceLawError, or
+    parses and then evaluates to a number or FloatingPointError naming the spring —
+    never another exception."""
+    from openfdk.forces.expression_force import ExpressionLaw
+    from openfdk.forces.force_laws import ForceLawError
+
+    rng = np.random.default_rng(11)
+    base = "-2.5*(q-0.3)^3 - 0.4*qdot*abs(qdot) + 0.2*sin(q) / max(q, 1e-3)"
+    alphabet = list("qdot+-*/^()., 0123456789eE_[]'\"") + ["sin", "__", "lambda", "import", "q.", "**"]
+    for _ in range(2000):
+        text = list(base)
+        for _ in range(int(rng.integers(1, 5))):
+            k = int(rng.integers(0, len(text) + 1))
+            if rng.random() < 0.5 and text:
+                del text[min(k, len(text) - 1)]
+            else:
+                text.insert(k, alphabet[int(rng.integers(len(alphabet)))])
+        try:
+            law = ExpressionLaw("".join(text), name="fuzz")
+        except ForceLawError:
+            continue
+        try:
+            value = law.force(0.4) + law.damping_force(0.4, -1.3)
+        except FloatingPointError as exc:
+            assert "spring 'fuzz'" in str(exc)
+            continue
+        assert np.isfinite(value)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import ast
 import math
+import warnings
 
 from .force_laws import ForceLawError
 
@@ -32,7 +33,14 @@ FUNCTIONS = {
     "recip": (lambda x: 1.0 / x, 1), "min": (min, 2), "max": (max, 2), "step": (lambda x: 1.0 if x >= 0 else 0.0, 1),
 }
 _OPS = {ast.Add: lambda a, b: a + b, ast.Sub: lambda a, b: a - b, ast.Mult: lambda a, b: a * b,
-        ast.Div: lambda a, b: a / b, ast.Pow: lambda a, b: a ** b}
+        ast.Div: lambda a, b: a / b, ast.Pow: lambda a, b: _power(a, b)}
+
+
+def _power(a, b):
+    value = a ** b
+    if isinstance(value, complex):  # a negative number to a fractional power
+        raise ValueError(f"({a:g})^{b:g} is not a real number")
+    return value
 MAX_LENGTH = 10_000
 
 
@@ -44,9 +52,13 @@ def parse_expression(text, where="expression"):
     if len(text) > MAX_LENGTH:
         raise ForceLawError(f"{where}: the expression has {len(text)} characters (at most {MAX_LENGTH})")
     try:
-        tree = ast.parse(text.replace("^", "**"), mode="eval")
+        with warnings.catch_warnings():  # (Python's own SyntaxWarnings about literals: the error says it)
+            warnings.simplefilter("ignore", SyntaxWarning)
+            tree = ast.parse(text.replace("^", "**"), mode="eval")
     except SyntaxError as exc:
         raise ForceLawError(f"{where}: not an expression ({exc.msg}): {text!r}") from None
+    except (RecursionError, MemoryError, ValueError):
+        raise ForceLawError(f"{where}: the expression is nested too deeply") from None
     for node in ast.walk(tree):
         if isinstance(node, (ast.Expression, ast.Load, ast.operator, ast.unaryop)):
             if isinstance(node, ast.operator) and type(node) not in _OPS:
@@ -100,7 +112,7 @@ class ExpressionLaw:
         """f (N m or N) at q, q̇; ForceLawError naming the spring when it is not finite."""
         try:
             f = _evaluate(self.tree, float(q), float(qdot))
-        except (ValueError, ZeroDivisionError, OverflowError) as exc:
+        except (ValueError, ZeroDivisionError, OverflowError, TypeError, RecursionError) as exc:
             raise FloatingPointError(f"spring {self.name!r}: expression {self.expression!r} at q = {q:g}, "
                                      f"qdot = {qdot:g}: {exc}") from None
         if not math.isfinite(f):
