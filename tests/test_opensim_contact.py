@@ -85,6 +85,7 @@ def test_sphere_on_layer_matches_the_elastic_foundation(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     data, _ = read_osim(_model(tmp_path))
     p_mod = 1.0 / sum(1.0 / _modulus(*layer) for layer in LAYERS.values())
+    assert data["name"] == "ball_on_plate"  # (the ForceSet's readers once overwrote the model's name)
     spec = data["contacts"]["ball_contact"]
     assert spec["vertices"]["body"] == "ball" and spec["surface"]["body"] == "ground"
     assert spec["pressure_modulus"] == pytest.approx(p_mod, rel=1e-12) and spec["max_depth"] == 1e-3

@@ -84,6 +84,9 @@ def test_spring_generalized_forces_equal_opensims_inverse_dynamics(tmp_path, mon
     code = main(["run", str(model), "--with", "motion.yaml", "--out", "ours", "--no-plots", "-q"])
     assert code == 0, capsys.readouterr().err
     ours = read_table(tmp_path / "ours" / "generalized_forces.csv")
+    import json
+
+    assert json.loads((tmp_path / "ours" / "summary.json").read_text())["kinematics"]["model"] == "arm"
     theirs = _opensim_id(model, times)
     bare = _opensim_id(_model(tmp_path / "bare.osim", springs=False, limits=False), times)
     no_limits = _opensim_id(_model(tmp_path / "no_limits.osim", limits=False), times)

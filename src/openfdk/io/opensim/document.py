@@ -587,17 +587,17 @@ class _Reader:
                 elif tag == "ForceSet" and e.tag == "Blankevoort1991Ligament" and e.tag not in self.ignore:
                     self.read_ligament(e, legacy)
                 elif tag == "ContactGeometrySet" and e.tag == CONTACT_MESH and e.tag not in self.ignore:
-                    name, record = read_contact_mesh(e, self.source)
-                    self.once(e, "contact mesh", name)
-                    self.contact_meshes[name] = record
+                    mesh_name, record = read_contact_mesh(e, self.source)  # (``name`` is the model's)
+                    self.once(e, "contact mesh", mesh_name)
+                    self.contact_meshes[mesh_name] = record
                 elif tag == "ForceSet" and e.tag in readers and e.tag not in self.ignore:
                     kind, read, store = readers[e.tag]
-                    name, entry = read(e, self.source)
+                    force_name, entry = read(e, self.source)
                     if entry is None:
-                        self.ignored.append((e.tag, name, e.sourceline))  # disabled: OpenSim skips it too
+                        self.ignored.append((e.tag, force_name, e.sourceline))  # disabled: OpenSim skips it too
                     else:
-                        self.once(e, kind, name)
-                        store[name] = entry
+                        self.once(e, kind, force_name)
+                        store[force_name] = entry
                 else:
                     self.skip(e)
         for e in model:
@@ -611,15 +611,15 @@ class _Reader:
             j.parent, j.child = self.resolve(j.parent, scope), self.resolve(j.child, scope)
         for m in self.markers:
             m.frame = m.body = self.resolve(m.frame)
-        for name, mesh in self.contact_meshes.items():
+        for mesh_name, mesh in self.contact_meshes.items():
             mesh["frame"] = self.resolve(mesh["path"])
             if mesh["frame"] not in self.frames and mesh["frame"] != "ground":
-                raise OsimError(f"{self.source}: line {mesh['line']}: Smith2018ContactMesh {name!r}: frame "
+                raise OsimError(f"{self.source}: line {mesh['line']}: Smith2018ContactMesh {mesh_name!r}: frame "
                                 f"{mesh['path']!r} is neither a body nor a frame of the model")
-        for name, force in self.contact_forces.items():
+        for force_name, force in self.contact_forces.items():
             for key in ("target", "casting"):
                 if force[key] not in self.contact_meshes:
-                    raise OsimError(f"{self.source}: line {force['line']}: Smith2018ArticularContactForce {name!r}: "
+                    raise OsimError(f"{self.source}: line {force['line']}: Smith2018ArticularContactForce {force_name!r}: "
                                     f"no Smith2018ContactMesh {force[key]!r} (its {key} mesh)")
         for mu in self.muscles + self.ligaments:
             for pt in mu.points:
