@@ -125,3 +125,18 @@ def test_unsupported_contact_options_are_refused(tmp_path, monkeypatch):
         with pytest.raises(OsimError) as exc:
             read_osim(bad)
         assert "\n" not in str(exc.value) and "bad.osim" in str(exc.value) and words in str(exc.value), exc.value
+
+
+def test_import_opensim_copies_the_contact_meshes(tmp_path, monkeypatch, capsys):
+    """``openfdk import-opensim`` writes the contact meshes beside the model file
+    (Geometry/) like the display meshes, and the written file loads to the same contact."""
+    from openfdk.cli import main
+    from openfdk.io.modelfile import load_model
+
+    monkeypatch.chdir(tmp_path)
+    path = _model(tmp_path)
+    assert main(["import-opensim", str(path), "--out", "out", "-q"]) == 0, capsys.readouterr().err
+    assert sorted(p.name for p in (tmp_path / "out" / "Geometry").iterdir()) == ["ball.stl", "plate.stl"]
+    model = load_model(tmp_path / "out" / "ball_on_plate.yaml")
+    p_mod = 1.0 / sum(1.0 / _modulus(*layer) for layer in LAYERS.values())
+    assert len(model.contacts) == 1 and model.contacts[0].pair.pressure_modulus == pytest.approx(p_mod, rel=1e-12)

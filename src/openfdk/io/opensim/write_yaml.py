@@ -81,24 +81,32 @@ def write_imported(data, out_dir, source_name, info=None, force=False):
     return path
 
 
+def _mesh_files(data):
+    """Every mesh file the mapping names: bodies' visual meshes and contact surfaces."""
+    for body in data["bodies"].values():
+        for v in body.get("visual", ()):
+            yield Path(v["mesh"])
+    for contact in (data.get("contacts") or {}).values():
+        for side in ("vertices", "surface"):
+            yield Path(contact[side]["mesh"])
+
+
 def _mesh_targets(data):
     """{mesh file: its path in the output folder, "Geometry/<name>"} (unique names)."""
     used = {}
-    for body in data["bodies"].values():
-        for v in body.get("visual", ()):
-            src = Path(v["mesh"])
-            if str(src) not in used:
-                target = f"Geometry/{src.name}"
-                k = 1
-                while target in used.values():
-                    target = f"Geometry/{src.stem}_{k}{src.suffix}"
-                    k += 1
-                used[str(src)] = target
+    for src in _mesh_files(data):
+        if str(src) not in used:
+            target = f"Geometry/{src.name}"
+            k = 1
+            while target in used.values():
+                target = f"Geometry/{src.stem}_{k}{src.suffix}"
+                k += 1
+            used[str(src)] = target
     return used
 
 
 def _copy_meshes(data, out_dir, targets):
-    """The mapping with every visual mesh copied to out_dir/Geometry (``targets``:
+    """The mapping with every visual and contact mesh copied to out_dir/Geometry (``targets``:
     :func:`_mesh_targets`). A file is copied to a temporary name and renamed, so that a
     symlink already at the target is replaced rather than written through."""
     bodies = {}
@@ -107,6 +115,9 @@ def _copy_meshes(data, out_dir, targets):
         if "visual" in body:
             body["visual"] = [{**v, "mesh": targets[str(Path(v["mesh"]))]} for v in body["visual"]]
         bodies[bname] = body
+    contacts = {name: {**c, **{side: {**c[side], "mesh": targets[str(Path(c[side]["mesh"]))]}
+                               for side in ("vertices", "surface")}}
+                for name, c in (data.get("contacts") or {}).items()}
     for src, target in targets.items():
         dest = out_dir / target
         dest.parent.mkdir(exist_ok=True)
@@ -118,4 +129,4 @@ def _copy_meshes(data, out_dir, targets):
         tmp = dest.with_name(f".{dest.name}.tmp")
         shutil.copyfile(src, tmp)
         os.replace(tmp, dest)
-    return {**data, "bodies": bodies}
+    return {**data, "bodies": bodies, **({"contacts": contacts} if contacts else {})}
