@@ -70,7 +70,7 @@ def test_vertical_force_averages_body_weight_with_a_double_hump(inputs):
         fy = force[stance, 1] / weight
         n = len(fy)
         peak1, valley, peak2 = fy[: n // 3].max(), fy[n // 3: 2 * n // 3].min(), fy[2 * n // 3:].max()
-        assert 1.0 < peak1 < 1.3 and 1.0 < peak2 < 1.3 and 0.6 < valley < 0.9, (peak1, valley, peak2)
+        assert min(peak1, peak2) > 1.0 and max(peak1, peak2) < 1.3 and 0.6 < valley < 0.9, (peak1, valley, peak2)
         # fore-aft shear: braking (backward, −x) then propulsion, about 0.2 BW, no net impulse
         fx = force[stance, 0] / weight
         assert fx[: n // 2].mean() < -0.05 and fx[n // 2:].mean() > 0.05 and 0.1 < np.abs(fx).max() < 0.3
