@@ -120,22 +120,9 @@ OURS = {"ActiveForceLengthCurve": "active_force_length", "ForceVelocityCurve": "
 def millard_arm(path):
     """test_opensim_muscles's two-pin arm with the Millard muscles of MUSCLES, written by
     OpenSim."""
-    m = opensim.Model()
-    m.setName("millard_arm")
-    bodies = {"ground": m.getGround()}
-    upper = opensim.Body("upper", 2.0, om.vec3((0.01, -0.15, 0.02)), opensim.Inertia(0.02, 0.01, 0.02, 0.001, 0, 0))
-    fore = opensim.Body("fore", 1.0, om.vec3((0.0, -0.12, -0.01)), opensim.Inertia(0.01, 0.005, 0.01))
-    for b in (upper, fore):
-        m.addBody(b)
-        bodies[b.getName()] = b
-    shoulder = opensim.PinJoint("shoulder", m.getGround(), om.vec3((0, 1, 0)), om.vec3((0.1, 0.2, 0.3)),
-                                upper, om.vec3((0, 0.05, 0)), om.vec3((0, 0, 0)))
-    elbow = opensim.PinJoint("elbow", upper, om.vec3((0, -0.3, 0)), om.vec3((0.0, 0.3, 0.2)),
-                             fore, om.vec3((0, 0.02, 0)), om.vec3((0.1, 0, 0)))
-    shoulder.updCoordinate().setName("q_shoulder")
-    elbow.updCoordinate().setName("q_elbow")
-    m.addJoint(shoulder)
-    m.addJoint(elbow)
+    from test_opensim_muscles import arm_skeleton
+
+    m, bodies = arm_skeleton("millard_arm")
     for name, params in MUSCLES.items():
         mu = opensim.Millard2012EquilibriumMuscle(name, params["max_isometric_force"], params["optimal_fiber_length"],
                                                   params["tendon_slack_length"], params["pennation_angle_at_optimal"])

@@ -55,11 +55,11 @@ HILL_KEYS = {
 }
 
 
-def arm_model(path):
-    """Two bodies on pin joints (offset, rotated frames), three Thelen2003Muscles with
-    2–4 PathPoints on the ground and both bodies; written by OpenSim."""
+def arm_skeleton(name):
+    """(model, {body name: body}) of two bodies on pin joints q_shoulder and q_elbow
+    (offset, rotated frames), no forces yet."""
     m = opensim.Model()
-    m.setName("arm")
+    m.setName(name)
     bodies = {"ground": m.getGround()}
     upper = opensim.Body("upper", 2.0, om.vec3((0.01, -0.15, 0.02)), opensim.Inertia(0.02, 0.01, 0.02, 0.001, 0, 0))
     fore = opensim.Body("fore", 1.0, om.vec3((0.0, -0.12, -0.01)), opensim.Inertia(0.01, 0.005, 0.01))
@@ -74,6 +74,13 @@ def arm_model(path):
     elbow.updCoordinate().setName("q_elbow")
     m.addJoint(shoulder)
     m.addJoint(elbow)
+    return m, bodies
+
+
+def arm_model(path):
+    """Two bodies on pin joints (offset, rotated frames), three Thelen2003Muscles with
+    2–4 PathPoints on the ground and both bodies; written by OpenSim."""
+    m, bodies = arm_skeleton("arm")
     for name, params in PARAMS.items():
         mu = opensim.Thelen2003Muscle(name, params["max_isometric_force"], params["optimal_fiber_length"],
                                       params["tendon_slack_length"], params["pennation_angle_at_optimal"])
