@@ -71,6 +71,27 @@ def test_trc_reads_to_the_same_trial_as_c3d_including_gaps(marker_data, tmp_path
     assert isinstance(read_trial(tmp_path / "trial.trc"), type(c3d))
 
 
+def test_trc_all_zero_samples_are_gaps_as_in_c3d(marker_data, tmp_path):
+    """Exporters (the Knee Grand Challenge's TRCs among them) write a gap as ``-0 0 0``;
+    the C3D reader already reads all-zero points as missing, and the TRC reader must agree."""
+    t, labels, x = marker_data
+    x = x.copy()
+    x[20:30, 4] = 0.0
+    x[5, 1] = (0.0, 0.0, 0.0)
+    write_c3d(tmp_path / "trial.c3d", labels, x, 100.0, units="mm")
+    write_trc_opensim_layout(tmp_path / "trial.trc", labels, x * 1e3, 100.0)
+    text = (tmp_path / "trial.trc").read_text().replace("\t0.0\t0.0\t0.0", "\t-0\t0\t0")
+    (tmp_path / "trial.trc").write_text(text)
+    c3d, trc = read_c3d(tmp_path / "trial.c3d"), read_trc(tmp_path / "trial.trc")
+    gaps = np.isnan(trc.positions).any(axis=2)
+    assert gaps[20:30, 4].all() and gaps[5, 1]
+    np.testing.assert_array_equal(gaps, np.isnan(c3d.positions).any(axis=2))
+    # a marker with one coordinate exactly zero is still seen
+    x[33, 3, 1] = 0.0
+    write_trc_opensim_layout(tmp_path / "one.trc", labels, x * 1e3, 100.0)
+    assert read_trc(tmp_path / "one.trc").positions[33, 3, 1] == 0.0
+
+
 def test_trc_units_and_start_frame_come_from_the_header(marker_data, tmp_path):
     t, labels, x = marker_data
     write_trc_opensim_layout(tmp_path / "m.trc", labels, x, 50.0, first_frame=11, units="m")

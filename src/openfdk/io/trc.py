@@ -11,7 +11,9 @@ Layout (OpenSim documentation, "Marker (.trc) Files"), tab separated:
 * line 5: ``''  ''  X1  Y1  Z1  X2 …``;
 * an optional blank line, then one row per frame: frame number, time (s), then x y z of
   every marker.  A missing sample is an empty cell or ``NaN``; a row may stop early,
-  which leaves its last markers missing.
+  which leaves its last markers missing.  A sample whose three coordinates are all
+  exactly zero is missing too: many exporters write gaps so (as C3D readers do, see
+  :func:`openfdk.io.c3d.read_c3d`), and no real marker sits exactly on the lab origin.
 
 What is used: ``DataRate`` (Hz) is the trial's rate, ``Units`` (mm, cm or m) converts the
 positions to metres once, here (docs/design.md §4); times are the ``Time`` column (which OpenSim
@@ -164,8 +166,9 @@ def read_trc(path: str | os.PathLike) -> MarkerTrial:
 
     times = _uniform_times(np.array(times), rate, decimals)
     p = np.array(rows).reshape(len(rows), n_markers, 3) * UNIT_TO_METRE[units]
-    # a sample is missing when any coordinate is: the marker is seen or not as a whole
-    p[~np.all(np.isfinite(p), axis=2)] = np.nan
+    # a sample is missing when any coordinate is: the marker is seen or not as a whole;
+    # (0, 0, 0) exactly is how many exporters write a gap
+    p[~np.all(np.isfinite(p), axis=2) | np.all(p == 0.0, axis=2)] = np.nan
     try:
         return MarkerTrial(labels=tuple(labels), rate=rate, time=times, positions=p, source=name)
     except ValueError as exc:
