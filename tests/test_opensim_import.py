@@ -665,9 +665,9 @@ def _ellipsoid_joint(tree):
     return joint
 
 
-#: a muscle class openfdk does not read yet (Thelen2003Muscle and Millard2012EquilibriumMuscle are read:
-#: tests/test_opensim_muscles.py, tests/test_opensim_millard.py)
-MUSCLE = """<Millard2012AccelerationMuscle name="vastus">
+#: a muscle class openfdk does not read (Thelen, both Millard muscles, RigidTendonMuscle and Schutte are read:
+#: tests/test_opensim_muscles.py, tests/test_opensim_millard.py, tests/test_opensim_curve_muscles.py)
+MUSCLE = """<DeGrooteFregly2016Muscle name="vastus">
   <GeometryPath name="path">
     <PathPointSet><objects>
       <PathPoint name="p1">
@@ -679,7 +679,7 @@ MUSCLE = """<Millard2012AccelerationMuscle name="vastus">
     </objects></PathPointSet>
   </GeometryPath>
   <max_isometric_force>1000</max_isometric_force>
-</Millard2012AccelerationMuscle>"""
+</DeGrooteFregly2016Muscle>"""
 
 
 def _muscle(tree):
@@ -694,7 +694,7 @@ def _muscle(tree):
     ("unsorted_knots", "custom", _unsort_knots, "SimmSpline"),
     ("unknown_coordinate", "constraints", _unknown_coupler_coordinate, "no_such_coordinate"),
     ("ellipsoid_joint", "joints", _ellipsoid_joint, "EllipsoidJoint"),
-    ("muscle", "joints", _muscle, "Millard2012AccelerationMuscle 'vastus'"),
+    ("muscle", "joints", _muscle, "DeGrooteFregly2016Muscle 'vastus'"),
 ])
 def test_malformed_files_are_one_line_errors(files, workdir, case, source, edit, words):
     """Each malformed file raises OsimError (a ValueError) with one line naming the file,
@@ -726,7 +726,7 @@ def test_not_xml_and_not_opensim_are_one_line_errors(workdir):
 
 def test_cli_check_reports_bad_files_in_one_line_and_ignore_skips_muscles(files, workdir, capsys):
     """``openfdk check bad.osim`` exits 2 with one line on stderr; ``--ignore
-    Millard2012AccelerationMuscle`` reads the model without its muscle."""
+    DeGrooteFregly2016Muscle`` reads the model without its muscle."""
     from openfdk.cli import main
 
     bad = workdir / "cli_mesh.osim"
@@ -739,14 +739,14 @@ def test_cli_check_reports_bad_files_in_one_line_and_ignore_skips_muscles(files,
     line = _edit(files["joints"], muscle, _muscle)
     assert main(["check", str(muscle)]) == 2
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and f"line {line}:" in err and "--ignore Millard2012AccelerationMuscle" in err, err
+    assert len(err.splitlines()) == 1 and f"line {line}:" in err and "--ignore DeGrooteFregly2016Muscle" in err, err
     ignored = workdir / "cli_muscle_ignored.osim"
     _edit(files["joints"], ignored, _muscle)
-    assert main(["check", str(ignored), "--ignore", "Millard2012AccelerationMuscle"]) == 0
+    assert main(["check", str(ignored), "--ignore", "DeGrooteFregly2016Muscle"]) == 0
     out = capsys.readouterr()
     assert "error" not in out.err
-    _, info = read_osim(ignored, ignore=("Millard2012AccelerationMuscle",))
-    assert [d["type"] for d in info["dropped"]] == ["Millard2012AccelerationMuscle"]
+    _, info = read_osim(ignored, ignore=("DeGrooteFregly2016Muscle",))
+    assert [d["type"] for d in info["dropped"]] == ["DeGrooteFregly2016Muscle"]
 
 
 # ----------------------------------------------------------------------------- meshes

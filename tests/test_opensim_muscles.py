@@ -292,9 +292,9 @@ def _wrap(tree):
     return torus
 
 
-def _millard(tree):
+def _other_muscle(tree):
     m = tree.xpath("//Thelen2003Muscle[@name='delt']")[0]
-    m.tag = "Millard2012AccelerationMuscle"  # (the equilibrium muscle is read: test_opensim_millard)
+    m.tag = "DeGrooteFregly2016Muscle"  # (Millard, rigid-tendon, Schutte: test_opensim_millard, _curve_muscles)
     return m
 
 
@@ -369,7 +369,7 @@ def _moving_on_two_coordinates(tree):
     (_conditional_without_coordinate, "ConditionalPathPoint", "biceps.long/mid", "biceps_long"),
     (_moving_on_two_coordinates, "MovingPathPoint", "triceps/via2", "triceps"),
     (_wrap, "WrapTorus", "humerus_head", "delt"),
-    (_millard, "Millard2012AccelerationMuscle", "delt", "delt"),
+    (_other_muscle, "DeGrooteFregly2016Muscle", "delt", "delt"),
 ])
 def test_unsupported_path_elements_refuse_the_muscle(arm, workdir, edit, kind, name, muscle):
     """A PathWrap over a WrapTorus, or another muscle class, is refused in one line
@@ -388,7 +388,7 @@ def test_unsupported_path_elements_refuse_the_muscle(arm, workdir, edit, kind, n
     assert muscle not in data["muscles"] and len(data["muscles"]) == 2
     dropped = {(d["type"], d["name"]) for d in info["dropped"]}
     assert (kind, name) in dropped
-    if kind != "Millard2012AccelerationMuscle":
+    if kind != "DeGrooteFregly2016Muscle":
         assert ("Thelen2003Muscle", muscle.replace("_", ".") if muscle == "biceps_long" else muscle) in dropped
     data, info = read_osim(path, ignore=("forces",))
     assert "muscles" not in data and len([d for d in info["dropped"] if d["type"] != "WrapTorus"]) == 3

@@ -442,19 +442,20 @@ class MuscleSet:
     """Many muscles of mixed kinds evaluated at once (one compiled loop, no Python per muscle).
 
     muscles : sequence of :class:`ConstantStrengthMuscle` / :class:`Hill3ElementMuscle` /
-    :class:`~.millard.MillardMuscle`, in the order of the recruitment's muscle columns. Non-empty names must be unique.
+    :class:`~.millard.MillardMuscle` / :class:`~.curve_muscle.CurveMuscle`, in the order of the recruitment's muscle columns. Non-empty names must be unique.
     """
 
     def __init__(self, muscles: Sequence):
+        from .curve_muscle import CurveMuscle, curve_tables
         from .millard import MillardMuscle
 
         muscles = tuple(muscles)
         seen = set()
         for i, muscle in enumerate(muscles):
-            if not isinstance(muscle, (ConstantStrengthMuscle, Hill3ElementMuscle, MillardMuscle)):
+            if not isinstance(muscle, (ConstantStrengthMuscle, Hill3ElementMuscle, MillardMuscle, CurveMuscle)):
                 raise MuscleParameterError(
                     f"muscle {i} is a {type(muscle).__name__}; expected ConstantStrengthMuscle, "
-                    "Hill3ElementMuscle or MillardMuscle")
+                    "Hill3ElementMuscle, MillardMuscle or CurveMuscle")
             if muscle.name and muscle.name in seen:
                 raise MuscleParameterError(f"muscle name '{muscle.name}' appears twice in the set")
             seen.add(muscle.name)
@@ -465,9 +466,13 @@ class MuscleSet:
         # constant rows and are evaluated by their own kernel; _millard_slot maps a muscle
         # to its row of _millard_params (−1: not a Millard muscle)
         is_millard = [isinstance(m, MillardMuscle) for m in muscles]
+        is_curve = [isinstance(m, CurveMuscle) for m in muscles]  # the same for :mod:`.curve_muscle`
         placeholder = ConstantStrengthMuscle(1.0)._row()
-        self._params = np.array([placeholder if mm else m._row()
-                                 for m, mm in zip(muscles, is_millard)]).reshape(-1, _N_PARAMS)
+        self._params = np.array([placeholder if mm or mc else m._row()
+                                 for m, mm, mc in zip(muscles, is_millard, is_curve)]).reshape(-1, _N_PARAMS)
+        self._curve_slot = np.cumsum(is_curve, dtype=np.int64) - 1
+        self._curve_slot[~np.array(is_curve, dtype=bool)] = -1
+        self._curve_rows, self._curve_functions = curve_tables([m for m, mc in zip(muscles, is_curve) if mc])
         self._millard_slot = np.cumsum(is_millard, dtype=np.int64) - 1
         self._millard_slot[~np.array(is_millard, dtype=bool)] = -1
         self._millard_params = np.array([m._row() for m, mm in zip(muscles, is_millard) if mm])
@@ -500,6 +505,10 @@ class MuscleSet:
             from .millard import millard_states
 
             millard_states(self._millard_params, self._millard_slot[index], l_MT, v_MT, out)
+        if self._curve_rows.size:
+            from .curve_muscle import curve_states
+
+            curve_states(self._curve_rows, self._curve_functions, self._curve_slot[index], l_MT, v_MT, out)
         return out
 
     def _who(self, i):

@@ -51,7 +51,7 @@ _EPS = float(np.finfo(float).eps)
 _SIGNIFICANT = _EPS ** 0.875  # SimTK::SignificantReal ≈ 1.8e-14
 
 # row layout (the curves' layout is millard_curves.CURVE_WIDTH, SEGMENT_WIDTH = 21)
-_F0, _LF0, _LT0, _H, _VMAX, _LMIN, _XMIN, _PEN_LMIN, _PEN_XMIN, _MAXPEN, _ALPHA0, _RIGID, _EISO = range(1, 14)
+_F0, _LF0, _LT0, _H, _VMAX, _LMIN, _XMIN, _PEN_LMIN, _PEN_XMIN, _MAXPEN, _ALPHA0, _RIGID, _EISO, _ACCEL = range(1, 15)
 _FAL = 16
 _FV = _FAL + CURVE_WIDTH
 _FPE = _FV + CURVE_WIDTH
@@ -78,7 +78,10 @@ class MillardMuscle:
     ignore_tendon_compliance : rigid tendon. minimum_activation : OpenSim's activation floor
     (default 0.01, recorded; not used by the inverse-dynamics rule).
     active_force_length, force_velocity, fibre_force_length, tendon_force_length : the
-    curves (:mod:`.millard_curves`) as the file gives them. name : for messages.
+    curves (:mod:`.millard_curves`) as the file gives them. curve_rule : "equilibrium"
+    (Millard2012EquilibriumMuscle's adjustment of f_L and f_V, module docstring) or
+    "as_given" (Millard2012AccelerationMuscle: the curves exactly as given). name : for
+    messages.
     """
 
     max_isometric_force: float
@@ -94,6 +97,7 @@ class MillardMuscle:
     force_velocity: ForceVelocityCurve = field(default_factory=ForceVelocityCurve)
     fibre_force_length: FiberForceLengthCurve = field(default_factory=FiberForceLengthCurve)
     tendon_force_length: TendonForceLengthCurve = field(default_factory=TendonForceLengthCurve)
+    curve_rule: str = "equilibrium"
     name: str = ""
 
     def __post_init__(self):
@@ -109,6 +113,9 @@ class MillardMuscle:
         _check(who, "max_contraction_velocity", self.max_contraction_velocity, lambda v: v > 0, "> 0 Lf0/s")
         _check(who, "fiber_damping", self.fiber_damping, lambda v: v >= 0, ">= 0")
         _check(who, "minimum_activation", self.minimum_activation, lambda v: 0 <= v < 1, "in [0, 1)")
+        if self.curve_rule not in ("equilibrium", "as_given"):
+            raise MuscleParameterError(f"{who}: curve_rule must be 'equilibrium' or 'as_given', got "
+                                       f"{self.curve_rule!r}")
         try:
             self._row()
         except CurveError as exc:
@@ -122,6 +129,8 @@ class MillardMuscle:
     def curves_in_use(self):
         """(f_L, f_V, f_PE, f_T) curves as the muscle adjusts them (module docstring)."""
         fal, fv = self.active_force_length, self.force_velocity
+        if self.curve_rule == "as_given":  # Millard2012AccelerationMuscle
+            return fal, fv, self.fibre_force_length, self.tendon_force_length
         kc, knc = fv.concentric_slope_at_vmax, fv.concentric_slope_near_vmax
         ke, kne = fv.eccentric_slope_at_vmax, fv.eccentric_slope_near_vmax
         if not self.ignore_tendon_compliance and not self.damped:  # classic Hill model
@@ -151,6 +160,7 @@ class MillardMuscle:
         row[_MAXPEN], row[_ALPHA0] = maxpen, alpha0
         row[_RIGID] = 1.0 if self.ignore_tendon_compliance else 0.0
         row[_EISO] = fse.strain_at_one_norm_force
+        row[_ACCEL] = 1.0 if self.curve_rule == "as_given" else 0.0
         row[_FAL:_FV] = fal.table(f"{who} ActiveForceLengthCurve")
         row[_FV:_FPE] = fv.table(f"{who} ForceVelocityCurve")
         row[_FPE:_FSE] = fpe.table(f"{who} FiberForceLengthCurve")
@@ -188,6 +198,12 @@ def _so_strength(p, l_mt, v_mt):
     x = l_mt - p[_LT0]
     lce = math.sqrt(h * h + x * x) if x >= p[_PEN_XMIN] else p[_PEN_LMIN]
     dlce = v_mt * math.cos(_pennation(lce, p))
+    if p[_ACCEL] != 0.0:  # Millard2012AccelerationMuscle: zero only below the pennation model's minimum
+        if lce <= p[_PEN_LMIN]:
+            return 0.0
+        fal = curve_value(p, _FAL, lce / lf0)[0]
+        fv = curve_value(p, _FV, dlce / p[_VMAX])[0]
+        return p[_F0] * fal * fv * math.cos(_pennation(lce, p))
     if lce <= p[_LMIN]:
         return 0.0
     fal = curve_value(p, _FAL, lce / lf0)[0]

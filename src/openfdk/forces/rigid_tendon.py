@@ -21,7 +21,8 @@ cos α = x/l_f, h = Lf0 sin α0), the fibre velocity v_f = v_MT cos α, and Thel
 
 The passive fibre force is not applied: an overridden muscle delivers exactly a · F_opt.
 Millard muscles (:class:`~.millard.MillardMuscle`) use OpenSim's rule for that muscle,
-:func:`.millard.opensim_so_strength` (the same F_opt with Millard's curves).
+:func:`.millard.opensim_so_strength` (the same F_opt with Millard's curves); OpenSim's
+curve muscles (:class:`~.curve_muscle.CurveMuscle`) theirs, :func:`.curve_muscle.curve_so_strengths`.
 Compared with openfdk's own rule (:mod:`.hill`: compliant tendon in equilibrium, the
 passive force an applied load, a C¹ eccentric branch) this is what a user needs to
 reproduce OpenSim's numbers. Verified against OpenSim 4.6's StaticOptimization
@@ -87,4 +88,9 @@ def opensim_strengths(muscle_set, l_mt, v_mt):
         from .millard import millard_so_strengths
 
         millard_so_strengths(muscle_set._millard_params, muscle_set._millard_slot, l_mt, v_mt, out)
+    if muscle_set._curve_rows.size:  # OpenSim's curve muscles: their own rule (.curve_muscle)
+        from .curve_muscle import curve_so_strengths
+
+        curve_so_strengths(muscle_set._curve_rows, muscle_set._curve_functions, muscle_set._curve_slot, l_mt,
+                           v_mt, out)
     return out

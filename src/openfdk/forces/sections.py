@@ -24,7 +24,15 @@ MILLARD_KEYS = (
     "max_isometric_force", "optimal_fibre_length", "tendon_slack_length", "pennation_angle_at_optimal",
     "max_contraction_velocity", "maximum_pennation_angle", "fiber_damping", "ignore_tendon_compliance",
     "minimum_activation", "active_force_length", "force_velocity", "fibre_force_length",
-    "tendon_force_length",
+    "tendon_force_length", "curve_rule",
+)
+#: model: opensim_rigid_tendon / schutte1993 (OpenSim's RigidTendonMuscle and
+#: Schutte1993Muscle_Deprecated, :mod:`.curve_muscle`); the curves are function dicts
+CURVE_MUSCLE_MODELS = {"opensim_rigid_tendon": "rigid_tendon", "schutte1993": "schutte1993"}
+CURVE_MUSCLE_KEYS = (
+    "max_isometric_force", "optimal_fibre_length", "tendon_slack_length", "pennation_angle_at_optimal",
+    "max_contraction_velocity", "time_scale", "damping", "active_force_length", "passive_force_length",
+    "force_velocity", "tendon_force_length",
 )
 MILLARD_CURVE_KEYS = {
     "active_force_length": ("min_norm_active_fiber_length", "transition_norm_fiber_length",
@@ -145,14 +153,18 @@ def load_muscles(b, data, ctx):
     for name, spec in ctx.mapping(data, "muscles").items():
         p = f"muscles.{name}"
         ctx.keys(spec, p, ["path", "model", "strength", "min_control", "max_control",
-                           *dict.fromkeys(HILL_KEYS + MILLARD_KEYS)], required=("path",))
+                           *dict.fromkeys(HILL_KEYS + MILLARD_KEYS + CURVE_MUSCLE_KEYS)], required=("path",))
         kind = spec.get("model", "hill" if "max_isometric_force" in spec else "constant")
         points = _points(ctx, spec["path"], f"{p}.path", b)
-        if kind != "millard":
+        if kind in CURVE_MUSCLE_MODELS:
+            law = _curve_muscle(name, spec, ctx, p, CURVE_MUSCLE_MODELS[kind])
+        elif kind != "millard":
             for k in set(MILLARD_KEYS) - set(HILL_KEYS):
                 if k in spec:
                     raise ctx.error(f"{p}.{k}", f"{k!r} belongs to 'model: millard'")
-        if kind == "constant":
+        if kind in CURVE_MUSCLE_MODELS:
+            pass
+        elif kind == "constant":
             if "strength" not in spec:
                 raise ctx.error(p, "a constant-strength muscle needs 'strength' (N)")
             law = _wrap(ctx, p, lambda: ConstantStrengthMuscle(ctx.number(spec["strength"], f"{p}.strength", positive=True), name))
@@ -169,10 +181,39 @@ def load_muscles(b, data, ctx):
         elif kind == "millard":
             law = _millard(name, spec, ctx, p)
         else:
-            raise ctx.error(f"{p}.model", f"unknown muscle model {kind!r}; expected 'constant', 'hill' or 'millard'")
+            raise ctx.error(f"{p}.model", f"unknown muscle model {kind!r}; expected 'constant', 'hill', 'millard', "
+                                          "'opensim_rigid_tendon' or 'schutte1993'")
         controls = [ctx.number(spec.get(k, d), f"{p}.{k}", low=0.0, high=1.0)
                     for k, d in (("min_control", 0.0), ("max_control", 1.0))]
         _wrap(ctx, p, lambda: el.add_muscle(b, name, points, law, *controls))
+
+
+def _curve_muscle(name, spec, ctx, p, kind):
+    """A :class:`~.curve_muscle.CurveMuscle` from a ``model: opensim_rigid_tendon`` or
+    ``schutte1993`` entry: lengths in the file's unit, the curves function dicts of the
+    normalised variables (absent: OpenSim's defaults)."""
+    from .curve_muscle import CurveMuscle
+
+    for k in spec:
+        if k not in CURVE_MUSCLE_KEYS and k not in ("path", "model", "min_control", "max_control"):
+            raise ctx.error(f"{p}.{k}", f"{k!r} is not a key of 'model: {spec['model']}' (keys: "
+                                        f"{list(CURVE_MUSCLE_KEYS)})")
+    kw = {}
+    for k in CURVE_MUSCLE_KEYS:
+        if k not in spec:
+            continue
+        if k.endswith(("_length", "_velocity")) and isinstance(spec[k], dict):
+            kw[k] = spec[k]
+        else:
+            scale = ctx.length if k in HILL_LENGTH_KEYS else ctx.angle if k == "pennation_angle_at_optimal" else 1.0
+            kw[k] = ctx.number(spec[k], f"{p}.{k}") * scale
+    for k in ("max_isometric_force", *HILL_LENGTH_KEYS):
+        if k not in kw:
+            raise ctx.error(p, f"a {spec['model']} muscle needs {k!r}")
+    try:
+        return CurveMuscle(kind=kind, name=name, **kw)
+    except (ValueError, TypeError) as exc:
+        raise ctx.error(p, str(exc)) from None
 
 
 def _millard(name, spec, ctx, p):
@@ -193,6 +234,10 @@ def _millard(name, spec, ctx, p):
                    "fibre_force_length": mc.FiberForceLengthCurve,
                    "tendon_force_length": mc.TendonForceLengthCurve}[k]
             kw[k] = _wrap(ctx, p, lambda: cls(**{c: ctx.number(v, f"{p}.{k}.{c}") for c, v in curve.items()}))
+        elif k == "curve_rule":
+            if spec[k] not in ("equilibrium", "as_given"):
+                raise ctx.error(f"{p}.{k}", f"expected 'equilibrium' or 'as_given', got {spec[k]!r}")
+            kw[k] = spec[k]
         elif k == "ignore_tendon_compliance":
             if not isinstance(spec[k], bool):
                 raise ctx.error(f"{p}.{k}", f"expected true or false, got {spec[k]!r}")

@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import OsimError, where
-from .functions import _NUMBER, function_element, function_spec
+from .functions import _NUMBER, FUNCTION_TAGS, function_element, function_spec
 
 #: OpenSim joint types and their SpatialTransform (rotation axes, translation axes,
 #: with the coordinate index of each axis or None): OpenSim's own definitions (Joint
@@ -173,7 +173,8 @@ class OsimMarker:
 
 
 #: the muscle classes read from the ForceSet (every other force is refused by name)
-MUSCLE_TYPES = ("Thelen2003Muscle", "Millard2012EquilibriumMuscle")
+MUSCLE_TYPES = ("Thelen2003Muscle", "Millard2012EquilibriumMuscle", "Millard2012AccelerationMuscle",
+                "RigidTendonMuscle", "Schutte1993Muscle_Deprecated")
 #: Blankevoort1991Ligament properties and OpenSim 4.6's defaults (slack_length has none)
 LIGAMENT_DEFAULTS = {"linear_stiffness": 1.0, "slack_length": 0.0, "transition_strain": 0.06,
                      "damping_coefficient": 0.003}
@@ -199,6 +200,44 @@ MILLARD_DEFAULTS = {
     # read and reported, not used by openfdk's recruitment (docs/opensim-import.md)
     "min_control": 0.01, "max_control": 1.0, "optimal_force": 1.0, "default_activation": 0.05,
     "default_fiber_length": 0.1, "activation_time_constant": 0.01, "deactivation_time_constant": 0.04,
+}
+#: Millard2012AccelerationMuscle properties and OpenSim 4.6's defaults (its own
+#: constructProperties; min_control of Muscle is 0)
+ACCELERATION_DEFAULTS = {
+    "max_isometric_force": 1000.0, "optimal_fiber_length": 0.1, "tendon_slack_length": 0.2,
+    "pennation_angle_at_optimal": 0.0, "max_contraction_velocity": 10.0, "fiber_damping": 0.01,
+    # read and reported, not used by openfdk's recruitment (docs/opensim-import.md)
+    "min_control": 0.0, "max_control": 1.0, "optimal_force": 1.0, "default_activation": 0.0,
+    "default_fiber_length": 0.1, "default_fiber_velocity": 0.0, "mass": 0.1, "tendon_force_length_damping": 0.1,
+    "fiber_compressive_force_length_damping": 1.0, "fiber_force_length_damping": 0.01,
+    "fiber_compressive_force_cos_pennation_damping": 1.0,
+}
+#: the acceleration muscle's objects read and reported only (compressive curves act at
+#: l̃ < 0.5 or pennation > 85°; the activation model is a simulation setting)
+ACCELERATION_REPORTED = {
+    "FiberCompressiveForceLengthCurve": ("norm_length_at_zero_force", "stiffness_at_zero_length", "curviness"),
+    "FiberCompressiveForceCosPennationCurve": ("engagement_angle_in_degrees", "stiffness_at_perpendicular",
+                                               "curviness"),
+    "MuscleFirstOrderActivationDynamicModel": ("activation_time_constant", "deactivation_time_constant",
+                                               "minimum_activation"),
+}
+#: RigidTendonMuscle and Schutte1993Muscle_Deprecated properties and OpenSim 4.6's defaults
+CURVE_MUSCLE_DEFAULTS = {
+    "RigidTendonMuscle": {
+        "max_isometric_force": 1000.0, "optimal_fiber_length": 0.1, "tendon_slack_length": 0.2,
+        "pennation_angle_at_optimal": 0.0, "max_contraction_velocity": 10.0,
+        "min_control": 0.0, "max_control": 1.0, "optimal_force": 1.0},
+    "Schutte1993Muscle_Deprecated": {
+        "max_isometric_force": 1000.0, "optimal_fiber_length": 0.1, "tendon_slack_length": 0.2,
+        "pennation_angle_at_optimal": 0.0, "max_contraction_velocity": 10.0, "time_scale": 0.1, "damping": 0.1,
+        "activation1": 7.667, "activation2": 1.459854,
+        "min_control": 0.0, "max_control": 1.0, "optimal_force": 1.0},
+}
+#: their curve properties (each holds one OpenSim Function; absent: OpenSim's default)
+CURVE_MUSCLE_FUNCTIONS = {
+    "RigidTendonMuscle": ("active_force_length_curve", "passive_force_length_curve", "force_velocity_curve"),
+    "Schutte1993Muscle_Deprecated": ("active_force_length_curve", "passive_force_length_curve",
+                                     "tendon_force_length_curve"),
 }
 #: the Millard muscle's curve objects and their properties (absent: OpenSim's default,
 #: applied by :mod:`openfdk.forces.millard_curves`)
@@ -1118,8 +1157,12 @@ class _Reader:
             return
         label = f"{kind} {name!r}"
         params = {}
-        defaults = MILLARD_DEFAULTS if kind == "Millard2012EquilibriumMuscle" else THELEN_DEFAULTS
-        curves = MILLARD_CURVES if kind == "Millard2012EquilibriumMuscle" else {}
+        defaults = {"Millard2012EquilibriumMuscle": MILLARD_DEFAULTS, "Millard2012AccelerationMuscle":
+                    ACCELERATION_DEFAULTS, "Thelen2003Muscle": THELEN_DEFAULTS}.get(kind) or CURVE_MUSCLE_DEFAULTS[kind]
+        curves = MILLARD_CURVES if kind.startswith("Millard") else {}
+        if kind == "Millard2012AccelerationMuscle":
+            curves = {**MILLARD_CURVES, **ACCELERATION_REPORTED}
+        functions = CURVE_MUSCLE_FUNCTIONS.get(kind, ())
         for tag, default in defaults.items():
             params[tag] = float(self.child_numbers(m, tag, 1, [default])[0])
         if kind == "Millard2012EquilibriumMuscle" and m.find("min_control") is None:
@@ -1130,14 +1173,18 @@ class _Reader:
         for e in m:
             if not isinstance(e.tag, str):
                 continue
-            if e.tag in seen:  # which one OpenSim would use is not the file's to leave open
-                raise self.err(e, f"{label}: property <{e.tag}> given twice")
-            seen.add(e.tag)
+            # a function property as OpenSim 4 writes it: <SimmSpline name="active_force_length_curve">
+            tag = e.get("name") if functions and e.get("name") in functions and e.tag in FUNCTION_TAGS else e.tag
+            if tag in seen:  # which one OpenSim would use is not the file's to leave open
+                raise self.err(e, f"{label}: property <{tag}> given twice")
+            seen.add(tag)
             if e.tag in defaults or e.tag in _MUSCLE_FLAGS:
                 continue
             if e.tag in curves:
                 params[e.tag] = self.read_curve(e, curves[e.tag], label)
-            elif curves and e.tag in MILLARD_DROPPED:
+            elif tag in functions:
+                params[tag] = function_spec(e, self.source) if tag != e.tag else self.read_function(e, label)
+            elif kind == "Millard2012EquilibriumMuscle" and e.tag in MILLARD_DROPPED:
                 continue  # not a property of OpenSim 4.x's muscle: it has no effect there either
             elif e.tag == "components" and len(e):
                 for comp in e:
@@ -1151,6 +1198,14 @@ class _Reader:
             return
         points, wraps = read
         self.muscles.append(OsimMuscle(name, kind, points, params, m.sourceline, wraps))
+
+    def read_function(self, e, label):
+        """The function dict of a muscle's curve property ``e`` (it holds one OpenSim
+        Function: SimmSpline, PiecewiseLinearFunction, …)."""
+        inner = [c for c in e if isinstance(c.tag, str)]
+        if len(inner) != 1:
+            raise self.err(e, f"{label}: <{e.tag}> must hold one function, it has {len(inner)}")
+        return function_spec(inner[0], self.source)
 
     def read_curve(self, e, properties, label):
         """{property: value} of a Millard curve object ``e`` (only the properties the file

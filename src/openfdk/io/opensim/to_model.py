@@ -14,7 +14,11 @@ docs/model-file.md, in SI units), so that an ``.osim`` and the file
   name is made safe and the trial label stays the OpenSim name.
 * Muscles: a Thelen2003Muscle becomes a Hill muscle of the ``muscles`` section
   (:func:`hill_parameters`, every parameter mapped), a Millard2012EquilibriumMuscle a
-  ``model: millard`` muscle with its curves (:func:`millard_parameters`); its PathPoints become frames on
+  ``model: millard`` muscle with its curves (:func:`millard_parameters`), a
+  Millard2012AccelerationMuscle one with its curves as given
+  (:func:`acceleration_parameters`), a RigidTendonMuscle or Schutte1993Muscle_Deprecated
+  a ``model: opensim_rigid_tendon`` or ``schutte1993`` muscle with the file's functions
+  (:func:`curve_muscle_parameters`); its PathPoints become frames on
   their (merged) bodies, named ``<muscle>_<point>``, and its path lists them in order.
   The settings openfdk's recruitment does not use (activation floor, time constants, …)
   are returned in ``info["muscle_settings"]``.
@@ -209,6 +213,12 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         if mu.type == "Millard2012EquilibriumMuscle":
             law = {"model": "millard", **millard_parameters(mu, doc.source)}
             reported = MILLARD_SETTINGS
+        elif mu.type == "Millard2012AccelerationMuscle":
+            law = {"model": "millard", **acceleration_parameters(mu, doc.source)}
+            reported = ACCELERATION_SETTINGS
+        elif mu.type in CURVE_MUSCLE_MODELS:
+            law = curve_muscle_parameters(mu, doc.source)
+            reported = CURVE_MUSCLE_SETTINGS
         else:
             law = {"model": "hill", **hill_parameters(mu, doc.source)}
             reported = RECRUITMENT_SETTINGS
@@ -404,7 +414,69 @@ MILLARD_SETTINGS = ("min_control", "max_control", "optimal_force", "default_acti
                     "activation_time_constant", "deactivation_time_constant", "ignore_activation_dynamics")
 
 
-def millard_parameters(muscle, source):
+#: Millard2012AccelerationMuscle properties read but not used by openfdk's recruitment (reported)
+ACCELERATION_SETTINGS = ("min_control", "max_control", "optimal_force", "default_activation", "default_fiber_length",
+                         "default_fiber_velocity", "mass", "tendon_force_length_damping",
+                         "fiber_compressive_force_length_damping", "fiber_force_length_damping",
+                         "fiber_compressive_force_cos_pennation_damping", "FiberCompressiveForceLengthCurve",
+                         "FiberCompressiveForceCosPennationCurve", "MuscleFirstOrderActivationDynamicModel",
+                         "ignore_activation_dynamics")
+
+
+def acceleration_parameters(muscle, source):
+    """The ``muscles`` entry keys (``model: millard``, ``curve_rule: as_given``) of a
+    Millard2012AccelerationMuscle: its four Millard curves exactly as the file gives them
+    (OpenSim's acceleration muscle adjusts none; an absent ActiveForceLengthCurve is its
+    default with ``minimum_value`` 0, the muscle's own default), pennation up to π/2
+    (its MuscleFixedWidthPennationModel), ``minimum_activation`` of its
+    MuscleFirstOrderActivationDynamicModel (default 0). Its masses, dampings and
+    compressive curves are reported (docs/opensim-import.md)."""
+    import math
+    from copy import copy
+
+    p = dict(muscle.parameters)
+    p["maximum_pennation_angle"] = math.pi / 2
+    p["minimum_activation"] = p.get("MuscleFirstOrderActivationDynamicModel", {}).get("minimum_activation", 0.0)
+    p.setdefault("ActiveForceLengthCurve", {"minimum_value": 0.0})
+    as_millard = copy(muscle)
+    as_millard.parameters = p
+    out = millard_parameters(as_millard, source, curve_rule="as_given")
+    return {**out, "curve_rule": "as_given"}
+
+
+#: RigidTendonMuscle and Schutte1993Muscle_Deprecated -> openfdk ``model`` (:mod:`openfdk.forces.curve_muscle`)
+CURVE_MUSCLE_MODELS = {"RigidTendonMuscle": "opensim_rigid_tendon", "Schutte1993Muscle_Deprecated": "schutte1993"}
+#: their properties read but not used by openfdk's recruitment (reported)
+CURVE_MUSCLE_SETTINGS = ("min_control", "max_control", "optimal_force", "activation1", "activation2",
+                         "ignore_tendon_compliance", "ignore_activation_dynamics")
+_CURVE_KEYS = {"max_isometric_force": "max_isometric_force", "optimal_fiber_length": "optimal_fibre_length",
+               "tendon_slack_length": "tendon_slack_length", "pennation_angle_at_optimal": "pennation_angle_at_optimal",
+               "max_contraction_velocity": "max_contraction_velocity", "time_scale": "time_scale",
+               "damping": "damping", "active_force_length_curve": "active_force_length",
+               "passive_force_length_curve": "passive_force_length", "force_velocity_curve": "force_velocity",
+               "tendon_force_length_curve": "tendon_force_length"}
+
+
+def curve_muscle_parameters(muscle, source):
+    """The ``muscles`` entry (``model: opensim_rigid_tendon`` or ``schutte1993``, SI) of
+    a RigidTendonMuscle or Schutte1993Muscle_Deprecated: every property mapped, the
+    curves as the file's functions (absent: OpenSim's defaults; a Schutte muscle's absent
+    passive curve is OpenSim's exponential). Checked by
+    :class:`~openfdk.forces.curve_muscle.CurveMuscle`; an invalid value raises OsimError
+    naming the muscle and its line."""
+    from ...forces.curve_muscle import CurveMuscle
+
+    p = muscle.parameters
+    model = CURVE_MUSCLE_MODELS[muscle.type]
+    out = {ours: p[osim] for osim, ours in _CURVE_KEYS.items() if osim in p}
+    try:
+        CurveMuscle(kind={"opensim_rigid_tendon": "rigid_tendon"}.get(model, model), name=muscle.name, **out)
+    except (ValueError, TypeError) as exc:
+        raise OsimError(f"{source}: line {muscle.line}: {muscle.type} {muscle.name!r}: {exc}") from None
+    return {"model": model, **out}
+
+
+def millard_parameters(muscle, source, curve_rule="equilibrium"):
     """The ``muscles`` entry keys (``model: millard``) of an OsimMuscle
     (Millard2012EquilibriumMuscle), SI units; the curves as {property: value} with the
     file's properties only (the rest OpenSim's defaults). Checked by
@@ -420,7 +492,8 @@ def millard_parameters(muscle, source):
     classes = {"active_force_length": mc.ActiveForceLengthCurve, "force_velocity": mc.ForceVelocityCurve,
                "fibre_force_length": mc.FiberForceLengthCurve, "tendon_force_length": mc.TendonForceLengthCurve}
     try:
-        MillardMuscle(name=muscle.name, **{k: (classes[k](**v) if k in classes else v) for k, v in out.items()})
+        MillardMuscle(name=muscle.name, curve_rule=curve_rule,
+                      **{k: (classes[k](**v) if k in classes else v) for k, v in out.items()})
     except (ValueError, TypeError) as exc:
         raise OsimError(f"{label}: {exc}") from None
     return out
