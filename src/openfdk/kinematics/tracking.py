@@ -20,6 +20,7 @@ from numba import njit
 
 from ..spatial import quat_from_matrix
 from ..trial.status import Reason
+from .assembly import assemble
 from .determinate import FrameSolve
 from .frame_kernels import MEASURE_ERROR, OK, SINGULAR, tracking_positions, tracking_rates
 from .system import ConstraintSystem, undetermined_coordinates
@@ -192,11 +193,42 @@ class MarkerTracker:
         (n + m, n + m) of the last iteration, reused by the velocity and acceleration
         solves (Eqs. 8–10), and λ (m,) the constraint multipliers of the last step. Converged when max |Δq̂| < tol_step and max |Φ| <
         tol_constraint at the start of that step (Φ only shrinks after it).
+
+        When the Gauss–Newton kernel fails from the warm start, the damped feasible-path
+        solve of :mod:`openfdk.kinematics.assembly` takes over from the same pose (K then
+        carries its final damping); the frame fails only when that fails too.
         """
         s = self.settings
         msg = self.observability_message(state, t, visible, alpha)
         if msg:
             return FrameSolve(False, 0, np.nan, msg, Reason.UNOBSERVABLE), None, None
+        start = state.copy()
+        out = self._gauss_newton(state, t, x_WM, visible, alpha)
+        if out[0].converged:
+            return out
+        # far from the optimum, or a coordinate the markers barely see: the damped,
+        # feasible-path solve from the same warm start (kinematics/assembly.py)
+        _restore(start, state)
+        ok, it, _, res, mu = assemble(self, state, t, x_WM, visible, alpha, tol_step=s.tol_step,
+                                      tol_constraint=s.tol_constraint)
+        if not ok:
+            _restore(start, state)
+            return out
+        K = self.kkt_matrix(state, t, visible, alpha, damping=mu)
+        # λ of the stationarity Ψ_q̂ᵀ W Ψ + Φ_q̂ᵀ λ = 0 at the solved pose
+        p, J, _ = self.markers.evaluate(state, 1)
+        x = np.where(visible[:, None], x_WM, 0.0).ravel()
+        if self.tasks:
+            tv, tJ, _ = self.task_program.evaluate(state, 1)
+            p, J, x = np.concatenate([p, tv]), np.vstack([J, tJ]), np.concatenate([x, self.task_targets(t)[0]])
+        n = self.system.n_coords
+        Phi = self.system.evaluate(state, t, alpha, order=0)[0]
+        sol = np.linalg.solve(K, np.concatenate([-J.T @ (self._weights(visible) * (p - x)), -Phi]))
+        return FrameSolve(True, out[0].iterations + it, res), K, sol[n:]
+
+    def _gauss_newton(self, state, t, x_WM, visible, alpha):
+        """The Gauss–Newton kernel's solve (see :meth:`solve_positions`)."""
+        s = self.settings
         w = self._weights(visible)
         x = np.where(visible[:, None], x_WM, 0.0).ravel()
         if self.tasks:
@@ -228,8 +260,9 @@ class MarkerTracker:
             K, lam,
         )
 
-    def kkt_matrix(self, state, t, visible, alpha=None):
-        """The KKT matrix (n + m, n + m) at the current pose (for Eqs. 8–10)."""
+    def kkt_matrix(self, state, t, visible, alpha=None, damping=None):
+        """The KKT matrix (n + m, n + m) at the current pose (for Eqs. 8–10); with
+        ``damping`` μ, the Hessian block is Ψ_q̂ᵀ W Ψ_q̂ + μ I (kinematics/assembly.py)."""
         n, m = self.system.n_coords, self.system.n_rows
         _, J, _ = self.markers.evaluate(state, 1)
         J = np.vstack([J, self._task_jacobian(state)])
@@ -237,6 +270,8 @@ class MarkerTracker:
         w = self._weights(visible)
         K = np.zeros((n + m, n + m))
         K[:n, :n] = J.T @ (J * w[:, None])
+        if damping:
+            K[:n, :n] += damping * np.eye(n)
         K[:n, n:] = A.T
         K[n:, :n] = A
         return K
@@ -289,6 +324,13 @@ class MarkerTracker:
         if rows:
             return v, vdot, Phi, A, df.copy()  # Eq. 2: ν = −Φ_t = ḟ
         return v, vdot
+
+
+def _restore(src, dst):
+    """Copy the poses of ``src`` into ``dst`` in place (same model)."""
+    dst.p_WB[...] = src.p_WB
+    dst.quat_WB[...] = src.quat_WB
+    dst.R_WB[...] = src.R_WB
 
 
 def residual_rates(prev, cur, nxt, dt):

@@ -15,6 +15,8 @@ Two ways to give them, one path through the loader:
       ik_tasks: Setup_IK.xml             # OpenSim's IK marker weights and coordinate tasks
       drivers: {...}                     # any model-file section but the model's own
       fdk_dofs: {...}
+      fdk: [knee_add_r, knee_tx_r]       # shorthand: these coordinates become FDK DOFs
+      lock: [arm_rot_r, pro_sup_r: 0.3]  # shorthand: hold coordinates (default value or given, rad/m)
       analysis: {marker_cutoff_hz: 6}
 
 The overlay's sections are merged into the imported model mapping; a name the model
@@ -161,6 +163,59 @@ def overlay_model_data(path, data):
                          info=_REGISTERED[_key(osim)].info)
 
 
+def _coordinate_list(value, data, source, key):
+    """[(name, value or None)] of an overlay list of coordinate names, each either a
+    name or a one-entry mapping {name: value} (rad or m); errors name the entry."""
+    coordinates = data.get("coordinates", {})
+    if not isinstance(value, list):
+        raise ModelError(f"{source}: {key}: expected a list of coordinate names, got {type(value).__name__}")
+    out = []
+    for k, item in enumerate(value):
+        given = None
+        if isinstance(item, dict) and len(item) == 1:
+            (item, given), = item.items()
+            if isinstance(given, bool) or not isinstance(given, (int, float)) or given != given or abs(given) == float("inf"):
+                raise ModelError(f"{source}: {key}[{k}]: {item}: expected a finite number (rad or m), got {given!r}")
+        if not isinstance(item, str) or item not in coordinates:
+            hint = difflib.get_close_matches(str(item), list(coordinates), n=1)
+            extra = f"; did you mean {hint[0]!r}?" if hint else ""
+            raise ModelError(f"{source}: {key}[{k}]: {item!r} is not a coordinate of the model{extra}")
+        if item in [n for n, _ in out]:
+            raise ModelError(f"{source}: {key}[{k}]: {item!r} is listed twice")
+        out.append((item, given))
+    return out
+
+
+def _expand_shorthands(overlay, data, source):
+    """``fdk: [names]`` → ``fdk_dofs`` entries {measure: name, initial: the coordinate's
+    default}; ``lock: [names]`` → ``constraints`` entries ``lock_<name>`` {measure: name,
+    value: given or default}. A coordinate both locked and FDK is an error."""
+    overlay = dict(overlay)
+    coordinates = data.get("coordinates", {})
+    fdk = _coordinate_list(overlay.pop("fdk"), data, source, "fdk") if "fdk" in overlay else []
+    lock = _coordinate_list(overlay.pop("lock"), data, source, "lock") if "lock" in overlay else []
+    both = sorted({n for n, _ in fdk} & {n for n, _ in lock})
+    if both:
+        raise ModelError(f"{source}: lock: {both[0]!r} is also listed under fdk (a coordinate is either held or "
+                         "force-dependent)")
+    for key, section, entries in (
+        ("fdk", "fdk_dofs", {n: {"measure": n, "initial": float(coordinates[n].get("default", 0.0) if v is None else v)}
+                             for n, v in fdk}),
+        ("lock", "constraints", {f"lock_{n}": {"measure": n, "value": float(coordinates[n].get("default", 0.0)
+                                                                           if v is None else v)}
+                                 for n, v in lock})):
+        if not entries:
+            continue
+        own = overlay.get(section, {})
+        if not isinstance(own, dict):
+            raise ModelError(f"{source}: {section}: expected a mapping, got {type(own).__name__}")
+        clash = sorted(set(own) & set(entries))
+        if clash:
+            raise ModelError(f"{source}: {section}.{clash[0]}: also made by the {key} list")
+        overlay[section] = {**own, **entries}
+    return overlay
+
+
 def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None):
     """The imported mapping ``data`` with the sections of ``overlay`` added (module
     docstring); errors name the overlay file and the entry. ``external_loads: FILE.xml``
@@ -199,6 +254,7 @@ def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None
         if not xml.is_file():
             raise ModelError(f"{source}: actuators: {str(xml)!r} does not exist")
         data = read_actuator_file(xml, data, info)
+    overlay = _expand_shorthands(overlay, data, source)
     known = [k for k in CORE_SECTIONS + tuple(name for name, _ in SECTIONS) if k not in MODEL_SECTIONS]
     out = dict(data)
     for key, value in overlay.items():

@@ -1,0 +1,54 @@
+"""The overlay's ``fdk:`` and ``lock:`` lists (io/opensim/overlay.py): OpenSim
+coordinates made FDK DOFs or held, by name, as the knee-in-gait overlay uses them."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from openfdk.bench.fuzz_inputs import OSIM_TEXT
+from openfdk.io.modelfile import load_model_and_settings
+from openfdk.kinematics.analysis import run_determinate
+from openfdk.model.compiled import CompiledMeasures
+from openfdk.model.errors import ModelError
+
+
+@pytest.fixture
+def leg(tmp_path):
+    (tmp_path / "leg.osim").write_text(OSIM_TEXT)
+    return tmp_path
+
+
+def _overlay(folder, text, name="with.yaml"):
+    (folder / name).write_text("opensim: leg.osim\nignore: [Mesh]\n" + text)
+    return folder / name
+
+
+def test_fdk_and_lock_lists_become_dofs_and_held_coordinates(leg):
+    model, _ = load_model_and_settings(_overlay(leg, "fdk: [knee]\nlock: [{hip_q: 0.3}]\n"))
+    (dof,) = model.fdk_dofs
+    assert dof.name == "knee" and dof.initial == -0.5  # the coordinate's <default_value>
+    # determinate now: the hip held at 0.3 rad, the knee at α; the solved pose's
+    # coordinates (OpenSim's definitions, evaluated by their own measures) say so
+    res = run_determinate(model, np.array([0.0, 0.1]), alpha=[-0.2])
+    assert res.converged.all()
+    coords = {c.name: c for c in model.coordinates}
+    state = model.initial_state()
+    state.set_q(res.q[1])
+    values = CompiledMeasures([coords["hip_q"].measure, coords["knee"].measure]).evaluate(state, 0)[0]
+    np.testing.assert_allclose(values, [0.3, -0.2], atol=1e-9)
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("fdk: [kne]\n", "with.yaml: fdk[0]: 'kne' is not a coordinate of the model; did you mean 'knee'?"),
+    ("fdk: knee\n", "with.yaml: fdk: expected a list of coordinate names, got str"),
+    ("lock: [hip_q, hip_q]\n", "with.yaml: lock[1]: 'hip_q' is listed twice"),
+    ("lock: [{hip_q: .nan}]\n", "with.yaml: lock[0]: hip_q: expected a finite number (rad or m), got nan"),
+    ("lock: [{hip_q: true}]\n", "with.yaml: lock[0]: hip_q: expected a finite number (rad or m), got True"),
+    ("fdk: [knee]\nlock: [knee]\n", "with.yaml: lock: 'knee' is also listed under fdk"),
+    ("fdk: [knee]\nfdk_dofs: {knee: {measure: knee}}\n", "with.yaml: fdk_dofs.knee: also made by the fdk list"),
+])
+def test_bad_lists_are_one_line_errors(leg, text, expected):
+    with pytest.raises(ModelError) as err:
+        load_model_and_settings(_overlay(leg, text))
+    assert str(err.value).startswith(expected)
