@@ -5,7 +5,10 @@ Each finished frame carries its kinematics and forces, so checkpoints
 (:mod:`openfdk.trial.checkpoint`) and an interrupted run's partial result hold whole
 frames. The numbers are those of :func:`openfdk.kinematics.analysis.run_tracking` (or
 ``run_determinate``) followed by :func:`openfdk.analysis.inverse_dynamics.run_inverse_dynamics`:
-the same per-frame solves in the same order with the same warm starts.
+the same per-frame solves in the same order with the same warm starts. A determinate
+run of a tree of OpenSim-style joints driven by its coordinates takes the compiled path
+of :mod:`openfdk.analysis.tree_trial` (forward kinematics, whole chunks of frames per
+call; the same values), when it covers the model; every other run the trial driver's.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from ..dynamics.results import forces_result
 from ..kinematics.analysis import (DeterminateStep, TrackingStep, alpha_inputs, kinematics_result, tracking_times)
 from ..trial import drive
 from .inverse_dynamics import DynamicsStep
+from .tree_trial import tree_trial
 
 
 class KinematicsDynamicsStep:
@@ -87,12 +91,20 @@ def run_trial(model, trajectories, times, *, settings=None, progress=False, chec
         kin_step, mode = TrackingStep(model, trajectories, times, alpha), "tracking"
     # the kinematics' constraint program serves the equilibrium too (compiled once per run)
     solver = InverseDynamics(model, system=getattr(kin_step, "system", None), settings=settings)
-    step = KinematicsDynamicsStep(kin_step, DynamicsStep(model, solver, times, None, None, None, None, alpha))
 
     def build(rec):
         n, wall = rec.n_frames, _time.perf_counter() - t0
         kin = kinematics_result(rec, model, times[:n], alpha, wall, mode)
         return kin, forces_result(rec, solver, times[:n], wall), None
 
+    if mode == "determinate":  # a tree driven by its coordinates: whole chunks of frames per compiled call
+        trial, _ = tree_trial(model, kin_step.system, solver, times, alpha)
+        if trial is not None:
+            if checkpoints is not None and not resume:
+                checkpoints.clear()  # (no warm start: a resumed run computes every frame again)
+            result = trial.run(build, progress)
+            if result is not None:
+                return result  # else a frame failed: the frame-by-frame path below names it
+    step = KinematicsDynamicsStep(kin_step, DynamicsStep(model, solver, times, None, None, None, None, alpha))
     return drive(step, len(times), build, progress=progress, desc="kinematics + inverse dynamics",
                  checkpoints=checkpoints, resume=resume)

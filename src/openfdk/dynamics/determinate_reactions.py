@@ -37,7 +37,7 @@ def reactions_form(system, layout):
 
 
 @njit(cache=True)
-def _solve(C, d, rows, cols, starts, ptr, earlier, f, residual):
+def block_reactions(C, d, rows, cols, starts, ptr, earlier, f, residual):
     """f (n,) ← C⁻¹ d by blocks, residual (n,) ← C f − d; False when C is singular, f
     not finite or the residual above 1e-8 max(|d|, 1) (one compiled call per frame)."""
     n = C.shape[0]
@@ -67,7 +67,7 @@ def determinate_reactions(C, d, form, p):
     recruitment solver then handles (and names) it."""
     n = C.shape[0]
     f, residual = np.empty(n), np.empty(n)
-    if not _solve(np.ascontiguousarray(C, dtype=float), np.ascontiguousarray(d, dtype=float), form.rows,
+    if not block_reactions(np.ascontiguousarray(C, dtype=float), np.ascontiguousarray(d, dtype=float), form.rows,
                   form.cols, form.starts, form.ptr, form.earlier, f, residual):
         return None
     zero = np.zeros(n, bool)

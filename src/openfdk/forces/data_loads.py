@@ -152,14 +152,28 @@ class DataLoadForces:
         """Sample every load at the trial's frame times (nf,) s at once; a frame at one
         of them then needs no spline evaluation (module docstring)."""
         times = np.asarray(times, dtype=float).reshape(-1)
+        table = self.table(times)
+        if table is not None:
+            self._samples = {float(t): table[i] for i, t in enumerate(times)}
+
+    def table(self, times):
+        """(nf, n_loads, 9) [F, P, T] of every load at ``times`` (nf,) s, components as
+        given (what :func:`apply_data_loads` takes per frame), or None when a time is
+        outside a load's data (its per-frame call then raises the message)."""
+        times = np.asarray(times, dtype=float).reshape(-1)
         table = np.empty((len(times), len(self.loads), 9))
         for k, load in enumerate(self.loads):
             for j, function in enumerate((load.force, load.point, load.torque)):
                 values = sample(function, times)
-                if values is None:  # times outside the data: per frame (and its error)
-                    return
+                if values is None:
+                    return None
                 table[:, k, 3 * j : 3 * j + 3] = values
-        self._samples = {float(t): table[i] for i, t in enumerate(times)}
+        return table
+
+    @property
+    def kernel_args(self):
+        """(body, in_body, p_BF, R_BF): the loads' arrays in :func:`apply_data_loads`'s order."""
+        return self._body, self._in_body, self._p_BF, self._R_BF
 
     def _sampled(self, t, column):
         """(nl, 9) [F, P, T] of every load at t (s), components as given (zero for a load

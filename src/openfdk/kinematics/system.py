@@ -135,6 +135,31 @@ class ConstraintSystem:
         self._targets_key, self._targets = key, (f, df, ddf)
         return self._targets
 
+    def targets_over(self, times, alpha=None):
+        """(F, Ḟ, F̈) each (nf, n_rows): :meth:`targets` at every time of ``times`` (nf,)
+        s, the spline drivers of a group evaluated for all times at once (the same piece
+        and arithmetic as one time at a time). Raises ValueError like :meth:`targets` for
+        a time outside a spline's data."""
+        times = np.asarray(times, dtype=float).reshape(-1)
+        nf = len(times)
+        F = np.tile(self._f_const, (nf, 1))
+        dF, ddF = np.zeros((nf, self.n_rows)), np.zeros((nf, self.n_rows))
+        for k, t in enumerate(times):
+            for r, c in self._drivers:
+                F[k, r : r + c.size], dF[k, r : r + c.size], ddF[k, r : r + c.size] = c.function.derivatives(t)
+        for rows, check, spline in self._spline_groups:
+            if nf:
+                check.derivatives_range_check(times.min())
+                check.derivatives_range_check(times.max())
+            i = np.clip(np.searchsorted(spline.x, times, side="right") - 1, 0, len(spline.x) - 2)
+            tau = (times - spline.x[i])[:, None]
+            c0, c1, c2, c3 = (spline.coef[i, j] for j in range(4))  # (nf, k) each
+            F[:, rows] = c0 + tau * (c1 + tau * (c2 + tau * c3))
+            dF[:, rows] = c1 + tau * (2.0 * c2 + 3.0 * tau * c3)
+            ddF[:, rows] = 2.0 * c2 + 6.0 * tau * c3
+        F[:, self._n_joint_rows :] = 0.0 if alpha is None else np.asarray(alpha, dtype=float)
+        return F, dF, ddF
+
     def wrap_angles(self, Phi):
         """Φ with its angle rows wrapped into [−π, π) (in place; returns Φ)."""
         if self.has_angles:

@@ -71,6 +71,21 @@ class Recording:
             o[k] = value
         self.done[k] = True
 
+    def record_block(self, start, values):
+        """Store frames start … start + n − 1 at once (a trial solved in one compiled
+        call): values {declared name: (n, …) array, or a sequence of n objects for an
+        object field}; marks them finished."""
+        n = 0
+        for name, value in values.items():
+            n = len(value)
+            if name in self._arrays:
+                self._arrays[name][start : start + n] = value
+            elif name in self._objects:
+                self._objects[name][start : start + n] = list(value)
+            else:
+                raise KeyError(f"field {name!r} is not declared")
+        self.done[start : start + n] = True
+
     @property
     def frames_done(self):
         """Number of leading finished frames (all of them after a complete run)."""
