@@ -17,6 +17,7 @@ BENCHMARK_MODULES = [
     "openfdk.bench.knee",
     "openfdk.bench.full_body",
     "openfdk.bench.full_body_id",
+    "openfdk.bench.full_body_muscles",
     "openfdk.bench.force_plates",
     "openfdk.bench.study",
     "openfdk.bench.fuzz",
