@@ -3,10 +3,14 @@ openfdk's elastic foundation, against closed forms (issue 25: "a rigid sphere pr
 into a flat layer ... force, area and pressure given E and ν").
 
 Elastic-foundation pressure of a layer (Bei & Fregly 2004; Smith et al. 2018):
-p = K d / h, K = E (1 − ν)/((1 + ν)(1 − 2ν)); two layers in series (a layer on each
-mesh) give p = d / (h₁/K₁ + h₂/K₂). A sphere of radius R whose vertices press δ into a
-plane then carries F = π p_mod R δ² (docs/contact.md), on the cap area 2πRδ, with the
-peak pressure p_mod δ at the pole. The model (a ball on a slider above a plate) is built
+linear p = K d / h, non-linear p = −K ln(1 − d/h), K = E (1 − ν)/((1 + ν)(1 − 2ν)); two
+layers in series (a layer on each mesh, ``use_lumped_contact_model`` false) share the
+pressure and add their depths, the lumped model (JAM's default) is one layer of mean E
+and ν and thickness h₁ + h₂. A sphere of radius R whose vertices press δ into a plane
+carries F = ∫₀^δ p(d) 2πR dd (the cap's area between depths d and d + dd is 2πR dd;
+π p_mod R δ² for the linear law, docs/contact.md), on the cap area 2πRδ, with the peak
+pressure p(δ) at the pole. The test integrates p over the cap with scipy and solves the
+two layers' depths with brentq, independently of openfdk. The model (a ball on a slider above a plate) is built
 with OpenSim's API; the JAM elements are added to its XML, as OpenSim-JAM writes them
 (the standard OpenSim does not load them, and openfdk needs it not to).
 """
@@ -45,7 +49,8 @@ def _modulus(E, nu, h):
     return E * (1 - nu) / ((1 + nu) * (1 - 2 * nu) * h)
 
 
-def _model(folder, formulation="linear"):
+def _model(folder, formulation="linear", lumped=False, layers=None):
+    layers = layers or LAYERS
     m = opensim.Model()
     m.setName("ball_on_plate")
     ball = opensim.Body("ball", 1.0, opensim.Vec3(0), opensim.Inertia(1e-4, 1e-4, 1e-4))
@@ -64,7 +69,7 @@ def _model(folder, formulation="linear"):
     model = tree.getroot().find("Model")
     geometry = etree.SubElement(etree.SubElement(model, "ContactGeometrySet"), "objects")
     for name, frame, file in (("ball_mesh", "/bodyset/ball", "ball.stl"), ("plate_mesh", "/ground", "plate.stl")):
-        E, nu, h = LAYERS[name]
+        E, nu, h = layers[name]
         etree.SubElement(geometry, "Smith2018ContactMesh", name=name).extend(
             [etree.fromstring(f"<socket_frame>{frame}</socket_frame>"),
              etree.fromstring(f"<mesh_file>{file}</mesh_file>"),
@@ -75,7 +80,8 @@ def _model(folder, formulation="linear"):
     force = etree.SubElement(forces, "Smith2018ArticularContactForce", name="ball_contact")
     for tag, text in (("socket_target_mesh", "/contactgeometryset/plate_mesh"),
                       ("socket_casting_mesh", "/contactgeometryset/ball_mesh"), ("min_proximity", "0"),
-                      ("max_proximity", "0.001"), ("elastic_foundation_formulation", formulation)):
+                      ("max_proximity", "0.001"), ("elastic_foundation_formulation", formulation),
+                      ("use_lumped_contact_model", "true" if lumped else "false")):
         etree.SubElement(force, tag).text = text
     tree.write(str(folder / "ball.osim"))
     return folder / "ball.osim"
@@ -108,14 +114,68 @@ def test_sphere_on_layer_matches_the_elastic_foundation(tmp_path, monkeypatch):
     assert contact.generalized_forces(state, False)[2].n_contact == 0
 
 
+def _K(E, nu):
+    return E * (1 - nu) / ((1 + nu) * (1 - 2 * nu))
+
+
+def _pressure(d, layers, formulation, lumped):
+    """The pressure (Pa) at depth d (m), written from the formulas (module docstring)."""
+    from scipy.optimize import brentq
+
+    (E1, nu1, h1), (E2, nu2, h2) = layers["ball_mesh"], layers["plate_mesh"]
+    if lumped:
+        parts = [(_K((E1 + E2) / 2, (nu1 + nu2) / 2), h1 + h2)]
+    else:
+        parts = [(_K(E1, nu1), h1), (_K(E2, nu2), h2)]
+    if formulation == "linear":
+        return d / sum(h / K for K, h in parts)
+    if len(parts) == 1:
+        K, h = parts[0]
+        return -K * np.log(1 - d / h)
+    # each layer j at pressure p: p = −K_j ln(1 − d_j/h_j); the depths add up to d
+    return brentq(lambda p: sum(h * (1 - np.exp(-p / K)) for K, h in parts) - d, 0.0, 1e12, xtol=1e-6, rtol=1e-15)
+
+
+THIN = {"ball_mesh": (12e6, 0.45, 0.4e-3), "plate_mesh": (30e6, 0.40, 0.3e-3)}  # δ/h large: non-linear
+
+
+@pytest.mark.parametrize("formulation,lumped,layers", [
+    ("linear", True, LAYERS), ("nonlinear", True, THIN), ("nonlinear", False, THIN), ("nonlinear", False, LAYERS)])
+def test_sphere_on_layer_matches_each_law(tmp_path, monkeypatch, formulation, lumped, layers):
+    """Both formulations, lumped or two layers in series: the force equals the integral
+    of the law over the cap (≤ 0.35 %, the mesh's discretisation, as the linear test
+    above), the area 2πRδ (5 %), the pole pressure the law at δ from E and ν (1e-5). On
+    the thin layers the non-linear law is far from its linearisation (the check below)."""
+    from scipy.integrate import quad
+
+    monkeypatch.chdir(tmp_path)
+    data, _ = read_osim(_model(tmp_path, formulation, lumped, layers))
+    spec = data["contacts"]["ball_contact"]
+    assert ("layers" in spec) == (formulation == "nonlinear")
+    model = model_from_dict(data, source="ball.osim")
+    state, _ = pose_from_coordinates(model, {"height": R - DELTA})
+    _, _, res = model.contacts[0].generalized_forces(state, False)
+    force = quad(lambda d: _pressure(d, layers, formulation, lumped) * 2 * np.pi * R, 0.0, DELTA, epsabs=0,
+                 epsrel=1e-12)[0]
+    assert res.force_W[2] == pytest.approx(force, rel=0.0035)
+    assert res.area == pytest.approx(2 * np.pi * R * DELTA, rel=0.05)
+    pole = _pressure(DELTA, layers, formulation, lumped)
+    assert res.peak_pressure == pytest.approx(pole, rel=1e-5)
+    if layers is THIN:  # the linearised law is far off: the test tells them apart
+        linear = DELTA / sum(h / K for K, h in ([(_K(*layers["ball_mesh"][:2]), layers["ball_mesh"][2]),
+                                                  (_K(*layers["plate_mesh"][:2]), layers["plate_mesh"][2])]
+                                                 if not lumped else [(_K((12e6 + 30e6) / 2, 0.425), 0.7e-3)]))
+        assert pole > 1.05 * linear
+
+
 def test_unsupported_contact_options_are_refused(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    path = _model(tmp_path, formulation="nonlinear")
+    path = _model(tmp_path, formulation="quadratic")
     with pytest.raises(OsimError) as exc:
         read_osim(path)
     msg = str(exc.value)
     assert "\n" not in msg and "ball.osim: line" in msg and "Smith2018ArticularContactForce 'ball_contact'" in msg
-    assert "'nonlinear' elastic foundation" in msg
+    assert "elastic_foundation_formulation 'quadratic'" in msg
     text = _model(tmp_path).read_text()
     for old, new, words in (("<poissons_ratio>0.45", "<poissons_ratio>0.5", "poissons_ratio 0.5 is out of range"),
                             ("/contactgeometryset/plate_mesh", "/contactgeometryset/nope", "no Smith2018ContactMesh 'nope'"),

@@ -31,6 +31,9 @@ The neglected part is p a_i d_i (∂u_i/∂g)(∂g/∂y)(∂y/∂q̂), of relati
 the retained p a_i u uᵀ; it vanishes for a flat B, and for a faceted B in exact mode
 whenever the closest point lies inside a triangle. Vertices entering or leaving contact
 make K one-sided there (Q is continuous, K jumps by p a_i u uᵀ).
+
+Non-linear law (``layers``; :mod:`.pressure_law`, Bei & Fregly 2004): p d_i becomes the
+pressure P(d_i), p in the first term of K_i its slope dP/dd, and U = Σ a_i W(d_i).
 """
 
 from __future__ import annotations
@@ -108,6 +111,9 @@ class ElasticFoundation:
     grid_spacing : float, m — grid node spacing (default :data:`DEFAULT_GRID_SPACING`).
     max_depth : float, m — band depth (default :data:`DEFAULT_MAX_DEPTH`).
     name : str — label for messages.
+    layers : (m, 2) array or None — the non-linear law's layers [K Pa, h m], m = 1 or 2
+        (:mod:`.pressure_law`); None: the linear law P = p d. With layers,
+        ``pressure_modulus`` is the law's slope at d = 0, 1/Σ h/K (reported only).
 
     The grid (grid mode) or AABB tree (exact mode) is built once here; the grid is also
     memoised per surface, spacing and depth (:func:`~.grid_cache.cached_distance_grid`).
@@ -116,7 +122,7 @@ class ElasticFoundation:
 
     def __init__(self, surface_A: SurfaceMesh, surface_B: SurfaceMesh, pressure_modulus: float,
                  mode: str = "grid", grid_spacing: float | None = None,
-                 max_depth: float = DEFAULT_MAX_DEPTH, name: str | None = None):
+                 max_depth: float = DEFAULT_MAX_DEPTH, name: str | None = None, layers=None):
         self.name = name or f"{surface_A.name} vs {surface_B.name}"
         if not (isinstance(surface_A, SurfaceMesh) and isinstance(surface_B, SurfaceMesh)):
             raise TypeError(f"contact '{self.name}': surfaces must be SurfaceMesh objects")
@@ -131,6 +137,14 @@ class ElasticFoundation:
         self.surface_A = surface_A
         self.surface_B = surface_B
         self.pressure_modulus = float(pressure_modulus)
+        self.layers = None
+        if layers is not None:
+            layers = np.array(layers, dtype=np.float64).reshape(-1, 2)
+            if not (1 <= layers.shape[0] <= 2 and np.all(np.isfinite(layers)) and np.all(layers > 0.0)):
+                raise ValueError(f"contact '{self.name}': the non-linear law needs 1 or 2 layers of positive "
+                                 f"modulus (Pa) and thickness (m), got {layers.tolist()!r}")
+            self.layers = layers
+            self.pressure_modulus = float(1.0 / np.sum(layers[:, 1] / layers[:, 0]))
         self.mode = mode
         self.max_depth = float(max_depth)
         self.grid_spacing = float(DEFAULT_GRID_SPACING if grid_spacing is None else grid_spacing)
@@ -201,6 +215,17 @@ class ElasticFoundation:
         hit = valid & (depth > 0.0) & (depth <= self.max_depth)
         return cand[hit], depth[hit], g_B[hit], y_all[cand[hit]]
 
+    def pressures(self, depth):
+        """(P (k,) Pa, dP/dd (k,) Pa/m, W (k,) J/m²) of the pair's law at depths (k,) m."""
+        from .pressure_law import linear_pressures, nonlinear_pressures
+
+        depth = np.ascontiguousarray(depth, dtype=np.float64)
+        if self.layers is None:
+            return linear_pressures(self.pressure_modulus, depth)
+        P, dP, W = np.empty_like(depth), np.empty_like(depth), np.empty_like(depth)
+        nonlinear_pressures(depth, self.layers, P, dP, W)
+        return P, dP, W
+
     def evaluate(self, r_Wa, R_Wa, r_Wb, R_Wb, want_stiffness: bool = False,
                  want_vertex_pressure: bool = False) -> ContactResult:
         """Contact loads at the given poses.
@@ -218,10 +243,10 @@ class ElasticFoundation:
         idx, depth, g_B, y_B = self.penetration(r_Wa, R_Wa, r_Wb, R_Wb)
         Q = np.zeros(12)
         K = np.zeros((12, 12))
-        sums = np.zeros(7)  # [Σ w c (3), Σ w, area, max d, energy], w = p a d
+        sums = np.zeros(7)  # [Σ w c (3), Σ w, area, max d, energy], w = P(d) a
+        P, dP, W = self.pressures(depth)
         _accumulate(self._s_A, self._a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb,
-                    self.pressure_modulus, want_stiffness, Q, K, sums)
-        p = self.pressure_modulus
+                    P, dP, W, want_stiffness, Q, K, sums)
         if idx.size:
             warn_depth(self.name, float(depth.max()), self.max_depth)
         weight = sums[3]
@@ -229,14 +254,14 @@ class ElasticFoundation:
         vertex_pressure = None
         if want_vertex_pressure:
             vertex_pressure = np.zeros(self._n)
-            vertex_pressure[idx] = p * depth
+            vertex_pressure[idx] = P
         return ContactResult(
             Q=Q,
             force_W=Q[0:3].copy(),
             moment_W=R_Wa @ Q[3:6],
             cop_W=cop,
             area=float(sums[4]),
-            peak_pressure=float(p * sums[5]),
+            peak_pressure=float(P.max()) if P.size else 0.0,
             max_penetration=float(sums[5]),
             n_contact=int(idx.size),
             energy=float(sums[6]),
@@ -265,10 +290,12 @@ def _skew(v):
 
 
 @njit(cache=True)
-def _accumulate(s_A, a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb, p, want_K, Q, K, sums):
+def _accumulate(s_A, a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb, P, dP, W, want_K, Q, K, sums):
     """Sum Q (12,), K (12, 12) and [Σ w c (3), Σ w, area, max d, energy] over contact vertices.
 
-    Per vertex (w = p a d): Q += w u with u = [n; s × n_A; −n; −y × g]. For K, besides
+    P, dP, W (k,): the pressure law at each contact vertex's depth (Pa, Pa/m, J/m²;
+    :meth:`ElasticFoundation.pressures`; the linear law: p d, p, ½ p d²). Per vertex
+    (w = P a, "p a d" below for the linear law; the stiffness p a is dP/dd a): Q += w u with u = [n; s × n_A; −n; −y × g]. For K, besides
     −Σ p a u uᵀ, the "d ∂u/∂q̂" blocks are sums of w g, w n_A sᵀ, w y gᵀ (identity
     ã b̃ = b aᵀ − (a·b) I), assembled after the loop (module docstring).
     """
@@ -283,8 +310,8 @@ def _accumulate(s_A, a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb, p, want_K, Q, 
     for m in range(idx.shape[0]):
         i = idx[m]
         d = depth[m]
-        k = p * a_A[i]  # p a_i, N/m
-        w = k * d  # |f_i| = p a_i d_i, N
+        k = dP[m] * a_A[i]  # dP/dd a_i (p a_i for the linear law), N/m
+        w = P[m] * a_A[i]  # |f_i| = P(d_i) a_i (p a_i d_i), N
         g0, g1, g2 = g_B[m, 0], g_B[m, 1], g_B[m, 2]
         y0, y1, y2 = y_B[m, 0], y_B[m, 1], y_B[m, 2]
         s0, s1, s2 = s_A[i, 0], s_A[i, 1], s_A[i, 2]
@@ -321,7 +348,7 @@ def _accumulate(s_A, a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb, p, want_K, Q, 
         sums[4] += a_A[i]
         if d > sums[5]:
             sums[5] = d
-        sums[6] += 0.5 * w * d  # U = ½ p a d²
+        sums[6] += W[m] * a_A[i]  # U = Σ a W(d) (½ p a d²)
         if want_K:
             for r in range(12):
                 kur = k * u[r]

@@ -12,7 +12,10 @@ contacts:
     surface:                          # the opposite surface (body b)
       body: skull
       mesh: meshes/fossa_r.stl
-    pressure_modulus: 1.0e10          # N/m³ (always SI)
+    pressure_modulus: 1.0e10          # N/m³ (always SI): the linear law P = p d
+    # or the non-linear law P = −K ln(1 − d/h) (Bei & Fregly 2004; contact/pressure_law.py):
+    # law: nonlinear
+    # layers: [{modulus: 2.3e7, thickness: 4}]   # K Pa (SI), h model length unit; 2 layers in series
     mode: grid                        # grid (default) or exact
     grid_spacing: 0.3                 # model length unit (default 0.3 mm)
     max_depth: 3                      # model length unit (default 3 mm)
@@ -38,9 +41,10 @@ JOINT_REGION_SIZE = 0.05
 
 
 def add_contact(b, name, body_a, surface_a, body_b, surface_b, pressure_modulus, mode="grid",
-                grid_spacing=None, max_depth=DEFAULT_MAX_DEPTH):
+                grid_spacing=None, max_depth=DEFAULT_MAX_DEPTH, layers=None):
     """Add an elastic-foundation contact: vertices of ``surface_a`` (SurfaceMesh in body_a's
-    frame) against ``surface_b`` (in body_b's frame); pressure modulus in N/m³.
+    frame) against ``surface_b`` (in body_b's frame); pressure modulus in N/m³, or the
+    non-linear law's ``layers`` [(K Pa, h m), …] (:mod:`.pressure_law`).
     Warns (MeshWarning) when the two surfaces are far apart in the reference pose.
     The name must pass :func:`~openfdk.model.names.name_problem` (it names exported files)."""
     from ..model.names import check_name
@@ -49,7 +53,7 @@ def add_contact(b, name, body_a, surface_a, body_b, surface_b, pressure_modulus,
     ia, ib = b._body_index(body_a, f"contact {name!r}"), b._body_index(body_b, f"contact {name!r}")
     if ia == ib:
         raise ModelError(f"contact {name!r}: both surfaces are on body {body_a!r}")
-    pair = ElasticFoundation(surface_a, surface_b, pressure_modulus, mode, grid_spacing, max_depth, name)
+    pair = ElasticFoundation(surface_a, surface_b, pressure_modulus, mode, grid_spacing, max_depth, name, layers)
     _warn_if_apart(b, name, ia, surface_a, ib, surface_b, max_depth)
     items = list(b.elements.get(CONTACTS, ()))
     if any(c.name == name for c in items):
@@ -101,16 +105,38 @@ def _surface(spec, path, ctx):
 def load_contacts(b, data, ctx):
     for name, spec in ctx.mapping(data, CONTACTS).items():
         p = f"{CONTACTS}.{name}"
-        ctx.keys(spec, p, ["vertices", "surface", "pressure_modulus", "mode", "grid_spacing", "max_depth"],
-                 required=("vertices", "surface", "pressure_modulus"))
+        ctx.keys(spec, p, ["vertices", "surface", "pressure_modulus", "law", "layers", "mode", "grid_spacing",
+                           "max_depth"], required=("vertices", "surface"))
         body_a, surf_a = _surface(spec["vertices"], f"{p}.vertices", ctx)
         body_b, surf_b = _surface(spec["surface"], f"{p}.surface", ctx)
-        k = ctx.number(spec["pressure_modulus"], f"{p}.pressure_modulus", positive=True)
+        law = spec.get("law", "linear")
+        layers = None
+        if law == "linear":
+            if "pressure_modulus" not in spec:
+                raise ctx.error(p, "the linear law needs 'pressure_modulus' (N/m³)")
+            if "layers" in spec:
+                raise ctx.error(f"{p}.layers", "'layers' belong to 'law: nonlinear'")
+            k = ctx.number(spec["pressure_modulus"], f"{p}.pressure_modulus", positive=True)
+        elif law == "nonlinear":
+            if "pressure_modulus" in spec:
+                raise ctx.error(f"{p}.pressure_modulus", "the non-linear law takes 'layers', not 'pressure_modulus'")
+            items = spec.get("layers")
+            if not isinstance(items, list) or not 1 <= len(items) <= 2:
+                raise ctx.error(f"{p}.layers", "expected a list of 1 or 2 layers {modulus: K Pa, thickness: h}")
+            layers = []
+            for j, item in enumerate(items):
+                q = f"{p}.layers[{j}]"
+                ctx.keys(item, q, ["modulus", "thickness"], required=("modulus", "thickness"))
+                layers.append((ctx.number(item["modulus"], f"{q}.modulus", positive=True),
+                               ctx.number(item["thickness"], f"{q}.thickness", positive=True) * ctx.length))
+            k = 1.0 / sum(h / K for K, h in layers)
+        else:
+            raise ctx.error(f"{p}.law", f"expected 'linear' or 'nonlinear', got {law!r}")
         mode = spec.get("mode", "grid")
         h = ctx.number(spec["grid_spacing"], f"{p}.grid_spacing", positive=True) * ctx.length if "grid_spacing" in spec else DEFAULT_GRID_SPACING
         depth = ctx.number(spec["max_depth"], f"{p}.max_depth", positive=True) * ctx.length if "max_depth" in spec else DEFAULT_MAX_DEPTH
         try:
-            _wrap(ctx, p, lambda: add_contact(b, name, body_a, surf_a, body_b, surf_b, k, mode, h, depth))
+            _wrap(ctx, p, lambda: add_contact(b, name, body_a, surf_a, body_b, surf_b, k, mode, h, depth, layers))
         except (ValueError, TypeError) as exc:
             if isinstance(exc, ModelError):
                 raise

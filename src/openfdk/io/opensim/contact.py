@@ -6,18 +6,21 @@ The elastic-foundation pressure of a layer of thickness h, Young's modulus E and
 Poisson's ratio ν pressed by a depth d (Bei & Fregly 2004; Smith et al. 2018):
 
     linear:      p = K d / h,                K = E (1 − ν) / ((1 + ν)(1 − 2ν))
-    non-linear:  p = −K ln(1 − d/h)          (refused here: openfdk's foundation is linear)
+    non-linear:  p = −K ln(1 − d/h)
 
-With a layer on each mesh (the target's and the casting mesh's), the two layers are
-springs in series, d = d₁ + d₂ at equal pressure: p = d / (h₁/K₁ + h₂/K₂). That is
-openfdk's pressure modulus (N/m³). The casting mesh (whose triangles OpenSim-JAM casts
+``use_lumped_contact_model`` (OpenSim-JAM's default true) lumps the two meshes' layers
+into one: E and ν their means, h = h₁ + h₂. Otherwise the two layers are springs in
+series, d = d₁ + d₂ at equal pressure: linear p = d / (h₁/K₁ + h₂/K₂), non-linear
+d = Σ h_j (1 − exp(−p/K_j)). The linear law becomes openfdk's pressure modulus (N/m³),
+the non-linear one ``law: nonlinear`` with its ``layers`` [K, h]
+(:mod:`openfdk.contact.pressure_law`). The casting mesh (whose triangles OpenSim-JAM casts
 rays from) carries the vertices; the target is the opposite surface; ``max_proximity``
 (m) is the largest depth counted (openfdk's ``max_depth``); ``min_proximity`` must be 0.
 A mesh is read from its ``mesh_file`` as a display mesh is (next to the model, its
 Geometry folder, ``--geometry``), placed by its ``socket_frame`` in its body.
 
 Read and refused by name: ``scale_factors`` other than 1, ``mesh_back_file``,
-variable thickness, the non-linear formulation, a body-less (ground) pair.
+variable thickness, ``modulus_heterogeneity``, a body-less (ground) pair.
 """
 
 from __future__ import annotations
@@ -85,9 +88,10 @@ def read_contact_force(element, source):
     if not _flag(element, "appliesForce", source, label, True) or _flag(element, "isDisabled", source, label, False):
         return name, None
     formulation = (_text(element, "elastic_foundation_formulation") or "linear").strip()
-    if formulation != "linear":
-        raise OsimError(f"{where(source, element)}: {label}: the {formulation!r} elastic foundation is not supported "
-                        "by openfdk (its foundation is linear)")
+    if formulation not in ("linear", "nonlinear"):
+        raise OsimError(f"{where(source, element)}: {label}: elastic_foundation_formulation {formulation!r} is neither "
+                        "'linear' nor 'nonlinear'")
+    lumped = _flag(element, "use_lumped_contact_model", source, label, True)
     if _flag(element, "modulus_heterogeneity", source, label, False):
         raise OsimError(f"{where(source, element)}: {label}: modulus_heterogeneity is not supported by openfdk")
     meshes = {}
@@ -101,7 +105,8 @@ def read_contact_force(element, source):
     if low != 0.0 or not (0.0 < high < math.inf):
         raise OsimError(f"{where(source, element)}: {label}: proximity range [{low:g}, {high:g}] m: openfdk needs "
                         "min_proximity 0 and a positive max_proximity")
-    return name, {**meshes, "max_proximity": high, "line": element.sourceline}
+    return name, {**meshes, "max_proximity": high, "line": element.sourceline, "formulation": formulation,
+                  "lumped": lumped}
 
 
 def layer_modulus(record):
@@ -113,3 +118,19 @@ def layer_modulus(record):
 def pressure_modulus(target, casting):
     """openfdk's pressure modulus (N/m³) of two layers in series: 1 / (h₁/K₁ + h₂/K₂)."""
     return 1.0 / (1.0 / layer_modulus(target) + 1.0 / layer_modulus(casting))
+
+
+def pressure_law(force, target, casting):
+    """The ``contacts`` entry keys of the pressure law of a Smith2018ArticularContactForce
+    record ``force`` between the mesh records ``target`` and ``casting`` (module
+    docstring): ``{pressure_modulus}`` (linear) or ``{law: nonlinear, layers}``."""
+    from ...contact.pressure_law import layer_modulus as confined
+
+    if force["lumped"]:  # OpenSim-JAM: mean E and ν, the thicknesses added
+        E, nu = (target["E"] + casting["E"]) / 2, (target["nu"] + casting["nu"]) / 2
+        layers = [(confined(E, nu), target["h"] + casting["h"])]
+    else:
+        layers = [(confined(r["E"], r["nu"]), r["h"]) for r in (casting, target)]
+    if force["formulation"] == "linear":
+        return {"pressure_modulus": 1.0 / sum(h / K for K, h in layers)}
+    return {"law": "nonlinear", "layers": [{"modulus": K, "thickness": h} for K, h in layers]}

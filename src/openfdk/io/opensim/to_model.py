@@ -232,7 +232,7 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         ligaments[safe] = {"path": path_of(lig), **ligament_parameters(lig, doc.source)}
     contacts = {}
     for name, force in doc.contact_forces.items():
-        from .contact import pressure_modulus
+        from .contact import pressure_law
 
         sides = {}
         for role, key in (("vertices", "casting"), ("surface", "target")):
@@ -247,8 +247,7 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
             raise OsimError(f"{doc.source}: line {force['line']}: Smith2018ArticularContactForce {name!r}: both meshes "
                             "are on one body")
         contacts[unique("contact", name)] = {
-            **sides, "pressure_modulus": pressure_modulus(doc.contact_meshes[force["target"]],
-                                                          doc.contact_meshes[force["casting"]]),
+            **sides, **pressure_law(force, doc.contact_meshes[force["target"]], doc.contact_meshes[force["casting"]]),
             "max_depth": force["max_proximity"], "grid_spacing": IMPORT_GRID_SPACING_M}
     for g in doc.geometry:
         path = find_mesh(doc, g, mesh_dirs, "Mesh" in ignore)
