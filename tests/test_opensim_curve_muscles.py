@@ -354,3 +354,25 @@ def test_bad_values_are_one_line_errors(arm, tmp_path, edit, words):
         read_osim(path)
     msg = str(exc.value)
     assert "\n" not in msg and path.name in msg and "delt" in msg and words in msg, msg
+
+
+def test_summary_lists_what_ignore_left_out(arm, tmp_path, monkeypatch, capsys):
+    """``openfdk run model.osim --motion … --ignore TYPE``: the muscle of that type is left
+    out, the run succeeds with the other muscles, and summary.json lists it (type, name,
+    line) under ``input.opensim_import.dropped``; without ``--ignore`` an unsupported
+    muscle class ends in one line naming it (test_opensim_muscles)."""
+    import json
+
+    from openfdk.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    t = np.linspace(0.0, 0.5, 26)
+    motion = om.write_motion(tmp_path / "arm.mot", t, {"q_shoulder": 0.3 + 0.2 * np.sin(2 * t),
+                                                       "q_elbow": 0.8 + 0.3 * np.cos(3 * t)})
+    code = main(["run", str(arm), "--motion", str(motion), "--ignore", "RigidTendonMuscle", "--out", "out",
+                 "--no-plots", "-q"])
+    assert code == 0, capsys.readouterr().err
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    dropped = summary["input"]["opensim_import"]["dropped"]
+    line = etree.parse(str(arm)).xpath("//RigidTendonMuscle")[0].sourceline
+    assert {"type": "RigidTendonMuscle", "name": "biceps.long", "line": line} in dropped
