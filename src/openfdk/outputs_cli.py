@@ -54,6 +54,10 @@ def _cmd_export_opensim(args):
 
         model = load_model(args.model)
     res = export_opensim(args.result_dir, args.out, model=model)
+    from .io.osim import note_lines
+
+    for line in note_lines(res["notes"]) if not getattr(args, "quiet", False) else ():
+        print(f"export-opensim: {line}", file=sys.stderr)  # what OpenSim cannot hold, one line per kind
     _say(args, f"export-opensim: {res['osim']} and {res['mot']} ({res['frames']} frames"
           + (f", {len(res['skipped_frames'])} failed frames left out" if res["skipped_frames"] else "")
           + (f", {len(res['geometry'])} meshes in {Path(args.out) / 'Geometry'}" if res["geometry"] else "") + ")")
@@ -75,10 +79,12 @@ def add_output_parsers(sub):
     _display_arguments(p, progress=False)
     p.set_defaults(func=_cmd_plot)
 
-    e = sub.add_parser("export-opensim", help="an OpenSim .osim model (free joints, meshes, markers) and a .mot "
-                                              "motion of a run",
-                       description="Write a run as an OpenSim model (.osim: bodies on free joints, meshes, markers) "
-                                   "and a .mot motion of its converged frames (docs/opensim.md).")
+    e = sub.add_parser("export-opensim", help="an OpenSim .osim model (joints, coordinates, markers, muscles, "
+                                              "ligaments, meshes) and a .mot motion of a run",
+                       description="Write a run as an OpenSim model (.osim: bodies, joints and coordinates, "
+                                   "constraints, markers, muscles and ligaments, meshes) and a .mot of its joint "
+                                   "coordinates at the converged frames; what OpenSim cannot hold is named on "
+                                   "stderr, one line per kind (docs/opensim.md).")
     e.add_argument("result_dir", help="output folder of openfdk run / kinematics")
     e.add_argument("--out", required=True, help="folder for the .osim, .mot and Geometry/")
     e.add_argument("--model", default=None, help="model file (default: the one recorded in summary.json)")

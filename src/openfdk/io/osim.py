@@ -1,28 +1,23 @@
 """Export a run to OpenSim: an ``.osim`` model and a ``.mot`` motion that plays the run.
 
-``openfdk export-opensim RESULT_DIR --out DIR`` writes into DIR:
+``openfdk export-opensim RESULT_DIR --out DIR`` writes into DIR (docs/opensim.md):
 
-* ``<model>.osim`` — an OpenSim 4 model (``OpenSimDocument Version="40000"``) in which
-  every openfdk body is an OpenSim ``Body`` attached to ``ground`` by a ``FreeJoint``
-  named ``<body>_free``; the body's frame is openfdk's body frame (origin at the centre
-  of mass, so ``mass_center`` is 0 and the joint's child frame is the body frame itself,
-  without offset); inertia about the centre of mass in that frame; the contact meshes
-  and the bodies' visual meshes (model-file ``visual:`` entries) as ``Mesh`` geometry
+* ``<model>.osim`` — an OpenSim 4 model (``OpenSimDocument Version="40000"``): every
+  openfdk body is an OpenSim ``Body`` whose frame is openfdk's body frame (origin at the
+  centre of mass, so ``mass_center`` is 0), inertia about the centre of mass in that
+  frame; the joints as an OpenSim tree with their coordinates, loop-closing welds and
+  spherical joints and couplers as constraints (:mod:`.osim_joints`); the markers as a
+  ``MarkerSet``; muscles and ligaments with their paths (:mod:`.osim_forces`); the
+  contact meshes and the bodies' visual meshes as ``Mesh`` geometry
   (``Geometry/<contact>_<side>.obj``, ``Geometry/<body>_visual_<k>.obj``, vertices in the
-  body frame, metres); the model's markers as a ``MarkerSet``.  openfdk's ground (body 0, world
-  frame W) is OpenSim's ``ground``: its meshes and markers attach there.  Any other fixed
-  openfdk body is exported like the rest, with its coordinates locked at its pose.
-* ``<model>.mot`` — the free-joint coordinates over time.  OpenSim's FreeJoint
-  (``FreeJoint.h``/``.cpp``) has coordinates in the order rx, ry, rz, tx, ty, tz: the
-  child frame's orientation in the parent is the body-fixed X-Y-Z sequence
-  R = Rx(rx)·Ry(ry)·Rz(rz), and (tx, ty, tz) is the child frame's origin in the parent
-  frame.  With ground as parent and the body frame as child, that is R_WB and the
-  centre of mass r_WB of openfdk's kinematics.  Angles are radians (``inDegrees=no``),
-  unwrapped over time so that OpenSim's interpolation does not jump by 2π.
+  body frame, metres). openfdk's ground (body 0, world frame W) is OpenSim's ``ground``.
+* ``<model>.mot`` — the joint coordinates over time, from the run's body poses (rad, m;
+  angles unwrapped over time so that OpenSim's interpolation does not jump by 2π).
 
-Frames whose kinematics failed are left out of the ``.mot`` (their poses are not
-solutions); the header says how many and which.  Nothing here needs OpenSim: the files
-are written from the format's documentation (docs/opensim.md).
+What OpenSim cannot hold is returned as ``notes`` {element kind: [names]} and printed one
+line per kind (:func:`note_lines`). Frames whose kinematics failed are left out of the
+``.mot`` (their poses are not solutions); the header says how many and which. Nothing
+here needs OpenSim: the files are written from the format's documentation.
 """
 
 from __future__ import annotations
@@ -34,10 +29,11 @@ from pathlib import Path
 import numpy as np
 
 from ..spatial import rotation_matrix, xyz_angles_from_matrix
+from .osim_forces import function_element
 from .storage import write_storage
 
-__all__ = ["OSIM_VERSION", "FREE_COORDINATES", "export_opensim", "free_joint_coordinates",
-           "opensim_frame_path"]
+__all__ = ["OSIM_VERSION", "FREE_COORDINATES", "build_osim", "export_model", "export_opensim",
+           "free_joint_coordinates", "note_lines", "opensim_frame_path"]
 
 OSIM_VERSION = "40000"
 #: FreeJoint coordinate suffixes, in OpenSim's order
@@ -150,14 +146,24 @@ def _geometry(model, out_dir):
     return attached
 
 
-def _coordinate(parent, name, value, locked, rotational):
-    c = _sub(parent, "Coordinate", name=name)
-    _sub(c, "default_value", repr(float(value)))
-    _sub(c, "default_speed_value", "0")
-    _sub(c, "range", "-3.1415926535897931 3.1415926535897931" if rotational else "-10 10")
-    _sub(c, "clamped", "false")
-    _sub(c, "locked", "true" if locked else "false")
-    return c
+def _coordinate(parent, c, value):
+    """A ``Coordinate`` (OsimCoordinate ``c``) with default ``value`` (rad or m)."""
+    el = _sub(parent, "Coordinate", name=c.name)
+    _sub(el, "default_value", repr(float(value)))
+    _sub(el, "default_speed_value", "0")
+    lo, hi = c.range if c.range is not None else ((-np.pi, np.pi) if c.motion != "translational" else (-10.0, 10.0))
+    lo, hi = min(lo, float(value)), max(hi, float(value))
+    _sub(el, "range", _vec([lo, hi]))
+    _sub(el, "clamped", "true" if c.clamped else "false")
+    _sub(el, "locked", "true" if c.locked else "false")
+    if c.prescribed is not None:
+        from .osim_functions import function_xml
+
+        xml = function_xml(c.prescribed)
+        if xml is not None:
+            _sub(el, "prescribed", "true")
+            function_element(_sub(el, "prescribed_function"), xml)
+    return el
 
 
 def _attach(frame_element, geoms):
@@ -174,13 +180,93 @@ def _attach(frame_element, geoms):
         _sub(mesh, "mesh_file", fname)
 
 
-def build_osim(model, coordinates0: dict, geometry=None) -> ET.ElementTree:
-    """The ``.osim`` document of ``model``; coordinates0: body name -> (6,) default
-    FreeJoint coordinates (the first exported frame); geometry: body index ->
-    [(geometry name, mesh file relative to the .osim, "#rrggbb" colour or "")]."""
+def _offset_frame(frames, name, parent_path, p, R):
+    f = _sub(frames, "PhysicalOffsetFrame", name=name)
+    _sub(f, "socket_parent", parent_path)
+    _sub(f, "translation", _vec(p))
+    _sub(f, "orientation", _vec(xyz_angles_from_matrix(R)))  # body-fixed X-Y-Z (OpenSim's OffsetFrame)
+
+
+def _joint(jointset, model, j, defaults):
+    el = _sub(jointset, j.kind, name=j.name)
+    names = ("parent_offset", "child_offset")
+    _sub(el, "socket_parent_frame", names[0])
+    _sub(el, "socket_child_frame", names[1])
+    if j.coordinates:
+        coords = _sub(el, "coordinates")
+        for c in j.coordinates:
+            _coordinate(coords, c, defaults[c.name])
+    frames = _sub(el, "frames")
+    _offset_frame(frames, names[0], opensim_frame_path(model, j.parent), j.p_PF, j.R_PF)
+    _offset_frame(frames, names[1], opensim_frame_path(model, j.child), j.p_CM, j.R_CM)
+    if j.kind == "CustomJoint":
+        st = _sub(el, "SpatialTransform")
+        labels = ("rotation1", "rotation2", "rotation3", "translation1", "translation2", "translation3")
+        for label, (axis, q, xml) in zip(labels, j.axes):
+            ta = _sub(st, "TransformAxis", name=label)
+            _sub(ta, "coordinates", q or "")
+            _sub(ta, "axis", _vec(axis))
+            function_element(ta, xml, name="function")
+
+
+def _constraint(constraintset, model, c):
+    el = _sub(constraintset, c.kind, name=c.name)
+    if c.kind == "WeldConstraint":
+        _sub(el, "socket_frame1", "frame1")
+        _sub(el, "socket_frame2", "frame2")
+        frames = _sub(el, "frames")
+        for k in range(2):
+            _offset_frame(frames, f"frame{k + 1}", opensim_frame_path(model, c.bodies[k]), c.p[k], c.R[k])
+    elif c.kind == "PointConstraint":
+        for k in range(2):
+            _sub(el, f"socket_body_{k + 1}", opensim_frame_path(model, c.bodies[k]))
+        for k in range(2):
+            _sub(el, f"location_body_{k + 1}", _vec(c.p[k]))
+    else:  # CoordinateCouplerConstraint
+        function_element(_sub(el, "coupled_coordinates_function"), c.function)
+        _sub(el, "independent_coordinate_names", c.independent)
+        _sub(el, "dependent_coordinate_name", c.dependent)
+
+
+def model_notes(model):
+    """{element kind: [names]} of the model's elements that have no OpenSim twin in the
+    export (besides those :func:`~openfdk.io.osim_joints.plan_joints` and
+    :func:`~openfdk.io.osim_forces.write_forces` report)."""
+    notes = {}
+    generated = {f"{c.name}_locked" for c in model.coordinates} | {f"{c.name}_prescribed" for c in model.coordinates}
+    for c in model.constraints:
+        if c.name in generated:
+            continue
+        if c.joint_type == "generic":
+            notes.setdefault("not exported: constraint on an openfdk measure", []).append(c.name)
+        elif c.joint_type == "driver":
+            notes.setdefault("not exported: driver (its motion is in the .mot)", []).append(c.name)
+    from_rows = {f"{r.name}_{label}" for r in model.joints for label in r.fdk_rows}
+    for d in model.fdk_dofs:
+        if d.name not in from_rows:
+            notes.setdefault("not exported: FDK DOF on an openfdk measure (no coordinate)", []).append(d.name)
+    for kind in ("springs", "unilateral_reactions", "loads", "external_loads", "actuators", "tasks"):
+        for e in getattr(model, kind, ()):
+            notes.setdefault(f"not exported: {kind.replace('_', ' ').rstrip('s')}", []).append(getattr(e, "name", "?"))
+    for c in model.contacts:
+        notes.setdefault("not exported: contact force (its meshes are exported as geometry)", []).append(c.name)
+    return notes
+
+
+def build_osim(model, state0=None, geometry=None):
+    """(``.osim`` document, exported joints, notes {kind: [names]}) of ``model``.
+
+    state0: BodyStates whose coordinates are the defaults (default: the reference pose);
+    geometry: body index -> [(geometry name, mesh file relative to the .osim, "#rrggbb" or "")]."""
+    from .osim_forces import write_forces
+    from .osim_joints import joint_coordinates, plan_joints
+
+    joints, constraints, notes = plan_joints(model)
+    state0 = state0 if state0 is not None else model.initial_state()
+    defaults = joint_coordinates(joints, state0)
     doc = ET.Element("OpenSimDocument", Version=OSIM_VERSION)
     m = _sub(doc, "Model", name=_file_stem(model.name))  # OpenSim names: no spaces, \ * + / or tabs
-    _sub(m, "credits", "Exported by openfdk (export-opensim): one FreeJoint per body; see docs/opensim.md")
+    _sub(m, "credits", "Exported by openfdk (export-opensim); see docs/opensim.md")
     _sub(m, "length_units", "meters")
     _sub(m, "force_units", "N")
     _sub(m, "gravity", _vec(model.gravity_W))
@@ -188,22 +274,27 @@ def build_osim(model, coordinates0: dict, geometry=None) -> ET.ElementTree:
     ground = _sub(m, "Ground", name="ground")
     _attach(ground, attached.get(0, []))
     bodyset = _sub(_sub(m, "BodySet", name="bodyset"), "objects")
-    jointset = _sub(_sub(m, "JointSet", name="jointset"), "objects")
     for b in model.bodies[1:]:
-        name = b.name
-        body = _sub(bodyset, "Body", name=name)
+        body = _sub(bodyset, "Body", name=b.name)
         _attach(body, attached.get(b.index, []))
         J = np.asarray(b.inertia_B, dtype=float)
         _sub(body, "mass", repr(float(b.mass)))
         _sub(body, "mass_center", "0 0 0")
         # OpenSim's order: Ixx Iyy Izz Ixy Ixz Iyz (about the centre of mass, body frame)
         _sub(body, "inertia", _vec([J[0, 0], J[1, 1], J[2, 2], J[0, 1], J[0, 2], J[1, 2]]))
-        joint = _sub(jointset, "FreeJoint", name=f"{name}_free")
-        _sub(joint, "socket_parent_frame", "/ground")
-        _sub(joint, "socket_child_frame", f"/bodyset/{name}")
-        coords = _sub(joint, "coordinates")
-        for j, suffix in enumerate(FREE_COORDINATES):
-            _coordinate(coords, f"{name}_{suffix}", coordinates0[b.name][j], b.fixed, j < 3)
+    jointset = _sub(_sub(m, "JointSet", name="jointset"), "objects")
+    for j in joints:
+        _joint(jointset, model, j, defaults)
+    if constraints:
+        cset = _sub(_sub(m, "ConstraintSet", name="constraintset"), "objects")
+        for c in constraints:
+            _constraint(cset, model, c)
+    coordinate_path = {c.name: f"/jointset/{j.name}/{c.name}" for j in joints for c in j.coordinates}
+    forces = ET.Element("objects")
+    for kind, names in write_forces(forces, model, lambda i: opensim_frame_path(model, i), coordinate_path).items():
+        notes.setdefault(kind, []).extend(names)
+    if len(forces):
+        _sub(m, "ForceSet", name="forceset").append(forces)
     markerset = _sub(_sub(m, "MarkerSet", name="markerset"), "objects")
     mk = model.markers
     for j in range(mk.size):
@@ -211,8 +302,40 @@ def build_osim(model, coordinates0: dict, geometry=None) -> ET.ElementTree:
         _sub(marker, "socket_parent_frame", opensim_frame_path(model, int(mk.body[j])))
         _sub(marker, "location", _vec(mk.p_BM[j]))
         _sub(marker, "fixed", "false")
+    for kind, names in model_notes(model).items():
+        notes.setdefault(kind, []).extend(names)
     ET.indent(doc, space="  ")
-    return ET.ElementTree(doc)
+    return ET.ElementTree(doc), joints, notes
+
+
+def note_lines(notes):
+    """One line per element kind: ``not exported: <kind> (n): name, name, …`` (or
+    ``approximated: …`` for an element written in a nearby form)."""
+    lines = []
+    for kind, names in notes.items():
+        shown = ", ".join(names[:8]) + (f", … ({len(names) - 8} more)" if len(names) > 8 else "")
+        lines.append(f"{kind} ({len(names)}): {shown}")
+    return lines
+
+
+def _write_tree(tree, path):
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    tree.write(tmp, encoding="UTF-8", xml_declaration=True)
+    os.replace(tmp, path)
+
+
+def export_model(model, out_dir) -> dict:
+    """Write ``<name>.osim`` (and ``Geometry/*.obj``) of ``model`` at its reference pose.
+    Returns dict ``osim`` (path), ``geometry`` (paths), ``notes`` ({kind: [names]})."""
+    _check_exported_names(model)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    geometry = _geometry(model, out)
+    tree, _, notes = build_osim(model, None, geometry)
+    path = out / f"{_file_stem(model.name)}.osim"
+    _write_tree(tree, path)
+    return {"osim": path, "notes": notes,
+            "geometry": sorted((out / GEOMETRY_DIR).glob("*.obj")) if geometry else []}
 
 
 def export_opensim(results, out_dir, model=None) -> dict:
@@ -224,9 +347,12 @@ def export_opensim(results, out_dir, model=None) -> dict:
         model: the analysed Model (default: the one the run recorded, see
             :meth:`RunResults.model`).
     Returns: dict with keys ``osim``, ``mot`` (paths), ``geometry`` (list of paths),
-    ``frames`` (rows written) and ``skipped_frames`` (indices of failed frames left out).
+    ``frames`` (rows written), ``skipped_frames`` (indices of failed frames left out) and
+    ``notes`` ({element kind: [names]} of what OpenSim cannot hold, :func:`note_lines`).
     """
+    from ..model.state import BodyStates
     from ..runresults import RunResults
+    from .osim_joints import joint_coordinates
 
     if not isinstance(results, RunResults):
         results = RunResults.read(results)
@@ -242,41 +368,44 @@ def export_opensim(results, out_dir, model=None) -> dict:
     t = results.time
     ok = k["converged"].to_numpy() == 1
     moving = set(results.bodies())
-    coords = {}
+    n = len(t)
+    p_WB = np.tile(np.array([b.p_WB0 for b in model.bodies], float), (n, 1, 1))
+    quat_WB = np.tile(np.array([b.quat_WB0 for b in model.bodies], float), (n, 1, 1))
     for b in model.bodies[1:]:
         if b.name in moving:
-            p = np.column_stack([k[f"{b.name}.{c}_m"].to_numpy(float) for c in "xyz"])
-            q = np.column_stack([k[f"{b.name}.e{j}"].to_numpy(float) for j in range(4)])
-        elif b.fixed:
-            p, q = np.tile(b.p_WB0, (len(t), 1)), np.tile(b.quat_WB0, (len(t), 1))
-        else:
+            p_WB[:, b.index] = np.column_stack([k[f"{b.name}.{c}_m"].to_numpy(float) for c in "xyz"])
+            quat_WB[:, b.index] = np.column_stack([k[f"{b.name}.e{j}"].to_numpy(float) for j in range(4)])
+        elif not b.fixed:
             raise ValueError(f"{results.directory}: kinematics.csv has no pose of moving body {b.name!r} "
                              f"of model {model.name!r}; is this the run's model?")
-        coords[b.name] = free_joint_coordinates(np.where(ok[:, None], p, np.nan), np.where(ok[:, None], q, np.nan))
-        ok &= np.all(np.isfinite(coords[b.name]), axis=1)
+    ok &= np.all(np.isfinite(p_WB), axis=(1, 2)) & np.all(np.isfinite(quat_WB), axis=(1, 2))
     if not ok.any():
         raise ValueError(f"{results.directory}: no frame has converged kinematics; nothing to export")
+    column = [b.column for b in model.bodies]
+    states = {i: BodyStates(p_WB[i], quat_WB[i] / np.linalg.norm(quat_WB[i], axis=1)[:, None], column)
+              for i in np.flatnonzero(ok)}
     first = int(np.flatnonzero(ok)[0])
     geometry = _geometry(model, out)
-    tree = build_osim(model, {n: c[first] for n, c in coords.items()}, geometry)
+    tree, joints, notes = build_osim(model, states[first], geometry)
     stem = _file_stem(model.name)
     osim_path = out / f"{stem}.osim"
-    tmp = osim_path.with_name(f".{osim_path.name}.tmp-{os.getpid()}")
-    tree.write(tmp, encoding="UTF-8", xml_declaration=True)
-    os.replace(tmp, osim_path)
+    _write_tree(tree, osim_path)
 
+    rows = [joint_coordinates(joints, states[i]) for i in sorted(states)]
+    names = [c.name for j in joints for c in j.coordinates]
+    rotational = {c.name for j in joints for c in j.coordinates if c.motion != "translational"}
     columns = {}
-    for b in model.bodies[1:]:
-        for j, suffix in enumerate(FREE_COORDINATES):
-            columns[f"{b.name}_{suffix}"] = coords[b.name][ok, j]
+    for name in names:
+        v = np.array([r[name] for r in rows])
+        columns[name] = np.unwrap(v) if name in rotational else v
     skipped = [int(i) for i in np.flatnonzero(~ok)]
-    comments = [f"openfdk run of model {model.name!r}: FreeJoint coordinates (rad, m) of every body",
+    comments = [f"openfdk run of model {model.name!r}: joint coordinates (rad, m) of the exported model",
                 f"Frames left out (kinematics failed): {len(skipped)}"
                 + (f" (indices {skipped[:50]}{' ...' if len(skipped) > 50 else ''})" if skipped else "")]
     mot_path = write_storage(out / f"{stem}.mot", t[ok], columns, name=f"{stem}_coordinates", in_degrees=False,
                              comments=comments)
     return {"osim": osim_path, "mot": mot_path, "frames": int(ok.sum()), "skipped_frames": skipped,
-            "geometry": sorted((out / GEOMETRY_DIR).glob("*.obj")) if geometry else []}
+            "geometry": sorted((out / GEOMETRY_DIR).glob("*.obj")) if geometry else [], "notes": notes}
 
 
 def _file_stem(name: str) -> str:

@@ -22,6 +22,7 @@ from .components import GROUND, Body, Frame, Marker
 from .constraints import DRIVER, JOINT, Constraint, FDKDof, MarkerSet
 from .measures import AxisDot, Distance, Linear, Measure, PointPosition, RelativeAngles, RelativeVector
 from .model import Model, ModelError
+from .joint_records import JointRecord, record_joint
 from .names import check_name, label_problem
 from .settings import AnalysisSettings
 from .timefunctions import Constant, TimeFunction
@@ -306,6 +307,8 @@ class ModelBuilder:
             if label in fdk_settings and on:
                 raise ModelError(f"joint {name!r}: row {label!r} is an FDK DOF and cannot carry a reaction")
         self._register_joint_measures(name, type, parent, child, rel_Fa)
+        record_joint(self, JointRecord(name, type, parent, child, None if type != "point_on_plane" else n,
+                                       tuple(fdk_settings)))
         for label in fdk_settings:
             C, m = next((C, m) for lab, C, m in rows if lab == label)
             settings = dict(fdk_settings[label] or {})
@@ -433,7 +436,7 @@ class ModelBuilder:
 
     #: element kinds collected in ``self.elements`` -> Model field
     ELEMENT_FIELDS = ("muscles", "ligaments", "springs", "contacts", "loads", "unilateral_reactions", "visuals",
-                      "coordinates", "tasks", "external_loads", "actuators")
+                      "coordinates", "tasks", "external_loads", "actuators", "joints")
     SETTING_FIELDS = {"analysis": "kinematics", "recruitment": "recruitment", "fdk": "fdk", "units": "units",
                       "ground_reactions": "ground_reactions"}
 

@@ -46,6 +46,7 @@ import numpy as np
 from .builder import _stack
 from .constraints import JOINT, Constraint
 from .function_measure import FunctionOf
+from .joint_records import JointRecord, record_joint
 from .measures import Linear
 from .model import ModelError
 from .rotation_angles import RotationAngles
@@ -231,6 +232,8 @@ def add_coordinate_joint(b, name, parent, child, rotations, translations, coordi
         fq = FunctionOf(ax.function, defined[ax.coordinate], unit)
         rows.append((ax.name, Linear([(np.ones((1, 1)), slot_measure[(kind, k)]), (-np.ones((1, 1)), fq)])))
     rows += free_rows
+    record_joint(b, JointRecord(name, "custom", parent, child, rotations=tuple(rotations),
+                                translations=tuple(translations)))
     for cname, m in defined.items():
         b.add_measure(cname, m)
     if rows:
@@ -248,6 +251,7 @@ def add_coupler(b, name, independent, dependent, function):
     fq = FunctionOf(function, q_i, q_d.units[0])
     measure = Linear([(np.ones((1, 1)), q_d), (-np.ones((1, 1)), fq)])
     b._add_constraint(Constraint(name, measure, JOINT, np.zeros(1), None, True, (name,), "coupler"))
+    record_joint(b, JointRecord(name, "coupler", independent=independent, dependent=dependent, function=function))
 
 
 class CoordinateTimeFunction(TimeFunction):

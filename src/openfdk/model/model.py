@@ -45,6 +45,8 @@ class Model:
         reactions; :mod:`openfdk.forces.data_loads`)
     actuators : CoordinateActuator (recruitment columns weighted by their optimal force:
         OpenSim's reserve and residual actuators; :mod:`openfdk.forces.actuators`)
+    joints : JointRecord (how each joint and coupler was declared, for exports;
+        :mod:`openfdk.model.joint_records`; the rows are in ``constraints``)
     tasks : CoordinateTask (soft rows of marker tracking beside the markers, Eq. 4:
         OpenSim's IKCoordinateTasks; :mod:`openfdk.model.tasks`)
 
@@ -72,6 +74,7 @@ class Model:
     tasks: tuple = ()
     external_loads: tuple = ()
     actuators: tuple = ()
+    joints: tuple = ()
     source: str = ""
 
     # -- look-ups -------------------------------------------------------------------
