@@ -14,8 +14,8 @@ residual ones on the six pelvis coordinates (300 N m, 1000 N); the walking-like 
 Records:
 
 * ``full_body_paths_us``: the 92 path lengths and their Jacobians at one pose of the walk
-  (:class:`openfdk.forces.pathset.PathSet` ``evaluate``: 70 straight paths, 8 wrapped
-  over cylinders, 14 with conditional or moving points) and the 92 × 23 moment arms
+  (:class:`openfdk.forces.pathset.PathSet` ``evaluate``: 64 straight paths, 8 wrapped
+  over cylinders, 20 with conditional or moving points) and the 92 × 23 moment arms
   about the coordinates (−L V, V the body velocities per unit coordinate rate, computed
   once), µs per evaluation, warm, median of 7 batches of 200.
 * ``full_body_recruitment_ms``: openfdk's ``run`` of the model with ``--motion
@@ -146,11 +146,11 @@ def capsule(a, b, radius, segments=48, rings=24):
     for i in range(n_rings - 1):
         for j in range(segments):
             p, q = i * segments + j, i * segments + (j + 1) % segments
-            faces += [(p, q + segments, q), (p, p + segments, q + segments)]
-    for j in range(segments):
-        faces.append((south, (j + 1) % segments, j))
-        top = (n_rings - 1) * segments
-        faces.append((north, top + j, top + (j + 1) % segments))
+            faces += [(p, q, q + segments), (p, q + segments, p + segments)]
+    top = (n_rings - 1) * segments
+    for j in range(segments):  # counter-clockwise seen from outside: outward normals
+        faces.append((south, j, (j + 1) % segments))
+        faces.append((north, top + (j + 1) % segments, top + j))
     return verts, np.array(faces, dtype=np.int64)
 
 
@@ -421,7 +421,7 @@ def measure(directory, quick=False):
     records = [{"name": "full_body_paths_us", "value": statistics.median(batches), "unit": "us",
                 "runs": len(batches),
                 "detail": (f"92 path lengths, Jacobians and the 92 x 23 moment arms at the walk's pose at "
-                           f"t = {PATHS_POSE_S} s (70 straight, 8 wrapped over cylinders, 14 with conditional or "
+                           f"t = {PATHS_POSE_S} s (64 straight, 8 wrapped over cylinders, 20 with conditional or "
                            f"moving points), warm; us per evaluation, medians of batches of 200: "
                            f"{[round(x, 1) for x in batches]}; largest |moment arm| {np.abs(arms).max():.3f} m")}]
     repeats = 2 if quick else 5
