@@ -19,6 +19,7 @@ errors and the command exits with code 2.
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -75,13 +76,20 @@ def refuse_redundant_rows(model, source=""):
     to the run (its frames report why)."""
     from .model.model import ModelError
 
-    try:
-        A, rank, redundant = _reference_rank(model)
-    except (FloatingPointError, ValueError):
-        return
+    found = _RANKS.get(model)
+    if found is None:  # a property of the (immutable) model: found once, not at every run of it
+        try:
+            A, rank, redundant = _reference_rank(model)
+        except (FloatingPointError, ValueError):
+            return
+        found = _RANKS[model] = (A.shape[0], rank, tuple(redundant))
+    rows, rank, redundant = found
     if redundant:
         prefix = f"{source}: " if source else ""
-        raise ModelError(f"{prefix}{_redundant_message(rank, A.shape[0], redundant)} (see `openfdk check`)")
+        raise ModelError(f"{prefix}{_redundant_message(rank, rows, list(redundant))} (see `openfdk check`)")
+
+
+_RANKS = weakref.WeakKeyDictionary()  # model -> (rows, rank, redundant rows) at the reference pose
 
 
 def check_model(model):

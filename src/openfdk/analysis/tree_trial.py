@@ -24,7 +24,9 @@ Per frame, in one kernel over a chunk of frames (:func:`_frames`):
    frame is accepted only if max |Φ| ≤ 1e-10 (Newton's tolerance);
 3. d = [m (r̈ − g); J ω̇' + ω̃' J ω'] − Q^applied and C = the reaction rows of Φ_q̂ᵀ
    (Eqs. 12–13, :mod:`openfdk.dynamics.equilibrium`), solved by 6×6 blocks
-   (:func:`~openfdk.dynamics.determinate_reactions.block_reactions`).
+   (:func:`_reactions`: the factors of
+   :func:`~openfdk.dynamics.determinate_reactions.block_reactions`, read from Φ_q̂'s
+   pattern only).
 
 The recorded values are those of the frame-by-frame run (kinematics.csv, forces.csv,
 generalized_forces.csv), except the Newton iterations, 0 here. A frame where a step
@@ -41,7 +43,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..dynamics.determinate_reactions import block_reactions
+from ..kinematics.block_triangular import block_solve, lu_factor_range
 from ..dynamics.equilibrium import _body_arrays, _inertial_minus_gravity, _reaction_rows
 from ..dynamics.results import forces_fields, forces_result
 from ..forces.data_loads import apply_data_loads
@@ -123,9 +125,9 @@ class TreeTrial:
         k = hi - lo
         rec.record_block(lo, {
             "kin.q": q[lo:hi], "kin.v": v[lo:hi], "kin.vdot": vdot[lo:hi], "kin.constraint_violation": phi[lo:hi],
-            "kin.iterations": np.zeros(k, int), "kin.report": [FrameReport.ok(0, float(x)) for x in phi[lo:hi]],
+            "kin.iterations": np.zeros(k, int), "kin.report": FrameReport.ok_many(phi[lo:hi]),
             "dyn.f": f[lo:hi], "dyn.status": [STATUS_OPTIMAL] * k, "dyn.iterations": np.zeros(k, int),
-            "dyn.report": [FrameReport.ok(0, float(x)) for x in res[lo:hi]]})
+            "dyn.report": FrameReport.ok_many(res[lo:hi])})
 
 
 def tree_trial(model, system, solver, times, alpha):
@@ -172,7 +174,15 @@ def _frames(lo, hi, plan, program, n_node_rows, angle_rows, F, dF, ddF, bodies, 
     val, M, b = np.empty(n_node_rows), np.empty((n_node_rows, n)), np.empty(n_node_rows)
     vdot, d_full, Q = np.empty(n), np.empty(n), np.empty(n)
     W = np.empty((l_body.shape[0], 9))
-    C, d, f, residual = np.empty((n_eq, n_react)), np.empty(n_eq), np.empty(n_react), np.empty(n_eq)
+    d, f = np.empty(n_eq), np.empty(n_react)
+    # C in block form, entry (i, j) = C[rows[i], cols[j]] = ±Φ_q̂[sel[cols[j]], eq[rows[i]]]: where to read it in M
+    src_row, src_sign, src_col = np.empty(n_react, np.int64), np.empty(n_react), np.empty(n_eq, np.int64)
+    for j in range(n_react):
+        src_row[j] = out_rows[sel[cols[j]]]
+        src_sign[j] = sign[cols[j]]
+    for i in range(n_eq):
+        src_col[i] = eq_coords[rows[i]]
+    LU, piv = np.zeros((n_eq, n_react)), np.empty(n_eq, np.int64)  # zero outside the blocks' pattern, for good
     for k in range(lo, hi):
         # 1. forward kinematics: poses, velocities, accelerations (Eqs. 1-3 in closed form)
         tree_forward(parent, child, R_aF, p_aF, R_bM, p_bM, axis, row, value, fstart, fparams, column,
@@ -203,14 +213,50 @@ def _frames(lo, hi, plan, program, n_node_rows, angle_rows, F, dF, ddF, bodies, 
         for r in range(n_eq):
             c = eq_coords[r]
             d[r] = d_full[c] - Q[c]
-            for j in range(n_react):
-                C[r, j] = M[out_rows[sel[j]], c] * sign[j]
-        if not block_reactions(C, d, rows, cols, starts, ptr, earlier, f, residual):
+        worst = _reactions(M, src_row, src_sign, src_col, rows, cols, starts, ptr, earlier, d, LU, piv, f)
+        if not worst >= 0.0:
             status[k] = SOLVE_FAILED
             continue
-        worst = 0.0
-        for r in range(n_eq):
-            worst = max(worst, abs(residual[r]))
         out_res[k] = worst
         out_f[k, :] = f
         status[k] = OK
+
+
+@njit(cache=True)
+def _reactions(M, src_row, src_sign, src_col, rows, cols, starts, ptr, earlier, d, LU, piv, f):
+    """f ← C⁻¹ d by blocks, C read from the node Jacobians M where its block form has
+    entries (each diagonal block and the earlier columns its rows touch; LU (n, n) is
+    zero elsewhere and stays so: pivoting swaps rows of one block, whose entries right
+    of the block are all zero). The factors and f are those of
+    :func:`openfdk.dynamics.determinate_reactions.block_reactions` (the same entries,
+    pivots and order), without its two dense passes over C. Returns max |C f − d|, or
+    −1 when C is singular, f not finite or the residual above 1e-8 max(|d|, 1)."""
+    for b in range(starts.shape[0] - 1):
+        s, e = starts[b], starts[b + 1]
+        for i in range(s, e):
+            c = src_col[i]
+            for q in range(ptr[b], ptr[b + 1]):
+                j = earlier[q]
+                LU[i, j] = M[src_row[j], c] * src_sign[j]
+            for j in range(s, e):
+                LU[i, j] = M[src_row[j], c] * src_sign[j]
+        if not lu_factor_range(LU, piv, s, e):
+            return -1.0
+    block_solve(LU, piv, rows, cols, starts, ptr, earlier, d, f)
+    scale, worst = 1.0, 0.0
+    for r in range(d.shape[0]):
+        scale = max(scale, abs(d[r]))
+    for b in range(starts.shape[0] - 1):
+        s, e = starts[b], starts[b + 1]
+        for i in range(s, e):
+            c = src_col[i]
+            acc = -d[rows[i]]
+            for q in range(ptr[b], ptr[b + 1]):
+                j = earlier[q]
+                acc += M[src_row[j], c] * src_sign[j] * f[cols[j]]
+            for j in range(s, e):
+                if not np.isfinite(f[cols[j]]):
+                    return -1.0
+                acc += M[src_row[j], c] * src_sign[j] * f[cols[j]]
+            worst = max(worst, abs(acc))
+    return worst if worst <= 1e-8 * scale else -1.0

@@ -35,32 +35,42 @@ class ConstraintSystem:
         self.model = model
         self.blocks = list(model.constraints)
         self.fdk = list(model.fdk_dofs) if include_fdk else []
-        self.row_names = model.constraint_row_names() + [f"fdk.{d.name}" for d in self.fdk]
-        self.n_rows = len(self.row_names)
         self.n_coords = model.n_coords
-        units = [u for c in self.blocks for u in c.measure.units] + [d.measure.units[0] for d in self.fdk]
-        # angle rows are compared modulo 2π: a driver may prescribe θ beyond ±π while
-        # the Cardan-angle measure returns values in (−π, π]
-        self.angle_rows = np.array([u == "angle" for u in units], dtype=bool)
-        self.has_angles = bool(self.angle_rows.any())
         self.program, self._shared = _program(
             model, include_fdk, [c.measure for c in self.blocks] + [d.measure for d in self.fdk],
             [range(c.size) for c in self.blocks] + [[0]] * len(self.fdk))
-        # constant targets (joints, generic constraints); driver rows are filled per t
-        self._f_const = np.zeros(self.n_rows)
-        self._drivers = []
-        r = 0
-        for c in self.blocks:
-            if c.function is None:
-                self._f_const[r : r + c.size] = c.target
-            else:
-                self._drivers.append((r, c))
-            r += c.size
-        self._n_joint_rows = r
-        self._spline_groups, self._drivers = _spline_groups(self._drivers)
+        rows = self._shared.get("rows")  # derived from the model alone: once per model (never modified)
+        if rows is None:
+            rows = self._shared["rows"] = self._rows()
+        self.row_names, self.angle_rows, self._f_const, self._n_joint_rows, self._spline_groups, self._drivers = rows
+        self.row_names = list(self.row_names)
+        self.n_rows = len(self.row_names)
+        self.has_angles = bool(self.angle_rows.any())
         self._targets_key = None
         self._targets = None
         self._block_form = None
+
+    def _rows(self):
+        """(row names, angle rows (m,) bool, constant targets (m,), number of joint and
+        driver rows, spline-driver groups, other drivers [(row, Constraint)])."""
+        names = tuple(self.model.constraint_row_names() + [f"fdk.{d.name}" for d in self.fdk])
+        units = [u for c in self.blocks for u in c.measure.units] + [d.measure.units[0] for d in self.fdk]
+        # angle rows are compared modulo 2π: a driver may prescribe θ beyond ±π while
+        # the Cardan-angle measure returns values in (−π, π]
+        angle_rows = np.array([u == "angle" for u in units], dtype=bool)
+        angle_rows.setflags(write=False)
+        # constant targets (joints, generic constraints); driver rows are filled per t
+        f_const = np.zeros(len(names))
+        drivers, r = [], 0
+        for c in self.blocks:
+            if c.function is None:
+                f_const[r : r + c.size] = c.target
+            else:
+                drivers.append((r, c))
+            r += c.size
+        f_const.setflags(write=False)
+        groups, drivers = _spline_groups(drivers)
+        return names, angle_rows, f_const, r, tuple(groups), tuple(drivers)
 
     def jacobian_pattern(self):
         """(m, 6 n_moving) bool: the entries of Φ_q̂ that can be non-zero, the 6 columns

@@ -11,6 +11,8 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass
 
+import numpy as np
+
 
 class FrameStatus(enum.Enum):
     """Outcome of one frame."""
@@ -55,6 +57,20 @@ class FrameReport:
     @classmethod
     def ok(cls, iterations=0, residual=float("nan")):
         return cls(FrameStatus.CONVERGED, Reason.CONVERGED, int(iterations), float(residual), "")
+
+    @classmethod
+    def ok_many(cls, residuals, iterations=0):
+        """[:meth:`ok` (iterations, r) for r in residuals] (a trial solved in compiled
+        chunks: its frames' reports at ≈ 0.3 µs each instead of ≈ 2 µs; the same
+        values, frozen like the others)."""
+        new, base = object.__new__, {"status": FrameStatus.CONVERGED, "reason": Reason.CONVERGED,
+                                     "iterations": int(iterations), "message": ""}
+        out = []
+        for r in np.asarray(residuals, dtype=float).tolist():
+            report = new(cls)
+            report.__dict__.update(base, residual=r)
+            out.append(report)
+        return out
 
     @classmethod
     def failed(cls, reason: Reason, message: str, iterations=0, residual=float("nan")):
