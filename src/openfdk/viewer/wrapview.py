@@ -128,23 +128,97 @@ def _next_anchor(nodes, T_W, j, state):
 def wrapped_polylines(model, paths, poses):
     """(nf, Σ n_points, 3) m world polylines of ``paths`` (WrappedPath list) at every
     frame's poses (nf, nb, 7) [m, -]; NaN rows where the poses are missing or the path
-    cannot be formed."""
+    cannot be formed.
+
+    One wrapping-kernel call per frame gives the tangent points of every path; the
+    points and the cylinder and sphere arcs are then formed for all frames at once
+    (:func:`_arcs_W`). A path over an ellipsoid is drawn frame by frame (:func:`polyline`:
+    its geodesic is shot per frame)."""
+    from ..forces.wrap_kernels import wrapped_path_lengths
+    from ..forces.wrapping import WrapNodes
+    from ..spatial import rotation_matrix
+
     column = np.array([b.column for b in model.bodies])
     counts = [n_points(p) for p in paths]
-    out = np.full((len(poses), sum(counts), 3), np.nan)
+    nf = len(poses)
+    out = np.full((nf, sum(counts), 3), np.nan)
     if not paths:
         return out
     offsets = np.cumsum([0] + counts)
-    for f, pose in enumerate(poses):
-        if not np.all(np.isfinite(pose)):
+    poses = np.asarray(poses, dtype=float)
+    ok = np.all(np.isfinite(poses.reshape(nf, -1)), axis=1)
+    p_WB = poses[:, :, :3]
+    R_WB = np.moveaxis(rotation_matrix(np.moveaxis(poses[:, :, 3:], -1, 0)), (0, 1), (-2, -1))  # (nf, nb, 3, 3)
+    kernel = WrapNodes([p.nodes for p in paths], [p.name for p in paths])
+    T_W = np.full((nf, len(kernel.kinds), 2, 3), np.nan)
+    formed = np.zeros((nf, len(paths)), dtype=bool)
+    n_coords = 6 * int(np.count_nonzero(column >= 0))
+    for f in np.flatnonzero(ok):
+        _, _, status, T_W[f] = wrapped_path_lengths(
+            np.ascontiguousarray(p_WB[f]), np.ascontiguousarray(R_WB[f]), column, kernel.kinds, kernel.bodies,
+            kernel.p_B, kernel.R_BS, kernel.dims, kernel.sides, kernel.limits, kernel.start, n_coords)
+        formed[f] = status == 0
+    for k, path in enumerate(paths):
+        rows = slice(offsets[k], offsets[k + 1])
+        if any(isinstance(n, WrapSurface) and n.kind == "ellipsoid" for n in path.nodes):
+            for f in np.flatnonzero(ok & formed[:, k]):
+                state = BodyStates(poses[f, :, :3], poses[f, :, 3:], column)
+                try:
+                    out[f, rows] = polyline(path, state)
+                except FloatingPointError:
+                    pass  # path not formed at this frame: not drawn (NaN)
             continue
-        state = BodyStates(pose[:, :3], pose[:, 3:], column)
-        for k, p in enumerate(paths):
-            try:
-                out[f, offsets[k]:offsets[k + 1]] = polyline(p, state)
-            except FloatingPointError:
-                pass  # path not formed at this frame: not drawn (NaN)
+        pts = _path_points_W(path, p_WB, R_WB, T_W[:, kernel.start[k]:kernel.start[k + 1]])
+        pts[~(ok & formed[:, k])] = np.nan
+        out[:, rows] = pts
     return out
+
+
+def _path_points_W(path, p_WB, R_WB, T_W):
+    """(nf, n_points(path), 3) m: the polyline of a path without ellipsoids at every
+    frame, as :func:`polyline` forms it; T_W (nf, n_nodes, 2, 3) its tangent points."""
+    nf = len(p_WB)
+    pts = []
+    for j, node in enumerate(path.nodes):
+        if not isinstance(node, WrapSurface):
+            b, p_B = node
+            pts.append((p_WB[:, b] + R_WB[:, b] @ np.asarray(p_B, dtype=float))[:, None])
+            continue
+        prev = pts[-1][:, -1]
+        T1, T2 = T_W[:, j, 0], T_W[:, j, 1]
+        contact = np.all(np.isfinite(T1), axis=1)
+        block = np.repeat(prev[:, None], ARC_POINTS, axis=1)  # lift-off: the previous vertex repeated
+        if contact.any():
+            R_WS = R_WB[contact, node.body] @ node.R_BS  # (nc, 3, 3)
+            o_W = p_WB[contact, node.body] + R_WB[contact, node.body] @ node.p_BS
+            to_S = lambda x: np.einsum("fji,fj->fi", R_WS, x - o_W)  # noqa: E731
+            arc_S = _arcs_S(node.kind, to_S(T1[contact]), to_S(T2[contact]),
+                            np.einsum("fji,fj->fi", R_WS, T1[contact] - prev[contact]), node.dims, ARC_POINTS)
+            block[contact] = o_W[:, None] + np.einsum("fij,fkj->fki", R_WS, arc_S)
+        pts.append(block)
+    out = np.concatenate(pts, axis=1)
+    assert out.shape == (nf, n_points(path), 3)
+    return out
+
+
+def _arcs_S(kind, T1, T2, d, dims, k):
+    """:func:`_arc_S` for many frames: T1, T2, d (nf, 3) in the surface frame; returns
+    (nf, k, 3) m."""
+    u = np.linspace(0.0, 1.0, k)
+    if kind == "cylinder":
+        a1, a2 = np.arctan2(T1[:, 1], T1[:, 0]), np.arctan2(T2[:, 1], T2[:, 0])
+        turn = np.where(T1[:, 0] * d[:, 1] - T1[:, 1] * d[:, 0] >= 0, 1.0, -1.0)  # sign of (T1 × d)·z_S
+        theta = (turn * (a2 - a1)) % (2 * np.pi)
+        a = a1[:, None] + (turn * theta)[:, None] * u
+        r = dims[0]
+        z = T1[:, 2, None] + (T2[:, 2] - T1[:, 2])[:, None] * u
+        return np.stack([r * np.cos(a), r * np.sin(a), z], axis=2)
+    n = np.cross(T1, d)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    b = np.cross(n, T1)  # sphere: T1 rotated by +90° about n (|b| = r)
+    theta = np.arctan2(np.einsum("fi,fi->f", T2, b), np.einsum("fi,fi->f", T2, T1)) % (2 * np.pi)
+    a = theta[:, None] * u
+    return np.cos(a)[:, :, None] * T1[:, None] + np.sin(a)[:, :, None] * b[:, None]
 
 
 __all__ = ["ARC_POINTS", "n_points", "polyline", "wrapped_measure", "wrapped_polylines"]
