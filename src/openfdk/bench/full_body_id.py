@@ -62,25 +62,22 @@ the splines, solves and writes) and the record gives the solve time its log repo
 of 200 frames, of which ≈ 0.6 ms is the one-off spline construction) and the CPU time
 of the whole ``run()`` (``opensim_tool_run_ms``), per frame.
 
-openfdk's run does more than the tool's solve: it solves the positions from the joints'
-constraint equations (Newton, 2 iterations per frame from a third-order Taylor step of
-the previous frames) and the reaction force of every joint and driver, which the tool
-does not compute. Measured per frame, December 2026 (≈ 0.21 ms against OpenSim's ≈
-0.085, ratio 2.1–2.7 over four runs; 0.71–0.87 ms and 9.1–10.7 before this round, the
-two alternated in one session): the compiled parts ≈ 0.09 ms — the constraint program
-(86 nodes) evaluated at order 1 three times (Newton's two iterations and the check at
-the solved pose, ≈ 16 µs each: a node's Jacobian loops run over its bodies' columns
-only) and at order 2 once (≈ 23 µs, the accelerations' bias); Φ_q̂ (72×72) and the
-reactions' C factorised as twelve 6×6 diagonal blocks
-(:mod:`openfdk.kinematics.block_triangular`, a few µs, where the dense LU took ≈ 40 µs
-each time); the two loads ≈ 2 µs (their splines sampled at every frame time once per
-trial). The rest, ≈ 0.12 ms, is per-frame Python around those calls (with the per-run
-setup: the model check, the layouts): the trial driver and its step objects, the
-equilibrium's assembly (≈ 18 µs), the recruitment result and the recorded values (≈ 10
-µs each), the frame reports. The target (≤ 0.5, ≈ 0.04 ms per frame) needs the frame
-loop itself compiled — one call per frame or per chunk of frames, from the coordinate
-splines to the reactions — and a coordinate-driven tree placed by forward kinematics
-(one pass from the root) rather than by Newton; both are left for a next step.
+openfdk's run does more than the tool's solve: it places the bodies from the
+coordinates (forward kinematics through the joints' SpatialTransforms, with the spline
+couplings' chain rule), checks the constraint rows at that pose (max |Φ| ≤ 1e-10) and
+computes the reaction force of every joint and driver, which the tool does not. The run
+takes the compiled path of :mod:`openfdk.analysis.tree_trial` (docs/inverse-dynamics.md):
+one compiled call for the frames, per frame the forward kinematics, one order-1
+evaluation of the constraint program (Φ, Φ_q̂) and C f = d solved by twelve 6×6 blocks
+read from Φ_q̂'s pattern. Measured per frame, December 2026, in one process alternated
+with the frame-by-frame path (9 pairs, machine loaded: load average ≈ 6 on 2 cores):
+0.051 ms against 0.336 (medians); against OpenSim in one bench run ``full_body_id_vs_opensim``
+0.385 (per-run ratios 0.32–0.50; openfdk 0.059 ms, OpenSim 0.165 ms on the loaded
+machine, ≈ 0.085 when idle). The earlier rounds: 0.71–0.87 ms (ratio 9.1–10.7), then
+0.2 ms (2.1–2.7) with the program cache and block solves, frame by frame. What remains
+per frame is compiled (≈ 15 µs for the program's evaluation, a few µs each for the
+forward kinematics, the loads and the blocks) plus ≈ 10 µs of per-run Python (the
+model's layouts, the loads' and drivers' samples at every frame, the results).
 
 Why the two differ. Both interpolate the same samples, so q is the same at every frame;
 q̇ and q̈ are not: OpenSim differentiates a quintic GCV spline (degree 5, error variance
@@ -359,7 +356,7 @@ def measure(directory, quick=False):
         tool_logged.append(tool[3])
     detail = (f"{n_frames} frames at {RATE_HZ:g} Hz, 23 coordinates driven by cubic splines of {MOTION} (unfiltered), "
               f"two ExternalForces from {LOADS} ({GRF_RATE_HZ:g} Hz); "
-              f"{float(np.mean(kin.iterations)):.2f} Newton iterations per frame; "
+              f"{float(np.mean(kin.iterations)):.2f} Newton iterations per frame (0: forward kinematics); "
               f"CPU ms/frame of {repeats} runs {[round(x, 3) for x in ours_cpu]}, "
               f"wall {[round(x, 3) for x in ours_wall]}; one BLAS thread")
     records = [{"name": "full_body_inverse_dynamics_ms", "value": statistics.median(ours_cpu), "unit": "ms/frame",

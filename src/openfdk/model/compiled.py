@@ -48,7 +48,8 @@ force-dependent joint rows, …)
 3. a compiler function ``f(measure, compile_child) -> (op, iparams, fparams)``
    registered with :func:`register`;
 4. an entry in the compiled-vs-Python and finite-difference test of tests/test_compiled.py.
-5. touch :mod:`openfdk.kinematics.frame_kernels` (and this file when a kernel it calls
+5. touch :mod:`openfdk.kinematics.frame_kernels` and :mod:`openfdk.analysis.tree_trial`
+   (and this file when a kernel it calls
    changes, e.g. :func:`~openfdk.model.rotation_angles.rotation_angles`): numba's
    on-disk cache (``cache=True``) checks only the source file of the cached function,
    so kernels in other files would keep a stale copy of :func:`evaluate_program`.
