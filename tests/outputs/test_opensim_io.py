@@ -315,7 +315,7 @@ def check_export(result_dir, model, out, joint_tags=None):
     meshes = {g.get("name"): (g.find("mesh_file").text, body.get("name"))
               for body in m.iter() if body.tag in ("Body", "Ground") for g in body.iter("Mesh")}
     contacts = model.contacts
-    assert len(meshes) == 2 * len(contacts)
+    assert len(meshes) == 2 * len(contacts) + len(model.visuals)
     for c in contacts:
         for side, bi, surf in (("vertices", c.body_a, c.pair.surface_A), ("surface", c.body_b, c.pair.surface_B)):
             fname, owner = meshes[f"{c.name}_{side}"]

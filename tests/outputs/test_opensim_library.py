@@ -55,7 +55,7 @@ def test_opensim_plays_the_exported_run(mandible_run, tmp_path):
     assert model.getMarkerSet().getSize() == 8 and model.getNumCoordinates() == 6 * len(bodies)
     # the meshes load in Simbody (the library OpenSim draws them with)
     body = model.getBodySet().get("mandible")
-    assert body.getPropertyByName("attached_geometry").size() == 2  # the two condyles
+    assert body.getPropertyByName("attached_geometry").size() == 3  # the two condyles and the bone
     for g in range(body.getPropertyByName("attached_geometry").size()):
         mesh = osim.PolygonalMesh()
         mesh.loadFile(str(tmp_path / osim.Mesh.safeDownCast(body.get_attached_geometry(g)).get_mesh_file()))

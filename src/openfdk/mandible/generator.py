@@ -32,6 +32,8 @@ __all__ = [
 
 DATA_DIR = Path(__file__).resolve().parent.parent / "data" / "mandible"
 ANATOMY_FILE = Path("truth") / "anatomy.yaml"
+#: display meshes of the bones (:mod:`.bone_meshes`; mm, subject frame, reference pose)
+SKULL_MESH, MANDIBLE_MESH = "skull.stl", "mandible.stl"
 _MM = 1e-3
 _DEG = np.pi / 180.0
 _MEDIAL_SIGN = {"r": 1.0, "l": -1.0}       # medial = +y on the right, −y on the left
@@ -260,7 +262,8 @@ def create_subject(directory: str | os.PathLike, *, resolution: str = "default",
         asymmetry: scale of the asymmetric perturbation (× the data-file bounds).
         name: subject name written to subject.yaml.
     Writes: subject.yaml, condyle_r.stl, condyle_l.stl, fossa_r.stl, fossa_l.stl (binary
-    STL, mm, subject frame at the reference pose) and truth/anatomy.yaml.
+    STL, mm, subject frame at the reference pose), the display meshes skull.stl and
+    mandible.stl (:mod:`.bone_meshes`, same frame and unit) and truth/anatomy.yaml.
     """
     if resolution not in RESOLUTIONS:
         raise ValueError(f"resolution {resolution!r}: expected one of {list(RESOLUTIONS)}")
@@ -271,6 +274,11 @@ def create_subject(directory: str | os.PathLike, *, resolution: str = "default",
     for s in SIDES:
         _write_stl(directory / f"condyle_{s}.stl", *condyle_mesh(anatomy.condyles[s], sizes["condyle_rings"]))
         _write_stl(directory / f"fossa_{s}.stl", *fossa_mesh(anatomy.fossae[s], *sizes["fossa_grid"]))
+    from .bone_meshes import mandible_mesh, skull_mesh
+
+    incisal_point = np.asarray(generic_data()[0]["landmarks"]["incisal_point"], dtype=float) * _MM
+    for file, make in ((MANDIBLE_MESH, mandible_mesh), (SKULL_MESH, skull_mesh)):
+        _write_stl(directory / file, *make(anatomy.condyles, incisal_point))
     document = _subject_document(anatomy, name)
     text = _HEADER + yaml.dump(document, Dumper=_PlainDumper, sort_keys=False,
                                 default_flow_style=None, width=100)

@@ -186,6 +186,7 @@ def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS
     }
     if hyoid_muscles:
         _add_hyoid(data, hyoid_rest, com, hyoid_frames, hyoid_follow)
+    _add_bone_meshes(data, subject, com, mesh_dir)
     if kind == "pop":
         data["joints"] = {f"tmj_{t}": {"type": "point_on_plane", "parent": f"skull.plane_{t}", "child": f"mandible.condyle_{t}"}
                           for t, _ in SIDES}
@@ -234,6 +235,21 @@ def model_dict(subject, registration, kind, ligament_stiffness=DEFAULT_STIFFNESS
         "fdk_spring_ml": {"measure": "ml", "component": 1, "stiffness": spring_stiffness},
     }
     return data
+
+
+def _add_bone_meshes(data, subject, com, mesh_dir):
+    """``visual`` entries of the skull and mandible display meshes (skull.stl,
+    mandible.stl: subject frame, reference pose) when the subject folder has them (a
+    virtual subject does, :mod:`.bone_meshes`); the mandible's is placed at −r_com."""
+    from .generator import MANDIBLE_MESH, SKULL_MESH
+
+    folder = Path(subject.directory)
+    mesh_dir = Path(mesh_dir) if mesh_dir is not None else folder.resolve()
+    for body, file, placement, color in (("skull", SKULL_MESH, [0.0, 0.0, 0.0], "#e8dcc8"),
+                                          ("mandible", MANDIBLE_MESH, _mm(-com), "#d9cbb0")):
+        if (folder / file).is_file():
+            data["bodies"][body]["visual"] = {"mesh": str(mesh_dir / file), "units": "mm",
+                                              "placement": {"position": placement}, "color": color}
 
 
 def suprahyoid_muscles(subject) -> tuple:
