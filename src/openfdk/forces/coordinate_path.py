@@ -250,6 +250,30 @@ def coordinate_path_lengths(p_WB, R_WB, column, u, U, body, p, R_BF, cond, cond_
     return l, L, bad
 
 
+@njit(cache=True)
+def coordinate_points(p_WB, R_WB, u, body, p, R_BF, cond, cond_range, move, move_range, fn_start, fparams):
+    """Per node of the arrays of :class:`CoordinatePathNodes`: present (N,) bool (a
+    conditional point in its range, every other point), p_B (N, 3) m the point in its
+    body frame, dX_W (N, 3) m its world velocity per unit of its moving coordinate (zero
+    for other points or where the coordinate is clamped); u (n_c,): coordinate values.
+    The input of :func:`openfdk.forces.wrap_kernels.wrapped_moving_path_lengths`."""
+    N = body.shape[0]
+    present = np.ones(N, dtype=np.bool_)
+    p_B = np.empty((N, 3))
+    dX_W = np.zeros((N, 3))
+    pw = np.empty(3)
+    dw = np.empty(3)
+    for k in range(N):
+        if cond[k] >= 0:
+            x = u[cond[k]]
+            present[k] = cond_range[k, 0] - CONDITION_TOLERANCE <= x <= cond_range[k, 1] + CONDITION_TOLERANCE
+        b0, b1, b2 = _point(k, R_WB, p_WB, u, body, p, R_BF, move, move_range, fn_start, fparams, pw, dw)
+        p_B[k, 0], p_B[k, 1], p_B[k, 2] = b0, b1, b2
+        for r in range(3):
+            dX_W[k, r] = dw[r]
+    return present, p_B, dX_W
+
+
 class CoordinatePath(Measure):
     """Length (m) of a path through fixed, conditional and moving points (a scalar
     measure; module docstring). nodes : list of :class:`PathNode`. ``evaluate`` gives

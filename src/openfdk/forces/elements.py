@@ -223,8 +223,10 @@ def coordinate_path_measure(b, entries, name=""):
       (f_x(u), f_y(u), f_z(u)) m in the frame's axes, each f a PiecewisePolynomial of the
       coordinate u (its value clamped to the coordinate's range) or a float (m).
 
-    ``coordinate`` names a scalar measure (a joint coordinate). Wrapping surfaces cannot
-    be combined with these points yet."""
+    ``coordinate`` names a scalar measure (a joint coordinate). Names without a dot are
+    wrapping surfaces (:func:`add_wrap_surface`): the path is then a
+    :class:`~openfdk.forces.coordinate_wrapping.CoordinateWrappedPath` (first and last
+    entries fixed or moving points)."""
     from .coordinate_path import CoordinatePath, PathNode
 
     ranges = {c.name: c.range for c in b.elements.get("coordinates", ())}
@@ -235,12 +237,17 @@ def coordinate_path_measure(b, entries, name=""):
             raise ModelError(f"path {name!r}: {what} coordinate {cname!r} has {m.size} rows; expected a scalar")
         return m
 
+    surfaces = b.__dict__.get("wrap_surfaces", {})
     nodes = []
-    for entry in entries:
+    for k, entry in enumerate(entries):
         if isinstance(entry, str):
             if "." not in entry:
-                raise ModelError(f"path {name!r}: wrapping surface {entry!r} in a path with conditional or moving "
-                                 "points is not supported")
+                if entry not in surfaces:
+                    raise ModelError(f"path {name!r}: unknown wrapping surface {entry!r}; known: {sorted(surfaces)}")
+                if k in (0, len(entries) - 1):
+                    raise ModelError(f"path {name!r}: must start and end at a point, not at surface {entry!r}")
+                nodes.append(surfaces[entry])
+                continue
             f = b.frame(entry)
             nodes.append(PathNode(b._body_index(f.body), np.asarray(f.p_BF, float), np.eye(3)))
         elif "active" in entry:
@@ -256,6 +263,14 @@ def coordinate_path_measure(b, entries, name=""):
             lo, hi = ranges.get(cname, (-np.inf, np.inf))
             nodes.append(PathNode(b._body_index(f.body), np.asarray(f.p_BF, float), np.asarray(f.R_BF, float),
                                   moving=(coordinate(cname, "moving point"), float(lo), float(hi), tuple(fns))))
+    if any(not isinstance(n, PathNode) for n in nodes):
+        from .coordinate_wrapping import CoordinateWrappedPath
+
+        for end in (entries[0], entries[-1]):
+            if isinstance(end, dict) and "active" in end:
+                raise ModelError(f"path {name!r}: a wrapped path cannot start or end at a conditional point "
+                                 f"({end['point']!r})")
+        return CoordinateWrappedPath(nodes, name)
     return CoordinatePath(nodes, name)
 
 

@@ -6,7 +6,9 @@ Jacobian L = ∂l/∂q̂ in one call. Paths over wrapping surfaces
 (:class:`~openfdk.forces.wrapping.WrappedPath`) go through one call of
 :func:`openfdk.forces.wrapping.wrapped_path_lengths`, and paths with conditional or
 moving points (:class:`~openfdk.forces.coordinate_path.CoordinatePath`) through one call
-of :func:`openfdk.forces.coordinate_path.coordinate_path_lengths`.
+of :func:`openfdk.forces.coordinate_path.coordinate_path_lengths`; wrapped paths with
+such points (:class:`~openfdk.forces.coordinate_wrapping.CoordinateWrappedPath`) through
+one call of each.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from ..model.kernels import path_lengths
 from ..numdiff import manifold_jacobian
 from .path_stiffness import add_path_geometric_stiffness
 from .coordinate_path import CoordinatePath, CoordinatePathNodes
+from .coordinate_wrapping import CoordinateWrapNodes, CoordinateWrappedPath
 from .wrapping import WrapNodes, WrappedPath
 
 
@@ -33,8 +36,12 @@ class PathSet:
         self.moving_rows = np.array(moving, dtype=np.int64)
         self.moving = CoordinatePathNodes([elements[k].path.nodes for k in moving],
                                           [elements[k].name for k in moving]) if moving else None
+        mixed = [k for k, el in enumerate(elements) if isinstance(el.path, CoordinateWrappedPath)]
+        self.mixed_rows = np.array(mixed, dtype=np.int64)
+        self.mixed = CoordinateWrapNodes([elements[k].path.nodes for k in mixed],
+                                         [elements[k].name for k in mixed]) if mixed else None
         for k, el in enumerate(elements):
-            if isinstance(el.path, (WrappedPath, CoordinatePath)):
+            if isinstance(el.path, (WrappedPath, CoordinatePath, CoordinateWrappedPath)):
                 continue
             for C, dist in el.path.terms:
                 if C.shape != (1, 1) or C[0, 0] != 1.0 or not hasattr(dist, "vector"):
@@ -60,6 +67,8 @@ class PathSet:
             l[self.wrapped_rows], L[self.wrapped_rows] = self.wrapped.evaluate(state)
         if self.moving is not None:
             l[self.moving_rows], L[self.moving_rows] = self.moving.evaluate(state)
+        if self.mixed is not None:
+            l[self.mixed_rows], L[self.mixed_rows] = self.mixed.evaluate(state)
         return l, L
 
     def add_geometric_stiffness(self, state, T, L, K):
@@ -69,7 +78,8 @@ class PathSet:
         batched forward difference of their analytic Jacobians on the manifold."""
         T = np.ascontiguousarray(T, dtype=float)
         straight = T.copy()
-        for nodes, rows in ((self.wrapped, self.wrapped_rows), (self.moving, self.moving_rows)):
+        for nodes, rows in ((self.wrapped, self.wrapped_rows), (self.moving, self.moving_rows),
+                            (self.mixed, self.mixed_rows)):
             if nodes is None:
                 continue
             straight[rows] = 0.0

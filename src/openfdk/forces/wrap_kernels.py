@@ -473,15 +473,44 @@ def _mandatory(kind, P, Q, dims, side):
 
 
 @njit(cache=True)
-def _anchor(j, step, kinds, active, X_W, T1_W, T2_W):
-    """Nearest node before (step −1) or after (+1) node j that the path touches: a point's
-    position, or T2 (before) / T1 (after) of a surface in contact."""
+def _anchor(j, step, kinds, active, present, X_W, T1_W, T2_W):
+    """Nearest node before (step −1) or after (+1) node j that the path touches: a present
+    point's position, or T2 (before) / T1 (after) of a surface in contact."""
     k = j + step
-    while kinds[k] != POINT and not active[k]:
+    while (kinds[k] != POINT and not active[k]) or (kinds[k] == POINT and not present[k]):
         k += step
     if kinds[k] == POINT:
         return X_W[k]
     return T2_W[k] if step < 0 else T1_W[k]
+
+
+@njit(cache=True)
+def _in_span(j, kinds, present, span):
+    """Whether surface node j may wrap: its nearest present points before and after lie
+    within its span (node indices of its PathWrap range's first and last points, −1: no
+    span). With conditional points, OpenSim wraps between the first and last *active*
+    points of the range, so a segment reaching outside the range is not a candidate."""
+    if span[j, 0] < 0:
+        return True
+    a = j - 1
+    while kinds[a] != POINT or not present[a]:
+        a -= 1
+    b = j + 1
+    while kinds[b] != POINT or not present[b]:
+        b += 1
+    return a >= span[j, 0] and b <= span[j, 1]
+
+
+@njit(cache=True)
+def _add_moving(L, p, e, node, move, dX_W, U, sign):
+    """L[p] += sign eᵀ dX_W[node] ∂u/∂q̂ of a moving point (move[node] ≥ 0: its
+    coordinate's row of U (n_c, n); dX_W (N, 3) m per unit coordinate, world)."""
+    if node < 0 or move[node] < 0:
+        return
+    s = sign * (e @ dX_W[node])
+    if s != 0.0:
+        for c in range(U.shape[1]):
+            L[p, c] += s * U[move[node], c]
 
 
 @njit(cache=True)
@@ -512,6 +541,18 @@ def _add_segment(L, p, column, p_WB, R_WB, ia, xa, ib, xb):
 
 @njit(cache=True)
 def wrapped_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, dims, sides, limits, start, n_coords):
+    """Paths of fixed points and surfaces (:func:`wrapped_moving_path_lengths` with every
+    point present, none moving and no spans)."""
+    N = kinds.shape[0]
+    return wrapped_moving_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, dims, sides, limits, start,
+                                       n_coords, np.ones(N, dtype=np.bool_), np.zeros((N, 3)),
+                                       np.full(N, -1, dtype=np.int64), np.zeros((1, n_coords)),
+                                       np.full((N, 2), -1, dtype=np.int64))
+
+
+@njit(cache=True)
+def wrapped_moving_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, dims, sides, limits, start, n_coords,
+                                present, dX_W, move, U, span):
     """Lengths, Jacobians and tangent points of paths through points and surfaces.
 
     p_WB (nb, 3) m, R_WB (nb, 3, 3); column (nb,) first q̂ column of each body (−1 fixed);
@@ -522,6 +563,12 @@ def wrapped_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, dims, sid
     (−1: none; the nodes of one group in a path are one surface listed in several
     segments, of which one wraps: OpenSim's PathWrap over a range of points, see
     :func:`_mandatory`); path k owns nodes start[k]:start[k+1].
+    Coordinate-dependent points (OpenSim's ConditionalPathPoint, MovingPathPoint):
+    present (N,) bool, a point not present is left out of the path; p_B of a moving point
+    is its current location, dX_W (N, 3) m its world velocity per unit of its coordinate
+    (zero where clamped), move (N,) the coordinate's row of U (n_c, n) = ∂u/∂q̂ (−1: a
+    fixed point); span (N, 2) node indices of a surface's PathWrap range ends (−1: none,
+    :func:`_in_span`).
     Returns l (n_paths,) m, L (n_paths, n_coords), status (n_paths,) (0 ok, < 0 see
     ``STATUS_TEXT``), T_W (N, 2, 3) m the world tangent points of each surface in
     contact (NaN when not in contact or for points).
@@ -550,8 +597,12 @@ def wrapped_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, dims, sid
         adjacent = False
         grouped = False
         for j in range(j0 + 1, j1 - 1):
-            if kinds[j] != POINT and kinds[j + 1] != POINT:
-                adjacent = True
+            if kinds[j] != POINT:
+                k = j + 1
+                while kinds[k] == POINT and not present[k] and k < j1 - 1:
+                    k += 1
+                if kinds[k] != POINT:
+                    adjacent = True
             if kinds[j] != POINT and group[j] >= 0:
                 grouped = True
         scale = 0.0
@@ -583,10 +634,10 @@ def wrapped_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, dims, sid
                     win, best = -1, np.inf
                     wT1, wT2, wa = np.zeros(3), np.zeros(3), 0.0
                     for k in range(j, j1 - 1):
-                        if kinds[k] == POINT or group[k] != g:
+                        if kinds[k] == POINT or group[k] != g or not _in_span(k, kinds, present, span):
                             continue
-                        P_W = _anchor(k, -1, kinds, active, X_W, T1_W, T2_W)
-                        Q_W = _anchor(k, 1, kinds, active, X_W, T1_W, T2_W)
+                        P_W = _anchor(k, -1, kinds, active, present, X_W, T1_W, T2_W)
+                        Q_W = _anchor(k, 1, kinds, active, present, X_W, T1_W, T2_W)
                         R = R_WS[k]
                         P_S = R.T @ (P_W - X_W[k])
                         Q_S = R.T @ (Q_W - X_W[k])
@@ -617,8 +668,13 @@ def wrapped_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, dims, sid
                         T2_W[win] = wT2
                         arc[win] = wa
                     continue
-                P_W = _anchor(j, -1, kinds, active, X_W, T1_W, T2_W)
-                Q_W = _anchor(j, 1, kinds, active, X_W, T1_W, T2_W)
+                if not _in_span(j, kinds, present, span):
+                    if active[j]:
+                        change = np.inf
+                    active[j] = False
+                    continue
+                P_W = _anchor(j, -1, kinds, active, present, X_W, T1_W, T2_W)
+                Q_W = _anchor(j, 1, kinds, active, present, X_W, T1_W, T2_W)
                 R = R_WS[j]
                 st, _, T1, T2, a = _wrap_one(kinds[j], R.T @ (P_W - X_W[j]), R.T @ (Q_W - X_W[j]), dims[j], sides[j],
                                              limits[j, 0], int(limits[j, 1]))
@@ -649,18 +705,29 @@ def wrapped_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, dims, sid
             l[p] = np.nan
             continue
         # l = Σ segments + Σ arcs;  L = Σ eᵀ (M_B − M_A), tangent points fixed in their bodies
-        last_body, last_x = bodies[j0], X_W[j0]
+        # a moving point's segments add eᵀ dX_W ∂u/∂q̂ (last_node: the point the segment starts at, −1: a
+        # tangent point)
+        last_body, last_x, last_node = bodies[j0], X_W[j0], j0
         total = 0.0
         for j in range(j0 + 1, j1):
             if kinds[j] == POINT:
-                total += _add_segment(L, p, column, p_WB, R_WB, last_body, last_x, bodies[j], X_W[j])
-                last_body, last_x = bodies[j], X_W[j]
+                if not present[j]:
+                    continue
+                d = _add_segment(L, p, column, p_WB, R_WB, last_body, last_x, bodies[j], X_W[j])
+                if d > 0.0:
+                    e = (X_W[j] - last_x) / d
+                    _add_moving(L, p, e, j, move, dX_W, U, 1.0)
+                    _add_moving(L, p, e, last_node, move, dX_W, U, -1.0)
+                total += d
+                last_body, last_x, last_node = bodies[j], X_W[j], j
             elif active[j]:
-                total += _add_segment(L, p, column, p_WB, R_WB, last_body, last_x, bodies[j], T1_W[j])
-                total += arc[j]
+                d = _add_segment(L, p, column, p_WB, R_WB, last_body, last_x, bodies[j], T1_W[j])
+                if d > 0.0:
+                    _add_moving(L, p, (T1_W[j] - last_x) / d, last_node, move, dX_W, U, -1.0)
+                total += d + arc[j]
                 T_W[j, 0] = T1_W[j]
                 T_W[j, 1] = T2_W[j]
-                last_body, last_x = bodies[j], T2_W[j]
+                last_body, last_x, last_node = bodies[j], T2_W[j], -1
         l[p] = total
     return l, L, status, T_W
 

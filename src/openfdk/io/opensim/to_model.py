@@ -299,16 +299,17 @@ def _wrapped_path(doc, tree, mu, path, wrap_surface):
     OpenSim tries a PathWrap on every segment between the points of its ``range``
     (1-based, −1: the path's end) and wraps one: the first whose straight line crosses
     the object, else the one whose length grows least. The surface is listed in every
-    segment of the range and is ``one_segment``: the kernel applies the same rule.
+    segment of the range and is ``one_segment``: the kernel applies the same rule (with
+    conditional points, between the range's first and last active points).
     Surfaces in one segment follow the PathWrapSet's order. An inactive wrap object is
     left out, as OpenSim leaves it out."""
     n = len(mu.points)
     segments = [[] for _ in range(n - 1)]
     for pw in mu.wraps:
         label = f"{doc.source}: line {pw.line}: PathWrap '{mu.name}/{pw.name}'"
-        if any(pt.condition is not None or pt.moving is not None for pt in mu.points):
-            raise OsimError(f"{label}: a path with conditional or moving points cannot hold wrapping surfaces in "
-                            "openfdk yet; leave the muscle out with --ignore PathWrap")
+        if mu.points[0].condition is not None or mu.points[-1].condition is not None:
+            raise OsimError(f"{label}: a wrapped path that starts or ends at a ConditionalPathPoint is not "
+                            "supported; leave the muscle out with --ignore PathWrap")
         wo = doc.wrap_objects[pw.wrap_object]
         if wo.type == "WrapCylinder" and wo.quadrant[0] == 2:
             raise OsimError(f"{doc.source}: line {wo.line}: WrapCylinder {wo.name!r}: quadrant {wo.quadrant_text!r} "
