@@ -80,7 +80,7 @@ def load_visuals(b, body, value, path, ctx):
     """Parse ``bodies.<body>.visual`` (a mapping or a list of mappings) into VisualMesh
     entries appended to the builder's visuals (``model.visuals`` once built); errors name the file and the entry."""
     from ..io.meshfiles import DISPLAY_MESH_SUFFIXES
-    from .modelfile import _orientation
+    from .orientation_entry import _orientation
 
     entries = value if isinstance(value, list) else [value]
     if not entries:

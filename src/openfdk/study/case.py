@@ -27,10 +27,10 @@ from pathlib import Path
 
 from ..io.results import write_forces, write_json, write_kinematics
 from .chunks import analysis_inputs, chunk_info, plan_segments, solve_segment, stitch
+from .defaults import CASES
 from .kinds import import_callable
 from .overrides import apply_overrides
 
-CASES = "cases"
 CASE_JSON = "case.json"
 
 

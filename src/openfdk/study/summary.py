@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io.results import atomic_write_text, read_table, write_json
-from .case import CASES
+from .defaults import CASES  # (not from .case, which imports this module)
 
 
 def _stat(fn, x):
