@@ -9,12 +9,13 @@ model file.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from ..io.results import read_rows, table_columns
+from ..io.results import read_rows
 from ..runresults import TEXT_COLUMNS, check_time_and_status, read_summary
 
 
@@ -27,8 +28,9 @@ class RunResults:
     """The tables of one run.
 
     directory : Path; summary : dict (summary.json);
-    kinematics, forces : dict column name -> (nf,) float array or list of str
-        (columns as written by :mod:`openfdk.io.results`); time : (nf,) s.
+    kinematics, forces : {column name: (nf,) float array or list of str} (columns as
+        written by :mod:`openfdk.io.results`, :class:`TableColumns` converted when used);
+    time : (nf,) s.
     """
 
     directory: Path
@@ -45,12 +47,44 @@ class RunResults:
         return len(self.time)
 
 
+class TableColumns(Mapping):
+    """{name: column} of a result table whose columns are converted when first used: a
+    (nf,) float array (an empty cell read as NaN), or a list of str for the text columns
+    ('message', 'status', 'fdk_reason'). A 60 s run's forces.csv has some 3 million
+    cells of which the viewer draws a fifth; parsing only those halves the build. Using
+    a column that is not numeric raises ViewError naming the file and the column."""
+
+    def __init__(self, path, names, cells):
+        self._path = path
+        self._cells = dict(zip(names, cells))
+        self._columns = {}
+
+    def __getitem__(self, name):
+        column = self._columns.get(name)
+        if column is None:
+            cells = self._cells[name]
+            try:
+                column = np.array([c or "nan" for c in cells], dtype=float)
+            except ValueError:
+                if name not in TEXT_COLUMNS:
+                    raise ViewError(f"{self._path}: column {name!r}: values must be numbers") from None
+                column = list(cells)
+            self._columns[name] = column
+        return column
+
+    def __iter__(self):
+        return iter(self._cells)
+
+    def __len__(self):
+        return len(self._cells)
+
+
 def read_table(path):
-    """A CSV written by :func:`openfdk.io.results.write_table`: name -> (nf,) float array
-    (an empty cell read as NaN), or a list of str for a column that is not numeric
-    ('message', 'status', 'fdk_reason'). Raises ViewError naming the file for an unreadable
-    file, a first column other than 'time', a row of the wrong length, another column
-    that is not numeric, a time that is not finite or a ``converged`` flag other than 0 or 1."""
+    """A CSV written by :func:`openfdk.io.results.write_table` as :class:`TableColumns`
+    (columns converted when used). Raises ViewError naming the file for an unreadable
+    file, a first column other than 'time', a row of the wrong length, a time that is
+    not a finite number or a ``converged`` flag other than 0 or 1; a column used later
+    that is not numeric raises ViewError then."""
     path = Path(path)
     try:
         rows = read_rows(path)
@@ -62,14 +96,13 @@ def read_table(path):
     for k, r in enumerate(body):
         if len(r) != len(names):
             raise ViewError(f"{path}: row {k + 2} has {len(r)} fields, the header {len(names)}")
-    cols = table_columns(names, body, empty_is_nan=True)
-    if not isinstance(cols["time"], np.ndarray):
-        raise ViewError(f"{path}: column 'time' is not numeric")
-    text = next((name for name, col in cols.items() if isinstance(col, list) and name not in TEXT_COLUMNS), None)
-    if text is not None:
-        raise ViewError(f"{path}: column {text!r}: values must be numbers")
+    cols = TableColumns(path, names, list(zip(*body)) if body else [()] * len(names))
     try:
-        check_time_and_status(path, cols["time"], cols.get("converged"))
+        time = cols["time"]
+    except ViewError:
+        raise ViewError(f"{path}: column 'time' is not numeric") from None
+    try:
+        check_time_and_status(path, time, cols["converged"] if "converged" in cols else None)
     except ValueError as exc:
         raise ViewError(str(exc)) from None
     return cols
