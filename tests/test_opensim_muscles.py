@@ -280,10 +280,10 @@ def _moving(tree):
 
 
 def _wrap(tree):
-    """delt wraps over a WrapTorus (openfdk reads cylinders, spheres and ellipsoids:
-    tests/test_opensim_wrapping.py)."""
+    """delt wraps over a WrapDoubleCylinderObst (openfdk reads cylinders, spheres,
+    ellipsoids and tori: tests/test_opensim_wrapping.py)."""
     body = tree.xpath("//Body[@name='upper']")[0]
-    torus = etree.SubElement(etree.SubElement(etree.SubElement(body, "WrapObjectSet"), "objects"), "WrapTorus",
+    torus = etree.SubElement(etree.SubElement(etree.SubElement(body, "WrapObjectSet"), "objects"), "WrapDoubleCylinderObst",
                              name="humerus_head")
     path = tree.xpath("//Thelen2003Muscle[@name='delt']/GeometryPath")[0]
     wraps = etree.SubElement(path, "PathWrapSet")
@@ -368,7 +368,7 @@ def _moving_on_two_coordinates(tree):
 @pytest.mark.parametrize("edit,kind,name,muscle", [
     (_conditional_without_coordinate, "ConditionalPathPoint", "biceps.long/mid", "biceps_long"),
     (_moving_on_two_coordinates, "MovingPathPoint", "triceps/via2", "triceps"),
-    (_wrap, "WrapTorus", "humerus_head", "delt"),
+    (_wrap, "WrapDoubleCylinderObst", "humerus_head", "delt"),
     (_other_muscle, "DeGrooteFregly2016Muscle", "delt", "delt"),
 ])
 def test_unsupported_path_elements_refuse_the_muscle(arm, workdir, edit, kind, name, muscle):
@@ -391,7 +391,7 @@ def test_unsupported_path_elements_refuse_the_muscle(arm, workdir, edit, kind, n
     if kind != "DeGrooteFregly2016Muscle":
         assert ("Thelen2003Muscle", muscle.replace("_", ".") if muscle == "biceps_long" else muscle) in dropped
     data, info = read_osim(path, ignore=("forces",))
-    assert "muscles" not in data and len([d for d in info["dropped"] if d["type"] != "WrapTorus"]) == 3
+    assert "muscles" not in data and len([d for d in info["dropped"] if d["type"] != "WrapDoubleCylinderObst"]) == 3
 
 
 def test_ignore_thelen_drops_every_muscle(arm):

@@ -138,8 +138,10 @@ def add_wrap_surface(b, name, kind, frame, dims, side=None, length=None, crossin
     """A wrapping surface named ``name`` fixed to the body of ``frame`` ("body.frame" or
     "body"; the surface axes are the frame's axes, a cylinder's axis is its z).
 
-    kind : "cylinder" | "sphere" (dims = radius, m) or "ellipsoid" (dims = 3 semi-axes,
-    m); side : None or a direction (3,) in the surface frame on which paths must pass;
+    kind : "cylinder" | "sphere" (dims = radius, m), "ellipsoid" (dims = 3 semi-axes,
+    m) or "torus" (dims = (radius of the tube's centre circle, tube radius) m, axis z;
+    OpenSim's WrapTorus: the path wraps the tube's inner side, :func:`~openfdk.forces.
+    wrap_kernels.torus_wrap`); side : None or a direction (3,) in the surface frame on which paths must pass;
     length : a cylinder's length (m, centred on the frame; None: infinite), no wrap
     while both tangent points lie beyond its ends; crossing_only : a sphere or ellipsoid
     wraps only while the straight line crosses it (OpenSim's rule); inside : "error" (a
@@ -163,6 +165,12 @@ def add_wrap_surface(b, name, kind, frame, dims, side=None, length=None, crossin
     if kind == "ellipsoid":
         if dims.shape != (3,):
             raise ModelError(f"wrapping surface {name!r}: an ellipsoid needs 3 semi-axes (m)")
+    elif kind == "torus":
+        if dims.shape != (2,) or not dims[0] > dims[1]:
+            raise ModelError(f"wrapping surface {name!r}: a torus needs its radius and a smaller tube radius (m)")
+        if side is not None or length is not None or crossing_only:
+            raise ModelError(f"wrapping surface {name!r}: a torus takes no side, length or crossing_only")
+        dims = np.array([dims[0], dims[1], dims[1]])
     else:
         if dims.shape != (1,):
             raise ModelError(f"wrapping surface {name!r}: a {kind} needs one radius (m)")

@@ -8,6 +8,8 @@ N m, stiffness N/m (ligaments, length springs) or N m/rad (angle springs) — al
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..model.model import ModelError
 from ..model.modelfile import _function, _measure, _unit_scale, _wrap
 from . import elements as el
@@ -107,12 +109,13 @@ SIDES = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0), "
 
 
 def load_wrapping(b, data, ctx):
-    """``wrapping: {name: {type, frame, radius | semi_axes, side, length (cylinder),
+    """``wrapping: {name: {type, frame, radius | semi_axes, tube_radius (torus), side, length (cylinder),
     crossing_only (sphere, ellipsoid), inside, one_segment}}`` (docs/muscles.md)."""
     for name, spec in ctx.mapping(data, "wrapping").items():
         p = f"wrapping.{name}"
         common = ["type", "frame", "side", "inside", "one_segment"]
-        ctx.keys(spec, p, common + ["radius", "semi_axes", "length", "crossing_only"], required=("type", "frame"))
+        ctx.keys(spec, p, common + ["radius", "semi_axes", "length", "crossing_only", "tube_radius"],
+                 required=("type", "frame"))
         kind = spec["type"]
         extra = {}
         if kind == "cylinder":
@@ -126,8 +129,14 @@ def load_wrapping(b, data, ctx):
         elif kind == "ellipsoid":
             ctx.keys(spec, p, common + ["semi_axes", "crossing_only"], required=("semi_axes",))
             dims = ctx.vector(spec["semi_axes"], f"{p}.semi_axes", n=3) * ctx.length
+        elif kind == "torus":
+            ctx.keys(spec, p, ["type", "frame", "inside", "one_segment", "radius", "tube_radius"],
+                     required=("radius", "tube_radius"))
+            dims = np.array([ctx.number(spec[k], f"{p}.{k}", positive=True) for k in ("radius", "tube_radius")]) \
+                * ctx.length
         else:
-            raise ctx.error(f"{p}.type", f"unknown wrapping surface {kind!r}; expected cylinder, sphere or ellipsoid")
+            raise ctx.error(f"{p}.type", f"unknown wrapping surface {kind!r}; expected cylinder, sphere, ellipsoid "
+                                         "or torus")
         side = spec.get("side")
         if isinstance(side, str):
             if side not in SIDES:

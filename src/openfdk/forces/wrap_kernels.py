@@ -385,10 +385,88 @@ def _shoot_newton(phi, s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps, scale, tol):
     return converged, phi, s, T1c, x
 
 
+@njit(cache=True)
+def _circle_line(P, Q, R):
+    """The point C = R (cos φ, sin φ, 0) of the circle of radius R (m) in the plane z = 0
+    nearest the line through P and Q (3,) m, and the parameter t of the line point
+    P + t (Q − P) nearest it: (φ, t). φ minimises f(φ) = |w|² − (w·n)², w = C − P, n the
+    unit direction (72 samples, then Newton on f′)."""
+    d = Q - P
+    n = d / np.sqrt(d @ d)
+    best, phi = np.inf, 0.0
+    for k in range(72):
+        a = TWO_PI * k / 72.0
+        w = np.array([R * np.cos(a), R * np.sin(a), 0.0]) - P
+        f = w @ w - (w @ n) ** 2
+        if f < best:
+            best, phi = f, a
+    for _ in range(50):
+        C = np.array([R * np.cos(phi), R * np.sin(phi), 0.0])
+        C1 = np.array([-C[1], C[0], 0.0])
+        w = C - P
+        g = 2.0 * (w @ C1) - 2.0 * (w @ n) * (C1 @ n)
+        h = 2.0 * (C1 @ C1 - w @ C) - 2.0 * ((C1 @ n) ** 2 - (w @ n) * (C @ n))
+        if h <= 0.0:
+            step = -0.01 if g > 0.0 else 0.01
+        else:
+            step = -g / h
+        phi += step
+        if abs(step) < 1e-15:
+            break
+    C = np.array([R * np.cos(phi), R * np.sin(phi), 0.0])
+    return phi, ((C - P) @ d) / (d @ d)
+
+
+@njit(cache=True)
+def _torus_frame(phi, R):
+    """Origin C (3,) and axes (rows x, y, z) of OpenSim's cylinder on a torus at the
+    circle point of angle φ: x towards the torus axis, y = −z_torus, z = x × y."""
+    c, s = np.cos(phi), np.sin(phi)
+    A = np.array([[-c, -s, 0.0], [0.0, 0.0, -1.0], [s, -c, 0.0]])
+    return np.array([R * c, R * s, 0.0]), A
+
+
+@njit(cache=True)
+def torus_wrap(P, Q, R, r):
+    """OpenSim's WrapTorus (outer radius R = the tube's centre circle, inner radius r =
+    the tube's radius, axis z) for P→Q (3,) m: the infinite cylinder of radius r whose
+    axis is tangent to the centre circle at its point C nearest the line P Q, wrapped on
+    the side facing the torus axis (OpenSim's quadrant +x of that cylinder)."""
+    phi, _ = _circle_line(P, Q, R)
+    C, A = _torus_frame(phi, R)
+    out = cylinder_wrap(A @ (P - C), A @ (Q - C), r, np.array([1.0, 0.0, 0.0]))
+    if out[0] != 1:
+        return out[0], out[1], P.copy(), Q.copy(), 0.0
+    return 1, out[1], C + A.T @ out[2], C + A.T @ out[3], out[4]
+
+
+@njit(cache=True)
+def torus_gradients(P, Q, R, T1, T2):
+    """The parts of ∂l/∂P and ∂l/∂Q (3,) of a torus wrap (surface frame) that come from
+    the cylinder's placement φ(P, Q): ∂l/∂φ ∂φ/∂P, ∂l/∂φ ∂φ/∂Q. The cylinder turns about
+    the torus axis with φ, as if P and Q turned the other way, so ∂l/∂φ = e1·(ẑ × P)
+    − e2·(ẑ × Q) (e1, e2 the unit directions P→T1, T2→Q); ∂φ/∂X by the implicit function
+    theorem on the stationarity of F(t, φ) = |P + t (Q − P) − C(φ)|²."""
+    phi, t = _circle_line(P, Q, R)
+    d = Q - P
+    C = np.array([R * np.cos(phi), R * np.sin(phi), 0.0])
+    C1 = np.array([-C[1], C[0], 0.0])
+    rr = P + t * d - C
+    e1 = (T1 - P) / np.sqrt((T1 - P) @ (T1 - P))
+    e2 = (Q - T2) / np.sqrt((Q - T2) @ (Q - T2))
+    l_phi = e1 @ np.array([-P[1], P[0], 0.0]) - e2 @ np.array([-Q[1], Q[0], 0.0])
+    h11, h12, h22 = 2.0 * (d @ d), -2.0 * (d @ C1), 2.0 * (C1 @ C1 + rr @ C)
+    det = h11 * h22 - h12 * h12
+    i21, i22 = -h12 / det, h11 / det  # row 2 of H⁻¹
+    gP = -(i21 * 2.0 * ((1.0 - t) * d - rr) + i22 * (-2.0 * (1.0 - t)) * C1)
+    gQ = -(i21 * 2.0 * (t * d + rr) + i22 * (-2.0 * t) * C1)
+    return l_phi * gP, l_phi * gQ
+
+
 # --- paths through points and surfaces (see openfdk.forces.wrapping) -----------------
 
-POINT, CYLINDER, SPHERE, ELLIPSOID = 0, 1, 2, 3
-SURFACE_KINDS = {"cylinder": CYLINDER, "sphere": SPHERE, "ellipsoid": ELLIPSOID}
+POINT, CYLINDER, SPHERE, ELLIPSOID, TORUS = 0, 1, 2, 3, 4
+SURFACE_KINDS = {"cylinder": CYLINDER, "sphere": SPHERE, "ellipsoid": ELLIPSOID, "torus": TORUS}
 #: Newton tolerance of the ellipsoid geodesic end condition (m)
 ELLIPSOID_TOL = 1e-13
 #: status codes of :func:`wrapped_path_lengths`
@@ -434,6 +512,8 @@ def _wrap_one(kind, P_S, Q_S, dims, side, half_length, flags):
 
 @njit(cache=True)
 def _wrap_rules(kind, P_S, Q_S, dims, side, half_length, crossing_only):
+    if kind == TORUS:
+        return torus_wrap(P_S, Q_S, dims[0], dims[1])
     if kind == CYLINDER:
         out = cylinder_wrap(P_S, Q_S, dims[0], side)
         if out[0] == 1 and abs(out[2][2]) > half_length and abs(out[3][2]) > half_length:
@@ -457,6 +537,8 @@ def _mandatory(kind, P, Q, dims, side):
     whose straight line crosses its circle in projection."""
     if kind == ELLIPSOID:
         return True
+    if kind == TORUS:
+        return False  # OpenSim's WrapTorus answers "wrapped", never "mandatory"
     sided = side @ side > 0.0
     on_side = (P @ side > 0.0) or (Q @ side > 0.0)
     if kind == SPHERE:
@@ -511,6 +593,49 @@ def _add_moving(L, p, e, node, move, dX_W, U, sign):
     if s != 0.0:
         for c in range(U.shape[1]):
             L[p, c] += s * U[move[node], c]
+
+
+@njit(cache=True)
+def _add_point_gradient(L, p, column, p_WB, R_WB, i, x, g):
+    """L[p] += gᵀ M of the point x (3,) m fixed in body i (g (3,) world)."""
+    c = column[i]
+    if c < 0:
+        return
+    sW = x - p_WB[i]
+    x0 = sW[1] * g[2] - sW[2] * g[1]
+    x1 = sW[2] * g[0] - sW[0] * g[2]
+    x2 = sW[0] * g[1] - sW[1] * g[0]
+    R = R_WB[i]
+    for r in range(3):
+        L[p, c + r] += g[r]
+        L[p, c + 3 + r] += R[0, r] * x0 + R[1, r] * x1 + R[2, r] * x2
+
+
+@njit(cache=True)
+def _add_torus_placement(L, p, j, kinds, present, column, p_WB, R_WB, bodies, X_W, R_WS, dims, move, dX_W, U):
+    """L[p] += the torus j's placement terms (:func:`torus_gradients`) for its anchors,
+    the nearest present points a, b (a torus is not next to another surface):
+    g_Pᵀ (M_a − M_{torus at a}) + g_Qᵀ (M_b − M_{torus at b})."""
+    a = j - 1
+    while kinds[a] != POINT or not present[a]:
+        a -= 1
+    b = j + 1
+    while kinds[b] != POINT or not present[b]:
+        b += 1
+    R = R_WS[j]
+    P_S = R.T @ (X_W[a] - X_W[j])
+    Q_S = R.T @ (X_W[b] - X_W[j])
+    st, _, T1, T2, _ = torus_wrap(P_S, Q_S, dims[j, 0], dims[j, 1])
+    if st != 1:
+        return
+    gP, gQ = torus_gradients(P_S, Q_S, dims[j, 0], T1, T2)
+    for node, g in ((a, R @ gP), (b, R @ gQ)):
+        _add_point_gradient(L, p, column, p_WB, R_WB, bodies[node], X_W[node], g)
+        _add_point_gradient(L, p, column, p_WB, R_WB, bodies[j], X_W[node], -g)
+        if move[node] >= 0:
+            s = g @ dX_W[node]
+            for c in range(U.shape[1]):
+                L[p, c] += s * U[move[node], c]
 
 
 @njit(cache=True)
@@ -725,6 +850,9 @@ def wrapped_moving_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, di
                 if d > 0.0:
                     _add_moving(L, p, (T1_W[j] - last_x) / d, last_node, move, dX_W, U, -1.0)
                 total += d + arc[j]
+                if kinds[j] == TORUS:
+                    _add_torus_placement(L, p, j, kinds, present, column, p_WB, R_WB, bodies, X_W, R_WS, dims, move,
+                                         dX_W, U)
                 T_W[j, 0] = T1_W[j]
                 T_W[j, 1] = T2_W[j]
                 last_body, last_x, last_node = bodies[j], T2_W[j], -1

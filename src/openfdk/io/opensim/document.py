@@ -289,8 +289,8 @@ class OsimPathPoint:
     moving: tuple = None
 
 
-#: OpenSim wrap objects read (WrapTorus and others are refused by name)
-WRAP_TYPES = {"WrapCylinder": "cylinder", "WrapSphere": "sphere", "WrapEllipsoid": "ellipsoid"}
+#: OpenSim wrap objects read (others are refused by name)
+WRAP_TYPES = {"WrapCylinder": "cylinder", "WrapSphere": "sphere", "WrapEllipsoid": "ellipsoid", "WrapTorus": "torus"}
 #: OpenSim's spellings of a WrapObject's ``quadrant`` -> (axis, sign); (None, 0): all
 QUADRANTS = {**{q: (None, 0) for q in ("all", "ALL", "All", "Unassigned")},
              **{f"{s}{a}": ("xyz".index(a.lower()), -1 if s == "-" else 1)
@@ -300,7 +300,8 @@ WRAP_METHODS = {m: m.lower() for base in ("hybrid", "midpoint", "axial")
                 for m in (base, base.capitalize(), base.upper())}
 _WRAP_PROPERTIES = {"active", "xyz_body_rotation", "translation", "quadrant", "Appearance", "display_preference",
                     "color", "VisibleObject", "components"}
-_WRAP_DIMENSIONS = {"WrapCylinder": {"radius", "length"}, "WrapSphere": {"radius"}, "WrapEllipsoid": {"dimensions"}}
+_WRAP_DIMENSIONS = {"WrapCylinder": {"radius", "length"}, "WrapSphere": {"radius"}, "WrapEllipsoid": {"dimensions"},
+                    "WrapTorus": {"inner_radius", "outer_radius"}}
 
 
 @dataclass
@@ -308,7 +309,8 @@ class OsimWrapObject:
     """A WrapCylinder, WrapSphere or WrapEllipsoid: on ``frame`` (the body or frame whose
     WrapObjectSet holds it), at ``p_FS (3,)`` m, axes ``R_FS (3, 3)`` (``translation``,
     ``xyz_body_rotation``); ``quadrant`` (axis 0–2 or None, sign ±1 or 0); ``active``;
-    ``radius`` m (cylinder, sphere), ``length`` m (cylinder), ``dimensions (3,)`` m
+    ``radius`` m (cylinder, sphere; a torus's ``inner_radius``, its tube), ``length`` m
+    (cylinder; a torus's ``outer_radius``, its centre circle), ``dimensions (3,)`` m
     (ellipsoid semi-axes)."""
 
     name: str
@@ -841,12 +843,20 @@ class _Reader:
             if w.tag == "WrapEllipsoid":
                 rec.dimensions = self.child_numbers(w, "dimensions", 3, [0.05, 0.05, 0.05])  # OpenSim's default
                 bad = not np.all(rec.dimensions > 0)
+            elif w.tag == "WrapTorus":  # OpenSim's defaults 0.01, 0.05 m
+                rec.radius = float(self.child_numbers(w, "inner_radius", 1, [0.01])[0])
+                rec.length = float(self.child_numbers(w, "outer_radius", 1, [0.05])[0])
+                bad = not 0 < rec.radius < rec.length
+                if rec.quadrant[0] is not None:
+                    raise self.err(w, f"WrapTorus {name!r}: quadrant {text!r} is not supported (openfdk reads a "
+                                      "torus without a quadrant); leave it out with --ignore WrapTorus")
             else:
                 rec.radius = float(self.child_numbers(w, "radius", 1, [1.0 if w.tag == "WrapCylinder" else 0.05])[0])
                 rec.length = float(self.child_numbers(w, "length", 1, [1.0])[0]) if w.tag == "WrapCylinder" else 0.0
                 bad = not rec.radius > 0 or (w.tag == "WrapCylinder" and not rec.length > 0)
             if bad:
-                raise self.err(w, "its radius, length or dimensions must be > 0 m")
+                raise self.err(w, "its radius, length or dimensions must be > 0 m (a torus: 0 < inner_radius < "
+                                  "outer_radius)")
             self.wrap_objects[name] = rec
 
     def path_wrap(self, pw, label):

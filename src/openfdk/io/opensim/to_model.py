@@ -167,6 +167,8 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         entry = {"type": WRAP_TYPES[wo.type], "frame": f"{body}.{fname}", "inside": "straight", "one_segment": True}
         if wo.type == "WrapEllipsoid":
             entry["semi_axes"] = [float(x) for x in wo.dimensions]
+        elif wo.type == "WrapTorus":
+            entry.update(radius=wo.length, tube_radius=wo.radius)
         else:
             entry["radius"] = wo.radius
         if wo.type == "WrapCylinder":
@@ -305,6 +307,7 @@ def _wrapped_path(doc, tree, mu, path, wrap_surface):
     left out, as OpenSim leaves it out."""
     n = len(mu.points)
     segments = [[] for _ in range(n - 1)]
+    tori = set()
     for pw in mu.wraps:
         label = f"{doc.source}: line {pw.line}: PathWrap '{mu.name}/{pw.name}'"
         if mu.points[0].condition is not None or mu.points[-1].condition is not None:
@@ -328,10 +331,15 @@ def _wrapped_path(doc, tree, mu, path, wrap_surface):
             doc.ignored.append(("PathWrap", f"{mu.name}/{pw.name}", pw.line))
             continue
         surface = wrap_surface(wo)
+        if wo.type == "WrapTorus":
+            tori.add(surface)
         for k in range(first, last):
             segments[k].append(surface)
     out = [path[0]]
     for k in range(n - 1):
+        if len(segments[k]) > 1 and tori.intersection(segments[k]):
+            raise OsimError(f"{doc.source}: line {mu.line}: {mu.type} {mu.name!r}: a WrapTorus and another PathWrap "
+                            "over one segment are not supported; leave the muscle out with --ignore PathWrap")
         if len(segments[k]) > MAX_WRAPS_PER_SEGMENT:
             raise OsimError(f"{doc.source}: line {mu.line}: {mu.type} {mu.name!r}: {len(segments[k])} PathWraps "
                             f"over one segment; openfdk imports at most {MAX_WRAPS_PER_SEGMENT}; leave the muscle "
