@@ -386,35 +386,57 @@ def _shoot_newton(phi, s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps, scale, tol):
 
 
 @njit(cache=True)
-def _circle_line(P, Q, R):
-    """The point C = R (cos φ, sin φ, 0) of the circle of radius R (m) in the plane z = 0
-    nearest the line through P and Q (3,) m, and the parameter t of the line point
-    P + t (Q − P) nearest it: (φ, t). φ minimises f(φ) = |w|² − (w·n)², w = C − P, n the
-    unit direction (72 samples, then Newton on f′)."""
+def _placement_grad(a, d, R):
+    """g = ∇h(a)·d of h(a) = |a|² − 4R ρ(a), ρ = sqrt(a_x² + a_y²), the Hessian H (3, 3)
+    of h and ∇h (3,) at a; d = Q − P (:func:`torus_placement`)."""
+    rho = np.sqrt(a[0] * a[0] + a[1] * a[1])
+    gh = 2.0 * a
+    gh[0] -= 4.0 * R * a[0] / rho
+    gh[1] -= 4.0 * R * a[1] / rho
+    H = 2.0 * np.eye(3)
+    for i in range(2):
+        for j in range(2):
+            H[i, j] -= 4.0 * R * ((1.0 if i == j else 0.0) / rho - a[i] * a[j] / rho ** 3)
+    return gh @ d, H, gh
+
+
+@njit(cache=True)
+def torus_placement(P, Q, R):
+    """OpenSim's placement of the cylinder on a torus (centre circle radius R m, axis z)
+    for the line P→Q (3,) m: (φ rad, t). WrapTorus.cpp searches, from each end of the
+    line, for a root of its residual c2 + 2u − 2R (2 c4 u + 2 c3)/ρ, which is
+    d/du [|a|² − 4R ρ(a)] at a = P + u n (n the unit direction; ρ the distance of a from
+    the axis): the line point nearest the circle of radius 2R, not R (a factor 2 of its
+    derivative). Of the two roots it keeps the one nearer the circle of radius R, and
+    places the cylinder at the azimuth φ of that line point a = P + t (Q − P).
+    Here each root is found by damped Newton on g(t) = ∇h(a)·(Q − P) from t = 0 and t = 1
+    (h = |a|² − 4R ρ); converged to round-off (OpenSim: Levenberg–Marquardt, tolerance
+    1e-4, whose result agrees to 1e-6 rad in tests)."""
     d = Q - P
-    n = d / np.sqrt(d @ d)
-    best, phi = np.inf, 0.0
-    for k in range(72):
-        a = TWO_PI * k / 72.0
-        w = np.array([R * np.cos(a), R * np.sin(a), 0.0]) - P
-        f = w @ w - (w @ n) ** 2
-        if f < best:
-            best, phi = f, a
-    for _ in range(50):
-        C = np.array([R * np.cos(phi), R * np.sin(phi), 0.0])
-        C1 = np.array([-C[1], C[0], 0.0])
-        w = C - P
-        g = 2.0 * (w @ C1) - 2.0 * (w @ n) * (C1 @ n)
-        h = 2.0 * (C1 @ C1 - w @ C) - 2.0 * ((C1 @ n) ** 2 - (w @ n) * (C @ n))
-        if h <= 0.0:
-            step = -0.01 if g > 0.0 else 0.01
-        else:
-            step = -g / h
-        phi += step
-        if abs(step) < 1e-15:
-            break
-    C = np.array([R * np.cos(phi), R * np.sin(phi), 0.0])
-    return phi, ((C - P) @ d) / (d @ d)
+    best, phi_b, t_b = np.inf, 0.0, 0.0
+    for t in (0.0, 1.0):
+        lam = 0.0
+        g, H, _ = _placement_grad(P + t * d, d, R)
+        for _ in range(100):
+            gp = d @ (H @ d)
+            step = -g * gp / (gp * gp + lam)
+            g_new, H_new, _ = _placement_grad(P + (t + step) * d, d, R)
+            if abs(g_new) < abs(g):
+                t += step
+                g, H = g_new, H_new
+                lam *= 0.1
+                if abs(step) < 1e-15:
+                    break
+            else:
+                lam = max(10.0 * lam, 1e-8 * gp * gp + 1e-300)
+                if lam > 1e30:
+                    break
+        a = P + t * d
+        rho = np.sqrt(a[0] * a[0] + a[1] * a[1])
+        dist = a @ a + R * R - 2.0 * R * rho
+        if dist < best:
+            best, phi_b, t_b = dist, np.arctan2(a[1], a[0]), t
+    return phi_b, t_b
 
 
 @njit(cache=True)
@@ -430,9 +452,10 @@ def _torus_frame(phi, R):
 def torus_wrap(P, Q, R, r):
     """OpenSim's WrapTorus (outer radius R = the tube's centre circle, inner radius r =
     the tube's radius, axis z) for P→Q (3,) m: the infinite cylinder of radius r whose
-    axis is tangent to the centre circle at its point C nearest the line P Q, wrapped on
-    the side facing the torus axis (OpenSim's quadrant +x of that cylinder)."""
-    phi, _ = _circle_line(P, Q, R)
+    axis is tangent to the centre circle at C(φ), φ by OpenSim's placement rule
+    (:func:`torus_placement`), wrapped on the side facing the torus axis (OpenSim's
+    quadrant +x of that cylinder)."""
+    phi, _ = torus_placement(P, Q, R)
     C, A = _torus_frame(phi, R)
     out = cylinder_wrap(A @ (P - C), A @ (Q - C), r, np.array([1.0, 0.0, 0.0]))
     if out[0] != 1:
@@ -445,22 +468,26 @@ def torus_gradients(P, Q, R, T1, T2):
     """The parts of ∂l/∂P and ∂l/∂Q (3,) of a torus wrap (surface frame) that come from
     the cylinder's placement φ(P, Q): ∂l/∂φ ∂φ/∂P, ∂l/∂φ ∂φ/∂Q. The cylinder turns about
     the torus axis with φ, as if P and Q turned the other way, so ∂l/∂φ = e1·(ẑ × P)
-    − e2·(ẑ × Q) (e1, e2 the unit directions P→T1, T2→Q); ∂φ/∂X by the implicit function
-    theorem on the stationarity of F(t, φ) = |P + t (Q − P) − C(φ)|²."""
-    phi, t = _circle_line(P, Q, R)
+    − e2·(ẑ × Q) (e1, e2 the unit directions P→T1, T2→Q). φ is the azimuth of the line
+    point a = P + t d, d = Q − P, where g(t, P, Q) = ∇h(a)·d = 0 (:func:`torus_placement`);
+    by the implicit function theorem dt/dX = −(∂g/∂X)/(dᵀ H d) with ∂g/∂P = (1 − t) H d −
+    ∇h, ∂g/∂Q = t H d + ∇h, and dφ/dP = (1 − t) ∇φ + (d·∇φ) dt/dP, dφ/dQ = t ∇φ +
+    (d·∇φ) dt/dQ, ∇φ = (−a_y, a_x, 0)/ρ²."""
+    phi, t = torus_placement(P, Q, R)
     d = Q - P
-    C = np.array([R * np.cos(phi), R * np.sin(phi), 0.0])
-    C1 = np.array([-C[1], C[0], 0.0])
-    rr = P + t * d - C
+    a = P + t * d
+    _, H, gh = _placement_grad(a, d, R)
+    Hd = H @ d
+    g_t = d @ Hd
+    dt_dP = -((1.0 - t) * Hd - gh) / g_t
+    dt_dQ = -(t * Hd + gh) / g_t
+    rho2 = a[0] * a[0] + a[1] * a[1]
+    gphi = np.array([-a[1] / rho2, a[0] / rho2, 0.0])
+    dg = d @ gphi
     e1 = (T1 - P) / np.sqrt((T1 - P) @ (T1 - P))
     e2 = (Q - T2) / np.sqrt((Q - T2) @ (Q - T2))
     l_phi = e1 @ np.array([-P[1], P[0], 0.0]) - e2 @ np.array([-Q[1], Q[0], 0.0])
-    h11, h12, h22 = 2.0 * (d @ d), -2.0 * (d @ C1), 2.0 * (C1 @ C1 + rr @ C)
-    det = h11 * h22 - h12 * h12
-    i21, i22 = -h12 / det, h11 / det  # row 2 of H⁻¹
-    gP = -(i21 * 2.0 * ((1.0 - t) * d - rr) + i22 * (-2.0 * (1.0 - t)) * C1)
-    gQ = -(i21 * 2.0 * (t * d + rr) + i22 * (-2.0 * t) * C1)
-    return l_phi * gP, l_phi * gQ
+    return l_phi * ((1.0 - t) * gphi + dg * dt_dP), l_phi * (t * gphi + dg * dt_dQ)
 
 
 # --- paths through points and surfaces (see openfdk.forces.wrapping) -----------------
