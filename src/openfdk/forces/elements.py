@@ -134,7 +134,7 @@ def path_measure(b, points, name=""):
 
 
 def add_wrap_surface(b, name, kind, frame, dims, side=None, length=None, crossing_only=False, inside="error",
-                     one_segment=False):
+                     one_segment=False, rule="shortest"):
     """A wrapping surface named ``name`` fixed to the body of ``frame`` ("body.frame" or
     "body"; the surface axes are the frame's axes, a cylinder's axis is its z).
 
@@ -148,7 +148,9 @@ def add_wrap_surface(b, name, kind, frame, dims, side=None, length=None, crossin
     path point inside the surface is an error naming the path) or "straight" (the path
     is straight there, OpenSim's rule); one_segment : a path that lists the surface in
     several segments wraps one of them (the first whose straight line crosses it, else
-    the one that lengthens least: OpenSim's PathWrap over a range of points).
+    the one that lengthens least: OpenSim's PathWrap over a range of points); rule :
+    "shortest" or, for an ellipsoid, "opensim" (OpenSim's planar curve, ``side`` one of
+    ±x, ±y, ±z as its quadrant or None: :mod:`~openfdk.forces.wrap_ellipsoid_plane`).
     Referenced by name in muscle and ligament paths (docs/muscles.md, wrapping)."""
     from ..model.names import check_name
     from .wrapping import SURFACE_KINDS, WrapSurface
@@ -193,10 +195,19 @@ def add_wrap_surface(b, name, kind, frame, dims, side=None, length=None, crossin
         raise ModelError(f"wrapping surface {name!r}: crossing_only is for spheres and ellipsoids")
     if inside not in ("error", "straight"):
         raise ModelError(f"wrapping surface {name!r}: inside must be 'error' or 'straight', got {inside!r}")
+    if rule not in ("shortest", "opensim"):
+        raise ModelError(f"wrapping surface {name!r}: rule must be 'shortest' or 'opensim', got {rule!r}")
+    if rule == "opensim":
+        if kind != "ellipsoid":
+            raise ModelError(f"wrapping surface {name!r}: rule 'opensim' is for ellipsoids")
+        if np.count_nonzero(side) > 1:
+            raise ModelError(f"wrapping surface {name!r}: with rule 'opensim' the side is a quadrant: +x, -x, +y, "
+                             "-y, +z or -z")
+        side = np.sign(side)
     f = b.frame(frame if "." in frame else f"{frame}.origin")
     surface = WrapSurface(name, kind, b._body_index(f.body), np.asarray(f.p_BF, dtype=float),
                           np.asarray(f.R_BF, dtype=float), dims, side, half, bool(crossing_only),
-                          inside == "straight", bool(one_segment))
+                          inside == "straight", bool(one_segment), rule == "opensim")
     surfaces[name] = surface
     return surface
 

@@ -110,11 +110,11 @@ SIDES = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0), "
 
 def load_wrapping(b, data, ctx):
     """``wrapping: {name: {type, frame, radius | semi_axes, tube_radius (torus), side, length (cylinder),
-    crossing_only (sphere, ellipsoid), inside, one_segment}}`` (docs/muscles.md)."""
+    crossing_only (sphere, ellipsoid), rule (ellipsoid), inside, one_segment}}`` (docs/muscles.md)."""
     for name, spec in ctx.mapping(data, "wrapping").items():
         p = f"wrapping.{name}"
         common = ["type", "frame", "side", "inside", "one_segment"]
-        ctx.keys(spec, p, common + ["radius", "semi_axes", "length", "crossing_only", "tube_radius"],
+        ctx.keys(spec, p, common + ["radius", "semi_axes", "length", "crossing_only", "tube_radius", "rule"],
                  required=("type", "frame"))
         kind = spec["type"]
         extra = {}
@@ -127,8 +127,15 @@ def load_wrapping(b, data, ctx):
             ctx.keys(spec, p, common + ["radius", "crossing_only"], required=("radius",))
             dims = ctx.number(spec["radius"], f"{p}.radius", positive=True) * ctx.length
         elif kind == "ellipsoid":
-            ctx.keys(spec, p, common + ["semi_axes", "crossing_only"], required=("semi_axes",))
+            ctx.keys(spec, p, common + ["semi_axes", "crossing_only", "rule"], required=("semi_axes",))
             dims = ctx.vector(spec["semi_axes"], f"{p}.semi_axes", n=3) * ctx.length
+            if "rule" in spec:
+                if spec["rule"] not in ("shortest", "opensim"):
+                    raise ctx.error(f"{p}.rule", f"expected 'shortest' or 'opensim', got {spec['rule']!r}")
+                if spec["rule"] == "opensim" and spec.get("side") is not None and spec.get("side") not in SIDES:
+                    raise ctx.error(f"{p}.side", f"with rule 'opensim' the side is a quadrant {list(SIDES)}, got "
+                                                 f"{spec['side']!r}")
+                extra["rule"] = spec["rule"]
         elif kind == "torus":
             ctx.keys(spec, p, ["type", "frame", "inside", "one_segment", "radius", "tube_radius"],
                      required=("radius", "tube_radius"))

@@ -35,15 +35,18 @@ the other side of the axis/centre; lift-off (θ → 0) is continuous in length a
 Every single-surface kernel returns ``(status, length, T1 (3,), T2 (3,), arc)``: status
 0 = no contact (straight), 1 = wrapping, −1 = P or Q inside the surface, −2 = geodesic
 not converged. :func:`wrapped_path_lengths` assembles whole paths through points and
-surfaces (see :mod:`.wrapping`). All jitted code of the wrapping lives in this one
-module, so numba's on-disk cache never holds a kernel compiled against an older copy of
-a function from another file.
+surfaces (see :mod:`.wrapping`). All jitted code of the wrapping lives in this module
+except OpenSim's planar ellipsoid rule (:mod:`.wrap_ellipsoid_plane`, flag
+OPENSIM_PLANE): numba's on-disk cache checks only a kernel's own file, so a change there
+must touch this file too.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+from .wrap_ellipsoid_plane import plane_wrap, plane_wrap_gradients
 
 TWO_PI = 2.0 * np.pi
 
@@ -518,8 +521,9 @@ def crosses(P, Q, axes):
     return x @ x < 1.0
 
 
-#: flags of a surface (``limits[:, 1]`` of :func:`wrapped_path_lengths`)
-CROSSING_ONLY, INSIDE_STRAIGHT = 1, 2
+#: flags of a surface (``limits[:, 1]`` of :func:`wrapped_path_lengths`); OPENSIM_PLANE: an
+#: ellipsoid follows OpenSim's planar rule (:mod:`.wrap_ellipsoid_plane`)
+CROSSING_ONLY, INSIDE_STRAIGHT, OPENSIM_PLANE = 1, 2, 4
 
 
 @njit(cache=True)
@@ -529,8 +533,13 @@ def _wrap_one(kind, P_S, Q_S, dims, side, half_length, flags):
     its axis. ``flags``: CROSSING_ONLY, a sphere or ellipsoid wraps only while the
     straight segment crosses it (OpenSim's rule), ``side`` then only picks the way
     round; INSIDE_STRAIGHT, an anchor inside the surface leaves the path straight
-    (OpenSim's rule) instead of status −1."""
-    out = _wrap_rules(kind, P_S, Q_S, dims, side, half_length, flags & CROSSING_ONLY)
+    (OpenSim's rule) instead of status −1; OPENSIM_PLANE, an ellipsoid's path is OpenSim's
+    planar curve (:func:`~openfdk.forces.wrap_ellipsoid_plane.plane_wrap`, ``side`` its
+    quadrant)."""
+    if kind == ELLIPSOID and flags & OPENSIM_PLANE:
+        out = plane_wrap(P_S, Q_S, dims, side)
+    else:
+        out = _wrap_rules(kind, P_S, Q_S, dims, side, half_length, flags & CROSSING_ONLY)
     if out[0] == -1 and flags & INSIDE_STRAIGHT:
         u = Q_S - P_S
         return 0, np.sqrt(u @ u), P_S.copy(), Q_S.copy(), 0.0
@@ -639,10 +648,13 @@ def _add_point_gradient(L, p, column, p_WB, R_WB, i, x, g):
 
 
 @njit(cache=True)
-def _add_torus_placement(L, p, j, kinds, present, column, p_WB, R_WB, bodies, X_W, R_WS, dims, move, dX_W, U):
-    """L[p] += the torus j's placement terms (:func:`torus_gradients`) for its anchors,
-    the nearest present points a, b (a torus is not next to another surface):
-    g_Pᵀ (M_a − M_{torus at a}) + g_Qᵀ (M_b − M_{torus at b})."""
+def _add_placement(L, p, j, kinds, present, column, p_WB, R_WB, bodies, X_W, R_WS, dims, sides, move, dX_W,
+                   U):
+    """L[p] += the terms of surface j's length that holding its tangent points misses: a
+    torus's placement (:func:`torus_gradients`), an OpenSim-rule ellipsoid's
+    non-stationary plane (:func:`~openfdk.forces.wrap_ellipsoid_plane.plane_wrap_gradients`),
+    for its anchors, the nearest present points a, b (such a surface is not next to
+    another): g_Pᵀ (M_a − M_{surface at a}) + g_Qᵀ (M_b − M_{surface at b})."""
     a = j - 1
     while kinds[a] != POINT or not present[a]:
         a -= 1
@@ -652,10 +664,16 @@ def _add_torus_placement(L, p, j, kinds, present, column, p_WB, R_WB, bodies, X_
     R = R_WS[j]
     P_S = R.T @ (X_W[a] - X_W[j])
     Q_S = R.T @ (X_W[b] - X_W[j])
-    st, _, T1, T2, _ = torus_wrap(P_S, Q_S, dims[j, 0], dims[j, 1])
-    if st != 1:
-        return
-    gP, gQ = torus_gradients(P_S, Q_S, dims[j, 0], T1, T2)
+    if kinds[j] == TORUS:
+        st, _, T1, T2, _ = torus_wrap(P_S, Q_S, dims[j, 0], dims[j, 1])
+        if st != 1:
+            return
+        gP, gQ = torus_gradients(P_S, Q_S, dims[j, 0], T1, T2)
+    else:
+        st, _, T1, T2, _ = plane_wrap(P_S, Q_S, dims[j], sides[j])
+        if st != 1:
+            return
+        gP, gQ = plane_wrap_gradients(P_S, Q_S, dims[j], sides[j], T1, T2)
     for node, g in ((a, R @ gP), (b, R @ gQ)):
         _add_point_gradient(L, p, column, p_WB, R_WB, bodies[node], X_W[node], g)
         _add_point_gradient(L, p, column, p_WB, R_WB, bodies[j], X_W[node], -g)
@@ -877,9 +895,9 @@ def wrapped_moving_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, di
                 if d > 0.0:
                     _add_moving(L, p, (T1_W[j] - last_x) / d, last_node, move, dX_W, U, -1.0)
                 total += d + arc[j]
-                if kinds[j] == TORUS:
-                    _add_torus_placement(L, p, j, kinds, present, column, p_WB, R_WB, bodies, X_W, R_WS, dims, move,
-                                         dX_W, U)
+                if kinds[j] == TORUS or (kinds[j] == ELLIPSOID and int(limits[j, 1]) & OPENSIM_PLANE):
+                    _add_placement(L, p, j, kinds, present, column, p_WB, R_WB, bodies, X_W, R_WS, dims, sides, move,
+                                   dX_W, U)
                 T_W[j, 0] = T1_W[j]
                 T_W[j, 1] = T2_W[j]
                 last_body, last_x, last_node = bodies[j], T2_W[j], -1

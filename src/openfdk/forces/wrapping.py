@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model.measures import Measure
-from .wrap_kernels import CROSSING_ONLY, INSIDE_STRAIGHT, POINT, STATUS_TEXT, SURFACE_KINDS, wrapped_path_lengths
+from .wrap_kernels import CROSSING_ONLY, INSIDE_STRAIGHT, OPENSIM_PLANE, POINT, STATUS_TEXT, SURFACE_KINDS, wrapped_path_lengths
 
 
 @dataclass(frozen=True, eq=False)
@@ -43,7 +43,9 @@ class WrapSurface:
     round; inside_straight: an anchor inside the surface leaves the path straight
     (OpenSim's rule) instead of being an error; one_segment: listed in several segments
     of a path, the surface wraps one of them, the first whose straight line crosses it,
-    else the one that lengthens least (OpenSim's PathWrap over a range of points).
+    else the one that lengthens least (OpenSim's PathWrap over a range of points);
+    opensim_plane: an ellipsoid's path is OpenSim's planar curve, ``side`` its quadrant
+    (:mod:`.wrap_ellipsoid_plane`).
     """
 
     name: str
@@ -57,6 +59,7 @@ class WrapSurface:
     crossing_only: bool = False
     inside_straight: bool = False
     one_segment: bool = False
+    opensim_plane: bool = False
 
 
 def _groups(nodes, path_name):
@@ -89,7 +92,8 @@ class WrapNodes:
                     dims.append(node.dims)
                     sides.append(node.side)
                     limits.append((node.half_length, float(CROSSING_ONLY * node.crossing_only
-                                                               + INSIDE_STRAIGHT * node.inside_straight),
+                                                               + INSIDE_STRAIGHT * node.inside_straight
+                                                               + OPENSIM_PLANE * node.opensim_plane),
                                    groups.get(node.name, -1)))
                 else:
                     body, p_BP = node

@@ -178,6 +178,8 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
             entry["side"] = f"{'+' if sign > 0 else '-'}{'xyz'[axis]}"
             if wo.type != "WrapCylinder":
                 entry["crossing_only"] = True  # OpenSim wraps a sphere or ellipsoid only where the line crosses it
+            if wo.type == "WrapEllipsoid":
+                entry["rule"] = "opensim"  # the quadrant as OpenSim imposes it: its planar path
         wrapping[safe] = entry
         return safe
 
@@ -318,11 +320,6 @@ def _wrapped_path(doc, tree, mu, path, wrap_surface):
             raise OsimError(f"{doc.source}: line {wo.line}: WrapCylinder {wo.name!r}: quadrant {wo.quadrant_text!r} "
                             "along the cylinder's axis is not supported (openfdk's side is across the axis: x or y); "
                             "leave it out with --ignore WrapCylinder")
-        if wo.type == "WrapEllipsoid" and wo.quadrant[0] is not None:
-            raise OsimError(f"{doc.source}: line {wo.line}: WrapEllipsoid {wo.name!r}: quadrant {wo.quadrant_text!r} is "
-                            "not supported: OpenSim forces the path over that half by reflecting its wrapping plane, "
-                            "which openfdk's geodesic does not reproduce (up to 14 % longer in tests); leave the "
-                            "wrap object and the muscles over it out with --ignore WrapEllipsoid")
         first = 0 if pw.range[0] < 1 else pw.range[0] - 1
         last = n - 1 if pw.range[1] < 1 else pw.range[1] - 1
         if first > n - 1 or last > n - 1:
@@ -331,15 +328,16 @@ def _wrapped_path(doc, tree, mu, path, wrap_surface):
             doc.ignored.append(("PathWrap", f"{mu.name}/{pw.name}", pw.line))
             continue
         surface = wrap_surface(wo)
-        if wo.type == "WrapTorus":
-            tori.add(surface)
+        if wo.type == "WrapTorus" or (wo.type == "WrapEllipsoid" and wo.quadrant[0] is not None):
+            tori.add(surface)  # a surface whose length is not stationary in its tangent points
         for k in range(first, last):
             segments[k].append(surface)
     out = [path[0]]
     for k in range(n - 1):
         if len(segments[k]) > 1 and tori.intersection(segments[k]):
-            raise OsimError(f"{doc.source}: line {mu.line}: {mu.type} {mu.name!r}: a WrapTorus and another PathWrap "
-                            "over one segment are not supported; leave the muscle out with --ignore PathWrap")
+            raise OsimError(f"{doc.source}: line {mu.line}: {mu.type} {mu.name!r}: a WrapTorus or a WrapEllipsoid with "
+                            "a quadrant and another PathWrap over one segment are not supported; leave the muscle out "
+                            "with --ignore PathWrap")
         if len(segments[k]) > MAX_WRAPS_PER_SEGMENT:
             raise OsimError(f"{doc.source}: line {mu.line}: {mu.type} {mu.name!r}: {len(segments[k])} PathWraps "
                             f"over one segment; openfdk imports at most {MAX_WRAPS_PER_SEGMENT}; leave the muscle "

@@ -1,0 +1,331 @@
+"""OpenSim's WrapEllipsoid path (numba): a curve in a plane through both anchors, measured
+as a polyline of about 1 mm chords, with OpenSim's ``quadrant``.
+
+OpenSim 4.6's WrapEllipsoid.cpp (method ``hybrid``, its default) does not compute the
+geodesic. Its rule, re-derived here (own code) in the scaled frame X' = f X,
+f = 3/(a + b + c), semi-axes a_i' = f a_i:
+
+1. No wrap unless both anchors are outside and the segment P→Q crosses the ellipsoid at
+   r_P, r_Q (the entry and exit points, both strictly between P and Q).
+2. A point c1 on the surface picks the wrapping plane (through P, Q and c1):
+   * "Frans": on the coordinate axis k most parallel to P→Q (largest |u_k|, u the unit
+     direction), the chord point s_k where x_k = 0, and c1 its nearest surface point in
+     that coordinate plane (a 2-D ellipse problem);
+   * "fan": the unit vectors from 298 chord points r_P + (i/300)(r_Q − r_P) to their
+     nearest surface points are summed; c1 is the surface point nearest the chord
+     midpoint plus that unit sum;
+   * blend: |u_k| is first faded towards 0.7073 when s_k lies within 0.3 of the chord's
+     ends (0 outside it); |u_k| ≥ 0.9 gives Frans, ≤ 0.7073 gives the fan, between them
+     c1 is the surface point nearest the mix w c1_Frans + (1 − w) c1_fan,
+     w = (|u_k| − 0.7073)/(0.9 − 0.7073).
+3. Quadrant (axis j, sign σ): when c1_j has the other sign, c1_j is negated and then, with
+   the fan weight ω = 1 − w (1 for the fan alone; none for Frans alone), moved towards 0 by
+   ω, and projected onto the surface again.
+4. The plane through P, Q and c1 cuts an ellipse; r1, r2 are the tangent points of P and
+   Q on it on c1's side of the line P Q (the points of the ellipse on P's polar plane
+   A P·x = 1, A = diag(1/a_i'²)). OpenSim finds them by a damped least-squares search from
+   c1 (tolerance 1e-8 on the squared residuals); here the line of the two planes is cut
+   with the ellipsoid (closed form).
+5. The arc r1→r2: n = ⌊|r1 − r2|/1 mm⌋ chords (≤ 499; none below 1 mm: the chord
+   r1 r2), the directions from a0 (the plane's point on the coordinate axis of its
+   normal's largest component) turned in n equal angles from r1's to r2's, each cut
+   with the ellipsoid. With a quadrant, if the first or last chord turns back towards its
+   anchor the arc is redone the other way round (2π minus the angle).
+
+Length l = |P − r1| + Σ chords + |r2 − Q| (m). The rule is not a shortest path and the
+count n jumps (by ~1e-7 relative), so l is not stationary in r1, r2: its gradient is
+taken by central differences with n and the way round held
+(:func:`plane_wrap_gradients`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+#: OpenSim's constants: blend bounds of |u_k|, fan samples, end fade, chord length (m)
+MU_MIN, MU_MAX, FAN_SAMPLES, END_FADE, CHORD = 0.7073, 0.9, 300, 0.3, 0.001
+#: a coordinate this close to 0 makes the nearest-point problem 2-D (OpenSim's roundoff)
+NEAR_PLANE = 2e-13
+
+
+@njit(cache=True)
+def _ellipse_nearest(a, b, u, v):
+    """Nearest point (x, y) of the ellipse x²/a² + y²/b² = 1 to (u, v) (Eberly, Graphics
+    Gems IV: Newton on the quartic in the multiplier t, x = a² u/(t + a²); from 0 inside,
+    from max(a, b)|(u, v)| outside); points on an axis solved directly."""
+    on_u, on_v = abs(u) <= NEAR_PLANE, abs(v) <= NEAR_PLANE
+    if on_u and on_v:
+        if a < b:
+            return (-a if u < 0.0 else a), v
+        return u, (-b if v < 0.0 else b)
+    if on_u:
+        if a >= b or abs(v) >= b - a * a / b:
+            return u, (b if v >= 0.0 else -b)
+        y = b * b * v / (b * b - a * a)
+        return a * np.sqrt(abs(1.0 - (y / b) ** 2)), y
+    if on_v:
+        if b >= a or abs(u) >= a - b * b / a:
+            return (a if u >= 0.0 else -a), v
+        x = a * a * u / (a * a - b * b)
+        return x, b * np.sqrt(abs(1.0 - (x / a) ** 2))
+    a2, b2 = a * a, b * b
+    t = 0.0 if (u / a) ** 2 + (v / b) ** 2 < 1.0 else max(a, b) * np.sqrt(u * u + v * v)
+    for _ in range(100):
+        P, Q = t + a2, t + b2
+        f = P * P * Q * Q - a2 * u * u * Q * Q - b2 * v * v * P * P
+        fp = 2.0 * (P * Q * (P + Q) - a2 * u * u * Q - b2 * v * v * P)
+        step = f / fp
+        t -= step
+        if abs(step) <= 1e-15 * (abs(t) + a2):
+            break
+    return a2 * u / (t + a2), b2 * v / (t + b2)
+
+
+@njit(cache=True)
+def _nearest(ax, x, axis):
+    """Nearest point (3,) of the ellipsoid with semi-axes ax (3,) to x (3,): in the plane
+    x_axis = const when ``axis`` ≥ 0 (or when a coordinate is ~0: the narrowest such
+    section), else Eberly's Newton on the sextic in the multiplier."""
+    if axis < 0:
+        best = np.inf
+        for i in range(3):
+            if abs(x[i]) <= NEAR_PLANE:
+                s = ax[0] + ax[1] + ax[2] - ax[i]
+                if s < best:
+                    best, axis = s, i
+    out = x.copy()
+    if axis >= 0:
+        i, j = (axis + 1) % 3, (axis + 2) % 3
+        out[i], out[j] = _ellipse_nearest(ax[i], ax[j], x[i], x[j])
+        return out
+    a2 = ax * ax
+    w = a2 * x * x
+    t = 0.0 if np.sum((x / ax) ** 2) < 1.0 else np.max(ax) * np.sqrt(x @ x)
+    for _ in range(100):
+        P, Q, R = t + a2[0], t + a2[1], t + a2[2]
+        f = P * P * Q * Q * R * R - w[0] * Q * Q * R * R - w[1] * P * P * R * R - w[2] * P * P * Q * Q
+        fp = 2.0 * (P * Q * R * (Q * R + P * R + P * Q) - w[0] * Q * R * (Q + R) - w[1] * P * R * (P + R)
+                    - w[2] * P * Q * (P + Q))
+        step = f / fp
+        t -= step
+        if abs(step) <= 1e-15 * (abs(t) + a2.max()):
+            break
+    return a2 * x / (t + a2)
+
+
+@njit(cache=True)
+def _unit(v):
+    n = np.sqrt(v @ v)
+    return v / n if n > 0.0 else v
+
+
+@njit(cache=True)
+def _cross(u, v):
+    return np.array([u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]])
+
+
+@njit(cache=True)
+def _plane_point(p1, p2, r1, r2, ax, q_axis, q_sign):
+    """c1 (3,): the surface point that fixes the wrapping plane (module docstring, 2–3)."""
+    d = r2 - r1
+    u = np.abs(_unit(p1 - p2))
+    k = 0
+    for i in range(1, 3):
+        if u[i] > u[k]:
+            k = i
+    mu = u[k]
+    t = -r1[k] / d[k]
+    c_frans = _nearest(ax, r1 + t * d, k)
+    if mu > MU_MIN:
+        s = 1.0
+        if t < 0.0 or t > 1.0:
+            s = 0.0
+        elif t < END_FADE:
+            s = t / END_FADE
+        elif t > 1.0 - END_FADE:
+            s = (1.0 - t) / END_FADE
+        if s < 1.0:
+            mu = MU_MIN + s * (mu - MU_MIN)
+    c1 = c_frans
+    fan_weight = -np.inf
+    if mu < MU_MAX:
+        total = np.zeros(3)
+        for i in range(1, FAN_SAMPLES - 1):
+            x = r1 + (i / FAN_SAMPLES) * d
+            total += _unit(_nearest(ax, x, -1) - x)
+        c_fan = _nearest(ax, r1 + 0.5 * d + _unit(total), -1)
+        if mu <= MU_MIN:
+            c1, fan_weight = c_fan, 1.0
+        else:
+            w = (mu - MU_MIN) / (MU_MAX - MU_MIN)
+            c1, fan_weight = _nearest(ax, w * c_frans + (1.0 - w) * c_fan, -1), 1.0 - w
+    if q_sign != 0 and (1 if c1[q_axis] >= 0.0 else -1) != q_sign:
+        c1 = c1.copy()
+        c1[q_axis] = -c1[q_axis]
+        if fan_weight == -np.inf:
+            fan_weight = 1.0 - (mu - MU_MIN) / (MU_MAX - MU_MIN)
+        fan_weight = min(fan_weight, 1.0)
+        if fan_weight > 0.0:
+            c1[q_axis] -= fan_weight * c1[q_axis]
+            c1 = _nearest(ax, c1, -1)
+    return c1
+
+
+@njit(cache=True)
+def _tangent_point(p, n, n4, ax, c1, p2):
+    """The tangent point of p (3,) on the ellipse cut by the plane n·x + n4 = 0, on c1's
+    side of the line p p2: the ellipsoid points on the plane and on p's polar plane."""
+    A = 1.0 / (ax * ax)
+    m = A * p  # polar plane m·x = 1
+    w = _cross(n, m)
+    # a point on both planes: x0 = α n + β m
+    nn, nm, mm = n @ n, n @ m, m @ m
+    det = nn * mm - nm * nm
+    alpha = (-n4 * mm - nm) / det
+    beta = (nn + nm * n4) / det
+    x0 = alpha * n + beta * m
+    qa = w @ (A * w)
+    qb = 2.0 * (x0 @ (A * w))
+    qc = x0 @ (A * x0) - 1.0
+    disc = qb * qb - 4.0 * qa * qc
+    root = np.sqrt(max(disc, 0.0))
+    ta = x0 + ((-qb + root) / (2.0 * qa)) * w
+    tb = x0 + ((-qb - root) / (2.0 * qa)) * w
+    e = p2 - p
+    ref = _cross(c1 - p, e) @ n
+    return ta if (_cross(ta - p, e) @ n) * ref > 0.0 else tb
+
+
+@njit(cache=True)
+def _arc(r1, r2, n, n4, ax, far, n_fixed, chord):
+    """The polyline over the surface from r1 to r2 in the plane (module docstring, 5),
+    chords of about ``chord`` (scaled frame): (points (k, 3), number of chords)."""
+    gap = np.sqrt((r1 - r2) @ (r1 - r2))
+    if n_fixed >= 0:
+        count = n_fixed
+    else:
+        count = min(int(gap / chord), 499) if gap >= chord else 0
+    if count <= 1:
+        pts = np.empty((2, 3))
+        pts[0], pts[1] = r1, r2
+        return pts, count
+    k = 0
+    for i in range(1, 3):
+        if abs(n[i]) > abs(n[k]):
+            k = i
+    a0 = np.zeros(3)
+    a0[k] = -n4 / n[k]
+    e1 = _unit(r1 - a0)
+    e2 = _unit(r2 - a0)
+    phi0 = np.arccos(min(1.0, max(-1.0, e1 @ e2)))
+    dphi = -(2.0 * np.pi - phi0) / count if far else phi0 / count
+    ez = _unit(_cross(e1, e2))
+    ey = _cross(ez, e1)
+    pts = np.empty((count + 1, 3))
+    pts[0], pts[count] = r1, r2
+    A = 1.0 / (ax * ax)
+    for i in range(1, count):
+        v = np.cos(i * dphi) * e1 + np.sin(i * dphi) * ey
+        qa = v @ (A * v)
+        qb = 2.0 * (v @ (A * a0))
+        qc = a0 @ (A * a0) - 1.0
+        pts[i] = a0 + ((-qb + np.sqrt(qb * qb - 4.0 * qa * qc)) / (2.0 * qa)) * v
+    return pts, count
+
+
+@njit(cache=True)
+def _polyline_length(pts):
+    total = 0.0
+    for i in range(pts.shape[0] - 1):
+        d = pts[i + 1] - pts[i]
+        total += np.sqrt(d @ d)
+    return total
+
+
+@njit(cache=True)
+def plane_wrap_core(P, Q, axes, side, n_fixed, far_fixed):
+    """OpenSim's ellipsoid wrap of P→Q (3,) m (surface frame, semi-axes ``axes`` (3,) m);
+    ``side`` (3,): the quadrant, a coordinate axis ±e_j (zeros: none). n_fixed ≥ 0 and
+    far_fixed ≥ 0 hold the chord count and the way round (for differences), −1: OpenSim's
+    choice. Returns (status, length m, T1 (3,) m, T2 (3,) m, arc m, chords, far)."""
+    T1 = P.copy()
+    T2 = Q.copy()
+    u = Q - P
+    straight = np.sqrt(u @ u)
+    f = 3.0 / (axes[0] + axes[1] + axes[2])
+    p1, p2, ax = f * P, f * Q, f * axes
+    e1 = np.sum((p1 / ax) ** 2) - 1.0
+    e2 = np.sum((p2 / ax) ** 2) - 1.0
+    if e1 < -1e-4 or e2 < -1e-4:
+        return -1, straight, T1, T2, 0.0, 0, 0
+    if abs(_unit(p1) @ _unit(p2) - 1.0) < 1e-4:
+        return 0, straight, T1, T2, 0.0, 0, 0
+    d = p1 - p2
+    g1, g2 = d / ax, p2 / ax
+    qa, qb, qc = g1 @ g1, 2.0 * (g1 @ g2), g2 @ g2 - 1.0
+    disc = qb * qb - 4.0 * qa * qc
+    if disc < 0.0:
+        return 0, straight, T1, T2, 0.0, 0, 0
+    l1 = (-qb + np.sqrt(disc)) / (2.0 * qa)
+    l2 = (-qb - np.sqrt(disc)) / (2.0 * qa)
+    if not (0.0 < l1 < 1.0) or not (0.0 < l2 < 1.0):
+        return 0, straight, T1, T2, 0.0, 0, 0
+    q_axis, q_sign = 0, 0
+    for j in range(3):
+        if side[j] != 0.0:
+            q_axis, q_sign = j, (1 if side[j] > 0.0 else -1)
+    c1 = _plane_point(p1, p2, p2 + l1 * d, p2 + l2 * d, ax, q_axis, q_sign)
+    n = _unit(_cross(d, p1 - c1))
+    n4 = -(n @ c1)
+    r1 = p1.copy() if abs(e1) < 1e-4 else _tangent_point(p1, n, n4, ax, c1, p2)
+    r2 = p2.copy() if abs(e2) < 1e-4 else _tangent_point(p2, n, n4, ax, c1, p1)
+    far = far_fixed == 1
+    pts, count = _arc(r1, r2, n, n4, ax, far, n_fixed, CHORD * f)
+    if far_fixed < 0 and q_sign != 0 and pts.shape[0] > 2:
+        k = pts.shape[0]
+        if _unit(p1 - r1) @ _unit(pts[1] - r1) > 0.0 or _unit(p2 - r2) @ _unit(pts[k - 2] - r2) > 0.0:
+            far = True
+            pts, count = _arc(r1, r2, n, n4, ax, far, n_fixed, CHORD * f)
+    arc = _polyline_length(pts)
+    length = (np.sqrt((p1 - r1) @ (p1 - r1)) + arc + np.sqrt((p2 - r2) @ (p2 - r2))) / f
+    return 1, length, r1 / f, r2 / f, arc / f, count, 1 if far else 0
+
+
+@njit(cache=True)
+def plane_wrap(P, Q, axes, side):
+    """(status, length m, T1 (3,), T2 (3,), arc m) of :func:`plane_wrap_core`, OpenSim's
+    choices; status −1: an anchor inside, 0: straight, 1: wrapped."""
+    st, length, T1, T2, arc, _, _ = plane_wrap_core(P, Q, axes, side, -1, -1)
+    return st, length, T1, T2, arc
+
+
+@njit(cache=True)
+def plane_wrap_gradients(P, Q, axes, side, T1, T2):
+    """The parts of ∂l/∂P and ∂l/∂Q (3,) (surface frame) beyond those with T1 and T2 held
+    (−e1 and e2, e1, e2 the unit directions P→T1, T2→Q): central differences of the
+    length (step 1e-7 of the anchors' distance) with the chord count and the way round
+    held, minus those held-point parts."""
+    st, _, _, _, _, count, far = plane_wrap_core(P, Q, axes, side, -1, -1)
+    gP = np.zeros(3)
+    gQ = np.zeros(3)
+    if st != 1:
+        return gP, gQ
+    h = 1e-7 * (np.sqrt(P @ P) + np.sqrt(Q @ Q))
+    for i in range(3):
+        for which in range(2):
+            Xp, Xm = P.copy(), P.copy()
+            Yp, Ym = Q.copy(), Q.copy()
+            if which == 0:
+                Xp[i] += h
+                Xm[i] -= h
+            else:
+                Yp[i] += h
+                Ym[i] -= h
+            lp = plane_wrap_core(Xp, Yp, axes, side, count, far)[1]
+            lm = plane_wrap_core(Xm, Ym, axes, side, count, far)[1]
+            if which == 0:
+                gP[i] = (lp - lm) / (2.0 * h)
+            else:
+                gQ[i] = (lp - lm) / (2.0 * h)
+    return gP + _unit(T1 - P), gQ - _unit(Q - T2)
