@@ -25,7 +25,7 @@ def _overlay(folder, text, name="with.yaml"):
 
 
 def test_fdk_and_lock_lists_become_dofs_and_held_coordinates(leg):
-    model, _ = load_model_and_settings(_overlay(leg, "fdk: [knee]\nlock: [{hip_q: 0.3}]\n"))
+    model, settings = load_model_and_settings(_overlay(leg, "fdk: [knee]\nlock: [{hip_q: 0.3}]\n"))
     (dof,) = model.fdk_dofs
     assert dof.name == "knee" and dof.initial == -0.5  # the coordinate's <default_value>
     # determinate now: the hip held at 0.3 rad, the knee at α; the solved pose's
@@ -39,9 +39,15 @@ def test_fdk_and_lock_lists_become_dofs_and_held_coordinates(leg):
     np.testing.assert_allclose(values, [0.3, -0.2], atol=1e-9)
 
 
+def test_fdk_as_a_mapping_is_still_the_settings_section(leg):
+    model, settings = load_model_and_settings(_overlay(leg, "fdk_dofs: {knee: {measure: knee}}\n"
+                                                            "fdk: {max_iterations: 7}\n"))
+    assert settings.fdk.max_iterations == 7 and [d.name for d in model.fdk_dofs] == ["knee"]
+
+
 @pytest.mark.parametrize("text, expected", [
     ("fdk: [kne]\n", "with.yaml: fdk[0]: 'kne' is not a coordinate of the model; did you mean 'knee'?"),
-    ("fdk: knee\n", "with.yaml: fdk: expected a list of coordinate names, got str"),
+    ("lock: knee\n", "with.yaml: lock: expected a list of coordinate names, got str"),
     ("lock: [hip_q, hip_q]\n", "with.yaml: lock[1]: 'hip_q' is listed twice"),
     ("lock: [{hip_q: .nan}]\n", "with.yaml: lock[0]: hip_q: expected a finite number (rad or m), got nan"),
     ("lock: [{hip_q: true}]\n", "with.yaml: lock[0]: hip_q: expected a finite number (rad or m), got True"),

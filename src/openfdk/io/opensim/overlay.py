@@ -187,12 +187,13 @@ def _coordinate_list(value, data, source, key):
 
 
 def _expand_shorthands(overlay, data, source):
-    """``fdk: [names]`` → ``fdk_dofs`` entries {measure: name, initial: the coordinate's
-    default}; ``lock: [names]`` → ``constraints`` entries ``lock_<name>`` {measure: name,
+    """``fdk: [names]`` (a list; a mapping is the FDK settings section) → ``fdk_dofs``
+    entries {measure: name, initial: the coordinate's default}; ``lock: [names]`` → ``constraints`` entries ``lock_<name>`` {measure: name,
     value: given or default}. A coordinate both locked and FDK is an error."""
     overlay = dict(overlay)
     coordinates = data.get("coordinates", {})
-    fdk = _coordinate_list(overlay.pop("fdk"), data, source, "fdk") if "fdk" in overlay else []
+    # ``fdk:`` as a list names coordinates; as a mapping it is the solver's settings section
+    fdk = _coordinate_list(overlay.pop("fdk"), data, source, "fdk") if isinstance(overlay.get("fdk"), list) else []
     lock = _coordinate_list(overlay.pop("lock"), data, source, "lock") if "lock" in overlay else []
     both = sorted({n for n, _ in fdk} & {n for n, _ in lock})
     if both:
