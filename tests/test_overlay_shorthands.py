@@ -43,10 +43,14 @@ def test_fdk_as_a_mapping_is_still_the_settings_section(leg):
     model, settings = load_model_and_settings(_overlay(leg, "fdk_dofs: {knee: {measure: knee}}\n"
                                                             "fdk: {max_iterations: 7}\n"))
     assert settings.fdk.max_iterations == 7 and [d.name for d in model.fdk_dofs] == ["knee"]
+    # the list form beside the settings
+    model, settings = load_model_and_settings(_overlay(leg, "fdk_dofs: [knee]\nfdk: {max_iterations: 5}\n"))
+    assert settings.fdk.max_iterations == 5 and [(d.name, d.initial) for d in model.fdk_dofs] == [("knee", -0.5)]
 
 
 @pytest.mark.parametrize("text, expected", [
     ("fdk: [kne]\n", "with.yaml: fdk[0]: 'kne' is not a coordinate of the model; did you mean 'knee'?"),
+    ("fdk: [knee]\nfdk_dofs: [knee]\n", "with.yaml: fdk_dofs: give the FDK coordinates once"),
     ("lock: knee\n", "with.yaml: lock: expected a list of coordinate names, got str"),
     ("lock: [hip_q, hip_q]\n", "with.yaml: lock[1]: 'hip_q' is listed twice"),
     ("lock: [{hip_q: .nan}]\n", "with.yaml: lock[0]: hip_q: expected a finite number (rad or m), got nan"),

@@ -16,6 +16,7 @@ Two ways to give them, one path through the loader:
       drivers: {...}                     # any model-file section but the model's own
       fdk_dofs: {...}
       fdk: [knee_add_r, knee_tx_r]       # shorthand: these coordinates become FDK DOFs
+                                         # (or fdk_dofs: [...] beside an fdk: {settings} section)
       lock: [arm_rot_r, pro_sup_r: 0.3]  # shorthand: hold coordinates (default value or given, rad/m)
       analysis: {marker_cutoff_hz: 6}
 
@@ -192,8 +193,13 @@ def _expand_shorthands(overlay, data, source):
     value: given or default}. A coordinate both locked and FDK is an error."""
     overlay = dict(overlay)
     coordinates = data.get("coordinates", {})
-    # ``fdk:`` as a list names coordinates; as a mapping it is the solver's settings section
+    # ``fdk:`` as a list names coordinates; as a mapping it is the solver's settings section,
+    # and the list can then be given as ``fdk_dofs: [names]``
     fdk = _coordinate_list(overlay.pop("fdk"), data, source, "fdk") if isinstance(overlay.get("fdk"), list) else []
+    if isinstance(overlay.get("fdk_dofs"), list):
+        if fdk:
+            raise ModelError(f"{source}: fdk_dofs: give the FDK coordinates once (fdk: [...] or fdk_dofs: [...])")
+        fdk = _coordinate_list(overlay.pop("fdk_dofs"), data, source, "fdk_dofs")
     lock = _coordinate_list(overlay.pop("lock"), data, source, "lock") if "lock" in overlay else []
     both = sorted({n for n, _ in fdk} & {n for n, _ in lock})
     if both:
