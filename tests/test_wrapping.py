@@ -333,3 +333,37 @@ muscles:
     expected, theta = cylinder_length(np.array([-0.1, 0.05, 0.02]), np.array([0.12, 0.0, -0.03]), 0.03)
     assert theta > 0
     assert path.evaluate(state, 0)[0][0] == pytest.approx(expected, rel=1e-13)
+
+
+@pytest.mark.parametrize("entry,words", [
+    ("{type: ellipsoid, frame: ground.axis, semi_axes: [30, 20, 25], rule: geodesic}", "expected 'shortest' or 'opensim'"),
+    ("{type: ellipsoid, frame: ground.axis, semi_axes: [30, 20, 25], rule: opensim, side: [1, 1, 0]}", "quadrant"),
+    ("{type: cylinder, frame: ground.axis, radius: 30, rule: opensim}", "rule"),
+])
+def test_model_file_bad_wrapping_rule_is_one_line(tmp_path, entry, words):
+    """A bad ``rule`` of a wrapping surface (unknown, a non-axis side with OpenSim's rule,
+    on a cylinder): one line naming the file and the entry."""
+    from openfdk.io.modelfile import load_model
+
+    f = tmp_path / "bad_rule.yaml"
+    f.write_text(f"""
+units: {{length: mm, angle: deg}}
+bodies:
+  ground:
+    frames:
+      o: [-100, 50, 20]
+      axis: {{position: [0, 0, 0], orientation: [0, 0, 0]}}
+  arm:
+    mass: 1.0
+    inertia: [1, 1, 1]
+    frames:
+      i: [120, 0, -30]
+wrapping:
+  condyle: {entry}
+muscles:
+  quad: {{path: [ground.o, condyle, arm.i], strength: 100}}
+""")
+    with pytest.raises(Exception) as exc:
+        load_model(str(f))
+    msg = str(exc.value)
+    assert "\n" not in msg and "bad_rule.yaml" in msg and "condyle" in msg and words in msg, msg

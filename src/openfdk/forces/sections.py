@@ -132,7 +132,8 @@ def load_wrapping(b, data, ctx):
             if "rule" in spec:
                 if spec["rule"] not in ("shortest", "opensim"):
                     raise ctx.error(f"{p}.rule", f"expected 'shortest' or 'opensim', got {spec['rule']!r}")
-                if spec["rule"] == "opensim" and spec.get("side") is not None and spec.get("side") not in SIDES:
+                side = spec.get("side")
+                if spec["rule"] == "opensim" and side is not None and not (isinstance(side, str) and side in SIDES):
                     raise ctx.error(f"{p}.side", f"with rule 'opensim' the side is a quadrant {list(SIDES)}, got "
                                                  f"{spec['side']!r}")
                 extra["rule"] = spec["rule"]
