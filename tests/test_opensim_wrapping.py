@@ -523,6 +523,25 @@ def test_wrapped_path_starting_at_a_conditional_point_is_refused(model, workdir)
         (d["type"], d["name"]) for d in info["dropped"]}
 
 
+def test_ellipsoid_quadrant_sharing_a_segment_is_refused(model, workdir):
+    """A WrapEllipsoid with a quadrant and another PathWrap over one segment (its length
+    is not stationary in its tangent points, so openfdk solves it alone): one line naming
+    the muscle and ``--ignore PathWrap``."""
+    import copy
+
+    path = workdir / "shared_quadrant.osim"
+    tree = etree.parse(str(model))
+    _set(_wrap_object(tree, "condyle"), "quadrant", "+x")
+    brach_set = _path_wrap(tree, "brach").getparent()
+    brach_set.append(copy.deepcopy(_path_wrap(tree, "tri")))
+    tree.write(str(path))
+    with pytest.raises(OsimError) as exc:
+        read_osim(path)
+    msg = str(exc.value)
+    assert "\n" not in msg and path.name in msg and "'brach'" in msg and "--ignore PathWrap" in msg, msg
+    assert "WrapEllipsoid with a quadrant and another PathWrap" in msg, msg
+
+
 def test_torus_against_opensim(workdir):
     """A WrapTorus (tube radius 15 mm on a 60 mm circle) round the elbow, the path through
     its hole, at 30 random poses (wrapped and not). OpenSim places its cylinder at the
