@@ -12,8 +12,8 @@ from openfdk.forces.hill import ConstantStrengthMuscle
 from openfdk.forces.forceset import ForceElements
 from openfdk.forces.pathset import PathSet
 from openfdk.model.builder import ModelBuilder
-from openfdk.numdiff import manifold_jacobian
-from openfdk.spatial import quat_from_rotvec, rotation_matrix
+from openfdk.numerics.numdiff import manifold_jacobian
+from openfdk.numerics.spatial import quat_from_rotvec, rotation_matrix
 
 
 def _set_pose(model, state, body, p, rotvec):
@@ -233,7 +233,7 @@ def test_moment_arms_match_finite_differences_on_manifold(kind, dims, side):
 
 
 def test_acceleration_bias_is_second_derivative_along_velocity():
-    from openfdk.numdiff import second_derivative_along
+    from openfdk.numerics.numdiff import second_derivative_along
 
     model, path = _wrap_model("cylinder", 0.03, [0, 1, 0])
     state = model.initial_state()
@@ -297,6 +297,31 @@ def test_ligament_stiffness_over_a_wrap_matches_finite_differences():
     K_fd = manifold_jacobian(lambda s: passive.generalized_forces(s, 0.0)[0], state, 1e-6)
     np.testing.assert_allclose(K, K_fd, atol=1e-4 * np.abs(K_fd).max())
     assert np.abs(K).max() > 10
+
+
+def test_wrapped_stiffness_perturbs_only_the_bodies_the_path_touches():
+    """The wrapped paths' geometric stiffness is differenced over the bodies whose
+    Jacobian columns are non-zero (points' bodies, the surface's body in contact); it
+    must still equal finite differences of the whole Q over every body, a body the path
+    does not touch included (its rows and columns zero)."""
+    b = ModelBuilder("lig3", gravity=(0, 0, 0))
+    b.add_body("arm", 1.0, [1, 1, 1])
+    b.add_body("hub", 1.0, [1, 1, 1], position=(0.0, 0.005, 0.0))
+    b.add_body("idle", 1.0, [1, 1, 1], position=(1.0, 0.0, 0.0))
+    b.add_frame("ground", "o", [-0.1, 0.05, 0.0])
+    b.add_frame("arm", "i", [0.1, 0.0, 0.01])
+    add_wrap_surface(b, "drum", "cylinder", "hub", 0.03, [0, 1, 0])
+    add_ligament(b, "lig", ["ground.o", "drum", "arm.i"], stiffness=2000.0, reference_strain=0.05)
+    model = b.build()
+    state = model.initial_state()
+    passive = ForceElements(model)
+    Q, out, K = passive.generalized_forces(state, 0.0, want_stiffness=True)
+    assert out["ligaments"].force[0] > 1.0
+    K_fd = manifold_jacobian(lambda s: passive.generalized_forces(s, 0.0)[0], state, 1e-6)
+    np.testing.assert_allclose(K, K_fd, atol=1e-4 * np.abs(K_fd).max())
+    hub = slice(6, 12)
+    assert np.abs(K[hub, hub]).max() > 10  # the surface's body is differenced
+    assert np.abs(K_fd[12:, :]).max() == 0.0 and np.abs(K[:, 12:]).max() == 0.0
 
 
 def test_point_inside_surface_is_reported_by_name():

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..model.kernels import path_lengths
-from ..numdiff import manifold_jacobian
+from ..numerics.numdiff import manifold_jacobian
 from .path_stiffness import add_path_geometric_stiffness
 from .coordinate_path import CoordinatePath, CoordinatePathNodes
 from .coordinate_wrapping import CoordinateWrapNodes, CoordinateWrappedPath
@@ -85,7 +85,12 @@ class PathSet:
             straight[rows] = 0.0
             T_w = T[rows]
             if np.any(T_w):
+                # only the bodies the tensed paths touch move their Jacobians: a body whose
+                # 6 columns of L are all zero for them (not a point's, not a wrapping
+                # surface's in contact) is not perturbed
+                touched = np.any(L[rows][T_w != 0.0] != 0.0, axis=0).reshape(-1, 6).any(axis=1)
+                columns = (6 * np.flatnonzero(touched)[:, None] + np.arange(6)).ravel()
                 K -= manifold_jacobian(lambda s: T_w @ nodes.evaluate(s)[1], state, 1e-7, central=False,
-                                       f0=T_w @ L[rows])
+                                       f0=T_w @ L[rows], columns=columns)
         add_path_geometric_stiffness(state.p_WB, state.R_WB, state.column, self.seg_a, self.s_a, self.seg_b,
                                      self.s_b, self.seg_path, straight, K)
