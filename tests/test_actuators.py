@@ -223,8 +223,8 @@ def test_residual_point_and_torque_actuators(tmp_path, monkeypatch, capsys):
     res = summary["columns"]
     assert set(res) == {"FX_force", "FY_force", "FZ_force", "MX_moment", "MY_moment", "MZ_moment"}
     # the actuators' figure: every actuator's force and control, the residual threshold
-    from openfdk.runplots import make_figures
-    from openfdk.runresults import RunResults
+    from openfdk.plots.run import make_figures
+    from openfdk.results.run import RunResults
 
     results = RunResults.read(tmp_path / "so")
     fig = make_figures(results, measures=[])["actuators"]

@@ -15,7 +15,7 @@ import trimesh
 import yaml
 
 from cli_helpers import error_line, run_cli
-from openfdk.cli import build_parser, main
+from openfdk.cli.commands import build_parser, main
 from openfdk.contact.shapes import flat_patch
 from openfdk.io.c3d import write_c3d
 from openfdk.fixtures.synthetic import synthetic_markers, two_body_model_dict
@@ -232,12 +232,12 @@ def test_results_are_not_overwritten_without_force(files, tmp_path, capsys):
 
 
 def test_unwritable_out_is_found_before_computation(files, tmp_path, capsys, monkeypatch):
-    import openfdk.jobs
+    import openfdk.analysis.jobs
 
     def must_not_run(*a, **k):
         raise AssertionError("the computation started")
 
-    monkeypatch.setattr(openfdk.jobs, "run_job", must_not_run)
+    monkeypatch.setattr(openfdk.analysis.jobs, "run_job", must_not_run)
     model, trial, _ = files
     (tmp_path / "afile").write_text("x")
     code, _, err = _run(capsys, "run", model, trial, "--out", tmp_path / "afile" / "out")
@@ -316,12 +316,12 @@ def test_quiet_prints_nothing_on_success(files, tmp_path, capsys):
 
 
 def test_interrupted_exits_130(files, tmp_path, capsys, monkeypatch):
-    import openfdk.jobs
+    import openfdk.analysis.jobs
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(openfdk.jobs, "kinematics_job", interrupted)
+    monkeypatch.setattr(openfdk.analysis.jobs, "kinematics_job", interrupted)
     model, trial, _ = files
     code, _, err = _run(capsys, "kinematics", model, trial, "--out", tmp_path / "o")
     assert code == 130 and err.strip() == "openfdk: interrupted"
@@ -346,7 +346,7 @@ def test_non_terminal_stderr_has_lines_per_ten_percent_and_no_carriage_returns(f
 def test_progress_lines_module():
     import io
 
-    from openfdk.progress import progress, set_quiet
+    from openfdk.trial.progress import progress, set_quiet
 
     buf = io.StringIO()
     with progress(7, "x", "case", stream=buf) as bar:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from openfdk.fdk.analysis import run_fdk
-from openfdk.jobs import load_trajectories, run_job
+from openfdk.analysis.jobs import load_trajectories, run_job
 from openfdk.io.modelfile import load_model_and_settings
 from openfdk.study.chunks import plan_segments
 from openfdk.study.cli import run_chunked_job

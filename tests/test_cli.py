@@ -92,7 +92,7 @@ def test_run_cli_inverse_dynamics(tmp_path, request):
 
 def test_kinematics_demo_quick(tmp_path):
     """The two-body tracking example (synthetic C3D with noise and a gap) end to end."""
-    from openfdk.demo_kinematics import run_kinematics_demo
+    from openfdk.cli.demo_kinematics import run_kinematics_demo
 
     out = tmp_path / "demo"
     numbers = run_kinematics_demo(out, quick=True, progress=False)

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from openfdk import progress
-from openfdk.cli import build_parser, main
+from openfdk.trial import progress
+from openfdk.cli.commands import build_parser, main
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -95,7 +95,7 @@ def test_quiet_subject_create_prints_nothing(tmp_path, capsys):
 def test_quiet_log_keeps_warnings_and_failures_on_stderr(capsys):
     from argparse import Namespace
 
-    from openfdk.cli import _log
+    from openfdk.cli.commands import _log
 
     log = _log(Namespace(quiet=True))
     log("running the mandible study -> out/")
@@ -178,7 +178,7 @@ def test_a_non_square_system_fails_its_frames_instead_of_corrupting_memory(tmp_p
     system has 14 rows for 12 coordinates: the square-system kernels are never entered
     (they do no bounds checks: this model crashed the process with a corrupted heap);
     every frame fails with its reason."""
-    import openfdk.jobs as jobs
+    import openfdk.analysis.jobs as jobs
 
     monkeypatch.setattr(jobs, "_refuse_redundant_rows", lambda model, label: None)
     kin, _, _ = jobs.run_job(_redundant_knee(tmp_path), progress=False)

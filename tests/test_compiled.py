@@ -10,8 +10,8 @@ from openfdk.model.compiled import CompiledMeasures, MeasureCompileError
 from openfdk.model.coordinate_functions import polynomial, simm_spline
 from openfdk.model.function_measure import FunctionOf
 from openfdk.model.measures import Linear, Measure
-from openfdk.numdiff import manifold_jacobian, second_derivative_along
-from openfdk.spatial import quat_from_rotvec
+from openfdk.numerics.numdiff import manifold_jacobian, second_derivative_along
+from openfdk.numerics.spatial import quat_from_rotvec
 
 from test_measures import ALL, _add_two_bodies_with_frame_j, _model_and_state
 

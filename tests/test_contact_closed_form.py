@@ -19,7 +19,7 @@ import pytest
 
 from openfdk.contact import ElasticFoundation, surface_mesh
 from openfdk.contact.shapes import ellipsoid_cap, flat_patch, fossa_surface, sphere_cap
-from openfdk.spatial import quat_from_rotvec, rotation_matrix, rotation_matrix_xyz
+from openfdk.numerics.spatial import quat_from_rotvec, rotation_matrix, rotation_matrix_xyz
 
 P_MOD = 1e10  # N/m³, the paper's pressure modulus
 I3 = np.eye(3)

@@ -15,7 +15,7 @@ from openfdk.contact import (
     surface_mesh,
 )
 from openfdk.contact.shapes import flat_patch, sphere_cap
-from openfdk.spatial import rotation_matrix_xyz
+from openfdk.numerics.spatial import rotation_matrix_xyz
 
 
 def _sorted_rows(a, decimals=9):

@@ -16,7 +16,7 @@ import pytest
 
 from openfdk.contact import ElasticFoundation, surface_mesh
 from openfdk.contact.shapes import flat_patch, sphere_cap
-from openfdk.spatial import quat_from_rotvec, rotation_matrix
+from openfdk.numerics.spatial import quat_from_rotvec, rotation_matrix
 
 P_MOD = 1e10
 
@@ -176,7 +176,7 @@ def test_stiffness_zero_without_contact(ball_on_plane):
 def test_contact_element_scatters_into_model_columns(ball_on_plane):
     from openfdk.contact import ContactElement
     from openfdk.model.state import BodyStates
-    from openfdk.spatial import quat_from_matrix
+    from openfdk.numerics.spatial import quat_from_matrix
 
     ball, plane, R, s0, b0 = ball_on_plane
     pair = ElasticFoundation(ball, plane, P_MOD, mode="grid", max_depth=1e-3)

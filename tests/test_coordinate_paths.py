@@ -10,7 +10,7 @@ import pytest
 from openfdk.io.modelfile import model_from_dict
 from openfdk.kinematics.coordinate_pose import pose_from_coordinates
 from openfdk.model.model import ModelError
-from openfdk.numdiff import manifold_jacobian
+from openfdk.numerics.numdiff import manifold_jacobian
 
 
 def _model(path_entries, extra_coordinate=None):

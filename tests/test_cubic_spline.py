@@ -1,4 +1,4 @@
-"""openfdk.cubic_spline: the not-a-knot cubic spline, checked against closed forms (it
+"""openfdk.numerics.cubic_spline: the not-a-knot cubic spline, checked against closed forms (it
 reproduces any cubic, and three points give their parabola), its defining invariants (C²
 at every knot, C³ at the second and second-last knots, interpolation) and
 scipy.interpolate.CubicSpline (an independent implementation, LAPACK's banded solver)."""
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.interpolate import CubicSpline
 
-from openfdk.cubic_spline import NotAKnotSpline, not_a_knot_coefficients
+from openfdk.numerics.cubic_spline import NotAKnotSpline, not_a_knot_coefficients
 from openfdk.model.timefunctions import SplineThroughData
 
 

@@ -12,7 +12,7 @@ from openfdk.forces.force_laws import (
 from openfdk.forces.forceset import ForceElements
 from openfdk.model.builder import ModelBuilder
 from openfdk.model.model import ModelError
-from openfdk.numdiff import manifold_jacobian
+from openfdk.numerics.numdiff import manifold_jacobian
 
 G = 9.81
 MASS = 3.0  # kg

@@ -396,7 +396,7 @@ def test_zero_baseline(tmp_path):
 
 def test_filter_default_is_the_markers_and_constant_passes_unchanged(tmp_path):
     from openfdk.io.markers import MarkerTrajectories
-    from openfdk.jobs import DEFAULT_CUTOFF_HZ as JOBS_DEFAULT
+    from openfdk.analysis.jobs import DEFAULT_CUTOFF_HZ as JOBS_DEFAULT
 
     marker_default = inspect.signature(MarkerTrajectories).parameters["cutoff_hz"].default
     assert DEFAULT_CUTOFF_HZ == JOBS_DEFAULT == marker_default == 6.0

@@ -13,8 +13,8 @@ from openfdk.forces.forceset import FORCE_KINDS, ForceElements
 from openfdk.forces.hill import Hill3ElementMuscle, passive_force_length, tendon_force_strain
 from openfdk.model.builder import ModelBuilder
 from openfdk.model.timefunctions import Constant
-from openfdk.numdiff import manifold_jacobian
-from openfdk.spatial import quat_from_rotvec, rotation_matrix
+from openfdk.numerics.numdiff import manifold_jacobian
+from openfdk.numerics.spatial import quat_from_rotvec, rotation_matrix
 
 P_BP = np.array([0.03, -0.02, 0.05])
 ROTVEC = np.array([0.3, -0.2, 0.5])

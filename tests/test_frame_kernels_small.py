@@ -10,7 +10,7 @@ from openfdk.dynamics.equilibrium import _assemble
 from openfdk.kinematics.tracking import residual_rates
 from openfdk.model.kernels import extrapolate_poses, get_poses, get_velocities, set_poses, set_velocities
 from openfdk.recruitment.result import RecruitmentInputError, check_problem
-from openfdk.spatial import quat_from_rotvec, quat_multiply, rotation_matrix
+from openfdk.numerics.spatial import quat_from_rotvec, quat_multiply, rotation_matrix
 
 
 def _poses(rng, nb=4, moving=(1, 3)):

@@ -11,7 +11,7 @@ from openfdk.fdk.analysis import fdk_context
 from openfdk.fdk.jacobian import analytic_jacobian
 from openfdk.fdk.residual import FrameWorkspace
 from openfdk.forces.elements import add_spring
-from openfdk.jobs import load_trajectories
+from openfdk.analysis.jobs import load_trajectories
 from openfdk.kinematics.system import ConstraintSystem
 from openfdk.model.builder import ModelBuilder
 from openfdk.io.modelfile import load_model_and_settings

@@ -273,7 +273,7 @@ def test_view_checks_summary_json_like_plot(result, capsys):
 def resumable(bases, tmp_path):
     """(model, trial, --out folder, run arguments) for ``openfdk run`` of the fuzz run's
     model and trial, and the Checkpoints object that run uses."""
-    from openfdk.cli import _run_checkpoints, build_parser
+    from openfdk.cli.commands import _run_checkpoints, build_parser
 
     run = bases.paths["results"].parent.parent
     argv = [run / "model.yaml", run / "trial.c3d", "--out", tmp_path / "out", "--no-progress", "--no-plots",

@@ -178,7 +178,7 @@ def test_a_half_written_checkpoint_part_is_refused_on_resume(finished, tmp_path,
 
 def _checkpoint_part(argv):
     """Write one genuine checkpoint part for ``openfdk run argv`` and return its path."""
-    from openfdk.cli import _run_checkpoints, build_parser
+    from openfdk.cli.commands import _run_checkpoints, build_parser
 
     args = build_parser().parse_args(["run", *map(str, argv)])
     ck = _run_checkpoints(args)
@@ -517,7 +517,7 @@ def test_a_planted_checkpoint_link_is_refused_when_saving(tmp_path, watched):
 def test_studies_doc_gives_the_cli_exit_code_for_failed_cases():
     from pathlib import Path
 
-    from openfdk.cli import EXIT_FAILED_FRAMES
+    from openfdk.cli.commands import EXIT_FAILED_FRAMES
 
     text = (Path(__file__).parents[1] / "docs" / "studies.md").read_text()
     assert f"* {EXIT_FAILED_FRAMES}: some case failed" in text

@@ -200,7 +200,7 @@ def test_gyroscopic_torque_of_a_body_spinning_about_a_non_principal_axis():
     w = 5.0
     # θ_x = θ_y = 0 and θ_z = w t: rotation about world z; the body's principal axes are
     # tilted so that z is not principal (orientation fixed in the body frame via the frame)
-    from openfdk.spatial import quat_from_rotvec, rotation_matrix
+    from openfdk.numerics.spatial import quat_from_rotvec, rotation_matrix
 
     R_tilt = rotation_matrix(quat_from_rotvec([0.4, -0.3, 0.0]))
     b.add_frame("top", "spin", [0, 0, 0], orientation=R_tilt.T)

@@ -9,8 +9,8 @@ from openfdk.forces.elements import add_external_load, add_spring
 from openfdk.model.builder import ModelBuilder
 from openfdk.model.model import ModelError
 from openfdk.model.timefunctions import Constant
-from openfdk.numdiff import manifold_jacobian
-from openfdk.spatial import quat_from_rotvec, rotation_matrix
+from openfdk.numerics.numdiff import manifold_jacobian
+from openfdk.numerics.spatial import quat_from_rotvec, rotation_matrix
 
 K_SPRING = 2000.0  # N/m
 F_LOAD = np.array([30.0, -12.0, 0.0])  # N, in the world

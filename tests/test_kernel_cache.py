@@ -12,7 +12,8 @@ from pathlib import Path
 import numba
 import pytest
 
-from openfdk import kernel_cache, progress
+from openfdk.analysis import kernel_cache
+from openfdk.trial import progress
 
 KERNEL_SOURCE = """
 import numba

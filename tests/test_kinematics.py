@@ -5,7 +5,7 @@ import numpy as np
 from models import slider_crank, slider_crank_closed_form
 from openfdk.kinematics.analysis import run_determinate, run_tracking
 from openfdk.model.builder import ModelBuilder
-from openfdk.spatial import quat_from_rotvec, rotation_matrix
+from openfdk.numerics.spatial import quat_from_rotvec, rotation_matrix
 
 
 def test_slider_crank_matches_closed_form():
@@ -174,7 +174,7 @@ def test_tracking_velocity_acceleration_are_derivatives_of_the_least_squares_pos
         states.append(s)
     r_m, r_0, r_p = (s.p_WB[1] for s in states)
     # body-frame rotation increments R_0ᵀ R_± -> rotation vectors
-    from openfdk.spatial import quat_from_matrix, rotvec_from_quat
+    from openfdk.numerics.spatial import quat_from_matrix, rotvec_from_quat
 
     phi_p = rotvec_from_quat(quat_from_matrix(states[1].R_WB[1].T @ states[2].R_WB[1]))
     phi_m = rotvec_from_quat(quat_from_matrix(states[1].R_WB[1].T @ states[0].R_WB[1]))

@@ -29,7 +29,7 @@ from openfdk.mandible.experiment import (
 from openfdk.mandible.generator import load_anatomy
 from openfdk.mandible.geometry import fossa_mesh
 from openfdk.mandible.truth import TrueJoint
-from openfdk.spatial import rotation_matrix
+from openfdk.numerics.spatial import rotation_matrix
 
 TASKS = ("reference", "chewing", "protrusion", "open_close")
 MM = 1e-3

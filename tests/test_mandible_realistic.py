@@ -154,7 +154,7 @@ def test_fdk_restart_finds_the_root_where_the_warm_start_stalls_in_the_wide_chew
     from openfdk.fdk.residual import FrameWorkspace
     from openfdk.fdk.settings import fdk_settings
     from openfdk.io.modelfile import load_model_and_settings
-    from openfdk.jobs import analysis_inputs
+    from openfdk.analysis.jobs import analysis_inputs
 
     subject_dir, out = realistic
     rows = _rows(out / "chewing" / "fdk" / "forces.csv")

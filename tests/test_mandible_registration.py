@@ -145,7 +145,7 @@ def test_braces_in_the_wrong_frame_fit_as_well_but_the_static_pose_check_warns(s
     derived here from P and T alone; they put the condyles millimetres away from their
     fossae, so a RegistrationWarning with the numbers fires. The correct braces: no
     warning, joint spaces within 0.3 mm of the reference pose's."""
-    from openfdk.spatial import rotation_matrix_xyz
+    from openfdk.numerics.spatial import rotation_matrix_xyz
 
     trial, _, truth = _static(subject, TruthOptions.exact(), seed=7)
     with warnings.catch_warnings(record=True) as caught:

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from openfdk.model.builder import ModelBuilder
-from openfdk.numdiff import manifold_jacobian, second_derivative_along
-from openfdk.spatial import quat_from_rotvec
+from openfdk.numerics.numdiff import manifold_jacobian, second_derivative_along
+from openfdk.numerics.spatial import quat_from_rotvec
 
 
 def _model_and_state(seed=0):

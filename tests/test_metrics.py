@@ -1,11 +1,11 @@
-"""RMSD, r² and Sprague–Geers M, P against closed forms (openfdk.metrics)."""
+"""RMSD, r² and Sprague–Geers M, P against closed forms (openfdk.results.metrics)."""
 
 import math
 
 import numpy as np
 import pytest
 
-from openfdk.metrics import MetricsInputError, compare, r_squared, rmsd, sprague_geers
+from openfdk.results.metrics import MetricsInputError, compare, r_squared, rmsd, sprague_geers
 
 
 @pytest.fixture

@@ -21,7 +21,7 @@ from openfdk.io.modelfile import load_model  # noqa: E402
 from openfdk.io.osim import export_model, note_lines  # noqa: E402
 from openfdk.io.osim_joints import joint_coordinates, plan_joints  # noqa: E402
 from openfdk.model.state import BodyStates  # noqa: E402
-from openfdk.spatial import quat_from_matrix  # noqa: E402
+from openfdk.numerics.spatial import quat_from_matrix  # noqa: E402
 
 TOL = 1e-9
 

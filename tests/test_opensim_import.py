@@ -41,7 +41,7 @@ from openfdk.kinematics.system import ConstraintSystem, KinematicsError  # noqa:
 from openfdk.model.compiled import CompiledMeasures  # noqa: E402
 from openfdk.model.function_measure import FunctionOf  # noqa: E402
 from openfdk.model.timefunctions import Polynomial  # noqa: E402
-from openfdk.numdiff import manifold_jacobian, second_derivative_along  # noqa: E402
+from openfdk.numerics.numdiff import manifold_jacobian, second_derivative_along  # noqa: E402
 
 TOL = 1e-9          # m, rad, m/s, rad/s: every comparison with OpenSim
 SAME = 1e-12        # two openfdk reads of the same model (3.x file and its 4.x conversion)
@@ -563,7 +563,7 @@ def test_export_opensim_reads_back_to_the_same_poses(files, workdir):
 
     from openfdk.io.osim import export_opensim
     from openfdk.io.storage import read_storage
-    from openfdk.runresults import RunResults
+    from openfdk.results.run import RunResults
 
     ours = Ours(files["custom"])
     model = ours.model

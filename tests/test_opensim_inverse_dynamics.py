@@ -172,7 +172,7 @@ def test_generalized_forces_equal_opensims_inverse_dynamics(tmp_path, monkeypatc
     # momentum balance (openfdk alone): gravity + the two loads + the residual forces (the
     # pelvis translations are along the ground's axes) = Σ m_i a_i, at every frame
     from openfdk.io.modelfile import load_model
-    from openfdk.spatial import rotation_matrix
+    from openfdk.numerics.spatial import rotation_matrix
 
     fdk_model = load_model(model)
     kin = read_table(tmp_path / "ours" / "kinematics.csv")

@@ -14,7 +14,7 @@ from openfdk.contact.shapes import flat_patch
 from openfdk.forces.forceset import ForceElements
 from openfdk.model.model import ModelError
 from openfdk.io.modelfile import load_model
-from openfdk.numdiff import manifold_jacobian
+from openfdk.numerics.numdiff import manifold_jacobian
 
 
 def _write_patch(path, size, edge, scale=1.0, flip=False):
@@ -169,7 +169,7 @@ def test_spring_forces_and_stiffness_batched_and_measure_by_measure():
     equal to the measure-by-measure one."""
     from openfdk.forces.elements import add_spring
     from openfdk.model.builder import ModelBuilder
-    from openfdk.spatial import quat_from_rotvec
+    from openfdk.numerics.spatial import quat_from_rotvec
 
     b = ModelBuilder("springs")
     b.add_body("a", 1.0, [1e-3] * 3, position=[0.01, 0.02, -0.03], orientation=quat_from_rotvec([0.2, -0.1, 0.3]))

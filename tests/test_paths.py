@@ -7,8 +7,8 @@ import pytest
 from openfdk.forces.elements import add_muscle
 from openfdk.forces.hill import ConstantStrengthMuscle
 from openfdk.model.builder import ModelBuilder
-from openfdk.numdiff import manifold_jacobian
-from openfdk.spatial import quat_from_rotvec, rotation_matrix
+from openfdk.numerics.numdiff import manifold_jacobian
+from openfdk.numerics.spatial import quat_from_rotvec, rotation_matrix
 
 
 def _three_body_path():

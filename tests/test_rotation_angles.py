@@ -9,8 +9,8 @@ import pytest
 
 from openfdk.model.builder import ModelBuilder
 from openfdk.model.model import ModelError
-from openfdk.numdiff import manifold_jacobian, second_derivative_along
-from openfdk.spatial import quat_from_rotvec, rotation_matrix
+from openfdk.numerics.numdiff import manifold_jacobian, second_derivative_along
+from openfdk.numerics.spatial import quat_from_rotvec, rotation_matrix
 
 SEQUENCES = [a + b + c for a, b, c in itertools.product("xyz", repeat=3) if a != b and b != c]
 

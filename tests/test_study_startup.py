@@ -178,7 +178,7 @@ def test_study_driver_imports_no_analysis_layer():
 
 
 def test_a_case_path_imports_none_of_the_libraries_openfdk_replaced(tmp_path):
-    """Reading and filtering a trial (openfdk.io.butterworth, openfdk.cubic_spline),
+    """Reading and filtering a trial (openfdk.io.butterworth, openfdk.numerics.cubic_spline),
     loading an STL mesh (openfdk.contact.stl) and importing the spline drivers and the
     recruitment do not import scipy.signal/stats (≈ 0.3 s), scipy.interpolate (≈ 0.2 s,
     with scipy.special and scipy.optimize), scipy.sparse or trimesh (≈ 0.25 s): each

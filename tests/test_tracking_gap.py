@@ -86,7 +86,7 @@ def test_initial_guess_moves_bodies_without_their_own_fit_with_the_model():
     from openfdk.io.modelfile import model_from_dict
     from openfdk.kinematics.system import ConstraintSystem
     from openfdk.kinematics.tracking import MarkerTracker
-    from openfdk.spatial import rotation_matrix_xyz
+    from openfdk.numerics.spatial import rotation_matrix_xyz
 
     model = model_from_dict({
         "openfdk": 1, "units": {"length": "m", "angle": "rad"},

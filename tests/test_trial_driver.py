@@ -13,7 +13,7 @@ import pytest
 
 from openfdk.analysis.run import run_trial
 from openfdk.cli import main
-from openfdk.jobs import load_trajectories
+from openfdk.analysis.jobs import load_trajectories
 from openfdk.io.modelfile import load_model_and_settings
 from openfdk.trial.status import FrameStatus, Reason
 
@@ -222,7 +222,7 @@ def test_a_changed_mesh_refuses_the_resume(tmp_path, capsys):
     `openfdk run --resume` on the old checkpoint exits 2 naming the checkpoint."""
     import trimesh
 
-    from openfdk.cli import _run_checkpoints, build_parser
+    from openfdk.cli.commands import _run_checkpoints, build_parser
     from openfdk.io.fingerprint import referenced_files
 
     write_jaw_files(tmp_path, 10)

@@ -18,7 +18,7 @@ import yaml
 
 from openfdk.cli import main
 from openfdk.io.results import write_json, write_table
-from openfdk.spatial import quat_from_matrix, quat_from_rotvec, rotation_matrix
+from openfdk.numerics.spatial import quat_from_matrix, quat_from_rotvec, rotation_matrix
 from openfdk.viewer import ViewError, view_data, write_view
 from openfdk.viewer.decimate import decimate
 from openfdk.viewer.pack import unpack

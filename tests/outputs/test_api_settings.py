@@ -8,8 +8,8 @@ import dataclasses
 import pytest
 
 import openfdk
-from openfdk.cli import build_parser
-from openfdk.runresults import read_results
+from openfdk.cli.commands import build_parser
+from openfdk.results.run import read_results
 
 
 def test_result_fdk_columns(mandible_run):

@@ -8,8 +8,8 @@ import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.ticker import MaxNLocator
 
-from openfdk.runplots import component_labels, line_styles, make_figures
-from openfdk.runresults import read_results
+from openfdk.plots.run import component_labels, line_styles, make_figures
+from openfdk.results.run import read_results
 
 
 def _drawn(fig):

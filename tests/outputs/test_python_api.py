@@ -65,8 +65,8 @@ def test_run_rejects_unknown_options():
 
 
 def test_view_without_the_viewer_package_says_so(monkeypatch):
-    from openfdk.runresults import RunResults
+    from openfdk.api.result import Result
 
     monkeypatch.setitem(sys.modules, "openfdk.viewer", None)  # as if not installed
     with pytest.raises(ImportError, match="openfdk.viewer"):
-        RunResults(None, None, {}).view("x.html")
+        Result(None, None, {}).view("x.html")

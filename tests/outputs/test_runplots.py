@@ -10,8 +10,8 @@ import yaml
 
 from openfdk.cli import main
 from openfdk.io.c3d import write_c3d
-from openfdk.runplots import make_figures
-from openfdk.runresults import read_results
+from openfdk.plots.run import make_figures
+from openfdk.results.run import read_results
 from openfdk.fixtures.synthetic import synthetic_markers, two_body_model_dict
 
 UNIT = re.compile(r"\((mm|deg|N|N·m|N or N·m|–|m or rad|mm²|SI: m or rad)[,)]")

@@ -133,7 +133,7 @@ class OpenfdkTracking:
 
     def __init__(self, model_path, trc_path):
         from ..io.modelfile import load_model_and_settings
-        from ..jobs import load_trajectories
+        from ..analysis.jobs import load_trajectories
         from ..kinematics.analysis import run_tracking
 
         self.run_tracking = run_tracking

@@ -15,7 +15,7 @@ residuals are large (≈ 200 N); that changes nothing in what is timed or compar
 Records:
 
 * ``full_body_inverse_dynamics_ms``: openfdk's analysis of the run, warm, CPU ms per
-  frame, median of 7 runs (``--quick``: 3): :func:`openfdk.jobs.run_job` on the model
+  frame, median of 7 runs (``--quick``: 3): :func:`openfdk.analysis.jobs.run_job` on the model
   loaded with the import options ``--motion`` and ``--external-loads`` register
   (:func:`openfdk.io.opensim.overlay.register`), i.e. determinate kinematics driven by
   the 23 coordinate splines (positions by Newton's method, velocities, accelerations),
@@ -81,7 +81,7 @@ model's layouts, the loads' and drivers' samples at every frame, the results).
 
 Why the two differ. Both interpolate the same samples, so q is the same at every frame;
 q̇ and q̈ are not: OpenSim differentiates a quintic GCV spline (degree 5, error variance
-0), openfdk a cubic not-a-knot spline (:mod:`openfdk.cubic_spline`). The motion is
+0), openfdk a cubic not-a-knot spline (:mod:`openfdk.numerics.cubic_spline`). The motion is
 analytic (:func:`~openfdk.fixtures.full_body_osim.full_body_coordinate_rates`), so the
 record also gives each program's largest difference from the inverse dynamics with the
 exact q̇, q̈ (computed by OpenSim's solver, which equals openfdk's to 1e-6 N m on the
@@ -148,7 +148,7 @@ class OpenfdkInverseDynamics:
         from ..io.modelfile import load_model_and_settings
         from ..io.opensim.overlay import register
         from ..io.storage import read_storage
-        from ..jobs import run_job
+        from ..analysis.jobs import run_job
 
         register(model_path, external_loads=loads_path, motion=motion_path)
         self.model, settings = load_model_and_settings(model_path)

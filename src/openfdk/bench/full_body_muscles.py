@@ -22,7 +22,7 @@ Records:
   motion.mot`` and the overlay ``recruitment: {power: 2, static_optimization: opensim}``
   (OpenSim's choices: Σ a², rigid-tendon strengths with Thelen's force–velocity, no
   passive force, activations in [0.01, 1]; docs/recruitment.md), CPU ms per frame of
-  :func:`openfdk.jobs.run_job` on the loaded model — the determinate kinematics from the
+  :func:`openfdk.analysis.jobs.run_job` on the loaded model — the determinate kinematics from the
   coordinate splines, then per frame the paths, strengths, equilibrium and recruitment
   (92 muscles + 23 actuators as 46 one-sided columns, 49 free joint reactions, 72 rows).
   Median of 5 runs (``--quick``: 2).
@@ -209,7 +209,7 @@ class OpenfdkRecruitment:
 
     def __init__(self, model_path, motion_path, overlay_path):
         from ..io.storage import read_storage
-        from ..jobs import run_job
+        from ..analysis.jobs import run_job
 
         self.model, settings = _load(model_path, motion_path, overlay_path)
         self.times = np.asarray(read_storage(motion_path)[0], float)
@@ -400,7 +400,7 @@ def view_timing(directory, seconds, repeats):
     """(CPU s of each build of the viewer, wall s of each, page size MB, frames) of a
     real ``openfdk run`` of ``seconds`` s of the walk on the model with meshes (the run
     not timed)."""
-    from ..cli import main
+    from ..cli.commands import main
     from ..viewer import write_view
 
     directory = Path(directory) / "view"

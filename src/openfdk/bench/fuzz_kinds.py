@@ -26,7 +26,7 @@ Kinds:
   ``export-opensim`` and ``view`` readers; JSON mutations of ``summary.json`` and text
   mutations of ``kinematics.csv`` / ``forces.csv`` -> ``ValueError`` naming the file;
 - ``checkpoint``: the checkpoint parts of that run, resumed as ``--resume`` resumes them
-  (:func:`openfdk.jobs.run_job`); JSON mutations of a sidecar, of the structure inside a
+  (:func:`openfdk.analysis.jobs.run_job`); JSON mutations of a sidecar, of the structure inside a
   part or of its arrays, byte mutations of a part (with the sidecar's SHA-256 rewritten,
   as an attacker would, or not) -> ``CheckpointError``;
 - ``study_lock``: a ``.study.lock`` written by the study runner (held by this process;
@@ -161,10 +161,10 @@ def _write_run(run_dir, model_text):
     """A small ``openfdk run`` in ``run_dir`` (model.yaml, trial.c3d, its result folder),
     and its checkpoint parts kept from a second run that saved a part every 2 frames
     (frames 0 … END_S, 100 Hz)."""
-    from ..cli import main
+    from ..cli.commands import main
     from ..fixtures.synthetic import synthetic_markers
     from ..io.c3d import write_c3d
-    from ..jobs import run_job
+    from ..analysis.jobs import run_job
     from ..study.runner import _acquire_lock
     from ..trial.checkpoint import CHECKPOINT_DIR, Checkpoints
 
@@ -467,8 +467,8 @@ def _results_readers(folder, readers=RESULT_READERS):
     frames, column groups; drawing is left out, it takes ~1 s); ``export-opensim`` the
     whole export (into a folder beside it); ``view`` the viewer's scene and frames."""
     from ..io.osim import export_opensim
-    from ..runplots import _failed, _name
-    from ..runresults import read_results
+    from ..plots.run import _failed, _name
+    from ..results.run import read_results
     from ..viewer import view_data
 
     if "plot" in readers:
@@ -506,7 +506,7 @@ def load(kind, path, reader=None):
     if kind == "results":
         return _results_readers(path.parent, RESULT_READERS if reader is None else (reader,))
     if kind == "checkpoint":
-        from ..jobs import run_job
+        from ..analysis.jobs import run_job
         from ..trial.checkpoint import Checkpoints
 
         run = path.parent.parent.parent

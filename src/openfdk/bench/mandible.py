@@ -26,7 +26,7 @@ from pathlib import Path
 
 
 def run(quick=False):
-    from ..jobs import load_trajectories
+    from ..analysis.jobs import load_trajectories
     from ..fdk.analysis import run_fdk
     from ..analysis.inverse_dynamics import run_inverse_dynamics
     from ..kinematics.analysis import run_tracking

@@ -64,7 +64,7 @@ def add_contact(b, name, body_a, surface_a, body_b, surface_b, pressure_modulus,
 
 
 def _warn_if_apart(b, name, ia, surf_a, ib, surf_b, max_depth):
-    from ..spatial import rotation_matrix
+    from ..numerics.spatial import rotation_matrix
 
     def world(i, surf):
         rec = b._bodies[i]

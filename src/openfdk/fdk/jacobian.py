@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kinematics.frame_kernels import small_solve
-from ..numdiff import manifold_jacobian
+from ..numerics.numdiff import manifold_jacobian
 from ..recruitment import recruitment_sensitivity
 from .residual import FrameWorkspace
 

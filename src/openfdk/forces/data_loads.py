@@ -24,7 +24,7 @@ force at B's origin: the section loader passes a constant point 0 in B's OpenSim
 
 Per frame. A trial's analysis knows its frame times, so :meth:`DataLoadForces.prepare`
 samples every load's force, point and torque at all of them at once (a spline
-evaluated over an array of times, :meth:`openfdk.cubic_spline.NotAKnotSpline.values`);
+evaluated over an array of times, :meth:`openfdk.numerics.cubic_spline.NotAKnotSpline.values`);
 a frame then costs a dictionary look-up and one compiled call
 (:func:`apply_data_loads`: the frames' rotations, r × F and Q for every load). Times
 not prepared (a single frame, an FDK trial) are sampled when asked, as before.
@@ -38,7 +38,7 @@ import numpy as np
 from numba import njit
 
 from ..model.timefunctions import Constant, SplineThroughData, TimeFunction
-from ..spatial import skew
+from ..numerics.spatial import skew
 
 
 @dataclass(frozen=True, eq=False)

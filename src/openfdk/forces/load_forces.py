@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..spatial import skew
+from ..numerics.spatial import skew
 
 
 def _cross(a, b):

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model.batched import ScalarRows
-from ..numdiff import manifold_jacobian
+from ..numerics.numdiff import manifold_jacobian
 
 
 @dataclass

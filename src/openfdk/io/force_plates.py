@@ -54,7 +54,7 @@ low-pass of F and M_C → resampling → centre of pressure and free moment → 
 * Filter: order-2 Butterworth, zero lag (:mod:`openfdk.io.butterworth`), of F and M_C
   (linear in the channels; the centre of pressure, a ratio, is computed afterwards).
   ``cutoff_hz=None`` is the markers' default, 6 Hz (``MarkerTrajectories``,
-  ``openfdk.jobs.DEFAULT_CUTOFF_HZ``): the same cut-off for markers and forces avoids
+  ``openfdk.analysis.jobs.DEFAULT_CUTOFF_HZ``): the same cut-off for markers and forces avoids
   the artefacts of inverse dynamics with mismatched filters (Kristianslund, Krosshaug &
   van den Bogert, J Biomech 45 (2012) 666–671).  ``cutoff_hz=0``: no filter.
 * Resampling (``rate='point'``): decimation, one sample per video frame, the frame's
@@ -89,7 +89,7 @@ from openfdk.io.markers import visible_segments
 
 __all__ = ["DEFAULT_CUTOFF_HZ", "DEFAULT_THRESHOLD_N", "ForcePlateData", "read_force_plates"]
 
-DEFAULT_CUTOFF_HZ = 6.0            # = openfdk.jobs.DEFAULT_CUTOFF_HZ (markers)
+DEFAULT_CUTOFF_HZ = 6.0            # = openfdk.analysis.jobs.DEFAULT_CUTOFF_HZ (markers)
 DEFAULT_THRESHOLD_N = 20.0
 FILTER_ORDER = 2
 

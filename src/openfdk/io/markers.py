@@ -25,7 +25,7 @@ Per marker, per contiguous run of visible samples (a *segment*):
    ≈ f_s/(2 f_c) samples of every segment carry an end transient (≈ 1 mm for that
    motion at 6 Hz, vs 0.08 mm of attenuation in the middle).
 2. Interpolate: a C² cubic spline through the (filtered) samples with not-a-knot ends
-   (:mod:`openfdk.cubic_spline`, the spline ``scipy.interpolate.CubicSpline`` computes,
+   (:mod:`openfdk.numerics.cubic_spline`, the spline ``scipy.interpolate.CubicSpline`` computes,
    without its ≈ 0.2 s of imports), so position, velocity and acceleration are
    continuous inside a segment.
 
@@ -49,7 +49,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from openfdk.cubic_spline import not_a_knot_coefficients
+from openfdk.numerics.cubic_spline import not_a_knot_coefficients
 from openfdk.io.butterworth import butter_lowpass_sos, filtfilt_padlen, sosfiltfilt
 from openfdk.io.c3d import MarkerTrial
 

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..spatial import rotation_matrix, xyz_angles_from_matrix
+from ..numerics.spatial import rotation_matrix, xyz_angles_from_matrix
 from .osim_forces import function_element
 from .storage import write_storage
 
@@ -342,7 +342,7 @@ def export_opensim(results, out_dir, model=None) -> dict:
     """Write ``<name>.osim``, ``<name>.mot`` and ``Geometry/*.obj`` for a run.
 
     Args:
-        results: a :class:`~openfdk.runresults.RunResults` or a result folder.
+        results: a :class:`~openfdk.results.run.RunResults` or a result folder.
         out_dir: output folder (created).
         model: the analysed Model (default: the one the run recorded, see
             :meth:`RunResults.model`).
@@ -351,7 +351,7 @@ def export_opensim(results, out_dir, model=None) -> dict:
     ``notes`` ({element kind: [names]} of what OpenSim cannot hold, :func:`note_lines`).
     """
     from ..model.state import BodyStates
-    from ..runresults import RunResults
+    from ..results.run import RunResults
     from .osim_joints import joint_coordinates
 
     if not isinstance(results, RunResults):

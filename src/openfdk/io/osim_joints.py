@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..model.state import BodyStates
-from ..spatial import xyz_angles_from_matrix
+from ..numerics.spatial import xyz_angles_from_matrix
 from .osim_functions import function_xml
 
 _E = np.eye(3)

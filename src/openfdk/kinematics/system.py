@@ -241,7 +241,7 @@ def _spline_groups(drivers):
     the same knots (a --motion file drives every coordinate so) evaluated as one spline of
     all their columns — one knot search per time instead of one per driver. Each group is
     (rows (k,) int, the first driver's function (its time-range check), NotAKnotSpline)."""
-    from ..cubic_spline import NotAKnotSpline
+    from ..numerics.cubic_spline import NotAKnotSpline
     from ..model.timefunctions import SplineThroughData
 
     by_knots, rest = {}, []

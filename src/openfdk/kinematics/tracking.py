@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..spatial import quat_from_matrix
+from ..numerics.spatial import quat_from_matrix
 from ..trial.status import Reason
 from .assembly import assemble
 from .determinate import FrameSolve

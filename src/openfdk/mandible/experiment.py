@@ -35,7 +35,7 @@ import yaml
 
 from ..io.c3d import MarkerTrial, write_c3d
 from ..io.trials import read_trial
-from ..spatial import rotation_matrix_xyz
+from ..numerics.spatial import rotation_matrix_xyz
 from .generator import load_anatomy
 from .subject import Subject, load_subject
 from .truth import SIDES, TrueJoint, TruthOptions, solve_contact
@@ -274,7 +274,7 @@ def simulate_task(subject: Subject, joint: TrueJoint, markers_true: dict, task: 
 # --------------------------------------------------------------------------------------
 
 def _quaternions(R) -> np.ndarray:
-    from ..spatial import quat_from_matrix
+    from ..numerics.spatial import quat_from_matrix
 
     return np.array([quat_from_matrix(r) for r in R])
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..spatial import rotation_matrix
+from ..numerics.spatial import rotation_matrix
 
 SIDE_TAGS = {"right": "r", "left": "l"}
 

@@ -75,7 +75,7 @@ def continuation_check(model_path, trial, times, frames, limit=3) -> list:
     from ..fdk.residual import FrameWorkspace
     from ..fdk.settings import fdk_settings
     from ..io.modelfile import load_model_and_settings
-    from ..jobs import analysis_inputs
+    from ..analysis.jobs import analysis_inputs
 
     model, file_settings = load_model_and_settings(model_path)
     names = [d.name for d in model.fdk_dofs]

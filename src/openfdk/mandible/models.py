@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from ..spatial import quat_from_rotvec, rotation_matrix
+from ..numerics.spatial import quat_from_rotvec, rotation_matrix
 from . import protocol as _protocol
 
 PARAMETER_STUDY_STIFFNESS = (136.2, 272.4, 544.8)  # N/m, whole TMJ ligament (paper)

@@ -39,7 +39,7 @@ import yaml
 from ..io.c3d import MarkerTrial, read_c3d
 from ..io.markers import MarkerTrajectories
 from ..io.results import write_forces, write_json, write_kinematics
-from ..jobs import run_job
+from ..analysis.jobs import run_job
 from .cycles import CycleError, find_cycles, normalize_cycles
 from .experiment import mandible_points_in_skull
 from .extract import SIDE_TAGS, compared_condyle_point, condyle_kinematics, fdk_forces, pop_forces

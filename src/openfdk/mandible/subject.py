@@ -22,7 +22,7 @@ from types import MappingProxyType
 import numpy as np
 
 from ..io.yamlfile import YamlContext, read_yaml, unknown_key
-from ..spatial import rotation_matrix_xyz
+from ..numerics.spatial import rotation_matrix_xyz
 from .protocol import PROTOCOL_KEYS, StudyProtocol, parse_protocol
 
 __all__ = [

@@ -22,7 +22,7 @@ Tables (docs/mandible-study-outputs.md):
 * Table 2, per task × side × direction: POP vs FDK forces (c = POP, m = FDK, as in the
   paper: M < 0 means the POP force is smaller): RMSD (N), r², M, P.
 
-Each metric is computed per cycle on the n_points samples (:mod:`openfdk.metrics`, NaN
+Each metric is computed per cycle on the n_points samples (:mod:`openfdk.results.metrics`, NaN
 pairs dropped) and summarised as mean ± SD over the cycles (sample SD, ddof = 1; cycles
 whose metric is NaN are left out; SD is NaN with fewer than two finite cycles).
 
@@ -41,7 +41,7 @@ import sys
 
 import numpy as np
 
-from ..metrics import compare
+from ..results.metrics import compare
 
 __all__ = [
     "DIRECTIONS",
@@ -63,7 +63,7 @@ __all__ = [
 SIDES = ("left", "right")
 DIRECTIONS = ("AP", "ML", "SI")          # components 0, 1, 2 (x, y, z of the skull frame)
 METRICS = ("RMSD", "r2", "M", "P")
-_KEY = {"RMSD": "rmsd", "r2": "r2", "M": "M", "P": "P"}   # → openfdk.metrics.compare keys
+_KEY = {"RMSD": "rmsd", "r2": "r2", "M": "M", "P": "P"}   # → openfdk.results.metrics.compare keys
 _HEADER = {"RMSD": "RMSD", "r2": "r²", "M": "M", "P": "P"}
 _ID_COLUMNS = ("task", "side", "direction", "reference", "unit", "n_cycles")
 
@@ -109,7 +109,7 @@ def cycle_metrics(c, m, scale: float = 1.0) -> dict:
     Args: c, m : (n_cycles, n_points) same unit (one direction, cycle-normalised);
     scale : factor applied to both before the RMSD (e.g. 1e3 for m → mm).
     Returns: dict metric name ("RMSD", "r2", "M", "P") → (n_cycles,) values
-    (RMSD in the scaled unit; NaN where undefined, see :mod:`openfdk.metrics`).
+    (RMSD in the scaled unit; NaN where undefined, see :mod:`openfdk.results.metrics`).
     """
     c, m = np.asarray(c, dtype=float), np.asarray(m, dtype=float)
     if c.shape != m.shape or c.ndim != 2:

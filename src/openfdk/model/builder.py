@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..spatial import normalize_quat, quat_from_matrix
+from ..numerics.spatial import normalize_quat, quat_from_matrix
 from .components import GROUND, Body, Frame, Marker
 from .constraints import DRIVER, JOINT, Constraint, FDKDof, MarkerSet
 from .measures import AxisDot, Distance, Linear, Measure, PointPosition, RelativeAngles, RelativeVector
@@ -132,7 +132,7 @@ class ModelBuilder:
         p = np.asarray(position, dtype=float)
         if p.shape != (3,) or not np.all(np.isfinite(p)):
             raise ModelError(f"frame/point {qualified!r}: position must be 3 finite numbers")
-        from ..spatial import rotation_matrix
+        from ..numerics.spatial import rotation_matrix
 
         R = rotation_matrix(_orientation(orientation, f"frame {qualified!r}"))
         self._frames[qualified] = Frame(qualified, body, p, R)

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..spatial import xyz_angles_from_matrix
+from ..numerics.spatial import xyz_angles_from_matrix
 from .kernels import relative_vector
 
 __all__ = [

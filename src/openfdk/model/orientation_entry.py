@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..spatial import quat_from_rotvec, rotation_matrix_xyz
+from ..numerics.spatial import quat_from_rotvec, rotation_matrix_xyz
 
 
 def _angles(ctx, value, path):
@@ -37,11 +37,11 @@ def _orientation(value, path, ctx):
         if kind == "xyz":
             return rotation_matrix_xyz(_angles(ctx, v, f"{path}.xyz"))
         if kind == "rotation_vector":
-            from ..spatial import rotation_matrix
+            from ..numerics.spatial import rotation_matrix
 
             return rotation_matrix(quat_from_rotvec(_angles(ctx, v, f"{path}.{kind}")))
         if kind == "quaternion":
-            from ..spatial import normalize_quat, rotation_matrix
+            from ..numerics.spatial import normalize_quat, rotation_matrix
 
             return rotation_matrix(normalize_quat(ctx.vector(v, f"{path}.quaternion", n=4)))
         M = ctx.vector(v, f"{path}.matrix", shape=(3, 3))

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..spatial import rotation_matrix
+from ..numerics.spatial import rotation_matrix
 from .kernels import displace_poses, get_poses, get_velocities, set_poses, set_velocities
 
 

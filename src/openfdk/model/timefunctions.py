@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from openfdk.cubic_spline import NotAKnotSpline
+from openfdk.numerics.cubic_spline import NotAKnotSpline
 
 __all__ = ["Constant", "Polynomial", "Fourier", "SplineThroughData", "TimeFunction"]
 

@@ -55,10 +55,10 @@ def plan_segments(n_frames: int, chunks: int, overlap: int = DEFAULT_OVERLAP) ->
 
 
 def analysis_inputs(model, trial_path=None, cutoff_hz=None, start=None, end=None, settings=None):
-    """(trajectories or None, times (nf,) s, info) exactly as :func:`openfdk.jobs.run_job`
-    chooses them (:func:`openfdk.jobs.analysis_inputs`; settings : the model file's
+    """(trajectories or None, times (nf,) s, info) exactly as :func:`openfdk.analysis.jobs.run_job`
+    chooses them (:func:`openfdk.analysis.jobs.analysis_inputs`; settings : the model file's
     AnalysisSettings)."""
-    from ..jobs import analysis_inputs as inputs
+    from ..analysis.jobs import analysis_inputs as inputs
 
     return inputs(model, trial_path, cutoff_hz, start, end, settings)
 
@@ -79,7 +79,7 @@ class SegmentResult:
 
 def analyse(model, trajectories, times, settings=None):
     """Kinematics, inverse dynamics and (when the model has FDK DOFs) FDK over ``times``
-    (nf,) s with ``settings`` (AnalysisSettings), as :func:`openfdk.jobs.run_job` does
+    (nf,) s with ``settings`` (AnalysisSettings), as :func:`openfdk.analysis.jobs.run_job` does
     (one pass of the trial driver). Returns (kin, dyn, fdk or None)."""
     from ..analysis.run import run_trial
 

@@ -17,7 +17,7 @@ from collections import Counter
 import time as _time
 from pathlib import Path
 
-from .. import argtypes
+from ..cli import argtypes
 from .defaults import DEFAULT_OVERLAP
 
 
@@ -127,7 +127,7 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
     ``workers`` = 0 solves the segments one after the other in this process; else a
     LocalCluster of ``workers`` processes (default min(chunks, CPUs)) on 127.0.0.1.
     Returns (KinematicsResult, InverseDynamicsResult, info) like
-    :func:`openfdk.jobs.run_job` (info["fdk"] for FDK models, info["chunks"],
+    :func:`openfdk.analysis.jobs.run_job` (info["fdk"] for FDK models, info["chunks"],
     info["segments"]); with ``out_dir``, also writes kinematics.csv, forces.csv and
     summary.json there as ``openfdk run`` does.
 
@@ -149,7 +149,7 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
     # the plausibility checks of the whole trial, here once (the segments skip them):
     # model (on loading), trial markers in the window, and the pulling contacts below
     from ..io.modelfile import load_model_and_settings
-    from ..jobs import _refuse_redundant_rows, analysis_inputs
+    from ..analysis.jobs import _refuse_redundant_rows, analysis_inputs
     from ..contact.rim import warn_contact_rims
     from ..model.plausibility import warn_pulling_contacts
 
@@ -174,7 +174,7 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
     t0 = _time.perf_counter()
     bar = None
     if progress:
-        from ..progress import progress as _display
+        from ..trial.progress import progress as _display
 
         bar = _display(int(chunks), "chunks", "chunk", initial=len(done))
     results = [done[k] for k in sorted(done)]

@@ -253,7 +253,7 @@ def run_study(study, out_dir, *, scheduler=None, workers=None, client=None, prog
                 records[case.case_id] = _record(case, out, done, None, 0, True, metric_columns)
         bar = None
         if progress:
-            from ..progress import progress as _display
+            from ..trial.progress import progress as _display
 
             bar = _display(len(study.cases), f"study {study.name}", "case", initial=len(records))
         try:

@@ -19,7 +19,7 @@ from __future__ import annotations
 import importlib
 
 #: the modules a case needs (imported by :func:`openfdk.study.case.run_case` on the way)
-CASE_MODULES = ("openfdk.study.case", "openfdk.study.summary", "openfdk.jobs", "openfdk.io.trials",
+CASE_MODULES = ("openfdk.study.case", "openfdk.study.summary", "openfdk.analysis.jobs", "openfdk.io.trials",
                 "openfdk.io.markers", "openfdk.io.modelfile", "openfdk.analysis.run", "openfdk.fdk.analysis",
                 "openfdk.forces.force_laws", "openfdk.contact.mesh")
 

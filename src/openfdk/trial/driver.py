@@ -250,7 +250,7 @@ class TrialInterrupted(KeyboardInterrupt):
 def _progress(total, enabled, desc, initial=0):
     if not enabled:
         return None
-    from ..progress import progress
+    from .progress import progress
 
     return progress(total, desc, "frame", initial=initial)
 

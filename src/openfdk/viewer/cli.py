@@ -1,10 +1,10 @@
-"""The ``openfdk view`` sub-command (registered by :func:`openfdk.cli.build_parser`)."""
+"""The ``openfdk view`` sub-command (registered by :func:`openfdk.cli.commands.build_parser`)."""
 
 from __future__ import annotations
 
 
 def _cmd_view(args):
-    from ..outputs_cli import refuse_empty_out
+    from ..cli.outputs import refuse_empty_out
     from . import write_view
 
     refuse_empty_out(args)
@@ -16,7 +16,7 @@ def _cmd_view(args):
 
 
 def add_view_parser(sub):
-    from ..cli import _display_arguments
+    from ..cli.argtypes import _display_arguments
 
     v = sub.add_parser("view", help="write a self-contained 3D viewer (HTML) of a result folder",
                        description="Write one self-contained HTML file (works offline) showing a run in 3D: bodies "
@@ -25,7 +25,7 @@ def add_view_parser(sub):
     v.add_argument("result_dir", help="folder written by 'openfdk run' (kinematics.csv, forces.csv, summary.json)")
     v.add_argument("--out", default=None, help="HTML file to write (default RESULT_DIR/view.html)")
     v.add_argument("--model", default=None, help="model file (default: the one recorded in summary.json)")
-    from ..argtypes import count
+    from ..cli.argtypes import count
     from . import MIN_MESH_VERTICES
 
     v.add_argument("--max-vertices", type=count(MIN_MESH_VERTICES), default=4000,

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..spatial import rotation_matrix
+from ..numerics.spatial import rotation_matrix
 from .pack import index_kind, pack
 from .results import ViewError
 from .wrapview import wrapped_polylines
@@ -65,7 +65,7 @@ def measured_markers(model, results, poses):
 
 def rotations(e):
     """Rotation matrices (nf, 3, 3) of Euler parameters e (nf, 4), e0 first; NaN rows
-    stay NaN (:func:`openfdk.spatial.rotation_matrix` applied to whole columns)."""
+    stay NaN (:func:`openfdk.numerics.spatial.rotation_matrix` applied to whole columns)."""
     return np.moveaxis(rotation_matrix(np.asarray(e, dtype=float).T), -1, 0)
 
 

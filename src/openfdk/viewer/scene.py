@@ -207,7 +207,7 @@ def extreme_points(p_B):
 
 def _world(model, body, p_B):
     """Reference-pose world positions (k, 3) m of body-frame points p_B (k, 3)."""
-    from ..spatial import rotation_matrix
+    from ..numerics.spatial import rotation_matrix
 
     b = model.bodies[body]
     return b.p_WB0 + np.asarray(p_B).reshape(-1, 3) @ rotation_matrix(b.quat_WB0).T

@@ -136,7 +136,7 @@ def wrapped_polylines(model, paths, poses):
     its geodesic is shot per frame)."""
     from ..forces.wrap_kernels import wrapped_path_lengths
     from ..forces.wrapping import WrapNodes
-    from ..spatial import rotation_matrix
+    from ..numerics.spatial import rotation_matrix
 
     column = np.array([b.column for b in model.bodies])
     counts = [n_points(p) for p in paths]

@@ -24,8 +24,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .kinematics.system import ConstraintSystem, dependent_rows, undetermined_coordinates
-from .model.constraints import DRIVER
+from ..kinematics.system import ConstraintSystem, dependent_rows, undetermined_coordinates
+from ..model.constraints import DRIVER
 
 
 @dataclass
@@ -74,7 +74,7 @@ def refuse_redundant_rows(model, source=""):
     a ModelError naming ``source`` (the model file) and the rows in a linear dependency
     at the reference pose. A model whose constraints cannot be evaluated there is left
     to the run (its frames report why)."""
-    from .model.model import ModelError
+    from ..model.model import ModelError
 
     found = _RANKS.get(model)
     if found is None:  # a property of the (immutable) model: found once, not at every run of it

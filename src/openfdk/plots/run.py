@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .runresults import conjugate_unit, measure_unit
+from ..results.run import conjugate_unit, measure_unit
 
 __all__ = ["iter_figures", "make_figures", "save_figures", "write_plots", "DISPLAY"]
 
@@ -134,7 +134,7 @@ def _col(df, name):
 
 # ---------------------------------------------------------------------------- figures
 def _kinematics(results, t, failed):
-    from .spatial import rotation_matrix, xyz_angles_from_matrix
+    from ..numerics.spatial import rotation_matrix, xyz_angles_from_matrix
 
     bodies = results.bodies()
     fig, axes = _figure(2 * len(bodies), f"{_name(results)}: body poses")
@@ -486,7 +486,7 @@ def iter_figures(results, measures=None):
 
 
 def make_figures(results, measures=None) -> dict:
-    """Figures of a run (a :class:`~openfdk.runresults.RunResults`): dict name ->
+    """Figures of a run (a :class:`~openfdk.results.run.RunResults`): dict name ->
     matplotlib Figure (:func:`iter_figures`)."""
     return dict(iter_figures(results, measures))
 
@@ -496,7 +496,7 @@ def save_figures(figures, directory, dpi=110) -> list[Path]:
     name -> Figure or an iterable of (name, Figure) pairs (:func:`iter_figures`)."""
     import io
 
-    from .io.outdir import refuse_link, write_new_file
+    from ..io.outdir import refuse_link, write_new_file
 
     d = Path(directory)
     refuse_link(d)  # a planted link is refused, never followed
@@ -512,7 +512,7 @@ def save_figures(figures, directory, dpi=110) -> list[Path]:
 
 def write_plots(result_dir, out_dir=None, measures=None) -> list[Path]:
     """Read a result folder and write its figures (default into ``RESULT_DIR/plots``)."""
-    from .runresults import read_results
+    from ..results.run import read_results
 
     results = read_results(result_dir)
     return save_figures(iter_figures(results, measures), out_dir or Path(result_dir) / "plots")

@@ -18,7 +18,7 @@ import os
 import weakref
 from pathlib import Path
 
-__all__ = ["load_model", "load_settings", "load_trial", "run", "read_results"]
+__all__ = ["load_model", "load_settings", "load_trial", "run", "read_results", "Result"]
 
 RUN_OPTIONS = ("cutoff_hz", "start", "end", "progress")
 #: Model -> absolute path of the file it was loaded from (recorded in summary.json, so
@@ -32,7 +32,7 @@ def load_model(path):
     """Read and validate a model file (YAML, docs/model-file.md) into a Model (purely
     physical; the file's analysis settings: :func:`load_settings`, used by :func:`run`
     by default). Raises ModelError (a ValueError) naming the file and the entry."""
-    from .io.modelfile import load_model_and_settings
+    from ..io.modelfile import load_model_and_settings
 
     model, settings = load_model_and_settings(path)
     _MODEL_FILES[model] = str(Path(path).resolve())
@@ -43,7 +43,7 @@ def load_model(path):
 def load_settings(path):
     """The analysis settings of a model file (sections ``analysis``, ``recruitment``,
     ``fdk``): an :class:`~openfdk.model.settings.AnalysisSettings`."""
-    from .io.modelfile import load_settings as _load
+    from ..io.modelfile import load_settings as _load
 
     return _load(path)
 
@@ -52,7 +52,7 @@ def load_trial(path):
     """Read a marker trial, C3D or TRC by extension, into a MarkerTrial
     (``positions (n_frames, n_markers, 3) m`` NaN where missing, ``time (n_frames,) s``,
     ``rate`` Hz, ``labels``)."""
-    from .io.trials import read_trial
+    from ..io.trials import read_trial
 
     return read_trial(path)
 
@@ -70,12 +70,12 @@ def run(model, trial=None, settings=None, **options):
         options: ``cutoff_hz`` (marker low-pass, Hz; 0 = none; default: the model
             file's, else 6 Hz), ``start``/``end`` (analysed window, s), ``progress``
             (progress bars, default False).
-    Returns: :class:`~openfdk.runresults.RunResults` — ``.kinematics``, ``.forces``,
+    Returns: :class:`~openfdk.api.result.Result` — ``.kinematics``, ``.forces``,
     ``.fdk`` DataFrames indexed by time, ``.summary``, ``.failed_frames``, ``.plot()``,
     ``.view()``, ``.save(dir)``.
     """
-    from .jobs import run_job
-    from .runresults import RunResults
+    from ..analysis.jobs import run_job
+    from .result import Result
 
     unknown = sorted(set(options) - set(RUN_OPTIONS))
     if unknown:
@@ -97,12 +97,20 @@ def run(model, trial=None, settings=None, **options):
                              start=options.get("start"), end=options.get("end"), settings=settings)
     if model_file:
         info["model_file"] = model_file
-    return RunResults.from_analysis(kin, dyn, info, model)
+    return Result.from_analysis(kin, dyn, info, model)
 
 
 def read_results(directory):
     """Load a saved run (``openfdk run --out DIR`` or ``result.save(DIR)``) as a
-    :class:`~openfdk.runresults.RunResults`."""
-    from .runresults import read_results as _read
+    :class:`~openfdk.api.result.Result`."""
+    from .result import Result
 
-    return _read(directory)
+    return Result.read(directory)
+
+
+def __getattr__(name):
+    if name == "Result":  # (imported on first use: it needs numpy and pandas)
+        from .result import Result
+
+        return Result
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -13,11 +13,11 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .io.c3d import write_c3d
-from .io.results import write_kinematics
-from .jobs import kinematics_job
-from .plots import plot_tracking
-from .fixtures.synthetic import synthetic_markers, two_body_model_dict
+from ..io.c3d import write_c3d
+from ..io.results import write_kinematics
+from ..analysis.jobs import kinematics_job
+from ..plots.figures import plot_tracking
+from ..fixtures.synthetic import synthetic_markers, two_body_model_dict
 
 
 def run_kinematics_demo(out="openfdk-demo", quick=False, progress=True):

@@ -97,7 +97,7 @@ def announce_cold_cache(quiet=False, stream=None, modules=None):
     (default :data:`FRAME_KERNEL_MODULES`) is cold and not ``quiet``; tell the progress
     displays to start their clocks after their first step (the one that compiles).
     Returns whether the cache was cold."""
-    from .progress import set_warmup
+    from ..trial.progress import set_warmup
 
     try:
         cold = cache_is_cold(FRAME_KERNEL_MODULES if modules is None else modules)

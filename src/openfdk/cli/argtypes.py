@@ -51,3 +51,12 @@ def count(minimum):
 
     parse.__name__ = f"integer >= {minimum}"
     return parse
+
+def _display_arguments(p, top=False, progress=True):
+    """--no-progress and --quiet (on the main parser and on every subcommand; ``progress``
+    False: --quiet only, for a command without a progress display)."""
+    default = False if top else argparse.SUPPRESS
+    if not top and progress:
+        p.add_argument("--no-progress", action="store_true", help="no progress display")
+    p.add_argument("--quiet", "-q", action="store_true", default=default,
+                   help="no progress display and no informational output (warnings and errors still go to stderr)")

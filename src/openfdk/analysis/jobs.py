@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .io.modelfile import load_model_and_settings
-from .model.settings import AnalysisSettings
+from ..io.modelfile import load_model_and_settings
+from ..model.settings import AnalysisSettings
 
 DEFAULT_CUTOFF_HZ = 6.0
 
@@ -28,7 +28,7 @@ def model_and_settings(model, settings=None):
 
 
 def _refuse_redundant_rows(model, label):
-    """``openfdk check``'s rank test before any frame (:func:`openfdk.model_check.refuse_redundant_rows`)."""
+    """``openfdk check``'s rank test before any frame (:func:`openfdk.analysis.model_check.refuse_redundant_rows`)."""
     from .model_check import refuse_redundant_rows
 
     refuse_redundant_rows(model, label)
@@ -40,9 +40,9 @@ def load_trajectories(model, trial_path, cutoff_hz=None, settings=None):
     ``analysis.marker_cutoff_hz``, else 6 Hz). A model marker absent from the file is an
     error naming it (MissingMarkerError), unless its weight is 0 (not tracked: OpenSim's
     IK tasks leave such markers out)."""
-    from .io.c3d import MarkerTrial
-    from .io.markers import MarkerTrajectories
-    from .io.trials import read_trial
+    from ..io.c3d import MarkerTrial
+    from ..io.markers import MarkerTrajectories
+    from ..io.trials import read_trial
 
     trial = trial_path if isinstance(trial_path, MarkerTrial) else read_trial(trial_path)
     if model.markers.size == 0:
@@ -87,7 +87,7 @@ def determinate_times(model, start=None, end=None, settings=None):
     """Analysis times (nf,) s of a determinate run: [start, end] (defaults: the settings'
     ``analysis.start/end``, else 0 and 1 s) with ``analysis.frames`` frames (default 101),
     or every 1/``analysis.rate_hz`` s from the settings' start."""
-    from .kinematics.analysis import analysis_times
+    from ..kinematics.analysis import analysis_times
 
     a = (settings or AnalysisSettings()).kinematics
     t0 = float(a.get("start", 0.0) if start is None else start)
@@ -106,7 +106,7 @@ def trial_window(model, trial_path, cutoff_hz=None, start=None, end=None, settin
     """The C3D trial, its filtered trajectories and the analysed times (nf,) s; warns
     (PlausibilityWarning) about markers never visible in the window or far from the
     model at its first frame. Returns (trial, trajectories, times, info dict)."""
-    from .model.plausibility import check_trial_markers
+    from ..model.plausibility import check_trial_markers
 
     trial, traj = load_trajectories(model, trial_path, cutoff_hz, settings)
     times = analysis_window(model, np.asarray(trial.time, dtype=float), start, end, settings)
@@ -119,7 +119,7 @@ def analysis_inputs(model, trial_path=None, cutoff_hz=None, start=None, end=None
     analysis window (:func:`trial_window`), or for determinate kinematics the model
     file's ``analysis`` start/end/frames (:func:`determinate_times`); settings : the
     model file's AnalysisSettings. Once the inputs are read, a cold kernel cache is
-    announced if the CLI asked for it (:func:`openfdk.kernel_cache.arm`)."""
+    announced if the CLI asked for it (:func:`openfdk.analysis.kernel_cache.arm`)."""
     from .kernel_cache import announce_armed
 
     if trial_path is None:
@@ -142,7 +142,7 @@ def _with_ground_reactions(model, settings, trial_path, traj, cutoff_hz, info):
         raise ValueError(f"ground_reactions: the force plates come from a C3D trial; {trial_path!r} is not one")
     from dataclasses import replace
 
-    from .io.ground_reactions import plate_loads
+    from ..io.ground_reactions import plate_loads
 
     if cutoff_hz is None:
         cutoff_hz = settings.kinematics.get("marker_cutoff_hz", DEFAULT_CUTOFF_HZ)
@@ -154,13 +154,13 @@ def _with_ground_reactions(model, settings, trial_path, traj, cutoff_hz, info):
 def _import_info(model_path):
     """{"opensim_import": {dropped, merged_bodies}} for a model read from an .osim (the
     elements left out with --ignore are listed in summary.json), else {}."""
-    from .io.opensim import is_osim
+    from ..io.opensim import is_osim
 
     if not isinstance(model_path, (str, bytes)) and not hasattr(model_path, "__fspath__"):
         return {}
     if not is_osim(model_path):
         return {}
-    from .io.opensim.overlay import import_info
+    from ..io.opensim.overlay import import_info
 
     return {"opensim_import": import_info(model_path)}
 
@@ -171,7 +171,7 @@ def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, s
     the model file's ``analysis`` interval (determinate) when ``trial_path`` is None;
     settings : AnalysisSettings (default: the file's, see :func:`model_and_settings`).
     Returns (KinematicsResult, info dict for the summary)."""
-    from .kinematics.analysis import run_determinate, run_tracking
+    from ..kinematics.analysis import run_determinate, run_tracking
 
     model, settings, label = model_and_settings(model_path, settings)
     _refuse_redundant_rows(model, label)
@@ -193,10 +193,10 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
     :func:`openfdk.analysis.run.run_trial` (Ctrl-C raises TrialInterrupted whose
     ``partial`` is (kin, dyn, info) of the finished frames). settings :
     AnalysisSettings (default: the model file's, see :func:`model_and_settings`)."""
-    from .analysis.run import run_trial
-    from .contact.rim import warn_contact_rims
-    from .model.plausibility import warn_pulling_contacts
-    from .trial import TrialInterrupted
+    from .run import run_trial
+    from ..contact.rim import warn_contact_rims
+    from ..model.plausibility import warn_pulling_contacts
+    from ..trial import TrialInterrupted
 
     model, settings, label = model_and_settings(model_path, settings)
     _refuse_redundant_rows(model, label)

@@ -27,14 +27,14 @@ def refuse_empty_out(args):
 
 
 def _cmd_plot(args):
-    from .runplots import iter_figures, save_figures
-    from .runresults import read_results
+    from ..plots.run import iter_figures, save_figures
+    from ..results.run import read_results
 
     refuse_empty_out(args)
 
     results = read_results(args.result_dir)
     if args.model:
-        from .io.modelfile import load_model
+        from ..io.modelfile import load_model
 
         results._model = load_model(args.model)
     out = Path(args.out) if args.out else Path(args.result_dir) / "plots"
@@ -44,17 +44,17 @@ def _cmd_plot(args):
 
 
 def _cmd_export_opensim(args):
-    from .io.osim import export_opensim
+    from ..io.osim import export_opensim
 
     refuse_empty_out(args)
 
     model = None
     if args.model:
-        from .io.modelfile import load_model
+        from ..io.modelfile import load_model
 
         model = load_model(args.model)
     res = export_opensim(args.result_dir, args.out, model=model)
-    from .io.osim import note_lines
+    from ..io.osim import note_lines
 
     for line in note_lines(res["notes"]) if not getattr(args, "quiet", False) else ():
         print(f"export-opensim: {line}", file=sys.stderr)  # what OpenSim cannot hold, one line per kind
@@ -66,7 +66,7 @@ def _cmd_export_opensim(args):
 
 def add_output_parsers(sub):
     """Register ``plot`` and ``export-opensim`` on the main parser's subparsers."""
-    from .cli import _display_arguments
+    from .argtypes import _display_arguments
 
     p = sub.add_parser("plot", help="PNG figures of a run (kinematics, FDK, muscles, contact, reactions, convergence)",
                        description="Draw the PNG figures of a result folder of openfdk run / kinematics (the same "
@@ -103,7 +103,7 @@ def record_model_file(out_dir, model_path):
     path = Path(out_dir) / "summary.json"
     if not path.is_file() or not model_path:
         return
-    from .io.results import write_json
+    from ..io.results import write_json
 
     summary = json.loads(path.read_text())
     summary.setdefault("input", {})["model_file"] = str(Path(model_path).resolve())
@@ -114,7 +114,7 @@ def after_run(args, plots=True):
     """After ``openfdk run``/``kinematics`` wrote its CSV files: record the model file,
     write the ``.sto`` twins and (unless ``--no-plots``) the figures. A figure that
     cannot be drawn is reported on stderr; the run's results stay."""
-    from .io.storage import csv_to_sto
+    from ..io.storage import csv_to_sto
 
     out = Path(args.out)
     record_model_file(out, args.model)
@@ -126,7 +126,7 @@ def after_run(args, plots=True):
     if not plots or getattr(args, "no_plots", False):
         return
     try:
-        from .runplots import write_plots
+        from ..plots.run import write_plots
 
         paths = write_plots(out)
     except Exception as exc:  # the analysis results are written; report and go on

@@ -2,7 +2,7 @@
 back from a result folder (``kinematics.csv``, ``forces.csv``, ``summary.json``).
 
 :class:`RunResults` is what :func:`openfdk.run` and :func:`openfdk.read_results` return
-(docs/python-api.md); the figures (:mod:`openfdk.runplots`) and the OpenSim export
+(docs/python-api.md); the figures (:mod:`openfdk.plots.run`) and the OpenSim export
 (:mod:`openfdk.io.osim`) read it too.  Column meanings: docs/outputs.md.
 """
 
@@ -176,8 +176,8 @@ class RunResults:
     @classmethod
     def from_analysis(cls, kin, dyn, info: dict, model=None):
         """From a KinematicsResult, an InverseDynamicsResult (or None) and the job info
-        (as returned by :func:`openfdk.jobs.run_job`)."""
-        from .io.results import forces_columns, kinematics_columns
+        (as returned by :func:`openfdk.analysis.jobs.run_job`)."""
+        from ..io.results import forces_columns, kinematics_columns
 
         info = dict(info)
         fdk = info.pop("fdk", None)
@@ -189,7 +189,7 @@ class RunResults:
         forces = None if dyn is None else _frame(forces_columns(dyn))
         measures = None
         if model is not None and model.measures:
-            from .io.measure_outputs import measure_columns
+            from ..io.measure_outputs import measure_columns
 
             measures = _frame(measure_columns(model, kin))
         return cls(_frame(kinematics_columns(kin)), forces, summary, model, measures=measures)
@@ -211,8 +211,8 @@ class RunResults:
         """Write kinematics.csv, forces.csv, measures.csv, summary.json (and the ``.sto``
         twins of the tables unless ``sto=False``) into ``directory`` (created). Returns
         the folder."""
-        from .io.results import write_json, write_table
-        from .io.storage import csv_to_sto
+        from ..io.results import write_json, write_table
+        from ..io.storage import csv_to_sto
 
         d = Path(directory)
         d.mkdir(parents=True, exist_ok=True)
@@ -359,37 +359,10 @@ class RunResults:
         return next((p for p in candidates if p.is_file()), None)
 
     def _load_model(self):
-        from .io.modelfile import load_model
+        from ..io.modelfile import load_model
 
         path = self.model_path()
         return load_model(path) if path is not None else None
-
-    # ------------------------------------------------------------------ outputs
-    def plot(self, directory=None, measures=None):
-        """The run's figures (:func:`openfdk.runplots.make_figures`): a dict name ->
-        matplotlib Figure. With ``directory``, also written there as PNG files."""
-        from .runplots import make_figures, save_figures
-
-        figures = make_figures(self, measures=measures)
-        if directory is not None:
-            save_figures(figures, directory)
-        return figures
-
-    def view(self, out_html=None):
-        """Write the 3D viewer of this run (``openfdk view``) and return its path. An
-        unsaved run is first saved to a temporary folder."""
-        try:
-            from .viewer import write_view
-        except ImportError as exc:
-            raise ImportError("the 3D viewer (openfdk.viewer) is not installed in this openfdk; "
-                              f"update openfdk to use .view() ({exc})") from None
-        if self.directory is None:
-            import tempfile
-
-            self.save(tempfile.mkdtemp(prefix="openfdk-run-"))
-        out_html = Path(out_html) if out_html else self.directory / "view.html"
-        write_view(self.directory, out_html, model=self._model)
-        return out_html
 
     def __repr__(self):
         s = self.summary.get("kinematics", {})

@@ -33,6 +33,7 @@ import warnings
 from collections import Counter
 
 from . import argtypes
+from .argtypes import _display_arguments
 
 #: exit codes (README "Exit codes")
 EXIT_OK, EXIT_BAD_INPUT, EXIT_FAILED_FRAMES, EXIT_INTERRUPTED = 0, 2, 3, 130
@@ -44,8 +45,8 @@ class UserError(Exception):
 
 
 def _cmd_check(args):
-    from .io.modelfile import load_model
-    from .model_check import check_model
+    from ..io.modelfile import load_model
+    from ..analysis.model_check import check_model
 
     model = load_model(args.model)
     _announce_kernels(args, check=True)
@@ -60,9 +61,9 @@ def _cmd_check(args):
 
 
 def _cmd_import_opensim(args):
-    from .io.opensim.overlay import imported_model_data, import_info
-    from .io.opensim.write_yaml import write_imported
-    from .io.outdir import check_output_dir
+    from ..io.opensim.overlay import imported_model_data, import_info
+    from ..io.opensim.write_yaml import write_imported
+    from ..io.outdir import check_output_dir
 
     check_output_dir(args.out, force=args.force)
     data = imported_model_data(args.model)
@@ -70,10 +71,10 @@ def _cmd_import_opensim(args):
         raise UserError(f"{args.model}: not an OpenSim model (.osim)")
     from pathlib import Path
 
-    from .io.modelfile import model_and_settings_from_dict
-    from .io.yamlfile import read_yaml
-    from .model.model import ModelError
-    from .model.plausibility import check_model
+    from ..io.modelfile import model_and_settings_from_dict
+    from ..io.yamlfile import read_yaml
+    from ..model.model import ModelError
+    from ..model.plausibility import check_model
 
     model, settings = model_and_settings_from_dict(data, source=Path(args.model).name)
     check_model(model, Path(args.model).name, settings.units["length"])  # errors name the .osim; nothing written yet
@@ -88,7 +89,7 @@ def _cmd_import_opensim(args):
 
 
 def _cmd_cache(args):
-    from .contact.grid_cache import clear_grid_cache, grid_cache_info
+    from ..contact.grid_cache import clear_grid_cache, grid_cache_info
 
     folder, n, size = grid_cache_info()
     if folder is None:
@@ -106,9 +107,9 @@ def _announce_kernels(args, check=False):
     """One line on stderr when numba's kernel cache is cold (first run after install or
     upgrade), unless --quiet, once the inputs are read and before the first kernel call:
     now for ``check`` (model read), else when the analysis has read the model and trial
-    (:func:`openfdk.jobs.analysis_inputs`). The progress displays then start after each
+    (:func:`openfdk.analysis.jobs.analysis_inputs`). The progress displays then start after each
     stage's first (compiling) frame."""
-    from .kernel_cache import CHECK_KERNEL_MODULES, announce_cold_cache, arm
+    from ..analysis.kernel_cache import CHECK_KERNEL_MODULES, announce_cold_cache, arm
 
     if check:
         announce_cold_cache(quiet=getattr(args, "quiet", False), modules=CHECK_KERNEL_MODULES)
@@ -118,8 +119,8 @@ def _announce_kernels(args, check=False):
 
 def _rate(frames_per_second):
     """"N frames/s", saying so when the figure includes compiling numba's kernels (this
-    command found their cache cold, see openfdk.kernel_cache)."""
-    from .progress import warming_up
+    command found their cache cold, see openfdk.analysis.kernel_cache)."""
+    from ..trial.progress import warming_up
 
     text = f"{frames_per_second or 0:.0f} frames/s"
     return text + (", including the kernels' first compilation" if warming_up() else "")
@@ -154,7 +155,7 @@ def _check_window(args):
 
 def _prepare_out(args):
     """Output folder checked before any computation (writable; results only with --force)."""
-    from .io.outdir import check_output_dir
+    from ..io.outdir import check_output_dir
 
     check_output_dir(args.out, force=args.force, resume=getattr(args, "resume", False))
 
@@ -186,8 +187,8 @@ def failed_frames_exit(converged, statuses, messages, max_failed, what="frames")
 
 
 def _cmd_kinematics(args):
-    from .io.results import write_kinematics
-    from .jobs import kinematics_job
+    from ..io.results import write_kinematics
+    from ..analysis.jobs import kinematics_job
 
     _check_window(args)
     _prepare_out(args)
@@ -201,7 +202,7 @@ def _cmd_kinematics(args):
     s = result.summary()
     _say(args, f"kinematics: {s['converged_frames']}/{s['frames']} frames converged in {s['wall_time_s']:.2f} s "
                f"({_rate(s['frames_per_second'])}) -> {args.out}/kinematics.csv")
-    from .outputs_cli import after_run
+    from .outputs import after_run
 
     after_run(args, plots=False)
     _print_failed(args, result.failed_frames())
@@ -220,10 +221,10 @@ def _print_failed(args, failed):
 def _write_measures(out_dir, model_path, kinematics):
     """measures.csv: the model's named measures (joint measures included) per frame;
     coordinates.csv and coordinates.mot: its joint coordinates (OpenSim models)."""
-    from .io.measure_outputs import write_measures
-    from .io.modelfile import load_model
+    from ..io.measure_outputs import write_measures
+    from ..io.modelfile import load_model
 
-    from .io.coordinate_outputs import write_coordinates
+    from ..io.coordinate_outputs import write_coordinates
 
     model = load_model(model_path)
     write_measures(out_dir, model, kinematics)
@@ -236,9 +237,9 @@ def _write_grf(args, info, dyn):
         return
     from pathlib import Path
 
-    from .io.ground_reactions import grf_figure, write_grf
-    from .io.modelfile import load_settings
-    from .jobs import DEFAULT_CUTOFF_HZ
+    from ..io.ground_reactions import grf_figure, write_grf
+    from ..io.modelfile import load_settings
+    from ..analysis.jobs import DEFAULT_CUTOFF_HZ
 
     settings = load_settings(args.model)
     cutoff = args.cutoff if args.cutoff is not None else settings.kinematics.get("marker_cutoff_hz", DEFAULT_CUTOFF_HZ)
@@ -253,9 +254,9 @@ def _write_generalized_forces(out_dir, model_path, dyn):
     the residuals in summary.json."""
     from pathlib import Path
 
-    from .io.generalized_forces import write_generalized_forces
-    from .io.modelfile import load_model
-    from .io.results import write_json
+    from ..io.generalized_forces import write_generalized_forces
+    from ..io.modelfile import load_model
+    from ..io.results import write_json
 
     summary = write_generalized_forces(out_dir, load_model(model_path), dyn)
     if summary is None:
@@ -273,16 +274,16 @@ def _cmd_run(args):
     _prepare_out(args)
     _announce_kernels(args)
     if args.chunks > 1:
-        from .study.cli import run_chunked_job
+        from ..study.cli import run_chunked_job
 
         kin, dyn, info = run_chunked_job(
             args.model, args.trial, args.chunks, args.out, cutoff_hz=args.cutoff, start=args.start,
             end=args.end, overlap=args.overlap, scheduler=args.scheduler, workers=args.workers,
             progress=_progress_on(args), checkpoints=_run_checkpoints(args, chunked=True), resume=args.resume)
     else:
-        from .jobs import run_job
-        from .study.case import write_run_outputs
-        from .trial import TrialInterrupted
+        from ..analysis.jobs import run_job
+        from ..study.case import write_run_outputs
+        from ..trial import TrialInterrupted
 
         checkpoints = _run_checkpoints(args)
         try:
@@ -312,7 +313,7 @@ def _cmd_run(args):
              + (f", {fdk['restarted_frames']} frame(s) restarted from another starting α"
                 if fdk.get("restarted_frames") else "")
              )
-    from .outputs_cli import after_run
+    from .outputs import after_run
 
     failed = dyn.failed_frames(), dyn.converged, dyn.status, dyn.messages
     del kin, dyn, info  # written: the figures read them back, so the arrays need not stay
@@ -331,8 +332,8 @@ def _run_checkpoints(args, chunked=False):
     ``chunked``: the finished segments of ``--chunks K`` (SegmentCheckpoints)."""
     from pathlib import Path
 
-    from .io.fingerprint import run_fingerprint
-    from .trial.checkpoint import CHECKPOINT_DIR, Checkpoints, SegmentCheckpoints
+    from ..io.fingerprint import run_fingerprint
+    from ..trial.checkpoint import CHECKPOINT_DIR, Checkpoints, SegmentCheckpoints
 
     options = (args.cutoff, args.start, args.end, _version())
     if chunked:
@@ -355,8 +356,8 @@ def _version():
 def _cmd_demo(args):
     from pathlib import Path
 
-    from .io.outdir import check_output_dir
-    from .mandible.demo import run_demo
+    from ..io.outdir import check_output_dir
+    from ..mandible.demo import run_demo
 
     # before any computation: the demo folder (subject reused) and its study results
     check_output_dir(args.out)
@@ -392,14 +393,14 @@ def _cycles_argument(value):
 
 
 def _cmd_subject(args):
-    from .mandible.experiment import record_experiment
-    from .mandible.generator import create_subject
+    from ..mandible.experiment import record_experiment
+    from ..mandible.generator import create_subject
 
     if args.action == "study":
-        from .mandible.demo import report
-        from .mandible.study import run_study
+        from ..mandible.demo import report
+        from ..mandible.study import run_study
 
-        from .io.outdir import check_output_dir
+        from ..io.outdir import check_output_dir
 
         out = args.out or f"{args.directory.rstrip('/')}-study"
         check_output_dir(out, force=args.force)  # before any computation
@@ -415,7 +416,7 @@ def _cmd_subject(args):
         path = create_subject(args.directory, resolution=args.resolution, symmetric=not args.asymmetric, seed=args.seed)
         _say(args, f"virtual subject written to {path}/ (subject.yaml and STL files); next: openfdk subject record {path}")
     elif args.realistic:
-        from .mandible.realistic import record_realistic
+        from ..mandible.realistic import record_realistic
 
         if args.cycles is not None:
             raise UserError("openfdk subject record --realistic: --cycles is fixed by the realistic protocol "
@@ -434,7 +435,7 @@ def _cmd_subject(args):
 def _cmd_bench(args):
     import importlib
 
-    from .bench import BENCHMARK_MODULES
+    from ..bench import BENCHMARK_MODULES
 
     failures = 0
     short = [name.rsplit(".", 1)[-1] for name in BENCHMARK_MODULES]
@@ -513,7 +514,7 @@ def _register_import(args):
     model = getattr(args, "model", None)
     if model is None or not hasattr(args, "overlay"):
         return
-    from .io.opensim import is_osim
+    from ..io.opensim import is_osim
 
     if not is_osim(model):
         if args.overlay or args.ignore or args.geometry or args.ik_tasks or args.external_loads or args.motion \
@@ -528,20 +529,11 @@ def _register_import(args):
                           ("--actuators", args.actuators)):
         if value is not None and not Path(value).is_file():
             raise UserError(f"{option}: {value!r} does not exist or is not a regular file")
-    from .io.opensim.overlay import register
+    from ..io.opensim.overlay import register
 
     register(model, args.ignore, args.geometry, args.overlay, args.ik_tasks, args.external_loads, args.motion,
              args.motion_cutoff or None, args.actuators)
 
-
-def _display_arguments(p, top=False, progress=True):
-    """--no-progress and --quiet (on the main parser and on every subcommand; ``progress``
-    False: --quiet only, for a command without a progress display)."""
-    default = False if top else argparse.SUPPRESS
-    if not top and progress:
-        p.add_argument("--no-progress", action="store_true", help="no progress display")
-    p.add_argument("--quiet", "-q", action="store_true", default=default,
-                   help="no progress display and no informational output (warnings and errors still go to stderr)")
 
 
 def _version():
@@ -550,7 +542,7 @@ def _version():
 
         return version("openfdk")
     except Exception:  # not installed as a distribution: the package's own number
-        from . import __version__
+        from .. import __version__
 
         return __version__
 
@@ -653,10 +645,10 @@ def build_parser():
                                    "docs/fdk.md, docs/outputs.md).")
     _trial_arguments(r)
     r.set_defaults(func=_cmd_run)
-    from .study.cli import add_chunk_arguments, add_study_parser
+    from ..study.cli import add_chunk_arguments, add_study_parser
 
     add_chunk_arguments(r)
-    from .trial.checkpoint import DEFAULT_EVERY_FRAMES, DEFAULT_EVERY_SECONDS
+    from ..trial.checkpoint import DEFAULT_EVERY_FRAMES, DEFAULT_EVERY_SECONDS
 
     r.add_argument("--resume", action="store_true",
                    help="continue an interrupted run from the checkpoint in --out (same model, trial and options)")
@@ -665,8 +657,8 @@ def build_parser():
     r.add_argument("--checkpoint-seconds", type=float, default=DEFAULT_EVERY_SECONDS, metavar="S",
                    help=f"... and at least every S seconds (default {DEFAULT_EVERY_SECONDS:g})")
     add_study_parser(sub)
-    from .outputs_cli import add_output_parsers, add_run_output_arguments
-    from .viewer.cli import add_view_parser
+    from .outputs import add_output_parsers, add_run_output_arguments
+    from ..viewer.cli import add_view_parser
 
     add_run_output_arguments(r)
     add_output_parsers(sub)
@@ -719,7 +711,7 @@ def main(argv=None):
     import numpy as np
 
     args = build_parser().parse_args(argv)
-    from .progress import set_quiet, set_warmup
+    from ..trial.progress import set_quiet, set_warmup
 
     set_quiet(getattr(args, "quiet", False))
     old_show, old_err = warnings.showwarning, np.seterr(all="ignore")
@@ -744,7 +736,7 @@ def main(argv=None):
         np.seterr(**old_err)
         set_quiet(False)
         set_warmup(False)
-        from .kernel_cache import disarm
+        from ..analysis.kernel_cache import disarm
 
         disarm()
 
