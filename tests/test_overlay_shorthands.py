@@ -62,3 +62,16 @@ def test_bad_lists_are_one_line_errors(leg, text, expected):
     with pytest.raises(ModelError) as err:
         load_model_and_settings(_overlay(leg, text))
     assert str(err.value).startswith(expected)
+
+
+def test_reserves_leave_out_fdk_and_locked_coordinates(leg):
+    """A reserve on an FDK coordinate would carry the very load FDK must balance (the
+    DM knee's five secondary coordinates took 4–8 kN in their reserves): reserves are
+    made for free coordinates only."""
+    plain, _ = load_model_and_settings(_overlay(leg, "reserves: {optimal_force: 1.0}\n", "plain.yaml"))
+    held, _ = load_model_and_settings(_overlay(leg, "reserves: {optimal_force: 1.0}\nfdk: [knee]\n"
+                                                    "lock: [hip_q]\n"))
+    before = {a.coordinate for a in plain.actuators}
+    after = {a.coordinate for a in held.actuators}
+    assert {"knee", "hip_q"} <= before
+    assert after == before - {"knee", "hip_q"}

@@ -32,7 +32,8 @@ actuators, recruited beside the muscles and weighted by their optimal force
       residuals: true                  # false: none on the root joint (e.g. the residual
                                        # actuators come from --actuators, FX … MZ)
       coordinates: [hip_flexion_r, …]  # optional: only these (default: every coordinate
-                                       # that is neither locked nor prescribed)
+                                       # that is neither locked, prescribed, held by a
+                                       # constraint (an overlay's lock) nor an FDK DOF)
 
 ``reserves`` makes actuators named ``reserve_<coordinate>``, and ``residual_<coordinate>``
 on the coordinates of the joint whose parent is the ground (the root body's residual
@@ -152,7 +153,7 @@ def load_reserves(b, data, ctx):
                                             positive=True),
                 "rotational": ctx.number(data.get("residual_moment", force), "reserves.residual_moment",
                                          positive=True)}
-    free = [c for c in records if not c.locked and not c.prescribed]
+    free = [c for c in records if not c.locked and not c.prescribed and not _held(b, c)]
     names = data.get("coordinates")
     if names is not None:
         if not isinstance(names, list) or not all(isinstance(x, str) for x in names):
@@ -175,6 +176,19 @@ def load_reserves(b, data, ctx):
             out.append(CoordinateActuator(f"reserve_{c.name}", c.name, c.measure, force))
     _check_unique(out, ctx)
     b.elements["actuators"] = out
+
+
+def _held(b, coordinate):
+    """Whether a constraint (an overlay's ``lock``, a ``constraints`` entry on the
+    coordinate itself) holds the coordinate, or it is an FDK DOF: such a coordinate is
+    not free, and a reserve on it would carry what FDK must balance (the FDK residual of
+    Eq. 15 is the load nothing else takes in that direction). Drivers do not hold: with
+    actuators, a driven coordinate is moved by the muscles and reserves."""
+    from ..model.constraints import JOINT
+
+    measure = coordinate.measure
+    return (any(c.kind == JOINT and c.measure is measure for c in b._constraints)
+            or any(d.measure is measure for d in b._fdk))
 
 
 def _root_joints(b, records):
