@@ -1,0 +1,356 @@
+"""A small knee in OpenSim-JAM format, its secondary coordinates solved by FDK and by an
+independent force balance written here (issue 27, "Tests that must exist").
+
+The model (built with OpenSim's API, the JAM elements added to its XML as OpenSim-JAM
+writes them):
+
+* femur welded to the ground (y up, x anterior, z lateral); its two condyles are spheres
+  of radius R centred at (0, 0, ±W), meshed as open caps (a square grid of spacing s
+  projected onto the sphere, written here as binary STL);
+* tibia on a CustomJoint ``knee``: knee_flex (about z), knee_add (x), knee_rot (y), each
+  rotation about the axis turned by the ones before it, then knee_tx, knee_ty, knee_tz
+  along the femur's axes (checked against OpenSim's own transform below); the joint's
+  child frame sits R above the plateau, so all coordinates zero put the spheres on the
+  plateau with zero depth;
+* a flat tibial plateau (y = 0 in the tibia, normal +y), Smith2018ContactMesh layers on
+  both meshes, lumped as JAM does (one layer of mean E and ν and thickness h₁ + h₂,
+  linear law p = K/h · d, K = E (1 − ν)/((1 + ν)(1 − 2ν)));
+* four Blankevoort1991Ligament strands (two collaterals, two crossing cruciates) with
+  given stiffness, slack length and transition strain, no damping;
+* a known external load on the tibia (compression, an anterior force, a varus and an
+  internal-rotation moment), knee_flex held, the other five coordinates FDK DOFs
+  (overlay ``fdk_dofs: [...]``, ``lock: [...]``).
+
+The independent solve: the tibia pose from the five coordinates (the rotation sequence
+above); each condyle presses δ = R − (distance of its centre above the plateau) and
+carries F = π p R δ² along the plateau normal through the sphere's centre (the linear
+elastic foundation integrated over the sphere's surface between depths 0 and δ: the cap
+between d and d + dd has area 2πR dd, so F = ∫₀^δ p d 2πR dd, exactly); each strand
+pulls with the Blankevoort law (ε = l/l₀ − 1; F = k ε²/(2ε_t) for 0 < ε < ε_t,
+k (ε − ε_t/2) beyond; Blankevoort & Huiskes 1991, the form OpenSim's
+Blankevoort1991Ligament documents); the generalized forces along the five coordinates
+(virtual work, the tibia's angular velocity per unit coordinate rate from the rotation
+matrix' derivative) are driven to zero by scipy's ``root``.
+
+openfdk evaluates the contact on the meshes: the vertex sum Σ p a_i d_i over the sphere
+cap's vertices (tributary areas a_i) approximates the integral. The discretisation error
+is quantified by the same vertex sum written here over the STL's vertices
+(``_vertex_contact``): with s = 0.2 mm it shifts the equilibrium from the closed form's by
+< 0.3 µm (and < 3e-6 rad), so the closed form is held to 1e-6 m and 1e-5 rad, and the
+solve on the same vertices to 1e-8 m.
+"""
+
+from __future__ import annotations
+
+import functools
+import struct
+
+import numpy as np
+import pytest
+from lxml import etree
+
+opensim = pytest.importorskip("opensim")
+
+from openfdk.fdk.analysis import run_fdk  # noqa: E402
+from openfdk.io.modelfile import load_model_and_settings  # noqa: E402
+
+R_CONDYLE, W_CONDYLE = 0.025, 0.022     # m: condyle sphere radius, half the condyles' spacing
+CAP_HALF_WIDTH, CAP_SPACING = 0.017, 0.2e-3
+LAYERS = {"femur_cartilage": (8e6, 0.45, 2e-3), "tibia_cartilage": (12e6, 0.45, 4e-3)}  # E (Pa), ν, h (m)
+LIGAMENTS = {  # name: femur point (m), tibia point (tibia frame, m), k (N/strain), slack length (m), ε_t
+    "mcl": ((0.0, 0.0, -0.042), (-0.005, -0.035, -0.040), 2500.0, 0.057, 0.06),
+    "lcl": ((0.0, 0.0, 0.042), (-0.010, -0.030, 0.045), 2000.0, 0.053, 0.06),
+    "acl": ((-0.010, -0.005, 0.008), (0.015, -0.002, -0.003), 3000.0, 0.032, 0.06),
+    "pcl": ((0.010, -0.005, -0.008), (-0.020, -0.008, 0.002), 3500.0, 0.039, 0.06),
+}
+COORDINATES = ("knee_flex", "knee_add", "knee_rot", "knee_tx", "knee_ty", "knee_tz")
+SECONDARY = COORDINATES[1:]
+CHILD_OFFSET = np.array([0.0, R_CONDYLE, 0.0])  # the joint's frame in the tibia (m)
+LOAD_FORCE = np.array([10.0, 200.0, 0.0])       # N, world, at the joint's child frame origin
+LOAD_MOMENT = np.array([2.0, 0.5, 0.0])         # N m, world: varus (x) and internal rotation (y)
+FLEXION = 0.3                                   # rad, held
+
+
+def _v3(x):
+    return opensim.Vec3(*[float(a) for a in x])
+
+
+def _grid_cap(radius, half_width, spacing):
+    """An open spherical cap, pole −y, centre at the origin: the points of a square grid
+    of ``spacing`` (m) in x and z, |x|, |z| ≤ half_width, moved down onto the sphere;
+    (vertices (n, 3) m, triangles (m, 3)) wound so the normals point away from the
+    centre (out of the condyle)."""
+    n = int(round(half_width / spacing))
+    u = np.arange(-n, n + 1) * spacing
+    x, z = np.meshgrid(u, u, indexing="ij")
+    vertices = np.c_[x.ravel(), -np.sqrt(radius**2 - x.ravel() ** 2 - z.ravel() ** 2), z.ravel()]
+    idx = np.arange((2 * n + 1) ** 2).reshape(2 * n + 1, 2 * n + 1)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    return vertices, np.r_[np.c_[a, b, c], np.c_[a, c, d]]   # (x, then z): e_x × e_z = −e_y
+
+
+def _flat(size_x, size_z, spacing):
+    """A flat patch in y = 0, normal +y: (vertices (n, 3), triangles (m, 3))."""
+    nx, nz = int(round(size_x / spacing)), int(round(size_z / spacing))
+    x, z = np.meshgrid(np.linspace(-size_x / 2, size_x / 2, nx + 1), np.linspace(-size_z / 2, size_z / 2, nz + 1),
+                       indexing="ij")
+    vertices = np.c_[x.ravel(), np.zeros(x.size), z.ravel()]
+    idx = np.arange(x.size).reshape(x.shape)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    return vertices, np.r_[np.c_[a, c, b], np.c_[a, d, c]]
+
+
+def _write_stl(path, vertices, triangles):
+    corners = vertices[triangles]
+    with open(path, "wb") as f:
+        f.write(b"openfdk knee test".ljust(80, b" ") + struct.pack("<I", len(corners)))
+        for t in corners:
+            normal = np.cross(t[1] - t[0], t[2] - t[0])
+            f.write(struct.pack("<12fH", *(normal / np.linalg.norm(normal)), *t.ravel(), 0))
+
+
+def _jam_xml(root, meshes, contacts):
+    """Add Smith2018ContactMesh ``meshes`` {name: (frame path, file, (E, ν, h))} and
+    Smith2018ArticularContactForce ``contacts`` {name: (casting, target)} to an OpenSim
+    document's Model element ``root``."""
+    geometry = root.find("ContactGeometrySet/objects")
+    if geometry is None:
+        geometry = etree.SubElement(etree.SubElement(root, "ContactGeometrySet"), "objects")
+    for name, (frame, file, (E, nu, h)) in meshes.items():
+        mesh = etree.SubElement(geometry, "Smith2018ContactMesh", name=name)
+        for tag, text in (("socket_frame", frame), ("mesh_file", file), ("elastic_modulus", E),
+                          ("poissons_ratio", nu), ("thickness", h)):
+            etree.SubElement(mesh, tag).text = str(text)
+    forces = root.find("ForceSet/objects")
+    for name, (casting, target) in contacts.items():
+        force = etree.SubElement(forces, "Smith2018ArticularContactForce", name=name)
+        for tag, text in (("socket_target_mesh", f"/contactgeometryset/{target}"),
+                          ("socket_casting_mesh", f"/contactgeometryset/{casting}"), ("min_proximity", "0"),
+                          ("max_proximity", "0.003"), ("elastic_foundation_formulation", "linear"),
+                          ("use_lumped_contact_model", "true")):
+            etree.SubElement(force, tag).text = text
+
+
+def _knee_model(folder):
+    """The knee (module docstring) as ``folder``/knee.osim with its meshes; returns the
+    OpenSim model (with the standard elements only) and the path."""
+    m = opensim.Model()
+    m.setName("jam_knee")
+    m.setGravity(_v3([0, 0, 0]))
+    femur = opensim.Body("femur", 1.0, _v3([0, 0, 0]), opensim.Inertia(1e-3, 1e-3, 1e-3))
+    tibia = opensim.Body("tibia", 1e-6, _v3([0, 0, 0]), opensim.Inertia(1e-9, 1e-9, 1e-9))  # quasi-static
+    m.addBody(femur)
+    m.addBody(tibia)
+    m.addJoint(opensim.WeldJoint("hip", m.getGround(), _v3([0, 0, 0]), _v3([0, 0, 0]), femur, _v3([0, 0, 0]),
+                                 _v3([0, 0, 0])))
+    transform = opensim.SpatialTransform()
+    for k, (axis, name) in enumerate(zip(np.r_[np.eye(3)[[2, 0, 1]], np.eye(3)], COORDINATES)):
+        ta = transform.updTransformAxis(k)
+        ta.setAxis(_v3(axis))
+        ta.setCoordinateNames(opensim.ArrayStr(name, 1))
+        ta.set_function(opensim.LinearFunction(1.0, 0.0))
+    m.addJoint(opensim.CustomJoint("knee", femur, _v3([0, 0, 0]), _v3([0, 0, 0]), tibia, _v3(CHILD_OFFSET),
+                                   _v3([0, 0, 0]), transform))
+    for name, (a, b, k, slack, eps_t) in LIGAMENTS.items():
+        lig = opensim.Blankevoort1991Ligament(name, femur, _v3(a), tibia, _v3(b), k, slack)
+        lig.set_transition_strain(eps_t)
+        lig.set_damping_coefficient(0.0)
+        m.addForce(lig)
+    m.finalizeConnections()
+    m.initSystem()
+    m.printToXML(str(folder / "base.osim"))
+    vertices, triangles = _grid_cap(R_CONDYLE, CAP_HALF_WIDTH, CAP_SPACING)
+    for side, z in (("medial", -W_CONDYLE), ("lateral", W_CONDYLE)):
+        _write_stl(folder / f"{side}_condyle.stl", vertices + [0.0, 0.0, z], triangles)
+    _write_stl(folder / "plateau.stl", *_flat(0.07, 0.10, 0.005))
+    tree = etree.parse(str(folder / "base.osim"))
+    meshes = {f"{side}_condyle": ("/bodyset/femur", f"{side}_condyle.stl", LAYERS["femur_cartilage"])
+              for side in ("medial", "lateral")}
+    meshes["plateau"] = ("/bodyset/tibia", "plateau.stl", LAYERS["tibia_cartilage"])
+    _jam_xml(tree.getroot().find("Model"), meshes,
+             {f"{side}_contact": (f"{side}_condyle", "plateau") for side in ("medial", "lateral")})
+    tree.write(str(folder / "knee.osim"))
+    return m, folder / "knee.osim"
+
+
+# ----------------------------------------------------------------- the independent solve
+
+
+def _pressure_modulus():
+    """p (N/m³) of the lumped layer: K(Ē, ν̄)/(h₁ + h₂)."""
+    (E1, nu1, h1), (E2, nu2, h2) = LAYERS.values()
+    E, nu = (E1 + E2) / 2, (nu1 + nu2) / 2
+    return E * (1 - nu) / ((1 + nu) * (1 - 2 * nu)) / (h1 + h2)
+
+
+def _rotation(axis, angle):
+    k = np.asarray(axis, float)
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+
+
+def tibia_pose(q):
+    """(R_FT (3, 3), p_FT (3,) m) of the tibia in the femur (= ground) for the six knee
+    coordinates q (rad, m): R = R_z(flex) R_x(add) R_y(rot) (each axis turned by the
+    rotations before it), the joint's child frame at (tx, ty, tz) along the femur's axes."""
+    R = _rotation([0, 0, 1], q[0]) @ _rotation([1, 0, 0], q[1]) @ _rotation([0, 1, 0], q[2])
+    return R, np.asarray(q[3:6], float) - R @ CHILD_OFFSET
+
+
+def blankevoort(strain, k, eps_t):
+    """Blankevoort & Huiskes (1991) strand force (N) at strain ε; k in N per unit strain."""
+    if strain <= 0:
+        return 0.0
+    return k * strain**2 / (2 * eps_t) if strain < eps_t else k * (strain - eps_t / 2)
+
+
+def _closed_form_contact(R_FT, p_FT):
+    """[(force on the tibia (3,) N, a point of its line of action (3,) m)] of the two
+    condyles: F = π p R δ² along −n through the sphere's centre."""
+    n = R_FT[:, 1]
+    out = []
+    for z in (-W_CONDYLE, W_CONDYLE):
+        centre = np.array([0.0, 0.0, z])
+        depth = R_CONDYLE - (centre - p_FT) @ n
+        out.append((-np.pi * _pressure_modulus() * R_CONDYLE * max(depth, 0.0) ** 2 * n, centre))
+    return out
+
+
+@functools.lru_cache(maxsize=None)
+def _cap_vertex_areas():
+    """The condyle cap's vertices (n, 3) m and their tributary areas (n,) m² (a third of
+    each incident triangle's area)."""
+    vertices, triangles = _grid_cap(R_CONDYLE, CAP_HALF_WIDTH, CAP_SPACING)
+    corners = vertices[triangles]
+    tri_area = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+    return vertices, np.bincount(triangles.ravel(), np.repeat(tri_area / 3, 3), len(vertices))
+
+
+def _vertex_contact(R_FT, p_FT):
+    """The same loads as openfdk's elastic foundation over the caps' vertices: f_i = −p
+    a_i d_i n at each vertex i in contact (d_i its depth below the plateau); the forces
+    are parallel, so each condyle's resultant acts through their f-weighted centroid."""
+    vertices, area = _cap_vertex_areas()
+    n = R_FT[:, 1]
+    out = []
+    for z in (-W_CONDYLE, W_CONDYLE):
+        x = vertices + [0.0, 0.0, z]
+        f = _pressure_modulus() * area * np.maximum(-((x - p_FT) @ n), 0.0)
+        out.append((-f.sum() * n, f @ x / f.sum()))
+    return out
+
+
+def _wrench_on_tibia(q, contact):
+    """Resultant force (3,) N and moment about the femur's origin (3,) N m on the tibia."""
+    R_FT, p_FT = tibia_pose(q)
+    loads = contact(R_FT, p_FT)
+    for a, b, k, slack, eps_t in LIGAMENTS.values():
+        b_F = p_FT + R_FT @ np.asarray(b)
+        length = np.linalg.norm(np.asarray(a) - b_F)
+        loads.append((blankevoort(length / slack - 1, k, eps_t) * (np.asarray(a) - b_F) / length, b_F))
+    loads.append((LOAD_FORCE, p_FT + R_FT @ CHILD_OFFSET))
+    points, forces = np.array([x for _, x in loads]), np.array([f for f, _ in loads])
+    return forces.sum(axis=0), np.cross(points, forces).sum(axis=0) + LOAD_MOMENT
+
+
+def generalized_forces(secondary, contact, flexion=FLEXION):
+    """The generalized forces (5,) (N m, N) along the secondary coordinates: Q_j = F ·
+    ∂o/∂q_j + M_o · ω_j, o the femur's origin as a tibia point, ω_j from ∂R/∂q_j Rᵀ (central
+    differences of the pose, step 1e-6)."""
+    q = np.r_[flexion, secondary]
+    force, moment = _wrench_on_tibia(q, contact)
+    R, p = tibia_pose(q)
+    o_T = -R.T @ p  # the femur's origin in the tibia
+    Q = []
+    for j in range(1, 6):
+        e = np.zeros(6)
+        e[j] = 1e-6
+        (Rp, pp), (Rm, pm) = tibia_pose(q + e), tibia_pose(q - e)
+        W = (Rp - Rm) / 2e-6 @ R.T
+        omega = np.array([W[2, 1], W[0, 2], W[1, 0]])
+        velocity = ((pp + Rp @ o_T) - (pm + Rm @ o_T)) / 2e-6
+        Q.append(force @ velocity + moment @ omega)
+    return np.array(Q)
+
+
+def _solve(contact, start, flexion=FLEXION):
+    from scipy.optimize import root
+
+    sol = root(generalized_forces, start, args=(contact, flexion), method="hybr", options={"xtol": 1e-13})
+    assert sol.success, sol.message
+    assert np.abs(sol.fun).max() < 1e-7
+    return sol.x
+
+
+# ------------------------------------------------------------------------------ tests
+
+
+@pytest.fixture(scope="module")
+def knee(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("knee")
+    model, path = _knee_model(folder)
+    return folder, model, path
+
+
+def test_the_independent_kinematics_are_opensims(knee):
+    """The tibia pose written above equals OpenSim's for random coordinates (1e-12)."""
+    _, model, _ = knee
+    state = model.initSystem()
+    rng = np.random.default_rng(27)
+    coordinates = model.getCoordinateSet()
+    tibia = model.getBodySet().get("tibia")
+    for _ in range(5):
+        q = np.r_[rng.uniform(-1, 1, 3), rng.uniform(-0.02, 0.02, 3)]
+        for name, value in zip(COORDINATES, q):
+            coordinates.get(name).setValue(state, float(value), False)
+        model.realizePosition(state)
+        X = tibia.getTransformInGround(state)
+        R_theirs = np.array([[X.R().get(i, j) for j in range(3)] for i in range(3)])
+        p_theirs = np.array([X.p().get(i) for i in range(3)])
+        R, p = tibia_pose(q)
+        np.testing.assert_allclose(R, R_theirs, atol=1e-12)
+        np.testing.assert_allclose(p, p_theirs, atol=1e-12)
+
+
+def _overlay(folder, text, name="fdk.yaml"):
+    (folder / name).write_text("opensim: knee.osim\n" + text)
+    return folder / name
+
+
+@pytest.mark.slow
+def test_secondary_coordinates_match_an_independent_force_balance(knee):
+    folder, _, _ = knee
+    overlay = _overlay(folder, f"""\
+fdk_dofs: [knee_add, knee_rot, knee_tx, {{knee_ty: 0.0005}}, knee_tz]
+lock: [{{knee_flex: {FLEXION}}}]
+fdk: {{tolerance: 1.0e-9, max_iterations: 60}}
+loads:
+  tibia_load: {{point: tibia.knee_child, force: {LOAD_FORCE.tolist()}, moment: {LOAD_MOMENT.tolist()}, frame: world}}
+""")
+    model, settings = load_model_and_settings(overlay)
+    res = run_fdk(model, None, np.array([0.0]), settings)
+    assert res.converged.all(), res.messages
+    ours = dict(zip(res.dof_names, res.alpha[0]))
+    ours = np.array([ours[name] for name in SECONDARY])
+    closed = _solve(_closed_form_contact, np.r_[0, 0, 0, 5e-4, 0])
+    vertex = _solve(_vertex_contact, closed)
+    # the solution moved every DOF (the test can tell a wrong equilibrium from the start)
+    assert np.all(np.abs(closed) > [5e-4, 0.05, 1e-3, 1e-4, 1e-3])
+    # openfdk against the closed form: translations (m) and rotations (rad) to 1e-6;
+    # measured 1e-8 m and 3e-7 rad (the caps' discretisation, next line)
+    np.testing.assert_allclose(ours, closed, rtol=0, atol=1e-6)
+    # against the same force balance summed over the STL's vertices: the discretisation
+    # is the whole difference (measured 1.5e-10)
+    np.testing.assert_allclose(ours, vertex, rtol=0, atol=1e-8)
+    # openfdk's reported loads at its equilibrium: each condyle's force π p R δ² (the
+    # depth from the reported pose) and each strand's Blankevoort force
+    R_FT, p_FT = tibia_pose(np.r_[FLEXION, ours])
+    columns = res.forces.extra["columns"]
+    for side, (force, _) in zip(("medial", "lateral"), _closed_form_contact(R_FT, p_FT)):
+        reported = np.array([columns[f"{side}_contact.F{c}_N"][0] for c in "xyz"])
+        np.testing.assert_allclose(reported, -force, rtol=2e-4, atol=0)  # (force on the condyle: −that on the tibia)
+    for k, name in enumerate(res.forces.ligament_names):
+        a, b, stiffness, slack, eps_t = LIGAMENTS[name]
+        length = np.linalg.norm(np.asarray(a) - (p_FT + R_FT @ np.asarray(b)))
+        assert res.forces.ligament_force[0, k] == pytest.approx(blankevoort(length / slack - 1, stiffness, eps_t),
+                                                                rel=1e-9)
