@@ -92,6 +92,18 @@ def refuse_redundant_rows(model, source=""):
 _RANKS = weakref.WeakKeyDictionary()  # model -> (rows, rank, redundant rows) at the reference pose
 
 
+def _check_contact_meshes(model, rep):
+    """The contact-mesh table (:mod:`openfdk.contact.mesh_check`): its lines, its
+    warnings as ``warning:`` lines, its refusals as errors."""
+    from ..contact.mesh_check import check_contacts, table
+
+    checks = check_contacts(model)
+    rep.lines.extend(table(checks))
+    for chk in checks:
+        rep.lines.extend(f"  warning: {w}" for w in chk.warnings)
+        rep.errors.extend(chk.errors)
+
+
 def check_model(model):
     """Inventory, row count and rank at the reference pose of ``model`` (CheckReport)."""
     rep = CheckReport()
@@ -118,6 +130,7 @@ def check_model(model):
                 item.path.evaluate(state, 0)
             except (FloatingPointError, ValueError) as exc:
                 rep.lines.append(f"  warning: {key[:-1]} {item.name!r} at the reference pose: {exc}")
+    _check_contact_meshes(model, rep)
     n = model.n_coords
     n_joint = sum(c.size for c in model.constraints if c.kind != DRIVER)
     n_driver = sum(c.size for c in drivers)
