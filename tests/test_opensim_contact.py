@@ -200,3 +200,19 @@ def test_import_opensim_copies_the_contact_meshes(tmp_path, monkeypatch, capsys)
     model = load_model(tmp_path / "out" / "ball_on_plate.yaml")
     p_mod = 1.0 / sum(1.0 / _modulus(*layer) for layer in LAYERS.values())
     assert len(model.contacts) == 1 and model.contacts[0].pair.pressure_modulus == pytest.approx(p_mod, rel=1e-12)
+
+
+def test_a_missing_thickness_or_back_mesh_is_refused_in_one_line(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    text = _model(tmp_path).read_text()
+    assert "<thickness>0.004</thickness>" in text
+    for old, new, words in (("<thickness>0.004</thickness>", "", "<thickness> is missing"),
+                            ("<thickness>0.004</thickness>", "<thickness>0.004</thickness><use_variable_thickness>true"
+                             "</use_variable_thickness>", "use_variable_thickness without a mesh_back_file")):
+        bad = tmp_path / "bad.osim"
+        bad.write_text(text.replace(old, new, 1))
+        with pytest.raises(OsimError) as exc:
+            read_osim(bad)
+        msg = str(exc.value)
+        assert "\n" not in msg and "bad.osim: line" in msg and "Smith2018ContactMesh 'ball_mesh'" in msg, msg
+        assert words in msg, msg

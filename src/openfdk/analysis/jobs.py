@@ -34,6 +34,26 @@ def _refuse_redundant_rows(model, label):
     refuse_redundant_rows(model, label)
 
 
+def contact_mesh_checks(model, label):
+    """``openfdk check``'s contact-mesh check before a run (:mod:`openfdk.contact.mesh_check`):
+    a ModelError naming ``label`` (the model file), the contact and the mesh when a
+    mesh is refused; else its warnings issued, and the checks' records for summary.json."""
+    import warnings
+
+    from ..contact.mesh_check import check_contacts
+    from ..model.model import ModelError
+    from ..model.plausibility import PlausibilityWarning
+
+    checks = check_contacts(model)
+    for chk in checks:
+        if chk.errors:
+            raise ModelError(f"{label}: {chk.errors[0]} (see `openfdk check`)")
+    for chk in checks:
+        for text in chk.warnings:
+            warnings.warn(text, PlausibilityWarning, stacklevel=2)
+    return [chk.as_dict() for chk in checks]
+
+
 def load_trajectories(model, trial_path, cutoff_hz=None, settings=None):
     """Read a C3D or TRC trial, pick the model's markers (by label, in model order) and build
     filtered, interpolated trajectories (cut-off: ``cutoff_hz``, else the settings'
@@ -200,8 +220,9 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
 
     model, settings, label = model_and_settings(model_path, settings)
     _refuse_redundant_rows(model, label)
+    meshes = contact_mesh_checks(model, label)
     traj, times, info = analysis_inputs(model, trial_path, cutoff_hz, start, end, settings)
-    info = {"model": label, **_import_info(model_path), **info}
+    info = {"model": label, **_import_info(model_path), **info, **({"contact_meshes": meshes} if meshes else {})}
     model = _with_ground_reactions(model, settings, trial_path, traj, cutoff_hz, info)
 
     def with_info(kin, dyn, fdk):

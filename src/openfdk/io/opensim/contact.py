@@ -20,7 +20,8 @@ A mesh is read from its ``mesh_file`` as a display mesh is (next to the model, i
 Geometry folder, ``--geometry``), placed by its ``socket_frame`` in its body.
 
 Read and refused by name: ``scale_factors`` other than 1, ``mesh_back_file``,
-variable thickness, ``modulus_heterogeneity``, a body-less (ground) pair.
+variable thickness (with or without its back mesh), a missing ``thickness``, ``elastic_modulus`` or
+``poissons_ratio``, ``modulus_heterogeneity``, a body-less (ground) pair.
 """
 
 from __future__ import annotations
@@ -56,6 +57,9 @@ def read_contact_mesh(element, source):
         raise OsimError(f"{where(source, element)}: a {MESH_TYPE} without a name")
     _check_properties(element, source, label, _MESH_PROPERTIES)
     if _flag(element, "use_variable_thickness", source, label, False):
+        if not _text(element, "mesh_back_file"):
+            raise OsimError(f"{where(source, element)}: {label}: use_variable_thickness without a mesh_back_file "
+                            "(the back mesh that gives the thickness is missing)")
         raise OsimError(f"{where(source, element)}: {label}: variable thickness is not supported by openfdk")
     if _text(element, "mesh_back_file"):
         raise OsimError(f"{where(source, element)}: {label}: a mesh_back_file is not supported by openfdk")
@@ -70,6 +74,9 @@ def read_contact_mesh(element, source):
               else frame, "path": frame, "mesh_file": mesh, "line": element.sourceline}
     for tag, key, ok in (("elastic_modulus", "E", lambda x: x > 0), ("poissons_ratio", "nu", lambda x: -1 < x < 0.5),
                          ("thickness", "h", lambda x: x > 0)):
+        if not _text(element, tag):
+            raise OsimError(f"{where(source, element)}: {label}: <{tag}> is missing (the elastic layer's "
+                            f"{'thickness (m)' if key == 'h' else tag} is needed for the pressure law)")
         value = _number(element, tag, source, label, math.nan)
         if not (math.isfinite(value) and ok(value)):
             raise OsimError(f"{where(source, element)}: {label}: {tag} {value:g} is out of range")
