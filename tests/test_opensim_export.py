@@ -28,8 +28,9 @@ TOL = 1e-9
 
 def arm_with_forces(path):
     """Two pin joints (q1, q2), two markers per body, a Thelen2003Muscle over both joints
-    with a ConditionalPathPoint, a Millard2012EquilibriumMuscle and a
-    Blankevoort1991Ligament, non-default parameters."""
+    with a ConditionalPathPoint, a Millard2012EquilibriumMuscle, a
+    Blankevoort1991Ligament, a SpringGeneralizedForce and a CoordinateActuator,
+    non-default parameters."""
     m, upper, lower = om.two_link_arm("arm_forces")
     g = m.getGround()
     rng = np.random.default_rng(7)
@@ -52,6 +53,18 @@ def arm_with_forces(path):
     lig.set_linear_stiffness(2500.0)
     lig.set_slack_length(0.05)
     m.addForce(lig)
+    spring = osim.SpringGeneralizedForce("q1")
+    spring.setName("shoulder_spring")
+    spring.setStiffness(12.5)
+    spring.setRestLength(0.2)
+    spring.setViscosity(0.3)
+    m.addForce(spring)
+    reserve = osim.CoordinateActuator("q2")
+    reserve.setName("elbow_reserve")
+    reserve.setOptimalForce(2.5)
+    reserve.setMinControl(-40.0)
+    reserve.setMaxControl(35.0)
+    m.addForce(reserve)
     m.finalizeConnections()
     om.write(m, path)
     # one ConditionalPathPoint (active for q2 in [-0.5, 1.0]) in the biceps, by editing the file
@@ -133,6 +146,8 @@ def compare(original, exported, n=25, seed=3):
         for name in a.markers:
             worst["marker"] = max(worst["marker"], np.abs(a.marker_position(name) - b.marker_position(name)).max())
         for name, fa in forces_a.items():
+            if not (osim.Muscle.safeDownCast(fa) or osim.Blankevoort1991Ligament.safeDownCast(fa)):
+                continue  # (a spring or actuator on a coordinate: its parameters are compared above)
             pa, pb = _path(fa), _path(forces_b[name])
             worst["length"] = max(worst["length"], abs(pa.getLength(a.state) - pb.getLength(b.state)))
             for cname, c in a.coords.items():

@@ -228,7 +228,7 @@ def _constraint(constraintset, model, c):
         _sub(el, "dependent_coordinate_name", c.dependent)
 
 
-def model_notes(model):
+def model_notes(model, exported=()):
     """{element kind: [names]} of the model's elements that have no OpenSim twin in the
     export (besides those :func:`~openfdk.io.osim_joints.plan_joints` and
     :func:`~openfdk.io.osim_forces.write_forces` report)."""
@@ -246,7 +246,7 @@ def model_notes(model):
         if d.name not in from_rows:
             notes.setdefault("not exported: FDK DOF on an openfdk measure (no coordinate)", []).append(d.name)
     for kind in ("springs", "unilateral_reactions", "loads", "external_loads", "actuators", "tasks"):
-        for e in getattr(model, kind, ()):
+        for e in (e for e in getattr(model, kind, ()) if getattr(e, "name", None) not in exported):
             notes.setdefault(f"not exported: {kind.replace('_', ' ').rstrip('s')}", []).append(getattr(e, "name", "?"))
     for c in model.contacts:
         notes.setdefault("not exported: contact force (its meshes are exported as geometry)", []).append(c.name)
@@ -291,7 +291,9 @@ def build_osim(model, state0=None, geometry=None):
             _constraint(cset, model, c)
     coordinate_path = {c.name: f"/jointset/{j.name}/{c.name}" for j in joints for c in j.coordinates}
     forces = ET.Element("objects")
-    for kind, names in write_forces(forces, model, lambda i: opensim_frame_path(model, i), coordinate_path).items():
+    exported = set()
+    for kind, names in write_forces(forces, model, lambda i: opensim_frame_path(model, i), coordinate_path,
+                                    exported).items():
         notes.setdefault(kind, []).extend(names)
     if len(forces):
         _sub(m, "ForceSet", name="forceset").append(forces)
@@ -302,7 +304,7 @@ def build_osim(model, state0=None, geometry=None):
         _sub(marker, "socket_parent_frame", opensim_frame_path(model, int(mk.body[j])))
         _sub(marker, "location", _vec(mk.p_BM[j]))
         _sub(marker, "fixed", "false")
-    for kind, names in model_notes(model).items():
+    for kind, names in model_notes(model, exported).items():
         notes.setdefault(kind, []).extend(names)
     ET.indent(doc, space="  ")
     return ET.ElementTree(doc), joints, notes

@@ -141,10 +141,14 @@ def _shifted(fn, offset):
     return PiecewisePolynomial(fn.breaks, c, left, right, fn.right_continuous)
 
 
-def write_forces(forceset, model, frame_path, coordinate_path):
+def write_forces(forceset, model, frame_path, coordinate_path, exported=None):
     """Append the muscles and ligaments of ``model`` to ``forceset`` (the ``objects`` of
-    the ForceSet). frame_path(body index) -> OpenSim frame path; coordinate_path:
-    {coordinate: "/jointset/<joint>/<coordinate>"}. Returns notes {kind: [names]}."""
+    the ForceSet), and the linear springs and coordinate actuators on exported
+    coordinates (``SpringGeneralizedForce``, ``CoordinateActuator``; their names are
+    added to the set ``exported``). frame_path(body index) -> OpenSim frame path;
+    coordinate_path: {coordinate: "/jointset/<joint>/<coordinate>"}. Returns notes
+    {kind: [names]}."""
+    exported = set() if exported is None else exported
     from ..forces.hill import Hill3ElementMuscle
     from ..forces.millard import MillardMuscle
 
@@ -185,6 +189,32 @@ def write_forces(forceset, model, frame_path, coordinate_path):
                     if value is not None:
                         _sub(c, fld.name, _text(value))
         forceset.append(el)
+    coordinate_of = {id(c.measure): c.name for c in model.coordinates if c.name in coordinate_path}
+    for sp in model.springs:
+        from ..forces.spring import LinearSpring
+
+        q = coordinate_of.get(id(sp.measure))
+        if q is None or type(sp.law) is not LinearSpring:
+            continue  # named by model_notes
+        el = ET.Element("SpringGeneralizedForce", name=sp.name)
+        _sub(el, "coordinate", q)
+        _sub(el, "stiffness", _text(sp.law.stiffness))       # f = −k (q − q_rest) − c q̇, as openfdk's
+        _sub(el, "rest_length", _text(sp.law.rest_value))
+        _sub(el, "viscosity", _text(sp.viscosity))
+        forceset.append(el)
+        exported.add(sp.name)
+    for act in model.actuators:
+        q = coordinate_of.get(id(getattr(act, "measure", None)))
+        if q is None or not hasattr(act, "optimal_force"):
+            continue
+        el = ET.Element("CoordinateActuator", name=act.name)
+        for key in ("min_control", "max_control"):
+            v = float(getattr(act, key))
+            _sub(el, key, ("-Inf" if v < 0 else "Inf") if np.isinf(v) else _text(v))
+        _sub(el, "coordinate", q)
+        _sub(el, "optimal_force", _text(act.optimal_force))
+        forceset.append(el)
+        exported.add(act.name)
     for lig in model.ligaments:
         law = lig.law
         el = ET.Element("Blankevoort1991Ligament", name=lig.name)
