@@ -12,6 +12,12 @@ Records (medians over repeats):
 * ``contact_exact_eval_ms`` — exact mode (libigl AABB closest points);
 * ``contact_grid_build_s`` — building the distance grid of the fossa at the default
   spacing and band (uncached).
+
+Implant-sized records (:func:`implant_like_pair`: a femoral-condyle-like sphere cap of
+≈ 50 000 triangles, R = 30 mm, against a conforming dish of ≈ 6 500 vertices, 0.2 mm into it (≈ 5 700 in contact),
+at the OpenSim import's grid spacing 0.5 mm and the default 3 mm band):
+* ``contact_grid_build_s_50k`` — building that grid (uncached; target ≤ 1 s);
+* ``contact_eval_us_50k`` — one grid-mode evaluation of the pair (target ≤ 1000 µs).
 """
 
 from __future__ import annotations
@@ -27,7 +33,7 @@ from openfdk.contact import (
     surface_mesh,
 )
 from openfdk.contact.distance_grid import build_distance_grid
-from openfdk.contact.shapes import ellipsoid_cap, flat_patch, fossa_surface
+from openfdk.contact.shapes import ellipsoid_cap, flat_patch, fossa_surface, sphere_cap
 
 PRESSURE_MODULUS = 10e9  # N/m³ (paper)
 
@@ -54,6 +60,21 @@ def tmj_like_pair():
     top_in_b = np.array([0.5e-3, 0.0, -4e-3 + 0.2e-3])  # 0.2 mm into the roof
     pose = (top_in_b - s0, np.eye(3), np.zeros(3), np.eye(3))
     return condyle, fossa, pose
+
+
+def implant_like_pair():
+    """(dish SurfaceMesh of the vertices, condyle-like cap of ≈ 50k triangles, pose), m.
+
+    The cap (body b, at the world origin) is a sphere of R = 30 mm, 50° around its pole
+    −z, normals outward; the dish (body a) a cup of R = 31 mm, 35° around the same pole,
+    normals inward, raised so that its bottom is 0.2 mm inside the cap's lowest point
+    (R = 31 mm around R = 30 mm: the dish's vertices press into the cap near the pole).
+    """
+    cap = sphere_cap(30e-3, np.radians(50), 0.3e-3, name="condyle-like cap (generated)")
+    dish = sphere_cap(31e-3, np.radians(35), 0.45e-3, inward=True, name="dish (generated)")
+    # the dish's lowest point −31 mm + z0 sits 0.2 mm above the cap's −30 mm: z0 = 1.2 mm
+    pose = (np.array([0.0, 0.0, 1.2e-3]), np.eye(3), np.zeros(3), np.eye(3))
+    return dish, cap, pose
 
 
 def run(quick: bool) -> list[dict]:
@@ -94,7 +115,27 @@ def run(quick: bool) -> list[dict]:
                     "detail": (f"spacing {DEFAULT_GRID_SPACING * 1e3:g} mm, max_depth "
                                f"{DEFAULT_MAX_DEPTH * 1e3:g} mm, {grid.grid.n_evaluated} "
                                f"nodes evaluated, {grid.grid.nbytes / 1e6:.1f} MB")})
+    records += _implant_records(quick)
     return records
+
+
+def _implant_records(quick):
+    """``contact_grid_build_s_50k`` and ``contact_eval_us_50k`` (module docstring)."""
+    dish, cap, pose = implant_like_pair()
+    spacing = 0.5e-3  # openfdk.io.opensim.to_model.IMPORT_GRID_SPACING_M
+    t_build = _median_time(lambda: build_distance_grid(cap, spacing, DEFAULT_MAX_DEPTH), 1 if quick else 3)
+    pair = ElasticFoundation(dish, cap, PRESSURE_MODULUS, mode="grid", grid_spacing=spacing)
+    result = pair.evaluate(*pose)
+    for _ in range(20):
+        pair.evaluate(*pose)
+    t_eval = _median_time(lambda: pair.evaluate(*pose), 200 if quick else 2000)
+    detail = (f"{dish.n_vertices} vertices vs {cap.n_faces} triangles, spacing {spacing * 1e3:g} mm, max_depth "
+              f"{DEFAULT_MAX_DEPTH * 1e3:g} mm, {result.n_contact} in contact, "
+              f"|F| = {np.linalg.norm(result.force_W):.0f} N")
+    return [{"name": "contact_grid_build_s_50k", "value": t_build, "unit": "s", "target": 1.0,
+             "detail": f"{detail}, {pair.grid.n_evaluated} nodes evaluated"},
+            {"name": "contact_eval_us_50k", "value": 1e6 * t_eval, "unit": "us", "target": 1000.0,
+             "detail": detail}]
 
 
 if __name__ == "__main__":  # pragma: no cover
