@@ -160,3 +160,13 @@ def test_a_missing_layer_thickness_is_refused_and_a_thin_layer_reported(tmp_path
     (check,) = check_contacts(load_model(thin))
     assert "h = 2 mm" in check.layer
     assert any("max_depth 3 mm" in w and "thickness 2 mm" in w for w in check.warnings)
+
+
+def test_both_meshes_inverted_are_both_named(tmp_path):
+    """Normals opposed (aligned 0) but both facing away from the other mesh: both refused."""
+    (check,) = check_contacts(load_model(_model(tmp_path, flip_plate=True, flip_ball=True)))
+    ball, plate = check.meshes
+    assert ball.aligned_fraction == 0.0 and plate.aligned_fraction == 0.0
+    assert ball.away_fraction == 1.0 and plate.away_fraction == 1.0
+    assert len(check.errors) == 2 and "both meshes" in check.errors[0]
+    assert "ball.stl" in check.errors[0] and "plate.stl" in check.errors[1]

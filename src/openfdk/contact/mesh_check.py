@@ -14,9 +14,10 @@ vertex surface A and the opposite surface B) is measured against the other one, 
   closest point of Y, libigl);
 * **normals facing away** from Y in the zone: the share of zone triangles, by area,
   with n_X · (p − c) < 0 (the triangle's normal points away from the closest point of
-  Y). A pair of surfaces that face each other across a gap gives 0 on both meshes;
-  where they interpenetrate at the reference pose p − c turns round, so a few percent
-  there is not an error;
+  Y), and the share **aligned** with Y's normal ∇φ_Y at p (n_X · ∇φ_Y > 0). Surfaces
+  that face each other give 0 and 0; where they interpenetrate at the reference pose
+  p − c turns round on both meshes alike, so *away* counts those triangles too, while
+  *aligned* does not;
 * **open boundary edges** (edges of one triangle) and how many of them have their
   midpoint in the zone (a rim where the other surface presses: loads are cut off there,
   docs/contact.md "Open meshes").
@@ -26,9 +27,10 @@ into it), or the non-linear law's layers, whose total thickness Σh must exceed 
 depth band max_depth (deeper vertices would be beyond the layer).
 
 What refuses the model (``check`` and ``run`` exit 2, one line naming the model file,
-the contact and the mesh): at least :data:`AWAY_REFUSE` of the zone facing away (the
-file is wound the other way: ``flip_normals: true``). Everything else is a warning:
-printed, and kept in summary.json (``contact_meshes``).
+the contact and the mesh): inverted normals (:func:`_inverted`: aligned over at least
+half of a zone → the mesh with the larger *away* share; opposed normals that both face
+away over half their zones → both; fix: ``flip_normals: true``). Everything else is a
+warning: printed, and kept in summary.json (``input.contact_meshes``).
 """
 
 from __future__ import annotations
