@@ -48,11 +48,15 @@ def _kabsch(P, X):
 @dataclass(frozen=True)
 class TrackingSettings:
     """tol_step : max |Δq̂| (m, rad) to stop; tol_constraint : max |Φ| (m, rad);
-    max_iter : Gauss–Newton iterations per frame."""
+    max_iter : Gauss–Newton iterations per frame; max_rms_residual : m, the RMS marker
+    residual above which a solved frame fails (the markers do not fit the model)."""
 
     tol_step: float = 1e-9
     tol_constraint: float = 1e-9
     max_iter: int = 30
+    #: a frame whose least-squares fit leaves an RMS marker residual above this (m) fails:
+    #: the markers do not fit the model (wrong units, a mislabelled or misplaced marker)
+    max_rms_residual: float = 0.1
 
 
 class MarkerTracker:
@@ -205,7 +209,7 @@ class MarkerTracker:
         start = state.copy()
         out = self._gauss_newton(state, t, x_WM, visible, alpha)
         if out[0].converged:
-            return out
+            return self._check_fit(out, state, x_WM, visible)
         # far from the optimum, or a coordinate the markers barely see: the damped,
         # feasible-path solve from the same warm start (kinematics/assembly.py)
         _restore(start, state)
@@ -224,7 +228,23 @@ class MarkerTracker:
         n = self.system.n_coords
         Phi = self.system.evaluate(state, t, alpha, order=0)[0]
         sol = np.linalg.solve(K, np.concatenate([-J.T @ (self._weights(visible) * (p - x)), -Phi]))
-        return FrameSolve(True, out[0].iterations + it, res), K, sol[n:]
+        return self._check_fit((FrameSolve(True, out[0].iterations + it, res), K, sol[n:]), state, x_WM, visible)
+
+    def _check_fit(self, out, state, x_WM, visible):
+        """``out`` (FrameSolve, K, λ) of a converged solve, or a failed FrameSolve when the
+        RMS residual of the visible markers exceeds ``settings.max_rms_residual``."""
+        r = self.markers.positions(state)[visible] - x_WM[visible]
+        d2 = np.sum(r * r, axis=1)
+        rms = float(np.sqrt(np.mean(d2))) if d2.size else 0.0
+        if rms <= self.settings.max_rms_residual:
+            return out
+        worst = int(np.argmax(d2))
+        name = [n for n, v in zip(self.markers.names, visible) if v][worst]
+        return (FrameSolve(False, out[0].iterations, out[0].residual,
+                           f"the markers do not fit the model: RMS residual {1e3 * rms:.0f} mm > "
+                           f"{1e3 * self.settings.max_rms_residual:.0f} mm (largest: {name!r}, "
+                           f"{1e3 * np.sqrt(d2[worst]):.0f} mm); check the marker units and placement",
+                           Reason.FAILED), None, None)
 
     def _gauss_newton(self, state, t, x_WM, visible, alpha):
         """The Gauss–Newton kernel's solve (see :meth:`solve_positions`)."""
