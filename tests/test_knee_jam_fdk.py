@@ -55,7 +55,7 @@ from openfdk.fdk.analysis import run_fdk  # noqa: E402
 from openfdk.io.modelfile import load_model_and_settings  # noqa: E402
 
 R_CONDYLE, W_CONDYLE = 0.025, 0.022     # m: condyle sphere radius, half the condyles' spacing
-CAP_HALF_WIDTH, CAP_SPACING = 0.017, 0.2e-3
+CAP_HALF_WIDTH, CAP_SPACING = 0.0225, 0.2e-3
 LAYERS = {"femur_cartilage": (8e6, 0.45, 2e-3), "tibia_cartilage": (12e6, 0.45, 4e-3)}  # E (Pa), ν, h (m)
 LIGAMENTS = {  # name: femur point (m), tibia point (tibia frame, m), k (N/strain), slack length (m), ε_t
     "mcl": ((0.0, 0.0, -0.042), (-0.005, -0.035, -0.040), 2500.0, 0.057, 0.06),
@@ -69,6 +69,13 @@ CHILD_OFFSET = np.array([0.0, R_CONDYLE, 0.0])  # the joint's frame in the tibia
 LOAD_FORCE = np.array([10.0, 200.0, 0.0])       # N, world, at the joint's child frame origin
 LOAD_MOMENT = np.array([2.0, 0.5, 0.0])         # N m, world: varus (x) and internal rotation (y)
 FLEXION = 0.3                                   # rad, held
+PATELLA = {  # the sixth body: a spherical button on a flat trochlea (m, N)
+    "radius": 0.020, "cap_half_width": 0.017, "trochlea_x": 0.035,   # the trochlea: the plane x = 0.035 in the femur
+    "quad_force": 300.0 * np.array([-0.2, 1.0, 0.0]) / np.hypot(0.2, 1.0),  # N, world
+    "tendon": ((-0.010, -0.015, 0.0), (0.035, -0.045, 0.0), 20000.0, 0.056, 0.06),  # patella, tibia points, k, l₀, ε_t
+}
+PF_COORDINATES = ("pf_flex", "pf_rot", "pf_tilt", "pf_tx", "pf_ty", "pf_tz")
+PF_PARENT = np.array([PATELLA["trochlea_x"] + PATELLA["radius"], 0.0, 0.0])  # the pf joint's frame in the femur
 
 
 def _v3(x):
@@ -77,16 +84,25 @@ def _v3(x):
 
 def _grid_cap(radius, half_width, spacing):
     """An open spherical cap, pole −y, centre at the origin: the points of a square grid
-    of ``spacing`` (m) in x and z, |x|, |z| ≤ half_width, moved down onto the sphere;
+    of ``spacing`` (m) in x and z, |x|, |z| ≤ half_width and within 0.9 radius of the
+    axis, moved down onto the sphere;
     (vertices (n, 3) m, triangles (m, 3)) wound so the normals point away from the
     centre (out of the condyle)."""
     n = int(round(half_width / spacing))
     u = np.arange(-n, n + 1) * spacing
     x, z = np.meshgrid(u, u, indexing="ij")
-    vertices = np.c_[x.ravel(), -np.sqrt(radius**2 - x.ravel() ** 2 - z.ravel() ** 2), z.ravel()]
+    rho2 = np.minimum(x.ravel() ** 2 + z.ravel() ** 2, (0.9 * radius) ** 2)
+    vertices = np.c_[x.ravel(), -np.sqrt(radius**2 - rho2), z.ravel()]
     idx = np.arange((2 * n + 1) ** 2).reshape(2 * n + 1, 2 * n + 1)
     a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
-    return vertices, np.r_[np.c_[a, b, c], np.c_[a, c, d]]   # (x, then z): e_x × e_z = −e_y
+    triangles = np.r_[np.c_[a, b, c], np.c_[a, c, d]]   # (x, then z): e_x × e_z = −e_y
+    # only the grid points within 0.9 R of the axis (the cap, not the equator)
+    inside = x.ravel() ** 2 + z.ravel() ** 2 <= (0.9 * radius) ** 2
+    triangles = triangles[inside[triangles].all(axis=1)]
+    used = np.unique(triangles)
+    renumber = np.zeros(len(vertices), int)
+    renumber[used] = np.arange(len(used))
+    return vertices[used], renumber[triangles]
 
 
 def _flat(size_x, size_z, spacing):
@@ -131,9 +147,10 @@ def _jam_xml(root, meshes, contacts):
             etree.SubElement(force, tag).text = text
 
 
-def _knee_model(folder):
-    """The knee (module docstring) as ``folder``/knee.osim with its meshes; returns the
-    OpenSim model (with the standard elements only) and the path."""
+def _knee_model(folder, patella=False):
+    """The knee (module docstring) as ``folder``/knee.osim with its meshes, with the
+    patella of :data:`PATELLA` if ``patella``; returns the OpenSim model (with the
+    standard elements only) and the path."""
     m = opensim.Model()
     m.setName("jam_knee")
     m.setGravity(_v3([0, 0, 0]))
@@ -156,6 +173,8 @@ def _knee_model(folder):
         lig.set_transition_strain(eps_t)
         lig.set_damping_coefficient(0.0)
         m.addForce(lig)
+    if patella:
+        _add_patella(m, femur, tibia)
     m.finalizeConnections()
     m.initSystem()
     m.printToXML(str(folder / "base.osim"))
@@ -167,10 +186,40 @@ def _knee_model(folder):
     meshes = {f"{side}_condyle": ("/bodyset/femur", f"{side}_condyle.stl", LAYERS["femur_cartilage"])
               for side in ("medial", "lateral")}
     meshes["plateau"] = ("/bodyset/tibia", "plateau.stl", LAYERS["tibia_cartilage"])
-    _jam_xml(tree.getroot().find("Model"), meshes,
-             {f"{side}_contact": (f"{side}_condyle", "plateau") for side in ("medial", "lateral")})
+    contacts = {f"{side}_contact": (f"{side}_condyle", "plateau") for side in ("medial", "lateral")}
+    if patella:
+        vertices, triangles = _grid_cap(PATELLA["radius"], PATELLA["cap_half_width"], CAP_SPACING)
+        turn = _rotation([0, 0, 1], -np.pi / 2)  # −y → −x: the button faces the trochlea
+        _write_stl(folder / "patella.stl", vertices @ turn.T, triangles)
+        vertices, triangles = _flat(0.10, 0.06, 0.005)
+        _write_stl(folder / "trochlea.stl", vertices @ turn.T + [PATELLA["trochlea_x"], 0.0, 0.0], triangles)
+        meshes["patella_button"] = ("/bodyset/patella", "patella.stl", LAYERS["femur_cartilage"])
+        meshes["trochlea"] = ("/bodyset/femur", "trochlea.stl", LAYERS["tibia_cartilage"])
+        contacts["pf_contact"] = ("patella_button", "trochlea")
+    _jam_xml(tree.getroot().find("Model"), meshes, contacts)
     tree.write(str(folder / "knee.osim"))
     return m, folder / "knee.osim"
+
+
+def _add_patella(m, femur, tibia):
+    """The patella (:data:`PATELLA`) on a CustomJoint ``pf`` to the femur (its child frame
+    is the patella's origin, the button's centre, where the quadriceps force is applied)
+    and the patellar tendon to the tibia."""
+    patella = opensim.Body("patella", 1e-6, _v3([0, 0, 0]), opensim.Inertia(1e-9, 1e-9, 1e-9))
+    m.addBody(patella)
+    transform = opensim.SpatialTransform()
+    for k, (axis, name) in enumerate(zip(np.r_[np.eye(3)[[2, 0, 1]], np.eye(3)], PF_COORDINATES)):
+        ta = transform.updTransformAxis(k)
+        ta.setAxis(_v3(axis))
+        ta.setCoordinateNames(opensim.ArrayStr(name, 1))
+        ta.set_function(opensim.LinearFunction(1.0, 0.0))
+    m.addJoint(opensim.CustomJoint("pf", femur, _v3(PF_PARENT), _v3([0, 0, 0]), patella, _v3([0, 0, 0]),
+                                   _v3([0, 0, 0]), transform))
+    a, b, k, slack, eps_t = PATELLA["tendon"]
+    tendon = opensim.Blankevoort1991Ligament("patellar_tendon", patella, _v3(a), tibia, _v3(b), k, slack)
+    tendon.set_transition_strain(eps_t)
+    tendon.set_damping_coefficient(0.0)
+    m.addForce(tendon)
 
 
 # ----------------------------------------------------------------- the independent solve
@@ -217,10 +266,10 @@ def _closed_form_contact(R_FT, p_FT):
 
 
 @functools.lru_cache(maxsize=None)
-def _cap_vertex_areas():
+def _cap_vertex_areas(radius=R_CONDYLE, half_width=CAP_HALF_WIDTH):
     """The condyle cap's vertices (n, 3) m and their tributary areas (n,) m² (a third of
     each incident triangle's area)."""
-    vertices, triangles = _grid_cap(R_CONDYLE, CAP_HALF_WIDTH, CAP_SPACING)
+    vertices, triangles = _grid_cap(radius, half_width, CAP_SPACING)
     corners = vertices[triangles]
     tri_area = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
     return vertices, np.bincount(triangles.ravel(), np.repeat(tri_area / 3, 3), len(vertices))
@@ -354,3 +403,143 @@ loads:
         length = np.linalg.norm(np.asarray(a) - (p_FT + R_FT @ np.asarray(b)))
         assert res.forces.ligament_force[0, k] == pytest.approx(blankevoort(length / slack - 1, stiffness, eps_t),
                                                                 rel=1e-9)
+
+
+# ------------------------------------------------------------------- the patella as a sixth body
+
+PF_FDK = ("pf_flex", "pf_tx", "pf_ty")  # the patella's FDK coordinates; pf_rot, pf_tilt, pf_tz held at 0
+FLEXIONS = (-0.1, -0.3, -0.5)           # rad: knee_flex = −0.1 − 0.2 t at t = 0, 1, 2 s
+
+
+def patella_pose(q):
+    """(R (3, 3), p (3,) m) of the patella in the femur for its six coordinates (the
+    same CustomJoint rotation sequence as the knee; the joint's child frame is the
+    patella's origin)."""
+    R = _rotation([0, 0, 1], q[0]) @ _rotation([1, 0, 0], q[1]) @ _rotation([0, 1, 0], q[2])
+    return R, PF_PARENT + np.asarray(q[3:6], float)
+
+
+def _body_generalized_forces(pose, q, indices, force, moment):
+    """Q_j (len(indices),) of a body at coordinates q (6,) under a resultant ``force`` (3,)
+    N and ``moment`` (3,) N m about the femur's origin o: Q_j = F · ∂o/∂q_j + M · ω_j (o
+    taken as a point of the body; central differences of ``pose``, step 1e-6)."""
+    R, p = pose(q)
+    o_B = -R.T @ p
+    Q = []
+    for j in indices:
+        e = np.zeros(6)
+        e[j] = 1e-6
+        (Rp, pp), (Rm, pm) = pose(q + e), pose(q - e)
+        W = (Rp - Rm) / 2e-6 @ R.T
+        Q.append(force @ (((pp + Rp @ o_B) - (pm + Rm @ o_B)) / 2e-6) + moment @ np.array([W[2, 1], W[0, 2], W[1, 0]]))
+    return np.array(Q)
+
+
+def _resultant(loads, moment=np.zeros(3)):
+    points, forces = np.array([x for _, x in loads]), np.array([f for f, _ in loads])
+    return forces.sum(axis=0), np.cross(points, forces).sum(axis=0) + moment
+
+
+def patella_loads(q_knee, q_pf, vertices=False):
+    """The loads [(force (3,) N, point (3,) m)] on the patella in closed form: the
+    quadriceps force at its origin, the patellar tendon (Blankevoort) toward the tibia and
+    the button's contact π p R δ² along the trochlea's normal +x through its centre (or,
+    with ``vertices``, summed over the button mesh's vertices)."""
+    R_FT, p_FT = tibia_pose(q_knee)
+    R_FP, p_FP = patella_pose(q_pf)
+    a, b, k, slack, eps_t = PATELLA["tendon"]
+    a_F, b_F = p_FP + R_FP @ np.asarray(a), p_FT + R_FT @ np.asarray(b)
+    length = np.linalg.norm(b_F - a_F)
+    tendon = blankevoort(length / slack - 1, k, eps_t) * (b_F - a_F) / length
+    if vertices:  # the same sum over the button's vertices as openfdk's (see _vertex_contact)
+        cap, area = _cap_vertex_areas(PATELLA["radius"], PATELLA["cap_half_width"])
+        x = p_FP + cap @ (R_FP @ _rotation([0, 0, 1], -np.pi / 2)).T
+        f = _pressure_modulus() * area * np.maximum(PATELLA["trochlea_x"] - x[:, 0], 0.0)
+        contact = (f.sum() * np.array([1.0, 0, 0]), f @ x / f.sum())
+    else:
+        depth = PATELLA["radius"] - (p_FP[0] - PATELLA["trochlea_x"])
+        contact = (np.pi * _pressure_modulus() * PATELLA["radius"] * max(depth, 0.0) ** 2 * np.array([1.0, 0, 0]), p_FP)
+    return [(PATELLA["quad_force"], p_FP), (tendon, a_F), contact], (tendon, b_F)
+
+
+def knee_and_patella_forces(x, flexion, vertices=False):
+    """The generalized forces (8,) along the knee's five secondary coordinates and the
+    patella's three FDK coordinates ``x`` = [add, rot, tx, ty, tz, pf_flex, pf_tx, pf_ty]."""
+    q_knee = np.r_[flexion, x[:5]]
+    q_pf = np.array([x[5], 0.0, 0.0, x[6], x[7], 0.0])
+    on_patella, (tendon, b_F) = patella_loads(q_knee, q_pf, vertices)
+    R_FT, p_FT = tibia_pose(q_knee)
+    on_tibia = (_vertex_contact if vertices else _closed_form_contact)(R_FT, p_FT) + [(-tendon, b_F), (LOAD_FORCE, p_FT + R_FT @ CHILD_OFFSET)]
+    for a, b, k, slack, eps_t in LIGAMENTS.values():
+        b_F = p_FT + R_FT @ np.asarray(b)
+        length = np.linalg.norm(np.asarray(a) - b_F)
+        on_tibia.append((blankevoort(length / slack - 1, k, eps_t) * (np.asarray(a) - b_F) / length, b_F))
+    return np.r_[_body_generalized_forces(tibia_pose, q_knee, range(1, 6), *_resultant(on_tibia, LOAD_MOMENT)),
+                 _body_generalized_forces(patella_pose, q_pf, (0, 3, 4), *_resultant(on_patella))]
+
+
+@pytest.mark.slow
+def test_patella_in_equilibrium_at_three_flexion_angles(tmp_path):
+    """The knee with the patella (a spherical button on a flat trochlea, the quadriceps a
+    known 300 N force at the button's centre, a Blankevoort patellar tendon to the tibial
+    tuberosity), knee_flex driven through three angles, eight FDK DOFs. At every angle:
+    (1) the patella's loads as openfdk reports them — the tendon's force along the strand
+    of the reported pose, the quadriceps force, the contact's force through its centre of
+    pressure (exact for a plane target: all vertex forces are parallel) — balance along
+    the patella's FDK directions (x, y force; z moment) to 1e-6 N and N m (measured
+    4e-11); (2) all eight coordinates equal the independent closed-form solve's: the
+    translations to 1e-6 m (measured 5e-8 m), the knee's rotations to 1e-6 rad (6e-7).
+    The patella's rotation about the button's centre is soft (the quadriceps acts at the
+    centre; only the tendon's lever turns it back), so the caps' discretisation (the
+    centre of pressure a fraction of a µm off the closed form's line through the centre)
+    turns it by up to 4e-6 rad: 8e-8 m as an arc on the 20 mm button, which is held to
+    1e-6 m. On the meshes' own vertices (the same sums as openfdk's) all eight agree to
+    1e-8 (measured 6e-9)."""
+    from scipy.optimize import root
+
+    _knee_model(tmp_path, patella=True)
+    overlay = _overlay(tmp_path, f"""\
+fdk_dofs: [knee_add, knee_rot, knee_tx, {{knee_ty: 0.0005}}, knee_tz, pf_flex, {{pf_tx: -0.0005}}, pf_ty]
+lock: [pf_rot, pf_tilt, pf_tz]
+drivers:
+  flexion: {{measure: knee_flex, reaction: true, function: {{type: polynomial, coefficients: [{FLEXIONS[0]}, {FLEXIONS[1] - FLEXIONS[0]}]}}}}
+fdk: {{tolerance: 1.0e-9, max_iterations: 60}}
+loads:
+  tibia_load: {{point: tibia.knee_child, force: {LOAD_FORCE.tolist()}, moment: {LOAD_MOMENT.tolist()}, frame: world}}
+  quadriceps: {{point: patella.pf_child, force: {PATELLA["quad_force"].tolist()}, frame: world}}
+""")
+    model, settings = load_model_and_settings(overlay)
+    res = run_fdk(model, None, np.arange(3.0), settings)
+    assert res.converged.all(), res.messages
+    names = SECONDARY + PF_FDK
+    columns = res.forces.extra["columns"]
+    tendon_k = res.forces.ligament_names.index("patellar_tendon")
+    start = np.r_[0, 0, 0, 5e-4, 0, 0, -5e-4, 0]
+    for i, flexion in enumerate(FLEXIONS):
+        alpha = dict(zip(res.dof_names, res.alpha[i]))
+        ours = np.array([alpha[n] for n in names])
+        q_knee, q_pf = np.r_[flexion, ours[:5]], np.array([ours[5], 0, 0, ours[6], ours[7], 0])
+        # (1) the patella's balance from openfdk's reported forces
+        R_FT, p_FT = tibia_pose(q_knee)
+        R_FP, p_FP = patella_pose(q_pf)
+        a_F = p_FP + R_FP @ np.asarray(PATELLA["tendon"][0])
+        b_F = p_FT + R_FT @ np.asarray(PATELLA["tendon"][1])
+        tendon = res.forces.ligament_force[i, tendon_k] * (b_F - a_F) / np.linalg.norm(b_F - a_F)
+        contact = np.array([columns[f"pf_contact.F{c}_N"][i] for c in "xyz"])
+        cop = np.array([columns[f"pf_contact.cop_{c}_m"][i] for c in "xyz"])
+        force, moment = _resultant([(PATELLA["quad_force"], p_FP), (tendon, a_F), (contact, cop)])
+        assert np.linalg.norm(tendon) > 250 and contact[0] > 50  # the three forces are all there
+        np.testing.assert_allclose([force[0], force[1], moment[2]], 0.0, atol=1e-6)
+        # (2) the independent solve of all eight equations (closed-form contacts)
+        sol = root(knee_and_patella_forces, start, args=(flexion,), method="hybr", options={"xtol": 1e-13})
+        assert sol.success and np.abs(sol.fun).max() < 1e-7, sol.message
+        assert np.abs(ours[5]) > 0.05 and np.abs(ours[6:]).max() > 5e-4  # the patella moved
+        # translations to 1e-6 m, the knee's rotations to 1e-6 rad, the patella's rotation
+        # about the button's centre as an arc on the button (R Δθ) to 1e-6 m (docstring)
+        tolerance = np.r_[1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6 / PATELLA["radius"], 1e-6, 1e-6]
+        assert np.all(np.abs(ours - sol.x) <= tolerance), ours - sol.x
+        # on the meshes' own vertices the two agree to 1e-8 (measured 6e-9)
+        fine = root(knee_and_patella_forces, sol.x, args=(flexion, True), method="hybr", options={"xtol": 1e-13})
+        assert fine.success and np.abs(fine.fun).max() < 1e-7, fine.message
+        np.testing.assert_allclose(ours, fine.x, rtol=0, atol=1e-8)
+        start = sol.x
