@@ -36,8 +36,9 @@ openfdk evaluates the contact on the meshes: the vertex sum Σ p a_i d_i over th
 cap's vertices (tributary areas a_i) approximates the integral. The discretisation error
 is quantified by the same vertex sum written here over the STL's vertices
 (``_vertex_contact``): with s = 0.2 mm it shifts the equilibrium from the closed form's by
-< 0.3 µm (and < 3e-6 rad), so the closed form is held to 1e-6 m and 1e-5 rad, and the
-solve on the same vertices to 1e-8 m.
+1e-8 m and 3e-7 rad (measured), so the closed form is held to 1e-6 m and 1e-6 rad, and
+the solve on the same vertices to 1e-8 (measured 1.5e-10). FDK runs with a residual
+tolerance of 1e-9 N (N m); openfdk took 12 Newton iterations, 13 residual evaluations.
 """
 
 from __future__ import annotations
