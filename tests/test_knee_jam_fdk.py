@@ -73,7 +73,8 @@ FLEXION = 0.3                                   # rad, held
 PATELLA = {  # the sixth body: a spherical button on a flat trochlea (m, N)
     "radius": 0.020, "cap_half_width": 0.017, "trochlea_x": 0.035,   # the trochlea: the plane x = 0.035 in the femur
     "quad_force": 300.0 * np.array([-0.2, 1.0, 0.0]) / np.hypot(0.2, 1.0),  # N, world
-    "tendon": ((-0.010, -0.015, 0.0), (0.035, -0.045, 0.0), 20000.0, 0.056, 0.06),  # patella, tibia points, k, l₀, ε_t
+    # the patellar tendon: patella point, tibia point (m), k (N/strain), l₀ (m), ε_t
+    "tendon": ((-0.010, -0.015, 0.0), (0.035, -0.045, 0.0), 20000.0, 0.056, 0.06),
 }
 PF_COORDINATES = ("pf_flex", "pf_rot", "pf_tilt", "pf_tx", "pf_ty", "pf_tz")
 PF_PARENT = np.array([PATELLA["trochlea_x"] + PATELLA["radius"], 0.0, 0.0])  # the pf joint's frame in the femur
@@ -470,7 +471,8 @@ def knee_and_patella_forces(x, flexion, vertices=False):
     q_pf = np.array([x[5], 0.0, 0.0, x[6], x[7], 0.0])
     on_patella, (tendon, b_F) = patella_loads(q_knee, q_pf, vertices)
     R_FT, p_FT = tibia_pose(q_knee)
-    on_tibia = (_vertex_contact if vertices else _closed_form_contact)(R_FT, p_FT) + [(-tendon, b_F), (LOAD_FORCE, p_FT + R_FT @ CHILD_OFFSET)]
+    on_tibia = (_vertex_contact if vertices else _closed_form_contact)(R_FT, p_FT)
+    on_tibia += [(-tendon, b_F), (LOAD_FORCE, p_FT + R_FT @ CHILD_OFFSET)]
     for a, b, k, slack, eps_t in LIGAMENTS.values():
         b_F = p_FT + R_FT @ np.asarray(b)
         length = np.linalg.norm(np.asarray(a) - b_F)
