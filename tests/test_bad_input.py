@@ -179,26 +179,23 @@ def _patch(path, size, edge, flip=False, extra=None):
 BLOCK = (textwrap.dedent(MODEL) + textwrap.dedent(HELD)).replace("[0, 0, 4.9]", "[0, 0, 5.1]")
 
 
-def test_inverted_contact_normals_warn_at_check_and_pulling_force_per_run(tmp_path, capsys):
-    """The floor's normals point down, away from the block 0.1 mm above it: check warns
-    about the normals; the run finds the block 'inside' the inverted floor and the
-    contact pulls it down (p A δ = 1e10 · 1e-4 · 1e-4 = 100 N), warned once per run."""
+def test_inverted_contact_normals_are_refused_by_check_and_run(tmp_path, capsys):
+    """The floor's normals point down, away from the block 0.1 mm above it: the contact
+    would pull the block into the floor. ``check`` and ``run`` refuse the model in one
+    line naming the contact, the mesh and the fix (contact/mesh_check.py); with the
+    normals the right way round the run has no normals or pulling warning."""
     _patch(tmp_path / "bottom.stl", 10.0, 0.5)
     _patch(tmp_path / "floor.stl", 40.0, 1.0, flip=True)
     model = _write(tmp_path, BLOCK, "block.yaml")
-    code, _, err = _run(capsys, "check", model)
-    assert code == 0
-    assert "block.yaml: contacts.floor.surface: the normals of mesh 'floor.stl' point away from 'bottom.stl'" in err
-    code, _, err = _run(capsys, "run", model, "--out", tmp_path / "o", "--no-progress")
-    assert code == 0
-    pulls = [ln for ln in err.splitlines() if "pulls" in ln]
-    assert len(pulls) == 1
-    assert "contacts.floor: the contact force pulls the surfaces together in 3 of 3 frames" in pulls[0]
-    assert "cosine down to -1.00" in pulls[0]   # straight down, the block's centre of mass straight up
-    # correct normals: neither warning, and no contact force (the block is above the floor)
+    for command in (["check", model], ["run", model, "--out", tmp_path / "o", "--no-progress"]):
+        code, _, err = _run(capsys, *command)
+        errors = [ln for ln in err.splitlines() if ln.startswith("openfdk: error:")]
+        assert code == 2 and len(errors) == 1, err
+        assert "contacts.floor" in errors[0] and "floor.stl" in errors[0] and "flip_normals" in errors[0]
+    assert not (tmp_path / "o" / "forces.csv").exists()
     _patch(tmp_path / "floor.stl", 40.0, 1.0)
     code, _, err = _run(capsys, "run", model, "--out", tmp_path / "o2", "--no-progress")
-    assert code == 0 and "pulls" not in err and "point away" not in err
+    assert code == 0 and "pulls" not in err and "point away" not in err and "normals" not in err
 
 
 def test_mesh_duplicate_faces_and_non_manifold_edge_counted(tmp_path, capsys):

@@ -11,12 +11,14 @@ Errors (physically impossible, :class:`~openfdk.model.model.ModelError`):
 Warnings (:class:`PlausibilityWarning`, each naming the item):
 
 - magnitudes implausible for the declared length unit, with the likely unit;
-- a contact surface whose normals point away from its partner at the reference pose;
 - a Hill muscle whose passive force at the reference pose exceeds 10 % of F0;
 - a marker never visible in the analysis window; trial markers far from the model's at
   the first frame, or spanning a very different size (likely the wrong units);
 - a contact force that pulls the two surfaces together (once per run, see
   :func:`pulling_contacts`).
+
+Contact meshes whose normals face away from their partner are checked, and refused, by
+:mod:`openfdk.contact.mesh_check` before a run.
 """
 
 from __future__ import annotations
@@ -60,7 +62,6 @@ def check_model(model, source="", length_unit="m"):
     ``source`` is the file name used in messages, ``length_unit`` the declared unit."""
     check_mass_properties(model, source)
     check_length_magnitudes(model, source, length_unit)
-    check_contact_facing(model, source)
     check_passive_muscles(model, source, length_unit)
     check_fdk_held(model, source)
 
@@ -119,59 +120,6 @@ def check_length_magnitudes(model, source="", length_unit="m"):
     hint = f"; the numbers look like {likely}" if likely else ""
     _warn(f"{_where(source, 'units.length')}: the model's points span {span:.4g} m with lengths declared in "
           f"{length_unit}{hint} (a musculoskeletal model spans {MODEL_SPAN[0] * 1e3:g} mm to {MODEL_SPAN[1]:g} m)")
-
-
-def _nearest_faces(surface, R_WS, p_WS, target_W, nearest=0.1):
-    """Triangles of ``surface`` (in a body at R_WS (3, 3), p_WS (3,) m) nearest to the
-    point target_W (3,) m (the closest ``nearest`` fraction, at least one): their
-    centroids (k, 3) m and normals scaled by twice their areas (k, 3) m², world."""
-    V = surface.vertices_B @ R_WS.T + p_WS
-    F = surface.faces
-    c = V[F].mean(axis=1)
-    sel = np.argsort(np.linalg.norm(target_W - c, axis=1))[: max(1, int(nearest * len(F)))]
-    n = np.cross(V[F[sel, 1]] - V[F[sel, 0]], V[F[sel, 2]] - V[F[sel, 0]])
-    return c[sel], n
-
-
-def facing(surface, R_WS, p_WS, target_W):
-    """Area-weighted mean cosine between the normals of the triangles of ``surface``
-    nearest to target_W and the directions from them to target_W: +1 the normals face
-    the target, −1 they face away. Also returns their mean unit normal (3,)."""
-    c, n = _nearest_faces(surface, R_WS, p_WS, target_W)
-    d = target_W - c
-    w = np.linalg.norm(n, axis=1)
-    cos = np.einsum("ij,ij->i", n, d) / np.maximum(w * np.linalg.norm(d, axis=1), 1e-300)
-    mean_n = n.sum(axis=0)
-    return float(np.sum(w * cos) / max(np.sum(w), 1e-300)), mean_n / max(np.linalg.norm(mean_n), 1e-300)
-
-
-def check_contact_facing(model, source=""):
-    """Warn for each contact surface whose normals point away from its partner surface
-    at the reference pose (inverted normals make the contact pull).
-
-    The facing regions are B's triangles nearest to A's centroid and A's triangles
-    nearest to those. Their mean normals must be opposed; when they point the same way,
-    the surface whose normals point away from the other's facing region is inverted.
-    (Opposed normals that both point away — both files inverted — are not detected.)"""
-    state = model.initial_state()
-    for c in model.contacts:
-        pair = c.pair
-        world = [(pair.surface_A, c.body_a, "vertices"), (pair.surface_B, c.body_b, "surface")]
-        pose = [(state.R_WB[i], state.p_WB[i]) for _, i, _ in world]
-        # the facing regions: B's triangles nearest to A's centroid, then A's nearest to those
-        c_A = (world[0][0].vertices_B @ pose[0][0].T + pose[0][1]).mean(axis=0)
-        r_B = _nearest_faces(world[1][0], *pose[1], c_A)[0].mean(axis=0)
-        r_A = _nearest_faces(world[0][0], *pose[0], r_B)[0].mean(axis=0)
-        targets = (r_B, r_A)
-        sides = [facing(s, *pose[k], targets[k]) for k, (s, _, _) in enumerate(world)]
-        if float(sides[0][1] @ sides[1][1]) < 0:
-            continue
-        for k, (surf, _, key) in enumerate(world):
-            if sides[k][0] < 0:
-                other = world[1 - k][0]
-                _warn(f"{_where(source, f'contacts.{c.name}.{key}')}: the normals of mesh '{surf.name}' point away "
-                      f"from '{other.name}' at the reference pose (mean cosine {sides[k][0]:.2f}); set "
-                      "flip_normals: true if the file is wound the other way")
 
 
 def check_fdk_held(model, source=""):
