@@ -29,8 +29,8 @@ import numpy as np
 from ..model.framedata import FrameData
 from ..model.kernels import displace_by_rates, extrapolate_poses
 from ..trial import drive
-from ..trial.status import frame_messages
-from .determinate import check_square, solve_positions, solve_velocities_accelerations
+from ..trial.status import Reason, frame_messages
+from .determinate import FrameSolve, check_square, solve_positions, solve_velocities_accelerations
 from .stages import marker_stage, velocity_stage_tracking
 from .system import ConstraintSystem
 from .tracking import MarkerTracker, TrackingSettings, residual_rates
@@ -243,6 +243,10 @@ class TrackingStep:
             # δ = p_WM − x (Eq. 7) now and the velocity stage (Eqs. 8–10) at frame k + 1
             data = marker_stage(tracker.markers, FrameData(t=t, alpha=self.alpha, kkt=K, visible=vis), state)
             data.delta = np.where(vis[:, None], data.p_M.reshape(-1, 3) - x, np.nan)
+            misfit = tracker.fit_message(data.delta, vis)
+            if misfit:  # a least-squares pose, but not one of these markers
+                res = frame["res"] = FrameSolve(False, res.iterations, res.residual, misfit, Reason.FAILED)
+        if res.converged:
             frame.update(q=state.get_q(), state=state.copy(), data=data, delta=data.delta)
             self.last_good = state.copy()
             # warm start of the next frame: linear extrapolation on the manifold

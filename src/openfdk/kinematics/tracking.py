@@ -209,7 +209,7 @@ class MarkerTracker:
         start = state.copy()
         out = self._gauss_newton(state, t, x_WM, visible, alpha)
         if out[0].converged:
-            return self._check_fit(out, state, x_WM, visible)
+            return out  # (the fit is checked where δ is formed: TrackingStep, FDK's residual)
         # far from the optimum, or a coordinate the markers barely see: the damped,
         # feasible-path solve from the same warm start (kinematics/assembly.py)
         _restore(start, state)
@@ -231,20 +231,24 @@ class MarkerTracker:
         return self._check_fit((FrameSolve(True, out[0].iterations + it, res), K, sol[n:]), state, x_WM, visible)
 
     def _check_fit(self, out, state, x_WM, visible):
-        """``out`` (FrameSolve, K, λ) of a converged solve, or a failed FrameSolve when the
-        RMS residual of the visible markers exceeds ``settings.max_rms_residual``."""
-        r = self.markers.positions(state)[visible] - x_WM[visible]
-        d2 = np.sum(r * r, axis=1)
+        """``out`` (FrameSolve, K, λ) of a converged solve, or a failed one when the
+        markers do not fit (:meth:`fit_message`)."""
+        msg = self.fit_message(self.markers.positions(state) - x_WM, visible)
+        return out if not msg else (FrameSolve(False, out[0].iterations, out[0].residual, msg, Reason.FAILED),
+                                    None, None)
+
+    def fit_message(self, delta, visible):
+        """'' or why a solved pose is refused: the RMS of the visible markers' residuals
+        δ (n_markers, 3) m exceeds ``settings.max_rms_residual`` (the worst one named)."""
+        d2 = np.sum(delta[visible] ** 2, axis=1)
         rms = float(np.sqrt(np.mean(d2))) if d2.size else 0.0
         if rms <= self.settings.max_rms_residual:
-            return out
+            return ""
         worst = int(np.argmax(d2))
         name = [n for n, v in zip(self.markers.names, visible) if v][worst]
-        return (FrameSolve(False, out[0].iterations, out[0].residual,
-                           f"the markers do not fit the model: RMS residual {1e3 * rms:.0f} mm > "
-                           f"{1e3 * self.settings.max_rms_residual:.0f} mm (largest: {name!r}, "
-                           f"{1e3 * np.sqrt(d2[worst]):.0f} mm); check the marker units and placement",
-                           Reason.FAILED), None, None)
+        return (f"the markers do not fit the model: RMS residual {1e3 * rms:.0f} mm > "
+                f"{1e3 * self.settings.max_rms_residual:.0f} mm (largest: {name!r}, {1e3 * np.sqrt(d2[worst]):.0f} mm); "
+                "check the marker units and placement")
 
     def _gauss_newton(self, state, t, x_WM, visible, alpha):
         """The Gauss–Newton kernel's solve (see :meth:`solve_positions`)."""
