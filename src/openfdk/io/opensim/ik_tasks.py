@@ -92,10 +92,12 @@ def read_ik_tasks(path):
     return markers, coords
 
 
-def apply_ik_tasks(data, path, doc_coordinates):
+def apply_ik_tasks(data, path, doc_coordinates, dropped=()):
     """The model mapping ``data`` (imported from an .osim) with the marker weights and
     coordinate tasks of the IK setup or tasks file ``path``. ``doc_coordinates``:
-    {name: default (SI) and motion} of the model's coordinates."""
+    {name: default (SI) and motion} of the model's coordinates. ``dropped``: the import's
+    dropped elements ({type, name, line}); a marker task of a dropped marker (one fixed to
+    the ground: a constant term of OpenSim's IK) is accepted and has nothing to weight."""
     from ..storage import read_storage
 
     source = Path(path).name
@@ -104,8 +106,9 @@ def apply_ik_tasks(data, path, doc_coordinates):
     for body in data["bodies"].values():
         for mname, m in (body.get("markers") or {}).items():
             by_label[m.get("label", mname)] = m
+    dropped_markers = {d["name"] for d in dropped if d["type"] == "Marker"}
     for name in weights:
-        if name not in by_label:
+        if name not in by_label and name not in dropped_markers:
             raise OsimError(f"{source}: IKMarkerTask {name!r}: the model has no marker of that name")
     for label, m in by_label.items():
         m["weight"] = float(weights.get(label, 0.0))

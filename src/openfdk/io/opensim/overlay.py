@@ -100,7 +100,7 @@ def imported_model_data(path):
     if opts.ik_tasks is not None:
         from .ik_tasks import apply_ik_tasks
 
-        data = apply_ik_tasks(data, opts.ik_tasks, data.get("coordinates", {}))
+        data = apply_ik_tasks(data, opts.ik_tasks, data.get("coordinates", {}), info["dropped"])
         info["ik_tasks"] = str(opts.ik_tasks)
     if opts.external_loads is not None:
         from .external_loads import read_external_loads

@@ -145,8 +145,10 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         root, p, _ = tree.frame_in_root(m.frame)
         body = "ground" if root == tree.ground else safe_name(root)
         if body == "ground":
-            raise OsimError(f"{doc.source}: line {m.line}: Marker {m.name!r} is fixed to the ground; openfdk tracks "
-                            "markers on moving bodies")
+            # its distance to the trial's marker is the same at every pose, so OpenSim's IK
+            # optimum is the one without it: left out, listed as dropped
+            doc.ignored.append(("Marker", m.name, m.line))
+            continue
         entry = {"position": (p + tree.frame_in_root(m.frame)[2] @ m.location - com[root]).tolist()}
         safe = unique("marker", m.name)
         if safe != m.name:
