@@ -111,9 +111,14 @@ def test_automatic_assignment_and_a_plate_struck_by_both_feet(tmp_path, capsys, 
     trial, _ = _trial(tmp_path, n_frames=n_frames, feet=_feet(n_frames, POSES["floor"][1], both))
     data = yaml.safe_load(_model(tmp_path, {"plates": {}}).read_text())
     data["bodies"]["ground"]["frames"]["anchor2"] = {"position": [0.6, 0.3, 0.05]}
-    data["bodies"]["foot"]["markers"]["R_HEEL"] = [0.0, 0.0, 0.0]
+    data["bodies"]["foot"]["markers"]["R_HEEL"] = {"position": [0.0, 0.0, 0.0], "weight": 0}
+    # the heels jump between the feet and the left foot is welded to the ground: the heel
+    # markers are named for the assignment only, not tracked (weight 0), or no pose
+    # would fit them
     data["bodies"]["foot_l"] = {"mass": 1.0, "inertia": [0.01] * 3, "position": [0.6, 0.3, 0.05],
-                                "markers": {"L_HEEL": [0, 0, 0], "L2": [0.03, 0, 0], "L3": [0, 0.03, 0]}}
+                                "markers": {"L_HEEL": {"position": [0, 0, 0], "weight": 0},
+                                            "L2": {"position": [0.03, 0, 0], "weight": 0},
+                                            "L3": {"position": [0, 0.03, 0], "weight": 0}}}
     data["joints"]["fix_l"] = {"type": "weld", "parent": "ground.anchor2", "child": "foot_l.origin"}
     data["ground_reactions"] = {"feet": {"foot": ["R_HEEL"], "foot_l": ["L_HEEL"]}, "cutoff_hz": 0}
     (tmp_path / "two.yaml").write_text(yaml.safe_dump(data))

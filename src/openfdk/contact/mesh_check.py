@@ -28,9 +28,12 @@ depth band max_depth (deeper vertices would be beyond the layer).
 
 What refuses the model (``check`` and ``run`` exit 2, one line naming the model file,
 the contact and the mesh): inverted normals (:func:`_inverted`: aligned over at least
-half of a zone → the mesh with the larger *away* share; opposed normals that both face
-away over half their zones → both; fix: ``flip_normals: true``). Everything else is a
-warning: printed, and kept in summary.json (``input.contact_meshes``).
+half of a zone → the mesh with the larger *away* share; fix: ``flip_normals: true``).
+Opposed normals that both face away over half their zones are only a warning: locally,
+two meshes that overlap at the reference pose look exactly like two separated meshes
+that are both wound the other way (flipping both normals swaps inside and outside), so
+the check cannot tell which; the same holds for one mesh judged alone. Everything else
+is a warning: printed, and kept in summary.json (``input.contact_meshes``).
 """
 
 from __future__ import annotations
@@ -192,27 +195,31 @@ _FLIP = "the file is wound the other way: set flip_normals: true (or flip the fi
 
 
 def _inverted(fig_A, fig_B, zone):
-    """[(figures, reason)] of the meshes whose normals are inverted in the zone.
+    """([(figures, reason)] of the meshes whose normals are inverted in the zone,
+    [(figures, warning)] of the meshes that may be).
 
     Normals that point the same way as the other mesh's (aligned ≥ ½) mean one mesh is
     inverted: the one whose normals face away from the other over more of its zone
-    (interpenetration turns the test round on both meshes alike). Opposed normals that
-    both face away (≥ ½ each) mean both are inverted. With one mesh's zone too small,
-    the other is judged alone (away ≥ :data:`AWAY_REFUSE`).
+    (interpenetration turns the test round on both meshes alike): refused. Opposed
+    normals that both face away (≥ ½ each), or one mesh judged alone (the other's zone
+    too small) facing away (≥ :data:`AWAY_REFUSE`), are either an overlap at the
+    reference pose or inverted files (module docstring): warned.
     """
     figs = [f for f in (fig_A, fig_B) if not np.isnan(f.away_fraction)]
     text = {f.role: (f"the normals of {100 * f.away_fraction:.0f} % of its contact zone ({f.n_zone} triangles "
-                     f"within {zone * 1e3:g} mm of the other mesh) face away from it: {_FLIP}") for f in figs}
+                     f"within {zone * 1e3:g} mm of the other mesh) face away from it") for f in figs}
+    maybe = ("; either the meshes overlap at the reference pose or the file is wound the other way (then set "
+             "flip_normals: true)")
     if len(figs) == 1:
-        return [(figs[0], text[figs[0].role])] if figs[0].away_fraction >= AWAY_REFUSE else []
+        return [], ([(figs[0], text[figs[0].role] + maybe)] if figs[0].away_fraction >= AWAY_REFUSE else [])
     if not figs:
-        return []
+        return [], []
     if max(fig_A.aligned_fraction, fig_B.aligned_fraction) >= 0.5:
         worse = fig_A if fig_A.away_fraction >= fig_B.away_fraction else fig_B
-        return [(worse, text[worse.role])]
+        return [(worse, f"{text[worse.role]}: {_FLIP}")], []
     if min(fig_A.away_fraction, fig_B.away_fraction) >= 0.5:
-        return [(f, text[f.role] + " (both meshes are inverted)") for f in figs]
-    return []
+        return [], [(f, text[f.role] + maybe) for f in figs]
+    return [], []
 
 
 def check_pair(name, pair, R_Wa, p_Wa, R_Wb, p_Wb) -> PairCheck:
@@ -225,7 +232,9 @@ def check_pair(name, pair, R_Wa, p_Wa, R_Wb, p_Wb) -> PairCheck:
     fig_A = mesh_figures("vertices", A, R_ba, p_ba, OpenSurfaceDistance(B), zone)
     fig_B = mesh_figures("surface", B, R_ba.T, -R_ba.T @ p_ba, OpenSurfaceDistance(A), zone)
     layer, warn = _layer(pair)
-    errors = [f"{_where(name, f)}: {why}" for f, why in _inverted(fig_A, fig_B, zone)]
+    inverted, doubtful = _inverted(fig_A, fig_B, zone)
+    errors = [f"{_where(name, f)}: {why}" for f, why in inverted]
+    warn += [f"{_where(name, f)}: {why}" for f, why in doubtful]
     for fig, other in ((fig_A, fig_B), (fig_B, fig_A)):
         where = _where(name, fig)
         if np.isnan(fig.away_fraction):
@@ -234,9 +243,9 @@ def check_pair(name, pair, R_Wa, p_Wa, R_Wb, p_Wb) -> PairCheck:
         elif not errors and fig.aligned_fraction >= AWAY_WARN:
             warn.append(f"{where}: over {100 * fig.aligned_fraction:.0f} % of the contact zone its normals point "
                         f"the same way as those of '{other.name}' (mixed winding or a folded mesh)")
-        if fig.n_open_in_zone:
-            warn.append(f"{where}: {fig.n_open_in_zone} open boundary edge(s) within {zone * 1e3:g} mm of "
-                        f"'{other.name}' (the nearest {fig.rim_distance * 1e3:.2g} mm): contact is cut off at that rim")
+        # open edges in the zone are figures (check's table, summary.json), not a warning:
+        # an open cap near its partner is a normal design, and the run warns when the
+        # contact does reach a rim (contact/rim.py), frame by frame
         if fig.n_triangles > MANY_TRIANGLES:
             warn.append(f"{where}: {fig.n_triangles} triangles (over {MANY_TRIANGLES}): the distance grid builds "
                         "slowly and the results do not gain; decimate the mesh")

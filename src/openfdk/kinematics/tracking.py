@@ -238,8 +238,10 @@ class MarkerTracker:
                                     None, None)
 
     def fit_message(self, delta, visible):
-        """'' or why a solved pose is refused: the RMS of the visible markers' residuals
-        δ (n_markers, 3) m exceeds ``settings.max_rms_residual`` (the worst one named)."""
+        """'' or why a solved pose is refused: the RMS of the visible tracked markers'
+        residuals δ (n_markers, 3) m exceeds ``settings.max_rms_residual`` (the worst one
+        named). Markers of weight 0 are not tracked and may be anywhere."""
+        visible = visible & (self.markers.weight > 0)
         d2 = np.sum(delta[visible] ** 2, axis=1)
         rms = float(np.sqrt(np.mean(d2))) if d2.size else 0.0
         if rms <= self.settings.max_rms_residual:
