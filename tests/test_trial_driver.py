@@ -173,6 +173,23 @@ def test_kill_9_then_resume_gives_the_uninterrupted_files(files, tmp_path, model
 
 
 @pytest.mark.slow
+def test_sigterm_writes_the_finished_frames_marked_partial(files, tmp_path):
+    """SIGTERM (a batch system's time limit, ``timeout``) stops the run as Ctrl-C does:
+    the finished frames are written, marked partial, exit 130 — not killed with nothing."""
+    n_frames = 160
+    out = tmp_path / "terminated"
+    proc = _run([files / "pop.yaml", files / "trial.c3d", "--end", (n_frames - 1) / 100.0, "--checkpoint-frames", 4,
+                 "--out", out])
+    _wait_for(out / ".checkpoint" / "part-000002.npz", proc)
+    proc.send_signal(signal.SIGTERM)
+    _stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 130, stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["partial"] is True and 12 <= summary["frames_finished"] < n_frames
+    assert len((out / "forces.csv").read_text().splitlines()) == summary["frames_finished"] + 1
+
+
+@pytest.mark.slow
 def test_ctrl_c_writes_the_finished_frames_marked_partial(files, tmp_path):
     n_frames = 160
     common = [files / "pop.yaml", files / "trial.c3d", "--end", (n_frames - 1) / 100.0, "--checkpoint-frames", 4]

@@ -304,26 +304,30 @@ def drive(step, n_frames, build, *, progress=False, desc="frames", checkpoints=N
 
 
 class _StopOnSigint:
-    """Within the loop, the first Ctrl-C (SIGINT) only asks to stop after the current
-    frame: an exception raised in the middle of a compiled kernel call would surface as
-    a SystemError, not a KeyboardInterrupt. A second Ctrl-C interrupts at once. Only in
-    the main thread (signal handlers cannot be set elsewhere, e.g. in Dask workers)."""
+    """Within the loop, the first Ctrl-C (SIGINT) or SIGTERM (what a batch system or
+    ``timeout`` sends) only asks to stop after the current frame: an exception raised in
+    the middle of a compiled kernel call would surface as a SystemError, not a
+    KeyboardInterrupt; the finished frames are then written, marked partial. A second
+    signal interrupts at once. Only in the main thread (signal handlers cannot be set
+    elsewhere, e.g. in Dask workers)."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
     def __init__(self):
         self.requested = False
-        self._previous = None
+        self._previous = {}
 
     def _handler(self, signum, frame):
-        if self.requested:  # second Ctrl-C: the previous behaviour (KeyboardInterrupt now)
+        if self.requested:  # a second signal: KeyboardInterrupt now
             signal.default_int_handler(signum, frame)
         self.requested = True
 
     def __enter__(self):
         if threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._handler)
+            self._previous = {sig: signal.signal(sig, self._handler) for sig in self.SIGNALS}
         return self
 
     def __exit__(self, *exc):
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
+        for sig, previous in self._previous.items():
+            signal.signal(sig, previous)
         return False
