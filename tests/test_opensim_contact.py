@@ -49,7 +49,7 @@ def _modulus(E, nu, h):
     return E * (1 - nu) / ((1 + nu) * (1 - 2 * nu) * h)
 
 
-def _model(folder, formulation="linear", lumped=False, layers=None):
+def _model(folder, formulation="linear", lumped=False, layers=None, max_proximity=0.001):
     layers = layers or LAYERS
     m = opensim.Model()
     m.setName("ball_on_plate")
@@ -80,7 +80,7 @@ def _model(folder, formulation="linear", lumped=False, layers=None):
     force = etree.SubElement(forces, "Smith2018ArticularContactForce", name="ball_contact")
     for tag, text in (("socket_target_mesh", "/contactgeometryset/plate_mesh"),
                       ("socket_casting_mesh", "/contactgeometryset/ball_mesh"), ("min_proximity", "0"),
-                      ("max_proximity", "0.001"), ("elastic_foundation_formulation", formulation),
+                      ("max_proximity", repr(max_proximity)), ("elastic_foundation_formulation", formulation),
                       ("use_lumped_contact_model", "true" if lumped else "false")):
         etree.SubElement(force, tag).text = text
     tree.write(str(folder / "ball.osim"))
@@ -166,6 +166,18 @@ def test_sphere_on_layer_matches_each_law(tmp_path, monkeypatch, formulation, lu
                                                   (_K(*layers["plate_mesh"][:2]), layers["plate_mesh"][2])]
                                                  if not lumped else [(_K((12e6 + 30e6) / 2, 0.425), 0.7e-3)]))
         assert pole > 1.05 * linear
+
+
+def test_the_depth_band_stops_at_the_layers_thickness(tmp_path, monkeypatch):
+    """max_proximity is how far JAM's rays search; openfdk's depth band (max_depth, the
+    distance grid's extent) stops at the two layers' total thickness h₁ + h₂, beyond
+    which the backing surfaces would pass through each other."""
+    monkeypatch.chdir(tmp_path)
+    total = sum(h for _, _, h in LAYERS.values())
+    deep, _ = read_osim(_model(tmp_path, max_proximity=0.02))
+    assert deep["contacts"]["ball_contact"]["max_depth"] == pytest.approx(total, rel=1e-15) and total < 0.02
+    shallow, _ = read_osim(_model(tmp_path, max_proximity=0.5 * total))
+    assert shallow["contacts"]["ball_contact"]["max_depth"] == pytest.approx(0.5 * total, rel=1e-15)
 
 
 def test_unsupported_contact_options_are_refused(tmp_path, monkeypatch):

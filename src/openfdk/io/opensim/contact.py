@@ -15,7 +15,8 @@ d = Σ h_j (1 − exp(−p/K_j)). The linear law becomes openfdk's pressure modu
 the non-linear one ``law: nonlinear`` with its ``layers`` [K, h]
 (:mod:`openfdk.contact.pressure_law`). The casting mesh (whose triangles OpenSim-JAM casts
 rays from) carries the vertices; the target is the opposite surface; ``max_proximity``
-(m) is the largest depth counted (openfdk's ``max_depth``); ``min_proximity`` must be 0.
+(m), capped at the two layers' total thickness (:func:`contact_depth`), is the largest
+depth counted (openfdk's ``max_depth``); ``min_proximity`` must be 0.
 A mesh is read from its ``mesh_file`` as a display mesh is (next to the model, its
 Geometry folder, ``--geometry``), placed by its ``socket_frame`` in its body.
 
@@ -125,6 +126,16 @@ def layer_modulus(record):
 def pressure_modulus(target, casting):
     """openfdk's pressure modulus (N/m³) of two layers in series: 1 / (h₁/K₁ + h₂/K₂)."""
     return 1.0 / (1.0 / layer_modulus(target) + 1.0 / layer_modulus(casting))
+
+
+def contact_depth(force, target, casting):
+    """openfdk's ``max_depth`` (m) of a Smith2018ArticularContactForce: its
+    ``max_proximity``, but no deeper than the two layers together (h₁ + h₂). JAM's
+    max_proximity is how far its rays search; a depth beyond the layers' total
+    thickness would put the backing surfaces through each other (the non-linear law's
+    pressure is infinite at the thickness), and the distance grid's band, built to that
+    depth, costs in proportion (DM's femoral component: 20 mm → 10 mm)."""
+    return min(force["max_proximity"], target["h"] + casting["h"])
 
 
 def pressure_law(force, target, casting):

@@ -238,7 +238,7 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         ligaments[safe] = {"path": path_of(lig), **ligament_parameters(lig, doc.source)}
     contacts = {}
     for name, force in doc.contact_forces.items():
-        from .contact import pressure_law
+        from .contact import contact_depth, pressure_law
 
         sides = {}
         for role, key in (("vertices", "casting"), ("surface", "target")):
@@ -252,9 +252,10 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         if sides["vertices"]["body"] == sides["surface"]["body"]:
             raise OsimError(f"{doc.source}: line {force['line']}: Smith2018ArticularContactForce {name!r}: both meshes "
                             "are on one body")
+        target, casting = doc.contact_meshes[force["target"]], doc.contact_meshes[force["casting"]]
         contacts[unique("contact", name)] = {
-            **sides, **pressure_law(force, doc.contact_meshes[force["target"]], doc.contact_meshes[force["casting"]]),
-            "max_depth": force["max_proximity"], "grid_spacing": IMPORT_GRID_SPACING_M}
+            **sides, **pressure_law(force, target, casting),
+            "max_depth": contact_depth(force, target, casting), "grid_spacing": IMPORT_GRID_SPACING_M}
     for g in doc.geometry:
         path = find_mesh(doc, g, mesh_dirs, "Mesh" in ignore)
         if path is None:
