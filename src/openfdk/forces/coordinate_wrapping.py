@@ -24,7 +24,7 @@ import numpy as np
 from ..model.measures import Measure
 from .coordinate_path import CoordinatePathNodes, PathNode, coordinate_points
 from .wrap_kernels import POINT, STATUS_TEXT, wrapped_moving_path_lengths
-from .wrapping import WrapNodes, WrapSurface, path_evaluate
+from .wrapping import PathSubsets, WrapNodes, WrapSurface, path_evaluate
 
 __all__ = ["CoordinateWrapNodes", "CoordinateWrappedPath"]
 
@@ -47,12 +47,13 @@ def _spans(nodes):
     return span
 
 
-class CoordinateWrapNodes:
+class CoordinateWrapNodes(PathSubsets):
     """The arrays of one or more wrapped paths with coordinate-dependent points:
     ``evaluate(state)`` -> l (n_paths,) m, L (n_paths, n). paths : lists of PathNode and
     WrapSurface (first and last a fixed or moving point); names : the paths' names."""
 
     def __init__(self, paths, names):
+        self._keep(paths, names)
         for nodes, name in zip(paths, names):
             for end in (nodes[0], nodes[-1]):
                 if not isinstance(end, PathNode) or end.condition is not None:

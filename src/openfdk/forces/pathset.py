@@ -84,13 +84,18 @@ class PathSet:
                 continue
             straight[rows] = 0.0
             T_w = T[rows]
-            if np.any(T_w):
-                # only the bodies the tensed paths touch move their Jacobians: a body whose
-                # 6 columns of L are all zero for them (not a point's, not a wrapping
-                # surface's in contact) is not perturbed
-                touched = np.any(L[rows][T_w != 0.0] != 0.0, axis=0).reshape(-1, 6).any(axis=1)
+            tensed = np.flatnonzero(T_w != 0.0)
+            if len(tensed):
+                # only the tensed paths are differenced (a slack path adds nothing), and
+                # only over the bodies they touch: a body whose 6 columns of L are all zero
+                # for them (not a point's, not a wrapping surface's in contact) is not
+                # perturbed
+                touched = np.any(L[rows][tensed] != 0.0, axis=0).reshape(-1, 6).any(axis=1)
                 columns = (6 * np.flatnonzero(touched)[:, None] + np.arange(6)).ravel()
-                K -= manifold_jacobian(lambda s: T_w @ nodes.evaluate(s)[1], state, 1e-7, central=False,
-                                       f0=T_w @ L[rows], columns=columns)
+                part = nodes.subset(tensed) if hasattr(nodes, "subset") else nodes
+                T_p = T_w[tensed] if part is not nodes else T_w
+                K -= manifold_jacobian(lambda s: T_p @ part.evaluate(s)[1], state, 1e-7, central=False,
+                                       f0=T_p @ L[rows][tensed if part is not nodes else slice(None)],
+                                       columns=columns)
         add_path_geometric_stiffness(state.p_WB, state.R_WB, state.column, self.seg_a, self.s_a, self.seg_b,
                                      self.s_b, self.seg_path, straight, K)

@@ -72,7 +72,29 @@ def _groups(nodes, path_name):
     return {name: k for k, name in enumerate(n for n, c in count.items() if c > 1)}
 
 
-class WrapNodes:
+class PathSubsets:
+    """Mixin of the node sets built from ``(paths, names)``: :meth:`subset` gives the
+    node set of some of the paths (cached by rows), so that a finite difference over
+    the tensed paths alone does not evaluate the slack ones (a knee's 149 ligament
+    strands, most slack at any instant, share one kernel call)."""
+
+    def _keep(self, paths, names):
+        self._paths, self._names, self._subsets = list(paths), list(names), {}
+
+    def subset(self, rows):
+        """The node set (same class) of the paths ``rows`` (indices, increasing)."""
+        key = tuple(int(r) for r in rows)
+        if len(key) == len(self._paths):
+            return self
+        out = self._subsets.get(key)
+        if out is None:
+            if len(self._subsets) >= 8:
+                self._subsets.clear()
+            out = self._subsets[key] = type(self)([self._paths[r] for r in key], [self._names[r] for r in key])
+        return out
+
+
+class WrapNodes(PathSubsets):
     """The node arrays of one or more wrapped paths, ready for the kernel.
 
     paths : list of node lists; a node is ``(body, p_BP)`` for a point or a
@@ -80,6 +102,7 @@ class WrapNodes:
     """
 
     def __init__(self, paths, names):
+        self._keep(paths, names)
         kinds, bodies, p_B, R_BS, dims, sides, limits, start = [], [], [], [], [], [], [], [0]
         for nodes, path_name in zip(paths, names):
             groups = _groups(nodes, path_name)
