@@ -228,3 +228,29 @@ def test_a_missing_thickness_or_back_mesh_is_refused_in_one_line(tmp_path, monke
         msg = str(exc.value)
         assert "\n" not in msg and "bad.osim: line" in msg and "Smith2018ContactMesh 'ball_mesh'" in msg, msg
         assert words in msg, msg
+
+
+def test_overlay_contact_regions_split_an_imported_contact(tmp_path, monkeypatch):
+    """``contact_regions:`` in an overlay sets the regions of a contact the .osim defines:
+    the ball pressed into the plate, halves by the plate's x axis, each carrying part of
+    the load and adding up to the whole; an unknown contact is a one-line error with a
+    did-you-mean."""
+    from openfdk.forces.forceset import ForceElements
+    from openfdk.io.modelfile import load_model_and_settings
+    from openfdk.model.errors import ModelError
+
+    monkeypatch.chdir(tmp_path)
+    _model(tmp_path)
+    (tmp_path / "with.yaml").write_text(
+        "opensim: ball.osim\ncontact_regions:\n  ball_contact: {minus: {axis: [-1, 0, 0]}, plus: {axis: [1, 0, 0]}}\n")
+    model, _ = load_model_and_settings(tmp_path / "with.yaml")
+    state, _ = pose_from_coordinates(model, {"height": R - DELTA})
+    c = ForceElements(model).generalized_forces(state, 0.0)[1]["contacts"]["ball_contact"]
+    minus, plus = c.region_force_W["minus"], c.region_force_W["plus"]
+    np.testing.assert_allclose(minus + plus, c.force_W, rtol=1e-12, atol=1e-12)
+    assert np.linalg.norm(c.force_W) > 1.0
+    assert min(minus[2], plus[2]) > 0.2 * c.force_W[2]  # the cap's mesh is not symmetric in x
+    (tmp_path / "bad.yaml").write_text("opensim: ball.osim\ncontact_regions: {ball_contact2: {}}\n")
+    with pytest.raises(ModelError, match=r"bad.yaml: contact_regions.ball_contact2: not a contact of the model; "
+                                         r"did you mean 'ball_contact'\?"):
+        load_model_and_settings(tmp_path / "bad.yaml")

@@ -82,6 +82,8 @@ class ContactResult:
     energy : float, J — elastic energy ½ Σ p a_i d_i².
     vertex_pressure : (n,) Pa or None — p·d_i for every vertex of A (0 out of contact).
     K : (12, 12) or None — ∂Q/∂q̂, units N/m, N, N·m/rad blocks (see module docstring).
+    region_force_W : {region: (3,) N} or None — the contact force on a of the vertices in
+        each of the pair's ``regions`` (world), e.g. a knee's medial and lateral halves.
     """
 
     Q: np.ndarray
@@ -95,6 +97,7 @@ class ContactResult:
     energy: float
     vertex_pressure: np.ndarray | None = None
     K: np.ndarray | None = None
+    region_force_W: dict | None = None
 
 
 class ElasticFoundation:
@@ -146,6 +149,7 @@ class ElasticFoundation:
             self.layers = layers
             self.pressure_modulus = float(1.0 / np.sum(layers[:, 1] / layers[:, 0]))
         self.mode = mode
+        self.regions = ()  # ((name, axis (3,), origin (3,) m), ...) in b's frame: set_regions
         self.max_depth = float(max_depth)
         self.grid_spacing = float(DEFAULT_GRID_SPACING if grid_spacing is None else grid_spacing)
         self._s_A = np.ascontiguousarray(surface_A.vertices_B, dtype=np.float64)
@@ -170,6 +174,21 @@ class ElasticFoundation:
             voxel = max(0.5 * self.max_depth, 0.5e-3)
             self._cull_mask, self._cull_origin, self._cull_voxel = band_occupancy(
                 surface_B, self.max_depth, voxel)
+
+    def set_regions(self, regions):
+        """Regions of the contact force (outputs only): ``regions`` is a sequence of
+        (name, axis (3,), origin (3,) m) in body b's frame; a vertex of A in contact
+        belongs to a region when (y − origin)·axis > 0, y its position in b's frame
+        (a knee's medial and lateral halves: the insert's frame, axes ∓z)."""
+        out = []
+        for name, axis, origin in regions:
+            axis, origin = np.asarray(axis, dtype=float).reshape(3), np.asarray(origin, dtype=float).reshape(3)
+            norm = float(np.linalg.norm(axis))
+            if not (np.all(np.isfinite(axis)) and norm > 0.0 and np.all(np.isfinite(origin))):
+                raise ValueError(f"contact '{self.name}': region {name!r} needs a finite non-zero axis and a "
+                                 "finite origin")
+            out.append((str(name), axis / norm, origin))
+        self.regions = tuple(out)
 
     def __repr__(self) -> str:
         return (
@@ -255,6 +274,13 @@ class ElasticFoundation:
         if want_vertex_pressure:
             vertex_pressure = np.zeros(self._n)
             vertex_pressure[idx] = P
+        region_force_W = None
+        if self.regions:
+            # force on a of each vertex: P a_i along B's outward normal (the resultant's
+            # terms in _accumulate), summed over the region's vertices, then to world
+            f_B = (P * self._a_A[idx])[:, None] * g_B
+            region_force_W = {name: R_Wb @ f_B[(y_B - origin) @ axis > 0.0].sum(axis=0)
+                              for name, axis, origin in self.regions}
         return ContactResult(
             Q=Q,
             force_W=Q[0:3].copy(),
@@ -267,6 +293,7 @@ class ElasticFoundation:
             energy=float(sums[6]),
             vertex_pressure=vertex_pressure,
             K=K if want_stiffness else None,
+            region_force_W=region_force_W,
         )
 
 

@@ -19,6 +19,9 @@ contacts:
     mode: grid                        # grid (default) or exact
     grid_spacing: 0.3                 # model length unit (default 0.3 mm)
     max_depth: 3                      # model length unit (default 3 mm)
+    regions:                          # optional: the force of parts of the contact (outputs)
+      medial: {axis: [0, 0, -1]}      # the surface body's frame; origin: [x, y, z] (default 0)
+      lateral: {axis: [0, 0, 1]}      # forces.csv: <contact>.medial_N, <contact>.lateral_N
 ```
 """
 
@@ -106,7 +109,7 @@ def load_contacts(b, data, ctx):
     for name, spec in ctx.mapping(data, CONTACTS).items():
         p = f"{CONTACTS}.{name}"
         ctx.keys(spec, p, ["vertices", "surface", "pressure_modulus", "law", "layers", "mode", "grid_spacing",
-                           "max_depth"], required=("vertices", "surface"))
+                           "max_depth", "regions"], required=("vertices", "surface"))
         body_a, surf_a = _surface(spec["vertices"], f"{p}.vertices", ctx)
         body_b, surf_b = _surface(spec["surface"], f"{p}.surface", ctx)
         law = spec.get("law", "linear")
@@ -135,10 +138,43 @@ def load_contacts(b, data, ctx):
         mode = spec.get("mode", "grid")
         h = ctx.number(spec["grid_spacing"], f"{p}.grid_spacing", positive=True) * ctx.length if "grid_spacing" in spec else DEFAULT_GRID_SPACING
         depth = ctx.number(spec["max_depth"], f"{p}.max_depth", positive=True) * ctx.length if "max_depth" in spec else DEFAULT_MAX_DEPTH
+        regions = _regions(spec.get("regions"), f"{p}.regions", ctx)
         try:
-            _wrap(ctx, p, lambda: add_contact(b, name, body_a, surf_a, body_b, surf_b, k, mode, h, depth, layers))
+            element = _wrap(ctx, p, lambda: add_contact(b, name, body_a, surf_a, body_b, surf_b, k, mode, h, depth,
+                                                        layers))
         except (ValueError, TypeError) as exc:
             if isinstance(exc, ModelError):
                 raise
             raise ctx.error(p, str(exc)) from None
+        element.pair.set_regions(regions)
+
+
+def _regions(data, path, ctx):
+    """[(name, axis (3,), origin (3,) m)] of a contact's ``regions`` (module docstring)."""
+    from ..model.names import name_problem
+
+    if data is None:
+        return []
+    out = []
+    for name, spec in ctx.mapping(data, path).items():
+        q = f"{path}.{name}"
+        problem = name_problem(name) if isinstance(name, str) and name else "a region needs a name (text)"
+        if problem:
+            raise ctx.error(q, problem)
+        ctx.keys(spec, q, ["axis", "origin"], required=("axis",))
+        axis = _vector(spec["axis"], f"{q}.axis", ctx)
+        if not np.linalg.norm(axis) > 0.0:
+            raise ctx.error(f"{q}.axis", "expected a non-zero direction")
+        origin = (_vector(spec["origin"], f"{q}.origin", ctx) * ctx.length) if "origin" in spec else np.zeros(3)
+        out.append((name, axis, origin))
+    return out
+
+
+def _vector(value, path, ctx):
+    """A finite (3,) vector of the model file, or a one-line error naming the entry."""
+    if (not isinstance(value, (list, tuple)) or len(value) != 3
+            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value)
+            or not np.all(np.isfinite(np.asarray(value, dtype=float)))):
+        raise ctx.error(path, f"expected 3 finite numbers, got {value!r}")
+    return np.asarray(value, dtype=float)
 

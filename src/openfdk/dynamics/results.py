@@ -111,6 +111,8 @@ def forces_values(fr, prefix="dyn.", report=None, status=None):
                        ("cop_x_m", c.cop_W[0]), ("cop_y_m", c.cop_W[1]), ("cop_z_m", c.cop_W[2]),
                        ("area_m2", c.area), ("peak_pressure_Pa", c.peak_pressure), ("n_contact", c.n_contact)):
             values[f"{COLUMN}{name}.{key}"] = float(v)
+        for region, F in (c.region_force_W or {}).items():  # |force| of each region (N)
+            values[f"{COLUMN}{name}.{region}_N"] = float(np.linalg.norm(F))
     return {prefix + k: v for k, v in values.items()}
 
 

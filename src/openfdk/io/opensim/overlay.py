@@ -18,6 +18,7 @@ Two ways to give them, one path through the loader:
       fdk: [knee_add_r, knee_tx_r]       # shorthand: these coordinates become FDK DOFs
                                          # (or fdk_dofs: [...] beside an fdk: {settings} section)
       lock: [arm_rot_r, pro_sup_r: 0.3]  # shorthand: hold coordinates (default value or given, rad/m)
+      contact_regions: {knee_contact: {medial: {axis: [0, 0, -1]}, lateral: {axis: [0, 0, 1]}}}
       analysis: {marker_cutoff_hz: 6}
 
 The overlay's sections are merged into the imported model mapping; a name the model
@@ -187,6 +188,28 @@ def _coordinate_list(value, data, source, key):
     return out
 
 
+def _contact_regions(regions, data, source):
+    """``data`` with ``contact_regions: {contact: {region: {axis, origin}}}`` set as the
+    ``regions`` of the imported contacts (their entries are the .osim's, so an overlay
+    cannot name them in ``contacts:``); the regions themselves are checked by the
+    contacts section (contact/sections.py)."""
+    if regions is None:
+        return data
+    contacts = data.get("contacts", {})
+    if not isinstance(regions, dict):
+        raise ModelError(f"{source}: contact_regions: expected a mapping of contact names, got "
+                         f"{type(regions).__name__}")
+    out = dict(contacts)
+    for name, spec in regions.items():
+        if name not in contacts:
+            hint = difflib.get_close_matches(str(name), list(contacts), n=1)
+            extra = f"; did you mean {hint[0]!r}?" if hint else ""
+            raise ModelError(f"{source}: contact_regions.{name}: not a contact of the model{extra} "
+                             f"(contacts: {', '.join(contacts) or 'none'})")
+        out[name] = {**contacts[name], "regions": spec}
+    return {**data, "contacts": out}
+
+
 def _expand_shorthands(overlay, data, source):
     """``fdk: [names]`` (a list; a mapping is the FDK settings section) → ``fdk_dofs``
     entries {measure: name, initial: the coordinate's default}; ``lock: [names]`` → ``constraints`` entries ``lock_<name>`` {measure: name,
@@ -262,6 +285,7 @@ def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None
             raise ModelError(f"{source}: actuators: {str(xml)!r} does not exist")
         data = read_actuator_file(xml, data, info)
     overlay = _expand_shorthands(overlay, data, source)
+    data = _contact_regions(overlay.pop("contact_regions", None), data, source)
     known = [k for k in CORE_SECTIONS + tuple(name for name, _ in SECTIONS) if k not in MODEL_SECTIONS]
     out = dict(data)
     for key, value in overlay.items():
