@@ -16,23 +16,17 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from openfdk.io.storage import read_storage  # noqa: E402
+
 MUSCLES = ("TRIlong", "TRIlat", "TRImed", "BIClong", "BICshort", "BRA")
-
-
-def read_sto(path):
-    """{column: values} of an OpenSim storage file."""
-    lines = open(path).read().splitlines()
-    end = next(k for k, line in enumerate(lines) if line.strip().lower() == "endheader")
-    head = [h.strip() for h in lines[end + 1].split("\t")]
-    data = np.array([[float(x) for x in line.split()] for line in lines[end + 2:] if line.strip()])
-    return {h: data[:, j] for j, h in enumerate(head)}
 
 
 def main(run_dir, sto_path, png):
     rows = list(csv.DictReader(open(f"{run_dir}/forces.csv")))
     t = np.array([float(r["time"]) for r in rows])
     ours = {m: np.array([float(r[f"{m}.force_N"]) for r in rows]) for m in MUSCLES}
-    theirs = read_sto(sto_path)
+    time, theirs, _ = read_storage(sto_path)
+    theirs["time"] = time
     fig, axes = plt.subplots(2, 3, figsize=(11, 5.5), sharex=True)
     for ax, m in zip(axes.flat, MUSCLES):
         d = ours[m] - theirs[m]
