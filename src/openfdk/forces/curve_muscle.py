@@ -59,6 +59,7 @@ import numpy as np
 from numba import njit
 
 from ..model.coordinate_functions import function_from_spec, pp_evaluate
+from .bracketed_newton import bracketed_newton_step
 
 __all__ = ["CurveMuscle", "curve_states", "curve_so_strengths", "DEFAULT_CURVES", "SCHUTTE_FV"]
 
@@ -312,16 +313,9 @@ def _solve(a, lo, hi, l_mt, v_mt, p, funcs):
         r, dr, _k, _dv, _t = _residual(x, a, l_mt, v_mt, p, funcs)
         if abs(r) <= tol:
             break
-        if r > 0.0:
-            lo = x
-        else:
-            hi = x
-        if hi - lo <= 1e-15 * hi:
+        x, lo, hi, done = bracketed_newton_step(x, r, dr, lo, hi)
+        if done:
             break
-        xn = x - r / dr if dr < 0.0 else -1.0
-        if not (lo < xn < hi):
-            xn = 0.5 * (lo + hi)
-        x = xn
     return x
 
 

@@ -55,6 +55,8 @@ from typing import Sequence
 import numpy as np
 from numba import njit
 
+from .bracketed_newton import bracketed_newton_step
+
 __all__ = [
     "MuscleParameterError",
     "ConstantStrengthMuscle",
@@ -220,16 +222,9 @@ def _solve_equilibrium(activation, x_lo, x_hi, x_start, l_mt, v_mt, p):
         r, dr_dx, _k, _dv, _t = _equilibrium_residual(x, activation, l_mt, v_mt, p)
         if abs(r) <= tolerance:
             break
-        if r > 0.0:
-            lo = x
-        else:
-            hi = x
-        if hi - lo <= 1e-15 * hi:
+        x, lo, hi, done = bracketed_newton_step(x, r, dr_dx, lo, hi)
+        if done:
             break
-        x_new = x - r / dr_dx if dr_dx < 0.0 else -1.0
-        if not (lo < x_new < hi):
-            x_new = 0.5 * (lo + hi)
-        x = x_new
     return x
 
 

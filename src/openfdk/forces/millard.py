@@ -40,6 +40,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numba import njit
 
+from .bracketed_newton import bracketed_newton_step
 from .millard_curves import (CURVE_WIDTH, ActiveForceLengthCurve, CurveError, FiberForceLengthCurve,
                              ForceVelocityCurve, TendonForceLengthCurve, curve_value)
 
@@ -262,16 +263,9 @@ def _solve(a, lo, hi, x, l_mt, v_mt, p):
         r, dr, _k, _dv, _t = _residual(x, a, l_mt, v_mt, p)
         if abs(r) <= tol:
             break
-        if r > 0.0:
-            lo = x
-        else:
-            hi = x
-        if hi - lo <= 1e-15 * hi:
+        x, lo, hi, done = bracketed_newton_step(x, r, dr, lo, hi)
+        if done:
             break
-        xn = x - r / dr if dr < 0.0 else -1.0
-        if not (lo < xn < hi):
-            xn = 0.5 * (lo + hi)
-        x = xn
     return x
 
 
