@@ -140,18 +140,17 @@ def write_inputs(directory, quick=False):
 
 
 # -- openfdk ------------------------------------------------------------------------
-class OpenfdkInverseDynamics:
-    """openfdk's run of the model with ``--motion`` and ``--external-loads``, loaded
-    once; :meth:`run` times one run over the motion file's sample times."""
+class TimedRun:
+    """openfdk's run of a model loaded once (``model``, ``settings`` as
+    :func:`~openfdk.io.modelfile.load_model_and_settings` gives them) over the sample
+    times of ``motion_path``; one warm-up run of 5 frames; :meth:`run` times one run.
+    ``what`` names the run in the error of a failed frame."""
 
-    def __init__(self, model_path, motion_path, loads_path):
-        from ..io.modelfile import load_model_and_settings
-        from ..io.opensim.overlay import register
-        from ..io.storage import read_storage
+    def __init__(self, model, settings, motion_path, what):
         from ..analysis.jobs import run_job
+        from ..io.storage import read_storage
 
-        register(model_path, external_loads=loads_path, motion=motion_path)
-        self.model, settings = load_model_and_settings(model_path)
+        self.model, self.what = model, what
         self.times = np.asarray(read_storage(motion_path)[0], float)
         self.run_job = run_job
 
@@ -168,9 +167,21 @@ class OpenfdkInverseDynamics:
         kin, dyn, _ = self.run_job(self.model, settings=self.settings, progress=False)
         cpu, wall = time.process_time() - c0, time.perf_counter() - w0
         if not (np.all(kin.converged) and np.all(dyn.converged)):
-            raise RuntimeError("openfdk's full-body inverse dynamics failed at some frames")
+            raise RuntimeError(f"openfdk's full-body {self.what} failed at some frames")
         n = len(self.times)
         return 1e3 * cpu / n, 1e3 * wall / n, kin, dyn
+
+
+class OpenfdkInverseDynamics(TimedRun):
+    """openfdk's run of the model with ``--motion`` and ``--external-loads``, loaded
+    once; :meth:`run` times one run over the motion file's sample times."""
+
+    def __init__(self, model_path, motion_path, loads_path):
+        from ..io.modelfile import load_model_and_settings
+        from ..io.opensim.overlay import register
+
+        register(model_path, external_loads=loads_path, motion=motion_path)
+        super().__init__(*load_model_and_settings(model_path), motion_path, "inverse dynamics")
 
     def generalized_forces(self, dyn):
         """{OpenSim column: (nf,)} of a run (what generalized_forces.csv holds)."""

@@ -79,7 +79,6 @@ When ``opensim`` cannot be imported the OpenSim figures are NaN with a ``note``.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import os
 import statistics
@@ -92,6 +91,7 @@ from pathlib import Path
 import numpy as np
 
 from .full_body import SINGLE_THREAD, SKIP_NOTE, opensim_available
+from .full_body_id import TimedRun
 
 RATE_HZ = 100.0
 END_FRAMES = 10
@@ -203,34 +203,12 @@ def _load(model_path, motion_path, overlay_path):
     return load_model_and_settings(model_path)
 
 
-class OpenfdkRecruitment:
+class OpenfdkRecruitment(TimedRun):
     """openfdk's run of the model with ``--motion`` and the overlay, loaded once;
     :meth:`run` times one run over the motion file's sample times."""
 
     def __init__(self, model_path, motion_path, overlay_path):
-        from ..io.storage import read_storage
-        from ..analysis.jobs import run_job
-
-        self.model, settings = _load(model_path, motion_path, overlay_path)
-        self.times = np.asarray(read_storage(motion_path)[0], float)
-        self.run_job = run_job
-
-        def window(n):
-            kin = {**settings.kinematics, "start": float(self.times[0]), "end": float(self.times[n - 1]), "frames": n}
-            return dataclasses.replace(settings, kinematics=kin)
-
-        self.settings = window(len(self.times))
-        run_job(self.model, settings=window(5), progress=False)  # warm-up
-
-    def run(self):
-        """(CPU ms per frame, wall ms per frame, InverseDynamicsResult)."""
-        c0, w0 = time.process_time(), time.perf_counter()
-        kin, dyn, _ = self.run_job(self.model, settings=self.settings, progress=False)
-        cpu, wall = time.process_time() - c0, time.perf_counter() - w0
-        if not (np.all(kin.converged) and np.all(dyn.converged)):
-            raise RuntimeError("openfdk's full-body recruitment failed at some frames")
-        n = len(self.times)
-        return 1e3 * cpu / n, 1e3 * wall / n, dyn
+        super().__init__(*_load(model_path, motion_path, overlay_path), motion_path, "recruitment")
 
 
 def muscle_forces(dyn):
@@ -445,7 +423,7 @@ def measure(directory, quick=False):
     ours_cpu, ours_wall, o_cpu, o_wall, ratios = [], [], [], [], []
     dyn = their_run = None
     for _ in range(repeats):
-        cpu, wall, dyn = fdk.run()
+        cpu, wall, _, dyn = fdk.run()
         ours_cpu.append(cpu)
         ours_wall.append(wall)
         if have_opensim:
