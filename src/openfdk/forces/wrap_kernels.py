@@ -156,11 +156,12 @@ def sphere_wrap(P, Q, r, side):
 
 
 @njit(cache=True)
-def _geodesic_rhs(x, v, A):
-    """Geodesic ODE on xᵀ A x = 1: x' = v, v' = −(vᵀ A v / |A x|²) A x."""
-    Ax = A * x
-    lam = (v @ (A * v)) / (Ax @ Ax)
-    return v, -lam * Ax
+def _geodesic_accel(x0, x1, x2, v0, v1, v2, A0, A1, A2):
+    """v' of the geodesic ODE on xᵀ A x = 1: x' = v, v' = −(vᵀ A v / |A x|²) A x, in
+    scalars (no array is allocated in the integrator's inner loop)."""
+    n0, n1, n2 = A0 * x0, A1 * x1, A2 * x2
+    lam = (A0 * v0 * v0 + A1 * v1 * v1 + A2 * v2 * v2) / (n0 * n0 + n1 * n1 + n2 * n2)
+    return -lam * n0, -lam * n1, -lam * n2
 
 
 @njit(cache=True)
@@ -169,16 +170,29 @@ def shoot_geodesic(x0, v0, A, s, n_steps):
     (m) by classical RK4 in ``n_steps`` steps. A (3,) = (1/a², 1/b², 1/c²). Returns
     (x(s), x'(s))."""
     h = s / n_steps
-    x = x0.copy()
-    v = v0.copy()
+    A0, A1, A2 = A[0], A[1], A[2]
+    x_0, x_1, x_2 = x0[0], x0[1], x0[2]
+    v_0, v_1, v_2 = v0[0], v0[1], v0[2]
     for _ in range(n_steps):
-        k1x, k1v = _geodesic_rhs(x, v, A)
-        k2x, k2v = _geodesic_rhs(x + 0.5 * h * k1x, v + 0.5 * h * k1v, A)
-        k3x, k3v = _geodesic_rhs(x + 0.5 * h * k2x, v + 0.5 * h * k2v, A)
-        k4x, k4v = _geodesic_rhs(x + h * k3x, v + h * k3v, A)
-        x = x + (h / 6.0) * (k1x + 2.0 * k2x + 2.0 * k3x + k4x)
-        v = v + (h / 6.0) * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
-    return x, v
+        a0, a1, a2 = _geodesic_accel(x_0, x_1, x_2, v_0, v_1, v_2, A0, A1, A2)  # k1: (v, a)
+        hh = 0.5 * h
+        b0, b1, b2 = _geodesic_accel(x_0 + hh * v_0, x_1 + hh * v_1, x_2 + hh * v_2,
+                                     v_0 + hh * a0, v_1 + hh * a1, v_2 + hh * a2, A0, A1, A2)
+        w0, w1, w2 = v_0 + hh * a0, v_1 + hh * a1, v_2 + hh * a2  # k2's x-rate
+        c0, c1, c2 = _geodesic_accel(x_0 + hh * w0, x_1 + hh * w1, x_2 + hh * w2,
+                                     v_0 + hh * b0, v_1 + hh * b1, v_2 + hh * b2, A0, A1, A2)
+        y0, y1, y2 = v_0 + hh * b0, v_1 + hh * b1, v_2 + hh * b2  # k3's x-rate
+        d0, d1, d2 = _geodesic_accel(x_0 + h * y0, x_1 + h * y1, x_2 + h * y2,
+                                     v_0 + h * c0, v_1 + h * c1, v_2 + h * c2, A0, A1, A2)
+        z0, z1, z2 = v_0 + h * c0, v_1 + h * c1, v_2 + h * c2  # k4's x-rate
+        h6 = h / 6.0
+        x_0 += h6 * (v_0 + 2.0 * w0 + 2.0 * y0 + z0)
+        x_1 += h6 * (v_1 + 2.0 * w1 + 2.0 * y1 + z1)
+        x_2 += h6 * (v_2 + 2.0 * w2 + 2.0 * y2 + z2)
+        v_0 += h6 * (a0 + 2.0 * b0 + 2.0 * c0 + d0)
+        v_1 += h6 * (a1 + 2.0 * b1 + 2.0 * c1 + d1)
+        v_2 += h6 * (a2 + 2.0 * b2 + 2.0 * c2 + d2)
+    return np.array([x_0, x_1, x_2]), np.array([v_0, v_1, v_2])
 
 
 @njit(cache=True)
@@ -246,22 +260,27 @@ def _plane_fan(P1, Q1, axes, side):
         if st != 1:
             continue
         a1 = np.arctan2(t1y, t1x)
-        prev = axes * (c + t1x * d + t1y * u)
-        T1 = prev / axes
+        T1 = c + t1x * d + t1y * u
+        # the arc T1→T2 in FAN_CHORDS chords, mapped back (scalars: no allocation per chord)
+        p0, p1, p2 = axes[0] * T1[0], axes[1] * T1[1], axes[2] * T1[2]
         arc = 0.0
-        mid = np.zeros(3)
+        mid_side = 0.0
+        # angle a1 − θ j / FAN_CHORDS by a fixed rotation per chord (no trig in the loop)
+        cd, sd = np.cos(th / FAN_CHORDS), np.sin(th / FAN_CHORDS)
+        ca, sa = rho * np.cos(a1), rho * np.sin(a1)
         for j in range(1, FAN_CHORDS + 1):
-            ang = a1 - th * j / FAN_CHORDS
-            cur = axes * (c + rho * (np.cos(ang) * d + np.sin(ang) * u))
+            ca, sa = ca * cd + sa * sd, sa * cd - ca * sd
+            q0 = axes[0] * (c[0] + ca * d[0] + sa * u[0])
+            q1 = axes[1] * (c[1] + ca * d[1] + sa * u[1])
+            q2 = axes[2] * (c[2] + ca * d[2] + sa * u[2])
             if 2 * j == FAN_CHORDS:
-                mid = cur
-            w = cur - prev
-            arc += np.sqrt(w @ w)
-            prev = cur
-        if has_side and mid @ side < 0.0:
+                mid_side = q0 * side[0] + q1 * side[1] + q2 * side[2]
+            arc += np.sqrt((q0 - p0) ** 2 + (q1 - p1) ** 2 + (q2 - p2) ** 2)
+            p0, p1, p2 = q0, q1, q2
+        if has_side and mid_side < 0.0:
             continue
         w1 = axes * T1 - P
-        w2 = Q - prev
+        w2 = Q - np.array([p0, p1, p2])
         length = np.sqrt(w1 @ w1) + arc + np.sqrt(w2 @ w2)
         if length < best:
             best, T1b, sb, thb = length, T1, arc, th
