@@ -15,6 +15,7 @@ BENCHMARK_MODULES = [
     "openfdk.bench.fdk",
     "openfdk.bench.mandible",
     "openfdk.bench.knee",
+    "openfdk.bench.tka_knee_gait",
     "openfdk.bench.full_body",
     "openfdk.bench.full_body_id",
     "openfdk.bench.full_body_muscles",

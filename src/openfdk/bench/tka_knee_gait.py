@@ -1,0 +1,125 @@
+"""The knee in gait (issue 27): FDK of a total knee replacement over stance, at the default
+FDK settings, 11 FDK DOFs (knee_add, knee_rot, knee_tx, knee_ty, knee_tz and the
+patella's six), two implant contacts, 149 Blankevoort ligament strands, 45 muscles.
+
+The model: DM of the 6th Knee Grand Challenge when ``OPENFDK_DM_DIR`` names a folder with
+``dm.yaml`` (the overlay, docs/tutorial-knee-gait.md), ``DM.osim``, ``Geometry/``,
+``DM_ngait_og1_new.trc`` and the trial's ground reactions; the FDK then tracks the
+markers over right stance from t = DM_START (DM_FRAMES frames at the trial's 120 Hz;
+``--quick``: DM_FRAMES_QUICK). Otherwise (CI, the normal case) the bench's own model of
+the same size, :mod:`openfdk.fixtures.tka_knee` (record field ``model: "synthetic"``):
+determinate kinematics of the driven hip, knee and ankle angles, the stance from
+t = 0.10 s at 100 Hz, SYNTHETIC_FRAMES frames (``--quick``: SYNTHETIC_FRAMES_QUICK).
+
+Records (each with ``model``, ``frames``, ``converged_frames``, ``wall_time_s``):
+
+* ``tka_knee_gait_fdk_fps``: frames per second of :func:`openfdk.fdk.analysis.run_fdk`
+  over the window, one BLAS thread (measured in a child process), after loading the
+  model (distance grids from the disk cache) and a warm-up run of two frames. Target ≥ 50.
+* ``tka_knee_gait_fdk_evaluations_per_frame``: mean residual evaluations per frame
+  (each a kinematic analysis and a recruitment solve; the analytic Jacobians are not
+  counted). Target ≤ 4.
+* ``tka_knee_gait_convergence_rate``: the fraction of the frames converged (max |f^FDK|
+  < 1e-3 N, N m) at the default FDK settings. Target ≥ 0.995.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+SYNTHETIC_FRAMES, SYNTHETIC_FRAMES_QUICK = 50, 20
+SYNTHETIC_RATE_HZ = 100.0
+DM_START, DM_FRAMES, DM_FRAMES_QUICK = 2.55, 4, 2
+DM_FILES = ("dm.yaml", "DM_ngait_og1_new.trc")
+TARGETS = {"tka_knee_gait_fdk_fps": 50.0, "tka_knee_gait_fdk_evaluations_per_frame": 4.0,
+           "tka_knee_gait_convergence_rate": 0.995}
+
+
+def dm_folder():
+    """The DM folder named by ``OPENFDK_DM_DIR`` if it holds :data:`DM_FILES`, else None."""
+    folder = os.environ.get("OPENFDK_DM_DIR")
+    if folder and all((Path(folder) / f).is_file() for f in DM_FILES):
+        return Path(folder)
+    return None
+
+
+def synthetic_inputs(directory, quick=False):
+    """(model, settings, trajectories None, times (nf,) s) of the bench's own knee
+    written into ``directory``."""
+    from ..analysis.jobs import model_and_settings
+    from ..fixtures.tka_knee import FIRST_TIME, write_tka_knee
+
+    overlay = write_tka_knee(directory)
+    model, settings, _ = model_and_settings(str(overlay))
+    n = SYNTHETIC_FRAMES_QUICK if quick else SYNTHETIC_FRAMES
+    return model, settings, None, FIRST_TIME + np.arange(n) / SYNTHETIC_RATE_HZ
+
+
+def dm_inputs(folder, quick=False):
+    """(model, settings, trajectories, times (nf,) s) of DM in right stance from DM_START."""
+    from ..analysis.jobs import load_trajectories, model_and_settings
+
+    model, settings, _ = model_and_settings(str(folder / "dm.yaml"))
+    traj = load_trajectories(model, str(folder / "DM_ngait_og1_new.trc"), settings=settings)
+    times = np.asarray(traj.time, float)
+    first = int(np.searchsorted(times, DM_START - 1e-9))
+    return model, settings, traj, times[first:first + (DM_FRAMES_QUICK if quick else DM_FRAMES)]
+
+
+def records(which, result, wall):
+    """The three records (module docstring) of an FDKResult ``result`` timed ``wall`` s."""
+    nf = len(result.converged)
+    common = {"model": which, "frames": nf, "converged_frames": int(result.converged.sum()), "wall_time_s": wall,
+              "mean_newton_iterations_per_frame": float(np.mean(result.iterations)),
+              "mean_jacobians_per_frame": float(np.mean(result.jacobians)),
+              "restarted_frames": int(np.count_nonzero(result.restarts)),
+              "failed": sorted(set(r for r, ok in zip(result.reasons, result.converged) if not ok))}
+    values = {"tka_knee_gait_fdk_fps": (nf / wall, "frames/s"),
+              "tka_knee_gait_fdk_evaluations_per_frame": (float(np.mean(result.evaluations)), "evaluations/frame"),
+              "tka_knee_gait_convergence_rate": (float(result.converged.mean()), "fraction")}
+    return [{"name": name, "value": value, "unit": unit, "target": TARGETS[name], **common}
+            for name, (value, unit) in values.items()]
+
+
+def measure(directory, quick=False):
+    """The records, measured in this process (one BLAS thread: see :func:`run`)."""
+    from ..fdk.analysis import run_fdk
+
+    folder = dm_folder()
+    if folder is not None:
+        which, (model, settings, traj, times) = "DM", dm_inputs(folder, quick)
+    else:
+        which, (model, settings, traj, times) = "synthetic", synthetic_inputs(directory, quick)
+    if which == "synthetic":
+        run_fdk(model, traj, times[:2], settings)  # warm-up: the cached kernels loaded
+    t0 = time.perf_counter()
+    result = run_fdk(model, traj, times, settings)
+    wall = time.perf_counter() - t0
+    out = records(which, result, wall)
+    for r in out:
+        r["window_s"] = [float(times[0]), float(times[-1])]
+    return out
+
+
+def run(quick=False):
+    """The records (module docstring), measured in a child process with one BLAS thread."""
+    from .full_body import SINGLE_THREAD, child_records
+
+    with tempfile.TemporaryDirectory() as d:
+        return child_records("openfdk.bench.tka_knee_gait", d, ["--quick"] if quick else [],
+                             {**os.environ, **SINGLE_THREAD}, "tka knee gait benchmark")
+
+
+if __name__ == "__main__":  # the child process of run()
+    import warnings
+
+    warnings.simplefilter("ignore")  # the models' plausibility warnings: not the bench's output
+    _records = measure(sys.argv[1], quick="--quick" in sys.argv[2:])
+    print(json.dumps(_records), flush=True)
