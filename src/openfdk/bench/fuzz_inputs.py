@@ -22,7 +22,8 @@ names the file):
 - ``ik``: an OpenSim IK setup file with marker and coordinate tasks and its coordinate
   file, applied to that model (``--ik-tasks``) -> ``ModelError`` as well;
 - ``external_loads``, ``grf_mot``, ``sto``, ``force_plates``, ``results``, ``checkpoint``
-  and ``study_lock`` (issue 30): their bases, mutators and loaders are in
+  and ``study_lock`` (issue 30), ``validation_map`` and ``validation_reference`` (``openfdk
+  validate-kinematics``): their bases, mutators and loaders are in
   :mod:`openfdk.bench.fuzz_kinds`.
 
 Mutations of YAML files act on the parsed tree (a value replaced by one of another type

@@ -31,7 +31,10 @@ Kinds:
   as an attacker would, or not) -> ``CheckpointError``;
 - ``study_lock``: a ``.study.lock`` written by the study runner (held by this process;
   for 30 % of the inputs first made stale: the pid of a finished process), JSON and text
-  mutations -> ``StudyError`` (or the stale lock taken over).
+  mutations -> ``StudyError`` (or the stale lock taken over);
+- ``validation_map``, ``validation_reference``: the map (YAML) and the measured reference
+  (``.sto``, time in %) of ``openfdk validate-kinematics`` against a run folder in the
+  format ``openfdk run`` writes; YAML and text mutations -> ``ValidationError``.
 """
 
 from __future__ import annotations
@@ -46,7 +49,14 @@ import sys
 
 import numpy as np
 
-NEW_KINDS = ("external_loads", "grf_mot", "sto", "force_plates", "results", "checkpoint", "study_lock")
+NEW_KINDS = ("external_loads", "grf_mot", "sto", "force_plates", "results", "checkpoint", "study_lock",
+             "validation_map", "validation_reference")
+#: the validation kinds' gait cycle (s) and toe-off (s), and their map file
+VALIDATION_CYCLE, VALIDATION_TOE_OFF = (1.0, 2.0), 1.6
+VALIDATION_MAP_TEXT = """knee_sup_r: {coordinate: knee_ty_r, unit: m, label: superior translation}
+knee_rot_r: {coordinate: knee_flex_r, unit: rad, scale: -1}
+knee_add_r: {coordinate: 'angles[1]', unit: deg}
+"""
 #: the fingerprint of the fuzz run's checkpoints
 FINGERPRINT = "openfdk-fuzz"
 #: the result folder's name (errors name it)
@@ -184,6 +194,35 @@ def _write_run(run_dir, model_text):
     _acquire_lock(run_dir / "lock")
 
 
+def _write_validation_inputs(d):
+    """A run folder ``d/kvrun`` as ``openfdk run`` writes it (kinematics.csv, forces.csv,
+    coordinates.csv, measures.csv; one frame failed) and the validation map and
+    reference (time in % of the cycle) in ``d/kvfiles``. Returns (map, reference)."""
+    from ..io.results import write_table
+    from ..io.storage import write_storage
+
+    run, files = d / "kvrun", d / "kvfiles"
+    run.mkdir()
+    files.mkdir()
+    t = np.linspace(0.9, 2.1, 61)
+    ok = np.ones(t.size, bool)
+    ok[30] = False
+    w = 2 * np.pi * (t - VALIDATION_CYCLE[0]) / (VALIDATION_CYCLE[1] - VALIDATION_CYCLE[0])
+    msg = ["" if c else "failed" for c in ok]
+    write_table(run / "kinematics.csv", {"time": t, "converged": ok, "message": msg})
+    write_table(run / "forces.csv", {"time": t, "converged": ok, "status": ["optimal"] * t.size, "message": msg})
+    write_table(run / "coordinates.csv", {"time": t, "knee_ty_r_m": 0.012 + 0.002 * np.sin(w),
+                                          "knee_flex_r_rad": 0.5 + 0.4 * np.sin(w)})
+    write_table(run / "measures.csv", {"time": t, "angles[1]_rad": 0.02 * np.cos(w)})
+    p = np.arange(1.0, 101.0)
+    wp = 2 * np.pi * p / 100
+    write_storage(files / "reference.sto", p, {"knee_sup_r": 0.042 + 0.002 * np.sin(wp),
+                                               "knee_rot_r": -(0.5 + 0.3 * np.sin(wp)),
+                                               "knee_add_r": np.degrees(0.02 * np.cos(wp))}, name="fluoroscopy")
+    (files / "map.yaml").write_text(VALIDATION_MAP_TEXT)
+    return files / "map.yaml", files / "reference.sto"
+
+
 def build(bases, kinds):
     """Write the base files of the new ``kinds`` into ``bases.dir``; fills
     ``bases.paths[kind]`` (the file whose name an error must give) and
@@ -217,6 +256,8 @@ def build(bases, kinds):
         child = subprocess.Popen([sys.executable, "-c", ""])
         child.wait()
         bases.dead_pid = child.pid  # the lock of a study killed on this host (stale, taken over)
+    if {"validation_map", "validation_reference"} & set(kinds):
+        bases.paths["validation_map"], bases.paths["validation_reference"] = _write_validation_inputs(d)
     for kind in kinds:
         if kind not in bases.originals:
             bases.originals[kind] = {bases.paths[kind]: bases.paths[kind].read_bytes()}
@@ -377,15 +418,17 @@ RESULT_READERS = ("plot", "export-opensim", "view")
 def mutate(kind, bases, rng):
     """Write one mutated input of ``kind`` over its base files (restored first). Returns
     the reader the input is for (``results``: one of :data:`RESULT_READERS`), else None."""
-    from .fuzz_inputs import mutate_bytes, mutate_text, mutate_xml
+    from .fuzz_inputs import mutate_bytes, mutate_text, mutate_xml, mutate_yaml
 
     restore(kind, bases)
     originals = bases.originals[kind]
     path = bases.paths[kind]
     if kind == "external_loads":
         path.write_text(mutate_xml(EXTERNAL_LOADS_TEXT, rng, values=_EL_VALUES, tags=_EL_TAGS), encoding="utf-8")
-    elif kind in ("grf_mot", "sto"):
+    elif kind in ("grf_mot", "sto", "validation_reference"):
         path.write_text(mutate_text(originals[path].decode(), rng), encoding="utf-8")
+    elif kind == "validation_map":
+        path.write_text(mutate_yaml(originals[path].decode(), rng), encoding="utf-8")
     elif kind == "force_plates":
         data = originals[path]
         path.write_bytes(mutate_plate_parameters(data, rng) if rng.random() < 0.6 else mutate_bytes(data, rng))
@@ -458,6 +501,10 @@ def documented_error(kind):
         from ..study.spec import StudyError
 
         return StudyError
+    if kind in ("validation_map", "validation_reference"):
+        from ..analysis.kinematics_validation import ValidationError
+
+        return ValidationError
     return ValueError  # results: the plot, export-opensim and view readers' ValueError (ViewError) naming the file
 
 
@@ -519,4 +566,11 @@ def load(kind, path, reader=None):
         lock = _acquire_lock(path.parent)
         os.remove(lock)
         return lock
+    if kind in ("validation_map", "validation_reference"):
+        from ..analysis.kinematics_validation import csv_text, markdown_table, text_table, validate_kinematics
+
+        files = path.parent
+        result = validate_kinematics(files.parent / "kvrun", files / "reference.sto", files / "map.yaml",
+                                     VALIDATION_CYCLE, VALIDATION_TOE_OFF)
+        return csv_text(result), markdown_table(result), text_table(result)  # the figure is left out (~1 s)
     raise ValueError(f"not a new fuzz kind: {kind!r}")

@@ -9,6 +9,7 @@
     openfdk import-opensim MODEL.osim --out DIR         an OpenSim model as an openfdk model file
     openfdk cache info|clear                            the distance-grid cache on disk
     openfdk view RESULT_DIR [--out view.html]           3D viewer of a run (one HTML file)
+    openfdk validate-kinematics RUN_DIR REF.sto --map MAP.yaml --cycle T0 T1   a run against measured kinematics
     openfdk demo [--out DIR] [--quick]                  the mandible study on the virtual subject
     openfdk subject create|record DIR [--realistic]     virtual subject and experiment
     openfdk subject study DIR [--out OUT] [--cycles N|all]   the mandible study on a subject folder
@@ -664,6 +665,9 @@ def build_parser():
     add_run_output_arguments(r)
     add_output_parsers(sub)
     add_view_parser(sub)
+    from .validate import add_validate_parser
+
+    add_validate_parser(sub)
 
     d = sub.add_parser("demo", help="the mandible study on the virtual subject, end to end",
                        description="The paper's application end to end: a virtual mandible subject and its recorded "

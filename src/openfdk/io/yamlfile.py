@@ -133,11 +133,17 @@ def read_yaml(path, error=ValueError, what="file", source=None):
     return parse_yaml(text, source, error)
 
 
+def did_you_mean(name, known) -> str:
+    """``; did you mean '<closest>'?`` when one of the names ``known`` is close to
+    ``name`` (difflib's ratio >= 0.6), else ``""``: the hint of a misspelt name."""
+    hint = difflib.get_close_matches(str(name), [str(a) for a in known], n=1)
+    return f"; did you mean {hint[0]!r}?" if hint else ""
+
+
 def unknown_key(key, allowed) -> str:
     """``unknown key; did you mean '<closest>'?`` (or ``; allowed: [...]`` when no
     allowed key is close): the message for a key not in ``allowed``."""
-    hint = difflib.get_close_matches(str(key), [str(a) for a in allowed], n=1)
-    return "unknown key" + (f"; did you mean {hint[0]!r}?" if hint else f"; allowed: {sorted(map(str, allowed))}")
+    return "unknown key" + (did_you_mean(key, allowed) or f"; allowed: {sorted(map(str, allowed))}")
 
 
 def _unit(unit):
