@@ -67,8 +67,8 @@ def dm_inputs(folder, quick=False):
     from ..analysis.jobs import load_trajectories, model_and_settings
 
     model, settings, _ = model_and_settings(str(folder / "dm.yaml"))
-    traj = load_trajectories(model, str(folder / "DM_ngait_og1_new.trc"), settings=settings)
-    times = np.asarray(traj.time, float)
+    trial, traj = load_trajectories(model, str(folder / "DM_ngait_og1_new.trc"), settings=settings)
+    times = np.asarray(trial.time, float)
     first = int(np.searchsorted(times, DM_START - 1e-9))
     return model, settings, traj, times[first:first + (DM_FRAMES_QUICK if quick else DM_FRAMES)]
 

@@ -1,0 +1,142 @@
+"""The bench knee of ``tka_knee_gait`` (openfdk.fixtures.tka_knee) and, when the DM files
+are present (``OPENFDK_DM_DIR``), DM itself in stance.
+
+The synthetic knee: its sizes are the issue's (11 FDK DOFs, 149 strands, 45 muscles, 2
+contacts), its STL meshes are closed and wound outward (read back from the files here:
+every edge shared by exactly two triangles that run it in opposite directions, and a
+positive enclosed volume equal to the solid's closed form), and the first frame of its
+stance converges at the default FDK settings with a knee contact force between the
+ground reaction and 3 body weights.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from openfdk.fixtures import tka_knee as tk
+from openfdk.fixtures import tka_knee_meshes as tkm
+
+# ≈ 20 s with the distance grids in openfdk's disk cache, ≈ 45 s without
+pytestmark = pytest.mark.slow
+
+
+def _read_stl(path):
+    """(triangles' corners (m, 3, 3) float64) of a binary STL."""
+    data = Path(path).read_bytes()
+    n = int(np.frombuffer(data[80:84], "<u4")[0])
+    rec = np.frombuffer(data[84:84 + 50 * n], dtype=[("n", "<f4", (3,)), ("v", "<f4", (3, 3)), ("a", "<u2")])
+    assert len(data) == 84 + 50 * n
+    return rec["v"].astype(float)
+
+
+def _closed_and_outward(corners):
+    """(closed and consistently wound, enclosed volume m³): vertices welded by their exact
+    coordinates; the volume Σ a · (b × c) / 6 is positive when the normals face out."""
+    _, index = np.unique(corners.reshape(-1, 3), axis=0, return_inverse=True)
+    tri = index.reshape(-1, 3)
+    directed = np.r_[tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]
+    forward = {tuple(e) for e in directed}
+    closed = len(forward) == len(directed) and all((b, a) in forward for a, b in forward)
+    volume = np.einsum("ij,ij->i", corners[:, 0], np.cross(corners[:, 1], corners[:, 2])).sum() / 6.0
+    return closed, volume
+
+
+@pytest.fixture(scope="module")
+def knee(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("tka")
+    overlay = tk.write_tka_knee(folder)
+    from openfdk.analysis.jobs import model_and_settings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model, settings, _ = model_and_settings(str(overlay))
+    return folder, model, settings
+
+
+def test_sizes_are_the_issues(knee):
+    _, model, _ = knee
+    assert [d.name for d in model.fdk_dofs] == list(tk.FDK_DOFS) and len(model.fdk_dofs) == 11
+    assert len(model.ligaments) == 149
+    assert len(model.muscles) == 45
+    assert len(model.contacts) == 2
+
+
+def test_meshes_are_closed_outward_and_implant_sized(knee):
+    folder, _, _ = knee
+    f = tkm.FEMUR
+    # the femoral component: ∫ π r(z)² dz of the solid of revolution, the polygon of n
+    # sides inscribed in each circle having (n / 2π) sin(2π / n) of its area
+    z = np.linspace(-(f["W"] + f["a"]), f["W"] + f["a"], 200001)
+    r = f["R_s"] - f["rho"] + np.sqrt(f["rho"] ** 2 - (np.abs(z) - f["W"]) ** 2)
+    n_theta = 240
+    femur = np.trapezoid(np.pi * r**2, z) * n_theta / (2 * np.pi) * math.sin(2 * np.pi / n_theta)
+    # the insert: the integral of its height over the rectangle (midpoint rule, fine grid)
+    s = tkm.INSERT
+    x = (np.arange(2000) + 0.5) / 2000 * 2 * s["half_ap"] - s["half_ap"]
+    zz = (np.arange(2000) + 0.5) / 2000 * 2 * s["half_ml"] - s["half_ml"]
+    X, Z = np.meshgrid(x, zz, indexing="ij")
+    top = (s["R_i"] - np.sqrt(s["R_i"] ** 2 - X**2)) + (s["rho_i"] - np.sqrt(s["rho_i"] ** 2 - (np.abs(Z) - f["W"]) ** 2))
+    insert = np.mean(top + s["thickness"]) * 4 * s["half_ap"] * s["half_ml"]
+    # the button: half an ellipsoid, (2/3) π h a_y a_z
+    b = tkm.BUTTON
+    button = 2.0 / 3.0 * np.pi * b["h"] * b["a_y"] * b["a_z"]
+    for name, expected in (("femoral_component", femur), ("tibial_insert", insert), ("patellar_button", button)):
+        corners = _read_stl(folder / "Geometry" / f"{name}.stl")
+        assert 10_000 <= len(corners) <= 50_000, (name, len(corners))
+        closed, volume = _closed_and_outward(corners)
+        assert closed, name
+        # positive (outward normals) and the solid's own to 0.2 % (measured 0.04 %,
+        # 0.014 % and 0.05 %: the facets' chords across the curved surfaces)
+        assert volume == pytest.approx(expected, rel=2e-3), name
+
+
+def test_first_stance_frame_converges_at_default_settings(knee):
+    from openfdk.fdk.analysis import run_fdk
+
+    _, model, settings = knee
+    res = run_fdk(model, None, np.array([tk.FIRST_TIME]), settings)
+    assert res.converged.all(), res.messages
+    assert res.settings.tolerance == 1e-3  # the default
+    assert np.abs(res.f_fdk).max() < res.settings.tolerance
+    cols = res.forces.extra["columns"]
+    contact = np.linalg.norm([cols[f"knee_contact.F{c}_N"][0] for c in "xyz"])
+    # the knee carries the ground reaction (less the shank's and foot's weight, 48 N)
+    # and the muscles' compression on top of it: more than the reaction, under 3 BW
+    times, force, _ = tk.ground_reaction()
+    grf = np.linalg.norm([np.interp(tk.FIRST_TIME, times, force[:, j]) for j in range(3)])
+    assert grf > 0.3 * tk.BW
+    assert grf < contact < 3.0 * tk.BW
+
+
+DM_DIR = os.environ.get("OPENFDK_DM_DIR")
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not (DM_DIR and (Path(DM_DIR) / "dm.yaml").is_file()),
+                    reason="the DM files are not part of openfdk: set OPENFDK_DM_DIR (docs/tutorial-knee-gait.md)")
+def test_dm_stance_frames_converge_with_a_plausible_knee_force():
+    """Three frames of DM's right stance from t = 2.55 s converge at the tolerance the
+    tutorial uses (20 N, N m; 100 iterations), and the tibiofemoral contact force is
+    0.5–3 body weights (BW from the model's own masses)."""
+    from openfdk.analysis.jobs import load_trajectories, model_and_settings
+    from openfdk.fdk.analysis import run_fdk
+
+    folder = Path(DM_DIR)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model, settings, _ = model_and_settings(str(folder / "dm.yaml"))
+        trial, traj = load_trajectories(model, str(folder / "DM_ngait_og1_new.trc"), settings=settings)
+    times = np.asarray(trial.time, float)
+    first = int(np.searchsorted(times, 2.55 - 1e-9))
+    res = run_fdk(model, traj, times[first:first + 3], settings, tolerance=20.0, max_iterations=100)
+    assert res.converged.all(), res.messages
+    body_weight = sum(b.mass for b in model.bodies) * 9.80665
+    cols = res.forces.extra["columns"]
+    force = np.linalg.norm(np.c_[[cols[f"knee_contact.F{c}_N"] for c in "xyz"]].T, axis=1)
+    assert np.all((0.5 * body_weight < force) & (force < 3.0 * body_weight)), force / body_weight
