@@ -90,7 +90,7 @@ class CoordinateWrapNodes(PathSubsets):
             U = np.zeros((1, state.n_coords))
         l, L, status, T_W = wrapped_moving_path_lengths(
             state.p_WB, state.R_WB, state.column, w.kinds, w.bodies, p_B, w.R_BS, w.dims, w.sides, w.limits, w.start,
-            state.n_coords, present, dX_W, self.move, U, self.span)
+            state.n_coords, present, dX_W, self.move, U, self.span, w.warm)
         bad = np.flatnonzero(status)
         if len(bad):
             k = bad[0]

@@ -292,6 +292,28 @@ def ellipsoid_wrap(P, Q, axes, side, tol):
     """Wrap of P→Q (3,) m around the ellipsoid with semi-axes ``axes`` (3,) m along
     x_S, y_S, z_S. side (3,) as for the sphere, in S. ``tol`` (m): Newton stops when the
     end residual is below it (1e-12 m gives lengths to ~1e-10 relative)."""
+    return ellipsoid_wrap_from(P, Q, axes, side, tol, np.zeros(WARM_SIZE))
+
+
+#: a warm start of :func:`ellipsoid_wrap_from`: [T1 (3,) m in S, arc length s m, RK4 steps,
+#: the anchors P, Q (3,) m in S it was solved for]
+WARM_SIZE = 11
+#: a warm start is used only while both anchors lie within this fraction of the smallest
+#: semi-axis of where it was solved (farther, the geodesic may have changed branch)
+WARM_REACH = 0.05
+
+
+@njit(cache=True)
+def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
+    """:func:`ellipsoid_wrap` with a warm start ``warm`` (WARM_SIZE,), read and written:
+    the tangent point T1 (m, S), arc length s (m), RK4 step count and anchors of a wrap
+    solved before (s = 0: none). When s > 0 and both anchors moved by less than
+    WARM_REACH × the smallest semi-axis, Newton starts from that geodesic, with the same
+    step count, and the cold starts (the plane fan, the great circle) are used only if it
+    does not converge; a cold solve is written back. Between nearby poses (the Newton
+    iterations and finite differences of a frame, successive frames) this is the same
+    geodesic as the cold solve, to the Newton tolerance, at a fraction of the cost; the
+    step count is kept so the discretisation is the same along a finite difference."""
     T1 = np.empty(3)
     T2 = np.empty(3)
     Dinv = axes
@@ -299,6 +321,7 @@ def ellipsoid_wrap(P, Q, axes, side, tol):
     Q1 = Q / Dinv
     st, _, T1s, T2s, _ = sphere_wrap(P1, Q1, 1.0, side / Dinv)
     if st != 1:
+        warm[3] = 0.0
         T1[:] = P
         T2[:] = Q
         u = Q - P
@@ -312,6 +335,19 @@ def ellipsoid_wrap(P, Q, axes, side, tol):
     u1 = u1 / np.sqrt(u1 @ u1)
     n1 = P1 / np.sqrt(pp)
     u2 = np.array([n1[1] * u1[2] - n1[2] * u1[1], n1[2] * u1[0] - n1[0] * u1[2], n1[0] * u1[1] - n1[1] * u1[0]])
+    scale = np.sqrt(P @ P) + np.sqrt(Q @ Q)
+    tol = max(tol, 1e-13 * scale)  # (round-off of the residual of far anchors)
+    reach = WARM_REACH * min(axes[0], min(axes[1], axes[2]))
+    if warm[3] > 0.0 and _within(P, warm[5:8], reach) and _within(Q, warm[8:11], reach):
+        g = warm[:3] / Dinv - c0
+        converged, phi, s, T1c, x = _shoot_newton(np.arctan2(g @ u2, g @ u1), warm[3], P, Q, c0, rho, u1, u2, Dinv,
+                                                  A, int(warm[4]), scale, tol)
+        if converged:
+            T1[:] = T1c
+            T2[:] = x
+            a1 = T1c - P
+            a2 = Q - x
+            return 1, np.sqrt(a1 @ a1) + s + np.sqrt(a2 @ a2), T1, T2, s
     # initial arc length: the mapped great-circle arc T1s→T2s sampled in 64 chords
     theta = np.arccos(min(1.0, max(-1.0, T1s @ T2s)))
     e2 = T2s - (T2s @ T1s) * T1s
@@ -348,8 +384,6 @@ def ellipsoid_wrap(P, Q, axes, side, tol):
             n_starts += 1
             theta = max(theta, theta_f)
     n_steps = 48 + int(300.0 * theta / np.pi)
-    scale = np.sqrt(P @ P) + np.sqrt(Q @ Q)
-    tol = max(tol, 1e-13 * scale)  # (round-off of the residual of far anchors)
     converged = False
     for k in range(n_starts):
         phi, s = starts[k, 0], starts[k, 1]
@@ -357,14 +391,27 @@ def ellipsoid_wrap(P, Q, axes, side, tol):
         if converged:
             break
     if not converged:
+        warm[3] = 0.0
         T1[:] = P
         T2[:] = Q
         return -2, np.nan, T1, T2, 0.0
+    warm[:3] = T1c
+    warm[3] = s
+    warm[4] = n_steps
+    warm[5:8] = P
+    warm[8:11] = Q
     T1[:] = T1c
     T2[:] = x
     a1 = T1c - P
     a2 = Q - x
     return 1, np.sqrt(a1 @ a1) + s + np.sqrt(a2 @ a2), T1, T2, s
+
+
+@njit(cache=True)
+def _within(a, b, r):
+    """|a − b| < r for a, b (3,) m."""
+    d = a - b
+    return d @ d < r * r
 
 
 @njit(cache=True)
@@ -546,7 +593,7 @@ CROSSING_ONLY, INSIDE_STRAIGHT, OPENSIM_PLANE = 1, 2, 4
 
 
 @njit(cache=True)
-def _wrap_one(kind, P_S, Q_S, dims, side, half_length, flags):
+def _wrap_one(kind, P_S, Q_S, dims, side, half_length, flags, warm):
     """One surface: the kernel of ``kind``; a cylinder of finite ``half_length`` (m) is
     left (status 0, straight) when both tangent points lie beyond ±half_length along
     its axis. ``flags``: CROSSING_ONLY, a sphere or ellipsoid wraps only while the
@@ -554,11 +601,11 @@ def _wrap_one(kind, P_S, Q_S, dims, side, half_length, flags):
     round; INSIDE_STRAIGHT, an anchor inside the surface leaves the path straight
     (OpenSim's rule) instead of status −1; OPENSIM_PLANE, an ellipsoid's path is OpenSim's
     planar curve (:func:`~openfdk.forces.wrap_ellipsoid_plane.plane_wrap`, ``side`` its
-    quadrant)."""
+    quadrant). ``warm`` (WARM_SIZE,): the node's warm start (:func:`ellipsoid_wrap_from`)."""
     if kind == ELLIPSOID and flags & OPENSIM_PLANE:
         out = plane_wrap(P_S, Q_S, dims, side)
     else:
-        out = _wrap_rules(kind, P_S, Q_S, dims, side, half_length, flags & CROSSING_ONLY)
+        out = _wrap_rules(kind, P_S, Q_S, dims, side, half_length, flags & CROSSING_ONLY, warm)
     if out[0] == -1 and flags & INSIDE_STRAIGHT:
         u = Q_S - P_S
         return 0, np.sqrt(u @ u), P_S.copy(), Q_S.copy(), 0.0
@@ -566,7 +613,7 @@ def _wrap_one(kind, P_S, Q_S, dims, side, half_length, flags):
 
 
 @njit(cache=True)
-def _wrap_rules(kind, P_S, Q_S, dims, side, half_length, crossing_only):
+def _wrap_rules(kind, P_S, Q_S, dims, side, half_length, crossing_only, warm):
     if kind == TORUS:
         return torus_wrap(P_S, Q_S, dims[0], dims[1])
     if kind == CYLINDER:
@@ -577,11 +624,12 @@ def _wrap_rules(kind, P_S, Q_S, dims, side, half_length, crossing_only):
         return out
     if crossing_only != 0 and (P_S / dims) @ (P_S / dims) > 1.0 and (Q_S / dims) @ (Q_S / dims) > 1.0 \
             and not crosses(P_S, Q_S, dims):
+        warm[3] = 0.0  # lifted off: the next wrap starts cold
         u = Q_S - P_S
         return 0, np.sqrt(u @ u), P_S.copy(), Q_S.copy(), 0.0
     if kind == SPHERE:
         return sphere_wrap(P_S, Q_S, dims[0], side)
-    return ellipsoid_wrap(P_S, Q_S, dims, side, ELLIPSOID_TOL)
+    return ellipsoid_wrap_from(P_S, Q_S, dims, side, ELLIPSOID_TOL, warm)
 
 
 @njit(cache=True)
@@ -729,19 +777,19 @@ def _add_segment(L, p, column, p_WB, R_WB, ia, xa, ib, xb):
 
 
 @njit(cache=True)
-def wrapped_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, dims, sides, limits, start, n_coords):
+def wrapped_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, dims, sides, limits, start, n_coords, warm):
     """Paths of fixed points and surfaces (:func:`wrapped_moving_path_lengths` with every
     point present, none moving and no spans)."""
     N = kinds.shape[0]
     return wrapped_moving_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, dims, sides, limits, start,
                                        n_coords, np.ones(N, dtype=np.bool_), np.zeros((N, 3)),
                                        np.full(N, -1, dtype=np.int64), np.zeros((1, n_coords)),
-                                       np.full((N, 2), -1, dtype=np.int64))
+                                       np.full((N, 2), -1, dtype=np.int64), warm)
 
 
 @njit(cache=True)
 def wrapped_moving_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, dims, sides, limits, start, n_coords,
-                                present, dX_W, move, U, span):
+                                present, dX_W, move, U, span, warm):
     """Lengths, Jacobians and tangent points of paths through points and surfaces.
 
     p_WB (nb, 3) m, R_WB (nb, 3, 3); column (nb,) first q̂ column of each body (−1 fixed);
@@ -757,7 +805,9 @@ def wrapped_moving_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, di
     is its current location, dX_W (N, 3) m its world velocity per unit of its coordinate
     (zero where clamped), move (N,) the coordinate's row of U (n_c, n) = ∂u/∂q̂ (−1: a
     fixed point); span (N, 2) node indices of a surface's PathWrap range ends (−1: none,
-    :func:`_in_span`).
+    :func:`_in_span`). warm (N, WARM_SIZE): each ellipsoid node's warm start, read and
+    written (:func:`ellipsoid_wrap_from`; zeros: none); the results equal cold solves to
+    the geodesic's Newton tolerance.
     Returns l (n_paths,) m, L (n_paths, n_coords), status (n_paths,) (0 ok, < 0 see
     ``STATUS_TEXT``), T_W (N, 2, 3) m the world tangent points of each surface in
     contact (NaN when not in contact or for points).
@@ -831,7 +881,7 @@ def wrapped_moving_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, di
                         P_S = R.T @ (P_W - X_W[k])
                         Q_S = R.T @ (Q_W - X_W[k])
                         st, total, T1, T2, a = _wrap_one(kinds[k], P_S, Q_S, dims[k], sides[k], limits[k, 0],
-                                                         int(limits[k, 1]))
+                                                         int(limits[k, 1]), warm[k])
                         if st < 0:
                             status[p] = st
                             break
@@ -866,7 +916,7 @@ def wrapped_moving_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, di
                 Q_W = _anchor(j, 1, kinds, active, present, X_W, T1_W, T2_W)
                 R = R_WS[j]
                 st, _, T1, T2, a = _wrap_one(kinds[j], R.T @ (P_W - X_W[j]), R.T @ (Q_W - X_W[j]), dims[j], sides[j],
-                                             limits[j, 0], int(limits[j, 1]))
+                                             limits[j, 0], int(limits[j, 1]), warm[j])
                 if st < 0:
                     status[p] = st
                     break

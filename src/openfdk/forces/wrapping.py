@@ -25,7 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model.measures import Measure
-from .wrap_kernels import CROSSING_ONLY, INSIDE_STRAIGHT, OPENSIM_PLANE, POINT, STATUS_TEXT, SURFACE_KINDS, wrapped_path_lengths
+from .wrap_kernels import (CROSSING_ONLY, INSIDE_STRAIGHT, OPENSIM_PLANE, POINT, STATUS_TEXT, SURFACE_KINDS, WARM_SIZE,
+                           wrapped_path_lengths)
 
 
 @dataclass(frozen=True, eq=False)
@@ -138,13 +139,15 @@ class WrapNodes(PathSubsets):
         self.limits = np.array(limits, dtype=float).reshape(-1, 3)
         self.start = np.array(start, dtype=np.int64)
         self.n_paths = len(self.names)
+        # each ellipsoid node's last geodesic, the next solve's warm start (wrap_kernels.ellipsoid_wrap_from)
+        self.warm = np.zeros((len(kinds), WARM_SIZE))
 
     def evaluate(self, state, with_tangents=False):
         """l (n_paths,) m and L (n_paths, n_coords); raises FloatingPointError naming the
         path when a path cannot be formed (a point inside a surface, no convergence)."""
         l, L, status, T_W = wrapped_path_lengths(
             state.p_WB, state.R_WB, state.column, self.kinds, self.bodies, self.p_B, self.R_BS,
-            self.dims, self.sides, self.limits, self.start, state.n_coords)
+            self.dims, self.sides, self.limits, self.start, state.n_coords, self.warm)
         bad = np.flatnonzero(status)
         if len(bad):
             k = bad[0]

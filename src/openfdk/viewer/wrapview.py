@@ -156,7 +156,7 @@ def wrapped_polylines(model, paths, poses):
     for f in np.flatnonzero(ok):
         _, _, status, T_W[f] = wrapped_path_lengths(
             np.ascontiguousarray(p_WB[f]), np.ascontiguousarray(R_WB[f]), column, kernel.kinds, kernel.bodies,
-            kernel.p_B, kernel.R_BS, kernel.dims, kernel.sides, kernel.limits, kernel.start, n_coords)
+            kernel.p_B, kernel.R_BS, kernel.dims, kernel.sides, kernel.limits, kernel.start, n_coords, kernel.warm)
         formed[f] = status == 0
     for k, path in enumerate(paths):
         rows = slice(offsets[k], offsets[k + 1])
