@@ -124,7 +124,8 @@ def _rate(frames_per_second):
     command found their cache cold, see openfdk.analysis.kernel_cache)."""
     from ..trial.progress import warming_up
 
-    text = f"{frames_per_second or 0:.0f} frames/s"
+    rate = frames_per_second or 0.0
+    text = f"{rate:.0f} frames/s" if rate >= 10 else f"{rate:.2g} frames/s"  # 0.25, not "0"
     return text + (", including the kernels' first compilation" if warming_up() else "")
 
 
