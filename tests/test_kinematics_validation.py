@@ -371,3 +371,41 @@ def test_error_when_the_run_has_no_converged_frame_or_misses_the_reference(tmp_p
     run = write_run(tmp_path / "short", t, {"q_m": np.zeros(5)})
     line = _error(capsys, run, ref, "--map", mp, "--cycle", T0, T1)
     assert "ref.sto: no sample within the part of the cycle the run covers (10.2–10.9 %" in line
+
+
+def test_align_by_recovers_a_known_phase_shift(tmp_path, capsys):
+    """The reference's flexion is the model's delayed by 7.3 % of the cycle (its 0 % is
+    another event): --align-by finds the shift to the search step (0.1 %), after which
+    the flexion and a second DOF shifted the same way agree to the interpolation error,
+    and r² of the flexion goes from cos²-loss to ≈ 1."""
+    shift = 7.3
+    k = np.arange(401)
+    t = T0 + (T1 - T0) * k / 400
+    p = cycle_percent(t, (T0, T1))
+    w = 2 * np.pi * p / 100
+    run = write_run(tmp_path / "run", t, {"knee_flex_r_rad": 0.5 + 0.3 * np.sin(w),
+                                          "knee_ty_r_m": 0.01 + 0.002 * np.cos(2 * w)})
+    pr = np.arange(1.0, 101.0)
+    wr = 2 * np.pi * (pr - shift) / 100  # measured at p % is the model's (p − shift) %
+    ref = write_storage(tmp_path / "fluoro.sto", pr, {"knee_rot_r": -(0.5 + 0.3 * np.sin(wr)),
+                                                      "knee_sup_r": 0.01 + 0.002 * np.cos(2 * wr)})
+    mp = write_map(tmp_path / "map.yaml", "knee_rot_r: {coordinate: knee_flex_r, unit: rad, scale: -1}\n"
+                                          "knee_sup_r: {coordinate: knee_ty_r, unit: m}\n")
+    code, out, err = run_cli(capsys, "validate-kinematics", run, ref, "--map", mp, "--cycle", T0, T1,
+                             "--out", tmp_path / "plain", "--no-plot")
+    assert code == 0, err
+    plain = read_csv_rows(tmp_path / "plain" / "validation.csv")
+    # unaligned: r² of two sines 2π·7.3 % apart is cos²(2π·0.073)
+    assert float(plain["knee_rot_r"]["r2"]) == pytest.approx(math.cos(2 * math.pi * shift / 100) ** 2, abs=2e-3)
+    code, out, err = run_cli(capsys, "validate-kinematics", run, ref, "--map", mp, "--cycle", T0, T1,
+                             "--out", tmp_path / "aligned", "--no-plot", "--align-by", "knee_rot_r")
+    assert code == 0, err
+    assert "shifted by +7.3 %" in out
+    rows = read_csv_rows(tmp_path / "aligned" / "validation.csv")
+    assert float(rows["knee_rot_r"]["r2"]) > 0.99999
+    assert float(rows["knee_sup_r"]["r2"]) > 0.99999
+    assert float(rows["knee_rot_r"]["rmsd"]) < 0.05  # deg: interpolation between frames 0.25 % apart
+    assert "shifted by +7.3 %" in (tmp_path / "aligned" / "validation.md").read_text()
+    code, out, err = run_cli(capsys, "validate-kinematics", run, ref, "--map", mp, "--cycle", T0, T1,
+                             "--no-plot", "--align-by", "knee_flex")
+    assert code != 0 and "--align-by: 'knee_flex' is not a column of map.yaml" in err and err.count("\n") == 1

@@ -161,6 +161,8 @@ class ValidationResult:
     time_mode: str
     time_mode_rule: str
     notes: list = field(default_factory=list)
+    shift: float = 0.0  # % of the cycle the reference's phase was moved by (validate_kinematics, align_by)
+    alignment: str = ""  # how the shift was chosen
 
     @property
     def toe_off_percent(self):
@@ -424,14 +426,65 @@ def compare(run: RunSeries, reference: Reference, entries, cycle, toe_off=None, 
                             time_mode_rule, notes)
 
 
-def validate_kinematics(run_dir, reference_path, map_path, cycle, toe_off=None, reference_time="auto"):
-    """Read the map, the reference and the run, and compare them (module docstring).
-    Returns a :class:`ValidationResult`; bad input raises :class:`ValidationError`."""
+#: phase shifts searched by :func:`phase_shift`: ±MAX_SHIFT % of the cycle in SHIFT_STEP steps
+MAX_SHIFT, SHIFT_STEP = 25.0, 0.1
+
+
+def shifted(reference: Reference, shift) -> Reference:
+    """The reference with its cycle phase moved by ``shift`` % (periodic): the sample
+    measured at p % is compared with the model at (p − shift) mod 100 %."""
+    percent = np.mod(reference.percent - shift, 100.0)
+    order = np.argsort(percent, kind="stable")
+    return Reference(reference.path, percent[order], {k: v[order] for k, v in reference.columns.items()},
+                     reference.time_mode, reference.in_degrees)
+
+
+def phase_shift(run: RunSeries, reference: Reference, entry, cycle):
+    """The shift (%, :func:`shifted`) within ±MAX_SHIFT that maximises r² between the
+    model and the reference in ``entry`` (a map entry, best a DOF the model does not
+    compute itself, e.g. the tracked flexion): for references whose cycle is not timed
+    as the run's (another session, another definition of 0 %). Returns (shift, r²)."""
+    run_pct = cycle_percent(run.time, cycle)
+    best = (0.0, -1.0)
+    for shift in np.arange(-MAX_SHIFT, MAX_SHIFT + 0.5 * SHIFT_STEP, SHIFT_STEP):
+        ref = shifted(reference, shift)
+        m, ok = interpolate_usable(run_pct, run.values[entry.coordinate], run.converged, ref.percent)
+        r2 = agreement(m[ok], ref.columns[entry.column][ok])["r2"] if ok.sum() >= 3 else math.nan
+        if r2 > best[1]:
+            best = (float(shift), float(r2))
+    return best
+
+
+def validate_kinematics(run_dir, reference_path, map_path, cycle, toe_off=None, reference_time="auto",
+                        align_by=None):
+    """Read the map, the reference and the run, and compare them (module docstring);
+    ``align_by`` (a reference column of the map): shift the reference's phase first
+    (:func:`phase_shift`), noted in the result. Returns a :class:`ValidationResult`; bad
+    input raises :class:`ValidationError`."""
     cycle = check_cycle(cycle, toe_off)
     entries = read_map(map_path)
     reference, rule = read_reference(reference_path, entries, cycle, reference_time, Path(map_path).name)
     run = read_run_series(run_dir, entries, Path(map_path).name)
-    return compare(run, reference, entries, cycle, toe_off, rule)
+    note = None
+    if align_by is not None:
+        from ..io.yamlfile import did_you_mean
+
+        entry = next((e for e in entries if e.column == align_by), None)
+        if entry is None:
+            raise ValidationError(f"--align-by: {align_by!r} is not a column of {Path(map_path).name}"
+                                  f"{did_you_mean(align_by, [e.column for e in entries])}")
+        shift, r2 = phase_shift(run, reference, entry, cycle)
+        if not r2 >= 0.0:
+            raise ValidationError(f"--align-by {align_by}: no phase shift within ±{MAX_SHIFT:g} % leaves 3 "
+                                  "samples to correlate")
+        reference = shifted(reference, shift)
+        note = (f"the reference's phase is shifted by {shift:+.1f} % of the cycle (the shift within "
+                f"±{MAX_SHIFT:g} % that maximises r² of {align_by}, r² = {r2:.3f}): a sample measured at p % is "
+                f"compared with the model at p {'−' if shift >= 0 else '+'} {abs(shift):.1f} %")
+    result = compare(run, reference, entries, cycle, toe_off, rule)
+    if note:
+        result.shift, result.alignment = shift, note
+    return result
 
 
 # -- tables ---------------------------------------------------------------------------
@@ -490,6 +543,8 @@ def describe(result: ValidationResult) -> str:
             f"{result.covered[1]:.1f} % of it; reference time read as {result.time_mode} ({result.time_mode_rule})")
     if result.toe_off is not None:
         text += f"; toe-off {result.toe_off:g} s = {result.toe_off_percent:.1f} %"
+    if result.alignment:
+        text += f"; {result.alignment}"
     return text + "."
 
 

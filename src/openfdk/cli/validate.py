@@ -22,7 +22,7 @@ def _cmd_validate_kinematics(args):
     if args.out is not None and not str(args.out).strip():
         raise ValueError("the output is empty (--out ''); give a folder name")
     result = validate_kinematics(args.run_dir, args.reference, args.map, tuple(args.cycle), args.toe_off,
-                                 args.reference_time)
+                                 args.reference_time, args.align_by)
     figure = None
     if not args.no_plot:
         from ..analysis.kinematics_validation import describe
@@ -38,6 +38,8 @@ def _cmd_validate_kinematics(args):
         print(f"validate-kinematics: {result.run_dir} vs {result.reference_path.name}, cycle "
               f"{result.cycle[0]:g}–{result.cycle[1]:g} s (run covers {lo:.1f}–{hi:.1f} %; reference time as "
               f"{result.time_mode})")
+        if result.alignment:
+            print(f"  {result.alignment}")
         print(text_table(result))
         print(f"  -> {', '.join(str(p) for p in paths)}")
     return 0
@@ -63,6 +65,9 @@ def add_validate_parser(sub):
     v.add_argument("--reference-time", choices=["auto", "percent", "seconds"], default="auto",
                    help="the reference's time column: %% of the gait cycle or s (default auto: %% when every time "
                         "lies in [0, 100] and they span at least 50)")
+    v.add_argument("--align-by", default=None, metavar="COLUMN",
+                   help="shift the reference's cycle phase (within ±25 %%) to best match this column (r²), e.g. a "
+                        "flexion the model tracks, when the reference's 0 %% is not the run's heel strike")
     v.add_argument("--out", default=None, help="folder of validation.csv/.md/.png (default RUN_DIR/validation)")
     v.add_argument("--no-plot", action="store_true", help="do not draw validation.png")
     _display_arguments(v, progress=False)
