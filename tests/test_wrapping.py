@@ -394,3 +394,38 @@ muscles:
         load_model(str(f))
     msg = str(exc.value)
     assert "\n" not in msg and "bad_rule.yaml" in msg and "condyle" in msg and words in msg, msg
+
+
+def test_ellipsoid_warm_start_equals_the_cold_solve_and_falls_back_far_away():
+    """ellipsoid_wrap_from carries the last geodesic of a node as the next solve's start.
+    Along a sweep of the anchors in 0.1 mm steps (the warm start in use: within 5 % of
+    the smallest semi-axis) every length and tangent point equals the cold solve's to the
+    geodesic Newton tolerance; with the anchors moved past the reach, or with the
+    shorter way round flipped to the other side of the centre, the cold starts decide,
+    and the answer is again the cold one (not the geodesic the old start leads to)."""
+    from openfdk.forces.wrap_kernels import ELLIPSOID_TOL, WARM_SIZE, ellipsoid_wrap, ellipsoid_wrap_from
+
+    axes = np.array([0.04, 0.03, 0.025])
+    none = np.zeros(3)
+    warm = np.zeros(WARM_SIZE)
+    P0, Q0 = np.array([-0.07, 0.012, 0.004]), np.array([0.065, 0.01, -0.006])
+    used = 0
+    for k in range(40):
+        P = P0 + np.array([0.0, 1e-4 * k, 0.0])
+        Q = Q0 + np.array([0.0, 0.5e-4 * k, 1e-4 * k])
+        before = warm.copy()
+        st_w, l_w, T1_w, T2_w, s_w = ellipsoid_wrap_from(P, Q, axes, none, ELLIPSOID_TOL, warm)
+        st_c, l_c, T1_c, T2_c, s_c = ellipsoid_wrap(P, Q, axes, none, ELLIPSOID_TOL)
+        assert st_w == st_c == 1
+        assert abs(l_w - l_c) < 1e-12 and np.max(np.abs(T1_w - T1_c)) < 1e-9 and np.max(np.abs(T2_w - T2_c)) < 1e-9
+        used += int(np.array_equal(warm[5:], before[5:]))  # anchors kept: solved from the warm start
+    assert used >= 30  # most solves of the sweep started warm (the anchors drift out of reach now and then)
+    # the straight line crosses near the centre; moving it across flips the shorter way round
+    sides = []
+    for dy in (0.0, -0.004, -0.008, -0.012, -0.016, -0.020, -0.024):
+        P, Q = P0 + np.array([0.0, dy, 0.0]), Q0 + np.array([0.0, dy, 0.0])
+        st_w, l_w, T1_w, _, _ = ellipsoid_wrap_from(P, Q, axes, none, ELLIPSOID_TOL, warm)
+        st_c, l_c, T1_c, _, _ = ellipsoid_wrap(P, Q, axes, none, ELLIPSOID_TOL)
+        assert st_w == st_c and abs(l_w - l_c) < 1e-12 and np.max(np.abs(T1_w - T1_c)) < 1e-9
+        sides.append(np.sign(T1_c[1]))
+    assert sides[0] > 0 > sides[-1]  # the sweep did cross the branch change
