@@ -104,6 +104,21 @@ def _check_contact_meshes(model, rep):
         rep.errors.extend(chk.errors)
 
 
+def _check_absorbed_muscles(model, rep, state):
+    """A warning line naming the muscles FDK can never recruit (:mod:`openfdk.fdk.absorbed`)."""
+    if not model.fdk_dofs or not model.muscles:
+        return
+    from ..dynamics.inverse import InverseDynamics
+    from ..fdk.absorbed import absorbed_message, fdk_absorbed_muscles
+
+    try:
+        names = fdk_absorbed_muscles(InverseDynamics(model, ConstraintSystem(model)), state)
+    except (FloatingPointError, ValueError, np.linalg.LinAlgError):
+        return  # the rank checks below report what stops the model
+    if names:
+        rep.lines.append(f"  warning: {absorbed_message(names)}")
+
+
 def check_model(model):
     """Inventory, row count and rank at the reference pose of ``model`` (CheckReport)."""
     rep = CheckReport()
@@ -131,6 +146,7 @@ def check_model(model):
             except (FloatingPointError, ValueError) as exc:
                 rep.lines.append(f"  warning: {key[:-1]} {item.name!r} at the reference pose: {exc}")
     _check_contact_meshes(model, rep)
+    _check_absorbed_muscles(model, rep, state)
     n = model.n_coords
     n_joint = sum(c.size for c in model.constraints if c.kind != DRIVER)
     n_driver = sum(c.size for c in drivers)

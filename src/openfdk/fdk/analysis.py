@@ -30,6 +30,8 @@ from ..kinematics.system import ConstraintSystem
 from ..kinematics.tracking import MarkerTracker, TrackingSettings
 from ..trial import drive
 from ..trial.status import FrameReport, Reason, frame_messages
+from ..model.plausibility import warn_plausibility
+from .absorbed import absorbed_message, fdk_absorbed_muscles
 from .newton import solve_frame_from
 from .residual import FDKContext, FrameWorkspace
 from .settings import fdk_settings
@@ -262,6 +264,9 @@ def run_fdk(model, trajectories=None, times=None, settings=None, progress=False,
         times = np.asarray(trajectories.time, dtype=float)
     times = np.asarray(times, dtype=float)
     ctx = fdk_context(model, trajectories, times, tracking, analysis_settings)
+    absorbed = fdk_absorbed_muscles(ctx.solver, model.initial_state())
+    if absorbed:
+        warn_plausibility(absorbed_message(absorbed))
     step = FDKStep(model, ctx, settings)
 
     def build(rec):
