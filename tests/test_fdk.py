@@ -245,3 +245,32 @@ def test_run_cli_does_fdk_when_the_model_declares_fdk_dofs(tmp_path):
         assert float(r["fdk.tmj_r_normal.alpha"]) < 0
         assert float(r["tmj_r.Fz_N"]) < -1.0  # the fossa pushes the condyle down
         assert r["fdk_converged"] == "1"
+
+
+def test_a_cold_frame_gets_cold_max_iterations_and_a_failed_frame_hands_on_its_best_iterate():
+    """The slider on a linear spring with max_step 1 mm: from α = 0 the equilibrium
+    α* = −m g / k = −39.24 mm is 40 clipped Newton steps away (each step is the full
+    Newton step −f/k cut to 1 mm; the last one is 0.24 mm). The first frame is cold (no
+    converged previous frame): with the default cold_max_iterations (100) it converges in
+    exactly 40 iterations although max_iterations is 25, and every later frame, warm, in
+    at most 1. With cold_max_iterations 25 the first frame stops at the limit at α = −25 mm
+    (its best iterate, 25 steps), and the second frame, cold too, starts from there: 15
+    more steps, not 40 from the initial value."""
+    m, k = 2.0, 500.0
+    b = ModelBuilder("spring", gravity=(0, 0, -G))
+    b.add_body("block", m, [1e-3] * 3)
+    b.add_joint("rail", "prismatic", parent="ground.origin", child="block.origin")
+    b.add_measure("z", b._select(b.vector("ground.origin", "block.origin"), [2]))
+    b.add_fdk_dof("height", "z", initial=0.0, max_step=1e-3)
+    add_spring(b, "spring", "z", k)
+    model = b.build()
+    times = np.linspace(0, 1, 4)
+    res = run_fdk(model, None, times, max_iterations=25)
+    assert res.converged.all(), res.messages
+    np.testing.assert_allclose(res.alpha[:, 0], -m * G / k, atol=1e-3 / k)
+    assert res.iterations[0] == 40 and np.all(res.iterations[1:] <= 1)
+    res = run_fdk(model, None, times, max_iterations=25, cold_max_iterations=25, restart=False)
+    assert not res.converged[0] and res.reasons[0] == "iteration_limit"
+    assert res.alpha[0, 0] == pytest.approx(-0.025, abs=1e-12)
+    assert res.converged[1:].all() and res.iterations[1] == 15
+    np.testing.assert_allclose(res.alpha[1:, 0], -m * G / k, atol=1e-3 / k)

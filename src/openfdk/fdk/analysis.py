@@ -9,6 +9,12 @@ and ±4 max_steps, nearest first (setting ``restart``, :func:`~.newton.solve_fra
 f^FDK(α) = 0, e.g. a weakly held medio-lateral DOF snapping across the joint), the
 remaining root can lie millimetres away, beyond the basin of α_{k−1}; the nearest such
 start that converges is the continuation's choice, and the frame counts its restarts.
+A *cold* frame — one whose previous frame did not converge, the first frame among them —
+starts from the previous frame's best iterate (when that frame failed) or from the DOFs'
+initial values, far from its root, and its first start gets ``cold_max_iterations``
+Newton iterations instead of ``max_iterations``: measured on the DM knee (with a patellar
+tendon constraint, docs/tutorial-knee-gait.md), a first frame from the initial values
+needs 30–60 iterations and every frame after it 3–6.
 Every frame reports converged, Newton iterations, residual evaluations (each a
 recruitment solve), final max |f^FDK| and α; a frame that does not converge keeps its
 best iterate, is flagged with the reason, and the run goes on.
@@ -19,7 +25,7 @@ The loop is the trial driver's (:mod:`openfdk.trial`); :class:`FDKStep` is one f
 from __future__ import annotations
 
 import time as _time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -148,6 +154,7 @@ class FDKStep:
         self.history = []  # (frame, α) of the most recent converged frames
         self.warm = None
         self.J_carry = None  # the last converged frame's FDK Jacobian (settings.reuse_jacobian)
+        self.last_failed = None  # (frame, best α) of the previous frame when it did not converge
 
     def fields(self):
         n_fdk = len(self.model.fdk_dofs)
@@ -164,18 +171,27 @@ class FDKStep:
         ctx, settings, history = self.ctx, self.settings, self.history
         t = ctx.times[k]
         ws = FrameWorkspace({j: self.last_state for j in ctx.frames_needed(k)})
-        if settings.extrapolate and len(history) >= 2 and history[-1][0] == k - 1 and history[-2][0] == k - 2:
+        warm_frame = bool(history) and history[-1][0] == k - 1
+        failed = self.last_failed if self.last_failed is not None and self.last_failed[0] == k - 1 else None
+        if settings.extrapolate and len(history) >= 2 and warm_frame and history[-2][0] == k - 2:
             a0 = 2 * history[-1][1] - history[-2][1]
-        elif history:
+        elif warm_frame or (history and failed is None):
             a0 = history[-1][1].copy()
+        elif failed is not None:
+            a0 = failed[1].copy()  # the previous frame's best iterate: nearer than an older solution
         else:
             a0 = self.a_init.copy()
         starts = [a0] + ([history[-1][1]] if history else []) + [self.a_init]
         if history:
             starts += scan_starts(history[-1][1], settings.max_step)
-        sol = solve_frame_from(ctx, k, starts, ws, settings, self.warm, self.J_carry)
+        # a cold frame (no converged previous frame) starts far from its root: a larger
+        # iteration limit for its first start (settings.cold_max_iterations)
+        cold = None if warm_frame else replace(settings, max_iterations=max(settings.max_iterations,
+                                                                            settings.cold_max_iterations))
+        sol = solve_frame_from(ctx, k, starts, ws, settings, self.warm, self.J_carry, cold)
         self.J_carry = sol.jacobian if sol.converged else None
         ev = sol.best
+        self.last_failed = None if sol.converged or not ev.ok else (k, ev.alpha.copy())
         if sol.converged:
             report = FrameReport.ok(sol.iterations, ev.norm)
         else:
@@ -209,10 +225,10 @@ class FDKStep:
         return []
 
     def carry(self):
-        return self.last_state.copy(), list(self.history), self.warm, self.J_carry
+        return self.last_state.copy(), list(self.history), self.warm, self.J_carry, self.last_failed
 
     def restore(self, carry):
-        last_state, history, self.warm, self.J_carry = carry
+        last_state, history, self.warm, self.J_carry, self.last_failed = carry
         self.last_state, self.history = last_state.copy(), list(history)
 
 

@@ -150,9 +150,10 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None) -> Frame
                 "iteration_limit", best_ws)
 
 
-def solve_frame_from(ctx, k, starts, ws, settings, warm=None, jacobian=None) -> FrameSolution:
+def solve_frame_from(ctx, k, starts, ws, settings, warm=None, jacobian=None, first_settings=None) -> FrameSolution:
     """:func:`solve_frame` from ``starts[0]`` (the warm start, with the carried
-    ``jacobian``); if that fails and ``settings.restart``, from each further start (n_fdk,)
+    ``jacobian``, and ``first_settings`` if given: a cold frame's larger iteration limit);
+    if that fails and ``settings.restart``, from each further start (n_fdk,)
     in turn — fresh Jacobian, poses from a copy of ``ws`` as given — until one converges.
 
     starts : sequence of (n_fdk,) α in SI units; repeats of an earlier start are skipped.
@@ -161,7 +162,7 @@ def solve_frame_from(ctx, k, starts, ws, settings, warm=None, jacobian=None) -> 
     reason. ``iterations``, ``evaluations`` and ``jacobians`` are totals over all starts.
     """
     ws0 = ws.copy()
-    first = solve_frame(ctx, k, starts[0], ws, settings, warm, jacobian)
+    first = solve_frame(ctx, k, starts[0], ws, first_settings or settings, warm, jacobian)
     if first.converged or not settings.restart:
         return first
     tried = [np.asarray(starts[0], dtype=float)]

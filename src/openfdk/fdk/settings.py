@@ -4,6 +4,9 @@
 fdk:
   tolerance: 1.0e-3        # N (N m for angular DOFs): converged when max |f^FDK| < tolerance
   max_iterations: 25       # Newton iterations per frame
+  cold_max_iterations: 100 # ... for a frame whose previous frame did not converge (the first
+                           # frame, after a failure): it starts from the DOFs' initial values
+                           # or an unconverged iterate, not from a neighbouring solution
   jacobian: analytic       # or central (the paper's central differences)
   reuse_jacobian: true     # carry J between iterations and frames with Broyden updates
   line_search: true        # golden-section search on the step length when the full step fails
@@ -37,7 +40,8 @@ DEFAULT_PERTURBATION = {"length": 1e-6, "angle": 1e-6}
 @checked_keywords
 @dataclass(frozen=True)
 class FDKSettings:
-    """tolerance : N or N m on max |f^FDK|; max_iterations; jacobian : "analytic" or
+    """tolerance : N or N m on max |f^FDK|; max_iterations; cold_max_iterations (a frame
+    whose previous frame did not converge, :mod:`openfdk.fdk.analysis`); jacobian : "analytic" or
     "central"; line_search; reuse_jacobian (Broyden-updated J carried between
     iterations and frames, fdk/newton.py); extrapolate; restart (solve a failed frame
     again from the previous frame's α and from the DOFs' initial values,
@@ -51,6 +55,7 @@ class FDKSettings:
 
     tolerance: float = 1e-3
     max_iterations: int = 25
+    cold_max_iterations: int = 100
     jacobian: str = "analytic"
     line_search: bool = True
     reuse_jacobian: bool = True
@@ -63,8 +68,8 @@ class FDKSettings:
     def __post_init__(self):
         if self.jacobian not in ("analytic", "central"):
             raise ModelError(f"fdk.jacobian must be 'analytic' or 'central', got {self.jacobian!r}")
-        if not (self.tolerance > 0 and self.max_iterations >= 1):
-            raise ModelError("fdk.tolerance must be > 0 and fdk.max_iterations >= 1")
+        if not (self.tolerance > 0 and self.max_iterations >= 1 and self.cold_max_iterations >= 1):
+            raise ModelError("fdk.tolerance must be > 0 and fdk.max_iterations, fdk.cold_max_iterations >= 1")
 
 
 def fdk_settings(model, settings=None, **overrides) -> FDKSettings:
@@ -88,16 +93,17 @@ def fdk_settings(model, settings=None, **overrides) -> FDKSettings:
 
 
 def load_fdk(b, data, ctx):
-    ctx.keys(data, FDK, ["tolerance", "max_iterations", "jacobian", "line_search", "reuse_jacobian", "extrapolate",
-                         "restart"])
+    ctx.keys(data, FDK, ["tolerance", "max_iterations", "cold_max_iterations", "jacobian", "line_search",
+                         "reuse_jacobian", "extrapolate", "restart"])
     out = {}
     if "tolerance" in data:
         out["tolerance"] = ctx.number(data["tolerance"], "fdk.tolerance", positive=True)
-    if "max_iterations" in data:
-        n = data["max_iterations"]
-        if not isinstance(n, int) or isinstance(n, bool) or n < 1:
-            raise ctx.error("fdk.max_iterations", f"expected a positive integer, got {n!r}")
-        out["max_iterations"] = n
+    for key in ("max_iterations", "cold_max_iterations"):
+        if key in data:
+            n = data[key]
+            if not isinstance(n, int) or isinstance(n, bool) or n < 1:
+                raise ctx.error(f"fdk.{key}", f"expected a positive integer, got {n!r}")
+            out[key] = n
     if "jacobian" in data:
         if data["jacobian"] not in ("analytic", "central"):
             raise ctx.error("fdk.jacobian", f"expected 'analytic' or 'central', got {data['jacobian']!r}")
