@@ -75,3 +75,43 @@ def test_reserves_leave_out_fdk_and_locked_coordinates(leg):
     after = {a.coordinate for a in held.actuators}
     assert {"knee", "hip_q"} <= before
     assert after == before - {"knee", "hip_q"}
+
+
+def test_frames_on_opensim_bodies_are_where_opensim_puts_the_points(leg):
+    """``frames: {osim_body: {name: [x, y, z]}}``: a point given in an OpenSim body's frame
+    becomes a frame of the openfdk body holding it (its origin at the centre of mass,
+    bodies welded together merged); at a pose its world position equals
+    OpenSim's findStationLocationInGround of the same station, for every body of the leg
+    (the thigh's centre of mass is off its origin, so the offset is not zero)."""
+    opensim = pytest.importorskip("opensim")
+    osim = opensim.Model(str(leg / "leg.osim"))
+    osim_state = osim.initSystem()
+    bodies = [osim.getBodySet().get(i).getName() for i in range(osim.getBodySet().getSize())]
+    points = {b: [0.013 * (i + 1), -0.021, 0.007 * (i - 1)] for i, b in enumerate(bodies)}
+    frames = "\n".join(f"  {b}: {{pt_{b}: {points[b]}}}" for b in bodies)
+    model, _ = load_model_and_settings(_overlay(leg, f"frames:\n{frames}\n"))
+    state = model.initial_state()
+    # OpenSim at openfdk's pose (its initial state need not be the coordinates' defaults)
+    for c in model.coordinates:
+        osim.getCoordinateSet().get(c.name).setValue(osim_state, float(c.measure.evaluate(state, 0)[0][0]), False)
+    osim.realizePosition(osim_state)
+    index = {body.name: i for i, body in enumerate(model.bodies)}
+    for b in bodies:
+        (name,) = [q for q in model.frames if q.endswith(f".pt_{b}")]
+        frame = model.frame(name)
+        i = index[frame.body]
+        got = state.p_WB[i] + state.R_WB[i] @ frame.p_BF
+        v = osim.getBodySet().get(b).findStationLocationInGround(osim_state, opensim.Vec3(*points[b]))
+        np.testing.assert_allclose(got, [v.get(0), v.get(1), v.get(2)], atol=1e-12)
+        assert np.linalg.norm(frame.p_BF - points[b]) > 1e-3 or b != "thigh"  # the COM offset counted
+
+
+@pytest.mark.parametrize("text,expected", [
+    ("frames: {thig: {a: [0, 0, 0]}}\n", "frames.thig: not a body of the OpenSim model; did you mean .thigh.?"),
+    ("frames: {thigh: {a: [0, 0]}}\n", "frames.thigh.a: expected [x, y, z] in m"),
+    ("frames: [femur]\n", "frames: expected a mapping of OpenSim body names"),
+])
+def test_bad_frames_are_one_line_errors(leg, text, expected):
+    with pytest.raises(ModelError, match=expected.replace("[", r"\[").replace("]", r"\]")) as info:
+        load_model_and_settings(_overlay(leg, text))
+    assert "\n" not in str(info.value)

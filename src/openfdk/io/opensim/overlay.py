@@ -19,6 +19,8 @@ Two ways to give them, one path through the loader:
                                          # (or fdk_dofs: [...] beside an fdk: {settings} section)
       lock: [arm_rot_r, pro_sup_r: 0.3]  # shorthand: hold coordinates (default value or given, rad/m)
       contact_regions: {knee_contact: {medial: {axis: [0, 0, -1]}, lateral: {axis: [0, 0, 1]}}}
+      frames: {tibia_r: {tuberosity: [0.04, -0.09, 0.008]}}   # points in an OpenSim body's frame (m),
+                                         # for measures (distance, vector, ...) of the overlay
       analysis: {marker_cutoff_hz: 6}
 
 The overlay's sections are merged into the imported model mapping; a name the model
@@ -210,6 +212,43 @@ def _contact_regions(regions, data, source):
     return {**data, "contacts": out}
 
 
+def _overlay_frames(frames, data, source, info):
+    """``data`` with ``frames: {osim_body: {name: [x, y, z] m}}`` added as frames of the
+    openfdk bodies that hold those OpenSim bodies (a point given in the OpenSim body's frame,
+    with its axes); measures name them ``<openfdk body>.<name>``. ``info['body_frames']``:
+    each OpenSim body's frame in its openfdk body (:func:`.to_model.model_dict`)."""
+    if frames is None:
+        return data
+    if not isinstance(frames, dict):
+        raise ModelError(f"{source}: frames: expected a mapping of OpenSim body names, got {type(frames).__name__}")
+    import numpy as np
+
+    body_frames = info.get("body_frames", {})
+    bodies = {k: dict(v) for k, v in data.get("bodies", {}).items()}
+    for osim_body, points in frames.items():
+        if osim_body not in body_frames:
+            hint = difflib.get_close_matches(str(osim_body), list(body_frames), n=1)
+            extra = f"; did you mean {hint[0]!r}?" if hint else ""
+            raise ModelError(f"{source}: frames.{osim_body}: not a body of the OpenSim model{extra}")
+        if not isinstance(points, dict):
+            raise ModelError(f"{source}: frames.{osim_body}: expected a mapping of frame names to [x, y, z] (m)")
+        body, p, R = body_frames[osim_body]
+        entry = bodies.setdefault(body, {})
+        own = dict(entry.get("frames", {}))
+        for name, xyz in points.items():
+            ok = isinstance(xyz, list) and len(xyz) == 3 and all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) for v in xyz)
+            if not ok:
+                raise ModelError(f"{source}: frames.{osim_body}.{name}: expected [x, y, z] in m, got {xyz!r}")
+            if name in own:
+                raise ModelError(f"{source}: frames.{osim_body}.{name}: the body {body!r} already has a frame "
+                                 f"{name!r}")
+            own[name] = {"position": (np.asarray(p, float) + np.asarray(R, float) @ np.asarray(xyz, float)).tolist(),
+                         "orientation": {"matrix": np.asarray(R, float).tolist()}}
+        entry["frames"] = own
+    return {**data, "bodies": bodies}
+
+
 def _expand_shorthands(overlay, data, source):
     """``fdk: [names]`` (a list; a mapping is the FDK settings section) → ``fdk_dofs``
     entries {measure: name, initial: the coordinate's default}; ``lock: [names]`` → ``constraints`` entries ``lock_<name>`` {measure: name,
@@ -284,6 +323,7 @@ def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None
         if not xml.is_file():
             raise ModelError(f"{source}: actuators: {str(xml)!r} does not exist")
         data = read_actuator_file(xml, data, info)
+    data = _overlay_frames(overlay.pop("frames", None), data, source, info)
     overlay = _expand_shorthands(overlay, data, source)
     data = _contact_regions(overlay.pop("contact_regions", None), data, source)
     known = [k for k in CORE_SECTIONS + tuple(name for name, _ in SECTIONS) if k not in MODEL_SECTIONS]
