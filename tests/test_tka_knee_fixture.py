@@ -140,3 +140,65 @@ def test_dm_stance_frames_converge_with_a_plausible_knee_force():
     cols = res.forces.extra["columns"]
     force = np.linalg.norm(np.c_[[cols[f"knee_contact.F{c}_N"] for c in "xyz"]].T, axis=1)
     assert np.all((0.5 * body_weight < force) & (force < 3.0 * body_weight)), force / body_weight
+
+
+#: the tutorial's inextensible patellar tendon (docs/tutorial-knee-gait.md): the centroids
+#: of the 30 PT strands' attachments in the OpenSim bodies' frames (m), and its length
+PATELLAR_TENDON = """
+frames:
+  patella_r: {pt_proximal: [0.00935, -0.01716, -0.00512]}
+  tibia_r: {pt_distal: [0.04017, -0.09219, 0.00772]}
+measures:
+  pt_length: {type: distance, from: patella_r.pt_proximal, to: tibia_r.pt_distal}
+constraints:
+  patellar_tendon: {measure: pt_length, value: 0.07819}
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not (DM_DIR and (Path(DM_DIR) / "dm.yaml").is_file()),
+                    reason="the DM files are not part of openfdk: set OPENFDK_DM_DIR (docs/tutorial-knee-gait.md)")
+def test_dm_with_a_patellar_tendon_converges_at_the_default_settings(tmp_path):
+    """DM's overlay with pf_ty_r no longer an FDK DOF but held by an inextensible patellar
+    tendon: the vasti are recruitable (check names no muscle FDK cannot recruit), and six
+    frames of stance from t = 2.5 s converge at the DEFAULT settings (1e-3 N, N m), the
+    first one cold, with the vasti carrying > 100 N and the tibiofemoral contact 1–3 BW."""
+    import re
+    import shutil
+
+    from openfdk.analysis.jobs import load_trajectories, model_and_settings
+    from openfdk.dynamics.inverse import InverseDynamics
+    from openfdk.fdk.absorbed import fdk_absorbed_muscles
+    from openfdk.fdk.analysis import run_fdk
+    from openfdk.kinematics.system import ConstraintSystem
+
+    folder = Path(DM_DIR)
+    text = (folder / "dm.yaml").read_text()
+    text = re.sub(r"^fdk:\s*\{[^}]*\}\s*$", "", text, flags=re.M)  # the default FDK settings
+    text = text.replace("pf_ty_r, ", "").replace(", pf_ty_r", "") + PATELLAR_TENDON
+    for name in ("DM.osim", "DM_ngait_og1_new.trc", "DM_ngait_og1_external_loads.xml", "DM_ngait_og1_grf.sto"):
+        (tmp_path / name).symlink_to(folder / name)
+    (tmp_path / "Geometry").symlink_to(folder / "Geometry")
+    for xml in folder.glob("*.xml"):
+        if not (tmp_path / xml.name).exists():
+            shutil.copy(xml, tmp_path / xml.name)
+    (tmp_path / "dm_pt.yaml").write_text(text)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model, settings, _ = model_and_settings(str(tmp_path / "dm_pt.yaml"))
+        trial, traj = load_trajectories(model, str(tmp_path / "DM_ngait_og1_new.trc"), settings=settings)
+    assert len(model.fdk_dofs) == 10 and "pf_ty_r" not in [d.name for d in model.fdk_dofs]
+    assert fdk_absorbed_muscles(InverseDynamics(model, ConstraintSystem(model), settings),
+                                model.initial_state()) == []
+    times = np.asarray(trial.time, float)
+    first = int(np.searchsorted(times, 2.5 - 1e-9))
+    res = run_fdk(model, traj, times[first:first + 6], settings)
+    assert res.settings.tolerance == 1e-3 and res.converged.all(), res.messages
+    assert np.abs(res.f_fdk).max() < 1e-3
+    body_weight = sum(b.mass for b in model.bodies) * 9.80665
+    cols = res.forces.extra["columns"]
+    force = np.linalg.norm(np.c_[[cols[f"knee_contact.F{c}_N"] for c in "xyz"]].T, axis=1)
+    assert np.all((1.0 * body_weight < force) & (force < 3.0 * body_weight)), force / body_weight
+    names = list(res.forces.column_names)
+    vasti = sum(res.forces.forces[:, names.index(m)] for m in ("vasmed_r", "vaslat_r", "vasint_r"))
+    assert np.all(vasti > 100.0), vasti

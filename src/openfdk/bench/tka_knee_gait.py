@@ -3,7 +3,8 @@ FDK settings, 11 FDK DOFs (knee_add, knee_rot, knee_tx, knee_ty, knee_tz and the
 patella's six), two implant contacts, 149 Blankevoort ligament strands, 45 muscles.
 
 The model: DM of the 6th Knee Grand Challenge when ``OPENFDK_DM_DIR`` names a folder with
-``dm.yaml`` (the overlay, docs/tutorial-knee-gait.md), ``DM.osim``, ``Geometry/``,
+the overlay (``dm.yaml``, or the file ``OPENFDK_DM_OVERLAY`` names, e.g. the tutorial's
+``dm_pt.yaml`` with an inextensible patellar tendon; docs/tutorial-knee-gait.md), ``DM.osim``, ``Geometry/``,
 ``DM_ngait_og1_new.trc`` and the trial's ground reactions; the FDK then tracks the
 markers over right stance from t = DM_START (DM_FRAMES frames at the trial's 120 Hz;
 ``--quick``: DM_FRAMES_QUICK). Otherwise (CI, the normal case) the bench's own model of
@@ -36,18 +37,20 @@ import numpy as np
 
 SYNTHETIC_FRAMES, SYNTHETIC_FRAMES_QUICK = 50, 20
 SYNTHETIC_RATE_HZ = 100.0
-DM_START, DM_FRAMES, DM_FRAMES_QUICK = 2.55, 4, 2
-DM_FILES = ("dm.yaml", "DM_ngait_og1_new.trc")
+DM_START, DM_FRAMES, DM_FRAMES_QUICK = 2.5, 31, 8
+DM_TRIAL = "DM_ngait_og1_new.trc"
 TARGETS = {"tka_knee_gait_fdk_fps": 50.0, "tka_knee_gait_fdk_evaluations_per_frame": 4.0,
            "tka_knee_gait_convergence_rate": 0.995}
 
 
-def dm_folder():
-    """The DM folder named by ``OPENFDK_DM_DIR`` if it holds :data:`DM_FILES`, else None."""
+def dm_overlay():
+    """The DM overlay file named by ``OPENFDK_DM_DIR`` (and ``OPENFDK_DM_OVERLAY``, default
+    ``dm.yaml``) if it and the trial exist, else None."""
     folder = os.environ.get("OPENFDK_DM_DIR")
-    if folder and all((Path(folder) / f).is_file() for f in DM_FILES):
-        return Path(folder)
-    return None
+    if not folder:
+        return None
+    overlay = Path(folder) / os.environ.get("OPENFDK_DM_OVERLAY", "dm.yaml")
+    return overlay if overlay.is_file() and (Path(folder) / DM_TRIAL).is_file() else None
 
 
 def synthetic_inputs(directory, quick=False):
@@ -62,12 +65,12 @@ def synthetic_inputs(directory, quick=False):
     return model, settings, None, FIRST_TIME + np.arange(n) / SYNTHETIC_RATE_HZ
 
 
-def dm_inputs(folder, quick=False):
+def dm_inputs(overlay, quick=False):
     """(model, settings, trajectories, times (nf,) s) of DM in right stance from DM_START."""
     from ..analysis.jobs import load_trajectories, model_and_settings
 
-    model, settings, _ = model_and_settings(str(folder / "dm.yaml"))
-    trial, traj = load_trajectories(model, str(folder / "DM_ngait_og1_new.trc"), settings=settings)
+    model, settings, _ = model_and_settings(str(overlay))
+    trial, traj = load_trajectories(model, str(overlay.parent / DM_TRIAL), settings=settings)
     times = np.asarray(trial.time, float)
     first = int(np.searchsorted(times, DM_START - 1e-9))
     return model, settings, traj, times[first:first + (DM_FRAMES_QUICK if quick else DM_FRAMES)]
@@ -92,9 +95,9 @@ def measure(directory, quick=False):
     """The records, measured in this process (one BLAS thread: see :func:`run`)."""
     from ..fdk.analysis import run_fdk
 
-    folder = dm_folder()
-    if folder is not None:
-        which, (model, settings, traj, times) = "DM", dm_inputs(folder, quick)
+    overlay = dm_overlay()
+    if overlay is not None:
+        which, (model, settings, traj, times) = f"DM ({overlay.name})", dm_inputs(overlay, quick)
     else:
         which, (model, settings, traj, times) = "synthetic", synthetic_inputs(directory, quick)
     if which == "synthetic":
