@@ -69,3 +69,35 @@ def test_a_fifo_is_refused_without_blocking(model, tmp_path, capsys):
     code = main(["check", str(model), "--external-loads", str(fifo), "-q"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "regular file" in err[0], err
+
+
+def test_a_whole_trial_leaves_out_the_samples_before_and_after_the_load_data():
+    """A force-plate file that starts one plate sample after the markers (the Grand
+    Challenge's: markers from 0.75 s, loads from 0.750833 s): with no start or end given,
+    the trial's samples outside the loads' data are left out with one warning, instead of
+    the run stopping at its first frame; a start or end the user gives is kept as given."""
+    import warnings
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from openfdk.analysis.jobs import _within_load_data
+    from openfdk.forces.data_loads import DataLoad
+    from openfdk.model.plausibility import PlausibilityWarning
+    from openfdk.model.timefunctions import Constant, SplineThroughData
+
+    t_data = np.linspace(0.750833, 3.924167, 50)
+    load = DataLoad("plate", 1, SplineThroughData(t_data, np.ones((50, 3))), Constant([0.0, 0.0, 0.0]),
+                    Constant([0.0, 0.0, 0.0]))
+    model = SimpleNamespace(external_loads=(load,))
+    times = 0.75 + np.arange(382) / 120.0  # 0.75 … 3.925 s
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        kept = _within_load_data(model, times)
+    assert kept[0] == pytest.approx(0.75 + 1 / 120) and kept[-1] <= 3.924167 < kept[-1] + 1 / 120
+    assert len(kept) == len(times) - 2
+    (w,) = [c for c in caught if issubclass(c.category, PlausibilityWarning)]
+    assert "2 trial sample(s) outside the measured loads' data" in str(w.message)
+    # a window the user gives is theirs: nothing is dropped at that end
+    assert _within_load_data(model, times, start=0.75)[0] == 0.75
+    assert _within_load_data(model, times, end=3.925)[-1] == times[-1]

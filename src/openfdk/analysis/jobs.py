@@ -97,6 +97,29 @@ def analysis_window(model, times, start=None, end=None, settings=None):
     return times[keep]
 
 
+def _within_load_data(model, times, start=None, end=None, settings=None):
+    """The trial's sample times (nf,) s, without those before or after the data of the
+    model's measured loads (force-plate files usually start and end a sample off the
+    markers') when the window's start or end is not given: the loads cannot be evaluated
+    there, and a whole-trial run would otherwise stop at its first frame. Says so (one
+    PlausibilityWarning) when it drops samples."""
+    from ..forces.data_loads import data_time_range
+    from ..model.plausibility import warn_plausibility
+
+    window = (settings or AnalysisSettings()).kinematics
+    lo, hi = data_time_range(getattr(model, "external_loads", ()))
+    keep = np.ones(len(times), dtype=bool)
+    if start is None and window.get("start") is None:
+        keep &= times >= lo - 1e-9
+    if end is None and window.get("end") is None:
+        keep &= times <= hi + 1e-9
+    if keep.all() or not keep.any():
+        return times  # nothing to drop, or nothing left: analysis_window / the loads say why
+    warn_plausibility(f"analysis window {times[keep][0]:g}–{times[keep][-1]:g} s: the {np.count_nonzero(~keep)} "
+                      f"trial sample(s) outside the measured loads' data ({lo:g}–{hi:g} s) are left out")
+    return times[keep]
+
+
 def _check_order(start, end):
     if start is not None and end is not None and float(start) > float(end):
         raise ValueError(f"analysis window: start ({float(start):g} s) is after end ({float(end):g} s); "
@@ -129,7 +152,8 @@ def trial_window(model, trial_path, cutoff_hz=None, start=None, end=None, settin
     from ..model.plausibility import check_trial_markers
 
     trial, traj = load_trajectories(model, trial_path, cutoff_hz, settings)
-    times = analysis_window(model, np.asarray(trial.time, dtype=float), start, end, settings)
+    all_times = np.asarray(trial.time, dtype=float)
+    times = analysis_window(model, _within_load_data(model, all_times, start, end, settings), start, end, settings)
     check_trial_markers(model, trial, times)
     return trial, traj, times, {"trial": _trial_label(trial), "rate_hz": trial.rate, "markers": list(trial.labels)}
 

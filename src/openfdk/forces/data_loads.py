@@ -73,6 +73,18 @@ def invalid_reason(loads, t):
     return ""
 
 
+def data_time_range(loads):
+    """(first, last) s over which every sampled (spline, not extrapolated) time function
+    of ``loads`` (DataLoad) has data, or (−inf, inf) when none is sampled."""
+    lo, hi = -np.inf, np.inf
+    for load in loads:
+        for function in (load.force, load.point, load.torque):
+            if isinstance(function, SplineThroughData) and not function.extrapolate:
+                t0, t1 = function.t_range
+                lo, hi = max(lo, float(t0)), min(hi, float(t1))
+    return lo, hi
+
+
 def sample(function, times):
     """(nf, 3) values of a load's time function at ``times`` (nf,) s, or None where one
     cannot be given at once: a spline's times outside its data (its per-frame call then
