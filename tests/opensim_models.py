@@ -22,6 +22,18 @@ def vec3(x):
     return osim.Vec3(*(float(v) for v in x))
 
 
+def six_dof_transform(names):
+    """A CustomJoint's SpatialTransform with one coordinate per axis, ``names`` (6,):
+    rotations about z, x, y, then translations along x, y, z, each the identity function."""
+    transform = osim.SpatialTransform()
+    for k, (axis, name) in enumerate(zip(np.r_[np.eye(3)[[2, 0, 1]], np.eye(3)], names)):
+        ta = transform.updTransformAxis(k)
+        ta.setAxis(vec3(axis))
+        ta.setCoordinateNames(osim.ArrayStr(name, 1))
+        ta.set_function(osim.LinearFunction(1.0, 0.0))
+    return transform
+
+
 def np3(v):
     return np.array([v.get(i) for i in range(3)])
 

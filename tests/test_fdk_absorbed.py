@@ -24,6 +24,8 @@ import pytest
 
 opensim = pytest.importorskip("opensim")
 
+from opensim_models import six_dof_transform  # noqa: E402
+
 from cli_helpers import run_cli  # noqa: E402
 from openfdk.dynamics.inverse import InverseDynamics  # noqa: E402
 from openfdk.fdk.absorbed import fdk_absorbed_muscles  # noqa: E402
@@ -47,12 +49,7 @@ def _model(folder):
     m.addBody(patella)
     m.addJoint(opensim.PinJoint("hip", m.getGround(), _v3([0, 1.0, 0]), _v3([0, 0, 0]), thigh, _v3([0, 0, 0]),
                                 _v3([0, 0, 0])))
-    transform = opensim.SpatialTransform()
-    for k, (axis, name) in enumerate(zip(np.r_[np.eye(3)[[2, 0, 1]], np.eye(3)], PF)):
-        ta = transform.updTransformAxis(k)
-        ta.setAxis(_v3(axis))
-        ta.setCoordinateNames(opensim.ArrayStr(name, 1))
-        ta.set_function(opensim.LinearFunction(1.0, 0.0))
+    transform = six_dof_transform(PF)
     m.addJoint(opensim.CustomJoint("pf", thigh, _v3([0.05, -0.4, 0]), _v3([0, 0, 0]), patella, _v3([0, 0, 0]),
                                    _v3([0, 0, 0]), transform))
     for name, (b1, p1), (b2, p2) in (("vastus", (thigh, [0.03, -0.15, 0]), (patella, [0, 0.01, 0])),

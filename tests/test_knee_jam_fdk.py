@@ -52,6 +52,8 @@ from lxml import etree
 
 opensim = pytest.importorskip("opensim")
 
+from opensim_models import six_dof_transform  # noqa: E402
+
 from openfdk.fdk.analysis import run_fdk  # noqa: E402
 from openfdk.io.modelfile import load_model_and_settings  # noqa: E402
 
@@ -162,12 +164,7 @@ def _knee_model(folder, patella=False):
     m.addBody(tibia)
     m.addJoint(opensim.WeldJoint("hip", m.getGround(), _v3([0, 0, 0]), _v3([0, 0, 0]), femur, _v3([0, 0, 0]),
                                  _v3([0, 0, 0])))
-    transform = opensim.SpatialTransform()
-    for k, (axis, name) in enumerate(zip(np.r_[np.eye(3)[[2, 0, 1]], np.eye(3)], COORDINATES)):
-        ta = transform.updTransformAxis(k)
-        ta.setAxis(_v3(axis))
-        ta.setCoordinateNames(opensim.ArrayStr(name, 1))
-        ta.set_function(opensim.LinearFunction(1.0, 0.0))
+    transform = six_dof_transform(COORDINATES)
     m.addJoint(opensim.CustomJoint("knee", femur, _v3([0, 0, 0]), _v3([0, 0, 0]), tibia, _v3(CHILD_OFFSET),
                                    _v3([0, 0, 0]), transform))
     for name, (a, b, k, slack, eps_t) in LIGAMENTS.items():
@@ -209,12 +206,7 @@ def _add_patella(m, femur, tibia):
     and the patellar tendon to the tibia."""
     patella = opensim.Body("patella", 1e-6, _v3([0, 0, 0]), opensim.Inertia(1e-9, 1e-9, 1e-9))
     m.addBody(patella)
-    transform = opensim.SpatialTransform()
-    for k, (axis, name) in enumerate(zip(np.r_[np.eye(3)[[2, 0, 1]], np.eye(3)], PF_COORDINATES)):
-        ta = transform.updTransformAxis(k)
-        ta.setAxis(_v3(axis))
-        ta.setCoordinateNames(opensim.ArrayStr(name, 1))
-        ta.set_function(opensim.LinearFunction(1.0, 0.0))
+    transform = six_dof_transform(PF_COORDINATES)
     m.addJoint(opensim.CustomJoint("pf", femur, _v3(PF_PARENT), _v3([0, 0, 0]), patella, _v3([0, 0, 0]),
                                    _v3([0, 0, 0]), transform))
     a, b, k, slack, eps_t = PATELLA["tendon"]
