@@ -303,3 +303,48 @@ def test_chunked_run_keeps_finished_chunks_and_resume_reuses_them(tmp_path, caps
     capsys.readouterr()
     assert main([*common, "--out", str(other), "--resume", "--overlap", "3"]) == 2
     assert "chunk-000000.npz: the checkpoint belongs to another run" in capsys.readouterr().err
+
+
+class _Step:
+    """A driver step that records its frame index and raises ``error`` at frame 3."""
+
+    def __init__(self, error):
+        self.error = error
+
+    def fields(self):
+        return {"value": ((), float, np.nan)}
+
+    def step(self, k):
+        if k == 3:
+            raise self.error
+        return [(k, {"value": float(k)})]
+
+    def finish(self):
+        return []
+
+    def carry(self):
+        return None
+
+
+def _kernel_error(cause):
+    """A SystemError as a compiled kernel raises it when ``cause`` happened inside it."""
+    try:
+        try:
+            raise cause
+        except BaseException as inner:
+            raise SystemError("returned a result with an exception set") from inner
+    except SystemError as exc:
+        return exc
+
+
+def test_an_interrupt_inside_a_compiled_kernel_keeps_the_finished_frames():
+    """A second Ctrl-C inside a compiled kernel surfaces as SystemError (caused by the
+    KeyboardInterrupt): the driver stops with the three finished frames, as for Ctrl-C
+    between frames; any other SystemError is not taken for an interrupt."""
+    from openfdk.trial.driver import TrialInterrupted, drive
+
+    with pytest.raises(TrialInterrupted) as info:
+        drive(_Step(_kernel_error(KeyboardInterrupt())), 6, lambda rec: rec.frames_done)
+    assert info.value.partial == 3 and info.value.frames_planned == 6
+    with pytest.raises(SystemError):
+        drive(_Step(_kernel_error(ValueError("bad"))), 6, lambda rec: rec.frames_done)

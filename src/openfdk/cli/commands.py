@@ -746,7 +746,11 @@ def main(argv=None):
             _register_import(args)
             with _blas_threads():
                 return args.func(args)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, SystemError) as exc:
+        from ..trial.driver import caused_by_interrupt
+
+        if not caused_by_interrupt(exc):  # a SystemError of its own: a bug, with its traceback
+            raise
         print("openfdk: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except (UserError, ValueError, FileNotFoundError, OSError) as exc:

@@ -294,13 +294,27 @@ def drive(step, n_frames, build, *, progress=False, desc="frames", checkpoints=N
             near = resumed is not None and n_frames < resumed + 2
             for j, values in (_resumed_call(step.finish, None, checkpoints.folder) if near else step.finish()):
                 rec.record(j, values)
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, SystemError) as exc:
+        if not caused_by_interrupt(exc):
+            raise
         rec.interrupted = True
         raise TrialInterrupted(build(rec.truncated(rec.frames_done)), n_frames) from None
     finally:
         if bar is not None:
             bar.close()
     return build(rec)
+
+
+def caused_by_interrupt(exc):
+    """Whether ``exc`` (a SystemError) was caused by a KeyboardInterrupt: the second
+    Ctrl-C raised inside a compiled kernel surfaces as a chain of SystemErrors."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 class _StopOnSigint:
