@@ -3,8 +3,10 @@
 Warm start: α of frame k starts from the linear extrapolation 2 α_{k−1} − α_{k−2} of two
 converged predecessors (or α_{k−1}, or the DOFs' initial values), and the poses of the
 previous frame's solution. A frame that fails from there is solved again from α_{k−1},
-from the DOFs' initial values, then from α_{k−1} moved along one DOF at a time by ±2
-and ±4 max_steps, nearest first (setting ``restart``, :func:`~.newton.solve_frame_from`;
+from the DOFs' initial values, after marching to it through intermediate frames
+(:mod:`.approach`: sub-steps from a converged previous frame, a lead-in before the
+window's first frame), then from α_{k−1} moved along one DOF at a time by ±2
+and ±4 max_steps, nearest first (setting ``restart``, :func:`~.newton.solve_restarts`;
 :func:`scan_starts`): where the branch the previous frames followed ends (a fold of
 f^FDK(α) = 0, e.g. a weakly held medio-lateral DOF snapping across the joint), the
 remaining root can lie millimetres away, beyond the basin of α_{k−1}; the nearest such
@@ -38,7 +40,8 @@ from ..trial import drive
 from ..trial.status import FrameReport, Reason, frame_messages
 from ..model.plausibility import warn_plausibility
 from .absorbed import absorbed_message, fdk_absorbed_muscles
-from .newton import solve_frame_from
+from .approach import approach_for
+from .newton import combined, solve_frame, solve_restarts
 from .residual import FDKContext, FrameWorkspace
 from .settings import fdk_settings
 
@@ -141,8 +144,9 @@ class FDKStep:
     recent converged frames, the recruitment solution and the Jacobian (reuse_jacobian).
     """
 
-    def __init__(self, model, ctx, settings):
+    def __init__(self, model, ctx, settings, approach=None):
         self.model, self.ctx, self.settings = model, ctx, settings
+        self.approach = approach  # (step, k) -> FrameSolution, or None (:mod:`.approach`)
         self.system = ctx.system
         state0 = model.initial_state()
         if ctx.tracker is not None:
@@ -181,14 +185,26 @@ class FDKStep:
             a0 = failed[1].copy()  # the previous frame's best iterate: nearer than an older solution
         else:
             a0 = self.a_init.copy()
-        starts = [a0] + ([history[-1][1]] if history else []) + [self.a_init]
-        if history:
-            starts += scan_starts(history[-1][1], settings.max_step)
         # a cold frame (no converged previous frame) starts far from its root: a larger
         # iteration limit for its first start (settings.cold_max_iterations)
         cold = None if warm_frame else replace(settings, max_iterations=max(settings.max_iterations,
                                                                             settings.cold_max_iterations))
-        sol = solve_frame_from(ctx, k, starts, ws, settings, self.warm, self.J_carry, cold)
+        ws0 = ws.copy()
+        first = solve_frame(ctx, k, a0, ws, cold or settings, self.warm, self.J_carry)
+        later = []
+        if not first.converged and settings.restart:
+            tried = [a0]
+            later = solve_restarts(ctx, k, ([history[-1][1]] if history else []) + [self.a_init], ws0, settings,
+                                   self.warm, tried)
+            approached = None
+            if not any(s.converged for s in later) and self.approach is not None:
+                approached = self.approach(self, k)  # through intermediate frames (fdk/approach.py)
+            if approached is not None:
+                later.append(approached)
+            if not any(s.converged for s in later) and history:
+                later += solve_restarts(ctx, k, scan_starts(history[-1][1], settings.max_step), ws0, settings,
+                                        self.warm, tried)
+        sol = combined(first, later)
         self.J_carry = sol.jacobian if sol.converged else None
         ev = sol.best
         self.last_failed = None if sol.converged or not ev.ok else (k, ev.alpha.copy())
@@ -283,7 +299,7 @@ def run_fdk(model, trajectories=None, times=None, settings=None, progress=False,
     absorbed = fdk_absorbed_muscles(ctx.solver, model.initial_state())
     if absorbed:
         warn_plausibility(absorbed_message(absorbed))
-    step = FDKStep(model, ctx, settings)
+    step = FDKStep(model, ctx, settings, approach_for(model, trajectories))
 
     def build(rec):
         return fdk_result(rec, model, ctx, settings, times[: rec.n_frames], _time.perf_counter() - t0)

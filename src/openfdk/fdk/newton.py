@@ -1,7 +1,8 @@
 """Newton–Raphson on f^FDK(α) = 0 for one frame (paper Fig. 1).
 
 Each iteration: Jacobian J = ∂f^FDK/∂α (analytic or central differences), Newton step
-Δα = −J⁻¹ f, scaled down uniformly so that no |Δα_i| exceeds its ``max_step``, then a
+Δα = −J⁻¹ f, replaced by Powell's dogleg step (:func:`dogleg_step`) when some |Δα_i|
+exceeds its ``max_step``, then a
 step length β: the full step is taken when it reduces ‖f^FDK‖₂; otherwise a golden-section
 search on β ∈ (0, 1) (the paper's line search) picks the β with the smallest ‖f^FDK‖₂.
 Converged when max |f^FDK| < tolerance.
@@ -110,9 +111,7 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None) -> Frame
             weak = [names[i] for i in np.flatnonzero(np.max(np.abs(J), axis=0) < 1e-9 * max(1.0, np.abs(J).max()))]
             return done(best, False, it, f"singular FDK Jacobian: no restoring force along {weak or names}",
                         "singular", best_ws)
-        ratio = np.max(np.abs(step) / max_step)
-        if ratio > 1.0:
-            step = step / ratio
+        step = dogleg_step(J, ev.f_fdk, step, max_step)
         trial_ws = ws.copy()
         trial = ctx.evaluate(k, ev.alpha + step, trial_ws, ev.frame.recruitment)
         evaluations += 1
@@ -156,7 +155,8 @@ def solve_frame_from(ctx, k, starts, ws, settings, warm=None, jacobian=None, fir
     if that fails and ``settings.restart``, from each further start (n_fdk,)
     in turn — fresh Jacobian, poses from a copy of ``ws`` as given — until one converges.
 
-    starts : sequence of (n_fdk,) α in SI units; repeats of an earlier start are skipped.
+    starts : sequence of (n_fdk,) α in SI units; repeats of an earlier start are skipped
+    (:func:`solve_restarts`, :func:`combined`).
     Returns the converged FrameSolution (``restarts`` = further starts solved), or the
     best iterate of all starts (smallest max |f^FDK|) with the first start's message and
     reason. ``iterations``, ``evaluations`` and ``jacobians`` are totals over all starts.
@@ -165,29 +165,52 @@ def solve_frame_from(ctx, k, starts, ws, settings, warm=None, jacobian=None, fir
     first = solve_frame(ctx, k, starts[0], ws, first_settings or settings, warm, jacobian)
     if first.converged or not settings.restart:
         return first
-    tried = [np.asarray(starts[0], dtype=float)]
-    best, restarts = first, 0
-    totals = np.array([first.iterations, first.evaluations, first.jacobians])
-    for alpha0 in starts[1:]:
+    return combined(first, solve_restarts(ctx, k, starts[1:], ws0, settings, warm, [starts[0]]))
+
+
+def solve_restarts(ctx, k, starts, ws0, settings, warm=None, tried=None):
+    """Solutions (list of FrameSolution) of frame k from each start (n_fdk,) in turn —
+    fresh Jacobian, poses from a copy of ``ws0`` — until one converges; starts equal to
+    one in the list ``tried`` or an earlier one are skipped (each start solved is added
+    to ``tried``)."""
+    tried = [] if tried is None else tried
+    tried[:] = [np.asarray(a, dtype=float) for a in tried]
+    out = []
+    for alpha0 in starts:
         alpha0 = np.asarray(alpha0, dtype=float)
         if any(np.array_equal(alpha0, a) for a in tried):
             continue
         tried.append(alpha0)
-        restarts += 1
-        sol = solve_frame(ctx, k, alpha0, ws0.copy(), settings, warm, None)
+        out.append(solve_frame(ctx, k, alpha0, ws0.copy(), settings, warm, None))
+        if out[-1].converged:
+            break
+    return out
+
+
+def combined(first, later) -> FrameSolution:
+    """One FrameSolution of a frame solved from several starts: ``first`` (the warm
+    start's, whose message and reason a failure reports) and ``later`` (the further
+    solutions in order, each counting 1 + its own restarts). The converged one if any,
+    else the best iterate of all (smallest max |f^FDK|); iterations, evaluations and
+    Jacobians are totals."""
+    best, restarts = first, first.restarts
+    totals = np.array([first.iterations, first.evaluations, first.jacobians])
+    for sol in later:
+        restarts += 1 + sol.restarts
         totals += (sol.iterations, sol.evaluations, sol.jacobians)
         if sol.converged:
             best = sol
             break
-        if sol.best.norm < best.best.norm:
+        if not best.converged and sol.best.norm < best.best.norm:
             best = sol
     it, n_ev, n_jac = (int(x) for x in totals)
     if best.converged:
         return FrameSolution(best.best, True, it, n_ev, "", "converged", best.workspace, best.jacobian, n_jac,
                              restarts)
-    message = f"{first.message}; {restarts} restart(s) from other starting α did not converge either"
-    return FrameSolution(best.best, False, it, n_ev, message if restarts else first.message, first.reason,
-                         best.workspace, None, n_jac, restarts)
+    message = first.message
+    if restarts:
+        message += f"; {restarts} restart(s) from other starting α did not converge either"
+    return FrameSolution(best.best, False, it, n_ev, message, first.reason, best.workspace, None, n_jac, restarts)
 
 
 def _jacobian(ctx, k, ev, ws, settings):
@@ -195,6 +218,40 @@ def _jacobian(ctx, k, ev, ws, settings):
     if settings.jacobian == "analytic":
         return analytic_jacobian(ctx, k, ev)
     return central_jacobian(ctx, k, ev, ws, settings.perturbation)
+
+
+def dogleg_step(J, f, step_N, max_step):
+    """Powell's dogleg step within the box |Δα_i| ≤ max_step_i (Nocedal & Wright,
+    "Numerical Optimization", 2nd ed., §4.1 and §11.2).
+
+    J (n, n), f (n,) N or N m: the linear model f + J Δα; step_N (n,): the Newton step
+    −J⁻¹ f; max_step (n,) SI. In the variables scaled by max_step (the box becomes the
+    unit cube): the Newton step when it lies in the box; else the Cauchy point
+    p_C = −(‖g‖² / ‖J g‖²) g, g = Jᵀ f the gradient of ½‖f + J Δα‖² at 0, cut at the box
+    when it leaves it; else the point where the segment from p_C to the Newton step
+    leaves the box. Where J is nearly singular along a DOF the Newton step is long and
+    points where the model is least trusted; the Cauchy point still decreases the model,
+    so the step turns towards steepest descent instead of being scaled down whole.
+    Returns Δα (n,)."""
+    p_N = step_N / max_step
+    ratio = np.max(np.abs(p_N))
+    if ratio <= 1.0:
+        return step_N
+    J_s = J * max_step[None, :]
+    g = J_s.T @ f
+    Jg = J_s @ g
+    gg, JgJg = float(g @ g), float(Jg @ Jg)
+    if gg == 0.0 or JgJg == 0.0 or not np.isfinite(JgJg):
+        return step_N / ratio
+    p_C = -(gg / JgJg) * g
+    reach = np.max(np.abs(p_C))
+    if reach >= 1.0:
+        return p_C / reach * max_step
+    d = p_N - p_C
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tau = np.where(d != 0.0, (np.sign(d) - p_C) / d, np.inf)
+    tau = float(min(1.0, np.min(tau)))
+    return (p_C + tau * d) * max_step
 
 
 def _broyden(J, s, y):

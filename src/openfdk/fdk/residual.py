@@ -81,6 +81,13 @@ class FDKContext:
         self.fdk_columns = np.array([names.index(f"fdk.{d.name}") for d in model.fdk_dofs], dtype=int)
         self._rates_frame, self._rates_k = None, None  # _measured_rates of the frame in work
 
+    def at_times(self, times, trajectories=None):
+        """The same trial's context at other ``times`` (nf,) s — the same solver and
+        tracker, the markers of ``trajectories`` (``evaluate(t)``) at those times — for
+        the frames an approach solves (:mod:`openfdk.fdk.approach`)."""
+        meas = None if trajectories is None else [trajectories.evaluate(t) for t in times]
+        return FDKContext(self.model, self.solver, self.tracker, meas, times)
+
     def frames_needed(self, k):
         """Frame k and (tracking) its existing neighbours."""
         if self.tracker is None:

@@ -83,13 +83,23 @@ class ForceElements:
             if hasattr(fs, "prepare"):
                 fs.prepare(times)
 
-    def stiffness(self, state, outputs):
-        """K = ∂Q/∂q̂ (n, n) of all sets from the outputs the forces stage left."""
+    def stiffness(self, state, outputs, exclude=()):
+        """K = ∂Q/∂q̂ (n, n) of all sets but the kinds in ``exclude`` from the outputs the
+        forces stage left."""
         n = state.n_coords
         K = np.zeros((n, n))
         for fs in self.sets:
-            fs.stiffness(state, outputs[fs.kind], K)
+            if fs.kind not in exclude:
+                fs.stiffness(state, outputs[fs.kind], K)
         return K
+
+    def generalized_forces_of(self, kinds, state, t):
+        """Q (n,) [N, N m] of the sets of the given kinds only, at ``state`` and t (s)."""
+        Q = np.zeros(state.n_coords)
+        for fs in self.sets:
+            if fs.kind in kinds:
+                fs.accumulate(state, t, Q)
+        return Q
 
     def generalized_forces(self, state, t, want_stiffness=False):
         """(Q (n,), outputs by kind, K (n, n) or None) of all sets (gravity excluded)."""

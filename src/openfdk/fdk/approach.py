@@ -1,0 +1,119 @@
+"""Approach: a frame that failed from every nearby start is solved again after marching
+to it through frames the trial does not report (part of the setting ``restart``).
+
+Measured on the DM knee in gait (docs/tutorial-knee-gait.md): the frames that fail are
+heel strikes. The ground reaction rises from zero to about a body weight in 20–30 ms,
+so between two 120 Hz frames the knee's load changes by hundreds of newtons; the warm
+start extrapolated from the frame before then lies where f^FDK(α) has kinks (muscles
+entering the recruitment's active set, contact vertices entering the patch) and Newton
+stalls. The window's first frame is worse: it starts from the DOFs' initial values.
+Continuation in time is the remedy: the same frame is reached through intermediate
+frames, each close to the one before.
+
+* **Sub-steps** — when frame k − 1 converged: :data:`SUBSTEPS` − 1 frames at
+  t_{k−1} + j (t_k − t_{k−1}) / SUBSTEPS, j = 1 … SUBSTEPS − 1, from frame k − 1's
+  solution.
+* **Lead-in** — at the window's first frame: up to :data:`LEAD_IN_FRAMES` frames before
+  it at the trial's rate, from the DOFs' initial values, as far back as the markers and
+  the measured loads have data.
+
+The marched frames are solved as the trial's frames are (warm starts, Broyden-carried
+Jacobian, the cold iteration limit for a cold first one) but without restarts, and
+frame k is then solved from the extrapolation of the last two with their poses,
+recruitment and Jacobian. Their iterations, evaluations and Jacobians count towards
+frame k's; nothing else of them is reported. The lead-in needs marker tracking (the
+markers reach before the window; a determinate model's drivers need not).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from .newton import FrameSolution, solve_frame
+from .residual import FrameWorkspace
+
+#: intermediate steps between a converged frame and the failed frame after it
+SUBSTEPS = 4
+#: frames before the window's first frame, at the trial's rate
+LEAD_IN_FRAMES = 12
+
+
+def approach_times(times, k, previous_converged, first_time):
+    """Times (m,) s of the frames that lead to frame k, or an empty array.
+
+    times (nf,) s: the window's uniform frame times; previous_converged: whether frame
+    k − 1 converged; first_time: the earliest time with data (markers and loads), s."""
+    times = np.asarray(times, dtype=float)
+    if k > 0 and previous_converged:
+        return times[k - 1] + (times[k] - times[k - 1]) * np.arange(1, SUBSTEPS) / SUBSTEPS
+    if k == 0 and len(times) > 1:
+        dt = times[1] - times[0]
+        lead = times[0] - dt * np.arange(LEAD_IN_FRAMES, 0, -1)
+        return lead[lead >= first_time - 1e-9 * max(1.0, abs(first_time))]
+    return np.empty(0)
+
+
+class Approach:
+    """The approach of an :class:`~openfdk.fdk.analysis.FDKStep` (module docstring).
+
+    trajectories : the trial's markers (``evaluate(t)``, ``time``), or None for
+    determinate kinematics (sub-steps only: the drivers need not reach before the
+    window); first_time : s, the earliest time the measured loads have data (−inf when
+    none is sampled)."""
+
+    def __init__(self, trajectories=None, first_time=-np.inf):
+        self.trajectories = trajectories
+        if trajectories is None:
+            self.first_time = np.inf  # no lead-in
+        else:
+            self.first_time = max(float(np.asarray(trajectories.time, dtype=float)[0]), float(first_time))
+
+    def __call__(self, step, k) -> FrameSolution:
+        """Frame k of ``step`` solved after the march: a FrameSolution (converged or not)
+        whose counts include the marched frames', or None when no frame leads to k."""
+        from .analysis import FDKStep  # (analysis imports this module)
+
+        ctx, settings = step.ctx, step.settings
+        history = step.history
+        previous = bool(history) and history[-1][0] == k - 1
+        times = approach_times(ctx.times, k, previous, self.first_time)
+        if len(times) == 0:
+            return None
+        march = FDKStep(step.model, ctx.at_times(times, self.trajectories), replace(settings, restart=False))
+        if previous:
+            march.history = [(-1, history[-1][1].copy())]
+            march.last_state, march.warm, march.J_carry = step.last_state, step.warm, step.J_carry
+        totals = np.zeros(3, dtype=int)
+        for j in range(len(times)):
+            (_, values), = march.step(j)
+            totals += (values["fdk.iterations"], values["fdk.evaluations"], values["fdk.jacobians"])
+        h = march.history
+        if len(h) >= 2 and h[-1][0] == len(times) - 1 and h[-2][0] == len(times) - 2:
+            a0 = 2 * h[-1][1] - h[-2][1]
+        elif h and h[-1][0] == len(times) - 1:
+            a0 = h[-1][1].copy()
+        elif march.last_failed is not None:
+            a0 = march.last_failed[1].copy()
+        else:
+            a0 = step.a_init.copy()
+        warm_end = bool(h) and h[-1][0] == len(times) - 1
+        ws = FrameWorkspace({j: march.last_state for j in ctx.frames_needed(k)})
+        first = settings if warm_end else replace(settings, max_iterations=max(settings.max_iterations,
+                                                                                settings.cold_max_iterations))
+        sol = solve_frame(ctx, k, a0, ws, first, march.warm if warm_end else step.warm,
+                          march.J_carry if warm_end else None)
+        return replace(sol, iterations=sol.iterations + int(totals[0]), evaluations=sol.evaluations + int(totals[1]),
+                       jacobians=sol.jacobians + int(totals[2]))
+
+
+def approach_for(model, trajectories):
+    """The Approach of a trial of ``model`` (the measured loads' data bound the lead-in;
+    ``trajectories`` None: determinate kinematics, sub-steps only)."""
+    from ..forces.data_loads import data_time_range
+
+    return Approach(trajectories, data_time_range(getattr(model, "external_loads", ()))[0])
+
+
+__all__ = ["Approach", "approach_for", "approach_times", "SUBSTEPS", "LEAD_IN_FRAMES"]

@@ -1,0 +1,85 @@
+"""The approach of a failed frame through intermediate frames (openfdk.fdk.approach):
+the frame times in closed form, and a load step that Newton cannot follow in one frame
+but follows in sub-steps."""
+
+import numpy as np
+import pytest
+
+from openfdk.fdk.analysis import FDKStep, fdk_context, run_fdk
+from openfdk.fdk.approach import LEAD_IN_FRAMES, SUBSTEPS, approach_times
+from openfdk.fdk.settings import fdk_settings
+from openfdk.forces.elements import add_external_load, add_spring
+from openfdk.model.builder import ModelBuilder
+from openfdk.model.timefunctions import TimeFunction
+from openfdk.trial import drive
+
+G = 9.81
+M, K = 2.0, 500.0  # kg, N/m
+T_STEP, DT = 0.3, 0.1  # s: the load ramps over the frame interval [T_STEP, T_STEP + DT]
+F_STEP = 4.0  # N: the root moves by F_STEP / K = 8 mm within that interval
+
+
+class _Ramp(TimeFunction):
+    """Vertical force (3,) N: 0 before T_STEP, F_STEP after T_STEP + DT, linear between."""
+
+    size = 3
+
+    def derivatives(self, t):
+        s = min(max((t - T_STEP) / DT, 0.0), 1.0)
+        ds = 1.0 / DT if T_STEP < t < T_STEP + DT else 0.0
+        return np.array([0.0, 0.0, F_STEP * s]), np.array([0.0, 0.0, F_STEP * ds]), np.zeros(3)
+
+
+def _slider():
+    """A block on a vertical rail on a linear spring, pushed up by the ramp: the root is
+    α*(t) = (F(t) − m g) / k (the block's inertia is zero: α̇ = α̈ = 0)."""
+    b = ModelBuilder("ramp", gravity=(0, 0, -G))
+    b.add_body("block", M, [1e-3] * 3)
+    b.add_joint("rail", "prismatic", parent="ground.origin", child="block.origin")
+    b.add_measure("z", b._select(b.vector("ground.origin", "block.origin"), [2]))
+    b.add_fdk_dof("height", "z", initial=-M * G / K, max_step=1e-3)
+    add_spring(b, "spring", "z", K)
+    add_external_load(b, "push", "block.origin", force=_Ramp())
+    return b.build()
+
+
+def test_approach_times_in_closed_form():
+    """Sub-steps: SUBSTEPS − 1 equally spaced times strictly between frames k − 1 and k;
+    lead-in: LEAD_IN_FRAMES frames before the first at the frame spacing, cut at the
+    first time with data; nothing for a frame after a failed one."""
+    times = 2.0 + np.arange(5) / 120.0
+    sub = approach_times(times, 3, True, -np.inf)
+    np.testing.assert_allclose(sub, times[2] + np.arange(1, SUBSTEPS) / (120.0 * SUBSTEPS), rtol=0, atol=1e-15)
+    lead = approach_times(times, 0, False, -np.inf)
+    np.testing.assert_allclose(lead, 2.0 - np.arange(LEAD_IN_FRAMES, 0, -1) / 120.0, rtol=0, atol=1e-15)
+    cut = approach_times(times, 0, False, 2.0 - 3.5 / 120.0)
+    np.testing.assert_allclose(cut, 2.0 - np.arange(3, 0, -1) / 120.0, rtol=0, atol=1e-15)
+    assert approach_times(times, 3, False, -np.inf).size == 0
+    assert approach_times(times, 0, False, np.inf).size == 0
+
+
+def test_a_load_step_newton_cannot_follow_in_one_frame_converges_in_sub_steps():
+    """Frames 0.1 s apart, max_step 1 mm, 3 Newton iterations per frame: the root moves
+    8 mm between t = 0.3 and 0.4 s, so frame 0.4 s fails from its warm start, from the
+    previous α, from the initial value and from every scan start (at most 4 mm nearer).
+    Through SUBSTEPS − 1 intermediate frames (2 mm apart, the last two extrapolated
+    exactly on the linear ramp) it converges; every frame equals the closed form
+    α* = (F − m g) / k, and frame 0.4 s counts the marched frames' evaluations. (Frame
+    0.5 s, extrapolated 8 mm past its root, is solved again from α of 0.4 s.)
+    Without the approach the same frame fails."""
+    model = _slider()
+    times = np.arange(6) * DT
+    alpha_star = (np.array([_Ramp().derivatives(t)[0][2] for t in times]) - M * G) / K
+    res = run_fdk(model, None, times, max_iterations=3)
+    assert res.converged.all(), res.messages
+    np.testing.assert_allclose(res.alpha[:, 0], alpha_star, rtol=0, atol=1e-3 / K)
+    k = int(np.flatnonzero(np.isclose(times, T_STEP + DT))[0])
+    assert alpha_star[k] - alpha_star[k - 1] == pytest.approx(F_STEP / K)
+    assert res.restarts[k] >= 1 and np.all(res.restarts[:k] == 0)
+    assert res.evaluations[k] > res.evaluations[:k].max() + SUBSTEPS - 1
+
+    settings = fdk_settings(model, None, max_iterations=3)
+    ctx = fdk_context(model, None, times)
+    step = FDKStep(model, ctx, settings, approach=None)
+    values = drive(step, len(times), lambda rec: rec.objects("fdk.report"))
+    assert [r.converged for r in values] == [i != k for i in range(len(times))]
