@@ -73,15 +73,14 @@ class Approach:
     def __call__(self, step, k) -> FrameSolution:
         """Frame k of ``step`` solved after the march: a FrameSolution (converged or not)
         whose counts include the marched frames', or None when no frame leads to k."""
-        from .analysis import FDKStep  # (analysis imports this module)
-
         ctx, settings = step.ctx, step.settings
         history = step.history
         previous = bool(history) and history[-1][0] == k - 1
         times = approach_times(ctx.times, k, previous, self.first_time)
         if len(times) == 0:
             return None
-        march = FDKStep(step.model, ctx.at_times(times, self.trajectories), replace(settings, restart=False))
+        # the same kind of step (FDKStep) on the marched frames, without restarts
+        march = type(step)(step.model, ctx.at_times(times, self.trajectories), replace(settings, restart=False))
         if previous:
             march.history = [(-1, history[-1][1].copy())]
             march.last_state, march.warm, march.J_carry = step.last_state, step.warm, step.J_carry
