@@ -8,9 +8,10 @@ its border, and the distance of a point m outside the ball to the ball is |m −
 
 from __future__ import annotations
 
-import struct
 
 import numpy as np
+
+from openfdk.contact.stl import write_stl
 import pytest
 
 from openfdk.cli import main
@@ -27,11 +28,7 @@ YS = np.arange(-10e-3, 10.01e-3, DY)
 
 def _write_stl(path, vertices, faces):
     """Binary STL of vertices (n, 3) m written in mm."""
-    tri = np.asarray(vertices)[faces] * 1e3
-    with open(path, "wb") as f:
-        f.write(b"openfdk test".ljust(80, b" ") + struct.pack("<I", len(tri)))
-        for t in tri:
-            f.write(struct.pack("<12fH", 0, 0, 0, *t.ravel(), 0))
+    return write_stl(path, 1e3 * np.asarray(vertices), faces)
 
 
 def _plate(flip=False):

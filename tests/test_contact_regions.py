@@ -8,9 +8,10 @@ carries them."""
 from __future__ import annotations
 
 import csv
-import struct
 
 import numpy as np
+
+from openfdk.contact.stl import write_stl
 import pytest
 
 from openfdk.cli import main
@@ -27,11 +28,7 @@ X = {"medial": -0.02, "lateral": 0.02}           # m, condyle centres along the 
 
 def _write_stl(path, vertices, faces):
     """Binary STL of vertices (n, 3) m written in mm."""
-    tri = np.asarray(vertices)[faces] * 1e3
-    with open(path, "wb") as f:
-        f.write(b"openfdk test".ljust(80, b" ") + struct.pack("<I", len(tri)))
-        for t in tri:
-            f.write(struct.pack("<12fH", 0, 0, 0, *t.ravel(), 0))
+    return write_stl(path, 1e3 * np.asarray(vertices), faces)
 
 
 def _model(folder, regions="regions: {medial: {axis: [-1, 0, 0]}, lateral: {axis: [1, 0, 0]}}"):

@@ -44,9 +44,10 @@ tolerance of 1e-9 N (N m); openfdk took 12 Newton iterations, 13 residual evalua
 from __future__ import annotations
 
 import functools
-import struct
 
 import numpy as np
+
+from openfdk.contact.stl import write_stl
 import pytest
 from lxml import etree
 
@@ -120,15 +121,6 @@ def _flat(size_x, size_z, spacing):
     return vertices, np.r_[np.c_[a, c, b], np.c_[a, d, c]]
 
 
-def _write_stl(path, vertices, triangles):
-    corners = vertices[triangles]
-    with open(path, "wb") as f:
-        f.write(b"openfdk knee test".ljust(80, b" ") + struct.pack("<I", len(corners)))
-        for t in corners:
-            normal = np.cross(t[1] - t[0], t[2] - t[0])
-            f.write(struct.pack("<12fH", *(normal / np.linalg.norm(normal)), *t.ravel(), 0))
-
-
 def _jam_xml(root, meshes, contacts):
     """Add Smith2018ContactMesh ``meshes`` {name: (frame path, file, (E, ν, h))} and
     Smith2018ArticularContactForce ``contacts`` {name: (casting, target)} to an OpenSim
@@ -179,8 +171,8 @@ def _knee_model(folder, patella=False):
     m.printToXML(str(folder / "base.osim"))
     vertices, triangles = _grid_cap(R_CONDYLE, CAP_HALF_WIDTH, CAP_SPACING)
     for side, z in (("medial", -W_CONDYLE), ("lateral", W_CONDYLE)):
-        _write_stl(folder / f"{side}_condyle.stl", vertices + [0.0, 0.0, z], triangles)
-    _write_stl(folder / "plateau.stl", *_flat(0.07, 0.10, 0.005))
+        write_stl(folder / f"{side}_condyle.stl", vertices + [0.0, 0.0, z], triangles)
+    write_stl(folder / "plateau.stl", *_flat(0.07, 0.10, 0.005))
     tree = etree.parse(str(folder / "base.osim"))
     meshes = {f"{side}_condyle": ("/bodyset/femur", f"{side}_condyle.stl", LAYERS["femur_cartilage"])
               for side in ("medial", "lateral")}
@@ -189,9 +181,9 @@ def _knee_model(folder, patella=False):
     if patella:
         vertices, triangles = _grid_cap(PATELLA["radius"], PATELLA["cap_half_width"], CAP_SPACING)
         turn = _rotation([0, 0, 1], -np.pi / 2)  # −y → −x: the button faces the trochlea
-        _write_stl(folder / "patella.stl", vertices @ turn.T, triangles)
+        write_stl(folder / "patella.stl", vertices @ turn.T, triangles)
         vertices, triangles = _flat(0.10, 0.06, 0.005)
-        _write_stl(folder / "trochlea.stl", vertices @ turn.T + [PATELLA["trochlea_x"], 0.0, 0.0], triangles)
+        write_stl(folder / "trochlea.stl", vertices @ turn.T + [PATELLA["trochlea_x"], 0.0, 0.0], triangles)
         meshes["patella_button"] = ("/bodyset/patella", "patella.stl", LAYERS["femur_cartilage"])
         meshes["trochlea"] = ("/bodyset/femur", "trochlea.stl", LAYERS["tibia_cartilage"])
         contacts["pf_contact"] = ("patella_button", "trochlea")

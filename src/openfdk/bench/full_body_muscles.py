@@ -82,13 +82,14 @@ from __future__ import annotations
 import json
 import os
 import statistics
-import struct
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+
+from ..contact.stl import write_stl
 
 from .full_body import SINGLE_THREAD, SKIP_NOTE, opensim_available
 from .full_body_id import TimedRun
@@ -157,19 +158,6 @@ def capsule(a, b, radius, segments=48, rings=24):
         faces.append((south, j, (j + 1) % segments))
         faces.append((north, top + (j + 1) % segments, top + j))
     return verts, np.array(faces, dtype=np.int64)
-
-
-def write_stl(path, vertices, faces):
-    """Write a binary STL (80-byte header, uint32 count, 50-byte records) of the mesh."""
-    tri = vertices[faces]
-    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
-    records = np.zeros(len(faces), dtype=[("n", "<f4", (3,)), ("v", "<f4", (3, 3)), ("a", "<u2")])
-    records["n"], records["v"] = normals, tri
-    with open(path, "wb") as f:
-        f.write(b"openfdk bench capsule".ljust(80, b" ") + struct.pack("<I", len(faces)))
-        f.write(records.tobytes())
-    return Path(path)
 
 
 def write_view_inputs(directory, seconds):

@@ -25,11 +25,13 @@ from __future__ import annotations
 
 import os
 
+import struct
+
 import numpy as np
 
 from .unique_rows import first_appearance_rows
 
-__all__ = ["StlError", "check_stl_size", "read_stl"]
+__all__ = ["StlError", "check_stl_size", "read_stl", "write_stl"]
 
 _RECORD = np.dtype([("normal", "<f4", (3,)), ("corners", "<f4", (3, 3)), ("attribute", "<u2")])
 
@@ -53,6 +55,24 @@ def read_stl(path) -> tuple[np.ndarray, np.ndarray]:
             return _merge_corners(corners.reshape(-1, 3).astype(np.float64))
         data = f.read()
     return _merge_corners(_ascii_corners(data))
+
+
+def write_stl(path, vertices, faces, header=b"openfdk"):
+    """Write the mesh as a binary STL file: 80-byte ``header``, uint32 count, one 50-byte
+    record per face (unit normal of the winding, three corners, zero attribute).
+    vertices (n, 3) in the file's length unit, faces (m, 3) vertex indices; returns the
+    Path. :func:`read_stl` reads it back (corners as float32)."""
+    from pathlib import Path
+
+    corners = np.asarray(vertices, dtype=float)[np.asarray(faces, dtype=np.int64)]
+    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+    records = np.zeros(len(corners), dtype=_RECORD)
+    records["normal"], records["corners"] = normals, corners
+    with open(path, "wb") as f:
+        f.write(bytes(header).ljust(80, b" ")[:80] + struct.pack("<I", len(corners)))
+        f.write(records.tobytes())
+    return Path(path)
 
 
 def check_stl_size(path):
