@@ -274,3 +274,26 @@ def test_a_cold_frame_gets_cold_max_iterations_and_a_failed_frame_hands_on_its_b
     assert res.alpha[0, 0] == pytest.approx(-0.025, abs=1e-12)
     assert res.converged[1:].all() and res.iterations[1] == 15
     np.testing.assert_allclose(res.alpha[1:, 0], -m * G / k, atol=1e-3 / k)
+
+
+def test_the_window_s_first_frame_after_a_lead_in_is_the_cold_start_s_root(tmj_model, tmj_settings):
+    """Marker tracking, a window from the trial's 7th frame: the first frame is solved
+    after a lead-in over the 6 frames before it (fdk/approach.py, cut at the trial's
+    start), and every frame's α equals that of the same window solved cold from the
+    initial values without the approach, to the force tolerance over the joint stiffness
+    (< 1e-7 m); the lead-in frames' evaluations count towards the first frame's."""
+    from openfdk.fdk.analysis import FDKStep, fdk_context
+    from openfdk.fdk.settings import fdk_settings
+    from openfdk.trial import drive
+
+    _, traj, t = _tmj_context(tmj_model, tmj_settings, n_frames=20)
+    window = t[6:12]
+    led = run_fdk(tmj_model, traj, window, tmj_settings)
+    settings = fdk_settings(tmj_model, tmj_settings)
+    step = FDKStep(tmj_model, fdk_context(tmj_model, traj, window, settings=tmj_settings), settings, approach=None)
+    cold = drive(step, len(window), lambda rec: (rec.array("fdk.alpha"), rec.array("fdk.evaluations"),
+                                                rec.objects("fdk.report")))
+    assert led.converged.all() and all(r.converged for r in cold[2])
+    np.testing.assert_allclose(led.alpha, cold[0], atol=1e-7)
+    assert np.any(np.abs(led.alpha[0]) > 1e-5)  # a real displacement, not the initial values
+    assert led.evaluations[0] >= 6 + 1 and led.restarts[0] == 0

@@ -190,14 +190,18 @@ class FDKStep:
         cold = None if warm_frame else replace(settings, max_iterations=max(settings.max_iterations,
                                                                             settings.cold_max_iterations))
         ws0 = ws.copy()
-        first = solve_frame(ctx, k, a0, ws, cold or settings, self.warm, self.J_carry)
+        # the window's first frame: from the lead-in's warm start when the trial has frames
+        # before it (fdk/approach.py), else cold from the initial values
+        lead = self.approach(self, k) if k == 0 and not history and settings.restart and self.approach else None
+        first = lead or solve_frame(ctx, k, a0, ws, cold or settings, self.warm, self.J_carry)
         later = []
         if not first.converged and settings.restart:
-            tried = [a0]
-            later = solve_restarts(ctx, k, ([history[-1][1]] if history else []) + [self.a_init], ws0, settings,
-                                   self.warm, tried)
+            tried = [] if lead else [a0]
+            # (after a failed lead-in the initial values get the cold limit the first start had)
+            later = solve_restarts(ctx, k, ([history[-1][1]] if history else []) + [self.a_init], ws0,
+                                   (cold or settings) if lead else settings, self.warm, tried)
             approached = None
-            if not any(s.converged for s in later) and self.approach is not None:
+            if not any(s.converged for s in later) and self.approach is not None and lead is None:
                 approached = self.approach(self, k)  # through intermediate frames (fdk/approach.py)
             if approached is not None:
                 later.append(approached)
