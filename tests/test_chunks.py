@@ -101,7 +101,11 @@ def test_segment_ends_use_the_real_neighbouring_frames(files, serial_fdk):
     kc, _, _ = run_chunked_job(files / "tmj.yaml", files / "trial.c3d", 2, workers=0, progress=False, overlap=0)
     boundary = [11, 12]  # last frame of chunk 0 and first of chunk 1
     scale = np.max(np.abs(kin.vdot))
-    np.testing.assert_allclose(kc.vdot[boundary], kin.vdot[boundary], atol=1e-6 * scale)
+    # chunk 1's first frame is solved after a lead-in (fdk/approach.py), the serial one from
+    # its predecessor: two roots within the FDK tolerance, whose soft medio-lateral α
+    # differ by up to ~1e-6 m; 1e-5 of the scale is still 100 times below the one-sided
+    # difference checked at the end
+    np.testing.assert_allclose(kc.vdot[boundary], kin.vdot[boundary], atol=1e-5 * scale)
     np.testing.assert_allclose(kc.v[boundary], kin.v[boundary], atol=1e-6 * np.max(np.abs(kin.v)))
     # the same segment without the extra frame after it: its last frame is one-sided
     model, settings = load_model_and_settings(files / "tmj.yaml")
