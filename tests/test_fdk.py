@@ -311,3 +311,49 @@ def test_the_window_s_first_frame_after_a_lead_in_is_the_cold_start_s_root(tmj_m
     np.testing.assert_allclose(led.alpha, cold[0], atol=1e-7)
     assert np.any(np.abs(led.alpha[0]) > 1e-5)  # a real displacement, not the initial values
     assert led.evaluations[0] >= 6 + 1 and led.restarts[0] == 0
+
+
+def test_poses_moved_along_dq_dalpha_start_the_tracking_nearer_and_give_the_same_residual(tmj_model, tmj_settings):
+    """FrameWorkspace.predict: after a Jacobian at α, the poses for an evaluation at
+    α + Δα start moved by dq̂/dα Δα. The residual equals the one from the unmoved poses
+    (both solves converge to the same tracking optimum: to 1e-6 N), the moved poses are
+    nearer the solved ones than the unmoved (first-order prediction), and the tracking
+    needs fewer Gauss–Newton iterations."""
+    from openfdk.fdk.jacobian import analytic_jacobian
+    from openfdk.fdk.residual import FrameWorkspace
+
+    ctx, _, _ = _tmj_context(tmj_model, tmj_settings)
+    state0 = tmj_model.initial_state()
+    ctx.tracker.initial_guess(state0, ctx.meas[5][0], ctx.meas[5][3])
+    ws = FrameWorkspace({j: state0 for j in ctx.frames_needed(5)})
+    alpha = np.array([-8.6e-4, -8.6e-4, -1e-5])
+    ev = ctx.evaluate(5, alpha, ws)
+    ev = ctx.evaluate(5, alpha, ws)
+    analytic_jacobian(ctx, 5, ev)
+    assert ev.dq_dalpha is not None and np.abs(ev.dq_dalpha).max() > 0
+    step = np.array([3e-6, -2e-6, 5e-6])
+    plain, moved = ws.copy(), ws.copy()
+    moved.alpha, moved.dq_dalpha = alpha.copy(), ev.dq_dalpha
+    iterations = []
+    solve = ctx.tracker.solve_positions
+
+    def counted(*a, **k):
+        out = solve(*a, **k)
+        iterations.append(out[0].iterations)
+        return out
+
+    ctx.tracker.solve_positions = counted
+    try:
+        start = moved.copy()
+        start.predict(alpha + step)
+        e_plain = ctx.evaluate(5, alpha + step, plain)
+        n_plain, iterations[:] = sum(iterations), []
+        e_moved = ctx.evaluate(5, alpha + step, moved)
+        n_moved = sum(iterations)
+    finally:
+        del ctx.tracker.solve_positions
+    np.testing.assert_allclose(e_moved.f_fdk, e_plain.f_fdk, atol=1e-6)
+    far = np.max(np.abs(ws.states[5].p_WB - plain.states[5].p_WB))
+    near = np.max(np.abs(start.states[5].p_WB - plain.states[5].p_WB))
+    assert far > 1e-7 and near < 0.1 * far
+    assert n_moved < n_plain

@@ -158,6 +158,7 @@ class FDKStep:
         self.history = []  # (frame, α) of the most recent converged frames
         self.warm = None
         self.J_carry = None  # the last converged frame's FDK Jacobian (settings.reuse_jacobian)
+        self.dq_dalpha = None  # its kinematic sensitivity dq̂/dα (FrameWorkspace.predict)
         self.last_failed = None  # (frame, best α) of the previous frame when it did not converge
 
     def fields(self):
@@ -174,8 +175,10 @@ class FDKStep:
     def step(self, k):
         ctx, settings, history = self.ctx, self.settings, self.history
         t = ctx.times[k]
-        ws = FrameWorkspace({j: self.last_state for j in ctx.frames_needed(k)})
         warm_frame = bool(history) and history[-1][0] == k - 1
+        # the previous frame's poses, at its α, moved along its dq̂/dα to the warm start
+        ws = FrameWorkspace({j: self.last_state for j in ctx.frames_needed(k)},
+                            history[-1][1] if warm_frame else None, self.dq_dalpha if warm_frame else None)
         failed = self.last_failed if self.last_failed is not None and self.last_failed[0] == k - 1 else None
         if settings.extrapolate and len(history) >= 2 and warm_frame and history[-2][0] == k - 2:
             a0 = 2 * history[-1][1] - history[-2][1]
@@ -210,6 +213,7 @@ class FDKStep:
                                         self.warm, tried)
         sol = combined(first, later)
         self.J_carry = sol.jacobian if sol.converged else None
+        self.dq_dalpha = sol.workspace.dq_dalpha if sol.converged and sol.workspace is not None else None
         ev = sol.best
         self.last_failed = None if sol.converged or not ev.ok else (k, ev.alpha.copy())
         if sol.converged:
@@ -245,10 +249,11 @@ class FDKStep:
         return []
 
     def carry(self):
-        return self.last_state.copy(), list(self.history), self.warm, self.J_carry, self.last_failed
+        return self.last_state.copy(), list(self.history), self.warm, self.J_carry, self.last_failed, self.dq_dalpha
 
     def restore(self, carry):
-        last_state, history, self.warm, self.J_carry, self.last_failed = carry
+        last_state, history, self.warm, self.J_carry, self.last_failed, *sensitivity = carry
+        self.dq_dalpha = sensitivity[0] if sensitivity else None  # (a checkpoint of an earlier version)
         self.last_state, self.history = last_state.copy(), list(history)
 
 

@@ -111,6 +111,7 @@ def analytic_jacobian(ctx, k, ev):
     if fr.recruitment is None or fr.recruitment.criterion == "minmax":
         return None, 0, "analytic FDK Jacobian needs the polynomial recruitment criterion"
     u_all = kinematic_sensitivity(ctx, ev)  # (n, n_fdk)
+    ev.dq_dalpha = u_all
     rows = ctx.solver.layout.eq_coords
     # the force sets' stiffness from what the forces stage left at this pose (path and
     # measure Jacobians are not evaluated again); the contacts' by central differences of

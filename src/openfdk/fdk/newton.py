@@ -103,6 +103,8 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None) -> Frame
         if J is None or not reuse:
             J, n_ev, msg = _jacobian(ctx, k, ev, ws, settings)
             evaluations += n_ev
+            if ev.dq_dalpha is not None and ctx.tracker is not None:
+                ws.alpha, ws.dq_dalpha = ev.alpha.copy(), ev.dq_dalpha  # poses predicted from here on
             n_jac += 1
             fresh = True
             if J is None:
