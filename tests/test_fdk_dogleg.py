@@ -1,10 +1,10 @@
-"""Powell's dogleg step in the max_step box (openfdk.fdk.newton.dogleg_step), against
+"""Powell's dogleg step in the max_step box (openfdk.fdk.trust_region.dogleg_step), against
 its definition: the Newton step inside the box, the Cauchy point found by a brute-force
 search along steepest descent, and the box boundary."""
 
 import numpy as np
 
-from openfdk.fdk.newton import dogleg_step
+from openfdk.fdk.trust_region import dogleg_step
 
 MAX_STEP = np.array([1e-3, 1e-3, 0.05])  # m, m, rad
 

@@ -1,10 +1,12 @@
 """Newton–Raphson on f^FDK(α) = 0 for one frame (paper Fig. 1).
 
 Each iteration: Jacobian J = ∂f^FDK/∂α (analytic or central differences), Newton step
-Δα = −J⁻¹ f, replaced by Powell's dogleg step (:func:`dogleg_step`) when some |Δα_i|
-exceeds its ``max_step``, then a
-step length β: the full step is taken when it reduces ‖f^FDK‖₂; otherwise a golden-section
-search on β ∈ (0, 1) (the paper's line search) picks the β with the smallest ‖f^FDK‖₂.
+Δα = −J⁻¹ f, replaced by Powell's dogleg step within the trust region |Δα_i| ≤ r max_step_i
+(:mod:`.trust_region`; r starts each frame at 1 and adapts to how well the linear model
+predicted the last step). A step that does not reduce ‖f^FDK‖₂ is refused: the region
+shrinks and the same J gives a shorter step; within NEAR_ROOT tolerances of the root,
+or after MAX_SHRINK refusals, a golden-section search on the step length β ∈ (0, 1)
+(the paper's line search) picks the β with the smallest ‖f^FDK‖₂ instead.
 Converged when max |f^FDK| < tolerance.
 
 Jacobian reuse (setting ``reuse_jacobian``, default on): instead of a fresh J at every
@@ -48,6 +50,7 @@ import numpy as np
 
 from ..kinematics.frame_kernels import small_solve
 from .jacobian import analytic_jacobian, central_jacobian
+from .trust_region import MAX_SHRINK, NEAR_ROOT, SHRINK, dogleg_step, reduction_ratio, trust_radius
 
 GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
 #: a step with a carried (Broyden-updated) J must divide ‖f^FDK‖₂ by this, else the next
@@ -97,10 +100,11 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None) -> Frame
     if not ev.ok:
         return done(ev, False, 0, ev.message, ev.stage or "failed", ws)
     best, best_ws = ev, ws.copy()
+    radius, rejected = 1.0, 0  # the trust region (multiples of max_step) and the steps it refused
     for it in range(1, settings.max_iterations + 1):
         if ev.norm < settings.tolerance:
             return done(ev, True, it - 1, "", "converged", ws)
-        if J is None or not reuse:
+        if J is None or (not reuse and not fresh):  # (a refused step keeps its fresh J)
             J, n_ev, msg = _jacobian(ctx, k, ev, ws, settings)
             evaluations += n_ev
             if ev.dq_dalpha is not None and ctx.tracker is not None:
@@ -110,8 +114,8 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None) -> Frame
             if J is None:
                 return done(best, False, it, msg, "jacobian", best_ws)
         try:
-            step = small_solve(J, -ev.f_fdk)
-            if not np.all(np.isfinite(step)):
+            step_N = small_solve(J, -ev.f_fdk)  # the Newton step
+            if not np.all(np.isfinite(step_N)):
                 raise np.linalg.LinAlgError
         except np.linalg.LinAlgError:
             if not fresh:  # a carried J went singular: compute one here
@@ -120,11 +124,13 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None) -> Frame
             weak = [names[i] for i in np.flatnonzero(np.max(np.abs(J), axis=0) < 1e-9 * max(1.0, np.abs(J).max()))]
             return done(best, False, it, f"singular FDK Jacobian: no restoring force along {weak or names}",
                         "singular", best_ws)
-        step = dogleg_step(J, ev.f_fdk, step, max_step)
+        step = dogleg_step(J, ev.f_fdk, step_N, radius * max_step)
         trial_ws = ws.copy()
         trial = ctx.evaluate(k, ev.alpha + step, trial_ws, ev.frame.recruitment)
         evaluations += 1
+        reach = float(np.max(np.abs(step / max_step)))  # the step's length in max_steps
         if _norm2(trial) < _norm2(ev):
+            radius, rejected = trust_radius(radius, reach, reduction_ratio(J, ev.f_fdk, step, trial.f_fdk)), 0
             reduced = _norm2(trial) * CARRIED_J_REDUCTION <= _norm2(ev)
             if reuse:
                 J = _broyden(J, trial.alpha - ev.alpha, trial.f_fdk - ev.f_fdk)
@@ -135,7 +141,14 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None) -> Frame
         elif not fresh:
             J = None  # retry this iterate with a fresh J
             continue
+        elif settings.line_search and rejected < MAX_SHRINK and ev.norm > NEAR_ROOT * settings.tolerance:
+            # the linear model is not trusted this far: a shorter dogleg step, the same J
+            radius, rejected = SHRINK * reach, rejected + 1
+            continue
         elif settings.line_search:
+            # near the root (or the region shrunk MAX_SHRINK times): golden section along the step
+            step = dogleg_step(J, ev.f_fdk, step_N, max_step)
+            radius, rejected = 1.0, 0
             trial, trial_ws, n_ev = _golden_section(ctx, k, ev, ws, step, settings.golden_section_evaluations)
             evaluations += n_ev
             if trial is None:
@@ -227,40 +240,6 @@ def _jacobian(ctx, k, ev, ws, settings):
     if settings.jacobian == "analytic":
         return analytic_jacobian(ctx, k, ev)
     return central_jacobian(ctx, k, ev, ws, settings.perturbation)
-
-
-def dogleg_step(J, f, step_N, max_step):
-    """Powell's dogleg step within the box |Δα_i| ≤ max_step_i (Nocedal & Wright,
-    "Numerical Optimization", 2nd ed., §4.1 and §11.2).
-
-    J (n, n), f (n,) N or N m: the linear model f + J Δα; step_N (n,): the Newton step
-    −J⁻¹ f; max_step (n,) SI. In the variables scaled by max_step (the box becomes the
-    unit cube): the Newton step when it lies in the box; else the Cauchy point
-    p_C = −(‖g‖² / ‖J g‖²) g, g = Jᵀ f the gradient of ½‖f + J Δα‖² at 0, cut at the box
-    when it leaves it; else the point where the segment from p_C to the Newton step
-    leaves the box. Where J is nearly singular along a DOF the Newton step is long and
-    points where the model is least trusted; the Cauchy point still decreases the model,
-    so the step turns towards steepest descent instead of being scaled down whole.
-    Returns Δα (n,)."""
-    p_N = step_N / max_step
-    ratio = np.max(np.abs(p_N))
-    if ratio <= 1.0:
-        return step_N
-    J_s = J * max_step[None, :]
-    g = J_s.T @ f
-    Jg = J_s @ g
-    gg, JgJg = float(g @ g), float(Jg @ Jg)
-    if gg == 0.0 or JgJg == 0.0 or not np.isfinite(JgJg):
-        return step_N / ratio
-    p_C = -(gg / JgJg) * g
-    reach = np.max(np.abs(p_C))
-    if reach >= 1.0:
-        return p_C / reach * max_step
-    d = p_N - p_C
-    with np.errstate(divide="ignore", invalid="ignore"):
-        tau = np.where(d != 0.0, (np.sign(d) - p_C) / d, np.inf)
-    tau = float(min(1.0, np.min(tau)))
-    return (p_C + tau * d) * max_step
 
 
 def _broyden(J, s, y):

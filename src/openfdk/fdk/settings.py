@@ -9,7 +9,8 @@ fdk:
                            # or an unconverged iterate, not from a neighbouring solution
   jacobian: analytic       # or central (the paper's central differences)
   reuse_jacobian: true     # carry J between iterations and frames with Broyden updates
-  line_search: true        # golden-section search on the step length when the full step fails
+  line_search: true        # a refused step: a smaller trust region, then a golden-section search
+                           # on the step length (false: plain Newton steps in the max_step box)
   extrapolate: true        # warm start α by linear extrapolation of the two previous frames
   restart: true            # a frame that fails from its warm start is solved again from the
                            # previous frame's α, then from the DOFs' initial values, then
@@ -42,7 +43,8 @@ DEFAULT_PERTURBATION = {"length": 1e-6, "angle": 1e-6}
 class FDKSettings:
     """tolerance : N or N m on max |f^FDK|; max_iterations; cold_max_iterations (a frame
     whose previous frame did not converge, :mod:`openfdk.fdk.analysis`); jacobian : "analytic" or
-    "central"; line_search; reuse_jacobian (Broyden-updated J carried between
+    "central"; line_search (trust region and golden section, :mod:`openfdk.fdk.trust_region`);
+    reuse_jacobian (Broyden-updated J carried between
     iterations and frames, fdk/newton.py); extrapolate; restart (solve a failed frame
     again from the previous frame's α and from the DOFs' initial values,
     :func:`openfdk.fdk.newton.solve_frame_from`); max_step, perturbation : (n_fdk,) SI,

@@ -1,0 +1,96 @@
+"""The trust region of the FDK Newton iteration (openfdk.fdk.trust_region, used by
+openfdk.fdk.newton.solve_frame), against closed forms.
+
+The frame below is a contact in one DOF: a layer of thickness h on the non-linear
+elastic-foundation law (Bei & Fregly 2004), P(α) = −P₀ ln(1 − α/h) for a depth α < h,
+pressed by a load F. Its root is α* = h (1 − exp(−F/P₀)) exactly. Beyond the layer the
+law is undefined and the evaluation fails, as a pose through an implant does. From the
+undeformed α = 0 the Newton step is F h / P₀ = 3 h: the first trial (the max_step box,
+h) goes through the layer and is refused, and the trust region must shrink to a step the
+law describes.
+"""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from openfdk.fdk.newton import solve_frame
+from openfdk.fdk.residual import Evaluation
+from openfdk.fdk.settings import FDKSettings
+from openfdk.fdk.trust_region import SHRINK, reduction_ratio, trust_radius
+
+H = 1e-3  # m, layer thickness
+P0 = 1e3  # N, the law's modulus times the contact area
+F = 3e3  # N, load
+ROOT = H * (1.0 - np.exp(-F / P0))  # m
+
+
+class _Workspace:
+    def copy(self):
+        return self
+
+
+class _LayerContact:
+    """A stand-in for FDKContext with the closed-form f; records every α evaluated."""
+
+    def __init__(self):
+        self.model = SimpleNamespace(fdk_dofs=[SimpleNamespace(name="normal")])
+        self.tracker = None
+        self.alphas = []
+
+    def evaluate(self, k, alpha, ws, warm=None):
+        alpha = np.array(alpha, dtype=float)
+        self.alphas.append(float(alpha[0]))
+        if alpha[0] >= H:
+            return Evaluation(alpha, False, np.full(1, np.nan), "through the layer", "kinematics")
+        f = np.array([-P0 * np.log1p(-alpha[0] / H) - F])
+        return Evaluation(alpha, True, f, frame=SimpleNamespace(recruitment=None))
+
+
+SETTINGS = FDKSettings(tolerance=1e-6, jacobian="central", reuse_jacobian=False, max_step=(H,),
+                       perturbation=(1e-9,), restart=False)
+
+
+def test_a_step_through_the_layer_shrinks_the_region_and_the_solve_reaches_the_closed_form_root():
+    ctx = _LayerContact()
+    sol = solve_frame(ctx, 0, np.array([0.0]), _Workspace(), SETTINGS)
+    assert sol.converged
+    assert sol.best.alpha[0] == pytest.approx(ROOT, abs=1e-12)
+    # the trials (every evaluation but the start and the central differences ±1e-9 m)
+    a = ctx.alphas
+    trials = [a[i] for i in range(1, len(a)) if not any(abs(a[i] - b) == pytest.approx(1e-9, rel=1e-3)
+                                                        for b in a[:i])]
+    assert trials[0] == pytest.approx(H)  # the Newton step 3 h, cut at the box: through the layer
+    assert trials[1] == pytest.approx(SHRINK * H)  # the same J, a quarter of that length
+
+
+def test_the_same_frame_without_a_line_search_stops_at_the_refused_step():
+    sol = solve_frame(_LayerContact(), 0, np.array([0.0]), _Workspace(),
+                      FDKSettings(**{**SETTINGS.__dict__, "line_search": False}))
+    assert not sol.converged and sol.reason == "line_search"
+    assert sol.best.alpha[0] == 0.0
+
+
+def test_the_reduction_ratio_is_one_for_a_linear_f_and_the_closed_form_for_a_quadratic():
+    J = np.array([[2.0, 1.0], [0.0, 3.0]])
+    f = np.array([1.0, -2.0])
+    step = np.array([0.1, 0.3])
+    assert reduction_ratio(J, f, step, f + J @ step) == pytest.approx(1.0, rel=1e-14)
+    # f(α) = f + J α + c α₀²: actual decrease over predicted, written out
+    c = np.array([5.0, -1.0])
+    f_trial = f + J @ step + c * step[0] ** 2
+    predicted = f @ f - np.sum((f + J @ step) ** 2)
+    assert reduction_ratio(J, f, step, f_trial) == pytest.approx((f @ f - f_trial @ f_trial) / predicted, rel=1e-14)
+    assert reduction_ratio(J, f, np.zeros(2), f) == 0.0  # no predicted decrease
+
+
+@pytest.mark.parametrize("radius, reach, rho, expected", [
+    (0.5, 0.5, 0.9, 1.0),  # good prediction at the boundary: doubled
+    (0.75, 0.75, 0.9, 1.0),  # ... but never beyond the max_step box
+    (0.5, 0.2, 0.9, 0.5),  # good prediction inside the region: kept
+    (1.0, 0.8, 0.5, 1.0),  # fair prediction: kept
+    (1.0, 0.8, 0.1, SHRINK * 0.8),  # poor prediction: shrunk to a quarter of the step
+])
+def test_the_radius_rule(radius, reach, rho, expected):
+    assert trust_radius(radius, reach, rho) == pytest.approx(expected)
