@@ -5,8 +5,8 @@ free columns of C f = d (Eq. 14). Eliminating them (:mod:`openfdk.recruitment.re
 projects every muscle's column c_i onto the orthogonal complement of their span; the
 bounded problem sees only that projection. When a muscle's column lies in the span of the
 free columns, its projection is zero, its dual g_i = c_iᵀλ vanishes identically, and the
-polynomial criterion gives it no force at any α (with p = 3 a round-off g_i ≈ ±1e-12 gives
-≈ sqrt(g_i) noise instead, a few hundredths of a newton). FDK then balances the FDK DOFs
+polynomial criterion gives it no force at any α (the reduction zeroes such a column:
+with p = 3 a round-off g_i ≈ ±1e-12 gave ≈ sqrt(g_i) noise instead, a few mN). FDK then balances the FDK DOFs
 without it: f^FDK(α) = 0 is reached, if at all, by the passive forces alone.
 
 This happens when a muscle acts only on a body whose every DOF is force-dependent, besides
@@ -24,9 +24,9 @@ from __future__ import annotations
 
 import numpy as np
 
-#: a muscle is absorbed when the part of its column outside the free columns' span is
-#: below this fraction of the column's norm
-ABSORBED_RTOL = 1e-8
+# a muscle is absorbed when the part of its column outside the free columns' span is
+# below ABSORBED_RTOL of the column's norm (the reduction zeroes such a column)
+from ..recruitment.reduction import ABSORBED_RTOL
 
 
 def _outside(C_F, C):

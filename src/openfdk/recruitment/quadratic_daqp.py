@@ -10,6 +10,7 @@ solved by DAQP, a dual active-set method (Arnström, Bemporad & Axehill, "A Dual
 Solver for Embedded Quadratic Programming Using Recursive LDLᵀ Updates", IEEE TAC 67(8),
 2022). DAQP's Lagrangian is ½xᵀHx + λᵀ(A x − b) (sign opposite to openfdk's), hence
 λ = −L λ_DAQP with L from the reduction.
+(The reduction zeroes the columns the free forces absorb: :mod:`.reduction`.)
 """
 
 from __future__ import annotations
