@@ -441,6 +441,10 @@ def _convergence(results, t, failed):
                 ax.plot(t, values, ".-", lw=0.8, label=name)
         if kind == "iterations":
             ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+            counts = np.concatenate([np.asarray(v, dtype=float) for _, v in series])
+            lo, hi = np.nanmin(counts), np.nanmax(counts)
+            if hi - lo < 2:  # a (nearly) constant count: a range with integer ticks around it
+                ax.set_ylim(np.floor(lo) - 1, np.ceil(hi) + 1)
         ax.set_ylabel(label, fontsize=8)
     bad = np.flatnonzero(failed)
     if bad.size and shown and shown[0][0].startswith("kinematics"):
