@@ -9,14 +9,14 @@ linear, slopes +1 / −1 on either side of a kink at α = 0 where f = 0.5 N (the
 and a third piece of slope 2 for α < −1 m whose root is α* = −1.75 m exactly.
 """
 
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from openfdk.fdk.newton import solve_frame, solve_frame_from
-from openfdk.fdk.residual import Evaluation
 from openfdk.fdk.settings import FDKSettings
+
+from fdk_stand_ins import ClosedFormResidual, Workspace
 
 ROOT = -1.75  # 1.5 + 2 (α + 1) = 0
 
@@ -27,22 +27,9 @@ def _f(alpha):
     return np.array([0.5 + abs(a) if a >= -1.0 else 1.5 + 2.0 * (a + 1.0)])
 
 
-class _Workspace:
-    def copy(self):
-        return self
-
-
-class _KinkedResidual:
-    """A stand-in for FDKContext with the closed-form f; counts evaluations."""
-
-    def __init__(self):
-        self.model = SimpleNamespace(fdk_dofs=[SimpleNamespace(name="x")])
-        self.calls = 0
-
-    def evaluate(self, k, alpha, ws, warm=None):
-        self.calls += 1
-        alpha = np.array(alpha, dtype=float)
-        return Evaluation(alpha, True, _f(alpha), frame=SimpleNamespace(recruitment=None))
+def _KinkedResidual():
+    """The stand-in context of the closed-form f."""
+    return ClosedFormResidual(_f)
 
 
 SETTINGS = FDKSettings(tolerance=1e-9, jacobian="central", reuse_jacobian=False, max_step=(10.0,),
@@ -51,7 +38,7 @@ SETTINGS = FDKSettings(tolerance=1e-9, jacobian="central", reuse_jacobian=False,
 
 def test_newton_with_line_search_stalls_at_the_kink_which_is_not_a_root():
     ctx = _KinkedResidual()
-    sol = solve_frame(ctx, 0, np.array([0.3]), _Workspace(), SETTINGS)
+    sol = solve_frame(ctx, 0, np.array([0.3]), Workspace(), SETTINGS)
     assert not sol.converged and sol.reason in ("line_search", "singular")
     # the stall is at the kink, |f| = 0.5 N at α = 0 (to the golden section's resolution),
     # 1.75 m from the root
@@ -62,7 +49,7 @@ def test_newton_with_line_search_stalls_at_the_kink_which_is_not_a_root():
 def test_restart_from_the_initial_alpha_finds_the_closed_form_root():
     ctx = _KinkedResidual()
     starts = [np.array([0.3]), np.array([0.2]), np.array([-1.5])]  # warm, previous, initial
-    sol = solve_frame_from(ctx, 0, starts, _Workspace(), SETTINGS)
+    sol = solve_frame_from(ctx, 0, starts, Workspace(), SETTINGS)
     assert sol.converged and sol.reason == "converged" and sol.message == ""
     assert sol.best.alpha[0] == pytest.approx(ROOT, abs=1e-9)
     assert sol.restarts == 2  # the previous frame's α lies in the kink's basin too
@@ -72,16 +59,16 @@ def test_restart_from_the_initial_alpha_finds_the_closed_form_root():
 def test_restart_setting_off_and_a_frame_that_converges_keep_the_single_solve():
     ctx = _KinkedResidual()
     off = FDKSettings(**{**SETTINGS.__dict__, "restart": False})
-    sol = solve_frame_from(ctx, 0, [np.array([0.3]), np.array([-1.5])], _Workspace(), off)
+    sol = solve_frame_from(ctx, 0, [np.array([0.3]), np.array([-1.5])], Workspace(), off)
     assert not sol.converged and sol.restarts == 0
     ctx = _KinkedResidual()
-    sol = solve_frame_from(ctx, 0, [np.array([-1.2]), np.array([0.3])], _Workspace(), SETTINGS)
+    sol = solve_frame_from(ctx, 0, [np.array([-1.2]), np.array([0.3])], Workspace(), SETTINGS)
     assert sol.converged and sol.restarts == 0 and sol.best.alpha[0] == pytest.approx(ROOT, abs=1e-9)
 
 
 def test_no_start_converges_reports_the_best_iterate_with_the_first_reason():
     ctx = _KinkedResidual()
-    sol = solve_frame_from(ctx, 0, [np.array([0.3]), np.array([0.3]), np.array([0.1])], _Workspace(), SETTINGS)
+    sol = solve_frame_from(ctx, 0, [np.array([0.3]), np.array([0.3]), np.array([0.1])], Workspace(), SETTINGS)
     assert not sol.converged and sol.restarts == 1  # the repeated start is skipped
     assert "1 restart(s) from other starting α did not converge either" in sol.message
     assert sol.best.norm == pytest.approx(0.5, abs=1e-2)
@@ -111,9 +98,9 @@ def test_scan_starts_reach_a_root_beyond_the_previous_alphas_basin():
     settings = FDKSettings(tolerance=1e-9, jacobian="central", reuse_jacobian=False, max_step=(0.5,),
                            perturbation=(1e-6,))
     ctx = _KinkedResidual()
-    without = solve_frame_from(ctx, 0, [np.array([0.3]), np.array([0.2])], _Workspace(), settings)
+    without = solve_frame_from(ctx, 0, [np.array([0.3]), np.array([0.2])], Workspace(), settings)
     assert not without.converged
-    sol = solve_frame_from(ctx, 0, [np.array([0.3]), np.array([0.2])] + starts, _Workspace(), settings)
+    sol = solve_frame_from(ctx, 0, [np.array([0.3]), np.array([0.2])] + starts, Workspace(), settings)
     assert sol.converged and sol.best.alpha[0] == pytest.approx(ROOT, abs=1e-9)
     assert sol.restarts == 4
 

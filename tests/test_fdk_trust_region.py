@@ -10,15 +10,15 @@ h) goes through the layer and is refused, and the trust region must shrink to a 
 law describes.
 """
 
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from openfdk.fdk.newton import solve_frame
-from openfdk.fdk.residual import Evaluation
 from openfdk.fdk.settings import FDKSettings
 from openfdk.fdk.trust_region import SHRINK, reduction_ratio, trust_radius
+
+from fdk_stand_ins import ClosedFormResidual, Workspace
 
 H = 1e-3  # m, layer thickness
 P0 = 1e3  # N, the law's modulus times the contact area
@@ -26,26 +26,15 @@ F = 3e3  # N, load
 ROOT = H * (1.0 - np.exp(-F / P0))  # m
 
 
-class _Workspace:
-    def copy(self):
-        return self
+def _layer(alpha):
+    """f(α) N of the layer, None through it."""
+    if alpha[0] >= H:
+        return None
+    return np.array([-P0 * np.log1p(-alpha[0] / H) - F])
 
 
-class _LayerContact:
-    """A stand-in for FDKContext with the closed-form f; records every α evaluated."""
-
-    def __init__(self):
-        self.model = SimpleNamespace(fdk_dofs=[SimpleNamespace(name="normal")])
-        self.tracker = None
-        self.alphas = []
-
-    def evaluate(self, k, alpha, ws, warm=None):
-        alpha = np.array(alpha, dtype=float)
-        self.alphas.append(float(alpha[0]))
-        if alpha[0] >= H:
-            return Evaluation(alpha, False, np.full(1, np.nan), "through the layer", "kinematics")
-        f = np.array([-P0 * np.log1p(-alpha[0] / H) - F])
-        return Evaluation(alpha, True, f, frame=SimpleNamespace(recruitment=None))
+def _LayerContact():
+    return ClosedFormResidual(_layer, ("normal",))
 
 
 SETTINGS = FDKSettings(tolerance=1e-6, jacobian="central", reuse_jacobian=False, max_step=(H,),
@@ -54,11 +43,11 @@ SETTINGS = FDKSettings(tolerance=1e-6, jacobian="central", reuse_jacobian=False,
 
 def test_a_step_through_the_layer_shrinks_the_region_and_the_solve_reaches_the_closed_form_root():
     ctx = _LayerContact()
-    sol = solve_frame(ctx, 0, np.array([0.0]), _Workspace(), SETTINGS)
+    sol = solve_frame(ctx, 0, np.array([0.0]), Workspace(), SETTINGS)
     assert sol.converged
     assert sol.best.alpha[0] == pytest.approx(ROOT, abs=1e-12)
     # the trials (every evaluation but the start and the central differences ±1e-9 m)
-    a = ctx.alphas
+    a = [float(x[0]) for x in ctx.alphas]
     trials = [a[i] for i in range(1, len(a)) if not any(abs(a[i] - b) == pytest.approx(1e-9, rel=1e-3)
                                                         for b in a[:i])]
     assert trials[0] == pytest.approx(H)  # the Newton step 3 h, cut at the box: through the layer
@@ -66,7 +55,7 @@ def test_a_step_through_the_layer_shrinks_the_region_and_the_solve_reaches_the_c
 
 
 def test_the_same_frame_without_a_line_search_stops_at_the_refused_step():
-    sol = solve_frame(_LayerContact(), 0, np.array([0.0]), _Workspace(),
+    sol = solve_frame(_LayerContact(), 0, np.array([0.0]), Workspace(),
                       FDKSettings(**{**SETTINGS.__dict__, "line_search": False}))
     assert not sol.converged and sol.reason == "line_search"
     assert sol.best.alpha[0] == 0.0
