@@ -21,7 +21,8 @@
   The second derivatives of the geometry that steps 1–2 need (H, and the change of the
   Jacobian columns in C) are differences of analytic first derivatives on the manifold
   (forward for H, relative error ~1e-7; forward along the few directions u_j for C, the
-  inertial terms and s, central for the contacts' Q), with no recruitment solve. The dependence of v and v̇ on α
+  inertial terms, s and the contacts' and muscles' Q), with no recruitment solve. The
+  dependence of v and v̇ on α
   through the neighbouring frames' positions is neglected: α̇ = α̈ = 0 by definition and
   the inertial forces of jaw-sized bodies are small next to joint stiffness.
 """
@@ -36,10 +37,12 @@ from ..recruitment import recruitment_sensitivity
 from .residual import FrameWorkspace
 
 
-#: force kinds whose stiffness the analytic Jacobian takes by central differences of Q
+#: force kinds whose stiffness the analytic Jacobian takes by forward differences of Q
 #: along each u_j rather than from the set's K: the elastic-foundation contacts, whose K
 #: omits the change of the surface normal with the pose (curvature; 10–40 % of a
-#: column on the DM knee implants, against ≤ 2 % along the differences)
+#: column on the DM knee implants, against ≤ 2 % along the differences). The muscles'
+#: passive Q is differenced as well, from the muscle states the geometry terms evaluate
+#: anyway (their K would difference the wrapped paths over every touched body again)
 DIRECTIONAL_KINDS = ("contacts",)
 
 
@@ -98,10 +101,10 @@ def kinematic_sensitivity(ctx, ev):
 
 
 def _geometry_terms(ctx, state, vdot, t, alpha):
-    """C, the right-hand side without the applied loads (inertial terms only) and the
-    strengths s at ``state`` (velocities held)."""
-    C, d, s, _, _ = ctx.solver.equilibrium(state, vdot, t, alpha, forces=False)
-    return C, d, s
+    """C, the right-hand side without the applied loads (inertial terms only), the
+    strengths s and the muscles' passive Q (n,) [N, N m] at ``state`` (velocities held)."""
+    C, d, s, muscles, _ = ctx.solver.equilibrium(state, vdot, t, alpha, forces=False)
+    return C, d, s, -(muscles.L.T @ muscles.passive)
 
 
 def analytic_jacobian(ctx, k, ev):
@@ -114,10 +117,10 @@ def analytic_jacobian(ctx, k, ev):
     ev.dq_dalpha = u_all
     rows = ctx.solver.layout.eq_coords
     # the force sets' stiffness from what the forces stage left at this pose (path and
-    # measure Jacobians are not evaluated again); the contacts' by central differences of
-    # their Q along each u_j (DIRECTIONAL_KINDS)
+    # measure Jacobians are not evaluated again); the contacts' and the muscles' by
+    # forward differences of their Q along each u_j (DIRECTIONAL_KINDS)
     forces = ctx.solver.forces
-    K = forces.stiffness(ev.state, ev.data.forces, exclude=DIRECTIONAL_KINDS)
+    K = forces.stiffness(ev.state, ev.data.forces, exclude=DIRECTIONAL_KINDS + ("muscles",))
     directional = any(fs.kind in DIRECTIONAL_KINDS for fs in forces.sets)
     n_fdk = len(ev.alpha)
     dC, dd, ds = [], [], []
@@ -125,22 +128,20 @@ def analytic_jacobian(ctx, k, ev):
     # from it (n_fdk + 1 evaluations of every path instead of 2 n_fdk; the wrapped paths
     # dominate, and their geodesics are solved to 1e-13 m, so a 1e-6 step still gives
     # ~1e-7 relative accuracy)
-    C0, d0, s0 = _geometry_terms(ctx, ev.state, ev.vdot, t, ev.alpha)
+    C0, d0, s0, Qm0 = _geometry_terms(ctx, ev.state, ev.vdot, t, ev.alpha)
+    Qc0 = forces.generalized_forces_of(DIRECTIONAL_KINDS, ev.state, t) if directional else None
     for j in range(n_fdk):
         u = u_all[:, j]
         scale = max(np.max(np.abs(u)), 1e-12)
         eps = 1e-6 / scale
         sp = ev.state.copy()
         sp.displace(eps * u)
-        Cp, dp, s_p = _geometry_terms(ctx, sp, ev.vdot, t, ev.alpha)
+        Cp, dp, s_p, Qm_p = _geometry_terms(ctx, sp, ev.vdot, t, ev.alpha)
         dC.append((Cp - C0) / eps)
         # d = d_inertial − Q: the applied loads' part by their stiffness (Eq. 13)
-        dQ = K @ u
+        dQ = K @ u + (Qm_p - Qm0) / eps
         if directional:
-            sm = ev.state.copy()
-            sm.displace(-eps * u)
-            dQ += (forces.generalized_forces_of(DIRECTIONAL_KINDS, sp, t)
-                   - forces.generalized_forces_of(DIRECTIONAL_KINDS, sm, t)) / (2 * eps)
+            dQ += (forces.generalized_forces_of(DIRECTIONAL_KINDS, sp, t) - Qc0) / eps
         dd.append((dp - d0) / eps - dQ[rows])
         ds.append((s_p - s0) / eps)
     p = ctx.solver.settings.power
