@@ -174,6 +174,31 @@ def test_analytic_jacobian_matches_central_differences_on_tmj_model(tmj_model, t
     assert checked == 3
 
 
+def test_analytic_jacobian_does_not_depend_on_its_difference_step(tmj_model, tmj_settings, monkeypatch):
+    """The geometry's change along each u_j is a central difference: its error is O(h²),
+    so steps of 1e-6 and 3e-7 give the same J to 1e-8 relative (1.3e-10 measured; a
+    forward difference errs by O(h): 7.6e-7 here, and on the DM knee the recruitment
+    amplifies such an error into a 6-fold wrong soft mode, docs/fdk.md)."""
+    from openfdk.fdk import jacobian
+    from openfdk.fdk.residual import FrameWorkspace
+
+    ctx, _, _ = _tmj_context(tmj_model, tmj_settings)
+    state0 = tmj_model.initial_state()
+    ctx.tracker.initial_guess(state0, ctx.meas[0][0], ctx.meas[0][3])
+    k = 15
+    ws = FrameWorkspace({j: state0 for j in ctx.frames_needed(k)})
+    ev = ctx.evaluate(k, np.array([-5e-4, -7e-4, 2e-5]), ws)
+    assert ev.ok, ev.message
+    J = {}
+    for step in (1e-6, 3e-7):
+        monkeypatch.setattr(jacobian, "STEP", step)
+        J[step], _, msg = jacobian.analytic_jacobian(ctx, k, ev)
+        assert msg == ""
+    scale = np.abs(J[1e-6]).max()
+    assert scale > 1e4
+    assert np.abs(J[3e-7] - J[1e-6]).max() < 1e-8 * scale
+
+
 def test_analytic_and_central_fdk_converge_to_same_alpha(tmj_model, tmj_settings):
 
     _, traj, t = _tmj_context(tmj_model, tmj_settings, n_frames=20)

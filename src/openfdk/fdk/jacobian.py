@@ -20,8 +20,8 @@
 
   The second derivatives of the geometry that steps 1–2 need (H, and the change of the
   Jacobian columns in C) are differences of analytic first derivatives on the manifold
-  (forward for H, relative error ~1e-7; forward along the few directions u_j for C, the
-  inertial terms, s and the contacts' and muscles' Q), with no recruitment solve. The
+  (forward for H, relative error ~1e-7; central along the few directions u_j for C,
+  the inertial terms, s and the contacts' and muscles' Q), with no recruitment solve. The
   dependence of v and v̇ on α
   through the neighbouring frames' positions is neglected: α̇ = α̈ = 0 by definition and
   the inertial forces of jaw-sized bodies are small next to joint stiffness.
@@ -37,13 +37,17 @@ from ..recruitment import recruitment_sensitivity
 from .residual import FrameWorkspace
 
 
-#: force kinds whose stiffness the analytic Jacobian takes by forward differences of Q
+#: force kinds whose stiffness the analytic Jacobian takes by central differences of Q
 #: along each u_j rather than from the set's K: the elastic-foundation contacts, whose K
 #: omits the change of the surface normal with the pose (curvature; 10–40 % of a
 #: column on the DM knee implants, against ≤ 2 % along the differences). The muscles'
 #: passive Q is differenced as well, from the muscle states the geometry terms evaluate
 #: anyway (their K would difference the wrapped paths over every touched body again)
 DIRECTIONAL_KINDS = ("contacts",)
+
+#: the central differences' step along each u_j: STEP / max |u_j| (m or rad of the
+#: largest coordinate change)
+STEP = 1e-6
 
 
 def central_jacobian(ctx, k, ev, ws, steps):
@@ -118,32 +122,31 @@ def analytic_jacobian(ctx, k, ev):
     rows = ctx.solver.layout.eq_coords
     # the force sets' stiffness from what the forces stage left at this pose (path and
     # measure Jacobians are not evaluated again); the contacts' and the muscles' by
-    # forward differences of their Q along each u_j (DIRECTIONAL_KINDS)
+    # central differences of their Q along each u_j (DIRECTIONAL_KINDS)
     forces = ctx.solver.forces
     K = forces.stiffness(ev.state, ev.data.forces, exclude=DIRECTIONAL_KINDS + ("muscles",))
     directional = any(fs.kind in DIRECTIONAL_KINDS for fs in forces.sets)
     n_fdk = len(ev.alpha)
     dC, dd, ds = [], [], []
-    # C, d_inertial, s at the pose itself: the geometry's changes are forward differences
-    # from it (n_fdk + 1 evaluations of every path instead of 2 n_fdk; the wrapped paths
-    # dominate, and their geodesics are solved to 1e-13 m, so a 1e-6 step still gives
-    # ~1e-7 relative accuracy)
-    C0, d0, s0, Qm0 = _geometry_terms(ctx, ev.state, ev.vdot, t, ev.alpha)
-    Qc0 = forces.generalized_forces_of(DIRECTIONAL_KINDS, ev.state, t) if directional else None
     for j in range(n_fdk):
         u = u_all[:, j]
-        scale = max(np.max(np.abs(u)), 1e-12)
-        eps = 1e-6 / scale
-        sp = ev.state.copy()
-        sp.displace(eps * u)
-        Cp, dp, s_p, Qm_p = _geometry_terms(ctx, sp, ev.vdot, t, ev.alpha)
-        dC.append((Cp - C0) / eps)
+        eps = STEP / max(np.max(np.abs(u)), 1e-12)
+        # the geometry's change by central differences: forward ones (n_fdk + 1 path
+        # evaluations instead of 2 n_fdk) err by O(eps) in C, and the recruitment
+        # amplifies that error ~1e8-fold into f^FDK along a soft mode (DM knee, og9
+        # 4.042 s: the patella's rotations; J·Δα 6× off, the frame never converged)
+        ends = []
+        for sign in (1.0, -1.0):
+            sx = ev.state.copy()
+            sx.displace(sign * eps * u)
+            Qc = forces.generalized_forces_of(DIRECTIONAL_KINDS, sx, t) if directional else 0.0
+            ends.append((*_geometry_terms(ctx, sx, ev.vdot, t, ev.alpha), Qc))
+        (Cp, dp, s_p, Qm_p, Qc_p), (Cm, dm, s_m, Qm_m, Qc_m) = ends
+        dC.append((Cp - Cm) / (2 * eps))
         # d = d_inertial − Q: the applied loads' part by their stiffness (Eq. 13)
-        dQ = K @ u + (Qm_p - Qm0) / eps
-        if directional:
-            dQ += (forces.generalized_forces_of(DIRECTIONAL_KINDS, sp, t) - Qc0) / eps
-        dd.append((dp - d0) / eps - dQ[rows])
-        ds.append((s_p - s0) / eps)
+        dQ = K @ u + (Qm_p - Qm_m + Qc_p - Qc_m) / (2 * eps)
+        dd.append((dp - dm) / (2 * eps) - dQ[rows])
+        ds.append((s_p - s_m) / (2 * eps))
     p = ctx.solver.settings.power
     df = recruitment_sensitivity(fr.recruitment, fr.C, fr.d, fr.s, p, np.array(dC), np.array(dd), np.array(ds))
     return df[:, ctx.fdk_columns].T, 0, ""
