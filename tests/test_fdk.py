@@ -315,19 +315,25 @@ def test_a_cold_frame_gets_cold_max_iterations_and_a_failed_frame_hands_on_its_b
     np.testing.assert_allclose(res.alpha[1:, 0], -m * G / k, atol=1e-3 / k)
 
 
-def test_the_window_s_first_frame_after_a_lead_in_is_the_cold_start_s_root(tmj_model, tmj_settings):
+def test_the_window_s_first_frame_after_a_lead_in_is_the_cold_start_s_root(tmj_model, tmj_settings, monkeypatch):
     """Marker tracking, a window from the trial's 7th frame: the first frame is solved
     after a lead-in over the 6 frames before it (fdk/approach.py, cut at the trial's
     start), and every frame's α equals that of the same window solved cold from the
     initial values without the approach, to the force tolerance over the joint stiffness
-    (< 1e-7 m); the lead-in frames' evaluations count towards the first frame's."""
+    (< 1e-7 m); the lead-in frames' evaluations count towards the first frame's. The
+    first frame itself, whose rates are one-sided, gets the cold iteration limit."""
+    from openfdk.fdk import approach
     from openfdk.fdk.analysis import FDKStep, fdk_context
     from openfdk.fdk.settings import fdk_settings
     from openfdk.trial import drive
 
     _, traj, t = _tmj_context(tmj_model, tmj_settings, n_frames=20)
     window = t[6:12]
+    limits, solve = [], approach.solve_frame
+    monkeypatch.setattr(approach, "solve_frame",
+                        lambda ctx, k, a0, ws, s, *rest: limits.append(s.max_iterations) or solve(ctx, k, a0, ws, s, *rest))
     led = run_fdk(tmj_model, traj, window, tmj_settings)
+    assert limits == [fdk_settings(tmj_model, tmj_settings).cold_max_iterations]
     settings = fdk_settings(tmj_model, tmj_settings)
     step = FDKStep(tmj_model, fdk_context(tmj_model, traj, window, settings=tmj_settings), settings, approach=None)
     cold = drive(step, len(window), lambda rec: (rec.array("fdk.alpha"), rec.array("fdk.evaluations"),
