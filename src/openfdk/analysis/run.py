@@ -69,13 +69,10 @@ def run_trial(model, trajectories, times, *, settings=None, progress=False, chec
     t0 = _time.perf_counter()
     times = np.asarray(times, dtype=float)
     if model.fdk_dofs:
-        from ..fdk.analysis import FDKStep, fdk_context, fdk_result
-        from ..fdk.approach import approach_for
-        from ..fdk.settings import fdk_settings
+        from ..fdk.analysis import fdk_result, fdk_step
 
-        solver_settings = fdk_settings(model, settings)
-        ctx = fdk_context(model, trajectories, times, settings=settings)
-        step = FDKStep(model, ctx, solver_settings, approach_for(model, trajectories))
+        step = fdk_step(model, trajectories, times, settings)
+        ctx, solver_settings = step.ctx, step.settings
 
         def build(rec):
             res = fdk_result(rec, model, ctx, solver_settings, times[: rec.n_frames], _time.perf_counter() - t0)

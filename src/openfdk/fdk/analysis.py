@@ -286,6 +286,21 @@ def fdk_result(rec, model, ctx, settings, times, wall_time):
     return FDKResult(kin, forces, *args)
 
 
+def fdk_step(model, trajectories, times, settings=None, tracking=None, **overrides):
+    """The FDKStep of a trial, as ``run_fdk`` and ``openfdk run`` (:func:`openfdk.analysis.run.run_trial`)
+    both drive it: its context at ``times`` (nf,) s, the solver settings of ``settings``
+    (AnalysisSettings) with ``overrides``, and the approach; warns (PlausibilityWarning)
+    about muscles FDK can never recruit. One construction for both, so that the two give
+    the same frames bit for bit (the check evaluates the paths at the initial pose, which
+    leaves the wrapping's warm starts where the run then starts from)."""
+    solver_settings = fdk_settings(model, settings, **overrides)
+    ctx = fdk_context(model, trajectories, times, tracking, settings)
+    absorbed = fdk_absorbed_muscles(ctx.solver, model.initial_state())
+    if absorbed:
+        warn_plausibility(absorbed_message(absorbed))
+    return FDKStep(model, ctx, solver_settings, approach_for(model, trajectories))
+
+
 def run_fdk(model, trajectories=None, times=None, settings=None, progress=False, tracking=None, **overrides):
     """Force-dependent kinematics over a trial.
 
@@ -299,16 +314,11 @@ def run_fdk(model, trajectories=None, times=None, settings=None, progress=False,
     t0 = _time.perf_counter()
     if not model.fdk_dofs:
         raise ValueError(f"model {model.name!r} declares no FDK DOFs (section fdk_dofs)")
-    analysis_settings = settings
-    settings = fdk_settings(model, analysis_settings, **overrides)
     if times is None:
         times = np.asarray(trajectories.time, dtype=float)
     times = np.asarray(times, dtype=float)
-    ctx = fdk_context(model, trajectories, times, tracking, analysis_settings)
-    absorbed = fdk_absorbed_muscles(ctx.solver, model.initial_state())
-    if absorbed:
-        warn_plausibility(absorbed_message(absorbed))
-    step = FDKStep(model, ctx, settings, approach_for(model, trajectories))
+    step = fdk_step(model, trajectories, times, settings, tracking, **overrides)
+    ctx, settings = step.ctx, step.settings
 
     def build(rec):
         return fdk_result(rec, model, ctx, settings, times[: rec.n_frames], _time.perf_counter() - t0)
