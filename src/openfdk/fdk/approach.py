@@ -23,9 +23,10 @@ frames, each close to the one before.
 The marched frames are solved as the trial's frames are (warm starts, Broyden-carried
 Jacobian, the cold iteration limit for a cold first one) but without restarts, and
 frame k is then solved from the extrapolation of the last two with their poses,
-recruitment and Jacobian; after a lead-in with the cold iteration limit, since the
-window's first frame has one-sided rates (Eq. 7) the lead-in's frames did not have. Their iterations, evaluations and Jacobians count towards
-frame k's; nothing else of them is reported. The lead-in needs marker tracking (the
+recruitment and Jacobian. After a lead-in it gets the cold iteration limit: the
+window's first frame has one-sided rates (Eq. 7), which the lead-in's frames did not
+have, so its residual is not theirs. The marched frames' iterations, evaluations and Jacobians count
+towards frame k's; nothing else of them is reported. The lead-in needs marker tracking (the
 markers reach before the window; a determinate model's drivers need not).
 """
 

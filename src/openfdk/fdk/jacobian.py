@@ -22,9 +22,9 @@
   Jacobian columns in C) are differences of analytic first derivatives on the manifold
   (forward for H, relative error ~1e-7; central along the few directions u_j for C,
   the inertial terms, s and the contacts' and muscles' Q), with no recruitment solve. The
-  dependence of v and v̇ on α
-  through the neighbouring frames' positions is neglected: α̇ = α̈ = 0 by definition and
-  the inertial forces of jaw-sized bodies are small next to joint stiffness.
+  dependence of v and v̇ on α through the neighbouring frames' positions is neglected:
+  α̇ = α̈ = 0 by definition and the inertial forces of jaw-sized bodies are small next to
+  joint stiffness.
 """
 
 from __future__ import annotations
@@ -40,10 +40,13 @@ from .residual import FrameWorkspace
 #: force kinds whose stiffness the analytic Jacobian takes by central differences of Q
 #: along each u_j rather than from the set's K: the elastic-foundation contacts, whose K
 #: omits the change of the surface normal with the pose (curvature; 10–40 % of a
-#: column on the DM knee implants, against ≤ 2 % along the differences). The muscles'
-#: passive Q is differenced as well, from the muscle states the geometry terms evaluate
-#: anyway (their K would difference the wrapped paths over every touched body again)
+#: column on the DM knee implants, against ≤ 2 % along the differences)
 DIRECTIONAL_KINDS = ("contacts",)
+#: kinds whose set K the analytic Jacobian does not use: the directional ones, and the
+#: muscles, whose passive Q is differenced from the muscle states the geometry terms
+#: evaluate anyway (their K would difference the wrapped paths over every touched body
+#: again)
+DIFFERENCED_KINDS = DIRECTIONAL_KINDS + ("muscles",)
 
 #: the central differences' step along each u_j: STEP / max |u_j| (m or rad of the
 #: largest coordinate change)
@@ -122,9 +125,9 @@ def analytic_jacobian(ctx, k, ev):
     rows = ctx.solver.layout.eq_coords
     # the force sets' stiffness from what the forces stage left at this pose (path and
     # measure Jacobians are not evaluated again); the contacts' and the muscles' by
-    # central differences of their Q along each u_j (DIRECTIONAL_KINDS)
+    # central differences of their Q along each u_j (DIFFERENCED_KINDS)
     forces = ctx.solver.forces
-    K = forces.stiffness(ev.state, ev.data.forces, exclude=DIRECTIONAL_KINDS + ("muscles",))
+    K = forces.stiffness(ev.state, ev.data.forces, exclude=DIFFERENCED_KINDS)
     directional = any(fs.kind in DIRECTIONAL_KINDS for fs in forces.sets)
     n_fdk = len(ev.alpha)
     dC, dd, ds = [], [], []
