@@ -429,3 +429,39 @@ def test_ellipsoid_warm_start_equals_the_cold_solve_and_falls_back_far_away():
         assert st_w == st_c and abs(l_w - l_c) < 1e-12 and np.max(np.abs(T1_w - T1_c)) < 1e-9
         sides.append(np.sign(T1_c[1]))
     assert sides[0] > 0 > sides[-1]  # the sweep did cross the branch change
+
+
+
+def _nearest_by_bisection(axes, x):
+    """The point of the ellipsoid (semi-axes ``axes`` (3,) m) nearest x (3,) m inside it:
+    c = A⁻¹-weighted x, c_i = a_i² x_i/(t + a_i²), with the multiplier t in (−min a_i², 0]
+    found by bisection on the monotone constraint Σ (a_i x_i/(t + a_i²))² = 1."""
+    lo, hi = -np.min(axes ** 2), 0.0
+    for _ in range(200):
+        t = 0.5 * (lo + hi)
+        lo, hi = (t, hi) if np.sum((axes * x / (t + axes ** 2)) ** 2) > 1.0 else (lo, t)
+    return axes ** 2 * x / (0.5 * (lo + hi) + axes ** 2)
+
+
+def test_opensim_plane_fan_sums_the_unit_vectors_to_the_nearest_points():
+    """OpenSim's fan (wrap_ellipsoid_plane, docstring 2): the sum over the chord's sample
+    points of the unit vectors to their nearest surface points, with warm-started
+    Newton multipliers, equals the sum from nearest points found by bisection; and a
+    bisection point is the nearest (no surface point sampled densely is nearer)."""
+    from openfdk.forces.wrap_ellipsoid_plane import FAN_SAMPLES, _fan_sum
+
+    axes = np.array([0.9, 1.1, 1.6])  # the scaled frame of a 3:3:5 ellipsoid (m)
+    r1, r2 = np.array([-0.5, 0.9, -0.6]), np.array([-0.2, -0.7, 0.8])
+    r1, r2 = (r / np.sqrt(np.sum((r / axes) ** 2)) for r in (r1, r2))  # the chord's ends on the surface
+    d = r2 - r1
+    expected = np.zeros(3)
+    for i in range(1, FAN_SAMPLES - 1):
+        x = r1 + (i / FAN_SAMPLES) * d
+        u = _nearest_by_bisection(axes, x) - x
+        expected += u / np.linalg.norm(u)
+    th, ph = np.meshgrid(np.linspace(0, np.pi, 400), np.linspace(-np.pi, np.pi, 800))
+    surface = axes * np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], -1).reshape(-1, 3)
+    x = r1 + 0.4 * d
+    assert np.linalg.norm(_nearest_by_bisection(axes, x) - x) <= np.min(np.linalg.norm(surface - x, axis=1))
+    assert np.linalg.norm(expected) > 50.0  # 298 unit vectors, mostly aligned
+    np.testing.assert_allclose(_fan_sum(r1, d, axes), expected, atol=1e-9)
