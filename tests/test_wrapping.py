@@ -465,3 +465,45 @@ def test_opensim_plane_fan_sums_the_unit_vectors_to_the_nearest_points():
     assert np.linalg.norm(_nearest_by_bisection(axes, x) - x) <= np.min(np.linalg.norm(surface - x, axis=1))
     assert np.linalg.norm(expected) > 50.0  # 298 unit vectors, mostly aligned
     np.testing.assert_allclose(_fan_sum(r1, d, axes), expected, atol=1e-9)
+
+
+def test_opensim_plane_gradient_model_agrees_with_differences_near_its_reference():
+    """OpenSim's planar ellipsoid rule has no closed-form gradient: it is differenced, and
+    between nearby calls (a Jacobian's differences, a converging Newton step) a quadratic
+    model about a reference stands in (wrap_ellipsoid_plane.plane_wrap_gradients). Near
+    the reference the model's gradient equals fresh differences, and its change along a
+    direction equals the second difference of the length itself (a 5-point stencil with
+    ten times the step, the chord count held)."""
+    from openfdk.forces.wrap_ellipsoid_plane import PLANE_ROW, plane_wrap_core, plane_wrap_gradients
+
+    axes, side = np.array([0.03, 0.03, 0.05]), np.array([-1.0, 0.0, 0.0])
+    P0, Q0 = np.array([-0.0175, 0.026, -0.024]), np.array([-0.1669, -0.3950, -0.0007])
+    st, _, _, _, _, count, far = plane_wrap_core(P0, Q0, axes, side, -1, -1)
+    assert st == 1 and count >= 1
+    rng = np.random.default_rng(7)
+    v = rng.normal(size=6)
+    v /= np.linalg.norm(v)
+    row = np.zeros(PLANE_ROW)
+    plane_wrap_gradients(P0, Q0, axes, side, row)  # the reference
+    eps = 5e-7
+    g = {}
+    for sign in (1.0, -1.0, 1.0):  # the third: the model, H already built
+        X = np.concatenate((P0, Q0)) + sign * eps * v
+        got = np.concatenate(plane_wrap_gradients(X[:3], X[3:], axes, side, row)[1:])
+        fresh = np.concatenate(plane_wrap_gradients(X[:3], X[3:], axes, side, np.zeros(PLANE_ROW))[1:])
+        np.testing.assert_allclose(got, fresh, atol=2e-8)
+        g[sign] = got
+    assert row[16] == 2.0  # the model (H) was used
+    # the directional change of ∇l·v (the held-point parts have their own closed form):
+    # compare vᵀ H v with the length's own second difference along v
+    X0 = np.concatenate((P0, Q0))
+    h = 3e-5
+
+    def l(s):
+        X = X0 + s * v
+        return plane_wrap_core(X[:3], X[3:], axes, side, count, far)[1]
+
+    d2 = (-l(2 * h) + 16 * l(h) - 30 * l(0.0) + 16 * l(-h) - l(-2 * h)) / (12 * h * h)
+    Hv = np.asarray(row[32:68]).reshape(6, 6) @ v
+    assert abs(d2) > 1.0  # the path bends: a second derivative of order 1/(semi-axis)
+    assert abs(v @ Hv - d2) < 1e-4 * abs(d2)

@@ -35,7 +35,8 @@ f = 3/(a + b + c), semi-axes a_i' = f a_i:
 Length l = |P − r1| + Σ chords + |r2 − Q| (m). The rule is not a shortest path and the
 count n jumps (by ~1e-7 relative), so l is not stationary in r1, r2: its gradient is
 taken by central differences with n and the way round held
-(:func:`plane_wrap_gradients`).
+(:func:`plane_wrap_gradients`, with a local quadratic model of the length between nearby
+calls).
 """
 
 from __future__ import annotations
@@ -339,32 +340,121 @@ def plane_wrap(P, Q, axes, side):
     return st, length, T1, T2, arc
 
 
+#: a plane node's row of the path kernel's ``warm`` (N, WARM_SIZE) array: the last core
+#: solved [0 valid, P (3) m, Q (3) m, status, chords, far, T1 (3) m, T2 (3) m] and the
+#: gradient model [REF + 0 state (0 none, 1 reference, 2 with H), hits, P0 (3) m, Q0 (3) m,
+#: chords, far, ∇l (6), H (6, 6) 1/m]
+LAST, REF = 0, 16
+PLANE_ROW = REF + 12 + 6 + 36
+#: the model's reach: fraction of the smallest semi-axis the anchors may move from the
+#: reference; the second differences' step, the same fraction
+MODEL_REACH = 1e-4
+
+
 @njit(cache=True)
-def plane_wrap_gradients(P, Q, axes, side, T1, T2):
+def plane_wrap_stashed(P, Q, axes, side, row):
+    """:func:`plane_wrap`, its core (chords, way round) stashed in ``row`` (PLANE_ROW,)."""
+    st, length, T1, T2, arc, count, far = plane_wrap_core(P, Q, axes, side, -1, -1)
+    row[LAST] = 1.0
+    row[LAST + 1:LAST + 4] = P
+    row[LAST + 4:LAST + 7] = Q
+    row[LAST + 7], row[LAST + 8], row[LAST + 9] = st, count, far
+    row[LAST + 10:LAST + 13] = T1
+    row[LAST + 13:LAST + 16] = T2
+    return st, length, T1, T2, arc
+
+
+@njit(cache=True)
+def _length_held(X, axes, side, count, far):
+    """l (m) at anchors X (6,) = (P, Q) m with the chord count and the way round held."""
+    return plane_wrap_core(X[:3], X[3:], axes, side, count, far)[1]
+
+
+@njit(cache=True)
+def _gradient_held(X, axes, side, count, far):
+    """∇l (6,) at X = (P, Q) m by central differences (step 1e-7 of |P| + |Q|), the
+    chord count and the way round held."""
+    h = 1e-7 * (np.sqrt(X[:3] @ X[:3]) + np.sqrt(X[3:] @ X[3:]))
+    g = np.zeros(6)
+    for i in range(6):
+        Xp, Xm = X.copy(), X.copy()
+        Xp[i] += h
+        Xm[i] -= h
+        g[i] = (_length_held(Xp, axes, side, count, far) - _length_held(Xm, axes, side, count, far)) / (2.0 * h)
+    return g
+
+
+@njit(cache=True)
+def _hessian_held(X, axes, side, count, far):
+    """∇²l (6, 6) 1/m at X = (P, Q) m by second central differences of the length
+    (step MODEL_REACH × the smallest semi-axis; 72 lengths), count and way round held."""
+    h = MODEL_REACH * min(axes[0], min(axes[1], axes[2]))
+    l0 = _length_held(X, axes, side, count, far)
+    H = np.zeros((6, 6))
+    for i in range(6):
+        Xp, Xm = X.copy(), X.copy()
+        Xp[i] += h
+        Xm[i] -= h
+        H[i, i] = (_length_held(Xp, axes, side, count, far) - 2.0 * l0
+                   + _length_held(Xm, axes, side, count, far)) / (h * h)
+        for j in range(i):
+            total = 0.0
+            for si in (1.0, -1.0):
+                for sj in (1.0, -1.0):
+                    Y = X.copy()
+                    Y[i] += si * h
+                    Y[j] += sj * h
+                    total += si * sj * _length_held(Y, axes, side, count, far)
+            H[i, j] = H[j, i] = total / (4.0 * h * h)
+    return H
+
+
+@njit(cache=True)
+def plane_wrap_gradients(P, Q, axes, side, row):
     """The parts of ∂l/∂P and ∂l/∂Q (3,) (surface frame) beyond those with T1 and T2 held
-    (−e1 and e2, e1, e2 the unit directions P→T1, T2→Q): central differences of the
-    length (step 1e-7 of the anchors' distance) with the chord count and the way round
-    held, minus those held-point parts."""
-    st, _, _, _, _, count, far = plane_wrap_core(P, Q, axes, side, -1, -1)
+    (−e1 and e2, e1, e2 the unit directions P→T1, T2→Q): (status, g_P, g_Q), zeros
+    unless wrapped (status 1).
+
+    OpenSim's rule is not a shortest path, so ∇l has no closed form here: it is taken
+    by central differences of the length with the chord count and the way round held
+    (:func:`_gradient_held`, 12 lengths). ``row`` (PLANE_ROW,), the node's row of the
+    path kernel's ``warm``, keeps the last core (:func:`plane_wrap_stashed`; reused when
+    P and Q are the same) and a reference gradient. Anchors within MODEL_REACH × the
+    smallest semi-axis of the reference, with the same count and way round, are a
+    finite difference or a converging Newton step away: from the second such call on,
+    ∇l = ∇l₀ + H (X − X₀), H the Hessian at the reference (:func:`_hessian_held`, once;
+    model error ½ |δ|² |∇³l| ≲ 1e-8 against ~2e-9 of the differences' round-off), and
+    the differences of ∇l along a direction (the analytic FDK Jacobian's change of the
+    moment arms) are H's, exactly."""
     gP = np.zeros(3)
     gQ = np.zeros(3)
+    if row[LAST] == 1.0 and np.all(row[LAST + 1:LAST + 4] == P) and np.all(row[LAST + 4:LAST + 7] == Q):
+        st, count, far = int(row[LAST + 7]), int(row[LAST + 8]), int(row[LAST + 9])
+        T1, T2 = row[LAST + 10:LAST + 13].copy(), row[LAST + 13:LAST + 16].copy()
+    else:
+        st, _, T1, T2, _, count, far = plane_wrap_core(P, Q, axes, side, -1, -1)
     if st != 1:
-        return gP, gQ
-    h = 1e-7 * (np.sqrt(P @ P) + np.sqrt(Q @ Q))
-    for i in range(3):
-        for which in range(2):
-            Xp, Xm = P.copy(), P.copy()
-            Yp, Ym = Q.copy(), Q.copy()
-            if which == 0:
-                Xp[i] += h
-                Xm[i] -= h
-            else:
-                Yp[i] += h
-                Ym[i] -= h
-            lp = plane_wrap_core(Xp, Yp, axes, side, count, far)[1]
-            lm = plane_wrap_core(Xm, Ym, axes, side, count, far)[1]
-            if which == 0:
-                gP[i] = (lp - lm) / (2.0 * h)
-            else:
-                gQ[i] = (lp - lm) / (2.0 * h)
-    return gP + _unit(T1 - P), gQ - _unit(Q - T2)
+        return st, gP, gQ
+    X = np.concatenate((P, Q))
+    reach = MODEL_REACH * min(axes[0], min(axes[1], axes[2]))
+    X0 = row[REF + 2:REF + 8]
+    near = row[REF] > 0.0 and row[REF + 8] == count and row[REF + 9] == far
+    if near:
+        for i in range(6):
+            near = near and abs(X[i] - X0[i]) <= reach
+    g0 = row[REF + 10:REF + 16]
+    if near and row[REF + 1] >= 1.0:
+        if row[REF] == 1.0:
+            row[REF + 16:REF + 52] = _hessian_held(X0.copy(), axes, side, count, far).ravel()
+            row[REF] = 2.0
+        g = g0 + row[REF + 16:REF + 52].reshape(6, 6) @ (X - X0)
+    elif near:
+        row[REF + 1] = 1.0  # the first call near the reference: differences, and H at the next
+        g = _gradient_held(X, axes, side, count, far)
+    else:
+        g = _gradient_held(X, axes, side, count, far)
+        row[REF], row[REF + 1] = 1.0, 0.0
+        row[REF + 2:REF + 8] = X
+        row[REF + 8], row[REF + 9] = count, far
+        row[REF + 10:REF + 16] = g
+    return st, g[:3] + _unit(T1 - P), g[3:] - _unit(Q - T2)

@@ -38,7 +38,7 @@ not converged. :func:`wrapped_path_lengths` assembles whole paths through points
 surfaces (see :mod:`.wrapping`). All jitted code of the wrapping lives in this module
 except OpenSim's planar ellipsoid rule (:mod:`.wrap_ellipsoid_plane`, flag
 OPENSIM_PLANE): numba's on-disk cache checks only a kernel's own file, so a change there
-must change this file too (its last: the fan's multipliers in scalars, warm-started).
+must change this file too.
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .wrap_ellipsoid_plane import plane_wrap, plane_wrap_gradients
+from .wrap_ellipsoid_plane import PLANE_ROW, plane_wrap_gradients, plane_wrap_stashed
 
 TWO_PI = 2.0 * np.pi
 
@@ -295,9 +295,11 @@ def ellipsoid_wrap(P, Q, axes, side, tol):
     return ellipsoid_wrap_from(P, Q, axes, side, tol, np.zeros(WARM_SIZE))
 
 
-#: a warm start of :func:`ellipsoid_wrap_from`: [T1 (3,) m in S, arc length s m, RK4 steps,
-#: the anchors P, Q (3,) m in S it was solved for]
-WARM_SIZE = 11
+#: a node's row of the path kernel's ``warm``: a geodesic's warm start of
+#: :func:`ellipsoid_wrap_from` [T1 (3,) m in S, arc length s m, RK4 steps, the anchors P,
+#: Q (3,) m in S it was solved for] in its first 11, or an OpenSim-rule ellipsoid's last
+#: core and gradient model (:data:`~openfdk.forces.wrap_ellipsoid_plane.PLANE_ROW`)
+WARM_SIZE = max(11, PLANE_ROW)
 #: a warm start is used only while both anchors lie within this fraction of the smallest
 #: semi-axis of where it was solved (farther, the geodesic may have changed branch)
 WARM_REACH = 0.05
@@ -601,9 +603,10 @@ def _wrap_one(kind, P_S, Q_S, dims, side, half_length, flags, warm):
     round; INSIDE_STRAIGHT, an anchor inside the surface leaves the path straight
     (OpenSim's rule) instead of status −1; OPENSIM_PLANE, an ellipsoid's path is OpenSim's
     planar curve (:func:`~openfdk.forces.wrap_ellipsoid_plane.plane_wrap`, ``side`` its
-    quadrant). ``warm`` (WARM_SIZE,): the node's warm start (:func:`ellipsoid_wrap_from`)."""
+    quadrant). ``warm`` (WARM_SIZE,): the node's warm start (:func:`ellipsoid_wrap_from`), or
+the OpenSim-rule ellipsoid's row (its last core and gradient model)."""
     if kind == ELLIPSOID and flags & OPENSIM_PLANE:
-        out = plane_wrap(P_S, Q_S, dims, side)
+        out = plane_wrap_stashed(P_S, Q_S, dims, side, warm)
     else:
         out = _wrap_rules(kind, P_S, Q_S, dims, side, half_length, flags & CROSSING_ONLY, warm)
     if out[0] == -1 and flags & INSIDE_STRAIGHT:
@@ -716,7 +719,7 @@ def _add_point_gradient(L, p, column, p_WB, R_WB, i, x, g):
 
 @njit(cache=True)
 def _add_placement(L, p, j, kinds, present, column, p_WB, R_WB, bodies, X_W, R_WS, dims, sides, move, dX_W,
-                   U):
+                   U, warm):
     """L[p] += the terms of surface j's length that holding its tangent points misses: a
     torus's placement (:func:`torus_gradients`), an OpenSim-rule ellipsoid's
     non-stationary plane (:func:`~openfdk.forces.wrap_ellipsoid_plane.plane_wrap_gradients`),
@@ -737,10 +740,9 @@ def _add_placement(L, p, j, kinds, present, column, p_WB, R_WB, bodies, X_W, R_W
             return
         gP, gQ = torus_gradients(P_S, Q_S, dims[j, 0], T1, T2)
     else:
-        st, _, T1, T2, _ = plane_wrap(P_S, Q_S, dims[j], sides[j])
+        st, gP, gQ = plane_wrap_gradients(P_S, Q_S, dims[j], sides[j], warm[j])
         if st != 1:
             return
-        gP, gQ = plane_wrap_gradients(P_S, Q_S, dims[j], sides[j], T1, T2)
     for node, g in ((a, R @ gP), (b, R @ gQ)):
         _add_point_gradient(L, p, column, p_WB, R_WB, bodies[node], X_W[node], g)
         _add_point_gradient(L, p, column, p_WB, R_WB, bodies[j], X_W[node], -g)
@@ -966,7 +968,7 @@ def wrapped_moving_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, di
                 total += d + arc[j]
                 if kinds[j] == TORUS or (kinds[j] == ELLIPSOID and int(limits[j, 1]) & OPENSIM_PLANE):
                     _add_placement(L, p, j, kinds, present, column, p_WB, R_WB, bodies, X_W, R_WS, dims, sides, move,
-                                   dX_W, U)
+                                   dX_W, U, warm)
                 T_W[j, 0] = T1_W[j]
                 T_W[j, 1] = T2_W[j]
                 last_body, last_x, last_node = bodies[j], T2_W[j], -1
