@@ -199,3 +199,41 @@ def test_contact_element_scatters_into_model_columns(ball_on_plane):
     Q2, K2, _ = element.generalized_forces(fixed, want_stiffness=True)
     np.testing.assert_allclose(Q2, direct.Q[0:6], rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(K2, direct.K[0:6, 0:6], rtol=1e-9, atol=1e-9)
+
+
+def test_candidate_vertices_give_the_rows_of_all_vertices(ball_in_cup):
+    """Grid mode samples only the candidate vertices found at a reference pose while no
+    vertex has moved farther than NEAR_REACH spacings from it (ElasticFoundation.
+    _candidates): at poses near and far from the reference, the vertices in contact and
+    their depths equal those of sampling every vertex."""
+    from openfdk.contact.elastic_foundation import NEAR_REACH
+
+    ball, cup, R_ball, R_cup, s0 = ball_in_cup
+    cached = ElasticFoundation(ball, cup, P_MOD, mode="grid", max_depth=1e-3)
+    fresh = ElasticFoundation(ball, cup, P_MOD, mode="grid", max_depth=1e-3)
+    rng = np.random.default_rng(11)
+    R_ba = _exp([0.05, -0.03, 0.2])
+    centre_b = np.array([0.3e-3, -0.2e-3, -(R_cup - R_ball) - 0.12e-3])
+    pose0 = _world(rng, centre_b - R_ba @ s0, R_ba)
+    cached.penetration(*pose0)
+    reference = cached._near
+    assert 0 < len(reference[2]) <= ball.vertices_B.shape[0]
+    reach = NEAR_REACH * cached.grid.spacing
+    used = 0
+    for scale in (1e-7, 1e-6, 1e-5, 3e-5, 1e-3):  # m of translation, rad/40 mm of rotation
+        for _ in range(6):
+            r_Wa, R_Wa, r_Wb, R_Wb = pose0
+            move = rng.normal(size=3) * scale
+            if scale >= 1e-3:
+                move = R_Wb @ np.array([*(0.6 * move[:2] / np.linalg.norm(move[:2]) * scale), 0.0])  # sideways in the cup
+            pose = (r_Wa + move, R_Wa @ _exp(rng.normal(size=3) * min(scale, 1e-5) / 0.04), r_Wb, R_Wb)
+            cached._near = reference  # every pose against the same reference
+            got = cached.penetration(*pose)
+            fresh._near = None
+            want = fresh.penetration(*pose)
+            used += cached._near is reference
+            assert len(want[0]) > 100
+            for x, y in zip(got, want):
+                np.testing.assert_array_equal(x, y)
+    assert 12 <= used < 30  # the small moves used the reference's candidates, the 1 mm ones not
+    assert reach < 1e-3

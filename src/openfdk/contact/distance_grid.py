@@ -252,6 +252,40 @@ def sample_grid(points, R, t, flat, cells, blocks, nx, ny, nz, origin, inv_h, ma
     return count
 
 
+@njit(cache=True)
+def grid_candidates(points, R, t, cells, nx, ny, nz, origin, inv_h, reach, index):
+    """The points that can lie in a valid cell after moving by at most ``reach`` (m):
+    those with a valid cell (``cells`` mask ≠ 0) among the cells met by the cube of
+    half-edge ``reach`` about y = R·x + t. No other point can be sampled in contact by
+    :func:`sample_grid` at such a pose, so sampling only these gives the same rows.
+
+    points (n, 3) m, R (3, 3), t (3,) m; the grid's cells raveled, its node counts, origin
+    (3,) m and 1/spacing (1/m); index (n,) int, written. Returns the count written
+    (increasing point numbers)."""
+    r = reach * inv_h
+    count = 0
+    for q in range(points.shape[0]):
+        x0 = points[q, 0]
+        x1 = points[q, 1]
+        x2 = points[q, 2]
+        u0 = (R[0, 0] * x0 + R[0, 1] * x1 + R[0, 2] * x2 + t[0] - origin[0]) * inv_h
+        u1 = (R[1, 0] * x0 + R[1, 1] * x1 + R[1, 2] * x2 + t[1] - origin[1]) * inv_h
+        u2 = (R[2, 0] * x0 + R[2, 1] * x1 + R[2, 2] * x2 + t[2] - origin[2]) * inv_h
+        i0, i1 = max(int(np.floor(u0 - r)), 0), min(int(np.floor(u0 + r)), nx - 2)
+        j0, j1 = max(int(np.floor(u1 - r)), 0), min(int(np.floor(u1 + r)), ny - 2)
+        k0, k1 = max(int(np.floor(u2 - r)), 0), min(int(np.floor(u2 + r)), nz - 2)
+        found = False
+        for i in range(i0, i1 + 1):
+            for j in range(j0, j1 + 1):
+                for k in range(k0, k1 + 1):
+                    if cells[(i * (ny - 1) + j) * (nz - 1) + k] != 0:
+                        found = True
+        if found:
+            index[count] = q
+            count += 1
+    return count
+
+
 def band_occupancy(mesh: SurfaceMesh, max_depth: float, voxel: float):
     """Coarse boolean voxels covering every point within the band behind ``mesh``.
 

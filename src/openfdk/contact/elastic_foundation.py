@@ -43,7 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .distance_grid import band_occupancy, sample_grid
+from .distance_grid import band_occupancy, grid_candidates, sample_grid
 from .grid_cache import cached_distance_grid
 from .limits import warn_depth
 from .mesh import SurfaceMesh
@@ -61,6 +61,26 @@ __all__ = [
 DEFAULT_GRID_SPACING = 0.3e-3
 #: default band depth, m: vertices deeper than this behind B are ignored
 DEFAULT_MAX_DEPTH = 3e-3
+#: reach of the candidate vertices (:meth:`ElasticFoundation._candidates`), in grid
+#: spacings: about 0.15 mm at the default spacing, more than a frame's Newton steps after
+#: the first and the Jacobian's differences (µm), less than a gait frame's motion
+NEAR_REACH = 0.5
+
+
+@njit(cache=True)
+def _largest_move(R, p, R0, p0, c, rho):
+    """A bound (m) of |(R − R0) s + p − p0| over points s within ``rho`` (m) of ``c`` (3,):
+    ‖R − R0‖_F ρ + |(R − R0) c + p − p0|. R, R0 (3, 3); p, p0 (3,) m."""
+    f = 0.0
+    m = 0.0
+    for i in range(3):
+        w = p[i] - p0[i]
+        for j in range(3):
+            d = R[i, j] - R0[i, j]
+            f += d * d
+            w += d * c[j]
+        m += w * w
+    return np.sqrt(f) * rho + np.sqrt(m)
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,7 +140,8 @@ class ElasticFoundation:
 
     The grid (grid mode) or AABB tree (exact mode) is built once here; the grid is also
     memoised per surface, spacing and depth (:func:`~.grid_cache.cached_distance_grid`).
-    The object is not modified by :meth:`evaluate`.
+    The object is not modified by :meth:`evaluate` except for the grid mode's candidate
+    vertices, a cache that changes no result (:meth:`_candidates`).
     """
 
     def __init__(self, surface_A: SurfaceMesh, surface_B: SurfaceMesh, pressure_modulus: float,
@@ -155,8 +176,12 @@ class ElasticFoundation:
         self._s_A = np.ascontiguousarray(surface_A.vertices_B, dtype=np.float64)
         self._a_A = np.ascontiguousarray(surface_A.vertex_areas, dtype=np.float64)
         n = self._s_A.shape[0]
-        # per-call scratch is allocated in evaluate (no hidden state between calls)
+        # per-call scratch is allocated in evaluate; the one state kept between calls is the
+        # grid mode's candidate vertices (:meth:`_candidates`), which changes no result
         self._n = n
+        centre = self._s_A.mean(axis=0) if n else np.zeros(3)
+        self._centre_A, self._radius_A = centre, float(np.max(np.linalg.norm(self._s_A - centre, axis=1), initial=0.0))
+        self._near = None
         if mode == "grid":
             self.grid = cached_distance_grid(surface_B, self.grid_spacing, self.max_depth)
             self._flat = self.grid.values.reshape(-1)
@@ -209,18 +234,19 @@ class ElasticFoundation:
         R_ba = R_Wb.T @ R_Wa
         p_ba = R_Wb.T @ (r_Wa - r_Wb)
         if self.mode == "grid":
-            n = self._n
+            cand, s_A = self._candidates(R_ba, p_ba)
+            n = s_A.shape[0]
             idx = np.empty(n, np.int64)
             depth = np.empty(n)
             g_B = np.empty((n, 3))
             y_B = np.empty((n, 3))
             # cull + interpolate in one numba pass; vertices outside the grid box (B's box
             # inflated by the band) are rejected by the bounds test before any lookup
-            k = sample_grid(self._s_A, R_ba, p_ba, self._flat, self._cells, self._blocks,
+            k = sample_grid(s_A, R_ba, p_ba, self._flat, self._cells, self._blocks,
                             *self._grid_shape, self._origin, self._inv_h, self.max_depth,
                             True, idx, depth, g_B, y_B)
             depth[:k] *= -1.0  # d_i = −φ_B(y_i)
-            return idx[:k], depth[:k], g_B[:k], y_B[:k]
+            return (idx[:k] if cand is None else cand[idx[:k]]), depth[:k], g_B[:k], y_B[:k]
         y_all = self._s_A @ R_ba.T + p_ba
         # cull vertices outside B's inflated box, then outside the band voxels, before
         # any closest-point query
@@ -233,6 +259,29 @@ class ElasticFoundation:
         depth = -phi
         hit = valid & (depth > 0.0) & (depth <= self.max_depth)
         return cand[hit], depth[hit], g_B[hit], y_all[cand[hit]]
+
+    def _candidates(self, R_ba, p_ba):
+        """(vertex numbers (m,) or None for all, their positions s_A (m, 3) m) that can be
+        in contact at the relative pose R_ba (3, 3), p_ba (3,) m.
+
+        The vertices of A with a valid grid cell within NEAR_REACH grid spacings, found at
+        a reference pose (:func:`~.distance_grid.grid_candidates`), serve every pose at
+        which no vertex has moved farther than that from the reference: |Δy| ≤
+        ‖ΔR‖_F ρ + |ΔR c + Δp| (c the vertices' centroid, ρ their largest distance from
+        it). A frame's Newton iterations and the Jacobian's differences stay within it, so
+        the grid is sampled at a fifth of the insert's vertices instead of all; farther,
+        the candidates are found again here. The rows sampled are those of all vertices."""
+        near = self._near
+        if near is not None:
+            R0, p0, cand, s_A = near
+            if _largest_move(R_ba, p_ba, R0, p0, self._centre_A, self._radius_A) <= NEAR_REACH / self._inv_h:
+                return cand, s_A
+        index = np.empty(self._n, np.int64)
+        m = grid_candidates(self._s_A, R_ba, p_ba, self._cells, *self._grid_shape, self._origin, self._inv_h,
+                            NEAR_REACH / self._inv_h, index)
+        cand = index[:m].copy()
+        self._near = (R_ba.copy(), p_ba.copy(), cand, np.ascontiguousarray(self._s_A[cand]))
+        return self._near[2], self._near[3]
 
     def pressures(self, depth):
         """(P (k,) Pa, dP/dd (k,) Pa/m, W (k,) J/m²) of the pair's law at depths (k,) m."""
