@@ -253,6 +253,62 @@ def sample_grid(points, R, t, flat, cells, blocks, nx, ny, nz, origin, inv_h, ma
 
 
 @njit(cache=True)
+def grid_derivatives(y, flat, ny, nz, origin, inv_h, dphi, Dg):
+    """Exact derivatives of :func:`sample_grid`'s interpolants at points y (k, 3) m (B's
+    frame) whose cells are valid (the rows it returned):
+
+        ∇φ̂ = Σ_c ∇w_c [φ_c + ½ ∇φ_c·(y − x_c)] + ½ Σ_c w_c ∇φ_c           (dphi (k, 3))
+        ∂g/∂y = (I − g gᵀ) (Σ_c ∇φ_c ∇w_cᵀ) / |ĝ|,  ĝ = Σ_c w_c ∇φ_c, g = ĝ/|ĝ|  (Dg (k, 3, 3), 1/m)
+
+    with ∇w_c the gradients of the trilinear weights (1/m). ∇φ̂ differs from g by the
+    interpolation error (O(h)); ∂g/∂y is the curvature of B as the grid sees it."""
+    sk = 4
+    sj = 4 * nz
+    si = 4 * nz * ny
+    half_h = 0.5 / inv_h
+    G = np.empty((3, 3))  # Σ ∇φ_c ∇w_cᵀ
+    W = np.empty(3)  # the corner's three 1-D weights
+    S = np.empty(3)  # their slopes (1/m)
+    n = np.empty(3)
+    for q in range(y.shape[0]):
+        u = ((y[q, 0] - origin[0]) * inv_h, (y[q, 1] - origin[1]) * inv_h, (y[q, 2] - origin[2]) * inv_h)
+        i, j, k = int(u[0]), int(u[1]), int(u[2])
+        f = (u[0] - i, u[1] - j, u[2] - k)
+        base = i * si + j * sj + k * sk
+        G[:, :] = 0.0
+        gh0 = gh1 = gh2 = 0.0  # ĝ
+        for a in range(3):
+            dphi[q, a] = 0.0
+        for corner in range(8):
+            di, dj, dk = corner >> 2, (corner >> 1) & 1, corner & 1
+            off = (di, dj, dk)
+            for a in range(3):
+                W[a] = f[a] if off[a] == 1 else 1.0 - f[a]
+                S[a] = inv_h if off[a] == 1 else -inv_h
+            w = W[0] * W[1] * W[2]
+            c = base + di * si + dj * sj + dk * sk
+            n[0], n[1], n[2] = flat[c + 1], flat[c + 2], flat[c + 3]
+            value = flat[c] + half_h * (n[0] * (f[0] - di) + n[1] * (f[1] - dj) + n[2] * (f[2] - dk))
+            gw0, gw1, gw2 = S[0] * W[1] * W[2], W[0] * S[1] * W[2], W[0] * W[1] * S[2]
+            dphi[q, 0] += gw0 * value + 0.5 * w * n[0]
+            dphi[q, 1] += gw1 * value + 0.5 * w * n[1]
+            dphi[q, 2] += gw2 * value + 0.5 * w * n[2]
+            gh0 += w * n[0]
+            gh1 += w * n[1]
+            gh2 += w * n[2]
+            for a in range(3):
+                G[a, 0] += n[a] * gw0
+                G[a, 1] += n[a] * gw1
+                G[a, 2] += n[a] * gw2
+        norm = np.sqrt(gh0 * gh0 + gh1 * gh1 + gh2 * gh2)
+        g = (gh0 / norm, gh1 / norm, gh2 / norm)
+        for b in range(3):
+            gG = g[0] * G[0, b] + g[1] * G[1, b] + g[2] * G[2, b]
+            for a in range(3):
+                Dg[q, a, b] = (G[a, b] - g[a] * gG) / norm
+
+
+@njit(cache=True)
 def grid_candidates(points, R, t, cells, nx, ny, nz, origin, inv_h, reach, index):
     """The points that can lie in a valid cell after moving by at most ``reach`` (m):
     those with a valid cell (``cells`` mask ≠ 0) among the cells met by the cube of

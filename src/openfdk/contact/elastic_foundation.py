@@ -25,12 +25,17 @@ Stiffness K = ∂Q/∂q̂ (12×12) for q̂ = [δr_a, δπ_a, δr_b, δπ_b]: per
 u_i = [n; s×n_A; −n; −y×g] (so ∂d_i/∂q̂ = −u_iᵀ exactly),
     K_i = p a_i (−u_i u_iᵀ + d_i ∂u_i/∂q̂ |_{g fixed in b}),
 i.e. every term is kept (the normal turning with body b, the lever arms changing with
-both bodies' rotations) **except** ∂g_i/∂y_i, the Hessian of φ_B — the rate at which B's
-normal changes along B (curvature, magnitude κ/(1 − κ d) for a surface of curvature κ).
-The neglected part is p a_i d_i (∂u_i/∂g)(∂g/∂y)(∂y/∂q̂), of relative size ≈ d·κ against
-the retained p a_i u uᵀ; it vanishes for a flat B, and for a faceted B in exact mode
-whenever the closest point lies inside a triangle. Vertices entering or leaving contact
-make K one-sided there (Q is continuous, K jumps by p a_i u uᵀ).
+both bodies' rotations) **except**, in exact mode, ∂g_i/∂y_i, the Hessian of φ_B — the
+rate at which B's normal changes along B (curvature, magnitude κ/(1 − κ d) for a surface
+of curvature κ). The neglected part is p a_i d_i (∂u_i/∂g)(∂g/∂y)(∂y/∂q̂), of relative
+size ≈ d·κ against the retained p a_i u uᵀ; it vanishes for a flat B, and for a faceted
+B in exact mode whenever the closest point lies inside a triangle. In grid mode K is the
+exact derivative of the Q computed: the grid's interpolants are differentiated
+(:func:`~.distance_grid.grid_derivatives`), the curvature term is added, and the first
+term is −p a_i u_i v_iᵀ with v_i = u_i(∇φ̂) (the depth's own gradient ∇φ̂, which differs
+from the interpolated normal g by the interpolation error). Vertices entering or leaving
+contact make K one-sided there (Q is continuous, K jumps by p a_i u uᵀ), and so do
+grid cell faces (the interpolants' slopes jump there).
 
 Non-linear law (``layers``; :mod:`.pressure_law`, Bei & Fregly 2004): p d_i becomes the
 pressure P(d_i), p in the first term of K_i its slope dP/dd, and U = Σ a_i W(d_i).
@@ -43,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from .distance_grid import band_occupancy, grid_candidates, sample_grid
+from .distance_grid import band_occupancy, grid_candidates, grid_derivatives, sample_grid
 from .grid_cache import cached_distance_grid
 from .limits import warn_depth
 from .mesh import SurfaceMesh
@@ -313,8 +318,13 @@ class ElasticFoundation:
         K = np.zeros((12, 12))
         sums = np.zeros(7)  # [Σ w c (3), Σ w, area, max d, energy], w = P(d) a
         P, dP, W = self.pressures(depth)
+        k = idx.shape[0] if (want_stiffness and self.mode == "grid") else 0
+        dphi, Dg = np.empty((k, 3)), np.empty((k, 3, 3))
+        if k:
+            grid_derivatives(np.ascontiguousarray(y_B), self._flat, *self._grid_shape[1:], self._origin, self._inv_h,
+                             dphi, Dg)
         _accumulate(self._s_A, self._a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb,
-                    P, dP, W, want_stiffness, Q, K, sums)
+                    P, dP, W, want_stiffness, Q, K, sums, dphi, Dg)
         if idx.size:
             warn_depth(self.name, float(depth.max()), self.max_depth)
         weight = sums[3]
@@ -366,7 +376,16 @@ def _skew(v):
 
 
 @njit(cache=True)
-def _accumulate(s_A, a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb, P, dP, W, want_K, Q, K, sums):
+def _skew_into(v0, v1, v2, S):
+    """S (3, 3) ← the cross-product matrix of (v0, v1, v2)."""
+    S[0, 0] = S[1, 1] = S[2, 2] = 0.0
+    S[0, 1], S[0, 2] = -v2, v1
+    S[1, 0], S[1, 2] = v2, -v0
+    S[2, 0], S[2, 1] = -v1, v0
+
+
+@njit(cache=True)
+def _accumulate(s_A, a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb, P, dP, W, want_K, Q, K, sums, dphi, Dg):
     """Sum Q (12,), K (12, 12) and [Σ w c (3), Σ w, area, max d, energy] over contact vertices.
 
     P, dP, W (k,): the pressure law at each contact vertex's depth (Pa, Pa/m, J/m²;
@@ -374,10 +393,23 @@ def _accumulate(s_A, a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb, P, dP, W, want
     (w = P a, "p a d" below for the linear law; the stiffness p a is dP/dd a): Q += w u with u = [n; s × n_A; −n; −y × g]. For K, besides
     −Σ p a u uᵀ, the "d ∂u/∂q̂" blocks are sums of w g, w n_A sᵀ, w y gᵀ (identity
     ã b̃ = b aᵀ − (a·b) I), assembled after the loop (module docstring).
+    dphi (k, 3), Dg (k, 3, 3) 1/m: the grid's exact ∇φ̂ and ∂g/∂y at the vertices
+    (:func:`~.distance_grid.grid_derivatives`), or empty (k = 0 rows: exact mode): then
+    K's first term is −Σ dP/dd a u vᵀ with v = u(∇φ̂) (∂d/∂q̂ = −vᵀ of the interpolant)
+    instead of −Σ dP/dd a u uᵀ, and the curvature term Σ w (∂u/∂g)(∂g/∂y)(∂y/∂q̂) is added.
     """
+    grid_K = want_K and dphi.shape[0] == idx.shape[0] and idx.shape[0] > 0
+    v = np.empty(12)
+    Bu = np.zeros((12, 3))  # ∂u/∂g
+    Ay = np.zeros((3, 12))  # ∂y/∂q̂
+    M = np.zeros((3, 12))
+    S_s = np.zeros((3, 3))
+    S_y = np.zeros((3, 3))
+    R_ba = R_Wb.T @ R_Wa
     R_ab = R_Wa.T @ R_Wb
     u = np.empty(12)
     UU = np.zeros((12, 12))
+    KC = np.zeros((12, 12))  # the curvature term (grid_K)
     G_sum = np.zeros(3)  # Σ w g
     M1 = np.zeros((3, 3))  # Σ w n_A sᵀ
     M2 = np.zeros((3, 3))  # Σ w y gᵀ
@@ -425,11 +457,51 @@ def _accumulate(s_A, a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb, P, dP, W, want
         if d > sums[5]:
             sums[5] = d
         sums[6] += W[m] * a_A[i]  # U = Σ a W(d) (½ p a d²)
-        if want_K:
+        if grid_K:
+            # v = u with g replaced by ∇φ̂ (so that ∂d/∂q̂ = −vᵀ exactly)
+            e0, e1, e2 = dphi[m, 0], dphi[m, 1], dphi[m, 2]
+            b0 = R_ab[0, 0] * e0 + R_ab[0, 1] * e1 + R_ab[0, 2] * e2
+            b1 = R_ab[1, 0] * e0 + R_ab[1, 1] * e1 + R_ab[1, 2] * e2
+            b2 = R_ab[2, 0] * e0 + R_ab[2, 1] * e1 + R_ab[2, 2] * e2
+            for r in range(3):
+                v[r] = R_Wb[r, 0] * e0 + R_Wb[r, 1] * e1 + R_Wb[r, 2] * e2
+                v[6 + r] = -v[r]
+            v[3] = s1 * b2 - s2 * b1
+            v[4] = s2 * b0 - s0 * b2
+            v[5] = s0 * b1 - s1 * b0
+            v[9] = -(y1 * e2 - y2 * e1)
+            v[10] = -(y2 * e0 - y0 * e2)
+            v[11] = -(y0 * e1 - y1 * e0)
+            for r in range(12):
+                kur = k * u[r]
+                for c in range(12):
+                    UU[r, c] += kur * v[c]
+            # curvature: w (∂u/∂g)(∂g/∂y)(∂y/∂q̂), ∂u/∂g = [R_Wb; s̃ R_ab; −R_Wb; −ỹ],
+            # ∂y/∂q̂ = [R_Wbᵀ, −R_ba s̃, −R_Wbᵀ, ỹ]
+            _skew_into(s0, s1, s2, S_s)
+            _skew_into(y0, y1, y2, S_y)
+            for r in range(3):
+                for c in range(3):
+                    Bu[r, c] = R_Wb[r, c]
+                    Bu[6 + r, c] = -R_Wb[r, c]
+                    Bu[9 + r, c] = -S_y[r, c]
+                    Bu[3 + r, c] = S_s[r, 0] * R_ab[0, c] + S_s[r, 1] * R_ab[1, c] + S_s[r, 2] * R_ab[2, c]
+                    Ay[r, c] = R_Wb[c, r]
+                    Ay[r, 6 + c] = -R_Wb[c, r]
+                    Ay[r, 9 + c] = S_y[r, c]
+                    Ay[r, 3 + c] = -(R_ba[r, 0] * S_s[0, c] + R_ba[r, 1] * S_s[1, c] + R_ba[r, 2] * S_s[2, c])
+            for r in range(3):  # M = w ∂g/∂y ∂y/∂q̂ (3, 12)
+                for c in range(12):
+                    M[r, c] = w * (Dg[m, r, 0] * Ay[0, c] + Dg[m, r, 1] * Ay[1, c] + Dg[m, r, 2] * Ay[2, c])
+            for r in range(12):
+                for c in range(12):
+                    KC[r, c] += Bu[r, 0] * M[0, c] + Bu[r, 1] * M[1, c] + Bu[r, 2] * M[2, c]
+        elif want_K:
             for r in range(12):
                 kur = k * u[r]
                 for c in range(r, 12):
                     UU[r, c] += kur * u[c]
+        if want_K:
             G_sum[0] += w * g0
             G_sum[1] += w * g1
             G_sum[2] += w * g2
@@ -453,13 +525,17 @@ def _accumulate(s_A, a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb, P, dP, W, want
             M2[2, 1] += w * y2 * g1
             M2[2, 2] += w * y2 * g2
             tau += w * (g0 * y0 + g1 * y1 + g2 * y2)
-    if want_K:
+    if grid_K:
+        K -= UU  # −Σ dP/dd a u vᵀ
+        K += KC
+    elif want_K:
         # −Σ p a u uᵀ (symmetric)
         for r in range(12):
             for c in range(r, 12):
                 K[r, c] -= UU[r, c]
                 if c != r:
                     K[c, r] -= UU[r, c]
+    if want_K:
         I3 = np.eye(3)
         R_ba = R_ab.T
         Rb_G = R_Wb @ _skew(G_sum)  # Σ w R_Wb g̃

@@ -21,7 +21,8 @@
   The second derivatives of the geometry that steps 1–2 need (H, and the change of the
   Jacobian columns in C) are differences of analytic first derivatives on the manifold
   (forward for H, relative error ~1e-7; central along the few directions u_j for C,
-  the inertial terms, s and the contacts' and muscles' Q), with no recruitment solve. The
+  the inertial terms, s and the muscles' Q — and the contacts' in exact mode), with no
+  recruitment solve. The
   dependence of v and v̇ on α through the neighbouring frames' positions is neglected:
   α̇ = α̈ = 0 by definition and the inertial forces of jaw-sized bodies are small next to
   joint stiffness.
@@ -38,15 +39,23 @@ from .residual import FrameWorkspace
 
 
 #: force kinds whose stiffness the analytic Jacobian takes by central differences of Q
-#: along each u_j rather than from the set's K: the elastic-foundation contacts, whose K
-#: omits the change of the surface normal with the pose (curvature; 10–40 % of a
-#: column on the DM knee implants, against ≤ 2 % along the differences)
+#: along each u_j when their set's K is not exact (``exact_stiffness`` False): the
+#: elastic-foundation contacts in exact mode, whose K omits the change of the surface
+#: normal with the pose (curvature; 10–40 % of a column on the DM knee implants). In grid
+#: mode the contacts' K is exact and is used.
 DIRECTIONAL_KINDS = ("contacts",)
-#: kinds whose set K the analytic Jacobian does not use: the directional ones, and the
-#: muscles, whose passive Q is differenced from the muscle states the geometry terms
-#: evaluate anyway (their K would difference the wrapped paths over every touched body
-#: again)
-DIFFERENCED_KINDS = DIRECTIONAL_KINDS + ("muscles",)
+#: kinds whose set K the analytic Jacobian never uses: the muscles, whose passive Q is
+#: differenced from the muscle states the geometry terms evaluate anyway (their K would
+#: difference the wrapped paths over every touched body again)
+DIFFERENCED_KINDS = ("muscles",)
+
+
+def differenced_kinds(forces):
+    """(kinds whose Q the analytic Jacobian differences along u_j besides the muscles',
+    all kinds whose set K it leaves out) of a model's ForceElements ``forces``."""
+    directional = tuple(fs.kind for fs in forces.sets
+                        if fs.kind in DIRECTIONAL_KINDS and not getattr(fs, "exact_stiffness", False))
+    return directional, directional + DIFFERENCED_KINDS
 
 #: the central differences' step along each u_j: STEP / max |u_j| (m or rad of the
 #: largest coordinate change)
@@ -124,11 +133,11 @@ def analytic_jacobian(ctx, k, ev):
     ev.dq_dalpha = u_all
     rows = ctx.solver.layout.eq_coords
     # the force sets' stiffness from what the forces stage left at this pose (path and
-    # measure Jacobians are not evaluated again); the contacts' and the muscles' by
-    # central differences of their Q along each u_j (DIFFERENCED_KINDS)
+    # measure Jacobians are not evaluated again); the muscles' and exact-mode contacts'
+    # by central differences of their Q along each u_j (differenced_kinds)
     forces = ctx.solver.forces
-    K = forces.stiffness(ev.state, ev.data.forces, exclude=DIFFERENCED_KINDS)
-    directional = any(fs.kind in DIRECTIONAL_KINDS for fs in forces.sets)
+    directional, left_out = differenced_kinds(forces)
+    K = forces.stiffness(ev.state, ev.data.forces, exclude=left_out)
     n_fdk = len(ev.alpha)
     dC, dd, ds = [], [], []
     for j in range(n_fdk):
@@ -142,7 +151,7 @@ def analytic_jacobian(ctx, k, ev):
         for sign in (1.0, -1.0):
             sx = ev.state.copy()
             sx.displace(sign * eps * u)
-            Qc = forces.generalized_forces_of(DIRECTIONAL_KINDS, sx, t) if directional else 0.0
+            Qc = forces.generalized_forces_of(directional, sx, t) if directional else 0.0
             ends.append((*_geometry_terms(ctx, sx, ev.vdot, t, ev.alpha), Qc))
         (Cp, dp, s_p, Qm_p, Qc_p), (Cm, dm, s_m, Qm_m, Qc_m) = ends
         dC.append((Cp - Cm) / (2 * eps))
@@ -155,4 +164,4 @@ def analytic_jacobian(ctx, k, ev):
     return df[:, ctx.fdk_columns].T, 0, ""
 
 
-__all__ = ["central_jacobian", "analytic_jacobian", "kinematic_sensitivity", "FrameWorkspace"]
+__all__ = ["central_jacobian", "analytic_jacobian", "kinematic_sensitivity", "differenced_kinds", "FrameWorkspace"]

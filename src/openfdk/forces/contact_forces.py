@@ -14,6 +14,9 @@ class ContactForces:
 
     def __init__(self, contacts):
         self.contacts = tuple(contacts)
+        #: whether K is the exact derivative of Q: grid-mode pairs only (exact mode omits B's
+        #: curvature, :mod:`openfdk.contact.elastic_foundation`)
+        self.exact_stiffness = all(c.pair.mode == "grid" for c in self.contacts)
 
     def accumulate(self, state, t, Q, K=None):
         out = {}
