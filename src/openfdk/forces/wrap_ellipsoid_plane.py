@@ -107,11 +107,14 @@ def _nearest(ax, x, axis):
 
 
 @njit(cache=True)
-def _multiplier(A0, A1, A2, x0, x1, x2, t):
+def _multiplier(A0, A1, A2, x0, x1, x2, t, tol=1e-15):
     """The multiplier t of the nearest point a_i² x_i/(t + a_i²) of the ellipsoid with
     squared semi-axes A0, A1, A2 (m²) to (x0, x1, x2) (m): Eberly's Newton on the sextic
     (t + A0)²(t + A1)²(t + A2)² − Σ A_i x_i² Π_(k≠i) (t + A_k)² from ``t`` (m²), until the
-    step is below 1e-15 of |t| + max A_i. In scalars: no array is allocated."""
+    step is below ``tol`` of |t| + max A_i. From a start in the quadratic regime (a
+    neighbour's root) a step below 1e-8 leaves an error below 1e-16 after it, so such
+    starts need not take the confirming step the default 1e-15 asks for. In scalars: no
+    array is allocated."""
     w0, w1, w2 = A0 * x0 * x0, A1 * x1 * x1, A2 * x2 * x2
     top = max(A0, max(A1, A2))
     for _ in range(100):
@@ -121,7 +124,7 @@ def _multiplier(A0, A1, A2, x0, x1, x2, t):
                     - w2 * P * Q * (P + Q))
         step = f / fp
         t -= step
-        if abs(step) <= 1e-15 * (abs(t) + top):
+        if abs(step) <= tol * (abs(t) + top):
             break
     return t
 
@@ -130,14 +133,16 @@ def _multiplier(A0, A1, A2, x0, x1, x2, t):
 def _fan_sum(r1, d, ax):
     """Σ over the chord points x_i = r1 + (i/FAN_SAMPLES) d, i = 1 … FAN_SAMPLES − 2, of the
     unit vectors from x_i to their nearest surface points (module docstring, 2: "fan").
-    The points lie inside, so each multiplier is negative; Newton starts from the
-    neighbour's root (a few hundredths of the chord away: one or two steps fewer than
-    the cold start t = 0) and is redone cold if it leaves (−min a_i², 0]. Points with a
-    coordinate within NEAR_PLANE of 0 go to :func:`_nearest` (its 2-D sections)."""
+    The points lie inside, so each multiplier is negative; Newton starts from the linear
+    extrapolation of the two previous points' roots (error ~1e-7 relative: two steps,
+    against four from the neighbour's root and five cold from t = 0) and is redone cold
+    if it leaves (−min a_i², 0]. Points with a coordinate within NEAR_PLANE of 0 go to
+    :func:`_nearest` (its 2-D sections)."""
     A0, A1, A2 = ax[0] * ax[0], ax[1] * ax[1], ax[2] * ax[2]
     low = -min(A0, min(A1, A2))
     s0, s1, s2 = 0.0, 0.0, 0.0
-    t = 0.0
+    t, t1, t2 = 0.0, 0.0, 0.0  # the last root, and the two before it (roots = number of them)
+    roots = 0
     for i in range(1, FAN_SAMPLES - 1):
         f = i / FAN_SAMPLES
         x0, x1, x2 = r1[0] + f * d[0], r1[1] + f * d[1], r1[2] + f * d[2]
@@ -146,9 +151,14 @@ def _fan_sum(r1, d, ax):
             c = _nearest(ax, np.array([x0, x1, x2]), -1)
             y0, y1, y2 = c[0] - x0, c[1] - x1, c[2] - x2
         else:
-            t = _multiplier(A0, A1, A2, x0, x1, x2, t)
+            if roots >= 2:
+                t = _multiplier(A0, A1, A2, x0, x1, x2, 2.0 * t1 - t2, 1e-8)
+            else:
+                t = _multiplier(A0, A1, A2, x0, x1, x2, t1 if roots else 0.0)
             if not (low < t <= 0.0):
                 t = _multiplier(A0, A1, A2, x0, x1, x2, 0.0)
+            t2, t1 = t1, t
+            roots += 1
             y0, y1, y2 = A0 * x0 / (t + A0) - x0, A1 * x1 / (t + A1) - x1, A2 * x2 / (t + A2) - x2
         n = np.sqrt(y0 * y0 + y1 * y1 + y2 * y2)
         if n > 0.0:
