@@ -98,6 +98,20 @@ def test_muscle_set_mixes_hill_and_millard():
         assert f_opt[k] == opensim_so_strength(MUSCLES[k], l[k], v[k])[0]
 
 
+def test_muscle_set_states_do_not_depend_on_the_previous_call():
+    """A set copies the Millard rows whose l_MT and v_MT equal its previous call's instead
+    of solving them again: every row equals each muscle's own single evaluation, after
+    calls that change some rows, all rows or none."""
+    s = MuscleSet(MUSCLES)
+    l0, v0 = np.array([0.35, 0.29, 0.33, 0.34]), np.array([0.1, -0.2, 0.05, -0.3])
+    for l, v in ((l0, v0), (l0 + [0.0, 0.0, 0.004, 0.0], v0), (l0, v0 + [0.02, 0.0, 0.0, 0.0]), (l0, v0),
+                 (l0 - 0.003, v0 + 0.01)):
+        strength, passive = s.evaluate(l, v)
+        for k, m in enumerate(MUSCLES):
+            assert (strength[k], passive[k]) == pytest.approx(m.evaluate(l[k], v[k]), rel=1e-14)
+        assert strength[0] > 0.0 and strength[2] > 0.0
+
+
 @pytest.mark.parametrize("muscle", [m for m in MUSCLES if isinstance(m, MillardMuscle)], ids=lambda m: m.name)
 def test_state_derivatives_match_central_differences(muscle):
     rng = np.random.default_rng(7)

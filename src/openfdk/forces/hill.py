@@ -472,6 +472,10 @@ class MuscleSet:
         self._millard_slot[~np.array(is_millard, dtype=bool)] = -1
         self._millard_params = np.array([m._row() for m, mm in zip(muscles, is_millard) if mm])
         self._index = np.arange(self.n_muscles, dtype=np.int64)
+        # the last whole-set states (l_MT, v_MT, out): Millard rows whose l_MT and v_MT are
+        # the same bit for bit are copied instead of solved again (a Jacobian's differences
+        # and Newton's iterates move only the muscles that cross the moved joints)
+        self._last = None
 
     def _run(self, l_MT, v_MT, single):
         l_MT = np.ascontiguousarray(l_MT, dtype=float)
@@ -499,7 +503,15 @@ class MuscleSet:
         if self._millard_params.size:
             from .millard import millard_states
 
-            millard_states(self._millard_params, self._millard_slot[index], l_MT, v_MT, out)
+            slot = self._millard_slot[index]
+            last = None if single else self._last
+            if last is not None:
+                same = (l_MT == last[0]) & (v_MT == last[1]) & (slot >= 0)
+                out[:, same] = last[2][:, same]
+                slot = np.where(same, -1, slot)
+            millard_states(self._millard_params, slot, l_MT, v_MT, out)
+            if not single:
+                self._last = (l_MT.copy(), v_MT.copy(), out.copy())
         if self._curve_rows.size:
             from .curve_muscle import curve_states
 
