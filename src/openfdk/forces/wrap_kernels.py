@@ -38,7 +38,7 @@ not converged. :func:`wrapped_path_lengths` assembles whole paths through points
 surfaces (see :mod:`.wrapping`). All jitted code of the wrapping lives in this module
 except OpenSim's planar ellipsoid rule (:mod:`.wrap_ellipsoid_plane`, flag
 OPENSIM_PLANE): numba's on-disk cache checks only a kernel's own file, so a change there
-must change this file too (here: the fan's extrapolated multipliers).
+must change this file too (here: the plane rule's 43-length Hessian).
 """
 
 from __future__ import annotations
