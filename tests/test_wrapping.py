@@ -297,6 +297,18 @@ def test_ligament_stiffness_over_a_wrap_matches_finite_differences():
     K_fd = manifold_jacobian(lambda s: passive.generalized_forces(s, 0.0)[0], state, 1e-6)
     np.testing.assert_allclose(K, K_fd, atol=1e-4 * np.abs(K_fd).max())
     assert np.abs(K).max() > 10
+    # along given directions only (the analytic FDK Jacobian's K u_j): differences along
+    # each direction, against the generalised forces' own central differences along it
+    U = np.random.default_rng(5).normal(size=(state.n_coords, 3))
+    KU = passive.stiffness_along(state, out, U)
+    for j in range(3):
+        h = 1e-6 / np.abs(U[:, j]).max()
+        plus, minus = state.copy(), state.copy()
+        plus.displace(h * U[:, j])
+        minus.displace(-h * U[:, j])
+        dQ = (passive.generalized_forces(plus, 0.0)[0] - passive.generalized_forces(minus, 0.0)[0]) / (2 * h)
+        np.testing.assert_allclose(KU[:, j], dQ, atol=1e-4 * np.abs(dQ).max())
+        assert np.abs(dQ).max() > 10
 
 
 def test_wrapped_stiffness_perturbs_only_the_bodies_the_path_touches():

@@ -137,7 +137,7 @@ def analytic_jacobian(ctx, k, ev):
     # by central differences of their Q along each u_j (differenced_kinds)
     forces = ctx.solver.forces
     directional, left_out = differenced_kinds(forces)
-    K = forces.stiffness(ev.state, ev.data.forces, exclude=left_out)
+    KU = forces.stiffness_along(ev.state, ev.data.forces, u_all, exclude=left_out)
     n_fdk = len(ev.alpha)
     dC, dd, ds = [], [], []
     for j in range(n_fdk):
@@ -156,7 +156,7 @@ def analytic_jacobian(ctx, k, ev):
         (Cp, dp, s_p, Qm_p, Qc_p), (Cm, dm, s_m, Qm_m, Qc_m) = ends
         dC.append((Cp - Cm) / (2 * eps))
         # d = d_inertial − Q: the applied loads' part by their stiffness (Eq. 13)
-        dQ = K @ u + (Qm_p - Qm_m + Qc_p - Qc_m) / (2 * eps)
+        dQ = KU[:, j] + (Qm_p - Qm_m + Qc_p - Qc_m) / (2 * eps)
         dd.append((dp - dm) / (2 * eps) - dQ[rows])
         ds.append((s_p - s_m) / (2 * eps))
     p = ctx.solver.settings.power

@@ -93,6 +93,22 @@ class ForceElements:
                 fs.stiffness(state, outputs[fs.kind], K)
         return K
 
+    def stiffness_along(self, state, outputs, U, exclude=()):
+        """K U (n, m) for directions U (n, m) [m, rad] of all sets but the kinds in
+        ``exclude``: a set with its own ``stiffness_along`` differences only along U,
+        the others give their K times U."""
+        KU = np.zeros((state.n_coords, U.shape[1]))
+        K = None
+        for fs in self.sets:
+            if fs.kind in exclude:
+                continue
+            if hasattr(fs, "stiffness_along"):
+                KU += fs.stiffness_along(state, outputs[fs.kind], U)
+            else:
+                K = np.zeros((state.n_coords, state.n_coords)) if K is None else K
+                fs.stiffness(state, outputs[fs.kind], K)
+        return KU if K is None else KU + K @ U
+
     def generalized_forces_of(self, kinds, state, t):
         """Q (n,) [N, N m] of the sets of the given kinds only, at ``state`` and t (s)."""
         Q = np.zeros(state.n_coords)

@@ -90,3 +90,13 @@ class LigamentForces:
         K -= L.T @ (L * dT[:, None])
         if np.any(out.force):
             self.paths.add_geometric_stiffness(state, out.force, L, K)  # −Σ T_k ∂L_kᵀ/∂q̂
+
+    def stiffness_along(self, state, out, U):
+        """K U (n, m) for directions U (n, m) [m, rad]: :meth:`stiffness` times U, the
+        wrapped strands' geometric part differenced along U's columns only."""
+        L = out.L
+        dT = self._laws(out.length)[2]
+        KU = -(L.T @ (dT[:, None] * (L @ U)))
+        if np.any(out.force):
+            KU += self.paths.geometric_stiffness_along(state, out.force, L, U)
+        return KU
