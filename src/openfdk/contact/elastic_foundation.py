@@ -407,6 +407,13 @@ def _accumulate(s_A, a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb, P, dP, W, want
     S_y = np.zeros((3, 3))
     R_ba = R_Wb.T @ R_Wa
     R_ab = R_Wa.T @ R_Wb
+    # the vertex-independent blocks of ∂u/∂g and ∂y/∂q̂ (grid_K): ±R_Wb, ±R_Wbᵀ
+    for r in range(3):
+        for c in range(3):
+            Bu[r, c] = R_Wb[r, c]
+            Bu[6 + r, c] = -R_Wb[r, c]
+            Ay[r, c] = R_Wb[c, r]
+            Ay[r, 6 + c] = -R_Wb[c, r]
     u = np.empty(12)
     UU = np.zeros((12, 12))
     KC = np.zeros((12, 12))  # the curvature term (grid_K)
@@ -482,12 +489,8 @@ def _accumulate(s_A, a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb, P, dP, W, want
             _skew_into(y0, y1, y2, S_y)
             for r in range(3):
                 for c in range(3):
-                    Bu[r, c] = R_Wb[r, c]
-                    Bu[6 + r, c] = -R_Wb[r, c]
                     Bu[9 + r, c] = -S_y[r, c]
                     Bu[3 + r, c] = S_s[r, 0] * R_ab[0, c] + S_s[r, 1] * R_ab[1, c] + S_s[r, 2] * R_ab[2, c]
-                    Ay[r, c] = R_Wb[c, r]
-                    Ay[r, 6 + c] = -R_Wb[c, r]
                     Ay[r, 9 + c] = S_y[r, c]
                     Ay[r, 3 + c] = -(R_ba[r, 0] * S_s[0, c] + R_ba[r, 1] * S_s[1, c] + R_ba[r, 2] * S_s[2, c])
             for r in range(3):  # M = w ∂g/∂y ∂y/∂q̂ (3, 12)
@@ -537,7 +540,6 @@ def _accumulate(s_A, a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb, P, dP, W, want
                     K[c, r] -= UU[r, c]
     if want_K:
         I3 = np.eye(3)
-        R_ba = R_ab.T
         Rb_G = R_Wb @ _skew(G_sum)  # Σ w R_Wb g̃
         G_RbT = _skew(G_sum) @ R_Wb.T  # Σ w g̃ R_Wbᵀ
         A = M1 - sigma * I3  # Σ w s̃ ñ_A

@@ -21,7 +21,8 @@ step's own rate, carried on, would not reach the tolerance in one more step
 (max |f₁|² / max |f₀| ≥ tolerance): Broyden's updates then converge linearly, a fresh J
 quadratically. On the synthetic knee in gait this last rule takes 4.48 → 4.06 residual
 evaluations and 1.04 → 1.34 Jacobians per frame (full Newton, ``reuse_jacobian: false``:
-3.62 and 2.62, at 70 % of the speed). Only a fresh J's step goes on to the line search. With ``reuse_jacobian: false`` every iteration
+3.62 and 2.62, at 70 % of the speed). Only a fresh J's step goes on to the line
+search. With ``reuse_jacobian: false`` every iteration
 computes J, as in the paper.
 
 A frame that does not converge keeps its best iterate and says why: line search failed, iteration limit, recruitment infeasible,

@@ -121,10 +121,9 @@ class PathSet:
                                      self.s_b, self.seg_path, straight, K)
         KU = K @ U
         for part, T_p, f0, _ in groups:
-            base = state.copy()
             for j in range(U.shape[1]):
                 h = 1e-7 / max(float(np.max(np.abs(U[:, j]))), 1e-12)
-                moved = base.copy()
+                moved = state.copy()
                 moved.displace(h * U[:, j])
                 KU[:, j] -= (T_p @ part.evaluate(moved)[1] - f0) / h
         return KU
