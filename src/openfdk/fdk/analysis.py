@@ -1,7 +1,8 @@
 """FDK over a trial: per frame, Newton on f^FDK(α) = 0, warm-started across frames.
 
-Warm start: α of frame k starts from the linear extrapolation 2 α_{k−1} − α_{k−2} of two
-converged predecessors (or α_{k−1}, or the DOFs' initial values), and the poses of the
+Warm start: α of frame k starts from the extrapolation of the converged predecessors
+(:mod:`.warm_start`: linear from two, quadratic from three where that predicted the
+last frame better; or α_{k−1}, or the DOFs' initial values), and the poses of the
 previous frame's solution. A frame that fails from there is solved again from α_{k−1},
 from the DOFs' initial values, after marching to it through intermediate frames
 (:mod:`.approach`: sub-steps from a converged previous frame, a lead-in before the
@@ -44,6 +45,7 @@ from .approach import approach_for
 from .newton import combined, solve_frame, solve_restarts
 from .residual import FDKContext, FrameWorkspace
 from .settings import fdk_settings
+from .warm_start import HISTORY, extrapolated
 
 
 @dataclass(frozen=True)
@@ -180,13 +182,12 @@ class FDKStep:
         ws = FrameWorkspace({j: self.last_state for j in ctx.frames_needed(k)},
                             history[-1][1] if warm_frame else None, self.dq_dalpha if warm_frame else None)
         failed = self.last_failed if self.last_failed is not None and self.last_failed[0] == k - 1 else None
-        if settings.extrapolate and len(history) >= 2 and warm_frame and history[-2][0] == k - 2:
-            a0 = 2 * history[-1][1] - history[-2][1]
-        elif warm_frame or (history and failed is None):
+        a0 = extrapolated(history, k, settings.max_step) if settings.extrapolate else None
+        if a0 is None and (warm_frame or (history and failed is None)):
             a0 = history[-1][1].copy()
-        elif failed is not None:
+        elif a0 is None and failed is not None:
             a0 = failed[1].copy()  # the previous frame's best iterate: nearer than an older solution
-        else:
+        elif a0 is None:
             a0 = self.a_init.copy()
         # a cold frame (no converged previous frame) starts far from its root: a larger
         # iteration limit for its first start (settings.cold_max_iterations)
@@ -241,7 +242,7 @@ class FDKStep:
             values.update(forces_failure(report, status))
         if sol.converged:
             history.append((k, ev.alpha.copy()))
-            self.history = history[-2:]
+            self.history = history[-HISTORY:]
             self.warm = ev.frame.recruitment
         return [(k, values)]
 
