@@ -11,7 +11,8 @@ fdk:
   reuse_jacobian: true     # carry J between iterations and frames with Broyden updates
   line_search: true        # a refused step: a smaller trust region, then a golden-section search
                            # on the step length (false: plain Newton steps in the max_step box)
-  extrapolate: true        # warm start α by linear extrapolation of the two previous frames
+  extrapolate: true        # warm start α by extrapolating the previous frames: linear, or
+                           # quadratic where that predicted the last frame better (fdk/warm_start.py)
   restart: true            # a frame that fails from its warm start is solved again from the
                            # previous frame's α, then from the DOFs' initial values, then
                            # from the previous α moved by ±2, ±4 max_steps along one DOF
