@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from openfdk.fdk.analysis import FDKStep, fdk_context, run_fdk
-from openfdk.fdk.approach import LEAD_IN_FRAMES, SUBSTEPS, approach_times
+from openfdk.fdk.approach import LEAD_IN_FRAMES, MARCH_TOLERANCE, SUBSTEPS, approach_times
 from openfdk.fdk.settings import fdk_settings
 from openfdk.forces.elements import add_external_load, add_spring
 from openfdk.model.builder import ModelBuilder
@@ -83,3 +83,29 @@ def test_a_load_step_newton_cannot_follow_in_one_frame_converges_in_sub_steps():
     step = FDKStep(model, ctx, settings, approach=None)
     values = drive(step, len(times), lambda rec: rec.objects("fdk.report"))
     assert [r.converged for r in values] == [i != k for i in range(len(times))]
+
+
+def test_the_marched_frames_are_solved_to_march_tolerance_and_the_frame_to_the_tolerance(monkeypatch):
+    """The marched frames are stepping stones: each Newton solve of one is asked for
+    MARCH_TOLERANCE × the tolerance; frame k's own solve for the tolerance, and its α
+    still equals the closed form to tolerance / k."""
+    import openfdk.fdk.analysis as analysis
+
+    asked = []
+    solve = analysis.solve_frame
+
+    def recording(ctx, k, alpha0, ws, settings, *args, **kwargs):
+        asked.append((len(ctx.times), settings.tolerance))
+        return solve(ctx, k, alpha0, ws, settings, *args, **kwargs)
+
+    monkeypatch.setattr(analysis, "solve_frame", recording)
+    model = _slider()
+    times = np.arange(6) * DT
+    res = run_fdk(model, None, times, max_iterations=3)
+    assert res.converged.all()
+    marched = [tol for n, tol in asked if n == SUBSTEPS - 1]
+    trial = [tol for n, tol in asked if n == len(times)]
+    assert len(marched) == SUBSTEPS - 1 and set(marched) == {MARCH_TOLERANCE * 1e-3}
+    assert len(trial) >= len(times) and set(trial) == {1e-3}
+    alpha_star = (np.array([_Ramp().derivatives(t)[0][2] for t in times]) - M * G) / K
+    np.testing.assert_allclose(res.alpha[:, 0], alpha_star, rtol=0, atol=1e-3 / K)
