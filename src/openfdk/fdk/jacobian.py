@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kinematics.frame_kernels import small_solve
-from ..numerics.numdiff import manifold_jacobian
+from ..numerics.numdiff import column_groups, manifold_jacobian
 from ..recruitment import recruitment_sensitivity
 from .residual import FrameWorkspace
 
@@ -106,7 +106,8 @@ def kinematic_sensitivity(ctx, ev):
 
     # the gradient at the pose itself from the position stage (marker Jacobian, Φ_q̂)
     g0 = data.J_M.T @ (w * (data.p_M - x)) + A.T @ lam
-    H = manifold_jacobian(gradient, state, eps=1e-7, central=False, f0=g0)
+    pattern, groups = _hessian_pattern(ctx, A)
+    H = manifold_jacobian(gradient, state, eps=1e-7, central=False, f0=g0, pattern=pattern, groups=groups)
     K = np.zeros((n + m, n + m))
     K[:n, :n] = H
     K[:n, n:] = A.T
@@ -114,6 +115,32 @@ def kinematic_sensitivity(ctx, ev):
     rhs = np.zeros((n + m, n_fdk))
     rhs[n:] = E
     return np.linalg.solve(K, rhs)[:n]
+
+
+def hessian_pattern(A):
+    """The entries of the tracking Lagrangian's Hessian ∂/∂q̂ (Ψ_q̂ᵀ W Ψ + Φ_q̂ᵀ λ) (n, n)
+    that can be non-zero, from the structure of Φ_q̂ = A (m, n = 6 n_moving): a marker
+    lies on one body, so its terms couple that body's 6 coordinates only; a constraint
+    row couples every pair of the bodies it touches (a body whose 6 columns of A are not
+    all zero). Returns (pattern (n, n) bool, touched (m, n_moving) bool)."""
+    m, n = A.shape
+    touched = (A != 0.0).reshape(m, n // 6, 6).any(axis=2)
+    T = touched.astype(np.int64)
+    coupled = np.eye(n // 6, dtype=bool) | ((T.T @ T) > 0)
+    return np.kron(coupled, np.ones((6, 6), dtype=bool)), touched
+
+
+def _hessian_pattern(ctx, A):
+    """(pattern, column groups) of :func:`hessian_pattern` for ``ctx``'s constraints,
+    kept on ``ctx`` and built again if A touches a body the kept one did not."""
+    kept = getattr(ctx, "_hessian", None)
+    m, n = A.shape
+    if kept is not None and kept[2].shape == (m, n // 6):
+        if not np.any((A != 0.0).reshape(m, n // 6, 6).any(axis=2) & ~kept[2]):
+            return kept[0], kept[1]
+    pattern, touched = hessian_pattern(A)
+    ctx._hessian = (pattern, column_groups(pattern), touched)
+    return ctx._hessian[0], ctx._hessian[1]
 
 
 def _geometry_terms(ctx, state, vdot, t, alpha):
@@ -164,4 +191,5 @@ def analytic_jacobian(ctx, k, ev):
     return df[:, ctx.fdk_columns].T, 0, ""
 
 
-__all__ = ["central_jacobian", "analytic_jacobian", "kinematic_sensitivity", "differenced_kinds", "FrameWorkspace"]
+__all__ = ["central_jacobian", "analytic_jacobian", "kinematic_sensitivity", "differenced_kinds", "hessian_pattern",
+           "FrameWorkspace"]

@@ -99,6 +99,7 @@ class FDKContext:
         names = solver.layout.column_names
         self.fdk_columns = np.array([names.index(f"fdk.{d.name}") for d in model.fdk_dofs], dtype=int)
         self._rates_frame, self._rates_k = None, None  # _measured_rates of the frame in work
+        self._hessian = None  # the tracking Hessian's pattern, groups, touched bodies (fdk.jacobian)
 
     def at_times(self, times, trajectories=None):
         """The same trial's context at other ``times`` (nf,) s — the same solver and

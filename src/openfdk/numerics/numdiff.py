@@ -9,15 +9,26 @@ from __future__ import annotations
 import numpy as np
 
 
-def manifold_jacobian(fun, state, eps=1e-6, central=True, f0=None, columns=None):
+def manifold_jacobian(fun, state, eps=1e-6, central=True, f0=None, columns=None, pattern=None, groups=None):
     """Jacobian ∂fun/∂q̂ (m, 6 n_moving) of ``fun(state) -> (m,)`` by central (error
     O(ε²)) or forward (O(ε), half the evaluations) differences on the manifold.
 
     f0 : fun(state) when the caller has it (not evaluated again). columns : the
     coordinates (indices into q̂) to perturb when the caller knows that ``fun`` does not
-    depend on the others (their columns are left zero); all by default. ``state``
-    (BodyStates) is restored on return.
+    depend on the others (their columns are left zero); all by default. pattern :
+    (m, 6 n_moving) bool, the entries that can be non-zero: columns whose rows do not
+    overlap are then perturbed together, one evaluation per group of
+    :func:`column_groups` (Curtis, Powell & Reid 1974), and each column's rows are read
+    off that evaluation. Where an entry outside the pattern is exactly zero — the rows
+    of ``fun`` are computed only from the coordinates the pattern gives them — the
+    result equals the one-column-at-a-time differences. groups : the pattern's
+    :func:`column_groups` when the caller keeps them. ``state`` (BodyStates) is
+    restored on return.
     """
+    if pattern is not None:
+        pattern = np.asarray(pattern, dtype=bool)
+        return _compressed_jacobian(fun, state, eps, central, f0, pattern,
+                                    column_groups(pattern) if groups is None else groups)
     base = state.copy()
     f0 = np.atleast_1d(fun(state) if f0 is None else f0)
     J = np.zeros((f0.size, state.n_coords))
@@ -34,6 +45,47 @@ def manifold_jacobian(fun, state, eps=1e-6, central=True, f0=None, columns=None)
             J[:, k] = (fp - fm) / (2 * eps)
         else:
             J[:, k] = (fp - f0) / eps
+    _restore(state, base)
+    return J
+
+
+def column_groups(pattern):
+    """Columns of ``pattern`` (m, n) bool in groups (list of index arrays) whose rows do
+    not overlap: greedily, each column into the first group it fits. Differencing a
+    group's columns together then separates their entries exactly."""
+    pattern = np.asarray(pattern, dtype=bool)
+    groups, rows = [], []
+    for j in range(pattern.shape[1]):
+        for g, used in enumerate(rows):
+            if not np.any(used & pattern[:, j]):
+                groups[g].append(j)
+                used |= pattern[:, j]
+                break
+        else:
+            groups.append([j])
+            rows.append(pattern[:, j].copy())
+    return [np.array(g, dtype=np.int64) for g in groups]
+
+
+def _compressed_jacobian(fun, state, eps, central, f0, pattern, groups):
+    """:func:`manifold_jacobian` by ``groups`` of columns of its ``pattern``."""
+    base = state.copy()
+    f0 = np.atleast_1d(fun(state) if f0 is None else f0)
+    J = np.zeros((f0.size, state.n_coords))
+    for group in groups:
+        e = np.zeros(state.n_coords)
+        e[group] = eps
+        _restore(state, base)
+        state.displace(e)
+        fp = np.atleast_1d(fun(state))
+        if central:
+            _restore(state, base)
+            state.displace(-e)
+            d = (fp - np.atleast_1d(fun(state))) / (2 * eps)
+        else:
+            d = (fp - f0) / eps
+        for k in group:
+            J[pattern[:, k], k] = d[pattern[:, k]]
     _restore(state, base)
     return J
 

@@ -1,0 +1,92 @@
+"""The tracking Lagrangian's Hessian by compressed differences (fdk.jacobian.hessian_pattern,
+numerics.numdiff.column_groups): the analytic FDK Jacobian's kinematic sensitivity
+differences the gradient Ψ_q̂ᵀ W Ψ + Φ_q̂ᵀ λ once per group of coordinates whose rows
+do not overlap, instead of once per coordinate."""
+
+import numpy as np
+
+from openfdk.fdk.jacobian import hessian_pattern
+from openfdk.kinematics.system import ConstraintSystem
+from openfdk.kinematics.tracking import MarkerTracker
+from openfdk.model.builder import ModelBuilder
+from openfdk.numerics.numdiff import column_groups, manifold_jacobian
+
+L, N_SEG = 0.3, 5
+
+
+def _chain():
+    """N_SEG segments hanging from the ground by spherical joints, three markers each."""
+    b = ModelBuilder("chain5")
+    b.add_frame("ground", "pivot", (0, 0, 0))
+    for k in range(N_SEG):
+        b.add_body(f"s{k}", 1.0, [1e-2, 1e-2, 1e-3], position=(0, 0, -L * k - L / 2))
+        b.add_frame(f"s{k}", "top", (0, 0, L / 2))
+        b.add_frame(f"s{k}", "tip", (0, 0, -L / 2))
+        b.add_joint(f"j{k}", "spherical", "ground.pivot" if k == 0 else f"s{k - 1}.tip", f"s{k}.top")
+        for i, p in enumerate([(0.05, 0, 0.1), (0, 0.05, -0.1), (-0.04, 0.02, 0.0)]):
+            b.add_marker(f"s{k}_m{i}", f"s{k}", p)
+    return b.build()
+
+
+def _lagrangian_gradient(seed=0):
+    """(gradient(state) -> (n,), state, Φ_q̂ (m, n)) of the tracking Lagrangian at a
+    displaced pose, random measured markers and multipliers λ."""
+    rng = np.random.default_rng(seed)
+    model = _chain()
+    system = ConstraintSystem(model)
+    tracker = MarkerTracker(system)
+    state = model.initial_state()
+    state.displace(rng.normal(0.0, 0.05, state.n_coords))
+    n_m = len(model.markers.names) if hasattr(model.markers, "names") else 3 * N_SEG
+    x = tracker.markers.positions(state) + rng.normal(0.0, 0.01, (n_m, 3))
+    w = tracker._weights(np.ones(n_m, dtype=bool))
+    _, A, _, _ = system.evaluate(state, 0.0, None, order=1)
+    lam = rng.normal(0.0, 10.0, A.shape[0])
+
+    def gradient(s):
+        p, J, _ = tracker.markers.evaluate(s, 1)
+        _, As, _, _ = system.evaluate(s, 0.0, None, order=1)
+        return J.T @ (w * (p - x.ravel())) + As.T @ lam
+
+    return gradient, state, A
+
+
+def test_the_pattern_of_a_chain_couples_neighbouring_segments_only():
+    _, state, A = _lagrangian_gradient()
+    pattern, touched = hessian_pattern(A)
+    assert touched.shape == (A.shape[0], N_SEG)
+    body = np.arange(state.n_coords) // 6
+    expected = np.abs(body[:, None] - body[None, :]) <= 1  # joint k couples s_{k−1} and s_k
+    np.testing.assert_array_equal(pattern, expected)
+
+
+def test_compressed_differences_equal_one_coordinate_at_a_time():
+    gradient, state, A = _lagrangian_gradient()
+    pattern, _ = hessian_pattern(A)
+    groups = column_groups(pattern)
+    assert len(groups) == 6 * 3  # three colours of a chain's segments (distance 2), six coordinates each
+    calls = []
+
+    def counted(s):
+        calls.append(1)
+        return gradient(s)
+
+    g0 = gradient(state)
+    H_full = manifold_jacobian(gradient, state, eps=1e-7, central=False, f0=g0)
+    H = manifold_jacobian(counted, state, eps=1e-7, central=False, f0=g0, pattern=pattern, groups=groups)
+    assert len(calls) == len(groups) < state.n_coords
+    scale = np.abs(H_full).max()
+    assert scale > 1.0 and np.count_nonzero(H_full[pattern]) > 0.5 * pattern.sum()
+    assert np.abs(H_full[~pattern]).max() <= 1e-12 * scale  # nothing outside the pattern
+    np.testing.assert_allclose(H, H_full, rtol=0, atol=1e-12 * scale)
+    # the state is restored
+    np.testing.assert_array_equal(gradient(state), g0)
+
+
+def test_column_groups_of_a_tridiagonal_pattern_are_the_residues_mod_3():
+    n = 10
+    pattern = np.abs(np.arange(n)[:, None] - np.arange(n)[None, :]) <= 1
+    groups = column_groups(pattern)
+    assert [g.tolist() for g in groups] == [list(range(r, n, 3)) for r in range(3)]
+    for g in groups:  # no row shared within a group
+        assert pattern[:, g].sum(axis=1).max() <= 1
