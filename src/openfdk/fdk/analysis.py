@@ -250,11 +250,14 @@ class FDKStep:
         return []
 
     def carry(self):
-        return self.last_state.copy(), list(self.history), self.warm, self.J_carry, self.last_failed, self.dq_dalpha
+        return (self.last_state.copy(), list(self.history), self.warm, self.J_carry, self.last_failed, self.dq_dalpha,
+                self.ctx.tracking_curvature)
 
     def restore(self, carry):
         last_state, history, self.warm, self.J_carry, self.last_failed, *sensitivity = carry
-        self.dq_dalpha = sensitivity[0] if sensitivity else None  # (a checkpoint of an earlier version)
+        # (a checkpoint of an earlier version has no sensitivity, or no curvature)
+        self.dq_dalpha = sensitivity[0] if sensitivity else None
+        self.ctx.tracking_curvature = sensitivity[1] if len(sensitivity) > 1 else None
         self.last_state, self.history = last_state.copy(), list(history)
 
 

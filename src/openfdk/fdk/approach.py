@@ -100,6 +100,7 @@ class Approach:
             march.history = [(-1, history[-1][1].copy())]
             march.last_state, march.warm, march.J_carry = step.last_state, step.warm, step.J_carry
             march.dq_dalpha = step.dq_dalpha
+            march.ctx.tracking_curvature = step.ctx.tracking_curvature
         totals = np.zeros(3, dtype=int)
         for j in range(len(times)):
             (_, values), = march.step(j)

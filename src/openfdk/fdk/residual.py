@@ -100,6 +100,10 @@ class FDKContext:
         self.fdk_columns = np.array([names.index(f"fdk.{d.name}") for d in model.fdk_dofs], dtype=int)
         self._rates_frame, self._rates_k = None, None  # _measured_rates of the frame in work
         self._hessian = None  # the tracking Hessian's pattern, groups, touched bodies (fdk.jacobian)
+        #: (n, n) the tracking Lagrangian Hessian's second-order terms at the last analytic
+        #: Jacobian's pose (fdk.jacobian.kinematic_sensitivity), or None: the position
+        #: solves take Newton steps with them (MarkerTracker.solve_positions)
+        self.tracking_curvature = None
 
     def at_times(self, times, trajectories=None):
         """The same trial's context at other ``times`` (nf,) s — the same solver and
@@ -137,7 +141,8 @@ class FDKContext:
         delta = {}
         for j in self.frames_needed(k):
             x, _, _, vis = self.meas[j]
-            res, K, lm = self.tracker.solve_positions(ws.states[j], self.times[j], x, vis, alpha)
+            res, K, lm = self.tracker.solve_positions(ws.states[j], self.times[j], x, vis, alpha,
+                                                      self.tracking_curvature)
             if res.converged:
                 if j == k:  # marker stage at the solved pose; δ from its positions
                     data.kkt, data.lam = K, lm

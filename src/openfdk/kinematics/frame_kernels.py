@@ -212,14 +212,16 @@ def _soft_rows(p_WB, R_WB, w_BB, v_WB, column, marker_body, p_BM, n, order,
 @njit(cache=True)
 def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows, n_node_rows,
                        p_WB, quat_WB, R_WB, w_BB, v_WB, column, moving, f, angle,
-                       marker_body, p_BM, w, x, tol_step, tol_constraint, max_iter, K, lam,
+                       marker_body, p_BM, w, x, tol_step, tol_constraint, max_iter, K, lam, S, use_S,
                        top, tnode_row, tnode_size, ti_start, tiparams, tf_start, tfparams, tout_rows, tn_node_rows):
     """Gauss–Newton SQP of marker tracking (Eqs. 4–5) from the state (in place).
 
     marker_body (nm,), p_BM (nm, 3) m; w (3 nm + nt,) row weights; x (3 nm + nt,) m
     measured positions, then the nt task targets (rad, m) (0 where w = 0); the task
     program ``t*`` (coordinate tasks, empty without); K (n + m, n + m) output, the last
-    KKT matrix (reused by Eqs. 8–10); lam (m,) output multipliers. Converged when
+    KKT matrix (reused by Eqs. 8–10); lam (m,) output multipliers; S (n, n), use_S: the
+    Hessian's second-order terms added for the steps (:func:`~openfdk.kinematics.kkt.kkt_step`;
+    Newton's steps instead of Gauss–Newton's, K as without). Converged when
     max |Δq̂| < tol_step and max |Φ| ≤ tol_constraint at the start of that step.
     Returns (status, iterations, max |Φ|, last step, failing node, error code); a
     failing task node is reported as −2 − node."""
@@ -242,7 +244,7 @@ def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fpara
         if e_node >= 0:
             return MEASURE_ERROR, it, np.inf, step, e_node, e_kind
         _residual(val, f, angle, Phi)
-        sol, step, res = kkt_step(J, w, p, x, A, Phi, K)
+        sol, step, res = kkt_step(J, w, p, x, A, Phi, K, S, use_S)
         for r in range(n):
             if not np.isfinite(sol[r]):
                 return SINGULAR, it, np.nan, step, -1, 0

@@ -18,13 +18,15 @@ __all__ = ["kkt_step"]
 
 
 @njit(cache=True)
-def kkt_step(J, w, p, x, A, Phi, K):
+def kkt_step(J, w, p, x, A, Phi, K, S, use_S):
     """Assemble K and solve for [Δq̂; λ].
 
     J : (3 n_markers, n) marker Jacobian Ψ_q̂; w : (3 n_markers,) row weights (0 for
     occluded markers); p, x : (3 n_markers,) m model and measured marker positions
     (x finite where w > 0); A : (m, n) Φ_q̂; Phi : (m,) constraint values (m or rad);
-    K : (n + m, n + m) output, the KKT matrix (reused by Eqs. 8–10).
+    K : (n + m, n + m) output, the KKT matrix (reused by Eqs. 8–10). S : (n, n) the
+    Hessian's second-order terms (Σ w r ∇²p + Σ λ ∇²Φ) added to Ψ_q̂ᵀ W Ψ_q̂ for the
+    step when ``use_S`` (a Newton step instead of Gauss–Newton's), not to K.
 
     Returns sol (n + m,) = [Δq̂; λ], max |Δq̂|, max |Φ| (0 when empty). Raises
     ``np.linalg.LinAlgError`` when K is singular.
@@ -63,7 +65,14 @@ def kkt_step(J, w, p, x, A, Phi, K):
             K[n + a, n + b] = 0.0
         rhs[n + a] = -Phi[a]
         res = max(res, abs(Phi[a]))
-    sol = np.linalg.solve(K, rhs)
+    if use_S:
+        Kn = K.copy()
+        for i in range(n):
+            for j in range(n):
+                Kn[i, j] += S[i, j]
+        sol = np.linalg.solve(Kn, rhs)
+    else:
+        sol = np.linalg.solve(K, rhs)
     step = 0.0
     for i in range(n):
         step = max(step, abs(sol[i]))

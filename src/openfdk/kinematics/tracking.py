@@ -45,6 +45,10 @@ def _kabsch(P, X):
     return R, X.mean(0) - R @ P.mean(0)
 
 
+#: the kernel's S argument when there are no second-order terms (unused)
+_NO_S = np.zeros((1, 1))
+
+
 @dataclass(frozen=True)
 class TrackingSettings:
     """tol_step : max |Δq̂| (m, rad) to stop; tol_constraint : max |Φ| (m, rad);
@@ -189,7 +193,7 @@ class MarkerTracker:
             state.p_WB[i] = p
 
     # -- Eqs. 4-5 -----------------------------------------------------------------
-    def solve_positions(self, state, t, x_WM, visible, alpha=None):
+    def solve_positions(self, state, t, x_WM, visible, alpha=None, second_order=None):
         """Gauss–Newton SQP from ``state`` (modified in place).
 
         x_WM : (n_markers, 3) m measured positions (NaN where not visible);
@@ -197,6 +201,15 @@ class MarkerTracker:
         (n + m, n + m) of the last iteration, reused by the velocity and acceleration
         solves (Eqs. 8–10), and λ (m,) the constraint multipliers of the last step. Converged when max |Δq̂| < tol_step and max |Φ| <
         tol_constraint at the start of that step (Φ only shrinks after it).
+
+        second_order : (n, n) or None, the Lagrangian Hessian's second-order terms
+        Σ w r ∇²p + Σ λ ∇²Φ at a nearby pose (the FDK Jacobian's, :mod:`openfdk.fdk.jacobian`),
+        added to Ψ_q̂ᵀ W Ψ_q̂ for the steps: Newton's steps with a Hessian from nearby
+        instead of Gauss–Newton's. The solution and K are those of the same stationarity
+        conditions; only the path to them changes. Gauss–Newton converges linearly where
+        the fit leaves residuals (on the DM knee about 0.2 per iteration: 6–8 iterations
+        per pose to 1e-9); with these terms from the last Jacobian it takes 3–4. If that
+        solve fails, plain Gauss–Newton is tried from the same start.
 
         When the Gauss–Newton kernel fails from the warm start, the damped feasible-path
         solve of :mod:`openfdk.kinematics.assembly` takes over from the same pose (K then
@@ -207,9 +220,14 @@ class MarkerTracker:
         if msg:
             return FrameSolve(False, 0, np.nan, msg, Reason.UNOBSERVABLE), None, None
         start = state.copy()
-        out = self._gauss_newton(state, t, x_WM, visible, alpha)
+        out = self._gauss_newton(state, t, x_WM, visible, alpha, second_order)
         if out[0].converged:
             return out  # (the fit is checked where δ is formed: TrackingStep, FDK's residual)
+        if second_order is not None:  # the nearby pose's curvature did not serve here
+            _restore(start, state)
+            out = self._gauss_newton(state, t, x_WM, visible, alpha)
+            if out[0].converged:
+                return out
         # far from the optimum, or a coordinate the markers barely see: the damped,
         # feasible-path solve from the same warm start (kinematics/assembly.py)
         _restore(start, state)
@@ -252,7 +270,7 @@ class MarkerTracker:
                 f"{1e3 * self.settings.max_rms_residual:.0f} mm (largest: {name!r}, {1e3 * np.sqrt(d2[worst]):.0f} mm); "
                 "check the marker units and placement")
 
-    def _gauss_newton(self, state, t, x_WM, visible, alpha):
+    def _gauss_newton(self, state, t, x_WM, visible, alpha, second_order=None):
         """The Gauss–Newton kernel's solve (see :meth:`solve_positions`)."""
         s = self.settings
         w = self._weights(visible)
@@ -269,7 +287,9 @@ class MarkerTracker:
             status, it, res, step, e_node, e_kind = tracking_positions(
                 *prog.program, prog.n_node_rows, state.p_WB, state.quat_WB, state.R_WB, state.w_BB, state.v_WB,
                 state.column, state.moving, f, self.system.angle_rows, self.markers.body, self.markers.p_BM,
-                w, x, s.tol_step, s.tol_constraint, s.max_iter, K, lam, *self._task_args)
+                w, x, s.tol_step, s.tol_constraint, s.max_iter, K, lam,
+                _NO_S if second_order is None else np.ascontiguousarray(second_order, dtype=float),
+                second_order is not None, *self._task_args)
         except np.linalg.LinAlgError as exc:
             return FrameSolve(False, 0, np.nan, f"KKT system singular: {exc}", Reason.SINGULAR), None, None
         if status == MEASURE_ERROR:
