@@ -109,7 +109,7 @@ def kinematic_sensitivity(ctx, ev):
     pattern, groups = _hessian_pattern(ctx, A)
     H = manifold_jacobian(gradient, state, eps=1e-7, central=False, f0=g0, pattern=pattern, groups=groups)
     # the second-order terms, for the position solves that follow (FDKContext.tracking_curvature)
-    ctx.tracking_curvature = H - data.J_M.T @ (w[:, None] * data.J_M)
+    ctx.tracking_curvature = (H - data.J_M.T @ (w[:, None] * data.J_M), float(t))
     K = np.zeros((n + m, n + m))
     K[:n, :n] = H
     K[:n, n:] = A.T

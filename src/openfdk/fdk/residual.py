@@ -80,6 +80,12 @@ class FrameWorkspace:
         self.alpha = np.array(alpha, dtype=float)
 
 
+#: frames from the one whose Jacobian gave the tracking curvature within which the
+#: position solves use it (FDKContext._curvature_at): that frame's poses and the next
+#: frame's (its neighbours t ± Δt)
+CURVATURE_REACH = 2
+
+
 class FDKContext:
     """Everything the residual needs that does not change within a trial.
 
@@ -100,9 +106,10 @@ class FDKContext:
         self.fdk_columns = np.array([names.index(f"fdk.{d.name}") for d in model.fdk_dofs], dtype=int)
         self._rates_frame, self._rates_k = None, None  # _measured_rates of the frame in work
         self._hessian = None  # the tracking Hessian's pattern, groups, touched bodies (fdk.jacobian)
-        #: (n, n) the tracking Lagrangian Hessian's second-order terms at the last analytic
-        #: Jacobian's pose (fdk.jacobian.kinematic_sensitivity), or None: the position
-        #: solves take Newton steps with them (MarkerTracker.solve_positions)
+        #: (S (n, n), t s): the tracking Lagrangian Hessian's second-order terms at the last
+        #: analytic Jacobian's pose and that frame's time (fdk.jacobian.kinematic_sensitivity),
+        #: or None: the position solves within CURVATURE_REACH frames of t take Newton steps
+        #: with S (MarkerTracker.solve_positions)
         self.tracking_curvature = None
 
     def at_times(self, times, trajectories=None):
@@ -142,7 +149,7 @@ class FDKContext:
         for j in self.frames_needed(k):
             x, _, _, vis = self.meas[j]
             res, K, lm = self.tracker.solve_positions(ws.states[j], self.times[j], x, vis, alpha,
-                                                      self.tracking_curvature)
+                                                      self._curvature_at(self.times[j]))
             if res.converged:
                 if j == k:  # marker stage at the solved pose; δ from its positions
                     data.kkt, data.lam = K, lm
@@ -161,6 +168,17 @@ class FDKContext:
         ev = self._dynamics(k, alpha, state, data, warm_recruitment)
         ev.kkt, ev.lam, ev.delta, ev.x, ev.visible = data.kkt, data.lam, delta[k], x, vis
         return ev
+
+    def _curvature_at(self, t):
+        """S (n, n) of ``tracking_curvature`` if it was taken within CURVATURE_REACH frames
+        of time ``t`` (s), else None: a pose further on has other curvature, and Newton
+        steps with the wrong one can take longer than Gauss–Newton's (the mandible model,
+        whose Jacobian is carried for ten frames and more: 3–10 % slower with S from
+        any earlier frame)."""
+        if self.tracking_curvature is None:
+            return None
+        S, t_ref = self.tracking_curvature
+        return S if abs(t - t_ref) <= CURVATURE_REACH * self.dt * (1 + 1e-9) else None
 
     def _measured_rates(self, k):
         """(ẋ, ẍ) (n_markers, 3) [m/s, m/s²] of frame k with occluded markers' NaN set to
