@@ -28,12 +28,13 @@ and 0.1 N off its root moves the next start by micrometres (the knee's stiffness
 lead-in's first two frames, cold, stalled near 0.05–0.07 N and spent their 100
 iterations each; solved to 0.1 N the lead-in takes 236 evaluations and 121 Jacobians
 instead of 353 and 247, and the window's first frame converges from it as before (5
-evaluations instead of 6). Frame k is then solved from the extrapolation of the last two with their poses,
-recruitment and Jacobian. After a lead-in it gets the cold iteration limit: the
-window's first frame has one-sided rates (Eq. 7), which the lead-in's frames did not
-have, so its residual is not theirs. The marched frames' iterations, evaluations and Jacobians count
-towards frame k's; nothing else of them is reported. The lead-in needs marker tracking (the
-markers reach before the window; a determinate model's drivers need not).
+evaluations instead of 6). Frame k is then solved from the extrapolation of the last
+two with their poses, recruitment and Jacobian. After a lead-in it gets the cold
+iteration limit: the window's first frame has one-sided rates (Eq. 7), which the
+lead-in's frames did not have, so its residual is not theirs. The marched frames'
+iterations, evaluations and Jacobians count towards frame k's; nothing else of them is
+reported. The lead-in needs marker tracking (the markers reach before the window; a
+determinate model's drivers need not).
 """
 
 from __future__ import annotations

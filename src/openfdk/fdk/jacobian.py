@@ -135,7 +135,7 @@ def hessian_pattern(A):
 def _hessian_pattern(ctx, A):
     """(pattern, column groups) of :func:`hessian_pattern` for ``ctx``'s constraints,
     kept on ``ctx`` and built again if A touches a body the kept one did not."""
-    kept = getattr(ctx, "_hessian", None)
+    kept = ctx._hessian
     m, n = A.shape
     if kept is not None and kept[2].shape == (m, n // 6):
         if not np.any((A != 0.0).reshape(m, n // 6, 6).any(axis=2) & ~kept[2]):
