@@ -25,26 +25,29 @@ def manifold_jacobian(fun, state, eps=1e-6, central=True, f0=None, columns=None,
     :func:`column_groups` when the caller keeps them. ``state`` (BodyStates) is
     restored on return.
     """
-    if pattern is not None:
+    if pattern is None:  # one column per evaluation, all its rows
+        groups = [[k] for k in (range(state.n_coords) if columns is None else columns)]
+    else:
         pattern = np.asarray(pattern, dtype=bool)
-        return _compressed_jacobian(fun, state, eps, central, f0, pattern,
-                                    column_groups(pattern) if groups is None else groups)
+        groups = column_groups(pattern) if groups is None else groups
     base = state.copy()
     f0 = np.atleast_1d(fun(state) if f0 is None else f0)
     J = np.zeros((f0.size, state.n_coords))
-    for k in (range(state.n_coords) if columns is None else columns):
+    for group in groups:
         e = np.zeros(state.n_coords)
-        e[k] = eps
+        e[group] = eps
         _restore(state, base)
         state.displace(e)
         fp = np.atleast_1d(fun(state))
         if central:
             _restore(state, base)
             state.displace(-e)
-            fm = np.atleast_1d(fun(state))
-            J[:, k] = (fp - fm) / (2 * eps)
+            d = (fp - np.atleast_1d(fun(state))) / (2 * eps)
         else:
-            J[:, k] = (fp - f0) / eps
+            d = (fp - f0) / eps
+        for k in group:
+            rows = slice(None) if pattern is None else pattern[:, k]
+            J[rows, k] = d[rows]
     _restore(state, base)
     return J
 
@@ -65,29 +68,6 @@ def column_groups(pattern):
             groups.append([j])
             rows.append(pattern[:, j].copy())
     return [np.array(g, dtype=np.int64) for g in groups]
-
-
-def _compressed_jacobian(fun, state, eps, central, f0, pattern, groups):
-    """:func:`manifold_jacobian` by ``groups`` of columns of its ``pattern``."""
-    base = state.copy()
-    f0 = np.atleast_1d(fun(state) if f0 is None else f0)
-    J = np.zeros((f0.size, state.n_coords))
-    for group in groups:
-        e = np.zeros(state.n_coords)
-        e[group] = eps
-        _restore(state, base)
-        state.displace(e)
-        fp = np.atleast_1d(fun(state))
-        if central:
-            _restore(state, base)
-            state.displace(-e)
-            d = (fp - np.atleast_1d(fun(state))) / (2 * eps)
-        else:
-            d = (fp - f0) / eps
-        for k in group:
-            J[pattern[:, k], k] = d[pattern[:, k]]
-    _restore(state, base)
-    return J
 
 
 def second_derivative_along(fun, state, v, h=1e-4):
