@@ -430,7 +430,7 @@ def test_ellipsoid_warm_start_equals_the_cold_solve_and_falls_back_far_away():
         st_c, l_c, T1_c, T2_c, s_c = ellipsoid_wrap(P, Q, axes, none, ELLIPSOID_TOL)
         assert st_w == st_c == 1
         assert abs(l_w - l_c) < 1e-12 and np.max(np.abs(T1_w - T1_c)) < 1e-9 and np.max(np.abs(T2_w - T2_c)) < 1e-9
-        used += int(np.array_equal(warm[5:], before[5:]))  # anchors kept: solved from the warm start
+        used += int(np.array_equal(warm[5:11], before[5:11]))  # the cold solve's anchors kept: solved warm
     assert used >= 30  # most solves of the sweep started warm (the anchors drift out of reach now and then)
     # the straight line crosses near the centre; moving it across flips the shorter way round
     sides = []
@@ -442,6 +442,34 @@ def test_ellipsoid_warm_start_equals_the_cold_solve_and_falls_back_far_away():
         sides.append(np.sign(T1_c[1]))
     assert sides[0] > 0 > sides[-1]  # the sweep did cross the branch change
 
+
+
+def test_ellipsoid_warm_solve_takes_chord_steps_with_the_kept_derivative():
+    """A warm solve a finite-difference step (1e-6 m) from the last geodesic reuses the
+    shooting residual's derivative kept in the warm row (chord Newton): it converges in
+    at most 3 shots, where differencing the derivative again (the row's D cleared) takes
+    at least 7, and both equal the cold solve to the Newton tolerance. The warm row then
+    holds this solve's geodesic, but still the cold solve's anchors (the reach is
+    measured from those)."""
+    from openfdk.forces.wrap_kernels import ELLIPSOID_TOL, WARM_SIZE, ellipsoid_wrap, ellipsoid_wrap_from
+
+    axes = np.array([0.04, 0.03, 0.025])
+    none = np.zeros(3)
+    P0, Q0 = np.array([-0.07, 0.012, 0.004]), np.array([0.065, 0.01, -0.006])
+    warm = np.zeros(WARM_SIZE)
+    ellipsoid_wrap_from(P0, Q0, axes, none, ELLIPSOID_TOL, warm)
+    assert warm[15] >= 4 and np.any(warm[11:15] != 0.0)  # cold: the derivative differenced, and kept
+    d = np.array([0.3, -0.5, 0.8]) * 1e-6
+    P, Q = P0 + d, Q0 - d
+    plain = warm.copy()
+    plain[11:15] = 0.0
+    st_c, l_c, T1_c, T2_c, _ = ellipsoid_wrap(P, Q, axes, none, ELLIPSOID_TOL)
+    for row, shots in ((warm, (1, 3)), (plain, (7, 60))):
+        st, l, T1, T2, s = ellipsoid_wrap_from(P, Q, axes, none, ELLIPSOID_TOL, row)
+        assert st == st_c == 1 and shots[0] <= row[15] <= shots[1], row[15]
+        assert abs(l - l_c) < 1e-12 and np.max(np.abs(T1 - T1_c)) < 1e-9 and np.max(np.abs(T2 - T2_c)) < 1e-9
+        assert np.allclose(row[:3], T1, atol=0.0) and row[3] == s  # this solve's geodesic, the next start
+        assert np.array_equal(row[5:8], P0) and np.array_equal(row[8:11], Q0)  # the cold solve's anchors
 
 
 def _nearest_by_bisection(axes, x):

@@ -296,10 +296,15 @@ def ellipsoid_wrap(P, Q, axes, side, tol):
 
 
 #: a node's row of the path kernel's ``warm``: a geodesic's warm start of
-#: :func:`ellipsoid_wrap_from` [T1 (3,) m in S, arc length s m, RK4 steps, the anchors P,
-#: Q (3,) m in S it was solved for] in its first 11, or an OpenSim-rule ellipsoid's last
-#: core and gradient model (:data:`~openfdk.forces.wrap_ellipsoid_plane.PLANE_ROW`)
-WARM_SIZE = max(11, PLANE_ROW)
+#: :func:`ellipsoid_wrap_from` [T1 (3,) m in S and arc length s m of the last solve, the
+#: RK4 step count and the anchors P, Q (3,) m in S of the last cold solve, the shooting
+#: residual's derivatives D (4,), the last solve's shots] in its first 16, or an
+#: OpenSim-rule ellipsoid's last core and gradient model
+#: (:data:`~openfdk.forces.wrap_ellipsoid_plane.PLANE_ROW`)
+WARM_SIZE = max(16, PLANE_ROW)
+#: a chord step (:func:`_shoot_newton` with a kept derivative) is accepted when it cuts
+#: the end residual at least this much; else the derivative is differenced again
+CHORD_RATE = 0.1
 #: a warm start is used only while both anchors lie within this fraction of the smallest
 #: semi-axis of where it was solved (farther, the geodesic may have changed branch)
 WARM_REACH = 0.05
@@ -308,16 +313,21 @@ WARM_REACH = 0.05
 @njit(cache=True)
 def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     """:func:`ellipsoid_wrap` with a warm start ``warm`` (WARM_SIZE,), read and written:
-    the tangent point T1 (m, S), arc length s (m), RK4 step count and anchors of a wrap
-    solved before (s = 0: none). When s > 0 and both anchors moved by less than
-    WARM_REACH × the smallest semi-axis, Newton starts from that geodesic, with the same
-    step count, and the cold starts (the plane fan, the great circle) are used only if it
-    does not converge; a cold solve is written back. Between nearby poses (the Newton
-    iterations and finite differences of a frame, successive frames) this is the same
-    geodesic as the cold solve, to the Newton tolerance, at a fraction of the cost; the
-    step count is kept so the discretisation is the same along a finite difference."""
+    the tangent point T1 (m, S) and arc length s (m) of the last solve, the RK4 step
+    count and anchors of the last cold solve (s = 0: none), the shooting's derivatives.
+    When s > 0 and both anchors lie within WARM_REACH × the smallest semi-axis of the
+    last cold solve's, Newton starts from the last geodesic, with the same step count
+    and chord steps (:func:`_shoot_newton`), and the cold starts (the plane fan, the
+    great circle) are used only if it does not converge. Between nearby poses (the
+    Newton iterations and finite differences of a frame, successive frames) this is the
+    same geodesic as the cold solve, to the Newton tolerance, at a fraction of the cost;
+    the step count is kept so the discretisation is the same along a finite difference,
+    and the reach is measured from the cold solve, so that drifting anchors are decided
+    cold again (the shorter way round may have changed sides). warm[15]: the shots of
+    this solve (a diagnostic)."""
     T1 = np.empty(3)
     T2 = np.empty(3)
+    warm[15] = 0.0
     Dinv = axes
     P1 = P / Dinv
     Q1 = Q / Dinv
@@ -342,9 +352,12 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     reach = WARM_REACH * min(axes[0], min(axes[1], axes[2]))
     if warm[3] > 0.0 and _within(P, warm[5:8], reach) and _within(Q, warm[8:11], reach):
         g = warm[:3] / Dinv - c0
-        converged, phi, s, T1c, x = _shoot_newton(np.arctan2(g @ u2, g @ u1), warm[3], P, Q, c0, rho, u1, u2, Dinv,
-                                                  A, int(warm[4]), scale, tol)
+        converged, phi, s, T1c, x, shots = _shoot_newton(np.arctan2(g @ u2, g @ u1), warm[3], P, Q, c0, rho, u1,
+                                                         u2, Dinv, A, int(warm[4]), scale, tol, warm[11:15])
+        warm[15] += shots
         if converged:
+            warm[:3] = T1c
+            warm[3] = s
             T1[:] = T1c
             T2[:] = x
             a1 = T1c - P
@@ -389,7 +402,10 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     converged = False
     for k in range(n_starts):
         phi, s = starts[k, 0], starts[k, 1]
-        converged, phi, s, T1c, x = _shoot_newton(phi, s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps, scale, tol)
+        D = np.zeros(4)
+        converged, phi, s, T1c, x, shots = _shoot_newton(phi, s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps, scale, tol,
+                                                         D)
+        warm[15] += shots
         if converged:
             break
     if not converged:
@@ -402,6 +418,7 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     warm[4] = n_steps
     warm[5:8] = P
     warm[8:11] = Q
+    warm[11:15] = D
     T1[:] = T1c
     T2[:] = x
     a1 = T1c - P
@@ -417,23 +434,47 @@ def _within(a, b, r):
 
 
 @njit(cache=True)
-def _shoot_newton(phi, s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps, scale, tol):
+def _shoot_newton(phi, s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps, scale, tol, D):
     """Newton on (horizon angle φ, arc length s) from the given start until the end
-    residual is below ``tol`` (m): (converged, φ, s, T1, geodesic end). Each step is
-    damped (at most 0.3 rad of horizon angle, half the arc), then halved until the
-    residual decreases (a backtracking line search; the accepted shot is the next
-    iterate's residual, so a full step costs three shots as plain Newton)."""
+    residual is below ``tol`` (m): (converged, φ, s, T1, geodesic end, shots taken).
+
+    D (4,): the residual's derivatives [∂r/∂φ (2,) m/rad, ∂r/∂s (2,)], read and written;
+    all zero: none. With D given, steps are first taken with it (chord Newton, one shot
+    each) while each cuts the residual by at least CHORD_RATE: from a warm start a
+    finite-difference step away, the shooting's derivative has barely changed, and two
+    or three shots converge where Newton's differenced steps take seven. Otherwise each
+    step differences the derivative (two shots), is damped (at most 0.3 rad of horizon
+    angle, half the arc), then halved until the residual decreases (a backtracking line
+    search; the accepted shot is the next iterate's residual)."""
     converged = False
     res, T1c, x = _shoot_residual(phi, s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps)
+    shots = 1
+    chord = D[0] != 0.0 or D[1] != 0.0 or D[2] != 0.0 or D[3] != 0.0
     for _ in range(60):
         norm = np.sqrt(res @ res)
         if norm < tol:
             converged = True
             break
+        if chord:
+            det = D[0] * D[3] - D[1] * D[2]
+            if det != 0.0:
+                d_phi = -(D[3] * res[0] - D[2] * res[1]) / det
+                d_s = -(-D[1] * res[0] + D[0] * res[1]) / det
+                if abs(d_phi) <= 0.3 and s + d_s >= 0.5 * s:
+                    res_t, T1_t, x_t = _shoot_residual(phi + d_phi, s + d_s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps)
+                    shots += 1
+                    if np.sqrt(res_t @ res_t) < CHORD_RATE * norm:
+                        phi += d_phi
+                        s += d_s
+                        res, T1c, x = res_t, T1_t, x_t
+                        continue
+            chord = False  # the derivative is differenced again at this iterate
         h_phi = 1e-7
         h_s = 1e-7 * scale
         r_phi = (_shoot_residual(phi + h_phi, s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps)[0] - res) / h_phi
         r_s = (_shoot_residual(phi, s + h_s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps)[0] - res) / h_s
+        shots += 2
+        D[0], D[1], D[2], D[3] = r_phi[0], r_phi[1], r_s[0], r_s[1]
         det = r_phi[0] * r_s[1] - r_phi[1] * r_s[0]
         if det == 0.0:
             break
@@ -447,13 +488,14 @@ def _shoot_newton(phi, s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps, scale, tol):
         for _ in range(12):
             res_t, T1_t, x_t = _shoot_residual(phi + f * d_phi, s + f * d_s, P, Q, c0, rho, u1, u2, Dinv, A,
                                                n_steps)
+            shots += 1
             if np.sqrt(res_t @ res_t) < norm:
                 break
             f *= 0.5
         phi += f * d_phi
         s += f * d_s
         res, T1c, x = res_t, T1_t, x_t
-    return converged, phi, s, T1c, x
+    return converged, phi, s, T1c, x, shots
 
 
 @njit(cache=True)
