@@ -43,7 +43,7 @@ from ..model.plausibility import warn_plausibility
 from .absorbed import absorbed_message, fdk_absorbed_muscles
 from .approach import approach_for
 from .newton import combined, solve_frame, solve_restarts
-from .residual import FDKContext, FrameWorkspace
+from .residual import FDKContext, FrameWorkspace, window_measurements
 from .settings import fdk_settings
 from .warm_start import HISTORY, extrapolated
 
@@ -270,7 +270,7 @@ def fdk_context(model, trajectories, times, tracking=None, settings=None):
     tracker, meas = None, None
     if trajectories is not None:
         tracker = MarkerTracker(system, tracking or TrackingSettings())
-        meas = [trajectories.evaluate(t) for t in times]
+        meas = window_measurements(trajectories, times)
     return FDKContext(model, solver, tracker, meas, times)
 
 

@@ -30,11 +30,15 @@ iterations each; solved to 0.1 N the lead-in takes 236 evaluations and 121 Jacob
 instead of 353 and 247, and the window's first frame converges from it as before (5
 evaluations instead of 6). Frame k is then solved from the extrapolation of the last
 two with their poses, recruitment and Jacobian. After a lead-in it gets the cold
-iteration limit: the window's first frame has one-sided rates (Eq. 7), which the
-lead-in's frames did not have, so its residual is not theirs. The marched frames'
-iterations, evaluations and Jacobians count towards frame k's; nothing else of them is
-reported. The lead-in needs marker tracking (the markers reach before the window; a
-determinate model's drivers need not).
+iteration limit (the window's first frame is typically a heel strike), and the lead-in's
+converged frames join the step's history as the window's frames −m … −1 (the same
+spacing; their rates, like frame 0's, are central: the trial's samples outside the
+window are the edge frames' neighbours, :func:`~openfdk.fdk.residual.window_measurements`),
+so that frame 1 is extrapolated from them and frame 0 instead of starting at α_0 (DM og1
+from 2.5 s: 720 N there, 67 evaluations and the sub-steps; now 20 N and 4). The marched
+frames' iterations, evaluations and Jacobians count towards frame k's; nothing else of
+them is reported. The lead-in needs marker tracking (the markers reach before the
+window; a determinate model's drivers need not).
 """
 
 from __future__ import annotations
@@ -117,14 +121,19 @@ class Approach:
             a0 = step.a_init.copy()
         warm_end = bool(h) and h[-1][0] == len(times) - 1
         ws = FrameWorkspace({j: march.last_state for j in ctx.frames_needed(k)})
-        # the cold iteration limit unless a sub-step march ended converged: after a lead-in
-        # the window's first frame has no frame before it in the window, so its rates
-        # (Eq. 7) are one-sided and its residual is not the lead-in's (DM og9 4.025 s:
-        # 185 N at the lead-in's extrapolation, 1.6 N after 25 iterations)
+        # the cold iteration limit unless a sub-step march ended converged: a lead-in ends
+        # at the window's first frame, typically a heel strike (DM og9 from 3.214 s
+        # failed at the 25-iteration limit from the lead-in's extrapolation)
         first = settings if warm_end and previous else replace(
             settings, max_iterations=max(settings.max_iterations, settings.cold_max_iterations))
         sol = solve_frame(ctx, k, a0, ws, first, march.warm if warm_end else step.warm,
                           march.J_carry if warm_end else None)
+        if not previous and sol.converged:
+            # the lead-in's frames are the window's frames −m … −1 (the same spacing): in the
+            # step's history frame 1 is extrapolated from them and frame 0, not taken from
+            # frame 0 alone (DM og1 from 2.5 s: 720 N at α_0, Newton stalled near 120 N,
+            # 67 evaluations and the sub-steps for frame 1)
+            step.history[:0] = [(j - len(times), alpha) for j, alpha in h]
         return replace(sol, iterations=sol.iterations + int(totals[0]), evaluations=sol.evaluations + int(totals[1]),
                        jacobians=sol.jacobians + int(totals[2]))
 

@@ -90,8 +90,10 @@ class FDKContext:
     """Everything the residual needs that does not change within a trial.
 
     model; solver : InverseDynamics (its system has the FDK rows); tracker : MarkerTracker
-    or None (determinate); measurements : per-frame (x, ẋ, ẍ, visible) or None;
-    times : (nf,) s.
+    or None (determinate); measurements : per-frame (x, ẋ, ẍ, visible), a list over the
+    frames or a dict by frame that may also hold the trial's samples just outside the
+    window (frames −1 and nf, :func:`window_measurements`), or None; times : (nf,) s,
+    uniform.
     """
 
     def __init__(self, model, solver, tracker, measurements, times):
@@ -99,7 +101,8 @@ class FDKContext:
         self.solver = solver
         self.system = solver.system
         self.tracker = tracker
-        self.meas = measurements
+        self.meas = None if measurements is None else (
+            dict(measurements) if isinstance(measurements, dict) else dict(enumerate(measurements)))
         self.times = np.asarray(times, dtype=float)
         self.dt = float(self.times[1] - self.times[0]) if len(self.times) > 1 else 1.0
         names = solver.layout.column_names
@@ -116,14 +119,19 @@ class FDKContext:
         """The same trial's context at other ``times`` (nf,) s — the same solver and
         tracker, the markers of ``trajectories`` (``evaluate(t)``) at those times — for
         the frames an approach solves (:mod:`openfdk.fdk.approach`)."""
-        meas = None if trajectories is None else [trajectories.evaluate(t) for t in times]
+        meas = None if trajectories is None else window_measurements(trajectories, times)
         return FDKContext(self.model, self.solver, self.tracker, meas, times)
 
     def frames_needed(self, k):
-        """Frame k and (tracking) its existing neighbours."""
+        """Frame k and (tracking) its neighbours that have markers: the window's, and at
+        its ends the trial's samples outside it (frames −1 and nf)."""
         if self.tracker is None:
             return [k]
-        return [j for j in (k - 1, k, k + 1) if 0 <= j < len(self.times)]
+        return [j for j in (k - 1, k, k + 1) if j in self.meas]
+
+    def time_of(self, j):
+        """The time (s) of frame j, also of the samples just outside the window."""
+        return float(self.times[j]) if 0 <= j < len(self.times) else float(self.times[0] + j * self.dt)
 
     def evaluate(self, k, alpha, ws: FrameWorkspace, warm_recruitment=None) -> Evaluation:
         """f^FDK(α) at frame k; ``ws`` is updated in place with the new poses."""
@@ -148,8 +156,8 @@ class FDKContext:
         delta = {}
         for j in self.frames_needed(k):
             x, _, _, vis = self.meas[j]
-            res, K, lm = self.tracker.solve_positions(ws.states[j], self.times[j], x, vis, alpha,
-                                                      self._curvature_at(self.times[j]))
+            t_j = self.time_of(j)
+            res, K, lm = self.tracker.solve_positions(ws.states[j], t_j, x, vis, alpha, self._curvature_at(t_j))
             if res.converged:
                 if j == k:  # marker stage at the solved pose; δ from its positions
                     data.kkt, data.lam = K, lm
@@ -194,6 +202,7 @@ class FDKContext:
         tracking: central, one-sided per marker where a neighbour is missing)."""
         return residual_rates(delta.get(k - 1), delta[k], delta.get(k + 1), self.dt)
 
+
     def _dynamics(self, k, alpha, state, data, warm):
         """Equilibrium and recruitment stages from the data's Φ_q̂ and v̇; f^FDK."""
         state = state.copy()  # the workspace moves on with later evaluations
@@ -207,6 +216,25 @@ class FDKContext:
                               "recruitment", state, data.vdot, fr, data=data)
         data.f_fdk = fr.f[self.fdk_columns].copy()
         return Evaluation(alpha, True, data.f_fdk, "", "", state, data.vdot, fr, data=data)
+
+
+def window_measurements(trajectories, times):
+    """{frame: (x, ẋ, ẍ, visible)} of the markers at the window's ``times`` (nf,) s
+    (frames 0 … nf − 1), and at t_0 − Δt (frame −1) and t_{nf−1} + Δt (frame nf) where
+    the trial has markers there. With those, the residual rates of the window's first
+    and last frames (Eq. 7) are central differences, as at every other frame, and a
+    frame's result does not depend on where the window starts (one-sided rates at a
+    window's first frame changed its α enough that DM's next frame took 67 evaluations
+    and two restarts instead of 5)."""
+    times = np.asarray(times, dtype=float)
+    meas = {j: trajectories.evaluate(t) for j, t in enumerate(times)}
+    if len(times) > 1:
+        dt = times[1] - times[0]
+        for j, t in ((-1, times[0] - dt), (len(times), times[-1] + dt)):
+            m = trajectories.evaluate(t)
+            if np.any(m[3]):
+                meas[j] = m
+    return meas
 
 
 def _zero_nan(a):
