@@ -7,6 +7,7 @@ import pytest
 from openfdk.contact.sections import add_contact
 from openfdk.contact.shapes import flat_patch, sphere_cap
 from openfdk.fdk.analysis import run_fdk
+from openfdk.fdk.warm_start import HISTORY
 from openfdk.forces.elements import add_external_load, add_spring
 from openfdk.model.builder import ModelBuilder
 from openfdk.model.timefunctions import Constant, SplineThroughData
@@ -321,7 +322,11 @@ def test_the_window_s_first_frame_after_a_lead_in_is_the_cold_start_s_root(tmj_m
     start), and every frame's α equals that of the same window solved cold from the
     initial values without the approach, to the force tolerance over the joint stiffness
     (< 1e-7 m); the lead-in frames' evaluations count towards the first frame's. The
-    first frame itself, whose rates are one-sided, gets the cold iteration limit."""
+    first frame itself gets the cold iteration limit. Its rates and the last frame's are
+    central (the trial's samples outside the window are their neighbours), so every
+    frame also equals the same frame of a run over the trial from its start; and the
+    lead-in's frames join the history as frames −6 … −1, so frame 1 starts from an
+    extrapolation."""
     from openfdk.fdk import approach
     from openfdk.fdk.analysis import FDKStep, fdk_context
     from openfdk.fdk.settings import fdk_settings
@@ -342,6 +347,18 @@ def test_the_window_s_first_frame_after_a_lead_in_is_the_cold_start_s_root(tmj_m
     np.testing.assert_allclose(led.alpha, cold[0], atol=1e-7)
     assert np.any(np.abs(led.alpha[0]) > 1e-5)  # a real displacement, not the initial values
     assert led.evaluations[0] >= 6 + 1 and led.restarts[0] == 0
+    whole = run_fdk(tmj_model, traj, t[:13], tmj_settings)
+    assert whole.converged.all()
+    np.testing.assert_allclose(led.alpha, whole.alpha[6:12], atol=1e-7)
+    step = FDKStep(tmj_model, fdk_context(tmj_model, traj, window, settings=tmj_settings), settings,
+                   approach.approach_for(tmj_model, traj))
+    drive(step, 1, lambda rec: None)
+    frames = [f for f, _ in step.history]
+    assert frames == list(range(-(HISTORY - 1), 1))  # the last lead-in frames, then frame 0
+    # frame −1 is frame 5 of the trial, marched to 0.1 N only: ~1e-6 m on the two stiff DOFs,
+    # ~6e-5 m on the soft medio-lateral one
+    np.testing.assert_allclose(step.history[-2][1][:2], whole.alpha[5][:2], atol=5e-6)
+    assert abs(step.history[-2][1][2] - whole.alpha[5][2]) < 2e-4
 
 
 def test_poses_moved_along_dq_dalpha_start_the_tracking_nearer_and_give_the_same_residual(tmj_model, tmj_settings):
