@@ -136,3 +136,68 @@ def test_newton_steps_with_nearby_curvature_reach_the_same_pose_in_fewer_iterati
     np.testing.assert_allclose(newton.R_WB, plain.R_WB, rtol=0, atol=1e-8)
     scale = np.abs(K_gn).max()
     np.testing.assert_allclose(K_n, K_gn, rtol=0, atol=1e-6 * scale)  # K at poses 1e-9 apart, without S
+
+
+def test_chord_steps_with_a_nearby_factorization_reach_the_same_optimum():
+    """kinematics.kkt.kkt_chord_step: the stationarity residual F = [Ψ_q̂ᵀ W (p − x) +
+    Φ_q̂ᵀ λ; Φ] at the current pose, solved with the factors of the KKT matrix of a pose
+    1 mm / 1 mrad away (kkt_step there, with the second-order terms S: Newton's matrix).
+    From 0.1 mm off the chain's 1 cm-noise fit the
+    steps contract at least fourfold each (linearly: the matrix is not the current one),
+    and reach the fit's pose and multipliers of the plain solve to 1e-10; the K it
+    assembles on the way equals kkt_step's at the same pose (it is handed to Eqs. 8–10)."""
+    from openfdk.kinematics.kkt import kkt_chord_step, kkt_step
+
+    rng = np.random.default_rng(7)
+    model = _chain()
+    system = ConstraintSystem(model)
+    tracker = MarkerTracker(system)
+    n_m = 3 * N_SEG
+    visible = np.ones(n_m, dtype=bool)
+    start = model.initial_state()
+    start.displace(rng.normal(0.0, 0.01, start.n_coords))
+    assert tracker.solve_positions(start, 0.0, tracker.markers.positions(start), visible)[0].converged
+    x = (tracker.markers.positions(start) + rng.normal(0.0, 0.01, (n_m, 3))).ravel()
+    tight = MarkerTracker(system, type(tracker.settings)(tol_step=1e-13, tol_constraint=1e-13, max_iter=200))
+    fit = start.copy()
+    res, _, lam_fit = tight.solve_positions(fit, 0.0, x.reshape(-1, 3), visible)
+    assert res.converged
+    w = tracker._weights(visible)
+    n, m = fit.n_coords, system.n_rows
+
+    def kkt_inputs(s):
+        p, J, _ = tracker.markers.evaluate(s, 1)
+        Phi, A, _, _ = system.evaluate(s, 0.0, None, order=1)
+        return np.ascontiguousarray(J), w, p, x, np.ascontiguousarray(A), Phi
+
+    far = fit.copy()
+    far.displace(rng.normal(0.0, 1e-3, n))
+
+    def gradient(s):
+        J, _, p, _, A, _ = kkt_inputs(s)
+        return J.T @ (w * (p - x)) + A.T @ lam_fit
+
+    J_far = kkt_inputs(far)[0]
+    S = manifold_jacobian(gradient, far, eps=1e-7, central=True) - J_far.T @ (w[:, None] * J_far)
+    LU, piv, K = np.empty((n + m, n + m)), np.empty(n + m, np.int64), np.empty((n + m, n + m))
+    _, _, _ = kkt_step(*kkt_inputs(far), K, S, True, LU, piv)  # Newton's matrix, 1 mm away
+    state = fit.copy()
+    state.displace(rng.normal(0.0, 1e-4, n))
+    lam = lam_fit * (1.0 + 1e-3 * rng.normal(size=m))
+    steps = []
+    for _ in range(12):
+        sol, step, _ = kkt_chord_step(*kkt_inputs(state), K, lam, LU, piv)
+        state.displace(sol[:n])
+        lam = lam + sol[n:]
+        steps.append(step)
+        if step < 1e-12:
+            break
+    assert steps[0] > 1e-6 and all(b <= 0.25 * a for a, b in zip(steps, steps[1:]) if a > 1e-11), steps
+    assert len(steps) >= 3  # linear, not one Newton step
+    np.testing.assert_allclose(state.p_WB, fit.p_WB, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(state.R_WB, fit.R_WB, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(lam, lam_fit, rtol=0, atol=1e-8 * np.abs(lam_fit).max())
+    K_step = np.empty_like(K)
+    kkt_step(*kkt_inputs(state), K_step, np.zeros((n, n)), False, np.empty_like(LU), piv.copy())
+    _, _, _ = kkt_chord_step(*kkt_inputs(state), K, lam, LU, piv)
+    np.testing.assert_array_equal(K, K_step)

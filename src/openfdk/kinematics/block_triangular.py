@@ -232,6 +232,34 @@ def lu_factor_range(A, piv, lo, hi):
 
 
 @njit(cache=True)
+def lu_factor(A, piv):
+    """In place LU with partial pivoting of A (n, n); piv (n,) int. False if a pivot is
+    exactly zero (singular, as LAPACK getrf reports it)."""
+    return lu_factor_range(A, piv, 0, A.shape[0])
+
+
+@njit(cache=True)
+def lu_solve(LU, piv, rhs):
+    """Solve with the factors of :func:`lu_factor`; rhs (n,) is overwritten and returned."""
+    n = LU.shape[0]
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            rhs[k], rhs[p] = rhs[p], rhs[k]
+    for i in range(n):
+        s = rhs[i]
+        for j in range(i):
+            s -= LU[i, j] * rhs[j]
+        rhs[i] = s
+    for i in range(n - 1, -1, -1):
+        s = rhs[i]
+        for j in range(i + 1, n):
+            s -= LU[i, j] * rhs[j]
+        rhs[i] = s / LU[i, i]
+    return rhs
+
+
+@njit(cache=True)
 def block_solve(LU, piv, rows, cols, starts, ptr, earlier, rhs, x):
     """x (n,) ← A⁻¹ rhs (n,) with the factors of :func:`block_lu`: block by block, the
     right-hand side less the earlier blocks' columns, then the block's own L and U."""

@@ -30,38 +30,16 @@ from numba import njit
 
 from ..model.compiled import evaluate_into
 from ..model.kernels import displace_poses, marker_positions_jacobian, set_velocities
-from .block_triangular import block_lu, block_solve, lu_factor_range
-from .kkt import kkt_step
+from .block_triangular import block_lu, block_solve, lu_factor, lu_solve
+from .kkt import kkt_chord_step, kkt_step
 
 OK, SINGULAR, NOT_CONVERGED, MEASURE_ERROR = 0, 1, 2, 3
-
-
-@njit(cache=True)
-def lu_factor(A, piv):
-    """In place LU with partial pivoting of A (n, n); piv (n,) int. False if a pivot is
-    exactly zero (singular, as LAPACK getrf reports it)."""
-    return lu_factor_range(A, piv, 0, A.shape[0])
-
-
-@njit(cache=True)
-def lu_solve(LU, piv, rhs):
-    """Solve with the factors of :func:`lu_factor`; rhs (n,) is overwritten and returned."""
-    n = LU.shape[0]
-    for k in range(n):
-        p = piv[k]
-        if p != k:
-            rhs[k], rhs[p] = rhs[p], rhs[k]
-    for i in range(n):
-        s = rhs[i]
-        for j in range(i):
-            s -= LU[i, j] * rhs[j]
-        rhs[i] = s
-    for i in range(n - 1, -1, -1):
-        s = rhs[i]
-        for j in range(i + 1, n):
-            s -= LU[i, j] * rhs[j]
-        rhs[i] = s / LU[i, i]
-    return rhs
+#: the tracking's steps after the first reuse its factorized KKT matrix (chord steps) while
+#: each is at most this fraction of the one before; else the next step factorizes anew
+CHORD_CONTRACTION = 0.25
+#: a chord step ends the solve when it is below this fraction of tol_step (what a linear
+#: rate leaves behind it must be as far below the tolerance as Newton's square is)
+CHORD_TOLERANCE = 1e-3
 
 
 @njit(cache=True)
@@ -221,9 +199,13 @@ def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fpara
     program ``t*`` (coordinate tasks, empty without); K (n + m, n + m) output, the last
     KKT matrix (reused by Eqs. 8–10); lam (m,) output multipliers; S (n, n), use_S: the
     Hessian's second-order terms added for the steps (:func:`~openfdk.kinematics.kkt.kkt_step`;
-    Newton's steps instead of Gauss–Newton's, K as without). Converged when
-    max |Δq̂| < tol_step and max |Φ| ≤ tol_constraint at the start of that step.
-    Returns (status, iterations, max |Φ|, last step, failing node, error code); a
+    Newton's steps instead of Gauss–Newton's, K as without). The first step's matrix is
+    factorized; the next steps are chord steps with it on the full stationarity residual
+    (:func:`~openfdk.kinematics.kkt.kkt_chord_step`: the same optimum) while each
+    contracts CHORD_CONTRACTION-fold, else the next step factorizes again. The
+    factorization was the tracking's cost (DM knee: 255 × 255 KKT, 3 steps per pose).
+    Converged when max |Δq̂| < tol_step and max |Φ| ≤ tol_constraint at the start of that
+    step. Returns (status, iterations, max |Φ|, last step, failing node, error code); a
     failing task node is reported as −2 − node."""
     m = out_rows.shape[0]
     n = 6 * moving.shape[0]
@@ -231,6 +213,9 @@ def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fpara
     A = np.empty((m, n))
     bias = np.empty(m)
     Phi = np.empty(m)
+    LU = np.empty((n + m, n + m))
+    piv = np.empty(n + m, np.int64)
+    factored = False  # LU holds an earlier step's matrix: chord steps (kkt_chord_step)
     step = np.inf
     res = np.inf
     for it in range(1, max_iter + 1):
@@ -244,14 +229,31 @@ def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fpara
         if e_node >= 0:
             return MEASURE_ERROR, it, np.inf, step, e_node, e_kind
         _residual(val, f, angle, Phi)
-        sol, step, res = kkt_step(J, w, p, x, A, Phi, K, S, use_S)
+        chord = factored
+        if factored:
+            sol, chord_step, res = kkt_chord_step(J, w, p, x, A, Phi, K, lam, LU, piv)
+            if not chord_step <= CHORD_CONTRACTION * step:
+                # not contracting (the pose is far from the factorized one): the step is not
+                # taken, a factorized step from this pose is (far from the optimum a poor
+                # step could lead to another local optimum of the fit)
+                factored = False
+                chord = False
+            else:
+                step = chord_step
+                for r in range(m):
+                    lam[r] += sol[n + r]
+        if not chord:
+            sol, step, res = kkt_step(J, w, p, x, A, Phi, K, S, use_S, LU, piv)
+            factored = True
+            for r in range(m):
+                lam[r] = sol[n + r]
         for r in range(n):
             if not np.isfinite(sol[r]):
                 return SINGULAR, it, np.nan, step, -1, 0
-        for r in range(m):
-            lam[r] = sol[n + r]
         displace_poses(p_WB, quat_WB, R_WB, moving, column, sol[:n].copy())
-        if step < tol_step and res <= tol_constraint:
+        # a chord step converges linearly: what is left after it is up to a third of it,
+        # where Newton leaves its square (CHORD_TOLERANCE)
+        if step < (CHORD_TOLERANCE * tol_step if chord else tol_step) and res <= tol_constraint:
             return OK, it, res, step, -1, 0
     return NOT_CONVERGED, max_iter, res, step, -1, 0
 

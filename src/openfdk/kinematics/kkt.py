@@ -14,27 +14,20 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["kkt_step"]
+from .block_triangular import lu_factor, lu_solve
+
+__all__ = ["kkt_assemble", "kkt_step", "kkt_chord_step"]
 
 
 @njit(cache=True)
-def kkt_step(J, w, p, x, A, Phi, K, S, use_S):
-    """Assemble K and solve for [Δq̂; λ].
-
-    J : (3 n_markers, n) marker Jacobian Ψ_q̂; w : (3 n_markers,) row weights (0 for
-    occluded markers); p, x : (3 n_markers,) m model and measured marker positions
-    (x finite where w > 0); A : (m, n) Φ_q̂; Phi : (m,) constraint values (m or rad);
-    K : (n + m, n + m) output, the KKT matrix (reused by Eqs. 8–10). S : (n, n) the
-    Hessian's second-order terms (Σ w r ∇²p + Σ λ ∇²Φ) added to Ψ_q̂ᵀ W Ψ_q̂ for the
-    step when ``use_S`` (a Newton step instead of Gauss–Newton's), not to K.
-
-    Returns sol (n + m,) = [Δq̂; λ], max |Δq̂|, max |Φ| (0 when empty). Raises
-    ``np.linalg.LinAlgError`` when K is singular.
-    """
+def kkt_assemble(J, w, p, x, A, Phi, K, rhs):
+    """Assemble K (n + m, n + m) and the right-hand side rhs (n + m,) = [−Ψ_q̂ᵀ W (p − x); −Φ]
+    in place (arguments as :func:`kkt_step`). Returns max |Φ| (0 when empty)."""
     n = J.shape[1]
     m = A.shape[0]
     rows = J.shape[0]
-    rhs = np.zeros(n + m)
+    for i in range(n + m):
+        rhs[i] = 0.0
     # Ψ_q̂ᵀ W Ψ_q̂ and the gradient row by row (J is row-major): a marker row has nonzeros
     # in its body's 6 columns only, so zero entries are skipped
     for i in range(n):
@@ -65,14 +58,63 @@ def kkt_step(J, w, p, x, A, Phi, K, S, use_S):
             K[n + a, n + b] = 0.0
         rhs[n + a] = -Phi[a]
         res = max(res, abs(Phi[a]))
+    return res
+
+
+@njit(cache=True)
+def kkt_step(J, w, p, x, A, Phi, K, S, use_S, LU, piv):
+    """Assemble K and solve for [Δq̂; λ].
+
+    J : (3 n_markers, n) marker Jacobian Ψ_q̂; w : (3 n_markers,) row weights (0 for
+    occluded markers); p, x : (3 n_markers,) m model and measured marker positions
+    (x finite where w > 0); A : (m, n) Φ_q̂; Phi : (m,) constraint values (m or rad);
+    K : (n + m, n + m) output, the KKT matrix (reused by Eqs. 8–10). S : (n, n) the
+    Hessian's second-order terms (Σ w r ∇²p + Σ λ ∇²Φ) added to Ψ_q̂ᵀ W Ψ_q̂ for the
+    step when ``use_S`` (a Newton step instead of Gauss–Newton's), not to K. LU
+    (n + m, n + m), piv (n + m,) int: output, the factors of the step's matrix (K, or K
+    with S), for chord steps (:func:`kkt_chord_step`).
+
+    Returns sol (n + m,) = [Δq̂; λ], max |Δq̂|, max |Φ| (0 when empty). Raises
+    ``np.linalg.LinAlgError`` when K is singular.
+    """
+    n = J.shape[1]
+    m = A.shape[0]
+    rhs = np.empty(n + m)
+    res = kkt_assemble(J, w, p, x, A, Phi, K, rhs)
+    # the compiled LU skips zero multipliers: K is about 4 % non-zeros on the DM knee
+    # (255 × 255), where it is faster than LAPACK's
+    LU[:, :] = K
     if use_S:
-        Kn = K.copy()
         for i in range(n):
             for j in range(n):
-                Kn[i, j] += S[i, j]
-        sol = np.linalg.solve(Kn, rhs)
-    else:
-        sol = np.linalg.solve(K, rhs)
+                LU[i, j] += S[i, j]
+    if not lu_factor(LU, piv):
+        raise np.linalg.LinAlgError("singular matrix")
+    sol = lu_solve(LU, piv, rhs)
+    step = 0.0
+    for i in range(n):
+        step = max(step, abs(sol[i]))
+    return sol, step, res
+
+
+@njit(cache=True)
+def kkt_chord_step(J, w, p, x, A, Phi, K, lam, LU, piv):
+    """A chord step: K and the stationarity residual F = [Ψ_q̂ᵀ W (p − x) + Φ_q̂ᵀ λ; Φ]
+    at the current pose and multipliers λ (m,), and [Δq̂; Δλ] = −M⁻¹ F with the factors
+    LU, piv of an earlier step's matrix M (:func:`kkt_step`). K (output) is assembled at
+    this pose, as by :func:`kkt_step`. F = 0 is the same optimum whatever M, so only the
+    rate changes: from a pose a Newton step away, M's error is of that step's size.
+    Returns ([Δq̂; Δλ] (n + m,), max |Δq̂|, max |Φ|)."""
+    n = J.shape[1]
+    m = A.shape[0]
+    rhs = np.empty(n + m)
+    res = kkt_assemble(J, w, p, x, A, Phi, K, rhs)
+    for j in range(n):  # −F: rhs holds −Ψ_q̂ᵀ W (p − x) and −Φ
+        s = 0.0
+        for a in range(m):
+            s += A[a, j] * lam[a]
+        rhs[j] -= s
+    sol = lu_solve(LU, piv, rhs)
     step = 0.0
     for i in range(n):
         step = max(step, abs(sol[i]))
