@@ -334,11 +334,19 @@ def test_the_window_s_first_frame_after_a_lead_in_is_the_cold_start_s_root(tmj_m
 
     _, traj, t = _tmj_context(tmj_model, tmj_settings, n_frames=20)
     window = t[6:12]
+    from openfdk.fdk import analysis
+
     limits, solve = [], approach.solve_frame
     monkeypatch.setattr(approach, "solve_frame",
                         lambda ctx, k, a0, ws, s, *rest: limits.append(s.max_iterations) or solve(ctx, k, a0, ws, s, *rest))
+    marched, step_solve = [], analysis.solve_frame
+    monkeypatch.setattr(analysis, "solve_frame", lambda ctx, k, a0, ws, s, *rest: (
+        marched.append(s.max_iterations) if ctx.times[k] < window[0] else None) or step_solve(ctx, k, a0, ws, s, *rest))
     led = run_fdk(tmj_model, traj, window, tmj_settings)
     assert limits == [fdk_settings(tmj_model, tmj_settings).cold_max_iterations]
+    # the marched frames are stepping stones: even the lead-in's cold first one gets the
+    # ordinary limit (a stalled one hands its best iterate on)
+    assert len(marched) == 6 and set(marched) == {fdk_settings(tmj_model, tmj_settings).max_iterations}
     settings = fdk_settings(tmj_model, tmj_settings)
     step = FDKStep(tmj_model, fdk_context(tmj_model, traj, window, settings=tmj_settings), settings, approach=None)
     cold = drive(step, len(window), lambda rec: (rec.array("fdk.alpha"), rec.array("fdk.evaluations"),
