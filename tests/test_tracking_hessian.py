@@ -94,12 +94,10 @@ def test_column_groups_of_a_tridiagonal_pattern_are_the_residues_mod_3():
         assert pattern[:, g].sum(axis=1).max() <= 1
 
 
-def test_newton_steps_with_nearby_curvature_reach_the_same_pose_in_fewer_iterations():
-    """A large-residual fit (1 cm marker noise) of the chain: Gauss–Newton converges
-    linearly; with the Lagrangian Hessian's second-order terms S = H − Ψ_q̂ᵀ W Ψ_q̂ (H
-    differenced at a pose 1 mm away) the steps are Newton's. Both reach the same pose to
-    the tolerance, and the KKT matrix handed on (Eqs. 8–10) is Gauss–Newton's either way."""
-    rng = np.random.default_rng(4)
+def _noisy_fit(rng):
+    """(model, system, tracker, visible, start, x (n_markers, 3) m): the chain assembled at
+    a pose 1 cm / 10 mrad from its initial one, and its markers there with 1 cm noise (a
+    large-residual fit)."""
     model = _chain()
     system = ConstraintSystem(model)
     tracker = MarkerTracker(system)
@@ -108,7 +106,17 @@ def test_newton_steps_with_nearby_curvature_reach_the_same_pose_in_fewer_iterati
     start = model.initial_state()
     start.displace(rng.normal(0.0, 0.01, start.n_coords))
     assert tracker.solve_positions(start, 0.0, tracker.markers.positions(start), visible)[0].converged  # assembled
-    x = tracker.markers.positions(start) + rng.normal(0.0, 0.01, (n_m, 3))  # 1 cm noise
+    x = tracker.markers.positions(start) + rng.normal(0.0, 0.01, (n_m, 3))
+    return model, system, tracker, visible, start, x
+
+
+def test_newton_steps_with_nearby_curvature_reach_the_same_pose_in_fewer_iterations():
+    """A large-residual fit (1 cm marker noise) of the chain: Gauss–Newton converges
+    linearly; with the Lagrangian Hessian's second-order terms S = H − Ψ_q̂ᵀ W Ψ_q̂ (H
+    differenced at a pose 1 mm away) the steps are Newton's. Both reach the same pose to
+    the tolerance, and the KKT matrix handed on (Eqs. 8–10) is Gauss–Newton's either way."""
+    rng = np.random.default_rng(4)
+    model, system, tracker, visible, start, x = _noisy_fit(rng)
 
     plain = start.copy()
     res_gn, K_gn, lam = tracker.solve_positions(plain, 0.0, x, visible)
@@ -149,15 +157,8 @@ def test_chord_steps_with_a_nearby_factorization_reach_the_same_optimum():
     from openfdk.kinematics.kkt import kkt_chord_step, kkt_step
 
     rng = np.random.default_rng(7)
-    model = _chain()
-    system = ConstraintSystem(model)
-    tracker = MarkerTracker(system)
-    n_m = 3 * N_SEG
-    visible = np.ones(n_m, dtype=bool)
-    start = model.initial_state()
-    start.displace(rng.normal(0.0, 0.01, start.n_coords))
-    assert tracker.solve_positions(start, 0.0, tracker.markers.positions(start), visible)[0].converged
-    x = (tracker.markers.positions(start) + rng.normal(0.0, 0.01, (n_m, 3))).ravel()
+    model, system, tracker, visible, start, x = _noisy_fit(rng)
+    x = x.ravel()
     tight = MarkerTracker(system, type(tracker.settings)(tol_step=1e-13, tol_constraint=1e-13, max_iter=200))
     fit = start.copy()
     res, _, lam_fit = tight.solve_positions(fit, 0.0, x.reshape(-1, 3), visible)
