@@ -138,3 +138,33 @@ def test_path_geometric_stiffness_over_two_moving_bodies():
     assert np.abs(K - K_material).max() > 0.1 * np.abs(K).max()
     assert np.abs(K_fd[:6, 6:]).max() > 1.0  # the bodies are coupled
     np.testing.assert_allclose(K, K_fd, atol=1e-6 * np.abs(K).max())
+
+
+def test_spring_stiffness_along_directions_equals_differences_of_q():
+    """A stretched spring on a distance between two moving bodies: K u along given
+    directions (the analytic FDK Jacobian's) against central differences of Q along each
+    u, independently; the geometric term (the measure's curvature) makes it differ from
+    the spring's Mᵀ k M alone."""
+    from openfdk.forces.elements import add_spring
+
+    b = ModelBuilder("spring2", gravity=(0, 0, 0))
+    _body(b)
+    b.add_body("c", 1.0, [1e-3] * 3, position=[0.2, -0.05, 0.1])
+    b.add_frame("c", "q", [0.0, 0.04, -0.02])
+    add_spring(b, "s", b.distance("a.p", "c.q"), 500.0, rest_value=0.05)
+    model = b.build()
+    state = model.initial_state()
+    forces = ForceElements(model)
+    _, out = forces.generalized_forces(state, 0.0)[:2]
+    assert out["springs"].force[0] < -10  # stretched well beyond 5 cm: tension
+    U = np.random.default_rng(7).normal(size=(state.n_coords, 4))
+    KU = forces.stiffness_along(state, out, U)
+    elastic = out["springs"].M.T @ (500.0 * (out["springs"].M @ U))
+    for j in range(U.shape[1]):
+        h = 1e-6 / np.abs(U[:, j]).max()
+        plus, minus = state.copy(), state.copy()
+        plus.displace(h * U[:, j])
+        minus.displace(-h * U[:, j])
+        dQ = (forces.generalized_forces(plus, 0.0)[0] - forces.generalized_forces(minus, 0.0)[0]) / (2 * h)
+        np.testing.assert_allclose(KU[:, j], dQ, atol=1e-5 * np.abs(dQ).max())
+        assert np.abs(dQ - elastic[:, j]).max() > 1e-2 * np.abs(dQ).max()

@@ -68,3 +68,22 @@ class SpringForces:
             # geometric term Σ f_k ∂M_kᵀ/∂q̂
             f = out.force.copy()
             K += manifold_jacobian(lambda s: f @ self._measures(s)[1], state, 1e-7, central=False, f0=f @ M)
+
+    def stiffness_along(self, state, out, U):
+        """K U (n, m) for directions U (n, m) [m, rad]: :meth:`stiffness` times U, the
+        geometric term by one forward difference of the measure Jacobians along each
+        column of U (step 1e-7 of its largest entry) instead of one per coordinate group
+        (on the DM knee's 11 coordinate springs: 10 FDK directions instead of the 138
+        coordinates, 3.3 ms of the analytic Jacobian's 35)."""
+        M = out.M
+        df = np.array([float(spr.law.dforce_dmeasure(float(x))) for spr, x in zip(self.springs, out.value)])
+        KU = M.T @ (df[:, None] * (M @ U))
+        if np.any(out.force):
+            f = out.force.copy()
+            g0 = f @ M
+            for j in range(U.shape[1]):
+                h = 1e-7 / max(float(np.max(np.abs(U[:, j]))), 1e-12)
+                moved = state.copy()
+                moved.displace(h * U[:, j])
+                KU[:, j] += (f @ self._measures(moved)[1] - g0) / h
+        return KU
