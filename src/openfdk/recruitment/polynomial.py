@@ -9,7 +9,10 @@ Pipeline (all numerical work in one numba call):
 1. :func:`~openfdk.recruitment.reduction.reduce_problem` eliminates the free forces
    (joint reactions, FDK residual forces) and redundant rows, leaving
    min Σ x^p s.t. A_r x = b_r, 0 ≤ x ≤ u in the activities x = f_B/s (a column the free
-   forces absorb is exactly zero there, so its force is exactly zero).
+   forces absorb is exactly zero there, so its force is exactly zero). On a whole-leg
+   model it is most of the solve (DM knee, 138 rows and 117 free columns: 2.0 of 2.4 ms,
+   the SVD of the free columns 1.6 ms); the warm-started dual Newton method below is
+   about 0.1 ms.
 2. Cold start: Mehrotra predictor–corrector primal–dual interior-point method
    (:mod:`~openfdk.recruitment.interior_point`; Wright 1997, ch. 10; Nocedal & Wright
    2006, Alg. 16.4 / §19.3) to a moderate tolerance, then
