@@ -167,3 +167,28 @@ def test_chunked_run_on_a_local_cluster_writes_the_run_outputs(files, serial_fdk
     header = (out / "forces.csv").read_text().splitlines()[0].split(",")
     assert header[0] == "time" and "fdk.tmj_r_normal.alpha" in header
     assert len((out / "kinematics.csv").read_text().splitlines()) == N_FRAMES + 1
+
+
+def test_a_tracking_window_s_edge_frames_see_the_trial_s_neighbouring_samples(files):
+    """Marker tracking without FDK (the POP jaw): a window's first and last frames take
+    their residual rates (Eq. 7) from the poses at the trial's samples just outside the
+    window, so their v and v̇ equal those of the same frames in a run over the whole
+    trial (the poses are the same solves: to the tracking's tolerance, here 1e-11 of the
+    scale). With one-sided differences they differed by 5e-5 and 2e-4 (v) and 1e-3 and
+    5e-3 (v̇) of the scale."""
+    from openfdk.io.modelfile import load_model_and_settings as load
+    from openfdk.kinematics.analysis import run_tracking
+
+    model, settings = load(files / "pop.yaml")
+    _, traj = load_trajectories(model, files / "trial.c3d", settings=settings)
+    whole = run_tracking(model, traj, progress=False)
+    a, b = 5, 15
+    window = run_tracking(model, traj, whole.time[a:b + 1], progress=False)
+    assert whole.converged.all() and window.converged.all()
+    scale_v, scale_a = np.max(np.abs(whole.v)), np.max(np.abs(whole.vdot))
+    for i, j in ((0, a), (b - a, b)):
+        np.testing.assert_allclose(window.v[i], whole.v[j], atol=1e-9 * scale_v)
+        np.testing.assert_allclose(window.vdot[i], whole.vdot[j], atol=1e-8 * scale_a)
+    # the trial's own first frame has no sample before it: one-sided there, in both
+    first = run_tracking(model, traj, whole.time[:6], progress=False)
+    np.testing.assert_allclose(first.vdot[0], whole.vdot[0], atol=1e-8 * scale_a)

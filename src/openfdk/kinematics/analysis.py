@@ -5,8 +5,9 @@ Two modes:
 * determinate (no marker data): Eqs. 1–3 at each time;
 * marker tracking: Eqs. 4–5 at every frame (warm-started from the previous frame),
   then the residual history δ(t) gives δ̇ and δ̈ by central differences over the frame
-  spacing Δt (Eq. 7 and its second-order analogue; one-sided at the trial ends and next
-  to failed frames), then Eqs. 8–10. Because α is the same at every frame, the position
+  spacing Δt (Eq. 7 and its second-order analogue; at a window's ends with the poses
+  solved at the trial's samples just outside it, one-sided only at the trial's ends and
+  next to failed frames), then Eqs. 8–10. Because α is the same at every frame, the position
   solves at t ± Δt that Eq. 7 needs are exactly the neighbouring frames' solutions.
 
 A frame that fails is flagged with its reason and its outputs are NaN; the analysis
@@ -257,6 +258,8 @@ class TrackingStep:
             self.state = self.last_good.copy()
             self.q_prev = None
         self.pending[k] = frame
+        if k == 0 and frame["state"] is not None:
+            self._edge_neighbour(-1, t - self.dt, frame["state"])
         done = [(k - 1, self._finish_frame(k - 1))] if k >= 1 else []
         self.pending.pop(k - 2, None)  # frame k − 1 was its last user
         return done
@@ -264,7 +267,30 @@ class TrackingStep:
     def finish(self):
         self.frame_data = {}
         last = len(self.times) - 1
-        return [(last, self._finish_frame(last))] if last in self.pending else []
+        if last not in self.pending:
+            return []
+        if self.pending[last]["state"] is not None and len(self.times) > 1:
+            self._edge_neighbour(last + 1, self.times[last] + self.dt, self.pending[last]["state"])
+        return [(last, self._finish_frame(last))]
+
+    def _edge_neighbour(self, j, t, start):
+        """The residuals δ at the trial's sample t (s) just outside the window (frame j =
+        −1 or nf) where the trial has markers there, solved from the pose ``start`` of
+        the window's edge frame: the edge frames' residual rates (Eq. 7) are then central
+        differences, as at every other frame and as FDK's (fdk/residual.py,
+        window_measurements), and a frame's v and v̇ do not depend on where the window
+        starts or ends. Outside the trial (or not solved) they stay one-sided."""
+        x, _, _, vis = self.traj.evaluate(t)
+        if not np.any(vis):
+            return
+        state = start.copy()
+        res, _, _ = self.tracker.solve_positions(state, t, x, vis, self.alpha)
+        if not res.converged:
+            return
+        delta = np.where(vis[:, None], self.tracker.markers.positions(state) - x, np.nan)
+        if self.tracker.fit_message(delta, vis):
+            return
+        self.pending[j] = {"delta": delta}
 
     def _finish_frame(self, j):
         """Velocities and accelerations of frame j (its neighbours' residuals known)."""
