@@ -258,7 +258,7 @@ class TrackingStep:
             self.state = self.last_good.copy()
             self.q_prev = None
         self.pending[k] = frame
-        if k == 0 and frame["state"] is not None:
+        if k == 0 and len(self.times) > 1 and frame["state"] is not None:
             self._edge_neighbour(-1, t - self.dt, frame["state"])
         done = [(k - 1, self._finish_frame(k - 1))] if k >= 1 else []
         self.pending.pop(k - 2, None)  # frame k − 1 was its last user
