@@ -280,6 +280,9 @@ class TrackingStep:
         differences, as at every other frame and as FDK's (fdk/residual.py,
         window_measurements), and a frame's v and v̇ do not depend on where the window
         starts or ends. Outside the trial (or not solved) they stay one-sided."""
+        span = getattr(self.traj, "time", None)
+        if span is None or len(span) == 0 or not (span[0] - 1e-9 <= t <= span[-1] + 1e-9):
+            return  # outside the trial (or its span unknown): one-sided
         x, _, _, vis = self.traj.evaluate(t)
         if not np.any(vis):
             return
