@@ -57,3 +57,14 @@ def write_jaw_files(directory, n_frames, seed=3):
     _t, labels, x, _ = jaw_markers(n_frames, noise=1e-4, seed=seed)
     write_c3d(directory / "trial.c3d", labels, x, 100.0)
     return directory
+
+
+def q_difference_along(forces, state, u, step=1e-6):
+    """dQ/dε (n,) [N, N m per unit ε] of ``forces`` (ForceElements) at ``state`` along the
+    direction u (n,) [m, rad]: central differences of the generalised forces with the
+    largest coordinate change ``step`` (an independent check of K u)."""
+    h = step / np.abs(u).max()
+    plus, minus = state.copy(), state.copy()
+    plus.displace(h * u)
+    minus.displace(-h * u)
+    return (forces.generalized_forces(plus, 0.0)[0] - forces.generalized_forces(minus, 0.0)[0]) / (2 * h)

@@ -15,6 +15,8 @@ from openfdk.model.builder import ModelBuilder
 from openfdk.numerics.numdiff import manifold_jacobian
 from openfdk.numerics.spatial import quat_from_rotvec, rotation_matrix
 
+from models import q_difference_along
+
 
 def _set_pose(model, state, body, p, rotvec):
     i = model.body(body).index
@@ -302,11 +304,7 @@ def test_ligament_stiffness_over_a_wrap_matches_finite_differences():
     U = np.random.default_rng(5).normal(size=(state.n_coords, 3))
     KU = passive.stiffness_along(state, out, U)
     for j in range(3):
-        h = 1e-6 / np.abs(U[:, j]).max()
-        plus, minus = state.copy(), state.copy()
-        plus.displace(h * U[:, j])
-        minus.displace(-h * U[:, j])
-        dQ = (passive.generalized_forces(plus, 0.0)[0] - passive.generalized_forces(minus, 0.0)[0]) / (2 * h)
+        dQ = q_difference_along(passive, state, U[:, j])
         np.testing.assert_allclose(KU[:, j], dQ, atol=1e-4 * np.abs(dQ).max())
         assert np.abs(dQ).max() > 10
 
