@@ -7,6 +7,13 @@ J Biomech Eng 2017).
 
 __version__ = "0.1.0"
 
+# Before any submodule decorates a kernel: numba's cache of every openfdk kernel is stamped
+# with all numba-using openfdk sources, so that editing a callee recompiles its callers
+# (openfdk/numerics/jit_cache.py; numba itself is imported only when a kernel module is).
+from .numerics import jit_cache as _jit_cache  # noqa: E402
+
+_jit_cache.install(__path__[0])
+
 #: the notebook API (openfdk.api), imported on first use so that ``import openfdk`` stays light
 _API = ("load_model", "load_settings", "load_trial", "run", "read_results")
 #: the analysis settings, importable from the top level (``openfdk.RecruitmentSettings``)

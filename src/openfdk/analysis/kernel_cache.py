@@ -2,9 +2,10 @@
 
 The numerical kernels are ``numba.njit(cache=True)`` functions. numba keeps, per function,
 an index file (``<module>.<function>-<line>.pyXY.nbi``) in the module's ``__pycache__`` (or
-under ``NUMBA_CACHE_DIR``) that records the source file's stamp (mtime, size) and the
-compiled signatures. When that index is missing, or its stamp no longer matches the source
-(an upgrade rewrote the file), the first call compiles — 1–2 min for all the kernels of a
+under ``NUMBA_CACHE_DIR``) that records the source stamp (for openfdk's kernels: the
+function's file and all numba-using openfdk sources, :mod:`openfdk.numerics.jit_cache`) and
+the compiled signatures. When that index is missing, or its stamp no longer matches the
+sources (an upgrade rewrote one), the first call compiles — 1–2 min for all the kernels of a
 run — and nothing is shown while it does.
 
 :func:`cache_is_cold` reads those index files (a few kB of pickles, milliseconds) through
