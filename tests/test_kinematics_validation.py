@@ -360,7 +360,7 @@ def test_errors_of_the_reference(bad_case, capsys, tmp_path):
     assert "deg.sto: column 'knee_rot_r': the map says rad" in _error(capsys, run, ref, "--map", mp, "--cycle", T0, T1)
     (tmp_path / "broken.sto").write_text("header\nendheader\ntime\tknee_sup_r\n0\t1\n1\tx\n")
     line = _error(capsys, run, tmp_path / "broken.sto", "--map", mp, "--cycle", T0, T1)
-    assert "broken.sto: line 5: a value is not a number" in line
+    assert "broken.sto: line 5: column 'knee_sup_r' is 'x', expected a number" in line
     ref = write_storage(tmp_path / "late.sto", np.linspace(10.0, 12.0, 30),
                         {"knee_sup_r": np.zeros(30), "knee_rot_r": np.zeros(30)})
     line = _error(capsys, run, ref, "--map", mp, "--cycle", T0, T1)

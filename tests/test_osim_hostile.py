@@ -235,7 +235,7 @@ CASES = [
     ("coordinate file column twice", sub("time\thip_q\tknee", "time\tknee\tknee", "coords.mot"), IK,
      ["coords.mot: line 7: column 'knee' is given twice"]),
     ("coordinate file value 1_0", sub("\t-29\n", "\t1_0\n", "coords.mot"), IK,
-     ["coords.mot: line 9: a value is not a number"]),
+     ["coords.mot: line 9: column 'knee' is '1_0', expected a number"]),
     ("coordinate file inDegrees=maybe", sub("inDegrees=yes", "inDegrees=maybe", "coords.mot"), IK,
      ["coords.mot: line 5: inDegrees must be yes or no"]),
     # overlays: a TypeError traceback, or errors naming the .osim for the overlay's entries

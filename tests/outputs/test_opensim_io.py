@@ -92,6 +92,47 @@ def test_trc_all_zero_samples_are_gaps_as_in_c3d(marker_data, tmp_path):
     assert read_trc(tmp_path / "one.trc").positions[33, 3, 1] == 0.0
 
 
+#: not-a-number and infinity as C runtimes print them (openfdk.io.numbers): glibc, C99
+#: strtod's nan(chars), Microsoft's runtime since 2015 ('-nan(ind)', the Knee Grand
+#: Challenge's treadmill TRCs) and before it
+C_RUNTIME_GAPS = ("nan", "-nan", "-nan(ind)", "nan(snan)", "NaN(0x7ff8)", "1.#QNAN", "-1.#IND", "1.#QNAN0", "1.#INF",
+                  "-inf")
+
+
+def test_trc_gaps_in_every_c_runtime_spelling_of_nan_are_gaps(marker_data, tmp_path):
+    """A sample written as not-a-number (or infinity) in any runtime's spelling is missing,
+    as OpenSim's strtod-based reader takes it, and only that sample: the same gaps as the
+    C3D of the same data."""
+    t, labels, x = marker_data
+    write_c3d(tmp_path / "trial.c3d", labels, x, 100.0, units="mm")
+    write_trc_opensim_layout(tmp_path / "trial.trc", labels, x * 1e3, 100.0)
+    lines = (tmp_path / "trial.trc").read_text().splitlines()
+    for k, spelling in zip(range(10, 15), C_RUNTIME_GAPS[:5]):  # marker 2's gap, frames 10-14
+        cells = lines[6 + k].split("\t")
+        cells[2 + 3 * 2: 5 + 3 * 2] = [spelling] * 3
+        lines[6 + k] = "\t".join(cells)
+    gaps = {20: 5, 21: 5, 22: 6, 23: 6, 24: 6}  # new gaps, one coordinate each (x, y or z)
+    for (k, m), spelling in zip(gaps.items(), C_RUNTIME_GAPS[5:]):
+        cells = lines[6 + k].split("\t")
+        cells[2 + 3 * m + k % 3] = spelling
+        lines[6 + k] = "\t".join(cells)
+    (tmp_path / "trial.trc").write_text("\n".join(lines) + "\n")
+    trc, c3d = read_trc(tmp_path / "trial.trc"), read_c3d(tmp_path / "trial.c3d")
+    expected = np.isnan(c3d.positions).any(axis=2)
+    for k, m in gaps.items():
+        expected[k, m] = True
+    np.testing.assert_array_equal(np.isnan(trc.positions).any(axis=2), expected)
+    assert expected.sum() == 26 + 5
+    seen = ~expected
+    np.testing.assert_allclose(trc.positions[seen], x[seen], rtol=1e-13)
+    # the time column must still be a finite number
+    cells = lines[6].split("\t")
+    cells[1] = "-nan(ind)"
+    (tmp_path / "bad.trc").write_text("\n".join([*lines[:6], "\t".join(cells), *lines[7:]]) + "\n")
+    with pytest.raises(TRCError, match=r"bad.trc: line 7: the time is '-nan\(ind\)', expected a finite number"):
+        read_trc(tmp_path / "bad.trc")
+
+
 def test_trc_units_and_start_frame_come_from_the_header(marker_data, tmp_path):
     t, labels, x = marker_data
     write_trc_opensim_layout(tmp_path / "m.trc", labels, x, 50.0, first_frame=11, units="m")
@@ -146,6 +187,47 @@ def test_unknown_trial_extension_is_named(tmp_path, capsys):
                  "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert "trial.xyz" in err and ".c3d, .trc" in err
+
+
+@pytest.mark.parametrize("command", ["run", "kinematics"])
+def test_a_bad_trial_is_reported_before_the_model_is_loaded(tmp_path, capsys, monkeypatch, command):
+    """The trial is read first: a user with a bad file hears of it at once, not after the
+    model's set-up (DM: 80 s)."""
+    import openfdk.analysis.jobs as jobs
+
+    def not_yet(*args, **kwargs):
+        raise AssertionError("the model was loaded before the trial was read")
+
+    monkeypatch.setattr(jobs, "load_model_and_settings", not_yet)
+    (tmp_path / "m.yaml").write_text(yaml.safe_dump(two_body_model_dict()))
+    bad = tmp_path / "bad.trc"
+    bad.write_text("PathFileType\t4\t(X/Y/Z)\tx.trc\nDataRate\tNumMarkers\tUnits\n100\t1\tmm\n"
+                   "Frame#\tTime\tA\t\t\n\t\tX1\tY1\tZ1\n\n1\t0\t1\t2\tabc\n")
+    assert main([command, str(tmp_path / "m.yaml"), str(bad), "--out", str(tmp_path / "o"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "bad.trc: line 7: column 5 is 'abc'" in err
+
+
+def test_a_trial_read_again_is_the_same_unless_its_bytes_changed(marker_data, tmp_path):
+    """read_trial keeps the trials it read (the CLI reads the trial before the model and the
+    analysis takes it again): the same file gives the same trial; a file rewritten with
+    other bytes of the same length, at once (within the file system's clock tick), is read
+    again."""
+    t, labels, x = marker_data
+    path = tmp_path / "trial.trc"
+    write_trc_opensim_layout(path, labels, x * 1e3, 100.0)
+    first = read_trial(path)
+    assert read_trial(path) is first and not first.positions.flags.writeable
+    text = path.read_text()
+    cell = repr(float(x[30, 4, 0] * 1e3))
+    changed = cell[:-1] + ("1" if cell[-1] != "1" else "2")
+    assert text.count("\t" + cell + "\t") == 1
+    path.write_text(text.replace("\t" + cell + "\t", "\t" + changed + "\t"))
+    assert len(path.read_text()) == len(text)
+    again = read_trial(path)
+    assert again is not first
+    assert again.positions[30, 4, 0] == pytest.approx(float(changed) * 1e-3, rel=1e-15)
+    assert again.positions[30, 4, 0] != first.positions[30, 4, 0]
 
 
 # ------------------------------------------------------------------ an independent STO/MOT parser

@@ -163,6 +163,16 @@ def _prepare_out(args):
     check_output_dir(args.out, force=args.force, resume=getattr(args, "resume", False))
 
 
+def _read_trial_first(args):
+    """Read the trial (if any) before the model is loaded: a bad file's one-line error
+    comes at once and not after the model's set-up (DM: 80 s), and the analysis takes the
+    same trial from :func:`openfdk.io.trials.read_trial`'s cache."""
+    if getattr(args, "trial", None) is not None:
+        from ..io.trials import read_trial
+
+        read_trial(args.trial)
+
+
 def _reason(status, message):
     """A failure reason without frame numbers and times, for counting."""
     text = re.sub(r"^frame \d+ \(t = [^)]*\):\s*", "", str(message or ""))
@@ -195,6 +205,7 @@ def _cmd_kinematics(args):
 
     _check_window(args)
     _prepare_out(args)
+    _read_trial_first(args)
     _announce_kernels(args)
     result, info = kinematics_job(
         args.model, args.trial, cutoff_hz=args.cutoff, progress=_progress_on(args),
@@ -275,6 +286,7 @@ def _cmd_run(args):
         raise UserError("--checkpoint-frames must be >= 1 and --checkpoint-seconds > 0")
     _check_window(args)
     _prepare_out(args)
+    _read_trial_first(args)
     _announce_kernels(args)
     if args.chunks > 1:
         from ..study.cli import run_chunked_job

@@ -24,12 +24,13 @@ from __future__ import annotations
 import csv
 import math
 import os
-import re
 import stat
 from collections import Counter
 from pathlib import Path
 
 import numpy as np
+
+from .numbers import NUMBER, parse_number
 
 __all__ = ["write_storage", "csv_to_sto"]
 
@@ -109,11 +110,6 @@ def csv_to_sto(csv_path, sto_path=None, name=None) -> Path | None:
     return write_storage(sto_path, time, numeric, name=name or csv_path.stem, comments=comments)
 
 
-#: a value of a storage file: a decimal number, or NaN / Inf as :func:`write_storage` writes
-#: them (not '1_000', hexadecimal or non-ASCII digits, which Python's float reads)
-_VALUE = re.compile(r"[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|nan|inf|infinity)\Z", re.ASCII | re.IGNORECASE)
-
-
 def read_storage(path):
     """Read an OpenSim ``.sto``/``.mot`` file: (time (n,) s, {label: (n,) values},
     in_degrees bool). Values are as in the file (angles in degrees when ``inDegrees=yes``).
@@ -154,9 +150,13 @@ def read_storage(path):
         cells = line.split()
         if len(cells) != len(labels):
             raise ValueError(f"{path.name}: line {k}: {len(cells)} values for {len(labels)} columns")
-        if not all(_VALUE.match(c) for c in cells):
-            raise ValueError(f"{path.name}: line {k}: a value is not a number")
-        rows.append([float(c) for c in cells])
+        if not all(NUMBER.match(c) for c in cells):
+            # a decimal number, or NaN / Inf in any spelling C runtimes print (OpenSim's
+            # files written on Windows: '-nan(ind)'); not '1_000', hexadecimal or
+            # non-ASCII digits, which Python's float reads
+            j = next(j for j, c in enumerate(cells) if not NUMBER.match(c))
+            raise ValueError(f"{path.name}: line {k}: column {labels[j]!r} is {cells[j][:40]!r}, expected a number")
+        rows.append([parse_number(c) for c in cells])
     data = np.array(rows, dtype=float).reshape(-1, len(labels))
     if not np.all(np.isfinite(data[:, 0])) or np.any(np.diff(data[:, 0]) <= 0):
         raise ValueError(f"{path.name}: the times are not finite and increasing")

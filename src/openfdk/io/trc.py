@@ -10,7 +10,9 @@ Layout (OpenSim documentation, "Marker (.trc) Files"), tab separated:
   its x column, followed by two empty cells);
 * line 5: ``''  ''  X1  Y1  Z1  X2 …``;
 * an optional blank line, then one row per frame: frame number, time (s), then x y z of
-  every marker.  A missing sample is an empty cell or ``NaN``; a row may stop early,
+  every marker.  A missing sample is an empty cell or not-a-number in any spelling C
+  runtimes print (``NaN``, ``-nan(ind)``, ``1.#QNAN``: :mod:`openfdk.io.numbers`), or
+  infinite; a row may stop early,
   which leaves its last markers missing.  A sample whose three coordinates are all
   exactly zero is missing too: many exporters write gaps so (as C3D readers do, see
   :func:`openfdk.io.c3d.read_c3d`), and no real marker sits exactly on the lab origin.
@@ -30,6 +32,7 @@ import stat
 import numpy as np
 
 from .c3d import UNIT_TO_METRE, MarkerTrial
+from .numbers import parse_number
 
 __all__ = ["TRCError", "read_trc"]
 
@@ -49,8 +52,10 @@ def _cells(line: str) -> list[str]:
 
 
 def _number(cell: str, name: str, line_no: int, what: str) -> float:
+    """A cell's value (:func:`openfdk.io.numbers.parse_number`: NaN for every spelling of
+    not-a-number C runtimes print, e.g. ``-nan(ind)``)."""
     try:
-        return float(cell)
+        return parse_number(cell)
     except ValueError:
         raise TRCError(f"{name}: line {line_no}: {what} is {cell!r}, expected a number") from None
 
@@ -154,7 +159,7 @@ def read_trc(path: str | os.PathLike) -> MarkerTrial:
         decimals = max(decimals, len(cells[1].split(".")[1].rstrip("0")) if "." in cells[1] and "e" not in cells[1].lower() else 0)
         row = np.full(3 * n_markers, np.nan)
         for j, cell in enumerate(cells[2:n_values]):
-            if cell != "" and cell.lower() != "nan":
+            if cell != "":
                 row[j] = _number(cell, name, line_no, f"column {j + 3}")
         rows.append(row)
     if not rows:

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import hashlib
 import os
+import stat
+from functools import lru_cache
 from pathlib import Path
 
 from .c3d import MarkerTrial
@@ -17,7 +20,28 @@ def read_trial(path: str | os.PathLike) -> MarkerTrial:
     """Read a marker trial: ``.c3d`` (:func:`~openfdk.io.c3d.read_c3d`) or ``.trc``
     (:func:`~openfdk.io.trc.read_trc`), positions in metres, times in seconds.
 
+    The last two files read are kept (by path and a hash of their bytes; the trial's arrays
+    are read-only): ``openfdk run`` reads the trial before it loads the model, so a bad
+    file is reported at once and not after the model's minutes of set-up, and the analysis
+    then takes the same trial without parsing it again (0.26 s for a 16 s, 72-marker
+    treadmill TRC; hashing it takes 5 ms).
+
     Raises ValueError naming the file when the extension is neither."""
+    name = os.fspath(path)
+    try:
+        regular = stat.S_ISREG(os.stat(name).st_mode)
+        digest = hashlib.blake2b(Path(name).read_bytes(), digest_size=16).digest() if regular else None
+    except OSError:
+        regular = False
+    if not regular:  # missing, unreadable, a FIFO: the reader's own one-line error
+        return _read_trial.__wrapped__(name, None)
+    return _read_trial(name, (os.path.realpath(name), digest))
+
+
+@lru_cache(maxsize=2)
+def _read_trial(path, key):
+    """:func:`read_trial` of ``path`` (as given: the trial's messages name it); ``key``
+    (real path, hash of the bytes) makes the same file's next read a cache hit."""
     suffix = Path(path).suffix.lower()
     if suffix == ".c3d":
         from .c3d import read_c3d
