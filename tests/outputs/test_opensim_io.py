@@ -142,6 +142,46 @@ def test_trc_units_and_start_frame_come_from_the_header(marker_data, tmp_path):
     np.testing.assert_allclose(trial.positions, x, rtol=1e-15)
 
 
+def _with_time_cells(path, cells):
+    """The TRC at ``path`` with its Time column replaced by the text ``cells``."""
+    lines = path.read_text().splitlines()
+    for k, cell in enumerate(cells):
+        row = lines[6 + k].split("\t")
+        row[1] = cell
+        lines[6 + k] = "\t".join(row)
+    path.write_text("\n".join(lines) + "\n")
+
+
+@pytest.mark.parametrize("rate, cells, on_grid", [
+    # OpenSim's example files: 60 Hz times rounded to 1 ms
+    (60.0, [f"{k / 60:.3f}" for k in range(60)], True),
+    # the Knee Grand Challenge's treadmill TRCs: 120 Hz frame times rounded to 1 ms plus a
+    # sync offset, some cells with a double's round-off digits
+    (120.0, [repr(round(k / 120, 3) + 0.439997) for k in range(60)], True),
+    # full precision
+    (100.0, [repr(k / 100 + 2.2) for k in range(60)], True),
+    # a dropped frame (two samples 2/rate apart): not a uniform grid, kept as read
+    (100.0, [f"{(k + (k >= 30)) / 100:.3f}" for k in range(60)], False),
+    # a time 0.3 ms off the grid printed to 0.1 ms: more than its precision, kept as read
+    (100.0, [f"{k / 100 + 0.0003 * (k == 17):.4f}" for k in range(60)], False),
+])
+def test_trc_times_are_the_rate_s_grid_to_their_printed_precision(marker_data, tmp_path, rate, cells, on_grid):
+    """Rounded Time columns (to 1 ms; the treadmill TRCs' 8 and 9 ms steps of a 120 Hz
+    camera) are the uniform grid t_0 + k/rate the filter needs; times off the grid by more
+    than their printed precision stay as read."""
+    t, labels, x = marker_data
+    write_trc_opensim_layout(tmp_path / "t.trc", labels, x * 1e3, rate)
+    _with_time_cells(tmp_path / "t.trc", cells)
+    read = np.array([float(c) for c in cells])
+    if on_grid:
+        assert np.ptp(np.diff(read)) > 0 or "e" in cells[1]  # the printed steps differ (or are exact)
+        expected = read[0] + np.arange(60) / rate
+    else:
+        expected = read
+    np.testing.assert_allclose(read_trc(tmp_path / "t.trc").time, expected, rtol=0, atol=1e-12)
+    assert (np.ptp(np.diff(read_trc(tmp_path / "t.trc").time)) < 1e-9) == on_grid
+
+
 def test_kinematics_from_trc_equals_kinematics_from_c3d(marker_data, tmp_path):
     t, labels, x = marker_data
     (tmp_path / "two_body.yaml").write_text(yaml.safe_dump(two_body_model_dict()))

@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 import os
 import stat
+from decimal import Decimal, InvalidOperation
 
 import numpy as np
 
@@ -79,14 +80,34 @@ def header_fields(path: str | os.PathLike) -> dict:
     return dict(zip(_cells(head[1]), _cells(head[2])))
 
 
-def _uniform_times(times, rate, decimals):
-    """The Time column on the exact grid t_0 + k/rate when it is that grid rounded to the
-    file's printed decimals (OpenSim's example files print 60 Hz times to 1 ms), else as
-    read. times (n,) s; rate Hz; decimals: the most decimals of a time cell."""
-    if len(times) < 2 or not rate > 0 or decimals <= 0:
+#: the offsets' resolution in :func:`_uniform_times` (s): far below any sample interval,
+#: far above a double's round-off in a time of hours
+NANOSECOND = Decimal("1e-9")
+
+
+def _uniform_times(times, rate, cells):
+    """The Time column on the exact grid t_0 + k/rate when it is that grid to the precision
+    the file prints, else as read. times (n,) s; rate Hz; cells: the Time column's text.
+
+    The precision is that of the offsets t_k − t_0, in decimal arithmetic on the printed
+    text: OpenSim's example files print 60 Hz times rounded to 1 ms (offsets 0.017, 0.033),
+    and the Knee Grand Challenge's treadmill TRCs print ms-rounded frame times plus a sync
+    offset (0.439997, 0.447997, 0.456997: 8 and 9 ms steps of a 120 Hz camera, offsets
+    to 1 ms; 140 of their 1 962 cells are printed with a double's round-off digits,
+    0.5319970000000001, which the offsets' rounding to 1 ns drops). The column is the grid
+    when every offset is within one unit of its last printed decimal of k/rate (two
+    roundings: of t_k and of t_0), and within less than half a sample of it."""
+    if len(times) < 2 or not rate > 0:
+        return times
+    try:
+        first = Decimal(cells[0])
+        decimals = max(-min((Decimal(c) - first).quantize(NANOSECOND).normalize().as_tuple().exponent, 0)
+                       for c in cells[1:])
+    except (InvalidOperation, ValueError, TypeError):
         return times
     grid = times[0] + np.arange(len(times)) / rate
-    if np.max(np.abs(times - grid)) <= 0.5 * 10.0 ** (-decimals) * (1 + 1e-9) + 1e-12:
+    # never half a sample or more: a time that far off may be another frame (a dropped one)
+    if np.max(np.abs(times - grid)) <= min(10.0 ** (-decimals) * (1 + 1e-9) + 1e-12, 0.499 / rate):
         return grid
     return times
 
@@ -144,7 +165,7 @@ def read_trc(path: str | os.PathLike) -> MarkerTrial:
 
     n_markers = len(labels)
     n_values = 2 + 3 * n_markers
-    times, rows, decimals = [], [], 0
+    times, rows, time_cells = [], [], []
     for line_no, line in enumerate(lines[5:], start=6):
         if not line.strip():
             continue
@@ -156,7 +177,7 @@ def read_trc(path: str | os.PathLike) -> MarkerTrial:
         times.append(_number(cells[1], name, line_no, "the time"))
         if not math.isfinite(times[-1]):
             raise TRCError(f"{name}: line {line_no}: the time is {cells[1]!r}, expected a finite number")
-        decimals = max(decimals, len(cells[1].split(".")[1].rstrip("0")) if "." in cells[1] and "e" not in cells[1].lower() else 0)
+        time_cells.append(cells[1])
         row = np.full(3 * n_markers, np.nan)
         for j, cell in enumerate(cells[2:n_values]):
             if cell != "":
@@ -169,7 +190,7 @@ def read_trc(path: str | os.PathLike) -> MarkerTrial:
         if declared != len(rows):
             raise TRCError(f"{name}: NumFrames on line 3 is {declared}, the file has {len(rows)} data rows")
 
-    times = _uniform_times(np.array(times), rate, decimals)
+    times = _uniform_times(np.array(times), rate, time_cells)
     p = np.array(rows).reshape(len(rows), n_markers, 3) * UNIT_TO_METRE[units]
     # a sample is missing when any coordinate is: the marker is seen or not as a whole;
     # (0, 0, 0) exactly is how many exporters write a gap
