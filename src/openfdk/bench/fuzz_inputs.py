@@ -168,12 +168,14 @@ def _trc_text():
 
 def mutate_text(text, rng, sep="\t"):
     """A mutated copy of a text table (cells separated by ``sep``): 1–3 line/character
-    mutations or a number replaced by an edge value (NaN, inf, huge, negative, text)."""
+    mutations or a number replaced by an edge value (NaN in C runtimes' spellings, inf,
+    huge, negative, text)."""
     for _ in range(int(rng.integers(1, 4))):
         cells = text.split(sep)
         if rng.random() < 0.4 and len(cells) > 1:
             i = int(rng.integers(len(cells)))
-            cells[i] = str(rng.choice(["NaN", "inf", "-1", "0", "1e308", "abc", "", "1e-320", "mm", "m", "7"]))
+            cells[i] = str(rng.choice(["NaN", "inf", "-1", "0", "1e308", "abc", "", "1e-320", "mm", "m", "7",
+                                       "-nan(ind)", "1.#QNAN", "nan(", "1.#NAN"]))  # C runtimes' NaN, and near misses
             text = sep.join(cells)
         else:
             text = _text_mutation(text, rng)
