@@ -202,3 +202,30 @@ def test_dm_with_a_patellar_tendon_converges_at_the_default_settings(tmp_path):
     names = list(res.forces.column_names)
     vasti = sum(res.forces.forces[:, names.index(m)] for m in ("vasmed_r", "vaslat_r", "vasint_r"))
     assert np.all(vasti > 100.0), vasti
+
+
+@pytest.mark.skipif(not (DM_DIR and (Path(DM_DIR) / "DM_ngait_tmf_slow1_new.trc").is_file()),
+                    reason="the DM files are not part of openfdk: set OPENFDK_DM_DIR (docs/tutorial-knee-gait.md)")
+def test_dm_treadmill_trc_reads_with_its_windows_nan_and_rounded_times():
+    """DM's treadmill TRC (`DM_ngait_tmf_slow1_new.trc`) as written: its sync-bar markers
+    are '-nan(ind)' (missing, as OpenSim reads them) and its times are 120 Hz frame times
+    rounded to 1 ms plus a 0.439997 s sync offset (read onto the 1/120 s grid)."""
+    from openfdk.io.trc import read_trc
+
+    path = Path(DM_DIR) / "DM_ngait_tmf_slow1_new.trc"
+    text = path.read_text()
+    assert text.count("-nan(ind)") > 1000
+    trial = read_trc(path)
+    assert trial.rate == 120.0 and trial.positions.shape == (1962, 72, 3)
+    np.testing.assert_allclose(trial.time, 0.439997 + np.arange(1962) / 120.0, rtol=0, atol=1e-12)
+    printed = np.array([float(line.split("\t")[1]) for line in text.splitlines()[6:] if line.strip()])
+    assert np.max(np.abs(printed - trial.time)) <= 1e-3 and np.ptp(np.diff(printed)) > 5e-4
+    seen = ~np.isnan(trial.positions).any(axis=2)
+    rows = [line.split("\t") for line in text.splitlines()[6:] if line.strip()]
+    for k in range(1, 5):  # a bar is missing exactly where a cell of it is not a decimal number
+        m = trial.labels.index(f"synch_bar{k}")
+        cells = [r[2 + 3 * m: 5 + 3 * m] + [""] * max(0, 5 + 3 * m - len(r)) for r in rows]
+        odd = np.array([any(c in ("", "nan", "-nan(ind)") for c in row) for row in cells])
+        assert odd.sum() > 500 and np.array_equal(~seen[:, m], odd)
+    knee = [trial.labels.index(lab) for lab in ("R_Thigh_Superior", "R_Shank_Inferior", "R_Heel")]
+    assert seen[:, knee].mean() > 0.99
