@@ -168,6 +168,58 @@ def test_sphere_on_layer_matches_each_law(tmp_path, monkeypatch, formulation, lu
         assert pole > 1.05 * linear
 
 
+def _place_mesh(folder, name, location, orientation):
+    """The model's mesh ``name`` stored in a geometry frame G placed at ``location`` (m),
+    ``orientation`` (body-fixed X-Y-Z Euler angles, rad) in its frame, as OpenSim
+    4.0–4.4 write ContactGeometry: the STL's vertices become R_FGᵀ (v − p_FG), with R_FG
+    from scipy (intrinsic 'XYZ'), so the placed mesh is the original one."""
+    from scipy.spatial.transform import Rotation
+
+    from openfdk.contact.stl import read_stl
+
+    R_FG = Rotation.from_euler("XYZ", orientation).as_matrix()
+    stl = folder / f"{name}.stl"
+    vertices, faces = read_stl(stl)
+    moved = type("M", (), {"vertices_B": (vertices - np.asarray(location)) @ R_FG, "faces": faces})
+    _stl(folder / f"{name}_in_G.stl", moved)
+    tree = etree.parse(str(folder / "ball.osim"))
+    element = tree.getroot().find(f".//Smith2018ContactMesh[@name='{name}_mesh']")
+    element.find("mesh_file").text = f"{name}_in_G.stl"
+    etree.SubElement(element, "location").text = " ".join(repr(float(x)) for x in location)
+    etree.SubElement(element, "orientation").text = " ".join(repr(float(x)) for x in orientation)
+    tree.write(str(folder / "placed.osim"))
+    return folder / "placed.osim"
+
+
+@pytest.mark.parametrize("name", ["ball", "plate"])
+def test_a_contact_mesh_placed_by_location_and_orientation_is_the_same_contact(tmp_path, monkeypatch, name):
+    """ContactGeometry's location and orientation (the Lenhart 2015 knee's meshes carry
+    them): the casting (ball) or target (plate) mesh written in a turned and shifted
+    geometry frame, with that frame's pose in the file, gives the contact of the original
+    model: the same force, area and pole pressure."""
+    monkeypatch.chdir(tmp_path)
+    reference = model_from_dict(read_osim(_model(tmp_path))[0], source="ball.osim")
+    placed = model_from_dict(read_osim(_place_mesh(tmp_path, name, (0.002, -0.001, 0.003), (0.3, -0.4, 0.5)))[0],
+                             source="placed.osim")
+    results = []
+    for model in (reference, placed):
+        state, _ = pose_from_coordinates(model, {"height": R - DELTA})
+        results.append(model.contacts[0].generalized_forces(state, False)[2])
+    ref, got = results
+    assert ref.force_W[2] > 0.1 and ref.n_contact > 10
+    np.testing.assert_allclose(got.force_W, ref.force_W, rtol=0, atol=2e-6 * ref.force_W[2])
+    assert got.area == pytest.approx(ref.area, rel=1e-6) and got.peak_pressure == pytest.approx(ref.peak_pressure,
+                                                                                                 rel=1e-5)
+    # the geometry frame's pose matters: the same moved mesh without it is another contact
+    text = (tmp_path / "placed.osim").read_text()
+    for tag in ("location", "orientation"):
+        text = text.replace(text[text.index(f"<{tag}>"):text.index(f"</{tag}>") + len(tag) + 3], "")
+    (tmp_path / "unplaced.osim").write_text(text)
+    unplaced = model_from_dict(read_osim(tmp_path / "unplaced.osim")[0], source="unplaced.osim")
+    state, _ = pose_from_coordinates(unplaced, {"height": R - DELTA})
+    assert abs(unplaced.contacts[0].generalized_forces(state, False)[2].force_W[2] - ref.force_W[2]) > 0.01 * ref.force_W[2]
+
+
 def test_the_depth_band_stops_at_the_layers_thickness(tmp_path, monkeypatch):
     """max_proximity is how far JAM's rays search; openfdk's depth band (max_depth, the
     distance grid's extent) stops at the two layers' total thickness h₁ + h₂, beyond

@@ -18,7 +18,9 @@ rays from) carries the vertices; the target is the opposite surface; ``max_proxi
 (m), capped at the two layers' total thickness (:func:`contact_depth`), is the largest
 depth counted (openfdk's ``max_depth``); ``min_proximity`` must be 0.
 A mesh is read from its ``mesh_file`` as a display mesh is (next to the model, its
-Geometry folder, ``--geometry``), placed by its ``socket_frame`` in its body.
+Geometry folder, ``--geometry``), placed by its ``socket_frame`` in its body, and within
+that frame by ContactGeometry's ``location`` and ``orientation`` (body-fixed X-Y-Z Euler
+angles) where the file gives them (models written by OpenSim 4.0–4.4).
 
 Read and refused by name: ``scale_factors`` other than 1, ``mesh_back_file``,
 variable thickness (with or without its back mesh), a missing ``thickness``, ``elastic_modulus`` or
@@ -29,7 +31,10 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from .actuators import _flag, _number, _text
+from .document import numbers, rotation_xyz
 from .errors import OsimError, where
 
 MESH_TYPE = "Smith2018ContactMesh"
@@ -37,7 +42,7 @@ FORCE_TYPE = "Smith2018ArticularContactForce"
 _MESH_PROPERTIES = {"socket_frame", "socket_scale_frame", "mesh_file", "elastic_modulus", "poissons_ratio",
                     "thickness", "scale_factors", "Appearance", "components", "use_variable_thickness",
                     "mesh_back_file", "min_thickness", "max_thickness", "display_preference", "color",
-                    "elastic_foundation_formulation"}
+                    "elastic_foundation_formulation", "location", "orientation"}
 _FORCE_PROPERTIES = {"socket_target_mesh", "socket_casting_mesh", "min_proximity", "max_proximity",
                      "elastic_foundation_formulation", "use_lumped_contact_model", "appliesForce", "isDisabled",
                      "components", "Appearance", "modulus_heterogeneity", "verbose"}
@@ -59,28 +64,36 @@ def read_contact_mesh(element, source):
     _check_properties(element, source, label, _MESH_PROPERTIES)
     if _flag(element, "use_variable_thickness", source, label, False):
         if not _text(element, "mesh_back_file"):
-            raise OsimError(f"{where(source, element)}: {label}: use_variable_thickness without a mesh_back_file "
+            raise OsimError(f"{where(source, element)}: use_variable_thickness without a mesh_back_file "
                             "(the back mesh that gives the thickness is missing)")
-        raise OsimError(f"{where(source, element)}: {label}: variable thickness is not supported by openfdk")
+        raise OsimError(f"{where(source, element)}: variable thickness (from {_text(element, 'mesh_back_file')}) is "
+                        "not supported by openfdk; set use_variable_thickness false and a uniform thickness (m) "
+                        "to import the model")
     if _text(element, "mesh_back_file"):
-        raise OsimError(f"{where(source, element)}: {label}: a mesh_back_file is not supported by openfdk")
+        raise OsimError(f"{where(source, element)}: a mesh_back_file is not supported by openfdk")
     scale = (_text(element, "scale_factors") or "1 1 1").split()
     if [float(x) for x in scale] != [1.0, 1.0, 1.0]:
-        raise OsimError(f"{where(source, element)}: {label}: scale_factors {' '.join(scale)} (openfdk reads "
+        raise OsimError(f"{where(source, element)}: scale_factors {' '.join(scale)} (openfdk reads "
                         "unscaled contact meshes)")
     frame, mesh = _text(element, "socket_frame"), _text(element, "mesh_file")
     if not frame or not mesh:
-        raise OsimError(f"{where(source, element)}: {label}: needs a socket_frame and a mesh_file")
+        raise OsimError(f"{where(source, element)}: needs a socket_frame and a mesh_file")
     record = {"frame": frame.rstrip("/").split("/")[-1] if frame.startswith("/bodyset/") and frame.count("/") == 2
               else frame, "path": frame, "mesh_file": mesh, "line": element.sourceline}
+    # ContactGeometry's pose of the mesh in its frame (OpenSim 4.0–4.4 and the JAM models
+    # written with them, e.g. Lenhart 2015): p_FG = location (m), R_FG from the body-fixed
+    # X-Y-Z Euler angles of orientation (rad)
+    for tag, key, convert in (("location", "p_FG", np.asarray), ("orientation", "R_FG", rotation_xyz)):
+        node = element.find(tag)
+        record[key] = convert(numbers(node, source, 3, f"{label}: {tag}") if node is not None else np.zeros(3))
     for tag, key, ok in (("elastic_modulus", "E", lambda x: x > 0), ("poissons_ratio", "nu", lambda x: -1 < x < 0.5),
                          ("thickness", "h", lambda x: x > 0)):
         if not _text(element, tag):
-            raise OsimError(f"{where(source, element)}: {label}: <{tag}> is missing (the elastic layer's "
+            raise OsimError(f"{where(source, element)}: <{tag}> is missing (the elastic layer's "
                             f"{'thickness (m)' if key == 'h' else tag} is needed for the pressure law)")
         value = _number(element, tag, source, label, math.nan)
         if not (math.isfinite(value) and ok(value)):
-            raise OsimError(f"{where(source, element)}: {label}: {tag} {value:g} is out of range")
+            raise OsimError(f"{where(source, element)}: {tag} {value:g} is out of range")
         record[key] = value
     return name, record
 
@@ -97,21 +110,21 @@ def read_contact_force(element, source):
         return name, None
     formulation = (_text(element, "elastic_foundation_formulation") or "linear").strip()
     if formulation not in ("linear", "nonlinear"):
-        raise OsimError(f"{where(source, element)}: {label}: elastic_foundation_formulation {formulation!r} is neither "
+        raise OsimError(f"{where(source, element)}: elastic_foundation_formulation {formulation!r} is neither "
                         "'linear' nor 'nonlinear'")
     lumped = _flag(element, "use_lumped_contact_model", source, label, True)
     if _flag(element, "modulus_heterogeneity", source, label, False):
-        raise OsimError(f"{where(source, element)}: {label}: modulus_heterogeneity is not supported by openfdk")
+        raise OsimError(f"{where(source, element)}: modulus_heterogeneity is not supported by openfdk")
     meshes = {}
     for key in ("target", "casting"):
         text = _text(element, f"socket_{key}_mesh")
         if not text:
-            raise OsimError(f"{where(source, element)}: {label}: no socket_{key}_mesh")
+            raise OsimError(f"{where(source, element)}: no socket_{key}_mesh")
         meshes[key] = text.rstrip("/").split("/")[-1]
     low = _number(element, "min_proximity", source, label, 0.0)
     high = _number(element, "max_proximity", source, label, 0.01)
     if low != 0.0 or not (0.0 < high < math.inf):
-        raise OsimError(f"{where(source, element)}: {label}: proximity range [{low:g}, {high:g}] m: openfdk needs "
+        raise OsimError(f"{where(source, element)}: proximity range [{low:g}, {high:g}] m: openfdk needs "
                         "min_proximity 0 and a positive max_proximity")
     return name, {**meshes, "max_proximity": high, "line": element.sourceline, "formulation": formulation,
                   "lumped": lumped}

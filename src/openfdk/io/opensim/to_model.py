@@ -247,8 +247,9 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
                              mesh_dirs)
             root, p, R = tree.frame_in_root(mesh["frame"])
             body = "ground" if root == tree.ground else safe_name(root)
+            p_BG, R_BG = p + R @ mesh["p_FG"] - com[root], R @ mesh["R_FG"]
             sides[role] = {"body": body, "mesh": str(file), "units": "m",
-                           "placement": {"position": (p - com[root]).tolist(), "orientation": {"matrix": R.tolist()}}}
+                           "placement": {"position": p_BG.tolist(), "orientation": {"matrix": R_BG.tolist()}}}
         if sides["vertices"]["body"] == sides["surface"]["body"]:
             raise OsimError(f"{doc.source}: line {force['line']}: Smith2018ArticularContactForce {name!r}: both meshes "
                             "are on one body")
