@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from openfdk.io.numbers import NUMBER, parse_number
+from openfdk.io.numbers import NUMBER, parse_number, value_of_number
 from openfdk.io.storage import read_storage
 
 LIBC = ctypes.CDLL(ctypes.util.find_library("c"))
@@ -41,6 +41,8 @@ def test_a_cell_reads_as_c_strtod_reads_it(text):
     else:
         assert ours == value and math.copysign(1.0, ours) == math.copysign(1.0, value)
     assert NUMBER.match(text)
+    fast = value_of_number(text)  # the storage reader's path for checked cells
+    assert (math.isnan(fast) and math.isnan(ours)) or fast == ours
 
 
 @pytest.mark.parametrize("text, expected", [
@@ -52,8 +54,8 @@ def test_a_cell_reads_as_c_strtod_reads_it(text):
 ])
 def test_microsoft_legacy_spellings(text, expected):
     assert strtod(text)[1] < len(text)  # not C's syntax: strtod stops early
-    ours = parse_number(text)
-    assert (math.isnan(ours) and math.isnan(expected)) or ours == expected
+    for ours in (parse_number(text), value_of_number(text)):
+        assert (math.isnan(ours) and math.isnan(expected)) or ours == expected
 
 
 @pytest.mark.parametrize("text", ["", "abc", "1_000", "0x10", "nan(", "nan(a b)", "#N/A", "1.#", "1.#NAN",

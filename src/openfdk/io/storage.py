@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .numbers import NUMBER, parse_number
+from .numbers import NUMBER, value_of_number
 
 __all__ = ["write_storage", "csv_to_sto"]
 
@@ -156,7 +156,7 @@ def read_storage(path):
             # non-ASCII digits, which Python's float reads
             j = next(j for j, c in enumerate(cells) if not NUMBER.match(c))
             raise ValueError(f"{path.name}: line {k}: column {labels[j]!r} is {cells[j][:40]!r}, expected a number")
-        rows.append([parse_number(c) for c in cells])
+        rows.append([value_of_number(c) for c in cells])
     data = np.array(rows, dtype=float).reshape(-1, len(labels))
     if not np.all(np.isfinite(data[:, 0])) or np.any(np.diff(data[:, 0]) <= 0):
         raise ValueError(f"{path.name}: the times are not finite and increasing")
