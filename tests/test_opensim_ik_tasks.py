@@ -151,3 +151,44 @@ def test_bad_ik_task_files_name_the_file_line_and_task(tmp_path, body, message):
         read_ik_tasks(path)
     text = str(info.value)
     assert text.startswith("tasks.xml: line 3:") and message in text and "\n" not in text
+
+
+def _marker_tasks(path, applied):
+    """A tasks file that applies the markers ``applied`` (weight 1) and no other."""
+    tasks = "".join(f"<IKMarkerTask name='{n}'><apply>true</apply><weight>1</weight></IKMarkerTask>" for n in applied)
+    tasks += "<IKMarkerTask name='R_HEEL'><apply>false</apply><weight>1</weight></IKMarkerTask>"
+    path.write_text(f"<OpenSimDocument Version='40000'><IKTaskSet><objects>{tasks}</objects></IKTaskSet>"
+                    "</OpenSimDocument>")
+    return path
+
+
+def test_a_task_file_that_tracks_no_marker_is_refused_before_the_run(tmp_path, capsys):
+    """OpenSim's IK tracks only the markers its task set applies: a file listing only the
+    markers to leave out tracks none, which is said at once, naming the file."""
+    model = write_full_body_osim(tmp_path / "full_body.osim")
+    trc, *_ = write_full_body_trial(model, tmp_path / "walk.trc", n_frames=5)
+    tasks = _marker_tasks(tmp_path / "tasks.xml", [])
+    code = main(["kinematics", str(model), str(trc), "--ik-tasks", str(tasks), "--out", str(tmp_path / "o"), "-q"])
+    err = capsys.readouterr().err
+    assert code == 2 and "tasks.xml: no marker is tracked: none of the model's 40 markers" in err, err
+    assert err.count("\n") == 1
+
+
+def test_an_untracked_body_s_frames_fail_with_a_short_message_naming_its_tracked_markers(tmp_path, capsys):
+    """Only the pelvis markers tracked: the pelvis is fixed and the 11 other bodies are
+    free. Each frame fails, and its message counts the free coordinates and bodies, names
+    four bodies with their (no) tracked markers and counts the rest."""
+    import json
+
+    model = write_full_body_osim(tmp_path / "full_body.osim")
+    trc, *_ = write_full_body_trial(model, tmp_path / "walk.trc", n_frames=5)
+    tasks = _marker_tasks(tmp_path / "tasks.xml", ["R_ASIS", "L_ASIS", "R_PSIS", "L_PSIS"])
+    out = tmp_path / "o"
+    assert main(["kinematics", str(model), str(trc), "--ik-tasks", str(tasks), "--out", str(out), "-q"]) == 3
+    failed = json.loads((out / "summary.json").read_text())["kinematics"]["failed_frames"]
+    assert len(failed) == 5
+    reason = failed[0]["reason"]
+    assert "the pose cannot be determined: the tracked markers and the constraints leave" in reason
+    assert "of 11 body(ies) free" in reason and "and 7 more bodies" in reason, reason
+    assert "tracked markers: none" in reason and "pelvis" not in reason and "R_HEEL" not in reason
+    assert len(reason) < 500, reason

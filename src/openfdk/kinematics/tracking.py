@@ -145,17 +145,35 @@ class MarkerTracker:
         free = undetermined_coordinates(stacked, self.coord_names, tol=1e-8)
         msg = ""
         if free:
-            bodies = sorted({c.rsplit(".", 1)[0] for c in free})
-            seen = [
-                f"{b}: visible markers {[n for n, bi, v in zip(self.markers.names, self.markers.body, visible) if v and self.system.model.bodies[bi].name == b]}"
-                for b in bodies
-            ]
-            msg = (
-                f"the pose cannot be determined: visible markers and constraints leave "
-                f"{free} free ({'; '.join(seen)})"
-            )
+            msg = f"the pose cannot be determined: {self._free_description(free, visible)}"
         self._observable_cache[key] = msg
         return msg
+
+    #: bodies named one by one in an unobservable frame's message; the rest are counted
+    MESSAGE_BODIES = 4
+
+    def _free_description(self, free, visible):
+        """What an unobservable frame's message says of its free coordinates ``free``
+        (names 'body.dof'): their count, then per body (at most :data:`MESSAGE_BODIES`)
+        its free DOFs and the markers tracked there (visible, weight > 0), so that a
+        message stays one readable line on a 23-body model."""
+        m = self.markers
+        tracked = np.asarray(visible, bool) & (m.weight > 0)
+        by_body = {}
+        for c in free:
+            body, dof = c.rsplit(".", 1)
+            by_body.setdefault(body, []).append(dof)
+        parts = []
+        for body, dofs in list(by_body.items())[:self.MESSAGE_BODIES]:
+            names = [n for n, bi, v in zip(m.names, m.body, tracked) if v and self.system.model.bodies[bi].name == body]
+            parts.append(f"{body} ({', '.join(dofs)}; tracked markers: {', '.join(names) if names else 'none'})")
+        if len(by_body) > self.MESSAGE_BODIES:
+            parts.append(f"and {len(by_body) - self.MESSAGE_BODIES} more bodies")
+        text = (f"the tracked markers and the constraints leave {len(free)} coordinate(s) of {len(by_body)} "
+                f"body(ies) free: {'; '.join(parts)}")
+        if not np.any(m.weight > 0):
+            text += " (no marker is tracked: every marker's weight is 0)"
+        return text
 
     def initial_guess(self, state, x_WM, visible):
         """Set the pose from rigid least-squares fits (Kabsch) of the visible markers:

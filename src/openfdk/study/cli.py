@@ -112,8 +112,10 @@ def job_case(model_path, trial_path, chunks, overlap=DEFAULT_OVERLAP, cutoff_hz=
             raise FileNotFoundError(f"trial file {str(trial)!r} does not exist")
         inputs["trials"], names["trials"] = str(trial.resolve()), trial.stem
     options = RunOptions(chunks=int(chunks), overlap=int(overlap), cutoff_hz=cutoff_hz, start=start, end=end)
+    from ..io.opensim.overlay import registered_options
+
     return Case("-".join(names.values()), "model", "openfdk.study.kinds:prepare_model_case", names, inputs, {}, (),
-                options)
+                options, import_options=registered_options(model))
 
 
 def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=None, start=None, end=None,

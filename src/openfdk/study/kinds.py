@@ -96,16 +96,24 @@ MAPPING_SLOTS = 8
 
 def read_model_mapping(path) -> dict:
     """The parsed YAML mapping of a model file (safe loader; errors name the file), a
-    fresh copy that the caller may change. The file is parsed once per process and
+    fresh copy that the caller may change; of an ``.osim`` or an overlay YAML (an
+    ``opensim:`` key), the imported mapping (:mod:`openfdk.io.opensim.overlay`). The file is parsed once per process and
     content (its :func:`~openfdk.io.fingerprint.file_stamp`: path, size, modification
     time), so the cases of a study that share a model file do not parse it again."""
+    from ..io.opensim.overlay import imported_model_data, overlay_model_data
+
     path = Path(path)
+    imported = imported_model_data(path)  # an .osim, with this process's import options
+    if imported is not None:
+        return imported
     stamp = file_stamp(path)
     data = _MAPPINGS.get(stamp) if stamp is not None else None
     if data is None:
         data = read_yaml(path, ModelError, "model file")
         if not isinstance(data, dict):
             raise ModelError(f"{path.name}: a model file must contain a mapping of sections")
+        if "opensim" in data:  # an overlay: the .osim it names, imported, with it merged in
+            return overlay_model_data(path, data)
         if stamp is not None:
             _MAPPINGS[stamp] = data
             while len(_MAPPINGS) > MAPPING_SLOTS:
@@ -114,9 +122,17 @@ def read_model_mapping(path) -> dict:
 
 
 def prepare_model_case(case) -> PreparedCase:
-    """The ``model`` kind: ``case.inputs["models"]`` is a model file, ``trials`` (optional)
-    a C3D file."""
+    """The ``model`` kind: ``case.inputs["models"]`` is a model file (YAML, an OpenSim
+    ``.osim`` or an overlay YAML naming one), ``trials`` (optional) a C3D or TRC file. An
+    ``.osim``'s command-line import options (``--with``, ``--ignore``, …) come with the
+    case (``import_options``), registered here before the import: a worker process of
+    ``openfdk run --chunks`` imports the model as the command did."""
+    from ..io.opensim.overlay import register_options
+
     path = Path(case.inputs["models"])
+    options = getattr(case, "import_options", None)
+    if options is not None:
+        register_options(path, options)
     trial = case.inputs.get("trials")
     return PreparedCase(read_model_mapping(path), path.name, path.parent, None if trial is None else str(trial))
 

@@ -90,6 +90,9 @@ class Case:
     overrides: tuple
     options: RunOptions
     fingerprint: str = ""
+    #: ImportOptions of an ``.osim`` model given on the command line (``openfdk run
+    #: --chunks``; :func:`openfdk.io.opensim.overlay.registered_options`), or None
+    import_options: object = None
 
 
 @dataclass(frozen=True)

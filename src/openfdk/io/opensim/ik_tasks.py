@@ -112,6 +112,10 @@ def apply_ik_tasks(data, path, doc_coordinates, dropped=()):
             raise OsimError(f"{source}: IKMarkerTask {name!r}: the model has no marker of that name")
     for label, m in by_label.items():
         m["weight"] = float(weights.get(label, 0.0))
+    if by_label and not tasks and not any(m["weight"] > 0 for m in by_label.values()):
+        raise OsimError(f"{source}: no marker is tracked: none of the model's {len(by_label)} markers has an "
+                        "IKMarkerTask with <apply>true</apply> and a weight > 0 (OpenSim's IK tracks only the "
+                        "markers its task set applies)")
     out = dict(data.get("tasks") or {})
     files = {}
     for name, t in tasks.items():

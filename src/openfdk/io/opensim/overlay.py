@@ -31,7 +31,7 @@ already defines is an error naming the overlay's entry. Overlay values are in SI
 from __future__ import annotations
 
 import difflib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ...model.errors import ModelError
@@ -80,6 +80,21 @@ def register(path, ignore=(), mesh_dirs=(), overlay=None, ik_tasks=None, externa
                                             None if external_loads is None else Path(external_loads),
                                             None if motion is None else Path(motion), motion_cutoff_hz,
                                             None if actuators is None else Path(actuators))
+
+
+def registered_options(path):
+    """The ImportOptions registered for the ``.osim`` at ``path`` in this process (a copy
+    without its import record), or None: what another process needs to import the model
+    as this one does (:func:`register_options`; ``openfdk run --chunks`` sends it to the
+    worker processes with the case)."""
+    opts = _REGISTERED.get(_key(path))
+    return None if opts is None else replace(opts, info={})
+
+
+def register_options(path, options):
+    """Register ``options`` (ImportOptions, from :func:`registered_options` in another
+    process) for the ``.osim`` at ``path`` in this process."""
+    _REGISTERED[_key(path)] = replace(options, info={})
 
 
 def import_info(path):
