@@ -59,10 +59,11 @@ def _trial(folder, n_frames=40, ratio=10, feet=None):
     return path, expected(2, "floor", force, p, tz)
 
 
-def test_a_plate_under_a_welded_block_gives_the_closed_form_reaction(tmp_path, capsys):
+@pytest.mark.parametrize("chunks", [[], ["--chunks", "2", "--workers", "0"]], ids=["serial", "chunks"])
+def test_a_plate_under_a_welded_block_gives_the_closed_form_reaction(tmp_path, capsys, chunks):
     trial, want = _trial(tmp_path)
     model = _model(tmp_path, {"plates": {"plate1": {"body": "foot"}}, "threshold_n": 20.0, "cutoff_hz": 0})
-    code = main(["run", str(model), str(trial), "--out", str(tmp_path / "out"), "-q"])
+    code = main(["run", str(model), str(trial), "--out", str(tmp_path / "out"), "-q", *chunks])
     assert code == 0, capsys.readouterr().err
     forces = read_table(tmp_path / "out" / "forces.csv")
     grf = read_table(tmp_path / "out" / "grf.csv")

@@ -66,13 +66,8 @@ def load_model_and_settings(path) -> tuple[Model, AnalysisSettings]:
         from .opensim.overlay import overlay_model_data
 
         data = overlay_model_data(path, data)
-    model, settings = model_and_settings_from_dict(data, source=model_source(path), base_dir=path.parent)
-    if settings.ground_reactions:
-        from dataclasses import replace
-
-        from .ground_reactions import check_spec
-
-        settings = replace(settings, ground_reactions=check_spec(settings.ground_reactions, model, path.name))
+    model, settings = model_and_settings_from_dict(data, source=model_source(path), base_dir=path.parent,
+                                                   label=path.name)
     check_model(model, path.name, settings.units["length"])  # plausibility warnings
     return model, settings
 
@@ -87,13 +82,23 @@ def load_settings(path) -> AnalysisSettings:
     return load_model_and_settings(path)[1]
 
 
-def model_and_settings_from_dict(data, source="<dict>", base_dir=None) -> tuple[Model, AnalysisSettings]:
-    """(Model, AnalysisSettings) from the parsed YAML mapping (see docs/model-file.md)."""
+def model_and_settings_from_dict(data, source="<dict>", base_dir=None, label=None) -> tuple[Model, AnalysisSettings]:
+    """(Model, AnalysisSettings) from the parsed YAML mapping (see docs/model-file.md);
+    the ``ground_reactions`` section checked against the model and normalised
+    (:func:`openfdk.io.ground_reactions.check_spec`; errors name ``label``, default
+    ``source``)."""
     b, ctx = read_core(data, source, base_dir, [name for name, _ in SECTIONS])
     for name, loader in SECTIONS:
         if name in data:
             loader(b, data[name], ctx)
-    return build(b, ctx), b.settings()
+    model, settings = build(b, ctx), b.settings()
+    if settings.ground_reactions:
+        from dataclasses import replace
+
+        from .ground_reactions import check_spec
+
+        settings = replace(settings, ground_reactions=check_spec(settings.ground_reactions, model, label or source))
+    return model, settings
 
 
 def model_from_dict(data, source="<dict>", base_dir=None) -> Model:

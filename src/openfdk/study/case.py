@@ -146,6 +146,19 @@ def with_metrics(record, out_root, case):
     return {**record, "metrics": metrics, "metric_warnings": warnings, "metric_columns": list(case.options.metrics)}
 
 
+def case_inputs(case):
+    """(model, settings, label, trajectories, times (nf,) s, info) of a case: its model
+    with the trial's force plates applied as loads when the settings assign them
+    (``ground_reactions``, as ``openfdk run`` applies them), and its analysed frames."""
+    from ..analysis.jobs import _with_ground_reactions
+
+    model, settings, trial, label = build_case_model(case)
+    opts = case.options
+    traj, times, info = analysis_inputs(model, trial, opts.cutoff_hz, opts.start, opts.end, settings)
+    model = _with_ground_reactions(model, settings, trial, traj, opts.cutoff_hz, info)
+    return model, settings, label, traj, times, info
+
+
 def run_case(case, out_root, force=False):
     """Dask task / serial step: run one case (its chunks one after the other when
     ``options.chunks`` > 1) and publish its folder; a complete folder is returned as it
@@ -155,9 +168,8 @@ def run_case(case, out_root, force=False):
     if done is not None:
         return with_metrics(done, out_root, case)
     t0 = _time.perf_counter()
-    model, settings, trial, label = build_case_model(case)
     opts = case.options
-    traj, times, info = analysis_inputs(model, trial, opts.cutoff_hz, opts.start, opts.end, settings)
+    model, settings, label, traj, times, info = case_inputs(case)
     if opts.chunks > 1:
         segments = plan_segments(len(times), opts.chunks, opts.overlap)
         parts = [solve_segment(model, traj, times, s, settings=settings) for s in segments]
@@ -186,9 +198,8 @@ def segment_task(case, index, checks=True):
     with warnings.catch_warnings() if not checks else contextlib.nullcontext():
         if not checks:
             warnings.simplefilter("ignore", PlausibilityWarning)
-        model, settings, trial, label = build_case_model(case)
         opts = case.options
-        traj, times, info = analysis_inputs(model, trial, opts.cutoff_hz, opts.start, opts.end, settings)
+        model, settings, label, traj, times, info = case_inputs(case)
         segment = plan_segments(len(times), opts.chunks, opts.overlap)[index]
         return solve_segment(model, traj, times, segment, {"model": label, **info}, settings)
 
