@@ -109,3 +109,45 @@ def test_the_marched_frames_are_solved_to_march_tolerance_and_the_frame_to_the_t
     assert len(trial) >= len(times) and set(trial) == {1e-3}
     alpha_star = (np.array([_Ramp().derivatives(t)[0][2] for t in times]) - M * G) / K
     np.testing.assert_allclose(res.alpha[:, 0], alpha_star, rtol=0, atol=1e-3 / K)
+
+
+def test_a_lead_in_after_which_the_first_frame_fails_is_tried_again_from_further_back(monkeypatch):
+    """The window's first frame fails after the 12-frame lead-in and converges after the
+    24-frame one (DM og3 from 3.47 s, late swing: 5 of 16 frames converged with the short
+    lead-in alone, 16 of 16 with the longer ones). The lengths are tried in order, the
+    failed attempt's counts are added to the frame's, and the successful march's frames
+    join the history as frames −24 … −1. With data only 20 frames back, the lead-in
+    stops at those 20 frames."""
+    from types import SimpleNamespace
+
+    from openfdk.fdk.approach import LEAD_IN_LENGTHS, Approach
+    from openfdk.fdk.newton import FrameSolution
+
+    assert LEAD_IN_LENGTHS[:2] == (LEAD_IN_FRAMES, 2 * LEAD_IN_FRAMES)
+    dt = 1 / 120
+    window = 3.0 + dt * np.arange(5)
+    tried = []
+
+    def solve_after(self, step, k, times, previous):
+        tried.append(len(times))
+        ok = len(times) >= 2 * LEAD_IN_FRAMES
+        sol = FrameSolution(None, ok, 10 * len(times), 100 * len(times), "", "converged" if ok else "iterations",
+                            jacobians=len(times))
+        return sol, [(j, np.array([float(j)])) for j in range(len(times))]
+
+    monkeypatch.setattr(Approach, "_solve_after", solve_after)
+    step = SimpleNamespace(ctx=SimpleNamespace(times=window), history=[])
+    approach = Approach.__new__(Approach)
+    approach.trajectories, approach.first_time = None, -np.inf
+    sol = approach(step, 0)
+    assert tried == [12, 24] and sol.converged
+    assert (sol.iterations, sol.evaluations, sol.jacobians) == (10 * 36, 100 * 36, 36)
+    assert [j for j, _ in step.history] == list(range(-24, 0))
+
+    # the trial's data begin 20 frames before the window: 12, then 20 frames, then no further
+    tried.clear()
+    step = SimpleNamespace(ctx=SimpleNamespace(times=window), history=[])
+    approach.first_time = window[0] - 20 * dt
+    sol = approach(step, 0)
+    assert tried == [12, 20] and not sol.converged
+    assert sol.evaluations == 100 * 32 and step.history == []

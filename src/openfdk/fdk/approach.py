@@ -15,7 +15,10 @@ frames, each close to the one before.
   solution.
 * **Lead-in** — at the window's first frame, before any other start: up to
   :data:`LEAD_IN_FRAMES` frames before it at the trial's rate, from the DOFs' initial
-  values, as far back as the markers and the measured loads have data. (Measured on
+  values, as far back as the markers and the measured loads have data; when the frame
+  fails after it, again from :data:`LEAD_IN_LENGTHS` frames further back (DM og3 from
+  3.47 s, late swing: 5 of 16 frames converged after the 12-frame lead-in, 16 of 16
+  with the longer ones; the chunks of ``openfdk run --chunks`` start this way). (Measured on
   DM og4 from 3.083 s: the first frame from the initial values took 100 iterations and
   failed, about 500 evaluations, before the lead-in solved it; the lead-in alone took
   about 350.)
@@ -57,22 +60,26 @@ from .residual import FrameWorkspace
 SUBSTEPS = 4
 #: frames before the window's first frame, at the trial's rate
 LEAD_IN_FRAMES = 12
+#: the lead-in's lengths, tried in turn while the window's first frame fails after the
+#: shorter one (and the trial's data reach further back)
+LEAD_IN_LENGTHS = (LEAD_IN_FRAMES, 2 * LEAD_IN_FRAMES, 4 * LEAD_IN_FRAMES)
 #: the marched frames are stepping stones, not results: each is solved to this many
 #: times the tolerance (0.1 N, N m at the default 1e-3), frame k itself to the tolerance
 MARCH_TOLERANCE = 100.0
 
 
-def approach_times(times, k, previous_converged, first_time):
+def approach_times(times, k, previous_converged, first_time, lead_in=LEAD_IN_FRAMES):
     """Times (m,) s of the frames that lead to frame k, or an empty array.
 
     times (nf,) s: the window's uniform frame times; previous_converged: whether frame
-    k − 1 converged; first_time: the earliest time with data (markers and loads), s."""
+    k − 1 converged; first_time: the earliest time with data (markers and loads), s;
+    lead_in: the lead-in's length in frames (k = 0)."""
     times = np.asarray(times, dtype=float)
     if k > 0 and previous_converged:
         return times[k - 1] + (times[k] - times[k - 1]) * np.arange(1, SUBSTEPS) / SUBSTEPS
     if k == 0 and len(times) > 1:
         dt = times[1] - times[0]
-        lead = times[0] - dt * np.arange(LEAD_IN_FRAMES, 0, -1)
+        lead = times[0] - dt * np.arange(int(lead_in), 0, -1)
         return lead[lead >= first_time - 1e-9 * max(1.0, abs(first_time))]
     return np.empty(0)
 
@@ -94,13 +101,40 @@ class Approach:
 
     def __call__(self, step, k) -> FrameSolution:
         """Frame k of ``step`` solved after the march: a FrameSolution (converged or not)
-        whose counts include the marched frames', or None when no frame leads to k."""
-        ctx, settings = step.ctx, step.settings
+        whose counts include the marched frames', or None when no frame leads to k. A
+        lead-in after which frame k fails is tried again from further back
+        (:data:`LEAD_IN_LENGTHS`), while the trial's data reach there."""
+        ctx = step.ctx
         history = step.history
         previous = bool(history) and history[-1][0] == k - 1
-        times = approach_times(ctx.times, k, previous, self.first_time)
-        if len(times) == 0:
+        lengths = (LEAD_IN_FRAMES,) if previous else LEAD_IN_LENGTHS
+        spent = np.zeros(3, dtype=int)  # the earlier, failed attempts' counts
+        sol, marched = None, 0
+        for length in lengths:
+            times = approach_times(ctx.times, k, previous, self.first_time, length)
+            if len(times) <= marched:
+                break  # no data further back
+            if sol is not None:
+                spent += (sol.iterations, sol.evaluations, sol.jacobians)
+            sol, h = self._solve_after(step, k, times, previous)
+            marched = len(times)
+            if sol.converged:
+                break
+        if sol is None:
             return None
+        if not previous and sol.converged:
+            # the lead-in's frames are the window's frames −m … −1 (the same spacing): in the
+            # step's history frame 1 is extrapolated from them and frame 0, not taken from
+            # frame 0 alone (DM og1 from 2.5 s: 720 N at α_0, Newton stalled near 120 N,
+            # 67 evaluations and the sub-steps for frame 1)
+            step.history[:0] = [(j - marched, alpha) for j, alpha in h]
+        return replace(sol, iterations=sol.iterations + int(spent[0]), evaluations=sol.evaluations + int(spent[1]),
+                       jacobians=sol.jacobians + int(spent[2]))
+
+    def _solve_after(self, step, k, times, previous):
+        """(frame k solved after marching through the frames at ``times`` (m,) s, its
+        counts including the march's; the march's converged history [(j, α)])."""
+        ctx, settings, history = step.ctx, step.settings, step.history
         # the same kind of step (FDKStep) on the marched frames, without restarts
         march = type(step)(step.model, ctx.at_times(times, self.trajectories),
                            replace(settings, restart=False, tolerance=settings.tolerance * MARCH_TOLERANCE,
@@ -132,14 +166,8 @@ class Approach:
             settings, max_iterations=max(settings.max_iterations, settings.cold_max_iterations))
         sol = solve_frame(ctx, k, a0, ws, first, march.warm if warm_end else step.warm,
                           march.J_carry if warm_end else None)
-        if not previous and sol.converged:
-            # the lead-in's frames are the window's frames −m … −1 (the same spacing): in the
-            # step's history frame 1 is extrapolated from them and frame 0, not taken from
-            # frame 0 alone (DM og1 from 2.5 s: 720 N at α_0, Newton stalled near 120 N,
-            # 67 evaluations and the sub-steps for frame 1)
-            step.history[:0] = [(j - len(times), alpha) for j, alpha in h]
         return replace(sol, iterations=sol.iterations + int(totals[0]), evaluations=sol.evaluations + int(totals[1]),
-                       jacobians=sol.jacobians + int(totals[2]))
+                       jacobians=sol.jacobians + int(totals[2])), h
 
 
 def approach_for(model, trajectories):
@@ -150,4 +178,5 @@ def approach_for(model, trajectories):
     return Approach(trajectories, data_time_range(getattr(model, "external_loads", ()))[0])
 
 
-__all__ = ["Approach", "approach_for", "approach_times", "SUBSTEPS", "LEAD_IN_FRAMES", "MARCH_TOLERANCE"]
+__all__ = ["Approach", "approach_for", "approach_times", "SUBSTEPS", "LEAD_IN_FRAMES", "LEAD_IN_LENGTHS",
+           "MARCH_TOLERANCE"]
