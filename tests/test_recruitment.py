@@ -632,3 +632,33 @@ def test_sensitivity_with_strength_change_matches_finite_differences():
         assert np.max(np.abs(df)) > 1e-3
         np.testing.assert_allclose(df, (fp - fm) / (2 * h), rtol=1e-4, atol=1e-4 * np.max(np.abs(df)))
     assert saturated >= 3  # the bound term was exercised
+
+
+@pytest.mark.parametrize("solver", [solve_polynomial, solve_minmax, solve_quadratic_daqp])
+def test_a_row_beyond_any_force_is_named_without_an_lp(solver):
+    """A wild pose's equilibrium (DM's patella at a lead-in iterate: d = −2.7e30 N, from the
+    contact's logarithmic law near full depth): HiGHS refuses |d| ≥ 1e20 as a model error.
+    The row is named as one no finite force balances; nothing is raised."""
+    C = np.array([[1.0, 1.0, 0.0], [0.5, -0.5, 1.0]])
+    s = np.array([10.0, 20.0])
+    result = solver(C, np.array([-2.65e30, 1.0]), 2, s, row_names=["patella_r.Fy", "Mz"])
+    assert not result.converged and result.status == "infeasible" and result.infeasible_rows == (0,)
+    assert "no finite force balances row 'patella_r.Fy' (d = -2.65e+30)" in result.message, result.message
+    # below the LP's infinity the phase-1 LP names the row as it always did
+    result = solver(C, np.array([1e19, 1.0]), 2, s, row_names=["patella_r.Fy", "Mz"])
+    assert result.status == "infeasible" and "not enough strength for row 'patella_r.Fy'" in result.message
+
+
+def test_a_failed_phase_1_lp_is_reported_not_raised(monkeypatch):
+    """Should HiGHS fail on finite data, the frame is reported as not converged with the
+    LP's message, never a traceback."""
+    from types import SimpleNamespace
+
+    import scipy.optimize
+
+    monkeypatch.setattr(scipy.optimize, "linprog",
+                        lambda *a, **k: SimpleNamespace(status=4, x=None, message="numerical difficulties", nit=3))
+    C = np.array([[1.0, 1.0], [0.05, -0.05]])
+    result = solve_polynomial(C, np.array([40.0, -0.5]), 2, np.array([10.0, 20.0]))
+    assert not result.converged and result.status == "not_converged"
+    assert "phase-1 LP failed (numerical difficulties)" in result.message

@@ -21,6 +21,9 @@ from openfdk.recruitment.result import row_label
 
 __all__ = ["InfeasibilityDiagnosis", "diagnose_infeasibility"]
 
+#: |d| (N, N·m) from which a row counts as unbalanceable without an LP: HiGHS's infinity
+HUGE = 1e20
+
 
 @dataclass(frozen=True)
 class InfeasibilityDiagnosis:
@@ -57,6 +60,15 @@ def diagnose_infeasibility(C, d, n_bounded, s, row_names=None, rtol=1e-7, upper=
     n_eq, n_var = C.shape
     n_free = n_var - n_bounded
     scaled = np.hstack([C[:, :n_bounded] * s, C[:, n_bounded:]])
+    # rows no force can meet: non-finite, or |d| at or beyond the LP's infinity (HiGHS
+    # refuses such a model; a contact's logarithmic law near full depth gives 1e30 N)
+    bad = np.flatnonzero(~(np.abs(d) < HUGE) | ~np.all(np.isfinite(scaled), axis=1))
+    if len(bad):
+        names = "; ".join(f"{row_label(int(k), row_names)} (d = {d[k]:.3g})" for k in bad[:4]) + (
+            f" and {len(bad) - 4} more" if len(bad) > 4 else "")
+        return InfeasibilityDiagnosis(
+            feasible=False, f=np.full(n_var, np.nan), residual=np.full(n_eq, np.nan), rows=tuple(int(k) for k in bad),
+            message=f"equilibrium cannot be met: no finite force balances {names}", iterations=0)
     threshold = rtol * (np.max(np.abs(d), initial=0.0) + np.max(np.abs(scaled), initial=0.0))
 
     # variables [x = f_B/s (n_bounded), f_F (n_free), ρ⁺ (n_eq), ρ⁻ (n_eq)]
@@ -70,8 +82,11 @@ def diagnose_infeasibility(C, d, n_bounded, s, row_names=None, rtol=1e-7, upper=
     from scipy.optimize import linprog  # here: only infeasible frames need it (≈ 0.2 s of imports)
 
     lp = linprog(cost, A_eq=A_eq, b_eq=d, bounds=bounds, method="highs")
-    if lp.status != 0:  # pragma: no cover - the phase-1 LP is always feasible and bounded
-        raise RuntimeError(f"phase-1 LP failed unexpectedly: {lp.message}")
+    if lp.status != 0 or lp.x is None:  # feasible and bounded with finite data: HiGHS's own failure
+        return InfeasibilityDiagnosis(
+            feasible=False, f=np.full(n_var, np.nan), residual=np.full(n_eq, np.nan), rows=(),
+            message=f"equilibrium not diagnosed: the phase-1 LP failed ({lp.message})",
+            iterations=int(getattr(lp, "nit", 0) or 0))
     f = np.concatenate([lp.x[:n_bounded] * s, lp.x[n_bounded:n_var]])
     residual = C @ f - d
     rows = tuple(int(k) for k in np.flatnonzero(np.abs(residual) > threshold))

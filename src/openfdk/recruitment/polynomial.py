@@ -340,6 +340,9 @@ def failed_result(C, d, n_bounded, s, p, iterations, row_names, criterion, what,
         message = (f"{what} did not converge after {iterations} iterations although a "
                    "force set within the bounds meets equilibrium (phase-1 LP); "
                    "the forces returned are that feasible point, not the optimum")
+    elif not diagnosis.rows:  # the phase-1 LP itself failed: neither verdict
+        status = STATUS_NOT_CONVERGED
+        message = f"{what} did not converge after {iterations} iterations; {diagnosis.message}"
     else:
         status = STATUS_INFEASIBLE
         message = diagnosis.message
