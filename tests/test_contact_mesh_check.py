@@ -148,6 +148,11 @@ def test_an_inverted_ball_is_the_one_named_and_run_refuses_it(tmp_path):
     with pytest.raises(ModelError) as exc:
         contact_mesh_checks(load_model(path), str(path))
     assert "\n" not in str(exc.value) and "ball.yaml" in str(exc.value) and "flip_normals" in str(exc.value)
+    # a chunked run makes the same check before any segment
+    from openfdk.study.cli import run_chunked_job
+
+    with pytest.raises(ModelError, match="flip_normals"):
+        run_chunked_job(path, None, 2, workers=0, progress=False)
 
 
 def test_a_missing_layer_thickness_is_refused_and_a_thin_layer_reported(tmp_path, capsys):

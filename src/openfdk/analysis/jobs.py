@@ -195,6 +195,16 @@ def _with_ground_reactions(model, settings, trial_path, traj, cutoff_hz, info):
     return replace(model, external_loads=tuple(model.external_loads) + loads)
 
 
+def preflight(model, label, model_path):
+    """The checks of a model before any frame, as ``openfdk check`` makes them (the
+    serial and the chunked run alike): redundant equilibrium rows refused, contact
+    meshes checked (warnings issued; a refused mesh is a ModelError naming ``label``).
+    Returns their records for summary.json's ``input``: {opensim_import?, contact_meshes?}."""
+    _refuse_redundant_rows(model, label)
+    meshes = contact_mesh_checks(model, label)
+    return {**_import_info(model_path), **({"contact_meshes": meshes} if meshes else {})}
+
+
 def _import_info(model_path):
     """{"opensim_import": {dropped, merged_bodies}} for a model read from an .osim (the
     elements left out with --ignore are listed in summary.json), else {}."""
@@ -243,10 +253,9 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
     from ..trial import TrialInterrupted
 
     model, settings, label = model_and_settings(model_path, settings)
-    _refuse_redundant_rows(model, label)
-    meshes = contact_mesh_checks(model, label)
+    checked = preflight(model, label, model_path)
     traj, times, info = analysis_inputs(model, trial_path, cutoff_hz, start, end, settings)
-    info = {"model": label, **_import_info(model_path), **info, **({"contact_meshes": meshes} if meshes else {})}
+    info = {"model": label, **info, **checked}
     model = _with_ground_reactions(model, settings, trial_path, traj, cutoff_hz, info)
 
     def with_info(kin, dyn, fdk):

@@ -151,12 +151,12 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
     # the plausibility checks of the whole trial, here once (the segments skip them):
     # model (on loading), trial markers in the window, and the pulling contacts below
     from ..io.modelfile import load_model_and_settings
-    from ..analysis.jobs import _refuse_redundant_rows, analysis_inputs
+    from ..analysis.jobs import analysis_inputs, preflight
     from ..contact.rim import warn_contact_rims
     from ..model.plausibility import warn_pulling_contacts
 
     model, settings = load_model_and_settings(model_path)
-    _refuse_redundant_rows(model, str(model_path))
+    checked = preflight(model, str(model_path), model_path)
     analysis_inputs(model, trial_path, cutoff_hz, start, end, settings)
     done = {}
     if checkpoints is not None:
@@ -201,7 +201,7 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
     kin, dyn, fdk = stitch(results, wall)
     warn_pulling_contacts(model, kin, dyn)
     warn_contact_rims(model, kin)
-    info = {**results[0].info, **chunk_info(results, overlap)}
+    info = {**results[0].info, **checked, **chunk_info(results, overlap)}
     info["model"] = str(model_path)
     if fdk is not None:
         info["fdk"] = fdk.summary()
