@@ -112,20 +112,3 @@ def test_assembly_descends_and_keeps_the_joints():
         tip = state.p_WB[k] + R[k] @ np.array([0, 0, -L / 2])
         top = state.p_WB[k + 1] + R[k + 1] @ np.array([0, 0, L / 2])
         np.testing.assert_allclose(tip, top, atol=1e-9)
-
-
-def test_the_projection_step_is_the_minimum_norm_solution():
-    """min_norm_step against the pseudo-inverse (SVD, numpy's pinv): the same −A⁺ Φ, for a
-    full-row-rank A by its Cholesky path and for a redundant A (a row repeated: A Aᵀ
-    singular) by its fallback; it solves A Δq̂ = −Φ and is orthogonal to A's null space."""
-    from openfdk.kinematics.assembly import min_norm_step
-
-    rng = np.random.default_rng(5)
-    A = rng.normal(size=(40, 60))
-    Phi = rng.normal(size=40) * 1e-3
-    for A_k, Phi_k in ((A, Phi), (np.vstack([A, A[:3]]), np.concatenate([Phi, Phi[:3]]))):
-        dq = min_norm_step(A_k, Phi_k)
-        np.testing.assert_allclose(dq, -np.linalg.pinv(A_k) @ Phi_k, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(A_k @ dq, -Phi_k, rtol=0, atol=1e-12)
-        null = np.linalg.svd(A)[2][40:]  # (20, 60): A's null space
-        assert np.max(np.abs(null @ dq)) < 1e-12 and np.max(np.abs(dq)) > 1e-4
