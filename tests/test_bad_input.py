@@ -422,9 +422,10 @@ def test_subject_study_and_demo_check_their_output_folder_first(tmp_path, capsys
     assert len(calls) == 2
 
 
-def test_chunked_runs_warn_about_trial_markers_and_pulling_contacts_once(files, tmp_path, capsys):
+def test_chunked_runs_warn_about_trial_markers_and_pulling_contacts_once(files, tmp_path, capsys, monkeypatch):
     """`openfdk run --chunks K`: the trial-marker warning and the pulling-contact warning
-    of the whole trial appear once, as in the serial run (the segments skip them)."""
+    of the whole trial appear once, as in the serial run (the segments skip them); the
+    inverted floor is refused before any segment, as the serial run refuses it."""
     from openfdk.study.case import segment_task
     from openfdk.study.cli import job_case
 
@@ -450,8 +451,15 @@ def test_chunked_runs_warn_about_trial_markers_and_pulling_contacts_once(files, 
     _patch(tmp_path / "bottom.stl", 10.0, 0.5)
     _patch(tmp_path / "floor.stl", 40.0, 1.0, flip=True)
     block = _write(tmp_path, BLOCK, "block.yaml")
-    code, _, err = _run(capsys, "run", block, "--out", tmp_path / "b", "--no-progress", "--no-plots", "--chunks", "2",
-                        "--workers", "0")
+    chunked = ("run", block, "--out", tmp_path / "b", "--no-progress", "--no-plots", "--chunks", "2", "--workers", "0")
+    code, _, err = _run(capsys, *chunked)
+    errors = [ln for ln in err.splitlines() if ln.startswith("openfdk: error:")]
+    assert code == 2 and len(errors) == 1 and "contacts.floor" in errors[0] and "flip_normals" in errors[0], err
+    # with the contact-mesh check bypassed, the run goes on and its contact pulls
+    import openfdk.analysis.jobs as jobs
+
+    monkeypatch.setattr(jobs, "contact_mesh_checks", lambda model, label: [])
+    code, _, err = _run(capsys, *chunked)
     assert code == 0
     pulls = [ln for ln in err.splitlines() if "pulls" in ln]
     assert len(pulls) == 1
