@@ -430,3 +430,23 @@ def test_run_fdk_and_openfdk_run_drive_the_same_step_bit_for_bit(tmj_model, tmj_
     assert np.array_equal(api.alpha, cli.alpha) and np.array_equal(api.f_fdk, cli.f_fdk)
     assert np.array_equal(api.evaluations, cli.evaluations)
     assert np.any(np.abs(api.alpha) > 1e-5)  # the DOFs moved: a real solve, not the initial values
+
+
+def test_a_frame_whose_recruitment_fails_says_so(tmp_path):
+    """The TMJ model with every muscle a millionth as strong: no force set within the
+    bounds balances the jaw, so each FDK frame fails with the reason ``recruitment`` and
+    a message that says the recruitment failed and why (the phase-1 LP's unbalanced row),
+    never that a feasible problem was infeasible."""
+    from openfdk.fixtures.synthetic_jaw import jaw_fdk_model_dict, write_jaw_meshes
+    from openfdk.io.modelfile import model_and_settings_from_dict
+
+    data = jaw_fdk_model_dict(str(write_jaw_meshes(tmp_path)))
+    for muscle in data["muscles"].values():
+        muscle["max_isometric_force"] *= 1e-6
+    model, settings = model_and_settings_from_dict(data, "weak.yaml", base_dir="/")
+    _, traj, t = _tmj_context(model, settings, n_frames=3)
+    res = run_fdk(model, traj, t, settings)
+    assert not res.converged.any()
+    assert all(r.reason.value == "recruitment" for r in res.reports), [r.reason for r in res.reports]
+    assert all("recruitment failed: equilibrium cannot be met: not enough strength for row" in m
+               for m in res.messages), res.messages

@@ -25,8 +25,10 @@ evaluations and 1.04 → 1.34 Jacobians per frame (full Newton, ``reuse_jacobian
 search. With ``reuse_jacobian: false`` every iteration
 computes J, as in the paper.
 
-A frame that does not converge keeps its best iterate and says why: line search failed, iteration limit, recruitment infeasible,
-kinematics failed, or a singular Jacobian (no restoring force along a DOF).
+A frame that does not converge keeps its best iterate and says why: line search failed,
+iteration limit, recruitment failed (infeasible, or not converged although a feasible
+force set exists), kinematics failed, or a singular Jacobian (no restoring force along a
+DOF).
 
 Restarts (setting ``restart``, default on; :func:`solve_frame_from`). A Newton method
 globalised by a line search on the merit ‖f^FDK‖₂ converges to a stationary point of the

@@ -212,7 +212,7 @@ class FDKContext:
             return Evaluation(alpha, False, np.full(len(alpha), np.nan), str(exc), "failed", state, data.vdot,
                               data=data)
         if not fr.converged:
-            return Evaluation(alpha, False, np.full(len(alpha), np.nan), f"recruitment infeasible: {fr.message}",
+            return Evaluation(alpha, False, np.full(len(alpha), np.nan), f"recruitment failed: {fr.message}",
                               "recruitment", state, data.vdot, fr, data=data)
         data.f_fdk = fr.f[self.fdk_columns].copy()
         return Evaluation(alpha, True, data.f_fdk, "", "", state, data.vdot, fr, data=data)
