@@ -51,6 +51,19 @@ SECTIONS = (
 )
 
 
+def model_file_data(path, parse=None) -> dict:
+    """The model mapping of the file at ``path``: an OpenSim ``.osim`` imported (with the
+    options registered for it in this process), an overlay YAML (an ``opensim:`` key)
+    merged onto the ``.osim`` it names, else the YAML mapping itself. ``parse(path)``
+    reads the YAML (default: :func:`read_yaml`; a study's cache passes its own)."""
+    from .opensim.overlay import imported_model_data, overlay_model_data
+
+    data = imported_model_data(path)
+    if data is None:
+        data = overlay_model_data(path, read_yaml(path, ModelError, "model file") if parse is None else parse(path))
+    return data
+
+
 def load_model_and_settings(path) -> tuple[Model, AnalysisSettings]:
     """Read, validate and build a model file: (the physical Model, the file's analysis
     settings). Raises ModelError naming the entry. An OpenSim ``.osim`` is read by
@@ -58,14 +71,9 @@ def load_model_and_settings(path) -> tuple[Model, AnalysisSettings]:
     :func:`openfdk.io.opensim.overlay.register`); a YAML file with an ``opensim:`` key is
     an overlay on the ``.osim`` it names (docs/opensim-import.md)."""
     path = Path(path)
-    from .opensim.overlay import imported_model_data, model_source
+    from .opensim.overlay import model_source
 
-    data = imported_model_data(path)
-    if data is None:
-        data = read_yaml(path, ModelError, "model file")
-        from .opensim.overlay import overlay_model_data
-
-        data = overlay_model_data(path, data)
+    data = model_file_data(path)
     model, settings = model_and_settings_from_dict(data, source=model_source(path), base_dir=path.parent,
                                                    label=path.name)
     check_model(model, path.name, settings.units["length"])  # plausibility warnings

@@ -95,25 +95,25 @@ MAPPING_SLOTS = 8
 
 
 def read_model_mapping(path) -> dict:
-    """The parsed YAML mapping of a model file (safe loader; errors name the file), a
-    fresh copy that the caller may change; of an ``.osim`` or an overlay YAML (an
-    ``opensim:`` key), the imported mapping (:mod:`openfdk.io.opensim.overlay`). The file is parsed once per process and
-    content (its :func:`~openfdk.io.fingerprint.file_stamp`: path, size, modification
-    time), so the cases of a study that share a model file do not parse it again."""
-    from ..io.opensim.overlay import imported_model_data, overlay_model_data
+    """The model mapping of a model file (:func:`openfdk.io.modelfile.model_file_data`:
+    YAML, an ``.osim`` imported, or an overlay YAML merged onto its ``.osim``), a fresh
+    copy that the caller may change. A YAML file is parsed once per process and content
+    (its :func:`~openfdk.io.fingerprint.file_stamp`: path, size, modification time), so
+    the cases of a study that share a model file do not parse it again."""
+    from ..io.modelfile import model_file_data
 
-    path = Path(path)
-    imported = imported_model_data(path)  # an .osim, with this process's import options
-    if imported is not None:
-        return imported
+    return model_file_data(Path(path), _parsed_yaml)
+
+
+def _parsed_yaml(path) -> dict:
+    """A copy of the YAML mapping of ``path`` (safe loader; errors name the file), from
+    this process's cache of parsed model files."""
     stamp = file_stamp(path)
     data = _MAPPINGS.get(stamp) if stamp is not None else None
     if data is None:
         data = read_yaml(path, ModelError, "model file")
         if not isinstance(data, dict):
             raise ModelError(f"{path.name}: a model file must contain a mapping of sections")
-        if "opensim" in data:  # an overlay: the .osim it names, imported, with it merged in
-            return overlay_model_data(path, data)
         if stamp is not None:
             _MAPPINGS[stamp] = data
             while len(_MAPPINGS) > MAPPING_SLOTS:
@@ -130,9 +130,8 @@ def prepare_model_case(case) -> PreparedCase:
     from ..io.opensim.overlay import register_options
 
     path = Path(case.inputs["models"])
-    options = getattr(case, "import_options", None)
-    if options is not None:
-        register_options(path, options)
+    if case.import_options is not None:
+        register_options(path, case.import_options)
     trial = case.inputs.get("trials")
     return PreparedCase(read_model_mapping(path), path.name, path.parent, None if trial is None else str(trial))
 
