@@ -56,6 +56,11 @@ def test_approach_times_in_closed_form():
     np.testing.assert_allclose(cut, 2.0 - np.arange(3, 0, -1) / 120.0, rtol=0, atol=1e-15)
     assert approach_times(times, 3, False, -np.inf).size == 0
     assert approach_times(times, 0, False, np.inf).size == 0
+    # a one-frame window (``--start`` = ``--end``): the lead-in at the trial's sample
+    # interval; without one, no lead-in
+    one = approach_times(times[:1], 0, False, 2.0 - 5.5 / 100.0, sample_interval=1 / 100.0)
+    np.testing.assert_allclose(one, 2.0 - np.arange(5, 0, -1) / 100.0, rtol=0, atol=1e-15)
+    assert approach_times(times[:1], 0, False, -np.inf).size == 0
 
 
 def test_a_load_step_newton_cannot_follow_in_one_frame_converges_in_sub_steps():
@@ -138,7 +143,7 @@ def test_a_lead_in_after_which_the_first_frame_fails_is_tried_again_from_further
     monkeypatch.setattr(Approach, "_solve_after", solve_after)
     step = SimpleNamespace(ctx=SimpleNamespace(times=window), history=[])
     approach = Approach.__new__(Approach)
-    approach.trajectories, approach.first_time = None, -np.inf
+    approach.trajectories, approach.first_time, approach.sample_interval = None, -np.inf, None
     sol = approach(step, 0)
     assert tried == [12, 24] and sol.converged
     assert (sol.iterations, sol.evaluations, sol.jacobians) == (10 * 36, 100 * 36, 36)

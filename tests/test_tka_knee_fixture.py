@@ -204,6 +204,32 @@ def test_dm_a_window_starting_in_late_swing_converges_from_its_first_frame(tmp_p
 @pytest.mark.slow
 @pytest.mark.skipif(not (DM_DIR and (Path(DM_DIR) / "dm.yaml").is_file()),
                     reason="the DM files are not part of openfdk: set OPENFDK_DM_DIR (docs/tutorial-knee-gait.md)")
+def test_dm_a_one_frame_window_gets_the_lead_in_at_the_trials_rate(tmp_path):
+    """og1 at 2.5 s alone (``--start 2.5 --end 2.5``): before, a one-frame window had no
+    frame spacing and so no lead-in; its first frame started cold from the initial values
+    and failed after 100 iterations (155 N). With the lead-in at the trial's 120 Hz it
+    converges, to the same root as the same frame at the start of a two-frame window."""
+    from openfdk.fdk.analysis import run_fdk
+
+    model, settings, trial, traj = _dm_pt(tmp_path, "og1")
+    times = np.asarray(trial.time, float)
+    first = int(np.searchsorted(times, 2.5 - 1e-9))
+    one = run_fdk(model, traj, times[first:first + 1], settings)
+    assert one.converged.all(), one.messages
+    two = run_fdk(model, traj, times[first:first + 2], settings)
+    assert two.converged.all(), two.messages
+    # the same root to what the tolerance leaves free: max |f| < 1e-3 N (N m) in both,
+    # and along the knee's soft coupled modes (a few N m/rad, a few hundred N/m: the
+    # tibia's axial rotation with the patella) that allows up to 1e-3 rad and 1e-5 m
+    # (measured: 7e-5 rad, 4e-6 m)
+    rotational = np.array(["tx" not in n and "ty" not in n and "tz" not in n for n in one.dof_names])
+    gap = np.abs(one.alpha[0] - two.alpha[0])
+    assert gap[rotational].max() < 1e-3 and gap[~rotational].max() < 1e-5, dict(zip(one.dof_names, gap))
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not (DM_DIR and (Path(DM_DIR) / "dm.yaml").is_file()),
+                    reason="the DM files are not part of openfdk: set OPENFDK_DM_DIR (docs/tutorial-knee-gait.md)")
 def test_dm_with_a_patellar_tendon_converges_at_the_default_settings(tmp_path):
     """DM's overlay with pf_ty_r no longer an FDK DOF but held by an inextensible patellar
     tendon: the vasti are recruitable (check names no muscle FDK cannot recruit), and six

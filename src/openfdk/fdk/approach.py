@@ -15,7 +15,8 @@ frames, each close to the one before.
   solution.
 * **Lead-in** — at the window's first frame, before any other start: up to
   :data:`LEAD_IN_FRAMES` frames before it at the trial's rate, from the DOFs' initial
-  values, as far back as the markers and the measured loads have data; when the frame
+  values, as far back as the markers and the measured loads have data (at the window's
+  spacing, or the trial's sample interval when the window is one frame); when the frame
   fails after it, again from :data:`LEAD_IN_LENGTHS` frames further back (DM og3 from
   3.47 s, late swing: 5 of 16 frames converged after the 12-frame lead-in, 16 of 16
   with the longer ones; the chunks of ``openfdk run --chunks`` start this way). (Measured on
@@ -68,17 +69,19 @@ LEAD_IN_LENGTHS = (LEAD_IN_FRAMES, 2 * LEAD_IN_FRAMES, 4 * LEAD_IN_FRAMES)
 MARCH_TOLERANCE = 100.0
 
 
-def approach_times(times, k, previous_converged, first_time, lead_in=LEAD_IN_FRAMES):
+def approach_times(times, k, previous_converged, first_time, lead_in=LEAD_IN_FRAMES, sample_interval=None):
     """Times (m,) s of the frames that lead to frame k, or an empty array.
 
     times (nf,) s: the window's uniform frame times; previous_converged: whether frame
     k − 1 converged; first_time: the earliest time with data (markers and loads), s;
-    lead_in: the lead-in's length in frames (k = 0)."""
+    lead_in: the lead-in's length in frames (k = 0); sample_interval: s, the trial's
+    sample interval, the lead-in's spacing when the window has one frame (else the
+    window's spacing; None: no lead-in for a one-frame window)."""
     times = np.asarray(times, dtype=float)
     if k > 0 and previous_converged:
         return times[k - 1] + (times[k] - times[k - 1]) * np.arange(1, SUBSTEPS) / SUBSTEPS
-    if k == 0 and len(times) > 1:
-        dt = times[1] - times[0]
+    dt = times[1] - times[0] if len(times) > 1 else sample_interval
+    if k == 0 and dt is not None and dt > 0:
         lead = times[0] - dt * np.arange(int(lead_in), 0, -1)
         return lead[lead >= first_time - 1e-9 * max(1.0, abs(first_time))]
     return np.empty(0)
@@ -94,10 +97,14 @@ class Approach:
 
     def __init__(self, trajectories=None, first_time=-np.inf):
         self.trajectories = trajectories
+        self.sample_interval = None  # the lead-in's spacing for a one-frame window
         if trajectories is None:
             self.first_time = np.inf  # no lead-in
         else:
-            self.first_time = max(float(np.asarray(trajectories.time, dtype=float)[0]), float(first_time))
+            t = np.asarray(trajectories.time, dtype=float)
+            self.first_time = max(float(t[0]), float(first_time))
+            if len(t) > 1:
+                self.sample_interval = float(np.median(np.diff(t)))
 
     def __call__(self, step, k) -> FrameSolution:
         """Frame k of ``step`` solved after the march: a FrameSolution (converged or not)
@@ -111,7 +118,7 @@ class Approach:
         spent = np.zeros(3, dtype=int)  # the earlier, failed attempts' counts
         sol, marched = None, 0
         for length in lengths:
-            times = approach_times(ctx.times, k, previous, self.first_time, length)
+            times = approach_times(ctx.times, k, previous, self.first_time, length, self.sample_interval)
             if len(times) <= marched:
                 break  # no data further back
             if sol is not None:
