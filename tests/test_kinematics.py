@@ -1,6 +1,7 @@
 """Kinematic analysis against closed forms (paper Eqs. 1–10)."""
 
 import numpy as np
+import pytest
 
 from models import slider_crank, slider_crank_closed_form
 from openfdk.kinematics.analysis import run_determinate, run_tracking
@@ -183,3 +184,38 @@ def test_tracking_velocity_acceleration_are_derivatives_of_the_least_squares_pos
     assert np.linalg.norm(v_fd) > 0.05
     np.testing.assert_allclose(res.v[k], v_fd, atol=2e-4)
     np.testing.assert_allclose(res.vdot[k, :3], a_fd, atol=5e-3)
+
+
+class _Displaced(AnalyticFreeBody):
+    """The free body's exact markers, the last one measured ``offset`` (3,) m away."""
+
+    def __init__(self, p_BM, offset):
+        super().__init__(p_BM)
+        self.offset = np.asarray(offset, float)
+
+    def evaluate(self, t):
+        x, xd, xdd, vis = super().evaluate(t)
+        x = x.copy()
+        x[-1] += self.offset
+        return x, xd, xdd, vis
+
+
+def test_the_summarys_rms_marker_residual_counts_the_tracked_markers_only():
+    """Four exact markers tracked and a fifth (weight 0, an IK task with apply false)
+    measured 0.3 m from its model marker: the pose is the exact one, the fifth's residual
+    is the 0.3 m offset (kinematics.csv keeps it), and the summary's RMS, as OpenSim's IK
+    reports its error, is that of the four tracked markers: zero, not √(0.3²/5) = 0.134 m."""
+    p_BM = np.array([[0.05, 0, 0], [0, 0.04, 0], [0, 0, 0.06], [0.03, 0.03, -0.02], [0.1, 0.0, 0.1]])
+    b = ModelBuilder("free body")
+    b.add_body("box", 1.0, [1e-3, 1e-3, 1e-3])
+    for k, p in enumerate(p_BM):
+        b.add_marker(f"M{k}", "box", p, weight=0.0 if k == 4 else 1.0)
+    model = b.build()
+    offset = np.array([0.0, 0.3, 0.0])
+    traj = _Displaced(p_BM, offset)
+    res = run_tracking(model, traj, traj.time[:20])
+    assert res.converged.all()
+    np.testing.assert_allclose(res.marker_residual[:, 4], np.broadcast_to(-offset, (20, 3)), atol=1e-10)
+    assert res.summary()["rms_marker_residual_m"] < 1e-10
+    unweighted = float(np.sqrt(np.nanmean(np.sum(res.marker_residual**2, axis=2))))
+    assert unweighted == pytest.approx(0.3 / np.sqrt(5), rel=1e-9)

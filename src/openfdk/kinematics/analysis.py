@@ -66,6 +66,9 @@ class KinematicsResult:
     wall_time: float = 0.0
     mode: str = "tracking"
     extra: dict = field(default_factory=dict)
+    #: (n_markers,) the tracking's marker weights, or None; the summary's RMS residual
+    #: counts the tracked markers (weight > 0) only, as OpenSim's IK reports its error
+    marker_weights: np.ndarray = None
 
     @property
     def messages(self):
@@ -92,13 +95,24 @@ class KinematicsResult:
             ],
             "max_constraint_violation": float(np.nanmax(self.constraint_violation))
             if np.any(np.isfinite(self.constraint_violation)) else (None if self.n_frames else 0.0),
-            "rms_marker_residual_m": float(np.sqrt(np.nanmean(np.sum(self.marker_residual**2, axis=2))))
-            if self.marker_residual.size and np.any(np.isfinite(self.marker_residual))
-            else None,
+            "rms_marker_residual_m": rms_marker_residual(self.marker_residual, self.marker_weights),
             "wall_time_s": self.wall_time,
             "frames_per_second": self.n_frames / self.wall_time if self.wall_time > 0 else None,
         }
 
+
+
+def rms_marker_residual(residual, weights=None):
+    """RMS (m) of the marker residuals (nf, n_markers, 3) m over the visible samples of
+    the tracked markers (weight > 0 in ``weights`` (n_markers,); None: all), or None
+    when there are none. A marker the tracking leaves out (an IK task with ``apply``
+    false, e.g. the arms' markers when the arms are locked) can sit decimetres from its
+    model marker and would swamp the fit's error."""
+    if weights is not None and residual.ndim == 3 and residual.shape[1] == len(weights):
+        residual = residual[:, np.asarray(weights) > 0.0]
+    if not residual.size or not np.any(np.isfinite(residual)):
+        return None
+    return float(np.sqrt(np.nanmean(np.sum(residual**2, axis=2))))
 
 
 def analysis_times(t_start, t_end, n_frames):
@@ -144,6 +158,7 @@ def kinematics_result(rec, model, times, alpha, wall_time, mode, prefix="kin."):
         rec.array(prefix + "q"), rec.array(prefix + "v"), rec.array(prefix + "vdot"),
         rec.array(prefix + "marker_residual"), rec.array(prefix + "constraint_violation"),
         rec.array(prefix + "iterations"), converged, reports, alpha, wall_time, mode,
+        marker_weights=np.array(model.markers.weight, dtype=float),
     )
 
 
