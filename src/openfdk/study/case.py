@@ -26,6 +26,7 @@ from dataclasses import asdict
 from pathlib import Path
 
 from ..io.results import write_forces, write_json, write_kinematics
+from .boundaries import cut_preference
 from .chunks import analysis_inputs, chunk_info, plan_segments, solve_segment, stitch
 from .defaults import CASES
 from .kinds import import_callable
@@ -171,7 +172,7 @@ def run_case(case, out_root, force=False):
     opts = case.options
     model, settings, label, traj, times, info = case_inputs(case)
     if opts.chunks > 1:
-        segments = plan_segments(len(times), opts.chunks, opts.overlap)
+        segments = plan_segments(len(times), opts.chunks, opts.overlap, cut_preference(model, times))
         parts = [solve_segment(model, traj, times, s, settings=settings) for s in segments]
         kin, dyn, fdk = stitch(parts, _time.perf_counter() - t0)
         info.update(chunk_info(parts, opts.overlap))
@@ -200,7 +201,7 @@ def segment_task(case, index, checks=True):
             warnings.simplefilter("ignore", PlausibilityWarning)
         opts = case.options
         model, settings, label, traj, times, info = case_inputs(case)
-        segment = plan_segments(len(times), opts.chunks, opts.overlap)[index]
+        segment = plan_segments(len(times), opts.chunks, opts.overlap, cut_preference(model, times))[index]
         return solve_segment(model, traj, times, segment, {"model": label, **info}, settings)
 
 

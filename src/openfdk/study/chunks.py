@@ -40,9 +40,19 @@ class Segment:
     solve_stop: int
 
 
-def plan_segments(n_frames: int, chunks: int, overlap: int = DEFAULT_OVERLAP) -> list:
-    """K contiguous segments of near-equal length covering n_frames frames (module
-    docstring for the solved ranges). Raises ValueError for chunks < 1 or > n_frames."""
+#: a cut's cold start is good enough when its preference is at least this fraction of
+#: the trial's largest (plan_segments)
+DEEP_ENOUGH = 0.5
+
+
+def plan_segments(n_frames: int, chunks: int, overlap: int = DEFAULT_OVERLAP, preference=None) -> list:
+    """K contiguous segments covering n_frames frames (module docstring for the solved
+    ranges): of near-equal length, or with ``preference`` (n_frames,) — how good a cold
+    start each frame is (:func:`openfdk.study.boundaries.cut_preference`: how deep in a
+    stance) — each cut moved to the cut nearest the equal split, within half a chunk's
+    length, whose segment's cold start (``overlap`` + 1 frames before the cut) has a
+    preference of at least :data:`DEEP_ENOUGH` × the largest (the equal split when no
+    cut in reach has). Raises ValueError for chunks < 1 or > n_frames."""
     if not isinstance(chunks, (int, np.integer)) or chunks < 1:
         raise ValueError(f"chunks must be a whole number >= 1, got {chunks!r}")
     if chunks > n_frames:
@@ -50,8 +60,25 @@ def plan_segments(n_frames: int, chunks: int, overlap: int = DEFAULT_OVERLAP) ->
     if overlap < 0:
         raise ValueError(f"overlap must be >= 0 frames, got {overlap}")
     edges = np.linspace(0, n_frames, chunks + 1).round().astype(int)
+    if preference is not None and chunks > 1:
+        edges = _preferred_edges(edges, np.asarray(preference, dtype=float), overlap)
     return [Segment(k, int(a), int(b), max(0, int(a) - overlap - 1), min(n_frames, int(b) + 1))
             for k, (a, b) in enumerate(itertools.pairwise(edges))]
+
+
+def _preferred_edges(edges, preference, overlap):
+    """The equal split's ``edges`` (K + 1,) with each interior cut moved (plan_segments)."""
+    out = edges.copy()
+    half = max(1, int((edges[1] - edges[0]) // 2))
+    threshold = DEEP_ENOUGH * float(np.max(preference)) if len(preference) else 0.0
+    for k in range(1, len(edges) - 1):
+        lo, hi = max(out[k - 1] + 1, edges[k] - half), min(edges[k + 1] - 1, edges[k] + half)
+        cuts = np.arange(lo, hi + 1)
+        starts = np.clip(cuts - overlap - 1, 0, len(preference) - 1)
+        good = cuts[preference[starts] >= max(threshold, 1e-300)]
+        if len(good):
+            out[k] = good[np.argmin(np.abs(good - edges[k]))]
+    return out
 
 
 def analysis_inputs(model, trial_path=None, cutoff_hz=None, start=None, end=None, settings=None):
