@@ -65,6 +65,9 @@ def test_chunked_fdk_agrees_with_serial_to_the_fdk_tolerance(files, serial_fdk):
     kc, dc, ic = run_chunked_job(files / "tmj.yaml", files / "trial.c3d", 3, workers=0, progress=False, overlap=2)
     assert ic["chunks"] == 3 and [s["keep"] for s in ic["segments"]] == [[0, 8], [8, 16], [16, 24]]
     np.testing.assert_array_equal(kc.time, kin.time)
+    # each segment's first kept frame and its cold start (overlap + 1 = 3 frames before)
+    assert [s["keep_from_s"] for s in ic["segments"]] == [kin.time[0], kin.time[8], kin.time[16]]
+    assert [s["cold_start_s"] for s in ic["segments"]] == [kin.time[0], kin.time[5], kin.time[13]]
     model, settings = load_model_and_settings(files / "tmj.yaml")
     tol = fdk_settings(model, settings).tolerance
     assert info["fdk"]["converged_frames"] == N_FRAMES and ic["fdk"]["converged_frames"] == N_FRAMES

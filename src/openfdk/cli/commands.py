@@ -328,6 +328,13 @@ def _cmd_run(args):
              + (f", {fdk['restarted_frames']} frame(s) restarted from another starting α"
                 if fdk.get("restarted_frames") else "")
              )
+    if len(info.get("segments", ())) > 1:
+        later = info["segments"][1:]
+        kept = ", ".join(f"{seg['keep_from_s']:.3f}" for seg in later)
+        cold = ", ".join(f"{seg['cold_start_s']:.3f}" for seg in later)
+        why = " (a cut moves into the stance of the limb the FDK DOFs hold, docs/studies.md)" if fdk else ""
+        _say(args, f"  chunks: {len(info['segments'])} segments; the later ones kept from {kept} s, started cold "
+                   f"at {cold} s{why}")
     from .outputs import after_run
 
     failed = dyn.failed_frames(), dyn.converged, dyn.status, dyn.messages

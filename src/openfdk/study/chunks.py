@@ -216,5 +216,8 @@ def chunk_info(results, overlap):
         "overlap_frames": int(overlap),
         "segments": [{"keep": [r.segment.keep_start, r.segment.keep_stop],
                       "solved": [r.segment.solve_start, r.segment.solve_stop],
+                      # the first kept frame's time, and where the segment started cold
+                      "keep_from_s": float(r.kinematics.time[r.segment.keep_start - r.segment.solve_start]),
+                      "cold_start_s": float(r.kinematics.time[0]),
                       "wall_time_s": r.wall_time} for r in results],
     }
