@@ -219,3 +219,40 @@ def test_the_summarys_rms_marker_residual_counts_the_tracked_markers_only():
     assert res.summary()["rms_marker_residual_m"] < 1e-10
     unweighted = float(np.sqrt(np.nanmean(np.sum(res.marker_residual**2, axis=2))))
     assert unweighted == pytest.approx(0.3 / np.sqrt(5), rel=1e-9)
+
+
+def test_a_tracked_marker_far_off_its_model_marker_is_named_once():
+    """Six markers tracked, the sixth measured 0.2 m from its model marker (a mislabelled
+    marker): the fit spreads its pull over the others, yet the sixth keeps by far the
+    largest residual, above OUTLIER_FACTOR × the median and OUTLIER_MIN, so the run's
+    warning names it and no other. With exact markers (every residual ~1e-12 m), and with
+    the offset marker's weight 0 (left out of the fit), nothing is flagged."""
+    import warnings
+
+    from openfdk.model.plausibility import OUTLIER_FACTOR, OUTLIER_MIN, PlausibilityWarning, outlier_markers, \
+        warn_outlier_markers
+
+    p_BM = np.array([[0.05, 0, 0], [0, 0.04, 0], [0, 0, 0.06], [0.03, 0.03, -0.02], [-0.04, 0.02, 0.01],
+                     [0.1, 0.0, 0.1]])
+
+    def run(offset, weight):
+        b = ModelBuilder("free body")
+        b.add_body("box", 1.0, [1e-3, 1e-3, 1e-3])
+        for k, p in enumerate(p_BM):
+            b.add_marker(f"M{k}", "box", p, weight=weight if k == 5 else 1.0)
+        traj = _Displaced(p_BM, offset)
+        return run_tracking(b.build(), traj, traj.time[:10])
+
+    kin = run([0.0, 0.2, 0.0], 1.0)
+    found = outlier_markers(kin)
+    assert [n for n, _, _ in found] == ["M5"]
+    (name, rms, median), = found
+    assert rms > OUTLIER_FACTOR * median and rms > OUTLIER_MIN
+    per_marker = np.sqrt(np.nanmean(np.sum(kin.marker_residual**2, axis=2), axis=0))
+    assert rms == pytest.approx(per_marker.max()) and median == pytest.approx(np.median(per_marker))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        warn_outlier_markers(kin)
+    assert len(caught) == 1 and issubclass(caught[0].category, PlausibilityWarning) and "M5 " in str(caught[0].message)
+    assert outlier_markers(run([0.0, 0.0, 0.0], 1.0)) == []
+    assert outlier_markers(run([0.0, 0.2, 0.0], 0.0)) == []

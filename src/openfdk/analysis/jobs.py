@@ -226,6 +226,7 @@ def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, s
     settings : AnalysisSettings (default: the file's, see :func:`model_and_settings`).
     Returns (KinematicsResult, info dict for the summary)."""
     from ..kinematics.analysis import run_determinate, run_tracking
+    from ..model.plausibility import warn_outlier_markers
 
     model, settings, label = model_and_settings(model_path, settings)
     _refuse_redundant_rows(model, label)
@@ -235,7 +236,9 @@ def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, s
     model = _with_ground_reactions(model, settings, trial_path, traj, cutoff_hz, info)
     if traj is None:
         return run_determinate(model, times, alpha=alpha, progress=progress), info
-    return run_tracking(model, traj, times, alpha=alpha, progress=progress), info
+    kin = run_tracking(model, traj, times, alpha=alpha, progress=progress)
+    warn_outlier_markers(kin)
+    return kin, info
 
 
 def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=None, end=None, checkpoints=None,
@@ -249,7 +252,7 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
     AnalysisSettings (default: the model file's, see :func:`model_and_settings`)."""
     from .run import run_trial
     from ..contact.rim import warn_contact_rims
-    from ..model.plausibility import warn_pulling_contacts
+    from ..model.plausibility import warn_outlier_markers, warn_pulling_contacts
     from ..trial import TrialInterrupted
 
     model, settings, label = model_and_settings(model_path, settings)
@@ -272,4 +275,5 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
         raise
     warn_pulling_contacts(model, kin, dyn)
     warn_contact_rims(model, kin)
+    warn_outlier_markers(kin)
     return with_info(kin, dyn, fdk)

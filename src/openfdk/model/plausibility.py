@@ -15,7 +15,9 @@ Warnings (:class:`PlausibilityWarning`, each naming the item):
 - a marker never visible in the analysis window; trial markers far from the model's at
   the first frame, or spanning a very different size (likely the wrong units);
 - a contact force that pulls the two surfaces together (once per run, see
-  :func:`pulling_contacts`).
+  :func:`pulling_contacts`);
+- a tracked marker whose residual over a run is far above the others' (mislabelled, or
+  placed elsewhere on the model: :func:`outlier_markers`).
 
 Contact meshes whose normals face away from their partner are checked, and refused, by
 :mod:`openfdk.contact.mesh_check` before a run.
@@ -39,6 +41,9 @@ MODEL_SPAN = (2e-3, 20.0)
 TYPICAL_SPAN = 0.3
 #: trial markers whose centroid lies farther (m) from the model's are flagged (no lab is larger)
 FAR_FROM_MODEL = 20.0
+#: a tracked marker's RMS residual over a run is flagged above this many times the
+#: tracked markers' median and above OUTLIER_MIN (m): skin motion gives 1–2 cm
+OUTLIER_FACTOR, OUTLIER_MIN = 3.0, 0.03
 LENGTH_SCALES = {"m": 1.0, "cm": 1e-2, "mm": 1e-3}
 
 
@@ -248,6 +253,36 @@ def pulling_contacts(model, kin, dyn, threshold=-0.2):
         if n_pull:
             out.append((c.name, n_pull, worst))
     return out
+
+
+def outlier_markers(kin):
+    """[(name, RMS m, median RMS m)] of the tracked markers (weight > 0) whose RMS
+    residual over the run's frames is above OUTLIER_FACTOR × the median over the tracked
+    markers and above OUTLIER_MIN. ``kin``: a KinematicsResult with marker residuals
+    (nf, n_markers, 3) m (NaN where not visible) and its marker weights."""
+    res, weights = kin.marker_residual, kin.marker_weights
+    if weights is None or res.ndim != 3 or res.shape[1] != len(weights):
+        return []
+    squared = np.sum(res**2, axis=2)
+    seen = np.isfinite(squared).any(axis=0) & (np.asarray(weights) > 0)
+    if seen.sum() < 3:
+        return []
+    with np.errstate(invalid="ignore"):
+        rms = np.sqrt(np.nanmean(squared[:, seen], axis=0))
+    median = float(np.median(rms))
+    names = np.asarray(kin.marker_names)[seen]
+    return [(str(n), float(r), median) for n, r in zip(names, rms)
+            if r > max(OUTLIER_FACTOR * median, OUTLIER_MIN)]
+
+
+def warn_outlier_markers(kin):
+    """One warning per run naming the tracked markers of :func:`outlier_markers`."""
+    found = outlier_markers(kin)
+    if found:
+        listed = ", ".join(f"{n} {1e3 * r:.0f} mm" for n, r, _ in found)
+        _warn(f"tracked marker(s) far off their model markers over the run: {listed} (RMS residual; the tracked "
+              f"markers' median {1e3 * found[0][2]:.0f} mm): mislabelled, or placed elsewhere on the model? They "
+              "pull the fit; their residuals are in kinematics.csv (weight 0 in an IK task file leaves one out)")
 
 
 def warn_pulling_contacts(model, kin, dyn):

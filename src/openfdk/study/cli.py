@@ -153,7 +153,7 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
     from ..io.modelfile import load_model_and_settings
     from ..analysis.jobs import analysis_inputs, preflight
     from ..contact.rim import warn_contact_rims
-    from ..model.plausibility import warn_pulling_contacts
+    from ..model.plausibility import warn_outlier_markers, warn_pulling_contacts
 
     model, settings = load_model_and_settings(model_path)
     checked = preflight(model, str(model_path), model_path)
@@ -201,6 +201,7 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
     kin, dyn, fdk = stitch(results, wall)
     warn_pulling_contacts(model, kin, dyn)
     warn_contact_rims(model, kin)
+    warn_outlier_markers(kin)
     info = {**results[0].info, **checked, **chunk_info(results, overlap)}
     info["model"] = str(model_path)
     if fdk is not None:
