@@ -44,7 +44,8 @@ def limb_bodies(model):
     rows, its drivers included), and take the bodies outside the trunk: the connected
     parts of the rest that a row holds to the ground, or, when none is (a free pelvis),
     the largest part. Empty when the model has no FDK DOFs or the cut leaves the bodies
-    connected. At the DOFs' initial values and the reference pose."""
+    connected, or when its constraints cannot be evaluated at the reference pose (the DOFs'
+    initial values), where this is decided."""
     from ..kinematics.system import ConstraintSystem
 
     if not model.fdk_dofs:
@@ -52,7 +53,10 @@ def limb_bodies(model):
     system = ConstraintSystem(model)
     alpha = np.array([d.initial for d in model.fdk_dofs], dtype=float)
     state = model.initial_state()
-    _, A, _, _ = system.evaluate(state, 0.0, alpha, order=1)
+    try:
+        _, A, _, _ = system.evaluate(state, 0.0, alpha, order=1)
+    except (FloatingPointError, ValueError):  # not evaluable there: the run's frames say why
+        return np.zeros(0, dtype=int)
     m, n = A.shape
     touched = (A != 0.0).reshape(m, n // 6, 6).any(axis=2)  # (m, n_moving)
     n_fdk = len(model.fdk_dofs)
