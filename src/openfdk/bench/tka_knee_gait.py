@@ -12,7 +12,9 @@ the same size, :mod:`openfdk.fixtures.tka_knee` (record field ``model: "syntheti
 determinate kinematics of the driven hip, knee and ankle angles, the stance from
 t = 0.10 s at 100 Hz, SYNTHETIC_FRAMES frames (``--quick``: SYNTHETIC_FRAMES_QUICK).
 
-Records (each with ``model``, ``frames``, ``converged_frames``, ``wall_time_s``):
+Records (each with ``model``, ``frames``, ``converged_frames``, ``wall_time_s``, and
+``first_frame_evaluations`` and ``later_evaluations_per_frame``: on DM the window's first
+frame, a cold start after its lead-in, is 175 of the 309 evaluations):
 
 * ``tka_knee_gait_fdk_fps``: frames per second of :func:`openfdk.fdk.analysis.run_fdk`
   over the window, one BLAS thread (measured in a child process), after loading the
@@ -83,6 +85,10 @@ def records(which, result, wall):
               "mean_newton_iterations_per_frame": float(np.mean(result.iterations)),
               "mean_jacobians_per_frame": float(np.mean(result.jacobians)),
               "restarted_frames": int(np.count_nonzero(result.restarts)),
+              # where the evaluations go: the window's first frame (with its lead-in, a cold
+              # start) and the frames after it
+              "first_frame_evaluations": int(result.evaluations[0]) if nf else 0,
+              "later_evaluations_per_frame": float(np.mean(result.evaluations[1:])) if nf > 1 else 0.0,
               "failed": sorted(set(r for r, ok in zip(result.reasons, result.converged) if not ok))}
     values = {"tka_knee_gait_fdk_fps": (nf / wall, "frames/s"),
               "tka_knee_gait_fdk_evaluations_per_frame": (float(np.mean(result.evaluations)), "evaluations/frame"),
