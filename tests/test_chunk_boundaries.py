@@ -79,3 +79,29 @@ def test_without_fdk_dofs_or_limb_loads_there_is_no_preference():
     model = b.build()
     assert len(limb_bodies(model)) == 0
     assert cut_preference(model, np.linspace(0, 1, 11)) is None
+
+
+def test_a_later_segment_that_starts_cold_in_swing_is_flagged():
+    """The 4-chunk plan of 240 frames with stances 0–59, 100–159, 200–239 and the cuts
+    forced to the equal split (no preference): segment 2 starts cold at frame 54 (stance),
+    segment 3 at 114 (stance), segment 4 at 174 (swing). cold_start_info flags the last;
+    the first segment (the window's own start) and a trial without a stance get nothing;
+    chunk_info carries the flag into summary.json's segments."""
+    from types import SimpleNamespace
+
+    from openfdk.study.case import cold_start_info
+    from openfdk.study.chunks import chunk_info
+
+    t = np.arange(240)
+    pref = stance_depth(((t % 100) < 60).astype(float))
+    segs = plan_segments(240, 4, 5)
+    assert [s.solve_start for s in segs] == [0, 54, 114, 174]
+    assert [cold_start_info(pref, s) for s in segs] == [
+        {}, {"cold_start_in_stance": True}, {"cold_start_in_stance": True}, {"cold_start_in_stance": False}]
+    assert all(cold_start_info(None, s) == {} for s in segs)
+    times = t / 100.0
+    results = [SimpleNamespace(segment=s, wall_time=1.0, info=cold_start_info(pref, s),
+                               kinematics=SimpleNamespace(time=times[s.solve_start:s.solve_stop])) for s in segs]
+    info = chunk_info(results, 5)
+    assert [seg.get("cold_start_in_stance") for seg in info["segments"]] == [None, True, True, False]
+    assert [seg["cold_start_s"] for seg in info["segments"]] == [0.0, 0.54, 1.14, 1.74]

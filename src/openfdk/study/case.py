@@ -172,8 +172,9 @@ def run_case(case, out_root, force=False):
     opts = case.options
     model, settings, label, traj, times, info = case_inputs(case)
     if opts.chunks > 1:
-        segments = plan_segments(len(times), opts.chunks, opts.overlap, cut_preference(model, times))
-        parts = [solve_segment(model, traj, times, s, settings=settings) for s in segments]
+        preference = cut_preference(model, times)
+        segments = plan_segments(len(times), opts.chunks, opts.overlap, preference)
+        parts = [solve_segment(model, traj, times, s, cold_start_info(preference, s), settings) for s in segments]
         kin, dyn, fdk = stitch(parts, _time.perf_counter() - t0)
         info.update(chunk_info(parts, opts.overlap))
     else:
@@ -201,8 +202,18 @@ def segment_task(case, index, checks=True):
             warnings.simplefilter("ignore", PlausibilityWarning)
         opts = case.options
         model, settings, label, traj, times, info = case_inputs(case)
-        segment = plan_segments(len(times), opts.chunks, opts.overlap, cut_preference(model, times))[index]
-        return solve_segment(model, traj, times, segment, {"model": label, **info}, settings)
+        preference = cut_preference(model, times)
+        segment = plan_segments(len(times), opts.chunks, opts.overlap, preference)[index]
+        return solve_segment(model, traj, times, segment, {"model": label, **info,
+                                                           **cold_start_info(preference, segment)}, settings)
+
+
+def cold_start_info(preference, segment):
+    """{"cold_start_in_stance": bool} of a segment after the first when the trial has a
+    stance preference (:func:`openfdk.study.boundaries.cut_preference`), else {}."""
+    if preference is None or segment.index == 0:
+        return {}
+    return {"cold_start_in_stance": bool(preference[segment.solve_start] > 0)}
 
 
 def finish_chunked_case(case, out_root, started, force, *segment_results):

@@ -209,7 +209,8 @@ def stitch(results, wall_time=None):
 
 
 def chunk_info(results, overlap):
-    """Summary entries of a chunked run."""
+    """Summary entries of a chunked run (a later segment's ``cold_start_in_stance`` when
+    the trial has a stance of the FDK limb, :func:`openfdk.study.case.cold_start_info`)."""
     results = sorted(results, key=lambda r: r.segment.index)
     return {
         "chunks": len(results),
@@ -219,5 +220,7 @@ def chunk_info(results, overlap):
                       # the first kept frame's time, and where the segment started cold
                       "keep_from_s": float(r.kinematics.time[r.segment.keep_start - r.segment.solve_start]),
                       "cold_start_s": float(r.kinematics.time[0]),
+                      **({"cold_start_in_stance": r.info["cold_start_in_stance"]}
+                         if "cold_start_in_stance" in (r.info or {}) else {}),
                       "wall_time_s": r.wall_time} for r in results],
     }

@@ -153,7 +153,7 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
     from ..io.modelfile import load_model_and_settings
     from ..analysis.jobs import analysis_inputs, preflight
     from ..contact.rim import warn_contact_rims
-    from ..model.plausibility import warn_outlier_markers, warn_pulling_contacts
+    from ..model.plausibility import warn_outlier_markers, warn_plausibility, warn_pulling_contacts
 
     model, settings = load_model_and_settings(model_path)
     checked = preflight(model, str(model_path), model_path)
@@ -204,6 +204,12 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
     warn_outlier_markers(kin)
     info = {**results[0].info, **checked, **chunk_info(results, overlap)}
     info["model"] = str(model_path)
+    for k, seg in enumerate(info["segments"]):
+        if seg.get("cold_start_in_stance") is False:
+            warn_plausibility(f"segment {k + 1} of {len(results)} started cold at {seg['cold_start_s']:.3f} s, outside "
+                              "the stance of the limb the FDK DOFs hold (no stance frame within half a chunk of the "
+                              "equal cut): a cold start in swing can take a minute; another --chunks moves the cut "
+                              "(docs/studies.md, 'Where the cuts fall')")
     if fdk is not None:
         info["fdk"] = fdk.summary()
     if out_dir is not None:
