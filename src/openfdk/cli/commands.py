@@ -521,6 +521,9 @@ def _import_arguments(p):
                    help="OpenSim IK setup (Setup_IK.xml) or tasks file: its marker weights and coordinate tasks")
     g.add_argument("--external-loads", default=None, metavar="LOADS.xml",
                    help="OpenSim ExternalLoads file (ground reactions) with its data file, applied as OpenSim does")
+    g.add_argument("--external-loads-cutoff", type=argtypes.nonnegative, default=None, metavar="HZ",
+                   help="low-pass filter the --external-loads samples (a ground reaction as a wrench, on its loaded "
+                        "runs), as the markers are (e.g. their 6 Hz); default: as given, as OpenSim applies them")
     g.add_argument("--motion", default=None, metavar="FILE.mot",
                    help="drive every coordinate from this coordinate file (an IK .mot): inverse dynamics then gives "
                         "each coordinate's generalised force (generalized_forces.csv), as OpenSim's ID")
@@ -540,7 +543,7 @@ def _register_import(args):
 
     if not is_osim(model):
         if args.overlay or args.ignore or args.geometry or args.ik_tasks or args.external_loads or args.motion \
-                or args.actuators:
+                or args.actuators or args.external_loads_cutoff:
             raise UserError(f"{model}: --with, --ignore, --geometry, --ik-tasks, --external-loads, --motion and "
                             "--actuators apply to OpenSim models (.osim) only")
         return
@@ -553,8 +556,10 @@ def _register_import(args):
             raise UserError(f"{option}: {value!r} does not exist or is not a regular file")
     from ..io.opensim.overlay import register
 
+    if args.external_loads_cutoff and args.external_loads is None:
+        raise UserError("--external-loads-cutoff: filters the loads of --external-loads, which is not given")
     register(model, args.ignore, args.geometry, args.overlay, args.ik_tasks, args.external_loads, args.motion,
-             args.motion_cutoff or None, args.actuators)
+             args.motion_cutoff or None, args.actuators, args.external_loads_cutoff or None)
 
 
 

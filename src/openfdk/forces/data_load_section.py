@@ -13,10 +13,14 @@ sampled file, applied as OpenSim's ExternalForce applies them (:mod:`.data_loads
         force: [ground_force_vx, ground_force_vy, ground_force_vz]       # N
         point: [ground_force_px, ground_force_py, ground_force_pz]       # m (default: the frame's origin)
         torque: [ground_torque_x, ground_torque_y, ground_torque_z]      # N m (default: 0)
+        cutoff_hz: 6                   # zero-lag low-pass of the samples, Hz (default: none)
 
 The columns are interpolated by a cubic spline through the samples (exact at the
 sample times); a frame outside the file's time range fails with a message naming the
-load. ``openfdk run MODEL.osim TRIAL --external-loads LOADS.xml`` writes this section
+load. ``cutoff_hz`` > 0 low-pass filters them first, as the markers are (a ground
+reaction as a wrench, on its loaded runs; :mod:`.load_filter`). Without it, a ground
+reaction whose samples look unfiltered (their second differences as large as their
+first, :func:`~.load_filter.noise_ratio`) is named in a warning. ``openfdk run MODEL.osim TRIAL --external-loads LOADS.xml`` writes this section
 from OpenSim's ExternalLoads file (:mod:`openfdk.io.opensim.external_loads`).
 """
 
@@ -26,10 +30,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..model.plausibility import warn_plausibility
 from ..model.timefunctions import Constant, SplineThroughData
 from .data_loads import DataLoad
+from .load_filter import NOISY_RATIO, filter_load, noise_ratio
 
-KEYS = ["body", "frame", "force_frame", "point_frame", "file", "force", "point", "torque"]
+KEYS = ["body", "frame", "force_frame", "point_frame", "file", "force", "point", "torque", "cutoff_hz"]
 
 
 def _columns(ctx, spec, key, path, columns, required):
@@ -52,6 +58,7 @@ def load_external_loads(b, data, ctx):
 
     files = {}
     out = []
+    noisy = {}  # file: names of its unfiltered ground reactions that look raw
     for name, spec in ctx.mapping(data or {}, "external_loads").items():
         p = f"external_loads.{name}"
         ctx.keys(spec, p, KEYS, required=("body", "file", "force"))
@@ -89,9 +96,25 @@ def load_external_loads(b, data, ctx):
                 raise ctx.error(f"{p}.{label}", f"non-finite value in {file} at t = {times[k]:g} s")
         if P is None and frames["point_frame"] == "world":
             raise ctx.error(f"{p}.point", "a load without a point acts at the frame's origin: set point_frame: body")
+        ground_reaction = P is not None and frames["force_frame"] == frames["point_frame"] == "world"
+        t = times
+        cutoff = ctx.number(spec["cutoff_hz"], f"{p}.cutoff_hz", "Hz", nonnegative=True) if "cutoff_hz" in spec else 0.0
+        if cutoff > 0:
+            try:
+                t, F, P, T = filter_load(times, F, P, T, ground_reaction, cutoff)
+            except ValueError as exc:
+                raise ctx.error(f"{p}.cutoff_hz", f"{file}: {exc}") from None
+        elif ground_reaction and noise_ratio(F) > NOISY_RATIO:
+            noisy.setdefault(file, []).append(name)
         out.append(DataLoad(
-            name, index, SplineThroughData(times, F),
-            Constant(np.zeros(3)) if P is None else SplineThroughData(times, P),
-            Constant(np.zeros(3)) if T is None else SplineThroughData(times, T),
+            name, index, SplineThroughData(t, F),
+            Constant(np.zeros(3)) if P is None else SplineThroughData(t, P),
+            Constant(np.zeros(3)) if T is None else SplineThroughData(t, T),
             frames["force_frame"], frames["point_frame"], np.asarray(frame.p_BF, float), np.asarray(frame.R_BF, float)))
+    for file, names in noisy.items():
+        warn_plausibility(
+            f"{Path(file).name}: the ground reaction(s) {', '.join(repr(x) for x in names)} look unfiltered (their "
+            f"samples' second differences are as large as their first) while the markers are low-pass filtered: "
+            f"filter them alike with cutoff_hz (an overlay's external_loads_cutoff_hz, or --external-loads-cutoff), "
+            f"e.g. the markers' 6 Hz")
     b.elements["external_loads"] = out

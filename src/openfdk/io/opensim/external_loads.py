@@ -46,10 +46,12 @@ def _data_columns(path, file, source, force, cache):
     return cache[p]
 
 
-def read_external_loads(path, data, info):
+def read_external_loads(path, data, info, cutoff_hz=None):
     """The model mapping ``data`` (an imported .osim) with the ExternalForces of
     ``path`` as its ``external_loads`` section; ``info`` is the import's info (body
-    frames). Errors name the file, the line and the force."""
+    frames); ``cutoff_hz`` (Hz, > 0): each entry's low-pass (``cutoff_hz``,
+    :mod:`openfdk.forces.load_filter`), None or 0: the data as given, as OpenSim applies
+    them. Errors name the file, the line and the force."""
     path = Path(path)
     source = path.name
     root = parse_xml(path, source).getroot()
@@ -111,6 +113,8 @@ def read_external_loads(path, data, info):
             raise OsimError(f"{where(source, force)}: no <force_identifier>")
         if "point" not in entry:
             entry["point_frame"] = "body"
+        if cutoff_hz:
+            entry["cutoff_hz"] = float(cutoff_hz)
         key = name or f"ExternalForce_{len(section) + 1}"
         if name_problem(key):
             raise OsimError(f"{where(source, force)}: {name_problem(key)}")

@@ -22,6 +22,8 @@ Two ways to give them, one path through the loader:
       frames: {tibia_r: {tuberosity: [0.04, -0.09, 0.008]}}   # points in an OpenSim body's frame (m),
                                          # for measures (distance, vector, ...) of the overlay
       analysis: {marker_cutoff_hz: 6}
+      external_loads: DM_ngait_og1_external_loads.xml   # OpenSim's ExternalLoads
+      external_loads_cutoff_hz: 6        # low-pass of their samples, Hz (default: as given)
 
 The overlay's sections are merged into the imported model mapping; a name the model
 already defines is an error naming the overlay's entry. Overlay values are in SI units
@@ -56,6 +58,7 @@ class ImportOptions:
     motion: Path | None = None
     motion_cutoff_hz: float | None = None
     actuators: Path | None = None
+    external_loads_cutoff_hz: float | None = None
     info: dict = field(default_factory=dict)
 
 
@@ -69,9 +72,10 @@ def _key(path):
 
 
 def register(path, ignore=(), mesh_dirs=(), overlay=None, ik_tasks=None, external_loads=None, motion=None,
-             motion_cutoff_hz=None, actuators=None):
+             motion_cutoff_hz=None, actuators=None, external_loads_cutoff_hz=None):
     """Options for the ``.osim`` at ``path`` in this process (the command line's
-    ``--ignore``, ``--geometry``, ``--with`` and ``--ik-tasks``)."""
+    ``--ignore``, ``--geometry``, ``--with``, ``--ik-tasks``, ``--external-loads`` and
+    ``--external-loads-cutoff`` …)."""
     for d in mesh_dirs:
         if not Path(d).is_dir():
             raise ModelError(f"--geometry: folder {str(d)!r} does not exist")
@@ -79,7 +83,8 @@ def register(path, ignore=(), mesh_dirs=(), overlay=None, ik_tasks=None, externa
                                             None if ik_tasks is None else Path(ik_tasks),
                                             None if external_loads is None else Path(external_loads),
                                             None if motion is None else Path(motion), motion_cutoff_hz,
-                                            None if actuators is None else Path(actuators))
+                                            None if actuators is None else Path(actuators),
+                                            external_loads_cutoff_hz or None)
 
 
 def registered_options(path):
@@ -123,8 +128,10 @@ def imported_model_data(path):
     if opts.external_loads is not None:
         from .external_loads import read_external_loads
 
-        data = read_external_loads(opts.external_loads, data, info)
+        data = read_external_loads(opts.external_loads, data, info, opts.external_loads_cutoff_hz)
         info["external_loads"] = str(opts.external_loads)
+        if opts.external_loads_cutoff_hz:
+            info["external_loads_cutoff_hz"] = float(opts.external_loads_cutoff_hz)
     if opts.motion is not None:
         from .motion import motion_drivers
 
@@ -314,13 +321,27 @@ def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None
     overlay = dict(overlay)
     base_dir = Path(base_dir or ".")
     info = {} if info is None else info
+    loads_cutoff = overlay.pop("external_loads_cutoff_hz", None)
+    if loads_cutoff is not None and (isinstance(loads_cutoff, bool) or not isinstance(loads_cutoff, (int, float))
+                                     or not loads_cutoff >= 0):
+        raise ModelError(f"{source}: external_loads_cutoff_hz: expected a number >= 0 (Hz), got {loads_cutoff!r}")
     if isinstance(overlay.get("external_loads"), str):
         from .external_loads import read_external_loads
 
         xml = base_dir / overlay.pop("external_loads")
         if not xml.is_file():
             raise ModelError(f"{source}: external_loads: {str(xml)!r} does not exist")
-        data = read_external_loads(xml, data, info)
+        data = read_external_loads(xml, data, info, loads_cutoff)
+    elif loads_cutoff:
+        # the loads of --external-loads (read before the overlay): the same low-pass
+        if not data.get("external_loads"):
+            raise ModelError(f"{source}: external_loads_cutoff_hz: no external loads to filter (give external_loads: "
+                             "FILE.xml here or --external-loads)")
+        data = dict(data)
+        data["external_loads"] = {name: {"cutoff_hz": float(loads_cutoff), **entry}
+                                  for name, entry in data["external_loads"].items()}
+    if loads_cutoff:
+        info["external_loads_cutoff_hz"] = float(loads_cutoff)
     cutoff = overlay.pop("motion_cutoff_hz", None)
     if cutoff is not None and (isinstance(cutoff, bool) or not isinstance(cutoff, (int, float)) or not cutoff > 0):
         raise ModelError(f"{source}: motion_cutoff_hz: expected a positive number (Hz), got {cutoff!r}")
