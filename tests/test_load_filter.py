@@ -251,3 +251,16 @@ def test_the_option_without_loads_is_refused(osim, capsys):
     code = main(["check", str(osim), "--ignore", "Mesh", "--external-loads-cutoff", "6", "-q"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "--external-loads-cutoff" in err[0], err
+
+
+def test_samples_that_overflow_the_filter_are_refused():
+    # found by fuzzing the GRF file through the filter: finite samples whose moment
+    # p × F overflows gave a NaN spline
+    n = 200
+    t = np.arange(n) / RATE
+    F = np.tile([10.0, 700.0, 0.0], (n, 1))
+    F[50, 1] = 1e308
+    P = np.tile([0.4, 0.0, 0.25], (n, 1))
+    P[50, 0] = 1e308
+    with pytest.raises(ValueError, match="overflows the filter"):
+        filter_load(t, F, P, None, True, FC)

@@ -13,7 +13,8 @@ Kinds:
 - ``external_loads``: an ExternalLoads ``.xml`` (two forces, one in the ground frame with
   point and torque columns, one in the body frame) applied to the fuzz ``.osim``
   (``--external-loads``), XML mutations -> ``ModelError``;
-- ``grf_mot``: the ``.mot`` GRF data file that ExternalLoads names, text mutations ->
+- ``grf_mot``: the ``.mot`` GRF data file that ExternalLoads names, read through the
+  6 Hz low-pass (``--external-loads-cutoff``), text mutations ->
   ``ModelError`` (the ``external_loads`` entry and the file named);
 - ``sto``: a coordinate ``.sto`` driving the ``.osim`` (``--motion``), text mutations ->
   ``ModelError``;
@@ -544,7 +545,10 @@ def load(kind, path, reader=None):
         if kind == "sto":
             register(model, motion=path)
         else:
-            register(model, external_loads=path.parent / "loads.xml")
+            # the data file's mutations through the low-pass as well (forces/load_filter.py);
+            # the ExternalLoads XML's keep the loads as given
+            register(model, external_loads=path.parent / "loads.xml",
+                     external_loads_cutoff_hz=6.0 if kind == "grf_mot" else None)
         return load_model(model)
     if kind == "force_plates":
         from ..io.force_plates import read_force_plates

@@ -103,7 +103,8 @@ def filter_load(times, F, P, T, world_point, cutoff_hz, threshold_n=THRESHOLD_N)
     times (n,) s; F (n, 3) N; P (n, 3) m or None (the frame's origin); T (n, 3) N m or
     None (0); world_point: force and point both in the ground (a ground reaction).
     Returns (times (m,) s, F, P, T) with P and T (m, 3) arrays (P None stays None).
-    Raises ValueError when the cut-off is not below half the sampling rate."""
+    Raises ValueError when the cut-off is not below half the sampling rate, or when the
+    filtered samples are not finite (values so large that the wrench overflows)."""
     n = len(times)
     P0 = np.zeros((n, 3)) if P is None else np.asarray(P, dtype=float)
     T0 = np.zeros((n, 3)) if T is None else np.asarray(T, dtype=float)
@@ -117,17 +118,28 @@ def filter_load(times, F, P, T, world_point, cutoff_hz, threshold_n=THRESHOLD_N)
     if not world_point:
         out = X.copy()
         if len(t) >= shortest:
-            out = sosfiltfilt(sos, X)
+            out = _finite(sosfiltfilt(sos, X), X)
         return t, out[:, 0:3], None if P is None else out[:, 3:6], out[:, 6:9]
-    M = np.cross(P0, F) + T0
+    with np.errstate(over="ignore", invalid="ignore"):
+        M = np.cross(P0, F) + T0
     F_f, P_f, T_f = F.copy(), P0.copy(), T0.copy()
     for a, b in _runs(np.linalg.norm(F, axis=1) >= threshold_n):
         if b - a < shortest:
             continue
-        W = sosfiltfilt(sos, np.column_stack((F[a:b], M[a:b])))
-        F_f[a:b] = W[:, 0:3]
-        P_f[a:b], T_f[a:b] = _cop(W[:, 0:3], W[:, 3:6], P0[a:b])
+        with np.errstate(over="ignore", invalid="ignore"):
+            W = sosfiltfilt(sos, np.column_stack((F[a:b], M[a:b])))
+            F_f[a:b] = W[:, 0:3]
+            P_f[a:b], T_f[a:b] = _cop(W[:, 0:3], W[:, 3:6], P0[a:b])
+    _finite(np.column_stack((F_f, P_f, T_f)), X)
     return t, F_f, P_f, T_f
+
+
+def _finite(filtered, samples):
+    """``filtered`` if all of it is finite, else ValueError naming the largest sample."""
+    if not np.all(np.isfinite(filtered)):
+        raise ValueError(f"the filtered samples are not finite (the largest sample, "
+                         f"{float(np.max(np.abs(samples))):.3g}, overflows the filter)")
+    return filtered
 
 
 def noise_ratio(F, threshold_n=THRESHOLD_N):
