@@ -133,7 +133,7 @@ def test_a_lead_in_after_which_the_first_frame_fails_is_tried_again_from_further
     window = 3.0 + dt * np.arange(5)
     tried = []
 
-    def solve_after(self, step, k, times, previous):
+    def solve_after(self, step, k, times, previous, restart=False):
         tried.append(len(times))
         ok = len(times) >= 2 * LEAD_IN_FRAMES
         sol = FrameSolution(None, ok, 10 * len(times), 100 * len(times), "", "converged" if ok else "iterations",
@@ -154,5 +154,69 @@ def test_a_lead_in_after_which_the_first_frame_fails_is_tried_again_from_further
     step = SimpleNamespace(ctx=SimpleNamespace(times=window), history=[])
     approach.first_time = window[0] - 20 * dt
     sol = approach(step, 0)
-    assert tried == [12, 20] and not sol.converged
-    assert sol.evaluations == 100 * 32 and step.history == []
+    # (and the last lead-in, whose marched frames restart: 12 frames again)
+    assert tried == [12, 20, 12] and not sol.converged
+    assert sol.evaluations == 100 * 44 and step.history == []
+
+
+def test_a_first_frame_that_fails_after_every_lead_in_gets_one_whose_marched_frames_restart(monkeypatch):
+    """DM og1 from 2.5 s with filtered ground reactions: the plain lead-ins (12, 24, 48
+    frames) stall where the patella engages and the window's first 5 frames failed. The
+    last lead-in (12 frames) lets its marched frames restart; its counts add to the
+    frame's and its frames join the history as −12 … −1."""
+    from types import SimpleNamespace
+
+    from openfdk.fdk.approach import LEAD_IN_LENGTHS, Approach
+    from openfdk.fdk.newton import FrameSolution
+
+    dt = 1 / 120
+    window = 3.0 + dt * np.arange(5)
+    tried = []
+
+    def solve_after(self, step, k, times, previous, restart=False):
+        tried.append((len(times), restart))
+        sol = FrameSolution(None, restart, 10 * len(times), 100 * len(times), "", "converged" if restart else "x",
+                            jacobians=len(times))
+        return sol, [(j, np.array([float(j)])) for j in range(len(times))]
+
+    monkeypatch.setattr(Approach, "_solve_after", solve_after)
+    approach = Approach.__new__(Approach)
+    approach.trajectories, approach.first_time, approach.sample_interval = None, -np.inf, None
+    step = SimpleNamespace(ctx=SimpleNamespace(times=window), history=[])
+    sol = approach(step, 0)
+    assert tried == [(n, False) for n in LEAD_IN_LENGTHS] + [(LEAD_IN_FRAMES, True)]
+    total = sum(LEAD_IN_LENGTHS) + LEAD_IN_FRAMES
+    assert sol.converged and (sol.iterations, sol.evaluations, sol.jacobians) == (10 * total, 100 * total, total)
+    assert [j for j, _ in step.history] == list(range(-LEAD_IN_FRAMES, 0))
+    # a sub-step approach (frame k − 1 converged) gets no such last attempt
+    tried.clear()
+    step = SimpleNamespace(ctx=SimpleNamespace(times=window), history=[(0, np.zeros(1))])
+    assert not approach(step, 1).converged and tried == [(SUBSTEPS - 1, False)]
+
+
+def test_a_marched_frame_with_restarts_is_solved_again_and_never_scanned(monkeypatch):
+    """The last lead-in's marched steps restart (restart=True) but do not scan around
+    α_{k−1} (FDKStep(scan=False)): a failed frame there costs at most three starts. The
+    slider at 0.3 s (no load: the root is the initial α) and 0.4 s (the load's 4 N move the
+    root 8 max_steps up), one Newton iteration per start: frame 1 fails from every start."""
+    import openfdk.fdk.analysis as analysis
+    from openfdk.fdk.analysis import SCAN_STEPS
+
+    model = _slider()
+    times = np.array([T_STEP, T_STEP + DT])
+    settings = fdk_settings(model, None, max_iterations=1, cold_max_iterations=1, line_search=False)
+    calls = []
+    original = analysis.solve_restarts
+
+    def recording(ctx, k, starts, *args, **kwargs):
+        calls.append(len(list(starts)))
+        return original(ctx, k, starts, *args, **kwargs)
+
+    monkeypatch.setattr(analysis, "solve_restarts", recording)
+    for scan, expected in ((False, [2]), (True, [2, 2 * len(SCAN_STEPS) * 1])):
+        calls.clear()
+        step = FDKStep(model, fdk_context(model, None, times), settings, scan=scan)
+        (_, first), = step.step(0)
+        (_, second), = step.step(1)
+        assert first["fdk.report"].converged and not second["fdk.report"].converged
+        assert calls == expected, (scan, calls)

@@ -146,9 +146,10 @@ class FDKStep:
     recent converged frames, the recruitment solution and the Jacobian (reuse_jacobian).
     """
 
-    def __init__(self, model, ctx, settings, approach=None):
+    def __init__(self, model, ctx, settings, approach=None, scan=True):
         self.model, self.ctx, self.settings = model, ctx, settings
         self.approach = approach  # (step, k) -> FrameSolution, or None (:mod:`.approach`)
+        self.scan = scan  # the last restarts: α_{k−1} moved along each DOF (scan_starts)
         self.system = ctx.system
         state0 = model.initial_state()
         if ctx.tracker is not None:
@@ -209,7 +210,7 @@ class FDKStep:
                 approached = self.approach(self, k)  # through intermediate frames (fdk/approach.py)
             if approached is not None:
                 later.append(approached)
-            if not any(s.converged for s in later) and history:
+            if not any(s.converged for s in later) and history and self.scan:
                 later += solve_restarts(ctx, k, scan_starts(history[-1][1], settings.max_step), ws0, settings,
                                         self.warm, tried)
         sol = combined(first, later)
