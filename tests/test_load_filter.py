@@ -223,7 +223,8 @@ def test_the_overlay_key_and_the_option_filter_the_loads_alike(osim, tmp_path):
     values = {}
     for label, m in (("overlay", by_overlay), ("option", by_option), ("raw", raw)):
         (load,) = m.external_loads
-        values[label] = [np.array([fn.derivatives(t)[0] for t in times]) for fn in (load.force, load.point, load.torque)]
+        fns = (load.force, load.point, load.torque)
+        values[label] = [np.array([fn.derivatives(t)[0] for t in times]) for fn in fns]
     for a, b in zip(values["overlay"], values["option"]):
         np.testing.assert_array_equal(a, b)
     # the filtered force is the low-pass of the raw one: within the noise of it, not equal

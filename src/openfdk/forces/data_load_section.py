@@ -20,8 +20,9 @@ sample times); a frame outside the file's time range fails with a message naming
 load. ``cutoff_hz`` > 0 low-pass filters them first, as the markers are (a ground
 reaction as a wrench, on its loaded runs; :mod:`.load_filter`). Without it, a ground
 reaction whose samples look unfiltered (their second differences as large as their
-first, :func:`~.load_filter.noise_ratio`) is named in a warning. ``openfdk run MODEL.osim TRIAL --external-loads LOADS.xml`` writes this section
-from OpenSim's ExternalLoads file (:mod:`openfdk.io.opensim.external_loads`).
+first, :func:`~.load_filter.noise_ratio`) is named in a warning.
+``openfdk run MODEL.osim TRIAL --external-loads LOADS.xml`` writes this section from
+OpenSim's ExternalLoads file (:mod:`openfdk.io.opensim.external_loads`).
 """
 
 from __future__ import annotations
