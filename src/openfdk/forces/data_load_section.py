@@ -105,17 +105,18 @@ def load_external_loads(b, data, ctx):
                 t, F, P, T = filter_load(times, F, P, T, ground_reaction, cutoff)
             except ValueError as exc:
                 raise ctx.error(f"{p}.cutoff_hz", f"{file}: {exc}") from None
-        elif ground_reaction and noise_ratio(F) > NOISY_RATIO:
-            noisy.setdefault(file, []).append(name)
+        elif ground_reaction and (ratio := noise_ratio(F)) > NOISY_RATIO:
+            noisy.setdefault(file, []).append((name, ratio))
         out.append(DataLoad(
             name, index, SplineThroughData(t, F),
             Constant(np.zeros(3)) if P is None else SplineThroughData(t, P),
             Constant(np.zeros(3)) if T is None else SplineThroughData(t, T),
             frames["force_frame"], frames["point_frame"], np.asarray(frame.p_BF, float), np.asarray(frame.R_BF, float)))
-    for file, names in noisy.items():
+    for file, loads in noisy.items():
+        names = ", ".join(f"{name!r} ({ratio:.2f})" for name, ratio in loads)
         warn_plausibility(
-            f"{Path(file).name}: the ground reaction(s) {', '.join(repr(x) for x in names)} look unfiltered (their "
-            f"samples' second differences are as large as their first) while the markers are low-pass filtered: "
-            f"filter them alike with cutoff_hz (an overlay's external_loads_cutoff_hz, or --external-loads-cutoff), "
-            f"e.g. the markers' 6 Hz")
+            f"{Path(file).name}: the ground reaction(s) {names} look unfiltered (the RMS of their samples' second "
+            f"differences over that of their first, in brackets: smooth data give far less than 1, white noise "
+            f"1.7) while the markers are low-pass filtered: filter them alike with cutoff_hz (an overlay's "
+            f"external_loads_cutoff_hz, or --external-loads-cutoff), e.g. the markers' 6 Hz")
     b.elements["external_loads"] = out
