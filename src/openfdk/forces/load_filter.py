@@ -44,37 +44,30 @@ from __future__ import annotations
 import numpy as np
 
 from ..io.butterworth import butter_lowpass_sos, filtfilt_padlen, sosfiltfilt
+from ..io.markers import UNIFORM_SPACING_TOLERANCE, visible_segments
 
 #: the order of the Butterworth low-pass (as the markers' and the force plates')
 FILTER_ORDER = 2
 #: N: a sample of a ground reaction is loaded when |F| reaches this (the plates' default)
 THRESHOLD_N = 20.0
-#: sample times whose spacing varies by more than this fraction are resampled first
-UNIFORM_RTOL = 1e-6
 #: :func:`noise_ratio` above this: the samples are called unfiltered
 NOISY_RATIO = 0.5
 
 
 def uniform_samples(times, columns):
     """(times_u (m,) s, columns_u (m, k)): the samples ``columns`` (n, k) at ``times``
-    (n,) s, increasing, as they are when their spacing is uniform (within
-    :data:`UNIFORM_RTOL`), else linearly interpolated onto the uniform grid from the
+    (n,) s, increasing, as they are when their spacing is uniform (within the markers'
+    ``UNIFORM_SPACING_TOLERANCE``, 0.1 %), else linearly interpolated onto the uniform grid from the
     first time at the median spacing (the last time included when it falls on it)."""
     times = np.asarray(times, dtype=float)
     columns = np.asarray(columns, dtype=float)
     dt = np.diff(times)
     h = float(np.median(dt))
-    if np.all(np.abs(dt - h) <= UNIFORM_RTOL * h):
+    if np.all(np.abs(dt - h) <= UNIFORM_SPACING_TOLERANCE * h):
         return times, columns
     n = int(np.floor((times[-1] - times[0]) / h * (1 + 1e-12))) + 1
     t_u = times[0] + h * np.arange(n)
     return t_u, np.column_stack([np.interp(t_u, times, c) for c in columns.T])
-
-
-def _runs(mask):
-    """[(a, b)] of the runs of True in the boolean array ``mask`` (half-open)."""
-    edges = np.flatnonzero(np.diff(np.concatenate(([0], mask.astype(np.int8), [0]))))
-    return list(zip(edges[::2], edges[1::2]))
 
 
 def _cop(F, M, P_measured):
@@ -123,7 +116,7 @@ def filter_load(times, F, P, T, world_point, cutoff_hz, threshold_n=THRESHOLD_N)
     with np.errstate(over="ignore", invalid="ignore"):
         M = np.cross(P0, F) + T0
     F_f, P_f, T_f = F.copy(), P0.copy(), T0.copy()
-    for a, b in _runs(np.linalg.norm(F, axis=1) >= threshold_n):
+    for a, b in visible_segments(np.linalg.norm(F, axis=1) >= threshold_n):
         if b - a < shortest:
             continue
         with np.errstate(over="ignore", invalid="ignore"):
