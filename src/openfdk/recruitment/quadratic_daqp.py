@@ -22,6 +22,7 @@ from openfdk.recruitment.polynomial import failed_result
 from openfdk.recruitment.reduction import (
     REDUCE_INCONSISTENT_ROWS,
     REDUCE_RANK_DEFICIENT_FREE,
+    free_forces,
     reduce_problem,
 )
 from openfdk.recruitment.result import (
@@ -62,7 +63,7 @@ def solve_quadratic_daqp(C, d, n_bounded, s, *, row_names=None, column_names=Non
                                            column_names=column_names, row_names=row_names, primal_tol=primal_tol)
     n_eq, n_var = C.shape
     n_bounded = int(n_bounded)
-    status, A_full, A_r, b_r, L, free_back, _, _ = reduce_problem(
+    status, A_full, A_r, b_r, L, Q1, R_F, _, _ = reduce_problem(
         C, d, n_bounded, s, _RANK_RTOL, _CONSISTENCY_RTOL
     )
     if status == REDUCE_RANK_DEFICIENT_FREE:
@@ -99,8 +100,8 @@ def solve_quadratic_daqp(C, d, n_bounded, s, *, row_names=None, column_names=Non
         mu = -lam_all[n_bounded:]
         x = np.clip(x, 0.0, 1.0)
 
-    # f_B = s x; f_F = V_F Σ_F⁻¹ Q1ᵀ (d − A x); λ = L μ
-    f = np.concatenate([s * x, free_back @ (d - A_full @ x)])
+    # f_B = s x; f_F = R_F⁻¹ Q1ᵀ (d − A x); λ = L μ
+    f = np.concatenate([s * x, free_forces(Q1, R_F, d - A_full @ x)])
     active_upper = np.zeros(n_var, dtype=bool)
     active_lower = np.zeros(n_var, dtype=bool)
     active_upper[:n_bounded] = lam_daqp > 0.0
