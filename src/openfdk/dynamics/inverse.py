@@ -88,12 +88,13 @@ class InverseDynamics:
         if len(self.layout.eq_coords) == 0:
             raise ValueError(f"model {model.name!r}: no body has equilibrium: true; nothing to solve")
 
-    def equilibrium(self, state, vdot, t, alpha=None, A=None, forces=True):
+    def equilibrium(self, state, vdot, t, alpha=None, A=None, forces=True, muscles=None):
         """C, d, strengths s (n_bounded,), the muscles' MuscleOutputs and the force
         sets' outputs by kind. A : Φ_q̂ (m, n) at this pose when the position stage has
         it (else evaluated); forces : include the applied loads of every force set in d
         (False: inertial terms only, muscles' C and s kept; for the analytic FDK
-        Jacobian, which takes the sets' part from their stiffness)."""
+        Jacobian, which takes the sets' part from their stiffness); muscles : with
+        forces False, the MuscleOutputs to use at this pose (else evaluated)."""
         if A is None:
             A = self.system.jacobian(state)
         n = state.n_coords
@@ -102,7 +103,9 @@ class InverseDynamics:
             outputs = self.forces.accumulate(state, t, Q)  # forces stage (Eq. 13)
             muscles = outputs.get("muscles")
         else:
-            outputs, muscles = {}, self.muscles.states(state) if self.muscles is not None else None
+            if muscles is None and self.muscles is not None:
+                muscles = self.muscles.states(state)
+            outputs = {}
         if muscles is None:
             muscles = MuscleOutputs.empty(n)
         d_full = inertial_minus_gravity(self.model, state, vdot) - Q

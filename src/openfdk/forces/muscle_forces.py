@@ -70,6 +70,41 @@ class MuscleForces:
         s, f_p, df_p = self.strength_models.evaluate_with_passive_slope(l, speed)
         return MuscleOutputs(l, L, speed, np.maximum(s, MIN_STRENGTH), f_p, df_p)
 
+    def slopes(self, out):
+        """(∂s/∂l (n_m,) N/m, ∂s/∂l̇ (n_m,) N s/m, ∂f_P/∂l (n_m,) N/m) at the outputs ``out``
+        (MuscleOutputs): the strengths' and passive tensions' rates along the muscle–tendon
+        length and speed, from the strength model's implicit derivatives (rule "openfdk";
+        zero where the strength is raised to MIN_STRENGTH) or by central differences of
+        the OpenSim rule's strengths (1e-7 m, 1e-7 m/s; no passive tension)."""
+        if self.rule == "opensim":
+            from .rigid_tendon import opensim_strengths
+
+            h = 1e-7
+            models, l, v = self.strength_models, out.length, out.speed
+            raised = out.strength <= MIN_STRENGTH
+            ds_dl = (opensim_strengths(models, l + h, v) - opensim_strengths(models, l - h, v)) / (2 * h)
+            ds_dv = (opensim_strengths(models, l, v + h) - opensim_strengths(models, l, v - h)) / (2 * h)
+            zero = np.zeros(len(self.muscles))
+            return np.where(raised, 0.0, ds_dl), np.where(raised, 0.0, ds_dv), zero
+        st = self.strength_models.evaluate_states(out.length, out.speed)
+        raised = st.strength <= MIN_STRENGTH
+        return (np.where(raised, 0.0, st.dstrength_dlength), np.where(raised, 0.0, st.dstrength_dspeed),
+                st.dpassive_dlength)
+
+    def moved(self, state, out, slopes):
+        """MuscleOutputs at ``state`` (q and v), a small displacement from the pose of
+        ``out``: the paths evaluated there, the strengths and passive tensions carried to
+        first order along the change of l and l̇ = L v with ``slopes`` (:meth:`slopes` at
+        ``out``). For the differences of the analytic FDK Jacobian along dq̂/dα: to first
+        order the same as :meth:`states` there, without solving the strength models
+        again (their fibre equilibria)."""
+        l, L = self.paths.evaluate(state)
+        speed = L @ state.get_v()
+        ds_dl, ds_dv, dfp_dl = slopes
+        dl, dv = l - out.length, speed - out.speed
+        return MuscleOutputs(l, L, speed, np.maximum(out.strength + ds_dl * dl + ds_dv * dv, MIN_STRENGTH),
+                             out.passive + dfp_dl * dl, out.dpassive)
+
     def accumulate(self, state, t, Q, K=None):
         out = self.states(state)
         Q -= out.L.T @ out.passive  # passive tension is an applied load
