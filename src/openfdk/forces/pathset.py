@@ -18,6 +18,7 @@ import numpy as np
 from ..model.kernels import path_lengths
 from ..numerics.numdiff import manifold_jacobian
 from .path_stiffness import add_path_geometric_stiffness
+from .wrap_stiffness import DONE, single_surface_paths, single_wrap_stiffness_along
 from .coordinate_path import CoordinatePath, CoordinatePathNodes
 from .coordinate_wrapping import CoordinateWrapNodes, CoordinateWrappedPath
 from .wrapping import WrapNodes, WrappedPath
@@ -32,6 +33,11 @@ class PathSet:
         wrapped = [k for k, el in enumerate(elements) if isinstance(el.path, WrappedPath)]
         self.wrapped_rows = np.array(wrapped, dtype=np.int64)
         self.wrapped = WrapNodes([elements[k].path.nodes for k in wrapped], [elements[k].name for k in wrapped]) if wrapped else None
+        #: the wrapped paths over one surface (bool over the wrapped rows): their geometric
+        #: stiffness along directions has a kernel (:mod:`.wrap_stiffness`)
+        self.single_surface = np.zeros(len(wrapped), dtype=bool)
+        if wrapped:
+            self.single_surface[single_surface_paths(self.wrapped.kinds, self.wrapped.limits, self.wrapped.start)] = True
         moving = [k for k, el in enumerate(elements) if isinstance(el.path, CoordinatePath)]
         self.moving_rows = np.array(moving, dtype=np.int64)
         self.moving = CoordinatePathNodes([elements[k].path.nodes for k in moving],
@@ -114,7 +120,12 @@ class PathSet:
         directions U (n, m) [m, rad]: :meth:`add_geometric_stiffness` times U, the
         wrapped paths by one forward difference along each column of U (step 1e-7 of
         its largest entry) instead of one per touched coordinate (a knee's 10 FDK
-        directions against the 18 coordinates of femur, tibia and patella)."""
+        directions against the 18 coordinates of femur, tibia and patella). The tensed
+        paths over one surface take the closed form with their tangent points'
+        derivatives (:mod:`.wrap_stiffness`: six wrap solves of each such path instead of
+        one of every tensed path per direction) unless a difference there changes the
+        contact."""
+        KU_single, T = self._single_surface_along(state, T, U)
         groups, straight = self._tensed_wrapped(T, L)
         K = np.zeros((state.n_coords, state.n_coords))
         add_path_geometric_stiffness(state.p_WB, state.R_WB, state.column, self.seg_a, self.s_a, self.seg_b,
@@ -126,4 +137,24 @@ class PathSet:
                 moved = state.copy()
                 moved.displace(h * U[:, j])
                 KU[:, j] -= (T_p @ part.evaluate(moved)[1] - f0) / h
-        return KU
+        return KU + KU_single
+
+    def _single_surface_along(self, state, T, U):
+        """(−Σ T_p (∂L_pᵀ/∂q̂) U (n, m) of the tensed single-surface wrapped paths, T
+        (n_paths,) with their tensions zeroed), or (0, T) when a difference changed a
+        contact (those paths are then differenced along U)."""
+        if self.wrapped is None:
+            return 0.0, T
+        T_w = np.asarray(T, dtype=float)[self.wrapped_rows]
+        paths = np.flatnonzero((T_w != 0.0) & self.single_surface)
+        if not len(paths):
+            return 0.0, T
+        w = self.wrapped
+        status, KU = single_wrap_stiffness_along(
+            state.p_WB, state.R_WB, state.column, w.kinds, w.bodies, w.p_B, w.R_BS, w.dims, w.sides, w.limits,
+            w.start, w.warm, paths, np.ascontiguousarray(T_w[paths]), np.ascontiguousarray(U, dtype=float))
+        if status != DONE:
+            return 0.0, T
+        rest = np.array(T, dtype=float)
+        rest[self.wrapped_rows[paths]] = 0.0
+        return KU, rest
