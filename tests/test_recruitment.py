@@ -662,3 +662,40 @@ def test_a_failed_phase_1_lp_is_reported_not_raised(monkeypatch):
     result = solve_polynomial(C, np.array([40.0, -0.5]), 2, np.array([10.0, 20.0]))
     assert not result.converged and result.status == "not_converged"
     assert "phase-1 LP failed (numerical difficulties)" in result.message
+
+
+@pytest.mark.parametrize("scale", [1e4, 1e6])
+def test_reserves_far_beyond_their_optimal_force_converge_to_the_kkt_point(scale):
+    """Reserves (optimal force 1 N, no limit) carrying 10⁴–10⁶ N, as at a pose far from
+    equilibrium: the activities' residuals' round-off exceeds an absolute 1e-10 and the
+    solve failed although feasible. With the tolerance relative to the activities it
+    converges; the forces meet C f = d and the KKT conditions of min Σ (f/s)³, checked
+    with multipliers λ fitted independently (least squares) to the free columns
+    (C_Fᵀ λ = 0) and the interior bounded ones (3 f²/s³ = C_iᵀ λ): residual small,
+    the columns at f = 0 with C_iᵀ λ ≤ 0, the muscles at their strength with
+    C_iᵀ λ ≥ 3/s_i."""
+    rng = np.random.default_rng(19)
+    C, d, nb, s = random_body_problem(rng)
+    m = C.shape[0]
+    E = np.eye(m)
+    C = np.hstack([C[:, :nb], E, -E, C[:, nb:]])
+    s = np.concatenate([s, np.ones(2 * m)])
+    n_b = nb + 2 * m
+    upper = np.concatenate([np.ones(nb), np.full(2 * m, np.inf)])
+    d = d * scale
+    result = solve_polynomial(C, d, n_b, s, p=3.0, upper=upper, lower=np.zeros(n_b))
+    assert result.converged, result.message
+    f = result.f
+    assert np.abs(f[nb:n_b]).max() > 1e3  # the reserves carry the load
+    np.testing.assert_allclose(C @ f, d, rtol=0, atol=1e-9 * np.abs(d).max())
+    x = f[:n_b] / s
+    interior = (x > 1e-9) & (x < upper * (1 - 1e-9))
+    rows = np.vstack([C[:, n_b:].T, C[:, :n_b][:, interior].T])
+    rhs = np.concatenate([np.zeros(C.shape[1] - n_b), 3 * x[interior] ** 2 / s[interior]])
+    lam = np.linalg.lstsq(rows, rhs, rcond=None)[0]
+    assert np.abs(rows @ lam - rhs).max() <= 1e-6 * np.abs(rhs).max()
+    dual = C[:, :n_b].T @ lam
+    scale_dual = np.abs(rhs).max()
+    assert np.all(dual[x <= 1e-9] <= 1e-6 * scale_dual)
+    at_upper = x >= upper * (1 - 1e-9)
+    assert np.all(dual[at_upper] >= 3 / s[at_upper] - 1e-6 * scale_dual)

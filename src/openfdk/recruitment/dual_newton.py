@@ -74,7 +74,7 @@ def power_box_dual_newton(A, b, p, lower, upper, mu_start, tol, max_iter):
     ----------
     A : (r, n) orthonormal rows; b : (r,); p : float ≥ 2; lower, upper : (n,) bounds
     0 ≤ l < ū (+∞ allowed); mu_start : (r,);
-    tol : tolerance on ‖A x − b‖∞; max_iter : int.
+    tol : tolerance on ‖A x − b‖∞ / max(1, ‖x‖∞); max_iter : int.
 
     Returns
     -------
@@ -99,6 +99,7 @@ def power_box_dual_newton(A, b, p, lower, upper, mu_start, tol, max_iter):
     while True:
         # ∇h = b − A x(μ)
         grad_max = 0.0
+        x_max = 1.0
         for a in range(r):
             acc = b[a]
             for i in range(n):
@@ -106,7 +107,9 @@ def power_box_dual_newton(A, b, p, lower, upper, mu_start, tol, max_iter):
             grad[a] = acc
             if abs(acc) > grad_max:
                 grad_max = abs(acc)
-        if grad_max <= tol:
+        for i in range(n):
+            x_max = max(x_max, abs(x[i]))
+        if grad_max <= tol * x_max:  # relative where activities exceed 1 (as the interior point's)
             status = DUAL_CONVERGED
             break
         if iteration >= max_iter:

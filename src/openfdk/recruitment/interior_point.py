@@ -135,7 +135,10 @@ def power_box_ipm(A, b, p, lo, u, x, z, w, mu, tol, max_iter):
     A : (r, n) dimensionless, orthonormal rows; b : (r,); p : float ≥ 2;
     lo : (n,) lower bounds ≥ 0; u : (n,) upper bounds > l (+∞: none; then w_i = 0);
     x, z, w : (n,) strictly inside their bounds; mu : (r,) (all modified in place);
-    tol : tolerance on ‖r_p‖∞, ‖r_d‖∞/(1+‖∇G‖∞) and the mean complementarity;
+    tol : tolerance on ‖r_p‖∞/max(1, ‖x‖∞), ‖r_d‖∞/(1+‖∇G‖∞) and the mean
+    complementarity/max(1, ‖∇G‖∞) (relative where activities exceed 1: reserves of 1 N
+    carrying 10³ N far from equilibrium, whose residuals' round-off exceeds an absolute
+    1e-10);
     max_iter : int.
 
     Returns
@@ -193,6 +196,7 @@ def power_box_ipm(A, b, p, lo, u, x, z, w, mu, tol, max_iter):
                 tau += (u[i] - x[i]) * w[i]
         tau /= n_pairs
         rp_max = 0.0
+        x_max = 1.0
         for a in range(r):
             acc = -b[a]
             for i in range(n):
@@ -200,7 +204,11 @@ def power_box_ipm(A, b, p, lo, u, x, z, w, mu, tol, max_iter):
             r_p[a] = acc
             if abs(acc) > rp_max:
                 rp_max = abs(acc)
-        if rp_max <= tol and rd_max <= tol * (1.0 + g_max) and tau <= tol:
+        for i in range(n):
+            x_max = max(x_max, abs(x[i]))
+        # the primal residual relative to the activities, the complementarity to the
+        # gradient, where those exceed 1 (an absolute 1e-10 is below their round-off)
+        if rp_max <= tol * x_max and rd_max <= tol * (1.0 + g_max) and tau <= tol * max(1.0, g_max):
             status = IPM_CONVERGED
             break
         if not (np.isfinite(tau) and np.isfinite(rd_max)):

@@ -217,7 +217,10 @@ def solve_polynomial(C, d, n_bounded, s, p=3.0, *, x0=None, tol=1e-10, max_iter=
     x0 : optional warm start — a previous :class:`RecruitmentResult` (its multipliers are
         used; best) or forces (n_var,) N.
     tol : tolerance on the equilibrium residual in scaled units (activity, dimensionless)
-        after the free forces are eliminated; optimality and bounds hold exactly.
+        after the free forces are eliminated, times the largest activity where that
+        exceeds 1 (an actuator of optimal force 1 N carrying 2 000 N: an absolute 1e-10
+        on activities of 2 000 is below the residual's round-off, and the solve failed
+        although feasible); optimality and bounds hold exactly.
     max_iter : maximal interior-point iterations.
     row_names : optional (n_eq,) names used in messages; column_names : optional (n_var,).
     upper : optional (n_bounded,) activity bounds u > 0 (default 1: f_B ≤ s), +∞ for none:
