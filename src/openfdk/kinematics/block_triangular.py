@@ -30,6 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from ..numerics.triangular import upper_solve
+
 
 @dataclass(frozen=True)
 class BlockForm:
@@ -251,12 +253,7 @@ def lu_solve(LU, piv, rhs):
         for j in range(i):
             s -= LU[i, j] * rhs[j]
         rhs[i] = s
-    for i in range(n - 1, -1, -1):
-        s = rhs[i]
-        for j in range(i + 1, n):
-            s -= LU[i, j] * rhs[j]
-        rhs[i] = s / LU[i, i]
-    return rhs
+    return upper_solve(LU, rhs)
 
 
 @njit(cache=True)

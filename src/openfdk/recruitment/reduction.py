@@ -45,6 +45,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..numerics.triangular import upper_solve, upper_transpose_solve
+
 __all__ = [
     "REDUCE_OK",
     "REDUCE_RANK_DEFICIENT_FREE",
@@ -217,7 +219,7 @@ def _full_rank(R_F, C_F, threshold):
     y = np.ones(n) / np.sqrt(n)
     estimate = smallest
     for _ in range(RANK_ITERATIONS):
-        z = _upper_solve(R_F, _upper_transpose_solve(R_F, y))
+        z = upper_solve(R_F, upper_transpose_solve(R_F, y.copy()))
         norm = np.sqrt(z @ z)
         if not np.isfinite(norm) or norm == 0.0:
             estimate = 0.0
@@ -231,36 +233,10 @@ def _full_rank(R_F, C_F, threshold):
 
 
 @njit(cache=True, error_model="numpy")
-def _upper_solve(R, b):
-    """x (n,) with R x = b, R (n, n) upper triangular."""
-    n = R.shape[0]
-    x = b.copy()
-    for i in range(n - 1, -1, -1):
-        acc = x[i]
-        for j in range(i + 1, n):
-            acc -= R[i, j] * x[j]
-        x[i] = acc / R[i, i]
-    return x
-
-
-@njit(cache=True, error_model="numpy")
-def _upper_transpose_solve(R, b):
-    """x (n,) with Rᵀ x = b, R (n, n) upper triangular."""
-    n = R.shape[0]
-    x = b.copy()
-    for i in range(n):
-        acc = x[i]
-        for j in range(i):
-            acc -= R[j, i] * x[j]
-        x[i] = acc / R[i, i]
-    return x
-
-
-@njit(cache=True, error_model="numpy")
 def free_forces(Q1, R_F, rhs):
     """f_F = R_F⁻¹ Q1ᵀ rhs (n_free,) N or N·m, the free forces of :func:`reduce_problem`
     for rhs = d − A_full x (m,)."""
-    return _upper_solve(R_F, Q1.T @ rhs)
+    return upper_solve(R_F, Q1.T @ rhs)
 
 
 @njit(cache=True, error_model="numpy")
