@@ -352,12 +352,16 @@ def test_the_window_s_first_frame_after_a_lead_in_is_the_cold_start_s_root(tmj_m
     cold = drive(step, len(window), lambda rec: (rec.array("fdk.alpha"), rec.array("fdk.evaluations"),
                                                 rec.objects("fdk.report")))
     assert led.converged.all() and all(r.converged for r in cold[2])
-    np.testing.assert_allclose(led.alpha, cold[0], atol=1e-7)
+    # two roots each within the force tolerance (1 mN): apart by up to 2 mN over the
+    # stiffness, < 1e-7 m on the two stiff DOFs; the soft medio-lateral one moves 6e-5 m
+    # per 0.1 N (below), 1.2e-6 m per 2 mN
+    atol = np.array([1e-7, 1e-7, 1.2e-6])
+    assert np.all(np.abs(led.alpha - cold[0]) <= atol)
     assert np.any(np.abs(led.alpha[0]) > 1e-5)  # a real displacement, not the initial values
     assert led.evaluations[0] >= 6 + 1 and led.restarts[0] == 0
     whole = run_fdk(tmj_model, traj, t[:13], tmj_settings)
     assert whole.converged.all()
-    np.testing.assert_allclose(led.alpha, whole.alpha[6:12], atol=1e-7)
+    assert np.all(np.abs(led.alpha - whole.alpha[6:12]) <= atol)
     step = FDKStep(tmj_model, fdk_context(tmj_model, traj, window, settings=tmj_settings), settings,
                    approach.approach_for(tmj_model, traj))
     drive(step, 1, lambda rec: None)

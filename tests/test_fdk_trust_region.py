@@ -83,3 +83,38 @@ def test_the_reduction_ratio_is_one_for_a_linear_f_and_the_closed_form_for_a_qua
 ])
 def test_the_radius_rule(radius, reach, rho, expected):
     assert trust_radius(radius, reach, rho) == pytest.approx(expected)
+
+
+def test_a_cold_frame_keeps_a_fresh_jacobian_for_a_second_step_far_from_the_root():
+    """newton.solve_frame(cold=True): far from the root (beyond NEAR_ROOT tolerances) a
+    fresh J serves a second, Broyden-updated step, where a warm frame computes one per
+    step. The layer pressed by 8 P₀ with a box of h/40: the root α* = h (1 − e⁻⁸) is
+    40 boxes away, so both walk there at the box, but the cold one computes J for about
+    every other step; near the root both converge (the rate rule), to the closed form."""
+    from openfdk.fdk.trust_region import NEAR_ROOT
+
+    load = 8 * P0
+    root = H * (1.0 - np.exp(-load / P0))
+
+    def layer(alpha):
+        return None if alpha[0] >= H else np.array([-P0 * np.log1p(-alpha[0] / H) - load])
+
+    settings = FDKSettings(tolerance=1e-6, max_iterations=200, jacobian="central", reuse_jacobian=True,
+                           max_step=(H / 40,), perturbation=(1e-10,), restart=False)
+    warm = solve_frame(ClosedFormResidual(layer), 0, np.array([0.0]), Workspace(), settings)
+    cold = solve_frame(ClosedFormResidual(layer), 0, np.array([0.0]), Workspace(), settings, cold=True)
+    stiffness = P0 / (H - root)  # dP/dα at the root, N/m
+    for sol in (warm, cold):
+        assert sol.converged
+        assert sol.best.alpha[0] == pytest.approx(root, abs=2 * settings.tolerance / stiffness)
+    assert warm.iterations >= 40 and cold.iterations >= 40  # the box walk
+    # a warm frame: a fresh J for each step until the last one (within NEAR_ROOT
+    # tolerances its rate rule may keep J for the final step)
+    # a warm frame: a fresh J for nearly every step (a refused step keeps its J, and a
+    # step that reduced ‖f‖ tenfold near the root keeps the updated one); measured 49 for 53
+    assert warm.jacobians >= 0.9 * warm.iterations
+    # cold: about one J per two steps on the walk (measured 26 for 58), and fewer
+    # evaluations in all (each central J costs two)
+    assert cold.jacobians <= 0.6 * cold.iterations
+    assert cold.evaluations < warm.evaluations
+    assert NEAR_ROOT * settings.tolerance < load  # (the walk starts far from the root)

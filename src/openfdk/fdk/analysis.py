@@ -198,13 +198,13 @@ class FDKStep:
         # the window's first frame: from the lead-in's warm start when the trial has frames
         # before it (fdk/approach.py), else cold from the initial values
         lead = self.approach(self, k) if k == 0 and not history and settings.restart and self.approach else None
-        first = lead or solve_frame(ctx, k, a0, ws, cold or settings, self.warm, self.J_carry)
+        first = lead or solve_frame(ctx, k, a0, ws, cold or settings, self.warm, self.J_carry, not warm_frame)
         later = []
         if not first.converged and settings.restart:
             tried = [] if lead else [a0]
             # (after a failed lead-in the initial values get the cold limit the first start had)
             later = solve_restarts(ctx, k, ([history[-1][1]] if history else []) + [self.a_init], ws0,
-                                   (cold or settings) if lead else settings, self.warm, tried)
+                                   (cold or settings) if lead else settings, self.warm, tried, not warm_frame)
             approached = None
             if not any(s.converged for s in later) and self.approach is not None and lead is None:
                 approached = self.approach(self, k)  # through intermediate frames (fdk/approach.py)
@@ -212,7 +212,7 @@ class FDKStep:
                 later.append(approached)
             if not any(s.converged for s in later) and history and self.scan:
                 later += solve_restarts(ctx, k, scan_starts(history[-1][1], settings.max_step), ws0, settings,
-                                        self.warm, tried)
+                                        self.warm, tried, not warm_frame)
         sol = combined(first, later)
         self.J_carry = sol.jacobian if sol.converged else None
         self.dq_dalpha = sol.workspace.dq_dalpha if sol.converged and sol.workspace is not None else None

@@ -187,7 +187,7 @@ class Approach:
         first = settings if warm_end and previous else replace(
             settings, max_iterations=max(settings.max_iterations, settings.cold_max_iterations))
         sol = solve_frame(ctx, k, a0, ws, first, march.warm if warm_end else step.warm,
-                          march.J_carry if warm_end else None)
+                          march.J_carry if warm_end else None, not warm_end)
         return replace(sol, iterations=sol.iterations + int(totals[0]), evaluations=sol.evaluations + int(totals[1]),
                        jacobians=sol.jacobians + int(totals[2])), h
 
