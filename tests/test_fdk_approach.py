@@ -220,3 +220,47 @@ def test_a_marched_frame_with_restarts_is_solved_again_and_never_scanned(monkeyp
         (_, second), = step.step(1)
         assert first["fdk.report"].converged and not second["fdk.report"].converged
         assert calls == expected, (scan, calls)
+
+
+def test_a_frame_stalled_near_its_root_is_scanned_around_its_best_iterate(monkeypatch):
+    """After every start failed, a frame whose best iterate came within NEAR_SCAN_RANGE
+    tolerances of the root is solved again from that iterate moved along each DOF by
+    ±NEAR_SCAN_STEP max_step (analysis.near_starts); one whose best stayed farther is
+    not. The slider of the test above, one Newton iteration per start, each a max_step
+    (1 mm) long towards the root 8 max_steps above α_{k−1}: the best start is the scan's
+    α_{k−1} + 4 max_steps, which ends 3 max_steps short (|f| = 3 mm × k = 1.5 N). With a
+    tolerance of 0.05 N (range 5 N) the two near starts follow the scan, with 0.01 N
+    (range 1 N) they do not."""
+    import openfdk.fdk.analysis as analysis
+    from openfdk.fdk.analysis import NEAR_SCAN_RANGE, NEAR_SCAN_STEP, SCAN_STEPS, near_starts
+
+    starts = np.array(near_starts(np.array([1.0, 2.0]), np.array([0.5, 4.0])))
+    np.testing.assert_allclose(starts, [[1.0 - 0.05, 2.0], [1.05, 2.0], [1.0, 2.0 - 0.4], [1.0, 2.4]])
+    model = _slider()
+    times = np.array([T_STEP, T_STEP + DT])
+    calls = []
+    original = analysis.solve_restarts
+
+    def recording(ctx, k, starts, *args, **kwargs):
+        starts = list(starts)
+        calls.append([float(a[0]) for a in starts])
+        return original(ctx, k, starts, *args, **kwargs)
+
+    monkeypatch.setattr(analysis, "solve_restarts", recording)
+    for tolerance, near in ((0.05, True), (0.01, False)):
+        assert (3 * 1e-3 * K < NEAR_SCAN_RANGE * tolerance) == near
+        settings = fdk_settings(model, None, max_iterations=1, cold_max_iterations=1, line_search=False,
+                                tolerance=tolerance)
+        calls.clear()
+        step = FDKStep(model, fdk_context(model, None, times), settings)
+        (_, first), = step.step(0)
+        (_, second), = step.step(1)
+        assert first["fdk.report"].converged and not second["fdk.report"].converged
+        assert [len(c) for c in calls] == [2, 2 * len(SCAN_STEPS)] + ([2] if near else [])
+        if near:  # around the best iterate of the earlier starts, 3 max_steps short of the root
+            stall = first["fdk.alpha"][0] + 5e-3
+            np.testing.assert_allclose(calls[-1], [stall - NEAR_SCAN_STEP * 1e-3, stall + NEAR_SCAN_STEP * 1e-3],
+                                       rtol=0, atol=1e-12)
+            # the frame reports the best of all: the upper near start's step, 1.9 mm short
+            assert second["fdk.alpha"][0] == pytest.approx(stall + 1.1e-3, abs=1e-12)
+            assert abs(second["fdk.f_fdk"][0]) == pytest.approx(1.9e-3 * K, rel=1e-9)
