@@ -152,8 +152,9 @@ def test_chord_steps_with_a_nearby_factorization_reach_the_same_optimum():
     1 mm / 1 mrad away (kkt_step there, with the second-order terms S: Newton's matrix).
     From 0.1 mm off the chain's 1 cm-noise fit the
     steps contract at least fourfold each (linearly: the matrix is not the current one),
-    and reach the fit's pose and multipliers of the plain solve to 1e-10; the K it
-    assembles on the way equals kkt_step's at the same pose (it is handed to Eqs. 8–10)."""
+    and reach the fit's pose and multipliers of the plain solve to 1e-10. A chord step
+    assembles no K; the tracking kernel, whose last step is a chord step, returns K
+    assembled at that step's pose, equal to kkt_step's there (it is handed to Eqs. 8–10)."""
     from openfdk.kinematics.kkt import kkt_chord_step, kkt_step
 
     rng = np.random.default_rng(7)
@@ -187,7 +188,7 @@ def test_chord_steps_with_a_nearby_factorization_reach_the_same_optimum():
     lam = lam_fit * (1.0 + 1e-3 * rng.normal(size=m))
     steps = []
     for _ in range(12):
-        sol, step, _ = kkt_chord_step(*kkt_inputs(state), K, lam, LU, piv)
+        sol, step, _ = kkt_chord_step(*kkt_inputs(state), lam, LU, piv)
         state.displace(sol[:n])
         lam = lam + sol[n:]
         steps.append(step)
@@ -198,7 +199,17 @@ def test_chord_steps_with_a_nearby_factorization_reach_the_same_optimum():
     np.testing.assert_allclose(state.p_WB, fit.p_WB, rtol=0, atol=1e-10)
     np.testing.assert_allclose(state.R_WB, fit.R_WB, rtol=0, atol=1e-10)
     np.testing.assert_allclose(lam, lam_fit, rtol=0, atol=1e-8 * np.abs(lam_fit).max())
+    # the kernel from 0.1 mm off: a factorized step, then chord steps to the end
+    state = fit.copy()
+    state.displace(rng.normal(0.0, 1e-4, n))
+    before = state.copy()
+    res, K_out, _ = tracker.solve_positions(state, 0.0, x.reshape(-1, 3), visible)
+    assert res.converged and res.iterations >= 3
+    # K at the pose where the last step started: that step was below 1e-12 (chord), so
+    # K equals kkt_step's at the final pose to that step's size
     K_step = np.empty_like(K)
     kkt_step(*kkt_inputs(state), K_step, np.zeros((n, n)), False, np.empty_like(LU), piv.copy())
-    _, _, _ = kkt_chord_step(*kkt_inputs(state), K, lam, LU, piv)
-    np.testing.assert_array_equal(K, K_step)
+    np.testing.assert_allclose(K_out, K_step, rtol=0, atol=1e-9 * np.abs(K_step).max())
+    K_start = np.empty_like(K)
+    kkt_step(*kkt_inputs(before), K_start, np.zeros((n, n)), False, np.empty_like(LU), piv.copy())
+    assert np.abs(K_start - K_step).max() > 1e3 * np.abs(K_out - K_step).max()  # not the first step's K

@@ -16,7 +16,7 @@ from numba import njit
 
 from .block_triangular import lu_factor, lu_solve
 
-__all__ = ["kkt_assemble", "kkt_step", "kkt_chord_step"]
+__all__ = ["kkt_assemble", "kkt_rhs", "kkt_step", "kkt_chord_step"]
 
 
 @njit(cache=True)
@@ -62,6 +62,30 @@ def kkt_assemble(J, w, p, x, A, Phi, K, rhs):
 
 
 @njit(cache=True)
+def kkt_rhs(J, w, p, x, A, Phi, rhs):
+    """The right-hand side rhs (n + m,) = [−Ψ_q̂ᵀ W (p − x); −Φ] of :func:`kkt_assemble`
+    in place, without K (a chord step needs only this). Returns max |Φ| (0 when empty)."""
+    n = J.shape[1]
+    m = A.shape[0]
+    for i in range(n):
+        rhs[i] = 0.0
+    for k in range(J.shape[0]):
+        wk = w[k]
+        if wk == 0.0:
+            continue
+        rk = wk * (p[k] - x[k])
+        for i in range(n):
+            a = J[k, i]
+            if a != 0.0:
+                rhs[i] -= a * rk
+    res = 0.0
+    for a in range(m):
+        rhs[n + a] = -Phi[a]
+        res = max(res, abs(Phi[a]))
+    return res
+
+
+@njit(cache=True)
 def kkt_step(J, w, p, x, A, Phi, K, S, use_S, LU, piv):
     """Assemble K and solve for [Δq̂; λ].
 
@@ -98,17 +122,18 @@ def kkt_step(J, w, p, x, A, Phi, K, S, use_S, LU, piv):
 
 
 @njit(cache=True)
-def kkt_chord_step(J, w, p, x, A, Phi, K, lam, LU, piv):
-    """A chord step: K and the stationarity residual F = [Ψ_q̂ᵀ W (p − x) + Φ_q̂ᵀ λ; Φ]
-    at the current pose and multipliers λ (m,), and [Δq̂; Δλ] = −M⁻¹ F with the factors
-    LU, piv of an earlier step's matrix M (:func:`kkt_step`). K (output) is assembled at
-    this pose, as by :func:`kkt_step`. F = 0 is the same optimum whatever M, so only the
-    rate changes: from a pose a Newton step away, M's error is of that step's size.
+def kkt_chord_step(J, w, p, x, A, Phi, lam, LU, piv):
+    """A chord step: the stationarity residual F = [Ψ_q̂ᵀ W (p − x) + Φ_q̂ᵀ λ; Φ] at the
+    current pose and multipliers λ (m,), and [Δq̂; Δλ] = −M⁻¹ F with the factors LU, piv
+    of an earlier step's matrix M (:func:`kkt_step`). F = 0 is the same optimum whatever
+    M, so only the rate changes: from a pose a Newton step away, M's error is of that
+    step's size. K is not assembled (the step needs only F): a caller that hands K on
+    (Eqs. 8–10) assembles it at the pose of its last step (:func:`kkt_assemble`).
     Returns ([Δq̂; Δλ] (n + m,), max |Δq̂|, max |Φ|)."""
     n = J.shape[1]
     m = A.shape[0]
     rhs = np.empty(n + m)
-    res = kkt_assemble(J, w, p, x, A, Phi, K, rhs)
+    res = kkt_rhs(J, w, p, x, A, Phi, rhs)
     for j in range(n):  # −F: rhs holds −Ψ_q̂ᵀ W (p − x) and −Φ
         s = 0.0
         for a in range(m):
