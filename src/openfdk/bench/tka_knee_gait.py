@@ -14,7 +14,7 @@ t = 0.10 s at 100 Hz, SYNTHETIC_FRAMES frames (``--quick``: SYNTHETIC_FRAMES_QUI
 
 Records (each with ``model``, ``frames``, ``converged_frames``, ``wall_time_s``, and
 ``first_frame_evaluations`` and ``later_evaluations_per_frame``: on DM the window's first
-frame, a cold start after its lead-in, is 175 of the 309 evaluations):
+frame, a cold start after its lead-in, is 158 of the 292 evaluations at stop 47):
 
 * ``tka_knee_gait_fdk_fps``: frames per second of :func:`openfdk.fdk.analysis.run_fdk`
   over the window, one BLAS thread (measured in a child process), after loading the
