@@ -454,3 +454,39 @@ def test_a_frame_whose_recruitment_fails_says_so(tmp_path):
     assert all(r.reason.value == "recruitment" for r in res.reports), [r.reason for r in res.reports]
     assert all("recruitment failed: equilibrium cannot be met: not enough strength for row" in m
                for m in res.messages), res.messages
+
+
+def test_a_one_frame_window_has_the_trial_s_neighbours_and_equals_the_frame_in_a_longer_window(tmj_model,
+                                                                                             tmj_settings):
+    """``--start`` = ``--end``: a one-frame window's frame spacing is the trial's sample
+    interval (kinematics.analysis.window_spacing), so its residual rates (Eq. 7) are
+    central over the trial's samples either side, as inside any longer window. Tracking
+    alone: q, v and v̇ equal those of the same frame in a five-frame window (the same
+    position solve; v, v̇ to 1e-9 of their size). FDK: α equals the same frame's in a
+    three-frame window to two tolerances over the stiffness (the bounds of the lead-in
+    test), and so does its v̇ to 1e-5 of its size. Before, the one-frame window had no
+    neighbours and zero residual rates: its v differed by 7e-4 and its v̇ by 3e-3 of
+    their size."""
+    from openfdk.kinematics.analysis import run_tracking, window_spacing
+
+    _, traj, t = _tmj_context(tmj_model, tmj_settings, n_frames=20)
+    assert window_spacing(t[8:9], traj) == pytest.approx(0.01, rel=1e-9)
+    assert window_spacing(t[8:11]) == pytest.approx(0.01, rel=1e-9) and window_spacing(t[8:9]) is None
+    alpha = np.zeros(len(tmj_model.fdk_dofs))
+    one = run_tracking(tmj_model, traj, t[8:9], alpha=alpha)
+    five = run_tracking(tmj_model, traj, t[6:11], alpha=alpha)
+    assert one.converged.all() and five.converged.all()
+    np.testing.assert_allclose(one.q[0], five.q[2], rtol=0, atol=1e-9)
+    scale_v, scale_a = np.abs(five.v[2]).max(), np.abs(five.vdot[2]).max()
+    assert scale_v > 1e-3 and scale_a > 1e-2  # a moving jaw
+    np.testing.assert_allclose(one.v[0], five.v[2], rtol=0, atol=1e-9 * scale_v + 1e-12)
+    np.testing.assert_allclose(one.vdot[0], five.vdot[2], rtol=0, atol=1e-9 * scale_a + 1e-12)
+    led = run_fdk(tmj_model, traj, t[8:9], tmj_settings)
+    three = run_fdk(tmj_model, traj, t[7:10], tmj_settings)
+    assert led.converged.all() and three.converged.all()
+    atol = np.array([1e-7, 1e-7, 1.2e-6])
+    assert np.all(np.abs(led.alpha[0] - three.alpha[1]) <= atol), np.abs(led.alpha[0] - three.alpha[1])
+    # the FDK frame's v̇ with its α: as the longer window's to what α's gap moves it (the
+    # zero residual rates of before left it 3e-3 of its size off)
+    vdot_1, vdot_3 = led.kinematics.vdot[0], three.kinematics.vdot[1]
+    assert np.abs(vdot_1 - vdot_3).max() < 1e-5 * np.abs(vdot_3).max()

@@ -41,7 +41,7 @@ import numpy as np
 
 from ..dynamics.inverse import InverseDynamics
 from ..dynamics.results import forces_failure, forces_fields, forces_result, forces_values
-from ..kinematics.analysis import KinematicsResult, kinematics_fields, kinematics_result
+from ..kinematics.analysis import KinematicsResult, kinematics_fields, kinematics_result, window_spacing
 from ..kinematics.system import ConstraintSystem
 from ..kinematics.tracking import MarkerTracker, TrackingSettings
 from ..trial import drive
@@ -302,7 +302,7 @@ def fdk_context(model, trajectories, times, tracking=None, settings=None):
     if trajectories is not None:
         tracker = MarkerTracker(system, tracking or TrackingSettings())
         meas = window_measurements(trajectories, times)
-    return FDKContext(model, solver, tracker, meas, times)
+    return FDKContext(model, solver, tracker, meas, times, window_spacing(times, trajectories))
 
 
 def fdk_result(rec, model, ctx, settings, times, wall_time):

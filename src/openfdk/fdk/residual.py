@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..kinematics.analysis import window_spacing
 from ..kinematics.determinate import solve_positions
 from ..kinematics.stages import marker_stage, velocity_stage_determinate, velocity_stage_tracking
 from ..kinematics.tracking import residual_rates
@@ -96,7 +97,7 @@ class FDKContext:
     uniform.
     """
 
-    def __init__(self, model, solver, tracker, measurements, times):
+    def __init__(self, model, solver, tracker, measurements, times, dt=None):
         self.model = model
         self.solver = solver
         self.system = solver.system
@@ -104,7 +105,10 @@ class FDKContext:
         self.meas = None if measurements is None else (
             dict(measurements) if isinstance(measurements, dict) else dict(enumerate(measurements)))
         self.times = np.asarray(times, dtype=float)
-        self.dt = float(self.times[1] - self.times[0]) if len(self.times) > 1 else 1.0
+        # the frame spacing: the window's, or a one-frame window's trial sample interval (dt)
+        if dt is None:
+            dt = float(self.times[1] - self.times[0]) if len(self.times) > 1 else 1.0
+        self.dt = float(dt)
         names = solver.layout.column_names
         self.fdk_columns = np.array([names.index(f"fdk.{d.name}") for d in model.fdk_dofs], dtype=int)
         self._rates_frame, self._rates_k = None, None  # _measured_rates of the frame in work
@@ -120,7 +124,7 @@ class FDKContext:
         tracker, the markers of ``trajectories`` (``evaluate(t)``) at those times — for
         the frames an approach solves (:mod:`openfdk.fdk.approach`)."""
         meas = None if trajectories is None else window_measurements(trajectories, times)
-        return FDKContext(self.model, self.solver, self.tracker, meas, times)
+        return FDKContext(self.model, self.solver, self.tracker, meas, times, window_spacing(times, trajectories))
 
     def frames_needed(self, k):
         """Frame k and (tracking) its neighbours that have markers: the window's, and at
@@ -225,11 +229,12 @@ def window_measurements(trajectories, times):
     and last frames (Eq. 7) are central differences, as at every other frame, and a
     frame's result does not depend on where the window starts (one-sided rates at a
     window's first frame changed its α enough that DM's next frame took 67 evaluations
-    and two restarts instead of 5)."""
+    and two restarts instead of 5). A one-frame window's neighbours are the trial's
+    samples one sample interval away (:func:`~openfdk.kinematics.analysis.window_spacing`)."""
     times = np.asarray(times, dtype=float)
     meas = {j: trajectories.evaluate(t) for j, t in enumerate(times)}
-    if len(times) > 1:
-        dt = times[1] - times[0]
+    dt = window_spacing(times, trajectories)
+    if dt is not None:
         for j, t in ((-1, times[0] - dt), (len(times), times[-1] + dt)):
             m = trajectories.evaluate(t)
             if np.any(m[3]):

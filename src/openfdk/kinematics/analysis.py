@@ -219,6 +219,21 @@ class DeterminateStep:
         self.rates = None if rates is None else (tuple(rates) + (None,))[:4]  # (a checkpoint without the jerk)
 
 
+def window_spacing(times, trajectories=None):
+    """The frame spacing (s) of a window ``times`` (nf,) s: its own, or for a one-frame
+    window (``--start`` = ``--end``) the trial's median sample interval
+    (``trajectories.time``), so that its residual rates (Eq. 7) are central differences
+    over the trial's neighbouring samples as at every other frame; None when neither
+    exists."""
+    times = np.asarray(times, dtype=float)
+    if len(times) > 1:
+        return float(times[1] - times[0])
+    t = getattr(trajectories, "time", None)
+    if t is None or len(t) < 2:
+        return None
+    return float(np.median(np.diff(np.asarray(t, dtype=float))))
+
+
 class TrackingStep:
     """Trial-driver step of marker tracking (Eqs. 4–10).
 
@@ -230,8 +245,10 @@ class TrackingStep:
 
     def __init__(self, model, trajectories, times, alpha, settings=None, prefix="kin."):
         self.model, self.traj, self.times, self.alpha, self.prefix = model, trajectories, times, alpha, prefix
-        nf = len(times)
-        self.dt = float(times[1] - times[0]) if nf > 1 else 1.0
+        spacing = window_spacing(times, trajectories)
+        # the edge frames' neighbours are the trial's samples outside the window (_edge_neighbour)
+        self.edges = spacing is not None
+        self.dt = spacing if spacing is not None else 1.0
         self.tracker = MarkerTracker(ConstraintSystem(model), settings or TrackingSettings())
         self.state = model.initial_state()
         self.last_good = self.state.copy()
@@ -273,7 +290,7 @@ class TrackingStep:
             self.state = self.last_good.copy()
             self.q_prev = None
         self.pending[k] = frame
-        if k == 0 and len(self.times) > 1 and frame["state"] is not None:
+        if k == 0 and self.edges and frame["state"] is not None:
             self._edge_neighbour(-1, t - self.dt, frame["state"])
         done = [(k - 1, self._finish_frame(k - 1))] if k >= 1 else []
         self.pending.pop(k - 2, None)  # frame k − 1 was its last user
@@ -284,7 +301,7 @@ class TrackingStep:
         last = len(self.times) - 1
         if last not in self.pending:
             return []
-        if self.pending[last]["state"] is not None and len(self.times) > 1:
+        if self.pending[last]["state"] is not None and self.edges:
             self._edge_neighbour(last + 1, self.times[last] + self.dt, self.pending[last]["state"])
         return [(last, self._finish_frame(last))]
 
