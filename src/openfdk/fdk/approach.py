@@ -61,6 +61,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..kinematics.analysis import window_spacing
 from .newton import FrameSolution, solve_frame
 from .residual import FrameWorkspace
 
@@ -110,8 +111,7 @@ class Approach:
         else:
             t = np.asarray(trajectories.time, dtype=float)
             self.first_time = max(float(t[0]), float(first_time))
-            if len(t) > 1:
-                self.sample_interval = float(np.median(np.diff(t)))
+            self.sample_interval = window_spacing(t[:1], trajectories)  # the trial's median interval
 
     def __call__(self, step, k) -> FrameSolution:
         """Frame k of ``step`` solved after the march: a FrameSolution (converged or not)

@@ -27,7 +27,7 @@ before it, so it starts far from its root) applies the rate rule only within
 region rather than J limits the steps, a fresh J serves a second, Broyden-updated step
 while the steps keep reducing ‖f^FDK‖₂ tenfold. Measured on 15 cold starts of the DM
 knee in gait (5 trials × 3 times, each the window's first frame with its lead-in and
-the two frames after it): 8 910 → 5 593 residual evaluations, 315 → 161 s, failed
+the two frames after it): 8 910 → 5 607 residual evaluations, 315 → 190 s, failed
 frames 2 → 0; the warm frames after them are unchanged. Only a fresh J's step goes on to the line
 search. With ``reuse_jacobian: false`` every iteration
 computes J, as in the paper.
