@@ -459,7 +459,7 @@ def test_a_frame_whose_recruitment_fails_says_so(tmp_path):
 def test_a_one_frame_window_has_the_trial_s_neighbours_and_equals_the_frame_in_a_longer_window(tmj_model,
                                                                                              tmj_settings):
     """``--start`` = ``--end``: a one-frame window's frame spacing is the trial's sample
-    interval (kinematics.analysis.window_spacing), so its residual rates (Eq. 7) are
+    interval (kinematics.tracking.window_spacing), so its residual rates (Eq. 7) are
     central over the trial's samples either side, as inside any longer window. Tracking
     alone: q, v and v̇ equal those of the same frame in a five-frame window (the same
     position solve; v, v̇ to 1e-9 of their size). FDK: α equals the same frame's in a
@@ -467,7 +467,8 @@ def test_a_one_frame_window_has_the_trial_s_neighbours_and_equals_the_frame_in_a
     test), and so does its v̇ to 1e-5 of its size. Before, the one-frame window had no
     neighbours and zero residual rates: its v differed by 7e-4 and its v̇ by 3e-3 of
     their size."""
-    from openfdk.kinematics.analysis import run_tracking, window_spacing
+    from openfdk.kinematics.analysis import run_tracking
+    from openfdk.kinematics.tracking import window_spacing
 
     _, traj, t = _tmj_context(tmj_model, tmj_settings, n_frames=20)
     assert window_spacing(t[8:9], traj) == pytest.approx(0.01, rel=1e-9)

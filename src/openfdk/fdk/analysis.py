@@ -41,9 +41,9 @@ import numpy as np
 
 from ..dynamics.inverse import InverseDynamics
 from ..dynamics.results import forces_failure, forces_fields, forces_result, forces_values
-from ..kinematics.analysis import KinematicsResult, kinematics_fields, kinematics_result, window_spacing
+from ..kinematics.analysis import KinematicsResult, kinematics_fields, kinematics_result
 from ..kinematics.system import ConstraintSystem
-from ..kinematics.tracking import MarkerTracker, TrackingSettings
+from ..kinematics.tracking import MarkerTracker, TrackingSettings, window_spacing
 from ..trial import drive
 from ..trial.status import FrameReport, Reason, frame_messages
 from ..model.plausibility import warn_plausibility

@@ -61,7 +61,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..kinematics.analysis import window_spacing
+from ..kinematics.tracking import window_spacing
 from .newton import FrameSolution, solve_frame
 from .residual import FrameWorkspace
 

@@ -16,10 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kinematics.analysis import window_spacing
 from ..kinematics.determinate import solve_positions
 from ..kinematics.stages import marker_stage, velocity_stage_determinate, velocity_stage_tracking
-from ..kinematics.tracking import residual_rates
+from ..kinematics.tracking import residual_rates, window_spacing
 from ..model.framedata import FrameData
 
 
@@ -230,7 +229,7 @@ def window_measurements(trajectories, times):
     frame's result does not depend on where the window starts (one-sided rates at a
     window's first frame changed its α enough that DM's next frame took 67 evaluations
     and two restarts instead of 5). A one-frame window's neighbours are the trial's
-    samples one sample interval away (:func:`~openfdk.kinematics.analysis.window_spacing`)."""
+    samples one sample interval away (:func:`~openfdk.kinematics.tracking.window_spacing`)."""
     times = np.asarray(times, dtype=float)
     meas = {j: trajectories.evaluate(t) for j, t in enumerate(times)}
     dt = window_spacing(times, trajectories)

@@ -34,7 +34,7 @@ from ..trial.status import Reason, frame_messages
 from .determinate import FrameSolve, check_square, solve_positions, solve_velocities_accelerations
 from .stages import marker_stage, velocity_stage_tracking
 from .system import ConstraintSystem
-from .tracking import MarkerTracker, TrackingSettings, residual_rates
+from .tracking import MarkerTracker, TrackingSettings, residual_rates, window_spacing
 
 
 @dataclass(frozen=True)
@@ -217,21 +217,6 @@ class DeterminateStep:
         self.state, self.last_good = carry[0].copy(), carry[1].copy()
         rates = carry[2] if len(carry) > 2 else None
         self.rates = None if rates is None else (tuple(rates) + (None,))[:4]  # (a checkpoint without the jerk)
-
-
-def window_spacing(times, trajectories=None):
-    """The frame spacing (s) of a window ``times`` (nf,) s: its own, or for a one-frame
-    window (``--start`` = ``--end``) the trial's median sample interval
-    (``trajectories.time``), so that its residual rates (Eq. 7) are central differences
-    over the trial's neighbouring samples as at every other frame; None when neither
-    exists."""
-    times = np.asarray(times, dtype=float)
-    if len(times) > 1:
-        return float(times[1] - times[0])
-    t = getattr(trajectories, "time", None)
-    if t is None or len(t) < 2:
-        return None
-    return float(np.median(np.diff(np.asarray(t, dtype=float))))
 
 
 class TrackingStep:

@@ -397,6 +397,21 @@ def _restore(src, dst):
     dst.R_WB[...] = src.R_WB
 
 
+def window_spacing(times, trajectories=None):
+    """The frame spacing (s) of a window ``times`` (nf,) s: its own, or for a one-frame
+    window (``--start`` = ``--end``) the trial's median sample interval
+    (``trajectories.time``), so that its residual rates (Eq. 7) are central differences
+    over the trial's neighbouring samples as at every other frame; None when neither
+    exists."""
+    times = np.asarray(times, dtype=float)
+    if len(times) > 1:
+        return float(times[1] - times[0])
+    t = getattr(trajectories, "time", None)
+    if t is None or len(t) < 2:
+        return None
+    return float(np.median(np.diff(np.asarray(t, dtype=float))))
+
+
 def residual_rates(prev, cur, nxt, dt):
     """δ̇ and δ̈ (nm, 3) of one frame from the residuals δ (nm, 3) m of the frame and its
     neighbours (Eq. 7 and its second-order analogue): central where all three are known,
