@@ -137,30 +137,30 @@ NEAR_SCAN_STEP = 0.1
 NEAR_SCAN_RANGE = 100.0
 
 
-def scan_starts(previous, max_step):
-    """Restart points (list of (n_fdk,) α) around the previous frame's α: each DOF in
-    turn moved by ±m·max_step for m in :data:`SCAN_STEPS`, nearest first (module
-    docstring). ``previous`` (n_fdk,) SI, ``max_step`` (n_fdk,) SI."""
+def axis_starts(centre, max_step, multiples):
+    """Restart points (list of (n_fdk,) α): ``centre`` (n_fdk,) SI with each DOF in turn
+    moved by −m·max_step and +m·max_step, for each m in ``multiples`` in order (nearest
+    first); ``max_step`` (n_fdk,) SI."""
     starts = []
-    for m in SCAN_STEPS:
+    for m in multiples:
         for i, step in enumerate(np.asarray(max_step, dtype=float)):
             for sign in (-1.0, 1.0):
-                a = np.array(previous, dtype=float)
+                a = np.array(centre, dtype=float)
                 a[i] += sign * m * step
                 starts.append(a)
     return starts
 
 
+def scan_starts(previous, max_step):
+    """Restart points around the previous frame's α (n_fdk,) SI: each DOF moved by
+    ±m·max_step for m in :data:`SCAN_STEPS` (:func:`axis_starts`; module docstring)."""
+    return axis_starts(previous, max_step, SCAN_STEPS)
+
+
 def near_starts(best, max_step):
-    """Restart points (list of (n_fdk,) α) around a stalled best iterate ``best`` (n_fdk,)
-    SI: each DOF in turn moved by ∓:data:`NEAR_SCAN_STEP` · max_step (n_fdk,) SI."""
-    starts = []
-    for i, step in enumerate(np.asarray(max_step, dtype=float)):
-        for sign in (-1.0, 1.0):
-            a = np.array(best, dtype=float)
-            a[i] += sign * NEAR_SCAN_STEP * step
-            starts.append(a)
-    return starts
+    """Restart points around a stalled best iterate (n_fdk,) SI: each DOF moved by
+    ±:data:`NEAR_SCAN_STEP` · max_step (:func:`axis_starts`; module docstring)."""
+    return axis_starts(best, max_step, (NEAR_SCAN_STEP,))
 
 
 class FDKStep:

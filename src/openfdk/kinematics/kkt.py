@@ -20,48 +20,6 @@ __all__ = ["kkt_assemble", "kkt_rhs", "kkt_step", "kkt_chord_step"]
 
 
 @njit(cache=True)
-def kkt_assemble(J, w, p, x, A, Phi, K, rhs):
-    """Assemble K (n + m, n + m) and the right-hand side rhs (n + m,) = [−Ψ_q̂ᵀ W (p − x); −Φ]
-    in place (arguments as :func:`kkt_step`). Returns max |Φ| (0 when empty)."""
-    n = J.shape[1]
-    m = A.shape[0]
-    rows = J.shape[0]
-    for i in range(n + m):
-        rhs[i] = 0.0
-    # Ψ_q̂ᵀ W Ψ_q̂ and the gradient row by row (J is row-major): a marker row has nonzeros
-    # in its body's 6 columns only, so zero entries are skipped
-    for i in range(n):
-        for j in range(n):
-            K[i, j] = 0.0
-    for k in range(rows):
-        wk = w[k]
-        if wk == 0.0:
-            continue
-        rk = wk * (p[k] - x[k])
-        for i in range(n):
-            a = J[k, i]
-            if a == 0.0:
-                continue
-            rhs[i] -= a * rk
-            a *= wk
-            for j in range(i, n):
-                K[i, j] += a * J[k, j]
-    for i in range(n):
-        for j in range(i + 1, n):
-            K[j, i] = K[i, j]
-    res = 0.0
-    for a in range(m):
-        for j in range(n):
-            K[n + a, j] = A[a, j]
-            K[j, n + a] = A[a, j]
-        for b in range(m):
-            K[n + a, n + b] = 0.0
-        rhs[n + a] = -Phi[a]
-        res = max(res, abs(Phi[a]))
-    return res
-
-
-@njit(cache=True)
 def kkt_rhs(J, w, p, x, A, Phi, rhs):
     """The right-hand side rhs (n + m,) = [−Ψ_q̂ᵀ W (p − x); −Φ] of :func:`kkt_assemble`
     in place, without K (a chord step needs only this). Returns max |Φ| (0 when empty)."""
@@ -82,6 +40,41 @@ def kkt_rhs(J, w, p, x, A, Phi, rhs):
     for a in range(m):
         rhs[n + a] = -Phi[a]
         res = max(res, abs(Phi[a]))
+    return res
+
+
+@njit(cache=True)
+def kkt_assemble(J, w, p, x, A, Phi, K, rhs):
+    """Assemble K (n + m, n + m) and the right-hand side rhs (n + m,) = [−Ψ_q̂ᵀ W (p − x); −Φ]
+    in place (arguments as :func:`kkt_step`). Returns max |Φ| (0 when empty)."""
+    n = J.shape[1]
+    m = A.shape[0]
+    res = kkt_rhs(J, w, p, x, A, Phi, rhs)
+    # Ψ_q̂ᵀ W Ψ_q̂ row by row (J is row-major): a marker row has nonzeros in its body's 6
+    # columns only, so zero entries are skipped
+    for i in range(n):
+        for j in range(n):
+            K[i, j] = 0.0
+    for k in range(J.shape[0]):
+        wk = w[k]
+        if wk == 0.0:
+            continue
+        for i in range(n):
+            a = J[k, i]
+            if a == 0.0:
+                continue
+            a *= wk
+            for j in range(i, n):
+                K[i, j] += a * J[k, j]
+    for i in range(n):
+        for j in range(i + 1, n):
+            K[j, i] = K[i, j]
+    for a in range(m):
+        for j in range(n):
+            K[n + a, j] = A[a, j]
+            K[j, n + a] = A[a, j]
+        for b in range(m):
+            K[n + a, n + b] = 0.0
     return res
 
 

@@ -11,6 +11,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from openfdk.numerics.triangular import upper_solve, upper_transpose_solve
+
 __all__ = ["cholesky_in_place", "cholesky_solve", "power", "weighted_gram"]
 
 
@@ -68,19 +70,12 @@ def cholesky_solve(L, rhs, out):
 
     L : (r, r) (lower triangle used), rhs : (r,), out : (r,) output.
     """
-    r = L.shape[0]
-    # forward substitution L y = rhs
-    for i in range(r):
-        acc = rhs[i]
-        for k in range(i):
-            acc -= L[i, k] * out[k]
-        out[i] = acc / L[i, i]
-    # back substitution Lᵀ out = y
-    for i in range(r - 1, -1, -1):
-        acc = out[i]
-        for k in range(i + 1, r):
-            acc -= L[k, i] * out[k]
-        out[i] = acc / L[i, i]
+    # L y = rhs and Lᵀ out = y: the triangular solves with U = Lᵀ (numerics/triangular.py)
+    U = L.T
+    for i in range(L.shape[0]):
+        out[i] = rhs[i]
+    upper_transpose_solve(U, out)
+    upper_solve(U, out)
 
 
 @njit(cache=True, error_model="numpy")
