@@ -24,6 +24,7 @@ class ClosedFormResidual:
         self.f = f
         self.model = SimpleNamespace(fdk_dofs=[SimpleNamespace(name=n) for n in names])
         self.tracker = None
+        self.solver = SimpleNamespace(forces=SimpleNamespace(by_kind={}))  # no force sets: no contacts
         self.alphas = []
 
     @property

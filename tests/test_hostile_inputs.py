@@ -559,6 +559,7 @@ def test_the_checkpoint_decoder_accepts_only_known_type_tags(node, message):
 def test_the_checkpoint_format_round_trips_what_a_checkpoint_holds():
     import numpy as np
 
+    from openfdk.fdk.contact_step import ContactSplit
     from openfdk.model.state import BodyStates
     from openfdk.recruitment.result import RecruitmentResult
     from openfdk.trial.checkpoint_format import decode, encode
@@ -567,9 +568,11 @@ def test_the_checkpoint_format_round_trips_what_a_checkpoint_holds():
     state = BodyStates(np.zeros((2, 3)), [[1, 0, 0, 0]] * 2, [-1, 0])
     q = np.arange(3.0)
     rr = RecruitmentResult(np.ones(2), True, "optimal", "", 3, 0.5, np.zeros(1), np.zeros(2, bool), np.zeros(2, bool))
+    # the FDK step's carried Jacobian with the contacts split off (fdk/contact_step.py)
+    split = ContactSplit(np.ones((6, 2)), np.zeros((2, 6)), np.arange(6), np.array([[0, -1]]), np.eye(2), None)
     payload = {"records": [(0, {"a": np.float64(1.5), "b": 2, "c": float("nan"), "r": NOT_RUN, "s": "x",
                                 "f": FrameReport.failed(Reason.SINGULAR, "m", 2, 0.1)})],
-               "carry": (state, q, {3: {"q": q}}, None, True, [rr])}
+               "carry": (state, q, {3: {"q": q}}, None, True, [rr]), "split": split}
     back = decode(encode(payload))
     rec = back["records"][0]
     assert isinstance(rec, tuple) and type(rec[1]["a"]) is np.float64 and rec[1]["a"] == 1.5
@@ -578,3 +581,7 @@ def test_the_checkpoint_format_round_trips_what_a_checkpoint_holds():
     assert isinstance(st, BodyStates) and np.array_equal(st.R_WB, state.R_WB) and list(st.moving) == [1]
     assert pending[3]["q"] is q2 and np.array_equal(q2, q) and none is None and flag is True
     assert isinstance(rr2, RecruitmentResult) and np.array_equal(rr2.f, rr.f) and rr2.criterion == "polynomial"
+    split2 = back["split"]
+    assert isinstance(split2, ContactSplit) and split2.J_whole is None
+    for name in ("U", "R", "cols", "blocks", "J_s"):
+        assert np.array_equal(getattr(split2, name), getattr(split, name))

@@ -568,6 +568,31 @@ def test_sensitivity_batch_equals_single_directions():
     np.testing.assert_allclose(batch[0], split, rtol=1e-9, atol=1e-9 * np.abs(split).max())
 
 
+@pytest.mark.parametrize("p", [2.0, 3.0])
+def test_sensitivity_to_d_alone_matches_central_differences_in_d(p):
+    """dC = None: a change of the applied loads alone (the FDK step with the contacts
+    exact, fdk/contact_step.py); checked against central differences of the solution in d
+    and against the same directions with an explicit zero dC."""
+    rng = np.random.default_rng(23)
+    for _ in range(4):
+        C, d, n_bounded, s = random_body_problem(rng, load=rng.uniform(0.1, 0.8))
+        result = solve_polynomial(C, d, n_bounded, s, p=p, tol=1e-14)
+        dd = 0.1 * np.max(np.abs(d)) * rng.normal(size=(3, d.size))
+        df = recruitment_sensitivity(result, C, d, s, p, None, dd)
+        assert df.shape == (3, C.shape[1])
+        for k in range(3):
+            fd = _central_difference(C, d, n_bounded, s, p, np.zeros_like(C), dd[k], eps=1e-6)
+            assert np.max(np.abs(df[k])) > 1e-3 * np.max(np.abs(result.f))  # not trivially zero
+            assert np.max(np.abs(df[k] - fd)) <= 1e-5 * np.max(np.abs(df[k]))
+            zero_dC = recruitment_sensitivity(result, C, d, s, p, np.zeros_like(C), dd[k])
+            assert np.max(np.abs(df[k] - zero_dC)) <= 1e-9 * np.max(np.abs(df[k]))
+        single = recruitment_sensitivity(result, C, d, s, p, None, dd[0])
+        assert single.shape == (C.shape[1],)
+        assert np.max(np.abs(single - df[0])) <= 1e-9 * np.max(np.abs(df[0]))
+    with pytest.raises(RecruitmentInputError, match="dd must have shape"):
+        recruitment_sensitivity(result, C, d, s, p, None, np.zeros(d.size + 1))
+
+
 def test_sensitivity_rejects_minmax_and_failed_results():
     C = np.array([[1.0, 1.0]])
     s = np.array([10.0, 20.0])

@@ -32,6 +32,16 @@ frames 2 → 0; the warm frames after them are unchanged. Only a fresh J's step 
 search. With ``reuse_jacobian: false`` every iteration
 computes J, as in the paper.
 
+The step with the contacts exact (setting ``contact_step``, default on;
+:mod:`.contact_step`): with the analytic Jacobian and grid-mode contacts, J is split into
+the contacts' part −R K_c U and the rest J_s, and the step solves g(Δα) = f + J_s Δα −
+R [Q_c(q̂ ⊕ U Δα) − Q_c(q̂)] = 0 by Newton's method on the contacts alone where that
+step lies within the trust region (else the linear model's dogleg step). Broyden's update
+then corrects J_s by what g missed. Between frames J_s is carried, U and R are taken
+again at the warm start, unless the step they give leaves the max_step box: then the
+whole J carried on as without the split. DM bench window past its lead-in: 4.47 → 3.53
+residual evaluations and 1.80 → 0.67 Jacobians per frame, 71 → 56 ms.
+
 A frame that does not converge keeps its best iterate and says why: line search failed,
 iteration limit, recruitment failed (infeasible, or not converged although a feasible
 force set exists), kinematics failed, or a singular Jacobian (no restoring force along a
@@ -63,7 +73,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..kinematics.frame_kernels import small_solve
-from .jacobian import analytic_jacobian, central_jacobian
+from .contact_step import INNER_REACH, INNER_RELATIVE, INNER_SOLVED, ContactSplit
+from .jacobian import analytic_jacobian, central_jacobian, refreshed_split
 from .trust_region import MAX_SHRINK, NEAR_ROOT, SHRINK, dogleg_step, reduction_ratio, trust_radius
 
 GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
@@ -104,19 +115,38 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=Fal
     names = [d.name for d in ctx.model.fdk_dofs]
     max_step = np.asarray(settings.max_step, dtype=float)
     reuse = settings.reuse_jacobian
-    J = np.array(jacobian, dtype=float) if (reuse and jacobian is not None) else None
+    # the model of the step: linear in J, or with the contacts exact (split, fdk/contact_step.py)
+    J, split = None, None
+    if reuse and isinstance(jacobian, ContactSplit):
+        split = jacobian.copy()
+        J = split.J_s
+    elif reuse and jacobian is not None:
+        J = np.array(jacobian, dtype=float)
+    contacts = ctx.solver.forces.by_kind.get("contacts") if settings.contact_step else None
+    base = None  # (evaluation, split, the contacts' Q_c and K_c U there)
     fresh, n_jac = False, 0
     ev = ctx.evaluate(k, alpha0, ws, warm)
     evaluations = 1
 
     def done(sol_ev, converged, it, message, reason, workspace):
-        return FrameSolution(sol_ev, converged, it, evaluations, message, reason, workspace,
-                             J if reuse else None, n_jac)
+        carried = (split if split is not None and J is not None else J) if reuse else None
+        return FrameSolution(sol_ev, converged, it, evaluations, message, reason, workspace, carried, n_jac)
 
     if not ev.ok:
         return done(ev, False, 0, ev.message, ev.stage or "failed", ws)
+    if split is not None and ev.norm >= settings.tolerance:
+        # a carried split: its J_s still serves, its U and R are taken again here
+        # (fdk/contact_step.py), where the Newton step they give stays within the trust
+        # region; else (a contact the carried J_s was split at has come apart or closed)
+        # the whole J carried on from the last frame, as without the split
+        J, (split, base) = split.J_whole, _refreshed(ctx, ev, split, contacts, max_step)
+        if split is not None:
+            J = split.J_s
+            if ctx.tracker is not None:
+                ws.alpha, ws.dq_dalpha = ev.alpha.copy(), ev.dq_dalpha  # poses predicted from here on
     best, best_ws = ev, ws.copy()
     radius, rejected = 1.0, 0  # the trust region (multiples of max_step) and the steps it refused
+    linear_only = False  # this iterate refused the contacts-exact step: the linear model's
     for it in range(1, settings.max_iterations + 1):
         if ev.norm < settings.tolerance:
             return done(ev, True, it - 1, "", "converged", ws)
@@ -129,37 +159,73 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=Fal
             fresh = True
             if J is None:
                 return done(best, False, it, msg, "jacobian", best_ws)
+            split = ev.contact_split if contacts is not None else None
+            if split is not None:
+                split.J_s = None  # split at this pose below
+        if split is not None:
+            # the contacts at this pose: J = J_s − R K_c U (fdk/contact_step.py)
+            if base is None or base[0] is not ev or base[1] is not split:
+                base = (ev, split, *split.terms(contacts, ev.state))
+            _, _, Q_c, KU = base
+            if split.J_s is None:
+                split.split(J, KU)
+            J = split.jacobian_at(KU)
         try:
             step_N = small_solve(J, -ev.f_fdk)  # the Newton step
             if not np.all(np.isfinite(step_N)):
                 raise np.linalg.LinAlgError
         except np.linalg.LinAlgError:
             if not fresh:  # a carried J went singular: compute one here
-                J = None
+                J = split = None
                 continue
             weak = [names[i] for i in np.flatnonzero(np.max(np.abs(J), axis=0) < 1e-9 * max(1.0, np.abs(J).max()))]
             return done(best, False, it, f"singular FDK Jacobian: no restoring force along {weak or names}",
                         "singular", best_ws)
-        step = dogleg_step(J, ev.f_fdk, step_N, radius * max_step)
+        inner = None
+        if split is not None and not linear_only and np.max(np.abs(step_N / max_step)) <= INNER_REACH * radius:
+            # the step with the contacts exact (fdk/contact_step.py), where it lies within
+            # the trust region and g was solved; else the dogleg on the linear model (not
+            # tried where the linear model's step is far outside the region)
+            d, g = split.solve(contacts, ev.f_fdk, ev.state, Q_c, step_N,
+                               max(0.1 * settings.tolerance, INNER_RELATIVE * ev.norm))
+            if np.max(np.abs(g)) < INNER_SOLVED * ev.norm and np.max(np.abs(d / max_step)) <= radius:
+                inner = (d, g)
+        step = inner[0] if inner is not None else dogleg_step(J, ev.f_fdk, step_N, radius * max_step)
+
+        def predicted(step):
+            """The model's f^FDK after ``step``: g (contacts exact) or f + J Δα."""
+            if split is None:
+                return ev.f_fdk + J @ step
+            if inner is not None and step is inner[0]:
+                return inner[1]
+            return split.model(contacts, ev.f_fdk, ev.state, Q_c, step)[0]
+
         trial_ws = ws.copy()
         trial = ctx.evaluate(k, ev.alpha + step, trial_ws, ev.frame.recruitment)
         evaluations += 1
         reach = float(np.max(np.abs(step / max_step)))  # the step's length in max_steps
         if _norm2(trial) < _norm2(ev):
-            radius, rejected = trust_radius(radius, reach, reduction_ratio(J, ev.f_fdk, step, trial.f_fdk)), 0
+            f_model = predicted(step)
+            radius, rejected = trust_radius(radius, reach, reduction_ratio(J, ev.f_fdk, step, trial.f_fdk,
+                                                                           f_model)), 0
             reduced = _norm2(trial) * CARRIED_J_REDUCTION <= _norm2(ev)
             if reuse:
-                J = _broyden(J, trial.alpha - ev.alpha, trial.f_fdk - ev.f_fdk)
+                if split is not None:
+                    split.J_whole = _broyden(J, step, trial.f_fdk - ev.f_fdk)
+                J = _corrected(J, split, step, trial.f_fdk - ev.f_fdk, trial.f_fdk - f_model)
                 slow = trial.norm * trial.norm / ev.norm > settings.tolerance
                 if (not fresh and not reduced) or (slow and (not cold or trial.norm < NEAR_ROOT * settings.tolerance)):
                     # the carried J is too far off, or this step's rate carried on would not
                     # reach the tolerance in one more step (a cold frame: near the root
                     # only): a fresh J next iteration
-                    J = None
+                    J = split = None
             ev, ws = trial, trial_ws
-            fresh = False
+            fresh, linear_only = False, False
         elif not fresh:
-            J = None  # retry this iterate with a fresh J
+            J = split = None  # retry this iterate with a fresh J
+            continue
+        elif inner is not None:
+            linear_only = True  # the contacts-exact model failed here: the linear one's step
             continue
         elif settings.line_search and rejected < MAX_SHRINK and ev.norm > NEAR_ROOT * settings.tolerance:
             # the linear model is not trusted this far: a shorter dogleg step, the same J
@@ -176,9 +242,12 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=Fal
                                              f"reduced max |f^FDK| = {best.norm:.4g} (iteration {it})",
                             "line_search", best_ws)
             if reuse:
-                J = _broyden(J, trial.alpha - ev.alpha, trial.f_fdk - ev.f_fdk)
+                beta_step = trial.alpha - ev.alpha
+                if split is not None:
+                    split.J_whole = _broyden(J, beta_step, trial.f_fdk - ev.f_fdk)
+                J = _corrected(J, split, beta_step, trial.f_fdk - ev.f_fdk, trial.f_fdk - predicted(beta_step))
             ev, ws = trial, trial_ws
-            fresh = False
+            fresh, linear_only = False, False
         else:
             return done(best, False, it, f"the Newton step did not reduce max |f^FDK| = {best.norm:.4g} "
                                          f"(no line search)", "line_search", best_ws)
@@ -270,6 +339,32 @@ def _broyden(J, s, y):
     if ss <= 0.0 or not np.all(np.isfinite(y)):
         return J
     return J + np.outer(y - J @ s, s) / ss
+
+
+def _refreshed(ctx, ev, split, contacts, max_step):
+    """(The carried ``split`` with U and R taken at ``ev`` (:func:`~.jacobian.refreshed_split`),
+    (ev, split, Q_c, K_c U) there) when its Newton step −J⁻¹ f, J = J_s − R K_c U at ev's pose,
+    lies within the max_step box, else (None, None)."""
+    split = refreshed_split(ctx, ev, split)
+    if split is None:
+        return None, None
+    base = (ev, split, *split.terms(contacts, ev.state))
+    try:
+        step = small_solve(split.jacobian_at(base[3]), -ev.f_fdk)
+    except np.linalg.LinAlgError:
+        return None, None
+    return (split, base) if np.all(np.isfinite(step)) and np.max(np.abs(step / max_step)) <= 1.0 else (None, None)
+
+
+def _corrected(J, split, s, y, miss):
+    """Broyden's update after a step s (n,) that changed f^FDK by y (n,) and whose f^FDK
+    the model missed by ``miss`` (n,): of J (the linear model, :func:`_broyden`) or, with a
+    contact split, of its J_s (the contacts stay exact). Returns the J to carry: J, or the
+    split's J_s."""
+    if split is None:
+        return _broyden(J, s, y)
+    split.J_s = _broyden(split.J_s, s, miss + split.J_s @ s)
+    return split.J_s
 
 
 def _golden_section(ctx, k, ev, ws, step, max_evaluations):

@@ -46,6 +46,7 @@ class Evaluation:
     time: float = 0.0
     data: FrameData = None
     dq_dalpha: np.ndarray = None  # (n, n_fdk) dq̂/dα, set by the analytic Jacobian
+    contact_split: object = None  # the contacts' part of the model (fdk.contact_step), likewise
 
     @property
     def norm(self):

@@ -16,6 +16,8 @@ fdk:
   restart: true            # a frame that fails from its warm start is solved again from the
                            # previous frame's α, then from the DOFs' initial values, then
                            # from the previous α moved by ±2, ±4 max_steps along one DOF
+  contact_step: true       # Newton's step with the grid-mode contacts exact and the rest
+                           # linear (fdk/contact_step.py); false: the linear model's step
 fdk_dofs:
   tmj_r_normal: {measure: ..., max_step: 0.5, perturbation: 1.0e-3}   # file units
 ```
@@ -48,7 +50,8 @@ class FDKSettings:
     reuse_jacobian (Broyden-updated J carried between
     iterations and frames, fdk/newton.py); extrapolate; restart (solve a failed frame
     again from the previous frame's α and from the DOFs' initial values,
-    :func:`openfdk.fdk.newton.solve_frame_from`); max_step, perturbation : (n_fdk,) SI,
+    :func:`openfdk.fdk.newton.solve_frame_from`); contact_step (Newton's step with the
+    contacts exact, :mod:`openfdk.fdk.contact_step`); max_step, perturbation : (n_fdk,) SI,
     empty for the DOFs' own values and the defaults by unit (:func:`fdk_settings`).
 
     The model file's ``fdk`` section and ``AnalysisSettings.fdk``; exported as
@@ -67,6 +70,7 @@ class FDKSettings:
     max_step: tuple = ()
     perturbation: tuple = ()
     golden_section_evaluations: int = 8
+    contact_step: bool = True
 
     def __post_init__(self):
         if self.jacobian not in ("analytic", "central"):
@@ -97,7 +101,7 @@ def fdk_settings(model, settings=None, **overrides) -> FDKSettings:
 
 def load_fdk(b, data, ctx):
     ctx.keys(data, FDK, ["tolerance", "max_iterations", "cold_max_iterations", "jacobian", "line_search",
-                         "reuse_jacobian", "extrapolate", "restart"])
+                         "reuse_jacobian", "extrapolate", "restart", "contact_step"])
     out = {}
     if "tolerance" in data:
         out["tolerance"] = ctx.number(data["tolerance"], "fdk.tolerance", positive=True)
@@ -111,7 +115,7 @@ def load_fdk(b, data, ctx):
         if data["jacobian"] not in ("analytic", "central"):
             raise ctx.error("fdk.jacobian", f"expected 'analytic' or 'central', got {data['jacobian']!r}")
         out["jacobian"] = data["jacobian"]
-    for key in ("line_search", "reuse_jacobian", "extrapolate", "restart"):
+    for key in ("line_search", "reuse_jacobian", "extrapolate", "restart", "contact_step"):
         if key in data:
             if not isinstance(data[key], bool):
                 raise ctx.error(f"fdk.{key}", f"expected true or false, got {data[key]!r}")

@@ -34,12 +34,15 @@ NEAR_ROOT = 10.0
 RADIUS_MIN = 1e-4
 
 
-def reduction_ratio(J, f, step, f_trial):
+def reduction_ratio(J, f, step, f_trial, f_model=None):
     """ρ = actual / predicted decrease of ‖f‖₂² for the step (n,) SI: (‖f‖² − ‖f_trial‖²)
-    / (‖f‖² − ‖f + J step‖²); J (n, n), f and f_trial (n,) N or N m. 0 when the model
-    predicts no decrease."""
+    / (‖f‖² − ‖f_model‖²), f_model the model's f after the step (default the linear
+    model's f + J step; the step with the contacts exact gives its own,
+    :mod:`.contact_step`); J (n, n), f, f_trial and f_model (n,) N or N m. 0 when the
+    model predicts no decrease."""
     f2 = float(f @ f)
-    predicted = f2 - float(np.sum((f + J @ step) ** 2))
+    f_model = f + J @ step if f_model is None else f_model
+    predicted = f2 - float(f_model @ f_model)
     if not predicted > 0.0:
         return 0.0
     return (f2 - float(f_trial @ f_trial)) / predicted

@@ -73,7 +73,8 @@ def recruitment_sensitivity(result: RecruitmentResult, C, d, s, p, dC, dd, ds=No
     ----------
     result : converged polynomial RecruitmentResult of (C, d, s, p).
     C : (n_eq, n_var); d : (n_eq,) N or N·m; s : (n_bounded,) N; p : float ≥ 2.
-    dC : (n_eq, n_var) or (k, n_eq, n_var) or a list of k such arrays — dC/dε.
+    dC : (n_eq, n_var) or (k, n_eq, n_var) or a list of k such arrays — dC/dε; None:
+        zero (a change of the applied loads alone, through d).
     dd : (n_eq,) or (k, n_eq) or a list — dd/dε (N or N·m per unit ε).
     ds : optional (n_bounded,) or (k, n_bounded) — ds/dε (N per unit ε).
 
@@ -112,8 +113,15 @@ def recruitment_sensitivity(result: RecruitmentResult, C, d, s, p, dC, dd, ds=No
     scale = np.max(np.abs(d), initial=0.0) + np.max(np.abs(C) @ np.abs(f), initial=0.0)
     if np.max(np.abs(C @ f - d), initial=0.0) > 1e-6 * max(scale, 1e-300):
         raise RecruitmentInputError("result does not satisfy C f = d for the C and d given")
-    dC, dd, batched = _as_directions(dC, dd, n_eq, n_var)
-    k = dC.shape[0]
+    if dC is None:  # a change of d alone (applied loads): no dC terms
+        dd = np.asarray(dd, dtype=np.float64)
+        batched = dd.ndim == 2
+        dd = dd if batched else dd[None]
+        if dd.ndim != 2 or dd.shape[1] != n_eq:
+            raise RecruitmentInputError(f"dd must have shape ({n_eq},) or (k, {n_eq}); got {dd.shape}")
+    else:
+        dC, dd, batched = _as_directions(dC, dd, n_eq, n_var)
+    k = dd.shape[0]
     ds = np.zeros((k, n_bounded)) if ds is None else np.asarray(ds, dtype=np.float64).reshape(k, n_bounded)
     upper = np.flatnonzero(result.active_upper[:n_bounded])
 
@@ -139,15 +147,16 @@ def recruitment_sensitivity(result: RecruitmentResult, C, d, s, p, dC, dd, ds=No
     kkt[n_eq:, :n_eq] = C_F.T
 
     # right-hand sides, one column per direction
-    dC_I = dC[:, :, interior]  # (k, n_eq, n_I)
-    dC_F = dC[:, :, free]
-    dCI_T_lam = np.einsum("kei,e->ki", dC_I, lam)  # dC_Iᵀ λ (k, n_I)
+    # dC_Iᵀ λ (k, n_I)
+    dCI_T_lam = np.zeros((k, interior.size)) if dC is None else np.einsum("kei,e->ki", dC[:, :, interior], lam)
     # strength change of interior forces: −∂∇G_I/∂s ds = p² f^(p−1)/s^(p+1) ds
     dCI_T_lam = dCI_T_lam + p * p * np.sign(f_I) * np.abs(f_I) ** (p - 1.0) / s[interior] ** (p + 1.0) * ds[:, interior]
     dd = dd - ds[:, upper] @ C[:, upper].T  # forces at their strength move with it
     rhs = np.zeros((n_eq + n_free, k))
-    rhs[:n_eq] = (dd - dC @ f - dCI_T_lam @ CI_Hinv.T).T
-    rhs[n_eq:] = -np.einsum("kef,e->fk", dC_F, lam)
+    rhs[:n_eq] = (dd - dCI_T_lam @ CI_Hinv.T).T
+    if dC is not None:
+        rhs[:n_eq] -= (dC @ f).T
+        rhs[n_eq:] = -np.einsum("kef,e->fk", dC[:, :, free], lam)
 
     # symmetric equilibration D K D (nearly free bounded forces — 20 kN unilateral
     # reactions with tiny f — give entries of H_I⁻¹ up to ~1e12), then one LU factorisation

@@ -48,6 +48,7 @@ def known_classes():
     if _CLASSES is None:
         from ..dynamics.results import InverseDynamicsResult
         from ..fdk.analysis import FDKResult
+        from ..fdk.contact_step import ContactSplit
         from ..fdk.settings import FDKSettings
         from ..kinematics.analysis import KinematicsResult
         from ..kinematics.determinate import FrameSolve
@@ -58,7 +59,7 @@ def known_classes():
         from .status import FrameReport, FrameStatus, Reason
 
         classes = (FrameStatus, Reason, FrameReport, FrameSolve, FrameData, RecruitmentResult, BodyStates,
-                   KinematicsResult, InverseDynamicsResult, FDKResult, FDKSettings, Segment, SegmentResult)
+                   KinematicsResult, InverseDynamicsResult, FDKResult, FDKSettings, ContactSplit, Segment, SegmentResult)
         _CLASSES = {c.__name__: c for c in classes}
     return _CLASSES
 
