@@ -597,13 +597,14 @@ loads:
 def test_with_and_without_the_contacts_exact_step_the_same_equilibria(knee):
     """The setting ``contact_step`` changes the path to the root, not the root: over six
     frames of flexion (0.3 → 0.4 rad, 0.02 rad per frame) both solves reach the vertex-sum
-    force balance written above at every frame to 1e-8 m (rad), the one with the contacts
-    exact in fewer residual evaluations and Jacobians (frames 1–5, tolerance 1e-9:
-    measured 19 and 6 against 21 and 8)."""
+    force balance written above at every frame to 1e-8 m (rad). (On this knee the tibia's
+    rotation bends f^FDK as much as the contacts do: the split measures that on its first
+    large step, g's miss 0.58 of the linear model's, and sleeps; 21 evaluations either
+    way.)"""
     folder, _, _ = knee
     times = np.arange(6) * 0.01
     rate = 2.0  # rad/s: 0.02 rad per frame
-    counts = {}
+    alphas = {}
     for exact in (True, False):
         overlay = _overlay(folder, f"""\
 fdk_dofs: [knee_add, knee_rot, knee_tx, {{knee_ty: 0.0005}}, knee_tz]
@@ -616,11 +617,11 @@ loads:
         model, settings = load_model_and_settings(overlay)
         res = run_fdk(model, None, times, settings)
         assert res.converged.all(), res.messages
-        start = np.r_[0, 0, 0, 5e-4, 0]
-        for k, t in enumerate(times):
-            flexion = FLEXION + rate * t
-            start = _solve(_vertex_contact, _solve(_closed_form_contact, start, flexion), flexion)
-            ours = dict(zip(res.dof_names, res.alpha[k]))
-            np.testing.assert_allclose([ours[name] for name in SECONDARY], start, rtol=0, atol=1e-8)
-        counts[exact] = (int(res.evaluations[1:].sum()), int(res.jacobians[1:].sum()))
-    assert counts[True][0] < counts[False][0] and counts[True][1] <= counts[False][1], counts
+        alphas[exact] = np.array([[dict(zip(res.dof_names, a))[name] for name in SECONDARY] for a in res.alpha])
+    start = np.r_[0, 0, 0, 5e-4, 0]
+    for k, t in enumerate(times):
+        flexion = FLEXION + rate * t
+        start = _solve(_vertex_contact, _solve(_closed_form_contact, start, flexion), flexion)
+        for exact in (True, False):
+            np.testing.assert_allclose(alphas[exact][k], start, rtol=0, atol=1e-8)
+    assert np.ptp(alphas[True][:, 1]) > 1e-4  # the frames differ (rotation: 0.27 mrad over the six)

@@ -54,6 +54,17 @@ INNER_SOLVED = 0.1
 #: g is solved only where the linear model's step is at most this many trust radii long
 #: (a cold frame's steps are cut by the region, and the contacts-exact step would be too)
 INNER_REACH = 2.0
+#: the split's gain is measured on steps where the linear model missed f^FDK by more than
+#: this many tolerances (near the root both models are good enough and the measure says nothing)
+GAIN_FLOOR = 100.0
+GAIN_RELATIVE = 0.01
+#: ... and where g and the linear model differ by more than this fraction of that miss
+GAIN_SIGNAL = 0.1
+#: where g missed f^FDK by more than this fraction of the linear model's miss, the contacts
+#: are not what bends f^FDK (the bench's own knee: its wrapped ligaments) and the split
+#: sleeps for SLEEP_FRAMES frames: the linear model's steps, no contact evaluations
+GAIN_LIMIT = 0.5
+SLEEP_FRAMES = 20
 #: g is solved to this fraction of max |f^FDK| at the step's start (the linear parts' own
 #: error over the step is about 1e-3 of it on DM), or to a tenth of the FDK tolerance
 INNER_RELATIVE = 1e-3
@@ -78,6 +89,27 @@ class ContactSplit:
     blocks: np.ndarray
     J_s: np.ndarray = None
     J_whole: np.ndarray = None
+    gain: float = float("nan")
+    sleep: int = 0
+
+    def pays(self, f0, f, f_linear, f_model, tolerance):
+        """Whether the step from g paid (None: no measure): after a step from f^FDK = f0 to
+        f (n_fdk,), g's miss |f − f_model| against the linear model's |f − f_linear|
+        (2-norms). Measured where the linear model missed by more than GAIN_FLOOR
+        tolerances and GAIN_RELATIVE of |f0| (a step near the root misses by J's own error,
+        which g shares), and the two models differ by more than GAIN_SIGNAL of that miss
+        (else the contacts did not bend the step). Where g missed by more than GAIN_LIMIT
+        of the linear model's miss, the split sleeps SLEEP_FRAMES frames (``sleep``);
+        ``gain`` is the last ratio."""
+        linear_miss = float(np.linalg.norm(f - f_linear))
+        if not (linear_miss > max(GAIN_FLOOR * tolerance, GAIN_RELATIVE * float(np.linalg.norm(f0)))
+                and float(np.linalg.norm(f_model - f_linear)) > GAIN_SIGNAL * linear_miss):
+            return None
+        self.gain = float(np.linalg.norm(f - f_model)) / linear_miss
+        if self.gain > GAIN_LIMIT:
+            self.sleep = SLEEP_FRAMES
+            return False
+        return True
 
     def copy(self):
         return replace(self, J_s=None if self.J_s is None else self.J_s.copy(),
@@ -189,5 +221,5 @@ def contact_split(ctx, ev, U, p):
     return ContactSplit(U, R, cols, blocks)
 
 
-__all__ = ["ContactSplit", "contact_split", "INNER_REACH", "INNER_ITERATIONS", "INNER_HALVINGS", "INNER_RELATIVE",
+__all__ = ["ContactSplit", "contact_split", "GAIN_FLOOR", "GAIN_RELATIVE", "GAIN_SIGNAL", "GAIN_LIMIT", "SLEEP_FRAMES", "INNER_REACH", "INNER_ITERATIONS", "INNER_HALVINGS", "INNER_RELATIVE",
            "INNER_SOLVED"]

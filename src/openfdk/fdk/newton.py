@@ -68,7 +68,7 @@ reason. A restart never changes a frame that converges from its warm start.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -115,11 +115,18 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=Fal
     names = [d.name for d in ctx.model.fdk_dofs]
     max_step = np.asarray(settings.max_step, dtype=float)
     reuse = settings.reuse_jacobian
-    # the model of the step: linear in J, or with the contacts exact (split, fdk/contact_step.py)
-    J, split = None, None
+    # the model of the step: linear in J, or with the contacts exact (split, fdk/contact_step.py);
+    # a split that did not pay sleeps (``asleep``: carried with the whole J, not used)
+    J, split, asleep = None, None, None
     if reuse and isinstance(jacobian, ContactSplit):
-        split = jacobian.copy()
-        J = split.J_s
+        carried = jacobian.copy()
+        if carried.sleep > 0:
+            carried.sleep -= 1
+            J, asleep = carried.J_whole, carried
+        elif carried.J_s is None:
+            J = carried.J_whole  # awake again: split at the next fresh J
+        else:
+            J, split = carried.J_s, carried
     elif reuse and jacobian is not None:
         J = np.array(jacobian, dtype=float)
     contacts = ctx.solver.forces.by_kind.get("contacts") if settings.contact_step else None
@@ -129,8 +136,13 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=Fal
     evaluations = 1
 
     def done(sol_ev, converged, it, message, reason, workspace):
-        carried = (split if split is not None and J is not None else J) if reuse else None
-        return FrameSolution(sol_ev, converged, it, evaluations, message, reason, workspace, carried, n_jac)
+        carried = J
+        if split is not None and J is not None:
+            carried = split
+        elif asleep is not None and J is not None:
+            carried, asleep.J_whole = asleep, J
+        return FrameSolution(sol_ev, converged, it, evaluations, message, reason, workspace,
+                             carried if reuse else None, n_jac)
 
     if not ev.ok:
         return done(ev, False, 0, ev.message, ev.stage or "failed", ws)
@@ -160,7 +172,9 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=Fal
             if J is None:
                 return done(best, False, it, msg, "jacobian", best_ws)
             split = ev.contact_split if contacts is not None else None
-            if split is not None:
+            if split is not None and asleep is not None:
+                split, asleep = None, replace(split, sleep=asleep.sleep)  # it sleeps on
+            elif split is not None:
                 split.J_s = None  # split at this pose below
         if split is not None:
             # the contacts at this pose: J = J_s − R K_c U (fdk/contact_step.py)
@@ -210,9 +224,12 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=Fal
                                                                            f_model)), 0
             reduced = _norm2(trial) * CARRIED_J_REDUCTION <= _norm2(ev)
             if reuse:
+                f_linear = ev.f_fdk + J @ step  # the linear model's f^FDK after the step
                 if split is not None:
                     split.J_whole = _broyden(J, step, trial.f_fdk - ev.f_fdk)
                 J = _corrected(J, split, step, trial.f_fdk - ev.f_fdk, trial.f_fdk - f_model)
+                if inner is not None and split.pays(ev.f_fdk, trial.f_fdk, f_linear, f_model, settings.tolerance) is False:
+                    J, split, asleep = split.J_whole, None, replace(split, J_s=None)  # the linear model from here on
                 slow = trial.norm * trial.norm / ev.norm > settings.tolerance
                 if (not fresh and not reduced) or (slow and (not cold or trial.norm < NEAR_ROOT * settings.tolerance)):
                     # the carried J is too far off, or this step's rate carried on would not
