@@ -55,7 +55,8 @@ INNER_SOLVED = 0.1
 #: (a cold frame's steps are cut by the region, and the contacts-exact step would be too)
 INNER_REACH = 2.0
 #: the split's gain is measured on steps where the linear model missed f^FDK by more than
-#: this many tolerances (near the root both models are good enough and the measure says nothing)
+#: this many tolerances and this fraction of |f| at the step's start (near the root both
+#: models miss by J's own error and the measure says nothing) ...
 GAIN_FLOOR = 100.0
 GAIN_RELATIVE = 0.01
 #: ... and where g and the linear model differ by more than this fraction of that miss
@@ -63,8 +64,8 @@ GAIN_SIGNAL = 0.1
 #: where g missed f^FDK by more than this fraction of the linear model's miss, the contacts
 #: are not what bends f^FDK (the bench's own knee: its wrapped ligaments) and the split
 #: sleeps for SLEEP_FRAMES frames: the linear model's steps, no contact evaluations
-GAIN_LIMIT = 0.5
-SLEEP_FRAMES = 20
+GAIN_LIMIT = 0.7
+SLEEP_FRAMES = 10
 #: g is solved to this fraction of max |f^FDK| at the step's start (the linear parts' own
 #: error over the step is about 1e-3 of it on DM), or to a tenth of the FDK tolerance
 INNER_RELATIVE = 1e-3
@@ -106,10 +107,10 @@ class ContactSplit:
                 and float(np.linalg.norm(f_model - f_linear)) > GAIN_SIGNAL * linear_miss):
             return None
         self.gain = float(np.linalg.norm(f - f_model)) / linear_miss
-        if self.gain > GAIN_LIMIT:
-            self.sleep = SLEEP_FRAMES
-            return False
-        return True
+        if self.gain <= GAIN_LIMIT:
+            return True
+        self.sleep = SLEEP_FRAMES
+        return False
 
     def copy(self):
         return replace(self, J_s=None if self.J_s is None else self.J_s.copy(),
@@ -221,5 +222,5 @@ def contact_split(ctx, ev, U, p):
     return ContactSplit(U, R, cols, blocks)
 
 
-__all__ = ["ContactSplit", "contact_split", "GAIN_FLOOR", "GAIN_RELATIVE", "GAIN_SIGNAL", "GAIN_LIMIT", "SLEEP_FRAMES", "INNER_REACH", "INNER_ITERATIONS", "INNER_HALVINGS", "INNER_RELATIVE",
-           "INNER_SOLVED"]
+__all__ = ["ContactSplit", "contact_split", "GAIN_FLOOR", "GAIN_RELATIVE", "GAIN_SIGNAL", "GAIN_LIMIT", "SLEEP_FRAMES",
+           "INNER_REACH", "INNER_ITERATIONS", "INNER_HALVINGS", "INNER_RELATIVE", "INNER_SOLVED"]

@@ -228,7 +228,8 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=Fal
                 if split is not None:
                     split.J_whole = _broyden(J, step, trial.f_fdk - ev.f_fdk)
                 J = _corrected(J, split, step, trial.f_fdk - ev.f_fdk, trial.f_fdk - f_model)
-                if inner is not None and split.pays(ev.f_fdk, trial.f_fdk, f_linear, f_model, settings.tolerance) is False:
+                if inner is not None and split.pays(ev.f_fdk, trial.f_fdk, f_linear, f_model,
+                                                    settings.tolerance) is False:
                     J, split, asleep = split.J_whole, None, replace(split, J_s=None)  # the linear model from here on
                 slow = trial.norm * trial.norm / ev.norm > settings.tolerance
                 if (not fresh and not reduced) or (slow and (not cold or trial.norm < NEAR_ROOT * settings.tolerance)):
