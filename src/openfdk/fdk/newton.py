@@ -118,8 +118,9 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=Fal
     # the model of the step: linear in J, or with the contacts exact (split, fdk/contact_step.py);
     # a split that did not pay sleeps (``asleep``: carried with the whole J, not used)
     J, split, asleep = None, None, None
+    carried_split = ContactSplit(None, None, None, None)  # (its gain: none measured yet)
     if reuse and isinstance(jacobian, ContactSplit):
-        carried = jacobian.copy()
+        carried = carried_split = jacobian.copy()
         if carried.sleep > 0:
             carried.sleep -= 1
             J, asleep = carried.J_whole, carried
@@ -171,11 +172,15 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=Fal
             fresh = True
             if J is None:
                 return done(best, False, it, msg, "jacobian", best_ws)
-            split = ev.contact_split if contacts is not None else None
-            if split is not None and asleep is not None:
-                split, asleep = None, replace(split, sleep=asleep.sleep)  # it sleeps on
-            elif split is not None:
-                split.J_s = None  # split at this pose below
+            new = ev.contact_split if contacts is not None else None
+            if new is not None:
+                new.gain = (split or asleep or carried_split).gain  # the gain measured so far goes on
+            if new is not None and asleep is not None:
+                split, asleep = None, replace(new, sleep=asleep.sleep)  # it sleeps on
+            else:
+                split = new
+                if split is not None:
+                    split.J_s = None  # split at this pose below
         if split is not None:
             # the contacts at this pose: J = J_s − R K_c U (fdk/contact_step.py)
             if base is None or base[0] is not ev or base[1] is not split:
