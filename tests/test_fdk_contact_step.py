@@ -5,7 +5,7 @@
 import numpy as np
 import pytest
 
-from openfdk.fdk.contact_step import (GAIN_FLOOR, GAIN_LIMIT, GAIN_RELATIVE, GAIN_SIGNAL, SLEEP_FRAMES,
+from openfdk.fdk.contact_step import (GAIN_FLOOR, GAIN_LIMIT, GAIN_RELATIVE, GAIN_SIGNAL, GAIN_WEIGHT, SLEEP_FRAMES,
                                       ContactSplit)
 
 TOL = 1e-3
@@ -48,3 +48,20 @@ def test_the_thresholds_of_the_cases_above():
     assert 0.001 < GAIN_RELATIVE * 0.3  # "near root"
     assert 1.0 < GAIN_SIGNAL * 14.0  # "no signal"
     assert 5e-5 < GAIN_FLOOR * TOL  # "floor"
+
+
+def test_one_step_that_does_not_pay_among_many_that_do_does_not_put_it_to_sleep():
+    """The gain is a running mean: DM's trials have single ratios of 0.5–2.2 among ratios
+    of 0.01–0.3; the bench's own knee has ratios of 0.6–1.2 throughout."""
+    f0, f_linear = np.array([150.0, 0.0]), np.zeros(2)
+    split = _split()
+    for ratio in (0.1, 0.05, 2.2, 0.1):  # g's miss over the linear model's miss of 10 N
+        assert split.pays(f0, np.array([10.0, 0.0]), f_linear, np.array([10.0 - 10.0 * ratio, 0.0]), TOL) is True
+    assert split.sleep == 0
+    mean = 0.1
+    for ratio in (0.05, 2.2, 0.1):
+        mean = (1 - GAIN_WEIGHT) * mean + GAIN_WEIGHT * ratio
+    assert split.gain == pytest.approx(mean, rel=1e-12)
+    knee = _split()
+    assert knee.pays(f0, np.array([10.0, 0.0]), f_linear, np.array([19.7, 0.0]), TOL) is False  # ratio 0.97
+    assert knee.sleep == SLEEP_FRAMES
