@@ -14,13 +14,14 @@ t = 0.10 s at 100 Hz, SYNTHETIC_FRAMES frames (``--quick``: SYNTHETIC_FRAMES_QUI
 
 Records (each with ``model``, ``frames``, ``converged_frames``, ``wall_time_s``, and
 ``first_frame_evaluations`` and ``later_evaluations_per_frame``: on DM the window's first
-frame, a cold start after its lead-in, is 158 of the 292 evaluations at stop 47):
+frame, a cold start after its lead-in, is 141 of the 247 evaluations at stop 48):
 
 * ``tka_knee_gait_fdk_fps``: frames per second of :func:`openfdk.fdk.analysis.run_fdk`
   over the window, one BLAS thread (measured in a child process), after loading the
   model (distance grids from the disk cache) and a warm-up run of two frames. Target ≥ 50.
 * ``tka_knee_gait_fdk_evaluations_per_frame``: mean residual evaluations per frame
-  (each a kinematic analysis and a recruitment solve; the analytic Jacobians are not
+  (each a kinematic analysis and a recruitment solve; the analytic Jacobians and the
+  contacts-exact step's contact evaluations, :mod:`openfdk.fdk.contact_step`, are not
   counted). Target ≤ 4.
 * ``tka_knee_gait_convergence_rate``: the fraction of the frames converged (max |f^FDK|
   < 1e-3 N, N m) at the default FDK settings. Target ≥ 0.995.
