@@ -33,6 +33,12 @@ evaluation of the contacts (about 1 ms on DM's two implant pairs) where a residu
 evaluation is a marker tracking, every path, the recruitment (about 10 ms). Broyden's
 update (fdk/newton.py) corrects J_s by what the model missed, f(α + Δα) − g(Δα), so the
 contacts are never linearised beyond one step.
+
+Where the contacts are not what bends f^FDK (the bench's own knee: its wrapped ligament
+strands), g misses about as much as the linear model does, and its contact evaluations
+are spent for nothing: :meth:`ContactSplit.pays` measures that on the large steps and
+puts the split to sleep for SLEEP_FRAMES frames (docs/fdk.md, "The step with the contacts
+exact").
 """
 
 from __future__ import annotations
@@ -227,5 +233,5 @@ def contact_split(ctx, ev, U, p):
     return ContactSplit(U, R, cols, blocks)
 
 
-__all__ = ["ContactSplit", "contact_split", "GAIN_FLOOR", "GAIN_RELATIVE", "GAIN_SIGNAL", "GAIN_LIMIT", "GAIN_WEIGHT", "SLEEP_FRAMES",
-           "INNER_REACH", "INNER_ITERATIONS", "INNER_HALVINGS", "INNER_RELATIVE", "INNER_SOLVED"]
+__all__ = ["ContactSplit", "contact_split", "GAIN_FLOOR", "GAIN_RELATIVE", "GAIN_SIGNAL", "GAIN_LIMIT", "GAIN_WEIGHT",
+           "SLEEP_FRAMES", "INNER_REACH", "INNER_ITERATIONS", "INNER_HALVINGS", "INNER_RELATIVE", "INNER_SOLVED"]
