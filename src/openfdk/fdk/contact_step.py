@@ -75,6 +75,7 @@ GAIN_LIMIT = 0.7
 #: of the ratios exceed 0.5, one at a time among ratios of 0.01–0.3; on the bench's own
 #: knee most are 0.6–1.2
 GAIN_WEIGHT = 0.25
+GAIN_PRIOR = 0.7
 SLEEP_FRAMES = 10
 #: g is solved to this fraction of max |f^FDK| at the step's start (the linear parts' own
 #: error over the step is about 1e-3 of it on DM), or to a tenth of the FDK tolerance
@@ -109,15 +110,16 @@ class ContactSplit:
         (2-norms), measured where the linear model missed by more than GAIN_FLOOR
         tolerances and GAIN_RELATIVE of |f0| (a step near the root misses by J's own error,
         which g shares) and the two models differ by more than GAIN_SIGNAL of that miss
-        (else the contacts did not bend the step). ``gain``: the ratios' running mean
-        (weight GAIN_WEIGHT for the newest; the first sets it). Where it exceeds
-        GAIN_LIMIT, the split sleeps SLEEP_FRAMES frames (``sleep``)."""
+        (else the contacts did not bend the step). ``gain``: the ratios' running mean, each
+        ratio capped at 1 (g worse than the linear model: no gain), the newest weighted
+        GAIN_WEIGHT, from GAIN_PRIOR when none was measured. Where it exceeds GAIN_LIMIT,
+        the split sleeps SLEEP_FRAMES frames (``sleep``)."""
         linear_miss = float(np.linalg.norm(f - f_linear))
         if not (linear_miss > max(GAIN_FLOOR * tolerance, GAIN_RELATIVE * float(np.linalg.norm(f0)))
                 and float(np.linalg.norm(f_model - f_linear)) > GAIN_SIGNAL * linear_miss):
             return None
-        ratio = float(np.linalg.norm(f - f_model)) / linear_miss
-        self.gain = ratio if np.isnan(self.gain) else (1.0 - GAIN_WEIGHT) * self.gain + GAIN_WEIGHT * ratio
+        ratio = min(float(np.linalg.norm(f - f_model)) / linear_miss, 1.0)  # worse than linear: no gain
+        self.gain = (1.0 - GAIN_WEIGHT) * (GAIN_PRIOR if np.isnan(self.gain) else self.gain) + GAIN_WEIGHT * ratio
         if self.gain <= GAIN_LIMIT:
             return True
         self.sleep = SLEEP_FRAMES
@@ -233,5 +235,5 @@ def contact_split(ctx, ev, U, p):
     return ContactSplit(U, R, cols, blocks)
 
 
-__all__ = ["ContactSplit", "contact_split", "GAIN_FLOOR", "GAIN_RELATIVE", "GAIN_SIGNAL", "GAIN_LIMIT", "GAIN_WEIGHT",
+__all__ = ["ContactSplit", "contact_split", "GAIN_FLOOR", "GAIN_RELATIVE", "GAIN_SIGNAL", "GAIN_LIMIT", "GAIN_WEIGHT", "GAIN_PRIOR",
            "SLEEP_FRAMES", "INNER_REACH", "INNER_ITERATIONS", "INNER_HALVINGS", "INNER_RELATIVE", "INNER_SOLVED"]

@@ -185,7 +185,7 @@ def refreshed_split(ctx, ev, split):
     fresh = contact_split(ctx, ev, ev.dq_dalpha, ctx.solver.settings.power)
     if fresh is None:
         return None
-    fresh.J_s = split.J_s
+    fresh.J_s, fresh.gain = split.J_s, split.gain
     return fresh
 
 

@@ -118,9 +118,10 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=Fal
     # the model of the step: linear in J, or with the contacts exact (split, fdk/contact_step.py);
     # a split that did not pay sleeps (``asleep``: carried with the whole J, not used)
     J, split, asleep = None, None, None
-    carried_split = ContactSplit(None, None, None, None)  # (its gain: none measured yet)
+    gain = float("nan")  # the split's running gain (ContactSplit.pays), kept across new splits
     if reuse and isinstance(jacobian, ContactSplit):
-        carried = carried_split = jacobian.copy()
+        carried = jacobian.copy()
+        gain = carried.gain
         if carried.sleep > 0:
             carried.sleep -= 1
             J, asleep = carried.J_whole, carried
@@ -174,7 +175,7 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=Fal
                 return done(best, False, it, msg, "jacobian", best_ws)
             new = ev.contact_split if contacts is not None else None
             if new is not None:
-                new.gain = (split or asleep or carried_split).gain  # the gain measured so far goes on
+                new.gain = gain  # the gain measured so far goes on
             if new is not None and asleep is not None:
                 split, asleep = None, replace(new, sleep=asleep.sleep)  # it sleeps on
             else:
@@ -233,9 +234,11 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=Fal
                 if split is not None:
                     split.J_whole = _broyden(J, step, trial.f_fdk - ev.f_fdk)
                 J = _corrected(J, split, step, trial.f_fdk - ev.f_fdk, trial.f_fdk - f_model)
-                if inner is not None and split.pays(ev.f_fdk, trial.f_fdk, f_linear, f_model,
-                                                    settings.tolerance) is False:
-                    J, split, asleep = split.J_whole, None, replace(split, J_s=None)  # the linear model from here on
+                if inner is not None:
+                    paid = split.pays(ev.f_fdk, trial.f_fdk, f_linear, f_model, settings.tolerance)
+                    gain = split.gain
+                    if paid is False:  # the linear model from here on
+                        J, split, asleep = split.J_whole, None, replace(split, J_s=None)
                 slow = trial.norm * trial.norm / ev.norm > settings.tolerance
                 if (not fresh and not reduced) or (slow and (not cold or trial.norm < NEAR_ROOT * settings.tolerance)):
                     # the carried J is too far off, or this step's rate carried on would not
