@@ -72,9 +72,11 @@ GAIN_SIGNAL = 0.1
 #: sleeps for SLEEP_FRAMES frames: the linear model's steps, no contact evaluations
 GAIN_LIMIT = 0.7
 #: ... as a running mean (the newest ratio's weight): measured on the six DM trials, 5–10 %
-#: of the ratios exceed 0.5, one at a time among ratios of 0.01–0.3; on the bench's own
-#: knee most are 0.6–1.2
+#: of the ratios exceed 0.5 (up to 5), one at a time among ratios of 0.01–0.3; on the
+#: bench's own knee most are 0.6–1.2
 GAIN_WEIGHT = 0.25
+#: ... and starting from this where nothing was measured yet (the first ratio above 0.7
+#: puts it to sleep: the bench's own knee's first ratios are 0.97)
 GAIN_PRIOR = 0.7
 SLEEP_FRAMES = 10
 #: g is solved to this fraction of max |f^FDK| at the step's start (the linear parts' own
