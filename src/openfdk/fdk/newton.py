@@ -97,7 +97,9 @@ class FrameSolution:
     message: str
     reason: str
     workspace: object = None
-    jacobian: object = None  # the last J (n_fdk, n_fdk), for reuse in the next frame
+    # the last J (n_fdk, n_fdk), or the ContactSplit carrying J_s (fdk/contact_step.py), for
+    # reuse in the next frame
+    jacobian: object = None
     jacobians: int = 0  # Jacobians computed in this frame
     restarts: int = 0  # further starts solved after the warm start failed (solve_frame_from)
 
@@ -108,8 +110,9 @@ def _norm2(ev):
 
 def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=False) -> FrameSolution:
     """Find α with f^FDK(α) = 0 at frame k, starting from alpha0 (n_fdk,) and the
-    warm-start poses ``ws`` (FrameWorkspace, updated). ``jacobian`` (n_fdk, n_fdk): a J
-    to start from (the previous frame's), used only with ``settings.reuse_jacobian``;
+    warm-start poses ``ws`` (FrameWorkspace, updated). ``jacobian`` (n_fdk, n_fdk), or a
+    ContactSplit: the previous frame's J to start from, used only with
+    ``settings.reuse_jacobian``;
     ``cold``: no converged frame just before this one (the rate rule of the module
     docstring only near the root)."""
     names = [d.name for d in ctx.model.fdk_dofs]
