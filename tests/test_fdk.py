@@ -491,3 +491,53 @@ def test_a_one_frame_window_has_the_trial_s_neighbours_and_equals_the_frame_in_a
     # zero residual rates of before left it 3e-3 of its size off)
     vdot_1, vdot_3 = led.kinematics.vdot[0], three.kinematics.vdot[1]
     assert np.abs(vdot_1 - vdot_3).max() < 1e-5 * np.abs(vdot_3).max()
+
+
+def test_the_neighbouring_frames_poses_stop_earlier_and_leave_the_residual_as_it_was(tmj_model, tmj_settings,
+                                                                                    monkeypatch):
+    """The position solves at t ± Δt stop at NEIGHBOUR_TOLERANCE times the tracking's step
+    tolerance (fdk/residual.py): their poses enter f^FDK only through the residual rates
+    of Eq. 7, an error e there moving δ̈ by e / Δt². With the tracker's tol_step 1e-13 m the
+    neighbours stop at 1e-10 m: their δ differ from the tight solves' by at most a few
+    times that, δ̈ by 1e-10 / 0.01² = 1e-6 m/s², which on the jaw (0.4 kg, 5 cm lever arms)
+    moves f^FDK by well under 1e-6 N. The frame itself is solved as tightly as before (its
+    pose moves the contacts' forces by their stiffness), and the neighbours take fewer
+    Gauss–Newton iterations."""
+    import openfdk.fdk.residual as residual
+    from openfdk.fdk.residual import FrameWorkspace
+
+    assert residual.NEIGHBOUR_TOLERANCE > 1.0
+    ctx, _, t = _tmj_context(tmj_model, tmj_settings)
+    state0 = tmj_model.initial_state()
+    ctx.tracker.initial_guess(state0, ctx.meas[5][0], ctx.meas[5][3])
+    alpha = np.array([-8.6e-4, -8.6e-4, -1e-5])
+    warm = ctx.evaluate(5, alpha, FrameWorkspace({j: state0 for j in ctx.frames_needed(5)}))
+    solve = ctx.tracker.solve_positions
+    out = {}
+    for factor in (residual.NEIGHBOUR_TOLERANCE, 1.0):
+        monkeypatch.setattr(residual, "NEIGHBOUR_TOLERANCE", factor)
+        calls = []
+
+        def counted(state, t_j, *a, **k):
+            res = solve(state, t_j, *a, **k)
+            calls.append((t_j, res[0].iterations, k.get("tol_step", a[4] if len(a) > 4 else None)))
+            return res
+
+        ctx.tracker.solve_positions = counted
+        try:
+            # from the warm poses moved a little (as a Newton step's evaluation starts)
+            ws = FrameWorkspace({j: warm.state.copy() for j in ctx.frames_needed(5)})
+            ev = ctx.evaluate(5, alpha + np.array([2e-6, -1e-6, 3e-6]), ws)
+        finally:
+            del ctx.tracker.solve_positions
+        assert ev.ok
+        centre = [c for c in calls if c[0] == t[5]]
+        others = [c for c in calls if c[0] != t[5]]
+        assert len(centre) == 1 and len(others) == 2
+        assert centre[0][2] is None  # the frame's own pose: the tracking's tolerance
+        out[factor] = (ev.f_fdk.copy(), sum(c[1] for c in others), [c[2] for c in others])
+    (f_loose, n_loose, tols), (f_tight, n_tight, tight_tols) = out.values()
+    assert tols == [pytest.approx(1e-10, rel=1e-12)] * 2 and tight_tols == [pytest.approx(1e-13, rel=1e-12)] * 2
+    assert n_loose < n_tight
+    assert np.abs(f_tight).max() > 1e-3  # (away from the root: the residual is not zero)
+    np.testing.assert_allclose(f_loose, f_tight, rtol=0, atol=1e-6)

@@ -70,7 +70,7 @@ def test_a_load_step_newton_cannot_follow_in_one_frame_converges_in_sub_steps():
     Through SUBSTEPS − 1 intermediate frames (2 mm apart, the last two extrapolated
     exactly on the linear ramp) it converges; every frame equals the closed form
     α* = (F − m g) / k, and frame 0.4 s counts the marched frames' evaluations. (Frame
-    0.5 s, extrapolated 8 mm past its root, is solved again from α of 0.4 s.)
+    0.5 s, extrapolated 8 mm past its root, is approached from 0.4 s likewise.)
     Without the approach the same frame fails."""
     model = _slider()
     times = np.arange(6) * DT
@@ -110,7 +110,8 @@ def test_the_marched_frames_are_solved_to_march_tolerance_and_the_frame_to_the_t
     assert res.converged.all()
     marched = [tol for n, tol in asked if n == SUBSTEPS - 1]
     trial = [tol for n, tol in asked if n == len(times)]
-    assert len(marched) == SUBSTEPS - 1 and set(marched) == {MARCH_TOLERANCE * 1e-3}
+    # (frames 0.4 and 0.5 s each fail from their warm starts and are approached)
+    assert len(marched) == 2 * (SUBSTEPS - 1) and set(marched) == {MARCH_TOLERANCE * 1e-3}
     assert len(trial) >= len(times) and set(trial) == {1e-3}
     alpha_star = (np.array([_Ramp().derivatives(t)[0][2] for t in times]) - M * G) / K
     np.testing.assert_allclose(res.alpha[:, 0], alpha_star, rtol=0, atol=1e-3 / K)
@@ -264,3 +265,40 @@ def test_a_frame_stalled_near_its_root_is_scanned_around_its_best_iterate(monkey
             # the frame reports the best of all: the upper near start's step, 1.9 mm short
             assert second["fdk.alpha"][0] == pytest.approx(stall + 1.1e-3, abs=1e-12)
             assert abs(second["fdk.f_fdk"][0]) == pytest.approx(1.9e-3 * K, rel=1e-9)
+
+
+def test_a_frame_whose_warm_start_fails_after_a_converged_frame_is_approached_before_any_other_start(monkeypatch):
+    """After a converged frame, a frame that fails from its warm start goes through the
+    sub-steps first, and the restarts from α_{k−1} and the initial values are tried only
+    if the sub-steps fail (a heel strike's load moves the root further than Newton
+    reaches from any of those starts; on DM's six gait trials 12 of 45 restarted frames
+    had converged only after the approach, at 129 evaluations each). The slider's
+    ramp: frames 0.4 s (root 8 mm up) and 0.5 s (extrapolated 8 mm past its root) fail
+    from their warm starts with 3 iterations; each is approached, converges there, and
+    is never restarted from another α; every α is the closed form (F − m g) / k."""
+    import openfdk.fdk.analysis as analysis
+    from openfdk.fdk.approach import Approach
+
+    model = _slider()
+    times = np.arange(6) * DT
+    alpha_star = (np.array([_Ramp().derivatives(t)[0][2] for t in times]) - M * G) / K
+    approached, restarted = [], []
+    call, restarts = Approach.__call__, analysis.solve_restarts
+
+    def approach(self, step, k):
+        approached.append(k)
+        return call(self, step, k)
+
+    def solve_restarts(ctx, k, *args, **kwargs):
+        restarted.append(k)
+        return restarts(ctx, k, *args, **kwargs)
+
+    monkeypatch.setattr(Approach, "__call__", approach)
+    monkeypatch.setattr(analysis, "solve_restarts", solve_restarts)
+    res = run_fdk(model, None, times, max_iterations=3)
+    assert res.converged.all(), res.messages
+    np.testing.assert_allclose(res.alpha[:, 0], alpha_star, rtol=0, atol=1e-3 / K)
+    k = int(np.flatnonzero(np.isclose(times, T_STEP + DT))[0])
+    assert approached == [0, k, k + 1]  # (frame 0: its lead-in, none here without markers)
+    assert restarted == []
+    assert list(res.restarts) == [0] * k + [1, 1]

@@ -211,7 +211,7 @@ class MarkerTracker:
             state.p_WB[i] = p
 
     # -- Eqs. 4-5 -----------------------------------------------------------------
-    def solve_positions(self, state, t, x_WM, visible, alpha=None, second_order=None):
+    def solve_positions(self, state, t, x_WM, visible, alpha=None, second_order=None, tol_step=None):
         """Gauss–Newton SQP from ``state`` (modified in place).
 
         x_WM : (n_markers, 3) m measured positions (NaN where not visible);
@@ -229,6 +229,10 @@ class MarkerTracker:
         per pose to 1e-9); with these terms from the last Jacobian it takes 3–4. If that
         solve fails, plain Gauss–Newton is tried from the same start.
 
+        tol_step : m, rad, the Gauss–Newton kernel's step tolerance instead of
+        ``settings.tol_step`` (a pose that enters only through differences, FDK's
+        neighbouring frames of Eq. 7, need not be known to the last digits).
+
         When the Gauss–Newton kernel fails from the warm start, the damped feasible-path
         solve of :mod:`openfdk.kinematics.assembly` takes over from the same pose (K then
         carries its final damping); the frame fails only when that fails too.
@@ -238,12 +242,12 @@ class MarkerTracker:
         if msg:
             return FrameSolve(False, 0, np.nan, msg, Reason.UNOBSERVABLE), None, None
         start = state.copy()
-        out = self._gauss_newton(state, t, x_WM, visible, alpha, second_order)
+        out = self._gauss_newton(state, t, x_WM, visible, alpha, second_order, tol_step)
         if out[0].converged:
             return out  # (the fit is checked where δ is formed: TrackingStep, FDK's residual)
         if second_order is not None:  # the nearby pose's curvature did not serve here
             _restore(start, state)
-            out = self._gauss_newton(state, t, x_WM, visible, alpha)
+            out = self._gauss_newton(state, t, x_WM, visible, alpha, tol_step=tol_step)
             if out[0].converged:
                 return out
         # far from the optimum, or a coordinate the markers barely see: the damped,
@@ -288,9 +292,10 @@ class MarkerTracker:
                 f"{1e3 * self.settings.max_rms_residual:.0f} mm (largest: {name!r}, {1e3 * np.sqrt(d2[worst]):.0f} mm); "
                 "check the marker units and placement")
 
-    def _gauss_newton(self, state, t, x_WM, visible, alpha, second_order=None):
+    def _gauss_newton(self, state, t, x_WM, visible, alpha, second_order=None, tol_step=None):
         """The Gauss–Newton kernel's solve (see :meth:`solve_positions`)."""
         s = self.settings
+        tol_step = s.tol_step if tol_step is None else tol_step
         w = self._weights(visible)
         x = np.where(visible[:, None], x_WM, 0.0).ravel()
         if self.tasks:
@@ -305,7 +310,7 @@ class MarkerTracker:
             status, it, res, step, e_node, e_kind = tracking_positions(
                 *prog.program, prog.n_node_rows, state.p_WB, state.quat_WB, state.R_WB, state.w_BB, state.v_WB,
                 state.column, state.moving, f, self.system.angle_rows, self.markers.body, self.markers.p_BM,
-                w, x, s.tol_step, s.tol_constraint, s.max_iter, K, lam,
+                w, x, tol_step, s.tol_constraint, s.max_iter, K, lam,
                 _NO_S if second_order is None else np.ascontiguousarray(second_order, dtype=float),
                 second_order is not None, *self._task_args)
         except np.linalg.LinAlgError as exc:
