@@ -593,6 +593,34 @@ def test_sensitivity_to_d_alone_matches_central_differences_in_d(p):
         recruitment_sensitivity(result, C, d, s, p, None, np.zeros(d.size + 1))
 
 
+def test_one_factorisation_serves_several_direction_sets_and_each_matches_central_differences():
+    """RecruitmentSensitivity factors the KKT system once; the FDK Jacobian's directions
+    (dC, dd, ds) and the contact split's (d alone) are then solved with it
+    (fdk/jacobian.py). Each set matches central differences of the solution, and equals
+    recruitment_sensitivity called on its own to the last bit (the same factors, the same
+    per-column solves)."""
+    from openfdk.recruitment import RecruitmentSensitivity
+
+    rng = np.random.default_rng(24)
+    C, d, n_bounded, s = random_body_problem(rng, load=0.5)
+    result = solve_polynomial(C, d, n_bounded, s, p=3.0, tol=1e-14)
+    sens = RecruitmentSensitivity(result, C, d, s, 3.0)
+    dC = 0.05 * rng.normal(size=(2, *C.shape))
+    dd = 0.1 * np.max(np.abs(d)) * rng.normal(size=(2, d.size))
+    loads = 0.1 * np.max(np.abs(d)) * rng.normal(size=(3, d.size))
+    geometric, applied = sens.along(dC, dd), sens.along(None, loads)
+    for k in range(2):
+        fd = _central_difference(C, d, n_bounded, s, 3.0, dC[k], dd[k], eps=1e-6)
+        assert np.max(np.abs(geometric[k])) > 1e-3 * np.max(np.abs(result.f))
+        assert np.max(np.abs(geometric[k] - fd)) <= 1e-5 * np.max(np.abs(geometric[k]))
+    for k in range(3):
+        fd = _central_difference(C, d, n_bounded, s, 3.0, np.zeros_like(C), loads[k], eps=1e-6)
+        assert np.max(np.abs(applied[k])) > 1e-3 * np.max(np.abs(result.f))
+        assert np.max(np.abs(applied[k] - fd)) <= 1e-5 * np.max(np.abs(applied[k]))
+    assert np.array_equal(geometric, recruitment_sensitivity(result, C, d, s, 3.0, dC, dd))
+    assert np.array_equal(applied, recruitment_sensitivity(result, C, d, s, 3.0, None, loads))
+
+
 def test_sensitivity_rejects_minmax_and_failed_results():
     C = np.array([[1.0, 1.0]])
     s = np.array([10.0, 20.0])

@@ -48,7 +48,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..kinematics.frame_kernels import small_solve
-from ..recruitment import recruitment_sensitivity
+from ..recruitment import RecruitmentSensitivity
 
 #: Newton iterations on g per FDK step at most
 INNER_ITERATIONS = 8
@@ -210,12 +210,14 @@ def _fraction_inside(x, d, box):
     return max(tau, 0.0)
 
 
-def contact_split(ctx, ev, U, p):
+def contact_split(ctx, ev, U, p, sensitivity=None):
     """The ContactSplit (without J_s) at an evaluation's pose, or None when the model has
     no contacts or their K is not exact (exact mode: the curvature of B is left out).
 
     ctx : FDKContext; ev : the Evaluation (its state's body columns, its FrameForces' C,
-    d, s and recruitment result); U (n, n_fdk) dq̂/dα; p : the recruitment's power."""
+    d, s and recruitment result); U (n, n_fdk) dq̂/dα; p : the recruitment's power;
+    sensitivity : the RecruitmentSensitivity of ev's recruitment if already factored (the
+    analytic Jacobian's), else factored here."""
     contacts = ctx.solver.forces.by_kind.get("contacts")
     if contacts is None or not contacts.exact_stiffness:
         return None
@@ -231,7 +233,9 @@ def contact_split(ctx, ev, U, p):
     if inside:
         dd = np.zeros((len(inside), len(rows)))
         dd[np.arange(len(inside)), [where[int(cols[j])] for j in inside]] = 1.0
-        df = recruitment_sensitivity(fr.recruitment, fr.C, fr.d, fr.s, p, None, dd)
+        if sensitivity is None:
+            sensitivity = RecruitmentSensitivity(fr.recruitment, fr.C, fr.d, fr.s, p)
+        df = sensitivity.along(None, dd)
         # ΔQ on a row enters d as −ΔQ (Eq. 13): ∂f^FDK/∂Q_c = −df/dd
         R[:, inside] = df[:, ctx.fdk_columns].T
     return ContactSplit(U, R, cols, blocks)

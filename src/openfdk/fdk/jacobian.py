@@ -34,7 +34,7 @@ import numpy as np
 
 from ..kinematics.frame_kernels import small_solve
 from ..numerics.numdiff import column_groups, manifold_jacobian
-from ..recruitment import recruitment_sensitivity
+from ..recruitment import RecruitmentSensitivity
 from .contact_step import contact_split
 from .residual import FrameWorkspace
 
@@ -227,9 +227,12 @@ def analytic_jacobian(ctx, k, ev):
         dd.append((dp - dm) / (2 * eps) - dQ[rows])
         ds.append((s_p - s_m) / (2 * eps))
     p = ctx.solver.settings.power
-    df = recruitment_sensitivity(fr.recruitment, fr.C, fr.d, fr.s, p, np.array(dC), np.array(dd), np.array(ds))
+    # the recruitment's KKT system at this solution, factored once for J's directions and
+    # the contact split's (fdk/contact_step.py)
+    sensitivity = RecruitmentSensitivity(fr.recruitment, fr.C, fr.d, fr.s, p)
+    df = sensitivity.along(np.array(dC), np.array(dd), np.array(ds))
     # the contacts' part of the model, for the step with the contacts exact (fdk/contact_step.py)
-    ev.contact_split = contact_split(ctx, ev, u_all, p)
+    ev.contact_split = contact_split(ctx, ev, u_all, p, sensitivity)
     return df[:, ctx.fdk_columns].T, 0, ""
 
 

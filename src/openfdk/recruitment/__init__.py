@@ -7,7 +7,8 @@ unbounded and not in the objective. See docs/recruitment.md.
 * :func:`solve_polynomial` — min Σ (f/s)^p, p ≥ 2 (numba interior point + dual Newton).
 * :func:`solve_quadratic_daqp` — p = 2 with the DAQP active-set QP solver.
 * :func:`solve_minmax` — min max f/s, an LP solved with HiGHS.
-* :func:`recruitment_sensitivity` — df for perturbations (dC, dd), for the FDK Jacobian.
+* :func:`recruitment_sensitivity` — df for perturbations (dC, dd), for the FDK Jacobian
+  (:class:`RecruitmentSensitivity`: its KKT system factored once for several direction sets).
 """
 
 from openfdk.recruitment.minmax import solve_minmax
@@ -18,7 +19,7 @@ from openfdk.recruitment.result import (
     RecruitmentInputError,
     RecruitmentResult,
 )
-from openfdk.recruitment.sensitivity import recruitment_sensitivity
+from openfdk.recruitment.sensitivity import RecruitmentSensitivity, recruitment_sensitivity
 
 __all__ = [
     "RecruitmentResult",
@@ -27,5 +28,6 @@ __all__ = [
     "solve_polynomial",
     "solve_quadratic_daqp",
     "solve_minmax",
+    "RecruitmentSensitivity",
     "recruitment_sensitivity",
 ]
