@@ -118,25 +118,26 @@ def test_the_marched_frames_are_solved_to_march_tolerance_and_the_frame_to_the_t
 
 
 def test_a_lead_in_after_which_the_first_frame_fails_is_tried_again_from_further_back(monkeypatch):
-    """The window's first frame fails after the 12-frame lead-in and converges after the
-    24-frame one (DM og3 from 3.47 s, late swing: 5 of 16 frames converged with the short
-    lead-in alone, 16 of 16 with the longer ones). The lengths are tried in order, the
-    failed attempt's counts are added to the frame's, and the successful march's frames
-    join the history as frames −24 … −1. With data only 20 frames back, the lead-in
-    stops at those 20 frames."""
+    """The window's first frame fails after the short lead-in (LEAD_IN_FRAMES) and
+    converges after the 24-frame one (DM og3 from 3.47 s, late swing: 5 of 16 frames
+    converged after a 12-frame lead-in alone, 16 of 16 with the longer ones). The lengths
+    are tried in order, the failed attempt's counts are added to the frame's, and the
+    successful march's frames join the history as frames −24 … −1. With data only 20
+    frames back, the lead-in stops at those 20 frames, and the last lead-in (whose
+    marched frames restart) has LAST_LEAD_IN_FRAMES."""
     from types import SimpleNamespace
 
-    from openfdk.fdk.approach import LEAD_IN_LENGTHS, Approach
+    from openfdk.fdk.approach import LAST_LEAD_IN_FRAMES, LEAD_IN_LENGTHS, Approach
     from openfdk.fdk.newton import FrameSolution
 
-    assert LEAD_IN_LENGTHS[:2] == (LEAD_IN_FRAMES, 2 * LEAD_IN_FRAMES)
+    assert LEAD_IN_LENGTHS == (LEAD_IN_FRAMES, 24, 48) and LEAD_IN_FRAMES < 20 < 24
     dt = 1 / 120
     window = 3.0 + dt * np.arange(5)
     tried = []
 
     def solve_after(self, step, k, times, previous, restart=False):
         tried.append(len(times))
-        ok = len(times) >= 2 * LEAD_IN_FRAMES
+        ok = len(times) >= 24
         sol = FrameSolution(None, ok, 10 * len(times), 100 * len(times), "", "converged" if ok else "iterations",
                             jacobians=len(times))
         return sol, [(j, np.array([float(j)])) for j in range(len(times))]
@@ -146,28 +147,30 @@ def test_a_lead_in_after_which_the_first_frame_fails_is_tried_again_from_further
     approach = Approach.__new__(Approach)
     approach.trajectories, approach.first_time, approach.sample_interval = None, -np.inf, None
     sol = approach(step, 0)
-    assert tried == [12, 24] and sol.converged
-    assert (sol.iterations, sol.evaluations, sol.jacobians) == (10 * 36, 100 * 36, 36)
+    n = LEAD_IN_FRAMES + 24
+    assert tried == [LEAD_IN_FRAMES, 24] and sol.converged
+    assert (sol.iterations, sol.evaluations, sol.jacobians) == (10 * n, 100 * n, n)
     assert [j for j, _ in step.history] == list(range(-24, 0))
 
-    # the trial's data begin 20 frames before the window: 12, then 20 frames, then no further
+    # the trial's data begin 20 frames before the window: the short lead-in, then 20
+    # frames, then no further
     tried.clear()
     step = SimpleNamespace(ctx=SimpleNamespace(times=window), history=[])
     approach.first_time = window[0] - 20 * dt
     sol = approach(step, 0)
-    # (and the last lead-in, whose marched frames restart: 12 frames again)
-    assert tried == [12, 20, 12] and not sol.converged
-    assert sol.evaluations == 100 * 44 and step.history == []
+    # (and the last lead-in, whose marched frames restart)
+    assert tried == [LEAD_IN_FRAMES, 20, LAST_LEAD_IN_FRAMES] and not sol.converged
+    assert sol.evaluations == 100 * (LEAD_IN_FRAMES + 20 + LAST_LEAD_IN_FRAMES) and step.history == []
 
 
 def test_a_first_frame_that_fails_after_every_lead_in_gets_one_whose_marched_frames_restart(monkeypatch):
     """DM og1 from 2.5 s with filtered ground reactions: the plain lead-ins (12, 24, 48
-    frames) stall where the patella engages and the window's first 5 frames failed. The
-    last lead-in (12 frames) lets its marched frames restart; its counts add to the
-    frame's and its frames join the history as −12 … −1."""
+    frames at the time) stall where the patella engages and the window's first 5 frames
+    failed. The last lead-in (LAST_LEAD_IN_FRAMES, 12) lets its marched frames restart;
+    its counts add to the frame's and its frames join the history as −12 … −1."""
     from types import SimpleNamespace
 
-    from openfdk.fdk.approach import LEAD_IN_LENGTHS, Approach
+    from openfdk.fdk.approach import LAST_LEAD_IN_FRAMES, LEAD_IN_LENGTHS, Approach
     from openfdk.fdk.newton import FrameSolution
 
     dt = 1 / 120
@@ -185,10 +188,10 @@ def test_a_first_frame_that_fails_after_every_lead_in_gets_one_whose_marched_fra
     approach.trajectories, approach.first_time, approach.sample_interval = None, -np.inf, None
     step = SimpleNamespace(ctx=SimpleNamespace(times=window), history=[])
     sol = approach(step, 0)
-    assert tried == [(n, False) for n in LEAD_IN_LENGTHS] + [(LEAD_IN_FRAMES, True)]
-    total = sum(LEAD_IN_LENGTHS) + LEAD_IN_FRAMES
+    assert tried == [(n, False) for n in LEAD_IN_LENGTHS] + [(LAST_LEAD_IN_FRAMES, True)]
+    total = sum(LEAD_IN_LENGTHS) + LAST_LEAD_IN_FRAMES
     assert sol.converged and (sol.iterations, sol.evaluations, sol.jacobians) == (10 * total, 100 * total, total)
-    assert [j for j, _ in step.history] == list(range(-LEAD_IN_FRAMES, 0))
+    assert [j for j, _ in step.history] == list(range(-LAST_LEAD_IN_FRAMES, 0))
     # a sub-step approach (frame k − 1 converged) gets no such last attempt
     tried.clear()
     step = SimpleNamespace(ctx=SimpleNamespace(times=window), history=[(0, np.zeros(1))])
