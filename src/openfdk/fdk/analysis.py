@@ -10,8 +10,8 @@ two and then after a lead-in through the frames before it (on DM's six gait tria
 of the 45 frames that failed from their warm starts converged only through the
 sub-steps, after both other starts had failed: 129 evaluations per frame; with the
 sub-steps first the trials took 13 484 residual evaluations and 6 006 Jacobians
-instead of 14 135 and 6 769, docs/fdk.md). Then from α_{k−1} moved along one DOF at a time by ±2
-and ±4 max_steps, nearest first (setting ``restart``, :func:`~.newton.solve_restarts`;
+instead of 14 135 and 6 769, docs/fdk.md). Then from α_{k−1} moved along one DOF at a
+time by ±2 and ±4 max_steps, nearest first (setting ``restart``, :func:`~.newton.solve_restarts`;
 :func:`scan_starts`): where the branch the previous frames followed ends (a fold of
 f^FDK(α) = 0, e.g. a weakly held medio-lateral DOF snapping across the joint), the
 remaining root can lie millimetres away, beyond the basin of α_{k−1}; the nearest such

@@ -22,8 +22,9 @@ frames, each close to the one before.
   with the longer ones; the chunks of ``openfdk run --chunks`` start this way). When the
   frame still fails, a last lead-in of :data:`LAST_LEAD_IN_FRAMES` frames lets its
   marched frames restart when they fail (from the previous marched frame's α and from
-  the initial values, without the scan around α_{k−1}). DM og1 from 2.5 s with its ground reactions filtered at 6 Hz
-  (docs/tutorial-knee-gait.md, "Filtered ground reactions"): the plain lead-ins stall at
+  the initial values, without the scan around α_{k−1}). DM og1 from 2.5 s with its
+  ground reactions filtered at 6 Hz (docs/tutorial-knee-gait.md, "Filtered ground
+  reactions"): the plain lead-ins (12, 24, 48 frames at the time) stall at
   2.483 and 2.492 s, where the patella engages as the quadriceps switch on, and the first
   5 of 31 frames failed (1 590 evaluations for frame 0, 127 for each failed frame after
   it); with the last lead-in all 31 converge (2 086 for frame 0). (Measured on
