@@ -5,8 +5,9 @@ Warm start: α of frame k starts from the extrapolation of the converged predece
 last frame better; or α_{k−1}, or the DOFs' initial values), and the poses of the
 previous frame's solution. A frame that fails from there, after a converged frame, is
 solved again after marching to it through sub-steps from that frame (:mod:`.approach`),
-then from α_{k−1} and from the DOFs' initial values; after a failed frame, from those
-two and then after a lead-in through the frames before it (on DM's six gait trials, 12
+then from α_{k−1} and from the DOFs' initial values; after a failed frame, from the last
+converged frame's α and the initial values (the window's first frame is reached through
+a lead-in before any start, :mod:`.approach`) (on DM's six gait trials, 12
 of the 45 frames that failed from their warm starts converged only through the
 sub-steps, after both other starts had failed: 129 evaluations per frame; with the
 sub-steps first the trials took 13 484 residual evaluations and 6 006 Jacobians
@@ -231,8 +232,8 @@ class FDKStep:
         if not first.converged and settings.restart:
             tried = [] if lead else [a0]
             # after a converged frame: through sub-steps first (fdk/approach.py), then from
-            # α_{k−1} and the initial values; after a failed one, those starts first and
-            # then a lead-in through the frames before it
+            # α_{k−1} and the initial values; after a failed one (or a failed lead-in),
+            # from the last converged α and the initial values (no frames lead to it)
             sub_steps = warm_frame and self.approach is not None and lead is None
             approached = self.approach(self, k) if sub_steps else None
             later = [approached] if approached is not None else []
@@ -240,10 +241,6 @@ class FDKStep:
                 # (after a failed lead-in the initial values get the cold limit the first start had)
                 later += solve_restarts(ctx, k, ([history[-1][1]] if history else []) + [self.a_init], ws0,
                                         (cold or settings) if lead else settings, self.warm, tried, not warm_frame)
-            if not any(s.converged for s in later) and self.approach is not None and lead is None and not sub_steps:
-                approached = self.approach(self, k)  # a lead-in through the frames before it
-                if approached is not None:
-                    later.append(approached)
             if not any(s.converged for s in later) and history and self.scan:
                 later += solve_restarts(ctx, k, scan_starts(history[-1][1], settings.max_step), ws0, settings,
                                         self.warm, tried, not warm_frame)
