@@ -1,6 +1,8 @@
 """Force-dependent kinematics (paper Fig. 1) against closed forms, and the analytic
 Jacobian against central differences."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -541,3 +543,46 @@ def test_the_neighbouring_frames_poses_stop_earlier_and_leave_the_residual_as_it
     assert n_loose < n_tight
     assert np.abs(f_tight).max() > 1e-3  # (away from the root: the residual is not zero)
     np.testing.assert_allclose(f_loose, f_tight, rtol=0, atol=1e-6)
+
+
+def test_failed_frames_solved_again_backward_with_marker_tracking_are_the_forward_roots(tmj_model, tmj_settings,
+                                                                                         monkeypatch):
+    """Marker tracking, 10 frames: frames 3 and 4 are made to fail (one Newton iteration
+    each from half a max_step off their warm starts, no other start); frame 5 then converges cold from frame 4's best iterate, and the
+    sweep back solves frame 4 from frame 5's solution (its poses moved along its dq̂/dα,
+    t ± Δt included) and frame 3 from frame 4's. Each equals the frame as the
+    undisturbed forward run solved it, to the force tolerance over the joint stiffness
+    (the bounds of the lead-in test above); both are flagged ``fdk.backward``, the sweep
+    takes the ordinary iteration limit, and the forward frames after it are the forward
+    run's too."""
+    from openfdk.fdk import analysis
+    from openfdk.fdk.analysis import FDKStep, fdk_context
+    from openfdk.fdk.settings import fdk_settings
+    from openfdk.trial import drive
+
+    _, traj, t = _tmj_context(tmj_model, tmj_settings, n_frames=12)
+    window = t[1:11]
+    settings = fdk_settings(tmj_model, tmj_settings)
+    forward = drive(FDKStep(tmj_model, fdk_context(tmj_model, traj, window, settings=tmj_settings), settings),
+                    len(window), lambda rec: (rec.array("fdk.alpha"), rec.objects("fdk.report")))
+    assert all(r.converged for r in forward[1])
+    calls, solve = [], analysis.solve_frame
+
+    def first_fails(ctx, k, a0, ws, s, *rest):
+        calls.append((k, s.max_iterations))
+        if k in (3, 4) and [c[0] for c in calls].count(k) == 1:
+            # the forward solve: one iteration from half a max_step off, not converged
+            a0, s = a0 + 0.5 * np.asarray(s.max_step), replace(s, max_iterations=1)
+        return solve(ctx, k, a0, ws, s, *rest)
+
+    monkeypatch.setattr(analysis, "solve_frame", first_fails)
+    monkeypatch.setattr(analysis, "solve_restarts", lambda *args: [])  # no other start for them
+    rec = drive(FDKStep(tmj_model, fdk_context(tmj_model, traj, window, settings=tmj_settings), settings),
+                len(window), lambda rec: rec)
+    assert [k for k, _ in calls] == [0, 1, 2, 3, 4, 5, 4, 3, 6, 7, 8, 9]
+    assert calls[6][1] == calls[7][1] == settings.max_iterations  # the sweep: warm, the ordinary limit
+    assert all(r.converged for r in rec.objects("fdk.report"))
+    assert rec.array("fdk.backward").tolist() == [0, 0, 0, 1, 1, 0, 0, 0, 0, 0]
+    atol = np.array([1e-7, 1e-7, 1.2e-6])
+    assert np.all(np.abs(rec.array("fdk.alpha") - forward[0]) <= atol)
+    assert np.all(np.abs(forward[0][3:5, :2]) > 1e-5)  # real displacements, not the initial values

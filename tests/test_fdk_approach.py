@@ -71,7 +71,7 @@ def test_a_load_step_newton_cannot_follow_in_one_frame_converges_in_sub_steps():
     exactly on the linear ramp) it converges; every frame equals the closed form
     α* = (F − m g) / k, and frame 0.4 s counts the marched frames' evaluations. (Frame
     0.5 s, extrapolated 8 mm past its root, is approached from 0.4 s likewise.)
-    Without the approach the same frame fails."""
+    Without the approach (and without the sweep back) the same frame fails."""
     model = _slider()
     times = np.arange(6) * DT
     alpha_star = (np.array([_Ramp().derivatives(t)[0][2] for t in times]) - M * G) / K
@@ -85,9 +85,46 @@ def test_a_load_step_newton_cannot_follow_in_one_frame_converges_in_sub_steps():
 
     settings = fdk_settings(model, None, max_iterations=3)
     ctx = fdk_context(model, None, times)
-    step = FDKStep(model, ctx, settings, approach=None)
+    step = FDKStep(model, ctx, settings, approach=None, sweep_back=False)
     values = drive(step, len(times), lambda rec: rec.objects("fdk.report"))
     assert [r.converged for r in values] == [i != k for i in range(len(times))]
+
+
+def test_a_failed_frame_is_solved_again_backward_from_the_next_converged_frame():
+    """The slider's load step without the approach: frame 0.4 s fails from every start
+    (3 Newton iterations of at most 1 mm, its root 8 mm away). Frame 0.5 s, after it,
+    converges cold from that frame's best iterate; the ramp has ended, so its root is
+    frame 0.4 s's, and the sweep back from it solves frame 0.4 s from there. Both equal
+    the closed form α* = (F − m g) / k; frame 0.4 s is recorded once more (the driver
+    keeps the later record), flagged ``fdk.backward``, its counts the failed solve's plus
+    the sweep's; no other frame is solved again, and the restarts count the sweep."""
+    model = _slider()
+    times = np.arange(6) * DT
+    alpha_star = (np.array([_Ramp().derivatives(t)[0][2] for t in times]) - M * G) / K
+    k = int(np.flatnonzero(np.isclose(times, T_STEP + DT))[0])
+    settings = fdk_settings(model, None, max_iterations=3)
+    recorded = []
+    step = FDKStep(model, fdk_context(model, None, times), settings, approach=None)
+    original = step.step
+
+    def logged(j):
+        out = original(j)
+        recorded.append([(i, v["fdk.evaluations"], v["fdk.report"].converged) for i, v in out])
+        return out
+
+    step.step = logged
+    rec = drive(step, len(times), lambda rec: rec)
+    assert all(r.converged for r in rec.objects("fdk.report"))
+    np.testing.assert_allclose(rec.array("fdk.alpha")[:, 0], alpha_star, rtol=0, atol=1e-3 / K)
+    assert alpha_star[k + 1] == pytest.approx(alpha_star[k], abs=1e-12)  # the ramp's end
+    assert rec.array("fdk.backward").tolist() == [int(i == k) for i in range(len(times))]
+    # frame k failed first, then frame k + 1 gave it again, converged, with more evaluations
+    (failed_k,), (now, again) = recorded[k], recorded[k + 1]
+    assert failed_k[0] == k and not failed_k[2]
+    assert now[0] == k + 1 and now[2] and again[0] == k and again[2]
+    assert again[1] > failed_k[1] and rec.array("fdk.evaluations")[k] == again[1]
+    assert rec.array("fdk.restarts")[k] >= 1
+    assert all(len(r) == 1 for j, r in enumerate(recorded) if j != k + 1)
 
 
 def test_the_marched_frames_are_solved_to_march_tolerance_and_the_frame_to_the_tolerance(monkeypatch):

@@ -86,6 +86,7 @@ def records(which, result, wall):
               "mean_newton_iterations_per_frame": float(np.mean(result.iterations)),
               "mean_jacobians_per_frame": float(np.mean(result.jacobians)),
               "restarted_frames": int(np.count_nonzero(result.restarts)),
+              "backward_frames": int(np.count_nonzero(result.backward)),
               # where the evaluations go: the window's first frame (with its lead-in, a cold
               # start) and the frames after it
               "first_frame_evaluations": int(result.evaluations[0]) if nf else 0,

@@ -327,6 +327,8 @@ def _cmd_run(args):
              f"{_rate(fdk['frames_per_second'])} ({fdk['jacobian']} Jacobian)"
              + (f", {fdk['restarted_frames']} frame(s) restarted from another starting α"
                 if fdk.get("restarted_frames") else "")
+             + (f", {fdk['backward_frames']} failed frame(s) solved again backward from the next converged frame"
+                if fdk.get("backward_frames") else "")
              )
     if len(info.get("segments", ())) > 1:
         later = info["segments"][1:]

@@ -169,7 +169,7 @@ class Approach:
         # the same kind of step (FDKStep) on the marched frames, without restarts
         march = type(step)(step.model, ctx.at_times(times, self.trajectories),
                            replace(settings, restart=restart, tolerance=settings.tolerance * MARCH_TOLERANCE,
-                                   cold_max_iterations=settings.max_iterations), scan=False)
+                                   cold_max_iterations=settings.max_iterations), scan=False, sweep_back=False)
         if previous:
             march.history = [(-1, history[-1][1].copy())]
             march.last_state, march.warm, march.J_carry = step.last_state, step.warm, step.J_carry

@@ -16,6 +16,8 @@ fdk:
   restart: true            # a frame that fails from its warm start is solved again from the
                            # previous frame's α, then from the DOFs' initial values, then
                            # from the previous α moved by ±2, ±4 max_steps along one DOF
+                           # (after sub-steps, fdk/approach.py); failed frames are solved
+                           # again backward from the next converged frame (fdk/analysis.py)
   contact_step: true       # Newton's step with the grid-mode contacts exact and the rest
                            # linear (fdk/contact_step.py); false: the linear model's step
 fdk_dofs:
@@ -50,7 +52,8 @@ class FDKSettings:
     reuse_jacobian (Broyden-updated J carried between
     iterations and frames, fdk/newton.py); extrapolate; restart (solve a failed frame
     again from the previous frame's α and from the DOFs' initial values,
-    :func:`openfdk.fdk.newton.solve_frame_from`); contact_step (Newton's step with the
+    :func:`openfdk.fdk.newton.solve_frame_from`, and backward from the next converged
+    frame, :class:`openfdk.fdk.analysis.FDKStep`); contact_step (Newton's step with the
     contacts exact, :mod:`openfdk.fdk.contact_step`); max_step, perturbation : (n_fdk,) SI,
     empty for the DOFs' own values and the defaults by unit (:func:`fdk_settings`).
 

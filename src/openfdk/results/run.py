@@ -24,7 +24,7 @@ _CONJUGATE = {"length": "N", "angle": "N·m", "1": "N·m"}
 
 #: the FDK solver's per-frame columns of forces.csv (RunResults.fdk)
 FDK_FRAME_COLUMNS = ("fdk_converged", "fdk_iterations", "fdk_evaluations", "fdk_jacobians", "fdk_restarts",
-                     "fdk_reason")
+                     "fdk_backward", "fdk_reason")
 #: column-name unit suffixes of an FDK DOF of a measure kind, and of its residual force
 _SUFFIX = {"length": "m", "angle": "rad", "1": "1"}
 _CONJUGATE_SUFFIX = {"length": "N", "angle": "Nm", "1": "Nm"}
@@ -241,7 +241,7 @@ class RunResults:
         in each DOF column's name: ``fdk.<dof>.alpha_m`` (``_rad`` for an angle, ``_1``
         dimensionless), ``fdk.<dof>.residual_N`` (``_Nm`` conjugate to an angle), and the
         per-frame ``fdk_converged``, ``fdk_iterations``, ``fdk_evaluations``,
-        ``fdk_jacobians``, ``fdk_restarts``, ``fdk_reason``. A model's force elements
+        ``fdk_jacobians``, ``fdk_restarts``, ``fdk_backward``, ``fdk_reason``. A model's force elements
         whose names start with ``fdk`` (springs such as ``fdk_spring_r``) are not FDK
         columns and stay in ``.forces``. Without the model the DOF columns keep the
         names of forces.csv (``.alpha``, ``.residual``, SI). None without FDK DOFs."""

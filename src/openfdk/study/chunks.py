@@ -131,7 +131,8 @@ _PER_FRAME = {
     "InverseDynamicsResult": ("time", "forces", "muscle_length", "muscle_speed", "muscle_strength", "muscle_passive",
                               "ligament_length", "ligament_strain", "ligament_force", "spring_force", "converged",
                               "status", "reports", "iterations"),
-    "FDKResult": ("alpha", "f_fdk", "converged", "iterations", "evaluations", "jacobians", "reports"),
+    "FDKResult": ("alpha", "f_fdk", "converged", "iterations", "evaluations", "jacobians", "restarts", "backward",
+                  "reports"),
 }
 
 
