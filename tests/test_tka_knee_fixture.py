@@ -293,13 +293,14 @@ def test_the_bench_records_say_where_the_evaluations_go():
     from openfdk.bench.tka_knee_gait import TARGETS, records
 
     result = SimpleNamespace(converged=np.array([True, True, True, False]), iterations=np.array([150, 3, 4, 2]),
-                             jacobians=np.array([100, 1, 2, 1]), restarts=np.array([0, 0, 0, 1]),
-                             evaluations=np.array([175, 4, 5, 3]), reasons=("converged",) * 3 + ("line_search",))
+                             jacobians=np.array([100, 1, 2, 1]), restarts=np.array([0, 1, 0, 1]),
+                             backward=np.array([0, 1, 0, 0]), evaluations=np.array([175, 4, 5, 3]), reasons=("converged",) * 3 + ("line_search",))
     out = {r["name"]: r for r in records("stub", result, 2.0)}
     assert set(out) == set(TARGETS)
     fps = out["tka_knee_gait_fdk_fps"]
     assert fps["value"] == 2.0 and fps["converged_frames"] == 3 and fps["failed"] == ["line_search"]
     assert fps["first_frame_evaluations"] == 175 and fps["later_evaluations_per_frame"] == 4.0
+    assert fps["restarted_frames"] == 2 and fps["backward_frames"] == 1
     assert out["tka_knee_gait_fdk_evaluations_per_frame"]["value"] == (175 + 4 + 5 + 3) / 4
 
 

@@ -21,7 +21,7 @@ def test_result_fdk_columns(mandible_run):
     dofs = res.fdk_dofs()
     assert list(fdk.columns[: 2 * len(dofs)]) == [c for d in dofs for c in (f"fdk.{d}.alpha_m", f"fdk.{d}.residual_N")]
     assert list(fdk.columns[2 * len(dofs):]) == ["fdk_converged", "fdk_iterations", "fdk_evaluations",
-                                                  "fdk_jacobians", "fdk_restarts", "fdk_reason"]
+                                                  "fdk_jacobians", "fdk_restarts", "fdk_backward", "fdk_reason"]
     d = dofs[0]
     assert (fdk[f"fdk.{d}.alpha_m"].to_numpy() == res.forces[f"fdk.{d}.alpha"].to_numpy()).all()
 
