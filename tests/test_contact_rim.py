@@ -141,3 +141,48 @@ def test_closed_meshes_never_warn():
         loaded += model.contacts[0].evaluate(state).n_contact > 0
     assert loaded >= 7
     assert contact_rim_frames(model, np.stack([_q(x) for x in xs])) == []
+
+
+def test_the_nearest_rim_segment_is_the_closed_form_point_to_segment_distance_s_argmin():
+    """``_nearest_segment`` (a compiled loop) against the distance of each point to each
+    segment in closed form, |p − (a + t (b − a))| with t = clip((p − a)·(b − a) / |b − a|², 0, 1),
+    written here per pair; segments of varied length and direction, points near and far,
+    and one point at a shared end (the first of the equally near segments)."""
+    from openfdk.contact.rim import _nearest_segment
+
+    rng = np.random.default_rng(4)
+    A = rng.uniform(-0.02, 0.02, (60, 3))
+    B = A + rng.normal(0.0, 0.003, (60, 3))
+    B[7] = A[8]  # segments 7 and 8 share an end
+    P = np.vstack([rng.uniform(-0.03, 0.03, (200, 3)), A[8][None]])
+
+    def distance(p, a, b):
+        t = min(max(float(np.dot(p - a, b - a) / np.dot(b - a, b - a)), 0.0), 1.0)
+        return float(np.linalg.norm(p - (a + t * (b - a))))
+
+    expected = [int(np.argmin([distance(p, a, b) for a, b in zip(A, B)])) for p in P]
+    assert _nearest_segment(P, A, B).tolist() == expected
+    assert expected[-1] == 7  # distance 0 to segments 7 and 8: the first
+
+
+def test_the_rim_check_s_candidates_are_every_vertex_within_reach_of_a_rim_vertex():
+    """RimCheck.at_rim queries the exact distance only for A's vertices within
+    max_depth + half the longest rim edge of one of B's rim vertices: that set, from the
+    k-d tree of B's rim vertices, equals the brute-force one from all pairwise distances
+    (the ball on the floor near the rim, so that some vertices are in and some out)."""
+    model = _ball_model()
+    pair = model.contacts[0].pair
+    chk = RimCheck(pair)
+    state = model.initial_state()
+    state.set_q(_q(HALF - 1e-3))
+    asked = []
+    query = chk._distance_B.query
+    chk._distance_B.query = lambda y: asked.append(np.array(y)) or query(y)
+    on_A, share = chk.at_rim(state.p_WB[1], state.R_WB[1], state.p_WB[0], state.R_WB[0])
+    assert share > 0.01
+    R_Wa, r_Wa, R_Wb, r_Wb = state.R_WB[1], state.p_WB[1], state.R_WB[0], state.p_WB[0]
+    y = (pair._s_A @ R_Wa.T + r_Wa - r_Wb) @ R_Wb
+    gaps = np.linalg.norm(y[:, None, :] - chk._rim_V_B[None, :, :], axis=2).min(axis=1)
+    within = gaps <= chk._rim_reach_B
+    assert 0 < within.sum() < len(y)
+    np.testing.assert_array_equal(asked[0], y[within])

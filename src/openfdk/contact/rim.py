@@ -28,6 +28,7 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+from numba import njit
 
 from .mesh import MeshWarning
 
@@ -47,14 +48,26 @@ def rim_edges(faces, with_faces=False):
     return keys[rim]
 
 
+@njit(cache=True)
 def _nearest_segment(P, A, B):
-    """(k,) index of the segment A[j]–B[j] (r, 3) nearest to each point P (k, 3), m."""
-    AB = B - A
-    L2 = np.maximum(np.einsum("ij,ij->i", AB, AB), 1e-300)
-    AP = P[:, None, :] - A[None, :, :]
-    t = np.clip(np.einsum("krj,rj->kr", AP, AB) / L2, 0.0, 1.0)
-    D = AP - t[..., None] * AB[None]
-    return np.einsum("krj,krj->kr", D, D).argmin(axis=1)
+    """(k,) index of the segment A[j]–B[j] (r, 3) nearest to each point P (k, 3), m (the
+    first of equally near ones). One pass over the segments per point, no (k, r, 3)
+    temporaries: DM's tibial insert, 452 points against 580 rim edges, 12 ms with numpy's
+    broadcasting."""
+    k, r = P.shape[0], A.shape[0]
+    out = np.zeros(k, dtype=np.int64)
+    for i in range(k):
+        best = np.inf
+        for j in range(r):
+            ab0, ab1, ab2 = B[j, 0] - A[j, 0], B[j, 1] - A[j, 1], B[j, 2] - A[j, 2]
+            ap0, ap1, ap2 = P[i, 0] - A[j, 0], P[i, 1] - A[j, 1], P[i, 2] - A[j, 2]
+            t = (ap0 * ab0 + ap1 * ab1 + ap2 * ab2) / max(ab0 * ab0 + ab1 * ab1 + ab2 * ab2, 1e-300)
+            t = min(max(t, 0.0), 1.0)
+            d0, d1, d2 = ap0 - t * ab0, ap1 - t * ab1, ap2 - t * ab2
+            d = d0 * d0 + d1 * d1 + d2 * d2
+            if d < best:
+                best, out[i] = d, j
+    return out
 
 
 class RimCheck:
@@ -80,9 +93,11 @@ class RimCheck:
 
             # a point within max_depth of a rim point on edge (u, v) is within
             # max_depth + |uv|/2 of u or v: candidates for the exact query, found at once
-            # (A's vertices in a k-d tree once; each frame queries B's few rim vertices)
+            # (B's rim vertices in a k-d tree once; each frame asks it for A's vertices'
+            # nearest, one vectorised query: 2.5 ms for DM's tibial insert, where a ball
+            # around each rim vertex in a tree of A's vertices took 11 ms, the same set)
             self._rim_V_B = B.vertices_B[np.unique(eB.ravel())]
-            self._tree_A = cKDTree(pair._s_A)
+            self._tree_rim_B = cKDTree(self._rim_V_B)
             half = 0.5 * float(np.linalg.norm(self._seg_B[1] - self._seg_B[0], axis=1).max())
             self._rim_reach_B = pair.max_depth + half
 
@@ -102,16 +117,16 @@ class RimCheck:
         a = self.pair._a_A
         R_Wa, R_Wb = np.asarray(R_Wa, float), np.asarray(R_Wb, float)
         y = (self.pair._s_A @ R_Wa.T + np.asarray(r_Wa, float) - np.asarray(r_Wb, float)) @ R_Wb  # b's frame
-        rim_in_A = (self._rim_V_B @ R_Wb.T + np.asarray(r_Wb, float) - np.asarray(r_Wa, float)) @ R_Wa
-        near = self._tree_A.query_ball_point(rim_in_A, self._rim_reach_B)
-        near = np.unique(np.concatenate([np.asarray(n, dtype=np.int64) for n in near])) if len(near) else near
+        reach = self._rim_reach_B
+        gap, _ = self._tree_rim_B.query(y, distance_upper_bound=reach * (1.0 + 1e-12))
+        near = np.flatnonzero(gap <= reach)
         if len(near) == 0:
             return on_A, 0.0
         phi, _, valid, c = self._distance_B.query(y[near])
         cut = np.flatnonzero(~valid & (np.abs(phi) <= self.pair.max_depth))
         if cut.size == 0:
             return on_A, 0.0
-        n = self._n_rim_B[_nearest_segment(c[cut], *self._seg_B)]
+        n = self._n_rim_B[_nearest_segment(np.ascontiguousarray(c[cut]), *self._seg_B)]
         e = -np.einsum("ij,ij->i", y[near[cut]] - c[cut], n)  # depth behind the rim triangle's plane
         behind = e > 0.0
         missing = float((a[near[cut]][behind] * e[behind]).sum())
