@@ -108,3 +108,21 @@ def test_bench_quick_json(capsys):
     names = {r["name"] for r in lines}
     assert "kinematics_tracking_2body_8markers_fps" in names
     assert all(r["value"] > 0 and r["unit"] for r in lines)
+
+
+def test_run_reads_the_model_file_once_for_the_run_its_outputs_and_its_figures(tmp_path, request, monkeypatch):
+    """``openfdk run`` builds the model once: the run, measures.csv, the generalized forces
+    and the figures (the FDK DOFs' units) share it. Each build of the
+    slider-crank counts here; the figures are written and name their units."""
+    import openfdk.io.modelfile as modelfile
+
+    built = []
+    load = modelfile.load_model_and_settings
+    monkeypatch.setattr(modelfile, "load_model_and_settings", lambda path: built.append(path) or load(path))
+    import openfdk.analysis.jobs as jobs
+
+    monkeypatch.setattr(jobs, "load_model_and_settings", modelfile.load_model_and_settings)
+    out = tmp_path / "sc"
+    assert main(["run", str(request.config.rootpath / "examples/slider_crank.yaml"), "--out", str(out), "--no-progress"]) == 0
+    assert len(built) == 1
+    assert (out / "plots" / "kinematics.png").is_file() and (out / "measures.csv").is_file()

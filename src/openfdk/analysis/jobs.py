@@ -242,20 +242,22 @@ def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, s
 
 
 def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=None, end=None, checkpoints=None,
-            resume=False, settings=None):
+            resume=False, settings=None, loaded=None):
     """Kinematics then inverse dynamics with muscle recruitment; when the model declares
     FDK DOFs, force-dependent kinematics (each frame's α found so that the FDK residual
     forces vanish). Returns (KinematicsResult, InverseDynamicsResult, info); for FDK,
     info["fdk"] holds the FDK summary. checkpoints, resume: see
     :func:`openfdk.analysis.run.run_trial` (Ctrl-C raises TrialInterrupted whose
     ``partial`` is (kin, dyn, info) of the finished frames). settings :
-    AnalysisSettings (default: the model file's, see :func:`model_and_settings`)."""
+    AnalysisSettings (default: the model file's, see :func:`model_and_settings`);
+    loaded : that function's (Model, AnalysisSettings, label) of ``model_path`` when the
+    caller has already read it (``openfdk run`` writes its outputs with the same Model)."""
     from .run import run_trial
     from ..contact.rim import warn_contact_rims
     from ..model.plausibility import warn_outlier_markers, warn_pulling_contacts
     from ..trial import TrialInterrupted
 
-    model, settings, label = model_and_settings(model_path, settings)
+    model, settings, label = loaded if loaded is not None else model_and_settings(model_path, settings)
     checked = preflight(model, label, model_path)
     traj, times, info = analysis_inputs(model, trial_path, cutoff_hz, start, end, settings)
     info = {"model": label, **info, **checked}

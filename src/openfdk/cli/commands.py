@@ -232,21 +232,23 @@ def _print_failed(args, failed):
         print(f"  ... and {len(failed) - 10} more failed frames (see summary.json)", file=sys.stderr)
 
 
-def _write_measures(out_dir, model_path, kinematics):
+def _write_measures(out_dir, model_path, kinematics, model=None):
     """measures.csv: the model's named measures (joint measures included) per frame;
-    coordinates.csv and coordinates.mot: its joint coordinates (OpenSim models)."""
+    coordinates.csv and coordinates.mot: its joint coordinates (OpenSim models).
+    ``model``: the Model of ``model_path`` if already loaded."""
     from ..io.measure_outputs import write_measures
     from ..io.modelfile import load_model
 
     from ..io.coordinate_outputs import write_coordinates
 
-    model = load_model(model_path)
+    model = model if model is not None else load_model(model_path)
     write_measures(out_dir, model, kinematics)
     write_coordinates(out_dir, model, kinematics)
 
 
-def _write_grf(args, info, dyn):
-    """grf.csv/.sto and plots/grf.png when the trial's force plates were applied."""
+def _write_grf(args, info, dyn, settings=None):
+    """grf.csv/.sto and plots/grf.png when the trial's force plates were applied
+    (``settings``: the model file's AnalysisSettings if already loaded)."""
     if "ground_reactions" not in info:
         return
     from pathlib import Path
@@ -255,7 +257,7 @@ def _write_grf(args, info, dyn):
     from ..io.modelfile import load_settings
     from ..analysis.jobs import DEFAULT_CUTOFF_HZ
 
-    settings = load_settings(args.model)
+    settings = settings if settings is not None else load_settings(args.model)
     cutoff = args.cutoff if args.cutoff is not None else settings.kinematics.get("marker_cutoff_hz", DEFAULT_CUTOFF_HZ)
     path = write_grf(args.out, args.trial, settings.ground_reactions, info["ground_reactions"], dyn.time, cutoff)
     if not getattr(args, "no_plots", False):
@@ -263,16 +265,17 @@ def _write_grf(args, info, dyn):
         grf_figure(path).savefig(Path(args.out) / "plots" / "grf.png", dpi=110)
 
 
-def _write_generalized_forces(out_dir, model_path, dyn):
+def _write_generalized_forces(out_dir, model_path, dyn, model=None):
     """generalized_forces.csv/.sto of a run whose coordinates are driven (--motion), and
-    the residuals in summary.json."""
+    the residuals in summary.json (``model``: the Model of ``model_path`` if already
+    loaded)."""
     from pathlib import Path
 
     from ..io.generalized_forces import write_generalized_forces
     from ..io.modelfile import load_model
     from ..io.results import write_json
 
-    summary = write_generalized_forces(out_dir, load_model(model_path), dyn)
+    summary = write_generalized_forces(out_dir, model if model is not None else load_model(model_path), dyn)
     if summary is None:
         return
     path = Path(out_dir) / "summary.json"
@@ -288,6 +291,9 @@ def _cmd_run(args):
     _prepare_out(args)
     _read_trial_first(args)
     _announce_kernels(args)
+    from ..analysis.jobs import model_and_settings
+
+    loaded = None  # (Model, AnalysisSettings, label): read once, for the run and its outputs
     if args.chunks > 1:
         from ..study.cli import run_chunked_job
 
@@ -301,9 +307,11 @@ def _cmd_run(args):
         from ..trial import TrialInterrupted
 
         checkpoints = _run_checkpoints(args)
+        loaded = model_and_settings(args.model)
         try:
             kin, dyn, info = run_job(args.model, args.trial, cutoff_hz=args.cutoff, progress=_progress_on(args),
-                                     start=args.start, end=args.end, checkpoints=checkpoints, resume=args.resume)
+                                     start=args.start, end=args.end, checkpoints=checkpoints, resume=args.resume,
+                                     loaded=loaded)
         except TrialInterrupted as exc:
             kin, dyn, info = exc.partial
             write_run_outputs(args.out, kin, dyn, info, frames_planned=exc.frames_planned)
@@ -312,9 +320,10 @@ def _cmd_run(args):
             return 130
         write_run_outputs(args.out, kin, dyn, info)
         checkpoints.clear()
-    _write_measures(args.out, args.model, kin)
-    _write_generalized_forces(args.out, args.model, dyn)
-    _write_grf(args, info, dyn)
+    model, settings, _ = loaded if loaded is not None else model_and_settings(args.model)
+    _write_measures(args.out, args.model, kin, model)
+    _write_generalized_forces(args.out, args.model, dyn, model)
+    _write_grf(args, info, dyn, settings)
     fdk = info.get("fdk")
     _say(args,
          f"run: kinematics {int(kin.converged.sum())}/{len(kin.time)} frames, inverse dynamics "
@@ -341,7 +350,7 @@ def _cmd_run(args):
 
     failed = dyn.failed_frames(), dyn.converged, dyn.status, dyn.messages
     del kin, dyn, info  # written: the figures read them back, so the arrays need not stay
-    after_run(args)
+    after_run(args, model=model)
     _print_failed(args, failed[0])
     return failed_frames_exit(*failed[1:], args.max_failed)
 

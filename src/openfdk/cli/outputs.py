@@ -110,10 +110,11 @@ def record_model_file(out_dir, model_path):
     write_json(path, summary)
 
 
-def after_run(args, plots=True):
+def after_run(args, plots=True, model=None):
     """After ``openfdk run``/``kinematics`` wrote its CSV files: record the model file,
-    write the ``.sto`` twins and (unless ``--no-plots``) the figures. A figure that
-    cannot be drawn is reported on stderr; the run's results stay."""
+    write the ``.sto`` twins and (unless ``--no-plots``) the figures (``model``: the
+    run's Model, already loaded). A figure that cannot be drawn is reported on stderr;
+    the run's results stay."""
     from ..io.storage import csv_to_sto
 
     out = Path(args.out)
@@ -128,7 +129,7 @@ def after_run(args, plots=True):
     try:
         from ..plots.run import write_plots
 
-        paths = write_plots(out)
+        paths = write_plots(out, model=model)
     except Exception as exc:  # the analysis results are written; report and go on
         print(f"openfdk: warning: figures not written: {type(exc).__name__}: {exc}", file=sys.stderr)
         return

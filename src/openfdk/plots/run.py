@@ -514,11 +514,13 @@ def save_figures(figures, directory, dpi=110) -> list[Path]:
     return paths
 
 
-def write_plots(result_dir, out_dir=None, measures=None) -> list[Path]:
-    """Read a result folder and write its figures (default into ``RESULT_DIR/plots``)."""
+def write_plots(result_dir, out_dir=None, measures=None, model=None) -> list[Path]:
+    """Read a result folder and write its figures (default into ``RESULT_DIR/plots``);
+    ``model``: the run's Model when the caller has it loaded (the FDK DOFs' and the
+    constraints' units; else read from the model file again)."""
     from ..results.run import read_results
 
-    results = read_results(result_dir)
+    results = read_results(result_dir, model)
     return save_figures(iter_figures(results, measures), out_dir or Path(result_dir) / "plots")
 
 

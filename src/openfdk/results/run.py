@@ -195,8 +195,10 @@ class RunResults:
         return cls(_frame(kinematics_columns(kin)), forces, summary, model, measures=measures)
 
     @classmethod
-    def read(cls, directory):
-        """Read a result folder written by ``openfdk run``/``kinematics`` or :meth:`save`."""
+    def read(cls, directory, model=None):
+        """Read a result folder written by ``openfdk run``/``kinematics`` or :meth:`save`;
+        ``model``: the analysed Model when the caller has it (else :meth:`model` loads it
+        from the model file when asked)."""
         d = Path(directory)
         if not (d / KINEMATICS_CSV).is_file():
             raise FileNotFoundError(f"{d}: no {KINEMATICS_CSV}; is this an openfdk result folder?")
@@ -205,7 +207,7 @@ class RunResults:
         measures = _read_csv(d / MEASURES_CSV) if (d / MEASURES_CSV).is_file() else None
         kinematics = _read_csv(d / KINEMATICS_CSV, ("time", "converged"))
         _check_tables(d, kinematics, {FORCES_CSV: forces, MEASURES_CSV: measures})
-        return cls(kinematics, forces, summary, None, d, measures)
+        return cls(kinematics, forces, summary, model, d, measures)
 
     def save(self, directory, sto: bool = True):
         """Write kinematics.csv, forces.csv, measures.csv, summary.json (and the ``.sto``
@@ -370,6 +372,7 @@ class RunResults:
                 f"{len(self.failed_frames)} failed, folder={str(self.directory) if self.directory else None})")
 
 
-def read_results(directory) -> RunResults:
-    """Load a saved run (``openfdk run --out DIR`` or :meth:`RunResults.save`)."""
-    return RunResults.read(directory)
+def read_results(directory, model=None) -> RunResults:
+    """Load a saved run (``openfdk run --out DIR`` or :meth:`RunResults.save`); ``model``:
+    its Model if already loaded (:meth:`RunResults.read`)."""
+    return RunResults.read(directory, model)
