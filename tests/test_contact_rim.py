@@ -165,11 +165,57 @@ def test_the_nearest_rim_segment_is_the_closed_form_point_to_segment_distance_s_
     assert expected[-1] == 7  # distance 0 to segments 7 and 8: the first
 
 
-def test_the_rim_check_s_candidates_are_every_vertex_within_reach_of_a_rim_vertex():
-    """RimCheck.at_rim queries the exact distance only for A's vertices within
-    max_depth + half the longest rim edge of one of B's rim vertices: that set, from the
-    k-d tree of B's rim vertices, equals the brute-force one from all pairwise distances
-    (the ball on the floor near the rim, so that some vertices are in and some out)."""
+def test_the_rim_check_s_share_equals_the_exact_query_of_every_vertex():
+    """RimCheck.at_rim asks the exact distance only of A's vertices near B's rim and not
+    nearer to a vertex of B than to the rim (k-d trees). The share it reports equals the
+    one computed here from the exact query of every vertex of A, with the module
+    docstring's formula written out (cut: closest point on B's rim, |φ| ≤ max_depth,
+    depth e behind the nearest rim edge's triangle; share = Σ a e / (Σ a e + Σ a d)), for
+    the ball on the floor at several places across the floor's rim; and it asks far
+    fewer points."""
+    from openfdk.contact.signed_distance import OpenSurfaceDistance
+
+    model = _ball_model()
+    pair = model.contacts[0].pair
+    chk = RimCheck(pair)
+    exact = OpenSurfaceDistance(pair.surface_B)
+    rim, faces = rim_edges(pair.surface_B.faces, with_faces=True)
+    V_B = pair.surface_B.vertices_B
+    asked = []
+    query = chk._distance_B.query
+    chk._distance_B.query = lambda y: asked.append(len(y)) or query(y)
+    state = model.initial_state()
+    shares = []
+    for x in (HALF - A_PATCH - 1e-3, HALF - 1e-3, HALF, HALF + 1.5e-3):
+        state.set_q(_q(x))
+        R_Wa, r_Wa, R_Wb, r_Wb = state.R_WB[1], state.p_WB[1], state.R_WB[0], state.p_WB[0]
+        on_A, share = chk.at_rim(r_Wa, R_Wa, r_Wb, R_Wb)
+        idx, depth = pair.penetration(r_Wa, R_Wa, r_Wb, R_Wb)[:2]
+        y = (pair._s_A @ R_Wa.T + r_Wa - r_Wb) @ R_Wb
+        phi, _, valid, c = exact.query(y)
+        cut = np.flatnonzero(~valid & (np.abs(phi) <= pair.max_depth))
+        missing = 0.0
+        for i in cut:
+            seg = [float(np.linalg.norm(c[i] - (V_B[u] + np.clip(np.dot(c[i] - V_B[u], V_B[v] - V_B[u])
+                                                                   / np.dot(V_B[v] - V_B[u], V_B[v] - V_B[u]), 0, 1)
+                                                   * (V_B[v] - V_B[u])))) for u, v in rim]
+            n = pair.surface_B.face_normals_B[faces[int(np.argmin(seg))]]
+            e = -float(np.dot(y[i] - c[i], n))
+            missing += pair._a_A[i] * e if e > 0 else 0.0
+        expected = missing / max(missing + float((pair._a_A[idx] * depth).sum()), 1e-300)
+        assert share == pytest.approx(expected, rel=1e-12, abs=1e-15)
+        shares.append(share)
+    assert shares[0] == 0.0 and shares[-1] > CUT_SHARE  # inside the floor, then well past its rim
+    assert max(asked) < 0.5 * len(pair._s_A)
+
+
+def test_the_rim_check_asks_the_exact_distance_only_where_the_closest_point_can_be_on_the_rim():
+    """RimCheck.at_rim asks the exact distance only of A's vertices within max_depth + half
+    the longest rim edge of one of B's rim vertices (found here from all pairwise
+    distances), and leaves out those of them that have a vertex of B nearer than their
+    distance to the rim can be (nearest rim vertex − half an edge): their closest point
+    on B is not on the rim. Every vertex it leaves out of that reach is certified so,
+    and some are asked (the ball on the floor near the rim)."""
     model = _ball_model()
     pair = model.contacts[0].pair
     chk = RimCheck(pair)
@@ -183,6 +229,12 @@ def test_the_rim_check_s_candidates_are_every_vertex_within_reach_of_a_rim_verte
     R_Wa, r_Wa, R_Wb, r_Wb = state.R_WB[1], state.p_WB[1], state.R_WB[0], state.p_WB[0]
     y = (pair._s_A @ R_Wa.T + r_Wa - r_Wb) @ R_Wb
     gaps = np.linalg.norm(y[:, None, :] - chk._rim_V_B[None, :, :], axis=2).min(axis=1)
-    within = gaps <= chk._rim_reach_B
-    assert 0 < within.sum() < len(y)
-    np.testing.assert_array_equal(asked[0], y[within])
+    to_B = np.linalg.norm(y[:, None, :] - pair.surface_B.vertices_B[None, :, :], axis=2).min(axis=1)
+    half = 0.5 * max(float(np.linalg.norm(pair.surface_B.vertices_B[u] - pair.surface_B.vertices_B[v]))
+                     for u, v in rim_edges(pair.surface_B.faces))
+    within = gaps <= pair.max_depth + half
+    asked_rows = {tuple(p) for p in asked[0]}
+    rows = [tuple(p) for p in y]
+    assert asked_rows <= {r for r, w in zip(rows, within) if w} and len(asked_rows) > 0
+    left_out = [i for i, r in enumerate(rows) if within[i] and r not in asked_rows]
+    assert left_out and all(to_B[i] < gaps[i] - half for i in left_out)

@@ -30,10 +30,14 @@ import warnings
 import numpy as np
 from numba import njit
 
-from .mesh import MeshWarning
+from .mesh import MeshWarning, undirected_edge_keys
 
 #: share of the patch's load cut off by the opposite surface's rim above which a frame counts
 CUT_SHARE = 0.05
+#: the k-d tree's approximation in the rim test's bound of a point's distance to B: the
+#: vertex found is within (1 + eps) times the nearest's distance (any vertex gives an upper
+#: bound; a looser one only leaves more points for the exact query)
+NEAREST_EPS = 3.0
 
 
 def rim_edges(faces, with_faces=False):
@@ -41,11 +45,12 @@ def rim_edges(faces, with_faces=False):
     ``with_faces`` also (r,) the index of that face."""
     faces = np.asarray(faces, dtype=np.int64)
     e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
-    keys, first, counts = np.unique(e, axis=0, return_index=True, return_counts=True)
-    rim = counts == 1
+    # one int64 key per edge: a 1-D unique (np.unique(axis=0) took 21 ms on DM's 25k faces)
+    _, first, counts = np.unique(undirected_edge_keys(e), return_index=True, return_counts=True)
+    rim = first[counts == 1]  # rows of e, in the order of the sorted (lo, hi) pairs
     if with_faces:
-        return keys[rim], first[rim] % len(faces)
-    return keys[rim]
+        return e[rim], rim % len(faces)
+    return e[rim]
 
 
 @njit(cache=True)
@@ -98,8 +103,10 @@ class RimCheck:
             # around each rim vertex in a tree of A's vertices took 11 ms, the same set)
             self._rim_V_B = B.vertices_B[np.unique(eB.ravel())]
             self._tree_rim_B = cKDTree(self._rim_V_B)
-            half = 0.5 * float(np.linalg.norm(self._seg_B[1] - self._seg_B[0], axis=1).max())
-            self._rim_reach_B = pair.max_depth + half
+            self._half_rim_edge = 0.5 * float(np.linalg.norm(self._seg_B[1] - self._seg_B[0], axis=1).max())
+            self._rim_reach_B = pair.max_depth + self._half_rim_edge
+            # every vertex of B, for an upper bound of a point's distance to B
+            self._tree_V_B = cKDTree(B.vertices_B)
 
     @property
     def is_open(self):
@@ -120,6 +127,14 @@ class RimCheck:
         reach = self._rim_reach_B
         gap, _ = self._tree_rim_B.query(y, distance_upper_bound=reach * (1.0 + 1e-12))
         near = np.flatnonzero(gap <= reach)
+        if len(near):
+            # a point is cut off only if its closest point on B is on the rim, at least
+            # gap − half an edge away (every rim point is within half an edge of a rim
+            # vertex); a vertex of B nearer than that is a nearer point of B: no exact
+            # query needed (any vertex bounds the distance, so the k-d tree's approximate
+            # nearest serves). DM's tibial insert: 5 340 candidates, 850 left, 12 → 5 ms
+            to_B, _ = self._tree_V_B.query(y[near], eps=NEAREST_EPS)
+            near = near[to_B >= gap[near] - self._half_rim_edge]
         if len(near) == 0:
             return on_A, 0.0
         phi, _, valid, c = self._distance_B.query(y[near])
