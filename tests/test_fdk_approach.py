@@ -342,3 +342,45 @@ def test_a_frame_whose_warm_start_fails_after_a_converged_frame_is_approached_be
     assert approached == [0, k, k + 1]  # (frame 0: its lead-in, none here without markers)
     assert restarted == []
     assert list(res.restarts) == [0] * k + [1, 1]
+
+
+def test_a_run_interrupted_after_a_failed_frame_resumes_and_sweeps_it_as_the_whole_run_does(tmp_path):
+    """The slider's load step without the approach, checkpointed after every frame and
+    interrupted just after the failed frame 0.4 s: the checkpoint carries the frames not
+    yet swept, so the resumed run solves frame 0.5 s and then 0.4 s backward, and every
+    frame's record equals the uninterrupted run's (α, counts, the backward flag)."""
+    from openfdk.trial import TrialInterrupted
+    from openfdk.trial.checkpoint import Checkpoints
+
+    model = _slider()
+    times = np.arange(6) * DT
+    k = int(np.flatnonzero(np.isclose(times, T_STEP + DT))[0])
+    settings = fdk_settings(model, None, max_iterations=3)
+
+    def fresh():
+        return FDKStep(model, fdk_context(model, None, times), settings, approach=None)
+
+    def records(rec):
+        return (rec.array("fdk.alpha").copy(), rec.array("fdk.evaluations").copy(), rec.array("fdk.backward").copy(),
+                [r.converged for r in rec.objects("fdk.report")])
+
+    whole = drive(fresh(), len(times), records)
+    assert whole[2].tolist() == [int(i == k) for i in range(len(times))] and all(whole[3])
+    step = fresh()
+    solve = step.step
+
+    def stopping(j):
+        if j == k + 1:
+            raise KeyboardInterrupt  # (the driver's Ctrl-C) before frame k + 1
+        return solve(j)
+
+    step.step = stopping
+    checkpoints = Checkpoints(tmp_path / "ck", "slider", every_frames=1)
+    with pytest.raises(TrialInterrupted) as stopped:
+        drive(step, len(times), records, checkpoints=checkpoints)
+    assert stopped.value.partial[3] == [True] * k + [False]  # frame k failed, not yet swept
+    resumed = drive(fresh(), len(times), records, checkpoints=Checkpoints(tmp_path / "ck", "slider", every_frames=1),
+                    resume=True)
+    for got, expected in zip(resumed[:3], whole[:3]):
+        np.testing.assert_array_equal(got, expected)
+    assert resumed[3] == whole[3]
