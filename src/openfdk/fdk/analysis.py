@@ -33,18 +33,18 @@ needs 30–60 iterations and every frame after it 3–6.
 Sweeping back: when a frame converges after failed ones, the failed frames just before
 it are solved again backward from it, warm-started as a forward frame is but from the
 frames after it (frame k − 1 from frame k's solution, poses, recruitment and Jacobian, α
-extrapolated back), while they converge; the sweep stops at the first that does not,
-and each failed frame is tried so at most once (part of the setting ``restart``). The
+extrapolated back), while they converge; the sweep stops at the first that does not, and
+each failed frame is tried so at most once (part of the setting ``restart``). The
 equilibrium of a frame does not depend on the direction it is reached from; only the
 warm start does, and a converged frame's is near. Measured on DM og3 from 3.108 s, a
 cold start in terminal stance where every lead-in left the first 7 frames at the
 iteration limit (127 evaluations each after the first's 2 409) and frame 3.167 s
-converged (132 evaluations): the sweep back solved all 7 in 4–5 evaluations each, 0.5 s in
-all; og3 in 2 chunks (its second segment starting there) converges 250 of 250 frames
-instead of 246, and the 4 frames solved backward equal the serial run's, solved
-forward, to 1.3e-8 rad and 2.9e-10 m (contact forces 6 µN). A frame solved backward is recorded again
-(``fdk.backward``, the driver keeps the later record), its counts the failed solve's
-plus the sweep's, one more restart.
+converged (132 evaluations): the sweep back solved all 7 in 4–5 evaluations each, 0.5 s
+in all; og3 in 2 chunks (its second segment starting there) converges 250 of 250 frames
+instead of 246, and the 4 frames solved backward equal the serial run's, solved forward,
+to 1.3e-8 rad and 2.9e-10 m (contact forces 6 µN). A frame solved backward is recorded
+again (``fdk.backward``, the driver keeps the later record), its counts the failed
+solve's plus the sweep's, one more restart.
 Every frame reports converged, Newton iterations, residual evaluations (each a
 recruitment solve), final max |f^FDK| and α; a frame that does not converge keeps its
 best iterate, is flagged with the reason, and the run goes on.
