@@ -384,3 +384,29 @@ def test_a_run_interrupted_after_a_failed_frame_resumes_and_sweeps_it_as_the_who
     for got, expected in zip(resumed[:3], whole[:3]):
         np.testing.assert_array_equal(got, expected)
     assert resumed[3] == whole[3]
+
+
+def test_the_convergence_figure_marks_the_frames_solved_backward():
+    """The slider's load step without the approach: in the run's convergence figure the
+    FDK panel marks frame 0.4 s, and only it, at its evaluation count (the failed solve's
+    and the sweep's), and the caption says what the mark means."""
+    from openfdk.fdk.analysis import fdk_result
+    from openfdk.plots.run import make_figures
+    from openfdk.results.run import RunResults
+
+    model = _slider()
+    times = np.arange(6) * DT
+    k = int(np.flatnonzero(np.isclose(times, T_STEP + DT))[0])
+    settings = fdk_settings(model, None, max_iterations=3)
+    ctx = fdk_context(model, None, times)
+    res = drive(FDKStep(model, ctx, settings, approach=None), len(times),
+                lambda rec: fdk_result(rec, model, ctx, settings, times, 1.0))
+    assert res.backward.tolist() == [int(i == k) for i in range(len(times))]
+    fig = make_figures(RunResults.from_analysis(res.kinematics, res.forces, {"fdk": res.summary()}, model))["convergence"]
+    marks = [(ax, line) for ax in fig.axes for line in ax.get_lines() if line.get_label() == "solved backward"]
+    assert len(marks) == 1
+    ax, line = marks[0]
+    assert ax.get_ylabel().startswith("FDK iterations")
+    np.testing.assert_allclose(line.get_xdata(), [times[k]])
+    np.testing.assert_allclose(line.get_ydata(), [res.evaluations[k]])
+    assert "solved again backward" in fig.texts[-1].get_text()

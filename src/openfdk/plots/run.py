@@ -449,8 +449,17 @@ def _convergence(results, t, failed):
     bad = np.flatnonzero(failed)
     if bad.size and shown and shown[0][0].startswith("kinematics"):
         axes[0].plot(t[bad], _col(k, "iterations")[bad], "rx", ms=7, label="failed frame")
+    # frames that failed and were solved again backward from a later frame (docs/fdk.md,
+    # "Sweeping back"): their counts hold both solves
+    backward = np.flatnonzero(_col(fdk, "fdk_backward") > 0) if fdk is not None and "fdk_backward" in fdk else []
+    row = next((i for i, (label, _, _) in enumerate(shown) if label.startswith("FDK iterations")), None)
+    if len(backward) and row is not None:
+        axes[row].plot(t[backward], _col(fdk, "fdk_evaluations")[backward], "v", color="tab:purple", ms=7,
+                       label="solved backward")
     caption = ("Iterations per frame of each stage; constraint violation max |Φ| after the position solve; FDK: Newton "
                "iterations, residual evaluations and the final max |f^FDK|."
+               + (" ▽: a frame that failed and was solved again backward from the next converged frame (its counts "
+                  "are both solves')." if len(backward) and row is not None else "")
                + (f" Zero on every frame, not drawn: {', '.join(dropped)}." if dropped else ""))
     return _finish(fig, axes, t, failed, caption)
 
