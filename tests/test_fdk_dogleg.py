@@ -66,3 +66,23 @@ def test_a_cauchy_point_outside_the_box_is_cut_at_the_box():
     np.testing.assert_allclose(np.max(np.abs(step) / MAX_STEP), 1.0, rtol=1e-12)
     u, v = step / np.linalg.norm(step), p_C / np.linalg.norm(p_C)
     assert u @ v > 1 - 1e-9
+
+
+def test_with_the_work_as_merit_the_cauchy_point_minimises_the_weighted_model():
+    """With weights W = diag(max_step) (the merit ‖W f‖₂, trust_region.work) the Cauchy
+    point is the minimiser of ‖W (f + J p)‖ along its own steepest descent, found by
+    search; it differs from the unweighted one, whose descent the force rows dominate
+    (here the moment's row, in N m, is the soft DOF's)."""
+    J = np.array([[50.0, 1.0, 0.0], [1.0, 60.0, 0.0], [0.0, 0.0, 0.002]])
+    f = np.array([3.0, -1.0, 0.05])
+    W = MAX_STEP
+    p_N = np.linalg.solve(J, -f)
+    step = dogleg_step(J, f, p_N, MAX_STEP, W)
+    p_C = _cauchy_by_search(W[:, None] * J, W * f)  # the same search on W J, W f
+    assert np.max(np.abs(p_C) / MAX_STEP) > 1  # cut at the box, as without weights
+    u, v = step / np.linalg.norm(step), p_C / np.linalg.norm(p_C)
+    assert u @ v > 1 - 1e-9
+    plain = dogleg_step(J, f, p_N, MAX_STEP)
+    assert plain @ step / np.linalg.norm(plain) / np.linalg.norm(step) < 0.99  # a different direction
+    # the weighted step lowers the weighted model more than the unweighted step does
+    assert _model(W[:, None] * J, W * f, step) < _model(W[:, None] * J, W * f, plain)

@@ -118,3 +118,54 @@ def test_a_cold_frame_keeps_a_fresh_jacobian_for_a_second_step_far_from_the_root
     assert cold.jacobians <= 0.6 * cold.iterations
     assert cold.evaluations < warm.evaluations
     assert NEAR_ROOT * settings.tolerance < load  # (the walk starts far from the root)
+
+
+# A joint of two DOFs in different units: a rotation θ (rad, residual a moment in N m) and
+# a translation x (m, residual a force in N), held by a stiffening contact at a lever arm
+# r and a rotational spring, under a load F and a moment M. The contact's depth is
+# d = x + r θ and its force P(d) = P₁ (exp(d/δ) − 1), so
+#   f_θ = r P(d) + k θ − M,   f_x = P(d) − F,
+# whose root is, in closed form, d* = δ ln(1 + F/P₁), θ* = (M − r F)/k, x* = d* − r θ*.
+R_ARM, K_ROT, P1, DELTA = 0.03, 50.0, 100.0, 0.5e-3  # m, N m/rad, N, m
+F_LOAD, M_LOAD = 2000.0, 62.0  # N, N m
+THETA_ROOT = (M_LOAD - R_ARM * F_LOAD) / K_ROT
+X_ROOT = DELTA * np.log1p(F_LOAD / P1) - R_ARM * THETA_ROOT
+
+
+def _joint(x_unit):
+    """f(α) of the joint with x measured in ``x_unit`` metres (1: m, 1e-3: mm): α = (θ,
+    x / x_unit), and the generalised force along the second coordinate is f_x · x_unit
+    (the work f_x dx is the same in either unit)."""
+    def f(alpha):
+        theta, x = alpha[0], alpha[1] * x_unit
+        P = P1 * np.expm1((x + R_ARM * theta) / DELTA)
+        return np.array([R_ARM * P + K_ROT * theta - M_LOAD, (P - F_LOAD) * x_unit])
+    return ClosedFormResidual(f, ("theta", "x"))
+
+
+def test_the_iteration_is_the_same_in_any_unit_of_a_dof():
+    """The merit is the residuals' work ‖diag(max_step) f‖₂ (trust_region.work), so the
+    iteration is invariant under a change of a DOF's unit: x in millimetres (its max_step,
+    perturbation and generalised force rescaled with it) gives the same trial poses as x
+    in metres, through a globalisation of refused and cut steps (the Newton step from
+    rest is about 10 max_steps long through the exponential contact), and both reach the
+    closed-form root. With ‖f‖₂ the force's weight would change a thousandfold with the
+    unit and the two iterations would differ from the first refused step on."""
+    runs = {}
+    for unit in (1.0, 1e-3):
+        settings = FDKSettings(tolerance=1e-9, max_iterations=60, jacobian="central", reuse_jacobian=False,
+                               max_step=(0.05, 1e-3 / unit), perturbation=(1e-7, 1e-9 / unit), restart=False)
+        ctx = _joint(unit)
+        sol = solve_frame(ctx, 0, np.zeros(2), Workspace(), settings)
+        assert sol.converged
+        assert sol.best.alpha[0] == pytest.approx(THETA_ROOT, abs=1e-9)
+        assert sol.best.alpha[1] * unit == pytest.approx(X_ROOT, abs=1e-12)
+        runs[unit] = np.array([[a[0], a[1] * unit] for a in ctx.alphas])  # θ rad, x m
+    metres, millimetres = runs[1.0], runs[1e-3]
+    # the globalisation: from rest until max |f| is within 1 N of the root
+    f_m = np.array([np.max(np.abs(_joint(1.0).f(a))) for a in metres])
+    far = int(np.argmax(f_m < 1.0))
+    assert far >= 12  # a long walk: the Newton step from rest is far out of the box
+    x_steps = np.diff(metres[:far, 1])
+    assert np.any(x_steps < 0)  # a trial refused or cut back on the way (not a plain march)
+    np.testing.assert_allclose(millimetres[:far], metres[:far], rtol=1e-6, atol=1e-12)

@@ -3,10 +3,11 @@
 Each iteration: Jacobian J = ∂f^FDK/∂α (analytic or central differences), Newton step
 Δα = −J⁻¹ f, replaced by Powell's dogleg step within the trust region |Δα_i| ≤ r max_step_i
 (:mod:`.trust_region`; r starts each frame at 1 and adapts to how well the linear model
-predicted the last step). A step that does not reduce ‖f^FDK‖₂ is refused: the region
-shrinks and the same J gives a shorter step; within NEAR_ROOT tolerances of the root,
-or after MAX_SHRINK refusals, a golden-section search on the step length β ∈ (0, 1)
-(the paper's line search) picks the β with the smallest ‖f^FDK‖₂ instead.
+predicted the last step). A step that does not reduce the merit ‖W f^FDK‖₂ (W =
+diag(max_step): the residuals' work over one max_step, :func:`~.trust_region.work`) is
+refused: the region shrinks and the same J gives a shorter step; within NEAR_ROOT
+tolerances of the root, or after MAX_SHRINK refusals, a golden-section search on the step
+length β ∈ (0, 1) (the paper's line search) picks the β with the smallest merit instead.
 Converged when max |f^FDK| < tolerance.
 
 Jacobian reuse (setting ``reuse_jacobian``, default on): instead of a fresh J at every
@@ -14,7 +15,7 @@ iteration, the J of the previous iteration — or of the previous frame, since t
 configuration changes little in 10 ms — is kept and corrected after every accepted step
 by Broyden's rank-one update J ← J + (Δf − J Δα) Δαᵀ / (Δαᵀ Δα) (a quasi-Newton method;
 the converged α satisfies the same max |f^FDK| < tolerance). A fresh J is computed when
-there is none, when a step with the carried J did not reduce ‖f^FDK‖₂ at least
+there is none, when a step with the carried J did not reduce the merit at least
 :data:`CARRIED_J_REDUCTION` times (a Newton step with an accurate J reduces it far more
 near the root; a carried J that does less converges only linearly), and when an accepted
 step's own rate, carried on, would not reach the tolerance in one more step
@@ -25,7 +26,7 @@ evaluations and 1.04 → 1.34 Jacobians per frame (full Newton, ``reuse_jacobian
 before it, so it starts far from its root) applies the rate rule only within
 :data:`~.trust_region.NEAR_ROOT` tolerances of the root: farther out, where the trust
 region rather than J limits the steps, a fresh J serves a second, Broyden-updated step
-while the steps keep reducing ‖f^FDK‖₂ tenfold. Measured on 15 cold starts of the DM
+while the steps keep reducing the merit tenfold. Measured on 15 cold starts of the DM
 knee in gait (5 trials × 3 times, each the window's first frame with its lead-in and
 the two frames after it): 8 910 → 5 607 residual evaluations, 315 → 190 s, failed
 frames 2 → 0; the warm frames after them are unchanged. Only a fresh J's step goes on to the line
@@ -48,8 +49,8 @@ force set exists), kinematics failed, or a singular Jacobian (no restoring force
 DOF).
 
 Restarts (setting ``restart``, default on; :func:`solve_frame_from`). A Newton method
-globalised by a line search on the merit ‖f^FDK‖₂ converges to a stationary point of the
-merit, J(α)ᵀ f(α) = 0 (or a kink of f where no direction descends), which is a root only
+globalised by a line search on a merit ‖W f^FDK‖₂ converges to a stationary point of the
+merit, J(α)ᵀ W² f(α) = 0 (or a kink of f where no direction descends), which is a root only
 when J is regular there (Nocedal & Wright, "Numerical Optimization", 2nd ed., §11.2,
 Theorem 11.6 and the discussion after it; the usual remedy for a stall at a non-root
 minimiser of the merit is to start again from another point). f^FDK(α) is continuous but only
@@ -75,10 +76,10 @@ import numpy as np
 from ..kinematics.frame_kernels import small_solve
 from .contact_step import INNER_REACH, INNER_RELATIVE, INNER_SOLVED, ContactSplit
 from .jacobian import analytic_jacobian, central_jacobian, refreshed_split
-from .trust_region import MAX_SHRINK, NEAR_ROOT, SHRINK, dogleg_step, reduction_ratio, trust_radius
+from .trust_region import MAX_SHRINK, NEAR_ROOT, SHRINK, dogleg_step, reduction_ratio, trust_radius, work
 
 GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
-#: a step with a carried (Broyden-updated) J must divide ‖f^FDK‖₂ by this, else the next
+#: a step with a carried (Broyden-updated) J must divide the merit ‖W f^FDK‖₂ by this, else the next
 #: iteration computes a fresh J. Measured on the DM knee's bench window (31 frames,
 #: `dm_pt.yaml`): 2 → 7 evaluations per frame (median), 1.4 Jacobians; 10 → 5 and 2.2
 #: Jacobians, the same wall time; 50 → 5 and 2.8
@@ -104,8 +105,11 @@ class FrameSolution:
     restarts: int = 0  # further starts solved after the warm start failed (solve_frame_from)
 
 
-def _norm2(ev):
-    return float(np.linalg.norm(ev.f_fdk)) if ev.ok else np.inf
+def _merit(ev, max_step):
+    """The trust region's and the line search's merit at ``ev``: ‖W f^FDK‖₂, W =
+    diag(max_step) (n_fdk,) m or rad (:func:`~.trust_region.work`, J); inf where the pose
+    could not be evaluated."""
+    return float(np.linalg.norm(work(ev.f_fdk, max_step))) if ev.ok else np.inf
 
 
 def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=False) -> FrameSolution:
@@ -213,7 +217,7 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=Fal
                                max(0.1 * settings.tolerance, INNER_RELATIVE * ev.norm))
             if np.max(np.abs(g)) < INNER_SOLVED * ev.norm and np.max(np.abs(d / max_step)) <= radius:
                 inner = (d, g)
-        step = inner[0] if inner is not None else dogleg_step(J, ev.f_fdk, step_N, radius * max_step)
+        step = inner[0] if inner is not None else dogleg_step(J, ev.f_fdk, step_N, radius * max_step, max_step)
 
         def predicted(step):
             """The model's f^FDK after ``step``: g (contacts exact) or f + J Δα."""
@@ -227,11 +231,11 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=Fal
         trial = ctx.evaluate(k, ev.alpha + step, trial_ws, ev.frame.recruitment)
         evaluations += 1
         reach = float(np.max(np.abs(step / max_step)))  # the step's length in max_steps
-        if _norm2(trial) < _norm2(ev):
+        if _merit(trial, max_step) < _merit(ev, max_step):
             f_model = predicted(step)
             radius, rejected = trust_radius(radius, reach, reduction_ratio(J, ev.f_fdk, step, trial.f_fdk,
-                                                                           f_model)), 0
-            reduced = _norm2(trial) * CARRIED_J_REDUCTION <= _norm2(ev)
+                                                                           f_model, max_step)), 0
+            reduced = _merit(trial, max_step) * CARRIED_J_REDUCTION <= _merit(ev, max_step)
             if reuse:
                 f_linear = ev.f_fdk + J @ step  # the linear model's f^FDK after the step
                 if split is not None:
@@ -262,9 +266,10 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=Fal
             continue
         elif settings.line_search:
             # near the root (or the region shrunk MAX_SHRINK times): golden section along the step
-            step = dogleg_step(J, ev.f_fdk, step_N, max_step)
+            step = dogleg_step(J, ev.f_fdk, step_N, max_step, max_step)
             radius, rejected = 1.0, 0
-            trial, trial_ws, n_ev = _golden_section(ctx, k, ev, ws, step, settings.golden_section_evaluations)
+            trial, trial_ws, n_ev = _golden_section(ctx, k, ev, ws, step, settings.golden_section_evaluations,
+                                                    max_step)
             evaluations += n_ev
             if trial is None:
                 return done(best, False, it, f"line search failed: no step length along the Newton direction "
@@ -396,9 +401,10 @@ def _corrected(J, split, s, y, miss):
     return split.J_s
 
 
-def _golden_section(ctx, k, ev, ws, step, max_evaluations):
-    """Golden-section search of β ∈ (0, 1) minimising ‖f^FDK(α + β Δα)‖₂; returns the
-    best evaluation if it beats β = 0, else (None, None, n)."""
+def _golden_section(ctx, k, ev, ws, step, max_evaluations, max_step):
+    """Golden-section search of β ∈ (0, 1) minimising the merit ‖W f^FDK(α + β Δα)‖₂
+    (:func:`_merit`, W = diag(max_step) (n_fdk,) m or rad); returns the best evaluation if
+    it beats β = 0, else (None, None, n)."""
     a, b = 0.0, 1.0
     cache = {}
 
@@ -406,7 +412,7 @@ def _golden_section(ctx, k, ev, ws, step, max_evaluations):
         if beta not in cache:
             w = ws.copy()
             cache[beta] = (ctx.evaluate(k, ev.alpha + beta * step, w, ev.frame.recruitment), w)
-        return _norm2(cache[beta][0])
+        return _merit(cache[beta][0], max_step)
 
     c = b - GOLDEN * (b - a)
     d = a + GOLDEN * (b - a)
@@ -417,8 +423,8 @@ def _golden_section(ctx, k, ev, ws, step, max_evaluations):
         else:
             a, c = c, d
             d = a + GOLDEN * (b - a)
-    beta = min(cache, key=lambda x: _norm2(cache[x][0]))
+    beta = min(cache, key=lambda x: _merit(cache[x][0], max_step))
     trial, w = cache[beta]
-    if _norm2(trial) < _norm2(ev):
+    if _merit(trial, max_step) < _merit(ev, max_step):
         return trial, w, len(cache)
     return None, None, len(cache)
