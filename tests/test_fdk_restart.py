@@ -117,3 +117,58 @@ def test_scan_starts_move_one_dof_at_a_time():
     assert np.all(np.count_nonzero(d, axis=1) == 1)
     multiples = np.abs(d).sum(axis=1) / step[np.argmax(np.abs(d), axis=1)]
     np.testing.assert_allclose(multiples, [2] * 6 + [4] * 6)
+
+
+# A residual of two DOFs with no root and a kink, as at DM's stalls (a muscle at its
+# recruitment threshold): f(x, y) = (0.5 + |x| + 0.2 y, 2 y − |x|) N. f₂ = 0 needs
+# y = |x|/2, and then f₁ = 0.5 + 1.1 |x| > 0; no α has max |f| below 0.5/1.1 N (at x = 0,
+# 0.5 + 0.2 y = −2 y). From (2, 2) the iteration creeps along the kink x = 0, each
+# accepted step lowering ‖f‖ by a sliver.
+def _kink_without_root(alpha):
+    x, y = alpha
+    return np.array([0.5 + abs(x) + 0.2 * y, 2.0 * y - abs(x)])
+
+
+NO_ROOT_BOUND = 0.5 / 1.1  # N, the least max |f| over all α
+
+
+def test_a_stalled_start_stops_as_no_progress_long_before_the_iteration_limit(monkeypatch):
+    """MINPACK's progress tests (newton.SLOW_JACOBIANS, SLOW_STEPS): the start stops with
+    reason ``no_progress`` after far fewer than its 200 iterations. With the tests off it
+    creeps for all 200 and ends within 1e-3 N of where the tests stopped it."""
+    from openfdk.fdk import newton
+
+    settings = FDKSettings(tolerance=1e-9, max_iterations=200, jacobian="central", reuse_jacobian=False,
+                           max_step=(1.0, 1.0), perturbation=(1e-6, 1e-6))
+    sol = solve_frame(ClosedFormResidual(_kink_without_root, ("x", "y")), 0, np.array([2.0, 2.0]), Workspace(),
+                      settings)
+    assert not sol.converged and sol.reason == "no_progress"
+    assert sol.message.startswith("no progress at iteration")
+    assert sol.iterations < 40
+    assert sol.best.norm >= NO_ROOT_BOUND
+    monkeypatch.setattr(newton, "SLOW_JACOBIANS", 10 ** 9)
+    monkeypatch.setattr(newton, "SLOW_STEPS", 10 ** 9)
+    off = solve_frame(ClosedFormResidual(_kink_without_root, ("x", "y")), 0, np.array([2.0, 2.0]), Workspace(),
+                      settings)
+    assert not off.converged and off.reason == "iteration_limit" and off.iterations == 200
+    assert off.evaluations > 5 * sol.evaluations
+    assert off.best.norm >= NO_ROOT_BOUND
+    assert sol.best.norm - off.best.norm < 1e-3  # the 180 more iterations gained nothing
+
+
+def test_a_walk_of_full_boxes_towards_a_far_root_is_progress():
+    """A linear spring whose root is 60 max_steps away: each step crosses the whole box and
+    lowers ‖f‖² by only 2/60 or so, less than PROGRESS_JACOBIAN, yet the walk converges to
+    the closed-form root α* = F/k; it is not stopped as a stall."""
+    from openfdk.fdk.newton import PROGRESS_JACOBIAN, SLOW_JACOBIANS
+
+    k, F = 1e4, 600.0  # N/m, N: the root 60 mm away, max_step 1 mm
+
+    settings = FDKSettings(tolerance=1e-6, max_iterations=100, jacobian="central", reuse_jacobian=False,
+                           max_step=(1e-3,), perturbation=(1e-9,), restart=False)
+    sol = solve_frame(ClosedFormResidual(lambda a: np.array([k * a[0] - F])), 0, np.array([0.0]), Workspace(),
+                      settings)
+    assert sol.converged
+    assert sol.best.alpha[0] == pytest.approx(F / k, abs=1e-9)
+    assert sol.iterations >= 60  # one box per step
+    assert 1 - (1 - 1 / 60) ** 2 < PROGRESS_JACOBIAN and sol.iterations > SLOW_JACOBIANS

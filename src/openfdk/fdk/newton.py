@@ -79,6 +79,26 @@ from .jacobian import analytic_jacobian, central_jacobian, refreshed_split
 from .trust_region import MAX_SHRINK, NEAR_ROOT, SHRINK, dogleg_step, reduction_ratio, trust_radius, work
 
 GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
+#: a start stops as stalled (reason ``no_progress``) after this many consecutive Newton
+#: steps from a fresh J that each lowered the merit's square by less than
+#: PROGRESS_JACOBIAN, or after SLOW_STEPS consecutive steps that each lowered it by less
+#: than PROGRESS_STEP: MINPACK's ``hybrj`` tests of "not making good progress" (its
+#: ``info`` 4 and 5; Moré, Garbow & Hillstrom, "User Guide for MINPACK-1", Argonne
+#: ANL-80-74, 1980), with its values. Such a start sits at a kink of f^FDK that is not a
+#: root (a muscle at its recruitment threshold, a contact's edge; "Restarts" in the
+#: module docstring), where the iteration keeps max |f^FDK| to three digits for the rest
+#: of its iterations (DM og7 1.692 s: 0.059 N for 80 evaluations and 30 Jacobians), and
+#: the next start is what helps. Measured on DM's six overground trials: 9 941 residual
+#: evaluations and 4 008 Jacobians instead of 11 371 and 4 883, every frame converged
+#: (docs/fdk.md, "Stalled starts")
+SLOW_JACOBIANS = 5
+PROGRESS_JACOBIAN = 0.1
+SLOW_STEPS = 10
+PROGRESS_STEP = 1e-3
+#: an accepted step this long (in max_steps) is never slow: MINPACK's trust region grows
+#: without bound, this one stops at the max_step box, and a root N boxes away is reached
+#: by steps that each lower the merit's square by only about 2/N
+WALK_REACH = 0.99
 #: a step with a carried (Broyden-updated) J must divide the merit ‖W f^FDK‖₂ by this, else the next
 #: iteration computes a fresh J. Measured on the DM knee's bench window (31 frames,
 #: `dm_pt.yaml`): 2 → 7 evaluations per frame (median), 1.4 Jacobians; 10 → 5 and 2.2
@@ -168,10 +188,12 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=Fal
     best, best_ws = ev, ws.copy()
     radius, rejected = 1.0, 0  # the trust region (multiples of max_step) and the steps it refused
     linear_only = False  # this iterate refused the contacts-exact step: the linear model's
+    slow_jacobians = slow_steps = 0  # the stall tests (SLOW_JACOBIANS, SLOW_STEPS)
     for it in range(1, settings.max_iterations + 1):
         if ev.norm < settings.tolerance:
             return done(ev, True, it - 1, "", "converged", ws)
-        if J is None or (not reuse and not fresh):  # (a refused step keeps its fresh J)
+        new_J = J is None or (not reuse and not fresh)  # (a refused step keeps its fresh J)
+        if new_J:
             J, n_ev, msg = _jacobian(ctx, k, ev, ws, settings)
             evaluations += n_ev
             if ev.dq_dalpha is not None and ctx.tracker is not None:
@@ -231,6 +253,23 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=Fal
         trial = ctx.evaluate(k, ev.alpha + step, trial_ws, ev.frame.recruitment)
         evaluations += 1
         reach = float(np.max(np.abs(step / max_step)))  # the step's length in max_steps
+        # the step's actual reduction of the merit's square (negative: refused); an
+        # accepted step across the whole max_step box walks towards a far root at the
+        # box's pace, which is progress however small its share of the merit
+        reduction = 1.0 - (_merit(trial, max_step) / _merit(ev, max_step)) ** 2 if trial.ok else -np.inf
+        walking = reduction > 0.0 and reach >= WALK_REACH
+        slow_steps = 0 if reduction >= PROGRESS_STEP or walking else slow_steps + 1
+        slow_jacobians = 0 if reduction >= PROGRESS_JACOBIAN or walking else slow_jacobians + int(new_J)
+        if slow_jacobians >= SLOW_JACOBIANS or slow_steps >= SLOW_STEPS:
+            if trial.ok and trial.norm < best.norm:
+                best, best_ws = trial, trial_ws.copy()
+            if best.norm < settings.tolerance:
+                return done(best, True, it, "", "converged", best_ws)
+            why = (f"the steps of the last {SLOW_JACOBIANS} Jacobians each lowered the residual's work by less "
+                   f"than {PROGRESS_JACOBIAN:.0%}" if slow_jacobians >= SLOW_JACOBIANS else
+                   f"the last {SLOW_STEPS} steps each lowered the residual's work by less than {PROGRESS_STEP:.1%}")
+            return done(best, False, it, f"no progress at iteration {it} ({why}), max |f^FDK| = {best.norm:.4g}",
+                        "no_progress", best_ws)
         if _merit(trial, max_step) < _merit(ev, max_step):
             f_model = predicted(step)
             radius, rejected = trust_radius(radius, reach, reduction_ratio(J, ev.f_fdk, step, trial.f_fdk,

@@ -33,6 +33,7 @@ class Reason(enum.Enum):
     RECRUITMENT = "recruitment"  # recruitment infeasible or not converged
     JACOBIAN = "jacobian"  # the FDK Jacobian could not be computed
     LINE_SEARCH = "line_search"  # no FDK step length reduced the residual
+    NO_PROGRESS = "no_progress"  # the FDK iteration stalled: its steps no longer reduce the residual's merit
     FAILED = "failed"  # any other failure (the message says which)
     NOT_RUN = "not_run"
 
