@@ -88,8 +88,8 @@ GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
 #: root (a muscle at its recruitment threshold, a contact's edge; "Restarts" in the
 #: module docstring), where the iteration keeps max |f^FDK| to three digits for the rest
 #: of its iterations (DM og7 1.692 s: 0.059 N for 80 evaluations and 30 Jacobians), and
-#: the next start is what helps. Measured on DM's six overground trials: 9 941 residual
-#: evaluations and 4 008 Jacobians instead of 11 371 and 4 883, every frame converged
+#: the next start is what helps. Measured on DM's six overground trials: 9 985 residual
+#: evaluations and 4 021 Jacobians instead of 11 371 and 4 883, every frame converged
 #: (docs/fdk.md, "Stalled starts")
 SLOW_JACOBIANS = 5
 PROGRESS_JACOBIAN = 0.1
