@@ -21,8 +21,8 @@ newton-metres: a DOF's weight then depends on the unit of its coordinate, and th
 rotations' moments (the DM knee's rotations and the patella's tilt and spin, its soft
 modes) count 50 times less than with the work. With the work the iteration is the same
 in any units (tests/test_fdk_trust_region.py), and on DM's six overground trials it
-took 10 361 residual evaluations and 4 253 Jacobians instead of 13 958 and 6 357, every
-frame converged either way (docs/fdk.md, "The trust region, measured"). On a model
+took 11 371 residual evaluations and 4 883 Jacobians instead of 13 958 and 6 357, every
+frame converged either way (docs/fdk.md, "The merit: the residuals' work"). On a model
 whose DOFs share one max_step (the mandible's) W is uniform and nothing changes.
 
 Near the root a refused step is noise, not curvature: f^FDK is known only to a few mN
