@@ -256,7 +256,8 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=Fal
         # the step's actual reduction of the merit's square (negative: refused); an
         # accepted step across the whole max_step box walks towards a far root at the
         # box's pace, which is progress however small its share of the merit
-        reduction = 1.0 - (_merit(trial, max_step) / _merit(ev, max_step)) ** 2 if trial.ok else -np.inf
+        merit, merit_trial = _merit(ev, max_step), _merit(trial, max_step)
+        reduction = 1.0 - (merit_trial / merit) ** 2 if trial.ok else -np.inf
         walking = reduction > 0.0 and reach >= WALK_REACH
         slow_steps = 0 if reduction >= PROGRESS_STEP or walking else slow_steps + 1
         slow_jacobians = 0 if reduction >= PROGRESS_JACOBIAN or walking else slow_jacobians + int(new_J)
@@ -270,11 +271,11 @@ def solve_frame(ctx, k, alpha0, ws, settings, warm=None, jacobian=None, cold=Fal
                    f"the last {SLOW_STEPS} steps each lowered the residual's work by less than {PROGRESS_STEP:.1%}")
             return done(best, False, it, f"no progress at iteration {it} ({why}), max |f^FDK| = {best.norm:.4g}",
                         "no_progress", best_ws)
-        if _merit(trial, max_step) < _merit(ev, max_step):
+        if merit_trial < merit:
             f_model = predicted(step)
             radius, rejected = trust_radius(radius, reach, reduction_ratio(J, ev.f_fdk, step, trial.f_fdk,
                                                                            f_model, max_step)), 0
-            reduced = _merit(trial, max_step) * CARRIED_J_REDUCTION <= _merit(ev, max_step)
+            reduced = merit_trial * CARRIED_J_REDUCTION <= merit
             if reuse:
                 f_linear = ev.f_fdk + J @ step  # the linear model's f^FDK after the step
                 if split is not None:
