@@ -69,3 +69,34 @@ def test_cache_info_and_clear(tmp_path, monkeypatch, capsys):
     assert not list((tmp_path / "distance-grids").glob("*.npz"))
     assert main(["cache", "info"]) == 0
     assert ": 0 grid files" in capsys.readouterr().out
+
+
+def test_the_contacts_exact_step_model_holds_the_depth_warning_back():
+    """The FDK step's model evaluates the contacts at predicted poses q̂ ⊕ U Δα that are
+    not poses of the model (fdk/contact_step.py): a depth near max_depth there does not
+    warn, while the same pose evaluated as a result does. The model's forces are the
+    contact's all the same: a flat 10 mm × 10 mm pad pressed δ = 1.9 mm (95 % of
+    max_depth) into a floor carries p δ A = 1e9 · 1.9e-3 · 1e-4 = 190 N (each vertex's
+    prism a_i d_i, Σ a_i = A)."""
+    from types import SimpleNamespace
+
+    from openfdk.contact.sections import add_contact
+    from openfdk.fdk.contact_step import ContactSplit
+    from openfdk.model.builder import ModelBuilder
+
+    b = ModelBuilder("pad on floor", gravity=(0, 0, -9.81))
+    b.add_body("pad", 0.1, [1e-5] * 3)
+    add_contact(b, "pad", "pad", flat_patch(0.01, 0.01, 0.001, name="top.stl"), "ground",
+                flat_patch(0.03, 0.03, 0.002, name="floor.stl"), 1e9, mode="exact", max_depth=2e-3)
+    model = b.build()
+    state = model.initial_state()
+    delta = 1.9e-3
+    state.set_q(np.array([0.0, 0.0, -delta, 1.0, 0.0, 0.0, 0.0]))
+    split = ContactSplit(np.zeros((6, 1)), np.zeros((1, 6)), np.arange(6), np.array([[0, -1]]))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        Q, _ = split.terms(SimpleNamespace(contacts=model.contacts), state)
+        assert not [w for w in caught if issubclass(w.category, ContactDepthWarning)]
+        np.testing.assert_allclose(Q[:3], [0.0, 0.0, 1e9 * delta * 1e-4], rtol=1e-9, atol=1e-9)
+        model.contacts[0].evaluate(state)  # the same pose as a result
+    assert len([w for w in caught if issubclass(w.category, ContactDepthWarning)]) == 1

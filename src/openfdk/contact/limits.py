@@ -2,7 +2,10 @@
 
 * **Depth band.** Vertices deeper than ``max_depth`` are ignored (they are taken to be
   behind the opposite surface). :func:`warn_depth` warns, once per contact and run,
-  when a penetration comes within 10 % of ``max_depth`` (:class:`ContactDepthWarning`).
+  when a penetration comes within 10 % of ``max_depth`` (:class:`ContactDepthWarning`),
+  except inside :func:`quiet_depth`: there the contacts are evaluated at poses that are
+  not poses of the model (the FDK step's model with the contacts exact,
+  :mod:`openfdk.fdk.contact_step`).
 * **Distance-grid memory.** :func:`grid_estimate` predicts the nodes and the bytes of a
   narrow-band grid before it is built: the box is the surface's bounding box inflated
   by the band half-width w = max_depth + 2h, with n = Π ⌈(extent + 2w)/h⌉ + 1 nodes; the
@@ -18,6 +21,7 @@ from __future__ import annotations
 
 import os
 import warnings
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -29,6 +33,8 @@ STORED_BYTES_PER_NODE = 17
 DEFAULT_LIMIT_MB = 2048.0
 NOTICE_MB = 1024.0
 DEPTH_FRACTION = 0.9
+#: nesting depth of :func:`quiet_depth` (0: :func:`warn_depth` warns)
+_quiet = 0
 
 
 class ContactDepthWarning(UserWarning):
@@ -39,10 +45,23 @@ class GridSizeWarning(UserWarning):
     """A large distance grid is about to be built."""
 
 
+@contextmanager
+def quiet_depth():
+    """Hold :func:`warn_depth` back inside the block, where the contacts are evaluated at
+    poses that are not poses of the model (a step's model, not a result)."""
+    global _quiet
+    _quiet += 1
+    try:
+        yield
+    finally:
+        _quiet -= 1
+
+
 def warn_depth(name, max_penetration, max_depth):
-    """Warn when ``max_penetration`` (m) ≥ 90 % of ``max_depth`` (m). The message does
-    not depend on the depth, so Python's warning registry shows it once per contact."""
-    if max_penetration >= DEPTH_FRACTION * max_depth:
+    """Warn when ``max_penetration`` (m) ≥ 90 % of ``max_depth`` (m), except inside
+    :func:`quiet_depth`. The message does not depend on the depth, so Python's warning
+    registry shows it once per contact."""
+    if not _quiet and max_penetration >= DEPTH_FRACTION * max_depth:
         warnings.warn(
             f"contact {name!r}: penetration reached {100 * DEPTH_FRACTION:.0f} % of max_depth "
             f"({max_depth * 1e3:g} mm); vertices deeper than max_depth are ignored, so raise max_depth",
@@ -100,5 +119,5 @@ def check_grid_memory(mesh_name, vertices_B, spacing, max_depth):
     return shape, n, build, stored
 
 
-__all__ = ["ContactDepthWarning", "GridSizeWarning", "warn_depth", "grid_estimate", "check_grid_memory",
+__all__ = ["ContactDepthWarning", "GridSizeWarning", "warn_depth", "quiet_depth", "grid_estimate", "check_grid_memory",
            "memory_limit_mb"]
