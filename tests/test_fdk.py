@@ -586,3 +586,33 @@ def test_failed_frames_solved_again_backward_with_marker_tracking_are_the_forwar
     atol = np.array([1e-7, 1e-7, 1.2e-6])
     assert np.all(np.abs(rec.array("fdk.alpha") - forward[0]) <= atol)
     assert np.all(np.abs(forward[0][3:5, :2]) > 1e-5)  # real displacements, not the initial values
+
+
+def test_an_evaluation_where_the_kinematics_are_undefined_fails_and_names_why(tmj_model, tmj_settings):
+    """A stage of the kinematics that raises FloatingPointError at a trial α (a
+    rotation-angle measure at gimbal lock: DM's patella under the elastic-tendon overlay,
+    which ended `openfdk run` with a traceback) makes a failed evaluation, refused like any
+    other: ok False, stage ``kinematics``, the measure's message. Elsewhere the same
+    context evaluates as before."""
+    from openfdk.fdk.residual import FrameWorkspace
+
+    ctx, _, _ = _tmj_context(tmj_model, tmj_settings)
+    state0 = tmj_model.initial_state()
+    ctx.tracker.initial_guess(state0, ctx.meas[5][0], ctx.meas[5][3])
+    alpha = np.array([-8.6e-4, -8.6e-4, -1e-5])
+    solve = ctx.tracker.solve_positions
+
+    def undefined_beyond(state, t, x, vis, a, *args):
+        if a[2] > 1e-3:
+            raise FloatingPointError("angles 'pf_r.angles' (xyz): gimbal lock, the middle angle is -90.0 deg")
+        return solve(state, t, x, vis, a, *args)
+
+    ctx.tracker.solve_positions = undefined_beyond
+    try:
+        ok = ctx.evaluate(5, alpha, FrameWorkspace({j: state0 for j in ctx.frames_needed(5)}))
+        bad = ctx.evaluate(5, alpha + [0.0, 0.0, 2e-3], FrameWorkspace({j: state0 for j in ctx.frames_needed(5)}))
+    finally:
+        del ctx.tracker.solve_positions
+    assert ok.ok and np.all(np.isfinite(ok.f_fdk)) and np.abs(ok.f_fdk).max() > 0
+    assert not bad.ok and bad.stage == "kinematics" and np.all(np.isnan(bad.f_fdk)) and bad.norm == np.inf
+    assert bad.message == "kinematics failed: angles 'pf_r.angles' (xyz): gimbal lock, the middle angle is -90.0 deg"

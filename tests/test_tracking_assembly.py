@@ -112,3 +112,65 @@ def test_assembly_descends_and_keeps_the_joints():
         tip = state.p_WB[k] + R[k] @ np.array([0, 0, -L / 2])
         top = state.p_WB[k + 1] + R[k + 1] @ np.array([0, 0, L / 2])
         np.testing.assert_allclose(tip, top, atol=1e-9)
+
+
+def _undefined_once(monkeypatch, tracker, message):
+    """The Gauss–Newton kernel's first call stops where a measure is undefined (status
+    MEASURE_ERROR, as at a rotation-angle measure's gimbal lock); the program's
+    reference then raises ``message``. Later calls run the real kernel."""
+    import openfdk.kinematics.tracking as tr
+
+    real, calls = tr.tracking_positions, []
+
+    def kernel(*args):
+        calls.append(1)
+        if len(calls) == 1:
+            return tr.MEASURE_ERROR, 3, np.nan, np.nan, 0, 0
+        return real(*args)
+
+    def raise_error(e_node, e_kind, state=None):
+        raise FloatingPointError(message)
+
+    monkeypatch.setattr(tr, "tracking_positions", kernel)
+    monkeypatch.setattr(tracker.system.program, "raise_error", raise_error)
+
+
+def test_a_measure_undefined_on_gauss_newton_s_path_hands_over_to_the_damped_solve(monkeypatch):
+    """DM's patella reached xyz gimbal lock on a Gauss–Newton path from an FDK trial step,
+    and the FloatingPointError ended `openfdk run` with a traceback. Now the kernel's
+    failure is a failed Gauss–Newton solve: the damped solve takes over from the same
+    warm start and reaches the optimum the plain solve finds (the scipy reference's)."""
+    model, x = chain(), measured()
+    visible = np.ones(9, bool)
+    plain = model.initial_state()
+    assert MarkerTracker(ConstraintSystem(model)).solve_positions(plain, 0.0, x, visible)[0].converged
+    tracker = MarkerTracker(ConstraintSystem(model))
+    _undefined_once(monkeypatch, tracker, "angles 'seg1.angles' (xyz): gimbal lock, the middle angle is 90.0 deg")
+    state = model.initial_state()
+    res, K, _ = tracker.solve_positions(state, 0.0, x, visible)
+    assert res.converged and K is not None
+    p = tracker.markers.positions(state)
+    np.testing.assert_allclose(p, tracker.markers.positions(plain), atol=1e-6)
+    np.testing.assert_allclose(0.5 * np.sum((p - x) ** 2), reference_optimum(x).cost, rtol=1e-6)
+
+
+def test_a_measure_undefined_on_every_path_is_a_failed_frame_naming_it(monkeypatch):
+    """When the damped solve meets it too, the frame fails with the measure's message
+    (reason ``failed``) and the pose is left at its warm start: no exception."""
+    import openfdk.kinematics.tracking as tr
+
+    model, x = chain(), measured()
+    tracker = MarkerTracker(ConstraintSystem(model))
+    message = "angles 'seg1.angles' (xyz): gimbal lock, the middle angle is 90.0 deg"
+    _undefined_once(monkeypatch, tracker, message)
+
+    def undefined(*args, **kwargs):
+        raise FloatingPointError(message)
+
+    monkeypatch.setattr(tr, "assemble", undefined)
+    state = model.initial_state()
+    start = state.get_q().copy()
+    res, K, lam = tracker.solve_positions(state, 0.0, x, np.ones(9, bool))
+    assert not res.converged and res.message == message and res.reason.value == "failed"
+    assert K is None and lam is None
+    np.testing.assert_array_equal(state.get_q(), start)

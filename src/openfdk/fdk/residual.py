@@ -154,6 +154,16 @@ class FDKContext:
 
     def _evaluate(self, k, alpha, ws, warm_recruitment):
         alpha = np.asarray(alpha, dtype=float)
+        try:
+            return self._kinematics_and_dynamics(k, alpha, ws, warm_recruitment)
+        except FloatingPointError as exc:
+            # a pose where the kinematics are undefined: a rotation-angle measure at gimbal
+            # lock (DM's patella, xyz at −90°, reached by a trial step of the elastic-tendon
+            # overlay's sub-steps) — a failed evaluation, refused like any other, never an
+            # exception out of the run
+            return Evaluation(alpha, False, np.full(len(alpha), np.nan), f"kinematics failed: {exc}", "kinematics")
+
+    def _kinematics_and_dynamics(self, k, alpha, ws, warm_recruitment):
         t = self.times[k]
         data = FrameData(t=t, alpha=alpha)
         if self.tracker is None:

@@ -253,8 +253,11 @@ class MarkerTracker:
         # far from the optimum, or a coordinate the markers barely see: the damped,
         # feasible-path solve from the same warm start (kinematics/assembly.py)
         _restore(start, state)
-        ok, it, _, res, mu = assemble(self, state, t, x_WM, visible, alpha, tol_step=s.tol_step,
-                                      tol_constraint=s.tol_constraint)
+        try:
+            ok, it, _, res, mu = assemble(self, state, t, x_WM, visible, alpha, tol_step=s.tol_step,
+                                          tol_constraint=s.tol_constraint)
+        except FloatingPointError:  # undefined on its path too: Gauss–Newton's failure says where
+            ok = False
         if not ok:
             _restore(start, state)
             return out
@@ -316,9 +319,15 @@ class MarkerTracker:
         except np.linalg.LinAlgError as exc:
             return FrameSolve(False, 0, np.nan, f"KKT system singular: {exc}", Reason.SINGULAR), None, None
         if status == MEASURE_ERROR:
-            if e_node <= -2:
-                self._raise_task_error(e_node, e_kind, state)
-            prog.raise_error(e_node, e_kind, state)
+            # a measure undefined on the way (a rotation-angle measure at gimbal lock: DM's
+            # patella, xyz at −90°, from an FDK trial step): a failed solve naming it, from
+            # which solve_positions tries the damped solve; never an exception out of a run
+            try:
+                if e_node <= -2:
+                    self._raise_task_error(e_node, e_kind, state)
+                prog.raise_error(e_node, e_kind, state)  # (both raise, with the measure's message)
+            except FloatingPointError as exc:
+                return FrameSolve(False, int(it), np.nan, str(exc), Reason.FAILED), None, None
         if status == SINGULAR:
             return FrameSolve(False, int(it), np.nan, "KKT system singular (non-finite step)", Reason.SINGULAR), None, None
         if status == OK:
