@@ -220,15 +220,18 @@ def _import_info(model_path):
 
 
 def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=None, end=None, alpha=None,
-                   settings=None):
+                   settings=None, loaded=None):
     """Kinematics of a model file (or Model) over a C3D trial (marker tracking), or over
     the model file's ``analysis`` interval (determinate) when ``trial_path`` is None;
-    settings : AnalysisSettings (default: the file's, see :func:`model_and_settings`).
+    settings : AnalysisSettings (default: the file's, see :func:`model_and_settings`);
+    loaded : that function's (Model, AnalysisSettings, label) of ``model_path`` when the
+    caller has read it (``openfdk kinematics`` writes its measures with the same Model:
+    the file and its measured loads are read, and warned about, once).
     Returns (KinematicsResult, info dict for the summary)."""
     from ..kinematics.analysis import run_determinate, run_tracking
     from ..model.plausibility import warn_outlier_markers
 
-    model, settings, label = model_and_settings(model_path, settings)
+    model, settings, label = loaded if loaded is not None else model_and_settings(model_path, settings)
     _refuse_redundant_rows(model, label)
     info = {"model": label, **_import_info(model_path)}
     traj, times, more = analysis_inputs(model, trial_path, cutoff_hz, start, end, settings)

@@ -207,12 +207,15 @@ def _cmd_kinematics(args):
     _prepare_out(args)
     _read_trial_first(args)
     _announce_kernels(args)
+    from ..analysis.jobs import model_and_settings
+
+    loaded = model_and_settings(args.model)  # read once, for the run and its measures
     result, info = kinematics_job(
         args.model, args.trial, cutoff_hz=args.cutoff, progress=_progress_on(args),
-        start=args.start, end=args.end,
+        start=args.start, end=args.end, loaded=loaded,
     )
     write_kinematics(args.out, result, {"input": info})
-    _write_measures(args.out, args.model, result)
+    _write_measures(args.out, args.model, result, loaded[0])
     s = result.summary()
     _say(args, f"kinematics: {s['converged_frames']}/{s['frames']} frames converged in {s['wall_time_s']:.2f} s "
                f"({_rate(s['frames_per_second'])}) -> {args.out}/kinematics.csv")
