@@ -211,3 +211,32 @@ def test_frame_rate_line_says_when_it_includes_compilation(tmp_path, capsys, mon
     line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("kinematics:"))
     assert "frames/s" in line
     assert ("including the kernels' first compilation" in line) is cold
+
+
+def test_kinematics_asks_only_for_the_kernels_it_calls(tmp_path, monkeypatch):
+    """openfdk kinematics never calls the recruitment's kernels: counting them (they stay
+    uncompiled after an install or an upgrade until a run with dynamics) made every
+    kinematics command say it was compiling, and its frames/s line say it included the
+    compilation, on a warm cache. It asks for the constraint program's and the frame
+    solve's modules; openfdk run for the recruitment's too."""
+    import yaml
+
+    from openfdk.cli import main
+    from openfdk.fixtures.synthetic import synthetic_markers, two_body_model_dict
+    from openfdk.io.c3d import write_c3d
+
+    asked = []
+    monkeypatch.setattr(kernel_cache, "cache_is_cold", lambda modules: asked.append(tuple(modules)) or False)
+    model = tmp_path / "m.yaml"
+    model.write_text(yaml.safe_dump(two_body_model_dict(), sort_keys=False))
+    t, labels, x, _ = synthetic_markers(n_frames=20)
+    write_c3d(tmp_path / "t.c3d", labels, x, 100.0, units="mm")
+    assert main(["kinematics", str(model), str(tmp_path / "t.c3d"), "--out", str(tmp_path / "k"),
+                 "--no-progress"]) == 0
+    assert asked == [kernel_cache.KINEMATICS_KERNEL_MODULES]
+    assert not any(m.startswith("openfdk.recruitment") for m in asked[0])
+    for module in asked[0]:  # each holds cached kernels (a renamed module would blind the check)
+        assert kernel_cache.cached_dispatchers(importlib.import_module(module))
+    asked.clear()
+    main(["run", str(model), str(tmp_path / "t.c3d"), "--out", str(tmp_path / "r"), "--no-progress"])
+    assert asked == [kernel_cache.FRAME_KERNEL_MODULES]  # (whatever the run's frames do)

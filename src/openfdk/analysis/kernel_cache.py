@@ -25,6 +25,9 @@ CHECK_KERNEL_MODULES = (
     "openfdk.model.compiled",
     "openfdk.model.kernels",
 )
+#: ... and those every kinematic frame calls (``openfdk kinematics``: the recruitment's
+#: kernels are never compiled by it, so counting them would call a warm cache cold)
+KINEMATICS_KERNEL_MODULES = CHECK_KERNEL_MODULES + ("openfdk.kinematics.frame_kernels",)
 #: ... and those every kinematic, inverse-dynamics and FDK frame calls (kinematic frame
 #: solve, equilibrium, the default polynomial recruitment).
 FRAME_KERNEL_MODULES = CHECK_KERNEL_MODULES + (

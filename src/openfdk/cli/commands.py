@@ -105,18 +105,19 @@ def _cmd_cache(args):
     return 0
 
 
-def _announce_kernels(args, check=False):
+def _announce_kernels(args, check=False, modules=None):
     """One line on stderr when numba's kernel cache is cold (first run after install or
     upgrade), unless --quiet, once the inputs are read and before the first kernel call:
     now for ``check`` (model read), else when the analysis has read the model and trial
     (:func:`openfdk.analysis.jobs.analysis_inputs`). The progress displays then start after each
-    stage's first (compiling) frame."""
+    stage's first (compiling) frame. ``modules``: the kernel modules the command calls
+    (default: a frame's kinematics, equilibrium and recruitment)."""
     from ..analysis.kernel_cache import CHECK_KERNEL_MODULES, announce_cold_cache, arm
 
     if check:
         announce_cold_cache(quiet=getattr(args, "quiet", False), modules=CHECK_KERNEL_MODULES)
     else:
-        arm(quiet=getattr(args, "quiet", False))
+        arm(quiet=getattr(args, "quiet", False), modules=modules)
 
 
 def _rate(frames_per_second):
@@ -206,9 +207,10 @@ def _cmd_kinematics(args):
     _check_window(args)
     _prepare_out(args)
     _read_trial_first(args)
-    _announce_kernels(args)
     from ..analysis.jobs import model_and_settings
+    from ..analysis.kernel_cache import KINEMATICS_KERNEL_MODULES
 
+    _announce_kernels(args, modules=KINEMATICS_KERNEL_MODULES)
     loaded = model_and_settings(args.model)  # read once, for the run and its measures
     result, info = kinematics_job(
         args.model, args.trial, cutoff_hz=args.cutoff, progress=_progress_on(args),
