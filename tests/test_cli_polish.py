@@ -184,3 +184,28 @@ def test_a_non_square_system_fails_its_frames_instead_of_corrupting_memory(tmp_p
     kin, _, _ = jobs.run_job(_redundant_knee(tmp_path), progress=False)
     assert not kin.converged.any()
     assert all("14 constraint rows for 12 coordinates" in m for m in kin.messages)
+
+
+@pytest.mark.parametrize("command", [["run"], ["kinematics"], ["run", "--chunks", "2", "--workers", "0"]])
+def test_a_command_reads_its_model_once(tmp_path, monkeypatch, command):
+    """The model file is read once per command, for the analysis and its outputs: a model's
+    load-time warnings (DM's raw force-plate samples) were printed twice by `openfdk
+    kinematics` and by `openfdk run --chunks`, which read the file again to write their
+    measures."""
+    import openfdk.analysis.jobs as jobs
+    import openfdk.io.modelfile as modelfile
+
+    reads = []
+    real = modelfile.load_model_and_settings
+
+    def counted(path):
+        reads.append(str(path))
+        return real(path)
+
+    monkeypatch.setattr(modelfile, "load_model_and_settings", counted)
+    monkeypatch.setattr(jobs, "load_model_and_settings", counted)
+    model = ROOT / "examples/knee/knee_springs.yaml"
+    window = ["--out", str(tmp_path / "out"), "--no-progress", "--end", "0.1"]  # 6 of its 51 frames
+    assert main([command[0], str(model), *window, *(["--no-plots"] if command[0] == "run" else []),
+                 *command[1:]]) == 0
+    assert reads == [str(model)]

@@ -298,21 +298,21 @@ def _cmd_run(args):
     _announce_kernels(args)
     from ..analysis.jobs import model_and_settings
 
-    loaded = None  # (Model, AnalysisSettings, label): read once, for the run and its outputs
+    loaded = model_and_settings(args.model)  # (Model, AnalysisSettings, label): read once, for the run and its outputs
     if args.chunks > 1:
         from ..study.cli import run_chunked_job
 
         kin, dyn, info = run_chunked_job(
             args.model, args.trial, args.chunks, args.out, cutoff_hz=args.cutoff, start=args.start,
             end=args.end, overlap=args.overlap, scheduler=args.scheduler, workers=args.workers,
-            progress=_progress_on(args), checkpoints=_run_checkpoints(args, chunked=True), resume=args.resume)
+            progress=_progress_on(args), checkpoints=_run_checkpoints(args, chunked=True), resume=args.resume,
+            loaded=loaded)
     else:
         from ..analysis.jobs import run_job
         from ..study.case import write_run_outputs
         from ..trial import TrialInterrupted
 
         checkpoints = _run_checkpoints(args)
-        loaded = model_and_settings(args.model)
         try:
             kin, dyn, info = run_job(args.model, args.trial, cutoff_hz=args.cutoff, progress=_progress_on(args),
                                      start=args.start, end=args.end, checkpoints=checkpoints, resume=args.resume,
@@ -325,7 +325,7 @@ def _cmd_run(args):
             return 130
         write_run_outputs(args.out, kin, dyn, info)
         checkpoints.clear()
-    model, settings, _ = loaded if loaded is not None else model_and_settings(args.model)
+    model, settings, _ = loaded
     _write_measures(args.out, args.model, kin, model)
     _write_generalized_forces(args.out, args.model, dyn, model)
     _write_grf(args, info, dyn, settings)

@@ -120,7 +120,7 @@ def job_case(model_path, trial_path, chunks, overlap=DEFAULT_OVERLAP, cutoff_hz=
 
 def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=None, start=None, end=None,
                     overlap=DEFAULT_OVERLAP, scheduler=None, workers=None, client=None, progress=True,
-                    malloc_trim=False, checkpoints=None, resume=False):
+                    malloc_trim=False, checkpoints=None, resume=False, loaded=None):
     """``openfdk run --chunks K``: one trial split into ``chunks`` frame segments solved
     in parallel (each warmed up by ``overlap`` frames, docs/studies.md), stitched into
     one result equal to the serial run's to the solver tolerances.
@@ -136,7 +136,9 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
     ``checkpoints``: a :class:`openfdk.trial.checkpoint.SegmentCheckpoints` keeping each
     finished segment (cleared once the results are written); with ``resume`` the
     segments kept there are reused and only the others solved, otherwise they are
-    discarded first.
+    discarded first. ``loaded``: (Model, AnalysisSettings, …) of ``model_path`` when the
+    caller has read it (``openfdk run`` writes its outputs with the same Model: the file
+    and its measured loads are read, and warned about, once in this process).
     """
     import contextlib
     import os
@@ -155,7 +157,7 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
     from ..contact.rim import warn_contact_rims
     from ..model.plausibility import warn_outlier_markers, warn_plausibility, warn_pulling_contacts
 
-    model, settings = load_model_and_settings(model_path)
+    model, settings = loaded[:2] if loaded is not None else load_model_and_settings(model_path)
     checked = preflight(model, str(model_path), model_path)
     analysis_inputs(model, trial_path, cutoff_hz, start, end, settings)
     done = {}
