@@ -172,20 +172,20 @@ def test_a_lead_in_after_which_the_first_frame_fails_is_tried_again_from_further
     window = 3.0 + dt * np.arange(5)
     tried = []
 
-    def solve_after(self, step, k, times, previous, restart=False):
+    def solve_after(self, step, k, times, previous, restart=False, source=None):
         tried.append(len(times))
         ok = len(times) >= 24
         sol = FrameSolution(None, ok, 10 * len(times), 100 * len(times), "", "converged" if ok else "iterations",
                             jacobians=len(times))
-        return sol, [(j, np.array([float(j)])) for j in range(len(times))]
+        return sol, [(j, np.array([float(j)])) for j in range(len(times))], None
 
     monkeypatch.setattr(Approach, "_solve_after", solve_after)
     step = SimpleNamespace(ctx=SimpleNamespace(times=window), history=[])
     approach = Approach.__new__(Approach)
     approach.trajectories, approach.first_time, approach.sample_interval = None, -np.inf, None
     sol = approach(step, 0)
-    n = LEAD_IN_FRAMES + 24
-    assert tried == [LEAD_IN_FRAMES, 24] and sol.converged
+    n = LEAD_IN_FRAMES + (SUBSTEPS - 1) + 24  # (the sub-steps after the first lead-in: below)
+    assert tried == [LEAD_IN_FRAMES, SUBSTEPS - 1, 24] and sol.converged
     assert (sol.iterations, sol.evaluations, sol.jacobians) == (10 * n, 100 * n, n)
     assert [j for j, _ in step.history] == list(range(-24, 0))
 
@@ -196,8 +196,62 @@ def test_a_lead_in_after_which_the_first_frame_fails_is_tried_again_from_further
     approach.first_time = window[0] - 20 * dt
     sol = approach(step, 0)
     # (and the last lead-in, whose marched frames restart)
-    assert tried == [LEAD_IN_FRAMES, 20, LAST_LEAD_IN_FRAMES] and not sol.converged
-    assert sol.evaluations == 100 * (LEAD_IN_FRAMES + 20 + LAST_LEAD_IN_FRAMES) and step.history == []
+    assert tried == [LEAD_IN_FRAMES, SUBSTEPS - 1, 20, SUBSTEPS - 1, LAST_LEAD_IN_FRAMES] and not sol.converged
+    assert sol.evaluations == 100 * (LEAD_IN_FRAMES + 20 + 2 * (SUBSTEPS - 1) + LAST_LEAD_IN_FRAMES)
+    assert step.history == []
+
+
+def test_a_first_frame_that_fails_after_a_converged_lead_in_is_approached_in_sub_steps_from_it(monkeypatch):
+    """DM og1 from 2.406 s (the tutorial's gait cycle): the 6-frame lead-in converged up to
+    the frame before the window's first, a heel strike fell between the two, and the
+    first stalled at 0.3 N; the longer lead-ins then failed through late swing (1 498 of
+    the cycle's 2 156 evaluations; 1 133 in all with sub-steps after each lead-in: they
+    converged after the 24-frame one). After a lead-in whose march reached its last frame,
+    the sub-steps from that frame come first: at t_last + j (t_0 − t_last) / SUBSTEPS, from
+    that march's own state (``source``); when they converge, no longer lead-in runs, the
+    counts are the two attempts' sum, and the lead-in's frames join the history as
+    −LEAD_IN_FRAMES … −1. A lead-in whose last frame failed gets no sub-steps."""
+    from types import SimpleNamespace
+
+    from openfdk.fdk.approach import Approach
+    from openfdk.fdk.newton import FrameSolution
+
+    dt = 1 / 120
+    window = 3.0 + dt * np.arange(5)
+    tried, lead_in_march = [], object()
+
+    def solve_after(self, step, k, times, previous, restart=False, source=None):
+        tried.append((np.array(times), previous, source))
+        ok = previous  # the lead-in's first frame fails, the sub-steps converge
+        sol = FrameSolution(None, ok, 10 * len(times), 100 * len(times), "", "converged" if ok else "x",
+                            jacobians=len(times))
+        return sol, [(j, np.array([float(j)])) for j in range(len(times))], lead_in_march
+
+    monkeypatch.setattr(Approach, "_solve_after", solve_after)
+    approach = Approach.__new__(Approach)
+    approach.trajectories, approach.first_time, approach.sample_interval = None, -np.inf, None
+    step = SimpleNamespace(ctx=SimpleNamespace(times=window), history=[])
+    sol = approach(step, 0)
+    assert [(len(t), p) for t, p, _ in tried] == [(LEAD_IN_FRAMES, False), (SUBSTEPS - 1, True)]
+    lead_in, sub = tried[0][0], tried[1][0]
+    np.testing.assert_allclose(lead_in, window[0] - dt * np.arange(LEAD_IN_FRAMES, 0, -1))
+    np.testing.assert_allclose(sub, window[0] - dt + dt * np.arange(1, SUBSTEPS) / SUBSTEPS)
+    assert lead_in[-1] < sub[0] and sub[-1] < window[0] and tried[1][2] is lead_in_march
+    n = LEAD_IN_FRAMES + SUBSTEPS - 1
+    assert sol.converged and (sol.iterations, sol.evaluations, sol.jacobians) == (10 * n, 100 * n, n)
+    assert [j for j, _ in step.history] == list(range(-LEAD_IN_FRAMES, 0))
+
+    # the lead-in's own last frame failed: on to the longer lead-in, no sub-steps
+    def failed_march(self, step, k, times, previous, restart=False, source=None):
+        tried.append((np.array(times), previous, source))
+        ok = len(times) >= 24
+        sol = FrameSolution(None, ok, 1, 1, "", "converged" if ok else "x", jacobians=1)
+        return sol, [(j, np.array([float(j)])) for j in range(len(times) - 1)], None
+
+    monkeypatch.setattr(Approach, "_solve_after", failed_march)
+    tried.clear()
+    step = SimpleNamespace(ctx=SimpleNamespace(times=window), history=[])
+    assert approach(step, 0).converged and [len(t) for t, _, _ in tried] == [LEAD_IN_FRAMES, 24]
 
 
 def test_a_first_frame_that_fails_after_every_lead_in_gets_one_whose_marched_frames_restart(monkeypatch):
@@ -214,19 +268,21 @@ def test_a_first_frame_that_fails_after_every_lead_in_gets_one_whose_marched_fra
     window = 3.0 + dt * np.arange(5)
     tried = []
 
-    def solve_after(self, step, k, times, previous, restart=False):
+    def solve_after(self, step, k, times, previous, restart=False, source=None):
         tried.append((len(times), restart))
         sol = FrameSolution(None, restart, 10 * len(times), 100 * len(times), "", "converged" if restart else "x",
                             jacobians=len(times))
-        return sol, [(j, np.array([float(j)])) for j in range(len(times))]
+        return sol, [(j, np.array([float(j)])) for j in range(len(times))], None
 
     monkeypatch.setattr(Approach, "_solve_after", solve_after)
     approach = Approach.__new__(Approach)
     approach.trajectories, approach.first_time, approach.sample_interval = None, -np.inf, None
     step = SimpleNamespace(ctx=SimpleNamespace(times=window), history=[])
     sol = approach(step, 0)
-    assert tried == [(n, False) for n in LEAD_IN_LENGTHS] + [(LAST_LEAD_IN_FRAMES, True)]
-    total = sum(LEAD_IN_LENGTHS) + LAST_LEAD_IN_FRAMES
+    # (each plain lead-in's march reached its last frame: sub-steps from it after each)
+    assert tried == [p for n in LEAD_IN_LENGTHS for p in ((n, False), (SUBSTEPS - 1, False))] + \
+        [(LAST_LEAD_IN_FRAMES, True)]
+    total = sum(LEAD_IN_LENGTHS) + len(LEAD_IN_LENGTHS) * (SUBSTEPS - 1) + LAST_LEAD_IN_FRAMES
     assert sol.converged and (sol.iterations, sol.evaluations, sol.jacobians) == (10 * total, 100 * total, total)
     assert [j for j, _ in step.history] == list(range(-LAST_LEAD_IN_FRAMES, 0))
     # a sub-step approach (frame k − 1 converged) gets no such last attempt

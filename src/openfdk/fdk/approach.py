@@ -19,8 +19,11 @@ frames, each close to the one before.
   spacing, or the trial's sample interval when the window is one frame); when the frame
   fails after it, again from :data:`LEAD_IN_LENGTHS` frames further back (DM og3 from
   3.47 s, late swing: 5 of 16 frames converged after a 12-frame lead-in, 16 of 16
-  with the longer ones; the chunks of ``openfdk run --chunks`` start this way). When the
-  frame still fails, a last lead-in of :data:`LAST_LEAD_IN_FRAMES` frames lets its
+  with the longer ones; the chunks of ``openfdk run --chunks`` start this way). A
+  lead-in that converged up to the frame before the window's first, whose first then
+  fails, is followed by sub-steps from its last frame before the next length (a heel
+  strike between the two: DM og1 from 2.406 s, the tutorial's gait cycle, 2 156 → 1 133
+  evaluations). When the frame still fails, a last lead-in of :data:`LAST_LEAD_IN_FRAMES` frames lets its
   marched frames restart when they fail (from the previous marched frame's α and from
   the initial values, without the scan around α_{k−1}). DM og1 from 2.5 s with its
   ground reactions filtered at 6 Hz (docs/tutorial-knee-gait.md, "Filtered ground
@@ -85,6 +88,13 @@ LAST_LEAD_IN_FRAMES = 12
 MARCH_TOLERANCE = 100.0
 
 
+def sub_step_times(t_previous, t_k):
+    """(SUBSTEPS − 1,) s: the intermediate times t_prev + j (t_k − t_prev) / SUBSTEPS,
+    j = 1 … SUBSTEPS − 1, between a converged frame at ``t_previous`` and frame k at
+    ``t_k`` (s)."""
+    return t_previous + (t_k - t_previous) * np.arange(1, SUBSTEPS) / SUBSTEPS
+
+
 def approach_times(times, k, previous_converged, first_time, lead_in=LEAD_IN_FRAMES, sample_interval=None):
     """Times (m,) s of the frames that lead to frame k, or an empty array.
 
@@ -95,7 +105,7 @@ def approach_times(times, k, previous_converged, first_time, lead_in=LEAD_IN_FRA
     window's spacing; None: no lead-in for a one-frame window)."""
     times = np.asarray(times, dtype=float)
     if k > 0 and previous_converged:
-        return times[k - 1] + (times[k] - times[k - 1]) * np.arange(1, SUBSTEPS) / SUBSTEPS
+        return sub_step_times(times[k - 1], times[k])
     dt = times[1] - times[0] if len(times) > 1 else sample_interval
     if k == 0 and dt is not None and dt > 0:
         lead = times[0] - dt * np.arange(int(lead_in), 0, -1)
@@ -138,16 +148,27 @@ class Approach:
                 break  # no data further back
             if sol is not None:
                 spent += (sol.iterations, sol.evaluations, sol.jacobians)
-            sol, h = self._solve_after(step, k, times, previous)
+            sol, h, march = self._solve_after(step, k, times, previous)
             marched = len(times)
             if sol.converged:
                 break
+            if not previous and h and h[-1][0] == len(times) - 1:
+                # the lead-in reached the frame before the window's first, and the first
+                # fails from it: sub-steps from the lead-in's last frame, as after any
+                # converged frame, before a longer lead-in (a heel strike between the two:
+                # DM og1 from 2.406 s, the tutorial's gait cycle, whose first frame stalled
+                # at 0.3 N after the 6-frame lead-in and converged in sub-steps after the
+                # 24-frame one; the cycle's evaluations 2 156 → 1 133)
+                spent += (sol.iterations, sol.evaluations, sol.jacobians)
+                sol, _, _ = self._solve_after(step, k, sub_step_times(times[-1], ctx.times[k]), True, source=march)
+                if sol.converged:
+                    break
         if sol is not None and not sol.converged and not previous:
             # the last lead-in: its marched frames restart when they fail (module docstring)
             times = approach_times(ctx.times, k, previous, self.first_time, LAST_LEAD_IN_FRAMES,
                                    self.sample_interval)
             spent += (sol.iterations, sol.evaluations, sol.jacobians)
-            sol, h = self._solve_after(step, k, times, previous, restart=True)
+            sol, h, _ = self._solve_after(step, k, times, previous, restart=True)
             marched = len(times)
         if sol is None:
             return None
@@ -160,21 +181,24 @@ class Approach:
         return replace(sol, iterations=sol.iterations + int(spent[0]), evaluations=sol.evaluations + int(spent[1]),
                        jacobians=sol.jacobians + int(spent[2]))
 
-    def _solve_after(self, step, k, times, previous, restart=False):
+    def _solve_after(self, step, k, times, previous, restart=False, source=None):
         """(frame k solved after marching through the frames at ``times`` (m,) s, its
-        counts including the march's; the march's converged history [(j, α)]). With
-        ``restart`` a marched frame that fails is solved again from the previous marched
-        frame's α and from the initial values (no scan)."""
-        ctx, settings, history = step.ctx, step.settings, step.history
+        counts including the march's; the march's converged history [(j, α)]; the march,
+        an FDKStep). With ``restart`` a marched frame that fails is solved again from the
+        previous marched frame's α and from the initial values (no scan). ``previous``:
+        the march starts from a converged frame, ``source``'s last (an FDKStep: its
+        history, poses, recruitment and Jacobian; default ``step``)."""
+        ctx, settings = step.ctx, step.settings
         # the same kind of step (FDKStep) on the marched frames, without restarts
         march = type(step)(step.model, ctx.at_times(times, self.trajectories),
                            replace(settings, restart=restart, tolerance=settings.tolerance * MARCH_TOLERANCE,
                                    cold_max_iterations=settings.max_iterations), scan=False, sweep_back=False)
         if previous:
-            march.history = [(-1, history[-1][1].copy())]
-            march.last_state, march.warm, march.J_carry = step.last_state, step.warm, step.J_carry
-            march.dq_dalpha = step.dq_dalpha
-            march.ctx.tracking_curvature = step.ctx.tracking_curvature
+            src = step if source is None else source
+            march.history = [(-1, src.history[-1][1].copy())]
+            march.last_state, march.warm, march.J_carry = src.last_state, src.warm, src.J_carry
+            march.dq_dalpha = src.dq_dalpha
+            march.ctx.tracking_curvature = src.ctx.tracking_curvature
         totals = np.zeros(3, dtype=int)
         for j in range(len(times)):
             (_, values), = march.step(j)
@@ -198,7 +222,7 @@ class Approach:
         sol = solve_frame(ctx, k, a0, ws, first, march.warm if warm_end else step.warm,
                           march.J_carry if warm_end else None, not warm_end)
         return replace(sol, iterations=sol.iterations + int(totals[0]), evaluations=sol.evaluations + int(totals[1]),
-                       jacobians=sol.jacobians + int(totals[2])), h
+                       jacobians=sol.jacobians + int(totals[2])), h, march
 
 
 def approach_for(model, trajectories):
@@ -209,6 +233,6 @@ def approach_for(model, trajectories):
     return Approach(trajectories, data_time_range(getattr(model, "external_loads", ()))[0])
 
 
-__all__ = ["Approach", "approach_for", "approach_times", "SUBSTEPS", "LEAD_IN_FRAMES", "LEAD_IN_LENGTHS",
+__all__ = ["Approach", "approach_for", "approach_times", "sub_step_times", "SUBSTEPS", "LEAD_IN_FRAMES", "LEAD_IN_LENGTHS",
            "LAST_LEAD_IN_FRAMES",
            "MARCH_TOLERANCE"]
