@@ -154,6 +154,33 @@ def test_the_marched_frames_are_solved_to_march_tolerance_and_the_frame_to_the_t
     np.testing.assert_allclose(res.alpha[:, 0], alpha_star, rtol=0, atol=1e-3 / K)
 
 
+def _lead_in_stand_in(tried, record, converged, march=None, reaches_end=True):
+    """An ``Approach._solve_after`` stand-in: appends ``record(times, previous, restart,
+    source)`` to ``tried``; frame k converges iff ``converged(times, previous, restart)``,
+    with counts 10, 100 and 1 per marched frame (iterations, evaluations, Jacobians); the
+    march's history reaches its last frame iff ``reaches_end``; the march is ``march``."""
+    from openfdk.fdk.newton import FrameSolution
+
+    def solve_after(self, step, k, times, previous, restart=False, source=None):
+        tried.append(record(np.array(times), previous, restart, source))
+        ok = bool(converged(times, previous, restart))
+        sol = FrameSolution(None, ok, 10 * len(times), 100 * len(times), "", "converged" if ok else "x",
+                            jacobians=len(times))
+        reached = len(times) if reaches_end else len(times) - 1
+        return sol, [(j, np.array([float(j)])) for j in range(reached)], march
+
+    return solve_after
+
+
+def _bare_approach():
+    """An Approach without trajectories or a data bound (its _solve_after stood in for)."""
+    from openfdk.fdk.approach import Approach
+
+    approach = Approach.__new__(Approach)
+    approach.trajectories, approach.first_time, approach.sample_interval = None, -np.inf, None
+    return approach
+
+
 def test_a_lead_in_after_which_the_first_frame_fails_is_tried_again_from_further_back(monkeypatch):
     """The window's first frame fails after the short lead-in (LEAD_IN_FRAMES) and
     converges after the 24-frame one (DM og3 from 3.47 s, late swing: 5 of 16 frames
@@ -165,24 +192,16 @@ def test_a_lead_in_after_which_the_first_frame_fails_is_tried_again_from_further
     from types import SimpleNamespace
 
     from openfdk.fdk.approach import LAST_LEAD_IN_FRAMES, LEAD_IN_LENGTHS, Approach
-    from openfdk.fdk.newton import FrameSolution
 
     assert LEAD_IN_LENGTHS == (LEAD_IN_FRAMES, 24, 48) and LEAD_IN_FRAMES < 20 < 24
     dt = 1 / 120
     window = 3.0 + dt * np.arange(5)
     tried = []
 
-    def solve_after(self, step, k, times, previous, restart=False, source=None):
-        tried.append(len(times))
-        ok = len(times) >= 24
-        sol = FrameSolution(None, ok, 10 * len(times), 100 * len(times), "", "converged" if ok else "iterations",
-                            jacobians=len(times))
-        return sol, [(j, np.array([float(j)])) for j in range(len(times))], None
-
-    monkeypatch.setattr(Approach, "_solve_after", solve_after)
+    monkeypatch.setattr(Approach, "_solve_after", _lead_in_stand_in(
+        tried, lambda times, *_: len(times), lambda times, *_: len(times) >= 24))
     step = SimpleNamespace(ctx=SimpleNamespace(times=window), history=[])
-    approach = Approach.__new__(Approach)
-    approach.trajectories, approach.first_time, approach.sample_interval = None, -np.inf, None
+    approach = _bare_approach()
     sol = approach(step, 0)
     n = LEAD_IN_FRAMES + (SUBSTEPS - 1) + 24  # (the sub-steps after the first lead-in: below)
     assert tried == [LEAD_IN_FRAMES, SUBSTEPS - 1, 24] and sol.converged
@@ -214,22 +233,16 @@ def test_a_first_frame_that_fails_after_a_converged_lead_in_is_approached_in_sub
     from types import SimpleNamespace
 
     from openfdk.fdk.approach import Approach
-    from openfdk.fdk.newton import FrameSolution
 
     dt = 1 / 120
     window = 3.0 + dt * np.arange(5)
     tried, lead_in_march = [], object()
 
-    def solve_after(self, step, k, times, previous, restart=False, source=None):
-        tried.append((np.array(times), previous, source))
-        ok = previous  # the lead-in's first frame fails, the sub-steps converge
-        sol = FrameSolution(None, ok, 10 * len(times), 100 * len(times), "", "converged" if ok else "x",
-                            jacobians=len(times))
-        return sol, [(j, np.array([float(j)])) for j in range(len(times))], lead_in_march
-
-    monkeypatch.setattr(Approach, "_solve_after", solve_after)
-    approach = Approach.__new__(Approach)
-    approach.trajectories, approach.first_time, approach.sample_interval = None, -np.inf, None
+    # the lead-in's first frame fails, the sub-steps (previous: True) converge
+    record = lambda times, previous, restart, source: (times, previous, source)  # noqa: E731
+    monkeypatch.setattr(Approach, "_solve_after", _lead_in_stand_in(
+        tried, record, lambda times, previous, restart: previous, march=lead_in_march))
+    approach = _bare_approach()
     step = SimpleNamespace(ctx=SimpleNamespace(times=window), history=[])
     sol = approach(step, 0)
     assert [(len(t), p) for t, p, _ in tried] == [(LEAD_IN_FRAMES, False), (SUBSTEPS - 1, True)]
@@ -242,13 +255,8 @@ def test_a_first_frame_that_fails_after_a_converged_lead_in_is_approached_in_sub
     assert [j for j, _ in step.history] == list(range(-LEAD_IN_FRAMES, 0))
 
     # the lead-in's own last frame failed: on to the longer lead-in, no sub-steps
-    def failed_march(self, step, k, times, previous, restart=False, source=None):
-        tried.append((np.array(times), previous, source))
-        ok = len(times) >= 24
-        sol = FrameSolution(None, ok, 1, 1, "", "converged" if ok else "x", jacobians=1)
-        return sol, [(j, np.array([float(j)])) for j in range(len(times) - 1)], None
-
-    monkeypatch.setattr(Approach, "_solve_after", failed_march)
+    monkeypatch.setattr(Approach, "_solve_after", _lead_in_stand_in(
+        tried, record, lambda times, *_: len(times) >= 24, reaches_end=False))
     tried.clear()
     step = SimpleNamespace(ctx=SimpleNamespace(times=window), history=[])
     assert approach(step, 0).converged and [len(t) for t, _, _ in tried] == [LEAD_IN_FRAMES, 24]
@@ -262,21 +270,14 @@ def test_a_first_frame_that_fails_after_every_lead_in_gets_one_whose_marched_fra
     from types import SimpleNamespace
 
     from openfdk.fdk.approach import LAST_LEAD_IN_FRAMES, LEAD_IN_LENGTHS, Approach
-    from openfdk.fdk.newton import FrameSolution
 
     dt = 1 / 120
     window = 3.0 + dt * np.arange(5)
     tried = []
 
-    def solve_after(self, step, k, times, previous, restart=False, source=None):
-        tried.append((len(times), restart))
-        sol = FrameSolution(None, restart, 10 * len(times), 100 * len(times), "", "converged" if restart else "x",
-                            jacobians=len(times))
-        return sol, [(j, np.array([float(j)])) for j in range(len(times))], None
-
-    monkeypatch.setattr(Approach, "_solve_after", solve_after)
-    approach = Approach.__new__(Approach)
-    approach.trajectories, approach.first_time, approach.sample_interval = None, -np.inf, None
+    monkeypatch.setattr(Approach, "_solve_after", _lead_in_stand_in(
+        tried, lambda times, previous, restart, source: (len(times), restart), lambda times, previous, restart: restart))
+    approach = _bare_approach()
     step = SimpleNamespace(ctx=SimpleNamespace(times=window), history=[])
     sol = approach(step, 0)
     # (each plain lead-in's march reached its last frame: sub-steps from it after each)

@@ -191,21 +191,29 @@ def test_analysis_announces_after_reading_the_trial(tmp_path, capsys, monkeypatc
     assert kernel_cache._ARMED is None and not progress._WARMUP
 
 
-@pytest.mark.parametrize("cold", [True, False])
-def test_frame_rate_line_says_when_it_includes_compilation(tmp_path, capsys, monkeypatch, cold):
-    """The frames/s figure of a command that found the kernel cache cold includes the
-    compilation; the line says so (and only then)."""
+def _two_body_files(tmp_path):
+    """The two-body model file m.yaml and a 20-frame marker trial t.c3d of it in
+    ``tmp_path``; returns the model's path."""
     import yaml
 
-    from openfdk.cli import main
     from openfdk.fixtures.synthetic import synthetic_markers, two_body_model_dict
     from openfdk.io.c3d import write_c3d
 
-    monkeypatch.setattr(kernel_cache, "cache_is_cold", lambda modules: cold)
     model = tmp_path / "m.yaml"
     model.write_text(yaml.safe_dump(two_body_model_dict(), sort_keys=False))
     t, labels, x, _ = synthetic_markers(n_frames=20)
     write_c3d(tmp_path / "t.c3d", labels, x, 100.0, units="mm")
+    return model
+
+
+@pytest.mark.parametrize("cold", [True, False])
+def test_frame_rate_line_says_when_it_includes_compilation(tmp_path, capsys, monkeypatch, cold):
+    """The frames/s figure of a command that found the kernel cache cold includes the
+    compilation; the line says so (and only then)."""
+    from openfdk.cli import main
+
+    monkeypatch.setattr(kernel_cache, "cache_is_cold", lambda modules: cold)
+    model = _two_body_files(tmp_path)
     assert main(["kinematics", str(model), str(tmp_path / "t.c3d"), "--out", str(tmp_path / "o"),
                  "--no-progress"]) == 0
     line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("kinematics:"))
@@ -219,18 +227,11 @@ def test_kinematics_asks_only_for_the_kernels_it_calls(tmp_path, monkeypatch):
     kinematics command say it was compiling, and its frames/s line say it included the
     compilation, on a warm cache. It asks for the constraint program's and the frame
     solve's modules; openfdk run for the recruitment's too."""
-    import yaml
-
     from openfdk.cli import main
-    from openfdk.fixtures.synthetic import synthetic_markers, two_body_model_dict
-    from openfdk.io.c3d import write_c3d
 
     asked = []
     monkeypatch.setattr(kernel_cache, "cache_is_cold", lambda modules: asked.append(tuple(modules)) or False)
-    model = tmp_path / "m.yaml"
-    model.write_text(yaml.safe_dump(two_body_model_dict(), sort_keys=False))
-    t, labels, x, _ = synthetic_markers(n_frames=20)
-    write_c3d(tmp_path / "t.c3d", labels, x, 100.0, units="mm")
+    model = _two_body_files(tmp_path)
     assert main(["kinematics", str(model), str(tmp_path / "t.c3d"), "--out", str(tmp_path / "k"),
                  "--no-progress"]) == 0
     assert asked == [kernel_cache.KINEMATICS_KERNEL_MODULES]
