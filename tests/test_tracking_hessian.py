@@ -155,7 +155,7 @@ def test_chord_steps_with_a_nearby_factorization_reach_the_same_optimum():
     and reach the fit's pose and multipliers of the plain solve to 1e-10. A chord step
     assembles no K; the tracking kernel, whose last step is a chord step, returns K
     assembled at that step's pose, equal to kkt_step's there (it is handed to Eqs. 8–10)."""
-    from openfdk.kinematics.kkt import kkt_chord_step, kkt_step
+    from openfdk.kinematics.kkt import kkt_chord_step, kkt_pattern, kkt_step
 
     rng = np.random.default_rng(7)
     model, system, tracker, visible, start, x = _noisy_fit(rng)
@@ -182,13 +182,21 @@ def test_chord_steps_with_a_nearby_factorization_reach_the_same_optimum():
     J_far = kkt_inputs(far)[0]
     S = manifold_jacobian(gradient, far, eps=1e-7, central=True) - J_far.T @ (w[:, None] * J_far)
     LU, piv, K = np.empty((n + m, n + m)), np.empty(n + m, np.int64), np.empty((n + m, n + m))
-    _, _, _ = kkt_step(*kkt_inputs(far), K, S, True, LU, piv)  # Newton's matrix, 1 mm away
+    # factorized in the tracker's reverse Cuthill–McKee order (kinematics/envelope_lu.py)
+    perm, first, last = tracker._kkt_order(far), np.empty(n + m, np.int64), np.empty(n + m, np.int64)
+    assert np.any(perm != np.arange(n + m))
+    _, _, _ = kkt_step(*kkt_inputs(far), K, S, True, LU, piv, perm, first, last)  # Newton's matrix, 1 mm away
+    # the structural pattern the order came from holds every non-zero of K and S
+    J_f, _, _, _, A_f, _ = kkt_inputs(far)
+    pattern = kkt_pattern(J_f, A_f)
+    assert not np.any((K != 0.0) & ~pattern) and not np.any((S != 0.0) & ~pattern[:n, :n])
+    assert not pattern[n:, n:].any() and not pattern.all()
     state = fit.copy()
     state.displace(rng.normal(0.0, 1e-4, n))
     lam = lam_fit * (1.0 + 1e-3 * rng.normal(size=m))
     steps = []
     for _ in range(12):
-        sol, step, _ = kkt_chord_step(*kkt_inputs(state), lam, LU, piv)
+        sol, step, _ = kkt_chord_step(*kkt_inputs(state), lam, LU, piv, perm, first, last)
         state.displace(sol[:n])
         lam = lam + sol[n:]
         steps.append(step)
@@ -208,8 +216,10 @@ def test_chord_steps_with_a_nearby_factorization_reach_the_same_optimum():
     # K at the pose where the last step started: that step was below 1e-12 (chord), so
     # K equals kkt_step's at the final pose to that step's size
     K_step = np.empty_like(K)
-    kkt_step(*kkt_inputs(state), K_step, np.zeros((n, n)), False, np.empty_like(LU), piv.copy())
+    kkt_step(*kkt_inputs(state), K_step, np.zeros((n, n)), False, np.empty_like(LU), piv.copy(), perm, first.copy(),
+             last.copy())
     np.testing.assert_allclose(K_out, K_step, rtol=0, atol=1e-9 * np.abs(K_step).max())
     K_start = np.empty_like(K)
-    kkt_step(*kkt_inputs(before), K_start, np.zeros((n, n)), False, np.empty_like(LU), piv.copy())
+    kkt_step(*kkt_inputs(before), K_start, np.zeros((n, n)), False, np.empty_like(LU), piv.copy(), perm, first.copy(),
+             last.copy())
     assert np.abs(K_start - K_step).max() > 1e3 * np.abs(K_out - K_step).max()  # not the first step's K

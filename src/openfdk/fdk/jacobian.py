@@ -33,6 +33,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..kinematics.frame_kernels import small_solve
+from ..kinematics.envelope_lu import solve_in_order
+from ..kinematics.kkt import hessian_pattern
 from ..numerics.numdiff import column_groups, manifold_jacobian
 from ..recruitment import RecruitmentSensitivity
 from .contact_step import contact_split
@@ -117,20 +119,9 @@ def kinematic_sensitivity(ctx, ev):
     K[n:, :n] = A
     rhs = np.zeros((n + m, n_fdk))
     rhs[n:] = E
-    return np.linalg.solve(K, rhs)[:n]
-
-
-def hessian_pattern(A):
-    """The entries of the tracking Lagrangian's Hessian ∂/∂q̂ (Ψ_q̂ᵀ W Ψ + Φ_q̂ᵀ λ) (n, n)
-    that can be non-zero, from the structure of Φ_q̂ = A (m, n = 6 n_moving): a marker
-    lies on one body, so its terms couple that body's 6 coordinates only; a constraint
-    row couples every pair of the bodies it touches (a body whose 6 columns of A are not
-    all zero). Returns (pattern (n, n) bool, touched (m, n_moving) bool)."""
-    m, n = A.shape
-    touched = (A != 0.0).reshape(m, n // 6, 6).any(axis=2)
-    T = touched.astype(np.int64)
-    coupled = np.eye(n // 6, dtype=bool) | ((T.T @ T) > 0)
-    return np.kron(coupled, np.ones((6, 6), dtype=bool)), touched
+    # K has the tracking's KKT structure: factorized in the tracker's order (0.7 → 0.2 ms
+    # on the DM knee; kinematics/envelope_lu.py)
+    return solve_in_order(K, tracker._order, rhs)[:n]
 
 
 def _hessian_pattern(ctx, A):

@@ -31,6 +31,7 @@ import numpy as np
 from numba import njit
 
 from ..numerics.triangular import upper_solve
+from .envelope_lu import lu_factor_envelope
 
 
 @dataclass(frozen=True)
@@ -208,29 +209,10 @@ def lu_factor_range(A, piv, lo, hi):
     """In place LU with partial pivoting of the diagonal block A[lo:hi, lo:hi] (rows
     swapped across all of A's columns, so the coupling to later columns moves with
     them); piv[lo:hi] int. False if a pivot is exactly zero (singular, as LAPACK getrf
-    reports it). lo = 0, hi = n: the LU of the whole matrix."""
-    n = A.shape[1]
-    for k in range(lo, hi):
-        p = k
-        big = abs(A[k, k])
-        for i in range(k + 1, hi):
-            if abs(A[i, k]) > big:
-                big = abs(A[i, k])
-                p = i
-        piv[k] = p
-        if big == 0.0:
-            return False
-        if p != k:
-            for j in range(n):
-                A[k, j], A[p, j] = A[p, j], A[k, j]
-        inv = 1.0 / A[k, k]
-        for i in range(k + 1, hi):
-            A[i, k] *= inv
-            a = A[i, k]
-            if a != 0.0:
-                for j in range(k + 1, hi):
-                    A[i, j] -= a * A[k, j]
-    return True
+    reports it). lo = 0, hi = n: the LU of the whole matrix. The elimination visits the
+    rows' envelopes only (:func:`~.envelope_lu.lu_factor_envelope`: the same factors)."""
+    n = A.shape[0]
+    return lu_factor_envelope(A, piv, lo, hi, np.empty(n, np.int64), np.empty(n, np.int64))
 
 
 @njit(cache=True)

@@ -31,6 +31,7 @@ from numba import njit
 from ..model.compiled import evaluate_into
 from ..model.kernels import displace_poses, marker_positions_jacobian, set_velocities
 from .block_triangular import block_lu, block_solve, lu_factor, lu_solve
+from .envelope_lu import factor_permuted, solve_permuted
 from .kkt import kkt_assemble, kkt_chord_step, kkt_step
 
 OK, SINGULAR, NOT_CONVERGED, MEASURE_ERROR = 0, 1, 2, 3
@@ -190,7 +191,7 @@ def _soft_rows(p_WB, R_WB, w_BB, v_WB, column, marker_body, p_BM, n, order,
 @njit(cache=True)
 def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows, n_node_rows,
                        p_WB, quat_WB, R_WB, w_BB, v_WB, column, moving, f, angle,
-                       marker_body, p_BM, w, x, tol_step, tol_constraint, max_iter, K, lam, S, use_S,
+                       marker_body, p_BM, w, x, tol_step, tol_constraint, max_iter, K, lam, S, use_S, perm,
                        top, tnode_row, tnode_size, ti_start, tiparams, tf_start, tfparams, tout_rows, tn_node_rows):
     """Gauss–Newton SQP of marker tracking (Eqs. 4–5) from the state (in place).
 
@@ -199,7 +200,8 @@ def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fpara
     program ``t*`` (coordinate tasks, empty without); K (n + m, n + m) output, the last
     KKT matrix (reused by Eqs. 8–10); lam (m,) output multipliers; S (n, n), use_S: the
     Hessian's second-order terms added for the steps (:func:`~openfdk.kinematics.kkt.kkt_step`;
-    Newton's steps instead of Gauss–Newton's, K as without). The first step's matrix is
+    Newton's steps instead of Gauss–Newton's, K as without); perm (n + m,) int: the order
+    the steps' matrices are factorized in (:mod:`.envelope_lu`). The first step's matrix is
     factorized; the next steps are chord steps with it on the full stationarity residual
     (:func:`~openfdk.kinematics.kkt.kkt_chord_step`: the same optimum) while each
     contracts CHORD_CONTRACTION-fold, else the next step factorizes again. The
@@ -218,6 +220,8 @@ def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fpara
     Phi = np.empty(m)
     LU = np.empty((n + m, n + m))
     piv = np.empty(n + m, np.int64)
+    first = np.empty(n + m, np.int64)
+    last = np.empty(n + m, np.int64)
     factored = False  # LU holds an earlier step's matrix: chord steps (kkt_chord_step)
     stale = False  # the last step was a chord step: K is not assembled at its pose
     step = np.inf
@@ -238,7 +242,7 @@ def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fpara
         _residual(val, f, angle, Phi)
         chord = factored
         if factored:
-            sol, chord_step, res = kkt_chord_step(J, w, p, x, A, Phi, lam, LU, piv)
+            sol, chord_step, res = kkt_chord_step(J, w, p, x, A, Phi, lam, LU, piv, perm, first, last)
             if not chord_step <= CHORD_CONTRACTION * step:
                 # not contracting (the pose is far from the factorized one): the step is not
                 # taken, a factorized step from this pose is (far from the optimum a poor
@@ -250,7 +254,7 @@ def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fpara
                 for r in range(m):
                     lam[r] += sol[n + r]
         if not chord:
-            sol, step, res = kkt_step(J, w, p, x, A, Phi, K, S, use_S, LU, piv)
+            sol, step, res = kkt_step(J, w, p, x, A, Phi, K, S, use_S, LU, piv, perm, first, last)
             factored = True
             for r in range(m):
                 lam[r] = sol[n + r]
@@ -273,7 +277,7 @@ def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fpara
 @njit(cache=True)
 def tracking_rates(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows, n_node_rows,
                    p_WB, R_WB, w_BB, v_WB, column, moving, df, ddf, marker_body, p_BM, w,
-                   target_v, target_a, K, J, f, angle, v, vdot, A, Phi,
+                   target_v, target_a, K, perm, J, f, angle, v, vdot, A, Phi,
                    top, tnode_row, tnode_size, ti_start, tiparams, tf_start, tfparams, tout_rows, tn_node_rows):
     """Velocities (Eqs. 8–9) and accelerations (Eq. 10) with the KKT matrix K (n + m,
     n + m) of the position solve: K [v; ·] = [Ψ_q̂ᵀ W (ẋ + δ̇); ν], sets the state's
@@ -282,7 +286,8 @@ def tracking_rates(op, node_row, node_size, i_start, iparams, f_start, fparams, 
     Ψ_q̂ at this pose (the position stage's); the task rows (program ``t*``) are evaluated
     here with their bias. The rows are evaluated once here, at order 2 (b needs v):
     outputs A (m, n) Φ_q̂ and Phi (m,) Φ = m − f (angle rows wrapped) at the pose, for the
-    later stages. Returns (status, failing node, error code)."""
+    later stages. perm (n + m,) int: the order K is factorized in (:mod:`.envelope_lu`).
+    Returns (status, failing node, error code)."""
     m = out_rows.shape[0]
     n = 6 * moving.shape[0]
     nt = tout_rows.shape[0]
@@ -298,8 +303,10 @@ def tracking_rates(op, node_row, node_size, i_start, iparams, f_start, fparams, 
     val = np.empty(m)
     bias = np.empty(m)
     piv = np.empty(n + m, np.int64)
-    LU = K.copy()
-    if not lu_factor(LU, piv):
+    first = np.empty(n + m, np.int64)
+    last = np.empty(n + m, np.int64)
+    LU = np.empty((n + m, n + m))
+    if not factor_permuted(K, perm, LU, piv, first, last):
         return SINGULAR, -1, 0
     rhs = np.zeros(n + m)
     for c in range(n):
@@ -311,9 +318,9 @@ def tracking_rates(op, node_row, node_size, i_start, iparams, f_start, fparams, 
         rhs[c] = s
     for r in range(m):
         rhs[n + r] = df[r]
-    lu_solve(LU, piv, rhs)
+    sol = solve_permuted(LU, piv, first, last, perm, rhs)
     for c in range(n):
-        v[c] = rhs[c]
+        v[c] = sol[c]
     set_velocities(v, column, moving, v_WB, w_BB)
     _, _, b_m = marker_positions_jacobian(p_WB, R_WB, w_BB, column, marker_body, p_BM, n, 2)
     e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
@@ -336,9 +343,9 @@ def tracking_rates(op, node_row, node_size, i_start, iparams, f_start, fparams, 
         rhs[c] = s
     for r in range(m):
         rhs[n + r] = ddf[r] - bias[r]
-    lu_solve(LU, piv, rhs)
+    sol = solve_permuted(LU, piv, first, last, perm, rhs)
     for c in range(n):
-        vdot[c] = rhs[c]
+        vdot[c] = sol[c]
     return OK, -1, 0
 
 

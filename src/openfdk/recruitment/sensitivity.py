@@ -29,8 +29,9 @@ the one-sided derivative for the current active set.
 from __future__ import annotations
 
 import numpy as np
+import scipy.linalg
 
-from openfdk.kinematics.block_triangular import lu_factor, lu_solve
+from openfdk.kinematics.block_triangular import lu_factor
 from openfdk.recruitment.result import RecruitmentInputError, RecruitmentResult
 
 __all__ = ["RecruitmentSensitivity", "recruitment_sensitivity"]
@@ -173,9 +174,10 @@ class RecruitmentSensitivity:
         rhs_scaled = rhs * self.equilibrate[:, None]
         solution = None
         if self.factored:
-            solution = np.empty(rhs_scaled.shape)
-            for j in range(k):
-                solution[:, j] = lu_solve(self.LU, self.piv, np.array(rhs_scaled[:, j]))
+            # all directions in one LAPACK getrs call: the compiled LU's factors and row
+            # swaps are getrf's (kinematics/envelope_lu.py), and a call per column cost
+            # 4× more on the DM knee (16 columns of 140 rows: 0.25 against 0.06 ms)
+            solution = scipy.linalg.lu_solve((self.LU, self.piv), rhs_scaled, check_finite=False)
             if not np.all(np.isfinite(solution)):
                 solution = None
         if solution is None:
