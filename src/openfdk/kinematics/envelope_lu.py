@@ -28,11 +28,10 @@ envelope in the natural order, 0.11 ms for the envelope in the RCM order (one co
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
 from numba import njit
 
 __all__ = ["envelope_order", "lu_factor_envelope", "lu_solve_envelope", "permute_into", "factor_permuted",
-           "solve_permuted", "solve_in_order"]
+           "solve_permuted", "solve_permuted_columns", "solve_in_order"]
 
 
 def envelope_order(pattern):
@@ -153,16 +152,31 @@ def solve_permuted(LU, piv, first, last, perm, rhs):
     return x
 
 
+
+@njit(cache=True)
+def solve_permuted_columns(LU, piv, first, last, perm, B):
+    """X (n, k) = M⁻¹ B for B (n, k) with the factors of :func:`factor_permuted` of M, all
+    columns in one compiled call (no BLAS: at this size OpenBLAS's threads cost more than
+    the solves, and their spinning doubles the process's CPU time on two cores)."""
+    n, k = B.shape
+    X = np.empty((n, k))
+    y = np.empty(n)
+    for c in range(k):
+        for i in range(n):
+            y[i] = B[perm[i], c]
+        lu_solve_envelope(LU, piv, first, last, y)
+        for i in range(n):
+            X[perm[i], c] = y[i]
+    return X
+
+
 def solve_in_order(M, perm, B):
     """X (n, k) = M⁻¹ B for M (n, n) and B (n, k): M factorized in the order ``perm`` (n,)
-    int (:func:`factor_permuted`), the k columns solved in one LAPACK getrs call (the
-    factors and row swaps are getrf's). Raises numpy.linalg.LinAlgError if M is singular,
-    as numpy.linalg.solve does."""
+    int (:func:`factor_permuted`), the k columns solved in one compiled call. Raises
+    numpy.linalg.LinAlgError if M is singular, as numpy.linalg.solve does."""
     n = M.shape[0]
     LU, piv = np.empty((n, n)), np.empty(n, np.int64)
-    if not factor_permuted(np.ascontiguousarray(M, dtype=float), perm, LU, piv, np.empty(n, np.int64),
-                           np.empty(n, np.int64)):
+    first, last = np.empty(n, np.int64), np.empty(n, np.int64)
+    if not factor_permuted(np.ascontiguousarray(M, dtype=float), perm, LU, piv, first, last):
         raise np.linalg.LinAlgError("singular matrix")
-    X = np.empty(B.shape)
-    X[perm] = scipy.linalg.lu_solve((LU, piv), np.asarray(B, dtype=float)[perm], check_finite=False)
-    return X
+    return solve_permuted_columns(LU, piv, first, last, perm, np.ascontiguousarray(B, dtype=float))

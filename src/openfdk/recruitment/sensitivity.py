@@ -29,9 +29,8 @@ the one-sided derivative for the current active set.
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
 
-from openfdk.kinematics.block_triangular import lu_factor
+from openfdk.kinematics.envelope_lu import lu_factor_envelope, solve_permuted_columns
 from openfdk.recruitment.result import RecruitmentInputError, RecruitmentResult
 
 __all__ = ["RecruitmentSensitivity", "recruitment_sensitivity"]
@@ -128,8 +127,10 @@ class RecruitmentSensitivity:
         self.equilibrate = 1.0 / np.sqrt(np.where(row_max > 0.0, row_max, 1.0))
         self.kkt_scaled = kkt * self.equilibrate[:, None] * self.equilibrate[None, :]
         self.LU = np.array(self.kkt_scaled, order="C")
-        self.piv = np.empty(self.LU.shape[0], np.int64)
-        self.factored = bool(lu_factor(self.LU, self.piv))
+        n = self.LU.shape[0]
+        self.piv, self.first, self.last = np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n, np.int64)
+        self.factored = bool(lu_factor_envelope(self.LU, self.piv, 0, n, self.first, self.last))
+        self.unpermuted = np.arange(n)
 
     def along(self, dC, dd, ds=None):
         """Directional derivative(s) df of the optimal forces for perturbations (dC, dd, ds).
@@ -174,10 +175,10 @@ class RecruitmentSensitivity:
         rhs_scaled = rhs * self.equilibrate[:, None]
         solution = None
         if self.factored:
-            # all directions in one LAPACK getrs call: the compiled LU's factors and row
-            # swaps are getrf's (kinematics/envelope_lu.py), and a call per column cost
-            # 4× more on the DM knee (16 columns of 140 rows: 0.25 against 0.06 ms)
-            solution = scipy.linalg.lu_solve((self.LU, self.piv), rhs_scaled, check_finite=False)
+            # all directions in one compiled call (a call per column cost 4× more on the DM
+            # knee, 16 columns of 140 rows), without BLAS (kinematics/envelope_lu.py)
+            solution = solve_permuted_columns(self.LU, self.piv, self.first, self.last, self.unpermuted,
+                                              np.ascontiguousarray(rhs_scaled))
             if not np.all(np.isfinite(solution)):
                 solution = None
         if solution is None:
