@@ -100,39 +100,3 @@ def test_the_contacts_exact_step_model_holds_the_depth_warning_back():
         np.testing.assert_allclose(Q[:3], [0.0, 0.0, 1e9 * delta * 1e-4], rtol=1e-9, atol=1e-9)
         model.contacts[0].evaluate(state)  # the same pose as a result
     assert len([w for w in caught if issubclass(w.category, ContactDepthWarning)]) == 1
-
-
-def _pad_on_rail(mass, start):
-    """A pad of ``mass`` kg on a vertical rail over a floor (the pad above: flat 10 mm ×
-    10 mm, p = 1e9 Pa/m · d, max_depth 2 mm), its height the FDK DOF starting at
-    ``start`` m (negative: pressed in). FDK's root: k d A = m g, d = m g / (1e9 · 1e-4)."""
-    from openfdk.contact.sections import add_contact
-    from openfdk.model.builder import ModelBuilder
-
-    b = ModelBuilder("pad on rail", gravity=(0, 0, -9.81))
-    b.add_body("pad", mass, [1e-5] * 3)
-    b.add_joint("rail", "prismatic", parent="ground.origin", child="pad.origin")
-    b.add_measure("z", b._select(b.vector("ground.origin", "pad.origin"), [2]))
-    b.add_fdk_dof("height", "z", initial=start, max_step=1e-3)
-    add_contact(b, "pad", "pad", flat_patch(0.01, 0.01, 0.001, name="top.stl"), "ground",
-                flat_patch(0.03, 0.03, 0.002, name="floor.stl"), 1e9, mode="exact", max_depth=2e-3)
-    return b.build()
-
-
-@pytest.mark.parametrize("mass, warns", [(5.0, False), (19.0, True)])
-def test_fdk_warns_of_the_depth_of_its_results_not_of_its_trial_steps(mass, warns):
-    """FDK from 1.9 mm deep (95 % of max_depth): its first evaluation is that deep. A 5 kg
-    pad settles at d = m g / (k A) = 0.49 mm, and no warning is given; a 19 kg pad settles
-    at 1.86 mm (93 %), and the warning is given once, for the result."""
-    from openfdk.fdk.analysis import run_fdk
-
-    model = _pad_on_rail(mass, -1.9e-3)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        res = run_fdk(model, None, np.array([0.0, 0.01]))
-    assert res.converged.all()
-    depth = -np.asarray(res.alpha)[:, 0]
-    np.testing.assert_allclose(depth, mass * 9.81 / (1e9 * 1e-4), rtol=1e-6)
-    assert res.evaluations[0] >= 2  # the start at 1.9 mm was evaluated
-    depth_warnings = [w for w in caught if issubclass(w.category, ContactDepthWarning)]
-    assert len(depth_warnings) == (2 if warns else 0)  # ("always": once per reported frame)

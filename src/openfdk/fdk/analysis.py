@@ -59,7 +59,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..contact.limits import quiet_depth, warn_depth
 from ..dynamics.inverse import InverseDynamics
 from ..dynamics.results import forces_failure, forces_fields, forces_result, forces_values
 from ..kinematics.analysis import KinematicsResult, kinematics_fields, kinematics_result
@@ -230,35 +229,6 @@ class FDKStep:
         return out
 
     def step(self, k):
-        # the contacts' depth warning is held back while the frame is solved (Newton's
-        # trial steps, restarts and marched frames can press a contact deep at poses that
-        # are not the result: DM og3 from 3.5 s, a cold start's trial step at 9 mm of the
-        # patellofemoral contact's 10) and given for the reported frame (_values)
-        with quiet_depth():
-            sol = self._solve(k)
-        history = self.history
-        self.J_carry = sol.jacobian if sol.converged else None
-        self.dq_dalpha = sol.workspace.dq_dalpha if sol.converged and sol.workspace is not None else None
-        ev = sol.best
-        self.last_failed = None if sol.converged or not ev.ok else (k, ev.alpha.copy())
-        values = self._values(sol)
-        if ev.state is not None:
-            self.last_state = ev.state
-        out = [(k, values)]
-        if sol.converged:
-            history.append((k, ev.alpha.copy()))
-            self.history = history[-HISTORY:]
-            self.warm = ev.frame.recruitment
-            if self.unswept and self.sweep_back and self.settings.restart:
-                out += self._swept_back(k, sol)
-            self.unswept = []
-        else:
-            self.unswept.append((k, sol.iterations, sol.evaluations, sol.jacobians, sol.restarts))
-        return out
-
-    def _solve(self, k):
-        """Frame k's FrameSolution: its first start (the lead-in at the window's first
-        frame), then the restarts (module docstring)."""
         ctx, settings, history = self.ctx, self.settings, self.history
         t = ctx.times[k]
         warm_frame = bool(history) and history[-1][0] == k - 1
@@ -304,7 +274,25 @@ class FDKStep:
                 # a stall next to the root, at a kink of f^FDK: from the stall moved a little
                 later += solve_restarts(ctx, k, near_starts(stalled.alpha, settings.max_step), ws0, settings,
                                         self.warm, tried, not warm_frame)
-        return combined(first, later)
+        sol = combined(first, later)
+        self.J_carry = sol.jacobian if sol.converged else None
+        self.dq_dalpha = sol.workspace.dq_dalpha if sol.converged and sol.workspace is not None else None
+        ev = sol.best
+        self.last_failed = None if sol.converged or not ev.ok else (k, ev.alpha.copy())
+        values = self._values(sol)
+        if ev.state is not None:
+            self.last_state = ev.state
+        out = [(k, values)]
+        if sol.converged:
+            history.append((k, ev.alpha.copy()))
+            self.history = history[-HISTORY:]
+            self.warm = ev.frame.recruitment
+            if self.unswept and self.sweep_back and settings.restart:
+                out += self._swept_back(k, sol)
+            self.unswept = []
+        else:
+            self.unswept.append((k, sol.iterations, sol.evaluations, sol.jacobians, sol.restarts))
+        return out
 
     def _values(self, sol, spent=(0, 0, 0, 0), backward=False):
         """The recorded values of a frame's FrameSolution ``sol``; ``spent``: the
@@ -312,7 +300,6 @@ class FDKStep:
         frame solved again backward, ``backward``), added to its counts."""
         ctx = self.ctx
         ev = sol.best
-        self._warn_depths(ev)
         iterations, evaluations, jacobians, restarts = (a + b for a, b in zip(
             (sol.iterations, sol.evaluations, sol.jacobians, sol.restarts + int(backward)), spent))
         if sol.converged:
@@ -340,15 +327,6 @@ class FDKStep:
             values.update(forces_failure(report, status))
         return values
 
-    def _warn_depths(self, ev):
-        """The contacts' depth warning (:func:`~openfdk.contact.limits.warn_depth`) for the
-        reported evaluation ``ev``'s contacts; held back inside an enclosing solve (the
-        marched frames of a lead-in are not reported)."""
-        results = ev.data.forces.get("contacts") if ev.ok and ev.data is not None and ev.data.forces else None
-        for contact in self.model.contacts if results else ():
-            if contact.name in results:
-                warn_depth(contact.name, results[contact.name].max_penetration, contact.pair.max_depth)
-
     def _swept_back(self, k, sol):
         """[(j, values)] of the failed frames just before frame k, solved again backward
         from it: frame k − 1 warm-started from frame k's solution (its poses moved along
@@ -368,8 +346,7 @@ class FDKStep:
                 break
             a0 = extrapolated(back, -j, settings.max_step)
             ws = FrameWorkspace({i: state for i in ctx.frames_needed(j)}, back[-1][1], dq)
-            with quiet_depth():
-                s = solve_frame(ctx, j, back[-1][1].copy() if a0 is None else a0, ws, settings, warm, J, False)
+            s = solve_frame(ctx, j, back[-1][1].copy() if a0 is None else a0, ws, settings, warm, J, False)
             if not s.converged:
                 break
             out.append((j, self._values(s, spent, backward=True)))
