@@ -183,7 +183,7 @@ def test_chord_steps_with_a_nearby_factorization_reach_the_same_optimum():
     S = manifold_jacobian(gradient, far, eps=1e-7, central=True) - J_far.T @ (w[:, None] * J_far)
     LU, piv, K = np.empty((n + m, n + m)), np.empty(n + m, np.int64), np.empty((n + m, n + m))
     # factorized in the tracker's reverse Cuthill–McKee order (kinematics/envelope_lu.py)
-    perm, first, last = tracker._kkt_order(far), np.empty(n + m, np.int64), np.empty(n + m, np.int64)
+    perm, first, last = tracker.kkt_order, np.empty(n + m, np.int64), np.empty(n + m, np.int64)
     assert np.any(perm != np.arange(n + m))
     _, _, _ = kkt_step(*kkt_inputs(far), K, S, True, LU, piv, perm, first, last)  # Newton's matrix, 1 mm away
     # the structural pattern the order came from holds every non-zero of K and S

@@ -121,7 +121,7 @@ def kinematic_sensitivity(ctx, ev):
     rhs[n:] = E
     # K has the tracking's KKT structure: factorized in the tracker's order (0.7 → 0.2 ms
     # on the DM knee; kinematics/envelope_lu.py)
-    return solve_in_order(K, tracker._order, rhs)[:n]
+    return solve_in_order(K, tracker.kkt_order, rhs)[:n]
 
 
 def _hessian_pattern(ctx, A):

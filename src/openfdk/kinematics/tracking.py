@@ -85,7 +85,7 @@ class MarkerTracker:
         self.task_program = CompiledMeasures([tk.measure for tk in self.tasks])
         self.task_weights = np.array([tk.weight for tk in self.tasks], dtype=float)
         self._task_args = self.task_program.program + (self.task_program.n_node_rows,)
-        self._order = self._kkt_order(system.model.initial_state())
+        self.kkt_order = self._kkt_order(system.model.initial_state())  # (n + m,) int: read by the FDK Jacobian too
 
     def task_targets(self, t):
         """(f, ḟ, f̈) each (nt,) of the coordinate tasks at time t (s), rad or m."""
@@ -105,7 +105,7 @@ class MarkerTracker:
     def _kkt_order(self, state):
         """perm (n + m,) int: the order the KKT matrix is factorized in (reverse
         Cuthill–McKee, :mod:`.envelope_lu`), from its structure (:func:`.kkt.kkt_pattern`)
-        at ``state``; the tracker keeps the one of the model's initial pose (``_order``).
+        at ``state``; the tracker keeps the one of the model's initial pose (``kkt_order``).
         Any order gives the same solution; this one makes the factorization cheaper (DM
         knee: 0.40 → 0.11 ms)."""
         on_body = np.zeros((len(self.markers.body), state.n_coords))  # a marker moves with its body's 6
@@ -331,7 +331,7 @@ class MarkerTracker:
                 state.column, state.moving, f, self.system.angle_rows, self.markers.body, self.markers.p_BM,
                 w, x, tol_step, s.tol_constraint, s.max_iter, K, lam,
                 _NO_S if second_order is None else np.ascontiguousarray(second_order, dtype=float),
-                second_order is not None, self._order, *self._task_args)
+                second_order is not None, self.kkt_order, *self._task_args)
         except np.linalg.LinAlgError as exc:
             return FrameSolve(False, 0, np.nan, f"KKT system singular: {exc}", Reason.SINGULAR), None, None
         if status == MEASURE_ERROR:
@@ -407,7 +407,7 @@ class MarkerTracker:
         status, e_node, e_kind = tracking_rates(
             *prog.program, prog.n_node_rows, state.p_WB, state.R_WB, state.w_BB, state.v_WB, state.column,
             state.moving, df, ddf, self.markers.body, self.markers.p_BM, w, target_v, target_a,
-            np.ascontiguousarray(K), self._order, np.ascontiguousarray(J), f,
+            np.ascontiguousarray(K), self.kkt_order, np.ascontiguousarray(J), f,
             self.system.angle_rows, v, vdot, A, Phi,
             *self._task_args)
         if status == MEASURE_ERROR:

@@ -175,8 +175,8 @@ class RecruitmentSensitivity:
         rhs_scaled = rhs * self.equilibrate[:, None]
         solution = None
         if self.factored:
-            # all directions in one compiled call (a call per column cost 4× more on the DM
-            # knee, 16 columns of 140 rows), without BLAS (kinematics/envelope_lu.py)
+            # all directions in one compiled call (a call per column cost about 3× more on the
+            # DM knee, 16 columns of 140 rows), without BLAS (kinematics/envelope_lu.py)
             solution = solve_permuted_columns(self.LU, self.piv, self.first, self.last, self.unpermuted,
                                               np.ascontiguousarray(rhs_scaled))
             if not np.all(np.isfinite(solution)):
