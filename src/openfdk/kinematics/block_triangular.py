@@ -30,8 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..numerics.triangular import upper_solve
-from .envelope_lu import lu_factor_envelope
+from .envelope_lu import lu_factor_envelope, lu_solve_envelope
 
 
 @dataclass(frozen=True)
@@ -224,18 +223,10 @@ def lu_factor(A, piv):
 
 @njit(cache=True)
 def lu_solve(LU, piv, rhs):
-    """Solve with the factors of :func:`lu_factor`; rhs (n,) is overwritten and returned."""
+    """Solve with the factors of :func:`lu_factor`; rhs (n,) is overwritten and returned
+    (:func:`~.envelope_lu.lu_solve_envelope` over whole rows)."""
     n = LU.shape[0]
-    for k in range(n):
-        p = piv[k]
-        if p != k:
-            rhs[k], rhs[p] = rhs[p], rhs[k]
-    for i in range(n):
-        s = rhs[i]
-        for j in range(i):
-            s -= LU[i, j] * rhs[j]
-        rhs[i] = s
-    return upper_solve(LU, rhs)
+    return lu_solve_envelope(LU, piv, np.zeros(n, np.int64), np.full(n, n - 1, np.int64), rhs)
 
 
 @njit(cache=True)

@@ -1,6 +1,7 @@
 """Triangular solves in place (numba), for the small dense factors of the hot loop: the
-compiled LU of the kinematics (:mod:`openfdk.kinematics.block_triangular`) and the QR
-factor of the recruitment's free columns (:mod:`openfdk.recruitment.reduction`)."""
+QR factor of the recruitment's free columns (:mod:`openfdk.recruitment.reduction`) and
+its dense solves (:mod:`openfdk.recruitment.dense`). The kinematics' LU solves visit
+their envelopes (:mod:`openfdk.kinematics.envelope_lu`)."""
 
 from __future__ import annotations
 
