@@ -140,17 +140,9 @@ def factor_permuted(M, perm, LU, piv, first, last):
 @njit(cache=True)
 def solve_permuted(LU, piv, first, last, perm, rhs):
     """x (n,) = M⁻¹ rhs (n,) with the factors of :func:`factor_permuted` of M; rhs is
-    left unchanged."""
+    left unchanged (:func:`solve_permuted_columns` with one column)."""
     n = rhs.shape[0]
-    y = np.empty(n)
-    for i in range(n):
-        y[i] = rhs[perm[i]]
-    lu_solve_envelope(LU, piv, first, last, y)
-    x = np.empty(n)
-    for i in range(n):
-        x[perm[i]] = y[i]
-    return x
-
+    return solve_permuted_columns(LU, piv, first, last, perm, rhs.reshape((n, 1))).reshape(n)
 
 
 @njit(cache=True)
