@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..results.run import conjugate_unit, measure_unit
+from .layout import stack_layout
 
 __all__ = ["iter_figures", "make_figures", "save_figures", "write_plots", "DISPLAY"]
 
@@ -112,13 +113,10 @@ def _finish(fig, axes, t, failed, caption):
     per_line = int(0.96 * width_in * 72.0 / (0.56 * CAPTION_FONTSIZE))
     lines = textwrap.wrap(text, per_line)
     fig.text(0.01, 0.06 / height_in, "\n".join(lines), fontsize=CAPTION_FONTSIZE, va="bottom", ha="left")
-    # laid out when drawn (saved or shown), not now: a figure is drawn once
-    from matplotlib.layout_engine import ConstrainedLayoutEngine
-
     caption_in = len(lines) * 1.25 * CAPTION_FONTSIZE / 72.0 + 0.12  # the caption's lines and margins
-    bottom = caption_in / height_in
-    fig.set_layout_engine(ConstrainedLayoutEngine(rect=(0.0, bottom, 1.0, 1.0 - bottom)))  # (x, y, w, h)
-    return fig
+    # the axes fixed where the measured decorations fit (plots/layout.py: a third of the
+    # time to save a figure went to constrained layout)
+    return stack_layout(fig, axes, caption_in)
 
 
 def _failed(results):
