@@ -8,6 +8,7 @@ second-order terms as the position solves' Newton steps (MarkerTracker.solve_pos
 import numpy as np
 
 from openfdk.fdk.jacobian import hessian_pattern
+from openfdk.kinematics.tracking_hessian import OK, group_arrays, tracking_hessian
 from openfdk.kinematics.system import ConstraintSystem
 from openfdk.kinematics.tracking import MarkerTracker
 from openfdk.model.builder import ModelBuilder
@@ -30,9 +31,10 @@ def _chain():
     return b.build()
 
 
-def _lagrangian_gradient(seed=0):
+def _lagrangian_gradient(seed=0, parts=False):
     """(gradient(state) -> (n,), state, Φ_q̂ (m, n)) of the tracking Lagrangian at a
-    displaced pose, random measured markers and multipliers λ."""
+    displaced pose, random measured markers and multipliers λ; with ``parts`` also
+    (system, tracker, w (3 nm,), x (3 nm,) m, λ (m,))."""
     rng = np.random.default_rng(seed)
     model = _chain()
     system = ConstraintSystem(model)
@@ -50,6 +52,8 @@ def _lagrangian_gradient(seed=0):
         _, As, _, _ = system.evaluate(s, 0.0, None, order=1)
         return J.T @ (w * (p - x.ravel())) + As.T @ lam
 
+    if parts:
+        return gradient, state, A, (system, tracker, w, x.ravel(), lam)
     return gradient, state, A
 
 
@@ -83,6 +87,33 @@ def test_compressed_differences_equal_one_coordinate_at_a_time():
     np.testing.assert_allclose(H, H_full, rtol=0, atol=1e-12 * scale)
     # the state is restored
     np.testing.assert_array_equal(gradient(state), g0)
+
+
+def test_the_compiled_hessian_equals_the_differenced_python_gradient():
+    """kinematics/tracking_hessian.py: the marker rows' gradient in closed form and the
+    compiled constraint program, differenced in one call, against the gradient through
+    the Python marker and constraint evaluations (forward, the same groups and step) and
+    against central differences one coordinate at a time (O(ε²), ε = 1e-5)."""
+    gradient, state, A, (system, tracker, w, x, lam) = _lagrangian_gradient(seed=3, parts=True)
+    pattern, _ = hessian_pattern(A)
+    groups = column_groups(pattern)
+    ptr, cols = group_arrays(groups)
+    g0 = gradient(state)
+    poses = (state.p_WB.copy(), state.quat_WB.copy(), state.R_WB.copy())
+    H = np.full((state.n_coords, state.n_coords), np.nan)
+    prog = system.program
+    status, _, _ = tracking_hessian(*prog.program, prog.n_node_rows, state.p_WB, state.quat_WB, state.R_WB,
+                                    state.w_BB, state.v_WB, state.column, state.moving, tracker.markers.body,
+                                    tracker.markers.p_BM, w, x, lam, g0, ptr, cols, pattern, 1e-7, H)
+    assert status == OK
+    for before, after in zip(poses, (state.p_WB, state.quat_WB, state.R_WB)):
+        np.testing.assert_array_equal(before, after)  # the poses are left as they were
+    H_py = manifold_jacobian(gradient, state, eps=1e-7, central=False, f0=g0, pattern=pattern, groups=groups)
+    scale = np.abs(H_py).max()
+    assert scale > 1.0 and np.count_nonzero(H[pattern]) > 0.5 * pattern.sum()
+    np.testing.assert_allclose(H, H_py, rtol=0, atol=1e-7 * scale)
+    H_central = manifold_jacobian(gradient, state, eps=1e-5, central=True)
+    np.testing.assert_allclose(H, H_central, rtol=0, atol=2e-5 * scale)
 
 
 def test_column_groups_of_a_tridiagonal_pattern_are_the_residues_mod_3():

@@ -121,7 +121,7 @@ class FDKContext:
         names = solver.layout.column_names
         self.fdk_columns = np.array([names.index(f"fdk.{d.name}") for d in model.fdk_dofs], dtype=int)
         self._rates_frame, self._rates_k = None, None  # _measured_rates of the frame in work
-        self._hessian = None  # the tracking Hessian's pattern, groups, touched bodies (fdk.jacobian)
+        self._hessian = None  # the tracking Hessian's pattern, groups, touched bodies, group arrays (fdk.jacobian)
         #: (S (n, n), t s): the tracking Lagrangian Hessian's second-order terms at the last
         #: analytic Jacobian's pose and that frame's time (fdk.jacobian.kinematic_sensitivity),
         #: or None: the position solves within CURVATURE_REACH frames of t take Newton steps
