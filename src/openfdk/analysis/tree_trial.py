@@ -189,7 +189,7 @@ def _frames(lo, hi, plan, program, n_node_rows, angle_rows, F, dF, ddF, bodies, 
                      F[k], dF[k], ddF[k], p_WB, quat_WB, R_WB, w_BB, v_WB, vdot)
         # 2. Φ, Φ_q̂ at the pose; accepted when max |Φ| <= TOLERANCE (angle rows modulo 2π)
         err, _ = evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fp,
-                                  p_WB, R_WB, w_BB, v_WB, column, n, 1, val, M, b)
+                                  p_WB, R_WB, w_BB, v_WB, column, n, np.int64(1), val, M, b)
         if err >= 0:
             status[k] = MEASURE_FAILED
             continue

@@ -412,7 +412,7 @@ def curve_so_strengths(rows, funcs, slot, l_mt, v_mt, out):
         p = rows[slot[i]]
         one_l = np.array([l_mt[i]])
         if p[_K] == 0.0:
-            _rigid(p, funcs, l_mt[i], v_mt[i], tmp, 0)
+            _rigid(p, funcs, l_mt[i], v_mt[i], tmp, np.int64(0))
             out[i] = tmp[0, 0]
             continue
         curve_states(rows, funcs, np.array([slot[i]]), one_l, np.zeros(1), tmp)

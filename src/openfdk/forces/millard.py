@@ -202,13 +202,13 @@ def _so_strength(p, l_mt, v_mt):
     if p[_ACCEL] != 0.0:  # Millard2012AccelerationMuscle: zero only below the pennation model's minimum
         if lce <= p[_PEN_LMIN]:
             return 0.0
-        fal = curve_value(p, _FAL, lce / lf0)[0]
-        fv = curve_value(p, _FV, dlce / p[_VMAX])[0]
+        fal = curve_value(p, np.int64(_FAL), lce / lf0)[0]
+        fv = curve_value(p, np.int64(_FV), dlce / p[_VMAX])[0]
         return p[_F0] * fal * fv * math.cos(_pennation(lce, p))
     if lce <= p[_LMIN]:
         return 0.0
-    fal = curve_value(p, _FAL, lce / lf0)[0]
-    fv = curve_value(p, _FV, dlce / p[_VMAX])[0]
+    fal = curve_value(p, np.int64(_FAL), lce / lf0)[0]
+    fv = curve_value(p, np.int64(_FV), dlce / p[_VMAX])[0]
     # OpenSim 4.x evaluates this pennation angle at the *normalised* fibre length
     # (calcActiveFiberForceAlongTendon: calcPennationAngle(lceN)); reproduced as is
     return p[_F0] * fal * fv * math.cos(_pennation(lce / lf0, p))
@@ -232,12 +232,12 @@ def _fibre_force(x, a, v_mt, p):
     dcos_dx = h * h / (l_f * l_f * l_f)
     l_norm = l_f / lf0
     dl_dx = cos_a / lf0
-    g, dg = curve_value(p, _FPE, l_norm)
+    g, dg = curve_value(p, np.int64(_FPE), l_norm)
     dg *= dl_dx
     dv = 0.0
     if a > 0.0:
-        fl, dfl = curve_value(p, _FAL, l_norm)
-        fv, dfv = curve_value(p, _FV, v_mt * cos_a / vmax)
+        fl, dfl = curve_value(p, np.int64(_FAL), l_norm)
+        fv, dfv = curve_value(p, np.int64(_FV), v_mt * cos_a / vmax)
         g += a * fl * fv
         dg += a * (dfl * dl_dx * fv + fl * dfv * v_mt * dcos_dx / vmax)
         dv = f0 * a * fl * dfv * cos_a * cos_a / vmax
@@ -248,7 +248,7 @@ def _fibre_force(x, a, v_mt, p):
 def _residual(x, a, l_mt, v_mt, p):
     """R = T − F_fibre·cos α at x; (R, ∂R/∂x, k_T, ∂R/∂v, T)."""
     f0, lt0 = p[_F0], p[_LT0]
-    ft, dft = curve_value(p, _FSE, (l_mt - x) / lt0)
+    ft, dft = curve_value(p, np.int64(_FSE), (l_mt - x) / lt0)
     k_t = f0 * dft / lt0
     fm, dfm, dv = _fibre_force(x, a, v_mt, p)
     return f0 * ft - fm, -k_t - dfm, k_t, -dv, f0 * ft

@@ -355,7 +355,7 @@ def curve_value(c, o, x):
 @njit(cache=True)
 def _evaluate_many(c, xs, out_y, out_dy):
     for i in range(xs.shape[0]):
-        out_y[i], out_dy[i] = curve_value(c, 0, xs[i])
+        out_y[i], out_dy[i] = curve_value(c, np.int64(0), xs[i])
 
 
 def evaluate_curve(curve, x):

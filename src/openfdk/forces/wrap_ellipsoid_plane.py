@@ -102,7 +102,7 @@ def _nearest(ax, x, axis):
         return out
     a2 = ax * ax
     t = 0.0 if np.sum((x / ax) ** 2) < 1.0 else np.max(ax) * np.sqrt(x @ x)
-    t = _multiplier(a2[0], a2[1], a2[2], x[0], x[1], x[2], t)
+    t = _multiplier(a2[0], a2[1], a2[2], x[0], x[1], x[2], t, 1e-15)
     return a2 * x / (t + a2)
 
 
@@ -148,15 +148,15 @@ def _fan_sum(r1, d, ax):
         x0, x1, x2 = r1[0] + f * d[0], r1[1] + f * d[1], r1[2] + f * d[2]
         if abs(x0) <= NEAR_PLANE or abs(x1) <= NEAR_PLANE or abs(x2) <= NEAR_PLANE \
                 or (x0 * x0 / A0 + x1 * x1 / A1 + x2 * x2 / A2) >= 1.0:
-            c = _nearest(ax, np.array([x0, x1, x2]), -1)
+            c = _nearest(ax, np.array([x0, x1, x2]), np.int64(-1))
             y0, y1, y2 = c[0] - x0, c[1] - x1, c[2] - x2
         else:
             if roots >= 2:
                 t = _multiplier(A0, A1, A2, x0, x1, x2, 2.0 * t1 - t2, 1e-8)
             else:
-                t = _multiplier(A0, A1, A2, x0, x1, x2, t1 if roots else 0.0)
+                t = _multiplier(A0, A1, A2, x0, x1, x2, t1 if roots else 0.0, 1e-15)
             if not (low < t <= 0.0):
-                t = _multiplier(A0, A1, A2, x0, x1, x2, 0.0)
+                t = _multiplier(A0, A1, A2, x0, x1, x2, 0.0, 1e-15)
             t2, t1 = t1, t
             roots += 1
             y0, y1, y2 = A0 * x0 / (t + A0) - x0, A1 * x1 / (t + A1) - x1, A2 * x2 / (t + A2) - x2
@@ -184,7 +184,7 @@ def _plane_point(p1, p2, r1, r2, ax, q_axis, q_sign):
     """c1 (3,): the surface point that fixes the wrapping plane (module docstring, 2–3)."""
     d = r2 - r1
     u = np.abs(_unit(p1 - p2))
-    k = 0
+    k = np.int64(0)
     for i in range(1, 3):
         if u[i] > u[k]:
             k = i
@@ -204,12 +204,12 @@ def _plane_point(p1, p2, r1, r2, ax, q_axis, q_sign):
     c1 = c_frans
     fan_weight = -np.inf
     if mu < MU_MAX:
-        c_fan = _nearest(ax, r1 + 0.5 * d + _unit(_fan_sum(r1, d, ax)), -1)
+        c_fan = _nearest(ax, r1 + 0.5 * d + _unit(_fan_sum(r1, d, ax)), np.int64(-1))
         if mu <= MU_MIN:
             c1, fan_weight = c_fan, 1.0
         else:
             w = (mu - MU_MIN) / (MU_MAX - MU_MIN)
-            c1, fan_weight = _nearest(ax, w * c_frans + (1.0 - w) * c_fan, -1), 1.0 - w
+            c1, fan_weight = _nearest(ax, w * c_frans + (1.0 - w) * c_fan, np.int64(-1)), 1.0 - w
     if q_sign != 0 and (1 if c1[q_axis] >= 0.0 else -1) != q_sign:
         c1 = c1.copy()
         c1[q_axis] = -c1[q_axis]
@@ -218,7 +218,7 @@ def _plane_point(p1, p2, r1, r2, ax, q_axis, q_sign):
         fan_weight = min(fan_weight, 1.0)
         if fan_weight > 0.0:
             c1[q_axis] -= fan_weight * c1[q_axis]
-            c1 = _nearest(ax, c1, -1)
+            c1 = _nearest(ax, c1, np.int64(-1))
     return c1
 
 
@@ -260,7 +260,7 @@ def _arc(r1, r2, n, n4, ax, far, n_fixed, chord):
         pts = np.empty((2, 3))
         pts[0], pts[1] = r1, r2
         return pts, count
-    k = 0
+    k = np.int64(0)
     for i in range(1, 3):
         if abs(n[i]) > abs(n[k]):
             k = i
@@ -321,7 +321,7 @@ def plane_wrap_core(P, Q, axes, side, n_fixed, far_fixed):
     l2 = (-qb - np.sqrt(disc)) / (2.0 * qa)
     if not (0.0 < l1 < 1.0) or not (0.0 < l2 < 1.0):
         return 0, straight, T1, T2, 0.0, 0, 0
-    q_axis, q_sign = 0, 0
+    q_axis, q_sign = np.int64(0), np.int64(0)  # (typed int64: a literal 0 compiles the callees again)
     for j in range(3):
         if side[j] != 0.0:
             q_axis, q_sign = j, (1 if side[j] > 0.0 else -1)
@@ -335,7 +335,7 @@ def plane_wrap_core(P, Q, axes, side, n_fixed, far_fixed):
     if far_fixed < 0 and q_sign != 0 and pts.shape[0] > 2:
         k = pts.shape[0]
         if _unit(p1 - r1) @ _unit(pts[1] - r1) > 0.0 or _unit(p2 - r2) @ _unit(pts[k - 2] - r2) > 0.0:
-            far = True
+            far = np.bool_(True)
             pts, count = _arc(r1, r2, n, n4, ax, far, n_fixed, CHORD * f)
     arc = _polyline_length(pts)
     length = (np.sqrt((p1 - r1) @ (p1 - r1)) + arc + np.sqrt((p2 - r2) @ (p2 - r2))) / f
@@ -346,7 +346,7 @@ def plane_wrap_core(P, Q, axes, side, n_fixed, far_fixed):
 def plane_wrap(P, Q, axes, side):
     """(status, length m, T1 (3,), T2 (3,), arc m) of :func:`plane_wrap_core`, OpenSim's
     choices; status −1: an anchor inside, 0: straight, 1: wrapped."""
-    st, length, T1, T2, arc, _, _ = plane_wrap_core(P, Q, axes, side, -1, -1)
+    st, length, T1, T2, arc, _, _ = plane_wrap_core(P, Q, axes, side, np.int64(-1), np.int64(-1))
     return st, length, T1, T2, arc
 
 
@@ -364,7 +364,7 @@ MODEL_REACH = 1e-4
 @njit(cache=True)
 def plane_wrap_stashed(P, Q, axes, side, row):
     """:func:`plane_wrap`, its core (chords, way round) stashed in ``row`` (PLANE_ROW,)."""
-    st, length, T1, T2, arc, count, far = plane_wrap_core(P, Q, axes, side, -1, -1)
+    st, length, T1, T2, arc, count, far = plane_wrap_core(P, Q, axes, side, np.int64(-1), np.int64(-1))
     row[LAST] = 1.0
     row[LAST + 1:LAST + 4] = P
     row[LAST + 4:LAST + 7] = Q
@@ -449,7 +449,7 @@ def plane_wrap_gradients(P, Q, axes, side, row):
         st, count, far = int(row[LAST + 7]), int(row[LAST + 8]), int(row[LAST + 9])
         T1, T2 = row[LAST + 10:LAST + 13].copy(), row[LAST + 13:LAST + 16].copy()
     else:
-        st, _, T1, T2, _, count, far = plane_wrap_core(P, Q, axes, side, -1, -1)
+        st, _, T1, T2, _, count, far = plane_wrap_core(P, Q, axes, side, np.int64(-1), np.int64(-1))
     if st != 1:
         return st, gP, gQ
     X = np.concatenate((P, Q))

@@ -256,7 +256,7 @@ def _plane_fan(P1, Q1, axes, side):
         # in the plane: x along d, y along u; the path passes on the +u side of the line,
         # clockwise from P to Q in (x, y)
         st, _, th, _, t1x, t1y, t2x, t2y = circle_wrap((P1 - c) @ d, (P1 - c) @ u, (Q1 - c) @ d, (Q1 - c) @ u,
-                                                       rho, -1)
+                                                       rho, np.int64(-1))
         if st != 1:
             continue
         a1 = np.arctan2(t1y, t1x)
@@ -919,8 +919,8 @@ def wrapped_moving_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, di
                     for k in range(j, j1 - 1):
                         if kinds[k] == POINT or group[k] != g or not _in_span(k, kinds, present, span):
                             continue
-                        P_W = _anchor(k, -1, kinds, active, present, X_W, T1_W, T2_W)
-                        Q_W = _anchor(k, 1, kinds, active, present, X_W, T1_W, T2_W)
+                        P_W = _anchor(k, np.int64(-1), kinds, active, present, X_W, T1_W, T2_W)
+                        Q_W = _anchor(k, np.int64(1), kinds, active, present, X_W, T1_W, T2_W)
                         R = R_WS[k]
                         P_S = R.T @ (P_W - X_W[k])
                         Q_S = R.T @ (Q_W - X_W[k])
@@ -956,8 +956,8 @@ def wrapped_moving_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, di
                         change = np.inf
                     active[j] = False
                     continue
-                P_W = _anchor(j, -1, kinds, active, present, X_W, T1_W, T2_W)
-                Q_W = _anchor(j, 1, kinds, active, present, X_W, T1_W, T2_W)
+                P_W = _anchor(j, np.int64(-1), kinds, active, present, X_W, T1_W, T2_W)
+                Q_W = _anchor(j, np.int64(1), kinds, active, present, X_W, T1_W, T2_W)
                 R = R_WS[j]
                 st, _, T1, T2, a = _wrap_one(kinds[j], R.T @ (P_W - X_W[j]), R.T @ (Q_W - X_W[j]), dims[j], sides[j],
                                              limits[j, 0], int(limits[j, 1]), warm[j])

@@ -218,7 +218,7 @@ def lu_factor_range(A, piv, lo, hi):
 def lu_factor(A, piv):
     """In place LU with partial pivoting of A (n, n); piv (n,) int. False if a pivot is
     exactly zero (singular, as LAPACK getrf reports it)."""
-    return lu_factor_range(A, piv, 0, A.shape[0])
+    return lu_factor_range(A, piv, np.int64(0), A.shape[0])
 
 
 @njit(cache=True)

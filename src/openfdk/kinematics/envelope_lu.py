@@ -134,7 +134,7 @@ def factor_permuted(M, perm, LU, piv, first, last):
     with piv, first and last (n,) int as :func:`lu_factor_envelope`. False if M is
     singular."""
     permute_into(M, perm, LU)
-    return lu_factor_envelope(LU, piv, 0, M.shape[0], first, last)
+    return lu_factor_envelope(LU, piv, np.int64(0), M.shape[0], first, last)
 
 
 @njit(cache=True)

@@ -82,7 +82,7 @@ def newton_positions(op, node_row, node_size, i_start, iparams, f_start, fparams
     res = 0.0
     for it in range(1, max_iter + 1):
         e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
-                                       n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 1, val, A, bias)
+                                       n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, np.int64(1), val, A, bias)
         if e_node >= 0:
             return MEASURE_ERROR, it, np.inf, e_node, e_kind
         res = _residual(val, f, angle, Phi)
@@ -97,14 +97,14 @@ def newton_positions(op, node_row, node_size, i_start, iparams, f_start, fparams
             step = max(step, abs(dq[r]))
         if step < tol:
             e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
-                                           n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 1, val, A_out, bias)
+                                           n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, np.int64(1), val, A_out, bias)
             if e_node >= 0:
                 return MEASURE_ERROR, it, np.inf, e_node, e_kind
             res = _residual(val, f, angle, Phi_out) if m > 0 else 0.0
             if res < max(tol * 10.0, 1e-9):
                 return OK, it, res, -1, 0
     e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
-                                   n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 0, val, A, bias)
+                                   n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, np.int64(0), val, A, bias)
     if e_node >= 0:
         return MEASURE_ERROR, max_iter, np.inf, e_node, e_kind
     res = _residual(val, f, angle, Phi)
@@ -123,7 +123,7 @@ def determinate_rates(op, node_row, node_size, i_start, iparams, f_start, fparam
     A = np.empty((m, n))
     bias = np.empty(m)
     e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
-                                   n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 1, val, A, bias)
+                                   n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, np.int64(1), val, A, bias)
     if e_node >= 0:
         return MEASURE_ERROR, e_node, e_kind
     return rates_from_jacobian(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows, n_node_rows,
@@ -150,7 +150,7 @@ def rates_from_jacobian(op, node_row, node_size, i_start, iparams, f_start, fpar
     block_solve(LU, piv, rows, cols, starts, ptr, earlier, df, v)
     set_velocities(v, column, moving, v_WB, w_BB)
     e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
-                                   n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 2, val, A2, bias)
+                                   n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, np.int64(2), val, A2, bias)
     if e_node >= 0:
         return MEASURE_ERROR, e_node, e_kind
     for r in range(m):
@@ -230,13 +230,13 @@ def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fpara
     p = np.empty(0)
     J = np.empty((0, n))
     for it in range(1, max_iter + 1):
-        p, J, _, t_node, t_kind = _soft_rows(p_WB, R_WB, w_BB, v_WB, column, marker_body, p_BM, n, 1, top, tnode_row,
+        p, J, _, t_node, t_kind = _soft_rows(p_WB, R_WB, w_BB, v_WB, column, marker_body, p_BM, n, np.int64(1), top, tnode_row,
                                              tnode_size, ti_start, tiparams, tf_start, tfparams, tout_rows,
                                              tn_node_rows)
         if t_node >= 0:
             return MEASURE_ERROR, it, np.inf, step, -2 - t_node, t_kind
         e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
-                                       n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 1, val, A, bias)
+                                       n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, np.int64(1), val, A, bias)
         if e_node >= 0:
             return MEASURE_ERROR, it, np.inf, step, e_node, e_kind
         _residual(val, f, angle, Phi)
@@ -297,7 +297,7 @@ def tracking_rates(op, node_row, node_size, i_start, iparams, f_start, fparams, 
     tb = np.empty(nt)
     if nt > 0:
         e_node, e_kind = evaluate_into(top, tnode_row, tnode_size, ti_start, tiparams, tf_start, tfparams, tout_rows,
-                                       tn_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 1, tv, tJ, tb)
+                                       tn_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, np.int64(1), tv, tJ, tb)
         if e_node >= 0:
             return MEASURE_ERROR, -2 - e_node, e_kind
     val = np.empty(m)
@@ -322,15 +322,15 @@ def tracking_rates(op, node_row, node_size, i_start, iparams, f_start, fparams, 
     for c in range(n):
         v[c] = sol[c]
     set_velocities(v, column, moving, v_WB, w_BB)
-    _, _, b_m = marker_positions_jacobian(p_WB, R_WB, w_BB, column, marker_body, p_BM, n, 2)
+    _, _, b_m = marker_positions_jacobian(p_WB, R_WB, w_BB, column, marker_body, p_BM, n, np.int64(2))
     e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
-                                   n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 2, val, A, bias)
+                                   n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, np.int64(2), val, A, bias)
     if e_node >= 0:
         return MEASURE_ERROR, e_node, e_kind
     _residual(val, f, angle, Phi)
     if nt > 0:  # the task rows' bias, now that v is known
         e_node, e_kind = evaluate_into(top, tnode_row, tnode_size, ti_start, tiparams, tf_start, tfparams, tout_rows,
-                                       tn_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, 2, tv, tJ, tb)
+                                       tn_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, np.int64(2), tv, tJ, tb)
         if e_node >= 0:
             return MEASURE_ERROR, -2 - e_node, e_kind
     for c in range(n):

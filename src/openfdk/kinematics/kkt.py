@@ -148,7 +148,7 @@ def kkt_step(J, w, p, x, A, Phi, K, S, use_S, LU, piv, perm, first, last):
                     pj = perm[j]
                     if pj < n:
                         LU[i, j] += S[pi, pj]
-    if not lu_factor_envelope(LU, piv, 0, n + m, first, last):
+    if not lu_factor_envelope(LU, piv, np.int64(0), n + m, first, last):
         raise np.linalg.LinAlgError("singular matrix")
     sol = solve_permuted(LU, piv, first, last, perm, rhs)
     step = 0.0

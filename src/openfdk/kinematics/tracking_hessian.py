@@ -101,7 +101,7 @@ def tracking_hessian(op, node_row, node_size, i_start, iparams, f_start, fparams
         for j in range(group_ptr[i], group_ptr[i + 1]):
             e[group_cols[j]] = 0.0
         e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
-                                       n_node_rows, p, R, w_BB, v_WB, column, n, 1, val, A, bias)
+                                       n_node_rows, p, R, w_BB, v_WB, column, n, np.int64(1), val, A, bias)
         if e_node >= 0:
             return MEASURE_ERROR, e_node, e_kind
         _gradient(p, R, column, marker_body, p_BM, w, x, A, lam, g)

@@ -245,7 +245,7 @@ def _pp_evaluate_many(fparams, xs):  # pragma: no cover - compiled (numba)
     df = np.empty(m)
     d2f = np.empty(m)
     for q in range(m):
-        f[q], df[q], d2f[q] = pp_evaluate(fparams, 0, xs[q])
+        f[q], df[q], d2f[q] = pp_evaluate(fparams, np.int64(0), xs[q])
     return f, df, d2f
 
 

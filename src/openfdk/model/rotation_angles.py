@@ -157,9 +157,9 @@ def rotation_angle_blocks(R_Wa, R_aFa, w_a, R_Wb, R_bFb, w_b, seq, sign, order, 
     i, j, k = seq[0], seq[1], seq[2]
     R_WFa, R_WFb, R, R1, R2, B, Binv, T, V = (work[0], work[1], work[2], work[3], work[4], work[5], work[6],
                                                 work[7], work[8])
-    _mat3_into(R_Wa, R_aFa, False, False, R_WFa)
-    _mat3_into(R_Wb, R_bFb, False, False, R_WFb)
-    _mat3_into(R_WFa, R_WFb, True, False, R)  # R_FaFb
+    _mat3_into(R_Wa, R_aFa, np.bool_(False), np.bool_(False), R_WFa)
+    _mat3_into(R_Wb, R_bFb, np.bool_(False), np.bool_(False), R_WFb)
+    _mat3_into(R_WFa, R_WFb, np.bool_(True), np.bool_(False), R)  # R_FaFb
     _angles_into(R, i, j, k, theta)
     for r in range(3):
         b[r] = 0.0
@@ -174,7 +174,7 @@ def rotation_angle_blocks(R_Wa, R_aFa, w_a, R_Wb, R_bFb, w_b, seq, sign, order, 
         for r in range(3):
             V[0, r] = R1[r, j]
             V[1, r] = R2[r, k]
-        _vec3_into(R1, V[1, 0], V[1, 1], V[1, 2], False, V[2])
+        _vec3_into(R1, V[1, 0], V[1, 1], V[1, 2], np.bool_(False), V[2])
         for r in range(3):
             B[r, 0] = 1.0 if r == i else 0.0
             B[r, 1] = V[0, r]
@@ -182,30 +182,30 @@ def rotation_angle_blocks(R_Wa, R_aFa, w_a, R_Wb, R_bFb, w_b, seq, sign, order, 
         if abs(inverse3_into(B, Binv)) < 1e-9:
             ok = False
         else:
-            _mat3_into(Binv, R_aFa, False, True, Ma)  # −B⁻¹ R_aFaᵀ (negated below)
-            _mat3_into(R, R_bFb, False, True, T)
-            _mat3_into(Binv, T, False, False, Mb)     # B⁻¹ R_FaFb R_bFbᵀ
+            _mat3_into(Binv, R_aFa, np.bool_(False), np.bool_(True), Ma)  # −B⁻¹ R_aFaᵀ (negated below)
+            _mat3_into(R, R_bFb, np.bool_(False), np.bool_(True), T)
+            _mat3_into(Binv, T, np.bool_(False), np.bool_(False), Mb)     # B⁻¹ R_FaFb R_bFbᵀ
             for r in range(3):
                 for c in range(3):
                     Ma[r, c] = -Ma[r, c]
             if order >= 2:
                 ei0, ei1, ei2 = (1.0 if i == 0 else 0.0), (1.0 if i == 1 else 0.0), (1.0 if i == 2 else 0.0)
                 ej0, ej1, ej2 = (1.0 if j == 0 else 0.0), (1.0 if j == 1 else 0.0), (1.0 if j == 2 else 0.0)
-                _vec3_into(R_aFa, w_a[0], w_a[1], w_a[2], True, T[0])     # ω_Fa
-                _vec3_into(R_bFb, w_b[0], w_b[1], w_b[2], True, T[1])     # ω_Fb
-                _vec3_into(R, T[1, 0], T[1, 1], T[1, 2], False, T[2])      # R_FaFb ω_Fb
-                _vec3_into(Binv, T[2, 0] - T[0, 0], T[2, 1] - T[0, 1], T[2, 2] - T[0, 2], False, V[1])  # θ̇
+                _vec3_into(R_aFa, w_a[0], w_a[1], w_a[2], np.bool_(True), T[0])     # ω_Fa
+                _vec3_into(R_bFb, w_b[0], w_b[1], w_b[2], np.bool_(True), T[1])     # ω_Fb
+                _vec3_into(R, T[1, 0], T[1, 1], T[1, 2], np.bool_(False), T[2])      # R_FaFb ω_Fb
+                _vec3_into(Binv, T[2, 0] - T[0, 0], T[2, 1] - T[0, 1], T[2, 2] - T[0, 2], np.bool_(False), V[1])  # θ̇
                 d0, d1, d2 = V[1, 0], V[1, 1], V[1, 2]
                 x0, x1, x2 = _cross3(ei0, ei1, ei2, V[0, 0], V[0, 1], V[0, 2])  # e_i × c2
                 y0, y1, y2 = _cross3(ei0, ei1, ei2, V[2, 0], V[2, 1], V[2, 2])  # e_i × c3
                 z0, z1, z2 = _cross3(ej0, ej1, ej2, R2[0, k], R2[1, k], R2[2, k])  # e_j × R2 e_k
-                _vec3_into(R1, z0, z1, z2, False, V[0])                     # R1 (e_j × R2 e_k)
+                _vec3_into(R1, z0, z1, z2, np.bool_(False), V[0])                     # R1 (e_j × R2 e_k)
                 # Ḃ θ̇ = θ̇2 θ̇1 (e_i × c2) + θ̇3 [θ̇1 (e_i × c3) + θ̇2 R1 (e_j × R2 e_k)]
                 g0 = d1 * d0 * x0 + d2 * (d0 * y0 + d1 * V[0, 0])
                 g1 = d1 * d0 * x1 + d2 * (d0 * y1 + d1 * V[0, 1])
                 g2 = d1 * d0 * x2 + d2 * (d0 * y2 + d1 * V[0, 2])
                 c0, c1, c2 = _cross3(T[0, 0], T[0, 1], T[0, 2], T[2, 0], T[2, 1], T[2, 2])  # ω_Fa × R ω_Fb
-                _vec3_into(Binv, -c0 - g0, -c1 - g1, -c2 - g2, False, b)
+                _vec3_into(Binv, -c0 - g0, -c1 - g1, -c2 - g2, np.bool_(False), b)
     for r in range(3):
         theta[r] *= sign[r]
         for c in range(3):

@@ -114,7 +114,7 @@ def _solve_polynomial_kernel(C, d, n_bounded, s, lower, upper, p, warm_mode, lam
             else:
                 mu_start = multipliers_from_primal(A_r, x_start, p, lower, upper)
             x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, lower, upper, mu_start, tol,
-                                                           _WARM_MAX_ITER)
+                                                           np.int64(_WARM_MAX_ITER))
             iterations += it
             solved = dual_status == DUAL_CONVERGED
         if not solved:
@@ -125,7 +125,7 @@ def _solve_polynomial_kernel(C, d, n_bounded, s, lower, upper, p, warm_mode, lam
             iterations += it
             if ipm_status == IPM_CONVERGED:
                 x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, lower, upper, mu_ipm, tol,
-                                                               _POLISH_MAX_ITER)
+                                                               np.int64(_POLISH_MAX_ITER))
                 iterations += it
                 solved = dual_status == DUAL_CONVERGED
             if not solved and ipm_status == IPM_CONVERGED:
@@ -135,7 +135,7 @@ def _solve_polynomial_kernel(C, d, n_bounded, s, lower, upper, p, warm_mode, lam
                 iterations += it
                 if ipm_status == IPM_CONVERGED:
                     x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, lower, upper, mu_ipm, tol,
-                                                                   _WARM_MAX_ITER)
+                                                                   np.int64(_WARM_MAX_ITER))
                     iterations += it
                     solved = dual_status == DUAL_CONVERGED
                     if not solved:
