@@ -138,7 +138,8 @@ def test_the_check_finds_a_constant_argument(tmp_path):
               " + callee(x, np.int64(1), 0.1) + callee(x, n, 0.1)\n")
     tree = ast.parse(source)
     kernels = {f.name: f for f in tree.body if isinstance(f, ast.FunctionDef)}
-    calls = [c for c in ast.walk(kernels["caller"]) if isinstance(c, ast.Call) and getattr(c.func, "id", "") == "callee"]
+    calls = [c for c in ast.walk(kernels["caller"])
+             if isinstance(c, ast.Call) and getattr(c.func, "id", "") == "callee"]
     flags = [(any(_literal(a, {"K"}) for a in c.args), len(c.args) < 3) for c in calls]
     assert sorted(flags) == sorted([(True, False), (True, False), (True, False), (False, True), (False, False),
                                     (False, False)])

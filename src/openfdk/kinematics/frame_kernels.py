@@ -97,7 +97,8 @@ def newton_positions(op, node_row, node_size, i_start, iparams, f_start, fparams
             step = max(step, abs(dq[r]))
         if step < tol:
             e_node, e_kind = evaluate_into(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows,
-                                           n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, np.int64(1), val, A_out, bias)
+                                           n_node_rows, p_WB, R_WB, w_BB, v_WB, column, n, np.int64(1), val, A_out,
+                                           bias)
             if e_node >= 0:
                 return MEASURE_ERROR, it, np.inf, e_node, e_kind
             res = _residual(val, f, angle, Phi_out) if m > 0 else 0.0
@@ -230,8 +231,8 @@ def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fpara
     p = np.empty(0)
     J = np.empty((0, n))
     for it in range(1, max_iter + 1):
-        p, J, _, t_node, t_kind = _soft_rows(p_WB, R_WB, w_BB, v_WB, column, marker_body, p_BM, n, np.int64(1), top, tnode_row,
-                                             tnode_size, ti_start, tiparams, tf_start, tfparams, tout_rows,
+        p, J, _, t_node, t_kind = _soft_rows(p_WB, R_WB, w_BB, v_WB, column, marker_body, p_BM, n, np.int64(1), top,
+                                             tnode_row, tnode_size, ti_start, tiparams, tf_start, tfparams, tout_rows,
                                              tn_node_rows)
         if t_node >= 0:
             return MEASURE_ERROR, it, np.inf, step, -2 - t_node, t_kind
