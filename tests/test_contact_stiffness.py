@@ -224,39 +224,135 @@ def test_contact_element_scatters_into_model_columns(ball_on_plane):
     np.testing.assert_allclose(K2, direct.K[0:6, 0:6], rtol=1e-9, atol=1e-9)
 
 
-def test_candidate_vertices_give_the_rows_of_all_vertices(ball_in_cup):
+@pytest.mark.parametrize("pole", [(0.0, 0.0, -1.0), (-0.6, -0.48, -0.64)])
+def test_candidate_vertices_give_the_rows_of_all_vertices(pole):
     """Grid mode samples only the candidate vertices found at a reference pose while no
     vertex has moved farther than NEAR_REACH spacings from it (ElasticFoundation.
-    _candidates): at poses near and far from the reference, the vertices in contact and
-    their depths equal those of sampling every vertex."""
-    from openfdk.contact.elastic_foundation import NEAR_REACH
+    _candidates; distance_grid.grid_candidates keeps the vertices whose φ̂ can reach the
+    band within such a move): at poses near the reference, at the reach limit (a's
+    translations of 0.999 reach, into the cup and sideways; rotations about its
+    vertices' centroid whose move bound is 0.999 reach) and far from it, the vertices in
+    contact and their depths equal those of sampling every vertex. Pressed 0.999 reach
+    into the cup, vertices that were more than 0.95 reach in front of it are in contact:
+    a bound of φ̂'s change 10 % short would have dropped them. The cup's axis along the
+    grid's z or oblique to it: then the cube within reach of a vertex in front of the cup
+    reaches the band's invalid outer cells, and the candidates are found cell by cell."""
+    from openfdk.contact.elastic_foundation import NEAR_REACH, _largest_move
 
-    ball, cup, R_ball, R_cup, s0 = ball_in_cup
+    R_ball, R_cup = 10e-3, 12e-3
+    pole = np.array(pole)
+    s0 = np.array([0.0, 0.02, 0.03])
+    ball = _with_com_offset(sphere_cap(R_ball, 0.5, 0.25e-3, pole=pole), s0, "ball")
+    cup = sphere_cap(R_cup, 0.6, 0.25e-3, pole=pole, inward=True)  # normals → centre
     cached = ElasticFoundation(ball, cup, P_MOD, mode="grid", max_depth=1e-3)
     fresh = ElasticFoundation(ball, cup, P_MOD, mode="grid", max_depth=1e-3)
     rng = np.random.default_rng(11)
     R_ba = _exp([0.05, -0.03, 0.2])
-    centre_b = np.array([0.3e-3, -0.2e-3, -(R_cup - R_ball) - 0.12e-3])
+    centre_b = np.array([0.3e-3, -0.2e-3, 0.0]) + (R_cup - R_ball + 0.12e-3) * pole
     pose0 = _world(rng, centre_b - R_ba @ s0, R_ba)
-    cached.penetration(*pose0)
+    n_contact0 = len(cached.penetration(*pose0)[0])
     reference = cached._near
-    assert 0 < len(reference[2]) <= ball.vertices_B.shape[0]
+    # every vertex has a valid cell within reach; those in front of the cup by more than
+    # about reach, or behind its band, are not candidates
+    assert n_contact0 < len(reference[2]) < 0.97 * ball.vertices_B.shape[0]
     reach = NEAR_REACH * cached.grid.spacing
+    r_Wa, R_Wa, r_Wb, R_Wb = pose0
+
+    def rows_of_all_vertices(pose):
+        """The rows of ``fresh`` (every vertex sampled) at pose, asserted equal to those of
+        ``cached`` from the reference's candidates; also whether those were used."""
+        cached._near = reference
+        got = cached.penetration(*pose)
+        fresh._near = None
+        want = fresh.penetration(*pose)
+        assert len(want[0]) > 100
+        for x, y in zip(got, want):
+            np.testing.assert_array_equal(x, y)
+        return want, cached._near is reference
+
     used = 0
+    sideways = np.cross(pole, [1.0, 0.0, 0.0])
     for scale in (1e-7, 1e-6, 1e-5, 3e-5, 1e-3):  # m of translation, rad/40 mm of rotation
         for _ in range(6):
-            r_Wa, R_Wa, r_Wb, R_Wb = pose0
             move = rng.normal(size=3) * scale
-            if scale >= 1e-3:
-                move = R_Wb @ np.array([*(0.6 * move[:2] / np.linalg.norm(move[:2]) * scale), 0.0])  # sideways in the cup
+            if scale >= 1e-3:  # sideways in the cup
+                move = R_Wb @ (0.6 * scale * sideways / np.linalg.norm(sideways))
             pose = (r_Wa + move, R_Wa @ _exp(rng.normal(size=3) * min(scale, 1e-5) / 0.04), r_Wb, R_Wb)
-            cached._near = reference  # every pose against the same reference
-            got = cached.penetration(*pose)
-            fresh._near = None
-            want = fresh.penetration(*pose)
-            used += cached._near is reference
-            assert len(want[0]) > 100
-            for x, y in zip(got, want):
-                np.testing.assert_array_equal(x, y)
+            used += rows_of_all_vertices(pose)[1]
     assert 12 <= used < 30  # the small moves used the reference's candidates, the 1 mm ones not
     assert reach < 1e-3
+    # at the reach limit: translations (every vertex moves 0.999 reach) into the cup, up
+    # to 25° from its axis, and sideways ...
+    y0 = ball.vertices_B @ (R_Wb.T @ R_Wa).T + R_Wb.T @ (r_Wa - r_Wb)
+    phi0 = cached.grid.query(y0)[0]  # at the reference
+    in_front = []
+    for direction in [pole, sideways, np.cross(pole, sideways)] + list(pole + 0.45 * rng.normal(size=(8, 3))):
+        pressed = (r_Wa + R_Wb @ (0.999 * reach * direction / np.linalg.norm(direction)), R_Wa, r_Wb, R_Wb)
+        want, reused = rows_of_all_vertices(pressed)
+        assert reused
+        if direction @ pole > 0.9 * np.linalg.norm(direction):
+            assert len(want[0]) > 1.3 * n_contact0
+            in_front.append(np.nanmax(phi0[want[0]]) / reach)
+    assert len(in_front) >= 4 and max(in_front) > 0.95
+    # ... and rotations about the vertices' centroid c, bound 2√2 sin(θ/2) ρ = 0.999 reach
+    c_W = r_Wa + R_Wa @ cached._centre_A
+    theta = 2.0 * np.arcsin(0.999 * reach / (2.0 * np.sqrt(2.0) * cached._radius_A))
+    for axis in rng.normal(size=(3, 3)):
+        R_d = _exp(theta * axis / np.linalg.norm(axis))
+        turned = (c_W + R_d @ (r_Wa - c_W), R_d @ R_Wa, r_Wb, R_Wb)
+        R0, p0 = reference[:2]
+        R1, p1 = R_Wb.T @ turned[1], R_Wb.T @ (turned[0] - r_Wb)
+        assert 0.99 * reach < _largest_move(R1, p1, R0, p0, cached._centre_A, cached._radius_A) <= reach
+        assert rows_of_all_vertices(turned)[1]
+
+
+def test_candidate_vertices_at_the_rim_of_b(ball_on_plane):
+    """The ball pressed into the flat patch across the patch's edge, then slid 0.999 reach
+    inward: vertices that were beyond the rim, in cells without values (their nodes'
+    closest points on the rim), come into contact. They are candidates, found from the
+    points of the valid cells within reach nearest them (distance_grid.grid_candidates),
+    and the rows equal those of sampling every vertex."""
+    from openfdk.contact.elastic_foundation import NEAR_REACH
+
+    ball, plane, R, s0, b0 = ball_on_plane
+    cached = ElasticFoundation(ball, plane, P_MOD, mode="grid", max_depth=1e-3)
+    fresh = ElasticFoundation(ball, plane, P_MOD, mode="grid", max_depth=1e-3)
+    reach = NEAR_REACH * cached.grid.spacing
+    rng = np.random.default_rng(17)
+    R_ba = _exp([0.05, -0.03, 0.4])
+    centre_b = b0 + np.array([0.01 - 0.5e-3, 0.0, R - 0.12e-3])  # the patch's edge is at x = b0_x + 10 mm
+    r_Wa, R_Wa, r_Wb, R_Wb = _world(rng, centre_b - R_ba @ s0, R_ba)
+    cached.penetration(r_Wa, R_Wa, r_Wb, R_Wb)
+    reference = cached._near
+    slid = (r_Wa + R_Wb @ np.array([-0.999 * reach, 0.0, 0.0]), R_Wa, r_Wb, R_Wb)
+    got = cached.penetration(*slid)
+    assert cached._near is reference
+    want = fresh.penetration(*slid)
+    assert len(want[0]) > 50
+    for x, y in zip(got, want):
+        np.testing.assert_array_equal(x, y)
+    y0 = ball.vertices_B[want[0]] @ (R_Wb.T @ R_Wa).T + R_Wb.T @ (r_Wa - r_Wb)  # at the reference
+    assert np.isnan(cached.grid.query(y0)[0]).sum() >= 5
+
+
+def test_slope_bound_bounds_the_interpolants_gradient(ball_in_cup):
+    """distance_grid.slope_bound, which bounds how far φ̂ changes as the candidate vertices
+    move, exceeds |∇φ̂| (grid_derivatives' exact gradient) at random points of random
+    valid cells, is about 1 (φ is a distance) and the block array holds its largest."""
+    from openfdk.contact.distance_grid import BLOCK, grid_derivatives, slope_bound
+
+    ball, cup = ball_in_cup[:2]
+    grid = ElasticFoundation(ball, cup, P_MOD, mode="grid", max_depth=1e-3).grid
+    _, ny, nz = grid.shape
+    flat, inv_h = grid.values.reshape(-1), 1.0 / grid.spacing
+    rng = np.random.default_rng(2)
+    cells = np.argwhere(grid.cell_valid)
+    cells = cells[rng.choice(len(cells), 3000, replace=False)]
+    y = grid.origin_B + (cells + rng.uniform(0.0, 1.0, size=cells.shape)) * grid.spacing
+    dphi, Dg = np.empty((len(y), 3)), np.empty((len(y), 3, 3))
+    grid_derivatives(y, flat, ny, nz, grid.origin_B, inv_h, dphi, Dg)
+    L = np.array([slope_bound(flat, ny, nz, i, j, k, inv_h) for i, j, k in cells])
+    slope = np.linalg.norm(dphi, axis=1)
+    assert np.all(slope <= L)
+    assert 0.95 < np.median(slope) and np.median(L) < 1.05
+    assert np.all(grid.block_slope[tuple((cells // BLOCK).T)] >= L)

@@ -68,6 +68,18 @@ class SignedDistanceGrid:
         ``cell_valid`` (MBs, whose random reads were most of a contact query's time)."""
         return block_occupancy(self.cell_valid, BLOCK)
 
+    @functools.cached_property
+    def block_slope(self):
+        """(⌈(nx−1)/B⌉, ⌈(ny−1)/B⌉, ⌈(nz−1)/B⌉) float32, m/m, B = :data:`BLOCK` — a bound
+        of the interpolant's slope |∇φ̂| in each block's valid cells (:func:`block_slopes`;
+        0 where none is valid), about 1: it bounds how far φ̂ changes when a contact's
+        vertices move (:func:`grid_candidates`). 4 bytes per 64 cells."""
+        nx, ny, nz = self.shape
+        out = np.zeros(self.block_valid.shape, dtype=np.float32)
+        block_slopes(self.values.reshape(-1), self.cell_valid.reshape(-1), nx, ny, nz, 1.0 / self.spacing,
+                     BLOCK, out)
+        return out
+
     @property
     def shape(self):
         return self.values.shape[:3]
@@ -213,30 +225,8 @@ def sample_grid(points, R, t, flat, cells, blocks, nx, ny, nz, origin, inv_h, ma
                 p_out[count, 2] = y2
                 count += 1
             continue
-        f0 = u0 - i
-        f1 = u1 - j
-        f2 = u2 - k
-        base = i * si + j * sj + k * sk
-        value = 0.0
-        g0 = 0.0
-        g1 = 0.0
-        g2 = 0.0
-        for di in range(2):
-            w0 = f0 if di == 1 else 1.0 - f0
-            for dj in range(2):
-                w01 = w0 * (f1 if dj == 1 else 1.0 - f1)
-                for dk in range(2):
-                    w = w01 * (f2 if dk == 1 else 1.0 - f2)
-                    c = base + di * si + dj * sj + dk * sk
-                    n0 = flat[c + 1]
-                    n1 = flat[c + 2]
-                    n2 = flat[c + 3]
-                    # φ_c + ½ ∇φ_c·(y − x_c), with y − x_c = h (f − corner offset)
-                    value += w * (flat[c] + half_h * (n0 * (f0 - di) + n1 * (f1 - dj)
-                                                      + n2 * (f2 - dk)))
-                    g0 += w * n0
-                    g1 += w * n1
-                    g2 += w * n2
+        value, g0, g1, g2 = _cell_interpolant(flat, si, sj, sk, i * si + j * sj + k * sk, u0 - i, u1 - j, u2 - k,
+                                              half_h)
         if contact_only and (value >= 0.0 or -value > max_depth):
             continue
         norm = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
@@ -266,59 +256,199 @@ def grid_derivatives(y, flat, ny, nz, origin, inv_h, dphi, Dg):
     sj = 4 * nz
     si = 4 * nz * ny
     half_h = 0.5 / inv_h
-    G = np.empty((3, 3))  # Σ ∇φ_c ∇w_cᵀ
-    W = np.empty(3)  # the corner's three 1-D weights
-    S = np.empty(3)  # their slopes (1/m)
-    n = np.empty(3)
     for q in range(y.shape[0]):
-        u = ((y[q, 0] - origin[0]) * inv_h, (y[q, 1] - origin[1]) * inv_h, (y[q, 2] - origin[2]) * inv_h)
-        i, j, k = int(u[0]), int(u[1]), int(u[2])
-        f = (u[0] - i, u[1] - j, u[2] - k)
+        u0 = (y[q, 0] - origin[0]) * inv_h
+        u1 = (y[q, 1] - origin[1]) * inv_h
+        u2 = (y[q, 2] - origin[2]) * inv_h
+        i, j, k = int(u0), int(u1), int(u2)
+        f0, f1, f2 = u0 - i, u1 - j, u2 - k
         base = i * si + j * sj + k * sk
-        G[:, :] = 0.0
+        d0 = d1 = d2 = 0.0  # ∇φ̂
         gh0 = gh1 = gh2 = 0.0  # ĝ
-        for a in range(3):
-            dphi[q, a] = 0.0
-        for corner in range(8):
-            di, dj, dk = corner >> 2, (corner >> 1) & 1, corner & 1
-            off = (di, dj, dk)
-            for a in range(3):
-                W[a] = f[a] if off[a] == 1 else 1.0 - f[a]
-                S[a] = inv_h if off[a] == 1 else -inv_h
-            w = W[0] * W[1] * W[2]
-            c = base + di * si + dj * sj + dk * sk
-            n[0], n[1], n[2] = flat[c + 1], flat[c + 2], flat[c + 3]
-            value = flat[c] + half_h * (n[0] * (f[0] - di) + n[1] * (f[1] - dj) + n[2] * (f[2] - dk))
-            gw0, gw1, gw2 = S[0] * W[1] * W[2], W[0] * S[1] * W[2], W[0] * W[1] * S[2]
-            dphi[q, 0] += gw0 * value + 0.5 * w * n[0]
-            dphi[q, 1] += gw1 * value + 0.5 * w * n[1]
-            dphi[q, 2] += gw2 * value + 0.5 * w * n[2]
-            gh0 += w * n[0]
-            gh1 += w * n[1]
-            gh2 += w * n[2]
-            for a in range(3):
-                G[a, 0] += n[a] * gw0
-                G[a, 1] += n[a] * gw1
-                G[a, 2] += n[a] * gw2
+        G00 = G01 = G02 = G10 = G11 = G12 = G20 = G21 = G22 = 0.0  # Σ ∇φ_c ∇w_cᵀ
+        for di in range(2):
+            W0 = f0 if di == 1 else 1.0 - f0  # the corner's three 1-D weights and their slopes (1/m)
+            S0 = inv_h if di == 1 else -inv_h
+            for dj in range(2):
+                W1 = f1 if dj == 1 else 1.0 - f1
+                S1 = inv_h if dj == 1 else -inv_h
+                for dk in range(2):
+                    W2 = f2 if dk == 1 else 1.0 - f2
+                    S2 = inv_h if dk == 1 else -inv_h
+                    w = W0 * W1 * W2
+                    c = base + di * si + dj * sj + dk * sk
+                    n0, n1, n2 = flat[c + 1], flat[c + 2], flat[c + 3]
+                    value = flat[c] + half_h * (n0 * (f0 - di) + n1 * (f1 - dj) + n2 * (f2 - dk))
+                    gw0, gw1, gw2 = S0 * W1 * W2, W0 * S1 * W2, W0 * W1 * S2  # ∇w_c
+                    d0 += gw0 * value + 0.5 * w * n0
+                    d1 += gw1 * value + 0.5 * w * n1
+                    d2 += gw2 * value + 0.5 * w * n2
+                    gh0 += w * n0
+                    gh1 += w * n1
+                    gh2 += w * n2
+                    G00 += n0 * gw0
+                    G01 += n0 * gw1
+                    G02 += n0 * gw2
+                    G10 += n1 * gw0
+                    G11 += n1 * gw1
+                    G12 += n1 * gw2
+                    G20 += n2 * gw0
+                    G21 += n2 * gw1
+                    G22 += n2 * gw2
+        dphi[q, 0], dphi[q, 1], dphi[q, 2] = d0, d1, d2
         norm = np.sqrt(gh0 * gh0 + gh1 * gh1 + gh2 * gh2)
-        g = (gh0 / norm, gh1 / norm, gh2 / norm)
-        for b in range(3):
-            gG = g[0] * G[0, b] + g[1] * G[1, b] + g[2] * G[2, b]
-            for a in range(3):
-                Dg[q, a, b] = (G[a, b] - g[a] * gG) / norm
+        g0, g1, g2 = gh0 / norm, gh1 / norm, gh2 / norm
+        gG0 = g0 * G00 + g1 * G10 + g2 * G20  # gᵀ G
+        gG1 = g0 * G01 + g1 * G11 + g2 * G21
+        gG2 = g0 * G02 + g1 * G12 + g2 * G22
+        Dg[q, 0, 0] = (G00 - g0 * gG0) / norm  # (G − g gᵀ G) / |ĝ|
+        Dg[q, 0, 1] = (G01 - g0 * gG1) / norm
+        Dg[q, 0, 2] = (G02 - g0 * gG2) / norm
+        Dg[q, 1, 0] = (G10 - g1 * gG0) / norm
+        Dg[q, 1, 1] = (G11 - g1 * gG1) / norm
+        Dg[q, 1, 2] = (G12 - g1 * gG2) / norm
+        Dg[q, 2, 0] = (G20 - g2 * gG0) / norm
+        Dg[q, 2, 1] = (G21 - g2 * gG1) / norm
+        Dg[q, 2, 2] = (G22 - g2 * gG2) / norm
 
 
 @njit(cache=True)
-def grid_candidates(points, R, t, cells, nx, ny, nz, origin, inv_h, reach, index):
-    """The points that can lie in a valid cell after moving by at most ``reach`` (m):
-    those with a valid cell (``cells`` mask ≠ 0) among the cells met by the cube of
-    half-edge ``reach`` about y = R·x + t. No other point can be sampled in contact by
-    :func:`sample_grid` at such a pose, so sampling only these gives the same rows.
+def _cell_interpolant(flat, si, sj, sk, base, f0, f1, f2, half_h):
+    """(φ̂ m, Σ_c w_c ∇φ_c (3 values, not normalised)) of :func:`sample_grid` at the point
+    (f0, f1, f2) ∈ [0, 1]³ (fractions of a spacing) of the cell whose first node is at
+    ``base`` in ``flat`` (the grid's values raveled, strides si, sj, sk):
+    φ̂ = Σ_c w_c [φ_c + ½ ∇φ_c·(y − x_c)], with y − x_c = h (f − the corner's offset);
+    half_h = h/2 (m)."""
+    value = 0.0
+    g0 = 0.0
+    g1 = 0.0
+    g2 = 0.0
+    for di in range(2):
+        w0 = f0 if di == 1 else 1.0 - f0
+        for dj in range(2):
+            w01 = w0 * (f1 if dj == 1 else 1.0 - f1)
+            for dk in range(2):
+                w = w01 * (f2 if dk == 1 else 1.0 - f2)
+                c = base + di * si + dj * sj + dk * sk
+                n0 = flat[c + 1]
+                n1 = flat[c + 2]
+                n2 = flat[c + 3]
+                value += w * (flat[c] + half_h * (n0 * (f0 - di) + n1 * (f1 - dj) + n2 * (f2 - dk)))
+                g0 += w * n0
+                g1 += w * n1
+                g2 += w * n2
+    return value, g0, g1, g2
 
-    points (n, 3) m, R (3, 3), t (3,) m; the grid's cells raveled, its node counts, origin
-    (3,) m and 1/spacing (1/m); index (n,) int, written. Returns the count written
-    (increasing point numbers)."""
-    r = reach * inv_h
+
+@njit(cache=True)
+def _cell_value(flat, ny, nz, i, j, k, f0, f1, f2, half_h):
+    """φ̂ (m) of :func:`sample_grid` at the point (f0, f1, f2) ∈ [0, 1]³ of cell (i, j, k)
+    (:func:`_cell_interpolant`); ny, nz node counts."""
+    sj = 4 * nz
+    si = sj * ny
+    return _cell_interpolant(flat, si, sj, np.int64(4), i * si + j * sj + k * 4, f0, f1, f2, half_h)[0]
+
+
+@njit(cache=True)
+def slope_bound(flat, ny, nz, i, j, k, inv_h):
+    """A bound (m/m) of |∇φ̂| of :func:`sample_grid`'s φ̂ in the valid cell (i, j, k), from
+    its node values.
+
+    In the cell, with f ∈ [0, 1]³ the point's fractions of a spacing h, differentiating
+    φ̂ = Σ_c w_c [φ_c + ½ h ∇φ_c·(f − o_c)] (o_c ∈ {0, 1}³ the corner's offset) along axis a
+    gives ∂φ̂/∂y_a = Σ_e W_e T_e / h over the cell's 4 edges e along a, W_e ≥ 0 the bilinear
+    weights of the other two axes (Σ W_e = 1) and, Δ the difference along e (far − near),
+        T_e = Δφ + ½ h [Δ∂_aφ (2 f_a − 1) + Σ_{b≠a} Δ∂_bφ (f_b − o_b)],
+    where |2 f_a − 1|, |f_b − o_b| ≤ 1. So |∂φ̂/∂y_a| ≤ B_a = max_e (|Δφ|/h + ½ |Δ∇φ|₁) and
+    |∇φ̂| ≤ |B|. For the node values of a plane (φ linear, ∇φ = n) |B| = |n| = 1; curvature
+    and the distance field's kinks add the differences of ∇φ (DM knee's femoral component,
+    h = 0.5 mm: 1.02 at the median cell, 1.6 at the 99th percentile, 2.4 at the worst).
+
+    flat: the grid's values raveled; ny, nz node counts; inv_h = 1/h (1/m)."""
+    sk = 4
+    sj = 4 * nz
+    si = 4 * nz * ny
+    B0 = 0.0
+    B1 = 0.0
+    B2 = 0.0
+    for corner in range(8):  # the edges from the corners at offset 0 along their axis
+        di, dj, dk = corner >> 2, (corner >> 1) & 1, corner & 1
+        c = (i + di) * si + (j + dj) * sj + (k + dk) * sk
+        for axis in range(3):
+            if axis == 0 and di == 0:
+                e = c + si
+            elif axis == 1 and dj == 0:
+                e = c + sj
+            elif axis == 2 and dk == 0:
+                e = c + sk
+            else:
+                continue
+            T = (abs(flat[e] - flat[c]) * inv_h  # |Δφ|/h + ½ |Δ∇φ|₁
+                 + 0.5 * (abs(flat[e + 1] - flat[c + 1]) + abs(flat[e + 2] - flat[c + 2])
+                          + abs(flat[e + 3] - flat[c + 3])))
+            if axis == 0:
+                B0 = max(B0, T)
+            elif axis == 1:
+                B1 = max(B1, T)
+            else:
+                B2 = max(B2, T)
+    return np.sqrt(B0 * B0 + B1 * B1 + B2 * B2)
+
+
+@njit(cache=True)
+def block_slopes(flat, cells, nx, ny, nz, inv_h, b, out):
+    """out (⌈(nx−1)/b⌉, ⌈(ny−1)/b⌉, ⌈(nz−1)/b⌉) ← the largest :func:`slope_bound` (m/m) of
+    the valid cells of each b×b×b block of cells, times 1 + 1e-6 (so that float32
+    storage rounds it up), 0 where none is valid.
+
+    flat, cells: the grid's values and cell mask raveled; nx, ny, nz node counts;
+    inv_h 1/m; b int, the block edge in cells."""
+    out[:, :, :] = 0.0
+    for i in range(nx - 1):
+        for j in range(ny - 1):
+            for k in range(nz - 1):
+                if cells[(i * (ny - 1) + j) * (nz - 1) + k] != 0:
+                    L = slope_bound(flat, ny, nz, i, j, k, inv_h) * (1.0 + 1e-6)
+                    if L > out[i // b, j // b, k // b]:
+                        out[i // b, j // b, k // b] = L
+
+
+@njit(cache=True)
+def _may_contact(phi, change, max_depth, spare):
+    """Whether a φ̂ within ``change`` (m) of ``phi`` (m) can be in contact, −max_depth ≤
+    φ̂ < 0, with ``spare`` (m) for rounding."""
+    return phi - change < spare and phi + change >= -max_depth - spare
+
+
+@njit(cache=True)
+def grid_candidates(points, R, t, flat, cells, slopes, nx, ny, nz, origin, inv_h, max_depth, r, index):
+    """The points that :func:`sample_grid` (contact_only) can find in contact,
+    −max_depth ≤ φ̂ < 0, after each moved by at most reach = r·h (r ≤ ½, h the spacing)
+    from y = R·x + t. No other point can be sampled in contact at such a pose, so
+    sampling only these gives the same rows.
+
+    A point y' within reach of y has a value only in a valid cell C (``cells`` mask ≠ 0)
+    met by the ball of radius reach about y, hence by the cube of half-edge reach about y:
+    2×2×2 cells (y ± r h are exact for r = ½; a point whose rounded cube spans 3 cells
+    along an axis, possible when r is within rounding of ½, is kept). Let L bound |∇φ̂|
+    over the cube's cells (``slopes``, per block of cells). If the cells of the box
+    spanned by y's own cell O and C are all valid, the segment y y' stays in them (the
+    box is convex), where φ̂ is continuous with |∇φ̂| ≤ L: |φ̂(y') − φ̂(y)| ≤ L·reach.
+    Otherwise (O or a cell between invalid), from the point p_C of C nearest y:
+    |φ̂(y') − φ̂(p_C)| ≤ L·|y' − p_C|, and C being convex, (y − p_C)·(y' − p_C) ≤ 0, so
+    |y' − p_C|² ≤ reach² − |y − p_C|². A point is kept when one of its cells C within
+    reach allows contact by these bounds (reach²(1 + 1e-9) in place of reach² and
+    1e-9·reach to spare for rounding).
+
+    points (n, 3) m, R (3, 3), t (3,) m; the grid's values and cells raveled,
+    :attr:`SignedDistanceGrid.block_slope` (0 where no cell is valid), its node counts,
+    origin (3,) m and 1/spacing (1/m); max_depth m; r, the reach in spacings; index (n,)
+    int, written. Returns the count written (increasing point numbers)."""
+    if not 0.0 <= r <= 0.5:
+        raise ValueError("grid_candidates: the reach must be at most half a grid spacing")
+    reach = r / inv_h  # m
+    half_h = 0.5 / inv_h
+    spare = 1e-9 * reach  # m, for rounding
     count = 0
     for q in range(points.shape[0]):
         x0 = points[q, 0]
@@ -327,16 +457,69 @@ def grid_candidates(points, R, t, cells, nx, ny, nz, origin, inv_h, reach, index
         u0 = (R[0, 0] * x0 + R[0, 1] * x1 + R[0, 2] * x2 + t[0] - origin[0]) * inv_h
         u1 = (R[1, 0] * x0 + R[1, 1] * x1 + R[1, 2] * x2 + t[1] - origin[1]) * inv_h
         u2 = (R[2, 0] * x0 + R[2, 1] * x1 + R[2, 2] * x2 + t[2] - origin[2]) * inv_h
-        i0, i1 = max(int(np.floor(u0 - r)), 0), min(int(np.floor(u0 + r)), nx - 2)
-        j0, j1 = max(int(np.floor(u1 - r)), 0), min(int(np.floor(u1 + r)), ny - 2)
-        k0, k1 = max(int(np.floor(u2 - r)), 0), min(int(np.floor(u2 + r)), nz - 2)
-        found = False
-        for i in range(i0, i1 + 1):
-            for j in range(j0, j1 + 1):
-                for k in range(k0, k1 + 1):
-                    if cells[(i * (ny - 1) + j) * (nz - 1) + k] != 0:
-                        found = True
-        if found:
+        # the cube's cells i0..i1 (i1 ≤ i0 + 1), clipped to the grid
+        a0, b0 = int(np.floor(u0 - r)), int(np.floor(u0 + r))
+        a1, b1 = int(np.floor(u1 - r)), int(np.floor(u1 + r))
+        a2, b2 = int(np.floor(u2 - r)), int(np.floor(u2 + r))
+        i0, i1 = max(a0, 0), min(b0, nx - 2)
+        j0, j1 = max(a1, 0), min(b1, ny - 2)
+        k0, k1 = max(a2, 0), min(b2, nz - 2)
+        if i0 > i1 or j0 > j1 or k0 > k1:
+            continue
+        if b0 - a0 > 1 or b1 - a1 > 1 or b2 - a2 > 1:  # rounding of u ± r (r ≈ ½): kept
+            index[count] = q
+            count += 1
+            continue
+        # L from the block array (small; 0 where no cell is valid, as for most points)
+        bi0, bi1, bj0, bj1, bk0, bk1 = i0 // BLOCK, i1 // BLOCK, j0 // BLOCK, j1 // BLOCK, k0 // BLOCK, k1 // BLOCK
+        L = max(max(max(slopes[bi0, bj0, bk0], slopes[bi0, bj0, bk1]),
+                    max(slopes[bi0, bj1, bk0], slopes[bi0, bj1, bk1])),
+                max(max(slopes[bi1, bj0, bk0], slopes[bi1, bj0, bk1]),
+                    max(slopes[bi1, bj1, bk0], slopes[bi1, bj1, bk1])))
+        if L == 0.0:
+            continue
+        # valid cells of the cube: bit 4 di + 2 dj + dk for cell (i0 + di, j0 + dj, k0 + dk)
+        valid = 0
+        for c in range(8):
+            i, j, k = i0 + (c >> 2), j0 + ((c >> 1) & 1), k0 + (c & 1)
+            if i <= i1 and j <= j1 and k <= k1 and cells[(i * (ny - 1) + j) * (nz - 1) + k] != 0:
+                valid |= 1 << c
+        if valid == 0:
+            continue
+        # y's own cell O (bit o; −1: outside the grid or invalid) and φ̂(y); C = O is within reach
+        io, jo, ko = int(np.floor(u0)), int(np.floor(u1)), int(np.floor(u2))
+        o = -1
+        if 0 <= io - i0 <= 1 and 0 <= jo - j0 <= 1 and 0 <= ko - k0 <= 1:
+            o = 4 * (io - i0) + 2 * (jo - j0) + (ko - k0)
+            if (valid >> o) & 1 == 0:
+                o = -1
+        keep = False
+        phi_y = 0.0
+        if o >= 0:
+            phi_y = _cell_value(flat, ny, nz, io, jo, ko, u0 - io, u1 - jo, u2 - ko, half_h)
+            keep = _may_contact(phi_y, L * reach, max_depth, spare)
+        c = 0
+        while not keep and c < 8:
+            if (valid >> c) & 1 != 0 and c != o:
+                if o >= 0:  # the cells of the box spanned by O and C: per axis, the cells at O's or C's offset
+                    box = (((0xF0 if o & 4 != 0 else 0x0F) | (0xF0 if c & 4 != 0 else 0x0F))
+                           & ((0xCC if o & 2 != 0 else 0x33) | (0xCC if c & 2 != 0 else 0x33))
+                           & ((0xAA if o & 1 != 0 else 0x55) | (0xAA if c & 1 != 0 else 0x55)))
+                    between = box & valid == box
+                else:
+                    between = False
+                if not between:  # (else C allows contact only if O does, and O does not)
+                    i, j, k = i0 + (c >> 2), j0 + ((c >> 1) & 1), k0 + (c & 1)
+                    p0 = min(max(u0, i), i + 1.0)  # p_C
+                    p1 = min(max(u1, j), j + 1.0)
+                    p2 = min(max(u2, k), k + 1.0)
+                    # y' in C within reach: |y' − p_C|² ≤ |y' − y|² − |y − p_C|² (spacings²)
+                    rest = r * r * (1.0 + 1e-9) - ((p0 - u0) ** 2 + (p1 - u1) ** 2 + (p2 - u2) ** 2)
+                    if rest >= 0.0:
+                        phi = _cell_value(flat, ny, nz, i, j, k, p0 - i, p1 - j, p2 - k, half_h)
+                        keep = _may_contact(phi, L * np.sqrt(rest) / inv_h, max_depth, spare)
+            c += 1
+        if keep:
             index[count] = q
             count += 1
     return count

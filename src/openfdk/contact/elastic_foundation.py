@@ -52,6 +52,7 @@ from .distance_grid import band_occupancy, grid_candidates, grid_derivatives, sa
 from .grid_cache import cached_distance_grid
 from .limits import warn_depth
 from .mesh import SurfaceMesh
+from .pressure_law import linear_pressures, nonlinear_pressures
 from .signed_distance import OpenSurfaceDistance
 
 __all__ = [
@@ -67,9 +68,11 @@ DEFAULT_GRID_SPACING = 0.3e-3
 #: default band depth, m: vertices deeper than this behind B are ignored
 DEFAULT_MAX_DEPTH = 3e-3
 #: reach of the candidate vertices (:meth:`ElasticFoundation._candidates`), in grid
-#: spacings: about 0.15 mm at the default spacing, more than a frame's Newton steps after
-#: the first and the Jacobian's differences (µm), less than a gait frame's motion
+#: spacings (at most 0.5, :func:`~.distance_grid.grid_candidates`): about 0.15 mm at the
+#: default spacing, more than a frame's Newton steps after the first and the Jacobian's
+#: differences (µm), less than a gait frame's motion
 NEAR_REACH = 0.5
+_NO_ROWS = np.zeros(0)  # (0,): the pressures _accumulate does not read (linear law)
 
 
 @njit(cache=True)
@@ -176,6 +179,7 @@ class ElasticFoundation:
             self.pressure_modulus = float(1.0 / np.sum(layers[:, 1] / layers[:, 0]))
         self.mode = mode
         self.regions = ()  # ((name, axis (3,), origin (3,) m), ...) in b's frame: set_regions
+        self._region_axis = self._region_origin = np.zeros((0, 3))  # the same, stacked (m, 3)
         self.max_depth = float(max_depth)
         self.grid_spacing = float(DEFAULT_GRID_SPACING if grid_spacing is None else grid_spacing)
         self._s_A = np.ascontiguousarray(surface_A.vertices_B, dtype=np.float64)
@@ -192,6 +196,7 @@ class ElasticFoundation:
             self._flat = self.grid.values.reshape(-1)
             self._cells = self.grid.cell_valid.reshape(-1)
             self._blocks = self.grid.block_valid
+            self._slopes = self.grid.block_slope
             self._grid_shape = tuple(int(v) for v in self.grid.shape)
             self._origin = np.asarray(self.grid.origin_B, dtype=np.float64)
             self._inv_h = 1.0 / self.grid.spacing
@@ -219,6 +224,8 @@ class ElasticFoundation:
                                  "finite origin")
             out.append((str(name), axis / norm, origin))
         self.regions = tuple(out)
+        self._region_axis = np.array([axis for _, axis, _ in out], dtype=np.float64).reshape(-1, 3)
+        self._region_origin = np.array([origin for _, _, origin in out], dtype=np.float64).reshape(-1, 3)
 
     def __repr__(self) -> str:
         return (
@@ -236,8 +243,10 @@ class ElasticFoundation:
         """
         r_Wa, R_Wa, r_Wb, R_Wb = _pose(r_Wa, R_Wa, r_Wb, R_Wb)
         # y = R_Wbᵀ (r_Wa + R_Wa s − r_Wb) = R_ba s + p_ba
-        R_ba = R_Wb.T @ R_Wa
-        p_ba = R_Wb.T @ (r_Wa - r_Wb)
+        return self._penetration(R_Wb.T @ R_Wa, R_Wb.T @ (r_Wa - r_Wb))
+
+    def _penetration(self, R_ba, p_ba):
+        """:meth:`penetration` at the relative pose R_ba (3, 3), p_ba (3,) m (y = R_ba s + p_ba)."""
         if self.mode == "grid":
             cand, s_A = self._candidates(R_ba, p_ba)
             n = s_A.shape[0]
@@ -269,29 +278,31 @@ class ElasticFoundation:
         """(vertex numbers (m,) or None for all, their positions s_A (m, 3) m) that can be
         in contact at the relative pose R_ba (3, 3), p_ba (3,) m.
 
-        The vertices of A with a valid grid cell within NEAR_REACH grid spacings, found at
-        a reference pose (:func:`~.distance_grid.grid_candidates`), serve every pose at
-        which no vertex has moved farther than that from the reference: |Δy| ≤
-        ‖ΔR‖_F ρ + |ΔR c + Δp| (c the vertices' centroid, ρ their largest distance from
-        it). A frame's Newton iterations and the Jacobian's differences stay within it, so
-        the grid is sampled at a fifth of the insert's vertices instead of all; farther,
-        the candidates are found again here. The rows sampled are those of all vertices."""
+        The vertices of A that can be sampled in contact after moving by up to NEAR_REACH
+        grid spacings from a reference pose (:func:`~.distance_grid.grid_candidates`: a
+        valid cell within reach whose φ̂ can reach the band, bounded by the interpolant's
+        slope), found there, serve every pose at which no vertex has moved farther than
+        that from the reference: |Δy| ≤ ‖ΔR‖_F ρ + |ΔR c + Δp| (c the vertices' centroid,
+        ρ their largest distance from it). A frame's Newton iterations and the Jacobian's
+        differences stay within it, so the grid is sampled at a fraction of A's vertices
+        instead of all (DM knee: 23 % and 10 % of the two contacts', about twice the
+        vertices in contact); farther, the candidates are found again here. The rows
+        sampled are those of all vertices."""
         near = self._near
         if near is not None:
             R0, p0, cand, s_A = near
-            if _largest_move(R_ba, p_ba, R0, p0, self._centre_A, self._radius_A) <= NEAR_REACH / self._inv_h:
+            reach = (1.0 - 1e-9) * NEAR_REACH / self._inv_h  # m, to spare for rounding against the cells searched
+            if _largest_move(R_ba, p_ba, R0, p0, self._centre_A, self._radius_A) <= reach:
                 return cand, s_A
         index = np.empty(self._n, np.int64)
-        m = grid_candidates(self._s_A, R_ba, p_ba, self._cells, *self._grid_shape, self._origin, self._inv_h,
-                            NEAR_REACH / self._inv_h, index)
+        m = grid_candidates(self._s_A, R_ba, p_ba, self._flat, self._cells, self._slopes, *self._grid_shape,
+                            self._origin, self._inv_h, self.max_depth, NEAR_REACH, index)
         cand = index[:m].copy()
         self._near = (R_ba.copy(), p_ba.copy(), cand, np.ascontiguousarray(self._s_A[cand]))
         return self._near[2], self._near[3]
 
     def pressures(self, depth):
         """(P (k,) Pa, dP/dd (k,) Pa/m, W (k,) J/m²) of the pair's law at depths (k,) m."""
-        from .pressure_law import linear_pressures, nonlinear_pressures
-
         depth = np.ascontiguousarray(depth, dtype=np.float64)
         if self.layers is None:
             return linear_pressures(self.pressure_modulus, depth)
@@ -313,40 +324,48 @@ class ElasticFoundation:
         Returns a :class:`ContactResult`.
         """
         r_Wa, R_Wa, r_Wb, R_Wb = _pose(r_Wa, R_Wa, r_Wb, R_Wb)
-        idx, depth, g_B, y_B = self.penetration(r_Wa, R_Wa, r_Wb, R_Wb)
+        p_ba = R_Wb.T @ (r_Wa - r_Wb)
+        idx, depth, g_B, y_B = self._penetration(R_Wb.T @ R_Wa, p_ba)
         Q = np.zeros(12)
         K = np.zeros((12, 12))
         sums = np.zeros(7)  # [Σ w c (3), Σ w, area, max d, energy], w = P(d) a
-        P, dP, W = self.pressures(depth)
+        # the linear law is applied in _accumulate (modulus > 0), the non-linear one here
+        modulus = self.pressure_modulus if self.layers is None else 0.0
+        P = dP = W = _NO_ROWS
+        if self.layers is not None:
+            P, dP, W = self.pressures(depth)
         k = idx.shape[0] if (want_stiffness and self.mode == "grid") else 0
         dphi, Dg = np.empty((k, 3)), np.empty((k, 3, 3))
         if k:
             grid_derivatives(np.ascontiguousarray(y_B), self._flat, *self._grid_shape[1:], self._origin, self._inv_h,
                              dphi, Dg)
-        _accumulate(self._s_A, self._a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb,
-                    P, dP, W, want_stiffness, Q, K, sums, dphi, Dg)
+        region_F = np.empty((len(self.regions), 3))  # N, b's frame
+        _accumulate(self._a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb, p_ba, modulus, P, dP, W, want_stiffness,
+                    Q, K, sums, dphi, Dg, self._region_axis, self._region_origin, region_F)
         if idx.size:
-            warn_depth(self.name, float(depth.max()), self.max_depth)
+            warn_depth(self.name, float(sums[5]), self.max_depth)
         weight = sums[3]
         cop = sums[:3] / weight if weight > 0.0 else np.full(3, np.nan)
+        if modulus > 0.0:  # P = p d: its largest is p max d
+            peak = modulus * float(sums[5])
+        else:
+            peak = float(P.max()) if P.size else 0.0
         vertex_pressure = None
         if want_vertex_pressure:
             vertex_pressure = np.zeros(self._n)
-            vertex_pressure[idx] = P
+            vertex_pressure[idx] = self.pressures(depth)[0] if modulus > 0.0 else P
         region_force_W = None
         if self.regions:
-            # force on a of each vertex: P a_i along B's outward normal (the resultant's
-            # terms in _accumulate), summed over the region's vertices, then to world
-            f_B = (P * self._a_A[idx])[:, None] * g_B
-            region_force_W = {name: R_Wb @ f_B[(y_B - origin) @ axis > 0.0].sum(axis=0)
-                              for name, axis, origin in self.regions}
+            # force on a of each vertex: P a_i along B's outward normal, summed over the
+            # region's vertices in _accumulate (b's frame), then to world
+            region_force_W = {name: R_Wb @ region_F[j] for j, (name, _, _) in enumerate(self.regions)}
         return ContactResult(
             Q=Q,
             force_W=Q[0:3].copy(),
             moment_W=R_Wa @ Q[3:6],
             cop_W=cop,
             area=float(sums[4]),
-            peak_pressure=float(P.max()) if P.size else 0.0,
+            peak_pressure=peak,
             max_penetration=float(sums[5]),
             n_contact=int(idx.size),
             energy=float(sums[6]),
@@ -376,172 +395,132 @@ def _skew(v):
 
 
 @njit(cache=True)
-def _skew_into(v0, v1, v2, S):
-    """S (3, 3) ← the cross-product matrix of (v0, v1, v2)."""
-    S[0, 0] = S[1, 1] = S[2, 2] = 0.0
-    S[0, 1], S[0, 2] = -v2, v1
-    S[1, 0], S[1, 2] = v2, -v0
-    S[2, 0], S[2, 1] = -v1, v0
-
-
-@njit(cache=True)
-def _accumulate(s_A, a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb, P, dP, W, want_K, Q, K, sums, dphi, Dg):
+def _accumulate(a_A, idx, depth, g_B, y_B, R_Wa, R_Wb, r_Wb, p_ba, modulus, P, dP, W, want_K, Q, K, sums, dphi,
+                Dg, region_axis, region_origin, region_F):
     """Sum Q (12,), K (12, 12) and [Σ w c (3), Σ w, area, max d, energy] over contact vertices.
 
-    P, dP, W (k,): the pressure law at each contact vertex's depth (Pa, Pa/m, J/m²;
-    :meth:`ElasticFoundation.pressures`; the linear law: p d, p, ½ p d²). Per vertex
-    (w = P a, "p a d" below for the linear law; the stiffness p a is dP/dd a): Q += w u with u = [n; s × n_A; −n; −y × g]. For K, besides
-    −Σ p a u uᵀ, the "d ∂u/∂q̂" blocks are sums of w g, w n_A sᵀ, w y gᵀ (identity
-    ã b̃ = b aᵀ − (a·b) I), assembled after the loop (module docstring).
+    modulus N/m³: > 0 for the linear law, P = p d, dP/dd = p, W = ½ p d² with p = modulus
+    (then P, dP, W are not read); 0: P, dP, W (k,) give the pressure law at each contact
+    vertex's depth (Pa, Pa/m, J/m²; :meth:`ElasticFoundation.pressures`). w = P a ("p a d"
+    for the linear law), the stiffness k = dP/dd a (p a). p_ba (3,) m: a's origin in b's
+    frame, so that s_b = R_ba s = y − p_ba.
+
+    Everything per vertex is summed in b's frame (ỹ: the cross-product matrix of y). With
+    the normal's line ĝ = [g; y × g] = J g, J = [I; ỹ] (6, 3), and s × n_A = R_ab (s_b × g),
+    u = [n; s × n_A; −n; −y × g] = T ĝ for the vertex-independent
+    T (12, 6) = [[R_Wb, 0]; [−R_ab p̃_ba, R_ab]; [−R_Wb, 0]; [0, −I]]:
+        Q = T Σ w ĝ,    −Σ k u vᵀ = T (−Σ k J g eᵀ Jᵀ) Tᵀ,
+    with v = T J e, e = ∇φ̂ (grid K: ∂d/∂q̂ = −vᵀ of the interpolant) or e = g (exact mode:
+    −Σ k u uᵀ). The grid's curvature term Σ w (∂u/∂g) D (∂y/∂q̂), D = ∂g/∂y, has the same
+    form: ∂u/∂g = T J and ∂y/∂q̂ = [I, −ỹ] Tᵀ = Jᵀ Tᵀ. So both are T H Tᵀ with
+        H = Σ J A Jᵀ = Σ [A, −A ỹ; ỹ A, −ỹ A ỹ],    A = −k g eᵀ + w D (3, 3),
+    summed per vertex (3×3 and 6×3 products instead of 12×12) and expanded once. The
+    "d ∂u/∂q̂ |_g" blocks (module docstring) are sums of w g, w n_A sᵀ = R_ab (w g s_bᵀ) R_ba
+    and w y gᵀ (identity ã b̃ = b aᵀ − (a·b) I), assembled after the loop from G = Σ w g,
+    N = Σ w g yᵀ and τ = Σ w g·y.
+
     dphi (k, 3), Dg (k, 3, 3) 1/m: the grid's exact ∇φ̂ and ∂g/∂y at the vertices
-    (:func:`~.distance_grid.grid_derivatives`), or empty (k = 0 rows: exact mode): then
-    K's first term is −Σ dP/dd a u vᵀ with v = u(∇φ̂) (∂d/∂q̂ = −vᵀ of the interpolant)
-    instead of −Σ dP/dd a u uᵀ, and the curvature term Σ w (∂u/∂g)(∂g/∂y)(∂y/∂q̂) is added.
+    (:func:`~.distance_grid.grid_derivatives`), or empty (0 rows: exact mode, or no K).
+    region_axis, region_origin (m, 3) (unit; m), b's frame: the pair's regions;
+    region_F (m, 3) N ← Σ w g over the vertices with (y − origin)·axis > 0 (b's frame).
     """
     grid_K = want_K and dphi.shape[0] == idx.shape[0] and idx.shape[0] > 0
-    v = np.empty(12)
-    Bu = np.zeros((12, 3))  # ∂u/∂g
-    Ay = np.zeros((3, 12))  # ∂y/∂q̂
-    M = np.zeros((3, 12))
-    S_s = np.zeros((3, 3))
-    S_y = np.zeros((3, 3))
-    R_ba = R_Wb.T @ R_Wa
-    R_ab = R_Wa.T @ R_Wb
-    # the vertex-independent blocks of ∂u/∂g and ∂y/∂q̂ (grid_K): ±R_Wb, ±R_Wbᵀ
-    for r in range(3):
-        for c in range(3):
-            Bu[r, c] = R_Wb[r, c]
-            Bu[6 + r, c] = -R_Wb[r, c]
-            Ay[r, c] = R_Wb[c, r]
-            Ay[r, 6 + c] = -R_Wb[c, r]
-    u = np.empty(12)
-    UU = np.zeros((12, 12))
-    KC = np.zeros((12, 12))  # the curvature term (grid_K)
-    G_sum = np.zeros(3)  # Σ w g
-    M1 = np.zeros((3, 3))  # Σ w n_A sᵀ
-    M2 = np.zeros((3, 3))  # Σ w y gᵀ
-    sigma = 0.0  # Σ w s·n_A
+    n_regions = region_axis.shape[0]
+    region_F[:, :] = 0.0
+    gh = np.empty(6)  # ĝ = [g; y × g]
+    JA = np.empty((6, 3))  # J A = [A; ỹ A]
+    q6 = np.zeros(6)  # Σ w ĝ
+    H = np.zeros((6, 6))  # Σ J A Jᵀ
+    c_sum = np.zeros(3)  # Σ w (y + d g): the contact points on B, b's frame
+    G = np.zeros(3)  # Σ w g
+    N = np.zeros((3, 3))  # Σ w g yᵀ
     tau = 0.0  # Σ w g·y
     for m in range(idx.shape[0]):
         i = idx[m]
         d = depth[m]
-        k = dP[m] * a_A[i]  # dP/dd a_i (p a_i for the linear law), N/m
-        w = P[m] * a_A[i]  # |f_i| = P(d_i) a_i (p a_i d_i), N
+        a = a_A[i]
+        if modulus > 0.0:
+            P_m, dP_m, W_m = modulus * d, modulus, 0.5 * modulus * d * d
+        else:
+            P_m, dP_m, W_m = P[m], dP[m], W[m]
+        k = dP_m * a  # dP/dd a_i (p a_i for the linear law), N/m
+        w = P_m * a  # |f_i| = P(d_i) a_i (p a_i d_i), N
         g0, g1, g2 = g_B[m, 0], g_B[m, 1], g_B[m, 2]
         y0, y1, y2 = y_B[m, 0], y_B[m, 1], y_B[m, 2]
-        s0, s1, s2 = s_A[i, 0], s_A[i, 1], s_A[i, 2]
-        # n = R_Wb g (world), n_A = R_ab g (a's frame)
-        n0 = R_Wb[0, 0] * g0 + R_Wb[0, 1] * g1 + R_Wb[0, 2] * g2
-        n1 = R_Wb[1, 0] * g0 + R_Wb[1, 1] * g1 + R_Wb[1, 2] * g2
-        n2 = R_Wb[2, 0] * g0 + R_Wb[2, 1] * g1 + R_Wb[2, 2] * g2
-        a0 = R_ab[0, 0] * g0 + R_ab[0, 1] * g1 + R_ab[0, 2] * g2
-        a1 = R_ab[1, 0] * g0 + R_ab[1, 1] * g1 + R_ab[1, 2] * g2
-        a2 = R_ab[2, 0] * g0 + R_ab[2, 1] * g1 + R_ab[2, 2] * g2
-        # u = [n; s × n_A; −n; −y × g]
-        u[0] = n0
-        u[1] = n1
-        u[2] = n2
-        u[3] = s1 * a2 - s2 * a1
-        u[4] = s2 * a0 - s0 * a2
-        u[5] = s0 * a1 - s1 * a0
-        u[6] = -n0
-        u[7] = -n1
-        u[8] = -n2
-        u[9] = -(y1 * g2 - y2 * g1)
-        u[10] = -(y2 * g0 - y0 * g2)
-        u[11] = -(y0 * g1 - y1 * g0)
-        # Q_i = p a_i d_i u (Q = −Σ p a d (∂d/∂q̂)ᵀ)
-        for c in range(12):
-            Q[c] += w * u[c]
-        # contact point on B: c_W = r_Wb + R_Wb (y + d g)
-        c0 = y0 + d * g0
-        c1 = y1 + d * g1
-        c2 = y2 + d * g2
-        for r in range(3):
-            sums[r] += w * (r_Wb[r] + R_Wb[r, 0] * c0 + R_Wb[r, 1] * c1 + R_Wb[r, 2] * c2)
+        gh[0], gh[1], gh[2] = g0, g1, g2
+        gh[3] = y1 * g2 - y2 * g1
+        gh[4] = y2 * g0 - y0 * g2
+        gh[5] = y0 * g1 - y1 * g0
+        for r in range(6):
+            q6[r] += w * gh[r]
+        c_sum[0] += w * (y0 + d * g0)
+        c_sum[1] += w * (y1 + d * g1)
+        c_sum[2] += w * (y2 + d * g2)
         sums[3] += w
-        sums[4] += a_A[i]
+        sums[4] += a
         if d > sums[5]:
             sums[5] = d
-        sums[6] += W[m] * a_A[i]  # U = Σ a W(d) (½ p a d²)
-        if grid_K:
-            # v = u with g replaced by ∇φ̂ (so that ∂d/∂q̂ = −vᵀ exactly)
-            e0, e1, e2 = dphi[m, 0], dphi[m, 1], dphi[m, 2]
-            b0 = R_ab[0, 0] * e0 + R_ab[0, 1] * e1 + R_ab[0, 2] * e2
-            b1 = R_ab[1, 0] * e0 + R_ab[1, 1] * e1 + R_ab[1, 2] * e2
-            b2 = R_ab[2, 0] * e0 + R_ab[2, 1] * e1 + R_ab[2, 2] * e2
-            for r in range(3):
-                v[r] = R_Wb[r, 0] * e0 + R_Wb[r, 1] * e1 + R_Wb[r, 2] * e2
-                v[6 + r] = -v[r]
-            v[3] = s1 * b2 - s2 * b1
-            v[4] = s2 * b0 - s0 * b2
-            v[5] = s0 * b1 - s1 * b0
-            v[9] = -(y1 * e2 - y2 * e1)
-            v[10] = -(y2 * e0 - y0 * e2)
-            v[11] = -(y0 * e1 - y1 * e0)
-            for r in range(12):
-                kur = k * u[r]
-                for c in range(12):
-                    UU[r, c] += kur * v[c]
-            # curvature: w (∂u/∂g)(∂g/∂y)(∂y/∂q̂), ∂u/∂g = [R_Wb; s̃ R_ab; −R_Wb; −ỹ],
-            # ∂y/∂q̂ = [R_Wbᵀ, −R_ba s̃, −R_Wbᵀ, ỹ]
-            _skew_into(s0, s1, s2, S_s)
-            _skew_into(y0, y1, y2, S_y)
-            for r in range(3):
-                for c in range(3):
-                    Bu[9 + r, c] = -S_y[r, c]
-                    Bu[3 + r, c] = S_s[r, 0] * R_ab[0, c] + S_s[r, 1] * R_ab[1, c] + S_s[r, 2] * R_ab[2, c]
-                    Ay[r, 9 + c] = S_y[r, c]
-                    Ay[r, 3 + c] = -(R_ba[r, 0] * S_s[0, c] + R_ba[r, 1] * S_s[1, c] + R_ba[r, 2] * S_s[2, c])
-            for r in range(3):  # M = w ∂g/∂y ∂y/∂q̂ (3, 12)
-                for c in range(12):
-                    M[r, c] = w * (Dg[m, r, 0] * Ay[0, c] + Dg[m, r, 1] * Ay[1, c] + Dg[m, r, 2] * Ay[2, c])
-            for r in range(12):
-                for c in range(12):
-                    KC[r, c] += Bu[r, 0] * M[0, c] + Bu[r, 1] * M[1, c] + Bu[r, 2] * M[2, c]
-        elif want_K:
-            for r in range(12):
-                kur = k * u[r]
-                for c in range(r, 12):
-                    UU[r, c] += kur * u[c]
+        sums[6] += W_m * a  # U = Σ a W(d) (½ p a d²)
+        for j in range(n_regions):
+            if ((y0 - region_origin[j, 0]) * region_axis[j, 0] + (y1 - region_origin[j, 1]) * region_axis[j, 1]
+                    + (y2 - region_origin[j, 2]) * region_axis[j, 2]) > 0.0:
+                region_F[j, 0] += w * g0
+                region_F[j, 1] += w * g1
+                region_F[j, 2] += w * g2
         if want_K:
-            G_sum[0] += w * g0
-            G_sum[1] += w * g1
-            G_sum[2] += w * g2
-            M1[0, 0] += w * a0 * s0
-            M1[0, 1] += w * a0 * s1
-            M1[0, 2] += w * a0 * s2
-            M1[1, 0] += w * a1 * s0
-            M1[1, 1] += w * a1 * s1
-            M1[1, 2] += w * a1 * s2
-            M1[2, 0] += w * a2 * s0
-            M1[2, 1] += w * a2 * s1
-            M1[2, 2] += w * a2 * s2
-            sigma += w * (s0 * a0 + s1 * a1 + s2 * a2)
-            M2[0, 0] += w * y0 * g0
-            M2[0, 1] += w * y0 * g1
-            M2[0, 2] += w * y0 * g2
-            M2[1, 0] += w * y1 * g0
-            M2[1, 1] += w * y1 * g1
-            M2[1, 2] += w * y1 * g2
-            M2[2, 0] += w * y2 * g0
-            M2[2, 1] += w * y2 * g1
-            M2[2, 2] += w * y2 * g2
+            e0, e1, e2 = (dphi[m, 0], dphi[m, 1], dphi[m, 2]) if grid_K else (g0, g1, g2)
+            for c in range(3):  # column c of A = −k g eᵀ + w D and of ỹ A
+                ke = -k * (e0 if c == 0 else (e1 if c == 1 else e2))
+                A0, A1, A2 = ke * g0, ke * g1, ke * g2
+                if grid_K:
+                    A0 += w * Dg[m, 0, c]
+                    A1 += w * Dg[m, 1, c]
+                    A2 += w * Dg[m, 2, c]
+                JA[0, c], JA[1, c], JA[2, c] = A0, A1, A2
+                JA[3, c] = y1 * A2 - y2 * A1
+                JA[4, c] = y2 * A0 - y0 * A2
+                JA[5, c] = y0 * A1 - y1 * A0
+            for r in range(6):  # H[r] += [X, −X ỹ], X = (J A)[r] (row), −X ỹ = (y × X)ᵀ
+                X0, X1, X2 = JA[r, 0], JA[r, 1], JA[r, 2]
+                H[r, 0] += X0
+                H[r, 1] += X1
+                H[r, 2] += X2
+                H[r, 3] += y1 * X2 - y2 * X1
+                H[r, 4] += y2 * X0 - y0 * X2
+                H[r, 5] += y0 * X1 - y1 * X0
+            G[0] += w * g0
+            G[1] += w * g1
+            G[2] += w * g2
+            for r in range(3):
+                wg = w * g_B[m, r]
+                N[r, 0] += wg * y0
+                N[r, 1] += wg * y1
+                N[r, 2] += wg * y2
             tau += w * (g0 * y0 + g1 * y1 + g2 * y2)
-    if grid_K:
-        K -= UU  # −Σ dP/dd a u vᵀ
-        K += KC
-    elif want_K:
-        # −Σ p a u uᵀ (symmetric)
-        for r in range(12):
-            for c in range(r, 12):
-                K[r, c] -= UU[r, c]
-                if c != r:
-                    K[c, r] -= UU[r, c]
+    R_ab = R_Wa.T @ R_Wb
+    R_ba = R_ab.T
+    T = np.zeros((12, 6))  # u = T ĝ
+    P_ab = R_ab @ _skew(p_ba)
+    for r in range(3):
+        for c in range(3):
+            T[r, c] = R_Wb[r, c]
+            T[3 + r, c] = -P_ab[r, c]
+            T[3 + r, 3 + c] = R_ab[r, c]
+            T[6 + r, c] = -R_Wb[r, c]
+        T[9 + r, 3 + r] = -1.0
+    for r in range(12):  # Q = T Σ w ĝ
+        Q[r] += (T[r, 0] * q6[0] + T[r, 1] * q6[1] + T[r, 2] * q6[2]
+                 + T[r, 3] * q6[3] + T[r, 4] * q6[4] + T[r, 5] * q6[5])
+    for r in range(3):  # Σ w c_W = r_Wb Σ w + R_Wb Σ w (y + d g)
+        sums[r] += r_Wb[r] * sums[3] + R_Wb[r, 0] * c_sum[0] + R_Wb[r, 1] * c_sum[1] + R_Wb[r, 2] * c_sum[2]
     if want_K:
+        K += (T @ H) @ T.T
         I3 = np.eye(3)
-        Rb_G = R_Wb @ _skew(G_sum)  # Σ w R_Wb g̃
-        G_RbT = _skew(G_sum) @ R_Wb.T  # Σ w g̃ R_Wbᵀ
+        M2 = N.T.copy()  # Σ w y gᵀ
+        M1 = R_ab @ (N - np.outer(G, p_ba)) @ R_ba  # Σ w n_A sᵀ, s = R_ab (y − p_ba)
+        sigma = tau - (p_ba[0] * G[0] + p_ba[1] * G[1] + p_ba[2] * G[2])  # Σ w s·n_A
+        Rb_G = R_Wb @ _skew(G)  # Σ w R_Wb g̃
+        G_RbT = _skew(G) @ R_Wb.T  # Σ w g̃ R_Wbᵀ
         A = M1 - sigma * I3  # Σ w s̃ ñ_A
         K[0:3, 9:12] -= Rb_G  # ∂n/∂δπ_b = −R_Wb g̃
         K[6:9, 9:12] += Rb_G
