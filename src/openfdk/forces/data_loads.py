@@ -159,6 +159,7 @@ class DataLoadForces:
         self._R_BF = np.array([np.eye(3) if load.R_BF is None else load.R_BF for load in self.loads],
                               float).reshape(nl, 3, 3)
         self._samples = {}  # t (s) -> (nl, 9) [F, P, T] of every load at t (prepare)
+        self._last = None  # (t s, (nl, 9)): the last time sampled that was not prepared
 
     def prepare(self, times):
         """Sample every load at the trial's frame times (nf,) s at once; a frame at one
@@ -189,14 +190,19 @@ class DataLoadForces:
 
     def _sampled(self, t, column):
         """(nl, 9) [F, P, T] of every load at t (s), components as given (zero for a load
-        on a body that does not move, which is not applied)."""
+        on a body that does not move, which is not applied). A time not prepared is
+        sampled once and kept until another one is asked: FDK evaluates a frame's
+        residual at one t 3–5 times, and its lead-in's frames are not prepared."""
         S = self._samples.get(float(t))
+        if S is None and self._last is not None and self._last[0] == float(t):
+            S = self._last[1]
         if S is None:
             S = np.zeros((len(self.loads), 9))
             for k, load in enumerate(self.loads):
                 if column[load.body] >= 0:
                     for j, function in enumerate((load.force, load.point, load.torque)):
                         S[k, 3 * j : 3 * j + 3] = function.derivatives(t)[0]
+            self._last = (float(t), S)
         return S
 
     def accumulate(self, state, t, Q, K=None):
