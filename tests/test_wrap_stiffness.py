@@ -87,3 +87,42 @@ def test_only_paths_over_one_surface_take_the_closed_form():
     limits[8, 1] = OPENSIM_PLANE
     start = np.array([0, 3, 7, 10, 13, 16, 20])
     assert single_surface_paths(kinds, limits, start).tolist() == [0, 4]
+
+
+def test_ellipsoid_tangent_moves_equal_the_moved_anchors_solved_again():
+    """ellipsoid_tangent_moves (the implicit function theorem on the shooting residual,
+    from one solve) gives the tangent points' moves for anchor moves of the wrap
+    stiffness's size (1e-6 of |P| + |Q|, across the segments' lines) equal to solving the
+    moved anchors again to the Newton tolerance: to 1e-4 of the moves themselves, which
+    are far from zero (solving again takes 2–5 shots a move, the implicit function
+    theorem 2 for all and 1 a move)."""
+    from openfdk.forces.wrap_kernels import (ELLIPSOID_TOL, WARM_SIZE, ellipsoid_tangent_moves, ellipsoid_wrap,
+                                             ellipsoid_wrap_from)
+
+    axes = np.array([0.02, 0.035, 0.013])  # DM's lateral patellofemoral ligament's ellipsoid
+    none = np.zeros(3)
+    rng = np.random.default_rng(4)
+    for P, Q in ((np.array([0.03, 0.012, 0.01]), np.array([-0.028, -0.015, -0.004])),
+                 (np.array([-0.01, 0.05, 0.012]), np.array([0.012, -0.045, -0.006]))):
+        warm = np.zeros(WARM_SIZE)
+        st, _, T1, T2, _ = ellipsoid_wrap_from(P, Q, axes, none, ELLIPSOID_TOL, warm)
+        assert st == 1
+        h = 1e-6 * (np.linalg.norm(P) + np.linalg.norm(Q))
+        moves_P, moves_Q = np.zeros((6, 3)), np.zeros((6, 3))
+        for q in range(6):
+            d = rng.normal(size=3)
+            (moves_P if q < 3 else moves_Q)[q] = h * d / np.linalg.norm(d)
+        ok, dT1, dT2 = ellipsoid_tangent_moves(P, Q, axes, none, warm, moves_P, moves_Q)
+        assert ok
+        for q in range(6):
+            row = warm.copy()
+            st_q, _, T1_q, T2_q, _ = ellipsoid_wrap_from(P + moves_P[q], Q + moves_Q[q], axes, none, ELLIPSOID_TOL,
+                                                         row)
+            assert st_q == 1 and 2 <= row[15] <= 5  # solving again: 2–5 shots a move
+            want1, want2 = T1_q - T1, T2_q - T2
+            assert np.linalg.norm(want1) > 1e-2 * h and np.linalg.norm(want2) > 1e-2 * h
+            assert np.linalg.norm(dT1[q] - want1) < 1e-4 * np.linalg.norm(want1)
+            assert np.linalg.norm(dT2[q] - want2) < 1e-4 * np.linalg.norm(want2)
+        # the cold solve of a moved pair agrees too (the warm start is the same geodesic)
+        st_c, _, T1_c, T2_c, _ = ellipsoid_wrap(P + moves_P[0], Q + moves_Q[0], axes, none, ELLIPSOID_TOL)
+        assert np.linalg.norm(T1 + dT1[0] - T1_c) < 1e-4 * np.linalg.norm(dT1[0])

@@ -331,7 +331,7 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     Dinv = axes
     P1 = P / Dinv
     Q1 = Q / Dinv
-    st, _, T1s, T2s, _ = sphere_wrap(P1, Q1, 1.0, side / Dinv)
+    st, T1s, T2s, c0, rho, u1, u2 = _horizon(P, Q, axes, side)
     if st != 1:
         warm[3] = 0.0
         T1[:] = P
@@ -339,14 +339,6 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
         u = Q - P
         return st, np.sqrt(u @ u), T1, T2, 0.0
     A = 1.0 / (axes * axes)
-    # horizon circle of P in the mapped space: centre P'/|P'|², radius sqrt(1 − 1/|P'|²)
-    pp = P1 @ P1
-    c0 = P1 / pp
-    rho = np.sqrt(1.0 - 1.0 / pp)
-    u1 = T1s - c0
-    u1 = u1 / np.sqrt(u1 @ u1)
-    n1 = P1 / np.sqrt(pp)
-    u2 = np.array([n1[1] * u1[2] - n1[2] * u1[1], n1[2] * u1[0] - n1[0] * u1[2], n1[0] * u1[1] - n1[1] * u1[0]])
     scale = np.sqrt(P @ P) + np.sqrt(Q @ Q)
     tol = max(tol, 1e-13 * scale)  # (round-off of the residual of far anchors)
     reach = WARM_REACH * min(axes[0], min(axes[1], axes[2]))
@@ -424,6 +416,89 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     a1 = T1c - P
     a2 = Q - x
     return 1, np.sqrt(a1 @ a1) + s + np.sqrt(a2 @ a2), T1, T2, s
+
+
+@njit(cache=True)
+def _horizon(P, Q, axes, side):
+    """The wrap of P→Q (3,) m mapped to the unit sphere (P' = P/axes, Q' = Q/axes;
+    :func:`sphere_wrap`'s status and tangent points T1s, T2s) and P's horizon circle
+    there: centre c0 = P'/|P'|², radius ρ = sqrt(1 − 1/|P'|²), unit vectors u1 (towards
+    T1s) and u2 = P'/|P'| × u1 in its plane, the parametrisation of the geodesic's start
+    T1(φ) (:func:`_horizon_point`). Returns (status, T1s, T2s, c0, ρ, u1, u2); the
+    circle is zero unless status is 1."""
+    P1 = P / axes
+    Q1 = Q / axes
+    st, _, T1s, T2s, _ = sphere_wrap(P1, Q1, 1.0, side / axes)
+    if st != 1:
+        return st, T1s, T2s, np.zeros(3), 0.0, np.zeros(3), np.zeros(3)
+    pp = P1 @ P1
+    c0 = P1 / pp
+    rho = np.sqrt(1.0 - 1.0 / pp)
+    u1 = T1s - c0
+    u1 = u1 / np.sqrt(u1 @ u1)
+    n1 = P1 / np.sqrt(pp)
+    u2 = np.array([n1[1] * u1[2] - n1[2] * u1[1], n1[2] * u1[0] - n1[0] * u1[2], n1[0] * u1[1] - n1[1] * u1[0]])
+    return st, T1s, T2s, c0, rho, u1, u2
+
+
+#: the shooting residual's derivative in :func:`ellipsoid_tangent_moves` is a forward
+#: difference of this step (rad of horizon angle; times |P| + |Q| for the arc length)
+SHOT_STEP = 1e-7
+
+
+@njit(cache=True)
+def ellipsoid_tangent_moves(P, Q, axes, side, warm, moves_P, moves_Q):
+    """The moves (m, 3) m of the geodesic's tangent points T1 and T2 when the anchors
+    P, Q (3,) m move by moves_P[q], moves_Q[q] (m, 3) m (small: finite-difference steps),
+    to first order, from the geodesic of ``warm`` (the node's last solve, at P, Q:
+    :func:`ellipsoid_wrap_from`) by the implicit function theorem on the shooting
+    residual r(φ, s; P, Q) = 0 instead of a Newton solve per move.
+
+    With z = (φ, s) and D = ∂r/∂z (two forward-difference shots, step SHOT_STEP): a move
+    of the anchors leaves r' = r(z; P', Q') at the same geodesic start (T1 held on the
+    moved horizon, one shot), and z' = z − D⁻¹ r'; T1' = T1(φ') on the moved horizon,
+    T2' = x' + ∂x/∂z (z' − z), x the shot's end. 2 + m shots where solving again takes
+    m Newton solves of 3–4 shots each (:func:`~.wrap_stiffness.single_wrap_stiffness_along`:
+    m = 4). The step count is the last cold solve's, as for every warm solve. Returns
+    (ok, ΔT1 (m, 3), ΔT2 (m, 3)); ok False when the mapped wrap (:func:`_horizon`) is not
+    in contact at P, Q or a moved pair, or D is singular (then solve each move instead)."""
+    m = moves_P.shape[0]
+    dT1 = np.zeros((m, 3))
+    dT2 = np.zeros((m, 3))
+    st, _, _, c0, rho, u1, u2 = _horizon(P, Q, axes, side)
+    if st != 1 or warm[3] <= 0.0:
+        return False, dT1, dT2
+    A = 1.0 / (axes * axes)
+    n_steps = int(warm[4])
+    s = warm[3]
+    g = warm[:3] / axes - c0
+    phi = np.arctan2(g @ u2, g @ u1)
+    r0, T1, x0 = _shoot_residual(phi, s, P, Q, c0, rho, u1, u2, axes, A, n_steps)
+    h_phi = SHOT_STEP
+    h_s = SHOT_STEP * (np.sqrt(P @ P) + np.sqrt(Q @ Q))
+    r_a, _, x_a = _shoot_residual(phi + h_phi, s, P, Q, c0, rho, u1, u2, axes, A, n_steps)
+    r_b, _, x_b = _shoot_residual(phi, s + h_s, P, Q, c0, rho, u1, u2, axes, A, n_steps)
+    d00, d10 = (r_a[0] - r0[0]) / h_phi, (r_a[1] - r0[1]) / h_phi  # ∂r/∂φ
+    d01, d11 = (r_b[0] - r0[0]) / h_s, (r_b[1] - r0[1]) / h_s  # ∂r/∂s
+    det = d00 * d11 - d01 * d10
+    if det == 0.0:
+        return False, dT1, dT2
+    x_phi = (x_a - x0) / h_phi
+    x_s = (x_b - x0) / h_s
+    for q in range(m):
+        Pm = P + moves_P[q]
+        Qm = Q + moves_Q[q]
+        st, _, _, cm, rhom, v1, v2 = _horizon(Pm, Qm, axes, side)
+        if st != 1:
+            return False, dT1, dT2
+        gm = T1 / axes - cm
+        phim = np.arctan2(gm @ v2, gm @ v1)
+        rm, _, xm = _shoot_residual(phim, s, Pm, Qm, cm, rhom, v1, v2, axes, A, n_steps)
+        d_phi = -(d11 * rm[0] - d01 * rm[1]) / det
+        d_s = -(-d10 * rm[0] + d00 * rm[1]) / det
+        dT1[q] = _horizon_point(phim + d_phi, cm, rhom, v1, v2, axes) - T1
+        dT2[q] = xm + x_phi * d_phi + x_s * d_s - x0
+    return True, dT1, dT2
 
 
 @njit(cache=True)

@@ -30,7 +30,11 @@ An anchor moved along its tangent line (P along e1, Q along e2) leaves the path 
 is, so two differences across the line per anchor suffice: four solves of each tensed
 path instead of one solve of every tensed path per direction
 (:meth:`.pathset.PathSet.geometric_stiffness_along`; the DM knee's 65 tensed ligament
-strands over ellipsoids and cylinders, ten directions).
+strands over ellipsoids and cylinders, ten directions). A geodesic over an ellipsoid
+takes its four moves from its own solve by the implicit function theorem on the
+shooting residual (:func:`~.wrap_kernels.ellipsoid_tangent_moves`: 6 RK4 shots instead
+of four Newton solves of 3–4 each); the cylinder, the sphere and OpenSim's planar rule
+are solved again for each move.
 """
 
 from __future__ import annotations
@@ -39,7 +43,8 @@ import numpy as np
 from numba import njit
 
 from .path_stiffness import add_path_geometric_stiffness
-from .wrap_kernels import CYLINDER, ELLIPSOID, OPENSIM_PLANE, POINT, SPHERE, _wrap_one
+from .wrap_kernels import CROSSING_ONLY, CYLINDER, ELLIPSOID, OPENSIM_PLANE, POINT, SPHERE, _wrap_one, crosses, \
+    ellipsoid_tangent_moves
 
 #: forward-difference step of the tangent points' derivatives, times |P_S| + |Q_S|
 TANGENT_STEP = 1e-6
@@ -146,7 +151,8 @@ def single_wrap_stiffness_along(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, di
         P_S = R_S.T @ (P_W - X_S)
         Q_S = R_S.T @ (Q_W - X_S)
         flags = int(limits[j, 1])
-        st, _, T1, T2, _ = _wrap_one(kinds[j], P_S, Q_S, dims[j], sides[j], limits[j, 0], flags, warm[j].copy())
+        row = warm[j].copy()
+        st, _, T1, T2, _ = _wrap_one(kinds[j], P_S, Q_S, dims[j], sides[j], limits[j, 0], flags, row)
         if st < 0:
             return CONTACT_CHANGED, KU
         if st != 1:  # straight: one segment P → Q, closed form only
@@ -166,26 +172,43 @@ def single_wrap_stiffness_along(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, di
         # do not move), so two differences per anchor, along normals n of e1 (e2), give
         # ∂τ/∂P_S = Σ_n (Δτ_n / h) nᵀ
         h = TANGENT_STEP * (np.sqrt(P_S @ P_S) + np.sqrt(Q_S @ Q_S))
-        D1 = np.zeros((3, 6))
-        D2 = np.zeros((3, 6))
+        moves = np.zeros((2, 4, 3))  # the four anchor moves: (P, Q) by h along each normal
+        normals = np.empty((4, 3))
         for end in range(2):
             line = T1 - P_S if end == 0 else Q_S - T2
-            normals = _normals(line / np.sqrt(line @ line))
+            two = _normals(line / np.sqrt(line @ line))
             for k in range(2):
-                nrm = normals[k]
-                Pp, Qp = P_S.copy(), Q_S.copy()
-                if end == 0:
-                    Pp += h * nrm
-                else:
-                    Qp += h * nrm
-                st_c, _, T1c, T2c, _ = _wrap_one(kinds[j], Pp, Qp, dims[j], sides[j], limits[j, 0], flags,
-                                                 warm[j].copy())
+                normals[2 * end + k] = two[k]
+                moves[end, 2 * end + k] = h * two[k]
+        # a geodesic: the four moves by the implicit function theorem from this solve
+        # (2 + 4 shots), where the moved anchors stay in contact as a solve would find them
+        # (OpenSim's crossing rule); else each move solved (3–4 shots each)
+        linear = kinds[j] == ELLIPSOID and not flags & OPENSIM_PLANE
+        if linear and flags & CROSSING_ONLY:
+            for v in range(4):
+                linear = linear and crosses(P_S + moves[0, v], Q_S + moves[1, v], dims[j])
+        ok = False
+        if linear:
+            ok, dT1, dT2 = ellipsoid_tangent_moves(P_S, Q_S, dims[j], sides[j], row, moves[0], moves[1])
+        if not ok:
+            dT1 = np.empty((4, 3))
+            dT2 = np.empty((4, 3))
+            for v in range(4):
+                st_c, _, T1c, T2c, _ = _wrap_one(kinds[j], P_S + moves[0, v], Q_S + moves[1, v], dims[j], sides[j],
+                                                 limits[j, 0], flags, warm[j].copy())
                 if st_c != 1:
                     return CONTACT_CHANGED, KU
-                for r in range(3):
-                    for c in range(3):
-                        D1[r, 3 * end + c] += (T1c[r] - T1[r]) / h * nrm[c]
-                        D2[r, 3 * end + c] += (T2c[r] - T2[r]) / h * nrm[c]
+                dT1[v] = T1c - T1
+                dT2[v] = T2c - T2
+        D1 = np.zeros((3, 6))
+        D2 = np.zeros((3, 6))
+        for v in range(4):
+            end = v // 2
+            nrm = normals[v]
+            for r in range(3):
+                for c in range(3):
+                    D1[r, 3 * end + c] += dT1[v, r] / h * nrm[c]
+                    D2[r, 3 * end + c] += dT2[v, r] / h * nrm[c]
         u1 = T1_W - P_W
         l1 = np.sqrt(u1 @ u1)
         e1 = u1 / l1
