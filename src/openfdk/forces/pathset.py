@@ -122,9 +122,9 @@ class PathSet:
         its largest entry) instead of one per touched coordinate (a knee's 10 FDK
         directions against the 18 coordinates of femur, tibia and patella). The tensed
         paths over one surface take the closed form with their tangent points'
-        derivatives (:mod:`.wrap_stiffness`: six wrap solves of each such path instead of
-        one of every tensed path per direction) unless a difference there changes the
-        contact."""
+        derivatives (:mod:`.wrap_stiffness`: five wrap solves of each such path, a
+        geodesic's one solve and six shots, instead of one of every tensed path per
+        direction) unless a difference there changes the contact."""
         KU_single, T = self._single_surface_along(state, T, U)
         groups, straight = self._tensed_wrapped(T, L)
         K = np.zeros((state.n_coords, state.n_coords))
