@@ -27,7 +27,7 @@ def refuse_empty_out(args):
 
 
 def _cmd_plot(args):
-    from ..plots.run import iter_figures, save_figures
+    from ..plots.parallel import write_figures
     from ..results.run import read_results
 
     refuse_empty_out(args)
@@ -38,7 +38,7 @@ def _cmd_plot(args):
 
         results._model = load_model(args.model)
     out = Path(args.out) if args.out else Path(args.result_dir) / "plots"
-    paths = save_figures(iter_figures(results, measures=args.measures), out)
+    paths = write_figures(results, out, measures=args.measures)
     _say(args, f"plot: {len(paths)} figures -> {out}/ ({', '.join(p.name for p in paths)})")
     return 0
 
@@ -127,7 +127,7 @@ def after_run(args, plots=True, model=None):
     if not plots or getattr(args, "no_plots", False):
         return
     try:
-        from ..plots.run import write_plots
+        from ..plots.parallel import write_plots
 
         paths = write_plots(out, model=model)
     except Exception as exc:  # the analysis results are written; report and go on

@@ -30,7 +30,7 @@ import numpy as np
 from ..results.run import conjugate_unit, measure_unit
 from .layout import stack_layout
 
-__all__ = ["iter_figures", "make_figures", "save_figures", "write_plots", "DISPLAY"]
+__all__ = ["figure_plan", "iter_figures", "make_figures", "save_figures", "DISPLAY"]
 
 #: measure kind -> (display factor from SI, display unit)
 DISPLAY = {"length": (1e3, "mm"), "angle": (180.0 / np.pi, "deg"), "1": (1.0, "–")}
@@ -43,6 +43,8 @@ TIME_LABEL = "time (s)"
 #: round-off around a constant (a constrained measure): not drawn, named constant
 CONSTANT_RTOL = 1e-9
 CAPTION_FONTSIZE = 7
+#: the drawing cost, in axes, :func:`figure_plan` expects of a figure other than the body poses'
+FIGURE_WEIGHT = 4
 
 
 def line_styles(n):
@@ -467,33 +469,39 @@ def _name(results):
 
 
 # ---------------------------------------------------------------------------- API
-def iter_figures(results, measures=None):
-    """The figures of a run, built one at a time: yields (name, matplotlib Figure), one
-    per topic the run has data for (see the module docstring). Writing them as they come
-    keeps one figure of a long run in memory, not all of them.
+def figure_plan(results, measures=None):
+    """The figures of a run, not yet drawn: a list of (name, build, weight) in the order
+    of the module docstring, one per topic the run has data for. ``build()`` draws the
+    figure (a matplotlib Figure); ``weight`` is its expected drawing cost in axes (the
+    body poses' figure has two per body, the others a few), for sharing the figures
+    between processes (:mod:`.parallel`).
 
     measures: names of the run's measures to plot (measures.csv; default:
     :func:`default_measures`; an empty list plots none)."""
     t = results.time
     failed = _failed(results)
-    yield "kinematics", _kinematics(results, t, failed)
+    plan = [("kinematics", lambda: _kinematics(results, t, failed), 2 * len(results.bodies()))]
     if results.fdk_dofs():
-        yield "fdk_dofs", _fdk(results, t, failed)
+        plan.append(("fdk_dofs", lambda: _fdk(results, t, failed), FIGURE_WEIGHT))
     if measures is None:
         measures = default_measures(results.measure_names())
     if measures:
-        yield "measures", _measures(results, t, failed, list(measures))
-    if results.muscles():
-        yield "muscles", _muscles(results, t, failed)
-    if results.actuators():
-        yield "actuators", _actuators(results, t, failed)
-    if results.ligaments() or results.springs():
-        yield "ligaments", _ligaments(results, t, failed)
-    if results.contacts():
-        yield "contact", _contact(results, t, failed)
-    if results.reactions():
-        yield "reactions", _reactions(results, t, failed)
-    yield "convergence", _convergence(results, t, failed)
+        plan.append(("measures", lambda: _measures(results, t, failed, list(measures)), FIGURE_WEIGHT))
+    for name, has, draw in (("muscles", results.muscles, _muscles), ("actuators", results.actuators, _actuators),
+                            ("ligaments", lambda: results.ligaments() or results.springs(), _ligaments),
+                            ("contact", results.contacts, _contact), ("reactions", results.reactions, _reactions)):
+        if has():
+            plan.append((name, lambda draw=draw: draw(results, t, failed), FIGURE_WEIGHT))
+    plan.append(("convergence", lambda: _convergence(results, t, failed), FIGURE_WEIGHT))
+    return plan
+
+
+def iter_figures(results, measures=None):
+    """The figures of a run, built one at a time: yields (name, matplotlib Figure), one
+    per topic the run has data for (see the module docstring and :func:`figure_plan`).
+    Writing them as they come keeps one figure of a long run in memory, not all of them."""
+    for name, build, _ in figure_plan(results, measures):
+        yield name, build()
 
 
 def make_figures(results, measures=None) -> dict:
@@ -519,16 +527,6 @@ def save_figures(figures, directory, dpi=110) -> list[Path]:
         fig.savefig(buf, dpi=dpi, format="png")
         write_new_file(paths[-1], buf.getvalue())
     return paths
-
-
-def write_plots(result_dir, out_dir=None, measures=None, model=None) -> list[Path]:
-    """Read a result folder and write its figures (default into ``RESULT_DIR/plots``);
-    ``model``: the run's Model when the caller has it loaded (the FDK DOFs' and the
-    constraints' units; else read from the model file again)."""
-    from ..results.run import read_results
-
-    results = read_results(result_dir, model)
-    return save_figures(iter_figures(results, measures), out_dir or Path(result_dir) / "plots")
 
 
 __all__ += ["default_measures", "measure_series", "measure_unit"]

@@ -1,0 +1,126 @@
+"""A run's figures drawn in worker processes (openfdk.plots.parallel) against the same
+figures drawn in this process."""
+
+import itertools
+import multiprocessing
+import os
+
+import numpy as np
+import pytest
+import yaml
+
+from openfdk.cli.commands import main
+from openfdk.fixtures.synthetic import synthetic_markers, two_body_model_dict
+from openfdk.io.c3d import write_c3d
+from openfdk.io.outdir import OutputDirError
+from openfdk.plots import run as plots_run
+from openfdk.plots.parallel import MAX_WORKERS, FigureError, balanced_shares, plot_workers, write_figures
+from openfdk.results.run import read_results
+
+needs_fork = pytest.mark.skipif("fork" not in multiprocessing.get_all_start_methods(), reason="no fork here")
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    """The result folder of one two-body run (no figures)."""
+    d = tmp_path_factory.mktemp("run")
+    model = d / "model.yaml"
+    model.write_text(yaml.safe_dump(two_body_model_dict(), sort_keys=False))
+    _t, labels, x, _truth = synthetic_markers(20, rate=100.0, noise=0.0)
+    write_c3d(d / "trial.c3d", labels, x, 100.0, units="mm")
+    out = d / "res"
+    # (its frames fail recruitment: the figures shade them red)
+    assert main(["run", str(model), str(d / "trial.c3d"), "--out", str(out), "--no-progress", "--no-plots",
+                 "--max-failed", "1", "-q"]) == 0
+    return out
+
+
+@needs_fork
+def test_figures_drawn_in_workers_are_the_ones_drawn_here_byte_for_byte(run_dir, tmp_path):
+    here = write_figures(read_results(run_dir), tmp_path / "here", workers=1)
+    workers = write_figures(read_results(run_dir), tmp_path / "workers", workers=2)
+    assert len(here) >= 3
+    assert [p.name for p in workers] == [p.name for p in here]
+    for a, b in zip(here, workers):
+        assert a.read_bytes() == b.read_bytes(), a.name
+
+
+@needs_fork
+def test_the_figures_are_drawn_in_other_processes(run_dir, tmp_path, monkeypatch):
+    pids = tmp_path / "pids"
+    pids.mkdir()
+    original = plots_run._convergence
+
+    def convergence(*args):  # inherited by the forked workers
+        (pids / str(os.getpid())).touch()
+        return original(*args)
+
+    monkeypatch.setattr(plots_run, "_convergence", convergence)
+    write_figures(read_results(run_dir), tmp_path / "plots", workers=2)
+    drawn_in = [int(p.name) for p in pids.iterdir()]
+    assert len(drawn_in) == 1 and drawn_in[0] != os.getpid()
+
+
+@needs_fork
+def test_a_figure_that_fails_in_a_worker_is_named_and_the_others_are_written(run_dir, tmp_path, monkeypatch):
+    def broken(*args):
+        raise ValueError("no such column 'x'")
+
+    monkeypatch.setattr(plots_run, "_kinematics", broken)
+    out = tmp_path / "plots"
+    with pytest.raises(FigureError, match=r"1 of \d+ figures not written \(kinematics: ValueError: no such column 'x'\)") as exc:
+        write_figures(read_results(run_dir), out, workers=2)
+    assert not (out / "kinematics.png").exists()
+    assert exc.value.written and all(p.is_file() and p.stat().st_size > 1000 for p in exc.value.written)
+    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in exc.value.written)
+
+
+@needs_fork
+def test_a_planted_link_at_a_figure_is_refused_before_any_worker_starts(run_dir, tmp_path):
+    out = tmp_path / "plots"
+    out.mkdir()
+    target = tmp_path / "precious.txt"
+    target.write_text("precious\n")
+    (out / "convergence.png").symlink_to(target)
+    with pytest.raises(OutputDirError, match="convergence.png' is a symbolic link"):
+        write_figures(read_results(run_dir), out, workers=2)
+    assert target.read_text() == "precious\n"
+    assert [p.name for p in out.iterdir()] == ["convergence.png"]  # nothing drawn
+
+
+def _best_split(weights, m):
+    """The smallest largest load of any split of ``weights`` into m groups (exhaustive)."""
+    best = np.inf
+    for labels in itertools.product(range(m), repeat=len(weights)):
+        loads = np.zeros(m)
+        np.add.at(loads, list(labels), weights)
+        best = min(best, loads.max())
+    return best
+
+
+def test_the_shares_cover_every_figure_once_within_graham_s_bound():
+    rng = np.random.default_rng(7)
+    for n in range(1, 8):
+        for m in (1, 2, 3):
+            w = list(rng.integers(1, 50, n).astype(float))
+            shares = balanced_shares(w, m)
+            assert sorted(i for s in shares for i in s) == list(range(n))
+            assert len(shares) == min(m, n) and all(s == sorted(s) for s in shares)
+            largest = max(sum(w[i] for i in s) for s in shares)
+            # LPT's makespan is at most (4/3 − 1/(3m)) of the optimum (Graham 1969)
+            assert largest <= (4 / 3 - 1 / (3 * m)) * _best_split(w, m) + 1e-9
+    # DM's run: the body poses' figure (46 axes) alone, the eight others together
+    assert balanced_shares([46] + [4] * 8, 2) == [[0], list(range(1, 9))]
+
+
+def test_the_workers_setting(monkeypatch):
+    monkeypatch.delenv("OPENFDK_PLOT_WORKERS", raising=False)
+    assert 1 <= plot_workers() <= MAX_WORKERS
+    for raw, n in (("1", 1), (" 3 ", 3)):
+        monkeypatch.setenv("OPENFDK_PLOT_WORKERS", raw)
+        assert plot_workers() == (n if "fork" in multiprocessing.get_all_start_methods() else 1)
+    for raw in ("0", "-2", "two", "1.5"):
+        monkeypatch.setenv("OPENFDK_PLOT_WORKERS", raw)
+        if "fork" in multiprocessing.get_all_start_methods():
+            with pytest.raises(ValueError, match=rf"OPENFDK_PLOT_WORKERS='{raw}': give a whole number ≥ 1"):
+                plot_workers()
