@@ -124,3 +124,65 @@ def test_the_workers_setting(monkeypatch):
         if "fork" in multiprocessing.get_all_start_methods():
             with pytest.raises(ValueError, match=rf"OPENFDK_PLOT_WORKERS='{raw}': give a whole number ≥ 1"):
                 plot_workers()
+
+
+@pytest.fixture(scope="module")
+def run_inputs(tmp_path_factory):
+    """(model file, trial file) of the two-body run."""
+    d = tmp_path_factory.mktemp("inputs")
+    model = d / "model.yaml"
+    model.write_text(yaml.safe_dump(two_body_model_dict(), sort_keys=False))
+    _t, labels, x, _truth = synthetic_markers(20, rate=100.0, noise=0.0)
+    write_c3d(d / "trial.c3d", labels, x, 100.0, units="mm")
+    return model, d / "trial.c3d"
+
+
+@pytest.mark.parametrize("plots", [True, False])
+def test_run_checks_the_contact_rims_once_here_with_or_without_figures(run_inputs, tmp_path, monkeypatch, plots):
+    import openfdk.contact.rim as rim
+
+    calls = []
+
+    def check(model, kin):  # the run's rim check, deferred by `openfdk run` to the figures' time
+        calls.append((os.getpid(), np.asarray(kin.q).shape, len(kin.time), (tmp_path / "out" / "forces.csv").is_file()))
+
+    monkeypatch.setattr(rim, "warn_contact_rims", check)
+    model, trial = run_inputs
+    args = ["run", str(model), str(trial), "--out", str(tmp_path / "out"), "--no-progress", "--max-failed", "1",
+            "-q"] + ([] if plots else ["--no-plots"])
+    assert main(args) == 0
+    assert len(calls) == 1
+    pid, q_shape, n_time, written = calls[0]
+    assert pid == os.getpid() and q_shape == (20, 14) and n_time == 20  # two moving bodies
+    assert written  # after the results were written, while (or instead of) the figures
+    assert (tmp_path / "out" / "plots" / "kinematics.png").is_file() == plots
+
+
+def test_after_run_makes_the_alongside_call_once_and_keeps_its_error_its_own(run_dir, tmp_path, monkeypatch, capsys):
+    import shutil
+    from types import SimpleNamespace
+
+    from openfdk.cli.outputs import after_run
+
+    out = tmp_path / "res"
+    shutil.copytree(run_dir, out)
+    args = SimpleNamespace(out=str(out), model=None, quiet=True, no_plots=False)
+    calls = []
+    after_run(args, alongside=lambda: calls.append(1))
+    assert calls == [1] and (out / "plots" / "convergence.png").is_file()
+
+    # the figures fail before any worker starts (a planted link): the call is still made once
+    (out / "plots" / "convergence.png").unlink()
+    (out / "plots" / "convergence.png").symlink_to(tmp_path / "elsewhere.png")
+    after_run(args, alongside=lambda: calls.append(2))
+    assert calls == [1, 2]
+    assert "figures not written" in capsys.readouterr().err
+    (out / "plots" / "convergence.png").unlink()
+
+    # an error of the call itself is raised as its own, not reported as the figures'
+    def broken():
+        raise RuntimeError("rim check failed")
+
+    with pytest.raises(RuntimeError, match="rim check failed"):
+        after_run(args, alongside=broken)
+    assert "figures not written" not in capsys.readouterr().err

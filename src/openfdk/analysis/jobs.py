@@ -245,7 +245,7 @@ def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, s
 
 
 def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=None, end=None, checkpoints=None,
-            resume=False, settings=None, loaded=None):
+            resume=False, settings=None, loaded=None, rim_check=True):
     """Kinematics then inverse dynamics with muscle recruitment; when the model declares
     FDK DOFs, force-dependent kinematics (each frame's α found so that the FDK residual
     forces vanish). Returns (KinematicsResult, InverseDynamicsResult, info); for FDK,
@@ -254,7 +254,9 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
     ``partial`` is (kin, dyn, info) of the finished frames). settings :
     AnalysisSettings (default: the model file's, see :func:`model_and_settings`);
     loaded : that function's (Model, AnalysisSettings, label) of ``model_path`` when the
-    caller has already read it (``openfdk run`` writes its outputs with the same Model)."""
+    caller has already read it (``openfdk run`` writes its outputs with the same Model);
+    rim_check : False leaves :func:`~openfdk.contact.rim.warn_contact_rims` to the caller
+    (``openfdk run`` checks the rims while its figures are drawn)."""
     from .run import run_trial
     from ..contact.rim import warn_contact_rims
     from ..model.plausibility import warn_outlier_markers, warn_pulling_contacts
@@ -279,6 +281,7 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
         exc.partial = with_info(*exc.partial)
         raise
     warn_pulling_contacts(model, kin, dyn)
-    warn_contact_rims(model, kin)
+    if rim_check:
+        warn_contact_rims(model, kin)
     warn_outlier_markers(kin)
     return with_info(kin, dyn, fdk)

@@ -289,6 +289,17 @@ def _write_generalized_forces(out_dir, model_path, dyn, model=None):
     write_json(path, data)
 
 
+def _rim_check(model, kin):
+    """The run's contact-rim check (:func:`~openfdk.contact.rim.warn_contact_rims`) as a
+    call for later, holding only the poses and times of ``kin``."""
+    from types import SimpleNamespace
+
+    from ..contact.rim import warn_contact_rims
+
+    poses = SimpleNamespace(q=kin.q, time=kin.time)
+    return lambda: warn_contact_rims(model, poses)
+
+
 def _cmd_run(args):
     if args.checkpoint_frames < 1 or not args.checkpoint_seconds > 0:
         raise UserError("--checkpoint-frames must be >= 1 and --checkpoint-seconds > 0")
@@ -316,7 +327,7 @@ def _cmd_run(args):
         try:
             kin, dyn, info = run_job(args.model, args.trial, cutoff_hz=args.cutoff, progress=_progress_on(args),
                                      start=args.start, end=args.end, checkpoints=checkpoints, resume=args.resume,
-                                     loaded=loaded)
+                                     loaded=loaded, rim_check=False)
         except TrialInterrupted as exc:
             kin, dyn, info = exc.partial
             write_run_outputs(args.out, kin, dyn, info, frames_planned=exc.frames_planned)
@@ -354,8 +365,10 @@ def _cmd_run(args):
     from .outputs import after_run
 
     failed = dyn.failed_frames(), dyn.converged, dyn.status, dyn.messages
+    # the contact rims are checked while the figures are drawn (chunked runs checked theirs)
+    rim_check = None if args.chunks > 1 else _rim_check(model, kin)
     del kin, dyn, info  # written: the figures read them back, so the arrays need not stay
-    after_run(args, model=model)
+    after_run(args, model=model, alongside=rim_check)
     _print_failed(args, failed[0])
     return failed_frames_exit(*failed[1:], args.max_failed)
 

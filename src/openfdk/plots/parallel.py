@@ -15,6 +15,10 @@ The files are the same as when drawn in this process, byte for byte
 that fails in a worker does not stop the others: every failure is collected and
 reported together, naming the figures (:class:`FigureError`). A symbolic link planted
 at a figure's path is refused before any worker starts (``openfdk.io.outdir``).
+
+While the workers draw, this process is idle: ``openfdk run`` checks there whether a
+contact patch reaches a mesh's rim (:func:`openfdk.contact.rim.warn_contact_rims`, 1.7 s
+for DM's 100 frames), the ``alongside`` call of :func:`write_figures`.
 """
 
 from __future__ import annotations
@@ -91,16 +95,23 @@ def _draw(names):
     return done
 
 
-def write_figures(results, directory, measures=None, workers=None) -> list[Path]:
+def write_figures(results, directory, measures=None, workers=None, alongside=None) -> list[Path]:
     """Draw the figures of ``results`` (a :class:`~openfdk.results.run.RunResults`) into
     ``directory`` (created) as ``<name>.png``, in ``workers`` processes (default
     :func:`plot_workers`). Returns the paths in the figures' order; raises
-    :class:`FigureError` naming every figure that failed (the others are written)."""
+    :class:`FigureError` naming every figure that failed (the others are written).
+
+    alongside : a call (no arguments) made in this process while the workers draw
+    (``openfdk run``'s contact-rim check, whose warnings are this process's), or after the
+    figures when they are drawn here; None: none."""
     global _JOB
     plan = figure_plan(results, measures)
     workers = plot_workers() if workers is None else int(workers)
     if workers <= 1 or len(plan) < 2 or "fork" not in multiprocessing.get_all_start_methods():
-        return save_figures(((name, build()) for name, build, _ in plan), directory)
+        paths = save_figures(((name, build()) for name, build, _ in plan), directory)
+        if alongside is not None:
+            alongside()
+        return paths
     from ..io.outdir import refuse_link
 
     d = Path(directory)
@@ -114,7 +125,10 @@ def write_figures(results, directory, measures=None, workers=None) -> list[Path]
             # (Python ≥ 3.12 warns of fork in a process with threads; the workers only draw)
             warnings.simplefilter("ignore", DeprecationWarning)
             with ProcessPoolExecutor(len(shares), mp_context=multiprocessing.get_context("fork")) as pool:
-                outcome = dict(pair for done in pool.map(_draw, shares) for pair in done)
+                futures = [pool.submit(_draw, share) for share in shares]
+                if alongside is not None:
+                    alongside()  # here, while the workers draw
+                outcome = dict(pair for f in futures for pair in f.result())
     finally:
         _JOB = None
     written = [d / f"{name}.png" for name, _, _ in plan if outcome.get(name, "not drawn") is None]
@@ -124,13 +138,15 @@ def write_figures(results, directory, measures=None, workers=None) -> list[Path]
     return written
 
 
-def write_plots(result_dir, out_dir=None, measures=None, model=None) -> list[Path]:
+def write_plots(result_dir, out_dir=None, measures=None, model=None, alongside=None) -> list[Path]:
     """Read a result folder and write its figures (default into ``RESULT_DIR/plots``) with
-    :func:`write_figures`; ``model``: the run's Model when the caller has it loaded (the
-    FDK DOFs' and the constraints' units; else read from the model file again)."""
+    :func:`write_figures` (``alongside`` as there); ``model``: the run's Model when the
+    caller has it loaded (the FDK DOFs' and the constraints' units; else read from the
+    model file again)."""
     from ..results.run import read_results
 
-    return write_figures(read_results(result_dir, model), out_dir or Path(result_dir) / "plots", measures)
+    return write_figures(read_results(result_dir, model), out_dir or Path(result_dir) / "plots", measures,
+                         alongside=alongside)
 
 
 __all__ = ["write_plots", "write_figures", "plot_workers", "balanced_shares", "FigureError", "MAX_WORKERS"]
