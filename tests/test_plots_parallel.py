@@ -186,3 +186,24 @@ def test_after_run_makes_the_alongside_call_once_and_keeps_its_error_its_own(run
     with pytest.raises(RuntimeError, match="rim check failed"):
         after_run(args, alongside=broken)
     assert "figures not written" not in capsys.readouterr().err
+
+
+@needs_fork
+def test_a_worker_that_is_killed_is_reported_with_the_figures_it_did_not_write(run_dir, tmp_path, monkeypatch):
+    def killed(*args):  # in the worker: as if the kernel's out-of-memory killer stopped it
+        os._exit(9)
+
+    monkeypatch.setattr(plots_run, "_kinematics", killed)
+    out = tmp_path / "plots"
+    out.mkdir()
+    (out / "kinematics.png").write_bytes(b"an earlier run's figure")
+    planned = [name for name, _, _ in plots_run.figure_plan(read_results(run_dir))]
+    with pytest.raises(FigureError, match=r"kinematics: its worker process stopped") as exc:
+        write_figures(read_results(run_dir), out, workers=2)
+    # (the pool stops its other worker too): every figure is either written or named missing
+    named = {n for n in planned if f"{n}: " in str(exc.value)}
+    written = {p.stem for p in exc.value.written}
+    assert "kinematics" in named and named | written == set(planned) and not named & written
+    assert all((out / f"{n}.png").is_file() for n in written)
+    assert not any((out / f"{n}.png").exists() for n in named)  # the earlier run's file is gone too
+    assert str(exc.value).startswith(f"{len(named)} of {len(planned)} figures not written")

@@ -13,7 +13,8 @@ The files are the same as when drawn in this process, byte for byte
 (tests/test_plots_parallel.py). Without ``fork`` (Windows), with one CPU, or with
 ``OPENFDK_PLOT_WORKERS=1`` the figures are drawn here, one after the other. A figure
 that fails in a worker does not stop the others: every failure is collected and
-reported together, naming the figures (:class:`FigureError`). A symbolic link planted
+reported together, naming the figures (:class:`FigureError`); so does a worker that is
+stopped (killed for memory, a signal), naming the figures it had not written. A symbolic link planted
 at a figure's path is refused before any worker starts (``openfdk.io.outdir``).
 
 While the workers draw, this process is idle: ``openfdk run`` checks there whether a
@@ -27,6 +28,7 @@ import multiprocessing
 import os
 import warnings
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 from .run import figure_plan, save_figures
@@ -118,6 +120,9 @@ def write_figures(results, directory, measures=None, workers=None, alongside=Non
     save_figures({}, d)  # the folder checked (no planted link) and created once, here
     for name, _, _ in plan:
         refuse_link(d / f"{name}.png")  # a planted link refused here, as drawing here would
+        # (an earlier drawing's file removed: a file there afterwards is this call's, also
+        # when a worker is stopped before it can report)
+        (d / f"{name}.png").unlink(missing_ok=True)
     shares = [[plan[i][0] for i in share] for share in balanced_shares([w for _, _, w in plan], workers)]
     _JOB = (results, measures, d)
     try:
@@ -128,9 +133,18 @@ def write_figures(results, directory, measures=None, workers=None, alongside=Non
                 futures = [pool.submit(_draw, share) for share in shares]
                 if alongside is not None:
                     alongside()  # here, while the workers draw
-                outcome = dict(pair for f in futures for pair in f.result())
+                outcome = {}
+                for share, future in zip(shares, futures):
+                    try:
+                        outcome.update(future.result())
+                    except BrokenProcessPool as exc:  # a worker killed (out of memory, a signal)
+                        outcome.update((name, f"its worker process stopped ({exc})") for name in share
+                                       if not (d / f"{name}.png").is_file())
     finally:
         _JOB = None
+    for name, _, _ in plan:  # a stopped worker's figures that were written before it stopped
+        if name not in outcome and (d / f"{name}.png").is_file():
+            outcome[name] = None
     written = [d / f"{name}.png" for name, _, _ in plan if outcome.get(name, "not drawn") is None]
     failed = [f"{name}: {outcome.get(name) or 'not drawn'}" for name, _, _ in plan if outcome.get(name, 1) is not None]
     if failed:
