@@ -107,22 +107,22 @@ def write_figures(results, directory, measures=None, workers=None, alongside=Non
     (``openfdk run``'s contact-rim check, whose warnings are this process's), or after the
     figures when they are drawn here; None: none."""
     global _JOB
-    plan = figure_plan(results, measures)
-    workers = plot_workers() if workers is None else int(workers)
-    if workers <= 1 or len(plan) < 2 or "fork" not in multiprocessing.get_all_start_methods():
-        paths = save_figures(((name, build()) for name, build, _ in plan), directory)
-        if alongside is not None:
-            alongside()
-        return paths
     from ..io.outdir import refuse_link
 
+    plan = figure_plan(results, measures)
+    workers = plot_workers() if workers is None else int(workers)
     d = Path(directory)
     save_figures({}, d)  # the folder checked (no planted link) and created once, here
     for name, _, _ in plan:
-        refuse_link(d / f"{name}.png")  # a planted link refused here, as drawing here would
+        refuse_link(d / f"{name}.png")  # a planted link refused before anything is drawn
         # (an earlier drawing's file removed: a file there afterwards is this call's, also
         # when a worker is stopped before it can report)
         (d / f"{name}.png").unlink(missing_ok=True)
+    if workers <= 1 or len(plan) < 2 or "fork" not in multiprocessing.get_all_start_methods():
+        paths = save_figures(((name, build()) for name, build, _ in plan), d)
+        if alongside is not None:
+            alongside()
+        return paths
     shares = [[plan[i][0] for i in share] for share in balanced_shares([w for _, _, w in plan], workers)]
     _JOB = (results, measures, d)
     try:
