@@ -467,3 +467,59 @@ def test_the_convergence_figure_marks_the_frames_solved_backward():
     np.testing.assert_allclose(line.get_xdata(), [times[k]])
     np.testing.assert_allclose(line.get_ydata(), [res.evaluations[k]])
     assert "solved again backward" in fig.texts[-1].get_text()
+
+
+def test_the_lead_in_starts_where_the_initial_values_are_nearer_equilibrium():
+    """seated_length: the 6-frame lead-in stands unless its cold frame's merit at the
+    initial values is more than SEATED_FACTOR times the 24-frame one's; then the nearest
+    of 6, 12, 18 and 24 frames within SEATED_FACTOR of the smallest merit (DM og1 from
+    3.183 s: 17.6, 8.4, 2.8, 1.8 J → 18 frames)."""
+    from openfdk.fdk.approach import LEAD_IN_FRAMES, SEATED_FACTOR, seated_length
+
+    assert LEAD_IN_FRAMES == 6 and SEATED_FACTOR == 2.0
+    asked = []
+
+    def merits(table):
+        def merit(m):
+            asked.append(m)
+            return table.get(m)
+        return merit
+
+    # og1 from 3.183 s (swing): further back
+    assert seated_length(merits({6: 17.6, 12: 8.4, 18: 2.8, 24: 1.8})) == (18, 4)
+    assert sorted(asked) == [6, 12, 18, 24]
+    # the bench window (og1 from 2.5 s): 2.2 ≤ 2 × 1.3, the near one stands; two merits asked
+    asked.clear()
+    assert seated_length(merits({6: 2.2, 12: 2.4, 18: 13.0, 24: 1.3})) == (6, 2) and asked == [6, 24]
+    # the smallest merit itself when none nearer is within the factor
+    assert seated_length(merits({6: 50.0, 12: 30.0, 18: 20.0, 24: 4.0})) == (24, 4)
+    # exactly at the factor: the near one (≤)
+    assert seated_length(merits({6: 2.0, 24: 1.0})) == (6, 2)
+    # data that do not reach 24 frames back, or a near frame that cannot be evaluated
+    assert seated_length(merits({6: 9.0, 12: 1.0})) == (6, 2)
+    assert seated_length(merits({6: np.inf, 12: 1.5, 18: 5.0, 24: 1.0})) == (12, 4)
+    assert seated_length(merits({6: np.inf, 12: 3.0, 18: 5.0, 24: 1.0})) == (24, 4)
+    assert seated_length(merits({6: np.inf, 12: np.inf, 18: np.inf, 24: np.inf})) == (6, 2)
+
+
+def test_the_lead_in_s_first_length_and_its_merits_count_towards_the_frame(monkeypatch):
+    """Approach: the first lead-in has seated_length's length (the longer ones follow),
+    and its merit evaluations are added to the frame's evaluations."""
+    from types import SimpleNamespace
+
+    from openfdk.fdk.approach import Approach
+
+    dt = 1 / 120
+    window = 3.0 + dt * np.arange(5)
+    tried = []
+    table = {6: 17.6, 12: 8.4, 18: 2.8, 24: 1.8}
+    monkeypatch.setattr(Approach, "_initial_merit", lambda self, step, k, m: table.get(m))
+    monkeypatch.setattr(Approach, "_solve_after", _lead_in_stand_in(
+        tried, lambda times, *_: len(times), lambda times, *_: len(times) >= 24))
+    approach = _bare_approach()
+    approach.trajectories = object()  # (markers: the lead-in's start is chosen)
+    step = SimpleNamespace(ctx=SimpleNamespace(times=window, tracker=object()), history=[])
+    sol = approach(step, 0)
+    n = 18 + (SUBSTEPS - 1) + 24  # 18 frames (failed), the sub-steps from its last, then 24
+    assert tried == [18, SUBSTEPS - 1, 24] and sol.converged
+    assert sol.evaluations == 100 * n + 4 and sol.jacobians == n
