@@ -158,7 +158,8 @@ def _lead_in_stand_in(tried, record, converged, march=None, reaches_end=True):
     """An ``Approach._solve_after`` stand-in: appends ``record(times, previous, restart,
     source)`` to ``tried``; frame k converges iff ``converged(times, previous, restart)``,
     with counts 10, 100 and 1 per marched frame (iterations, evaluations, Jacobians); the
-    march's history reaches its last frame iff ``reaches_end``; the march is ``march``."""
+    march's history reaches its last frame iff ``reaches_end`` (an int: it stops that
+    many frames short of it); the march is ``march``."""
     from openfdk.fdk.newton import FrameSolution
 
     def solve_after(self, step, k, times, previous, restart=False, source=None):
@@ -166,7 +167,8 @@ def _lead_in_stand_in(tried, record, converged, march=None, reaches_end=True):
         ok = bool(converged(times, previous, restart))
         sol = FrameSolution(None, ok, 10 * len(times), 100 * len(times), "", "converged" if ok else "x",
                             jacobians=len(times))
-        reached = len(times) if reaches_end else len(times) - 1
+        short = 0 if reaches_end is True else 1 if reaches_end is False else int(reaches_end)
+        reached = len(times) - short
         return sol, [(j, np.array([float(j)])) for j in range(reached)], march
 
     return solve_after
@@ -229,7 +231,9 @@ def test_a_first_frame_that_fails_after_a_converged_lead_in_is_approached_in_sub
     the sub-steps from that frame come first: at t_last + j (t_0 − t_last) / SUBSTEPS, from
     that march's own state (``source``); when they converge, no longer lead-in runs, the
     counts are the two attempts' sum, and the lead-in's frames join the history as
-    −LEAD_IN_FRAMES … −1. A lead-in whose last frame failed gets no sub-steps."""
+    −LEAD_IN_FRAMES … −1. A lead-in whose last frame failed (og1 from 2.408 s: 2.400 s, at
+    the heel strike) gets 2 SUBSTEPS − 1 sub-steps from the frame before (its last
+    converged one); one whose last two failed, none."""
     from types import SimpleNamespace
 
     from openfdk.fdk.approach import Approach
@@ -254,9 +258,20 @@ def test_a_first_frame_that_fails_after_a_converged_lead_in_is_approached_in_sub
     assert sol.converged and (sol.iterations, sol.evaluations, sol.jacobians) == (10 * n, 100 * n, n)
     assert [j for j, _ in step.history] == list(range(-LEAD_IN_FRAMES, 0))
 
-    # the lead-in's own last frame failed: on to the longer lead-in, no sub-steps
+    # the lead-in's own last frame failed: sub-steps over the two frame intervals from the
+    # frame before it, then (they fail here) the longer lead-in
     monkeypatch.setattr(Approach, "_solve_after", _lead_in_stand_in(
-        tried, record, lambda times, *_: len(times) >= 24, reaches_end=False))
+        tried, record, lambda times, *_: len(times) >= 24, reaches_end=False, march=lead_in_march))
+    tried.clear()
+    step = SimpleNamespace(ctx=SimpleNamespace(times=window), history=[])
+    assert approach(step, 0).converged
+    assert [(len(t), p) for t, p, _ in tried] == [(LEAD_IN_FRAMES, False), (2 * SUBSTEPS - 1, True), (24, False)]
+    np.testing.assert_allclose(tried[1][0], window[0] - 2 * dt + 2 * dt * np.arange(1, 2 * SUBSTEPS) / (2 * SUBSTEPS))
+    assert tried[1][2] is lead_in_march
+
+    # its last two frames failed: on to the longer lead-in, no sub-steps
+    monkeypatch.setattr(Approach, "_solve_after", _lead_in_stand_in(
+        tried, record, lambda times, *_: len(times) >= 24, reaches_end=2))
     tried.clear()
     step = SimpleNamespace(ctx=SimpleNamespace(times=window), history=[])
     assert approach(step, 0).converged and [len(t) for t, _, _ in tried] == [LEAD_IN_FRAMES, 24]

@@ -112,11 +112,12 @@ SEATED_FACTOR = 2.0
 MARCH_TOLERANCE = 100.0
 
 
-def sub_step_times(t_previous, t_k):
-    """(SUBSTEPS − 1,) s: the intermediate times t_prev + j (t_k − t_prev) / SUBSTEPS,
-    j = 1 … SUBSTEPS − 1, between a converged frame at ``t_previous`` and frame k at
-    ``t_k`` (s)."""
-    return t_previous + (t_k - t_previous) * np.arange(1, SUBSTEPS) / SUBSTEPS
+def sub_step_times(t_previous, t_k, frames=1):
+    """(SUBSTEPS · frames − 1,) s: the intermediate times t_prev + j (t_k − t_prev) / n,
+    n = SUBSTEPS · frames, j = 1 … n − 1, between a converged frame at ``t_previous`` and
+    frame k at ``t_k`` (s), ``frames`` frame intervals apart."""
+    n = SUBSTEPS * int(frames)
+    return t_previous + (t_k - t_previous) * np.arange(1, n) / n
 
 
 def approach_times(times, k, previous_converged, first_time, lead_in=LEAD_IN_FRAMES, sample_interval=None):
@@ -208,15 +209,20 @@ class Approach:
             marched = len(times)
             if sol.converged:
                 break
-            if not previous and h and h[-1][0] == len(times) - 1:
-                # the lead-in reached the frame before the window's first, and the first
-                # fails from it: sub-steps from the lead-in's last frame, as after any
-                # converged frame, before a longer lead-in (a heel strike between the two:
-                # DM og1 from 2.406 s, the tutorial's gait cycle, whose first frame stalled
-                # at 0.3 N after the 6-frame lead-in and converged in sub-steps after the
-                # 24-frame one; the cycle's evaluations 2 156 → 1 133)
+            gap = len(times) - h[-1][0] if h else 0  # frame intervals from its last converged frame to k
+            if not previous and gap in (1, 2):
+                # the lead-in reached the frame before the window's first (or the one
+                # before that, its last failing), and the first fails from it: sub-steps
+                # from the lead-in's last converged frame, as after any converged frame,
+                # before a longer lead-in (a heel strike between the two: DM og1 from
+                # 2.406 s, the tutorial's gait cycle, whose first frame stalled at 0.3 N
+                # after the 6-frame lead-in and converged in sub-steps after the 24-frame
+                # one, the cycle's evaluations 2 156 → 1 133; og1 from 2.408 s, whose
+                # lead-in's last frame 2.400 s failed at the heel strike, converges in 7
+                # sub-steps from 2.392 s: 457 → 168 evaluations, stop 56)
                 spent += (sol.iterations, sol.evaluations, sol.jacobians)
-                sol, _, _ = self._solve_after(step, k, sub_step_times(times[-1], ctx.times[k]), True, source=march)
+                sol, _, _ = self._solve_after(step, k, sub_step_times(times[-gap], ctx.times[k], gap), True,
+                                              source=march)
                 if sol.converged:
                     break
         if sol is not None and not sol.converged and not previous:
