@@ -23,7 +23,9 @@ frames, each close to the one before.
   lead-in that converged up to the frame before the window's first, whose first then
   fails, is followed by sub-steps from its last frame before the next length (a heel
   strike between the two: DM og1 from 2.406 s, the tutorial's gait cycle, 2 156 → 1 133
-  evaluations). When the frame still fails, a last lead-in of :data:`LAST_LEAD_IN_FRAMES` frames lets its
+  evaluations); so is one whose last frame failed, from the frame before it, over the
+  two frame intervals (og1 from 2.408 s: the lead-in's 2.400 s fails at the heel
+  strike; 457 → 168 evaluations, stop 56). When the frame still fails, a last lead-in of :data:`LAST_LEAD_IN_FRAMES` frames lets its
   marched frames restart when they fail (from the previous marched frame's α and from
   the initial values, without the scan around α_{k−1}). DM og1 from 2.5 s with its
   ground reactions filtered at 6 Hz (docs/tutorial-knee-gait.md, "Filtered ground
