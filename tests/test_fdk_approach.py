@@ -510,8 +510,10 @@ def test_the_lead_in_starts_where_the_initial_values_are_nearer_equilibrium():
     assert seated_length(merits({6: 50.0, 12: 30.0, 18: 20.0, 24: 4.0})) == (24, 4)
     # exactly at the factor: the near one (≤)
     assert seated_length(merits({6: 2.0, 24: 1.0})) == (6, 2)
-    # data that do not reach 24 frames back, or a near frame that cannot be evaluated
-    assert seated_length(merits({6: 9.0, 12: 1.0})) == (6, 2)
+    # data that do not reach 24 frames back (not an evaluation), or a near frame that
+    # cannot be evaluated (an evaluation that failed)
+    assert seated_length(merits({6: 9.0, 12: 1.0})) == (6, 1)
+    assert seated_length(merits({})) == (6, 0)
     assert seated_length(merits({6: np.inf, 12: 1.5, 18: 5.0, 24: 1.0})) == (12, 4)
     assert seated_length(merits({6: np.inf, 12: 3.0, 18: 5.0, 24: 1.0})) == (24, 4)
     assert seated_length(merits({6: np.inf, 12: np.inf, 18: np.inf, 24: np.inf})) == (6, 2)

@@ -148,7 +148,8 @@ def seated_length(merit, base=LEAD_IN_FRAMES):
     an m-frame lead-in, None where the trial's data do not reach that far, inf where it
     cannot be evaluated. The base length stands unless its merit is more than
     :data:`SEATED_FACTOR` times that of 4 × base; then the shortest of base, 2, 3 and
-    4 × base whose merit is within SEATED_FACTOR of the smallest."""
+    4 × base whose merit is within SEATED_FACTOR of the smallest. The merits evaluated
+    are those not None."""
     values = {}
 
     def value(m):
@@ -158,12 +159,12 @@ def seated_length(merit, base=LEAD_IN_FRAMES):
 
     near, far = value(base), value(4 * base)
     if near is None or far is None or near <= SEATED_FACTOR * far:
-        return base, len(values)
+        return base, sum(v is not None for v in values.values())
     for m in (2 * base, 3 * base):
         value(m)
     known = {m: v for m, v in values.items() if v is not None}
     best = min(known.values())
-    return min(m for m, v in known.items() if v <= SEATED_FACTOR * best), len(values)
+    return min(m for m, v in known.items() if v <= SEATED_FACTOR * best), len(known)
 
 
 class Approach:
