@@ -21,16 +21,23 @@ needs_fork = pytest.mark.skipif("fork" not in multiprocessing.get_all_start_meth
 
 
 @pytest.fixture(scope="module")
-def run_dir(tmp_path_factory):
-    """The result folder of one two-body run (no figures)."""
-    d = tmp_path_factory.mktemp("run")
+def run_inputs(tmp_path_factory):
+    """(model file, trial file) of the two-body run."""
+    d = tmp_path_factory.mktemp("inputs")
     model = d / "model.yaml"
     model.write_text(yaml.safe_dump(two_body_model_dict(), sort_keys=False))
     _t, labels, x, _truth = synthetic_markers(20, rate=100.0, noise=0.0)
     write_c3d(d / "trial.c3d", labels, x, 100.0, units="mm")
-    out = d / "res"
+    return model, d / "trial.c3d"
+
+
+@pytest.fixture(scope="module")
+def run_dir(run_inputs, tmp_path_factory):
+    """The result folder of one two-body run (no figures)."""
+    model, trial = run_inputs
+    out = tmp_path_factory.mktemp("run") / "res"
     # (its frames fail recruitment: the figures shade them red)
-    assert main(["run", str(model), str(d / "trial.c3d"), "--out", str(out), "--no-progress", "--no-plots",
+    assert main(["run", str(model), str(trial), "--out", str(out), "--no-progress", "--no-plots",
                  "--max-failed", "1", "-q"]) == 0
     return out
 
@@ -115,7 +122,9 @@ def test_the_shares_cover_every_figure_once_within_graham_s_bound():
 
 def test_the_workers_setting(monkeypatch):
     monkeypatch.delenv("OPENFDK_PLOT_WORKERS", raising=False)
-    assert 1 <= plot_workers() <= MAX_WORKERS
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    forks = "fork" in multiprocessing.get_all_start_methods()
+    assert plot_workers() == (min(MAX_WORKERS, cpus) if forks else 1)
     for raw, n in (("1", 1), (" 3 ", 3)):
         monkeypatch.setenv("OPENFDK_PLOT_WORKERS", raw)
         assert plot_workers() == (n if "fork" in multiprocessing.get_all_start_methods() else 1)
@@ -124,17 +133,6 @@ def test_the_workers_setting(monkeypatch):
         if "fork" in multiprocessing.get_all_start_methods():
             with pytest.raises(ValueError, match=rf"OPENFDK_PLOT_WORKERS='{raw}': give a whole number ≥ 1"):
                 plot_workers()
-
-
-@pytest.fixture(scope="module")
-def run_inputs(tmp_path_factory):
-    """(model file, trial file) of the two-body run."""
-    d = tmp_path_factory.mktemp("inputs")
-    model = d / "model.yaml"
-    model.write_text(yaml.safe_dump(two_body_model_dict(), sort_keys=False))
-    _t, labels, x, _truth = synthetic_markers(20, rate=100.0, noise=0.0)
-    write_c3d(d / "trial.c3d", labels, x, 100.0, units="mm")
-    return model, d / "trial.c3d"
 
 
 @pytest.mark.parametrize("plots", [True, False])
