@@ -29,3 +29,28 @@ def test_a_bad_thread_count_is_one_line(monkeypatch, capsys, tmp_path):
     code = main(["check", str(tmp_path / "missing.yaml")])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "OPENFDK_BLAS_THREADS" in err[0] and "'two'" in err[0]
+
+
+def test_the_limit_reaches_scipys_blas_loaded_after_it(tmp_path):
+    """scipy brings its own OpenBLAS, which the compiled kernels' LAPACK calls use; a command
+    loads it after the limit is set. In a fresh interpreter whose OpenBLAS defaults to two
+    threads, every BLAS loaded inside the command's limit, scipy's included, runs one."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    script = ("import json, numpy\n"
+              "from threadpoolctl import threadpool_info\n"
+              "from openfdk.cli.commands import _blas_threads\n"
+              "with _blas_threads():\n"
+              "    import scipy.linalg\n"
+              "    scipy.linalg.lu_factor(numpy.eye(3))\n"
+              "    print(json.dumps([(p['filepath'], p['num_threads']) for p in threadpool_info()\n"
+              "                      if p['user_api'] == 'blas']))\n")
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "2"}
+    env.pop("OPENFDK_BLAS_THREADS", None)
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, check=True)
+    libraries = json.loads(out.stdout.strip().splitlines()[-1])
+    assert any("scipy" in path for path, _ in libraries)  # scipy's own BLAS is among them
+    assert {n for _, n in libraries} == {1}, libraries
