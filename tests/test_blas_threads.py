@@ -4,6 +4,7 @@ matrices are small, where a threaded BLAS costs more than it gives (cli/commands
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from threadpoolctl import threadpool_info
 
 from openfdk.cli.commands import _blas_threads, main
@@ -54,3 +55,36 @@ def test_the_limit_reaches_scipys_blas_loaded_after_it(tmp_path):
     libraries = json.loads(out.stdout.strip().splitlines()[-1])
     assert any("scipy" in path for path, _ in libraries)  # scipy's own BLAS is among them
     assert {n for _, n in libraries} == {1}, libraries
+
+
+def test_the_python_api_runs_with_one_blas_thread_and_restores_the_setting(monkeypatch):
+    """openfdk.run limits BLAS as the commands do, inside the run only."""
+    import openfdk
+    import openfdk.analysis.jobs as jobs
+    from openfdk.api import result
+
+    seen = []
+
+    def run_job(*args, **kwargs):
+        seen.append(_blas_counts())
+        return None, None, {}
+
+    class Model:
+        pass
+
+    monkeypatch.delenv("OPENFDK_BLAS_THREADS", raising=False)
+    monkeypatch.setattr(jobs, "run_job", run_job)
+    monkeypatch.setattr(result.Result, "from_analysis", classmethod(lambda cls, *a: "result"))
+    import scipy.linalg  # noqa: F401  (both BLAS libraries loaded, so that both are seen)
+
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=2, user_api="blas"):  # a caller's setting of two threads
+        before = _blas_counts()
+        assert set(before) == {2} and len(before) >= 2
+        assert openfdk.run(Model()) == "result"
+        assert seen and set(seen[0]) == {1} and len(seen[0]) == len(before)
+        assert _blas_counts() == before  # restored
+    monkeypatch.setenv("OPENFDK_BLAS_THREADS", "many")
+    with pytest.raises(ValueError, match="OPENFDK_BLAS_THREADS.*'many'"):
+        openfdk.run(Model())

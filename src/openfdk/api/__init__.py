@@ -70,11 +70,14 @@ def run(model, trial=None, settings=None, **options):
         options: ``cutoff_hz`` (marker low-pass, Hz; 0 = none; default: the model
             file's, else 6 Hz), ``start``/``end`` (analysed window, s), ``progress``
             (progress bars, default False).
+    Runs with one BLAS thread (``OPENFDK_BLAS_THREADS``, :mod:`openfdk.numerics.blas`),
+    the library's setting restored after.
     Returns: :class:`~openfdk.api.result.Result` — ``.kinematics``, ``.forces``,
     ``.fdk`` DataFrames indexed by time, ``.summary``, ``.failed_frames``, ``.plot()``,
     ``.view()``, ``.save(dir)``.
     """
     from ..analysis.jobs import run_job
+    from ..numerics.blas import blas_threads
     from .result import Result
 
     unknown = sorted(set(options) - set(RUN_OPTIONS))
@@ -92,9 +95,10 @@ def run(model, trial=None, settings=None, **options):
         trial = load_trial(trial)
     if settings is None:
         settings = _MODEL_SETTINGS.get(model)
-    kin, dyn, info = run_job(model, trial, cutoff_hz=options.get("cutoff_hz"),
-                             progress=bool(options.get("progress", False)),
-                             start=options.get("start"), end=options.get("end"), settings=settings)
+    with blas_threads():  # one BLAS thread, as the commands (numerics/blas.py)
+        kin, dyn, info = run_job(model, trial, cutoff_hz=options.get("cutoff_hz"),
+                                 progress=bool(options.get("progress", False)),
+                                 start=options.get("start"), end=options.get("end"), settings=settings)
     if model_file:
         info["model_file"] = model_file
     return Result.from_analysis(kin, dyn, info, model)

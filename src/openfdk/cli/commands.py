@@ -767,31 +767,14 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 
 
 def _blas_threads():
-    """BLAS limited to OPENFDK_BLAS_THREADS threads (default 1; 0: as the library
-    chooses) for the command: openfdk's matrices are small (tens to a few hundred rows),
-    where a threaded BLAS spends more time waking threads than multiplying: on a
-    2-core machine the full-body recruitment took 10–18 ms per frame with OpenBLAS's
-    default threads against 1.4–1.9 ms with one (bench full_body_muscles, alternated).
+    """BLAS limited for the command (:func:`openfdk.numerics.blas.blas_threads`); a bad
+    ``OPENFDK_BLAS_THREADS`` is the command's one-line error."""
+    from ..numerics.blas import blas_threads
 
-    The limit reaches only the BLAS libraries loaded when it is set, and scipy brings its
-    own OpenBLAS, which the compiled kernels' LAPACK calls use (numba binds
-    ``scipy.linalg.cython_lapack``). So scipy's is loaded first. Before that, scipy's was
-    left at its two threads: DM's 100-frame run spent 19–21 s of CPU for 12–13 s of wall
-    time instead of 12–13 s, and two runs side by side on the 2-core machine took 90 s each
-    instead of 32 s (og9's stance, stop 57)."""
-    import contextlib
-
-    from threadpoolctl import threadpool_limits
-
-    value = os.environ.get("OPENFDK_BLAS_THREADS", "1").strip()
-    if not value.isdigit():
-        raise UserError(f"OPENFDK_BLAS_THREADS: expected a whole number of threads (0: no limit), got {value!r}")
-    n = int(value)
-    if n == 0:
-        return contextlib.nullcontext()
-    import scipy.linalg.cython_lapack  # noqa: F401  (scipy's OpenBLAS, loaded so that the limit reaches it)
-
-    return threadpool_limits(limits=n, user_api="blas")
+    try:
+        return blas_threads()
+    except ValueError as e:
+        raise UserError(str(e)) from None
 
 
 def main(argv=None):
