@@ -110,7 +110,7 @@ CARRIED_J_REDUCTION = 10.0
 #: bench window's warm frames: 26–160 times (median about 50) with the carried J, 250–2 500
 #: with a fresh one. Without the bound, a warm frame at 0.2 N after its first step went on
 #: with the carried J to 6 mN and needed a fourth evaluation; with it, the 30 later
-#: frames took 3.33 evaluations and 0.77 Jacobians instead of 3.53 and 0.67, in the same
+#: frames took 3.33 evaluations and 0.80 Jacobians instead of 3.53 and 0.67, in the same
 #: CPU time (41.9 ms per frame both, alternated three times each)
 BROYDEN_RATE = 100.0
 
