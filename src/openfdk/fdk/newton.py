@@ -20,8 +20,9 @@ there is none, when a step with the carried J did not reduce the merit at least
 near the root; a carried J that does less converges only linearly), and when an accepted
 step's own rate, carried on, would not reach the tolerance in one more step
 (max |f₁| · max(max |f₁| / max |f₀|, 1 / BROYDEN_RATE) ≥ tolerance): Broyden's updates
-then converge linearly, a fresh J quadratically. On the synthetic knee in gait this last rule takes 4.48 → 4.06 residual
-evaluations and 1.04 → 1.34 Jacobians per frame (full Newton, ``reuse_jacobian: false``:
+then converge linearly, a fresh J quadratically. On the synthetic knee in gait this last
+rule takes 4.48 → 4.06 residual evaluations and 1.04 → 1.34 Jacobians per frame (before
+the bound :data:`BROYDEN_RATE`; full Newton, ``reuse_jacobian: false``:
 3.62 and 2.62, at 70 % of the speed). A cold frame (``cold``: no converged frame just
 before it, so it starts far from its root) applies the rate rule only within
 :data:`~.trust_region.NEAR_ROOT` tolerances of the root: farther out, where the trust
