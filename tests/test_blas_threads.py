@@ -10,19 +10,20 @@ from threadpoolctl import threadpool_info
 from openfdk.cli.commands import _blas_threads, main
 
 
-def _blas_counts():
-    return [p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"]
+def _blas_libraries():
+    """{path: threads} of every loaded BLAS library."""
+    return {p["filepath"]: p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"}
 
 
 def test_commands_run_with_one_blas_thread_by_default(monkeypatch):
     np.ones((4, 4)) @ np.ones((4, 4))  # BLAS loaded
     monkeypatch.delenv("OPENFDK_BLAS_THREADS", raising=False)
     with _blas_threads():
-        assert _blas_counts() and set(_blas_counts()) == {1}
+        assert _blas_libraries() and set(_blas_libraries().values()) == {1}
     monkeypatch.setenv("OPENFDK_BLAS_THREADS", "0")
-    outside = _blas_counts()
+    outside = _blas_libraries()
     with _blas_threads():
-        assert _blas_counts() == outside  # 0: left as the library chose
+        assert _blas_libraries() == outside  # 0: left as the library chose
 
 
 def test_a_bad_thread_count_is_one_line(monkeypatch, capsys, tmp_path):
@@ -55,11 +56,6 @@ def test_the_limit_reaches_scipys_blas_loaded_after_it(tmp_path):
     libraries = json.loads(out.stdout.strip().splitlines()[-1])
     assert any("scipy" in path for path, _ in libraries)  # scipy's own BLAS is among them
     assert {n for _, n in libraries} == {1}, libraries
-
-
-def _blas_libraries():
-    """{path: threads} of every loaded BLAS library."""
-    return {p["filepath"]: p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"}
 
 
 def test_the_python_api_runs_with_one_blas_thread_and_restores_the_setting(monkeypatch):
