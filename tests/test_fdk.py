@@ -328,15 +328,22 @@ def test_the_window_s_first_frame_after_a_lead_in_is_the_cold_start_s_root(tmj_m
     central (the trial's samples outside the window are their neighbours), so every
     frame also equals the same frame of a run over the trial from its start; and the
     lead-in's frames join the history as frames −6 … −1, so frame 1 starts from an
-    extrapolation."""
+    extrapolation. (The transient start, tried before the lead-in, is made to fail here:
+    the next test is its own.)"""
     from openfdk.fdk import approach
     from openfdk.fdk.analysis import FDKStep, fdk_context
+    from dataclasses import replace
+
     from openfdk.fdk.settings import fdk_settings
     from openfdk.trial import drive
 
     _, traj, t = _tmj_context(tmj_model, tmj_settings, n_frames=20)
     window = t[6:12]
     from openfdk.fdk import analysis
+
+    transient = approach.solve_transient
+    monkeypatch.setattr(approach, "solve_transient", lambda ctx, k, a0, ws, s, *rest: transient(
+        ctx, k, a0, ws, replace(s, max_iterations=1), *rest))  # one step: it fails
 
     limits, solve = [], approach.solve_frame
     monkeypatch.setattr(approach, "solve_frame",
@@ -349,21 +356,16 @@ def test_the_window_s_first_frame_after_a_lead_in_is_the_cold_start_s_root(tmj_m
     # the marched frames are stepping stones: even the lead-in's cold first one gets the
     # ordinary limit (a stalled one hands its best iterate on)
     assert len(marched) == 6 and set(marched) == {fdk_settings(tmj_model, tmj_settings).max_iterations}
-    settings = fdk_settings(tmj_model, tmj_settings)
-    step = FDKStep(tmj_model, fdk_context(tmj_model, traj, window, settings=tmj_settings), settings, approach=None)
-    cold = drive(step, len(window), lambda rec: (rec.array("fdk.alpha"), rec.array("fdk.evaluations"),
-                                                rec.objects("fdk.report")))
+    cold = _cold_window(tmj_model, tmj_settings, traj, window)
     assert led.converged.all() and all(r.converged for r in cold[2])
-    # two roots each within the force tolerance (1 mN): apart by up to 2 mN over the
-    # stiffness, < 1e-7 m on the two stiff DOFs; the soft medio-lateral one moves 6e-5 m
-    # per 0.1 N (below), 1.2e-6 m per 2 mN
-    atol = np.array([1e-7, 1e-7, 1.2e-6])
+    atol = ROOTS_APART
     assert np.all(np.abs(led.alpha - cold[0]) <= atol)
     assert np.any(np.abs(led.alpha[0]) > 1e-5)  # a real displacement, not the initial values
     assert led.evaluations[0] >= 6 + 1 and led.restarts[0] == 0
     whole = run_fdk(tmj_model, traj, t[:13], tmj_settings)
     assert whole.converged.all()
     assert np.all(np.abs(led.alpha - whole.alpha[6:12]) <= atol)
+    settings = fdk_settings(tmj_model, tmj_settings)
     step = FDKStep(tmj_model, fdk_context(tmj_model, traj, window, settings=tmj_settings), settings,
                    approach.approach_for(tmj_model, traj))
     drive(step, 1, lambda rec: None)
@@ -373,6 +375,54 @@ def test_the_window_s_first_frame_after_a_lead_in_is_the_cold_start_s_root(tmj_m
     # ~6e-5 m on the soft medio-lateral one
     np.testing.assert_allclose(step.history[-2][1][:2], whole.alpha[5][:2], atol=5e-6)
     assert abs(step.history[-2][1][2] - whole.alpha[5][2]) < 2e-4
+
+
+#: two roots each within the force tolerance (1 mN) are apart by up to 2 mN over the
+#: stiffness: < 1e-7 m on the TMJ's two stiff DOFs; the soft medio-lateral one moves
+#: 6e-5 m per 0.1 N, 1.2e-6 m per 2 mN
+ROOTS_APART = np.array([1e-7, 1e-7, 1.2e-6])
+
+
+def _cold_window(model, overrides, traj, window):
+    """(α (nf, n_fdk), evaluations (nf,), reports) of ``window`` solved without the
+    approach: its first frame cold from the initial values by Newton's method."""
+    from openfdk.fdk.analysis import FDKStep, fdk_context
+    from openfdk.fdk.settings import fdk_settings
+    from openfdk.trial import drive
+
+    settings = fdk_settings(model, overrides)
+    step = FDKStep(model, fdk_context(model, traj, window, settings=overrides), settings, approach=None)
+    return drive(step, len(window), lambda rec: (rec.array("fdk.alpha"), rec.array("fdk.evaluations"),
+                                                rec.objects("fdk.report")))
+
+
+def test_the_window_s_first_frame_by_the_transient_start_is_the_cold_start_s_root(tmj_model, tmj_settings,
+                                                                                  monkeypatch):
+    """The window's first frame by pseudo-transient continuation from the initial values
+    (fdk/transient.py), before any lead-in: no frame before the window is solved, every
+    frame's α equals that of the same window solved cold by Newton's method to the force
+    tolerance over the joint stiffness, and frame 1, which has no velocity to
+    extrapolate, is solved by the transient solver too."""
+    from openfdk.fdk import analysis, approach
+
+    _, traj, t = _tmj_context(tmj_model, tmj_settings, n_frames=20)
+    window = t[6:12]
+    transient, times = approach.solve_transient, []
+    monkeypatch.setattr(approach, "solve_transient", lambda ctx, k, *rest: times.append(("transient", ctx.times[k]))
+                        or transient(ctx, k, *rest))
+    for module in (analysis, approach):
+        monkeypatch.setattr(module, "solve_frame", lambda ctx, k, *rest, solve=module.solve_frame: times.append(
+            ("newton", ctx.times[k])) or solve(ctx, k, *rest))
+    led = run_fdk(tmj_model, traj, window, tmj_settings)
+    solved = list(times)  # (not the cold window's solves below)
+    cold = _cold_window(tmj_model, tmj_settings, traj, window)
+    assert led.converged.all() and all(r.converged for r in cold[2])
+    assert np.all(np.abs(led.alpha - cold[0]) <= ROOTS_APART)
+    assert np.any(np.abs(led.alpha[0]) > 1e-5)  # a real displacement, not the initial values
+    assert solved[:2] == [("transient", window[0]), ("transient", window[1])], solved
+    assert min(x for _, x in solved) == window[0]  # no lead-in, no sub-steps
+    assert all(x > window[1] for _, x in solved[2:])
+    assert led.restarts[0] == 0 and led.evaluations[0] >= 2
 
 
 def test_poses_moved_along_dq_dalpha_start_the_tracking_nearer_and_give_the_same_residual(tmj_model, tmj_settings):

@@ -2,9 +2,12 @@
 the frame times in closed form, and a load step that Newton cannot follow in one frame
 but follows in sub-steps."""
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
+import openfdk.fdk.approach as approach_module
 from openfdk.fdk.analysis import FDKStep, fdk_context, run_fdk
 from openfdk.fdk.approach import LEAD_IN_FRAMES, MARCH_TOLERANCE, SUBSTEPS, approach_times
 from openfdk.fdk.settings import fdk_settings
@@ -180,6 +183,7 @@ def _bare_approach():
 
     approach = Approach.__new__(Approach)
     approach.trajectories, approach.first_time, approach.sample_interval = None, -np.inf, None
+    approach.transient_frame = None
     return approach
 
 
@@ -533,10 +537,75 @@ def test_the_lead_in_s_first_length_and_its_merits_count_towards_the_frame(monke
     monkeypatch.setattr(Approach, "_initial_merit", lambda self, step, k, m: table.get(m))
     monkeypatch.setattr(Approach, "_solve_after", _lead_in_stand_in(
         tried, lambda times, *_: len(times), lambda times, *_: len(times) >= 24))
+    monkeypatch.setattr(approach_module, "solve_transient", _transient_stand_in(False))
     approach = _bare_approach()
     approach.trajectories = object()  # (markers: the lead-in's start is chosen)
-    step = SimpleNamespace(ctx=SimpleNamespace(times=window, tracker=object()), history=[])
+    step = _first_frame_step(window)
     sol = approach(step, 0)
     n = 18 + (SUBSTEPS - 1) + 24  # 18 frames (failed), the sub-steps from its last, then 24
     assert tried == [18, SUBSTEPS - 1, 24] and sol.converged
-    assert sol.evaluations == 100 * n + 4 and sol.jacobians == n
+    # the failed transient start's counts (3, 7, 2) and the 4 merits add to the lead-ins'
+    assert (sol.iterations, sol.evaluations, sol.jacobians) == (10 * n + 3, 100 * n + 4 + 7, n + 2)
+    assert approach.transient_frame is None
+
+
+def _transient_stand_in(converged, calls=None):
+    """A ``solve_transient`` stand-in: 3 iterations, 7 evaluations, 2 Jacobians, frame k
+    converged iff ``converged(k)`` (or ``converged`` itself, a bool), α = 0.5; appends
+    (k, alpha0, max_iterations) to ``calls``."""
+    from openfdk.fdk.newton import FrameSolution
+
+    def solve(ctx, k, alpha0, ws, settings, warm=None):
+        ok = converged(k) if callable(converged) else converged
+        if calls is not None:
+            calls.append((k, np.array(alpha0), settings.max_iterations))
+        best = SimpleNamespace(alpha=np.array([0.5]), norm=0.0 if ok else 5.0)
+        return FrameSolution(best, ok, 3, 7, "", "converged" if ok else "iteration_limit", jacobians=2)
+
+    return solve
+
+
+def _first_frame_step(window):
+    """The stand-in of an FDKStep at the window's first frame, with marker tracking."""
+    from openfdk.fdk.settings import FDKSettings
+
+    ctx = SimpleNamespace(times=window, tracker=object(), frames_needed=lambda k: [k])
+    return SimpleNamespace(ctx=ctx, history=[], settings=FDKSettings(), last_state=np.zeros(1), a_init=np.zeros(1),
+                           warm=None)
+
+
+def test_the_transient_start_solves_the_first_frame_before_any_lead_in(monkeypatch):
+    """The window's first frame is solved by pseudo-transient continuation from the
+    initial values first (fdk/transient.py), with the cold iteration limit; when that
+    converges no lead-in is marched. The next frame, which has no velocity to
+    extrapolate, is solved by it too, from frame 0's α with the ordinary limit, and
+    through sub-steps when that fails (their counts added)."""
+    from openfdk.fdk.approach import Approach
+
+    dt = 1 / 120
+    window = 3.0 + dt * np.arange(5)
+    tried, calls = [], []
+    monkeypatch.setattr(Approach, "_initial_merit", lambda self, step, k, m: pytest.fail("no lead-in"))
+    monkeypatch.setattr(Approach, "_solve_after", _lead_in_stand_in(
+        tried, lambda times, previous, restart, source: (len(times), previous), lambda *_: True))
+    monkeypatch.setattr(approach_module, "solve_transient", _transient_stand_in(lambda k: k == 0, calls))
+    approach = _bare_approach()
+    approach.trajectories = object()
+    step = _first_frame_step(window)
+    sol = approach(step, 0)
+    assert sol.converged and (sol.iterations, sol.evaluations, sol.jacobians) == (3, 7, 2)
+    assert tried == [] and step.history == [] and approach.transient_frame == 0
+    assert len(calls) == 1 and calls[0][0] == 0 and np.array_equal(calls[0][1], step.a_init)
+    assert calls[0][2] == step.settings.cold_max_iterations
+    step.history = [(0, np.array([0.5]))]
+    assert approach.without_velocity(step, 1) and not approach.without_velocity(step, 2)
+    sol = approach(step, 1)  # the transient solver fails at frame 1: sub-steps
+    assert calls[1][0] == 1 and calls[1][1] == pytest.approx([0.5]) and calls[1][2] == step.settings.max_iterations
+    assert sol.converged and tried == [(SUBSTEPS - 1, True)]
+    assert (sol.iterations, sol.evaluations, sol.jacobians) == (3 + 10 * (SUBSTEPS - 1), 7 + 100 * (SUBSTEPS - 1),
+                                                                2 + SUBSTEPS - 1)
+    # with frames before it in the history (a lead-in's, or frame 1 solved) it has a velocity
+    step.history = [(-1, np.zeros(1)), (0, np.ones(1))]
+    assert not approach.without_velocity(step, 1)
+    step.history = [(0, np.zeros(1)), (1, np.ones(1))]
+    assert not approach.without_velocity(step, 2)

@@ -6,8 +6,9 @@ last frame better; or α_{k−1}, or the DOFs' initial values), and the poses of
 previous frame's solution. A frame that fails from there, after a converged frame, is
 solved again after marching to it through sub-steps from that frame (:mod:`.approach`),
 then from α_{k−1} and from the DOFs' initial values; after a failed frame, from the last
-converged frame's α and the initial values (the window's first frame is reached through
-a lead-in before any start, :mod:`.approach`) (on DM's six gait trials, 12
+converged frame's α and the initial values (the window's first frame is solved by
+pseudo-transient continuation from the initial values, :mod:`.transient`, and reached
+through a lead-in when that fails, :mod:`.approach`) (on DM's six gait trials, 12
 of the 45 frames that failed from their warm starts converged only through the
 sub-steps, after both other starts had failed: 129 evaluations per frame; with the
 sub-steps first the trials took 13 484 residual evaluations and 6 006 Jacobians
@@ -248,9 +249,13 @@ class FDKStep:
         cold = None if warm_frame else replace(settings, max_iterations=max(settings.max_iterations,
                                                                             settings.cold_max_iterations))
         ws0 = ws.copy()
-        # the window's first frame: from the lead-in's warm start when the trial has frames
-        # before it (fdk/approach.py), else cold from the initial values
-        lead = self.approach(self, k) if k == 0 and not history and settings.restart and self.approach else None
+        # the window's first frame: by the transient start, else from the lead-in's warm
+        # start when the trial has frames before it (fdk/approach.py), else cold from the
+        # initial values; the frame after the transient start's, which has no velocity to
+        # extrapolate: by the transient solver from α_{k−1}, else through sub-steps
+        approach = self.approach is not None and settings.restart and (
+            (k == 0 and not history) or (warm_frame and self.approach.without_velocity(self, k)))
+        lead = self.approach(self, k) if approach else None
         first = lead or solve_frame(ctx, k, a0, ws, cold or settings, self.warm, self.J_carry, not warm_frame)
         later = []
         if not first.converged and settings.restart:

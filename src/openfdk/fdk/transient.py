@@ -1,0 +1,155 @@
+"""Pseudo-transient continuation for a frame far from its root (the window's first frame).
+
+f^FDK(α) (paper Fig. 1, Eq. 14's residual-force columns) is the force an actuator along
+each FDK DOF would need to hold the joint at α. Without that actuator the joint moves
+against it: where the joint is stable, J = ∂f^FDK/∂α is a stiffness whose eigenvalues
+have positive real parts, and the relaxation
+
+    dz/dτ = −f̃(z),   z = α / max_step,   f̃ = f^FDK · max_step (the residuals' work,
+                                             :func:`~.trust_region.work`)
+
+ends at the frame's root. Pseudo-transient continuation (Kelley & Keyes, "Convergence
+analysis of pseudo-transient continuation", SIAM J. Numer. Anal. 35 (1998) 508–523)
+follows it with linearised implicit Euler steps of a growing pseudo-time step δ,
+
+    (I / δ + J̃) Δz = −f̃,   J̃ = diag(max_step) J diag(max_step),
+
+which are short steps along −f̃ while δ is small (the stiff directions damped, the soft
+ones moving at their own pace) and Newton's steps once δ is large. δ grows as the merit
+‖f̃‖₂ falls (switched evolution relaxation: δ ← δ ‖f̃_old‖ / ‖f̃_new‖), at least
+:data:`MIN_GROWTH` times after a step that lowered it.
+
+Why: Newton's method globalised by a merit (fdk/newton.py) stops where the merit is
+stationary but f^FDK is not zero. From the DOFs' initial values the DM knee in gait has
+such points: the patella's tilt and medio-lateral translation are nearly free, and a
+constant force along a flat valley keeps ‖f‖ from falling until the valley's wall
+(og9 4.558 s: 15.9 N, singular values down to 0.002). The relaxation moves on along the
+force. Started directly at the window's first frame (fdk/approach.py) this replaces the
+lead-in in nearly every case. Measured on DM's 15 cold starts (og1, og3, og4, og5 and og9
+at three times each), each drawn twice: the first frames took 750 evaluations (median
+20) instead of 5 098 (median 92), the first three frames 1 665 instead of 5 589, every
+frame converged (docs/fdk.md, "The first frame: pseudo-transient continuation").
+
+Every step is accepted whose pose can be evaluated (the method's theory has no line
+search); a step where it cannot is retried with δ divided by four. So is a step that
+does not go against f̃ (f̃ · Δz ≥ 0): along a mode of negative stiffness (J̃'s
+eigenvalue λ < 0: the merit's stationary point is such a mode's crest) the linearised
+implicit Euler step reverses once 1/δ < −λ, and climbs back to the crest; with δ below
+that it runs down the other side, as the relaxation does (tests/test_fdk_transient.py: a
+cubic residual whose |f| has a local minimum between the start and the root). Each step
+takes a fresh Jacobian: with Broyden's update between them the first frames took 962 evaluations
+instead of 750.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .newton import FrameSolution, _jacobian
+from .trust_region import work
+
+#: the first step's reach along −f̃, in max_steps (δ₀ = FIRST_REACH / max |f̃|)
+FIRST_REACH = 0.5
+#: no step reaches further than this many max_steps (a longer one is scaled down)
+MAX_REACH = 1.0
+#: δ grows at least this many times after a step that lowered the merit ‖f̃‖₂ (SER alone:
+#: 26 evaluations for DM's bench window's first frame, with 2: 18; with 3 four of 30
+#: cold starts failed)
+MIN_GROWTH = 2.0
+#: ... and at most this many times per step
+MAX_GROWTH = 10.0
+#: δ shrinks at most to this fraction per step where the merit rose
+MIN_RATIO = 0.1
+#: δ's division after a step whose pose could not be evaluated
+FAILED_SHRINK = 4.0
+
+
+def pseudo_time_step(delta, merit, merit_new):
+    """δ after an accepted step that took the merit ‖f̃‖₂ (J) from ``merit`` to
+    ``merit_new``: switched evolution relaxation δ · merit / merit_new, at least
+    :data:`MIN_GROWTH` times δ where the merit fell, within [MIN_RATIO, MAX_GROWTH] × δ."""
+    ratio = merit / merit_new if merit_new > 0.0 else MAX_GROWTH
+    floor = MIN_GROWTH if merit_new < merit else MIN_RATIO
+    return delta * min(max(ratio, floor), MAX_GROWTH)
+
+
+def transient_step(J, f, delta, max_step):
+    """The linearised implicit Euler step Δα (n,) SI of dz/dτ = −f̃ (module docstring):
+    (I / δ + J̃) Δz = −f̃ in the variables scaled by ``max_step`` (n,) m or rad, scaled
+    down to :data:`MAX_REACH` max_steps. J (n, n), f (n,) N or N m, δ > 0 in max_step² / J
+    (``inf``: Newton's step). Raises numpy.linalg.LinAlgError when singular."""
+    J_s = max_step[:, None] * J * max_step[None, :]
+    A = J_s + (0.0 if np.isinf(delta) else 1.0 / delta) * np.eye(len(f))
+    dz = np.linalg.solve(A, -work(f, max_step))
+    if not np.all(np.isfinite(dz)):
+        raise np.linalg.LinAlgError("non-finite pseudo-transient step")
+    reach = float(np.max(np.abs(dz)))
+    if reach > MAX_REACH:
+        dz *= MAX_REACH / reach
+    return dz * max_step
+
+
+def solve_transient(ctx, k, alpha0, ws, settings, warm=None) -> FrameSolution:
+    """Frame k's root by pseudo-transient continuation from alpha0 (n_fdk,) SI, the poses
+    from ``ws`` (FrameWorkspace, updated), the recruitment warm-started from ``warm``.
+    Converged when max |f^FDK| < settings.tolerance (N or N m), else the best iterate
+    after settings.max_iterations steps. The returned FrameSolution carries no Jacobian:
+    the next frame takes a fresh one, split into the contacts' part and the rest
+    (fdk/contact_step.py). (With this one carried on, Broyden-updated past the last step,
+    the split came later: DM's bench window took 5–6 evaluations in its frames 2–7
+    instead of 3–4.)"""
+    max_step = np.asarray(settings.max_step, dtype=float)
+    ev = ctx.evaluate(k, alpha0, ws, warm)
+    evaluations, n_jac, J = 1, 0, None
+
+    def done(sol_ev, converged, it, message, reason, workspace):
+        return FrameSolution(sol_ev, converged, it, evaluations, message, reason, workspace, None, n_jac)
+
+    if not ev.ok:
+        return done(ev, False, 0, ev.message, ev.stage or "failed", ws)
+    best, best_ws = ev, ws.copy()
+    merit = float(np.linalg.norm(work(ev.f_fdk, max_step)))
+    delta = FIRST_REACH / max(float(np.max(np.abs(work(ev.f_fdk, max_step)))), np.finfo(float).tiny)
+    fresh = False
+    for it in range(1, settings.max_iterations + 1):
+        if ev.norm < settings.tolerance:
+            return done(ev, True, it - 1, "", "converged", ws)
+        if not fresh:
+            J, n_ev, msg = _jacobian(ctx, k, ev, ws, settings)
+            evaluations += n_ev
+            n_jac += 1
+            if J is None:
+                return done(best, False, it, msg, "jacobian", best_ws)
+            if ev.dq_dalpha is not None and ctx.tracker is not None:
+                ws.alpha, ws.dq_dalpha = ev.alpha.copy(), ev.dq_dalpha  # poses predicted from here on
+            fresh = True
+        try:
+            step = transient_step(J, ev.f_fdk, delta, max_step)
+        except np.linalg.LinAlgError:
+            step = None
+        if step is None or float(work(ev.f_fdk, max_step) @ (step / max_step)) >= 0.0:
+            # (I/δ + J̃) singular or not positive along the step: δ beyond the stability of
+            # a mode whose stiffness is negative (module docstring), whose step then turns
+            # against the flow; a smaller δ, the same J
+            delta /= FAILED_SHRINK
+            continue
+        trial_ws = ws.copy()
+        trial = ctx.evaluate(k, ev.alpha + step, trial_ws, ev.frame.recruitment)
+        evaluations += 1
+        if not trial.ok:
+            delta /= FAILED_SHRINK  # the same J, a shorter step
+            continue
+        merit_new = float(np.linalg.norm(work(trial.f_fdk, max_step)))
+        delta = pseudo_time_step(delta, merit, merit_new)
+        ev, ws, merit, fresh = trial, trial_ws, merit_new, False
+        if ev.norm < best.norm:
+            best, best_ws = ev, ws.copy()
+    if best.norm < settings.tolerance:
+        return done(best, True, settings.max_iterations, "", "converged", best_ws)
+    return done(best, False, settings.max_iterations,
+                f"pseudo-transient continuation: iteration limit ({settings.max_iterations}) reached, "
+                f"max |f^FDK| = {best.norm:.4g}", "iteration_limit", best_ws)
+
+
+__all__ = ["solve_transient", "transient_step", "pseudo_time_step", "FIRST_REACH", "MAX_REACH", "MIN_GROWTH",
+           "MAX_GROWTH", "MIN_RATIO", "FAILED_SHRINK"]
