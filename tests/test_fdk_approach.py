@@ -72,8 +72,10 @@ def test_a_load_step_newton_cannot_follow_in_one_frame_converges_in_sub_steps():
     previous α, from the initial value and from every scan start (at most 4 mm nearer).
     Through SUBSTEPS − 1 intermediate frames (2 mm apart, the last two extrapolated
     exactly on the linear ramp) it converges; every frame equals the closed form
-    α* = (F − m g) / k, and frame 0.4 s counts the marched frames' evaluations. (Frame
-    0.5 s, extrapolated 8 mm past its root, is approached from 0.4 s likewise.)
+    α* = (F − m g) / k, and frame 0.4 s counts the marched frames' evaluations. (The
+    transient solver, tried first from α_{k−1}, cannot reach 8 mm in 3 steps of at most
+    1 mm. Frame 0.5 s, extrapolated 8 mm past its root, which is 0.4 s's, is solved by it
+    from 0.4 s.)
     Without the approach (and without the sweep back) the same frame fails."""
     model = _slider()
     times = np.arange(6) * DT
@@ -144,6 +146,9 @@ def test_the_marched_frames_are_solved_to_march_tolerance_and_the_frame_to_the_t
         return solve(ctx, k, alpha0, ws, settings, *args, **kwargs)
 
     monkeypatch.setattr(analysis, "solve_frame", recording)
+    # (the transient solver, tried first, solves frame 0.5 s from 0.4 s's α: the ramp
+    # has ended; made to fail here so that both frames are marched to)
+    monkeypatch.setattr(approach_module, "solve_transient", _transient_stand_in(False))
     model = _slider()
     times = np.arange(6) * DT
     res = run_fdk(model, None, times, max_iterations=3)
@@ -305,10 +310,16 @@ def test_a_first_frame_that_fails_after_every_lead_in_gets_one_whose_marched_fra
     total = sum(LEAD_IN_LENGTHS) + len(LEAD_IN_LENGTHS) * (SUBSTEPS - 1) + LAST_LEAD_IN_FRAMES
     assert sol.converged and (sol.iterations, sol.evaluations, sol.jacobians) == (10 * total, 100 * total, total)
     assert [j for j, _ in step.history] == list(range(-LAST_LEAD_IN_FRAMES, 0))
-    # a sub-step approach (frame k − 1 converged) gets no such last attempt
+    # a sub-step approach (frame k − 1 converged; the transient solver from its α failed
+    # first) gets no such last attempt
     tried.clear()
-    step = SimpleNamespace(ctx=SimpleNamespace(times=window), history=[(0, np.zeros(1))])
-    assert not approach(step, 1).converged and tried == [(SUBSTEPS - 1, False)]
+    monkeypatch.setattr(approach_module, "solve_transient", _transient_stand_in(False))
+    step = _first_frame_step(window)
+    step.history = [(0, np.zeros(1))]
+    sol = approach(step, 1)
+    assert not sol.converged and tried == [(SUBSTEPS - 1, False)]
+    assert (sol.iterations, sol.evaluations, sol.jacobians) == (3 + 10 * (SUBSTEPS - 1), 7 + 100 * (SUBSTEPS - 1),
+                                                                2 + SUBSTEPS - 1)
 
 
 def test_a_marched_frame_with_restarts_is_solved_again_and_never_scanned(monkeypatch):

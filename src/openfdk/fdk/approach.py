@@ -10,23 +10,28 @@ stalls. The window's first frame is worse: it starts from the DOFs' initial valu
 Continuation in time is the remedy: the same frame is reached through intermediate
 frames, each close to the one before.
 
-* **Sub-steps** — when frame k − 1 converged: :data:`SUBSTEPS` − 1 frames at
-  t_{k−1} + j (t_k − t_{k−1}) / SUBSTEPS, j = 1 … SUBSTEPS − 1, from frame k − 1's
-  solution.
+* **The transient solver, then sub-steps** — when frame k − 1 converged: pseudo-transient
+  continuation (:mod:`.transient`) from α_{k−1} with the ordinary iteration limit; when
+  that fails, :data:`SUBSTEPS` − 1 frames at t_{k−1} + j (t_k − t_{k−1}) / SUBSTEPS,
+  j = 1 … SUBSTEPS − 1, from frame k − 1's solution. On DM's six overground stances
+  (1 464 frames, every one converged either way) the frames whose warm starts failed
+  took the six 9 463 evaluations with sub-steps alone, 8 987 with the transient solver
+  after them, 8 048 with it before them (23 of 23 such solves converged, 19 evaluations
+  each on average).
 * **The transient start** — at the window's first frame (marker tracking), before any
-  other start: pseudo-transient continuation from the DOFs' initial values
-  (:mod:`.transient`), with the cold iteration limit. Newton's method from there stops
-  at stationary points of its merit that are not roots (the patella's nearly free tilt
-  and medio-lateral translation); the relaxation along −f^FDK passes them. When it
-  converges, no lead-in is marched; the next frame then has no velocity to extrapolate
-  (from α_0 alone DM og1 2.508 s starts at 720 N and Newton stalls near 70 N) and is
-  solved by the transient solver too, from α_0 with the ordinary limit, before its
-  sub-steps. Measured on DM's 15 cold starts (og1, og3, og4, og5 and og9 at three times
-  each, each from the initial values as given and moved by 1e-12 of themselves; the
-  first frame and the two after it, 90 frames): the first frames took 750 evaluations
-  (median 20) instead of 5 098 (median 92), all 90 frames 1 371 instead of 5 589, every
-  frame converged either way; frame 1 took 6–20 evaluations by the transient solver,
-  7–120 through sub-steps. When the transient start fails, the lead-ins follow.
+  other start: pseudo-transient continuation from the DOFs' initial values, with the
+  cold iteration limit. Newton's method from there stops at stationary points of its
+  merit that are not roots (the patella's nearly free tilt and medio-lateral
+  translation); the relaxation along −f^FDK passes them. When it converges, no lead-in
+  is marched. The next frame then has no velocity to extrapolate (from α_0 alone DM og1
+  2.508 s starts at 720 N and Newton stalls near 70 N) and goes to the transient solver
+  at once (:meth:`Approach.without_velocity`). Measured on DM's 15 cold starts (og1,
+  og3, og4, og5 and og9 at three times each, each from the initial values as given and
+  moved by 1e-12 of themselves; the first frame and the two after it, 90 frames): the
+  first frames took 750 evaluations (median 20) instead of 5 098 (median 92), all 90
+  frames 1 371 instead of 5 589, every frame converged either way; frame 1 took 6–20
+  evaluations by the transient solver, 7–120 through sub-steps. When the transient start
+  fails, the lead-ins follow.
 * **Lead-in** — at the window's first frame, when the transient start failed: up to
   :data:`LEAD_IN_FRAMES` frames before it at the trial's rate, from the DOFs' initial
   values, as far back as the markers and the measured loads have data (at the window's
@@ -212,10 +217,9 @@ class Approach:
         lengths = (LEAD_IN_FRAMES,) if previous else LEAD_IN_LENGTHS
         spent = np.zeros(3, dtype=int)  # the earlier, failed attempts' counts
         transient = None  # the transient start's failed solution
-        if previous and self.without_velocity(step, k):
-            # the frame after the transient start's: by the transient solver too, from
-            # frame k − 1's α (module docstring, "The transient start"); sub-steps when
-            # that fails
+        if previous:
+            # after a converged frame: by the transient solver from its α first (module
+            # docstring, "The transient start"), then through sub-steps
             sol = self._transient(step, k, history[-1][1], step.settings)
             if sol.converged:
                 return sol
