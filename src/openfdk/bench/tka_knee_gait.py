@@ -14,7 +14,8 @@ t = 0.10 s at 100 Hz, SYNTHETIC_FRAMES frames (``--quick``: SYNTHETIC_FRAMES_QUI
 
 Records (each with ``model``, ``frames``, ``converged_frames``, ``wall_time_s``, and
 ``first_frame_evaluations`` and ``later_evaluations_per_frame``: on DM the window's first
-frame, a cold start after its lead-in, is 141 of the 247 evaluations at stop 48):
+frame, a cold start after its lead-in, was 141 of the 247 evaluations at stop 48; by
+pseudo-transient continuation, 18 of 124 at stop 58):
 
 * ``tka_knee_gait_fdk_fps``: frames per second of :func:`openfdk.fdk.analysis.run_fdk`
   over the window, one BLAS thread (measured in a child process), after loading the
@@ -87,8 +88,8 @@ def records(which, result, wall):
               "mean_jacobians_per_frame": float(np.mean(result.jacobians)),
               "restarted_frames": int(np.count_nonzero(result.restarts)),
               "backward_frames": int(np.count_nonzero(result.backward)),
-              # where the evaluations go: the window's first frame (with its lead-in, a cold
-              # start) and the frames after it
+              # where the evaluations go: the window's first frame (a cold start: the
+              # transient start, or a lead-in when that fails) and the frames after it
               "first_frame_evaluations": int(result.evaluations[0]) if nf else 0,
               "later_evaluations_per_frame": float(np.mean(result.evaluations[1:])) if nf > 1 else 0.0,
               "failed": sorted(set(r for r, ok in zip(result.reasons, result.converged) if not ok))}
@@ -109,7 +110,7 @@ def measure(directory, quick=False):
     else:
         which, (model, settings, traj, times) = "synthetic", synthetic_inputs(directory, quick)
     # warm-up: the cached kernels loaded (compiled, on a machine's first run), on DM with
-    # the window's lead-in, so that the timed run measures the solver, not numba
+    # the window's cold start, so that the timed run measures the solver, not numba
     run_fdk(model, traj, times[:2], settings)
     t0 = time.perf_counter()
     result = run_fdk(model, traj, times, settings)
