@@ -80,8 +80,9 @@ def pseudo_time_step(delta, merit, merit_new):
 def transient_step(J, f, delta, max_step):
     """The linearised implicit Euler step Δα (n,) SI of dz/dτ = −f̃ (module docstring):
     (I / δ + J̃) Δz = −f̃ in the variables scaled by ``max_step`` (n,) m or rad, scaled
-    down to :data:`MAX_REACH` max_steps. J (n, n), f (n,) N or N m, δ > 0 in max_step² / J
-    (``inf``: Newton's step). Raises numpy.linalg.LinAlgError when singular."""
+    down to :data:`MAX_REACH` max_steps. J (n, n), f (n,) N or N m, δ > 0 in 1/J (z is
+    in max_steps, f̃ in J; ``inf``: Newton's step). Raises numpy.linalg.LinAlgError when
+    singular."""
     J_s = max_step[:, None] * J * max_step[None, :]
     A = J_s + (0.0 if np.isinf(delta) else 1.0 / delta) * np.eye(len(f))
     dz = np.linalg.solve(A, -work(f, max_step))
