@@ -118,7 +118,8 @@ def test_a_pose_that_cannot_be_evaluated_shortens_the_step_and_never_raises():
                            restart=False, max_iterations=30)
     sol = solve_transient(ctx, 0, np.array([0.0]), Workspace(), settings)
     assert not sol.converged and sol.reason == "iteration_limit" and "max |f^FDK|" in sol.message
-    assert sol.best.ok and 0.0 < sol.best.alpha[0] / L <= 1.2
+    assert sol.best.ok and sol.best.alpha[0] > 0.0  # it moved towards the root, up to the gap
+    assert sol.best.alpha[0] / L <= 1.2
     assert sol.best.norm == pytest.approx(F * (3.0 - sol.best.alpha[0] / L))
     assert any(1.2 < a[0] / L < 2.5 for a in ctx.alphas)  # the gap was met
     assert sol.evaluations == ctx.calls
