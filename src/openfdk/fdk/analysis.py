@@ -56,7 +56,7 @@ The loop is the trial driver's (:mod:`openfdk.trial`); :class:`FDKStep` is one f
 from __future__ import annotations
 
 import time as _time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -246,8 +246,7 @@ class FDKStep:
             a0 = self.a_init.copy()
         # a cold frame (no converged previous frame) starts far from its root: a larger
         # iteration limit for its first start (settings.cold_max_iterations)
-        cold = None if warm_frame else replace(settings, max_iterations=max(settings.max_iterations,
-                                                                            settings.cold_max_iterations))
+        cold = None if warm_frame else settings.cold()
         ws0 = ws.copy()
         # the window's first frame: by the transient start, else from the lead-in's warm
         # start when the trial has frames before it (fdk/approach.py), else cold from the

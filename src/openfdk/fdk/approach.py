@@ -227,9 +227,7 @@ class Approach:
         if not previous and self.trajectories is not None and ctx.tracker is not None:
             # first by pseudo-transient continuation from the initial values (module
             # docstring, "The transient start"); the lead-ins when that fails
-            cold = replace(step.settings, max_iterations=max(step.settings.max_iterations,
-                                                             step.settings.cold_max_iterations))
-            sol = self._transient(step, k, step.a_init, cold)
+            sol = self._transient(step, k, step.a_init, step.settings.cold())
             if sol.converged:
                 self.transient_frame = k
                 return sol
@@ -350,8 +348,7 @@ class Approach:
         # the cold iteration limit unless a sub-step march ended converged: a lead-in ends
         # at the window's first frame, typically a heel strike (DM og9 from 3.214 s
         # failed at the 25-iteration limit from the lead-in's extrapolation)
-        first = settings if warm_end and previous else replace(
-            settings, max_iterations=max(settings.max_iterations, settings.cold_max_iterations))
+        first = settings if warm_end and previous else settings.cold()
         sol = solve_frame(ctx, k, a0, ws, first, march.warm if warm_end else step.warm,
                           march.J_carry if warm_end else None, not warm_end)
         return replace(sol, iterations=sol.iterations + int(totals[0]), evaluations=sol.evaluations + int(totals[1]),

@@ -81,6 +81,12 @@ class FDKSettings:
         if not (self.tolerance > 0 and self.max_iterations >= 1 and self.cold_max_iterations >= 1):
             raise ModelError("fdk.tolerance must be > 0 and fdk.max_iterations, fdk.cold_max_iterations >= 1")
 
+    def cold(self) -> "FDKSettings":
+        """These settings for a frame that starts far from its root (a cold frame: no
+        converged frame just before it): the larger of max_iterations and
+        cold_max_iterations as the iteration limit."""
+        return replace(self, max_iterations=max(self.max_iterations, self.cold_max_iterations))
+
 
 def fdk_settings(model, settings=None, **overrides) -> FDKSettings:
     """FDK solver settings of a model analysed with ``settings`` (AnalysisSettings: the

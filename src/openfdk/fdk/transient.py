@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .newton import FrameSolution, _jacobian
+from .newton import FrameSolution, _jacobian, _merit
 from .trust_region import work
 
 #: the first step's reach along −f̃, in max_steps (δ₀ = FIRST_REACH / max |f̃|)
@@ -113,7 +113,7 @@ def solve_transient(ctx, k, alpha0, ws, settings, warm=None) -> FrameSolution:
     if not ev.ok:
         return done(ev, False, 0, ev.message, ev.stage or "failed", ws)
     best, best_ws = ev, ws.copy()
-    merit = float(np.linalg.norm(work(ev.f_fdk, max_step)))
+    merit = _merit(ev, max_step)
     delta = FIRST_REACH / max(float(np.max(np.abs(work(ev.f_fdk, max_step)))), np.finfo(float).tiny)
     fresh = False
     for it in range(1, settings.max_iterations + 1):
@@ -144,7 +144,7 @@ def solve_transient(ctx, k, alpha0, ws, settings, warm=None) -> FrameSolution:
         if not trial.ok:
             delta /= FAILED_SHRINK  # the same J, a shorter step
             continue
-        merit_new = float(np.linalg.norm(work(trial.f_fdk, max_step)))
+        merit_new = _merit(trial, max_step)
         delta = pseudo_time_step(delta, merit, merit_new)
         ev, ws, merit, fresh = trial, trial_ws, merit_new, False
         if ev.norm < best.norm:
