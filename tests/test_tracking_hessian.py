@@ -254,3 +254,56 @@ def test_chord_steps_with_a_nearby_factorization_reach_the_same_optimum():
     kkt_step(*kkt_inputs(before), K_start, np.zeros((n, n)), False, np.empty_like(LU), piv.copy(), perm, first.copy(),
              last.copy())
     assert np.abs(K_start - K_step).max() > 1e3 * np.abs(K_out - K_step).max()  # not the first step's K
+
+
+def test_a_solve_on_carried_factors_reaches_the_same_optimum_without_factorizing():
+    """kinematics.tracking.KKTFactors: the factors a position solve leaves serve the next
+    solve of a nearby pose (FDK's evaluations of one frame). From 0.1 mm off the chain's
+    fit of markers with 0.1 mm noise, a solve (to the default 1e-9 step) on the factors
+    of another such solve reaches the tight fit's pose to 1e-9 and its multipliers with
+    chord steps only: the factors are not touched. Factors of a pose 0.2 rad away stop
+    contracting; the solve then factorizes at its own pose and reaches the same optimum."""
+    from openfdk.kinematics.tracking import KKTFactors
+
+    rng = np.random.default_rng(11)
+    model, system, tracker, visible, start, _ = _noisy_fit(rng)
+    x = tracker.markers.positions(start) + rng.normal(0.0, 1e-4, (3 * N_SEG, 3))
+    settings = type(tracker.settings)(tol_step=1e-13, tol_constraint=1e-13, max_iter=200)
+    tight = MarkerTracker(system, settings)
+    fit = start.copy()
+    res, _, lam_fit = tight.solve_positions(fit, 0.0, x, visible)
+    assert res.converged
+    n, m = fit.n_coords, system.n_rows
+
+    def near_fit():
+        s = fit.copy()
+        s.displace(rng.normal(0.0, 1e-4, n))
+        return s
+
+    factors = KKTFactors(n + m)
+    assert not factors.held[0]
+    first = near_fit()
+    res, _, _ = tracker.solve_positions(first, 0.0, x, visible, factors=factors)
+    assert res.converged and factors.held[0]  # the first solve factorized
+    LU = factors.LU.copy()
+    state = near_fit()
+    res, K_out, lam = tracker.solve_positions(state, 0.0, x, visible, factors=factors)
+    assert res.converged and res.iterations >= 2
+    np.testing.assert_array_equal(factors.LU, LU)  # chord steps only
+    np.testing.assert_allclose(state.p_WB, fit.p_WB, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(state.R_WB, fit.R_WB, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(lam, lam_fit, rtol=0, atol=1e-6 * np.abs(lam_fit).max())
+    # the KKT matrix handed on (Eqs. 8–10) is the one at the solved pose, as without factors
+    K_plain = tracker.solve_positions(near_fit(), 0.0, x, visible)[1]
+    np.testing.assert_allclose(K_out, K_plain, rtol=0, atol=1e-7 * np.abs(K_plain).max())
+    # factors of a pose far away: the solve factorizes again and reaches the same optimum
+    far = fit.copy()
+    far.displace(rng.normal(0.0, 0.2, n))
+    far_factors = KKTFactors(n + m)
+    tracker.solve_positions(far.copy(), 0.0, tracker.markers.positions(far), visible, factors=far_factors)
+    LU_far = far_factors.LU.copy()
+    state = near_fit()
+    res, _, lam = tracker.solve_positions(state, 0.0, x, visible, factors=far_factors)
+    assert res.converged and not np.allclose(far_factors.LU, LU_far, rtol=1e-3, atol=0)
+    np.testing.assert_allclose(state.p_WB, fit.p_WB, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(lam, lam_fit, rtol=0, atol=1e-6 * np.abs(lam_fit).max())

@@ -214,6 +214,7 @@ class FDKStep:
         self.J_carry = None  # the last converged frame's FDK Jacobian (settings.reuse_jacobian)
         self.dq_dalpha = None  # its kinematic sensitivity dq̂/dα (FrameWorkspace.predict)
         self.last_failed = None  # (frame, best α) of the previous frame when it did not converge
+        self.solved = None  # (frame, FrameWorkspace) of the last frame's solution when it converged
         #: the failed frames since the last converged one, (frame, iterations, evaluations,
         #: Jacobians, restarts) each: a sweep back from the next converged frame solves them
         self.unswept = []
@@ -234,8 +235,7 @@ class FDKStep:
         t = ctx.times[k]
         warm_frame = bool(history) and history[-1][0] == k - 1
         # the previous frame's poses, at its α, moved along its dq̂/dα to the warm start
-        ws = FrameWorkspace({j: self.last_state for j in ctx.frames_needed(k)},
-                            history[-1][1] if warm_frame else None, self.dq_dalpha if warm_frame else None)
+        ws = self._workspace(k, warm_frame)
         failed = self.last_failed if self.last_failed is not None and self.last_failed[0] == k - 1 else None
         a0 = extrapolated(history, k, settings.max_step) if settings.extrapolate else None
         if a0 is None and (warm_frame or (history and failed is None)):
@@ -281,6 +281,7 @@ class FDKStep:
         sol = combined(first, later)
         self.J_carry = sol.jacobian if sol.converged else None
         self.dq_dalpha = sol.workspace.dq_dalpha if sol.converged and sol.workspace is not None else None
+        self.solved = (k, sol.workspace) if sol.converged and sol.workspace is not None else None
         ev = sol.best
         self.last_failed = None if sol.converged or not ev.ok else (k, ev.alpha.copy())
         values = self._values(sol)
@@ -331,6 +332,38 @@ class FDKStep:
             values.update(forces_failure(report, status))
         return values
 
+    def _workspace(self, k, warm_frame):
+        """The FrameWorkspace frame k's evaluations start from. After a converged frame
+        k − 1 (marker tracking): its workspace's poses at α_{k−1} of the frames both need
+        (t_{k−1}, and t_k, its neighbour), t_{k+1}'s carried on from t_k by the velocity
+        of frame k − 1's solution over Δt, each with the KKT factors of its last solve
+        (:class:`~openfdk.kinematics.tracking.KKTFactors`; t_{k+1} a copy of t_k's);
+        moved along dq̂/dα from α_{k−1} (:meth:`FrameWorkspace.predict`). Else every pose
+        starts from the last solution's (DM knee: the position solves of a warm frame's
+        first evaluation then take 7–8 Gauss–Newton steps at t_k and t_{k+1} instead of
+        2–3)."""
+        ctx = self.ctx
+        alpha, dq = (self.history[-1][1], self.dq_dalpha) if warm_frame else (None, None)
+        solved = self.solved if warm_frame and self.solved is not None and self.solved[0] == k - 1 else None
+        if solved is None or ctx.tracker is None:
+            return FrameWorkspace({j: self.last_state for j in ctx.frames_needed(k)}, alpha, dq)
+        prev = solved[1]
+        states, factors = {}, {}
+        for j in ctx.frames_needed(k):
+            if j in prev.states:
+                states[j] = prev.states[j]
+                if j in prev.factors:
+                    factors[j] = prev.factors[j]
+            elif j - 1 in prev.states:
+                state = prev.states[j - 1].copy()
+                state.displace((ctx.time_of(j) - ctx.time_of(j - 1)) * self.last_state.get_v())
+                states[j] = state
+                if j - 1 in prev.factors:
+                    factors[j] = prev.factors[j - 1].copy()
+            else:
+                states[j] = self.last_state
+        return FrameWorkspace(states, alpha, dq, factors)
+
     def _swept_back(self, k, sol):
         """[(j, values)] of the failed frames just before frame k, solved again backward
         from it: frame k − 1 warm-started from frame k's solution (its poses moved along
@@ -374,6 +407,7 @@ class FDKStep:
         self.ctx.tracking_curvature = sensitivity[1] if len(sensitivity) > 1 else None
         self.unswept = [tuple(int(x) for x in u) for u in sensitivity[2]] if len(sensitivity) > 2 else []
         self.last_state, self.history = last_state.copy(), list(history)
+        self.solved = None
 
 
 def fdk_context(model, trajectories, times, tracking=None, settings=None):

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..kinematics.determinate import solve_positions
 from ..kinematics.stages import marker_stage, velocity_stage_determinate, velocity_stage_tracking
-from ..kinematics.tracking import residual_rates, window_spacing
+from ..kinematics.tracking import KKTFactors, residual_rates, window_spacing
 from ..model.framedata import FrameData
 
 
@@ -64,12 +64,22 @@ class FrameWorkspace:
     solution instead of |α' − alpha| from it (DM knee: 6–7 Gauss–Newton iterations per
     pose without, from a warm pose a few µm off)."""
 
-    def __init__(self, states, alpha=None, dq_dalpha=None):
+    def __init__(self, states, alpha=None, dq_dalpha=None, factors=None):
         self.states = {j: s.copy() for j, s in states.items()}
         self.alpha, self.dq_dalpha = alpha, dq_dalpha
+        #: {frame: KKTFactors} of the position solves (tracking): each evaluation's solve of
+        #: a pose starts with chord steps on the factors its last solve left. Shared by
+        #: copies: any nearby pose's factors serve (the solves converge to the same optimum)
+        self.factors = dict(factors or {})
 
     def copy(self):
-        return FrameWorkspace(self.states, self.alpha, self.dq_dalpha)
+        return FrameWorkspace(self.states, self.alpha, self.dq_dalpha, self.factors)
+
+    def factors_of(self, j, size):
+        """The KKTFactors (size n + m) of frame j's position solves, made on first use."""
+        if j not in self.factors:
+            self.factors[j] = KKTFactors(size)
+        return self.factors[j]
 
     def predict(self, alpha):
         """Move the poses by dq̂/dα (α − self.alpha) when both are known; the poses are then
@@ -122,6 +132,7 @@ class FDKContext:
         self.fdk_columns = np.array([names.index(f"fdk.{d.name}") for d in model.fdk_dofs], dtype=int)
         self._rates_frame, self._rates_k = None, None  # _measured_rates of the frame in work
         self._hessian = None  # the tracking Hessian's pattern, groups, touched bodies, group arrays (fdk.jacobian)
+        self._kkt_size = self.system.n_coords + self.system.n_rows  # n + m of the tracking's KKT matrix
         #: (S (n, n), t s): the tracking Lagrangian Hessian's second-order terms at the last
         #: analytic Jacobian's pose and that frame's time (fdk.jacobian.kinematic_sensitivity),
         #: or None: the position solves within CURVATURE_REACH frames of t take Newton steps
@@ -181,7 +192,8 @@ class FDKContext:
             x, _, _, vis = self.meas[j]
             t_j = self.time_of(j)
             tol = None if j == k else NEIGHBOUR_TOLERANCE * self.tracker.settings.tol_step  # (Eq. 7 only)
-            res, K, lm = self.tracker.solve_positions(ws.states[j], t_j, x, vis, alpha, self._curvature_at(t_j), tol)
+            res, K, lm = self.tracker.solve_positions(ws.states[j], t_j, x, vis, alpha, self._curvature_at(t_j), tol,
+                                                      ws.factors_of(j, self._kkt_size))
             if res.converged:
                 if j == k:  # marker stage at the solved pose; δ from its positions
                     data.kkt, data.lam = K, lm

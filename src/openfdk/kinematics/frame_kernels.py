@@ -193,6 +193,7 @@ def _soft_rows(p_WB, R_WB, w_BB, v_WB, column, marker_body, p_BM, n, order,
 def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fparams, out_rows, n_node_rows,
                        p_WB, quat_WB, R_WB, w_BB, v_WB, column, moving, f, angle,
                        marker_body, p_BM, w, x, tol_step, tol_constraint, max_iter, K, lam, S, use_S, perm,
+                       LU, piv, first, last, held,
                        top, tnode_row, tnode_size, ti_start, tiparams, tf_start, tfparams, tout_rows, tn_node_rows):
     """Gauss–Newton SQP of marker tracking (Eqs. 4–5) from the state (in place).
 
@@ -210,6 +211,12 @@ def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fpara
     A chord step needs only the residual, so K is assembled only where the solve returns
     after one, at that step's pose, as a factorized step assembles it (DM knee: 4.6
     steps per pose, K's assembly 56 µs of each).
+    LU (n + m, n + m), piv, first, last (n + m,) int: the factors of the step matrix,
+    read and written; held (1,) bool: they hold an earlier solve's factors (read: the
+    first step is then a chord step with them, as if this solve had factorized them;
+    written: whether they hold factors on return). A solve of a pose near the one they
+    were factorized at (FDK's evaluations of one frame, :class:`~.tracking.KKTFactors`)
+    then factorizes only if a chord step stops contracting.
     Converged when max |Δq̂| < tol_step and max |Φ| ≤ tol_constraint at the start of that
     step. Returns (status, iterations, max |Φ|, last step, failing node, error code); a
     failing task node is reported as −2 − node."""
@@ -219,11 +226,7 @@ def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fpara
     A = np.empty((m, n))
     bias = np.empty(m)
     Phi = np.empty(m)
-    LU = np.empty((n + m, n + m))
-    piv = np.empty(n + m, np.int64)
-    first = np.empty(n + m, np.int64)
-    last = np.empty(n + m, np.int64)
-    factored = False  # LU holds an earlier step's matrix: chord steps (kkt_chord_step)
+    factored = held[0]  # LU holds an earlier step's matrix: chord steps (kkt_chord_step)
     stale = False  # the last step was a chord step: K is not assembled at its pose
     step = np.inf
     res = np.inf
@@ -255,8 +258,10 @@ def tracking_positions(op, node_row, node_size, i_start, iparams, f_start, fpara
                 for r in range(m):
                     lam[r] += sol[n + r]
         if not chord:
+            held[0] = False  # (until the factorization below has succeeded)
             sol, step, res = kkt_step(J, w, p, x, A, Phi, K, S, use_S, LU, piv, perm, first, last)
             factored = True
+            held[0] = True
             for r in range(m):
                 lam[r] = sol[n + r]
         stale = chord
