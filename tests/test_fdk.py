@@ -402,11 +402,17 @@ def test_the_window_s_first_frame_by_the_transient_start_is_the_cold_start_s_roo
     (fdk/transient.py), before any lead-in: no frame before the window is solved, every
     frame's α equals that of the same window solved cold by Newton's method to the force
     tolerance over the joint stiffness, and frame 1, which has no velocity to
-    extrapolate, is solved by the transient solver too."""
-    from openfdk.fdk import analysis, approach
+    extrapolate, is solved by the transient solver too. Its steps take a fresh Jacobian
+    first, then the contacts' part taken again at each step's pose (the jaw's two TMJ
+    contacts), a fresh one at least every FRESH_EVERY-th step."""
+    from openfdk.fdk import analysis, approach, transient as transient_module
 
     _, traj, t = _tmj_context(tmj_model, tmj_settings, n_frames=20)
     window = t[6:12]
+    jacobians = []  # "J": a fresh one, "r": the contacts' part taken again (None: a fresh one follows)
+    refreshed, fresh = transient_module.refreshed_split, transient_module._jacobian
+    monkeypatch.setattr(transient_module, "refreshed_split", lambda *a: jacobians.append("r") or refreshed(*a))
+    monkeypatch.setattr(transient_module, "_jacobian", lambda *a: jacobians.append("J") or fresh(*a))
     transient, times = approach.solve_transient, []
     monkeypatch.setattr(approach, "solve_transient", lambda ctx, k, *rest: times.append(("transient", ctx.times[k]))
                         or transient(ctx, k, *rest))
@@ -423,6 +429,9 @@ def test_the_window_s_first_frame_by_the_transient_start_is_the_cold_start_s_roo
     assert min(x for _, x in solved) == window[0]  # no lead-in, no sub-steps
     assert all(x > window[1] for _, x in solved[2:])
     assert led.restarts[0] == 0 and led.evaluations[0] >= 2
+    order = "".join(jacobians)
+    assert order.startswith("J") and order.count("r") >= 2, order
+    assert "r" * transient_module.FRESH_EVERY not in order, order
 
 
 def test_poses_moved_along_dq_dalpha_start_the_tracking_nearer_and_give_the_same_residual(tmj_model, tmj_settings):

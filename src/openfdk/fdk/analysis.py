@@ -64,7 +64,7 @@ from ..dynamics.inverse import InverseDynamics
 from ..dynamics.results import forces_failure, forces_fields, forces_result, forces_values
 from ..kinematics.analysis import KinematicsResult, kinematics_fields, kinematics_result
 from ..kinematics.system import ConstraintSystem
-from ..kinematics.tracking import MarkerTracker, TrackingSettings, window_spacing
+from ..kinematics.tracking import KKTFactors, MarkerTracker, TrackingSettings, window_spacing
 from ..trial import drive
 from ..trial.status import FrameReport, Reason, frame_messages
 from ..model.plausibility import warn_plausibility
@@ -398,7 +398,18 @@ class FDKStep:
 
     def carry(self):
         return (self.last_state.copy(), list(self.history), self.warm, self.J_carry, self.last_failed, self.dq_dalpha,
-                self.ctx.tracking_curvature, [tuple(u) for u in self.unswept])
+                self.ctx.tracking_curvature, [tuple(u) for u in self.unswept], self._solved_carry())
+
+    def _solved_carry(self):
+        """``self.solved`` as plain data for a checkpoint, or None: (frame, {j: BodyStates},
+        {j: (LU, piv, first, last, factors held, λ or None)}) — a resumed run starts its
+        next frame from the same poses and factors, and writes the same files."""
+        if self.solved is None:
+            return None
+        k, ws = self.solved
+        factors = {j: (f.LU.copy(), f.piv.copy(), f.first.copy(), f.last.copy(), bool(f.held[0]),
+                       None if f.lam is None else f.lam.copy()) for j, f in ws.factors.items()}
+        return (k, {j: state.copy() for j, state in ws.states.items()}, factors)
 
     def restore(self, carry):
         last_state, history, self.warm, self.J_carry, self.last_failed, *sensitivity = carry
@@ -407,7 +418,19 @@ class FDKStep:
         self.ctx.tracking_curvature = sensitivity[1] if len(sensitivity) > 1 else None
         self.unswept = [tuple(int(x) for x in u) for u in sensitivity[2]] if len(sensitivity) > 2 else []
         self.last_state, self.history = last_state.copy(), list(history)
-        self.solved = None
+        self.solved = _solved_from(sensitivity[3]) if len(sensitivity) > 3 and sensitivity[3] is not None else None
+
+
+def _solved_from(saved):
+    """(frame, FrameWorkspace) from :meth:`FDKStep._solved_carry`'s data."""
+    k, states, factors = saved
+    held = {}
+    for j, (LU, piv, first, last, is_held, lam) in factors.items():
+        f = KKTFactors(LU.shape[0])
+        f.LU[:], f.piv[:], f.first[:], f.last[:], f.held[0] = LU, piv, first, last, is_held
+        f.lam = None if lam is None else np.array(lam, dtype=float)
+        held[int(j)] = f
+    return int(k), FrameWorkspace({int(j): state for j, state in states.items()}, factors=held)
 
 
 def fdk_context(model, trajectories, times, tracking=None, settings=None):
