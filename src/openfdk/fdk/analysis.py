@@ -339,9 +339,8 @@ class FDKStep:
         of frame k − 1's solution over Δt, each with the KKT factors of its last solve
         (:class:`~openfdk.kinematics.tracking.KKTFactors`; t_{k+1} a copy of t_k's);
         moved along dq̂/dα from α_{k−1} (:meth:`FrameWorkspace.predict`). Else every pose
-        starts from the last solution's (DM knee: the position solves of a warm frame's
-        first evaluation then take 7–8 Gauss–Newton steps at t_k and t_{k+1} instead of
-        2–3)."""
+        starts from the last solution's (the DM knee's first evaluation of a warm frame
+        took 7–8 Gauss–Newton steps at t_k and t_{k+1} so, a frame's motion away)."""
         ctx = self.ctx
         alpha, dq = (self.history[-1][1], self.dq_dalpha) if warm_frame else (None, None)
         solved = self.solved if warm_frame and self.solved is not None and self.solved[0] == k - 1 else None
@@ -407,9 +406,7 @@ class FDKStep:
         if self.solved is None:
             return None
         k, ws = self.solved
-        factors = {j: (f.LU.copy(), f.piv.copy(), f.first.copy(), f.last.copy(), bool(f.held[0]),
-                       None if f.lam is None else f.lam.copy()) for j, f in ws.factors.items()}
-        return (k, {j: state.copy() for j, state in ws.states.items()}, factors)
+        return (k, {j: state.copy() for j, state in ws.states.items()}, {j: f.saved() for j, f in ws.factors.items()})
 
     def restore(self, carry):
         last_state, history, self.warm, self.J_carry, self.last_failed, *sensitivity = carry
@@ -424,13 +421,8 @@ class FDKStep:
 def _solved_from(saved):
     """(frame, FrameWorkspace) from :meth:`FDKStep._solved_carry`'s data."""
     k, states, factors = saved
-    held = {}
-    for j, (LU, piv, first, last, is_held, lam) in factors.items():
-        f = KKTFactors(LU.shape[0])
-        f.LU[:], f.piv[:], f.first[:], f.last[:], f.held[0] = LU, piv, first, last, is_held
-        f.lam = None if lam is None else np.array(lam, dtype=float)
-        held[int(j)] = f
-    return int(k), FrameWorkspace({int(j): state for j, state in states.items()}, factors=held)
+    return int(k), FrameWorkspace({int(j): state for j, state in states.items()},
+                                  factors={int(j): KKTFactors.from_saved(f) for j, f in factors.items()})
 
 
 def fdk_context(model, trajectories, times, tracking=None, settings=None):

@@ -71,11 +71,20 @@ class KKTFactors:
         self.held = np.zeros(1, dtype=np.bool_)  # LU holds factors
 
     def copy(self):
-        out = KKTFactors(self.LU.shape[0])
-        if self.held[0]:
-            out.LU[:], out.piv[:], out.first[:], out.last[:] = self.LU, self.piv, self.first, self.last
-            out.held[0] = True
-            out.lam = None if self.lam is None else self.lam.copy()
+        return KKTFactors.from_saved(self.saved())
+
+    def saved(self):
+        """(LU, piv, first, last, held: bool, λ or None), copies: plain data (a checkpoint's)."""
+        return (self.LU.copy(), self.piv.copy(), self.first.copy(), self.last.copy(), bool(self.held[0]),
+                None if self.lam is None else self.lam.copy())
+
+    @staticmethod
+    def from_saved(saved):
+        """The KKTFactors of :meth:`saved`'s data."""
+        LU, piv, first, last, held, lam = saved
+        out = KKTFactors(LU.shape[0])
+        out.LU[:], out.piv[:], out.first[:], out.last[:], out.held[0] = LU, piv, first, last, held
+        out.lam = None if lam is None else np.array(lam, dtype=float)
         return out
 
 
