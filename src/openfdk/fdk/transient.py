@@ -49,7 +49,7 @@ along U are taken again at the step's pose (``refreshed_split``, as a warm frame
 step takes them): J = J_s − R K_c U. The contacts are what bends f^FDK from step to
 step; J_s changes less. On DM such a J costs 4 ms against 17 ms for a fresh one. Over
 DM's 15 cold starts drawn twice (stop 59, three frames each): 1 406 evaluations and 567
-Jacobians against 1 340 and 1 204 with a fresh J at every step, 24 % less CPU time; the
+Jacobians against 1 340 and 1 204 with a fresh J at every step, 15 % less CPU time; the
 first frames 790 evaluations against 744. With Broyden's update of the whole J between
 fresh ones instead (stop 58) the first frames took 962 evaluations against 750.
 """
