@@ -675,3 +675,27 @@ def test_an_evaluation_where_the_kinematics_are_undefined_fails_and_names_why(tm
     assert ok.ok and np.all(np.isfinite(ok.f_fdk)) and np.abs(ok.f_fdk).max() > 0
     assert not bad.ok and bad.stage == "kinematics" and np.all(np.isnan(bad.f_fdk)) and bad.norm == np.inf
     assert bad.message == "kinematics failed: angles 'pf_r.angles' (xyz): gimbal lock, the middle angle is -90.0 deg"
+
+
+def test_a_checkpoint_s_carried_factors_of_another_model_are_refused(tmj_model, tmj_settings):
+    """FDKStep.carry holds the last solved frame's poses and KKT factors (a resumed run
+    then writes the uninterrupted run's files, tests/test_trial_driver.py). Restored from
+    a checkpoint (untrusted), factors sized for another model are a ValueError, which the
+    resume reports as a checkpoint that does not fit the run."""
+    from openfdk.fdk.analysis import FDKStep, fdk_context
+    from openfdk.fdk.settings import fdk_settings
+    from openfdk.kinematics.tracking import KKTFactors
+
+    _, traj, t = _tmj_context(tmj_model, tmj_settings, n_frames=20)
+    ctx = fdk_context(tmj_model, traj, t[6:9], settings=tmj_settings)
+    step = FDKStep(tmj_model, ctx, fdk_settings(tmj_model, tmj_settings), approach=None)
+    size = ctx.system.n_coords + ctx.system.n_rows
+    carry = step.carry()
+    assert carry[-1] is None  # nothing solved yet
+    state = tmj_model.initial_state()
+    fits = KKTFactors(size).saved()
+    step.restore(carry[:-1] + ((0, {0: state}, {0: fits}),))
+    assert step.solved[0] == 0 and step.solved[1].factors[0].LU.shape == (size, size)
+    other = KKTFactors(size + 6).saved()
+    with pytest.raises(ValueError, match="another size"):
+        step.restore(carry[:-1] + ((0, {0: state}, {0: other}),))

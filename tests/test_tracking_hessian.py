@@ -307,3 +307,34 @@ def test_a_solve_on_carried_factors_reaches_the_same_optimum_without_factorizing
     assert res.converged and not np.allclose(far_factors.LU, LU_far, rtol=1e-3, atol=0)
     np.testing.assert_allclose(state.p_WB, fit.p_WB, rtol=0, atol=1e-9)
     np.testing.assert_allclose(lam, lam_fit, rtol=0, atol=1e-6 * np.abs(lam_fit).max())
+
+
+def test_saved_factors_round_trip_and_a_checkpoint_s_are_checked_before_use():
+    """KKTFactors.saved / from_saved: a checkpoint carries the factors as plain arrays
+    and gets the same factors back; from an untrusted checkpoint, factors of another size,
+    pivots or envelope ends outside the matrix (the compiled solves do not check bounds)
+    or multipliers of another length are a ValueError (the resume refuses the
+    checkpoint), not an out-of-bounds read."""
+    import pytest
+
+    from openfdk.kinematics.tracking import KKTFactors
+
+    rng = np.random.default_rng(3)
+    model, system, tracker, visible, start, x = _noisy_fit(rng)
+    n, m = start.n_coords, system.n_rows
+    factors = KKTFactors(n + m)
+    assert tracker.solve_positions(start.copy(), 0.0, x, visible, factors=factors)[0].converged
+    back = KKTFactors.from_saved(factors.saved(), n + m, m)
+    for a, b in ((back.LU, factors.LU), (back.piv, factors.piv), (back.first, factors.first),
+                 (back.last, factors.last), (back.lam, factors.lam), (back.held, factors.held)):
+        np.testing.assert_array_equal(a, b)
+    LU, piv, first, last, held, lam = factors.saved()
+    bad = [((LU[:-1, :-1], piv, first, last, held, lam), "another size"),
+           ((LU, piv[:-1], first, last, held, lam), "another size"),
+           ((LU, np.where(np.arange(n + m) == 3, n + m, piv), first, last, held, lam), "outside 0"),
+           ((LU, piv, first - 1, last, held, lam), "outside 0"),
+           ((LU, piv, first, last.astype(float), held, lam), "outside 0"),
+           ((LU, piv, first, last, held, lam[:-1]), "multipliers")]
+    for saved, message in bad:
+        with pytest.raises(ValueError, match=message):
+            KKTFactors.from_saved(saved, n + m, m)

@@ -415,14 +415,18 @@ class FDKStep:
         self.ctx.tracking_curvature = sensitivity[1] if len(sensitivity) > 1 else None
         self.unswept = [tuple(int(x) for x in u) for u in sensitivity[2]] if len(sensitivity) > 2 else []
         self.last_state, self.history = last_state.copy(), list(history)
-        self.solved = _solved_from(sensitivity[3]) if len(sensitivity) > 3 and sensitivity[3] is not None else None
+        saved = sensitivity[3] if len(sensitivity) > 3 else None
+        self.solved = None if saved is None else _solved_from(saved, self.ctx.system)
 
 
-def _solved_from(saved):
-    """(frame, FrameWorkspace) from :meth:`FDKStep._solved_carry`'s data."""
+def _solved_from(saved, system):
+    """(frame, FrameWorkspace) from :meth:`FDKStep._solved_carry`'s data (a checkpoint's:
+    the factors checked against the tracking's KKT size n + m of ``system``, ValueError)."""
     k, states, factors = saved
+    size = system.n_coords + system.n_rows
     return int(k), FrameWorkspace({int(j): state for j, state in states.items()},
-                                  factors={int(j): KKTFactors.from_saved(f) for j, f in factors.items()})
+                                  factors={int(j): KKTFactors.from_saved(f, size, system.n_rows)
+                                           for j, f in factors.items()})
 
 
 def fdk_context(model, trajectories, times, tracking=None, settings=None):

@@ -63,10 +63,10 @@ class KKTFactors:
     solve (DM knee, 255 × 255: 0.24 ms, a chord step 0.06 ms). size : n + m."""
 
     def __init__(self, size):
-        self.LU = np.empty((size, size))
-        self.piv = np.empty(size, np.int64)
-        self.first = np.empty(size, np.int64)
-        self.last = np.empty(size, np.int64)
+        self.LU = np.empty((size, size))  # (read only once held)
+        self.piv = np.zeros(size, np.int64)
+        self.first = np.zeros(size, np.int64)
+        self.last = np.zeros(size, np.int64)
         self.lam = None  # (m,) the last solve's multipliers
         self.held = np.zeros(1, dtype=np.bool_)  # LU holds factors
 
@@ -79,11 +79,23 @@ class KKTFactors:
                 None if self.lam is None else self.lam.copy())
 
     @staticmethod
-    def from_saved(saved):
-        """The KKTFactors of :meth:`saved`'s data."""
+    def from_saved(saved, size=None, m=None):
+        """The KKTFactors of :meth:`saved`'s data. With ``size`` (n + m) and ``m`` (a
+        checkpoint's, untrusted): ValueError unless LU is (size, size), the index arrays
+        (size,) with every entry in [0, size) (the compiled solves do not check bounds)
+        and λ (m,) or None."""
         LU, piv, first, last, held, lam = saved
-        out = KKTFactors(LU.shape[0])
-        out.LU[:], out.piv[:], out.first[:], out.last[:], out.held[0] = LU, piv, first, last, held
+        if size is not None:
+            arrays = (np.asarray(piv), np.asarray(first), np.asarray(last))
+            if np.shape(LU) != (size, size) or any(a.shape != (size,) for a in arrays):
+                raise ValueError(f"KKT factors of another size than {size}")
+            if any(not np.issubdtype(a.dtype, np.integer) or a.min(initial=0) < 0 or a.max(initial=0) >= size
+                   for a in arrays):
+                raise ValueError(f"KKT factors' pivots or envelope outside 0 … {size - 1}")
+            if lam is not None and np.shape(lam) != (m,):
+                raise ValueError(f"KKT multipliers of another size than {m}")
+        out = KKTFactors(np.shape(LU)[0])
+        out.LU[:], out.piv[:], out.first[:], out.last[:], out.held[0] = LU, piv, first, last, bool(held)
         out.lam = None if lam is None else np.array(lam, dtype=float)
         return out
 
