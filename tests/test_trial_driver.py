@@ -352,3 +352,27 @@ def test_an_interrupt_inside_a_compiled_kernel_keeps_the_finished_frames():
     assert info.value.partial == 3 and info.value.frames_planned == 6
     with pytest.raises(SystemError):
         drive(_Step(_kernel_error(ValueError("bad"))), 6, lambda rec: rec.frames_done)
+
+
+def test_a_checkpoint_s_poses_of_another_model_s_structure_do_not_fit():
+    """A BodyStates in a checkpoint's solver state (untrusted) fits the step's only with the
+    same bodies and q̂ columns: those are the model's structure, and the compiled
+    kernels index the pose arrays with them. Poses of the same shape with other columns
+    (a crafted part) are refused, as any state of another structure; a copy of the
+    step's own fits, also where the fresh state holds None."""
+    from openfdk.model.builder import ModelBuilder
+    from openfdk.trial.driver import _examples, _fits
+
+    b = ModelBuilder("two")
+    for name in ("a", "b"):
+        b.add_body(name, 1.0, [1e-2, 1e-2, 1e-2])
+    state = b.build().initial_state()
+    template = (state, None)
+    examples = _examples(template)
+    assert _fits((state.copy(), None), template, examples)
+    assert _fits((state.copy(), {0: state.copy()}), template, examples)  # where the fresh state holds None
+    crafted = state.copy()
+    crafted.column = crafted.column[::-1] + 1000  # same shape and dtype, other columns
+    assert crafted.column.shape == state.column.shape and crafted.column.dtype == state.column.dtype
+    assert not _fits((crafted, None), template, examples)
+    assert not _fits((state.copy(), {0: crafted}), template, examples)

@@ -24,6 +24,7 @@ import threading
 
 import numpy as np
 
+from ..model.state import BodyStates
 from .status import NOT_RUN, FrameReport
 
 REPORT = "report"  # conventional name of the FrameReport field of a step
@@ -163,8 +164,9 @@ def _plain(value, examples, depth=0):
 def _fits(value, template, examples):
     """Whether a value read from a checkpoint has the structure of ``template``, the
     step's own warm-start state: the same types, arrays of the same dtype and shape,
-    tuples of the same length, the same fields for openfdk's classes; where the template
-    holds None (state not yet set) or an empty container, plain data (:func:`_plain`)."""
+    tuples of the same length, the same fields for openfdk's classes (a BodyStates also
+    the same bodies and columns: the model's structure); where the template holds None
+    (state not yet set) or an empty container, plain data (:func:`_plain`)."""
     if template is None:
         return _plain(value, examples)
     if isinstance(template, np.ndarray):
@@ -179,6 +181,10 @@ def _fits(value, template, examples):
     if isinstance(template, dict):
         first = next(iter(template.values()), None)
         return all(_fits(v, first, examples) if template else _plain(v, examples) for v in value.values())
+    if isinstance(template, BodyStates) and not (
+            np.array_equal(value.column, template.column) and np.array_equal(value.moving, template.moving)
+            and value.n_coords == template.n_coords):
+        return False  # the model's structure, not state: which q̂ columns the compiled kernels index
     return all(_fits(getattr(value, a, None), getattr(template, a, None), examples) for a in _attributes(template))
 
 
