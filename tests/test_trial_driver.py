@@ -376,3 +376,53 @@ def test_a_checkpoint_s_poses_of_another_model_s_structure_do_not_fit():
     assert crafted.column.shape == state.column.shape and crafted.column.dtype == state.column.dtype
     assert not _fits((crafted, None), template, examples)
     assert not _fits((state.copy(), {0: crafted}), template, examples)
+
+
+@pytest.mark.parametrize("what", ["pivot", "envelope", "multipliers"])
+def test_a_resumed_fdk_run_refuses_crafted_kkt_factors(files, tmp_path, capsys, what):
+    """An FDK run's checkpoint carries the last solved frame's KKT factors. A part whose
+    pivots or envelope ends point outside the matrix, or whose multipliers have another
+    length, rehashed as an attacker would, is refused on --resume in one line, before
+    any compiled solve reads it (the solves do not check bounds)."""
+    import hashlib
+    import io
+
+    from cli_helpers import error_line, run_cli
+    from openfdk.analysis.jobs import run_job
+    from openfdk.cli.commands import _run_checkpoints, build_parser
+
+    out = tmp_path / "out"
+    argv = [files / "tmj.yaml", files / "trial.c3d", "--out", out, "--no-progress", "--no-plots", "--end", "0.07",
+            "--checkpoint-frames", "4"]
+    ck = _run_checkpoints(build_parser().parse_args(["run", *map(str, argv)]))
+    run_job(files / "tmj.yaml", files / "trial.c3d", progress=False, end=0.07, checkpoints=ck, rim_check=False)
+    part = sorted((out / ".checkpoint").glob("part-*.npz"))[-1]  # (the last part's state is resumed)
+    with np.load(part, allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    model, _ = load_model_and_settings(files / "tmj.yaml")
+    n = model.initial_state().n_coords
+    size = max(a.shape[0] for a in arrays.values() if a.ndim == 2 and a.shape[0] == a.shape[1])  # the KKT's n + m
+    index = [k for k, a in arrays.items() if a.dtype == np.int64 and a.shape == (size,)]
+    # (arrays are stored in the order encoded, the carried factors last: LU, pivots,
+    # envelope starts, ends and λ of each pose)
+    lam = sorted((k for k, a in arrays.items() if k.startswith("a") and a.dtype == float and a.shape == (size - n,)),
+                 key=lambda k: int(k[1:]))[-1:]
+    assert size > n and len(index) >= 3 and lam  # (each pose's pivots, envelope starts and ends, λ)
+    if what == "pivot":
+        arrays[index[0]] = arrays[index[0]] + 10 ** 6
+    elif what == "envelope":
+        arrays[index[-1]] = arrays[index[-1]] - 10 ** 6
+    else:
+        arrays[lam[0]] = np.append(arrays[lam[0]], 1.0)
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    data = buf.getvalue()
+    part.write_bytes(data)
+    side = part.with_suffix(".json")
+    doc = json.loads(side.read_text())
+    doc["sha256"] = hashlib.sha256(data).hexdigest()
+    side.write_text(json.dumps(doc))
+    code, _, err = run_cli(capsys, "run", *argv, "--resume")
+    assert code == 2
+    line = error_line(err)
+    assert ".checkpoint: the checkpoint does not fit this run (ValueError: KKT" in line, line
