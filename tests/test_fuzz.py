@@ -313,6 +313,17 @@ def test_a_genuine_checkpoint_still_resumes(bases):
     assert len(kin.time) == 6 and kin.converged.all()
 
 
+def test_a_genuine_fdk_checkpoint_still_resumes(bases):
+    """So do the FDK run's parts (their solver state carries the last solved frame's poses
+    and KKT factors): the resumed run's frames all converge, FDK's included."""
+    from openfdk.bench.fuzz_kinds import load, restore
+
+    restore("checkpoint_fdk", bases)  # (the base parts, whatever a fuzz test left)
+    kin, dyn, info = load("checkpoint_fdk", bases.paths["checkpoint_fdk"])
+    assert len(kin.time) == 6 and kin.converged.all() and dyn.converged.all()
+    assert info["fdk"]["converged_frames"] == 6
+
+
 def _osim_folder(bases, tmp_path):
     import shutil
 

@@ -23,7 +23,8 @@ names the file):
   file, applied to that model (``--ik-tasks``) -> ``ModelError`` as well;
 - ``external_loads``, ``grf_mot``, ``sto``, ``force_plates``, ``results``, ``checkpoint``
   and ``study_lock`` (issue 30), ``validation_map`` and ``validation_reference`` (``openfdk
-  validate-kinematics``): their bases, mutators and loaders are in
+  validate-kinematics``), ``checkpoint_fdk`` (an FDK run's parts, with its carried KKT
+  factors): their bases, mutators and loaders are in
   :mod:`openfdk.bench.fuzz_kinds`.
 
 Mutations of YAML files act on the parsed tree (a value replaced by one of another type

@@ -30,6 +30,11 @@ Kinds:
   (:func:`openfdk.analysis.jobs.run_job`); JSON mutations of a sidecar, of the structure inside a
   part or of its arrays, byte mutations of a part (with the sidecar's SHA-256 rewritten,
   as an attacker would, or not) -> ``CheckpointError``;
+- ``checkpoint_fdk``: the same for the checkpoint parts of a small FDK run (the
+  synthetic TMJ jaw with its meshes), whose solver state carries the last solved frame's
+  poses and KKT factors; the arrays' mutations also keep an array's shape and type and
+  move one entry to an edge value (an index past the matrix, a negative one, NaN)
+  -> ``CheckpointError``;
 - ``study_lock``: a ``.study.lock`` written by the study runner (held by this process;
   for 30 % of the inputs first made stale: the pid of a finished process), JSON and text
   mutations -> ``StudyError`` (or the stale lock taken over);
@@ -50,8 +55,12 @@ import sys
 
 import numpy as np
 
-NEW_KINDS = ("external_loads", "grf_mot", "sto", "force_plates", "results", "checkpoint", "study_lock",
-             "validation_map", "validation_reference")
+NEW_KINDS = ("external_loads", "grf_mot", "sto", "force_plates", "results", "checkpoint", "checkpoint_fdk",
+             "study_lock", "validation_map", "validation_reference")
+#: the kinds whose inputs are checkpoint parts, resumed
+CHECKPOINT_KINDS = ("checkpoint", "checkpoint_fdk")
+#: the FDK run's model file (in its run folder)
+FDK_MODEL = "tmj.yaml"
 #: the validation kinds' gait cycle (s) and toe-off (s), and their map file
 VALIDATION_CYCLE, VALIDATION_TOE_OFF = (1.0, 2.0), 1.6
 VALIDATION_MAP_TEXT = """knee_sup_r: {coordinate: knee_ty_r, unit: m, label: superior translation}
@@ -195,6 +204,34 @@ def _write_run(run_dir, model_text):
     _acquire_lock(run_dir / "lock")
 
 
+def _write_fdk_run(run_dir):
+    """A small FDK run's checkpoint parts in ``run_dir/ckpt`` (a part every 2 frames,
+    frames 0 … END_S at 100 Hz): the synthetic TMJ jaw (:data:`FDK_MODEL` and its meshes)
+    and a marker trial (trial.c3d)."""
+    import yaml
+
+    from ..analysis.jobs import run_job
+    from ..fixtures.synthetic_jaw import jaw_fdk_model_dict, jaw_markers, write_jaw_meshes
+    from ..io.c3d import write_c3d
+    from ..trial.checkpoint import CHECKPOINT_DIR, Checkpoints
+
+    run_dir.mkdir()
+    write_jaw_meshes(run_dir / "meshes")
+    (run_dir / FDK_MODEL).write_text(yaml.safe_dump(jaw_fdk_model_dict("meshes"), sort_keys=False))
+    _, labels, x, _ = jaw_markers(20, noise=1e-4, seed=3)
+    write_c3d(run_dir / "trial.c3d", labels, x, 100.0)
+    ckpt = Checkpoints(run_dir / "ckpt" / CHECKPOINT_DIR, FINGERPRINT, every_frames=2)
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        run_job(run_dir / FDK_MODEL, run_dir / "trial.c3d", progress=False, end=END_S, checkpoints=ckpt)
+
+
+def _checkpoint_base(bases, kind, folder):
+    """Register the checkpoint parts in ``folder`` as the base files of ``kind``."""
+    parts = sorted(folder.glob("part-*.npz"))
+    bases.paths[kind] = parts[0]
+    bases.originals[kind] = {p: p.read_bytes() for part in parts for p in (part, part.with_suffix(".json"))}
+
+
 def _write_validation_inputs(d):
     """A run folder ``d/kvrun`` as ``openfdk run`` writes it (kinematics.csv, forces.csv,
     coordinates.csv, measures.csv; one frame failed) and the validation map and
@@ -250,13 +287,14 @@ def build(bases, kinds):
         bases.paths["results"] = res / "summary.json"
         bases.originals["results"] = {p: p.read_bytes() for p in
                                       (res / "summary.json", res / "kinematics.csv", res / "forces.csv")}
-        parts = sorted((run / "ckpt" / ".checkpoint").glob("part-*.npz"))
-        bases.paths["checkpoint"] = parts[0]
-        bases.originals["checkpoint"] = {p: p.read_bytes() for part in parts for p in (part, part.with_suffix(".json"))}
+        _checkpoint_base(bases, "checkpoint", run / "ckpt" / ".checkpoint")
         bases.paths["study_lock"] = run / "lock" / ".study.lock"
         child = subprocess.Popen([sys.executable, "-c", ""])
         child.wait()
         bases.dead_pid = child.pid  # the lock of a study killed on this host (stale, taken over)
+    if "checkpoint_fdk" in kinds:
+        _write_fdk_run(d / "fdkrun")
+        _checkpoint_base(bases, "checkpoint_fdk", d / "fdkrun" / "ckpt" / ".checkpoint")
     if {"validation_map", "validation_reference"} & set(kinds):
         bases.paths["validation_map"], bases.paths["validation_reference"] = _write_validation_inputs(d)
     for kind in kinds:
@@ -392,12 +430,23 @@ def _mutate_part(data, rng):
     replaced by an array of another shape or type."""
     with np.load(io.BytesIO(data), allow_pickle=False) as npz:
         arrays = {k: npz[k] for k in npz.files}
-    if rng.random() < 0.7 or len(arrays) < 2:
+    op = rng.random()
+    names = sorted(k for k in arrays if k != "structure" and arrays[k].size > 0)
+    if op < 0.55 or not names:
         text = mutate_json(arrays["structure"].tobytes().decode("utf-8"), rng)
         arrays["structure"] = np.frombuffer(text.encode("utf-8"), dtype=np.uint8)
-    else:
-        names = sorted(k for k in arrays if k != "structure")
+    elif op < 0.8:
         arrays[names[int(rng.integers(len(names)))]] = _EDGE_ARRAYS[int(rng.integers(len(_EDGE_ARRAYS)))]
+    else:
+        # the same shape and type, one entry at an edge value: an index past any matrix
+        # or a negative one (pivots, envelope ends, body columns), NaN
+        name = names[int(rng.integers(len(names)))]
+        a = arrays[name].copy()
+        if np.issubdtype(a.dtype, np.integer):
+            a.flat[int(rng.integers(a.size))] = (10 ** 6, -1, -10 ** 6)[int(rng.integers(3))]
+        elif np.issubdtype(a.dtype, np.floating):
+            a.flat[int(rng.integers(a.size))] = (np.nan, np.inf, -1e300)[int(rng.integers(3))]
+        arrays[name] = a
     return _savez(arrays)
 
 
@@ -440,7 +489,7 @@ def mutate(kind, bases, rng):
         target.write_text(mutate_json(text, rng) if target.suffix == ".json" else _mutate_csv(text, rng),
                           encoding="utf-8")
         return RESULT_READERS[int(rng.integers(len(RESULT_READERS)))]
-    elif kind == "checkpoint":
+    elif kind in CHECKPOINT_KINDS:
         parts = sorted(p for p in originals if p.suffix == ".npz")
         part = parts[int(rng.integers(len(parts)))]
         op = rng.random()
@@ -466,7 +515,7 @@ def mutate(kind, bases, rng):
 def restore(kind, bases):
     """Write the base files of ``kind`` back (and remove the parts a resumed run added)."""
     originals = bases.originals[kind]
-    if kind == "checkpoint":
+    if kind in CHECKPOINT_KINDS:
         for p in bases.paths[kind].parent.iterdir():
             if p not in originals:
                 p.unlink()
@@ -494,7 +543,7 @@ def documented_error(kind):
         from ..io.c3d import C3DError
 
         return C3DError
-    if kind == "checkpoint":
+    if kind in CHECKPOINT_KINDS:
         from ..trial.checkpoint import CheckpointError
 
         return CheckpointError
@@ -556,14 +605,14 @@ def load(kind, path, reader=None):
         return read_force_plates(path)
     if kind == "results":
         return _results_readers(path.parent, RESULT_READERS if reader is None else (reader,))
-    if kind == "checkpoint":
+    if kind in CHECKPOINT_KINDS:
         from ..analysis.jobs import run_job
         from ..trial.checkpoint import Checkpoints
 
         run = path.parent.parent.parent
         ckpt = Checkpoints(path.parent, FINGERPRINT)
-        return run_job(run / "model.yaml", run / "trial.c3d", progress=False, end=END_S, checkpoints=ckpt,
-                       resume=True)
+        return run_job(run / ("model.yaml" if kind == "checkpoint" else FDK_MODEL), run / "trial.c3d", progress=False,
+                       end=END_S, checkpoints=ckpt, resume=True)
     if kind == "study_lock":
         from ..study.runner import _acquire_lock
 
