@@ -284,6 +284,10 @@ def resumable(bases, tmp_path):
 
 @pytest.mark.parametrize("records, carry, next_frame, expected", [
     ([(0, {"kin.q": np.zeros(3)})], None, 1, "frame 0: 'kin.q' is not an array (14,)"),
+    ([(0, {"kin.q": np.r_[0, 0, 0, 1e300, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0]})], None, 1,
+     "frame 0: 'kin.q': the quaternion of moving body 0 cannot be normalised"),
+    ([(0, {"kin.q": np.r_[np.nan, 0, 0, 1, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0]})], None, 1,
+     "frame 0: 'kin.q': entries that are not finite in a pose"),
     ([(99, {})], None, 1, "frame 99 of 6"),
     ([(0, {"kin.report": 5.0})], None, 1, "frame 0: 'kin.report' is a float"),
     ([(0, {1.5: 1.0})], None, 1, "frame 0: a value named 1.5"),
@@ -294,7 +298,9 @@ def test_a_checkpoint_that_does_not_fit_the_run_is_refused_on_resume(resumable, 
                                                                       expected):
     """Found by the fuzz suite: parts with this run's fingerprint and a matching hash but
     frames, values or a solver state that do not fit the run raised ValueError,
-    AttributeError, ZeroDivisionError or numba's TypingError on --resume."""
+    AttributeError, ZeroDivisionError or numba's TypingError on --resume (a finished
+    frame's pose whose quaternion cannot be normalised: ValueError in the contacts'
+    plausibility check after the run, found by stop 59's edge-value mutations)."""
     from cli_helpers import error_line, run_cli
 
     argv, ck = resumable

@@ -17,6 +17,25 @@ from ..numerics.spatial import rotation_matrix
 from .kernels import displace_poses, get_poses, get_velocities, set_poses, set_velocities
 
 
+def pose_error(q):
+    """'' or why the positions q (7 n_moving,) [r_1, p_1, …] (m, -) are not a pose that
+    :meth:`BodyStates.set_q` can set: not 7 entries per body, entries partly NaN or not
+    finite, or a quaternion whose norm is zero or overflows, as in ``set_q``'s kernel
+    (all NaN: a frame without a pose, which readers skip). For values read back from a
+    file (a checkpoint's frames)."""
+    q = np.asarray(q, dtype=float).ravel()
+    if q.size % 7:
+        return f"{q.size} entries, not 7 per moving body"
+    if np.isnan(q).all():
+        return ""
+    if not np.isfinite(q).all():
+        return "entries that are not finite in a pose"
+    with np.errstate(over="ignore"):
+        norm = np.sqrt((q.reshape(-1, 7)[:, 3:] ** 2).sum(axis=1))
+    bad = np.flatnonzero(~np.isfinite(norm) | (norm == 0.0))
+    return f"the quaternion of moving body {bad[0]} cannot be normalised" if len(bad) else ""
+
+
 class BodyStates:
     """Mutable workspace: poses and velocities of every body. See module docstring."""
 

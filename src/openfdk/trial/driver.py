@@ -24,7 +24,7 @@ import threading
 
 import numpy as np
 
-from ..model.state import BodyStates
+from ..model.state import BodyStates, pose_error
 from .status import NOT_RUN, FrameReport
 
 REPORT = "report"  # conventional name of the FrameReport field of a step
@@ -216,6 +216,8 @@ def _restore_saved(saved, rec, step, folder):
                     or (shape is not None and np.shape(value) != tuple(shape)) \
                     or not np.issubdtype(np.asarray(value).dtype, np.number):
                 raise refuse(f"frame {j}: {str(name)[:60]!r} is not {'a number' if not shape else f'an array {shape}'}")
+            elif name == "kin.q" and pose_error(value):
+                raise refuse(f"frame {j}: 'kin.q': {pose_error(value)}")
     template = step.carry()
     if not _fits(saved.carry, template, _examples(template)):
         raise refuse("the solver state has another structure")
