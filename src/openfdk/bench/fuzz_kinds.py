@@ -443,7 +443,9 @@ def _mutate_part(data, rng):
         name = names[int(rng.integers(len(names)))]
         a = arrays[name].copy()
         if np.issubdtype(a.dtype, np.integer):
-            a.flat[int(rng.integers(a.size))] = (10 ** 6, -1, -10 ** 6)[int(rng.integers(3))]
+            info = np.iinfo(a.dtype)  # (each edge within the dtype: 10⁶, −1, −10⁶ or its limits)
+            a.flat[int(rng.integers(a.size))] = (min(10 ** 6, info.max), max(-1, info.min),
+                                                 max(-10 ** 6, info.min))[int(rng.integers(3))]
         elif np.issubdtype(a.dtype, np.floating):
             a.flat[int(rng.integers(a.size))] = (np.nan, np.inf, -1e300)[int(rng.integers(3))]
         arrays[name] = a

@@ -71,7 +71,7 @@ class KKTFactors:
         self.held = np.zeros(1, dtype=np.bool_)  # LU holds factors
 
     def copy(self):
-        return KKTFactors.from_saved(self.saved())
+        return KKTFactors.from_saved((self.LU, self.piv, self.first, self.last, self.held[0], self.lam))  # (copies)
 
     def saved(self):
         """(LU, piv, first, last, held: bool, λ or None), copies: plain data (a checkpoint's)."""
