@@ -164,35 +164,55 @@ def _geodesic_accel(x0, x1, x2, v0, v1, v2, A0, A1, A2):
     return -lam * n0, -lam * n1, -lam * n2
 
 
+#: the Dormand–Prince 5(4) pair's fifth-order solution (Dormand & Prince, J. Comput.
+#: Appl. Math. 6, 1980; Hairer, Nørsett & Wanner, *Solving ODEs I*, §II.5, Table 5.2):
+#: stage coefficients a_ij (row i: stage i's increments) and weights b_i; the embedded
+#: fourth-order one is not used (the step count is fixed, so that a finite difference of
+#: a shot differences one discretisation)
+DP_A = np.array([
+    [0.0, 0.0, 0.0, 0.0, 0.0],
+    [1.0 / 5.0, 0.0, 0.0, 0.0, 0.0],
+    [3.0 / 40.0, 9.0 / 40.0, 0.0, 0.0, 0.0],
+    [44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0, 0.0, 0.0],
+    [19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0, -212.0 / 729.0, 0.0],
+    [9017.0 / 3168.0, -355.0 / 33.0, 46732.0 / 5247.0, 49.0 / 176.0, -5103.0 / 18656.0],
+])
+DP_B = np.array([35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0])
+
+
 @njit(cache=True)
 def shoot_geodesic(x0, v0, A, s, n_steps):
     """Integrate the geodesic from x0 (3,) with unit direction v0 (3,) over arc length s
-    (m) by classical RK4 in ``n_steps`` steps. A (3,) = (1/a², 1/b², 1/c²). Returns
-    (x(s), x'(s))."""
+    (m) in ``n_steps`` equal steps of the Dormand–Prince fifth-order Runge–Kutta method
+    (six stages; :data:`DP_A`, :data:`DP_B`). A (3,) = (1/a², 1/b², 1/c²). Returns
+    (x(s), x'(s)).
+
+    On the DM knee's ligament ellipsoids a quarter of the classical RK4's steps errs
+    less than RK4 did (e.g. 7.5e-15 against 4.2e-14 m over 1.2 smallest semi-axes,
+    7.7e-12 against 4.8e-11 m over 3.6): 1.5 instead of 4 evaluations of the geodesic
+    equation per step of RK4's (tests/test_wrapping.py)."""
     h = s / n_steps
     A0, A1, A2 = A[0], A[1], A[2]
-    x_0, x_1, x_2 = x0[0], x0[1], x0[2]
-    v_0, v_1, v_2 = v0[0], v0[1], v0[2]
+    y = np.empty(6)
+    y[0], y[1], y[2] = x0[0], x0[1], x0[2]
+    y[3], y[4], y[5] = v0[0], v0[1], v0[2]
+    k = np.empty((6, 6))  # stage i's rates (x', v')
+    z = np.empty(6)
     for _ in range(n_steps):
-        a0, a1, a2 = _geodesic_accel(x_0, x_1, x_2, v_0, v_1, v_2, A0, A1, A2)  # k1: (v, a)
-        hh = 0.5 * h
-        b0, b1, b2 = _geodesic_accel(x_0 + hh * v_0, x_1 + hh * v_1, x_2 + hh * v_2,
-                                     v_0 + hh * a0, v_1 + hh * a1, v_2 + hh * a2, A0, A1, A2)
-        w0, w1, w2 = v_0 + hh * a0, v_1 + hh * a1, v_2 + hh * a2  # k2's x-rate
-        c0, c1, c2 = _geodesic_accel(x_0 + hh * w0, x_1 + hh * w1, x_2 + hh * w2,
-                                     v_0 + hh * b0, v_1 + hh * b1, v_2 + hh * b2, A0, A1, A2)
-        y0, y1, y2 = v_0 + hh * b0, v_1 + hh * b1, v_2 + hh * b2  # k3's x-rate
-        d0, d1, d2 = _geodesic_accel(x_0 + h * y0, x_1 + h * y1, x_2 + h * y2,
-                                     v_0 + h * c0, v_1 + h * c1, v_2 + h * c2, A0, A1, A2)
-        z0, z1, z2 = v_0 + h * c0, v_1 + h * c1, v_2 + h * c2  # k4's x-rate
-        h6 = h / 6.0
-        x_0 += h6 * (v_0 + 2.0 * w0 + 2.0 * y0 + z0)
-        x_1 += h6 * (v_1 + 2.0 * w1 + 2.0 * y1 + z1)
-        x_2 += h6 * (v_2 + 2.0 * w2 + 2.0 * y2 + z2)
-        v_0 += h6 * (a0 + 2.0 * b0 + 2.0 * c0 + d0)
-        v_1 += h6 * (a1 + 2.0 * b1 + 2.0 * c1 + d1)
-        v_2 += h6 * (a2 + 2.0 * b2 + 2.0 * c2 + d2)
-    return np.array([x_0, x_1, x_2]), np.array([v_0, v_1, v_2])
+        for i in range(6):
+            for c in range(6):
+                acc = y[c]
+                for j in range(i):
+                    acc += h * DP_A[i, j] * k[j, c]
+                z[c] = acc
+            k[i, 0], k[i, 1], k[i, 2] = z[3], z[4], z[5]
+            k[i, 3], k[i, 4], k[i, 5] = _geodesic_accel(z[0], z[1], z[2], z[3], z[4], z[5], A0, A1, A2)
+        for c in range(6):
+            acc = 0.0
+            for i in range(6):
+                acc += DP_B[i] * k[i, c]
+            y[c] += h * acc
+    return y[:3].copy(), y[3:].copy()
 
 
 @njit(cache=True)
@@ -390,7 +410,7 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
             starts[n_starts, 1] = s_f
             n_starts += 1
             theta = max(theta, theta_f)
-    n_steps = 48 + int(300.0 * theta / np.pi)
+    n_steps = 12 + int(75.0 * theta / np.pi)  # (a quarter of RK4's 48 + 300 θ/π: shoot_geodesic)
     converged = False
     for k in range(n_starts):
         phi, s = starts[k, 0], starts[k, 1]
