@@ -32,7 +32,7 @@ path instead of one solve of every tensed path per direction
 (:meth:`.pathset.PathSet.geometric_stiffness_along`; the DM knee's 65 tensed ligament
 strands over ellipsoids and cylinders, ten directions). A geodesic over an ellipsoid
 takes its four moves from its own solve by the implicit function theorem on the
-shooting residual (:func:`~.wrap_kernels.ellipsoid_tangent_moves`: 6 RK4 shots instead
+shooting residual (:func:`~.wrap_kernels.ellipsoid_tangent_moves`: 6 shots instead
 of four Newton solves of 3–4 each); the cylinder, the sphere and OpenSim's planar rule
 are solved again for each move.
 """

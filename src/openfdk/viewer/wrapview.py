@@ -14,7 +14,7 @@ with straight segments between points/tangent points and each arc sampled at
 * cylinder: the helix about z_S from T1 to T2, angle and height linear in the parameter;
 * sphere:   the great circle about n = (T1 − o) × d, d the incoming segment direction;
 * ellipsoid: the geodesic ODE shot from T1 along d projected on the tangent plane, over
-  the arc length of the kernel's single-surface solution (RK4, see
+  the arc length of the kernel's single-surface solution (Dormand–Prince, see
   :func:`openfdk.forces.wrap_kernels.shoot_geodesic`).
 
 The direction of turn comes from the incoming segment (the path is tangent at T1), so
@@ -34,7 +34,7 @@ from ..model.state import BodyStates
 
 #: points per arc (T1 and T2 included)
 ARC_POINTS = 16
-#: RK4 steps per arc sample of an ellipsoid geodesic
+#: integrator steps per arc sample of an ellipsoid geodesic
 GEODESIC_SUBSTEPS = 8
 
 
