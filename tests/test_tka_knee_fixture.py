@@ -304,6 +304,21 @@ def test_the_bench_records_say_where_the_evaluations_go():
     assert out["tka_knee_gait_fdk_evaluations_per_frame"]["value"] == (175 + 4 + 5 + 3) / 4
 
 
+def test_the_bench_times_repeated_runs_each_on_its_own():
+    """median_timed calls the run ``repeats`` times and times each call alone: with a clock
+    that reads 0, 3, 10, 11, 20, 22 the walls are 3, 1 and 2 s (median 2), and every
+    run's result is kept in order; at least one run even when asked for none."""
+    from openfdk.bench.tka_knee_gait import median_timed
+
+    ticks = iter([0.0, 3.0, 10.0, 11.0, 20.0, 22.0])
+    calls = []
+    results, walls = median_timed(lambda: calls.append(len(calls)) or len(calls), 3, clock=lambda: next(ticks))
+    assert walls == [3.0, 1.0, 2.0] and np.median(walls) == 2.0
+    assert results == [1, 2, 3] and calls == [0, 1, 2]
+    ticks = iter([5.0, 5.5])
+    assert median_timed(lambda: "once", 0, clock=lambda: next(ticks)) == (["once"], [0.5])
+
+
 @pytest.mark.skipif(not (DM_DIR and (Path(DM_DIR) / "DM_ngait_og1_grf.sto").is_file()),
                     reason="the DM files are not part of openfdk: set OPENFDK_DM_DIR (docs/tutorial-knee-gait.md)")
 def test_dm_overground_ground_reactions_are_raw_and_the_filter_makes_them_smooth():
