@@ -190,8 +190,8 @@ def shoot_geodesic(x0, v0, A, s, n_steps):
     In a quarter of the steps that classical RK4 took until stop 60, it errs less on the
     DM knee's ligament ellipsoids (7.5e-15 against RK4's 4.2e-14 m over 1.2 smallest
     semi-axes of the medial collateral one, 7.7e-12 against 4.8e-11 m over 3.6 of the
-    lateral patellofemoral one) at 1.5 instead of 4 evaluations of the geodesic equation per RK4
-    step (tests/test_wrapping.py)."""
+    lateral patellofemoral one), at 1.5 instead of 4 evaluations of the geodesic
+    equation per RK4 step (tests/test_wrapping.py)."""
     h = s / n_steps
     A0, A1, A2 = A[0], A[1], A[2]
     y = np.empty(6)
@@ -318,8 +318,8 @@ def ellipsoid_wrap(P, Q, axes, side, tol):
 
 #: a node's row of the path kernel's ``warm``: a geodesic's warm start of
 #: :func:`ellipsoid_wrap_from` [T1 (3,) m in S and arc length s m of the last solve, the
-#: the step count and the anchors P, Q (3,) m in S of the last cold solve, the shooting
-#: residual's derivatives D (4,), the last solve's shots] in its first 16, or an
+#: integrator's step count and the anchors P, Q (3,) m in S of the last cold solve, the
+#: shooting residual's derivatives D (4,), the last solve's shots] in its first 16, or an
 #: OpenSim-rule ellipsoid's last core and gradient model
 #: (:data:`~openfdk.forces.wrap_ellipsoid_plane.PLANE_ROW`)
 WARM_SIZE = max(16, PLANE_ROW)
