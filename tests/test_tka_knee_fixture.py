@@ -305,22 +305,22 @@ def test_the_bench_records_say_where_the_evaluations_go():
 
 
 def test_the_bench_times_repeated_runs_each_on_its_own():
-    """median_timed calls the run ``repeats`` times and times each call alone, between the
+    """timed_runs calls the run ``repeats`` times and times each call alone, between the
     clock's readings before and after it: with readings 0, 3, 10, 11, 20, 22 the walls are
     3, 1 and 2 s (median 2, not the 22 s from first to last reading), and every run's
     result is kept in order; at least one run even when asked for none."""
-    from openfdk.bench.tka_knee_gait import median_timed
+    from openfdk.bench.timing import timed_runs
 
     readings = [0.0, 3.0, 10.0, 11.0, 20.0, 22.0]
     ticks = iter(readings)
     calls = []
-    results, walls = median_timed(lambda: calls.append(len(calls)) or len(calls), 3, clock=lambda: next(ticks))
+    results, walls = timed_runs(lambda: calls.append(len(calls)) or len(calls), 3, clock=lambda: next(ticks))
     assert walls == [b - a for a, b in zip(readings[0::2], readings[1::2])]
     assert np.median(walls) < readings[-1] - readings[0]
     assert results == [1, 2, 3]
     assert calls == [0, 1, 2]
     ticks = iter([5.0, 5.5])
-    results, walls = median_timed(lambda: "once", 0, clock=lambda: next(ticks))
+    results, walls = timed_runs(lambda: "once", 0, clock=lambda: next(ticks))
     assert results == ["once"]
     assert walls == [0.5]
 

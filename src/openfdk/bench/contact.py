@@ -22,9 +22,10 @@ at the OpenSim import's grid spacing 0.5 mm and the default 3 mm band):
 
 from __future__ import annotations
 
-import time
 
 import numpy as np
+
+from openfdk.bench.timing import timed_runs
 
 from openfdk.contact import (
     DEFAULT_GRID_SPACING,
@@ -39,12 +40,8 @@ PRESSURE_MODULUS = 10e9  # N/m³ (paper)
 
 
 def _median_time(fun, repeats):
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fun()
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times))
+    """Median wall time (s) of ``repeats`` calls of ``fun``."""
+    return float(np.median(timed_runs(fun, repeats)[1]))
 
 
 def tmj_like_pair():

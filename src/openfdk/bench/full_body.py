@@ -119,13 +119,10 @@ def time_import(path, repeats):
     """Median wall time (s) of ``load_model_and_settings(path)`` after one warm-up load."""
     from ..io.modelfile import load_model_and_settings
 
+    from .timing import timed_runs
+
     load_model_and_settings(path)
-    samples = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        load_model_and_settings(path)
-        samples.append(time.perf_counter() - t0)
-    return statistics.median(samples)
+    return statistics.median(timed_runs(lambda: load_model_and_settings(path), repeats)[1])
 
 
 class OpenfdkTracking:

@@ -35,7 +35,6 @@ import json
 import os
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -107,6 +106,7 @@ def records(which, result, wall):
 def measure(directory, quick=False):
     """The records, measured in this process (one BLAS thread: see :func:`run`)."""
     from ..fdk.analysis import run_fdk
+    from .timing import timed_runs
 
     overlay = dm_overlay()
     if overlay is not None:
@@ -116,26 +116,15 @@ def measure(directory, quick=False):
     # warm-up: the cached kernels loaded (compiled, on a machine's first run), on DM with
     # the window's cold start, so that the timed run measures the solver, not numba
     run_fdk(model, traj, times[:2], settings)
-    results, walls = median_timed(lambda: run_fdk(model, traj, times, settings), 1 if quick else REPEATS)
+    # the records' counts from the first run (the runs solve the same window: their counts
+    # agree, repeat_evaluations shows it), the frame rate from the median wall time
+    results, walls = timed_runs(lambda: run_fdk(model, traj, times, settings), 1 if quick else REPEATS)
     out = records(which, results[0], float(np.median(walls)))
     for r in out:
         r["window_s"] = [float(times[0]), float(times[-1])]
         r["wall_times_s"] = walls
         r["repeat_evaluations"] = [int(np.sum(res.evaluations)) for res in results]
     return out
-
-
-def median_timed(fn, repeats, clock=time.perf_counter):
-    """([fn()'s result per run], [wall time (s) per run]) of ``repeats`` ≥ 1 calls of
-    ``fn``, each timed by ``clock`` (s). The bench's records take their counts from the
-    first run and the median of the wall times (the runs solve the same window: their
-    counts agree, ``repeat_evaluations`` shows it)."""
-    results, walls = [], []
-    for _ in range(max(int(repeats), 1)):
-        t0 = clock()
-        results.append(fn())
-        walls.append(float(clock() - t0))
-    return results, walls
 
 
 def run(quick=False):
