@@ -122,6 +122,18 @@ def test_run_warns_once_naming_contact_file_frames_and_time():
                     "(file floor.stl) on 2 of 5 frames (first at t=0.020 s); forces there are truncated "
                     f"(no load past an open mesh's rim, up to {100 * share:.0f} % of the patch's load cut off): "
                     "extend the mesh beyond the contact region"]
+    # `openfdk run` computes the hits in a figure worker and reports them here
+    # (cli.commands._rim_check): the same warnings from the hits passed between processes
+    import pickle
+
+    from openfdk.cli.commands import _rim_check
+
+    side = _rim_check(model, kin)
+    side.take(pickle.loads(pickle.dumps(side.compute())))
+    with warnings.catch_warnings(record=True) as again:
+        warnings.simplefilter("always")
+        side.finish()
+    assert [str(w.message) for w in again if issubclass(w.category, MeshWarning)] == msgs
 
 
 def test_closed_meshes_never_warn():

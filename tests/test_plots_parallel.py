@@ -136,54 +136,107 @@ def test_the_workers_setting(monkeypatch):
 
 
 @pytest.mark.parametrize("plots", [True, False])
-def test_run_checks_the_contact_rims_once_here_with_or_without_figures(run_inputs, tmp_path, monkeypatch, plots):
+def test_run_checks_the_contact_rims_once_in_a_figure_worker_or_here(run_inputs, tmp_path, monkeypatch, plots):
+    """`openfdk run` computes its rim check beside the figures (in a worker when there are
+    workers, here with --no-plots) and reports it here once, after the results were written."""
     import openfdk.contact.rim as rim
 
-    calls = []
+    reported = []
 
-    def check(model, kin):  # the run's rim check, deferred by `openfdk run` to the figures' time
-        calls.append((os.getpid(), np.asarray(kin.q).shape, len(kin.time), (tmp_path / "out" / "forces.csv").is_file()))
+    def check(model, q):  # the rim check's computation: what it saw comes back as its result
+        return [(os.getpid(), np.asarray(q).shape, (tmp_path / "out" / "forces.csv").is_file())]
 
-    monkeypatch.setattr(rim, "warn_contact_rims", check)
+    monkeypatch.setattr(rim, "contact_rim_frames", check)
+    monkeypatch.setattr(rim, "report_contact_rims", lambda hits, time: reported.append((os.getpid(), hits, len(time))))
+    monkeypatch.setenv("OPENFDK_PLOT_WORKERS", "2")
     model, trial = run_inputs
     args = ["run", str(model), str(trial), "--out", str(tmp_path / "out"), "--no-progress", "--max-failed", "1",
             "-q"] + ([] if plots else ["--no-plots"])
     assert main(args) == 0
-    assert len(calls) == 1
-    pid, q_shape, n_time, written = calls[0]
-    assert pid == os.getpid() and q_shape == (20, 14) and n_time == 20  # two moving bodies
-    assert written  # after the results were written, while (or instead of) the figures
+    assert len(reported) == 1
+    pid, hits, n_time = reported[0]
+    assert pid == os.getpid() and n_time == 20
+    (computed_in, q_shape, written), = hits
+    assert q_shape == (20, 14) and written  # two moving bodies' poses, after the results were written
+    in_worker = plots and "fork" in multiprocessing.get_all_start_methods()
+    assert (computed_in != os.getpid()) == in_worker
     assert (tmp_path / "out" / "plots" / "kinematics.png").is_file() == plots
 
 
-def test_after_run_makes_the_alongside_call_once_and_keeps_its_error_its_own(run_dir, tmp_path, monkeypatch, capsys):
+def _side(log, fail=False, weight=1.0):
+    """A SideJob that returns the pid it ran in and logs its report here."""
+    from openfdk.plots.parallel import SideJob
+
+    def compute():
+        if fail:
+            raise RuntimeError("rim check failed")
+        return os.getpid()
+
+    return SideJob(compute, log.append, weight)
+
+
+def test_after_run_finishes_the_side_job_once_and_keeps_its_error_its_own(run_dir, tmp_path, monkeypatch, capsys):
     import shutil
     from types import SimpleNamespace
 
     from openfdk.cli.outputs import after_run
 
+    monkeypatch.setenv("OPENFDK_PLOT_WORKERS", "2")
     out = tmp_path / "res"
     shutil.copytree(run_dir, out)
     args = SimpleNamespace(out=str(out), model=None, quiet=True, no_plots=False)
-    calls = []
-    after_run(args, alongside=lambda: calls.append(1))
-    assert calls == [1] and (out / "plots" / "convergence.png").is_file()
+    log = []
+    side = _side(log)
+    after_run(args, side=side)
+    assert len(log) == 1 and (out / "plots" / "convergence.png").is_file()
+    if "fork" in multiprocessing.get_all_start_methods():
+        assert log[0] != os.getpid()  # computed by a figure worker, reported here
+    side.finish()
+    assert len(log) == 1  # once
 
-    # the figures fail before any worker starts (a planted link): the call is still made once
+    # the figures fail before any worker starts (a planted link): the job is computed here
     (out / "plots" / "convergence.png").unlink()
     (out / "plots" / "convergence.png").symlink_to(tmp_path / "elsewhere.png")
-    after_run(args, alongside=lambda: calls.append(2))
-    assert calls == [1, 2]
+    after_run(args, side=_side(log))
+    assert log[1:] == [os.getpid()]
     assert "figures not written" in capsys.readouterr().err
     (out / "plots" / "convergence.png").unlink()
 
-    # an error of the call itself is raised as its own, not reported as the figures'
-    def broken():
-        raise RuntimeError("rim check failed")
-
+    # an error of the job itself (in its worker, then again here) is raised as its own,
+    # after the figures, which are written
     with pytest.raises(RuntimeError, match="rim check failed"):
-        after_run(args, alongside=broken)
+        after_run(args, side=_side(log, fail=True))
     assert "figures not written" not in capsys.readouterr().err
+    assert (out / "plots" / "convergence.png").is_file()
+
+
+@needs_fork
+def test_a_side_job_heavier_than_the_figures_gets_a_worker_to_itself(run_dir, tmp_path, monkeypatch):
+    """The side job is one more share of the LPT split (balanced_shares), weighed with the
+    figures: heavier than all of them together, it is computed in a worker that draws no
+    figure, and the other worker draws them all."""
+    import openfdk.plots.parallel as parallel
+
+    pids = tmp_path / "pids"
+    pids.mkdir()
+    original = parallel.save_figures
+
+    def recorded(figures, directory):
+        for name in figures:
+            (pids / name).write_text(str(os.getpid()))
+        return original(figures, directory)
+
+    monkeypatch.setattr(parallel, "save_figures", recorded)
+    results = read_results(run_dir)
+    total = sum(w for _, _, w in plots_run.figure_plan(results))
+    log = []
+    side = _side(log, weight=2.0 * total)
+    paths = write_figures(results, tmp_path / "plots", workers=2, side=side)
+    assert log == []  # write_figures does not report it
+    side.finish()
+    drawn_in = {int(f.read_text()) for f in pids.iterdir()}
+    assert len(paths) >= 3 and len(list(pids.iterdir())) == len(paths)
+    assert len(drawn_in) == 1 and log[0] not in drawn_in | {os.getpid()}
 
 
 @needs_fork

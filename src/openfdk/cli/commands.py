@@ -290,14 +290,18 @@ def _write_generalized_forces(out_dir, model_path, dyn, model=None):
 
 
 def _rim_check(model, kin):
-    """The run's contact-rim check (:func:`~openfdk.contact.rim.warn_contact_rims`) as a
-    call for later, holding only the poses and times of ``kin``."""
-    from types import SimpleNamespace
+    """The run's contact-rim check (:func:`~openfdk.contact.rim.contact_rim_frames`, its
+    warnings by :func:`~openfdk.contact.rim.report_contact_rims`) as a
+    :class:`~openfdk.plots.parallel.SideJob` drawn with the figures, holding only the
+    poses and times of ``kin``; None without frames."""
+    from ..contact import rim
+    from ..plots.parallel import SideJob
 
-    from ..contact.rim import warn_contact_rims
-
-    poses = SimpleNamespace(q=kin.q, time=kin.time)
-    return lambda: warn_contact_rims(model, poses)
+    if kin is None or len(kin.time) == 0:
+        return None
+    q, time = kin.q, kin.time
+    return SideJob(lambda: rim.contact_rim_frames(model, q), lambda hits: rim.report_contact_rims(hits, time),
+                   rim.WEIGHT_PER_FRAME * len(time) * len(getattr(model, "contacts", ())))
 
 
 def _cmd_run(args):
@@ -368,7 +372,7 @@ def _cmd_run(args):
     # the contact rims are checked while the figures are drawn (chunked runs checked theirs)
     rim_check = None if args.chunks > 1 else _rim_check(model, kin)
     del kin, dyn, info  # written: the figures read them back, so the arrays need not stay
-    after_run(args, model=model, alongside=rim_check)
+    after_run(args, model=model, side=rim_check)
     _print_failed(args, failed[0])
     return failed_frames_exit(*failed[1:], args.max_failed)
 

@@ -110,13 +110,14 @@ def record_model_file(out_dir, model_path):
     write_json(path, summary)
 
 
-def after_run(args, plots=True, model=None, alongside=None):
+def after_run(args, plots=True, model=None, side=None):
     """After ``openfdk run``/``kinematics`` wrote its CSV files: record the model file,
     write the ``.sto`` twins and (unless ``--no-plots``) the figures (``model``: the
     run's Model, already loaded). A figure that cannot be drawn is reported on stderr;
-    the run's results stay. ``alongside``: a call (no arguments) made in this process
-    while worker processes draw the figures (``openfdk run``'s contact-rim check), or
-    after them when there are none; it is made exactly once, also without figures."""
+    the run's results stay. ``side``: a :class:`~openfdk.plots.parallel.SideJob`
+    (``openfdk run``'s contact-rim check) computed in a figure worker when there are
+    workers, else here; it is finished (reported) exactly once, also without figures or
+    when they fail, and an error of its own is raised as its own, after the figures."""
     from ..io.storage import csv_to_sto
 
     out = Path(args.out)
@@ -126,30 +127,16 @@ def after_run(args, plots=True, model=None, alongside=None):
     quiet = getattr(args, "quiet", False)
     if written and not quiet:
         print(f"  OpenSim storage: {', '.join(str(p) for p in written)}")
-    if not plots or getattr(args, "no_plots", False):
-        if alongside is not None:
-            alongside()
-        return
-    called, raised = [], []
+    paths = None
+    if plots and not getattr(args, "no_plots", False):
+        try:
+            from ..plots.parallel import write_plots
 
-    def once():
-        if alongside is not None and not called:
-            called.append(True)
-            try:
-                alongside()
-            except Exception as exc:  # its own error, raised below, not taken for the figures'
-                raised.append(exc)
-
-    try:
-        from ..plots.parallel import write_plots
-
-        paths = write_plots(out, model=model, alongside=once)
-    except Exception as exc:  # the analysis results are written; report and go on
-        print(f"openfdk: warning: figures not written: {type(exc).__name__}: {exc}", file=sys.stderr)
-        paths = None
-    once()  # (not yet made if the figures failed before their workers started)
-    if raised:
-        raise raised[0]
+            paths = write_plots(out, model=model, side=side)
+        except Exception as exc:  # the analysis results are written; report and go on
+            print(f"openfdk: warning: figures not written: {type(exc).__name__}: {exc}", file=sys.stderr)
+    if side is not None:
+        side.finish()
     if paths is None:
         return
     if not quiet:

@@ -34,6 +34,11 @@ from .mesh import MeshWarning, undirected_edge_keys
 
 #: share of the patch's load cut off by the opposite surface's rim above which a frame counts
 CUT_SHARE = 0.05
+#: the check's expected cost per frame and contact in the units the figures' drawing cost
+#: is weighed in (axes, :func:`openfdk.plots.run.figure_plan`; about 54 ms each for DM's
+#: body-pose figure): DM's tibiofemoral and patellofemoral pairs take 9.7 and 5.8 ms a
+#: frame, 0.14 axes on average (:class:`openfdk.plots.parallel.SideJob`)
+WEIGHT_PER_FRAME = 0.14
 #: the k-d tree's approximation in the rim test's bound of a point's distance to B: the
 #: vertex found is within (1 + eps) times the nearest's distance (any vertex gives an upper
 #: bound; a looser one only leaves more points for the exact query)
@@ -194,10 +199,17 @@ def warn_contact_rims(model, kin):
     ``kin`` (a KinematicsResult: ``q`` (n, 7 n_moving), ``time`` (n,) s)."""
     if not getattr(model, "contacts", ()) or kin is None or len(kin.time) == 0:
         return
-    for name, role, mesh, frames, share in contact_rim_frames(model, kin.q):
+    report_contact_rims(contact_rim_frames(model, kin.q), kin.time)
+
+
+def report_contact_rims(hits, time):
+    """The warnings of :func:`warn_contact_rims` for ``hits`` (a list as
+    :func:`contact_rim_frames` returns it) of a run with frame times ``time`` (n,) s,
+    each attributed to the caller's caller (:func:`warn_contact_rims`'s caller)."""
+    for name, role, mesh, frames, share in hits:
         cut = f", up to {100 * share:.0f} % of the patch's load cut off" if np.isfinite(share) else ""
         warnings.warn(
             f"contact '{name}': the contact patch reaches the border of mesh contacts.{name}.{role} "
-            f"(file {mesh}) on {len(frames)} of {len(kin.time)} frames (first at t={kin.time[frames[0]]:.3f} s); "
+            f"(file {mesh}) on {len(frames)} of {len(time)} frames (first at t={time[frames[0]]:.3f} s); "
             f"forces there are truncated (no load past an open mesh's rim{cut}): extend the mesh beyond the "
-            "contact region", MeshWarning, stacklevel=2)
+            "contact region", MeshWarning, stacklevel=3)

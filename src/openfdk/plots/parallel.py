@@ -17,9 +17,13 @@ reported together, naming the figures (:class:`FigureError`); so does a worker t
 stopped (killed for memory, a signal), naming the figures it had not written. A symbolic link planted
 at a figure's path is refused before any worker starts (``openfdk.io.outdir``).
 
-While the workers draw, this process is idle: ``openfdk run`` checks there whether a
-contact patch reaches a mesh's rim (:func:`openfdk.contact.rim.warn_contact_rims`, 1.7 s
-for DM's 100 frames), the ``alongside`` call of :func:`write_figures`.
+A :class:`SideJob` shares the workers with the figures: ``openfdk run``'s check whether a
+contact patch reaches a mesh's rim (:func:`openfdk.contact.rim.contact_rim_frames`, 1.6 s
+of CPU for DM's 100 frames). It is one more share of the LPT split, weighed in the
+figures' units; its result comes back to this process, which reports it (the warnings
+are this process's). Run in this process while the workers drew (until stop 60), it was
+a third process on DM's 2-core machine: the 100-frame command spent a median of 5.6 s
+after its FDK solve, 5.0 s with the check as a share (docs/outputs.md, "Two processes").
 """
 
 from __future__ import annotations
@@ -37,9 +41,40 @@ from .run import figure_plan, save_figures
 #: figure apart from the others; it is the longest single one)
 MAX_WORKERS = 2
 
-#: the job a forked worker draws from: (results, measures, directory), set only while
-#: the workers run
+#: the job a forked worker draws from: (results, measures, directory, side job or None),
+#: set only while the workers run
 _JOB = None
+#: the name of the side job's share entry (no figure has it: figure names are words)
+SIDE = "(side job)"
+_UNSET = object()
+
+
+class SideJob:
+    """A computation drawn with the figures (module docstring). ``compute()`` (no arguments)
+    runs in a worker when there are workers (forked: it sees this process's data) and
+    returns a picklable result; :meth:`finish` then gives it to ``report(result)`` in this
+    process. ``weight``: its expected cost in the figures' units (axes,
+    :func:`~.run.figure_plan`; about 0.054 s each on DM's run).
+
+    Whatever happens to the figures, the caller calls :meth:`finish` once: it computes the
+    result here if no worker did (one worker, no ``fork``, a worker that failed or was
+    stopped: an error of ``compute`` is then raised here as its own), and reports it."""
+
+    def __init__(self, compute, report, weight=0.0):
+        self.compute, self.report, self.weight = compute, report, float(weight)
+        self._result, self._finished = _UNSET, False
+
+    def take(self, result):
+        """Keep ``result``, computed elsewhere (a worker), for :meth:`finish`."""
+        self._result = result
+
+    def finish(self):
+        """Report the result (computed here first if no worker did); a second call does nothing."""
+        if self._finished:
+            return
+        self._finished = True
+        result = self.compute() if self._result is _UNSET else self._result
+        self.report(result)
 
 
 class FigureError(ValueError):
@@ -84,28 +119,32 @@ def balanced_shares(weights, workers):
 
 
 def _draw(names):
-    """In a worker: draw and write the figures ``names``; [(name, error message or None)]."""
-    results, measures, directory = _JOB
+    """In a worker: draw and write the figures ``names`` (and compute the side job for
+    :data:`SIDE`); [(name, error message or None, the side job's result or None)]."""
+    results, measures, directory, side = _JOB
     builds = {name: build for name, build, _ in figure_plan(results, measures)}
     done = []
     for name in names:
         try:
+            if name == SIDE:
+                done.append((name, None, side.compute()))
+                continue
             save_figures({name: builds[name]()}, directory)
-            done.append((name, None))
+            done.append((name, None, None))
         except Exception as exc:  # reported by the parent with the other figures' outcome
-            done.append((name, f"{type(exc).__name__}: {exc}"))
+            done.append((name, f"{type(exc).__name__}: {exc}", None))
     return done
 
 
-def write_figures(results, directory, measures=None, workers=None, alongside=None) -> list[Path]:
+def write_figures(results, directory, measures=None, workers=None, side=None) -> list[Path]:
     """Draw the figures of ``results`` (a :class:`~openfdk.results.run.RunResults`) into
     ``directory`` (created) as ``<name>.png``, in ``workers`` processes (default
     :func:`plot_workers`). Returns the paths in the figures' order; raises
     :class:`FigureError` naming every figure that failed (the others are written).
 
-    alongside : a call (no arguments) made in this process while the workers draw
-    (``openfdk run``'s contact-rim check, whose warnings are this process's), or after the
-    figures when they are drawn here; None: none."""
+    side : a :class:`SideJob` computed in a worker beside the figures (``openfdk run``'s
+    contact-rim check), or None. Its result is kept for its :meth:`SideJob.finish`, which
+    the caller makes (here the job is never reported, nor computed without workers)."""
     global _JOB
     from ..io.outdir import refuse_link
 
@@ -119,27 +158,28 @@ def write_figures(results, directory, measures=None, workers=None, alongside=Non
         # when a worker is stopped before it can report)
         (d / f"{name}.png").unlink(missing_ok=True)
     if workers <= 1 or len(plan) < 2 or "fork" not in multiprocessing.get_all_start_methods():
-        paths = save_figures(((name, build()) for name, build, _ in plan), d)
-        if alongside is not None:
-            alongside()
-        return paths
-    shares = [[plan[i][0] for i in share] for share in balanced_shares([w for _, _, w in plan], workers)]
-    _JOB = (results, measures, d)
+        return save_figures(((name, build()) for name, build, _ in plan), d)
+    jobs = [(name, weight) for name, _, weight in plan] + ([(SIDE, side.weight)] if side is not None else [])
+    shares = [[jobs[i][0] for i in share] for share in balanced_shares([w for _, w in jobs], workers)]
+    _JOB = (results, measures, d, side)
+    outcome = {}
     try:
         with warnings.catch_warnings():
             # (Python ≥ 3.12 warns of fork in a process with threads; the workers only draw)
             warnings.simplefilter("ignore", DeprecationWarning)
             with ProcessPoolExecutor(len(shares), mp_context=multiprocessing.get_context("fork")) as pool:
                 futures = [pool.submit(_draw, share) for share in shares]
-                if alongside is not None:
-                    alongside()  # here, while the workers draw
-                outcome = {}
                 for share, future in zip(shares, futures):
                     try:
-                        outcome.update(future.result())
+                        for name, error, result in future.result():
+                            if name == SIDE:
+                                if error is None:
+                                    side.take(result)  # (failed: SideJob.finish computes it here)
+                            else:
+                                outcome[name] = error
                     except BrokenProcessPool as exc:  # a worker killed (out of memory, a signal)
                         outcome.update((name, f"its worker process stopped ({exc})") for name in share
-                                       if not (d / f"{name}.png").is_file())
+                                       if name != SIDE and not (d / f"{name}.png").is_file())
     finally:
         _JOB = None
     for name, _, _ in plan:  # a stopped worker's figures that were written before it stopped
@@ -152,15 +192,16 @@ def write_figures(results, directory, measures=None, workers=None, alongside=Non
     return written
 
 
-def write_plots(result_dir, out_dir=None, measures=None, model=None, alongside=None) -> list[Path]:
+def write_plots(result_dir, out_dir=None, measures=None, model=None, side=None) -> list[Path]:
     """Read a result folder and write its figures (default into ``RESULT_DIR/plots``) with
-    :func:`write_figures` (``alongside`` as there); ``model``: the run's Model when the
+    :func:`write_figures` (``side`` as there); ``model``: the run's Model when the
     caller has it loaded (the FDK DOFs' and the constraints' units; else read from the
     model file again)."""
     from ..results.run import read_results
 
     return write_figures(read_results(result_dir, model), out_dir or Path(result_dir) / "plots", measures,
-                         alongside=alongside)
+                         side=side)
 
 
-__all__ = ["write_plots", "write_figures", "plot_workers", "balanced_shares", "FigureError", "MAX_WORKERS"]
+__all__ = ["write_plots", "write_figures", "plot_workers", "balanced_shares", "FigureError", "SideJob",
+           "MAX_WORKERS"]
