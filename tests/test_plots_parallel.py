@@ -258,3 +258,30 @@ def test_a_worker_that_is_killed_is_reported_with_the_figures_it_did_not_write(r
     assert all((out / f"{n}.png").is_file() for n in written)
     assert not any((out / f"{n}.png").exists() for n in named)  # the earlier run's file is gone too
     assert str(exc.value).startswith(f"{len(named)} of {len(planned)} figures not written")
+
+
+@needs_fork
+def test_a_side_job_whose_worker_is_killed_is_computed_here(run_dir, tmp_path):
+    """The worker computing the side job is stopped (as by the out-of-memory killer): the
+    figures it did not draw are named, and the job is computed again in this process, so
+    the run's check is not lost."""
+    from openfdk.plots.parallel import SideJob
+
+    parent = os.getpid()
+    log = []
+
+    def compute():
+        if os.getpid() != parent:
+            os._exit(9)
+        return "computed here"
+
+    results = read_results(run_dir)
+    total = sum(w for _, _, w in plots_run.figure_plan(results))
+    side = SideJob(compute, log.append, 2.0 * total)  # a worker of its own
+    try:
+        paths = write_figures(results, tmp_path / "plots", workers=2, side=side)
+    except FigureError as exc:  # (the pool may stop the figures' worker too)
+        paths = exc.written
+    assert all(p.is_file() for p in paths)
+    side.finish()
+    assert log == ["computed here"]
