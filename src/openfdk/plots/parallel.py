@@ -4,8 +4,8 @@ matplotlib draws on one core: the nine figures of DM's 100-frame gait run
 (docs/tutorial-knee-gait.md) took 5.3 s of a 16 s command, the body poses' figure (46
 axes) about 3 s of it. The figures do not depend on each other, so :func:`write_figures`
 shares them between ``workers`` processes forked from this one (they inherit the loaded
-results; nothing is pickled but the figures' names, the outcome and a side job's result), each drawing its
-share and writing the PNG files itself. The shares are balanced by each figure's
+results; nothing is pickled but the figures' names, the outcome and a side job's
+result), each drawing its share and writing the PNG files itself. The shares are balanced by each figure's
 expected cost in axes (:func:`~.run.figure_plan`): the longest first, each to the
 least loaded worker (Graham's LPT rule, within 4/3 of the best split).
 
