@@ -135,10 +135,11 @@ def test_the_workers_setting(monkeypatch):
                 plot_workers()
 
 
-@pytest.mark.parametrize("plots", [True, False])
-def test_run_checks_the_contact_rims_once_in_a_figure_worker_or_here(run_inputs, tmp_path, monkeypatch, plots):
-    """`openfdk run` computes its rim check beside the figures (in a worker when there are
-    workers, here with --no-plots) and reports it here once, after the results were written."""
+@pytest.mark.parametrize("extra", [[], ["--no-plots"], ["--chunks", "2", "--workers", "0"]])
+def test_run_checks_the_contact_rims_once_in_a_figure_worker_or_here(run_inputs, tmp_path, monkeypatch, extra):
+    """`openfdk run` (serial or chunked) computes its rim check beside the figures (in a
+    worker when there are workers, here with --no-plots) and reports it here once, after
+    the results were written."""
     import openfdk.contact.rim as rim
 
     reported = []
@@ -150,8 +151,9 @@ def test_run_checks_the_contact_rims_once_in_a_figure_worker_or_here(run_inputs,
     monkeypatch.setattr(rim, "report_contact_rims", lambda hits, time: reported.append((os.getpid(), hits, len(time))))
     monkeypatch.setenv("OPENFDK_PLOT_WORKERS", "2")
     model, trial = run_inputs
+    plots = "--no-plots" not in extra
     args = ["run", str(model), str(trial), "--out", str(tmp_path / "out"), "--no-progress", "--max-failed", "1",
-            "-q"] + ([] if plots else ["--no-plots"])
+            "-q"] + extra
     assert main(args) == 0
     assert len(reported) == 1
     pid, hits, n_time = reported[0]

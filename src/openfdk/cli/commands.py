@@ -321,7 +321,7 @@ def _cmd_run(args):
             args.model, args.trial, args.chunks, args.out, cutoff_hz=args.cutoff, start=args.start,
             end=args.end, overlap=args.overlap, scheduler=args.scheduler, workers=args.workers,
             progress=_progress_on(args), checkpoints=_run_checkpoints(args, chunked=True), resume=args.resume,
-            loaded=loaded)
+            loaded=loaded, rim_check=False)
     else:
         from ..analysis.jobs import run_job
         from ..study.case import write_run_outputs
@@ -369,8 +369,8 @@ def _cmd_run(args):
     from .outputs import after_run
 
     failed = dyn.failed_frames(), dyn.converged, dyn.status, dyn.messages
-    # the contact rims are checked while the figures are drawn (chunked runs checked theirs)
-    rim_check = None if args.chunks > 1 else _rim_check(model, kin)
+    # the contact rims are checked with the figures, in their workers (serial and chunked runs)
+    rim_check = _rim_check(model, kin)
     del kin, dyn, info  # written: the figures read them back, so the arrays need not stay
     after_run(args, model=model, side=rim_check)
     _print_failed(args, failed[0])

@@ -120,7 +120,7 @@ def job_case(model_path, trial_path, chunks, overlap=DEFAULT_OVERLAP, cutoff_hz=
 
 def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=None, start=None, end=None,
                     overlap=DEFAULT_OVERLAP, scheduler=None, workers=None, client=None, progress=True,
-                    malloc_trim=False, checkpoints=None, resume=False, loaded=None):
+                    malloc_trim=False, checkpoints=None, resume=False, loaded=None, rim_check=True):
     """``openfdk run --chunks K``: one trial split into ``chunks`` frame segments solved
     in parallel (each warmed up by ``overlap`` frames, docs/studies.md), stitched into
     one result equal to the serial run's to the solver tolerances.
@@ -139,6 +139,8 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
     discarded first. ``loaded``: (Model, AnalysisSettings, …) of ``model_path`` when the
     caller has read it (``openfdk run`` writes its outputs with the same Model: the file
     and its measured loads are read, and warned about, once in this process).
+    ``rim_check``: False leaves :func:`~openfdk.contact.rim.warn_contact_rims` to the
+    caller (``openfdk run`` computes it with its figures, plots/parallel.py).
     """
     import contextlib
     import os
@@ -202,7 +204,8 @@ def run_chunked_job(model_path, trial_path, chunks, out_dir=None, *, cutoff_hz=N
     wall = _time.perf_counter() - t0
     kin, dyn, fdk = stitch(results, wall)
     warn_pulling_contacts(model, kin, dyn)
-    warn_contact_rims(model, kin)
+    if rim_check:
+        warn_contact_rims(model, kin)
     warn_outlier_markers(kin)
     info = {**results[0].info, **checked, **chunk_info(results, overlap)}
     info["model"] = str(model_path)
