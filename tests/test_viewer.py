@@ -797,6 +797,43 @@ def test_sphere_and_ellipsoid_arcs_lie_on_the_surface_with_the_kernel_length(kin
     np.testing.assert_allclose(pts[-2], T2, atol=1e-6)
 
 
+def test_ellipsoid_paths_drawn_for_all_frames_are_each_frames_own_polyline():
+    """wrapped_polylines draws the paths over ellipsoids frame by frame from one kernel call
+    and one BodyStates per frame for all of them: each frame's rows are the polyline of
+    that path alone at that frame's poses (its own kernel call), to the wrap solves'
+    tolerance; a straight path beside them is drawn too, and a frame without poses is NaN."""
+    from types import SimpleNamespace
+
+    from openfdk.forces.wrapping import WrappedPath, WrapSurface
+    from openfdk.model.state import BodyStates
+    from openfdk.viewer.wrapview import n_points, polyline, wrapped_polylines
+
+    R_BS = rotation_matrix(quat_from_rotvec([0.2, -0.1, 0.3]))
+    surf = WrapSurface("s", "ellipsoid", 0, np.array([0.01, 0.0, 0.0]), R_BS, np.array([0.03, 0.02, 0.015]),
+                       np.zeros(3))
+    paths = [WrappedPath([(0, np.array([0.01, 0.0, -0.08])), surf, (0, np.array([0.025, 0.004, 0.07]))], "a"),
+             WrappedPath([(0, np.array([0.012, 0.003, -0.075])), surf, (0, np.array([0.02, -0.004, 0.072]))], "b")]
+    model = SimpleNamespace(bodies=[SimpleNamespace(column=0)])
+    nf = 5
+    poses = np.zeros((nf, 1, 7))
+    for f in range(nf):
+        poses[f, 0, :3] = [0.1 + 0.002 * f, 0.2, 0.3]
+        poses[f, 0, 3:] = quat_from_rotvec([0.5 + 0.05 * f, 0.4, -0.2])
+    poses[3] = np.nan
+    out = wrapped_polylines(model, paths, poses)
+    assert out.shape == (nf, sum(n_points(p) for p in paths), 3)
+    rows = np.cumsum([0] + [n_points(p) for p in paths])
+    for f in range(nf):
+        if f == 3:
+            assert np.isnan(out[f]).all()
+            continue
+        state = BodyStates(poses[f, :, :3], poses[f, :, 3:], [0])
+        for k, path in enumerate(paths):
+            own = polyline(path, state)
+            assert np.linalg.norm(np.diff(own, axis=0), axis=1).sum() > 1.01 * np.linalg.norm(own[-1] - own[0])  # wraps
+            np.testing.assert_allclose(out[f, rows[k]:rows[k + 1]], own, atol=1e-9)
+
+
 def test_pop_reaction_arrows_push_the_condyles_along_the_plane_normals(tmp_path):
     """A POP run (point_on_plane TMJs with one-sided 20 kN reactions): each reaction arrow
     is the recorded reaction force along −n_W, the skull's plane normal in the world at that

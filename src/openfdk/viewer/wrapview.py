@@ -83,10 +83,12 @@ def _ellipsoid_arc_S(P, Q, T1, d, dims, side, k):
     return out
 
 
-def polyline(path, state):
+def polyline(path, state, T_W=None):
     """World polyline (n_points(path), 3) m of ``path`` at ``state``'s poses (see the
-    module docstring); raises FloatingPointError when the path cannot be formed."""
-    T_W = path.tangent_points(state)
+    module docstring); raises FloatingPointError when the path cannot be formed.
+    T_W : (n_nodes, 2, 3) m, the path's world tangent points at these poses when known
+    (a wrapping-kernel call for many paths, :func:`wrapped_polylines`); None: found here."""
+    T_W = path.tangent_points(state) if T_W is None else T_W
     pts = []
     nodes = path.nodes
     for j, node in enumerate(nodes):
@@ -133,7 +135,9 @@ def wrapped_polylines(model, paths, poses):
     One wrapping-kernel call per frame gives the tangent points of every path; the
     points and the cylinder and sphere arcs are then formed for all frames at once
     (:func:`_arcs_W`). A path over an ellipsoid is drawn frame by frame (:func:`polyline`:
-    its geodesic is shot per frame)."""
+    its geodesic is shot per frame), from that call's tangent points and one BodyStates
+    per frame for all such paths (DM's 139-frame gait cycle, 84 of them: a state and a
+    kernel call per path and frame were 2–3 s of the viewer's 7.5 s)."""
     from ..forces.wrap_kernels import wrapped_path_lengths
     from ..forces.wrapping import WrapNodes
     from ..numerics.spatial import rotation_matrix
@@ -158,16 +162,22 @@ def wrapped_polylines(model, paths, poses):
             np.ascontiguousarray(p_WB[f]), np.ascontiguousarray(R_WB[f]), column, kernel.kinds, kernel.bodies,
             kernel.p_B, kernel.R_BS, kernel.dims, kernel.sides, kernel.limits, kernel.start, n_coords, kernel.warm)
         formed[f] = status == 0
-    for k, path in enumerate(paths):
-        rows = slice(offsets[k], offsets[k + 1])
-        if any(isinstance(n, WrapSurface) and n.kind == "ellipsoid" for n in path.nodes):
-            for f in np.flatnonzero(ok & formed[:, k]):
-                state = BodyStates(poses[f, :, :3], poses[f, :, 3:], column)
+    curved = [k for k, path in enumerate(paths)
+              if any(isinstance(n, WrapSurface) and n.kind == "ellipsoid" for n in path.nodes)]
+    frames = np.flatnonzero(ok & formed[:, curved].any(axis=1)) if curved else []
+    for f in frames:
+        state = BodyStates(poses[f, :, :3], poses[f, :, 3:], column)
+        for k in curved:
+            if formed[f, k]:
                 try:
-                    out[f, rows] = polyline(path, state)
+                    out[f, offsets[k]:offsets[k + 1]] = polyline(paths[k], state,
+                                                                 T_W[f, kernel.start[k]:kernel.start[k + 1]])
                 except FloatingPointError:
                     pass  # path not formed at this frame: not drawn (NaN)
+    for k, path in enumerate(paths):
+        if k in set(curved):
             continue
+        rows = slice(offsets[k], offsets[k + 1])
         pts = _path_points_W(path, p_WB, R_WB, T_W[:, kernel.start[k]:kernel.start[k + 1]])
         pts[~(ok & formed[:, k])] = np.nan
         out[:, rows] = pts
