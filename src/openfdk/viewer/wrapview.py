@@ -162,12 +162,12 @@ def wrapped_polylines(model, paths, poses):
             np.ascontiguousarray(p_WB[f]), np.ascontiguousarray(R_WB[f]), column, kernel.kinds, kernel.bodies,
             kernel.p_B, kernel.R_BS, kernel.dims, kernel.sides, kernel.limits, kernel.start, n_coords, kernel.warm)
         formed[f] = status == 0
-    curved = [k for k, path in enumerate(paths)
-              if any(isinstance(n, WrapSurface) and n.kind == "ellipsoid" for n in path.nodes)]
-    frames = np.flatnonzero(ok & formed[:, curved].any(axis=1)) if curved else []
+    curved = {k for k, path in enumerate(paths)
+              if any(isinstance(n, WrapSurface) and n.kind == "ellipsoid" for n in path.nodes)}
+    frames = np.flatnonzero(ok & formed[:, sorted(curved)].any(axis=1)) if curved else []
     for f in frames:
         state = BodyStates(poses[f, :, :3], poses[f, :, 3:], column)
-        for k in curved:
+        for k in sorted(curved):
             if formed[f, k]:
                 try:
                     out[f, offsets[k]:offsets[k + 1]] = polyline(paths[k], state,
@@ -175,7 +175,7 @@ def wrapped_polylines(model, paths, poses):
                 except FloatingPointError:
                     pass  # path not formed at this frame: not drawn (NaN)
     for k, path in enumerate(paths):
-        if k in set(curved):
+        if k in curved:
             continue
         rows = slice(offsets[k], offsets[k + 1])
         pts = _path_points_W(path, p_WB, R_WB, T_W[:, kernel.start[k]:kernel.start[k + 1]])
