@@ -162,12 +162,12 @@ def wrapped_polylines(model, paths, poses):
             np.ascontiguousarray(p_WB[f]), np.ascontiguousarray(R_WB[f]), column, kernel.kinds, kernel.bodies,
             kernel.p_B, kernel.R_BS, kernel.dims, kernel.sides, kernel.limits, kernel.start, n_coords, kernel.warm)
         formed[f] = status == 0
-    curved = {k for k, path in enumerate(paths)
-              if any(isinstance(n, WrapSurface) and n.kind == "ellipsoid" for n in path.nodes)}
-    frames = np.flatnonzero(ok & formed[:, sorted(curved)].any(axis=1)) if curved else []
+    curved = [k for k, path in enumerate(paths)  # in increasing order
+              if any(isinstance(n, WrapSurface) and n.kind == "ellipsoid" for n in path.nodes)]
+    frames = np.flatnonzero(ok & formed[:, curved].any(axis=1)) if curved else []
     for f in frames:
         state = BodyStates(poses[f, :, :3], poses[f, :, 3:], column)
-        for k in sorted(curved):
+        for k in curved:
             if formed[f, k]:
                 try:
                     out[f, offsets[k]:offsets[k + 1]] = polyline(paths[k], state,
