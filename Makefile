@@ -15,8 +15,10 @@ $(VENV)/.installed: pyproject.toml
 demo: $(VENV)/.installed
 	$(VENV)/bin/openfdk demo --force  # a second `make demo` overwrites the first one's results
 
+# one test worker per core, at most 4 (each imports numba and OpenSim); a test file's
+# tests stay in one worker, so its module fixtures are built once
 test: $(VENV)/.installed
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto --maxprocesses 4 --dist loadfile
 
 bench: $(VENV)/.installed
 	$(VENV)/bin/openfdk bench --json
