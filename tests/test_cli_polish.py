@@ -209,3 +209,30 @@ def test_a_command_reads_its_model_once(tmp_path, monkeypatch, command):
     assert main([command[0], str(model), *window, *(["--no-plots"] if command[0] == "run" else []),
                  *command[1:]]) == 0
     assert reads == [str(model)]
+
+
+def test_result_commands_do_not_repeat_the_runs_input_warnings(tmp_path, capsys):
+    """`openfdk plot`, `view` and `export-opensim` read the model file again only to draw
+    or export a finished run: its load-time warnings (here the length unit that looks
+    wrong; on DM the raw force-plate samples) were given by the run and are not printed
+    again. The run itself still gives them, and a model that cannot be read is still an
+    error."""
+    text = (ROOT / "examples/slider_crank.yaml").read_text()
+    assert "units: {length: mm, angle: deg}" in text
+    model = tmp_path / "metres.yaml"  # the slider-crank's mm read as m: a 400 m model
+    model.write_text(text.replace("units: {length: mm, angle: deg}", "units: {length: m, angle: deg}"))
+    run = tmp_path / "run"
+    assert main(["run", str(model), "--out", str(run), "--no-progress", "--no-plots", "--end", "0.1"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("the numbers look like mm") == 1  # the run warns, once
+    for command in (["plot", str(run), "--out", str(tmp_path / "plots")],
+                    ["view", str(run), "--out", str(tmp_path / "view.html")],
+                    ["export-opensim", str(run), "--out", str(tmp_path / "osim")],
+                    ["plot", str(run), "--out", str(tmp_path / "plots2"), "--model", str(model)]):
+        assert main(command) == 0
+        out = capsys.readouterr()
+        assert "warning" not in out.err, (command, out.err)
+        assert out.out.startswith(command[0] + ":")  # and it says what it wrote
+    model.write_text(text.replace("bodies:", "bodies: 3\nnot_bodies:"))  # now unreadable
+    assert main(["plot", str(run), "--out", str(tmp_path / "plots3")]) != 0
+    assert "metres.yaml" in capsys.readouterr().err

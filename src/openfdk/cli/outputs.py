@@ -34,9 +34,9 @@ def _cmd_plot(args):
 
     results = read_results(args.result_dir)
     if args.model:
-        from ..io.modelfile import load_model
+        from ..io.modelfile import load_model_for_results
 
-        results._model = load_model(args.model)
+        results._model = load_model_for_results(args.model)
     out = Path(args.out) if args.out else Path(args.result_dir) / "plots"
     paths = write_figures(results, out, measures=args.measures)
     _say(args, f"plot: {len(paths)} figures -> {out}/ ({', '.join(p.name for p in paths)})")
@@ -50,9 +50,9 @@ def _cmd_export_opensim(args):
 
     model = None
     if args.model:
-        from ..io.modelfile import load_model
+        from ..io.modelfile import load_model_for_results
 
-        model = load_model(args.model)
+        model = load_model_for_results(args.model)
     res = export_opensim(args.result_dir, args.out, model=model)
     from ..io.osim import note_lines
 

@@ -85,6 +85,22 @@ def load_model(path) -> Model:
     return load_model_and_settings(path)[0]
 
 
+def load_model_for_results(path) -> Model:
+    """The Model of a model file read to draw, view or export a finished run's results
+    (``openfdk plot``, ``view``, ``export-opensim``, :meth:`RunResults.model`). Its input
+    checks' warnings (:class:`~openfdk.model.plausibility.PlausibilityWarning`: the
+    model's plausibility, ground reactions that look unfiltered, ...) are not given
+    again: they concern the analysis, which gave them when it ran. Errors are raised as
+    by :func:`load_model`."""
+    import warnings
+
+    from ..model.plausibility import PlausibilityWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PlausibilityWarning)
+        return load_model(path)
+
+
 def load_settings(path) -> AnalysisSettings:
     """The analysis settings of a model file (the whole file is read and validated)."""
     return load_model_and_settings(path)[1]

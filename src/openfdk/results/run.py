@@ -361,10 +361,10 @@ class RunResults:
         return next((p for p in candidates if p.is_file()), None)
 
     def _load_model(self):
-        from ..io.modelfile import load_model
+        from ..io.modelfile import load_model_for_results
 
         path = self.model_path()
-        return load_model(path) if path is not None else None
+        return load_model_for_results(path) if path is not None else None
 
     def __repr__(self):
         s = self.summary.get("kinematics", {})

@@ -31,7 +31,7 @@ def view_data(result_dir, model=None, max_vertices=MAX_MESH_VERTICES):
     file path (default: the one named in summary.json) or a loaded Model."""
     if isinstance(max_vertices, bool) or not isinstance(max_vertices, int) or max_vertices < MIN_MESH_VERTICES:
         raise ValueError(f"max_vertices must be a whole number >= {MIN_MESH_VERTICES}, got {max_vertices!r}")
-    from ..io.modelfile import load_model
+    from ..io.modelfile import load_model_for_results
 
     results = read_results(result_dir)
     if model is None or not hasattr(model, "bodies"):
@@ -39,7 +39,7 @@ def view_data(result_dir, model=None, max_vertices=MAX_MESH_VERTICES):
         if path is None:
             raise ViewError(f"{results.directory / 'summary.json'}: names no model file (input.model); "
                             f"give it with --model")
-        model_obj, label = load_model(path), str(path)
+        model_obj, label = load_model_for_results(path), str(path)
     else:
         model_obj, label = model, model.name
     scene = build_scene(model_obj, max_vertices)
