@@ -215,30 +215,32 @@ def test_after_run_finishes_the_side_job_once_and_keeps_its_error_its_own(run_di
 @needs_fork
 def test_a_side_job_heavier_than_the_figures_gets_a_worker_to_itself(run_dir, tmp_path, monkeypatch):
     """The side job is one more share of the LPT split (balanced_shares), weighed with the
-    figures: heavier than all of them together, it is computed in a worker that draws no
-    figure, and the other worker draws them all."""
+    figures: heavier than all of them together, it is a share of its own, computed in a
+    worker, and the other share holds every figure. (Which worker process takes which
+    share is the pool's: on a loaded machine one process may take both in turn.)"""
     import openfdk.plots.parallel as parallel
 
-    pids = tmp_path / "pids"
-    pids.mkdir()
-    original = parallel.save_figures
+    split = []
+    original = parallel.balanced_shares
 
-    def recorded(figures, directory):
-        for name in figures:
-            (pids / name).write_text(str(os.getpid()))
-        return original(figures, directory)
+    def recorded(weights, workers):
+        split.append((list(weights), original(weights, workers)))
+        return split[-1][1]
 
-    monkeypatch.setattr(parallel, "save_figures", recorded)
+    monkeypatch.setattr(parallel, "balanced_shares", recorded)
     results = read_results(run_dir)
-    total = sum(w for _, _, w in plots_run.figure_plan(results))
+    plan = plots_run.figure_plan(results)
+    total = sum(w for _, _, w in plan)
     log = []
     side = _side(log, weight=2.0 * total)
     paths = write_figures(results, tmp_path / "plots", workers=2, side=side)
     assert log == []  # write_figures does not report it
     side.finish()
-    drawn_in = {int(f.read_text()) for f in pids.iterdir()}
-    assert len(paths) >= 3 and len(list(pids.iterdir())) == len(paths)
-    assert len(drawn_in) == 1 and log[0] not in drawn_in | {os.getpid()}
+    assert len(paths) == len(plan) >= 3 and all(p.is_file() for p in paths)
+    (weights, shares), = split
+    assert weights == [w for _, _, w in plan] + [2.0 * total]  # the side job last, with the figures' units
+    assert sorted(shares) == [list(range(len(plan))), [len(plan)]]  # alone; the figures together
+    assert log[0] != os.getpid()  # computed in a worker
 
 
 @needs_fork

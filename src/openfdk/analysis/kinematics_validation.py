@@ -41,6 +41,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..results.run import COORDINATES_CSV
+
 __all__ = ["ValidationError", "MapEntry", "Reference", "RunSeries", "DofComparison", "ValidationResult",
            "read_map", "read_reference", "read_run_series", "compare", "agreement", "validate_kinematics",
            "write_validation", "table_rows", "csv_text", "markdown_table", "text_table", "describe", "cycle_percent",
@@ -59,7 +61,6 @@ MIN_SCALE, MAX_SCALE = 1e-6, 1e6
 REFERENCE_TIME_MODES = ("auto", "percent", "seconds")
 #: ``auto``: a time column within [0, 100] spanning at least this much is % of the cycle
 PERCENT_MIN_SPAN = 50.0
-COORDINATES_CSV = "coordinates.csv"
 #: the files written by :func:`write_validation`
 OUTPUT_FILES = ("validation.csv", "validation.md", "validation.png")
 
@@ -301,23 +302,17 @@ def read_run_series(run_dir, entries, map_name="map"):
     """The model quantities that ``entries`` name, from the result folder ``run_dir``
     (:class:`RunSeries`); ``map_name`` names the map file in messages."""
     from ..io.yamlfile import did_you_mean
-    from ..results.run import _read_csv, read_results
+    from ..results.run import read_results
 
     d = Path(run_dir)
     if not d.is_dir():
         raise ValidationError(f"run folder {str(d)!r} does not exist")
-    try:
+    try:  # coordinates.csv checked against kinematics.csv's frames there
         results = read_results(d)
-        coordinates = _read_csv(d / COORDINATES_CSV) if (d / COORDINATES_CSV).is_file() else None
     except (ValueError, OSError) as exc:  # the results layer's one-line errors name the file
         raise ValidationError(" ".join(str(exc).split())) from None
     time = results.time.astype(float)
-    if coordinates is not None:
-        u = coordinates.index.to_numpy(dtype=float)
-        if u.shape != time.shape or not np.array_equal(u, time):
-            raise ValidationError(f"{d / COORDINATES_CSV}: {len(u)} frames whose times differ from the {len(time)} "
-                                  "frames of kinematics.csv (file cut short or from another run)")
-    available = _run_columns(results, coordinates)
+    available = _run_columns(results, results.coordinates)
     values, kinds, sources = {}, {}, {}
     for e in entries:
         if e.coordinate not in available:

@@ -52,6 +52,18 @@ def coordinate_values(model, kinematics):
     return {c.name: out[:, k] for k, c in enumerate(coords)}
 
 
+def coordinate_columns(model, kinematics, values=None):
+    """The columns of ``coordinates.csv``: {"time": (nf,) s, ``name_rad`` or ``name_m``:
+    (nf,) SI} of every coordinate (``values``: :func:`coordinate_values` when the
+    caller has them)."""
+    values = coordinate_values(model, kinematics) if values is None else values
+    units = {c.name: c.unit for c in model.coordinates}
+    cols = {"time": np.asarray(kinematics.time, float)}
+    for name, v in values.items():
+        cols[f"{name}_{'rad' if units[name] == 'angle' else 'm'}"] = v
+    return cols
+
+
 def write_coordinates(out_dir, model, kinematics):
     """Write ``coordinates.csv`` and ``coordinates.mot`` into ``out_dir`` when the model
     has joint coordinates; returns the paths written."""
@@ -60,9 +72,7 @@ def write_coordinates(out_dir, model, kinematics):
         return []
     out_dir = Path(out_dir)
     units = {c.name: c.unit for c in model.coordinates}
-    cols = {"time": np.asarray(kinematics.time, float)}
-    for name, v in values.items():
-        cols[f"{name}_{'rad' if units[name] == 'angle' else 'm'}"] = v
+    cols = coordinate_columns(model, kinematics, values)
     _warn_ranges(model, kinematics, values)
     csv_path = out_dir / "coordinates.csv"
     write_table(csv_path, cols)

@@ -2,8 +2,10 @@
 
 One PNG per topic, each only when the run has something to show:
 
-* ``kinematics.png`` — every body's centre-of-mass position (mm) and orientation
-  (body-fixed x-y-z Cardan angles of R_WB, deg), both relative to the world frame W;
+* ``kinematics.png`` — for a model with joint coordinates (an OpenSim model), the
+  coordinates grouped by joint (deg, mm: as OpenSim's ``.mot``); otherwise every body's
+  centre-of-mass position (mm) and orientation (body-fixed x-y-z Cardan angles of R_WB,
+  deg), both relative to the world frame W;
 * ``fdk_dofs.png`` — FDK DOF values α and residual forces f^FDK (paper Eqs. 14–17);
 * ``measures.png`` — chosen kinematic measures evaluated on the tracked poses;
 * ``muscles.png`` — muscle forces (N) and activations f/s;
@@ -167,6 +169,65 @@ def _kinematics(results, t, failed):
     caption = ("Centre-of-mass displacement r_WB(t) − r_WB(t0) from the first frame, world frame W (the legend gives "
                "each component's first-frame position). Orientation: body-fixed x-y'-z'' Cardan angles "
                "of R_WB = Rx Ry Rz (right-hand rule, positive counter-clockwise), unwrapped over time.")
+    return _finish(fig, axes, t, failed, caption)
+
+
+#: joints' coordinate groups of one unit share a panel while it has at most this many
+#: lines (an ankle, a subtalar joint and a toe joint of one coordinate each: one panel)
+PANEL_LINES = 3
+_COORDINATE_UNITS = {"rad": ("angle", "deg"), "m": ("length", "mm")}
+
+
+def coordinate_panels(results):
+    """The panels of the coordinates' figure: (panels, constant joints). panels: a list
+    of (joint names, unit "deg" or "mm", [(coordinate, coordinates.csv column)]), one per
+    joint and unit in the model's order (coordinates.csv's without the model: one joint
+    "coordinates"), consecutive ones of a unit merged while they have at most
+    PANEL_LINES coordinates; a joint and unit whose coordinates are all constant
+    (locked, or not moved by the trial) has no panel and is listed in constant joints.
+    ([], []) without coordinates."""
+    table = results.coordinates
+    if table is None:
+        return [], []
+    columns = {}
+    for col in table.columns:
+        name, _, suffix = col.rpartition("_")
+        if suffix in _COORDINATE_UNITS:
+            columns[name] = col
+    model = results.model()
+    joints = {c.name: c.joint for c in getattr(model, "coordinates", ())} if model is not None else {}
+    groups = {}  # (joint, unit) -> [(coordinate, column)], in the table's (the model's) order
+    for name, col in columns.items():
+        unit = _COORDINATE_UNITS[col.rpartition("_")[2]][1]
+        groups.setdefault((joints.get(name, "coordinates"), unit), []).append((name, col))
+    panels, constant = [], []
+    for (joint, unit), coords in groups.items():
+        if all(_is_constant(_col(table, col)) for _, col in coords):
+            constant.append(joint)
+        elif panels and panels[-1][1] == unit and len(panels[-1][2]) + len(coords) <= PANEL_LINES:
+            panels[-1] = (panels[-1][0] + [joint], unit, panels[-1][2] + coords)
+        else:
+            panels.append(([joint], unit, coords))
+    return panels, list(dict.fromkeys(constant))
+
+
+def _coordinates(results, t, failed):
+    panels, constant = coordinate_panels(results)
+    table = results.coordinates
+    fig, axes = _figure(len(panels), f"{_name(results)}: joint coordinates")
+    for ax, (joints, unit, coords) in zip(axes, panels):
+        factor = DISPLAY["angle" if unit == "deg" else "length"][0]
+        for name, col in coords:
+            values = _col(table, col)
+            if _is_constant(values):
+                _constant_entry(ax, name, factor * values[np.isfinite(values)][0], unit)
+            else:
+                ax.plot(t, factor * values, label=name)
+        ax.set_ylabel(f"{', '.join(joints)}\n({unit})", fontsize=8)
+    caption = ("The model's joint coordinates (coordinates.csv; an OpenSim model's, as its .mot gives them: rotations "
+               "in degrees, translations in mm here), one panel per joint in the model's order; joints with few "
+               "coordinates share one. A coordinate that does not change is listed as constant, not drawn."
+               + (f" Constant throughout, not drawn: {', '.join(constant)}." if constant else ""))
     return _finish(fig, axes, t, failed, caption)
 
 
@@ -473,14 +534,19 @@ def figure_plan(results, measures=None):
     """The figures of a run, not yet drawn: a list of (name, build, weight) in the order
     of the module docstring, one per topic the run has data for. ``build()`` draws the
     figure (a matplotlib Figure); ``weight`` is its expected drawing cost in axes (the
-    body poses' figure has two per body, the others a few), for sharing the figures
+    body poses' figure has two per body, the coordinates' one per panel, the others a
+    few), for sharing the figures
     between processes (:mod:`.parallel`).
 
     measures: names of the run's measures to plot (measures.csv; default:
     :func:`default_measures`; an empty list plots none)."""
     t = results.time
     failed = _failed(results)
-    plan = [("kinematics", lambda: _kinematics(results, t, failed), 2 * len(results.bodies()))]
+    panels = coordinate_panels(results)[0]
+    if panels:  # a model with joint coordinates: those, not the bodies' poses
+        plan = [("kinematics", lambda: _coordinates(results, t, failed), len(panels))]
+    else:
+        plan = [("kinematics", lambda: _kinematics(results, t, failed), 2 * len(results.bodies()))]
     if results.fdk_dofs():
         plan.append(("fdk_dofs", lambda: _fdk(results, t, failed), FIGURE_WEIGHT))
     if measures is None:
@@ -529,4 +595,4 @@ def save_figures(figures, directory, dpi=110) -> list[Path]:
     return paths
 
 
-__all__ += ["default_measures", "measure_series", "measure_unit"]
+__all__ += ["default_measures", "measure_series", "measure_unit", "coordinate_panels"]

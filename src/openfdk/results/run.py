@@ -16,6 +16,8 @@ import numpy as np
 __all__ = ["RunResults", "read_results", "read_summary", "conjugate_unit", "measure_unit"]
 
 KINEMATICS_CSV, FORCES_CSV, MEASURES_CSV, SUMMARY_JSON = "kinematics.csv", "forces.csv", "measures.csv", "summary.json"
+#: the joint coordinates of a model that has them (OpenSim's; io/coordinate_outputs.py)
+COORDINATES_CSV = "coordinates.csv"
 #: per-frame text columns
 TEXT_COLUMNS = ("message", "status", "fdk_reason")
 _SI = {"length": "m", "angle": "rad", "1": "1"}
@@ -160,14 +162,19 @@ class RunResults:
             kinematics-only run).
         measures: DataFrame indexed by time (s), the model's named measures per frame
             (measures.csv: ``name_unit`` / ``name[k]_unit``, SI), None if it has none.
+        coordinates: DataFrame indexed by time (s), the model's joint coordinates per
+            frame (coordinates.csv: ``name_rad`` / ``name_m``, SI; NaN where the
+            kinematics failed), None for a model without coordinates.
         summary: dict, the content of summary.json.
         directory: the folder the run was saved to or read from (None if not saved).
     """
 
-    def __init__(self, kinematics, forces, summary: dict, model=None, directory=None, measures=None):
+    def __init__(self, kinematics, forces, summary: dict, model=None, directory=None, measures=None,
+                 coordinates=None):
         self.kinematics = kinematics
         self.forces = forces
         self.measures = measures
+        self.coordinates = coordinates
         self.summary = summary
         self._model = model
         self.directory = None if directory is None else Path(directory)
@@ -192,7 +199,13 @@ class RunResults:
             from ..io.measure_outputs import measure_columns
 
             measures = _frame(measure_columns(model, kin))
-        return cls(_frame(kinematics_columns(kin)), forces, summary, model, measures=measures)
+        coordinates = None
+        if model is not None and getattr(model, "coordinates", None):
+            from ..io.coordinate_outputs import coordinate_columns
+
+            coordinates = _frame(coordinate_columns(model, kin))
+        return cls(_frame(kinematics_columns(kin)), forces, summary, model, measures=measures,
+                   coordinates=coordinates)
 
     @classmethod
     def read(cls, directory, model=None):
@@ -205,27 +218,28 @@ class RunResults:
         summary = read_summary(d / SUMMARY_JSON) if (d / SUMMARY_JSON).is_file() else {}
         forces = _read_csv(d / FORCES_CSV, ("time", "converged")) if (d / FORCES_CSV).is_file() else None
         measures = _read_csv(d / MEASURES_CSV) if (d / MEASURES_CSV).is_file() else None
+        coordinates = _read_csv(d / COORDINATES_CSV) if (d / COORDINATES_CSV).is_file() else None
         kinematics = _read_csv(d / KINEMATICS_CSV, ("time", "converged"))
-        _check_tables(d, kinematics, {FORCES_CSV: forces, MEASURES_CSV: measures})
-        return cls(kinematics, forces, summary, model, d, measures)
+        _check_tables(d, kinematics, {FORCES_CSV: forces, MEASURES_CSV: measures, COORDINATES_CSV: coordinates})
+        return cls(kinematics, forces, summary, model, d, measures, coordinates)
 
     def save(self, directory, sto: bool = True):
-        """Write kinematics.csv, forces.csv, measures.csv, summary.json (and the ``.sto``
-        twins of the tables unless ``sto=False``) into ``directory`` (created). Returns
-        the folder."""
+        """Write kinematics.csv, forces.csv, measures.csv, coordinates.csv, summary.json
+        (and the ``.sto`` twins of the first three unless ``sto=False``) into
+        ``directory`` (created). Returns the folder."""
         from ..io.results import write_json, write_table
         from ..io.storage import csv_to_sto
 
         d = Path(directory)
         d.mkdir(parents=True, exist_ok=True)
         for name, df in ((KINEMATICS_CSV, self.kinematics), (FORCES_CSV, self.forces),
-                         (MEASURES_CSV, self.measures)):
+                         (MEASURES_CSV, self.measures), (COORDINATES_CSV, self.coordinates)):
             if df is None:
                 continue
             cols = {"time": df.index.to_numpy()}
             cols.update({k: (list(df[k]) if k in TEXT_COLUMNS else df[k].to_numpy()) for k in df.columns})
             write_table(d / name, cols)
-            if sto:
+            if sto and name != COORDINATES_CSV:  # its OpenSim twin is coordinates.mot (openfdk run)
                 csv_to_sto(d / name)
         write_json(d / SUMMARY_JSON, self.summary)
         self.directory = d
