@@ -245,6 +245,27 @@ def test_result_tables_that_do_not_fit_are_refused(result, tmp_path, capsys, com
     assert expected in line and str(result) in line
 
 
+@pytest.mark.parametrize("edit, expected", [
+    (lambda rows: rows[:-2], "coordinates.csv: 4 frames whose times differ from the 6 frames of kinematics.csv"),
+    (lambda rows: [rows[0]] + [r[:1] + ["deg"] + r[2:] for r in rows[1:]],
+     "coordinates.csv: column 'hinge_rad': values must be numbers"),
+])
+def test_a_coordinates_table_that_does_not_fit_is_refused_by_the_commands_that_read_it(result, tmp_path, capsys,
+                                                                                         edit, expected):
+    """coordinates.csv (an OpenSim model's run; plot draws the kinematics figure from it)
+    is checked as the other tables are by plot and export-opensim; view does not read it."""
+    from cli_helpers import error_line, run_cli
+
+    assert (result / "coordinates.csv").is_file()  # the fuzz base has one (bench/fuzz_kinds.py)
+    _edit_csv(result / "coordinates.csv", edit)
+    for command in ("plot", "export-opensim"):
+        code, _, err = run_cli(capsys, command, result, "--out", tmp_path / command)
+        line = error_line(err)
+        assert code == 2 and expected in line and str(result) in line, (command, line)
+    code, out, _ = run_cli(capsys, "view", result, "--out", tmp_path / "view.html")
+    assert code == 0 and (tmp_path / "view.html").is_file()
+
+
 def test_view_refuses_a_marker_residual_without_all_its_columns(result, capsys):
     """Found by the fuzz suite (KeyError in the viewer's measured markers)."""
     from cli_helpers import error_line, run_cli

@@ -46,6 +46,6 @@ def test_readme_durations_and_install_without_make():
     readme = (ROOT / "README.md").read_text()
     head = " ".join(readme.split("## What it does")[0].split())
     assert re.search(r"`make demo` takes about \d+ min", head)
-    assert "`make test` about 6 min" in head
+    assert re.search(r"`make test` about \d+ min", head)
     assert "pip install -e ." in head and "### Without make" in head
     assert "[LICENSE](LICENSE)" in readme and "[design](docs/design.md)" in readme

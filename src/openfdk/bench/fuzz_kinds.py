@@ -24,8 +24,11 @@ Kinds:
   edge value, the type or a dimension byte changed, values swapped, a name misspelt) ->
   ``C3DError``;
 - ``results``: the result folder of a small ``openfdk run`` read by the ``plot``,
-  ``export-opensim`` and ``view`` readers; JSON mutations of ``summary.json`` and text
-  mutations of ``kinematics.csv`` / ``forces.csv`` -> ``ValueError`` naming the file;
+  ``export-opensim`` and ``view`` readers, with a ``coordinates.csv`` of its frames (the
+  table an OpenSim model's run adds; the plot reader groups its columns for the
+  kinematics figure); JSON mutations of ``summary.json`` and text mutations of
+  ``kinematics.csv`` / ``forces.csv`` / ``coordinates.csv`` -> ``ValueError`` naming
+  the file;
 - ``checkpoint``: the checkpoint parts of that run, resumed as ``--resume`` resumes them
   (:func:`openfdk.analysis.jobs.run_job`); JSON mutations of a sidecar, of the structure inside a
   part or of its arrays, byte mutations of a part (with the sidecar's SHA-256 rewritten,
@@ -204,6 +207,16 @@ def _write_run(run_dir, model_text):
     _acquire_lock(run_dir / "lock")
 
 
+def _write_coordinates(res):
+    """A coordinates.csv at the frames of the result folder ``res`` (an angle, a
+    translation and a constant angle, SI), as an OpenSim model's run writes it."""
+    from ..io.results import read_table, write_table
+
+    t = np.asarray(read_table(res / "kinematics.csv")["time"], dtype=float)
+    write_table(res / "coordinates.csv", {"time": t, "hinge_rad": 0.3 * np.sin(4 * t), "slide_m": 0.01 * t,
+                                          "fixed_rad": np.full(t.size, 0.2)})
+
+
 def _write_fdk_run(run_dir):
     """A small FDK run's checkpoint parts in ``run_dir/ckpt`` (a part every 2 frames,
     frames 0 … END_S at 100 Hz): the synthetic TMJ jaw (:data:`FDK_MODEL` and its meshes)
@@ -284,9 +297,10 @@ def build(bases, kinds):
         run = d / "run"
         _write_run(run, _dump(two_body_model_dict()))
         res = run / RESULTS_DIR
+        _write_coordinates(res)
         bases.paths["results"] = res / "summary.json"
-        bases.originals["results"] = {p: p.read_bytes() for p in
-                                      (res / "summary.json", res / "kinematics.csv", res / "forces.csv")}
+        bases.originals["results"] = {p: p.read_bytes() for p in (res / "summary.json", res / "kinematics.csv",
+                                                                  res / "forces.csv", res / "coordinates.csv")}
         _checkpoint_base(bases, "checkpoint", run / "ckpt" / ".checkpoint")
         bases.paths["study_lock"] = run / "lock" / ".study.lock"
         child = subprocess.Popen([sys.executable, "-c", ""])
@@ -486,7 +500,7 @@ def mutate(kind, bases, rng):
         path.write_bytes(mutate_plate_parameters(data, rng) if rng.random() < 0.6 else mutate_bytes(data, rng))
     elif kind == "results":
         files = list(originals)
-        target = files[int(rng.choice(len(files), p=[0.5, 0.3, 0.2]))]
+        target = files[int(rng.choice(len(files), p=[0.4, 0.25, 0.2, 0.15]))]
         text = originals[target].decode()
         target.write_text(mutate_json(text, rng) if target.suffix == ".json" else _mutate_csv(text, rng),
                           encoding="utf-8")
@@ -566,7 +580,7 @@ def _results_readers(folder, readers=RESULT_READERS):
     frames, column groups; drawing is left out, it takes ~1 s); ``export-opensim`` the
     whole export (into a folder beside it); ``view`` the viewer's scene and frames."""
     from ..io.osim import export_opensim
-    from ..plots.run import _failed, _name
+    from ..plots.run import _failed, _name, coordinate_panels
     from ..results.run import read_results
     from ..viewer import view_data
 
@@ -579,6 +593,7 @@ def _results_readers(folder, readers=RESULT_READERS):
         for group in (results.bodies, results.markers, results.muscles, results.ligaments, results.reactions,
                       results.fdk_dofs, results.measure_names):
             group()
+        coordinate_panels(results)
     if "export-opensim" in readers:
         export_opensim(folder, folder.parent / "export")
     if "view" in readers:
