@@ -10,7 +10,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from openfdk.plots.layout import LEFT_SLACK_IN, PAD_IN, stack_layout
-from openfdk.plots.run import make_figures
+from openfdk.plots.run import TITLE_TOP_IN, make_figures
 from openfdk.results.run import read_results
 
 
@@ -20,7 +20,7 @@ def _drawn(fig):
     return canvas.get_renderer()
 
 
-def _check_layout(fig, tight=True):
+def _check_layout(fig, tight=True, title_gap=False):
     renderer = _drawn(fig)
     W, H, dpi = fig.bbox.width, fig.bbox.height, fig.dpi
     axes = sorted(fig.axes, key=lambda ax: -ax.get_position().y0)
@@ -34,6 +34,8 @@ def _check_layout(fig, tight=True):
         title = fig._suptitle.get_window_extent(renderer)
         assert title.y0 >= boxes[0].y1 - 1, "suptitle overlaps the top axes"
         assert title.y1 <= H + 1
+        if title_gap:  # the run figures' title TITLE_TOP_IN below the top edge, whatever the height
+            assert H - title.y1 <= (TITLE_TOP_IN + 0.05) * dpi, ("blank above the title", (H - title.y1) / dpi)
     caption = fig.texts[-1].get_window_extent(renderer)
     assert caption.y1 <= min(b.y0 for b in boxes) + 1, "caption overlaps the axes"
     if tight:
@@ -48,9 +50,12 @@ def _check_layout(fig, tight=True):
 
 
 def test_every_run_figure_fits(mandible_run, slider_run):
+    heights = set()
     for out in (mandible_run[0], slider_run[0]):
         for name, fig in make_figures(read_results(out)).items():
-            _check_layout(fig)
+            _check_layout(fig, title_gap=True)
+            heights.add(round(fig.get_size_inches()[1], 1))
+    assert max(heights) > 2.5 * min(heights)  # short and tall figures alike (the title's gap above)
 
 
 def test_titles_wide_legends_and_dpi():
