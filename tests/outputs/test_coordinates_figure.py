@@ -109,3 +109,26 @@ def test_a_model_without_coordinates_keeps_the_body_poses(tmp_path):
     (name, build, weight), *_ = figure_plan(results)
     assert name == "kinematics" and weight == 2 * len(results.bodies())
     assert build().texts[0].get_text().endswith("body poses")
+
+
+def test_a_joint_that_only_turns_is_named_with_its_still_translations():
+    """A joint whose rotations move and whose translations do not: the rotations get a
+    panel, and the caption names "joint (translations)", not the whole joint; a joint
+    that does not move at all is named alone."""
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from openfdk.results.run import RunResults
+
+    t = np.linspace(0.0, 1.0, 11)
+    table = pd.DataFrame({"time": t, "flex_rad": 0.5 * t, "slide_m": np.full(t.size, 0.02),
+                          "wrist_rad": np.full(t.size, 0.1)}).set_index("time")
+    model = SimpleNamespace(coordinates=[SimpleNamespace(name="flex", joint="knee"),
+                                         SimpleNamespace(name="slide", joint="knee"),
+                                         SimpleNamespace(name="wrist", joint="hand")])
+    kinematics = pd.DataFrame({"time": t, "converged": np.ones(t.size)}).set_index("time")
+    results = RunResults(kinematics, None, {}, model, coordinates=table)
+    panels, constant = coordinate_panels(results)
+    assert [(joints, unit, [c for c, _ in coords]) for joints, unit, coords in panels] == [(["knee"], "deg", ["flex"])]
+    assert constant == ["knee (translations)", "hand"]

@@ -189,7 +189,8 @@ def coordinate_panels(results):
     joint and unit in the model's order (coordinates.csv's without the model: one joint
     "coordinates"), consecutive ones of a unit merged while they have at most
     PANEL_LINES coordinates; a joint and unit whose coordinates are all constant
-    (locked, or not moved by the trial) has no panel and is listed in constant joints.
+    (locked, or not moved by the trial) has no panel and is listed in constant joints
+    (as "joint (translations)" or "joint (rotations)" when its other unit is drawn).
     ([], []) without coordinates."""
     table = results.coordinates
     if table is None:
@@ -205,14 +206,18 @@ def coordinate_panels(results):
     for name, col in columns.items():
         unit = _COORDINATE_UNITS[col.rpartition("_")[2]][1]
         groups.setdefault((joints.get(name, "coordinates"), unit), []).append((name, col))
-    panels, constant = [], []
+    panels, still = [], []
     for (joint, unit), coords in groups.items():
         if all(_is_constant(_col(table, col)) for _, col in coords):
-            constant.append(joint)
+            still.append((joint, unit))
         elif panels and panels[-1][1] == unit and len(panels[-1][2]) + len(coords) <= PANEL_LINES:
             panels[-1] = (panels[-1][0] + [joint], unit, panels[-1][2] + coords)
         else:
             panels.append(([joint], unit, coords))
+    drawn = {j for joints, _, _ in panels for j in joints}
+    # a joint whose other unit is drawn is named with the kind that does not move
+    constant = [f"{joint} ({'rotations' if unit == 'deg' else 'translations'})" if joint in drawn else joint
+                for joint, unit in still]
     return panels, list(dict.fromkeys(constant))
 
 
