@@ -430,10 +430,28 @@ def _ligaments(results, t, failed):
     return _finish(fig, axes, t, failed, caption)
 
 
+def contact_regions(results, name):
+    """[(region, forces.csv column)] of contact ``name``: its ``<contact>.<region>_N``
+    columns, the force magnitude (N) on each region's vertices (a knee's medial and
+    lateral compartments; docs/contact.md, "Regions"); [] without regions."""
+    prefix = f"{name}."
+    return [(c[len(prefix):-2], c) for c in results.forces.columns
+            if c.startswith(prefix) and c.endswith("_N") and c[len(prefix):-2] not in ("Fx", "Fy", "Fz")]
+
+
+def body_weight(results):
+    """The body weight (N) summary.json records for a run with residual actuators
+    (``residuals.body_weight_N``, a whole-body model), else None."""
+    value = (results.summary.get("residuals") or {}).get("body_weight_N")
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value) and value > 0
+    return float(value) if ok else None
+
+
 def _contact(results, t, failed):
     f = results.forces
     names = results.contacts()
-    fig, axes = _figure(3, f"{_name(results)}: contact")
+    regions = {n: contact_regions(results, n) for n in names}
+    fig, axes = _figure(3 + any(regions.values()), f"{_name(results)}: contact")
     for n in names:
         F = np.column_stack([_col(f, f"{n}.F{c}_N") for c in "xyz"])
         for j, c in enumerate("xyz"):
@@ -452,6 +470,19 @@ def _contact(results, t, failed):
                "surface, world components (the opposite body receives −F). Centre of pressure: pressure-weighted "
                "mean of the contact points, world frame, as displacement from the first frame in contact (the legend gives "
                "where it starts), undefined (gap) without contact.")
+    if any(regions.values()):
+        weight = body_weight(results)
+        ax = axes[3]
+        for n, (colour, _) in zip([n for n in names if regions[n]], line_styles(len(names))):
+            total = np.linalg.norm(np.column_stack([_col(f, f"{n}.F{c}_N") for c in "xyz"]), axis=1)
+            for (label, values), ls in zip([("|F|", total)] + [(r, _col(f, col)) for r, col in regions[n]],
+                                           ("-", "--", ":", "-.") * 4):
+                peak = f" (peak {np.nanmax(values, initial=0.0) / weight:.2f} BW)" if weight else ""
+                ax.plot(t, values, color=colour, ls=ls, lw=1.6 if label == "|F|" else 1, label=f"{n} {label}{peak}")
+        ax.set_ylabel("contact force by region\n(N" + (f"; 1 BW = {weight:.0f} N)" if weight else ")"), fontsize=8)
+        caption += (" By region: the magnitude of the force on each region's vertices (e.g. a knee's medial and "
+                    "lateral compartments), beside the whole contact's |F|; regions need not cover the contact."
+                    + (f" BW: the body weight, {weight:.1f} N." if weight else ""))
     return _finish(fig, axes, t, failed, caption)
 
 
@@ -605,4 +636,4 @@ def save_figures(figures, directory, dpi=110) -> list[Path]:
     return paths
 
 
-__all__ += ["default_measures", "measure_series", "measure_unit", "coordinate_panels"]
+__all__ += ["default_measures", "measure_series", "measure_unit", "coordinate_panels", "contact_regions", "body_weight"]
