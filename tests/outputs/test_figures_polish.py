@@ -88,13 +88,40 @@ def test_lab_frame_positions_are_displacements(mandible_run):
         assert high - low < 100  # millimetre motion of a body ~1 m from the lab origin stays visible
 
 
-def test_centre_of_pressure_is_a_displacement(mandible_run):
+def test_centre_of_pressure_is_in_the_frame_of_the_body_it_presses_on(mandible_run):
+    """With the model, the centre of pressure is drawn in the frame B of the body carrying
+    the contact's vertices (the jaw's condyles), p_B = R_WBᵀ (p_W − r_WB): checked with
+    scipy's own quaternion rotation on kinematics.csv's poses. Without the model the
+    world displacement from the first frame in contact is drawn, as before."""
+    from scipy.spatial.transform import Rotation
+
+    from openfdk.results.run import RunResults
+
     res = read_results(mandible_run[0])
+    model = res.model()
     ax_cop = make_figures(res, measures=[])["contact"].axes[1]
-    f = res.forces
+    assert ax_cop.get_ylabel().replace("\n", " ") == "centre of pressure (mm, body frame B)"
+    f, k = res.forces, res.kinematics
     lines = [line for line in ax_cop.get_lines() if len(line.get_xdata())]
     assert len(lines) == 3 * len(res.contacts())
+    bodies = {c.name: model.bodies[c.body_a].name for c in model.contacts}
     for line in lines:
+        name, c = line.get_label().split()[:2]
+        body = bodies[name]
+        assert line.get_label() == f"{name} {c} ({body})"
+        p_W = np.column_stack([f[f"{name}.cop_{a}_m"].to_numpy() for a in "xyz"])
+        r_WB = np.column_stack([k[f"{body}.{a}_m"].to_numpy() for a in "xyz"])
+        q = np.column_stack([k[f"{body}.e{j}"].to_numpy() for j in (1, 2, 3, 0)])  # scipy: scalar last
+        ok = np.all(np.isfinite(p_W), axis=1)
+        p_B = np.full_like(p_W, np.nan)
+        p_B[ok] = Rotation.from_quat(q[ok]).inv().apply(p_W[ok] - r_WB[ok])
+        np.testing.assert_allclose(line.get_ydata(), 1e3 * p_B[:, "xyz".index(c)], atol=1e-9)
+    # without the model: the world displacement from the first frame in contact
+    bare = RunResults(res.kinematics, res.forces, {})
+    assert bare.model() is None
+    ax_world = make_figures(bare, measures=[])["contact"].axes[1]
+    assert "from first contact (mm, world W)" in ax_world.get_ylabel().replace("\n", " ")
+    for line in [line for line in ax_world.get_lines() if len(line.get_xdata())]:
         name, c = line.get_label().split()[:2]
         cop = 1e3 * f[f"{name}.cop_{c}_m"].to_numpy()
         first = cop[np.isfinite(cop)][0]
