@@ -435,7 +435,8 @@ def cop_in_body_frame(results, name):
     frame B of the body carrying its 'vertices' surface (the body its force acts on;
     origin at the centre of mass, docs/outputs.md), p_B = R_WBᵀ (p_W − r_WB) with the
     body's poses of kinematics.csv (a fixed body: its pose in the model); NaN where
-    either is. None without the model or the contact in it."""
+    either is. None without the model, the contact in it, or the body's poses in
+    kinematics.csv (a model other than the run's)."""
     from ..numerics.spatial import rotation_matrix
 
     model = results.model()
@@ -451,6 +452,8 @@ def cop_in_body_frame(results, name):
         for i, q in enumerate(np.column_stack([_col(k, f"{body}.e{j}") for j in range(4)])):
             if np.all(np.isfinite(q)):
                 R_WB[i] = rotation_matrix(q / np.linalg.norm(q))
+    elif not model.bodies[element.body_a].fixed:  # a model other than the run's (--model)
+        return None
     else:  # a fixed body (not in kinematics.csv): where the model puts it
         state = model.initial_state()
         r_WB = np.broadcast_to(state.p_WB[element.body_a], p_W.shape)
