@@ -407,25 +407,61 @@ def _actuators(results, t, failed):
     return _finish(fig, axes, t, failed, caption)
 
 
+def ligament_bundles(names):
+    """{bundle: [strand names]} of ligament strands named <bundle><k> (DM's MCLd1–MCLd3,
+    pCAP1–pCAP8), in order of first appearance; a name without a trailing number, or
+    whose stem no other strand shares, is a bundle of its own."""
+    import re
+
+    stems = [re.sub(r"\d+$", "", n) or n for n in names]
+    groups = {}
+    for n, stem in zip(names, stems):
+        key = stem if stems.count(stem) > 1 else n
+        groups.setdefault(key, []).append(n)
+    return groups
+
+
+def _by_peak(f, names, column):
+    """``names`` ordered by the peak |value| of their ``column`` (largest first)."""
+    peak = {n: np.nanmax(np.abs(_col(f, column.format(n))), initial=0.0) for n in names}
+    return sorted(names, key=lambda n: -peak[n])
+
+
 def _ligaments(results, t, failed):
     f = results.forces
     ligs, springs = results.ligaments(), results.springs()
-    fig, axes = _figure(len([x for x in (ligs, springs) if x]) + (1 if ligs else 0),
-                        f"{_name(results)}: ligaments and springs")
+    bundles = ligament_bundles(ligs)
+    by_bundle = len(bundles) < len(ligs)  # strands that share a bundle: their sums too
+    title = f"{_name(results)}: ligaments and springs"
+    if len(ligs) > MAX_LEGEND:
+        title += f" ({len(ligs)} ligament strands; legends: the {MAX_LEGEND} largest)"
+    fig, axes = _figure(len([x for x in (ligs, springs) if x]) + (1 + by_bundle if ligs else 0), title)
     i = 0
     if ligs:
-        for n, (colour, ls) in zip(ligs, line_styles(len(ligs))):
+        order = _by_peak(f, ligs, "{}.force_N")  # the legend's first entries are the largest
+        for n, (colour, ls) in zip(order, line_styles(len(order))):
             axes[0].plot(t, _col(f, f"{n}.force_N"), color=colour, ls=ls, label=n)
             axes[1].plot(t, _col(f, f"{n}.strain"), color=colour, ls=ls, label=n)
         axes[0].set_ylabel("ligament force\n(N, tension)", fontsize=8)
         axes[1].set_ylabel("ligament strain\n(l − l0)/l0 (–)", fontsize=8)
         i = 2
+        if by_bundle:
+            sums = {b: np.sum([_col(f, f"{n}.force_N") for n in strands], axis=0) for b, strands in bundles.items()}
+            peak = {b: np.nanmax(v, initial=0.0) for b, v in sums.items()}
+            order = sorted(sums, key=lambda b: -peak[b])
+            for b, (colour, ls) in zip(order, line_styles(len(order))):
+                k = len(bundles[b])
+                axes[2].plot(t, sums[b], color=colour, ls=ls, label=f"{b} ({k} strands)" if k > 1 else b)
+            axes[2].set_ylabel("ligament bundle force\n(N, sum of its strands)", fontsize=8)
+            i = 3
     if springs:
         for n, (colour, ls) in zip(springs, line_styles(len(springs))):
             axes[i].plot(t, _col(f, f"{n}.force"), color=colour, ls=ls, label=n)
         axes[i].set_ylabel("spring force\n(N or N·m, along measure)", fontsize=8)
     caption = ("Ligament force: tension ≥ 0 along the ligament path (Blankevoort 1991, zero when slack, strain < 0). "
-               "Spring force f = −k (m − m_rest): generalized force along its measure, N for a length, N·m for an "
+               + ("Bundles: the strands named <bundle><k> (MCLd1, MCLd2, …) summed, a bundle's tension as its "
+                  "strands share it. " if ligs and by_bundle else "")
+               + "Spring force f = −k (m − m_rest): generalized force along its measure, N for a length, N·m for an "
                "angle, positive when it pushes the measure to larger values.")
     return _finish(fig, axes, t, failed, caption)
 
@@ -678,4 +714,4 @@ def save_figures(figures, directory, dpi=110) -> list[Path]:
     return paths
 
 
-__all__ += ["default_measures", "measure_series", "measure_unit", "coordinate_panels", "contact_regions", "body_weight", "cop_in_body_frame"]
+__all__ += ["default_measures", "measure_series", "measure_unit", "coordinate_panels", "contact_regions", "body_weight", "cop_in_body_frame", "ligament_bundles"]
