@@ -88,11 +88,12 @@ def test_lab_frame_positions_are_displacements(mandible_run):
         assert high - low < 100  # millimetre motion of a body ~1 m from the lab origin stays visible
 
 
-def test_centre_of_pressure_is_in_the_frame_of_the_body_it_presses_on(mandible_run):
-    """With the model, the centre of pressure is drawn in the frame B of the body carrying
-    the contact's vertices (the jaw's condyles), p_B = R_WBᵀ (p_W − r_WB): checked with
-    scipy's own quaternion rotation on kinematics.csv's poses. Without the model the
-    world displacement from the first frame in contact is drawn, as before."""
+def test_centre_of_pressure_and_force_are_in_the_frame_of_the_body_pressed_on(mandible_run):
+    """With the model, the centre of pressure and the force are drawn in the frame B of
+    the body carrying the contact's vertices (the jaw's condyles), p_B = R_WBᵀ (p_W −
+    r_WB) and F_B = R_WBᵀ F_W: checked with scipy's own quaternion rotation on
+    kinematics.csv's poses. Without the model the world displacement from the first frame
+    in contact is drawn, as before."""
     from scipy.spatial.transform import Rotation
 
     from openfdk.results.run import RunResults
@@ -116,6 +117,18 @@ def test_centre_of_pressure_is_in_the_frame_of_the_body_it_presses_on(mandible_r
         p_B = np.full_like(p_W, np.nan)
         p_B[ok] = Rotation.from_quat(q[ok]).inv().apply(p_W[ok] - r_WB[ok])
         np.testing.assert_allclose(line.get_ydata(), 1e3 * p_B[:, "xyz".index(c)], atol=1e-9)
+    # the force's components along the same body's axes, F_B = R_WBᵀ F_W; |F| unchanged
+    ax_F = make_figures(res, measures=[])["contact"].axes[0]
+    assert ax_F.get_ylabel().replace("\n", " ") == "contact force (N, body frame B)"
+    forces = {line.get_label(): line.get_ydata() for line in ax_F.get_lines()}
+    for name in res.contacts():
+        body = bodies[name]
+        F_W = np.column_stack([f[f"{name}.F{a}_N"].to_numpy() for a in "xyz"])
+        q = np.column_stack([k[f"{body}.e{j}"].to_numpy() for j in (1, 2, 3, 0)])
+        F_B = Rotation.from_quat(q).inv().apply(F_W)
+        for j, a in enumerate("xyz"):
+            np.testing.assert_allclose(forces[f"{name} F{a} ({body})"], F_B[:, j], atol=1e-9 * np.max(np.abs(F_W)))
+        np.testing.assert_allclose(forces[f"{name} |F|"], np.linalg.norm(F_W, axis=1), rtol=1e-12)
     # without the model: the world displacement from the first frame in contact
     bare = RunResults(res.kinematics, res.forces, {})
     assert bare.model() is None

@@ -466,13 +466,13 @@ def _ligaments(results, t, failed):
     return _finish(fig, axes, t, failed, caption)
 
 
-def cop_in_body_frame(results, name):
-    """(body name, (n_frames, 3) m): the centre of pressure of contact ``name`` in the
-    frame B of the body carrying its 'vertices' surface (the body its force acts on;
-    origin at the centre of mass, docs/outputs.md), p_B = R_WBᵀ (p_W − r_WB) with the
-    body's poses of kinematics.csv (a fixed body: its pose in the model); NaN where
-    either is. None without the model, the contact in it, or the body's poses in
-    kinematics.csv (a model other than the run's)."""
+def contact_body_pose(results, name):
+    """(body name, r_WB (n_frames, 3) m, R_WB (n_frames, 3, 3)): the pose of the body
+    carrying contact ``name``'s 'vertices' surface (the body its force acts on; frame B
+    with its origin at the centre of mass, docs/outputs.md), from kinematics.csv (a
+    fixed body: its pose in the model); NaN where a frame has none. None without the
+    model, the contact in it, or the body's poses in kinematics.csv (a model other than
+    the run's)."""
     from ..numerics.spatial import rotation_matrix
 
     model = results.model()
@@ -480,20 +480,30 @@ def cop_in_body_frame(results, name):
     if element is None:
         return None
     body = model.bodies[element.body_a].name
-    p_W = np.column_stack([_col(results.forces, f"{name}.cop_{c}_m") for c in "xyz"])
-    k = results.kinematics
+    k, n = results.kinematics, len(results.time)
     if f"{body}.x_m" in k.columns:
         r_WB = np.column_stack([_col(k, f"{body}.{c}_m") for c in "xyz"])
-        R_WB = np.full((len(p_W), 3, 3), np.nan)
+        R_WB = np.full((n, 3, 3), np.nan)
         for i, q in enumerate(np.column_stack([_col(k, f"{body}.e{j}") for j in range(4)])):
             if np.all(np.isfinite(q)):
                 R_WB[i] = rotation_matrix(q / np.linalg.norm(q))
-    elif not model.bodies[element.body_a].fixed:  # a model other than the run's (--model)
+        return body, r_WB, R_WB
+    if not model.bodies[element.body_a].fixed:  # a model other than the run's (--model)
         return None
-    else:  # a fixed body (not in kinematics.csv): where the model puts it
-        state = model.initial_state()
-        r_WB = np.broadcast_to(state.p_WB[element.body_a], p_W.shape)
-        R_WB = np.broadcast_to(state.R_WB[element.body_a], (len(p_W), 3, 3))
+    state = model.initial_state()  # a fixed body (not in kinematics.csv): where the model puts it
+    return body, np.broadcast_to(state.p_WB[element.body_a], (n, 3)), np.broadcast_to(state.R_WB[element.body_a],
+                                                                                        (n, 3, 3))
+
+
+def cop_in_body_frame(results, name):
+    """(body name, (n_frames, 3) m): the centre of pressure of contact ``name`` in the
+    frame B of :func:`contact_body_pose`'s body, p_B = R_WBᵀ (p_W − r_WB); None where
+    that has no pose."""
+    pose = contact_body_pose(results, name)
+    if pose is None:
+        return None
+    body, r_WB, R_WB = pose
+    p_W = np.column_stack([_col(results.forces, f"{name}.cop_{c}_m") for c in "xyz"])
     return body, np.einsum("nji,nj->ni", R_WB, p_W - r_WB)
 
 
@@ -518,14 +528,18 @@ def _contact(results, t, failed):
     f = results.forces
     names = results.contacts()
     regions = {n: contact_regions(results, n) for n in names}
+    poses = {n: contact_body_pose(results, n) for n in names}
     cop_B = {n: cop_in_body_frame(results, n) for n in names}
     # the body frame when the model gives every contact's body, else the world (no model)
-    in_body = True if names and all(v is not None for v in cop_B.values()) else None
+    in_body = True if names and all(v is not None for v in poses.values()) else None
     fig, axes = _figure(3 + any(regions.values()), f"{_name(results)}: contact")
     for n in names:
         F = np.column_stack([_col(f, f"{n}.F{c}_N") for c in "xyz"])
+        # along the axes of the body the force acts on (a knee's compressive and shear parts)
+        F_shown = np.einsum("nji,nj->ni", poses[n][2], F) if in_body is not None else F
+        where = f" ({poses[n][0]})" if in_body is not None else ""
         for j, c in enumerate("xyz"):
-            axes[0].plot(t, F[:, j], lw=1, label=f"{n} F{c}")
+            axes[0].plot(t, F_shown[:, j], lw=1, label=f"{n} F{c}{where}")
         axes[0].plot(t, np.linalg.norm(F, axis=1), "k" if len(names) == 1 else "-", lw=1.6, label=f"{n} |F|")
         if in_body is not None:  # where on the body the contact presses: its path over the surface
             for c, values in zip("xyz", 1e3 * cop_B[n][1].T):
@@ -537,12 +551,15 @@ def _contact(results, t, failed):
                 if finite.size:
                     axes[1].plot(t, cop - cop[finite[0]], lw=1, label=f"{n} {c} (from {cop[finite[0]]:.1f} mm)")
         axes[2].plot(t, 1e6 * _col(f, f"{n}.area_m2"), lw=1, label=n)
-    axes[0].set_ylabel("contact force\n(N, world W)", fontsize=8)
+    axes[0].set_ylabel("contact force\n(N, body frame B)" if in_body is not None else "contact force\n(N, world W)",
+                       fontsize=8)
     axes[1].set_ylabel("centre of pressure\n(mm, body frame B)" if in_body is not None
                        else "centre of pressure, from\nfirst contact (mm, world W)", fontsize=8)
     axes[2].set_ylabel("contact area (mm²)", fontsize=8)
     caption = ("Contact force: resultant elastic-foundation force on the body carrying the contact's 'vertices' "
-               "surface, world components (the opposite body receives −F). Centre of pressure: pressure-weighted "
+               "surface, " + ("components along that body's axes B (the legend names it; forces.csv keeps the world's)"
+                              if in_body is not None else "world components")
+               + " (the opposite body receives −F). Centre of pressure: pressure-weighted "
                "mean of the contact points, "
                + ("in the frame B of that body (origin at its centre of mass; the legend names it): the path of the "
                   "contact over the body, undefined (gap) without contact." if in_body is not None else
@@ -714,4 +731,4 @@ def save_figures(figures, directory, dpi=110) -> list[Path]:
     return paths
 
 
-__all__ += ["default_measures", "measure_series", "measure_unit", "coordinate_panels", "contact_regions", "body_weight", "cop_in_body_frame", "ligament_bundles"]
+__all__ += ["default_measures", "measure_series", "measure_unit", "coordinate_panels", "contact_regions", "body_weight", "cop_in_body_frame", "contact_body_pose", "ligament_bundles"]
