@@ -588,8 +588,12 @@ def _reactions(results, t, failed):
     groups = {}
     for n in names:
         groups.setdefault(conjugate_unit(kinds[n]) if n in kinds else "N or N·m", []).append(n)
-    fig, axes = _figure(len(groups), f"{_name(results)}: joint and constraint reactions")
+    title = f"{_name(results)}: joint and constraint reactions"
+    if any(len(rows) > MAX_LEGEND for rows in groups.values()):
+        title += f" ({len(names)} rows; legends: the {MAX_LEGEND} largest)"
+    fig, axes = _figure(len(groups), title)
     for ax, (unit, rows) in zip(axes, groups.items()):
+        rows = _by_peak(f, rows, "{}.reaction")  # the legend's first entries are the largest
         for n, (colour, ls) in zip(rows, line_styles(len(rows))):
             ax.plot(t, _col(f, f"{n}.reaction"), lw=1, color=colour, ls=ls, label=n)
         what = "reaction force" if unit == "N" else "reaction moment" if unit == "N·m" else "reaction"

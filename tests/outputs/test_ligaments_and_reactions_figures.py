@@ -1,6 +1,6 @@
-"""The ligaments' figure of a model with many strands (DM: 149 in 12+ bundles): the
-legend names the largest strands, and a panel sums the strands of each bundle
-(<bundle><k>) — the force a knee's MCL or patellar tendon carries."""
+"""The figures of a model with many lines (DM: 149 ligament strands, 107 constraint
+rows): the legends name the largest, and the ligaments' figure sums the strands of each
+bundle (<bundle><k>) — the force a knee's MCL or patellar tendon carries."""
 
 from __future__ import annotations
 
@@ -54,3 +54,21 @@ def test_without_shared_stems_no_bundle_panel_and_a_short_title():
     kinematics = pd.DataFrame({"time": t, "converged": np.ones(5)}).set_index("time")
     fig = _figure(RunResults(kinematics, pd.DataFrame(cols).set_index("time"), {}))
     assert len(fig.axes) == 2 and fig._suptitle.get_text().endswith("ligaments and springs")
+
+
+def test_reaction_legends_start_with_the_largest_rows():
+    """The reactions' figure of a model with many constraint rows (DM: 107) names the
+    largest in its legend, whatever the rows' order in the model."""
+    t = np.linspace(0.0, 1.0, 6)
+    peaks = {f"j{k}.t1": float(k) for k in range(20)}  # the model's order: smallest first
+    cols = {"time": t, "converged": np.ones(6), "status": ["optimal"] * 6, "message": [""] * 6}
+    cols.update({f"{n}.reaction": p * np.sin(np.pi * t / 2) for n, p in peaks.items()})  # peak p at t = 1
+    kinematics = pd.DataFrame({"time": t, "converged": np.ones(6)}).set_index("time")
+    results = RunResults(kinematics, pd.DataFrame(cols).set_index("time"), {})
+    (build,) = [b for name, b, _ in figure_plan(results, measures=[]) if name == "reactions"]
+    fig = build()
+    assert f"20 rows; legends: the {MAX_LEGEND} largest" in fig._suptitle.get_text()
+    legend = [text.get_text() for text in fig.axes[0].get_legend().get_texts()]
+    assert legend == [f"j{k}.t1" for k in range(19, 19 - MAX_LEGEND, -1)]
+    lines = {line.get_label(): line.get_ydata() for line in fig.axes[0].get_lines()}
+    np.testing.assert_allclose(lines["j7.t1"], 7 * np.sin(np.pi * t / 2), rtol=1e-12)
