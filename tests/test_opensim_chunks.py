@@ -14,7 +14,7 @@ import yaml
 
 from openfdk.analysis.jobs import run_job
 from openfdk.cli import main
-from openfdk.fixtures.full_body_osim import COORDINATES, write_full_body_osim
+from openfdk.fixtures.full_body_osim import COORDINATES, sine_drivers, sine_trajectories, write_full_body_osim
 from openfdk.io.opensim import overlay
 from openfdk.io.results import read_table
 from openfdk.study.cli import job_case, run_chunked_job
@@ -24,19 +24,7 @@ N_FRAMES = 13
 
 def _drivers(rng):
     """Overlay drivers of every coordinate: q = a + b sin(2π f t + φ) as a Fourier series."""
-    drivers = {}
-    for name in COORDINATES:
-        a, b = rng.uniform(-0.1, 0.1), rng.uniform(0.05, 0.2)
-        if name == "pelvis_ty":
-            a = 0.95
-        elif name.startswith("knee_angle"):
-            a = -0.6
-        f, phi = rng.uniform(0.6, 1.4), rng.uniform(0, 2 * np.pi)
-        # b sin(wt + φ) = b sin φ cos(wt) + b cos φ sin(wt)
-        drivers[f"{name}_motion"] = {"measure": name, "reaction": True, "function": {
-            "type": "fourier", "frequency": float(f), "a": [float(a), float(b * np.sin(phi))],
-            "b": [float(b * np.cos(phi))]}}
-    return drivers
+    return sine_drivers(sine_trajectories(rng))
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,7 @@ import pytest
 import yaml
 
 from openfdk.cli import main
-from openfdk.fixtures.full_body_osim import COORDINATES, write_full_body_osim
+from openfdk.fixtures.full_body_osim import COORDINATES, sine_drivers, sine_trajectories, write_full_body_osim
 from openfdk.plots.run import coordinate_panels, figure_plan
 from openfdk.results.run import read_results
 
@@ -21,31 +21,12 @@ START, STEP = 0.1, 0.02
 STILL = ("lumbar_extension", "lumbar_bending", "lumbar_rotation")  # the back's joint
 
 
-def _trajectories(rng):
-    """{coordinate: (a, b, f, φ)} of q = a + b sin(2π f t + φ) (SI); b = 0 for the back."""
-    out = {}
-    for name in COORDINATES:
-        a, b = rng.uniform(-0.1, 0.1), rng.uniform(0.05, 0.2)
-        if name == "pelvis_ty":
-            a = 0.95
-        elif name.startswith("knee_angle"):
-            a = -0.6
-        out[name] = (a, 0.0 if name in STILL else b, rng.uniform(0.6, 1.4), rng.uniform(0, 2 * np.pi))
-    return out
-
-
-def _driver(a, b, f, phi):
-    # b sin(wt + φ) = b sin φ cos(wt) + b cos φ sin(wt)
-    return {"type": "fourier", "frequency": float(f), "a": [float(a), float(b * np.sin(phi))],
-            "b": [float(b * np.cos(phi))]}
-
-
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
     folder = tmp_path_factory.mktemp("coordinates_figure")
     write_full_body_osim(folder / "full_body.osim")
-    q = _trajectories(np.random.default_rng(11))
-    drivers = {f"{n}_motion": {"measure": n, "reaction": True, "function": _driver(*q[n])} for n in COORDINATES}
+    q = sine_trajectories(np.random.default_rng(11), still=STILL)
+    drivers = sine_drivers(q)
     (folder / "overlay.yaml").write_text(yaml.safe_dump({
         "opensim": "full_body.osim", "drivers": drivers,
         "analysis": {"start": START, "end": START + (N_FRAMES - 1) * STEP, "frames": N_FRAMES}}))

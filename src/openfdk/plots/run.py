@@ -495,18 +495,6 @@ def contact_body_pose(results, name):
                                                                                         (n, 3, 3))
 
 
-def cop_in_body_frame(results, name):
-    """(body name, (n_frames, 3) m): the centre of pressure of contact ``name`` in the
-    frame B of :func:`contact_body_pose`'s body, p_B = R_WBᵀ (p_W − r_WB); None where
-    that has no pose."""
-    pose = contact_body_pose(results, name)
-    if pose is None:
-        return None
-    body, r_WB, R_WB = pose
-    p_W = np.column_stack([_col(results.forces, f"{name}.cop_{c}_m") for c in "xyz"])
-    return body, np.einsum("nji,nj->ni", R_WB, p_W - r_WB)
-
-
 def contact_regions(results, name):
     """[(region, forces.csv column)] of contact ``name``: its ``<contact>.<region>_N``
     columns, the force magnitude (N) on each region's vertices (a knee's medial and
@@ -529,7 +517,6 @@ def _contact(results, t, failed):
     names = results.contacts()
     regions = {n: contact_regions(results, n) for n in names}
     poses = {n: contact_body_pose(results, n) for n in names}
-    cop_B = {n: cop_in_body_frame(results, n) for n in names}
     # the body frame when the model gives every contact's body, else the world (no model)
     in_body = True if names and all(v is not None for v in poses.values()) else None
     fig, axes = _figure(3 + any(regions.values()), f"{_name(results)}: contact")
@@ -542,8 +529,11 @@ def _contact(results, t, failed):
             axes[0].plot(t, F_shown[:, j], lw=1, label=f"{n} F{c}{where}")
         axes[0].plot(t, np.linalg.norm(F, axis=1), "k" if len(names) == 1 else "-", lw=1.6, label=f"{n} |F|")
         if in_body is not None:  # where on the body the contact presses: its path over the surface
-            for c, values in zip("xyz", 1e3 * cop_B[n][1].T):
-                axes[1].plot(t, values, lw=1, label=f"{n} {c} ({cop_B[n][0]})")
+            body, r_WB, R_WB = poses[n]
+            p_W = np.column_stack([_col(f, f"{n}.cop_{c}_m") for c in "xyz"])
+            p_B = np.einsum("nji,nj->ni", R_WB, p_W - r_WB)  # R_WBᵀ (p_W − r_WB)
+            for c, values in zip("xyz", 1e3 * p_B.T):
+                axes[1].plot(t, values, lw=1, label=f"{n} {c} ({body})")
         else:
             for c in "xyz":  # from the first frame in contact: millimetres stay visible in a lab frame
                 cop = 1e3 * _col(f, f"{n}.cop_{c}_m")
@@ -735,4 +725,4 @@ def save_figures(figures, directory, dpi=110) -> list[Path]:
     return paths
 
 
-__all__ += ["default_measures", "measure_series", "measure_unit", "coordinate_panels", "contact_regions", "body_weight", "cop_in_body_frame", "contact_body_pose", "ligament_bundles"]
+__all__ += ["default_measures", "measure_series", "measure_unit", "coordinate_panels", "contact_regions", "body_weight", "contact_body_pose", "ligament_bundles"]
