@@ -22,6 +22,8 @@ OpenSim and against OpenSim's own 4.x conversion of it, the round trip through
 errors for malformed files.
 """
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -298,6 +300,25 @@ def test_custom_joints_match_opensim(files):
     check_motion_types(ours, orc)
     units = {c.name: c.unit for c in ours.model.coordinates}
     assert units["ankle_slide"] == units["mtp_slide"] == "length" and units["knee_angle"] == "angle"
+
+
+@pytest.mark.slow
+def test_a_coordinate_moving_its_axis_through_a_two_point_spline_matches_opensim(files, workdir):
+    """The knee's rotation1 written as a SimmSpline through (−2π, 2π) and (2π, −2π), y =
+    −x, as the left knee of jam-resources' full_body_healthy_knee.osim writes it: the
+    spline is one line, so knee_angle is measured from that axis (it was refused: "moves
+    no axis through a linear function"). Poses, markers and coordinates match OpenSim at
+    30 samples."""
+    tree = etree.parse(str(files["custom"]))
+    (axis,) = tree.xpath("//CustomJoint[@name='knee']/SpatialTransform/TransformAxis[@name='rotation1']")
+    (linear,) = axis.xpath("LinearFunction")
+    spline = etree.SubElement(axis, "SimmSpline", name="function")
+    etree.SubElement(spline, "x").text = "-6.28319 6.28319"
+    etree.SubElement(spline, "y").text = "6.28319 -6.28319"
+    axis.remove(linear)
+    path = workdir / "two_point_spline.osim"
+    tree.write(str(path), xml_declaration=True, encoding="UTF-8")
+    check_free_model(path, 30, 21, "two-point spline", fd_velocity_bodies=("foot", "toe"))
 
 
 # ----------------------------------------------------------------------------- 7. merged bodies
@@ -706,6 +727,64 @@ def test_malformed_files_are_one_line_errors(files, workdir, case, source, edit,
     assert isinstance(exc.value, ValueError)
     msg = _one_line(exc, path, line)
     assert words in msg, msg
+
+
+def test_a_bare_ampersand_in_text_is_read_as_opensim_reads_it(workdir, recwarn):
+    """jam-resources' full_body_healthy_knee.osim writes "Smith, C. R., Brandon, S. C.,
+    & Thelen, D. G." in <publications>: not XML (an '&' starts an entity), but OpenSim's
+    parser reads it. openfdk reads the model too, warns once naming that line (not the
+    comments' '&', which XML allows), and the model equals the file with '&amp;'. An
+    '&' in a file that has another syntax error leaves that error standing."""
+    import warnings
+
+    from openfdk.model.plausibility import PlausibilityWarning
+
+    text = om.custom_model(workdir / "amp_base.osim").read_text()
+    head, rest = text.split("<Model name=\"custom\">", 1)
+    escaped = workdir / "escaped.osim"
+    escaped.write_text(f"{head}<Model name=\"custom\">\n<!-- Bei & Fregly 2004 -->\n"
+                       f"<publications>Smith &amp; Thelen (2019)</publications>{rest}")
+    bare = workdir / "bare.osim"
+    bare.write_text(escaped.read_text().replace("&amp;", "&"))
+    line = bare.read_text().splitlines().index("<publications>Smith & Thelen (2019)</publications>") + 1
+    assert opensim.Model(str(bare)).getPublications() != ""  # the oracle: OpenSim reads the file
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        data, _ = read_osim(bare)
+    ours = [w for w in caught if issubclass(w.category, PlausibilityWarning)]
+    assert len(ours) == 1, [str(w.message) for w in caught]
+    message = str(ours[0].message)
+    assert message.startswith(f"bare.osim: line {line}: '&'") and "as OpenSim reads" in message, message
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PlausibilityWarning)
+        expected, _ = read_osim(escaped)  # (no warning: the escaped file is XML)
+    assert data == expected
+    broken = workdir / "bare_and_broken.osim"
+    broken.write_text(bare.read_text().replace("</publications>", "</publication>"))
+    with pytest.raises(OsimError) as exc:
+        read_osim(broken)
+    assert "not well-formed XML" in _one_line(exc, broken)
+
+
+def test_an_ignored_type_the_model_does_not_have_is_named():
+    """``--ignore Foo`` (a misspelt type) or ``--ignore A,B`` (two types in one) matched
+    nothing and passed unnoticed; now a warning names the types. ``Mesh`` of a model with
+    display meshes and ``forces`` are matched."""
+    import warnings
+
+    from openfdk.bench.fuzz_inputs import OSIM_TEXT
+
+    from openfdk.model.plausibility import PlausibilityWarning
+
+    path = Path("leg_ignore.osim")
+    path.write_text(OSIM_TEXT)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        read_osim(path, ignore=("Mesh", "forces", "Thelen2003Muscl", "Mesh,Millard2012EquilibriumMuscle"))
+    messages = [str(w.message) for w in caught if issubclass(w.category, PlausibilityWarning)]
+    assert messages == ["leg_ignore.osim: ignore 'Mesh,Millard2012EquilibriumMuscle', 'Thelen2003Muscl': the model "
+                        "has no element of these types (one OpenSim type per --ignore, e.g. --ignore Mesh --ignore "
+                        "Thelen2003Muscle)"], messages
 
 
 def test_not_xml_and_not_opensim_are_one_line_errors(workdir):

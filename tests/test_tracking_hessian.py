@@ -1,5 +1,5 @@
 """The tracking Lagrangian's Hessian: by compressed differences
-(fdk.jacobian.hessian_pattern, numerics.numdiff.column_groups; the analytic FDK
+(kinematics.kkt.hessian_pattern, numerics.numdiff.column_groups; the analytic FDK
 Jacobian's kinematic sensitivity differences the gradient Ψ_q̂ᵀ W Ψ + Φ_q̂ᵀ λ once per
 group of coordinates whose rows do not overlap, instead of once per coordinate), and its
 second-order terms as the position solves' Newton steps (MarkerTracker.solve_positions,
@@ -7,7 +7,7 @@ second-order terms as the position solves' Newton steps (MarkerTracker.solve_pos
 
 import numpy as np
 
-from openfdk.fdk.jacobian import hessian_pattern
+from openfdk.kinematics.kkt import hessian_pattern
 from openfdk.kinematics.tracking_hessian import OK, group_arrays, tracking_hessian
 from openfdk.kinematics.system import ConstraintSystem
 from openfdk.kinematics.tracking import MarkerTracker

@@ -34,10 +34,7 @@ import numpy as np
 
 from ..kinematics.frame_kernels import small_solve
 from ..kinematics.envelope_lu import solve_in_order
-from ..kinematics.kkt import hessian_pattern
-from ..kinematics.tracking_hessian import OK as HESSIAN_OK
-from ..kinematics.tracking_hessian import group_arrays, tracking_hessian
-from ..numerics.numdiff import column_groups, manifold_jacobian
+from ..kinematics.curvature import lagrangian_hessian, second_order_terms
 from ..recruitment import RecruitmentSensitivity
 from .contact_step import contact_split
 from .residual import FrameWorkspace
@@ -62,8 +59,6 @@ def differenced_kinds(forces):
                         if fs.kind in DIRECTIONAL_KINDS and not getattr(fs, "exact_stiffness", False))
     return directional, directional + DIFFERENCED_KINDS
 
-#: the forward differences' step of the tracking Hessian H (m or rad; relative error ~1e-7)
-HESSIAN_STEP = 1e-7
 #: the central differences' step along each u_j: STEP / max |u_j| (m or rad of the
 #: largest coordinate change)
 STEP = 1e-6
@@ -102,34 +97,10 @@ def kinematic_sensitivity(ctx, ev):
     if ctx.tracker is None:
         return small_solve(A, E)
     tracker = ctx.tracker
-    w = tracker._weights(ev.visible)
-    x = np.where(ev.visible[:, None], ev.x, 0.0).ravel()
-    lam = ev.lam
-
-    def gradient(s):
-        p, J, _ = tracker.markers.evaluate(s, 1)
-        _, As, _, _ = system.evaluate(s, t, ev.alpha, order=1)
-        return J.T @ (w * (p - x)) + As.T @ lam
-
-    # the gradient at the pose itself from the position stage (marker Jacobian, Φ_q̂)
-    g0 = data.J_M.T @ (w * (data.p_M - x)) + A.T @ lam
-    pattern, groups, group_ptr, group_cols = _hessian_pattern(ctx, A)
-    H = None
-    if not tracker.tasks:
-        # one compiled call (kinematics/tracking_hessian.py); the coordinate tasks' rows
-        # are differenced through Python below
-        H = np.empty((n, n))
-        prog = system.program
-        status, _, _ = tracking_hessian(*prog.program, prog.n_node_rows, state.p_WB, state.quat_WB, state.R_WB,
-                                        state.w_BB, state.v_WB, state.column, state.moving, tracker.markers.body,
-                                        tracker.markers.p_BM, w, x, lam, g0, group_ptr, group_cols, pattern,
-                                        HESSIAN_STEP, H)
-        H = H if status == HESSIAN_OK else None
-    if H is None:  # (a measure that fails at a displaced pose raises here, naming it)
-        H = manifold_jacobian(gradient, state, eps=HESSIAN_STEP, central=False, f0=g0, pattern=pattern,
-                              groups=groups)
+    H = lagrangian_hessian(tracker, state, t, ev.alpha, ev.visible, ev.x, ev.lam, data.p_M, data.J_M, A,
+                           ctx.hessian_patterns)
     # the second-order terms, for the position solves that follow (FDKContext.tracking_curvature)
-    ctx.tracking_curvature = (H - data.J_M.T @ (w[:, None] * data.J_M), float(t))
+    ctx.tracking_curvature = (second_order_terms(tracker, state, H, data.J_M, ev.visible), float(t))
     K = np.zeros((n + m, n + m))
     K[:n, :n] = H
     K[:n, n:] = A.T
@@ -139,21 +110,6 @@ def kinematic_sensitivity(ctx, ev):
     # K has the tracking's KKT structure: factorized in the tracker's order (0.7 → 0.2 ms
     # on the DM knee; kinematics/envelope_lu.py)
     return solve_in_order(K, tracker.kkt_order, rhs)[:n]
-
-
-def _hessian_pattern(ctx, A):
-    """(pattern, column groups, and the groups as :func:`group_arrays`) of
-    :func:`hessian_pattern` for ``ctx``'s constraints, kept on ``ctx`` and built again if
-    A touches a body the kept one did not."""
-    kept = ctx._hessian
-    m, n = A.shape
-    if kept is not None and kept[2].shape == (m, n // 6):
-        if not np.any((A != 0.0).reshape(m, n // 6, 6).any(axis=2) & ~kept[2]):
-            return kept[0], kept[1], *kept[3]
-    pattern, touched = hessian_pattern(A)
-    groups = column_groups(pattern)
-    ctx._hessian = (pattern, groups, touched, group_arrays(groups))
-    return pattern, groups, *ctx._hessian[3]
 
 
 def _geometry_terms(ctx, state, vdot, t, alpha, moved):

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..kinematics.curvature import HessianPattern
 from ..kinematics.determinate import solve_positions
 from ..kinematics.stages import marker_stage, velocity_stage_determinate, velocity_stage_tracking
 from ..kinematics.tracking import KKTFactors, residual_rates, window_spacing
@@ -131,7 +132,7 @@ class FDKContext:
         names = solver.layout.column_names
         self.fdk_columns = np.array([names.index(f"fdk.{d.name}") for d in model.fdk_dofs], dtype=int)
         self._rates_frame, self._rates_k = None, None  # _measured_rates of the frame in work
-        self._hessian = None  # the tracking Hessian's pattern, groups, touched bodies, group arrays (fdk.jacobian)
+        self.hessian_patterns = HessianPattern()  # the tracking Hessian's (kinematics/curvature.py)
         self._kkt_size = self.system.n_coords + self.system.n_rows  # n + m of the tracking's KKT matrix
         #: (S (n, n), t s): the tracking Lagrangian Hessian's second-order terms at the last
         #: analytic Jacobian's pose and that frame's time (fdk.jacobian.kinematic_sensitivity),

@@ -31,6 +31,7 @@ from ..model.framedata import FrameData
 from ..model.kernels import displace_by_rates, extrapolate_poses
 from ..trial import drive
 from ..trial.status import Reason, frame_messages
+from .curvature import HessianPattern, lagrangian_hessian, second_order_terms
 from .determinate import FrameSolve, check_square, solve_positions, solve_velocities_accelerations
 from .stages import marker_stage, velocity_stage_tracking
 from .system import ConstraintSystem
@@ -113,6 +114,17 @@ def rms_marker_residual(residual, weights=None):
     if not residual.size or not np.any(np.isfinite(residual)):
         return None
     return float(np.sqrt(np.nanmean(np.sum(residual**2, axis=2))))
+
+
+#: a converged frame that took more Gauss–Newton steps than this gets the tracking
+#: Lagrangian's second-order terms at its pose (kinematics/curvature.py), and the next
+#: frames take Newton's steps with them until one needs more steps again. On
+#: jam-resources' full_body_healthy_knee.osim with overground_17.trc (13 mm RMS): 38.5 →
+#: 10 steps a frame, 71 → 3.3 s of CPU for 515 frames; on the DM knee (380 frames):
+#: 12.9 → 9.4 steps, three refreshes, 1.7 → 1.3 s. Refreshing the terms sooner (when a
+#: frame needs 3 steps more than the first solved with them: 7.9 and 8.7 steps) cost
+#: more than the steps it saved (2.1 and 4.6 s); a Hessian costs about 20 chord steps.
+CURVATURE_ITERATIONS = 12
 
 
 def analysis_times(t_start, t_end, n_frames):
@@ -241,6 +253,10 @@ class TrackingStep:
         self.guessed = False
         self.pending = {}  # frame -> positions of the last frames not yet finished
         self.frame_data = {}  # frame -> FrameData of the frame just finished (for the dynamics)
+        # the Lagrangian's second-order terms S (n, n) at an earlier frame's pose, or None:
+        # the position solves' Newton steps (kinematics/curvature.py)
+        self.curvature = None
+        self.patterns = HessianPattern()
 
     def fields(self):
         return kinematics_fields(self.model, self.model.markers.size, self.prefix)
@@ -253,7 +269,7 @@ class TrackingStep:
         if not self.guessed and np.any(vis):
             tracker.initial_guess(state, x, vis)
             self.guessed = True
-        res, K, _ = tracker.solve_positions(state, t, x, vis, self.alpha)
+        res, K, lam = tracker.solve_positions(state, t, x, vis, self.alpha, second_order=self.curvature)
         frame = {"res": res, "meas": (xd, xdd), "q": None, "state": None, "data": None,
                  "delta": np.full((self.model.markers.size, 3), np.nan)}
         if res.converged:
@@ -265,6 +281,8 @@ class TrackingStep:
             if misfit:  # a least-squares pose, but not one of these markers
                 res = frame["res"] = FrameSolve(False, res.iterations, res.residual, misfit, Reason.FAILED)
         if res.converged:
+            if res.iterations > CURVATURE_ITERATIONS:
+                self._refresh_curvature(state, t, x, vis, lam, data)
             frame.update(q=state.get_q(), state=state.copy(), data=data, delta=data.delta)
             self.last_good = state.copy()
             # warm start of the next frame: linear extrapolation on the manifold
@@ -290,6 +308,19 @@ class TrackingStep:
             self._edge_neighbour(last + 1, self.times[last] + self.dt, self.pending[last]["state"])
         return [(last, self._finish_frame(last))]
 
+    def _refresh_curvature(self, state, t, x, vis, lam, data):
+        """S at the solved pose of a frame that took more than CURVATURE_ITERATIONS
+        steps (its fit's residuals slow Gauss–Newton down), for the next frames' solves;
+        None (Gauss–Newton's steps) where a constraint measure fails at a displaced pose."""
+        tracker = self.tracker
+        A = tracker.system.evaluate(state, t, self.alpha, order=1)[1]
+        try:
+            H = lagrangian_hessian(tracker, state, t, self.alpha, vis, x, lam, data.p_M, data.J_M, A, self.patterns)
+        except ArithmeticError:  # (FloatingPointError: a measure undefined at a displaced pose)
+            self.curvature = None
+            return
+        self.curvature = second_order_terms(tracker, state, H, data.J_M, vis)
+
     def _edge_neighbour(self, j, t, start):
         """The residuals δ at the trial's sample t (s) just outside the window (frame j =
         −1 or nf) where the trial has markers there, solved from the pose ``start`` of
@@ -304,7 +335,7 @@ class TrackingStep:
         if not np.any(vis):
             return
         state = start.copy()
-        res, _, _ = self.tracker.solve_positions(state, t, x, vis, self.alpha)
+        res, _, _ = self.tracker.solve_positions(state, t, x, vis, self.alpha, second_order=self.curvature)
         if not res.converged:
             return
         delta = np.where(vis[:, None], self.tracker.markers.positions(state) - x, np.nan)

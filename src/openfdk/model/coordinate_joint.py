@@ -93,13 +93,31 @@ class Axis:
     function: object
 
 
-def affine(function):
+def affine(function, rtol=1e-12):
     """(slope, intercept) if the PiecewisePolynomial ``function`` is one affine function
-    on the whole real line (OpenSim's LinearFunction, a MultiplierFunction of one, a
-    degree-1 PolynomialFunction), else None."""
-    if function.n_pieces or not np.array_equal(function.left, function.right) or np.any(function.left[2:] != 0.0):
-        return None
-    return float(function.left[1]), float(function.left[0])
+    on the whole real line, else None: OpenSim's LinearFunction, a MultiplierFunction of
+    one, a degree-1 PolynomialFunction, and a spline through collinear points (a
+    SimmSpline through two points, y = −x in the knee_l of jam-resources'
+    full_body_healthy_knee.osim), whose pieces and end tangents are that line to
+    ``rtol`` of its values and slope."""
+    if not function.n_pieces:
+        if not np.array_equal(function.left, function.right) or np.any(function.left[2:] != 0.0):
+            return None
+        return float(function.left[1]), float(function.left[0])
+    b = function.breaks
+    slope = float(function.coeffs[0, 1])
+    intercept = float(function.coeffs[0, 0]) - slope * float(b[0])
+    h = np.diff(b)
+    # each piece and end as (value at its start, slope, the higher terms' size over the piece)
+    ends = [(function.left, b[0], 0.0), (function.right, b[-1], 0.0)]
+    pieces = [(c, x0, dx) for c, x0, dx in zip(function.coeffs, b[:-1], h)] + ends
+    scale = max(np.max(np.abs(function.coeffs[:, 0])), abs(slope) * float(b[-1] - b[0]), 1e-300)
+    for c, x0, dx in pieces:
+        higher = np.abs(c[2:]) * np.maximum(dx, 1.0) ** np.arange(2, len(c))
+        if (abs(c[0] - (intercept + slope * x0)) > rtol * scale or abs(c[1] - slope) > rtol * max(abs(slope), 1e-300)
+                or np.any(higher > rtol * scale) or (dx == 0.0 and np.any(c[2:] != 0.0))):
+            return None
+    return slope, intercept
 
 
 def _rotation(axis, angle):

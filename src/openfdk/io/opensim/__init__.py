@@ -38,4 +38,21 @@ def read_osim(path, ignore=(), mesh_dirs=()):
                         f"leave it out with --ignore {kind}")
     data, info = model_dict(doc, mesh_dirs, ignore)
     info["dropped"] = [{"type": k, "name": n, "line": line} for k, n, line in doc.ignored]
+    _warn_unmatched(doc, ignore)
     return data, info
+
+
+def _warn_unmatched(doc, ignore):
+    """Warn of the ``ignore`` types the model has no element of (a misspelt type, or
+    'A,B' given for two), which would otherwise pass unnoticed. ``Mesh`` matches any
+    display mesh (found meshes are still drawn), ``forces`` any ForceSet."""
+    import warnings
+
+    from ...model.plausibility import PlausibilityWarning
+
+    present = {kind for kind, _, _ in doc.ignored} | ({"Mesh"} if doc.geometry else set()) | {"forces"}
+    unmatched = sorted(set(ignore) - present)
+    if unmatched:
+        warnings.warn(f"{doc.source}: ignore {', '.join(map(repr, unmatched))}: the model has no element of "
+                      f"{'these types' if len(unmatched) > 1 else 'this type'} (one OpenSim type per --ignore, "
+                      "e.g. --ignore Mesh --ignore Thelen2003Muscle)", PlausibilityWarning, stacklevel=3)

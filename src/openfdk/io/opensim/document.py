@@ -29,6 +29,7 @@ and :mod:`openfdk.io.opensim.to_model` do.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -434,10 +435,46 @@ def parse_xml(path, source):
     except OSError as exc:
         raise OsimError(f"{source}: cannot read the file ({exc.strerror or exc})") from None
     except etree.XMLSyntaxError as exc:
-        raise OsimError(f"{source}: not well-formed XML: {exc.msg} (line {exc.lineno})") from None
+        tree = _parse_with_bare_ampersands(path, source, exc)
     if tree.docinfo.doctype:
         raise OsimError(f"{source}: has a DOCTYPE declaration ({_clip(tree.docinfo.doctype)}); OpenSim files have "
                         "none (refused: its entities could hide or change values)")
+    return tree
+
+
+#: an '&' that starts no entity or character reference ('&amp;', '&#38;', '&#x26;')
+_BARE_AMPERSAND = re.compile(rb"&(?![A-Za-z_:][\w.:-]*;|#[0-9]+;|#x[0-9A-Fa-f]+;)")
+#: comments and CDATA sections, where '&' is text
+_VERBATIM = re.compile(rb"<!--.*?-->|<!\[CDATA\[.*?\]\]>", re.S)
+
+
+def _parse_with_bare_ampersands(path, source, error):
+    """The tree of ``path`` whose only XML error is an '&' written bare in text (e.g.
+    "Smith, C. R., & Thelen, D. G." in jam-resources' full_body_healthy_knee.osim):
+    OpenSim's parser accepts it; here it is read as the character '&', with a warning
+    naming the lines. Any other syntax error, or one left after that, is OsimError."""
+    import warnings
+
+    from lxml import etree
+
+    from ...model.plausibility import PlausibilityWarning
+
+    data = Path(path).read_bytes()
+    # a comment may hold a bare '&' (and a CDATA section any text): those stay as written
+    kept = [m.span() for m in _VERBATIM.finditer(data)]
+    bare = [m.start() for m in _BARE_AMPERSAND.finditer(data)
+            if not any(a <= m.start() < b for a, b in kept)]
+    if not bare:
+        raise OsimError(f"{source}: not well-formed XML: {error.msg} (line {error.lineno})") from None
+    try:
+        fixed = b"".join(data[a:b] + b"&amp;" for a, b in zip([0] + [i + 1 for i in bare], bare)) + data[bare[-1] + 1:]
+        tree = etree.ElementTree(etree.fromstring(fixed, _parser()))
+    except etree.XMLSyntaxError:  # the first error stands (the lines are the file's)
+        raise OsimError(f"{source}: not well-formed XML: {error.msg} (line {error.lineno})") from None
+    lines = sorted({data.count(b"\n", 0, i) + 1 for i in bare})
+    shown = ", ".join(map(str, lines[:5])) + (f" and {len(lines) - 5} more" if len(lines) > 5 else "")
+    warnings.warn(f"{source}: line{'s' if len(lines) > 1 else ''} {shown}: '&' not written '&amp;' (XML's escape); "
+                  "read as the character '&', as OpenSim reads the file", PlausibilityWarning, stacklevel=3)
     return tree
 
 
