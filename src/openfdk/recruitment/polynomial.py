@@ -17,7 +17,10 @@ Pipeline (all numerical work in one numba call):
    (:mod:`~openfdk.recruitment.interior_point`; Wright 1997, ch. 10; Nocedal & Wright
    2006, Alg. 16.4 / §19.3) to a moderate tolerance, then
 3. a dual Newton polish (:mod:`~openfdk.recruitment.dual_newton`) to ``tol``, which makes
-   the active set exact (bounded forces exactly 0 or s).
+   the active set exact (bounded forces exactly 0 or s). If it does not converge, the
+   interior point goes on to 1e-8 and then to ``tol``, polished after each; if the
+   interior point breaks down on the way (activities of thousands, a reserve's, beside
+   ones 1e-15 from their bound), a longer polish from its last converged stage.
    Warm start (``x0`` = previous result or forces): the dual Newton method starts from the
    previous multipliers; it falls back to step 2 if it does not converge in 20 iterations.
 4. Back-substitution of the free forces and of the multipliers λ of C f = d.
@@ -75,8 +78,10 @@ _NUMERICAL_FAILURE = 4
 _RANK_RTOL = 1e-11  # singular values below this × max|C s| count as zero
 _CONSISTENCY_RTOL = 1e-9  # unbalanceable part of d above this × (‖d‖ + max|C s|) is infeasible
 _IPM_LOOSE_TOL = 1e-6  # interior point stops here first; the dual Newton polish goes on
+_IPM_MIDDLE_TOL = 1e-8  # … and here second, when that polish did not converge
 _POLISH_MAX_ITER = 8
 _WARM_MAX_ITER = 20
+_LONG_POLISH_MAX_ITER = 50  # the polish after the interior point broke down
 
 
 @njit(cache=True, error_model="numpy")
@@ -118,38 +123,57 @@ def _solve_polynomial_kernel(C, d, n_bounded, s, lower, upper, p, warm_mode, lam
             iterations += it
             solved = dual_status == DUAL_CONVERGED
         if not solved:
-            # interior point to a loose tolerance, then the dual Newton polish
+            # interior point by stages (a loose tolerance, a middle one, ``tol``), each
+            # continued from the last and followed by the dual Newton polish from its
+            # multipliers; the first polish that converges gives the solution
             x_ipm, z_ipm, w_ipm, mu_ipm = ipm_starting_point(A_r, b_r, p, lower, upper)
-            ipm_status, it = power_box_ipm(A_r, b_r, p, lower, upper, x_ipm, z_ipm, w_ipm, mu_ipm,
-                                           max(tol, _IPM_LOOSE_TOL), max_iter)
-            iterations += it
-            if ipm_status == IPM_CONVERGED:
-                x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, lower, upper, mu_ipm, tol,
-                                                               np.int64(_POLISH_MAX_ITER))
+            mu_good = mu_ipm.copy()
+            have_good = False
+            ipm_status = IPM_CONVERGED
+            stage_tol = np.inf
+            for stage in range(3):
+                last = stage_tol
+                stage_tol = max(tol, (_IPM_LOOSE_TOL, _IPM_MIDDLE_TOL, tol)[stage])
+                if stage_tol >= last:
+                    continue  # (tol looser than this stage's)
+                ipm_status, it = power_box_ipm(A_r, b_r, p, lower, upper, x_ipm, z_ipm, w_ipm, mu_ipm, stage_tol,
+                                               max_iter if stage == 0 else max(max_iter - iterations, 1))
+                iterations += it
+                if ipm_status != IPM_CONVERGED:
+                    break
+                mu_good[:] = mu_ipm
+                have_good = True
+                x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, lower, upper, mu_ipm.copy(), tol,
+                                                               np.int64(_POLISH_MAX_ITER if stage == 0
+                                                                        else _WARM_MAX_ITER))
                 iterations += it
                 solved = dual_status == DUAL_CONVERGED
-            if not solved and ipm_status == IPM_CONVERGED:
-                # continue the interior point to ``tol`` and polish again
-                ipm_status, it = power_box_ipm(A_r, b_r, p, lower, upper, x_ipm, z_ipm, w_ipm, mu_ipm,
-                                               tol, max(max_iter - iterations, 1))
+                if solved:
+                    break
+                if stage_tol == tol:
+                    # the interior-point solution itself meets ``tol``: accept it, with
+                    # the active set read from the bound multipliers
+                    x = x_ipm
+                    mu = mu_ipm
+                    from_dual = False
+                    solved = True
+                    for j in range(n_bounded):
+                        if z_ipm[j] > x_ipm[j] - lower[j]:
+                            bound_state[j] = -1
+                        elif w_ipm[j] > upper[j] - x_ipm[j]:
+                            bound_state[j] = 1
+                    break
+            if not solved and have_good:
+                # the continued interior point broke down: its barrier terms z/x reach 1e20
+                # when activities of thousands (a reserve's) sit beside ones 1e-15 from
+                # their bound (jam-resources' full_body_healthy_knee.osim, whose arms only
+                # reserves move: 32 of 515 frames failed). A longer polish from the last
+                # stage that converged: 9–30 steps on those problems
+                x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, lower, upper, mu_good, tol,
+                                                               np.int64(_LONG_POLISH_MAX_ITER))
                 iterations += it
-                if ipm_status == IPM_CONVERGED:
-                    x, mu, dual_status, it = power_box_dual_newton(A_r, b_r, p, lower, upper, mu_ipm, tol,
-                                                                   np.int64(_WARM_MAX_ITER))
-                    iterations += it
-                    solved = dual_status == DUAL_CONVERGED
-                    if not solved:
-                        # the interior-point solution itself meets ``tol``: accept it,
-                        # with the active set read from the bound multipliers
-                        x = x_ipm
-                        mu = mu_ipm
-                        from_dual = False
-                        solved = True
-                        for j in range(n_bounded):
-                            if z_ipm[j] > x_ipm[j] - lower[j]:
-                                bound_state[j] = -1
-                            elif w_ipm[j] > upper[j] - x_ipm[j]:
-                                bound_state[j] = 1
+                solved = dual_status == DUAL_CONVERGED
+                from_dual = True
             if not solved:
                 status = _NUMERICAL_FAILURE if ipm_status == IPM_FAILED else _MAX_ITER
     active_upper = np.zeros(n, dtype=np.bool_)
