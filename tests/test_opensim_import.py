@@ -258,6 +258,9 @@ def check_motion_types(ours, orc):
         theirs = kinds[int(orc.coords[c.name].getMotionType())]
         assert theirs == "coupled" or c.motion == theirs, (c.name, c.motion, theirs)
         assert c.unit == {"rotational": "angle", "translational": "length"}[c.motion], c.name
+        # OpenSim's own motion type, coupled included: it decides the .mot columns' unit
+        assert (c.opensim_motion or c.motion) == theirs, (c.name, c.opensim_motion, theirs)
+        assert c.in_degrees_in_mot == (theirs == "rotational"), c.name
 
 
 # ----------------------------------------------------------------------------- 1. joints
@@ -318,7 +321,52 @@ def test_a_coordinate_moving_its_axis_through_a_two_point_spline_matches_opensim
     axis.remove(linear)
     path = workdir / "two_point_spline.osim"
     tree.write(str(path), xml_declaration=True, encoding="UTF-8")
-    check_free_model(path, 30, 21, "two-point spline", fd_velocity_bodies=("foot", "toe"))
+    ours, orc = check_free_model(path, 30, 21, "two-point spline", fd_velocity_bodies=("foot", "toe"))
+    check_motion_types(ours, orc)  # knee_angle: coupled for OpenSim (a spline, not a LinearFunction)
+    assert orc.coords["knee_angle"].getMotionType() == opensim.Coordinate.Coupled
+
+
+@pytest.mark.slow
+def test_coordinates_mot_gives_coupled_coordinates_in_the_units_opensim_reads(files, workdir):
+    """coordinates.mot says inDegrees=yes, and OpenSim converts only its rotational
+    coordinates' columns (SimbodyEngine::convertDegreesToRadians). A coupled coordinate —
+    knee_angle through the two-point spline, hip_adduction through a LinearFunction of
+    slope −2 — is written in rad: OpenSim's conversion of the file gives back every
+    coordinate's value. (jam-resources' full_body_healthy_knee.osim: its left knee, ankle
+    and subtalar coordinates were written in degrees and read by OpenSim as rad, 57×.)"""
+    from types import SimpleNamespace
+
+    from openfdk.io.coordinate_outputs import write_coordinates
+
+    tree = etree.parse(str(files["custom"]))
+    (axis,) = tree.xpath("//CustomJoint[@name='knee']/SpatialTransform/TransformAxis[@name='rotation1']")
+    axis.remove(axis.find("LinearFunction"))
+    spline = etree.SubElement(axis, "SimmSpline", name="function")
+    etree.SubElement(spline, "x").text = "-6.28319 6.28319"
+    etree.SubElement(spline, "y").text = "6.28319 -6.28319"
+    path = workdir / "two_point_mot.osim"
+    tree.write(str(path), xml_declaration=True, encoding="UTF-8")
+    ours, orc = Ours(path), om.Oracle(path)
+    rng = np.random.default_rng(31)
+    free = [c.name for c in ours.model.coordinates if not (c.locked or c.prescribed)]
+    samples = [orc.sample(rng, free) for _ in range(4)]
+    q = np.array([pose_at(ours.model, s)[0].get_q() for s in samples])
+    kin = SimpleNamespace(time=np.arange(4) * 0.01, q=q, converged=np.ones(4, bool))
+    out = workdir / "mot_out"
+    out.mkdir(exist_ok=True)
+    write_coordinates(out, ours.model, kin)
+    storage = opensim.Storage(str(out / "coordinates.mot"))
+    assert storage.isInDegrees()
+    orc.model.getSimbodyEngine().convertDegreesToRadians(storage)
+    coupled = {n for n in free if orc.coords[n].getMotionType() == opensim.Coordinate.Coupled}
+    assert {"knee_angle", "hip_adduction"} <= coupled
+    labels = storage.getColumnLabels()
+    assert {labels.get(i) for i in range(labels.getSize())} == {"time", *free}
+    for name in free:
+        column = opensim.ArrayDouble()
+        storage.getDataColumn(name, column)
+        got = np.array([column.get(i) for i in range(column.getSize())])
+        np.testing.assert_allclose(got, [s[name] for s in samples], rtol=0, atol=1e-6, err_msg=name)
 
 
 # ----------------------------------------------------------------------------- 7. merged bodies

@@ -5,7 +5,9 @@ be compared with OpenSim's IK ``.mot`` column by column.
 * ``coordinates.csv``: ``time`` then one column per coordinate, ``name_rad`` or
   ``name_m`` (SI); a frame whose kinematics did not converge is NaN.
 * ``coordinates.mot``: OpenSim's motion file (``inDegrees=yes``): rotational
-  coordinates in degrees, translational in metres, columns named exactly as the
+  coordinates in degrees, translational in metres, coupled ones (OpenSim's motion type:
+  a CustomJoint coordinate that moves no axis through a LinearFunction of slope ±1) in
+  rad or m as OpenSim writes and reads them, columns named exactly as the
   model's coordinates; frames that did not converge are left out (their poses are not
   solutions) and a header comment says how many.
 
@@ -71,13 +73,13 @@ def write_coordinates(out_dir, model, kinematics):
     if not values:
         return []
     out_dir = Path(out_dir)
-    units = {c.name: c.unit for c in model.coordinates}
+    degrees = {c.name: c.in_degrees_in_mot for c in model.coordinates}
     cols = coordinate_columns(model, kinematics, values)
     _warn_ranges(model, kinematics, values)
     csv_path = out_dir / "coordinates.csv"
     write_table(csv_path, cols)
     ok = np.asarray(kinematics.converged, bool)
-    mot = {name: np.degrees(v[ok]) if units[name] == "angle" else v[ok] for name, v in values.items()}
+    mot = {name: np.degrees(v[ok]) if degrees[name] else v[ok] for name, v in values.items()}
     comments = [] if ok.all() else [f"openfdk: {int((~ok).sum())} frames whose kinematics failed are left out"]
     mot_path = write_storage(out_dir / "coordinates.mot", np.asarray(kinematics.time, float)[ok], mot,
                              name=f"{model.name} coordinates (openfdk)", in_degrees=True, comments=comments)

@@ -66,7 +66,9 @@ class Coordinate:
     scalar Measure; default : value at the reference pose (SI); range : (2,) (SI);
     clamped, locked, prescribed : OpenSim's flags (a locked coordinate is held at
     ``default`` by a row ``{name}.locked``; a prescribed one follows its function of
-    time, driver ``{name}.prescribed``)."""
+    time, driver ``{name}.prescribed``); opensim_motion : OpenSim's motion type where it
+    differs from ``motion`` (a CustomJoint coordinate moved through a spline: coupled),
+    "" otherwise."""
 
     name: str
     joint: str
@@ -78,6 +80,14 @@ class Coordinate:
     clamped: bool = False
     locked: bool = False
     prescribed: bool = False
+    opensim_motion: str = ""
+
+    @property
+    def in_degrees_in_mot(self):
+        """Whether OpenSim writes and reads this coordinate's ``.mot`` column in degrees
+        (``inDegrees=yes``): only for its rotational coordinates, not its coupled ones
+        (:func:`openfdk.io.opensim.document.opensim_motion_type`)."""
+        return (self.opensim_motion or self.motion) == "rotational"
 
 
 @dataclass(frozen=True)

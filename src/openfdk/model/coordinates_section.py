@@ -36,7 +36,7 @@ from .coordinate_functions import function_from_spec
 from .coordinate_joint import (COORDINATE_UNITS, Axis, Coordinate, CoordinateTimeFunction, add_coordinate_joint,
                                add_coupler)
 
-COORDINATE_KEYS = ["motion", "default", "range", "clamped", "locked", "prescribed"]
+COORDINATE_KEYS = ["motion", "default", "range", "clamped", "locked", "prescribed", "opensim_motion"]
 AXIS_KEYS = ["axis", "coordinate", "function", "value"]
 
 
@@ -48,6 +48,10 @@ def read_coordinates(spec, ctx):
         p = f"coordinates.{name}"
         c = ctx.keys(c or {}, p, COORDINATE_KEYS)
         motion = ctx.choice(c.get("motion", "rotational"), f"{p}.motion", COORDINATE_UNITS, "motion type")
+        # OpenSim's motion type when it differs (an .osim's coupled coordinate): which
+        # .mot columns OpenSim writes and reads in degrees (only its rotational ones)
+        opensim_motion = ctx.choice(c.get("opensim_motion", motion), f"{p}.opensim_motion", COORDINATE_UNITS,
+                                    "motion type")
         unit = COORDINATE_UNITS[motion]
         scale = ctx.angle if unit == "angle" else ctx.length
         rng = (-np.inf, np.inf)
@@ -57,7 +61,8 @@ def read_coordinates(spec, ctx):
                 raise ctx.error(f"{p}.range", f"lower bound above the upper: {c['range']!r}")
         out[name] = dict(motion=motion, unit=unit, default=ctx.number(c.get("default", 0.0), f"{p}.default") * scale,
                          range=rng, clamped=ctx.boolean(c.get("clamped", False), f"{p}.clamped"),
-                         locked=ctx.boolean(c.get("locked", False), f"{p}.locked"), prescribed=None)
+                         locked=ctx.boolean(c.get("locked", False), f"{p}.locked"), prescribed=None,
+                         opensim_motion=opensim_motion)
         if c.get("prescribed") is not None:
             fn = function_from_spec(c["prescribed"], f"{p}.prescribed", ctx.error)
             out[name]["prescribed"] = _scaled(fn, 1.0, scale, f"{p}.prescribed", ctx)
@@ -146,7 +151,8 @@ def finish_coordinates(b, coordinates, ctx, wrap):
             wrap(ctx, p, lambda: b.add_driver(f"{name}_prescribed", c["measure"],
                                               CoordinateTimeFunction(c["prescribed"]), reaction=True))
         records.append(Coordinate(name, c["joint"], c["motion"], c["unit"], c["measure"], c["default"], c["range"],
-                                  c["clamped"], c["locked"], c["prescribed"] is not None))
+                                  c["clamped"], c["locked"], c["prescribed"] is not None,
+                                  c.get("opensim_motion") or c["motion"]))
     b.elements["coordinates"] = records
 
 

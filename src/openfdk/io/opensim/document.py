@@ -107,7 +107,8 @@ class OsimBody:
 class OsimCoordinate:
     """default (rad or m), range (2,), clamped, locked, prescribed (+ function spec of
     time), motion_type ("rotational", "translational", "coupled"; from the axes when the
-    file does not say), joint name."""
+    file does not say), joint name; opensim_motion: the motion type OpenSim 4 reports
+    (:func:`opensim_motion_type`), which decides the unit of its ``.mot`` columns."""
 
     name: str
     joint: str
@@ -119,6 +120,7 @@ class OsimCoordinate:
     prescribed_function: dict | None
     motion_type: str
     line: int = 0
+    opensim_motion: str = ""  # OpenSim 4's motion type (opensim_motion_type), when it differs
 
 
 @dataclass
@@ -511,6 +513,27 @@ def _constant_value(spec):
     if f.n_pieces == 0 and np.array_equal(f.left, f.right) and not np.any(f.left[1:]):
         return float(f.left[0])
     return None
+
+
+def opensim_motion_type(rotations, translations, coordinate):
+    """The motion type OpenSim 4 gives a CustomJoint's coordinate (CustomJoint's
+    constructCoordinates): over rotation1–3 then translation1–3, an axis that is a
+    LinearFunction of it with slope ±1 makes it rotational or translational (a later such
+    axis wins); any other function of it makes it coupled unless an axis already made it
+    pure. OpenSim converts only rotational coordinates between degrees and radians (the
+    ``.mot`` files' ``inDegrees``, CoordinateLimitForce's limits); a coupled one's values
+    are in rad or m as they are."""
+    motion = ""
+    for kind, axes in (("rotational", rotations), ("translational", translations)):
+        for ax in axes:
+            if coordinate not in ax.coordinates:
+                continue
+            f = ax.function
+            if f.get("type") == "linear" and abs(float(f.get("slope", 0.0))) == 1.0:
+                motion = kind
+            elif not motion:
+                motion = "coupled"
+    return motion or "coupled"
 
 
 def _affine_in(axis, coordinate):
@@ -971,6 +994,8 @@ class _Reader:
                                  "translational" if any(_affine_in(ax, c.name) for ax in translations) else
                                  "rotational" if any(c.name in ax.coordinates for ax in rotations) else
                                  "translational")
+            c.opensim_motion = (opensim_motion_type(rotations, translations, c.name) if kind == "CustomJoint"
+                                else c.motion_type)
         self.joints.append(OsimJoint(name, kind, parent_name, child_name, names, rotations, translations,
                                      joint.sourceline))
         if not legacy:

@@ -70,7 +70,7 @@ def motion_drivers(path, data, cutoff_hz=None):
         values = np.asarray(columns[name], float)
         if not np.all(np.isfinite(values)):
             raise OsimError(f"{source}: column {name!r} has non-finite values")
-        if in_degrees and c.get("motion", "rotational") != "translational":
+        if in_degrees and c.get("opensim_motion", c.get("motion", "rotational")) == "rotational":
             values = np.radians(values)
         if sos is not None:
             values = sosfiltfilt(sos, values)

@@ -112,7 +112,9 @@ def add_springs(data, springs, source):
         if entry.pop("opensim_units", False) and entry["measure"] in coordinates:
             # OpenSim: a rotational coordinate's limits and transition in degrees, its
             # stiffnesses and damping per degree; openfdk's law is in rad
-            w = 1.0 if coordinates[entry["measure"]].get("motion") == "translational" else math.pi / 180.0
+            coord = coordinates[entry["measure"]]
+            w = math.pi / 180.0 if coord.get("opensim_motion", coord.get("motion", "rotational")) == "rotational" \
+                else 1.0  # (OpenSim's CoordinateLimitForce: its rotational coordinates only, not coupled ones)
             law = dict(entry["law"])
             for key in ("upper_limit", "lower_limit", "transition"):
                 law[key] *= w

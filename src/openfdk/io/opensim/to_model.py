@@ -117,6 +117,8 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         for cname in j.coordinates:
             c = doc.coordinates[cname]
             entry = {"motion": c.motion_type, "default": c.default, "clamped": c.clamped, "locked": c.locked}
+            if c.opensim_motion and c.opensim_motion != c.motion_type:
+                entry["opensim_motion"] = c.opensim_motion  # (the unit of its .mot columns)
             if np.all(np.isfinite(c.range)):
                 entry["range"] = list(c.range)
             if c.prescribed:
