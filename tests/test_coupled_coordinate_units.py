@@ -47,3 +47,19 @@ def test_motion_file_columns_follow_opensims_motion_type(tmp_path):
     drivers = motion_drivers(path, data)["drivers"]
     np.testing.assert_allclose(drivers[f"hip{SUFFIX}"]["function"]["values"], np.radians(deg), rtol=1e-15)
     np.testing.assert_allclose(drivers[f"knee_l{SUFFIX}"]["function"]["values"], rad, rtol=1e-15)
+
+
+def test_generalized_force_columns_are_named_as_opensims_inverse_dynamics_names_them():
+    """OpenSim's InverseDynamicsTool: ``_moment`` for rotational coordinates, ``_force``
+    for all others — a coupled knee angle's too (OpenSim 4.6's own rule for its output,
+    bench/full_body_id.py)."""
+    from openfdk.io.generalized_forces import column_name
+    from openfdk.model.coordinate_joint import Coordinate
+
+    def coordinate(motion, unit, opensim_motion=""):
+        return Coordinate("q", "j", motion, unit, None, opensim_motion=opensim_motion)
+
+    assert column_name(coordinate("rotational", "angle")) == "q_moment"
+    assert column_name(coordinate("translational", "length")) == "q_force"
+    assert column_name(coordinate("rotational", "angle", "coupled")) == "q_force"
+    assert column_name(coordinate("translational", "length", "coupled")) == "q_force"

@@ -260,7 +260,7 @@ def check_motion_types(ours, orc):
         assert c.unit == {"rotational": "angle", "translational": "length"}[c.motion], c.name
         # OpenSim's own motion type, coupled included: it decides the .mot columns' unit
         assert (c.opensim_motion or c.motion) == theirs, (c.name, c.opensim_motion, theirs)
-        assert c.in_degrees_in_mot == (theirs == "rotational"), c.name
+        assert c.opensim_rotational == (theirs == "rotational"), c.name
 
 
 # ----------------------------------------------------------------------------- 1. joints

@@ -73,7 +73,7 @@ def write_coordinates(out_dir, model, kinematics):
     if not values:
         return []
     out_dir = Path(out_dir)
-    degrees = {c.name: c.in_degrees_in_mot for c in model.coordinates}
+    degrees = {c.name: c.opensim_rotational for c in model.coordinates}
     cols = coordinate_columns(model, kinematics, values)
     _warn_ranges(model, kinematics, values)
     csv_path = out_dir / "coordinates.csv"

@@ -2,7 +2,8 @@
 coordinate of a run driven by a coordinate file (``--motion``), with OpenSim's column
 names, so that they compare column by column with OpenSim's inverse dynamics output
 (``InverseDynamics.sto``): ``{coordinate}_moment`` (N m) for rotational coordinates,
-``{coordinate}_force`` (N) for translational ones.
+``{coordinate}_force`` for translational (N) and coupled ones (OpenSim's motion type,
+:func:`column_name`).
 
 Each value is the reaction of the coordinate's driver (:mod:`openfdk.io.opensim.motion`):
 the generalised force an actuator on that coordinate must apply, conjugate to the
@@ -33,6 +34,13 @@ SUFFIX = "_motion"
 RESIDUAL_FORCE_FRACTION = 0.05
 
 
+def column_name(coordinate):
+    """OpenSim's name of a coordinate's generalised force: ``_moment`` for the
+    coordinates it calls rotational, ``_force`` for the others — translational ones, and
+    coupled ones (a CustomJoint coordinate moved through a spline), whatever their unit."""
+    return f"{coordinate.name}_{'moment' if coordinate.opensim_rotational else 'force'}"
+
+
 def generalized_forces(model, dyn):
     """{OpenSim column name: (nf,) N m or N} of the driven coordinates of ``dyn`` (an
     InverseDynamicsResult), in the model's coordinate order; {} without driven ones."""
@@ -44,7 +52,7 @@ def generalized_forces(model, dyn):
             k = index.get(f"{c.name}{SUFFIX}.reaction")
         if k is None:
             continue
-        out[f"{c.name}_{'moment' if c.unit == 'angle' else 'force'}"] = np.asarray(dyn.forces[:, k], float)
+        out[column_name(c)] = np.asarray(dyn.forces[:, k], float)
     return out
 
 
@@ -56,16 +64,16 @@ def actuator_forces(model, dyn):
     from ..forces.actuators import CoordinateActuator, PointActuator
 
     index = {name: k for k, name in enumerate(dyn.column_names)}
-    units = {c.name: c.unit for c in model.coordinates}
+    coords = {c.name: c for c in model.coordinates}
     roots = {b for c in model.coordinates if _is_root(model, c) for b in c.measure.bodies()} - {0}
     out = {}
     for a in model.actuators:
         if a.name not in index:
             continue
         if isinstance(a, CoordinateActuator):
-            if a.coordinate not in units:
+            if a.coordinate not in coords:
                 continue
-            key = f"{a.coordinate}_{'moment' if units[a.coordinate] == 'angle' else 'force'}"
+            key = column_name(coords[a.coordinate])
         elif a.body in roots:
             key = f"{a.name}_{'force' if isinstance(a, PointActuator) else 'moment'}"
         else:
@@ -79,7 +87,7 @@ def residual_summary(model, columns):
     body weight (N) and the threshold of the residual forces (N)."""
     roots = {c.joint for c in model.coordinates if _is_root(model, c)}
     weight = float(sum(b.mass for b in model.moving_bodies) * np.linalg.norm(model.gravity_W))
-    keys = [f"{c.name}_{'moment' if c.unit == 'angle' else 'force'}" for c in model.coordinates if c.joint in roots]
+    keys = [column_name(c) for c in model.coordinates if c.joint in roots]
     keys += [f"{a.name}_{kind}" for a in model.actuators for kind in ("force", "moment")]
     out = {}
     for key in keys:

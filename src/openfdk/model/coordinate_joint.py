@@ -83,9 +83,10 @@ class Coordinate:
     opensim_motion: str = ""
 
     @property
-    def in_degrees_in_mot(self):
-        """Whether OpenSim writes and reads this coordinate's ``.mot`` column in degrees
-        (``inDegrees=yes``): only for its rotational coordinates, not its coupled ones
+    def opensim_rotational(self):
+        """Whether OpenSim calls this coordinate rotational: it writes and reads its
+        ``.mot`` column in degrees (``inDegrees=yes``) and names its generalised force
+        ``_moment``; a coupled one's column is in rad and its force is ``_force``
         (:func:`openfdk.io.opensim.document.opensim_motion_type`)."""
         return (self.opensim_motion or self.motion) == "rotational"
 
