@@ -814,10 +814,11 @@ def test_a_bare_ampersand_in_text_is_read_as_opensim_reads_it(workdir, recwarn):
     assert "not well-formed XML" in _one_line(exc, broken)
 
 
-def test_an_ignored_type_the_model_does_not_have_is_named():
-    """``--ignore Foo`` (a misspelt type) or ``--ignore A,B`` (two types in one) matched
-    nothing and passed unnoticed; now a warning names the types. ``Mesh`` of a model with
-    display meshes and ``forces`` are matched."""
+def test_an_ignored_type_that_looks_mistyped_is_named():
+    """``--ignore CustomJont`` (a misspelt type the model has) or ``--ignore A,B`` (two
+    types in one) matched nothing and passed unnoticed; now a warning names each. A real
+    type the model lacks (``Thelen2003Muscle`` here) is no mistake and gives none, and
+    ``Mesh`` of a model with display meshes and ``forces`` are matched."""
     import warnings
 
     from openfdk.bench.fuzz_inputs import OSIM_TEXT
@@ -828,11 +829,14 @@ def test_an_ignored_type_the_model_does_not_have_is_named():
     path.write_text(OSIM_TEXT)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        read_osim(path, ignore=("Mesh", "forces", "Thelen2003Muscl", "Mesh,Millard2012EquilibriumMuscle"))
+        read_osim(path, ignore=("Mesh", "forces", "Thelen2003Muscle", "CustomJont",
+                                "Mesh,Millard2012EquilibriumMuscle"))
     messages = [str(w.message) for w in caught if issubclass(w.category, PlausibilityWarning)]
-    assert messages == ["leg_ignore.osim: ignore 'Mesh,Millard2012EquilibriumMuscle', 'Thelen2003Muscl': the model "
-                        "has no element of these types (one OpenSim type per --ignore, e.g. --ignore Mesh --ignore "
-                        "Thelen2003Muscle)"], messages
+    assert messages == [
+        "leg_ignore.osim: --ignore 'CustomJont': the model has no element of this type (did you mean "
+        "'CustomJoint'?)",
+        "leg_ignore.osim: --ignore 'Mesh,Millard2012EquilibriumMuscle': the model has no element of this type "
+        "(one OpenSim type per --ignore, e.g. --ignore Mesh --ignore Thelen2003Muscle)"], messages
 
 
 def test_not_xml_and_not_opensim_are_one_line_errors(workdir):

@@ -43,16 +43,23 @@ def read_osim(path, ignore=(), mesh_dirs=()):
 
 
 def _warn_unmatched(doc, ignore):
-    """Warn of the ``ignore`` types the model has no element of (a misspelt type, or
-    'A,B' given for two), which would otherwise pass unnoticed. ``Mesh`` matches any
-    display mesh (found meshes are still drawn), ``forces`` any ForceSet."""
+    """Warn of an ``ignore`` type that matched nothing and looks mistyped: several types
+    in one (``Mesh,Thelen2003Muscle``), or a name close to an element type the model
+    has (``Thelen2003Muscl``). A real type the model simply lacks (a habitual ``--ignore
+    Mesh``) is no mistake and passes without one."""
     import warnings
 
     from ...model.plausibility import PlausibilityWarning
+    from ..yamlfile import did_you_mean
 
     present = {kind for kind, _, _ in doc.ignored} | ({"Mesh"} if doc.geometry else set()) | {"forces"}
-    unmatched = sorted(set(ignore) - present)
-    if unmatched:
-        warnings.warn(f"{doc.source}: ignore {', '.join(map(repr, unmatched))}: the model has no element of "
-                      f"{'these types' if len(unmatched) > 1 else 'this type'} (one OpenSim type per --ignore, "
-                      "e.g. --ignore Mesh --ignore Thelen2003Muscle)", PlausibilityWarning, stacklevel=3)
+    for kind in sorted(set(ignore) - present):
+        if any(ch in kind for ch in ", ;"):
+            why = "one OpenSim type per --ignore, e.g. --ignore Mesh --ignore Thelen2003Muscle"
+        else:
+            hint = did_you_mean(kind, sorted(doc.element_types - present))
+            if not hint:
+                continue
+            why = hint.lstrip("; ")
+        warnings.warn(f"{doc.source}: --ignore {kind!r}: the model has no element of this type ({why})",
+                      PlausibilityWarning, stacklevel=3)

@@ -384,6 +384,7 @@ class OsimDocument:
     ligaments: list = field(default_factory=list)  # Blankevoort1991Ligaments (OsimMuscle records), in order
     contact_meshes: dict = field(default_factory=dict)  # Smith2018ContactMesh records {name: dict}
     contact_forces: dict = field(default_factory=dict)  # Smith2018ArticularContactForce records {name: dict}
+    element_types: frozenset = frozenset()  # every element tag in the <Model> (--ignore's hints)
 
 
 def _parser():
@@ -412,7 +413,9 @@ def read_document(path, ignore=()) -> OsimDocument:
     if model is None:
         raise OsimError(f"{source}: line {root.sourceline}: no <Model> in the OpenSimDocument")
     reader = _Reader(source, path, set(ignore))
-    return reader.read(model, version)
+    doc = reader.read(model, version)
+    doc.element_types = frozenset(e.tag for e in model.iter() if isinstance(e.tag, str))
+    return doc
 
 
 def parse_xml(path, source):
