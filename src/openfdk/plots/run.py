@@ -234,8 +234,8 @@ def _coordinates(results, t, failed):
             else:
                 ax.plot(t, factor * values, label=name)
         ax.set_ylabel(f"{', '.join(joints)}\n({unit})", fontsize=8)
-    caption = ("The model's joint coordinates (coordinates.csv; an OpenSim model's, as its .mot gives them: rotations "
-               "in degrees, translations in mm here), one panel per joint in the model's order; joints with few "
+    caption = ("The model's joint coordinates (coordinates.csv; an OpenSim model's: rotations in degrees, "
+               "translations in mm here), one panel per joint in the model's order; joints with few "
                "coordinates share one. A coordinate that does not change is listed as constant, not drawn."
                + (f" Constant throughout, not drawn: {', '.join(constant)}." if constant else ""))
     return _finish(fig, axes, t, failed, caption)
