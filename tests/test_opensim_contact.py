@@ -25,6 +25,7 @@ from lxml import etree
 
 opensim = pytest.importorskip("opensim")
 
+from openfdk.contact.mesh import surface_mesh  # noqa: E402
 from openfdk.contact.shapes import flat_patch, sphere_cap  # noqa: E402
 from openfdk.io.modelfile import model_from_dict  # noqa: E402
 from openfdk.io.opensim import OsimError, read_osim  # noqa: E402
@@ -220,6 +221,77 @@ def test_a_contact_mesh_placed_by_location_and_orientation_is_the_same_contact(t
     assert abs(unplaced.contacts[0].generalized_forces(state, False)[2].force_W[2] - ref.force_W[2]) > 0.01 * ref.force_W[2]
 
 
+def _with_back_meshes(path, folder, lumped):
+    """The ball-on-plate .osim with both meshes' thickness from bones behind them
+    (use_variable_thickness): a sphere of radius R − h inside the ball's cap and the
+    plane z = −h under the plate, h each mesh's uniform thickness of LAYERS; and
+    ``lumped`` as given."""
+    h_ball, h_plate = LAYERS["ball_mesh"][2], LAYERS["plate_mesh"][2]
+    _stl(folder / "ball_bone.stl", sphere_cap(R - h_ball, 0.6, 0.4e-3))
+    plane = flat_patch(0.03, 0.03, 2e-3)
+    _stl(folder / "plate_bone.stl", surface_mesh(plane.vertices_B - [0.0, 0.0, h_plate], plane.faces, repair=False))
+    text = path.read_text()
+    for name, bone in (("ball_mesh", "ball_bone.stl"), ("plate_mesh", "plate_bone.stl")):
+        h = LAYERS[name][2]
+        old = f"<thickness>{h}</thickness>"
+        i = text.index(f'<Smith2018ContactMesh name="{name}">')
+        j = text.index(old, i)
+        text = (text[:j] + f"<use_variable_thickness>true</use_variable_thickness><mesh_back_file>{bone}"
+                "</mesh_back_file><min_thickness>0.001</min_thickness><max_thickness>0.01</max_thickness>"
+                + text[j + len(old):])
+    if lumped:
+        text = text.replace("<use_lumped_contact_model>false", "<use_lumped_contact_model>true")
+    out = folder / "ball_variable.osim"
+    out.write_text(text)
+    return out
+
+
+@pytest.mark.parametrize("formulation,lumped", [("linear", False), ("linear", True), ("nonlinear", False)])
+def test_variable_thickness_from_back_meshes_at_the_uniform_thickness_is_the_uniform_contact(
+        tmp_path, monkeypatch, formulation, lumped):
+    """use_variable_thickness with bones exactly h behind each cartilage: the import
+    gives each surface a thickness field (rays from the triangles' centres to the bone,
+    contact/thickness.py) and its layer ``thickness: vertices`` / ``surface`` (both added
+    when lumped), and the contact's force and pole pressure equal the uniform contact's
+    (the ball's flat triangles sit up to their sag, 1e-6 m, inside its sphere: 1e-3)."""
+    monkeypatch.chdir(tmp_path)
+    uniform_path = _model(tmp_path, formulation, lumped)
+    variable_path = _with_back_meshes(uniform_path, tmp_path, lumped)
+    results = {}
+    for key, path in (("uniform", uniform_path), ("variable", variable_path)):
+        data, _ = read_osim(path)
+        spec = data["contacts"]["ball_contact"]
+        if key == "variable":
+            assert spec["vertices"]["thickness"]["back_mesh"].endswith("ball_bone.stl")
+            assert spec["surface"]["thickness"] == {"back_mesh": str((tmp_path / "plate_bone.stl").resolve()),
+                                                    "min": 0.001, "max": 0.01}
+            want = [["vertices", "surface"]] if lumped else ["vertices", "surface"]
+            assert [layer["thickness"] for layer in spec["layers"]] == want
+        model = model_from_dict(data, source=path.name)
+        state, _ = pose_from_coordinates(model, {"height": R - DELTA})
+        results[key] = model.contacts[0].generalized_forces(state, False)[2]
+        if key == "variable":
+            pair = model.contacts[0].pair
+            np.testing.assert_allclose(pair.variable.h_A, LAYERS["ball_mesh"][2], rtol=1e-3)
+            np.testing.assert_allclose(pair.variable.h_B.h, LAYERS["plate_mesh"][2], rtol=1e-7)  # (STL: float32)
+    u, v = results["uniform"], results["variable"]
+    assert v.force_W[2] == pytest.approx(u.force_W[2], rel=1e-3)
+    assert v.peak_pressure == pytest.approx(u.peak_pressure, rel=1e-3)
+    assert v.n_contact == u.n_contact
+    if formulation == "linear" and not lumped:
+        # import-opensim copies the bones too, and its file loads to the same contact
+        from openfdk.cli import main
+        from openfdk.io.modelfile import load_model
+
+        assert main(["import-opensim", str(variable_path), "--out", "imported", "-q"]) == 0
+        assert sorted(p.name for p in (tmp_path / "imported" / "Geometry").iterdir()) == [
+            "ball.stl", "ball_bone.stl", "plate.stl", "plate_bone.stl"]
+        model = load_model(tmp_path / "imported" / "ball_on_plate.yaml")
+        state, _ = pose_from_coordinates(model, {"height": R - DELTA})
+        again = model.contacts[0].generalized_forces(state, False)[2]
+        assert again.force_W[2] == pytest.approx(v.force_W[2], rel=1e-12)
+
+
 def test_the_depth_band_stops_at_the_layers_thickness(tmp_path, monkeypatch):
     """max_proximity is how far JAM's rays search; openfdk's depth band (max_depth, the
     distance grid's extent) stops at the two layers' total thickness h₁ + h₂, beyond
@@ -272,7 +344,10 @@ def test_a_missing_thickness_or_back_mesh_is_refused_in_one_line(tmp_path, monke
     assert "<thickness>0.004</thickness>" in text
     for old, new, words in (("<thickness>0.004</thickness>", "", "<thickness> is missing"),
                             ("<thickness>0.004</thickness>", "<thickness>0.004</thickness><use_variable_thickness>true"
-                             "</use_variable_thickness>", "use_variable_thickness without a mesh_back_file")):
+                             "</use_variable_thickness>", "use_variable_thickness without a mesh_back_file"),
+                            ("<thickness>0.004</thickness>", "<use_variable_thickness>true</use_variable_thickness>"
+                             "<mesh_back_file>b.stl</mesh_back_file><min_thickness>0.01</min_thickness>"
+                             "<max_thickness>0.002</max_thickness>", "openfdk needs 0 < min < max")):
         bad = tmp_path / "bad.osim"
         bad.write_text(text.replace(old, new, 1))
         with pytest.raises(OsimError) as exc:

@@ -145,6 +145,9 @@ class ElasticFoundation:
     layers : (m, 2) array or None — the non-linear law's layers [K Pa, h m], m = 1 or 2
         (:mod:`.pressure_law`); None: the linear law P = p d. With layers,
         ``pressure_modulus`` is the law's slope at d = 0, 1/Σ h/K (reported only).
+    variable : a :class:`~.variable_layers.VariableLayers` or None — layers whose thickness
+        varies over the surfaces (OpenSim-JAM's variable cartilage thickness), linear or
+        non-linear; ``pressure_modulus`` is then reported only.
 
     The grid (grid mode) or AABB tree (exact mode) is built once here; the grid is also
     memoised per surface, spacing and depth (:func:`~.grid_cache.cached_distance_grid`).
@@ -154,7 +157,7 @@ class ElasticFoundation:
 
     def __init__(self, surface_A: SurfaceMesh, surface_B: SurfaceMesh, pressure_modulus: float,
                  mode: str = "grid", grid_spacing: float | None = None,
-                 max_depth: float = DEFAULT_MAX_DEPTH, name: str | None = None, layers=None):
+                 max_depth: float = DEFAULT_MAX_DEPTH, name: str | None = None, layers=None, variable=None):
         self.name = name or f"{surface_A.name} vs {surface_B.name}"
         if not (isinstance(surface_A, SurfaceMesh) and isinstance(surface_B, SurfaceMesh)):
             raise TypeError(f"contact '{self.name}': surfaces must be SurfaceMesh objects")
@@ -177,6 +180,13 @@ class ElasticFoundation:
                                  f"modulus (Pa) and thickness (m), got {layers.tolist()!r}")
             self.layers = layers
             self.pressure_modulus = float(1.0 / np.sum(layers[:, 1] / layers[:, 0]))
+        self.variable = variable
+        if variable is not None:
+            if layers is not None:
+                raise ValueError(f"contact '{self.name}': uniform and variable layers given together")
+            if variable.h_A is not None and len(variable.h_A) != surface_A.vertices_B.shape[0]:
+                raise ValueError(f"contact '{self.name}': {len(variable.h_A)} vertex thicknesses for "
+                                 f"{surface_A.vertices_B.shape[0]} vertices")
         self.mode = mode
         self.regions = ()  # ((name, axis (3,), origin (3,) m), ...) in b's frame: set_regions
         self._region_axis = self._region_origin = np.zeros((0, 3))  # the same, stacked (m, 3)
@@ -301,9 +311,13 @@ class ElasticFoundation:
         self._near = (R_ba.copy(), p_ba.copy(), cand, np.ascontiguousarray(self._s_A[cand]))
         return self._near[2], self._near[3]
 
-    def pressures(self, depth):
-        """(P (k,) Pa, dP/dd (k,) Pa/m, W (k,) J/m²) of the pair's law at depths (k,) m."""
+    def pressures(self, depth, idx=None, closest_B=None):
+        """(P (k,) Pa, dP/dd (k,) Pa/m, W (k,) J/m²) of the pair's law at depths (k,) m;
+        with variable layers, at the vertices idx (k,) of A whose closest points on B are
+        closest_B (k, 3) m (b's frame)."""
         depth = np.ascontiguousarray(depth, dtype=np.float64)
+        if self.variable is not None:
+            return self.variable.pressures(depth, idx, closest_B)
         if self.layers is None:
             return linear_pressures(self.pressure_modulus, depth)
         P, dP, W = np.empty_like(depth), np.empty_like(depth), np.empty_like(depth)
@@ -329,11 +343,16 @@ class ElasticFoundation:
         Q = np.zeros(12)
         K = np.zeros((12, 12))
         sums = np.zeros(7)  # [Σ w c (3), Σ w, area, max d, energy], w = P(d) a
-        # the linear law is applied in _accumulate (modulus > 0), the non-linear one here
-        modulus = self.pressure_modulus if self.layers is None else 0.0
+        # the linear law is applied in _accumulate (modulus > 0), the non-linear one and
+        # variable layers here (per vertex: P, dP/dd, W)
+        per_vertex = self.layers is not None or self.variable is not None
+        modulus = 0.0 if per_vertex else self.pressure_modulus
         P = dP = W = _NO_ROWS
-        if self.layers is not None:
-            P, dP, W = self.pressures(depth)
+        closest = None
+        if per_vertex:
+            if self.variable is not None:  # the closest points on B: y + d g (y is d behind B)
+                closest = y_B + depth[:, None] * g_B
+            P, dP, W = self.pressures(depth, idx, closest)
         k = idx.shape[0] if (want_stiffness and self.mode == "grid") else 0
         dphi, Dg = np.empty((k, 3)), np.empty((k, 3, 3))
         if k:
@@ -353,7 +372,7 @@ class ElasticFoundation:
         vertex_pressure = None
         if want_vertex_pressure:
             vertex_pressure = np.zeros(self._n)
-            vertex_pressure[idx] = self.pressures(depth)[0] if modulus > 0.0 else P
+            vertex_pressure[idx] = self.pressures(depth, idx, closest)[0] if modulus > 0.0 else P
         region_force_W = None
         if self.regions:
             # force on a of each vertex: P a_i along B's outward normal, summed over the

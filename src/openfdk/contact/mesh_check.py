@@ -177,6 +177,12 @@ def mesh_figures(role, mesh: SurfaceMesh, R_YX, p_YX, other: OpenSurfaceDistance
 
 def _layer(pair):
     """(layer data in words, warnings) of an ElasticFoundation's pressure law."""
+    v = getattr(pair, "variable", None)
+    if v is not None:  # thickness from the bones behind the cartilage (contact/thickness.py)
+        fields = [f"{side} {1e3 * h.min():.2g}–{1e3 * h.max():.2g} mm" for side, h in
+                  (("vertices", v.h_A), ("surface", None if v.h_B is None else v.h_B.h)) if h is not None]
+        return (f"{'nonlinear' if v.nonlinear else 'linear'}, {len(v.K)} layer(s) of variable thickness "
+                f"({', '.join(fields)}), {pair.pressure_modulus:.3g} N/m³ at the mean thickness"), []
     if pair.layers is None:
         return f"linear, {pair.pressure_modulus:.3g} N/m³", []
     total = float(pair.layers[:, 1].sum())

@@ -30,7 +30,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["CAP_FRACTION", "layer_modulus", "nonlinear_pressures", "linear_pressures"]
+__all__ = ["CAP_FRACTION", "layer_modulus", "nonlinear_pressures", "nonlinear_pressures_each", "linear_pressures"]
 
 #: fraction of the total thickness beyond which the non-linear law continues linearly
 CAP_FRACTION = 0.999
@@ -93,6 +93,28 @@ def nonlinear_pressures(depth, layers, P, dP, W):
         if d <= d_cap:
             P[i], dP[i], W[i] = _solve(d, layers)
         else:  # tangent continuation beyond the cap
+            e = d - d_cap
+            P[i] = P_c + dP_c * e
+            dP[i] = dP_c
+            W[i] = W_c + P_c * e + 0.5 * dP_c * e * e
+
+
+@njit(cache=True)
+def nonlinear_pressures_each(depth, layers, P, dP, W):
+    """Fill P, dP, W (k,) for depths (k,) m ≥ 0, each with its own layers (k, m, 2)
+    [K Pa, h m] (a thickness that varies over the surfaces, :mod:`.variable_layers`);
+    the cap and its tangent continuation per vertex, as :func:`nonlinear_pressures`."""
+    for i in range(depth.shape[0]):
+        L = layers[i]
+        total = 0.0
+        for j in range(L.shape[0]):
+            total += L[j, 1]
+        d_cap = CAP_FRACTION * total
+        d = depth[i]
+        if d <= d_cap:
+            P[i], dP[i], W[i] = _solve(d, L)
+        else:
+            P_c, dP_c, W_c = _solve(d_cap, L)
             e = d - d_cap
             P[i] = P_c + dP_c * e
             dP[i] = dP_c

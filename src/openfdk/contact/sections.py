@@ -16,6 +16,11 @@ contacts:
     # or the non-linear law P = −K ln(1 − d/h) (Bei & Fregly 2004; contact/pressure_law.py):
     # law: nonlinear
     # layers: [{modulus: 2.3e7, thickness: 4}]   # K Pa (SI), h model length unit; 2 layers in series
+    # a layer's thickness may vary over its cartilage (OpenSim-JAM's variable thickness,
+    # contact/thickness.py): a surface gets  thickness: {back_mesh: bone.stl, min: 1, max: 10}
+    # and the layer  thickness: vertices | surface | [vertices, surface] (added: JAM's
+    # lumped layer; a number may be one of the two); the linear law then takes layers
+    # too: P = d / Σ h_j/K_j
     mode: grid                        # grid (default) or exact
     grid_spacing: 0.3                 # model length unit (default 0.3 mm)
     max_depth: 3                      # model length unit (default 3 mm)
@@ -44,10 +49,12 @@ JOINT_REGION_SIZE = 0.05
 
 
 def add_contact(b, name, body_a, surface_a, body_b, surface_b, pressure_modulus, mode="grid",
-                grid_spacing=None, max_depth=DEFAULT_MAX_DEPTH, layers=None):
+                grid_spacing=None, max_depth=DEFAULT_MAX_DEPTH, layers=None, variable=None):
     """Add an elastic-foundation contact: vertices of ``surface_a`` (SurfaceMesh in body_a's
     frame) against ``surface_b`` (in body_b's frame); pressure modulus in N/m³, or the
-    non-linear law's ``layers`` [(K Pa, h m), …] (:mod:`.pressure_law`).
+    non-linear law's ``layers`` [(K Pa, h m), …] (:mod:`.pressure_law`), or layers
+    whose thickness varies over the surfaces (``variable``: a
+    :class:`~.variable_layers.VariableLayers`).
     Warns (MeshWarning) when the two surfaces are far apart in the reference pose.
     The name must pass :func:`~openfdk.model.names.name_problem` (it names exported files)."""
     from ..model.names import check_name
@@ -56,7 +63,8 @@ def add_contact(b, name, body_a, surface_a, body_b, surface_b, pressure_modulus,
     ia, ib = b._body_index(body_a, f"contact {name!r}"), b._body_index(body_b, f"contact {name!r}")
     if ia == ib:
         raise ModelError(f"contact {name!r}: both surfaces are on body {body_a!r}")
-    pair = ElasticFoundation(surface_a, surface_b, pressure_modulus, mode, grid_spacing, max_depth, name, layers)
+    pair = ElasticFoundation(surface_a, surface_b, pressure_modulus, mode, grid_spacing, max_depth, name, layers,
+                             variable)
     _warn_if_apart(b, name, ia, surface_a, ib, surface_b, max_depth)
     items = list(b.elements.get(CONTACTS, ()))
     if any(c.name == name for c in items):
@@ -85,7 +93,8 @@ def _warn_if_apart(b, name, ia, surf_a, ib, surf_b, max_depth):
 
 
 def _surface(spec, path, ctx):
-    ctx.keys(spec, path, ["body", "mesh", "units", "placement", "offset", "flip_normals"], required=("body", "mesh"))
+    ctx.keys(spec, path, ["body", "mesh", "units", "placement", "offset", "flip_normals", "thickness"],
+             required=("body", "mesh"))
     units = spec.get("units", {1.0: "m", 0.01: "cm", 0.001: "mm"}.get(ctx.length, "m"))
     placement = None
     if "placement" in spec:
@@ -102,7 +111,62 @@ def _surface(spec, path, ctx):
     check_scale(mesh, JOINT_REGION_SIZE)
     if "offset" in spec:
         mesh = offset(mesh, ctx.number(spec["offset"], f"{path}.offset") * ctx.length)
-    return spec["body"], mesh
+    h_tri = None
+    if "thickness" in spec:
+        h_tri = _thickness(spec["thickness"], f"{path}.thickness", mesh, units, placement, ctx)
+    return spec["body"], mesh, h_tri
+
+
+def _thickness(spec, path, mesh, units, placement, ctx):
+    """h (n_tri,) m of the mesh's triangles from ``thickness: {back_mesh, min, max}``
+    (the bone behind the cartilage, in the mesh's file frame and unit; min and max in
+    the model's length unit; :mod:`.thickness`)."""
+    from .thickness import triangle_thickness
+
+    spec = ctx.keys(spec, path, ["back_mesh", "min", "max"], required=("back_mesh", "min", "max"))
+    h_min = ctx.number(spec["min"], f"{path}.min", positive=True) * ctx.length
+    h_max = ctx.number(spec["max"], f"{path}.max", positive=True) * ctx.length
+    if not h_min < h_max:
+        raise ctx.error(path, f"min {spec['min']!r} must be below max {spec['max']!r}")
+    try:
+        back = cached_load_mesh(ctx.base_dir / str(spec["back_mesh"]), units=units, placement=placement,
+                                name=str(spec["back_mesh"]))
+    except MeshError as exc:
+        raise ctx.error(f"{path}.back_mesh", str(exc)) from None
+    h, hit = triangle_thickness(mesh.vertices_B, mesh.faces, back.vertices_B, back.faces, h_min, h_max)
+    if not hit.any():
+        raise ctx.error(f"{path}.back_mesh", f"no triangle's inward normal meets {spec['back_mesh']!r} within max "
+                        f"{spec['max']!r}: is it the bone behind this cartilage, in the same frame?")
+    return h
+
+
+def _layers(items, path, ctx, fields):
+    """[(K Pa, h m (constant part), from A, from B)] of ``layers``: a layer's thickness
+    is a number, a surface's thickness field (``vertices`` or ``surface``), or a list of
+    those added (OpenSim-JAM's lumped layer: [vertices, surface])."""
+    if not isinstance(items, list) or not 1 <= len(items) <= 2:
+        raise ctx.error(path, "expected a list of 1 or 2 layers {modulus: K Pa, thickness: h}")
+    out = []
+    for j, item in enumerate(items):
+        q = f"{path}[{j}]"
+        ctx.keys(item, q, ["modulus", "thickness"], required=("modulus", "thickness"))
+        K = ctx.number(item["modulus"], f"{q}.modulus", positive=True)
+        parts = item["thickness"] if isinstance(item["thickness"], list) else [item["thickness"]]
+        if not 1 <= len(parts) <= 2:
+            raise ctx.error(f"{q}.thickness", f"expected a thickness or a list of 2 added, got {item['thickness']!r}")
+        h, used = 0.0, []
+        for part in parts:
+            if isinstance(part, str):
+                if part not in fields or part in used:
+                    raise ctx.error(f"{q}.thickness", f"expected a number, 'vertices' or 'surface' (each once), got "
+                                    f"{part!r}")
+                if fields[part] is None:
+                    raise ctx.error(f"{q}.thickness", f"the {part} surface has no 'thickness' field")
+                used.append(part)
+            else:
+                h += ctx.number(part, f"{q}.thickness", positive=True) * ctx.length
+        out.append((K, h, "vertices" in used, "surface" in used))
+    return out
 
 
 def load_contacts(b, data, ctx):
@@ -110,38 +174,46 @@ def load_contacts(b, data, ctx):
         p = f"{CONTACTS}.{name}"
         ctx.keys(spec, p, ["vertices", "surface", "pressure_modulus", "law", "layers", "mode", "grid_spacing",
                            "max_depth", "regions"], required=("vertices", "surface"))
-        body_a, surf_a = _surface(spec["vertices"], f"{p}.vertices", ctx)
-        body_b, surf_b = _surface(spec["surface"], f"{p}.surface", ctx)
+        body_a, surf_a, h_A = _surface(spec["vertices"], f"{p}.vertices", ctx)
+        body_b, surf_b, h_B = _surface(spec["surface"], f"{p}.surface", ctx)
         law = spec.get("law", "linear")
-        layers = None
-        if law == "linear":
-            if "pressure_modulus" not in spec:
-                raise ctx.error(p, "the linear law needs 'pressure_modulus' (N/m³)")
-            if "layers" in spec:
-                raise ctx.error(f"{p}.layers", "'layers' belong to 'law: nonlinear'")
-            k = ctx.number(spec["pressure_modulus"], f"{p}.pressure_modulus", positive=True)
-        elif law == "nonlinear":
-            if "pressure_modulus" in spec:
-                raise ctx.error(f"{p}.pressure_modulus", "the non-linear law takes 'layers', not 'pressure_modulus'")
-            items = spec.get("layers")
-            if not isinstance(items, list) or not 1 <= len(items) <= 2:
-                raise ctx.error(f"{p}.layers", "expected a list of 1 or 2 layers {modulus: K Pa, thickness: h}")
-            layers = []
-            for j, item in enumerate(items):
-                q = f"{p}.layers[{j}]"
-                ctx.keys(item, q, ["modulus", "thickness"], required=("modulus", "thickness"))
-                layers.append((ctx.number(item["modulus"], f"{q}.modulus", positive=True),
-                               ctx.number(item["thickness"], f"{q}.thickness", positive=True) * ctx.length))
-            k = 1.0 / sum(h / K for K, h in layers)
-        else:
+        if law not in ("linear", "nonlinear"):
             raise ctx.error(f"{p}.law", f"expected 'linear' or 'nonlinear', got {law!r}")
+        layers = variable = None
+        if law == "linear" and "layers" not in spec:
+            if "pressure_modulus" not in spec:
+                raise ctx.error(p, "the linear law needs 'pressure_modulus' (N/m³) or 'layers'")
+            k = ctx.number(spec["pressure_modulus"], f"{p}.pressure_modulus", positive=True)
+        else:
+            if "pressure_modulus" in spec:
+                raise ctx.error(f"{p}.pressure_modulus", "give 'layers' or 'pressure_modulus', not both")
+            if "layers" not in spec:
+                raise ctx.error(p, "the non-linear law needs 'layers'")
+            items = _layers(spec["layers"], f"{p}.layers", ctx, {"vertices": h_A, "surface": h_B})
+            if any(a or b_ for _, _, a, b_ in items):
+                from .thickness import TriangleThickness, vertex_thickness
+                from .variable_layers import VariableLayers
+
+                variable = VariableLayers(items, law == "nonlinear",
+                                          None if h_A is None else vertex_thickness(surf_a, h_A),
+                                          None if h_B is None else TriangleThickness(surf_b, h_B))
+                k = variable.mean_modulus()
+            elif law == "nonlinear":
+                layers = [(K, h) for K, h, _, _ in items]
+                k = 1.0 / sum(h / K for K, h in layers)
+            else:  # linear with uniform layers: their series modulus
+                k = 1.0 / sum(h / K for K, h, _, _ in items)
+        for side, h in (("vertices", h_A), ("surface", h_B)):
+            if h is not None and variable is None:
+                raise ctx.error(f"{p}.{side}.thickness", "no layer uses this thickness field (a layer's "
+                                f"thickness: {side})")
         mode = spec.get("mode", "grid")
         h = ctx.number(spec["grid_spacing"], f"{p}.grid_spacing", positive=True) * ctx.length if "grid_spacing" in spec else DEFAULT_GRID_SPACING
         depth = ctx.number(spec["max_depth"], f"{p}.max_depth", positive=True) * ctx.length if "max_depth" in spec else DEFAULT_MAX_DEPTH
         regions = _regions(spec.get("regions"), f"{p}.regions", ctx)
         try:
             element = _wrap(ctx, p, lambda: add_contact(b, name, body_a, surf_a, body_b, surf_b, k, mode, h, depth,
-                                                        layers))
+                                                        layers, variable))
         except (ValueError, TypeError) as exc:
             if isinstance(exc, ModelError):
                 raise

@@ -22,8 +22,14 @@ Geometry folder, ``--geometry``), placed by its ``socket_frame`` in its body, an
 that frame by ContactGeometry's ``location`` and ``orientation`` (body-fixed X-Y-Z Euler
 angles) where the file gives them (models written by OpenSim 4.0–4.4).
 
-Read and refused by name: ``scale_factors`` other than 1, ``mesh_back_file``,
-variable thickness (with or without its back mesh), a missing ``thickness``, ``elastic_modulus`` or
+Variable thickness (``use_variable_thickness`` with its ``mesh_back_file``,
+``min_thickness``, ``max_thickness``): the mesh's surface gets ``thickness: {back_mesh,
+min, max}`` and its layer ``thickness: vertices`` or ``surface`` (both added for the
+lumped layer), computed as OpenSim-JAM computes it (:mod:`openfdk.contact.thickness`);
+a ``mesh_back_file`` without it is not read, as JAM does not read it.
+
+Read and refused by name: ``scale_factors`` other than 1, use_variable_thickness without
+its back mesh, a missing ``thickness`` (uniform), ``elastic_modulus`` or
 ``poissons_ratio``, ``modulus_heterogeneity``, a body-less (ground) pair.
 """
 
@@ -62,15 +68,19 @@ def read_contact_mesh(element, source):
     if not name:
         raise OsimError(f"{where(source, element)}: a {MESH_TYPE} without a name")
     _check_properties(element, source, label, _MESH_PROPERTIES)
+    variable = None
     if _flag(element, "use_variable_thickness", source, label, False):
         if not _text(element, "mesh_back_file"):
             raise OsimError(f"{where(source, element)}: use_variable_thickness without a mesh_back_file "
                             "(the back mesh that gives the thickness is missing)")
-        raise OsimError(f"{where(source, element)}: variable thickness (from {_text(element, 'mesh_back_file')}) is "
-                        "not supported by openfdk; set use_variable_thickness false and a uniform thickness (m) "
-                        "to import the model")
-    if _text(element, "mesh_back_file"):
-        raise OsimError(f"{where(source, element)}: a mesh_back_file is not supported by openfdk")
+        # OpenSim-JAM's defaults: min_thickness 1 mm, max_thickness 10 mm (contact/thickness.py)
+        h_min = _number(element, "min_thickness", source, label, 0.001)
+        h_max = _number(element, "max_thickness", source, label, 0.01)
+        if not (math.isfinite(h_min) and math.isfinite(h_max) and 0.0 < h_min < h_max):
+            raise OsimError(f"{where(source, element)}: min_thickness {h_min:g} and max_thickness {h_max:g} m: "
+                            "openfdk needs 0 < min < max")
+        variable = {"back_file": _text(element, "mesh_back_file"), "min": h_min, "max": h_max}
+    # (a mesh_back_file without use_variable_thickness is not read, as OpenSim-JAM does not)
     scale = (_text(element, "scale_factors") or "1 1 1").split()
     if [float(x) for x in scale] != [1.0, 1.0, 1.0]:
         raise OsimError(f"{where(source, element)}: scale_factors {' '.join(scale)} (openfdk reads "
@@ -88,6 +98,8 @@ def read_contact_mesh(element, source):
         record[key] = convert(numbers(node, source, 3, f"{label}: {tag}") if node is not None else np.zeros(3))
     for tag, key, ok in (("elastic_modulus", "E", lambda x: x > 0), ("poissons_ratio", "nu", lambda x: -1 < x < 0.5),
                          ("thickness", "h", lambda x: x > 0)):
+        if key == "h" and variable is not None:
+            continue  # (from the back mesh: OpenSim-JAM does not read <thickness> then)
         if not _text(element, tag):
             raise OsimError(f"{where(source, element)}: <{tag}> is missing (the elastic layer's "
                             f"{'thickness (m)' if key == 'h' else tag} is needed for the pressure law)")
@@ -95,6 +107,9 @@ def read_contact_mesh(element, source):
         if not (math.isfinite(value) and ok(value)):
             raise OsimError(f"{where(source, element)}: {tag} {value:g} is out of range")
         record[key] = value
+    record["variable"] = variable
+    if variable is not None:
+        record["h"] = variable["max"]  # the thickest it can be (the depth the law allows)
     return name, record
 
 
@@ -157,11 +172,18 @@ def pressure_law(force, target, casting):
     docstring): ``{pressure_modulus}`` (linear) or ``{law: nonlinear, layers}``."""
     from ...contact.pressure_law import layer_modulus as confined
 
+    def h(record, side):  # a layer's thickness: its number, or the side's field (variable)
+        return side if record.get("variable") else record["h"]
+
     if force["lumped"]:  # OpenSim-JAM: mean E and ν, the thicknesses added
         E, nu = (target["E"] + casting["E"]) / 2, (target["nu"] + casting["nu"]) / 2
-        layers = [(confined(E, nu), target["h"] + casting["h"])]
+        parts = [h(casting, "vertices"), h(target, "surface")]
+        layers = [(confined(E, nu), parts if any(isinstance(x, str) for x in parts) else sum(parts))]
     else:
-        layers = [(confined(r["E"], r["nu"]), r["h"]) for r in (casting, target)]
-    if force["formulation"] == "linear":
-        return {"pressure_modulus": 1.0 / sum(h / K for K, h in layers)}
-    return {"law": "nonlinear", "layers": [{"modulus": K, "thickness": h} for K, h in layers]}
+        layers = [(confined(casting["E"], casting["nu"]), h(casting, "vertices")),
+                  (confined(target["E"], target["nu"]), h(target, "surface"))]
+    variable = any(isinstance(t, (str, list)) for _, t in layers)
+    if force["formulation"] == "linear" and not variable:
+        return {"pressure_modulus": 1.0 / sum(t / K for K, t in layers)}
+    law = {"law": force["formulation"]} if force["formulation"] == "nonlinear" or variable else {}
+    return {**law, "layers": [{"modulus": K, "thickness": t} for K, t in layers]}

@@ -246,12 +246,17 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         for role, key in (("vertices", "casting"), ("surface", "target")):
             mesh = doc.contact_meshes[force[key]]
             file = find_mesh(doc, OsimGeometry(mesh["mesh_file"], mesh["frame"], np.ones(3), line=mesh["line"]),
-                             mesh_dirs)
+                             mesh_dirs, kind="Smith2018ContactMesh")
             root, p, R = tree.frame_in_root(mesh["frame"])
             body = "ground" if root == tree.ground else safe_name(root)
             p_BG, R_BG = p + R @ mesh["p_FG"] - com[root], R @ mesh["R_FG"]
             sides[role] = {"body": body, "mesh": str(file), "units": "m",
                            "placement": {"position": p_BG.tolist(), "orientation": {"matrix": R_BG.tolist()}}}
+            if mesh.get("variable"):  # the bone behind the cartilage, in the same file frame
+                back = find_mesh(doc, OsimGeometry(mesh["variable"]["back_file"], mesh["frame"], np.ones(3),
+                                                   line=mesh["line"]), mesh_dirs, kind="Smith2018ContactMesh")
+                sides[role]["thickness"] = {"back_mesh": str(back), "min": mesh["variable"]["min"],
+                                            "max": mesh["variable"]["max"]}
         if sides["vertices"]["body"] == sides["surface"]["body"]:
             raise OsimError(f"{doc.source}: line {force['line']}: Smith2018ArticularContactForce {name!r}: both meshes "
                             "are on one body")
@@ -537,9 +542,11 @@ def hill_parameters(muscle, source):
     return out
 
 
-def find_mesh(doc, geometry, mesh_dirs=(), ignore_missing=False):
+def find_mesh(doc, geometry, mesh_dirs=(), ignore_missing=False, kind="Mesh"):
     """The mesh file of an OsimGeometry: next to the model, in its Geometry folder, in
-    ../Geometry or in ``mesh_dirs``; None when it is missing and ``ignore_missing``."""
+    ../Geometry or in ``mesh_dirs``; None when it is missing and ``ignore_missing``.
+    ``kind``: the element type the file belongs to, for the message (a display ``Mesh``,
+    or a contact's ``Smith2018ContactMesh``, which ``--ignore Mesh`` does not leave out)."""
     import os
 
     from ..meshfiles import DISPLAY_MESH_SUFFIXES
@@ -565,6 +572,7 @@ def find_mesh(doc, geometry, mesh_dirs=(), ignore_missing=False):
     if ignore_missing:
         return None
     folders = dict.fromkeys(os.path.realpath(c.parent) for c in candidates)  # each once (a model in the cwd)
-    raise OsimError(f"{doc.source}: line {geometry.line}: Mesh {shown!r} not found (looked in "
-                    f"{', '.join(f[:200] for f in folders)}); give its folder with --geometry DIR, or leave the "
-                    "meshes out with --ignore Mesh")
+    leave = ("the meshes out with --ignore Mesh" if kind == "Mesh" else
+             f"the contacts out with --ignore {kind} --ignore Smith2018ArticularContactForce")
+    raise OsimError(f"{doc.source}: line {geometry.line}: {kind} {shown!r} not found (looked in "
+                    f"{', '.join(f[:200] for f in folders)}); give its folder with --geometry DIR, or leave {leave}")

@@ -89,6 +89,8 @@ def _mesh_files(data):
     for contact in (data.get("contacts") or {}).values():
         for side in ("vertices", "surface"):
             yield Path(contact[side]["mesh"])
+            if "thickness" in contact[side]:  # the bone behind a cartilage of variable thickness
+                yield Path(contact[side]["thickness"]["back_mesh"])
 
 
 def _mesh_targets(data):
@@ -115,8 +117,14 @@ def _copy_meshes(data, out_dir, targets):
         if "visual" in body:
             body["visual"] = [{**v, "mesh": targets[str(Path(v["mesh"]))]} for v in body["visual"]]
         bodies[bname] = body
-    contacts = {name: {**c, **{side: {**c[side], "mesh": targets[str(Path(c[side]["mesh"]))]}
-                               for side in ("vertices", "surface")}}
+    def side_copied(spec):
+        spec = {**spec, "mesh": targets[str(Path(spec["mesh"]))]}
+        if "thickness" in spec:
+            spec["thickness"] = {**spec["thickness"],
+                                 "back_mesh": targets[str(Path(spec["thickness"]["back_mesh"]))]}
+        return spec
+
+    contacts = {name: {**c, **{side: side_copied(c[side]) for side in ("vertices", "surface")}}
                 for name, c in (data.get("contacts") or {}).items()}
     for src, target in targets.items():
         dest = out_dir / target
