@@ -381,3 +381,18 @@ def test_overlay_contact_regions_split_an_imported_contact(tmp_path, monkeypatch
     with pytest.raises(ModelError, match=r"bad.yaml: contact_regions.ball_contact2: not a contact of the model; "
                                          r"did you mean 'ball_contact'\?"):
         load_model_and_settings(tmp_path / "bad.yaml")
+
+
+def test_a_missing_contact_mesh_or_bone_names_the_contacts_ignore(tmp_path, monkeypatch):
+    """A contact's mesh file (or the bone behind a cartilage) that is not found is one
+    line naming the file, the folders looked in and how to leave the contacts out
+    (``--ignore Mesh`` would not: it leaves out display meshes)."""
+    monkeypatch.chdir(tmp_path)
+    path = _with_back_meshes(_model(tmp_path), tmp_path, lumped=False)
+    for missing in ("plate_bone.stl", "plate.stl"):
+        (tmp_path / missing).unlink()
+        with pytest.raises(OsimError) as exc:
+            read_osim(path)
+        msg = str(exc.value)
+        assert "\n" not in msg and f"Smith2018ContactMesh '{missing}' not found (looked in" in msg, msg
+        assert "--ignore Smith2018ContactMesh --ignore Smith2018ArticularContactForce" in msg, msg

@@ -210,3 +210,22 @@ def test_a_back_mesh_the_rays_never_meet_is_an_error(tmp_path):
     with pytest.raises(ModelError) as err:
         load_model(path)
     assert "contacts.knee.vertices.thickness.back_mesh" in str(err.value) and "bone.stl" in str(err.value)
+
+
+@pytest.mark.parametrize("old, new, fragment", [
+    ("min: 0.5, max: 4.0", "min: 4.0, max: 0.5", "contacts.knee.vertices.thickness: min 4.0 must be below max 0.5"),
+    ("min: 0.5, max: 4.0", "max: 4.0", "contacts.knee.vertices.thickness"),
+    ("min: 0.5, max: 4.0", "min: 0.5, max: 4.0, scale: 2", "contacts.knee.vertices.thickness"),
+    ("back_mesh: bone.stl", "back_mesh: nowhere.stl", "contacts.knee.vertices.thickness.back_mesh"),
+    ("thickness: vertices}", "thickness: [vertices, 1, 2]}", "contacts.knee.layers[0].thickness"),
+    ("thickness: vertices}", "thickness: -1}", "contacts.knee.layers[0].thickness"),
+    ("law: linear", "law: linear\n    pressure_modulus: 1.0e10", "contacts.knee.pressure_modulus"),
+])
+def test_bad_thickness_fields_are_one_line_errors(tmp_path, old, new, fragment):
+    path = _model(tmp_path)
+    text = path.read_text()
+    assert old in text
+    path.write_text(text.replace(old, new, 1))
+    with pytest.raises(ModelError) as err:
+        load_model(path)
+    assert fragment in str(err.value) and "\n" not in str(err.value), str(err.value)
