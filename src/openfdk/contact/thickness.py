@@ -36,10 +36,10 @@ def triangle_thickness(V, F, back_V, back_F, h_min, h_max):
     F = np.ascontiguousarray(F, dtype=np.int64)
     back_V = np.ascontiguousarray(back_V, dtype=np.float64)
     back_F = np.ascontiguousarray(back_F, dtype=np.int64)
-    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
-    n = np.cross(b - a, c - a)
-    n /= np.linalg.norm(n, axis=1)[:, None]
-    centre = (a + b + c) / 3.0
+    from .mesh import _face_normals_and_areas
+
+    n = _face_normals_and_areas(V, F)[0]  # (a degenerate triangle's zero normal casts no ray)
+    centre = V[F].mean(axis=1)
     # libigl's ray–triangle test has an absolute tolerance: on triangles of 0.4 mm written
     # in metres every ray missed. The rays are cast in units of the back mesh's median
     # edge (the distances scale back exactly)
