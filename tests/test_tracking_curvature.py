@@ -12,12 +12,12 @@ from scipy.spatial.transform import Rotation
 
 import openfdk.kinematics.analysis as kinematics_analysis
 from openfdk.kinematics.analysis import run_tracking
-from openfdk.model.builder import ModelBuilder
+from openfdk.fixtures.synthetic import CHAIN_MARKERS, hanging_chain
 
 L, N_SEG = 0.3, 4
 #: markers in each segment's frame (m), and where the subject's markers really are: the
 #: model's placed 15–25 mm off (a large-residual fit)
-P_SM = np.array([[0.05, 0.0, 0.1], [0.0, 0.05, -0.1], [-0.04, 0.02, 0.0]])
+P_SM = np.array(CHAIN_MARKERS)
 MISPLACED = np.array([[0.015, -0.01, 0.02], [-0.02, 0.015, 0.0], [0.01, 0.02, -0.015]])
 TIMES = np.linspace(0.0, 0.5, 26)
 
@@ -25,16 +25,7 @@ TIMES = np.linspace(0.0, 0.5, 26)
 def _chain():
     """N_SEG segments hanging from the ground by spherical joints; segment k's origin at
     its middle, its top at (0, 0, L/2) and its tip at (0, 0, −L/2) in its frame."""
-    b = ModelBuilder("chain")
-    b.add_frame("ground", "pivot", (0, 0, 0))
-    for k in range(N_SEG):
-        b.add_body(f"s{k}", 1.0, [1e-2, 1e-2, 1e-3], position=(0, 0, -L * k - L / 2))
-        b.add_frame(f"s{k}", "top", (0, 0, L / 2))
-        b.add_frame(f"s{k}", "tip", (0, 0, -L / 2))
-        b.add_joint(f"j{k}", "spherical", "ground.pivot" if k == 0 else f"s{k - 1}.tip", f"s{k}.top")
-        for i, p in enumerate(P_SM):
-            b.add_marker(f"s{k}_m{i}", f"s{k}", p)
-    return b.build()
+    return hanging_chain(N_SEG, L)
 
 
 def _markers(rotvecs, offsets):

@@ -10,8 +10,8 @@ import numpy as np
 from openfdk.kinematics.kkt import hessian_pattern
 from openfdk.kinematics.tracking_hessian import OK, group_arrays, tracking_hessian
 from openfdk.kinematics.system import ConstraintSystem
+from openfdk.fixtures.synthetic import hanging_chain
 from openfdk.kinematics.tracking import MarkerTracker
-from openfdk.model.builder import ModelBuilder
 from openfdk.numerics.numdiff import column_groups, manifold_jacobian
 
 L, N_SEG = 0.3, 5
@@ -19,16 +19,7 @@ L, N_SEG = 0.3, 5
 
 def _chain():
     """N_SEG segments hanging from the ground by spherical joints, three markers each."""
-    b = ModelBuilder("chain5")
-    b.add_frame("ground", "pivot", (0, 0, 0))
-    for k in range(N_SEG):
-        b.add_body(f"s{k}", 1.0, [1e-2, 1e-2, 1e-3], position=(0, 0, -L * k - L / 2))
-        b.add_frame(f"s{k}", "top", (0, 0, L / 2))
-        b.add_frame(f"s{k}", "tip", (0, 0, -L / 2))
-        b.add_joint(f"j{k}", "spherical", "ground.pivot" if k == 0 else f"s{k - 1}.tip", f"s{k}.top")
-        for i, p in enumerate([(0.05, 0, 0.1), (0, 0.05, -0.1), (-0.04, 0.02, 0.0)]):
-            b.add_marker(f"s{k}_m{i}", f"s{k}", p)
-    return b.build()
+    return hanging_chain(N_SEG, L, name="chain5")
 
 
 def _lagrangian_gradient(seed=0, parts=False):

@@ -229,3 +229,21 @@ def test_bad_thickness_fields_are_one_line_errors(tmp_path, old, new, fragment):
     with pytest.raises(ModelError) as err:
         load_model(path)
     assert fragment in str(err.value) and "\n" not in str(err.value), str(err.value)
+
+
+@pytest.mark.parametrize("max_depth, warned", [(1, False), (3, True)])
+def test_the_mesh_check_names_the_fields_and_a_band_deeper_than_the_thickest_layer(tmp_path, max_depth, warned):
+    """``openfdk check``'s layer column gives each field's range (1.2–2.8 mm here), and
+    the non-linear law's depth warning compares max_depth with the thickest the layers
+    get: 2.79333 mm, the edge vertices' mean of their triangles' h at x = 19.83 mm (their
+    centres), 2 + 0.04·19.833 mm. A 3 mm band is warned of, a 1 mm one is not."""
+    from openfdk.contact.mesh_check import check_contacts
+
+    path = _model(tmp_path, law="nonlinear")
+    path.write_text(path.read_text().replace("max_depth: 1", f"max_depth: {max_depth}"))
+    (check,) = check_contacts(load_model(path))
+    assert "variable thickness (vertices 1.2–2.8 mm)" in check.layer, check.layer
+    layer_warnings = [w for w in check.warnings if "layers' thickness" in w]
+    assert bool(layer_warnings) == warned, check.warnings
+    if warned:
+        assert "max_depth 3 mm is not below the layers' thickness 2.79333 mm" in layer_warnings[0], layer_warnings

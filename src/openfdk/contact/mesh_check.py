@@ -181,12 +181,16 @@ def _layer(pair):
     if v is not None:  # thickness from the bones behind the cartilage (contact/thickness.py)
         fields = [f"{side} {1e3 * h.min():.2g}–{1e3 * h.max():.2g} mm" for side, h in
                   (("vertices", v.h_A), ("surface", None if v.h_B is None else v.h_B.h)) if h is not None]
-        return (f"{'nonlinear' if v.nonlinear else 'linear'}, {len(v.K)} layer(s) of variable thickness "
-                f"({', '.join(fields)}), {pair.pressure_modulus:.3g} N/m³ at the mean thickness"), []
-    if pair.layers is None:
+        text = (f"{'nonlinear' if v.nonlinear else 'linear'}, {len(v.K)} layer(s) of variable thickness "
+                f"({', '.join(fields)}), {pair.pressure_modulus:.3g} N/m³ at the mean thickness")
+        if not v.nonlinear:
+            return text, []
+        total = v.total_thickness()  # (the thickest the layers get: a depth past it is past every vertex's)
+    elif pair.layers is None:
         return f"linear, {pair.pressure_modulus:.3g} N/m³", []
-    total = float(pair.layers[:, 1].sum())
-    text = f"nonlinear, {len(pair.layers)} layer(s), h = {total * 1e3:g} mm"
+    else:
+        total = float(pair.layers[:, 1].sum())
+        text = f"nonlinear, {len(pair.layers)} layer(s), h = {total * 1e3:g} mm"
     if pair.max_depth >= total:
         return text, [f"max_depth {pair.max_depth * 1e3:g} mm is not below the layers' thickness "
                       f"{total * 1e3:g} mm: depths beyond the layer are counted (the law continues linearly there)"]
