@@ -539,6 +539,14 @@ def opensim_motion_type(rotations, translations, coordinate):
     return motion or "coupled"
 
 
+def in_degrees(entry):
+    """Whether OpenSim gives a coordinate in degrees where its files say so (a ``.mot``'s
+    ``inDegrees=yes``, CoordinateLimitForce's limits): only a rotational one, not a coupled
+    one. ``entry``: the coordinate's mapping of the model file (``motion`` and, where
+    OpenSim's differs, ``opensim_motion``)."""
+    return entry.get("opensim_motion", entry.get("motion", "rotational")) == "rotational"
+
+
 def _affine_in(axis, coordinate):
     """Whether the OsimAxis ``axis`` is an affine function of ``coordinate`` with a
     non-zero slope (a LinearFunction, a MultiplierFunction of one, …)."""

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .document import in_degrees as opensim_in_degrees
 from .document import parse_xml
 from .errors import OsimError, where
 from .functions import _NUMBER
@@ -145,7 +146,7 @@ def apply_ik_tasks(data, path, doc_coordinates, dropped=()):
                            f"{len(times)} rows; a coordinate task from a file needs at least 2")
                 raise OsimError(f"{source}: line {t['line']}: IKCoordinateTask {name!r}: column {name!r} of "
                                 f"{Path(f).name}: {problem}")
-            if in_degrees and coord.get("opensim_motion", coord["motion"]) == "rotational":
+            if in_degrees and opensim_in_degrees(coord):
                 values = np.radians(values)
             value = {"type": "spline", "times": times.tolist(), "values": values.tolist()}
         out[name] = {"measure": name, "weight": t["weight"], "value": value}

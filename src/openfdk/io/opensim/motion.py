@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .document import in_degrees as opensim_in_degrees
 from .errors import OsimError
 
 SUFFIX = "_motion"
@@ -70,7 +71,7 @@ def motion_drivers(path, data, cutoff_hz=None):
         values = np.asarray(columns[name], float)
         if not np.all(np.isfinite(values)):
             raise OsimError(f"{source}: column {name!r} has non-finite values")
-        if in_degrees and c.get("opensim_motion", c.get("motion", "rotational")) == "rotational":
+        if in_degrees and opensim_in_degrees(c):
             values = np.radians(values)
         if sos is not None:
             values = sosfiltfilt(sos, values)

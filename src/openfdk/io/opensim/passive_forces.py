@@ -112,9 +112,10 @@ def add_springs(data, springs, source):
         if entry.pop("opensim_units", False) and entry["measure"] in coordinates:
             # OpenSim: a rotational coordinate's limits and transition in degrees, its
             # stiffnesses and damping per degree; openfdk's law is in rad
-            coord = coordinates[entry["measure"]]
-            w = math.pi / 180.0 if coord.get("opensim_motion", coord.get("motion", "rotational")) == "rotational" \
-                else 1.0  # (OpenSim's CoordinateLimitForce: its rotational coordinates only, not coupled ones)
+            from .document import in_degrees
+
+            # (OpenSim's CoordinateLimitForce: its rotational coordinates only, not coupled ones)
+            w = math.pi / 180.0 if in_degrees(coordinates[entry["measure"]]) else 1.0
             law = dict(entry["law"])
             for key in ("upper_limit", "lower_limit", "transition"):
                 law[key] *= w
