@@ -283,6 +283,13 @@ def custom_model(path, seed=2):
     write(m, path)
     # the knee's rotation3 as a NaturalCubicSpline (OpenSim reads it as a SimmSpline)
     tree = etree.parse(str(path))
+    # OpenSim's GCVSpline.addPoint leaves the new weights uninitialised: once in many CI
+    # runs the file held '1 8.062e+72 2.15228e-312 1 … -nan' and OpenSim could not read it
+    # back. The weights are ones (OpenSim 4 refits with unit weights anyway)
+    for gcv in tree.iter("GCVSpline"):
+        weights = gcv.find("weights")
+        if weights is not None:
+            weights.text = " ".join(["1"] * len(gcv.find("x").text.split()))
     (el,) = tree.xpath("//CustomJoint[@name='knee']/SpatialTransform/TransformAxis[@name='rotation3']/SimmSpline")
     el.tag = "NaturalCubicSpline"
     tree.write(str(path), xml_declaration=True, encoding="UTF-8")
