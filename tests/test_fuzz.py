@@ -381,16 +381,18 @@ def test_external_loads_errors_name_the_xml_file(bases, tmp_path, capsys, old, n
     assert expected in error_line(err)
 
 
-def test_a_motion_file_of_one_sample_is_refused(bases, tmp_path, capsys):
-    """Found by the fuzz suite: one sample gave a spline error naming the .osim's driver."""
+@pytest.mark.parametrize("rows", [1, 5])
+def test_a_motion_file_of_too_few_samples_is_refused(bases, tmp_path, capsys, rows):
+    """Found by the fuzz suite: one sample gave a spline error naming the .osim's driver.
+    OpenSim's quintic spline needs 6 samples."""
     from cli_helpers import error_line, run_cli
 
     d = _osim_folder(bases, tmp_path)
     lines = (d / "motion.sto").read_text().splitlines()
-    (d / "motion.sto").write_text("\n".join(lines[:lines.index("endheader") + 3]) + "\n")
+    (d / "motion.sto").write_text("\n".join(lines[:lines.index("endheader") + 2 + rows]) + "\n")
     code, _, err = run_cli(capsys, "check", d / "leg.osim", "--motion", d / "motion.sto", "-q")
     assert code == 2
-    assert "motion.sto: 1 sample(s); a motion file needs at least 2" in error_line(err)
+    assert f"motion.sto: {rows} sample(s); a motion file needs at least 6" in error_line(err)
 
 
 def test_a_hill_muscle_length_too_small_to_compute_with_is_refused(bases, tmp_path, capsys):

@@ -152,3 +152,25 @@ def test_inconsistent_constraints_are_reported():
     res = run_determinate(model_from_dict(bad, "bad.yaml"), np.array([0.0]))
     assert not res.converged[0]
     assert "slide.x" in res.messages[0] and "'x'" in res.messages[0] and "arm.z" in res.messages[0]
+
+
+def test_a_gcv_spline_driver_reproduces_a_quintic_through_its_samples(tmp_path):
+    """The natural quintic through samples of a parabola is the parabola (its 3rd and 4th
+    derivatives vanish at the ends, as the natural spline's must): the driver's angle,
+    rate and acceleration equal the closed form, the samples given in degrees."""
+    times = np.linspace(0.0, 1.0, 11)
+    # p(t) = 10 + 20 t − 15 t² (degrees): p‴ = p⁗ = 0 everywhere
+    values = 10 + 20 * times - 15 * times ** 2
+    text = BASE.replace("{type: fourier, frequency: 1.0, a: [0, 30], b: [0]}",
+                        f"{{type: gcv_spline, degree: 5, times: {times.tolist()}, values: {values.tolist()}}}")
+    model = load_model(write(tmp_path, text))
+    t = np.array([0.0, 0.37, 1.0])
+    res = run_determinate(model, t)
+    angle = 2 * np.degrees(np.arctan2(res.q[:, 6], res.q[:, 3]))
+    np.testing.assert_allclose(angle, 10 + 20 * t - 15 * t ** 2, atol=1e-9)
+    np.testing.assert_allclose(res.v[:, 5], np.radians(20 - 30 * t), atol=1e-9)
+    np.testing.assert_allclose(res.vdot[:, 5], np.radians(-30.0), atol=1e-8)
+    bad = BASE.replace("{type: fourier, frequency: 1.0, a: [0, 30], b: [0]}",
+                       "{type: gcv_spline, degree: 4, times: [0, 1, 2, 3, 4, 5], values: [0, 1, 2, 3, 4, 5]}")
+    with pytest.raises(ModelError, match=r"drivers.swing.function.degree: expected 1, 3 or 5, got 4"):
+        load_model(write(tmp_path, bad, "bad.yaml"))

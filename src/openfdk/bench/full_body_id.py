@@ -79,21 +79,20 @@ per frame is compiled (≈ 15 µs for the program's evaluation, a few µs each f
 forward kinematics, the loads and the blocks) plus ≈ 10 µs of per-run Python (the
 model's layouts, the loads' and drivers' samples at every frame, the results).
 
-Why the two differ. Both interpolate the same samples, so q is the same at every frame;
-q̇ and q̈ are not: OpenSim differentiates a quintic GCV spline (degree 5, error variance
-0), openfdk a cubic not-a-knot spline (:mod:`openfdk.numerics.cubic_spline`). The motion is
-analytic (:func:`~openfdk.fixtures.full_body_osim.full_body_coordinate_rates`), so the
-record also gives each program's largest difference from the inverse dynamics with the
-exact q̇, q̈ (computed by OpenSim's solver, which equals openfdk's to 1e-6 N m on the
-same inputs, tests/test_opensim_inverse_dynamics.py), over all frames and over the
-interior ones (10 frames, 0.1 s, from either end). Measured (200 frames): 10 frames or
-more from the ends OpenSim's quintic is within 1e-3 of the exact forces (4e-5 from 20
-frames on) and openfdk's cubic 0.1–0.18 N m (N) off everywhere, its q̈ being O(h²)
-wrong (h = 10 ms); at the two ends the quintic's end conditions are far worse than the
-not-a-knot ones (the last frame: OpenSim 10 off, openfdk 0.9; the first: 5.8 and 1.3),
-so the largest difference between the two programs, ≈ 9 N (pelvis_ty), is at an end
-frame, and ≈ 0.2 in the interior. The figure is the honest difference of the two
-interpolations, not an error of either dynamics.
+Why the two agree. Since stop 64 ``--motion`` processes the coordinate file as the tool
+does (:mod:`openfdk.io.opensim.coordinate_filter`): the same natural quintic spline
+(GCVSpline of degree 5, error variance 0) through the same samples, so q, q̇ and q̈ are
+OpenSim's, and the generalised forces agree to the ``.sto``'s 8 decimals (5.5e-9 N m).
+Until then openfdk differentiated a cubic not-a-knot spline and the two differed by
+≈ 9 N at an end frame and ≈ 0.2 in the interior. The motion is analytic
+(:func:`~openfdk.fixtures.full_body_osim.full_body_coordinate_rates`), so the record
+also gives each program's largest difference from the inverse dynamics with the exact
+q̇, q̈, over all frames and over the interior ones (10 frames, 0.1 s, from either end):
+10 frames or more from the ends the quintic is within 1e-3 of the exact forces (4e-5
+from 20 frames on; the cubic was 0.1–0.18 N m off everywhere, its q̈ being O(h²)
+wrong, h = 10 ms); at the two ends its natural end conditions (q‴ = q⁗ = 0) are worse
+(10 N off at the last frame, the cubic 0.9). Trim a trial's first and last 0.1 s, or
+pass a longer coordinate file than the analysed window, where the ends matter.
 
 Threads. As in :mod:`openfdk.bench.full_body`, the measurements run in a child process
 with one BLAS thread; CPU time (``time.process_time``) is the measure, wall times are in
@@ -365,7 +364,7 @@ def measure(directory, quick=False):
         tool = opensim_tool(model_path, motion, loads, directory / "opensim")
         tool_cpu.append(tool[2])
         tool_logged.append(tool[3])
-    detail = (f"{n_frames} frames at {RATE_HZ:g} Hz, 23 coordinates driven by cubic splines of {MOTION} (unfiltered), "
+    detail = (f"{n_frames} frames at {RATE_HZ:g} Hz, 23 coordinates driven by OpenSim's quintic splines of {MOTION} (unfiltered), "
               f"two ExternalForces from {LOADS} ({GRF_RATE_HZ:g} Hz); "
               f"{float(np.mean(kin.iterations)):.2f} Newton iterations per frame (0: forward kinematics); "
               f"CPU ms/frame of {repeats} runs {[round(x, 3) for x in ours_cpu]}, "

@@ -15,8 +15,9 @@ sampled file, applied as OpenSim's ExternalForce applies them (:mod:`.data_loads
         torque: [ground_torque_x, ground_torque_y, ground_torque_z]      # N m (default: 0)
         cutoff_hz: 6                   # zero-lag low-pass of the samples, Hz (default: none)
 
-The columns are interpolated by a cubic spline through the samples (exact at the
-sample times); a frame outside the file's time range fails with a message naming the
+The columns are interpolated as OpenSim's ExternalForce interpolates them: by the
+natural cubic spline through the samples (its GCVSpline of degree 3, exact at the sample
+times), or straight lines between 2 or 3 samples; a frame outside the file's time range fails with a message naming the
 load. ``cutoff_hz`` > 0 low-pass filters them first, as the markers are (a ground
 reaction as a wrench, on its loaded runs; :mod:`.load_filter`). Without it, a ground
 reaction whose samples look unfiltered (their second differences as large as their
@@ -107,10 +108,11 @@ def load_external_loads(b, data, ctx):
                 raise ctx.error(f"{p}.cutoff_hz", f"{file}: {exc}") from None
         elif ground_reaction and (ratio := noise_ratio(F)) > NOISY_RATIO:
             noisy.setdefault(file, []).append((name, ratio))
+        natural = 3 if len(t) >= 4 else 1  # OpenSim's ExternalForce: GCVSpline of degree 3, linear below 4
         out.append(DataLoad(
-            name, index, SplineThroughData(t, F),
-            Constant(np.zeros(3)) if P is None else SplineThroughData(t, P),
-            Constant(np.zeros(3)) if T is None else SplineThroughData(t, T),
+            name, index, SplineThroughData(t, F, natural=natural),
+            Constant(np.zeros(3)) if P is None else SplineThroughData(t, P, natural=natural),
+            Constant(np.zeros(3)) if T is None else SplineThroughData(t, T, natural=natural),
             frames["force_frame"], frames["point_frame"], np.asarray(frame.p_BF, float), np.asarray(frame.R_BF, float)))
     for file, loads in noisy.items():
         names = ", ".join(f"{name!r} ({ratio:.2f})" for name, ratio in loads)

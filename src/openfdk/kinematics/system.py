@@ -161,12 +161,7 @@ class ConstraintSystem:
             if nf:
                 check.derivatives_range_check(times.min())
                 check.derivatives_range_check(times.max())
-            i = np.clip(np.searchsorted(spline.x, times, side="right") - 1, 0, len(spline.x) - 2)
-            tau = (times - spline.x[i])[:, None]
-            c0, c1, c2, c3 = (spline.coef[i, j] for j in range(4))  # (nf, k) each
-            F[:, rows] = c0 + tau * (c1 + tau * (c2 + tau * c3))
-            dF[:, rows] = c1 + tau * (2.0 * c2 + 3.0 * tau * c3)
-            ddF[:, rows] = 2.0 * c2 + 6.0 * tau * c3
+            F[:, rows], dF[:, rows], ddF[:, rows] = spline.derivatives_over(times)
         F[:, self._n_joint_rows :] = 0.0 if alpha is None else np.asarray(alpha, dtype=float)
         return F, dF, ddF
 
@@ -237,18 +232,19 @@ def _program(model, include_fdk, measures, rows):
 
 
 def _spline_groups(drivers):
-    """(groups, other drivers): drivers whose functions are cubic splines through data on
-    the same knots (a --motion file drives every coordinate so) evaluated as one spline of
-    all their columns — one knot search per time instead of one per driver. Each group is
-    (rows (k,) int, the first driver's function (its time-range check), NotAKnotSpline)."""
-    from ..numerics.cubic_spline import NotAKnotSpline
+    """(groups, other drivers): drivers whose functions are splines through data of one
+    kind on the same knots (a --motion file drives every coordinate so) evaluated as one
+    spline of all their columns — one knot search per time instead of one per driver.
+    Each group is (rows (k,) int, the first driver's function (its time-range check), the
+    spline of the group's columns: a NotAKnotSpline or SplineColumns)."""
     from ..model.timefunctions import SplineThroughData
 
     by_knots, rest = {}, []
     for r, c in drivers:
         fn = c.function
         if type(fn) is SplineThroughData:
-            by_knots.setdefault((fn._s.x.tobytes(), fn.extrapolate), []).append((r, c))
+            key = (type(fn._s), fn._s.coef.shape[1], fn._s.x.tobytes(), fn.extrapolate)
+            by_knots.setdefault(key, []).append((r, c))
         else:
             rest.append((r, c))
     groups = []
@@ -257,9 +253,9 @@ def _spline_groups(drivers):
             rest += members
             continue
         first = members[0][1].function
-        spline = NotAKnotSpline.__new__(NotAKnotSpline)
+        spline = type(first._s).__new__(type(first._s))
         spline.x, spline._knots = first._s.x, first._s._knots
-        spline.coef = np.concatenate([c.function._s.coef for _, c in members], axis=2)
+        spline.coef = np.ascontiguousarray(np.concatenate([c.function._s.coef for _, c in members], axis=2))
         rows = np.concatenate([np.arange(r, r + c.size) for r, c in members])
         groups.append((rows, first, spline))
     return groups, rest

@@ -364,68 +364,26 @@ def piecewise_linear(x, y) -> PiecewisePolynomial:
     return PiecewisePolynomial(x, coeffs, _row([y[0], slopes[0]]), _row([y[n - 1], slopes[-1]]))
 
 
-#: the largest dense system :func:`natural_spline` builds (2m·(n − 1) unknowns; 128 MB)
-NATURAL_SPLINE_MAX_UNKNOWNS = 4000
-
-
 def natural_spline(x, y, degree: int) -> PiecewisePolynomial:
     """The interpolating natural spline of odd ``degree`` = 2m − 1 ∈ {1, 3, 5} through
     n ≥ 2m points (x strictly increasing): what OpenSim's ``GCVSpline`` with
-    ``half_order`` m and ``error_variance`` 0 evaluates (module docstring).
+    ``half_order`` m and ``error_variance`` 0 evaluates (module docstring). The pieces
+    are :func:`openfdk.numerics.natural_spline.natural_spline_coefficients`'s. Outside
+    the knots: the Taylor polynomial of degree m − 1 at the end knot. At a knot the piece
+    to its right is used, as GCVSPL's SEARCH does (matters for degree 1 only)."""
+    from ..numerics.natural_spline import natural_spline_coefficients
 
-    Piece i is written in t = (x − x_i)/h_i ∈ [0, 1] with 2m unknown coefficients
-    a_ik h_i^k; the 2m·(n − 1) equations are the values at both ends of every piece, the
-    continuity of derivatives 1 … 2m−2 at the interior knots (each row multiplied by
-    min(h_{i−1}, h_i)^j so that it is O(1) whatever the steps) and the vanishing of
-    derivatives m … 2m−2 at both end knots. The dense system is solved with partial
-    pivoting; in this form it stays well conditioned for uneven steps (eliminating first to
-    the knot derivatives, the textbook route, lost five digits when one step was 100 times
-    shorter than its neighbour). At most :data:`NATURAL_SPLINE_MAX_UNKNOWNS` unknowns. Outside the knots: the
-    Taylor polynomial of degree m − 1 at the end knot. At a knot the piece to its right
-    is used, as GCVSPL's SEARCH does (matters for degree 1 only)."""
     degree = int(degree)
     if degree not in GCV_DEGREES:
         raise ValueError(f"natural spline: degree must be one of {GCV_DEGREES}, got {degree}")
     m = (degree + 1) // 2
     x, y = _points(x, y, 2 * m, f"GCVSpline of degree {degree}")
     n = len(x)
-    size = 2 * m                                # coefficients per piece
-    unknowns = size * (n - 1)
-    if unknowns > NATURAL_SPLINE_MAX_UNKNOWNS:
-        raise ValueError(f"GCVSpline of degree {degree}: {n} points are more than openfdk builds "
-                         f"(at most {NATURAL_SPLINE_MAX_UNKNOWNS // size + 1})")
-    h = np.diff(np.array(x))
-
-    def at(j, one):                             # g^(j) at t = 0 or 1 for g = Σ a_k t^k
-        row = np.zeros(size)
-        for k in range(j, size):
-            row[k] = factorial(k) // factorial(k - j) if one else (factorial(j) if k == j else 0)
-        return row
-
-    mat = np.zeros((unknowns, unknowns))
-    rhs = np.zeros(unknowns)
-    eq = 0
-    for i in range(n - 1):                      # interpolation
-        mat[eq, size * i:size * (i + 1)] = at(0, False)
-        rhs[eq] = y[i]
-        mat[eq + 1, size * i:size * (i + 1)] = at(0, True)
-        rhs[eq + 1] = y[i + 1]
-        eq += 2
-    for i in range(1, n - 1):                   # C^(2m−2) at the interior knots
-        short = min(h[i - 1], h[i])
-        for j in range(1, size - 1):
-            mat[eq, size * (i - 1):size * i] = at(j, True) * (short / h[i - 1]) ** j
-            mat[eq, size * i:size * (i + 1)] = -at(j, False) * (short / h[i]) ** j
-            eq += 1
-    for j in range(m, size - 1):                # natural end conditions
-        mat[eq, :size] = at(j, False)
-        mat[eq + 1, size * (n - 2):] = at(j, True)
-        eq += 2
-    local = np.linalg.solve(mat, rhs).reshape(n - 1, size)
+    size = 2 * m
     coeffs = np.zeros((n - 1, PP_WIDTH))
-    coeffs[:, :size] = local / h[:, None] ** np.arange(size)
+    coeffs[:, :size] = natural_spline_coefficients(x, y, degree)[:, :, 0]
     left = _row(coeffs[0, :m])
-    last, step = coeffs[n - 2, :size], h[n - 2]
+    last, step = coeffs[n - 2, :size], x[n - 1] - x[n - 2]
     right = _row([sum(factorial(k) // factorial(k - j) * last[k] * step ** (k - j)
                       for k in range(j, size)) / factorial(j) for j in range(m)])
     right[0] = y[n - 1]

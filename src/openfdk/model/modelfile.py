@@ -343,6 +343,7 @@ FUNCTION_KEYS = {
     "polynomial": ["coefficients"],
     "fourier": ["frequency", "a", "b"],
     "spline": ["times", "values"],
+    "gcv_spline": ["times", "values", "degree"],
 }
 
 
@@ -374,6 +375,11 @@ def _function(spec, units, path, ctx):
         if kind == "fourier":
             return Fourier(ctx.number(spec["frequency"], f"{path}.frequency", positive=True), rows("a"), rows("b"))
         times = ctx.vector(spec["times"], f"{path}.times")
+        if kind == "gcv_spline":
+            degree = spec["degree"]
+            if degree not in (1, 3, 5) or isinstance(degree, bool):
+                raise ctx.error(f"{path}.degree", f"expected 1, 3 or 5, got {degree!r}")
+            return SplineThroughData(times, rows("values"), natural=degree)
         return SplineThroughData(times, rows("values"))
     except ValueError as exc:
         if isinstance(exc, ModelError):

@@ -11,6 +11,8 @@ import numpy as np
 from numba import njit
 
 from openfdk.numerics.cubic_spline import NotAKnotSpline
+from openfdk.numerics.natural_spline import natural_spline_coefficients
+from openfdk.numerics.spline_columns import SplineColumns
 
 __all__ = ["Constant", "Polynomial", "Fourier", "SplineThroughData", "TimeFunction"]
 
@@ -105,14 +107,17 @@ def _fourier(kw, a, b, t, f, df, ddf):
 
 
 class SplineThroughData(TimeFunction):
-    """C² cubic spline through samples (not-a-knot ends).
+    """A spline through samples: the C² cubic with not-a-knot ends (``natural`` None), or
+    the natural spline of degree ``natural`` ∈ {1, 3, 5}, which OpenSim's ``GCVSpline``
+    with error variance 0 is (:mod:`openfdk.numerics.natural_spline`; OpenSim's
+    InverseDynamicsTool fits degree 5 to a coordinate file).
 
     times : (n,) s strictly increasing; values : (n,) or (n, size). Outside the sample
     range the end polynomials are extrapolated — a driver evaluated there is the user's
     choice, so :meth:`derivatives` raises instead when ``extrapolate`` is False.
     """
 
-    def __init__(self, times, values, extrapolate=False):
+    def __init__(self, times, values, extrapolate=False, natural=None):
         times = np.asarray(times, dtype=float)
         values = _as_rows(values, "spline values")
         if times.ndim != 1 or len(times) < 2 or np.any(np.diff(times) <= 0):
@@ -122,7 +127,10 @@ class SplineThroughData(TimeFunction):
         self.size = values.shape[1]
         self.t_range = (times[0], times[-1])
         self.extrapolate = extrapolate
-        self._s = NotAKnotSpline(times, values)
+        if natural is None:
+            self._s = NotAKnotSpline(times, values)
+        else:
+            self._s = SplineColumns(times, natural_spline_coefficients(times, values, natural))
 
     def derivatives_range_check(self, t):
         """Raise ValueError when t (s) is outside the data and extrapolation is off."""

@@ -147,6 +147,18 @@ class NotAKnotSpline:
         of f, df, ddf (one compiled call; the same piece, the same arithmetic)."""
         _derivatives_into(self.x, self.coef, float(t), rows, f, df, ddf)
 
+    def derivatives_over(self, times):
+        """(s, ṡ, s̈) at every entry of ``times`` (nf,): three arrays (nf, k), what
+        :meth:`derivatives_into` gives one time at a time (the same pieces, the same
+        arithmetic)."""
+        times = np.asarray(times, dtype=np.float64).reshape(-1)
+        i = np.clip(np.searchsorted(self.x, times, side="right") - 1, 0, len(self.x) - 2)
+        tau = (times - self.x[i])[:, None]
+        c0, c1, c2, c3 = (self.coef[i, j] for j in range(4))  # (nf, k) each
+        return (c0 + tau * (c1 + tau * (c2 + tau * c3)),
+                c1 + tau * (2.0 * c2 + 3.0 * tau * c3),
+                2.0 * c2 + 6.0 * tau * c3)
+
     def values(self, times):
         """s at every entry of ``times`` (nf,) (unit of x): (nf, k) in units of y, the
         values :meth:`derivatives` gives one time at a time (the same pieces, the same

@@ -3,10 +3,13 @@ OpenSim ``.mot``/``.sto`` becomes a driver with its reaction, so that inverse dy
 gives the generalised force along each coordinate — what OpenSim's InverseDynamicsTool
 computes from its ``coordinates_file``.
 
-* Each driver is named ``{coordinate}_motion``; its function is a cubic spline through
-  the file's samples (rotational columns converted from degrees when the file says
-  ``inDegrees=yes``), after an optional zero-lag low-pass filter (``--motion-cutoff HZ``,
-  OpenSim's ``lowpass_cutoff_frequency_for_coordinates``; default none, as OpenSim's −1).
+* Each driver is named ``{coordinate}_motion``; its function is the spline OpenSim's
+  InverseDynamicsTool differentiates: the natural quintic spline through the file's
+  samples (rotational columns converted from degrees where OpenSim converts them), after,
+  with ``--motion-cutoff HZ`` (OpenSim's ``lowpass_cutoff_frequency_for_coordinates``;
+  default none, as OpenSim's −1), OpenSim's padding and third-order IIR filter
+  (:mod:`openfdk.io.opensim.coordinate_filter`). Its velocities and accelerations, and so
+  the generalised forces, are OpenSim's.
 * Its reaction is the generalised force that moves the coordinate (N m for rotational,
   N for translational): ``generalized_forces.csv`` names it ``{coordinate}_moment`` or
   ``{coordinate}_force`` as OpenSim does. The root joint's ones (``pelvis_tx_force``, …)
@@ -35,8 +38,8 @@ SUFFIX = "_motion"
 def motion_drivers(path, data, cutoff_hz=None):
     """The model mapping ``data`` with a driver per coordinate from the motion file
     ``path`` (module docstring)."""
-    from ..butterworth import butter_lowpass_sos, filtfilt_padlen, sosfiltfilt
     from ..storage import read_storage
+    from .coordinate_filter import lowpass_iir3, pad_odd
 
     source = Path(path).name
     try:
@@ -51,17 +54,7 @@ def motion_drivers(path, data, cutoff_hz=None):
     dependent = {c["dependent"] for c in (data.get("couplers") or {}).values()}
     drivers = dict(data.get("drivers") or {})
     rate = (len(times) - 1) / (times[-1] - times[0]) if len(times) > 1 else 0.0
-    sos = None
-    if cutoff_hz:
-        if not 0 < cutoff_hz < rate / 2:
-            raise OsimError(f"--motion-cutoff: {cutoff_hz:g} Hz must be positive and below the Nyquist frequency "
-                            f"{rate / 2:g} Hz of {source}")
-        if np.max(np.abs(np.diff(times) * rate - 1.0)) > 1e-6:
-            raise OsimError(f"{source}: filtering needs uniformly spaced samples")
-        sos = butter_lowpass_sos(4, cutoff_hz, rate)
-        if len(times) <= filtfilt_padlen(sos):
-            raise OsimError(f"{source}: {len(times)} samples are too few to filter")
-    missing = []
+    driven, missing = [], []
     for name, c in coords.items():
         if c.get("locked") or c.get("prescribed") is not None or name in dependent:
             continue
@@ -71,16 +64,27 @@ def motion_drivers(path, data, cutoff_hz=None):
         values = np.asarray(columns[name], float)
         if not np.all(np.isfinite(values)):
             raise OsimError(f"{source}: column {name!r} has non-finite values")
-        if in_degrees and opensim_in_degrees(c):
-            values = np.radians(values)
-        if sos is not None:
-            values = sosfiltfilt(sos, values)
-        drivers[f"{name}{SUFFIX}"] = {"measure": name, "reaction": True,
-                                      "function": {"type": "spline", "times": times.tolist(), "values": values.tolist()}}
+        driven.append((name, np.radians(values) if in_degrees and opensim_in_degrees(c) else values))
     if missing:
         raise OsimError(f"{source}: no column for the coordinates {missing}; a motion file drives every free coordinate")
-    if len(times) < 2:
-        raise OsimError(f"{source}: {len(times)} sample(s); a motion file needs at least 2")
+    if len(times) < 6:
+        raise OsimError(f"{source}: {len(times)} sample(s); a motion file needs at least 6 (OpenSim's quintic spline)")
+    if cutoff_hz:
+        if not 0 < cutoff_hz < rate / 2:
+            raise OsimError(f"--motion-cutoff: {cutoff_hz:g} Hz must be positive and below the Nyquist frequency "
+                            f"{rate / 2:g} Hz of {source}")
+        if np.max(np.abs(np.diff(times) * rate - 1.0)) > 1e-6:
+            raise OsimError(f"{source}: filtering needs uniformly spaced samples")
+    knots = times
+    if driven:
+        block = np.column_stack([v for _, v in driven])
+        if cutoff_hz:
+            knots, block = pad_odd(times, block, len(times) // 2)
+            block = lowpass_iir3(block, cutoff_hz, 1.0 / rate)
+        for j, (name, _) in enumerate(driven):
+            drivers[f"{name}{SUFFIX}"] = {"measure": name, "reaction": True,
+                                          "function": {"type": "gcv_spline", "degree": 5, "times": knots.tolist(),
+                                                       "values": block[:, j].tolist()}}
     out = dict(data)
     out["drivers"] = drivers
     analysis = dict(data.get("analysis") or {})
