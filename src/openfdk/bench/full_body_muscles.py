@@ -62,13 +62,15 @@ forces are OpenSim's (its ``getForceStorage``); they are checked once against th
 openfdk's timed run does more than OpenSim's loop: it solves the kinematics from the
 coordinate splines (Newton), and the joint reactions come out of its recruitment.
 
-Why the forces differ. Both interpolate the same samples, so q is the same at every
-frame; q̇ and q̈ are not: OpenSim differentiates quintic GCV splines, openfdk a cubic
-not-a-knot spline (:mod:`openfdk.bench.full_body_id`), most at the two ends (≈ 25 N in
-the erector spinae at the last frame). In the interior the difference (≈ 5 N) is
-OpenSim's IPOPT stopping at its ``optimizer_convergence_criterion`` (1e-4) where openfdk's
-dual Newton method reaches 1e-10: with the criterion 1e-8 it falls to ≈ 0.7 N (measured,
-December 2026; OpenSim then takes ≈ 10 % longer).
+Why the forces differ. Both interpolate the same samples with OpenSim's quintic spline
+(since stop 64, :mod:`openfdk.bench.full_body_id`), so q and q̇ are the same at every
+frame; q̈ nearly so: OpenSim's static optimisation differentiates a second quintic spline
+through the samples of the first one's q̇, openfdk the first one twice. That matters at
+the two ends (≈ 11 N in the erector spinae at the last frame; ≈ 25 N with openfdk's
+earlier cubic spline). In the interior the difference (≈ 5 N) is OpenSim's IPOPT stopping
+at its ``optimizer_convergence_criterion`` (1e-4) where openfdk's dual Newton method
+reaches 1e-10: with the criterion 1e-8 it falls to ≈ 0.5 N (measured, December 2026;
+OpenSim then takes ≈ 10 % longer).
 
 Threads. The measurements run in a child process with one BLAS thread: with the default
 threads on this 2-core machine (shared), OpenBLAS's threads make the recruitment's small
@@ -422,7 +424,7 @@ def measure(directory, quick=False):
     n = len(fdk.times)
     records.append({
         "name": "full_body_recruitment_ms", "value": statistics.median(ours_cpu), "unit": "ms/frame", "runs": repeats,
-        "detail": (f"{n} frames at {RATE_HZ:g} Hz, 23 coordinates driven by cubic splines of {MOTION}, recruitment "
+        "detail": (f"{n} frames at {RATE_HZ:g} Hz, 23 coordinates driven by OpenSim's quintic splines of {MOTION}, recruitment "
                    f"{OVERLAY_TEXT.strip()}: 92 muscles, 23 actuators, {np.mean(dyn.iterations):.1f} iterations per "
                    f"frame; CPU ms/frame of {repeats} runs {[round(x, 2) for x in ours_cpu]}, wall "
                    f"{[round(x, 2) for x in ours_wall]}; one BLAS thread")})
