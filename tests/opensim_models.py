@@ -377,6 +377,47 @@ def constraints_model(path, seed=3):
     return path
 
 
+def patella_model(path, seed=5, coupler="linear"):
+    """Rajagopal 2016's patella, made up: ground -Pin(hip)- femur -Pin(knee)- tibia, and
+    femur -CustomJoint- patella moved by its own coordinate ``beta`` through splines only
+    (rotation1 and two translations SimmSplines of beta, no axis linear in it), with a
+    CoordinateCouplerConstraint beta = f(knee): ``coupler`` "linear" is Rajagopal's
+    LinearFunction(1, 0), "spline" a SimmSpline of the knee angle. Markers on every body."""
+    rng = np.random.default_rng(seed)
+    m = osim.Model()
+    m.setName("patella")
+    g = m.getGround()
+    B = {n: random_body(n, rng) for n in ("femur", "tibia", "patella")}
+    for b in B.values():
+        m.addBody(b)
+    m.addJoint(fixed_joint(osim.PinJoint, "hip", g, B["femur"], rng, [(-1.0, 1.0)]))
+    m.addJoint(fixed_joint(osim.PinJoint, "knee", B["femur"], B["tibia"], rng, [(0.0, 2.0)]))
+    x = np.linspace(0.0, 2.0944, 13)
+    axes = [((0, 0, 1), "beta", spline_points(osim.SimmSpline(), r6(x), r6(-0.86 * x + 0.05 * np.sin(3 * x)))),
+            ((0, 1, 0), None, None), ((1, 0, 0), None, None),
+            ((1, 0, 0), "beta", spline_points(osim.SimmSpline(), r6(x), r6(0.0524 - 0.036 * x))),
+            ((0, 1, 0), "beta", spline_points(osim.SimmSpline(), r6(x), r6(-0.0108 - 0.03 * np.sin(1.5 * x)))),
+            ((0, 0, 1), None, None)]
+    m.addJoint(custom_joint("patellofemoral", B["femur"], B["patella"], rng, axes))
+    con = osim.CoordinateCouplerConstraint()
+    con.setName("patella_follows_knee")
+    con.setIndependentCoordinateNames(osim.ArrayStr("knee_coord_0", 1))
+    con.setDependentCoordinateName("beta")
+    con.setFunction(osim.LinearFunction(1.0, 0.0) if coupler == "linear" else
+                    spline_points(osim.SimmSpline(), r6(x), r6(0.9 * x + 0.1 * np.sin(2 * x))))
+    m.addConstraint(con)
+    m.finalizeFromProperties()
+    cs = m.updCoordinateSet()
+    cs.get("beta").setRangeMin(0.0)
+    cs.get("beta").setRangeMax(2.0944)
+    knee = cs.get("knee_coord_0").getDefaultValue()
+    cs.get("beta").setDefaultValue(con.getFunction().calcValue(osim.Vector(1, knee)))
+    for b in B.values():
+        add_markers(m, b, rng)
+    write(m, path)
+    return path
+
+
 def weld_chain_model(path, seed=4):
     """A WeldJoint chain: ground -Pin- a -Weld- b -Weld- c, a -Pin- d, c -Ball- e (with
     offsets and rotations on every joint): b and c are merged into a. Also frames on

@@ -427,3 +427,25 @@ def test_a_point_rate_too_low_for_the_plate_filter_is_a_c3d_error(bases, tmp_pat
     with pytest.raises(C3DError, match=r"slow\.c3d: cutoff_hz = 6 Hz must be 0 \(no filter\) or positive and "
                                        r"below 2\.5 Hz, half the point rate \(POINT:RATE\)"):
         read_force_plates(tmp_path / "slow.c3d")
+
+
+def test_a_trc_header_with_empty_cells_between_its_values_reads_as_opensim_reads_it(bases, tmp_path):
+    """Found on opensim-models' Rajagopal walk (``motion_capture_walk.trc``): its line 3
+    puts two tabs between values ("100.0\\t\\t  100.0\\t\\t    238\\t\\t     41\\t\\t mm…"),
+    which OpenSim's tokenizer reads as one separator. The file reads to the same trial as
+    the single-tab one, and a header whose two lines still disagree is refused."""
+    from openfdk.io.trc import TRCError, header_fields, read_trc
+
+    lines = bases.texts["trc"].split("\n")
+    plain = tmp_path / "plain.trc"
+    plain.write_text("\n".join(lines))
+    doubled = tmp_path / "doubled.trc"
+    doubled.write_text("\n".join(lines[:2] + ["\t\t".join(lines[2].split("\t"))] + lines[3:]))
+    a, b = read_trc(plain), read_trc(doubled)
+    assert b.rate == a.rate and b.labels == a.labels
+    np.testing.assert_array_equal(b.positions, a.positions)
+    assert header_fields(doubled) == header_fields(plain)
+    short = tmp_path / "short.trc"
+    short.write_text("\n".join(lines[:2] + ["\t".join(lines[2].split("\t")[:2])] + lines[3:]))
+    with pytest.raises(TRCError, match=r"short\.trc: line 2/3: header field 'NumMarkers' is missing"):
+        read_trc(short)

@@ -497,6 +497,36 @@ def test_constraints_match_opensims_assembly(files):
     errs.check("constraints (30 samples)")
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("coupler", ["linear", "spline"])
+def test_a_coordinate_moved_only_through_splines_follows_its_coupler_as_in_opensim(workdir, coupler):
+    """Rajagopal 2016's patella (opensim_models.patella_model): its coordinate moves no
+    axis linearly, so openfdk cannot measure it from the poses; a coupler makes it a
+    function of the knee angle. The patella is then placed by the knee's angle through
+    the coupler, the coupler needs no row, and the poses, markers and the coupled
+    coordinate equal OpenSim's assembly at 30 samples; the joint's rows' Jacobian and
+    bias equal central differences."""
+    path = om.patella_model(workdir / f"patella_{coupler}.osim", coupler=coupler)
+    ours = Ours(path)
+    orc = om.Oracle(path, assembly_accuracy=1e-13)
+    rows = {c.name: len(c.row_names) for c in ours.model.constraints}
+    assert rows["patellofemoral"] == 6 and "patella_follows_knee" not in rows  # held by construction
+    rng = np.random.default_rng(31)
+    errs = Errors()
+    indep = ["hip_coord_0", "knee_coord_0"]
+    samples = sorted((orc.sample(rng, indep) for _ in range(30)), key=lambda q: q["knee_coord_0"])
+    for q in samples:
+        assemble_along(orc, q)
+        st = solve_driven(ours.model, q)
+        compare_positions(errs, orc, ours, st, {**q, "beta": orc.coords["beta"].getValue(orc.state)})
+    errs.check(f"patella, {coupler} coupler (30 samples)")
+    if coupler == "linear":  # independently: beta = knee
+        assert orc.coords["beta"].getValue(orc.state) == pytest.approx(samples[-1]["knee_coord_0"], abs=1e-12)
+    st = solve_driven(ours.model, samples[len(samples) // 2])
+    st.set_v(np.random.default_rng(32).normal(size=st.n_coords))
+    assert "patellofemoral" in _check_rows(ours.model, st, f"patella {coupler}")
+
+
 # ----------------------------------------------------------------------------- 3. Jacobians
 
 

@@ -77,7 +77,17 @@ def header_fields(path: str | os.PathLike) -> dict:
         raise OSError(f"{os.fspath(path)}: not a regular file")
     with open(os.fspath(path), encoding="utf-8", errors="replace") as fh:
         head = [next(fh, "") for _ in range(3)]
-    return dict(zip(_cells(head[1]), _cells(head[2])))
+    return _header(head[1], head[2])[1]
+
+
+def _header(names_line, values_line):
+    """(the field names, {name: value}) of header lines 2 and 3. Where the two lines
+    have different numbers of cells, empty cells are dropped from both, as OpenSim's
+    tokenizer drops them (opensim-models' Rajagopal walk puts two tabs between values)."""
+    names, values = _cells(names_line), _cells(values_line)
+    if len(values) != len(names):
+        names, values = [c for c in names if c], [c for c in values if c]
+    return names, dict(zip(names, values))
 
 
 #: the offsets' resolution in :func:`_uniform_times` (s): far below any sample interval,
@@ -132,8 +142,7 @@ def read_trc(path: str | os.PathLike) -> MarkerTrial:
     if not lines[0].startswith("PathFileType"):
         raise TRCError(f"{name}: line 1 must start with 'PathFileType' (is this a TRC file?)")
 
-    keys, values = _cells(lines[1]), _cells(lines[2])
-    header = dict(zip(keys, values))
+    keys, header = _header(lines[1], lines[2])
     for key in ("DataRate", "NumMarkers", "Units"):
         if key not in header or header[key] == "":
             raise TRCError(f"{name}: line 2/3: header field {key!r} is missing (fields: {keys})")

@@ -32,7 +32,11 @@ turns this into measures and rows:
    rows, with reactions.
 
 A coordinate that no axis measures linearly (one that only enters through splines) is
-refused with its name: openfdk cannot recover it from the bodies' poses exactly.
+refused with its name: openfdk cannot recover it from the bodies' poses exactly —
+unless a CoordinateCouplerConstraint makes it a function of another joint's coordinate
+(Rajagopal 2016's patella: ``knee_angle_r_beta = knee_angle_r``). Then it is that
+function of that coordinate's measure, every axis it moves is a row (the patella is
+placed on the femur by the knee's angle), and the coupler holds by construction.
 The alternative considered, coordinates as extra unknowns beside the poses (mixed
 coordinates), is discussed in docs/architecture.md.
 """
@@ -189,15 +193,21 @@ def _translation_basis(joint, moving):
     return T, slots
 
 
-def add_coordinate_joint(b, name, parent, child, rotations, translations, coordinates, joint_type="custom"):
+def add_coordinate_joint(b, name, parent, child, rotations, translations, coordinates, joint_type="custom",
+                         coupled=None):
     """Add an OpenSim joint to the builder ``b``: its rows (one Constraint ``name``,
     kind joint, with reactions) and its coordinates' measures (named measures).
 
     parent, child : qualified frames "body.frame" (OpenSim's parent frame F and child
     frame M); rotations, translations : 3 :class:`Axis` each (OpenSim's rotation1-3,
     translation1-3); coordinates : {name: unit} of the coordinates this joint defines
-    ("angle" or "length"). Returns {coordinate name: scalar Measure}.
+    ("angle" or "length"); coupled : {name: scalar Measure} for coordinates that no axis
+    measures linearly but a CoordinateCouplerConstraint defines as a function of another
+    coordinate (Rajagopal's patella: knee_angle_r_beta = knee_angle_r): that measure is
+    the coordinate, and every axis moved by it is a row. Returns {coordinate name: scalar
+    Measure}.
     """
+    coupled = coupled or {}
     fa, fb = b.frame(parent), b.frame(child)
     ia, ib = b._body_index(fa.body), b._body_index(fb.body)
     if ia == ib:
@@ -247,9 +257,13 @@ def add_coordinate_joint(b, name, parent, child, rotations, translations, coordi
                 measuring.add((kind, k))
                 break
         else:
+            if cname in coupled:
+                defined[cname] = coupled[cname]
+                continue
             raise ModelError(f"joint {name!r}: coordinate {cname!r} moves no axis through a linear function, so "
                              "openfdk cannot measure it from the bodies' poses (it enters only through splines or "
-                             "other non-linear functions)")
+                             "other non-linear functions), and no CoordinateCouplerConstraint makes it a function "
+                             "of another coordinate")
     rows = []
     for kind, k, ax in axes:
         if ax.coordinate is None or (kind, k) in measuring:
@@ -272,14 +286,17 @@ def add_coordinate_joint(b, name, parent, child, rotations, translations, coordi
     return defined
 
 
-def add_coupler(b, name, independent, dependent, function):
+def add_coupler(b, name, independent, dependent, function, by_construction=False):
     """OpenSim's CoordinateCouplerConstraint: the row q_dep − f(q_indep) = 0 (kind joint,
     with its reaction); ``function``: PiecewisePolynomial (SI units of the two
-    coordinates)."""
-    q_i, q_d = b.measure(independent), b.measure(dependent)
-    fq = FunctionOf(function, q_i, q_d.units[0])
-    measure = Linear([(np.ones((1, 1)), q_d), (-np.ones((1, 1)), fq)])
-    b._add_constraint(Constraint(name, measure, JOINT, np.zeros(1), None, True, (name,), "coupler"))
+    coordinates). ``by_construction``: q_dep's measure is f(q_indep) itself (its joint
+    has no axis linear in it, module docstring), so the coupler holds without a row and
+    is only recorded."""
+    if not by_construction:
+        q_i, q_d = b.measure(independent), b.measure(dependent)
+        fq = FunctionOf(function, q_i, q_d.units[0])
+        measure = Linear([(np.ones((1, 1)), q_d), (-np.ones((1, 1)), fq)])
+        b._add_constraint(Constraint(name, measure, JOINT, np.zeros(1), None, True, (name,), "coupler"))
     record_joint(b, JointRecord(name, "coupler", independent=independent, dependent=dependent, function=function))
 
 

@@ -34,7 +34,8 @@ import numpy as np
 
 from .coordinate_functions import function_from_spec
 from .coordinate_joint import (COORDINATE_UNITS, Axis, Coordinate, CoordinateTimeFunction, add_coordinate_joint,
-                               add_coupler)
+                               add_coupler, affine)
+from .function_measure import FunctionOf
 
 COORDINATE_KEYS = ["motion", "default", "range", "clamped", "locked", "prescribed", "opensim_motion"]
 AXIS_KEYS = ["axis", "coordinate", "function", "value"]
@@ -81,8 +82,31 @@ def _scaled(fn, sx, sy, path, ctx):
         raise ctx.error(path, f"{exc} in SI units (the numbers are too large)") from None
 
 
-def load_custom_joint(b, name, spec, coordinates, ctx, wrap):
-    """A joint of type ``custom`` (module docstring); defines its coordinates' measures."""
+def _coupler_function(cname, cspec, coordinates, ctx):
+    """The PiecewisePolynomial (SI) of the coupler ``cname`` (its spec ``cspec``), its
+    coordinates checked."""
+    p = f"couplers.{cname}"
+    ctx.keys(cspec, p, ["independent", "dependent", "function"], required=("independent", "dependent", "function"))
+    for key in ("independent", "dependent"):
+        if not isinstance(cspec[key], str) or cspec[key] not in coordinates:
+            raise ctx.error(f"{p}.{key}", f"unknown coordinate {cspec[key]!r}; declare it under coordinates:")
+    if cspec["independent"] == cspec["dependent"]:
+        raise ctx.error(f"{p}.dependent", f"{cspec['dependent']!r} is also the independent coordinate; a coupler "
+                                          "relates two coordinates")
+    fn = function_from_spec(cspec["function"], f"{p}.function", ctx.error)
+    return _scaled(fn, _scales(ctx, coordinates[cspec["independent"]]["unit"]),
+                   _scales(ctx, coordinates[cspec["dependent"]]["unit"]), f"{p}.function", ctx)
+
+
+def load_custom_joint(b, name, spec, coordinates, ctx, wrap, couplers=None, last_try=True):
+    """A joint of type ``custom`` (module docstring); defines its coordinates' measures.
+
+    A coordinate that no axis of the joint moves linearly is, when a coupler of
+    ``couplers`` (the model file's section) has it as its dependent, that coupler's
+    function of its independent coordinate (:func:`~openfdk.model.coordinate_joint.add_coordinate_joint`).
+    If that independent coordinate's joint is not loaded yet, nothing is added and
+    False is returned (unless ``last_try``: then the coupler is named in an error);
+    else True."""
     p = f"joints.{name}"
     ctx.keys(spec, p, ["type", "parent", "child", "rotations", "translations"], required=("type", "parent", "child"))
     axes = {}
@@ -125,13 +149,34 @@ def load_custom_joint(b, name, spec, coordinates, ctx, wrap):
             out.append(Axis(label, axis / norm, coord, fn))
             mine[coord] = cunit
         axes[kind] = out
+    linear = {ax.coordinate for kind in axes.values() for ax in kind
+              if ax.coordinate is not None and (line := affine(ax.function)) is not None and line[0] != 0.0}
+    by_dependent = {c.get("dependent"): (n, c) for n, c in ctx.mapping(couplers or {}, "couplers").items()
+                    if isinstance(c, dict)}
+    coupled, coupled_by = {}, {}
+    for cname in mine:
+        if cname in linear or cname not in by_dependent:
+            continue
+        cp_name, cspec = by_dependent[cname]
+        fn = _coupler_function(cp_name, cspec, coordinates, ctx)
+        independent = coordinates[cspec["independent"]]
+        if "measure" not in independent:
+            if not last_try:
+                return False
+            raise ctx.error(f"couplers.{cp_name}.independent", f"coordinate {cspec['independent']!r} is moved by no "
+                                                                f"joint, so {cname!r} (joint {name!r}) cannot follow it")
+        coupled[cname] = FunctionOf(fn, independent["measure"], coordinates[cname]["unit"], name=cname)
+        coupled_by[cname] = cp_name
     defined = wrap(ctx, p, lambda: add_coordinate_joint(b, name, spec["parent"], spec["child"], axes["rotations"],
-                                                        axes["translations"], mine))
+                                                        axes["translations"], mine, coupled=coupled))
     for cname, measure in defined.items():
         c = coordinates[cname]
         if c.get("joint"):
             raise ctx.error(p, f"coordinate {cname!r} is already moved by joint {c['joint']!r}")
         c["joint"], c["measure"] = name, measure
+        if cname in coupled_by:
+            c["coupled_by"] = coupled_by[cname]
+    return True
 
 
 def finish_coordinates(b, coordinates, ctx, wrap):
@@ -160,14 +205,6 @@ def load_couplers(b, spec, coordinates, ctx, wrap):
     """The ``couplers`` section: {name: {independent, dependent, function}}."""
     for name, c in ctx.mapping(spec or {}, "couplers").items():
         p = f"couplers.{name}"
-        ctx.keys(c, p, ["independent", "dependent", "function"], required=("independent", "dependent", "function"))
-        for key in ("independent", "dependent"):
-            if not isinstance(c[key], str) or c[key] not in coordinates:
-                raise ctx.error(f"{p}.{key}", f"unknown coordinate {c[key]!r}; declare it under coordinates:")
-        if c["independent"] == c["dependent"]:
-            raise ctx.error(f"{p}.dependent", f"{c['dependent']!r} is also the independent coordinate; a coupler "
-                                              "relates two coordinates")
-        fn = function_from_spec(c["function"], f"{p}.function", ctx.error)
-        fn = _scaled(fn, _scales(ctx, coordinates[c["independent"]]["unit"]),
-                     _scales(ctx, coordinates[c["dependent"]]["unit"]), f"{p}.function", ctx)
-        wrap(ctx, p, lambda: add_coupler(b, name, c["independent"], c["dependent"], fn))
+        fn = _coupler_function(name, c, coordinates, ctx)
+        held = coordinates[c["dependent"]].get("coupled_by") == name  # the joint placed it by this coupler
+        wrap(ctx, p, lambda: add_coupler(b, name, c["independent"], c["dependent"], fn, by_construction=held))

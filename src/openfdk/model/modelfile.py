@@ -101,11 +101,19 @@ def read_core(data, source="<dict>", base_dir=None, sections=()):
     for name, spec in (ctx.mapping(data.get("measures") or {}, "measures")).items():
         _wrap(ctx, f"measures.{name}", lambda: b.add_measure(name, _measure(b, spec, f"measures.{name}", ctx)))
     coordinates = read_coordinates(data.get("coordinates"), ctx)
+    waiting = []  # custom joints whose coordinate follows a coupler of a coordinate not yet moved
     for name, spec in (ctx.mapping(data.get("joints") or {}, "joints")).items():
         if isinstance(spec, dict) and spec.get("type") == "custom":
-            load_custom_joint(b, name, spec, coordinates, ctx, _wrap)
+            if not load_custom_joint(b, name, spec, coordinates, ctx, _wrap, data.get("couplers"), last_try=False):
+                waiting.append((name, spec))
         else:
             _load_joint(b, name, spec, ctx)
+    while waiting:
+        left = [(n, s) for n, s in waiting
+                if not load_custom_joint(b, n, s, coordinates, ctx, _wrap, data.get("couplers"), last_try=False)]
+        if len(left) == len(waiting):  # no progress: name the first one's coupler
+            load_custom_joint(b, *left[0], coordinates, ctx, _wrap, data.get("couplers"))
+        waiting = left
     finish_coordinates(b, coordinates, ctx, _wrap)
     load_couplers(b, data.get("couplers"), coordinates, ctx, _wrap)
     for name, spec in (ctx.mapping(data.get("constraints") or {}, "constraints")).items():

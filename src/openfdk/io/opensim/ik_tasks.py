@@ -108,8 +108,8 @@ def apply_ik_tasks(data, path, doc_coordinates, dropped=()):
         for mname, m in (body.get("markers") or {}).items():
             by_label[m.get("label", mname)] = m
     dropped_markers = {d["name"] for d in dropped if d["type"] == "Marker"}
-    for name in weights:
-        if name not in by_label and name not in dropped_markers:
+    for name, weight in weights.items():  # a task that is off (apply false or weight 0) does nothing: not checked
+        if weight > 0 and name not in by_label and name not in dropped_markers:
             raise OsimError(f"{source}: IKMarkerTask {name!r}: the model has no marker of that name")
     for label, m in by_label.items():
         m["weight"] = float(weights.get(label, 0.0))
