@@ -174,3 +174,26 @@ def test_a_gcv_spline_driver_reproduces_a_quintic_through_its_samples(tmp_path):
                        "{type: gcv_spline, degree: 4, times: [0, 1, 2, 3, 4, 5], values: [0, 1, 2, 3, 4, 5]}")
     with pytest.raises(ModelError, match=r"drivers.swing.function.degree: expected 1, 3 or 5, got 4"):
         load_model(write(tmp_path, bad, "bad.yaml"))
+
+
+def test_coordinates_that_follow_each_other_through_couplers_are_refused_by_name(tmp_path):
+    """Two joints moved only through splines, each coordinate the other's coupler's
+    dependent: neither can be placed; the error names the coupler and the joint."""
+    text = """
+    openfdk: 1
+    bodies:
+      a: {mass: 1, inertia: [1, 1, 1]}
+      b: {mass: 1, inertia: [1, 1, 1]}
+    coordinates: {qa: {}, qb: {}}
+    joints:
+      ja: {type: custom, parent: ground.origin, child: a.origin,
+           rotations: [{axis: [0, 0, 1], coordinate: qa, function: {type: simm_spline, x: [0, 1, 2], y: [0, 1, 4]}}]}
+      jb: {type: custom, parent: a.origin, child: b.origin,
+           rotations: [{axis: [0, 0, 1], coordinate: qb, function: {type: simm_spline, x: [0, 1, 2], y: [0, 1, 4]}}]}
+    couplers:
+      c1: {independent: qb, dependent: qa, function: {type: linear, slope: 1, intercept: 0}}
+      c2: {independent: qa, dependent: qb, function: {type: linear, slope: 1, intercept: 0}}
+    """
+    with pytest.raises(ModelError, match=r"model.yaml: couplers.c1.independent: coordinate 'qb' is moved by no joint, "
+                                         r"so 'qa' \(joint 'ja'\) cannot follow it"):
+        load_model(write(tmp_path, text))

@@ -23,6 +23,11 @@
     couplers:
       patella: {independent: knee_angle_r, dependent: patella_angle, function: {type: linear, slope: 1, intercept: 0}}
 
+A coordinate that no axis of its joint moves linearly (only through splines) is the
+function of its coupler's independent coordinate (OpenSim's Rajagopal 2016 patella:
+``knee_angle_r_beta`` follows ``knee_angle_r``); that coupler then adds no row. Joints
+are loaded in file order, a joint waiting for another's coordinate after it.
+
 Units: a coordinate's values are in the file's angle unit (rotational, coupled) or
 length unit (translational); a function's x in its coordinate's unit and y in the axis'
 unit (angle for rotations, length for translations); ``value`` likewise.
@@ -151,8 +156,8 @@ def load_custom_joint(b, name, spec, coordinates, ctx, wrap, couplers=None, last
         axes[kind] = out
     linear = {ax.coordinate for kind in axes.values() for ax in kind
               if ax.coordinate is not None and (line := affine(ax.function)) is not None and line[0] != 0.0}
-    by_dependent = {c.get("dependent"): (n, c) for n, c in ctx.mapping(couplers or {}, "couplers").items()
-                    if isinstance(c, dict)}
+    by_dependent = {c["dependent"]: (n, c) for n, c in ctx.mapping(couplers or {}, "couplers").items()
+                    if isinstance(c, dict) and isinstance(c.get("dependent"), str)}
     coupled, coupled_by = {}, {}
     for cname in mine:
         if cname in linear or cname not in by_dependent:
