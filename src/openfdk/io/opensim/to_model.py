@@ -264,8 +264,9 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         contacts[unique("contact", name)] = {
             **sides, **pressure_law(force, target, casting),
             "max_depth": contact_depth(force, target, casting), "grid_spacing": IMPORT_GRID_SPACING_M}
+    missing = []
     for g in doc.geometry:
-        path = find_mesh(doc, g, mesh_dirs, "Mesh" in ignore)
+        path = find_mesh(doc, g, mesh_dirs, "Mesh" in ignore, missing=missing)
         if path is None:
             doc.ignored.append(("Mesh", g.file, g.line))
             continue
@@ -275,6 +276,14 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         bodies[body].setdefault("visual", []).append(
             {"mesh": str(path), "units": "m", "scale": [float(s) for s in g.scale],
              "placement": {"position": p_BG.tolist(), "orientation": {"matrix": (R @ g.R_FG).tolist()}}})
+    if missing:  # display meshes only: as OpenSim, the model is read without them, and says so
+        import warnings
+
+        names = ", ".join(repr(f[:60]) for f, _ in missing[:3]) + (f" and {len(missing) - 3} more" if len(missing) > 3
+                                                                  else "")
+        warnings.warn(f"{doc.source}: {len(missing)} display mesh file(s) not found ({names}; looked in "
+                      f"{missing[0][1]}): the model is read without them (the viewer draws those bodies plain); give "
+                      "their folder with --geometry DIR, or leave the meshes out with --ignore Mesh", stacklevel=2)
     out = {"openfdk": 1, "name": safe_name(doc.name), "units": {"length": "m", "angle": "rad"},
            "gravity": [float(x) for x in doc.gravity], "bodies": bodies}
     if coordinates:
@@ -542,11 +551,14 @@ def hill_parameters(muscle, source):
     return out
 
 
-def find_mesh(doc, geometry, mesh_dirs=(), ignore_missing=False, kind="Mesh"):
+def find_mesh(doc, geometry, mesh_dirs=(), ignore_missing=False, kind="Mesh", missing=None):
     """The mesh file of an OsimGeometry: next to the model, in its Geometry folder, in
     ../Geometry or in ``mesh_dirs``; None when it is missing and ``ignore_missing``.
     ``kind``: the element type the file belongs to, for the message (a display ``Mesh``,
-    or a contact's ``Smith2018ContactMesh``, which ``--ignore Mesh`` does not leave out)."""
+    or a contact's ``Smith2018ContactMesh``, which ``--ignore Mesh`` does not leave out).
+    ``missing``: a list to which a file not found is appended as (its name, the folders
+    looked in) and None returned, instead of an error (display meshes, which OpenSim
+    too leaves out with a warning); a file of an unknown format is still an error."""
     import os
 
     from ..meshfiles import DISPLAY_MESH_SUFFIXES
@@ -572,6 +584,9 @@ def find_mesh(doc, geometry, mesh_dirs=(), ignore_missing=False, kind="Mesh"):
     if ignore_missing:
         return None
     folders = dict.fromkeys(os.path.realpath(c.parent) for c in candidates)  # each once (a model in the cwd)
+    if missing is not None:
+        missing.append((shown, ", ".join(f[:200] for f in folders)))
+        return None
     leave = ("the meshes out with --ignore Mesh" if kind == "Mesh" else
              f"the contacts out with --ignore {kind} --ignore Smith2018ArticularContactForce")
     raise OsimError(f"{doc.source}: line {geometry.line}: {kind} {shown!r} not found (looked in "
