@@ -179,3 +179,28 @@ def test_padding_reflects_about_the_end_samples():
     np.testing.assert_allclose(yp[-4:, 1], 2 * y[-1, 1] - t[-2:-6:-1] ** 2)
     with pytest.raises(ValueError, match="padding"):
         pad_odd(t, y, 10)
+
+
+def test_a_kept_factorization_serves_only_its_own_knots():
+    """The banded LU is kept per knots and degree: a second column set on the same knots
+    is solved with it, and knots that differ in one value are factored anew."""
+    from openfdk.numerics import natural_spline as ns
+
+    rng = np.random.default_rng(8)
+    x = np.cumsum(rng.uniform(0.5, 1.0, 40))
+    Y1, Y2 = rng.normal(size=(40, 2)), rng.normal(size=(40, 3))
+    ns._FACTORS.clear()
+    a = natural_spline_coefficients(x, Y1, 5)
+    b = natural_spline_coefficients(x, Y2, 5)
+    assert len(ns._FACTORS) == 1
+    x2 = x.copy()
+    x2[20] += 0.1
+    c = natural_spline_coefficients(x2, Y1, 5)
+    assert len(ns._FACTORS) == 2
+    for coef, knots, Y in ((a, x, Y1), (b, x, Y2), (c, x2, Y1)):  # each interpolates its own data
+        h = np.diff(knots)
+        np.testing.assert_allclose(coef[:, 0], Y[:-1], atol=1e-12)
+        np.testing.assert_allclose(np.sum(coef * (h[:, None] ** np.arange(6))[:, :, None], axis=1), Y[1:], atol=1e-9)
+    for k in range(6):
+        natural_spline_coefficients(x + k, Y1, 3)
+    assert len(ns._FACTORS) == ns._KEEP
