@@ -216,3 +216,23 @@ def test_a_task_that_is_off_may_name_a_marker_the_model_lacks(tmp_path, capsys):
     tasks.write_text(text.replace("<apply>true</apply><weight>0</weight>", "<apply>true</apply><weight>2</weight>"))
     with pytest.raises(OsimError, match=r"tasks.xml: IKMarkerTask 'L.MElbow': the model has no marker of that name"):
         apply_ik_tasks(data, tasks, {})
+
+
+def test_a_coordinate_task_from_a_file_of_five_rows_is_refused(tmp_path):
+    """OpenSim's IK splines its coordinate file with a natural quintic (GCVSpline, degree
+    5), which needs 6 samples; so does openfdk, and fewer are refused naming the task."""
+    from openfdk.io.opensim import OsimError, read_osim
+    from openfdk.io.opensim.ik_tasks import apply_ik_tasks
+
+    model = write_full_body_osim(tmp_path / "full_body.osim")
+    data, _ = read_osim(model)
+    t = np.arange(5) * 0.01
+    write_storage(tmp_path / "coords.mot", t, {"lumbar_rotation": 0.1 * t}, name="coords", in_degrees=True)
+    (tmp_path / "Setup_IK.xml").write_text(
+        "<OpenSimDocument Version='40000'><InverseKinematicsTool><coordinate_file>coords.mot</coordinate_file>"
+        "<IKTaskSet><objects><IKCoordinateTask name='lumbar_rotation'><apply>true</apply><weight>3</weight>"
+        "<value_type>from_file</value_type></IKCoordinateTask></objects></IKTaskSet></InverseKinematicsTool>"
+        "</OpenSimDocument>")
+    with pytest.raises(OsimError, match=r"column 'lumbar_rotation' of coords.mot: 5 rows; a coordinate task from a "
+                                        r"file needs at least 6"):
+        apply_ik_tasks(data, tmp_path / "Setup_IK.xml", {"lumbar_rotation": {"default": 0.0, "motion": "rotational"}})

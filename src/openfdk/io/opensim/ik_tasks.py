@@ -141,14 +141,16 @@ def apply_ik_tasks(data, path, doc_coordinates, dropped=()):
                                 f"{Path(f).name}")
             values = columns[name]
             bad = np.flatnonzero(~np.isfinite(values))
-            if len(bad) or len(times) < 2:
+            if len(bad) or len(times) < 6:
                 problem = (f"the value at t = {times[bad[0]]:g} s is {values[bad[0]]}" if len(bad) else
-                           f"{len(times)} rows; a coordinate task from a file needs at least 2")
+                           f"{len(times)} rows; a coordinate task from a file needs at least 6 (OpenSim's "
+                           "quintic spline)")
                 raise OsimError(f"{source}: line {t['line']}: IKCoordinateTask {name!r}: column {name!r} of "
                                 f"{Path(f).name}: {problem}")
             if in_degrees and opensim_in_degrees(coord):
                 values = np.radians(values)
-            value = {"type": "spline", "times": times.tolist(), "values": values.tolist()}
+            # OpenSim's IK splines its coordinate file as its ID tool does: the natural quintic
+            value = {"type": "gcv_spline", "degree": 5, "times": times.tolist(), "values": values.tolist()}
         out[name] = {"measure": name, "weight": t["weight"], "value": value}
     if out:
         data = dict(data)
