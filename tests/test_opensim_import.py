@@ -901,15 +901,17 @@ def test_not_xml_and_not_opensim_are_one_line_errors(workdir):
 
 def test_cli_check_reports_bad_files_in_one_line_and_ignore_skips_muscles(files, workdir, capsys):
     """``openfdk check bad.osim`` exits 2 with one line on stderr; ``--ignore
-    DeGrooteFregly2016Muscle`` reads the model without its muscle."""
+    DeGrooteFregly2016Muscle`` reads the model without its muscle. A display mesh not
+    found is one warning line, and the check succeeds (stop 64; OpenSim reads such a
+    model too)."""
     from openfdk.cli import main
 
     bad = workdir / "cli_mesh.osim"
-    line = _edit(files["joints"], bad, _add_mesh)
+    _edit(files["joints"], bad, _add_mesh)
     capsys.readouterr()
-    assert main(["check", str(bad)]) == 2
+    assert main(["check", str(bad)]) == 0
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and f"line {line}:" in err and "nothere.vtp" in err, err
+    assert len(err.splitlines()) == 1 and "cli_mesh.osim: 1 display mesh file(s) not found ('nothere.vtp'" in err, err
     muscle = workdir / "cli_muscle.osim"
     line = _edit(files["joints"], muscle, _muscle)
     assert main(["check", str(muscle)]) == 2
