@@ -17,8 +17,8 @@ sampled file, applied as OpenSim's ExternalForce applies them (:mod:`.data_loads
 
 The columns are interpolated as OpenSim's ExternalForce interpolates them: by the
 natural cubic spline through the samples (its GCVSpline of degree 3, exact at the sample
-times), or straight lines between 2 or 3 samples; a frame outside the file's time range fails with a message naming the
-load. ``cutoff_hz`` > 0 low-pass filters them first, as the markers are (a ground
+times), or straight lines between 2 or 3 samples; a frame outside the file's time range
+fails with a message naming the load. ``cutoff_hz`` > 0 low-pass filters them first, as the markers are (a ground
 reaction as a wrench, on its loaded runs; :mod:`.load_filter`). Without it, a ground
 reaction whose samples look unfiltered (their second differences as large as their
 first, :func:`~.load_filter.noise_ratio`) is named in a warning.
