@@ -1013,3 +1013,41 @@ def test_disabled_constraint_is_left_out_and_listed(files, workdir):
     data, info = read_osim(path)
     assert "couple_s" not in data.get("couplers", {}) and "couple_b" in data["couplers"]
     assert {"type": "CoordinateCouplerConstraint", "name": "couple_s", "line": line} in info["dropped"]
+
+
+def test_a_contact_force_s_scoped_tag_names_read_as_opensim_reads_them(workdir):
+    """OpenSim writes a HuntCrossleyForce's parameters as ``<HuntCrossleyForce::
+    ContactParametersSet>``, a tag name XML reads as an undeclared namespace prefix:
+    lxml refused every such model (opensim-models' BouncingBlock, ToyLanding, Jumper,
+    SoccerKick, WalkerModel). The file OpenSim 4.6 writes here now reads: the force and
+    its contact geometry are refused by name, every type listed once for --ignore, and
+    with them left out the model loads."""
+    m = opensim.Model()
+    m.setName("ball")
+    ball = opensim.Body("ball", 2.0, opensim.Vec3(0), opensim.Inertia(0.01, 0.01, 0.01))
+    m.addBody(ball)
+    m.addJoint(opensim.FreeJoint("free", m.getGround(), ball))
+    floor = opensim.ContactHalfSpace(opensim.Vec3(0), opensim.Vec3(0, 0, -1.5707963267949), m.getGround(), "floor")
+    sphere = opensim.ContactSphere(0.05, opensim.Vec3(0), ball, "sphere")
+    m.addContactGeometry(floor)
+    m.addContactGeometry(sphere)
+    force = opensim.HuntCrossleyForce()
+    force.setName("contact")
+    force.addGeometry("floor")
+    force.addGeometry("sphere")
+    force.setStiffness(1e6)
+    m.addForce(force)
+    m.addMarker(opensim.Marker("top", ball, opensim.Vec3(0, 0.05, 0)))
+    m.finalizeConnections()
+    path = workdir / "ball.osim"
+    m.printToXML(str(path))
+    assert "<HuntCrossleyForce::ContactParametersSet" in path.read_text()
+    opensim.Model(str(path))  # OpenSim reads its own file
+    with pytest.raises(OsimError) as exc:
+        read_osim(path)
+    msg = str(exc.value)
+    assert "\n" not in msg and "ball.osim: line" in msg and "not supported" in msg, msg
+    kinds = ["HuntCrossleyForce", "ContactHalfSpace", "ContactSphere"]
+    assert all(f"--ignore {k}" in msg for k in kinds), msg
+    data, info = read_osim(path, ignore=kinds)
+    assert "ball" in data["bodies"] and sorted({d["type"] for d in info["dropped"]}) == sorted(kinds)

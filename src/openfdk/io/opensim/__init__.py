@@ -34,8 +34,12 @@ def read_osim(path, ignore=(), mesh_dirs=()):
         kind, name, line = doc.unsupported[0]
         more = f" (and {len(doc.unsupported) - 1} more unsupported elements)" if len(doc.unsupported) > 1 else ""
         label = f"{kind} {name!r}" if name else kind
+        kinds = list(dict.fromkeys(k for k, _, _ in doc.unsupported))  # every type, once: one run to leave all out
+        leave = (f"leave it out with --ignore {kind}" if len(kinds) == 1 else
+                 "leave them out with " + " ".join(f"--ignore {k}" for k in kinds[:8])
+                 + (f" (and {len(kinds) - 8} more types)" if len(kinds) > 8 else ""))
         raise OsimError(f"{doc.source}: line {line}: {label} is not supported by openfdk's OpenSim import{more}; "
-                        f"leave it out with --ignore {kind}")
+                        f"{leave}")
     data, info = model_dict(doc, mesh_dirs, ignore)
     info["dropped"] = [{"type": k, "name": n, "line": line} for k, n, line in doc.ignored]
     _warn_unmatched(doc, ignore)

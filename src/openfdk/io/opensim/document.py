@@ -440,7 +440,7 @@ def parse_xml(path, source):
     except OSError as exc:
         raise OsimError(f"{source}: cannot read the file ({exc.strerror or exc})") from None
     except etree.XMLSyntaxError as exc:
-        tree = _parse_with_bare_ampersands(path, source, exc)
+        tree = _parse_as_opensim(path, source, exc)
     if tree.docinfo.doctype:
         raise OsimError(f"{source}: has a DOCTYPE declaration ({_clip(tree.docinfo.doctype)}); OpenSim files have "
                         "none (refused: its entities could hide or change values)")
@@ -451,13 +451,25 @@ def parse_xml(path, source):
 _BARE_AMPERSAND = re.compile(rb"&(?![A-Za-z_:][\w.:-]*;|#[0-9]+;|#x[0-9A-Fa-f]+;)")
 #: comments and CDATA sections, where '&' is text
 _VERBATIM = re.compile(rb"<!--.*?-->|<!\[CDATA\[.*?\]\]>", re.S)
+#: a tag name with OpenSim's '::' (``<HuntCrossleyForce::ContactParametersSet``), which
+#: XML reads as an undeclared namespace prefix; group 1 the '<' or '</'
+_SCOPED_TAG = re.compile(rb"(</?)([A-Za-z_][\w.-]*)::(?=[A-Za-z_])")
+#: what '::' becomes in such a tag name
+SCOPE = "__"
 
 
-def _parse_with_bare_ampersands(path, source, error):
-    """The tree of ``path`` whose only XML error is an '&' written bare in text (e.g.
-    "Smith, C. R., & Thelen, D. G." in jam-resources' full_body_healthy_knee.osim):
-    OpenSim's parser accepts it; here it is read as the character '&', with a warning
-    naming the lines. Any other syntax error, or one left after that, is OsimError."""
+def _parse_as_opensim(path, source, error):
+    """The tree of ``path`` whose only XML errors are two that OpenSim's parser accepts:
+
+    * an '&' written bare in text (e.g. "Smith, C. R., & Thelen, D. G." in jam-resources'
+      full_body_healthy_knee.osim), read as the character '&' with a warning naming the
+      lines;
+    * a tag name with '::', as OpenSim writes a contact force's parameters
+      (``<HuntCrossleyForce::ContactParametersSet>`` in opensim-models' BouncingBlock,
+      ToyLanding, Jumper, SoccerKick and WalkerModel), read with '::' as :data:`SCOPE`
+      (``HuntCrossleyForce__ContactParametersSet``).
+
+    Any other syntax error, or one left after these, is OsimError with the file's line."""
     import warnings
 
     from lxml import etree
@@ -465,17 +477,28 @@ def _parse_with_bare_ampersands(path, source, error):
     from ...model.plausibility import PlausibilityWarning
 
     data = Path(path).read_bytes()
-    # a comment may hold a bare '&' (and a CDATA section any text): those stay as written
+    # a comment may hold a bare '&' or a '::' (and a CDATA section any text): those stay
     kept = [m.span() for m in _VERBATIM.finditer(data)]
-    bare = [m.start() for m in _BARE_AMPERSAND.finditer(data)
-            if not any(a <= m.start() < b for a, b in kept)]
-    if not bare:
+
+    def outside(matches):
+        return [m for m in matches if not any(a <= m.start() < b for a, b in kept)]
+
+    bare = [m.start() for m in outside(_BARE_AMPERSAND.finditer(data))]
+    scoped = outside(_SCOPED_TAG.finditer(data))
+    if not bare and not scoped:
         raise OsimError(f"{source}: not well-formed XML: {error.msg} (line {error.lineno})") from None
+    edits = sorted([(i, i + 1, b"&amp;") for i in bare] +
+                   [(m.end() - 2, m.end(), SCOPE.encode()) for m in scoped])  # (start, end, replacement)
+    pieces, at = [], 0
+    for a, b, text in edits:
+        pieces += [data[at:a], text]
+        at = b
     try:
-        fixed = b"".join(data[a:b] + b"&amp;" for a, b in zip([0] + [i + 1 for i in bare], bare)) + data[bare[-1] + 1:]
-        tree = etree.ElementTree(etree.fromstring(fixed, _parser()))
+        tree = etree.ElementTree(etree.fromstring(b"".join(pieces) + data[at:], _parser()))
     except etree.XMLSyntaxError:  # the first error stands (the lines are the file's)
         raise OsimError(f"{source}: not well-formed XML: {error.msg} (line {error.lineno})") from None
+    if not bare:
+        return tree
     lines = sorted({data.count(b"\n", 0, i) + 1 for i in bare})
     shown = ", ".join(map(str, lines[:5])) + (f" and {len(lines) - 5} more" if len(lines) > 5 else "")
     warnings.warn(f"{source}: line{'s' if len(lines) > 1 else ''} {shown}: '&' not written '&amp;' (XML's escape); "
