@@ -119,3 +119,29 @@ def test_the_generalised_forces_of_a_coordinate_file_equal_opensims_tool(tmp_pat
         assert np.ptp(theirs["pelvis_ty_force"]) < 2000.0
     else:
         assert np.ptp(theirs["pelvis_ty_force"]) > 2000.0
+
+
+def test_check_with_a_coordinate_file_that_starts_late_and_a_model_without_markers(tmp_path, capsys):
+    """Found on opensim-models' Gait2392 (its IK file starts at 0.5 s): ``openfdk check
+    MODEL --motion FILE`` evaluated the drivers at t = 0 and failed, "spline driver
+    evaluated at t = 0.0 s outside its data". It now checks at a time every driver
+    covers. Without a motion or markers, an OpenSim model's check names --motion."""
+    from lxml import etree
+
+    model = write_full_body_osim(tmp_path / "full_body.osim")
+    tree = etree.parse(str(model))
+    for marker in tree.xpath("//MarkerSet/objects/Marker"):
+        marker.getparent().remove(marker)
+    bare = tmp_path / "no_markers.osim"
+    tree.write(str(bare))
+    code = main(["check", str(bare), "-q"])
+    err = capsys.readouterr().err
+    assert code == 2 and "no markers to track them: give a trial of the model's markers, or drive every " \
+                         "coordinate from a coordinate file with --motion FILE" in err, err
+    t = np.round(0.5 + np.arange(20) / RATE, 10)
+    write_storage(tmp_path / "late.mot", t, {name: 0.01 * np.sin(t) + (0.95 if name == "pelvis_ty" else 0.0)
+                                             for name in COORDINATES}, name="late", in_degrees=False)
+    code = main(["check", str(bare), "--motion", str(tmp_path / "late.mot")])
+    out = capsys.readouterr()
+    assert code == 0, out.err
+    assert "kinematics: determinate" in out.out

@@ -54,12 +54,23 @@ def _label(element):
     return f"{element.name} over {'+'.join(surfaces)}" if surfaces else element.name
 
 
+def _reference_time(model):
+    """A time (s) at which every driver is defined: 0, or the latest start of a driver
+    that follows data and is not extrapolated (a ``--motion`` file starting at 0.5 s).
+    Φ_q̂ does not depend on it; the drivers' targets are evaluated with it."""
+    starts = [c.function.t_range[0] for c in model.constraints
+              if c.kind == DRIVER and hasattr(getattr(c, "function", None), "t_range")
+              and not getattr(c.function, "extrapolate", True)]
+    return float(max(starts)) if starts and max(starts) > 0.0 else 0.0
+
+
 def _reference_rank(model, state=None):
     """(Φ_q̂, its rank, the names of the rows in a linear dependency) at the reference
-    pose, FDK DOFs at their initial α."""
+    pose, FDK DOFs at their initial α (at :func:`_reference_time`)."""
     system = ConstraintSystem(model)
     alpha = np.array([d.initial for d in model.fdk_dofs], dtype=float)
-    _, A, _, _ = system.evaluate(model.initial_state() if state is None else state, 0.0, alpha, order=1)
+    _, A, _, _ = system.evaluate(model.initial_state() if state is None else state, _reference_time(model), alpha,
+                                 order=1)
     rank, redundant = dependent_rows(A, system.row_names)
     return A, rank, redundant
 
@@ -176,8 +187,11 @@ def check_model(model):
     else:
         free = undetermined_coordinates(A, model.coordinate_names())
         if free:
+            fix = ("give a trial of the model's markers, or drive every coordinate from a coordinate file with "
+                   "--motion FILE (as OpenSim's inverse dynamics does)" if model.coordinates else
+                   "add joints, drivers or FDK DOFs")
             rep.errors.append(f"{n - rank} coordinate(s) free at the reference pose, no markers to track them: "
-                              f"add joints, drivers or FDK DOFs for {free}")
+                              f"{fix}; free: {free}")
         elif not redundant:
             rep.lines.append("  kinematics: determinate (drivers and FDK DOFs fix every coordinate)")
     return rep
