@@ -45,7 +45,7 @@ from bisect import bisect_right
 import numpy as np
 from numba import njit
 
-__all__ = ["NotAKnotSpline", "not_a_knot_coefficients"]
+__all__ = ["NotAKnotSpline", "not_a_knot_coefficients", "pieces_at"]
 
 
 def not_a_knot_coefficients(x, y) -> np.ndarray:
@@ -121,6 +121,15 @@ def _coefficients(x, Y):  # pragma: no cover - compiled (numba); tested through 
     return coef
 
 
+def pieces_at(x, times):
+    """(i (nf,) int, τ (nf, 1)) of every entry of ``times`` on knots ``x (n,)``: the piece
+    [x_i, x_{i+1}] it is evaluated on (the end pieces outside the knots, the piece to the
+    right at an interior knot) and its offset τ = t − x_i, in the unit of x."""
+    times = np.asarray(times, dtype=np.float64).reshape(-1)
+    i = np.clip(np.searchsorted(x, times, side="right") - 1, 0, len(x) - 2)
+    return i, (times - x[i])[:, None]
+
+
 class NotAKnotSpline:
     """The not-a-knot cubic spline through ``y (n,) or (n, k)`` at knots ``x (n,)``
     (:func:`not_a_knot_coefficients`), evaluated with its first two derivatives. Outside
@@ -151,9 +160,7 @@ class NotAKnotSpline:
         """(s, ṡ, s̈) at every entry of ``times`` (nf,): three arrays (nf, k), what
         :meth:`derivatives_into` gives one time at a time (the same pieces, the same
         arithmetic)."""
-        times = np.asarray(times, dtype=np.float64).reshape(-1)
-        i = np.clip(np.searchsorted(self.x, times, side="right") - 1, 0, len(self.x) - 2)
-        tau = (times - self.x[i])[:, None]
+        i, tau = pieces_at(self.x, times)
         c0, c1, c2, c3 = (self.coef[i, j] for j in range(4))  # (nf, k) each
         return (c0 + tau * (c1 + tau * (c2 + tau * c3)),
                 c1 + tau * (2.0 * c2 + 3.0 * tau * c3),
@@ -163,9 +170,7 @@ class NotAKnotSpline:
         """s at every entry of ``times`` (nf,) (unit of x): (nf, k) in units of y, the
         values :meth:`derivatives` gives one time at a time (the same pieces, the same
         arithmetic), for a whole trial's frames at once."""
-        times = np.asarray(times, dtype=np.float64).reshape(-1)
-        i = np.clip(np.searchsorted(self.x, times, side="right") - 1, 0, len(self.x) - 2)
-        tau = (times - self.x[i])[:, None]
+        i, tau = pieces_at(self.x, times)
         c = self.coef[i]  # (nf, 4, k)
         return c[:, 0] + tau * (c[:, 1] + tau * (c[:, 2] + tau * c[:, 3]))
 

@@ -12,10 +12,11 @@ written into a caller's arrays.
 
 from __future__ import annotations
 
-from bisect import bisect_right
 
 import numpy as np
 from numba import njit
+
+from .cubic_spline import pieces_at
 
 __all__ = ["SplineColumns"]
 
@@ -50,9 +51,7 @@ class SplineColumns:
         """(s, ṡ, s̈) at every entry of ``times (nf,)``: three arrays ``(nf, k)``, what
         :meth:`derivatives_into` gives one time at a time (the same pieces, the same
         arithmetic)."""
-        times = np.asarray(times, dtype=np.float64).reshape(-1)
-        i = np.clip(np.searchsorted(self.x, times, side="right") - 1, 0, len(self.x) - 2)
-        tau = (times - self.x[i])[:, None]
+        i, tau = pieces_at(self.x, times)
         c = self.coef[i]  # (nf, w, k)
         p = c[:, -1].copy()
         dp = np.zeros_like(p)
