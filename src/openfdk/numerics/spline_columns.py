@@ -12,7 +12,6 @@ written into a caller's arrays.
 
 from __future__ import annotations
 
-
 import numpy as np
 from numba import njit
 
