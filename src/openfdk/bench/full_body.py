@@ -50,14 +50,15 @@ loosest power of ten at which OpenSim's coordinates are within 0.001° of the op
 openfdk converges to (tighter costs OpenSim 10–20 % more time); the default-accuracy
 figures show the other end.
 
-Clamped coordinates. The model does not clamp its coordinates (``<clamped>false``):
-openfdk's tracking does not impose coordinate ranges, and with clamped coordinates
-Simbody's Assembler gives its optimiser the ranges as bounds, which makes it an
-L-BFGS-B; on this model and trial that one stops far from the optimum at every accuracy
-from 1e-5 to 1e-12 (median cost 1.45× the least-squares minimum, the toes up to 12°
-off, in 2.1 ms per frame) although every true coordinate lies well inside its range.
-Clamped, the comparison would time two different answers
-(``write_full_body_osim(path, clamped=True)`` writes that variant).
+Clamped coordinates. The model does not clamp its coordinates (``<clamped>false``).
+With clamped coordinates Simbody's Assembler gives its optimiser the ranges as bounds,
+which makes it an L-BFGS-B; on this model and trial that one stops far from the optimum
+at every accuracy from 1e-5 to 1e-12 (median cost 1.45× the least-squares minimum, the
+toes up to 12° off, in 2.1 ms per frame) although every true coordinate lies well inside
+its range. openfdk's tracking holds clamped coordinates in their ranges too
+(:mod:`openfdk.kinematics.coordinate_bounds`) but reaches the optimum, so clamped, the
+comparison would time two different answers (``write_full_body_osim(path,
+clamped=True)`` writes that variant).
 
 Threads. The measurements run in a child process with one BLAS thread
 (``OPENBLAS_NUM_THREADS=1``, as docs/studies.md advises for serial runs and

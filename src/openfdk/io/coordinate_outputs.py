@@ -87,9 +87,10 @@ def write_coordinates(out_dir, model, kinematics):
 
 
 def _warn_ranges(model, kinematics, values):
-    """One warning per clamped coordinate that leaves its range: OpenSim's IK keeps a
-    clamped coordinate within its range (a bound of its optimiser), openfdk's tracking
-    does not bound it, so the two differ at those frames."""
+    """One warning per clamped coordinate that leaves its range. OpenSim's IK keeps a
+    clamped coordinate within its range (a bound of its optimiser), and so does openfdk's
+    marker tracking (:mod:`openfdk.kinematics.coordinate_bounds`); FDK's position solves,
+    a coordinate file (``--motion``) and drivers do not bound it."""
     import warnings
 
     for c in model.coordinates:
@@ -101,5 +102,5 @@ def _warn_ranges(model, kinematics, values):
             worst = v[out][np.argmax(np.maximum(lo - v[out], v[out] - hi))]
             warnings.warn(f"coordinate {c.name!r} (clamped to [{lo * scale:.4g}, {hi * scale:.4g}] {unit}) leaves its "
                           f"range at {int(out.sum())} of {len(v)} frames (up to {worst * scale:.4g} {unit}, first at "
-                          f"t = {np.asarray(kinematics.time)[out][0]:.4g} s); openfdk does not bound it, OpenSim's IK "
-                          "would")
+                          f"t = {np.asarray(kinematics.time)[out][0]:.4g} s); OpenSim's IK would bound it, as openfdk's "
+                          "marker tracking does; FDK's position solves, --motion files and drivers do not")

@@ -31,6 +31,7 @@ from ..model.framedata import FrameData
 from ..model.kernels import displace_by_rates, extrapolate_poses
 from ..trial import drive
 from ..trial.status import Reason, frame_messages
+from .coordinate_bounds import CoordinateBounds, solve_bounded
 from .curvature import HessianPattern, lagrangian_hessian, second_order_terms
 from .determinate import FrameSolve, check_square, solve_positions, solve_velocities_accelerations
 from .stages import marker_stage, velocity_stage_tracking
@@ -247,6 +248,9 @@ class TrackingStep:
         self.edges = spacing is not None
         self.dt = spacing if spacing is not None else 1.0
         self.tracker = MarkerTracker(ConstraintSystem(model), settings or TrackingSettings())
+        # clamped coordinates bounded as OpenSim's IK bounds them (kinematics/coordinate_bounds.py)
+        self.bounds = CoordinateBounds(model, self.tracker)
+        self.active = ()  # the last solved frame's active bounds: the next frame's first set
         self.state = model.initial_state()
         self.last_good = self.state.copy()
         self.q_prev = None
@@ -269,9 +273,10 @@ class TrackingStep:
         if not self.guessed and np.any(vis):
             tracker.initial_guess(state, x, vis)
             self.guessed = True
-        res, K, lam = tracker.solve_positions(state, t, x, vis, self.alpha, second_order=self.curvature)
+        res, K, lam, active = self._solve(state, t, x, vis, self.active)
+        tracker = self.bounds.tracker_for(active) if active else tracker
         frame = {"res": res, "meas": (xd, xdd), "q": None, "state": None, "data": None,
-                 "delta": np.full((self.model.markers.size, 3), np.nan)}
+                 "delta": np.full((self.model.markers.size, 3), np.nan), "active": [list(b) for b in active]}
         if res.converged:
             # the position stage at the solved pose, once: the markers' p_WM and Ψ_q̂ give
             # δ = p_WM − x (Eq. 7) now and the velocity stage (Eqs. 8–10) at frame k + 1
@@ -282,9 +287,10 @@ class TrackingStep:
                 res = frame["res"] = FrameSolve(False, res.iterations, res.residual, misfit, Reason.FAILED)
         if res.converged:
             if res.iterations > CURVATURE_ITERATIONS:
-                self._refresh_curvature(state, t, x, vis, lam, data)
+                self._refresh_curvature(tracker, state, t, x, vis, lam, data)
             frame.update(q=state.get_q(), state=state.copy(), data=data, delta=data.delta)
             self.last_good = state.copy()
+            self.active = active
             # warm start of the next frame: linear extrapolation on the manifold
             if self.q_prev is not None:
                 _extrapolate(state, self.q_prev)
@@ -308,11 +314,19 @@ class TrackingStep:
             self._edge_neighbour(last + 1, self.times[last] + self.dt, self.pending[last]["state"])
         return [(last, self._finish_frame(last))]
 
-    def _refresh_curvature(self, state, t, x, vis, lam, data):
+    def _solve(self, state, t, x, vis, active):
+        """(FrameSolve, K, λ, active bounds) of frame t's positions from ``state``: the
+        tracker's solve, within the clamped coordinates' ranges when the model has any
+        (:func:`.coordinate_bounds.solve_bounded`, from the active set ``active``)."""
+        if not self.bounds:
+            return self.tracker.solve_positions(state, t, x, vis, self.alpha, second_order=self.curvature) + ((),)
+        return solve_bounded(self.bounds, state, t, x, vis, self.alpha, active, second_order=self.curvature)
+
+    def _refresh_curvature(self, tracker, state, t, x, vis, lam, data):
         """S at the solved pose of a frame that took more than CURVATURE_ITERATIONS
         steps (its fit's residuals slow Gauss–Newton down), for the next frames' solves;
-        None (Gauss–Newton's steps) where a constraint measure fails at a displaced pose."""
-        tracker = self.tracker
+        None (Gauss–Newton's steps) where a constraint measure fails at a displaced pose.
+        tracker : the one that solved the frame (its rows are λ's)."""
         A = tracker.system.evaluate(state, t, self.alpha, order=1)[1]
         try:
             H = lagrangian_hessian(tracker, state, t, self.alpha, vis, x, lam, data.p_M, data.J_M, A, self.patterns)
@@ -335,7 +349,7 @@ class TrackingStep:
         if not np.any(vis):
             return
         state = start.copy()
-        res, _, _ = self.tracker.solve_positions(state, t, x, vis, self.alpha, second_order=self.curvature)
+        res = self._solve(state, t, x, vis, self.active)[0]
         if not res.converged:
             return
         delta = np.where(vis[:, None], self.tracker.markers.positions(state) - x, np.nan)
@@ -356,8 +370,13 @@ class TrackingStep:
                                 None if nxt is None else nxt["delta"], self.dt)
         xd, xdd = fr["meas"]
         state, data = fr["state"], fr["data"]  # the solved pose of frame j (its own copy: the stage sets v)
-        # occluded markers' NaN ẋ, ẍ are masked out of the targets by the stage (weight 0)
-        velocity_stage_tracking(self.tracker, data, state, xd, xdd, d1, d2)
+        active = self.bounds.check_active(fr.get("active", ())) if self.bounds else ()
+        # occluded markers' NaN ẋ, ẍ are masked out of the targets by the stage (weight 0);
+        # with active bounds, their rows hold u̇ = ü = 0, then drop out of Φ, Φ_q̂, ν
+        velocity_stage_tracking(self.bounds.tracker_for(active) if active else self.tracker, data, state, xd, xdd,
+                                d1, d2)
+        if active:
+            data.Phi, data.Phi_q, data.nu = (self.bounds.model_rows(active, a) for a in (data.Phi, data.Phi_q, data.nu))
         self.frame_data[j] = data
         values.update({P + "q": fr["q"], P + "v": data.v, P + "vdot": data.vdot})
         return values
@@ -371,6 +390,9 @@ class TrackingStep:
             raise ValueError(f"previous pose of shape {np.shape(q_prev)}, the model's {np.shape(self.state.get_q())}")
         self.q_prev = q_prev
         self.state, self.last_good, self.pending = state.copy(), last_good.copy(), dict(pending)
+        # the next frame starts from the last solved frame's active bounds (checked)
+        last = [f for _, f in sorted(self.pending.items()) if isinstance(f, dict) and f.get("state") is not None]
+        self.active = self.bounds.check_active(last[-1].get("active", ())) if last and self.bounds else ()
 
 
 def run_determinate(model, times, alpha=None, progress=False):
