@@ -73,7 +73,7 @@ def test_units_are_converted_at_the_boundary(tmp_path):
         ("bodies: {arm: {mass: 1.0, inertia: [1, 1, 1], positon: [0, 0, 0]}}", "bodies.arm.positon: unknown key; did you mean 'position'"),
         ("units: {length: mmm}\nbodies: {arm: {mass: 1, inertia: [1, 1, 1]}}", "units.length: unknown length unit 'mmm'"),
         ("units: {angle: degree}\nbodies: {arm: {mass: 1, inertia: [1, 1, 1]}}", "units.angle: unknown angle unit 'degree'"),
-        ("bodies: {arm: {mass: -1, inertia: [1, 1, 1]}}", "bodies.arm.mass: must be > 0"),
+        ("bodies: {arm: {mass: -1, inertia: [1, 1, 1]}}", "bodies.arm.mass: must be >= 0"),
         ("bodies: {arm: {inertia: [1, 1, 1]}}", "bodies.arm: missing required key 'mass'"),
         ("bodies: {arm: {mass: 1, inertia: [1, 1]}}", "bodies.arm"),
         ("bodies: {arm: {mass: one, inertia: [1, 1, 1]}}", "bodies.arm.mass: expected a number"),

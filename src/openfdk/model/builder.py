@@ -94,7 +94,7 @@ class ModelBuilder:
     def add_body(self, name, mass, inertia, position=(0, 0, 0), orientation=None, fixed=False, equilibrium=True):
         """Add a rigid body.
 
-        mass : kg (> 0 for a moving body); inertia : (3,) principal moments or (3, 3)
+        mass : kg (≥ 0 for a moving body: 0 for a massless link); inertia : (3,) principal moments or (3, 3)
         kg m² about the centre of mass in the body frame; position : (3,) m of the
         centre of mass (the body frame origin) in the reference pose; orientation :
         quaternion (4,) or rotation matrix R_WB (3, 3); fixed : fixed to the world.
@@ -107,11 +107,13 @@ class ModelBuilder:
             inertia = np.diag(inertia)
         if inertia.shape != (3, 3):
             raise ModelError(f"body {name!r}: inertia must be 3 principal moments or a 3x3 matrix")
-        if not fixed:
-            if not (np.isfinite(mass) and mass > 0):
-                raise ModelError(f"body {name!r}: mass must be > 0 kg, got {mass}")
-            if not np.allclose(inertia, inertia.T) or np.any(np.linalg.eigvalsh(inertia) <= 0):
-                raise ModelError(f"body {name!r}: inertia must be symmetric positive definite")
+        if not fixed:  # a massless body or a point mass (zero inertia) has no inertial forces
+            if not (np.isfinite(mass) and mass >= 0):
+                raise ModelError(f"body {name!r}: mass must be >= 0 kg, got {mass}")
+            scale = float(np.max(np.abs(inertia))) if np.all(np.isfinite(inertia)) else np.inf
+            if not np.isfinite(scale) or not np.allclose(inertia, inertia.T) \
+                    or np.any(np.linalg.eigvalsh(inertia / (scale or 1.0)) < -1e-12):
+                raise ModelError(f"body {name!r}: inertia must be symmetric positive semi-definite")
         position = np.asarray(position, dtype=float)
         if position.shape != (3,) or not np.all(np.isfinite(position)):
             raise ModelError(f"body {name!r}: position must be 3 finite numbers")

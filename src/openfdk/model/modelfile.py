@@ -185,7 +185,7 @@ def _load_bodies(b, bodies, ctx):
         fixed = ctx.boolean(spec.get("fixed", False), f"{p}.fixed") or name == GROUND
         if not fixed and name != GROUND and "mass" not in spec:
             raise ctx.error(p, "missing required key 'mass' (kg)")
-        mass = ctx.number(spec.get("mass", 0.0), f"{p}.mass", positive=not fixed, nonnegative=True)
+        mass = ctx.number(spec.get("mass", 0.0), f"{p}.mass", nonnegative=True)
         inertia = spec.get("inertia", [0, 0, 0] if (fixed or name == GROUND) else None)
         if inertia is None:
             raise ctx.error(p, "missing required key 'inertia' (kg m², 3 principal moments or a 3x3 matrix)")

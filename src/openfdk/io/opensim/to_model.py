@@ -40,6 +40,9 @@ from .errors import OsimError
 from .tree import Tree
 
 _SAFE = re.compile(r"[^A-Za-z0-9_\-]")
+#: a principal moment of inertia below −this × the largest entry is negative (rounding of
+#: a zero moment, a point mass's, stays above it)
+INERTIA_TOLERANCE = 1e-12
 
 
 def _no_error(path, msg):  # the function dicts of the reader are checked already
@@ -74,18 +77,26 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
 
     bodies = {"ground": {}}
     com = {"ground": np.zeros(3)}
+    reset = tree.inertia_resets()
+    if reset:  # as OpenSim: "Body … is massless but nonzero inertia provided", "… has invalid inertia"
+        import warnings
+
+        warnings.warn(f"{doc.source}: the inertia of {len(reset)} body(ies) replaced as OpenSim replaces it: "
+                      + "; ".join(f"{b!r} (line {doc.bodies[b].line}): {note}" for b, note in reset[:3])
+                      + (f"; and {len(reset) - 3} more" if len(reset) > 3 else ""), stacklevel=2)
     moving = {tree.root[tree.frame_body(j.child)[0]] for j in tree.order}
     for b in (b for b in doc.bodies if b in moving):  # in the file's order (OpenSim's BodySet)
         mass, c, inertia = tree.mass_properties(b)
-        if mass <= 0.0:
-            raise OsimError(f"{doc.source}: line {doc.bodies[b].line}: Body {b!r}: mass {mass:g} kg; openfdk needs a "
-                            "positive mass for every body that moves")
+        if mass < 0.0:
+            raise OsimError(f"{doc.source}: line {doc.bodies[b].line}: Body {b!r}: mass {mass:g} kg is negative")
         if not (np.isfinite(mass) and np.all(np.isfinite(c)) and np.all(np.isfinite(inertia))):
             raise OsimError(f"{doc.source}: line {doc.bodies[b].line}: Body {b!r}: its mass, centre of mass or "
                             "inertia (with the bodies welded to it) overflows: the numbers are too large")
-        if np.any(np.linalg.eigvalsh(inertia / (np.max(np.abs(inertia)) or 1.0)) <= 0.0):  # (scaled: no overflow)
+        # a massless body or a point mass (zero inertia) moves as OpenSim moves it: its
+        # inertial forces are zero (Newton–Euler); a negative principal moment is no body
+        if np.any(np.linalg.eigvalsh(inertia / (np.max(np.abs(inertia)) or 1.0)) < -INERTIA_TOLERANCE):
             raise OsimError(f"{doc.source}: line {doc.bodies[b].line}: Body {b!r}: its inertia about the centre of "
-                            f"mass {inertia.round(9).tolist()} is not positive definite")
+                            f"mass {inertia.round(9).tolist()} has a negative principal moment")
         p_WB, R_WB = X[b]
         com[b] = c
         bodies[unique("body", b)] = {"mass": mass, "inertia": inertia.tolist(), **_pose(p_WB + R_WB @ c, R_WB)}

@@ -163,17 +163,44 @@ class Tree:
 
     def mass_properties(self, root):
         """(mass kg, centre of mass (3,) m and inertia about it (3, 3) kg m², both in the
-        root's OpenSim frame) of a root body with every body welded to it."""
+        root's OpenSim frame) of a root body with every body welded to it. Without mass
+        (massless bodies, as OpenSim allows) the centre of mass is the root's
+        ``mass_center`` and the inertia zero: OpenSim resets a massless body's inertia."""
         parts = [b for b, r in self.root.items() if r == root and b in self.doc.bodies]
         m = sum(self.doc.bodies[b].mass for b in parts)
-        if m <= 0.0:
-            return 0.0, np.zeros(3), np.zeros((3, 3))
-        c = sum(self.doc.bodies[b].mass * (self.X_root[b][0] + self.X_root[b][1] @ self.doc.bodies[b].mass_center)
-                for b in parts) / m
+        if m > 0.0:
+            c = sum(self.doc.bodies[b].mass * (self.X_root[b][0] + self.X_root[b][1] @ self.doc.bodies[b].mass_center)
+                    for b in parts) / m
+        else:  # massless (OpenSim allows it): any point is the centre of mass; the root's own
+            c = self.X_root[root][0] + self.X_root[root][1] @ self.doc.bodies[root].mass_center
+            return 0.0, c, np.zeros((3, 3))
         inertia = np.zeros((3, 3))
         for b in parts:
             body = self.doc.bodies[b]
             p, R = self.X_root[b]
             d = p + R @ body.mass_center - c
-            inertia += R @ body.inertia @ R.T + body.mass * ((d @ d) * np.eye(3) - np.outer(d, d))
+            inertia += R @ opensim_inertia(body)[0] @ R.T + body.mass * ((d @ d) * np.eye(3) - np.outer(d, d))
         return m, c, inertia
+
+    def inertia_resets(self):
+        """[(OpenSim body name, what OpenSim does)] of the bodies whose inertia OpenSim
+        replaces (:func:`opensim_inertia`), for one warning."""
+        return [(b, note) for b, body in self.doc.bodies.items() for note in [opensim_inertia(body)[1]] if note]
+
+
+#: SimTK::SignificantReal (ε^⅞ for doubles): below it OpenSim calls a mass zero
+SIGNIFICANT_REAL = float(np.finfo(float).eps) ** 0.875
+
+
+def opensim_inertia(body):
+    """(inertia (3, 3) kg m² about the centre of mass, '' or what was replaced) of an
+    OsimBody as OpenSim's Body takes it (Body::getInertia): a massless body's inertia is
+    zero, with a warning in OpenSim. (Simbody's check of the triangle inequality is
+    compiled out of OpenSim's release builds, which take any other inertia as given;
+    openfdk refuses one that no rigid body has, model/plausibility.py.)"""
+    if abs(body.mass) > SIGNIFICANT_REAL:
+        return body.inertia, ""
+    I = body.inertia
+    if np.linalg.norm([I[0, 0], I[1, 1], I[2, 2], I[0, 1], I[0, 2], I[1, 2]]) > SIGNIFICANT_REAL:
+        return np.zeros((3, 3)), "massless with inertia: inertia taken as zero"
+    return np.zeros((3, 3)), ""
