@@ -186,6 +186,49 @@ def joints_model(path, seed=1):
     return write(m, path)
 
 
+def oblique_model(path, seed=6, constant_first=True):
+    """CustomJoints whose moving rotation axes are not orthogonal, as the wrist model's
+    and the thumb's (openfdk.model.axis_angles):
+
+    * ``cmc`` (ground → metacarpal): a constant rotation about z (last with
+      ``constant_first`` False), then two rotations about (1, 0, 0) and the oblique
+      (0.3, 0.9, −0.2) (cos 0.31), constant translations;
+    * ``mcp`` (metacarpal → phalanx): three rotations about (1, 0, 0), (0.2, 1, 0) and
+      (0.1, 0.3, 1), the third of slope −1, and one translation linear in a coordinate
+      of its own;
+    * markers on each moving body."""
+    rng = np.random.default_rng(seed)
+    m = osim.Model()
+    m.setName("oblique")
+    g = m.getGround()
+    meta, phal = random_body("metacarpal", rng), random_body("phalanx", rng)
+    for b in (meta, phal):
+        m.addBody(b)
+    lin = osim.LinearFunction
+    rotations = [((1, 0, 0), "cmc_flex", lin(1.0, 0.0)), ((0.3, 0.9, -0.2), "cmc_abd", lin(1.0, 0.0))]
+    constant = ((0, 0, 1), None, osim.Constant(0.2))
+    rotations = [constant] + rotations if constant_first else rotations + [constant]
+    m.addJoint(custom_joint("cmc", g, meta, rng, [
+        *rotations,
+        ((1, 0, 0), None, osim.Constant(0.01)),
+        ((0, 1, 0), None, osim.Constant(-0.02)),
+        ((0, 0, 1), None, osim.Constant(0.03)),
+    ]))
+    m.addJoint(custom_joint("mcp", meta, phal, rng, [
+        ((1, 0, 0), "mcp_flex", lin(1.0, 0.0)),
+        ((0.2, 1, 0), "mcp_abd", lin(1.0, 0.0)),
+        ((0.1, 0.3, 1), "mcp_rot", lin(-1.0, 0.05)),
+        ((0, 1, 0), "mcp_slide", lin(1.0, 0.0)),
+        ((1, 0, 0), None, osim.Constant(0.0)),
+        ((0, 0, 1), None, osim.Constant(0.01)),
+    ]))
+    set_ranges(m, {"cmc_flex": (-1.0, 1.0), "cmc_abd": (-0.9, 0.9), "mcp_flex": (-1.2, 0.8), "mcp_abd": (-0.7, 0.7),
+                   "mcp_rot": (-0.8, 0.8), "mcp_slide": (-0.01, 0.01)}, rng)
+    for b in (meta, phal):
+        add_markers(m, b, rng)
+    return write(m, path)
+
+
 #: knots of the knee's functions (flexion, rad) and the flexion range
 KNEE_X = np.linspace(-2.2, 0.4, 9)
 KNEE_RANGE = (-2.0, 0.2)

@@ -29,6 +29,7 @@ OP_LINEAR      n_terms, child_1 … child_n               offset (size), C_1 …
 OP_ROTATION_   body_a, body_b, axes i, j, k             R_aFa (9), R_bFb (9), sign (3)
 ANGLES         (any Euler/Cardan sequence, JCS angles)
 OP_FUNCTION    node_u (a 1-row node)                    f as PiecewisePolynomial.to_params()
+OP_AXIS_ANGLES body_a, body_b                           R_aFa (9), R_bFb (9), axes n1, n2, n3 (9) row-major
                (m = f(u): OpenSim's coupled joint rows and coordinate couplers)
 =============  =======================================  =============================
 
@@ -65,11 +66,13 @@ from numba import njit
 from .measures import AxisDot, Distance, Linear, PointPosition, RelativeAngles, RelativeVector
 from .coordinate_functions import pp_evaluate
 from .function_measure import FunctionOf
+from .axis_angles import AxisAngles, axis_angle_blocks
 from .rotation_angles import RotationAngles, inverse3_into, rotation_angle_blocks
 
 __all__ = ["CompiledMeasures", "MeasureCompileError", "register", "evaluate_program"]
 
-OP_POINT, OP_VECTOR, OP_DISTANCE, OP_AXIS_DOT, OP_ANGLES, OP_LINEAR, OP_ROTATION_ANGLES, OP_FUNCTION = range(8)
+OP_POINT, OP_VECTOR, OP_DISTANCE, OP_AXIS_DOT, OP_ANGLES, OP_LINEAR, OP_ROTATION_ANGLES, OP_FUNCTION, OP_AXIS_ANGLES = \
+    range(9)
 
 #: error codes returned by the kernel (with the failing node)
 ERR_NONE, ERR_COINCIDENT, ERR_GIMBAL = 0, 1, 2
@@ -99,6 +102,8 @@ register(RotationAngles, lambda m, child: (
     OP_ROTATION_ANGLES, [m.body_a, m.body_b] + [int(x) for x in m.seq],
     list(np.ravel(m.R_aFa)) + list(np.ravel(m.R_bFb)) + list(m.sign)))
 register(FunctionOf, lambda m, child: (OP_FUNCTION, [child(m.measure)], list(m.function.to_params())))
+register(AxisAngles, lambda m, child: (
+    OP_AXIS_ANGLES, [m.body_a, m.body_b], list(np.ravel(m.R_aFa)) + list(np.ravel(m.R_bFb)) + list(np.ravel(m.axes))))
 
 
 def linear_terms(m):
@@ -268,6 +273,23 @@ def _node_columns(mask, column, cols):
 
 
 @njit(cache=True)
+def _angle_node_into(ia, ib, column, row, order, theta, Ma, Mb, br, val, M, b):
+    """An angle node's three rows from its kernel's outputs: val[row:row + 3] ← θ, its
+    Jacobian blocks M_a, M_b added into body a's and b's rotation columns of M, b ← bias."""
+    ca, cb = column[ia], column[ib]
+    for r in range(3):
+        val[row + r] = theta[r]
+        if order >= 1:
+            for c in range(3):
+                if ca >= 0:
+                    M[row + r, ca + 3 + c] += Ma[r, c]
+                if cb >= 0:
+                    M[row + r, cb + 3 + c] += Mb[r, c]
+        if order >= 2:
+            b[row + r] = br[r]
+
+
+@njit(cache=True)
 def evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fparams,
                      p_WB, R_WB, w_BB, v_WB, column, n_coords, order, val, M, b):
     """Run the program's nodes in order, filling the node buffers val (R,), M (R, n) and
@@ -301,7 +323,7 @@ def evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fparams
     R_WFb = np.zeros((3, 3))
     Binv = np.zeros((3, 3))
     # the rotation-angle nodes' frames, scratch and outputs (allocated once per call)
-    R_aFa, R_bFb, rot_work = np.empty((3, 3)), np.empty((3, 3)), np.empty((9, 3, 3))
+    R_aFa, R_bFb, rot_work, N = np.empty((3, 3)), np.empty((3, 3)), np.empty((9, 3, 3)), np.empty((3, 3))
     theta, Ma, Mb, br = np.empty(3), np.empty((3, 3)), np.empty((3, 3)), np.empty(3)
     mask = np.zeros(op.shape[0], np.int64)
     cols = np.empty(column.shape[0], np.int64)
@@ -320,7 +342,7 @@ def evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fparams
             mk = np.int64(0)
             for t in range(iparams[ip]):
                 mk |= mask[iparams[ip + 1 + t]]
-        else:  # the two bodies of OP_AXIS_DOT, OP_ANGLES, OP_ROTATION_ANGLES
+        else:  # the two bodies of OP_AXIS_DOT, OP_ANGLES, OP_ROTATION_ANGLES, OP_AXIS_ANGLES
             mk = _bit(iparams[ip]) | _bit(iparams[ip + 1])
         mask[k] = mk
         ncol = _node_columns(mk, column, cols) if order >= 1 else 0
@@ -536,17 +558,20 @@ def evaluate_program(op, node_row, node_size, i_start, iparams, f_start, fparams
                                        theta, Ma, Mb, br)
             if not ok:
                 return k, ERR_GIMBAL
-            ca, cb = column[ia], column[ib]
+            _angle_node_into(ia, ib, column, row, order, theta, Ma, Mb, br, val, M, b)
+        elif o == OP_AXIS_ANGLES:
+            # angles about any three axes (a joint's non-orthogonal axes): openfdk.model.axis_angles
+            ia, ib = iparams[ip], iparams[ip + 1]
             for r in range(3):
-                val[row + r] = theta[r]
-                if order >= 1:
-                    for c in range(3):
-                        if ca >= 0:
-                            M[row + r, ca + 3 + c] += Ma[r, c]
-                        if cb >= 0:
-                            M[row + r, cb + 3 + c] += Mb[r, c]
-                if order >= 2:
-                    b[row + r] = br[r]
+                for c in range(3):
+                    R_aFa[r, c] = fparams[fp + 3 * r + c]
+                    R_bFb[r, c] = fparams[fp + 9 + 3 * r + c]
+                    N[r, c] = fparams[fp + 18 + 3 * r + c]
+            ok = axis_angle_blocks(R_WB[ia], R_aFa, w_BB[ia], R_WB[ib], R_bFb, w_BB[ib], N, order, rot_work,
+                                   theta, Ma, Mb, br)
+            if not ok:
+                return k, ERR_GIMBAL
+            _angle_node_into(ia, ib, column, row, order, theta, Ma, Mb, br, val, M, b)
         elif o == OP_FUNCTION:
             # m = f(u): M = f'(u) M_u, b = f''(u) u̇² + f'(u) b_u (openfdk.model.function_measure)
             ru = node_row[iparams[ip]]

@@ -18,8 +18,10 @@ turns this into measures and rows:
    k ≤ 3 moving axes a' = C a. In a basis E of F in which the moving axes are coordinate
    axes, Eᵀ R_FM Cᵀ E is an intrinsic Cardan (or Euler) sequence, so the angles θ are a
    :class:`~openfdk.model.rotation_angles.RotationAngles` measure of the frames F·E and
-   M·Cᵀ·E — exact, with its analytic Jacobian and bias. Moving axes must be orthogonal
-   (a'_1 ⟂ a'_2 ⟂ a'_3, or a'_3 = ±a'_1); other sets are refused by name.
+   M·Cᵀ·E — exact, with its analytic Jacobian and bias. Moving axes that are not
+   orthogonal (a wrist's, a thumb's) are angles about those axes themselves
+   (:class:`~openfdk.model.axis_angles.AxisAngles`, Davenport angles), two of them
+   completed by a'_1 × a'_2; axes that do not span space are refused by name.
 2. Translations: with the moving translation axes completed to a basis T, the
    components τ = T⁻¹ (p_FM − Σ_constant c_i t_i) are a linear measure of the vector
    F → M expressed in F.
@@ -53,6 +55,7 @@ from .function_measure import FunctionOf
 from .joint_records import JointRecord, record_joint
 from .measures import Linear
 from .model import ModelError
+from .axis_angles import MIN_TRIPLE_PRODUCT, AxisAngles
 from .rotation_angles import RotationAngles
 from .timefunctions import TimeFunction
 
@@ -152,28 +155,41 @@ def _complete(a):
 
 def _rotation_basis(joint, moving):
     """(E (3, 3), sequence, signs (3,), slot of each angle (3,) or None) for the moving
-    axes ``moving`` [(slot, a'_k)] (module docstring, step 1)."""
+    axes ``moving`` [(slot, a'_k)] (module docstring, step 1); E is None when the axes are
+    not orthogonal: sequence is then the axes N (3, 3) of :class:`AxisAngles` (rows)."""
     if not moving:
         return np.eye(3), "xyz", (1.0, 1.0, 1.0), (None, None, None)
     if len(moving) == 1:
         (k, a), = moving
         return _complete(a), "zxy", (1.0, 1.0, 1.0), (k, None, None)
     (k1, a1), (k2, a2) = moving[:2]
+    slots = (k1, k2, moving[2][0] if len(moving) == 3 else None)
     if abs(a1 @ a2) > AXIS_TOLERANCE:
-        raise ModelError(f"joint {joint!r}: its moving rotation axes {a1.round(6).tolist()} and "
-                         f"{a2.round(6).tolist()} are not orthogonal (cos = {a1 @ a2:.3g}); openfdk reads moving "
-                         "rotation axes that are orthogonal (any constant axes)")
+        return None, _general_axes(joint, [a for _, a in moving]), (1.0, 1.0, 1.0), slots
     e3 = np.cross(a1, a2)
     E = np.column_stack([a1, a2, e3])
     if len(moving) == 2:
-        return E, "xyz", (1.0, 1.0, 1.0), (k1, k2, None)
+        return E, "xyz", (1.0, 1.0, 1.0), slots
     k3, a3 = moving[2]
     if abs(abs(a3 @ a1) - 1.0) < AXIS_TOLERANCE:
-        return E, "xyx", (1.0, 1.0, float(np.sign(a3 @ a1))), (k1, k2, k3)
+        return E, "xyx", (1.0, 1.0, float(np.sign(a3 @ a1))), slots
     if abs(abs(a3 @ e3) - 1.0) < AXIS_TOLERANCE:
-        return E, "xyz", (1.0, 1.0, float(np.sign(a3 @ e3))), (k1, k2, k3)
-    raise ModelError(f"joint {joint!r}: its third moving rotation axis {a3.round(6).tolist()} is neither along the "
-                     "first nor orthogonal to the first two; openfdk reads Cardan and Euler sequences of moving axes")
+        return E, "xyz", (1.0, 1.0, float(np.sign(a3 @ e3))), slots
+    return None, _general_axes(joint, [a for _, a in moving]), (1.0, 1.0, 1.0), slots
+
+
+def _general_axes(joint, axes):
+    """N (3, 3), rows n1, n2, n3 of :class:`AxisAngles`: the moving axes, completed by
+    n1 × n2 when there are two (its angle is then a row = 0). ModelError unless they span
+    space (a third axis along the first of two non-orthogonal ones has no angles)."""
+    if len(axes) == 2:
+        n3 = np.cross(axes[0], axes[1])
+        axes = axes + [n3 / np.linalg.norm(n3)]
+    N = np.array(axes, dtype=float)
+    if abs(np.linalg.det(N)) < MIN_TRIPLE_PRODUCT:
+        raise ModelError(f"joint {joint!r}: its moving rotation axes {N.round(6).tolist()} do not span space: no "
+                         "three angles describe its rotations")
+    return N
 
 
 def _translation_basis(joint, moving):
@@ -221,7 +237,10 @@ def add_coordinate_joint(b, name, parent, child, rotations, translations, coordi
         else:
             moving.append((k, C @ ax.axis))
     E, sequence, signs, angle_slot = _rotation_basis(name, moving)
-    angles = RotationAngles(ia, fa.R_BF @ E, ib, fb.R_BF @ C.T @ E, sequence, signs, name=f"{name}.angles")
+    if E is None:  # non-orthogonal moving axes (the wrist's, the thumb's): angles about them
+        angles = AxisAngles(ia, fa.R_BF, ib, fb.R_BF @ C.T, sequence, name=f"{name}.angles")
+    else:
+        angles = RotationAngles(ia, fa.R_BF @ E, ib, fb.R_BF @ C.T @ E, sequence, signs, name=f"{name}.angles")
     slot_measure = {}
     free_rows = []  # (label, scalar measure that must be 0)
     for r in range(3):
