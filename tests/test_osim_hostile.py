@@ -274,6 +274,10 @@ CASES = [
      ["m.yaml: joints.j.rotations[0].function", "nested more than 200 deep"]),
     ("YAML polynomial overflowing in degrees", write("m.yaml", "__overflow_deg__"), ("check", "m.yaml"),
      ["m.yaml: joints.j.rotations[0].function", "too large"]),
+    ("YAML two parallel moving rotation axes", write("m.yaml", "__parallel_axes__"), ("check", "m.yaml"),
+     ["m.yaml: joints.j", "do not span space"]),
+    ("YAML three moving rotation axes in a plane", write("m.yaml", "__planar_axes__"), ("check", "m.yaml"),
+     ["m.yaml: joints.j", "do not span space"]),
     # TRC trials
     ("TRC time NaN", sub("\t0.0100\t", "\tnan\t", "trial.trc"), ("kinematics", "leg.osim", "trial.trc", "--out", "k"),
      ["trial.trc: line 8: the time is 'nan'"]),
@@ -300,6 +304,11 @@ def _yaml_model(kind):
         for _ in range(300):
             function = {"type": "multiplier", "scale": 1.0, "function": function}
         rot["function"] = function
+    elif kind in ("__parallel_axes__", "__planar_axes__"):  # not orthogonal, and no angles about them
+        axes = [[0, 0, 1], [0, 0, -2]] if kind == "__parallel_axes__" else [[1, 0, 0], [1, 1, 0], [0, 1, 0]]
+        data["coordinates"] = {f"q{k}": {} for k in range(len(axes))}
+        data["joints"]["j"]["rotations"] = [{"axis": a, "coordinate": f"q{k}", "function": function}
+                                            for k, a in enumerate(axes)]
     elif kind == "__overflow_deg__":
         data["units"]["angle"] = "deg"
         rot["function"] = {"type": "polynomial", "coefficients": [1e306, 0, 0, 0, 0, 0]}

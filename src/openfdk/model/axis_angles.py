@@ -170,7 +170,7 @@ class AxisAngles(Measure):
         self.R_bFb = np.ascontiguousarray(R_bFb, dtype=float)
         N = np.asarray(axes, dtype=float)
         self.axes = np.ascontiguousarray(N / np.linalg.norm(N, axis=1)[:, None])
-        if abs(np.linalg.det(self.axes)) < MIN_TRIPLE_PRODUCT:
+        if not abs(np.linalg.det(self.axes)) >= MIN_TRIPLE_PRODUCT:  # (a zero axis: NaN)
             raise ValueError(f"angles {name!r}: the axes {np.round(self.axes, 6).tolist()} do not span space")
         self.name = name
 

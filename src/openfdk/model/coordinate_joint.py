@@ -184,9 +184,9 @@ def _general_axes(joint, axes):
     space (a third axis along the first of two non-orthogonal ones has no angles)."""
     if len(axes) == 2:
         n3 = np.cross(axes[0], axes[1])
-        axes = axes + [n3 / np.linalg.norm(n3)]
+        axes = axes + [n3 / max(float(np.linalg.norm(n3)), 1e-300)]
     N = np.array(axes, dtype=float)
-    if abs(np.linalg.det(N)) < MIN_TRIPLE_PRODUCT:
+    if not abs(np.linalg.det(N)) >= MIN_TRIPLE_PRODUCT:  # (parallel axes: NaN or 0)
         raise ModelError(f"joint {joint!r}: its moving rotation axes {N.round(6).tolist()} do not span space: no "
                          "three angles describe its rotations")
     return N
