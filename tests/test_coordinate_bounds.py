@@ -134,6 +134,24 @@ def test_tracking_is_the_bounded_least_squares_fit(chain):
     np.testing.assert_allclose(ours[inside], free[inside], atol=1e-7, rtol=0)
 
 
+def test_the_summary_lists_the_coordinates_held_at_a_bound(chain):
+    """summary.json's kinematics.coordinates_at_bounds: per clamped coordinate and bound,
+    the frames the bounded fit rests there (those of the independent solve) and the first."""
+    import json
+
+    d, t, _, bounded, _, _ = chain
+    at = json.loads((d / "ours" / "summary.json").read_text())["kinematics"]["coordinates_at_bounds"]
+    expected = {}
+    for i, name in enumerate(("q1", "q2")):
+        for side, bound in zip(("lower", "upper"), RANGE[name]):
+            on = np.abs(bounded[:, i] - bound) < 1e-7
+            if on.any():
+                expected.setdefault(name, {})[side] = {"value_rad": bound, "frames": int(on.sum()),
+                                                       "first_time_s": pytest.approx(float(t[on][0]), abs=1e-9)}
+    assert set(expected["q2"]) == {"lower", "upper"} and "q3" not in at
+    assert at == expected
+
+
 def test_opensim_ik_of_the_clamped_chain_agrees(chain):
     d, t, x, bounded, _, ours = chain
     model = osim.Model(str(d / "chain.osim"))

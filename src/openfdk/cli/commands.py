@@ -239,16 +239,25 @@ def _print_failed(args, failed):
 
 def _write_measures(out_dir, model_path, kinematics, model=None):
     """measures.csv: the model's named measures (joint measures included) per frame;
-    coordinates.csv and coordinates.mot: its joint coordinates (OpenSim models).
-    ``model``: the Model of ``model_path`` if already loaded."""
+    coordinates.csv and coordinates.mot: its joint coordinates (OpenSim models), and in
+    summary.json's ``kinematics`` the clamped coordinates that rest on a bound
+    (``coordinates_at_bounds``). ``model``: the Model of ``model_path`` if already loaded."""
+    from pathlib import Path
+
+    from ..io.coordinate_outputs import coordinates_at_bounds, write_coordinates
     from ..io.measure_outputs import write_measures
     from ..io.modelfile import load_model
-
-    from ..io.coordinate_outputs import write_coordinates
+    from ..io.results import write_json
 
     model = model if model is not None else load_model(model_path)
     write_measures(out_dir, model, kinematics)
     write_coordinates(out_dir, model, kinematics)
+    at_bounds = coordinates_at_bounds(model, kinematics) if model.coordinates else {}
+    path = Path(out_dir) / "summary.json"
+    if at_bounds and path.is_file():
+        data = json.loads(path.read_text())
+        data.setdefault("kinematics", {})["coordinates_at_bounds"] = at_bounds
+        write_json(path, data)
 
 
 def _write_grf(args, info, dyn, settings=None):

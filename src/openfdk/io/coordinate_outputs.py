@@ -86,6 +86,29 @@ def write_coordinates(out_dir, model, kinematics):
     return [csv_path, mot_path]
 
 
+def coordinates_at_bounds(model, kinematics, values=None, tol=1e-9):
+    """Where the clamped coordinates rest on a bound of their range (marker tracking holds
+    them there, :mod:`openfdk.kinematics.coordinate_bounds`): {name: {"lower" or "upper":
+    {"value_rad" or "value_m": the bound (SI), "frames": converged frames within ``tol``
+    of it, "first_time_s": the first of them}}}, only the coordinates and bounds reached.
+    ``values``: {name: (nf,)} of :func:`coordinate_values` if the caller has them."""
+    values = coordinate_values(model, kinematics) if values is None else values
+    ok = np.asarray(kinematics.converged, bool)
+    time = np.asarray(kinematics.time, float)
+    out = {}
+    for c in model.coordinates:
+        if not c.clamped or c.name not in values:
+            continue
+        v = np.asarray(values[c.name], float)
+        for side, bound in (("lower", c.range[0]), ("upper", c.range[1])):
+            at = ok & np.isfinite(v) & (np.abs(v - bound) <= tol) if np.isfinite(bound) else np.zeros_like(ok)
+            if at.any():
+                unit = "value_rad" if c.unit == "angle" else "value_m"
+                out.setdefault(c.name, {})[side] = {unit: float(bound), "frames": int(at.sum()),
+                                                    "first_time_s": float(time[at][0])}
+    return out
+
+
 def _warn_ranges(model, kinematics, values):
     """One warning per clamped coordinate that leaves its range. OpenSim's IK keeps a
     clamped coordinate within its range (a bound of its optimiser), and so does openfdk's
