@@ -327,6 +327,43 @@ def test_non_orthogonal_rotation_axes_match_opensim(workdir, constant_first):
 
 
 @pytest.mark.slow
+def test_an_export_of_oblique_axes_places_the_markers_as_the_original(workdir, capsys):
+    """``openfdk export-opensim`` of a run of the oblique-axes model writes joints that
+    OpenSim turns as the original file does: markers at 10 random coordinate values equal
+    the original model's in OpenSim to 1e-12 m."""
+    from openfdk.cli import main
+
+    src = om.oblique_model(workdir / "oblique_export.osim")
+    t = np.arange(12) / 100.0
+    names = ["cmc_flex", "cmc_abd", "mcp_flex", "mcp_abd", "mcp_rot", "mcp_slide"]
+    om.write_motion(workdir / "oblique.mot", t, {n: 0.1 * np.sin(3 * t + k) * (0.01 if n == "mcp_slide" else 1)
+                                                 for k, n in enumerate(names)})
+    assert main(["kinematics", str(src), "--motion", str(workdir / "oblique.mot"), "--out",
+                 str(workdir / "oblique_run"), "--force", "-q"]) == 0, capsys.readouterr().err
+    assert main(["export-opensim", str(workdir / "oblique_run"), "--model", str(src), "--out",
+                 str(workdir / "oblique_exp"), "-q"]) == 0, capsys.readouterr().err
+    (exported,) = (workdir / "oblique_exp").glob("*.osim")
+    models = [opensim.Model(str(f)) for f in (exported, src)]
+    states = [m.initSystem() for m in models]
+    rng = np.random.default_rng(4)
+    seen = []
+    for _ in range(10):
+        q = {n: float(rng.uniform(-0.6, 0.6)) * (0.01 if n == "mcp_slide" else 1) for n in names}
+        for m, s in zip(models, states):
+            for n, v in q.items():
+                m.getCoordinateSet().get(n).setValue(s, v, False)
+            m.realizePosition(s)
+        for k in range(models[1].getMarkerSet().getSize()):
+            name = models[1].getMarkerSet().get(k).getName()
+            a, b = (m.getMarkerSet().get(name).getLocationInGround(s).to_numpy() for m, s in zip(models, states))
+            np.testing.assert_allclose(a, b, atol=1e-12, err_msg=name)
+            seen.append(b)
+    n_markers = models[1].getMarkerSet().getSize()
+    spread = np.ptp(np.array(seen).reshape(10, n_markers, 3), axis=0)
+    assert spread.max() > 0.01  # the markers move between the samples: the joints turn
+
+
+@pytest.mark.slow
 def test_a_coordinate_moving_its_axis_through_a_two_point_spline_matches_opensim(files, workdir):
     """The knee's rotation1 written as a SimmSpline through (−2π, 2π) and (2π, −2π), y =
     −x, as the left knee of jam-resources' full_body_healthy_knee.osim writes it: the
