@@ -38,7 +38,7 @@ import numpy as np
 from numba import njit
 
 from .measures import Measure
-from .rotation_angles import _mat3_into, _vec3_into, inverse3_into
+from .rotation_angles import _mat3_into, _vec3_into, angle_rates_into, inverse3_into
 
 #: |n1 · (n2 × n3)| below this: the axes do not span space (no angles), refused
 MIN_TRIPLE_PRODUCT = 1e-6
@@ -130,29 +130,8 @@ def axis_angle_blocks(R_Wa, R_aFa, w_a, R_Wb, R_bFb, w_b, N, order, work, theta,
         B[r, 2] = V[2, r]
     if abs(inverse3_into(B, Binv)) < 1e-9:
         return False
-    _mat3_into(Binv, R_aFa, np.bool_(False), np.bool_(True), Ma)  # −B⁻¹ R_aFaᵀ (negated below)
-    _mat3_into(R, R_bFb, np.bool_(False), np.bool_(True), T)
-    _mat3_into(Binv, T, np.bool_(False), np.bool_(False), Mb)     # B⁻¹ R_FaFb R_bFbᵀ
-    for r in range(3):
-        for c in range(3):
-            Ma[r, c] = -Ma[r, c]
-    if order >= 2:
-        _vec3_into(R_aFa, w_a[0], w_a[1], w_a[2], np.bool_(True), T[0])     # ω_Fa
-        _vec3_into(R_bFb, w_b[0], w_b[1], w_b[2], np.bool_(True), T[1])     # ω_Fb
-        _vec3_into(R, T[1, 0], T[1, 1], T[1, 2], np.bool_(False), T[2])      # R_FaFb ω_Fb
-        th = np.empty(3)
-        _vec3_into(Binv, T[2, 0] - T[0, 0], T[2, 1] - T[0, 1], T[2, 2] - T[0, 2], np.bool_(False), th)  # θ̇
-        n1, n2 = N[0], N[1]
-        x = np.cross(n1, V[0])                      # n1 × c2
-        y = np.cross(n1, V[2])                      # n1 × c3
-        z = np.cross(n2, V[1])                      # n2 × R2 n3
-        g = np.empty(3)
-        _vec3_into(R1, z[0], z[1], z[2], np.bool_(False), g)  # R1 (n2 × R2 n3)
-        c = np.cross(T[0], T[2])                    # ω_Fa × R ω_Fb
-        e = np.empty(3)
-        for r in range(3):  # Ḃ θ̇ = θ̇2 θ̇1 (n1 × c2) + θ̇3 [θ̇1 (n1 × c3) + θ̇2 R1 (n2 × R2 n3)]
-            e[r] = -c[r] - (th[1] * th[0] * x[r] + th[2] * (th[0] * y[r] + th[1] * g[r]))
-        _vec3_into(Binv, e[0], e[1], e[2], np.bool_(False), b)
+    angle_rates_into(R, R1, B, Binv, R_aFa, R_bFb, w_a, w_b, N[1, 0], N[1, 1], N[1, 2], V[1, 0], V[1, 1], V[1, 2],
+                     order, T, V, Ma, Mb, b)
     return True
 
 

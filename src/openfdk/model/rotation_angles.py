@@ -146,6 +146,40 @@ def inverse3_into(B, out):
 
 
 @njit(cache=True)
+def angle_rates_into(R, R1, B, Binv, R_aFa, R_bFb, w_a, w_b, n2x, n2y, n2z, p0, p1, p2, order, T, V, Ma, Mb, b):
+    """The Jacobian blocks and bias of three angles R_FaFb = Rot(n1, θ1) Rot(n2, θ2)
+    Rot(n3, θ3), into Ma, Mb (3, 3) and b (3,) (order 2), given R = R_FaFb, R1 = Rot(n1,
+    θ1), B (3, 3) with columns c1 = n1, c2 = R1 n2, c3 = R1 Rot(n2, θ2) n3, its inverse
+    Binv, the frames R_aFa, R_bFb, the bodies' angular velocities w_a, w_b (3,) rad/s
+    (body frames), n2 and p = Rot(n2, θ2) n3 as scalars; T, V (3, 3) scratch. Shared by
+    the Cardan/Euler angles (n_i = e_i) and :mod:`.axis_angles`; the maths: the module
+    docstring (M = B⁻¹ [−R_aFaᵀ, R_FaFb R_bFbᵀ], b = B⁻¹ (−ω_Fa × R ω_Fb − Ḃ θ̇))."""
+    _mat3_into(Binv, R_aFa, np.bool_(False), np.bool_(True), Ma)  # −B⁻¹ R_aFaᵀ (negated below)
+    _mat3_into(R, R_bFb, np.bool_(False), np.bool_(True), T)
+    _mat3_into(Binv, T, np.bool_(False), np.bool_(False), Mb)     # B⁻¹ R_FaFb R_bFbᵀ
+    for r in range(3):
+        for c in range(3):
+            Ma[r, c] = -Ma[r, c]
+    if order < 2:
+        return
+    _vec3_into(R_aFa, w_a[0], w_a[1], w_a[2], np.bool_(True), T[0])     # ω_Fa
+    _vec3_into(R_bFb, w_b[0], w_b[1], w_b[2], np.bool_(True), T[1])     # ω_Fb
+    _vec3_into(R, T[1, 0], T[1, 1], T[1, 2], np.bool_(False), T[2])      # R_FaFb ω_Fb
+    _vec3_into(Binv, T[2, 0] - T[0, 0], T[2, 1] - T[0, 1], T[2, 2] - T[0, 2], np.bool_(False), V[1])  # θ̇
+    d0, d1, d2 = V[1, 0], V[1, 1], V[1, 2]
+    x0, x1, x2 = _cross3(B[0, 0], B[1, 0], B[2, 0], B[0, 1], B[1, 1], B[2, 1])  # n1 × c2
+    y0, y1, y2 = _cross3(B[0, 0], B[1, 0], B[2, 0], B[0, 2], B[1, 2], B[2, 2])  # n1 × c3
+    z0, z1, z2 = _cross3(n2x, n2y, n2z, p0, p1, p2)                             # n2 × Rot(n2, θ2) n3
+    _vec3_into(R1, z0, z1, z2, np.bool_(False), V[0])                           # R1 (n2 × Rot(n2, θ2) n3)
+    # Ḃ θ̇ = θ̇2 θ̇1 (n1 × c2) + θ̇3 [θ̇1 (n1 × c3) + θ̇2 R1 (n2 × Rot(n2, θ2) n3)]
+    g0 = d1 * d0 * x0 + d2 * (d0 * y0 + d1 * V[0, 0])
+    g1 = d1 * d0 * x1 + d2 * (d0 * y1 + d1 * V[0, 1])
+    g2 = d1 * d0 * x2 + d2 * (d0 * y2 + d1 * V[0, 2])
+    c0, c1, c2 = _cross3(T[0, 0], T[0, 1], T[0, 2], T[2, 0], T[2, 1], T[2, 2])  # ω_Fa × R ω_Fb
+    _vec3_into(Binv, -c0 - g0, -c1 - g1, -c2 - g2, np.bool_(False), b)
+
+
+@njit(cache=True)
 def rotation_angle_blocks(R_Wa, R_aFa, w_a, R_Wb, R_bFb, w_b, seq, sign, order, work, theta, Ma, Mb, b):
     """The angles of :func:`rotation_angles` with their Jacobian as its two non-zero
     blocks, into preallocated outputs (no allocation: the compiled program evaluates
@@ -182,30 +216,8 @@ def rotation_angle_blocks(R_Wa, R_aFa, w_a, R_Wb, R_bFb, w_b, seq, sign, order, 
         if abs(inverse3_into(B, Binv)) < 1e-9:
             ok = False
         else:
-            _mat3_into(Binv, R_aFa, np.bool_(False), np.bool_(True), Ma)  # −B⁻¹ R_aFaᵀ (negated below)
-            _mat3_into(R, R_bFb, np.bool_(False), np.bool_(True), T)
-            _mat3_into(Binv, T, np.bool_(False), np.bool_(False), Mb)     # B⁻¹ R_FaFb R_bFbᵀ
-            for r in range(3):
-                for c in range(3):
-                    Ma[r, c] = -Ma[r, c]
-            if order >= 2:
-                ei0, ei1, ei2 = (1.0 if i == 0 else 0.0), (1.0 if i == 1 else 0.0), (1.0 if i == 2 else 0.0)
-                ej0, ej1, ej2 = (1.0 if j == 0 else 0.0), (1.0 if j == 1 else 0.0), (1.0 if j == 2 else 0.0)
-                _vec3_into(R_aFa, w_a[0], w_a[1], w_a[2], np.bool_(True), T[0])     # ω_Fa
-                _vec3_into(R_bFb, w_b[0], w_b[1], w_b[2], np.bool_(True), T[1])     # ω_Fb
-                _vec3_into(R, T[1, 0], T[1, 1], T[1, 2], np.bool_(False), T[2])      # R_FaFb ω_Fb
-                _vec3_into(Binv, T[2, 0] - T[0, 0], T[2, 1] - T[0, 1], T[2, 2] - T[0, 2], np.bool_(False), V[1])  # θ̇
-                d0, d1, d2 = V[1, 0], V[1, 1], V[1, 2]
-                x0, x1, x2 = _cross3(ei0, ei1, ei2, V[0, 0], V[0, 1], V[0, 2])  # e_i × c2
-                y0, y1, y2 = _cross3(ei0, ei1, ei2, V[2, 0], V[2, 1], V[2, 2])  # e_i × c3
-                z0, z1, z2 = _cross3(ej0, ej1, ej2, R2[0, k], R2[1, k], R2[2, k])  # e_j × R2 e_k
-                _vec3_into(R1, z0, z1, z2, np.bool_(False), V[0])                     # R1 (e_j × R2 e_k)
-                # Ḃ θ̇ = θ̇2 θ̇1 (e_i × c2) + θ̇3 [θ̇1 (e_i × c3) + θ̇2 R1 (e_j × R2 e_k)]
-                g0 = d1 * d0 * x0 + d2 * (d0 * y0 + d1 * V[0, 0])
-                g1 = d1 * d0 * x1 + d2 * (d0 * y1 + d1 * V[0, 1])
-                g2 = d1 * d0 * x2 + d2 * (d0 * y2 + d1 * V[0, 2])
-                c0, c1, c2 = _cross3(T[0, 0], T[0, 1], T[0, 2], T[2, 0], T[2, 1], T[2, 2])  # ω_Fa × R ω_Fb
-                _vec3_into(Binv, -c0 - g0, -c1 - g1, -c2 - g2, np.bool_(False), b)
+            angle_rates_into(R, R1, B, Binv, R_aFa, R_bFb, w_a, w_b, 1.0 if j == 0 else 0.0, 1.0 if j == 1 else 0.0,
+                             1.0 if j == 2 else 0.0, R2[0, k], R2[1, k], R2[2, k], order, T, V, Ma, Mb, b)
     for r in range(3):
         theta[r] *= sign[r]
         for c in range(3):
@@ -268,4 +280,4 @@ class RotationAngles(Measure):
 
 
 __all__ = ["RotationAngles", "JCS_CONVENTIONS", "parse_sequence", "angles_from_matrix", "rotation_angles",
-           "rotation_angle_blocks", "inverse3_into"]
+           "rotation_angle_blocks", "angle_rates_into", "inverse3_into"]
