@@ -117,25 +117,31 @@ def corners_of(rotation, centre):
 # Writing the file (ezc3d) and patching ANALOG:OFFSET
 # ---------------------------------------------------------------------------------------
 
-def patch_analog_offset(path, offsets):
-    """Overwrite the int16 values of ANALOG:OFFSET in an Intel C3D file."""
-    raw = bytearray(Path(path).read_bytes())
+def parameter_data(raw, group, name):
+    """(kind, dims, offset of the data) of parameter ``group:name`` in an Intel C3D file's
+    bytes ``raw``, parsed here (not by the reader under test)."""
     pos, groups = (raw[0] - 1) * 512 + 4, {}
     while True:
         n_name, item_id = struct.unpack_from("bb", raw, pos)
-        name = raw[pos + 2:pos + 2 + abs(n_name)].decode().upper()
+        label = raw[pos + 2:pos + 2 + abs(n_name)].decode().upper()
         at = pos + 2 + abs(n_name)
         (step,) = struct.unpack_from("<H", raw, at)
         if item_id < 0:
-            groups[-item_id] = name
-        elif groups.get(item_id) == "ANALOG" and name == "OFFSET":
+            groups[-item_id] = label
+        elif groups.get(item_id) == group and label == name:
             kind, n_dims = struct.unpack_from("bB", raw, at + 2)
-            assert kind == 2 and n_dims == 1 and raw[at + 4] == len(offsets)
-            struct.pack_into(f"<{len(offsets)}h", raw, at + 5, *[int(o) for o in offsets])
-            Path(path).write_bytes(bytes(raw))
-            return
-        assert n_name and step, "ANALOG:OFFSET not found"
+            return kind, list(raw[at + 4:at + 4 + n_dims]), at + 4 + n_dims
+        assert n_name and step, f"{group}:{name} not found"
         pos = at + step
+
+
+def patch_analog_offset(path, offsets):
+    """Overwrite the int16 values of ANALOG:OFFSET in an Intel C3D file."""
+    raw = bytearray(Path(path).read_bytes())
+    kind, dims, at = parameter_data(raw, "ANALOG", "OFFSET")
+    assert kind == 2 and dims == [len(offsets)]
+    struct.pack_into(f"<{len(offsets)}h", raw, at, *[int(o) for o in offsets])
+    Path(path).write_bytes(bytes(raw))
 
 
 def write_plates(path, plates, values, *, point_rate=100.0, ratio=10, scale=None,
@@ -543,6 +549,130 @@ def test_never_loaded_plate_and_no_plates(tmp_path):
     assert any("never loaded" in note for note in plate.notes)
     empty = write_plates(tmp_path / "none.c3d", [], np.zeros((100, 2)), units=["N", "N"])
     assert read_force_plates(empty) == []
+
+
+# ---------------------------------------------------------------------------------------
+# Files as vendors write them: the channels' sign, unused plates, force-only files
+# ---------------------------------------------------------------------------------------
+
+def on_the_subject(kind):
+    """Channel edit: the force on the subject instead of the action, as BTS and Qualisys
+    files hold it (Fz < 0 under load along the downward plate z): every force and moment
+    channel negated, type 1's centre-of-pressure channels kept."""
+    sign = np.array([-1.0, -1, -1, 1, 1, -1]) if kind == 1 else -1.0
+    return lambda values: values * sign
+
+
+@pytest.mark.parametrize("pose", ["floor", "tilted"])
+@pytest.mark.parametrize("kind", [1, 2, 3, 4])
+def test_channels_holding_the_force_on_the_subject(tmp_path, kind, pose):
+    """The same load written both ways gives the same reaction.  ezc3d takes the channels
+    as they are: for a file holding the force on the subject its force, centre of
+    pressure and free moment are openfdk's (for the action file, their negatives)."""
+    path, force, p, tz = plate_file(tmp_path, kind, pose, edit=on_the_subject(kind))
+    (plate,) = read_force_plates(path, cutoff_hz=0, rate="analog")
+    assert_matches(plate, expected(kind, pose, force, p, tz))
+    (note,) = [n for n in plate.notes if "force on the subject" in n]
+    assert "to -800 N under load; 100.0 %" in note, note
+    theirs, on = ezc3d_platform(path), plate.loaded
+    np.testing.assert_allclose(plate.force, theirs["force"].T, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(plate.cop[on], theirs["center_of_pressure"].T[on] * 1e-3,
+                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(plate.free_moment[on], theirs["Tz"].T[on] * 1e-3, rtol=0, atol=1e-12)
+    action, *_ = plate_file(tmp_path, kind, pose, name="action.c3d")
+    (plate,) = read_force_plates(action, cutoff_hz=0, rate="analog")
+    assert not any("force on the subject" in n for n in plate.notes)
+
+
+@pytest.mark.parametrize("flip", [False, True])
+def test_a_brief_pull_does_not_decide_the_sign(tmp_path, flip):
+    """A plate ringing past zero after the foot leaves (40 N the other way for 10 ms) is
+    not a load: the push decides, and those samples are not loaded."""
+    def ring(values):
+        values = on_the_subject(2)(values) if flip else values.copy()
+        values[530:540, 2] = 40.0 if flip else -40.0
+        return values
+
+    path, force, p, tz = plate_file(tmp_path, 2, edit=ring)
+    (plate,) = read_force_plates(path, cutoff_hz=0, rate="analog")
+    assert any("force on the subject" in n for n in plate.notes) == flip
+    want, rows = expected(2, "floor", force, p, tz), np.r_[0:530, 540:600]
+    np.testing.assert_allclose(plate.force[rows], want["force"][rows], rtol=0, atol=1e-9)
+    assert not plate.loaded[530:540].any() and plate.loaded.sum() == (force[:, 2] > 20).sum()
+
+
+def two_plates(tmp_path, first_corners, first_load=False, name="two.c3d"):
+    """Plate 1 with ``first_corners`` (mm) and no load (or the known load), plate 2 a
+    floor plate under the known load; returns (path, expected of plate 2)."""
+    n = 600
+    force, p, tz = known_load(n, 150, 520)
+    values = channels_for(2, force, p, tz)
+    first = values.copy() if first_load else np.zeros_like(values)
+    placed = (FLOOR, np.array([250.0, 1300.0, 0.0]))
+    plates = [{"type": 2, "corners": first_corners, "origin": ORIGIN_2, "channel": list(range(1, 7))},
+              {"type": 2, "corners": corners_of(*placed), "origin": ORIGIN_2, "channel": list(range(7, 13))}]
+    path = write_plates(tmp_path / name, plates, np.column_stack((first, values)), units=UNITS[2] * 2)
+    return path, expected(2, placed, force, p, tz)
+
+
+@pytest.mark.parametrize("corners, words", [
+    (np.zeros((4, 3)), "plate 1 has zero area"),
+    (corners_of(FLOOR, np.array([2e5, 0.0, 0.0])), "plate 1 lies outside the lab (a corner coordinate of 200 m"),
+])
+def test_a_plate_whose_corners_are_no_plate(tmp_path, corners, words):
+    """Some writers leave unused plates' parameters uninitialised (ezc3d's FP_Type1
+    sample: corners of 1e10 m).  Never loaded, such a plate is left out with a warning and
+    the others keep their names; loaded, it is refused."""
+    from openfdk.io.ground_reactions import _plate_key
+
+    path, want = two_plates(tmp_path, corners)
+    with pytest.warns(UserWarning) as caught:
+        (plate,) = read_force_plates(path, cutoff_hz=0, rate="analog")
+    (message,) = [str(w.message) for w in caught]
+    assert message.startswith(f"{path}: FORCE_PLATFORM:CORNERS: {words}"), message
+    assert message.endswith("FP1 never carries more than 0 N, so it is left out")
+    assert plate.name == "FP2" and _plate_key(plate) == {"FP2", "plate2", "2"}
+    assert_matches(plate, want)
+    loaded, _ = two_plates(tmp_path, corners, first_load=True, name="loaded.c3d")
+    assert_refused(loaded, "FORCE_PLATFORM:CORNERS", words)
+
+
+def force_only_file(tmp_path, corners_scale=1.0, name="force_only.c3d"):
+    """A Kistler BioWare-like file: no 3D points, POINT:RATE and the header's rate 0,
+    POINT:UNITS blank, ANALOG:UNITS padded with NUL (``N\\0``); one type-3 plate under the
+    known load.  Returns (path, force, p, tz)."""
+    n_frames = 60
+    path, force, p, tz = plate_file(
+        tmp_path, 3, n_frames=n_frames, name=name, points=np.zeros((0, n_frames, 3)), labels=[],
+        point_units="", units=["N#"] * 8,
+        plate={"corners": corners_of(*POSES["floor"]) * corners_scale})
+    raw = bytearray(path.read_bytes())
+    struct.pack_into("<f", raw, 20, 0.0)                       # header words 11–12: rate
+    kind, dims, at = parameter_data(raw, "POINT", "RATE")
+    assert kind == 4
+    struct.pack_into("<f", raw, at, 0.0)
+    kind, dims, at = parameter_data(raw, "ANALOG", "UNITS")
+    assert kind == -1 and dims == [2, 8]
+    raw[at:at + 16] = b"N\x00" * 8
+    path.write_bytes(bytes(raw))
+    return path, force, p, tz
+
+
+def test_a_force_only_file(tmp_path):
+    """No markers, no frame rate, no length unit: the frame is the header's analog samples
+    per frame, the unit mm (the plate then measures 780 × 650 mm), each with a note."""
+    path, force, p, tz = force_only_file(tmp_path)
+    with pytest.raises(C3DError, match="contains no 3D points"):
+        read_c3d(path)
+    (plate,) = read_force_plates(path, cutoff_hz=0, rate="analog")
+    assert plate.rate == 1000.0
+    assert_matches(plate, expected(3, "floor", force, p, tz))
+    assert "POINT:UNITS is blank: CORNERS and ORIGIN read in mm (a 780 × 650 mm plate)" in plate.notes
+    (frames,) = read_force_plates(path, cutoff_hz=0)
+    assert frames.rate == 100.0
+    assert_matches(frames, expected(3, "floor", force, p, tz), rows=slice(None, None, 10))
+    metres, *_ = force_only_file(tmp_path, corners_scale=1e-3, name="metres.c3d")
+    assert_refused(metres, "POINT:UNITS", "blank", "0.78 × 0.65 mm", "give POINT:UNITS")
 
 
 def test_mutated_files_read_or_refused(tmp_path):

@@ -42,10 +42,12 @@ def _model(folder, spec):
     return path
 
 
-def _trial(folder, n_frames=40, ratio=10, feet=None):
+def _trial(folder, n_frames=40, ratio=10, feet=None, on_the_subject=False):
+    """``on_the_subject``: the channels hold the force on the subject (BTS, Qualisys),
+    not the action on the plate."""
     n = n_frames * ratio
     force, p, tz = known_load(n, 8 * ratio, (n_frames - 8) * ratio)
-    values = channels_for(2, force, p, tz)
+    values = channels_for(2, force, p, tz) * (-1.0 if on_the_subject else 1.0)
     rotation, centre = POSES["floor"]
     plate = {"type": 2, "corners": corners_of(rotation, centre), "origin": ORIGIN_2, "channel": list(range(1, 7))}
     markers = (P_WB + MARKERS_B) * 1000.0
@@ -59,9 +61,10 @@ def _trial(folder, n_frames=40, ratio=10, feet=None):
     return path, expected(2, "floor", force, p, tz)
 
 
-@pytest.mark.parametrize("chunks", [[], ["--chunks", "2", "--workers", "0"]], ids=["serial", "chunks"])
-def test_a_plate_under_a_welded_block_gives_the_closed_form_reaction(tmp_path, capsys, chunks):
-    trial, want = _trial(tmp_path)
+@pytest.mark.parametrize("chunks, on_the_subject", [([], False), (["--chunks", "2", "--workers", "0"], False),
+                                                    ([], True)], ids=["serial", "chunks", "force-on-subject"])
+def test_a_plate_under_a_welded_block_gives_the_closed_form_reaction(tmp_path, capsys, chunks, on_the_subject):
+    trial, want = _trial(tmp_path, on_the_subject=on_the_subject)
     model = _model(tmp_path, {"plates": {"plate1": {"body": "foot"}}, "threshold_n": 20.0, "cutoff_hz": 0})
     code = main(["run", str(model), str(trial), "--out", str(tmp_path / "out"), "-q", *chunks])
     assert code == 0, capsys.readouterr().err
@@ -84,6 +87,8 @@ def test_a_plate_under_a_welded_block_gives_the_closed_form_reaction(tmp_path, c
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     (stances,) = summary["input"]["ground_reactions"].values()  # the plate's name in the file: FP1
     assert len(stances) == 1 and stances[0]["body"] == "foot"
+    notes = summary["input"].get("force_plate_notes", {}).get("FP1", [])
+    assert any("force on the subject" in note for note in notes) == on_the_subject
     # the viewer draws the plate's force at its centre of pressure
     from openfdk.viewer.frames import grf_frames
     from openfdk.viewer.results import read_results

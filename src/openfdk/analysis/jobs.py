@@ -178,7 +178,8 @@ def analysis_inputs(model, trial_path=None, cutoff_hz=None, start=None, end=None
 def _with_ground_reactions(model, settings, trial_path, traj, cutoff_hz, info):
     """The model with the trial's force plates as loads on its feet when the settings
     assign them (``ground_reactions``; :mod:`openfdk.io.ground_reactions`); the
-    assignment of every stance goes to ``info["ground_reactions"]``."""
+    assignment of every stance goes to ``info["ground_reactions"]``, what the plates'
+    reading assumed (sign convention, ORIGIN, units) to ``info["force_plate_notes"]``."""
     spec = getattr(settings, "ground_reactions", None)
     if not spec:
         return model
@@ -190,8 +191,10 @@ def _with_ground_reactions(model, settings, trial_path, traj, cutoff_hz, info):
 
     if cutoff_hz is None:
         cutoff_hz = settings.kinematics.get("marker_cutoff_hz", DEFAULT_CUTOFF_HZ)
-    loads, report = plate_loads(model, trial_path, spec, traj.trial, cutoff_hz)
+    loads, report, notes = plate_loads(model, trial_path, spec, traj.trial, cutoff_hz)
     info["ground_reactions"] = report
+    if notes:
+        info["force_plate_notes"] = notes
     return replace(model, external_loads=tuple(model.external_loads) + loads)
 
 

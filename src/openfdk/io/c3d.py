@@ -206,6 +206,12 @@ def _decode_floats(raw: bytes, processor: int) -> np.ndarray:
     return np.frombuffer(raw, dtype=(">f4" if processor == 86 else "<f4")).astype(float)
 
 
+def _text(raw: bytes) -> str:
+    """A character parameter's entry: up to its first NUL (Kistler BioWare pads units
+    as ``N\\0``), blanks stripped."""
+    return raw.split(b"\x00", 1)[0].decode("latin-1").strip()
+
+
 def _int8(byte: int) -> int:
     """A byte read as a signed 8-bit integer."""
     return byte - 256 if byte > 127 else byte
@@ -277,10 +283,10 @@ def _parse_parameters(buf: bytes, processor: int, name: str) -> dict:
             record_end = data_end + 1 + buf[data_end]
             raw = bytes(buf[data_pos:data_end])
             if data_type == -1 and n_dims <= 1:
-                value = [raw.decode("latin-1").strip()]
+                value = [_text(raw)]
             elif data_type == -1:                          # dims[0] = string length
                 width = dims[0]
-                value = [raw[i * width:(i + 1) * width].decode("latin-1").strip()
+                value = [_text(raw[i * width:(i + 1) * width])
                          for i in range(n_values // width if width else 0)]
             elif data_type == 1:
                 value = np.frombuffer(raw, dtype=np.uint8).astype(float)
@@ -430,9 +436,11 @@ def inspect_c3d(path: str | os.PathLike) -> C3DLayout:
     if param_scale is not None and (param_scale < 0) != is_float:
         raise C3DError(f"{name}: header scale factor {scale_factor:g} and POINT:SCALE "
                        f"{param_scale:g} disagree on float vs integer storage")
-    if n_points == 0 and param_points == 0:
-        raise C3DError(f"{name}: contains no 3D points (header and POINT:USED say 0)")
-    if not (np.isfinite(param_rate) and param_rate > 0):
+    if n_points == 0 and param_points == 0 and not (n_analog_values or
+                                                    _first_number(parameters, "ANALOG:USED")):
+        raise C3DError(f"{name}: contains no 3D points and no analog data (header and "
+                       f"POINT:USED say 0 points)")
+    if (n_points or param_points) and not (np.isfinite(param_rate) and param_rate > 0):
         raise C3DError(f"{name}: point rate is {param_rate}, expected a positive rate in Hz")
 
     labels = [lab for key, value in parameters.items() if _is_continuation(key, "POINT:LABELS")
@@ -447,7 +455,7 @@ def inspect_c3d(path: str | os.PathLike) -> C3DLayout:
                   if analog_samples_per_frame else 0)
     param_channels = _as_count(_first_number(parameters, "ANALOG:USED"))
     analog_rate = _first_number(parameters, "ANALOG:RATE")
-    param_samples = (round(analog_rate / param_rate) if analog_rate
+    param_samples = (round(analog_rate / param_rate) if analog_rate and param_rate > 0
                      else analog_samples_per_frame)
     channels_needed = max(n_channels, param_channels or 0)
     if channels_needed and not any(k.startswith("SHADOW:") for k in parameters):
@@ -541,6 +549,8 @@ def read_c3d(path: str | os.PathLike) -> MarkerTrial:
     """
     name = os.fspath(path)
     layout = inspect_c3d(name)
+    if not (layout.n_points or _first_number(layout.parameters, "POINT:USED")):
+        raise C3DError(f"{name}: contains no 3D points (header and POINT:USED say 0)")
     try:
         c3d = ezc3d.c3d(name)
     except Exception as exc:  # ezc3d raises RuntimeError/IOError/ValueError by cause

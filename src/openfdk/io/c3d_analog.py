@@ -186,6 +186,13 @@ def read_analog(path: str | os.PathLike) -> AnalogData:
     parameters = layout.parameters
     processor = PROCESSOR_CODES[layout.processor]
     point_rate = _first_number(parameters, "POINT:RATE") or layout.rate
+    if not point_rate > 0 and layout.analog_samples_per_frame:
+        # no 3D points and no frame rate (a force-only Kistler BioWare file): the frame is
+        # the header's analog samples per frame (word 10)
+        point_rate = (_first_number(parameters, "ANALOG:RATE") or 0.0) / layout.analog_samples_per_frame
+    if not (np.isfinite(point_rate) and point_rate > 0):
+        raise C3DError(f"{name}: no frame rate: POINT:RATE, the header's rate and "
+                       f"ANALOG:RATE are not positive")
     n_points = _as_count(_first_number(parameters, "POINT:USED"))
     n_points = layout.n_points if n_points is None else n_points
     n_frames = _as_count(_first_number(parameters, "POINT:FRAMES")) or layout.n_frames

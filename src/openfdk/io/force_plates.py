@@ -12,9 +12,14 @@ Plate frame.  Corners are numbered by quadrant of the plate's x–y plane: 1 (+x
 4 → 1 and 3 → 2, z = x × y normalised (down, into a floor plate), y = z × x: any
 orientation in the lab.  The surface centre C is the mean of the corners.
 
-Action and reaction.  The channels measure the action of the subject on the plate, in the
-plate frame (standing on a floor plate gives Fz > 0); every output is the reaction on the
-subject, the negative of the action.
+Action and reaction.  Every output is the reaction on the subject.  The channels' sign
+convention is the vendor's: some write the action of the subject on the plate (Kistler's
+BioWare: standing on a floor plate gives Fz > 0 along the plate's downward z), others the
+force on the subject (BTS, Qualisys: Fz < 0 under load).  A subject pushes on a plate and
+cannot pull it, so the sign is read from the data, per plate: the plate-normal force's
+excursions beyond ``threshold_n`` on either side are summed, and the larger side is the
+push (:func:`_push_sign`).  Channels that hold the force on the subject are read with
+their sign reversed, with a note; a plate never loaded keeps the action convention.
 
 ORIGIN.  For types 2 and 4 it is the vector from the plate's sensor origin O (where a
 force gives no moment) to the surface centre C, in plate coordinates (c3d.org, TYPE-2:
@@ -63,12 +68,18 @@ low-pass of F and M_C → resampling → centre of pressure and free moment → 
   the samples of a frame was not chosen: its mean belongs to the middle of the frame,
   a lag of (samples − 1) / (2 × analog rate) (4.5 ms at 1000/100 Hz) against the markers,
   and a box-car is a poor low-pass.  ``rate='analog'`` keeps every sample.
-* Threshold: a frame is loaded when the plate-normal action Fz (the vertical force of a
-  floor plate) exceeds ``threshold_n``; elsewhere the centre of pressure and free moment
+* Threshold: a frame is loaded when the plate-normal action Fz (the vertical push on a
+  floor plate, after the sign above) exceeds ``threshold_n``; elsewhere the centre of pressure and free moment
   are NaN (force and moment are kept as measured).
 * NaN analog data: the frames concerned are flagged (``invalid``, ``loaded`` False, a
   note); runs of finite samples are filtered separately (runs not longer than the
   filter's padding are left unfiltered).  Never an exception.
+
+* A plate whose CORNERS are no plate (zero area, not finite, or beyond
+  ``MAX_LAB_COORDINATE_M`` of the lab origin: some writers leave unused plates'
+  parameters uninitialised) is left out with a warning when its channels never exceed
+  ``threshold_n``, and refused otherwise.  The others keep their names (``FP1`` … by
+  ``FORCE_PLATFORM`` order).
 
 ezc3d's extraction (``extract_forceplat_data=True``) is not used: the centre of pressure
 must come from the filtered F and M, and it is wrong in places (docs/force-plates.md);
@@ -78,12 +89,13 @@ tests/test_force_plates.py checks this module against it where it is right.
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from openfdk.io.butterworth import butter_lowpass_sos, filtfilt_padlen, sosfiltfilt
-from openfdk.io.c3d import UNIT_TO_METRE, C3DError
+from openfdk.io.c3d import MAX_LAB_COORDINATE_M, UNIT_TO_METRE, C3DError
 from openfdk.io.c3d_analog import AnalogData, parameter_values, read_analog
 from openfdk.io.markers import visible_segments
 
@@ -160,15 +172,17 @@ class _Plate:
     type: int
     channels: np.ndarray          # 0-based analog channel indices
     corners: np.ndarray           # (4, 3) m
-    rotation: np.ndarray          # (3, 3) plate → lab
+    rotation: np.ndarray | None   # (3, 3) plate → lab; None: CORNERS are no plate (notes[0])
     r: np.ndarray                 # (3,) m, C − O in plate coordinates
     ab: tuple[float, float]       # type 3 sensor offsets, m
     cal: np.ndarray | None        # type 4 (6, 6)
     notes: list
 
 
-def _values(analog: AnalogData, key: str, n_plates: int, per_plate: int, need: str):
-    """Flat numbers of ``FORCE_PLATFORM:key``, at least ``per_plate × n_plates``."""
+def _values(analog: AnalogData, key: str, n_plates: int, per_plate: int, need: str,
+            finite: bool = True):
+    """Flat numbers of ``FORCE_PLATFORM:key``, at least ``per_plate × n_plates`` (all
+    finite when ``finite``)."""
     value = parameter_values(analog.parameters, f"FORCE_PLATFORM:{key}")
     where = f"{analog.source}: FORCE_PLATFORM:{key}"
     if value is None or len(value) == 0:
@@ -179,12 +193,17 @@ def _values(analog: AnalogData, key: str, n_plates: int, per_plate: int, need: s
     if len(value) < per_plate * n_plates:
         raise C3DError(f"{where}: {len(value)} values for {n_plates} plates "
                        f"(needs {per_plate} per plate)")
-    if not np.all(np.isfinite(value[:per_plate * n_plates])):
+    if finite and not np.all(np.isfinite(value[:per_plate * n_plates])):
         raise C3DError(f"{where}: holds values that are not finite")
     return value
 
 
 def _plate_frame(corners: np.ndarray, where: str) -> np.ndarray:
+    """Columns: the plate's x, y, z axes in the lab, from ``corners (4, 3)`` m (module
+    docstring); C3DError naming ``where`` when the corners are no plate."""
+    if not np.all(np.isfinite(corners)) or np.abs(corners).max() > MAX_LAB_COORDINATE_M:
+        raise C3DError(f"{where} lies outside the lab (a corner coordinate of "
+                       f"{np.nanmax(np.abs(corners)):.3g} m, beyond {MAX_LAB_COORDINATE_M:g} m)")
     x = 0.5 * ((corners[0] - corners[1]) + (corners[3] - corners[2]))
     y = 0.5 * ((corners[0] - corners[3]) + (corners[1] - corners[2]))
     z = np.cross(x, y)
@@ -205,7 +224,7 @@ def _plates(analog: AnalogData, n_plates: int, metres: float) -> list[_Plate]:
             what = UNSUPPORTED_TYPES.get(int(kind), f"type {kind}")
             raise C3DError(f"{src}: FORCE_PLATFORM:TYPE: plate {p + 1} is {what}, not "
                            f"supported (openfdk reads types 1, 2, 3 and 4)")
-    corners = _values(analog, "CORNERS", n_plates, 12, "")
+    corners = _values(analog, "CORNERS", n_plates, 12, "", finite=False)   # per plate below
     needs_origin = [p for p in range(n_plates) if types[p] != 1]
     origins = (_values(analog, "ORIGIN", n_plates, 3, f", plate {needs_origin[0] + 1} is "
                        f"type {types[needs_origin[0]]}") if needs_origin else None)
@@ -233,7 +252,10 @@ def _plates(analog: AnalogData, n_plates: int, metres: float) -> list[_Plate]:
             raise C3DError(f"{src}: FORCE_PLATFORM:CHANNEL: plate {p + 1} uses analog channel "
                            f"{bad[0]:g}, the file has {analog.n_channels} analog channels")
         c = corners[12 * p:12 * p + 12].reshape(4, 3) * metres
-        rotation = _plate_frame(c, f"{src}: FORCE_PLATFORM:CORNERS: plate {p + 1}")
+        try:
+            rotation = _plate_frame(c, f"{src}: FORCE_PLATFORM:CORNERS: plate {p + 1}")
+        except C3DError as exc:        # read_force_plates: left out if never loaded
+            rotation, notes = None, [str(exc)]
         r, ab, matrix = np.zeros(3), (0.0, 0.0), None
         if kind != 1:
             r = origins[3 * p:3 * p + 3] * metres
@@ -264,6 +286,28 @@ def _plates(analog: AnalogData, n_plates: int, metres: float) -> list[_Plate]:
                 raise C3DError(f"{src}: FORCE_PLATFORM:CAL_MATRIX: plate {p + 1} is all zeros")
         plates.append(_Plate(p, kind, numbers.astype(int) - 1, c, rotation, r, ab, matrix, notes))
     return plates
+
+
+#: plate edge lengths (m) that make a blank POINT:UNITS millimetres
+PLATE_EDGE_RANGE_M = (0.1, 3.0)
+
+
+def _blank_units_as_mm(source: str, plates: list[_Plate]) -> None:
+    """A blank POINT:UNITS (a file without 3D points: Kistler BioWare) is read as mm,
+    the C3D custom, when every plate's edges then measure within PLATE_EDGE_RANGE_M;
+    a note on each plate, C3DError otherwise."""
+    lo, hi = PLATE_EDGE_RANGE_M
+    for plate in plates:
+        if plate.rotation is None:
+            continue
+        c = plate.corners
+        edges = np.linalg.norm(c - np.roll(c, 1, axis=0), axis=1)
+        size = f"{edges[1] * 1e3:.3g} × {edges[0] * 1e3:.3g} mm"
+        if not (edges.min() >= lo and edges.max() <= hi):
+            raise C3DError(f"{source}: POINT:UNITS is blank, and FORCE_PLATFORM:CORNERS read "
+                           f"in mm make plate {plate.index + 1} {size}: give POINT:UNITS")
+        plate.notes.append(f"POINT:UNITS is blank: CORNERS and ORIGIN read in mm "
+                           f"(a {size} plate)")
 
 
 def _baseline(analog: AnalogData, x: np.ndarray, notes: list) -> np.ndarray:
@@ -308,6 +352,20 @@ def _wrench(plate: _Plate, analog: AnalogData, metres: float) -> tuple[np.ndarra
         m_o = np.column_stack((b * (fz1 + fz2 - fz3 - fz4), a * (-fz1 + fz2 + fz3 - fz4),
                                b * (-fx12 + fx34) + a * (fy14 - fy23)))
     return f, m_o - np.cross(plate.r, f)
+
+
+def _push_sign(fz: np.ndarray, threshold_n: float) -> tuple[float, float, float]:
+    """(sign, push, pull) of the plate-normal channel force ``fz (n,)`` N: ``sign`` +1
+    when the channels hold the action on the plate (the subject pushes along +z), −1 when
+    they hold the force on the subject; ``push`` and ``pull`` are the summed excursions
+    beyond ``threshold_n`` of the side taken and of the other (N × samples).  With no
+    excursion, +1 (the C3D description's action)."""
+    fz = fz[np.isfinite(fz)]
+    positive = float(np.sum(np.maximum(fz - threshold_n, 0.0)))
+    negative = float(np.sum(np.maximum(-fz - threshold_n, 0.0)))
+    if negative > positive:
+        return -1.0, negative, positive
+    return 1.0, positive, negative
 
 
 def _lowpass(x: np.ndarray, cutoff_hz: float | None, rate: float) -> np.ndarray:
@@ -361,11 +419,13 @@ def read_force_plates(path: str | os.PathLike, threshold_n: float = DEFAULT_THRE
     if n_plates == 0:
         return []
     units = (analog.parameters.get("POINT:UNITS") or [""])[0].strip().lower()
-    if units not in UNIT_TO_METRE:
+    if units not in UNIT_TO_METRE and units:
         raise C3DError(f"{analog.source}: POINT:UNITS: {units!r}, expected mm, cm or m "
                        f"(the unit of FORCE_PLATFORM:CORNERS and ORIGIN)")
-    metres = UNIT_TO_METRE[units]
+    metres = UNIT_TO_METRE[units or "mm"]
     plates = _plates(analog, n_plates, metres)
+    if not units:
+        _blank_units_as_mm(analog.source, plates)
 
     spf = analog.samples_per_frame
     step = spf if rate == "point" else 1
@@ -375,6 +435,21 @@ def read_force_plates(path: str | os.PathLike, threshold_n: float = DEFAULT_THRE
     for plate in plates:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):   # NaN: flagged
             f, m_c = _wrench(plate, analog, metres)
+            sign, push, pull = _push_sign(f[:, 2], threshold_n)
+            if plate.rotation is None:
+                if push > 0:
+                    raise C3DError(plate.notes[0])
+                peak = float(np.nanmax(np.abs(f[:, 2]), initial=0.0))
+                warnings.warn(f"{plate.notes[0]}; FP{plate.index + 1} never carries more than "
+                              f"{peak:.3g} N, so it is left out")
+                continue
+            if sign < 0:
+                plate.notes.append(
+                    f"the channels hold the force on the subject (plate-normal force to "
+                    f"{np.nanmin(f[:, 2]):.4g} N under load; {100 * push / (push + pull):.1f} % "
+                    f"of its excursions beyond ±{threshold_n:g} N are negative): read with the "
+                    f"sign reversed")
+                f, m_c = -f, -m_c
             wrench = _lowpass(np.column_stack((f, m_c)), cutoff, analog.rate)[::step]
             f, m_c, fz = wrench[:, :3], wrench[:, 3:], wrench[:, 2]
             cx, cy = -m_c[:, 1] / fz, m_c[:, 0] / fz

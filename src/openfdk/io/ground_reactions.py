@@ -80,8 +80,9 @@ def check_spec(spec, model, source):
     return out
 
 
-def _plate_key(plate, k):
-    return {plate.name, f"plate{k + 1}", str(k + 1)}
+def _plate_key(plate):
+    number = plate.name[2:]          # FP<k>: a plate left out keeps the others' numbers
+    return {plate.name, f"plate{number}", number}
 
 
 def _stances(loaded):
@@ -99,8 +100,9 @@ def _stances(loaded):
 
 
 def plate_loads(model, trial_path, spec, marker_trial, default_cutoff_hz):
-    """(loads, report): DataLoads (one per plate and body) of the trial's plates, and
-    {plate: [{start_s, end_s, body or None, reason}]} of every stance."""
+    """(loads, report, notes): DataLoads (one per plate and body) of the trial's plates,
+    {plate: [{start_s, end_s, body or None, reason}]} of every stance, and {plate: [what
+    the reading assumed or flagged]} (ForcePlateData.notes) for the plates with notes."""
     from ..forces.data_loads import DataLoad
     from .force_plates import read_force_plates
 
@@ -108,8 +110,9 @@ def plate_loads(model, trial_path, spec, marker_trial, default_cutoff_hz):
     plates = read_force_plates(trial_path, threshold_n=spec["threshold_n"], cutoff_hz=cutoff or 0)
     index = {b.name: b.index for b in model.bodies}
     loads, report = [], {}
-    for k, plate in enumerate(plates):
-        explicit = next((body for key, body in spec["plates"].items() if key in _plate_key(plate, k)), None)
+    notes = {plate.name: list(plate.notes) for plate in plates if plate.notes}
+    for plate in plates:
+        explicit = next((body for key, body in spec["plates"].items() if key in _plate_key(plate)), None)
         loaded = np.asarray(plate.loaded, bool) & np.all(np.isfinite(plate.force), axis=1)
         stances = _stances(loaded)
         owner = np.full(len(plate.time), None, dtype=object)
@@ -144,7 +147,7 @@ def plate_loads(model, trial_path, spec, marker_trial, default_cutoff_hz):
             loads.append(DataLoad(f"{plate.name}_unassigned", some, SplineThroughData(plate.time, z),
                                   SplineThroughData(plate.time, z), SplineThroughData(plate.time, z),
                                   "world", "world", np.zeros(3), np.eye(3), invalid))
-    return tuple(loads), report
+    return tuple(loads), report, notes
 
 
 def _nearest_foot(feet, trial, plate, a, b):
