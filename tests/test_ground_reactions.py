@@ -163,3 +163,21 @@ def test_nan_plate_data_fails_those_frames_with_the_reason(tmp_path, capsys):
     forces = read_table(tmp_path / "out" / "forces.csv")
     failed = np.flatnonzero(forces["converged"] == 0)
     np.testing.assert_array_equal(failed, [15, 16])
+
+
+def test_a_trial_whose_plates_never_carry_load_is_reported(tmp_path, capsys):
+    """ground_reactions set but no plate ever loaded: the run goes on, the gravity of the
+    welded block alone in its reaction, and says why no ground reaction was applied."""
+    import ezc3d as e
+
+    trial, _ = _trial(tmp_path)
+    c = e.c3d(str(trial))
+    c["data"]["analogs"] = np.zeros_like(c["data"]["analogs"])
+    c.write(str(trial))
+    model = _model(tmp_path, {"plates": {"plate1": {"body": "foot"}}, "cutoff_hz": 0})
+    code = main(["run", str(model), str(trial), "--out", str(tmp_path / "out"), "--no-plots", "-q"])
+    err = capsys.readouterr().err
+    assert code == 0
+    assert f"{trial}: none of its 1 force plates is ever loaded above 20 N; ground_reactions applies no load" in err, err
+    forces = read_table(tmp_path / "out" / "forces.csv")
+    np.testing.assert_allclose(forces["fix.z.reaction"], MASS * 9.81, atol=1e-6)

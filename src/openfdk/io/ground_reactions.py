@@ -108,6 +108,12 @@ def plate_loads(model, trial_path, spec, marker_trial, default_cutoff_hz):
 
     cutoff = spec["cutoff_hz"] if spec["cutoff_hz"] is not None else default_cutoff_hz
     plates = read_force_plates(trial_path, threshold_n=spec["threshold_n"], cutoff_hz=cutoff or 0)
+    if all(plate.never_loaded for plate in plates):
+        import warnings
+
+        what = (f"none of its {len(plates)} force plates is ever loaded above {spec['threshold_n']:g} N"
+                if plates else "it has no force plates (FORCE_PLATFORM:USED is 0 or absent)")
+        warnings.warn(f"{trial_path}: {what}; ground_reactions applies no load")
     index = {b.name: b.index for b in model.bodies}
     loads, report = [], {}
     notes = {plate.name: list(plate.notes) for plate in plates if plate.notes}
