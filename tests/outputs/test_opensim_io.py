@@ -71,6 +71,57 @@ def test_trc_reads_to_the_same_trial_as_c3d_including_gaps(marker_data, tmp_path
     assert isinstance(read_trial(tmp_path / "trial.trc"), type(c3d))
 
 
+def _opensim_markers(path):
+    """labels, times (s) and positions (n, m, 3) in the file's units, as OpenSim 4.6 reads
+    the TRC file."""
+    osim = pytest.importorskip("opensim")
+    table = osim.TimeSeriesTableVec3(str(path))
+    rows, cols = table.getNumRows(), table.getNumColumns()
+    p = np.array([[[table.getDependentColumnAtIndex(j)[i][k] for k in range(3)] for j in range(cols)]
+                  for i in range(rows)])
+    return list(table.getColumnLabels()), np.array(table.getIndependentColumn()), p
+
+
+@pytest.mark.parametrize("between", ["\t", ""], ids=["one-empty-cell", "none"])
+def test_trc_names_listed_in_order_are_read_as_opensim_reads_them(tmp_path, between):
+    """OpenSim's Matlab utilities write line 4 as Frame#, Time, '', name, '', name …
+    (its IK test data, std_walking2_markers.trc), an IMU export writes the names side by
+    side: both are the names in order when there are NumMarkers of them."""
+    t, labels, x, _ = synthetic_markers(60, rate=100.0, noise=0.0)   # no gaps: OpenSim
+    write_trc_opensim_layout(tmp_path / "standard.trc", labels, x * 1e3, 100.0)   # drops empty cells
+    text = (tmp_path / "standard.trc").read_text().splitlines()
+    text[3] = "Frame#\tTime\t" + between + (between + "\t").join(labels)
+    (tmp_path / "listed.trc").write_text("\n".join(text) + "\n")
+    listed, standard = read_trc(tmp_path / "listed.trc"), read_trc(tmp_path / "standard.trc")
+    assert listed.labels == standard.labels == tuple(labels)
+    np.testing.assert_array_equal(listed.positions, standard.positions)
+    names, times, p = _opensim_markers(tmp_path / "listed.trc")
+    assert tuple(names) == listed.labels
+    np.testing.assert_allclose(listed.time, times, atol=1e-12)
+    np.testing.assert_allclose(listed.positions, p * 1e-3, atol=1e-15, rtol=1e-13)
+    text[3] = "Frame#\tTime\t\t" + "\t\t".join(labels[1:])   # one name missing: refused
+    (tmp_path / "short.trc").write_text("\n".join(text) + "\n")
+    with pytest.raises(TRCError, match="short.trc: line 4"):
+        read_trc(tmp_path / "short.trc")
+
+
+def test_trc_with_fewer_rows_than_num_frames_reads_its_rows_with_a_warning(tmp_path):
+    """OpenSim's walk_free_01.trc (its Matlab examples) declares 900 frames and holds 73:
+    OpenSim reads the 73 rows silently; openfdk reads them and says so."""
+    t, labels, x, _ = synthetic_markers(60, rate=100.0, noise=0.0)
+    write_trc_opensim_layout(tmp_path / "cut.trc", labels, x * 1e3, 100.0)
+    lines = (tmp_path / "cut.trc").read_text().splitlines()
+    lines[2] = lines[2].replace("\t60\t", "\t900\t", 1)
+    (tmp_path / "cut.trc").write_text("\n".join(lines[:6 + 25]) + "\n")
+    with pytest.warns(UserWarning, match=r"cut.trc: NumFrames on line 3 is 900, the file has 25 data "
+                                         r"rows; the 25 rows are read"):
+        trc = read_trc(tmp_path / "cut.trc")
+    assert trc.n_frames == 25
+    np.testing.assert_allclose(trc.positions, x[:25], atol=1e-15, rtol=1e-13)
+    names, times, p = _opensim_markers(tmp_path / "cut.trc")
+    assert len(times) == 25 and tuple(names) == trc.labels
+
+
 def test_trc_all_zero_samples_are_gaps_as_in_c3d(marker_data, tmp_path):
     """Exporters (the Knee Grand Challenge's TRCs among them) write a gap as ``-0 0 0``;
     the C3D reader already reads all-zero points as missing, and the TRC reader must agree."""

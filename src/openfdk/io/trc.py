@@ -7,7 +7,9 @@ Layout (OpenSim documentation, "Marker (.trc) Files"), tab separated:
   Units OrigDataRate OrigDataStartFrame OrigNumFrames``;
 * line 3: their values, in the same order;
 * line 4: ``Frame#  Time  <marker 1>  ''  ''  <marker 2> …`` (a marker's name sits over
-  its x column, followed by two empty cells);
+  its x column, followed by two empty cells; names listed in order otherwise, with
+  fewer or no empty cells between them, are read when there are NumMarkers of them, as
+  OpenSim reads them);
 * line 5: ``''  ''  X1  Y1  Z1  X2 …``;
 * an optional blank line, then one row per frame: frame number, time (s), then x y z of
   every marker.  A missing sample is an empty cell or not-a-number in any spelling C
@@ -17,6 +19,7 @@ Layout (OpenSim documentation, "Marker (.trc) Files"), tab separated:
   exactly zero is missing too: many exporters write gaps so (as C3D readers do, see
   :func:`openfdk.io.c3d.read_c3d`), and no real marker sits exactly on the lab origin.
 
+A ``NumFrames`` other than the number of data rows is a warning, and the rows are read.
 What is used: ``DataRate`` (Hz) is the trial's rate, ``Units`` (mm, cm or m) converts the
 positions to metres once, here (docs/design.md §4); times are the ``Time`` column (which OpenSim
 defines as (frame − OrigDataStartFrame)/DataRate).  The header fields are found by name,
@@ -164,6 +167,11 @@ def read_trc(path: str | os.PathLike) -> MarkerTrial:
         labels = label_cells[2:]
     while labels and labels[-1] == "":
         labels.pop()
+    listed = [c for c in label_cells[2:] if c]
+    if ("" in labels or len(labels) != int(n_declared)) and len(listed) == int(n_declared):
+        # the names in order, not over their x columns (OpenSim's Matlab utilities put one
+        # empty cell between names; an IMU export none): as OpenSim reads them
+        labels = listed
     if "" in labels:
         raise TRCError(f"{name}: line 4: marker {labels.index('') + 1} has no name")
     if len(labels) != int(n_declared):
@@ -197,7 +205,12 @@ def read_trc(path: str | os.PathLike) -> MarkerTrial:
     if "NumFrames" in header and header["NumFrames"] != "":
         declared = _count(header["NumFrames"], name, 3, "NumFrames")
         if declared != len(rows):
-            raise TRCError(f"{name}: NumFrames on line 3 is {declared}, the file has {len(rows)} data rows")
+            # OpenSim's own example trials were cut short without their header (walk_free_01:
+            # 900 declared, 73 rows): read as OpenSim reads them, and say so
+            import warnings
+
+            warnings.warn(f"{name}: NumFrames on line 3 is {declared}, the file has {len(rows)} data "
+                          f"rows; the {len(rows)} rows are read")
 
     times = _uniform_times(np.array(times), rate, time_cells)
     p = np.array(rows).reshape(len(rows), n_markers, 3) * UNIT_TO_METRE[units]
