@@ -367,6 +367,58 @@ def test_sto_files_round_trip_exactly(slider_run):
     assert any("Text columns not stored: status, message" in c for c in comments)
 
 
+def _opensim_table(path):
+    """labels and (n, m) values of a storage file as OpenSim 4.6 reads it."""
+    osim = pytest.importorskip("opensim")
+    table = osim.TimeSeriesTable(str(path))
+    values = np.array([[table.getDependentColumnAtIndex(j)[i] for j in range(table.getNumColumns())]
+                       for i in range(table.getNumRows())])
+    return list(table.getColumnLabels()), np.array(table.getIndependentColumn()), values
+
+
+STO_HEADER = "states\nversion=1\nnRows=3\nnColumns=4\ninDegrees=no\nendheader\n"
+
+
+@pytest.mark.parametrize("body, labels", [
+    ("\t\t\n  \n\ntime\ta\tb\tc\n", ["a", "b", "c"]),      # blank lines after endheader (test.sto)
+    ("time\ta\t\tb\tc\t\n", ["a", "b", "c"]),                # a double tab between labels (SinglePin)
+], ids=["blank-lines", "double-tab"])
+def test_sto_layouts_of_opensim_s_own_files_read_as_opensim_reads_them(tmp_path, body, labels):
+    rows = np.array([[0.0, 1.5, -2.0, 3.25], [0.01, 1.0, 0.5, -1.0], [0.02, 0.0, 2.0, 4.0]])
+    path = tmp_path / "s.sto"
+    path.write_text(STO_HEADER + body + "".join("\t".join(repr(float(v)) for v in r) + "\n" for r in rows))
+    from openfdk.io.storage import read_storage
+
+    time, columns, _ = read_storage(path)
+    names, t, values = _opensim_table(path)
+    assert list(columns) == names == labels
+    np.testing.assert_array_equal(time, t)
+    np.testing.assert_array_equal(np.column_stack(list(columns.values())), values)
+
+
+def test_sto_columns_given_twice(tmp_path):
+    """OpenSim's gait-tutorial IK files (subject01_walk1_ik.mot) label both plates'
+    ground reactions alike: the columns given twice with different values are left out
+    with a warning, and the others read as OpenSim reads them; identical ones are one
+    column; a second 'time' is refused."""
+    from openfdk.io.storage import read_storage
+
+    rows = np.array([[0.0, 0.1, 10.0, 20.0, 7.0, 7.0], [0.01, 0.2, 11.0, 21.0, 8.0, 8.0]])
+    path = tmp_path / "ik.mot"
+    path.write_text(STO_HEADER + "time\tknee\tground_force_vy\tground_force_vy\tx\tx\n"
+                    + "".join("\t".join(repr(float(v)) for v in r) + "\n" for r in rows))
+    with pytest.warns(UserWarning, match=r"ik.mot: line 7: columns \['ground_force_vy'\] are given twice "
+                                         r"with different values; they are not read"):
+        time, columns, _ = read_storage(path)
+    assert list(columns) == ["knee", "x"]
+    names, _, values = _opensim_table(path)
+    for label in columns:
+        np.testing.assert_array_equal(columns[label], values[:, names.index(label)])
+    path.write_text(STO_HEADER + "time\ta\ttime\n0\t1\t0\n0.1\t2\t0.1\n")
+    with pytest.raises(ValueError, match="column 'time' is given twice"):
+        read_storage(path)
+
+
 def test_write_storage_nan_and_header(tmp_path):
     from openfdk.io.storage import write_storage
 

@@ -25,7 +25,7 @@ import csv
 import math
 import os
 import stat
-from collections import Counter
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -132,17 +132,17 @@ def read_storage(path):
             if value not in ("yes", "no"):
                 raise ValueError(f"{path.name}: line {k}: inDegrees must be yes or no, got {line.strip()[:40]!r}")
             in_degrees = value == "yes"
+    while end + 1 < len(lines) and not lines[end + 1].strip():   # blank lines (OpenSim skips them)
+        end += 1
     if end + 1 >= len(lines):
         raise ValueError(f"{path.name}: no column labels after 'endheader'")
     labels = lines[end + 1].split("\t") if "\t" in lines[end + 1] else lines[end + 1].split()
-    labels = [x.strip() for x in labels]
-    while labels and not labels[-1]:  # trailing tabs (OpenSim's example GRF files end their lines with one)
-        labels.pop()
+    # empty cells are dropped, as from the data rows (split on white space) and by OpenSim's
+    # tokenizer: trailing tabs (OpenSim's example GRF files), a double tab between labels
+    # (its SinglePin_InitialStates.sto)
+    labels = [x.strip() for x in labels if x.strip()]
     if not labels or labels[0].lower() != "time":
         raise ValueError(f"{path.name}: line {end + 2}: the first column must be 'time', got {labels[:1]}")
-    twice = [x for x, n in Counter(labels).items() if n > 1]
-    if twice:
-        raise ValueError(f"{path.name}: line {end + 2}: column {twice[0]!r} is given twice")
     rows = []
     for k, line in enumerate(lines[end + 2:], start=end + 3):
         if not line.strip():
@@ -160,4 +160,18 @@ def read_storage(path):
     data = np.array(rows, dtype=float).reshape(-1, len(labels))
     if not np.all(np.isfinite(data[:, 0])) or np.any(np.diff(data[:, 0]) <= 0):
         raise ValueError(f"{path.name}: the times are not finite and increasing")
-    return data[:, 0], {label: data[:, j] for j, label in enumerate(labels) if j > 0}, in_degrees
+    if labels[0] in labels[1:]:
+        raise ValueError(f"{path.name}: line {end + 2}: column {labels[0]!r} is given twice")
+    columns = {}
+    for j, label in enumerate(labels[1:], start=1):
+        if label in columns and not np.array_equal(columns[label], data[:, j], equal_nan=True):
+            columns[label] = None          # given twice with different values: ambiguous
+        elif label not in columns:
+            columns[label] = data[:, j]
+    twice = [label for label, values in columns.items() if values is None]
+    if twice:
+        # the IK .mot files of OpenSim's gait tutorials carry both plates' ground_force_*
+        # under the same labels: the coordinates are read, those columns are not
+        warnings.warn(f"{path.name}: line {end + 2}: columns {twice} are given twice with different "
+                      f"values; they are not read")
+    return data[:, 0], {label: v for label, v in columns.items() if v is not None}, in_degrees
