@@ -229,7 +229,7 @@ CASES = [
     ("coordinate file of one row", write("coords.mot", MOT.split("0.05")[0]), IK,
      ["column 'knee' of coords.mot: 1 rows"]),
     ("coordinate file column twice", sub("time\thip_q\tknee", "time\tknee\tknee", "coords.mot"), IK,
-     ["coords.mot: line 7: column 'knee' is given twice"]),
+     ["IKCoordinateTask 'knee': column 'knee' is given twice with different values in coords.mot"]),
     ("coordinate file value 1_0", sub("\t-29\n", "\t1_0\n", "coords.mot"), IK,
      ["coords.mot: line 9: column 'knee' is '1_0', expected a number"]),
     ("coordinate file inDegrees=maybe", sub("inDegrees=yes", "inDegrees=maybe", "coords.mot"), IK,

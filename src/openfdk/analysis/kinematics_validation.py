@@ -252,7 +252,7 @@ def read_reference(path, entries, cycle, time_mode="auto", map_name="map"):
         raise ValidationError(f"{path.name}: no rows after the column labels")
     for e in entries:
         if e.column not in columns:
-            raise ValidationError(f"{path.name}: no column {e.column!r} (entry {e.column!r} of {map_name})"
+            raise ValidationError(f"{path.name}: {columns.absent(e.column)} (entry {e.column!r} of {map_name})"
                                   f"{did_you_mean(e.column, columns)}")
         bad = ~np.isfinite(columns[e.column])
         if bad.any():

@@ -110,9 +110,23 @@ def csv_to_sto(csv_path, sto_path=None, name=None) -> Path | None:
     return write_storage(sto_path, time, numeric, name=name or csv_path.stem, comments=comments)
 
 
+class StorageColumns(dict):
+    """{label: (n,) values} of a storage file (:func:`read_storage`); ``twice``: the
+    labels given twice with different values, left out."""
+
+    twice: frozenset = frozenset()
+
+    def absent(self, label) -> str:
+        """Why ``label`` is not a column, for a message: "no column 'x'" or "column 'x' is
+        given twice with different values"."""
+        if label in self.twice:
+            return f"column {label!r} is given twice with different values"
+        return f"no column {label!r}"
+
+
 def read_storage(path):
-    """Read an OpenSim ``.sto``/``.mot`` file: (time (n,) s, {label: (n,) values},
-    in_degrees bool). Values are as in the file (angles in degrees when ``inDegrees=yes``).
+    """Read an OpenSim ``.sto``/``.mot`` file: (time (n,) s, StorageColumns {label: (n,)
+    values}, in_degrees bool). Values are as in the file (angles in degrees when ``inDegrees=yes``).
     Errors are one line naming the file and the line."""
     path = Path(path)
     try:
@@ -174,4 +188,6 @@ def read_storage(path):
         # under the same labels: the coordinates are read, those columns are not
         warnings.warn(f"{path.name}: line {end + 2}: columns {twice} are given twice with different "
                       f"values; they are not read")
-    return data[:, 0], {label: v for label, v in columns.items() if v is not None}, in_degrees
+    out = StorageColumns((label, v) for label, v in columns.items() if v is not None)
+    out.twice = frozenset(twice)
+    return data[:, 0], out, in_degrees

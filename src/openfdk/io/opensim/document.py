@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import OsimError, where
+from .upgrade import OLDEST_READ, upgraded_copy
 from .functions import _NUMBER, FUNCTION_TAGS, function_element, function_spec
 
 #: OpenSim joint types and their SpatialTransform (rotation axes, translation axes,
@@ -409,6 +410,20 @@ def read_document(path, ignore=()) -> OsimDocument:
     except ValueError:
         raise OsimError(f"{source}: line {root.sourceline}: OpenSimDocument Version {_clip(root.get('Version'))!r} is not "
                         "a number") from None
+    if version < OLDEST_READ:                      # OpenSim 1.x, 2.x: OpenSim upgrades it
+        import tempfile
+        import warnings
+
+        from ...model.plausibility import PlausibilityWarning
+
+        with tempfile.TemporaryDirectory(prefix="openfdk-osim-") as folder:
+            new, opensim_version = upgraded_copy(path, version, Path(folder), source)
+            source = f"{source} (as OpenSim {opensim_version} upgrades it)"
+            root = parse_xml(new, source).getroot()
+        warnings.warn(f"{path.name}: OpenSimDocument Version {version} (OpenSim {version // 10000}.x): read as "
+                      f"OpenSim {opensim_version} upgrades it; line numbers in messages are the upgraded file's",
+                      PlausibilityWarning, stacklevel=2)
+        version = int(root.get("Version", "0"))
     model = root.find("Model")
     if model is None:
         raise OsimError(f"{source}: line {root.sourceline}: no <Model> in the OpenSimDocument")
@@ -438,7 +453,14 @@ def parse_xml(path, source):
         limits.check_count(st.st_size, "INPUT_FILE_BYTES", source, "", "bytes", OsimError)
         tree = etree.parse(str(path), _parser())
     except OSError as exc:
-        raise OsimError(f"{source}: cannot read the file ({exc.strerror or exc})") from None
+        if "encoding" not in str(exc) or not Path(path).is_file():
+            raise OsimError(f"{source}: cannot read the file ({exc.strerror or exc})") from None
+        # libxml2 reports bytes that are not UTF-8 as an I/O error
+        from types import SimpleNamespace
+
+        bad = _as_utf8(Path(path).read_bytes())[1]
+        tree = _parse_as_opensim(path, source, SimpleNamespace(msg="bytes that are not UTF-8",
+                                                               lineno=bad[0] if bad else 1))
     except etree.XMLSyntaxError as exc:
         tree = _parse_as_opensim(path, source, exc)
     if tree.docinfo.doctype:
@@ -477,6 +499,7 @@ def _parse_as_opensim(path, source, error):
     from ...model.plausibility import PlausibilityWarning
 
     data = Path(path).read_bytes()
+    data, recoded = _as_utf8(data)
     # a comment may hold a bare '&' or a '::' (and a CDATA section any text): those stay
     kept = [m.span() for m in _VERBATIM.finditer(data)]
 
@@ -485,8 +508,11 @@ def _parse_as_opensim(path, source, error):
 
     bare = [m.start() for m in outside(_BARE_AMPERSAND.finditer(data))]
     scoped = outside(_SCOPED_TAG.finditer(data))
-    if not bare and not scoped:
+    if not bare and not scoped and not recoded:
         raise OsimError(f"{source}: not well-formed XML: {error.msg} (line {error.lineno})") from None
+    if recoded:
+        warnings.warn(f"{source}: {_lines(recoded)}: bytes that are not UTF-8, read as Windows-1252 text "
+                      "(as OpenSim reads the file)", PlausibilityWarning, stacklevel=3)
     edits = sorted([(i, i + 1, b"&amp;") for i in bare] +
                    [(m.end() - 2, m.end(), SCOPE.encode()) for m in scoped])  # (start, end, replacement)
     pieces, at = [], 0
@@ -500,10 +526,45 @@ def _parse_as_opensim(path, source, error):
     if not bare:
         return tree
     lines = sorted({data.count(b"\n", 0, i) + 1 for i in bare})
-    shown = ", ".join(map(str, lines[:5])) + (f" and {len(lines) - 5} more" if len(lines) > 5 else "")
-    warnings.warn(f"{source}: line{'s' if len(lines) > 1 else ''} {shown}: '&' not written '&amp;' (XML's escape); "
+    warnings.warn(f"{source}: {_lines(lines)}: '&' not written '&amp;' (XML's escape); "
                   "read as the character '&', as OpenSim reads the file", PlausibilityWarning, stacklevel=3)
     return tree
+
+
+def _lines(numbers):
+    """'line 5' or 'lines 3, 8, … and 4 more' for a message."""
+    shown = ", ".join(map(str, numbers[:5])) + (f" and {len(numbers) - 5} more" if len(numbers) > 5 else "")
+    return f"line{'s' if len(numbers) > 1 else ''} {shown}"
+
+
+#: an XML declaration's encoding
+_ENCODING = re.compile(rb"""^\s*<\?xml[^>]*encoding\s*=\s*["']([A-Za-z0-9._-]+)["']""")
+
+
+def _as_utf8(data):
+    """(``data`` as UTF-8, the line numbers that were not UTF-8): a file declared UTF-8
+    (or undeclared) whose text holds Windows-1252 bytes (an en dash 0x96 in the
+    publications of opensim-core's subject1_abdbonepin.osim) is read as that encoding,
+    as OpenSim's parser reads it; other files are returned as they are."""
+    declared = _ENCODING.match(data)
+    if declared and declared.group(1).lower().replace(b"_", b"-") not in (b"utf-8", b"utf8"):
+        return data, []
+    try:
+        data.decode("utf-8")
+        return data, []
+    except UnicodeDecodeError:
+        pass
+    lines, out = [], []
+    for k, line in enumerate(data.split(b"\n"), start=1):
+        try:
+            out.append(line.decode("utf-8"))
+        except UnicodeDecodeError:
+            lines.append(k)
+            try:
+                out.append(line.decode("cp1252"))
+            except UnicodeDecodeError:               # 0x81, 0x8D, 0x8F, 0x90, 0x9D
+                out.append(line.decode("latin-1"))
+    return "\n".join(out).encode("utf-8"), lines
 
 
 def _clip(text, n=80):
@@ -675,7 +736,9 @@ class _Reader:
     def read(self, model, version):
         name = model.get("name") or self.path.stem
         units = self.child_text(model, "length_units", "meters")
-        if units.lower() not in ("meters", "m"):
+        # 'Unassigned': OpenSim's Units default, no unit declared (its test models): meters,
+        # as OpenSim computes in them whatever the property says
+        if units.lower() not in ("meters", "m", "unassigned"):
             raise self.err(model.find("length_units"), f"length unit {units!r}: openfdk reads OpenSim models in meters")
         gravity = self.child_numbers(model, "gravity", 3, [0.0, -9.80665, 0.0])
         legacy = version < 40000
@@ -978,9 +1041,9 @@ class _Reader:
         kind = joint.tag
         if kind not in JOINT_TYPES:
             raise self.err(joint, f"joint type {kind} is not supported by openfdk (supported: {', '.join(JOINT_TYPES)})")
-        name = joint.get("name")
-        if not name:
-            raise self.err(joint, "a joint without a name")
+        # a 3.x joint nested in its body may have no name: OpenSim names it by its type
+        # in lower case ('sliderjoint'), and so does openfdk
+        name = joint.get("name") or kind.lower()
         self.once(joint, "joint", name)
         if self.child_bool(joint, "reverse", False):
             raise self.err(joint, "<reverse>true</reverse> joints are not supported")
@@ -1052,7 +1115,7 @@ class _Reader:
             fn = None if fe is None else function_spec(fe, self.source)
         if prescribed and fn is None:
             raise self.err(c, "prescribed but no <prescribed_function>")
-        motion = self.child_text(c, "motion_type", "")
+        motion = self.child_text(c, "motion_type", "").lower()    # 'Coupled' in Moco's example models
         if motion and motion not in ("rotational", "translational", "coupled"):
             raise self.err(c, f"motion_type {motion!r}: expected rotational, translational or coupled")
         coord = OsimCoordinate(name, joint, float(self.child_numbers(c, "default_value", 1, [0.0])[0]),

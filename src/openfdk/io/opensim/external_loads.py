@@ -40,7 +40,7 @@ def _data_columns(path, file, source, force, cache):
     p = path.parent / file
     if p not in cache:
         try:
-            cache[p] = set(read_storage(p)[1])
+            cache[p] = read_storage(p)[1]
         except ValueError as exc:
             raise OsimError(f"{where(source, force)}: data file {file!r}: {exc}") from None
     return cache[p]
@@ -108,7 +108,7 @@ def read_external_loads(path, data, info, cutoff_hz=None):
                 entry[key] = [f"{prefix}{c}" for c in "xyz"]
                 missing = [c for c in entry[key] if c not in columns]
                 if missing:
-                    raise OsimError(f"{where(source, force)}: {tag} {prefix!r}: no column {missing[0]!r} in {file}")
+                    raise OsimError(f"{where(source, force)}: {tag} {prefix!r}: {columns.absent(missing[0])} in {file}")
         if "force" not in entry:
             raise OsimError(f"{where(source, force)}: no <force_identifier>")
         if "point" not in entry:

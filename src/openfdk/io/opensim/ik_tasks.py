@@ -137,7 +137,7 @@ def apply_ik_tasks(data, path, doc_coordinates, dropped=()):
                     raise OsimError(f"{source}: coordinate_file: {exc}") from None
             times, columns, in_degrees = files[f]
             if name not in columns:
-                raise OsimError(f"{source}: line {t['line']}: IKCoordinateTask {name!r}: no column {name!r} in "
+                raise OsimError(f"{source}: line {t['line']}: IKCoordinateTask {name!r}: {columns.absent(name)} in "
                                 f"{Path(f).name}")
             values = columns[name]
             bad = np.flatnonzero(~np.isfinite(values))

@@ -66,6 +66,9 @@ def motion_drivers(path, data, cutoff_hz=None):
             raise OsimError(f"{source}: column {name!r} has non-finite values")
         driven.append((name, np.radians(values) if in_degrees and opensim_in_degrees(c) else values))
     if missing:
+        twice = [name for name in missing if name in columns.twice]
+        if twice:
+            raise OsimError(f"{source}: {columns.absent(twice[0])}; a motion file drives every free coordinate")
         raise OsimError(f"{source}: no column for the coordinates {missing}; a motion file drives every free coordinate")
     if len(times) < 6:
         raise OsimError(f"{source}: {len(times)} sample(s); a motion file needs at least 6 (OpenSim's quintic spline)")
