@@ -190,15 +190,35 @@ def test_quirks_of_opensim_s_own_files(tmp_path):
     assert data["coordinates"] == reference["coordinates"] and data["muscles"] == reference["muscles"]
 
 
-def test_an_unnamed_3x_joint_is_named_by_its_type_as_opensim_names_it(tmp_path):
+def test_unnamed_3x_joints_and_constraints_are_named_by_type_as_opensim_names_them(tmp_path):
     """opensim-core's BushingForceModel_30000.osim nests a SliderJoint without a name in
-    its body; OpenSim 4.6 names it 'sliderjoint'. The pendulum in the 3.x layout, its
-    PinJoint unnamed (and without the 2.x muscle)."""
+    its body, its CoupledCoordinatesMPPsMomentArmTest.osim has a WeldConstraint without
+    one; OpenSim 4.6 names them 'sliderjoint' and 'weldconstraint'. The pendulum in the
+    3.x layout (without the 2.x muscle), its PinJoint unnamed, and a bob on a FreeJoint
+    held to the link by an unnamed WeldConstraint."""
     opensim = pytest.importorskip("opensim")
     text = OLD_PENDULUM.replace('Version="20302"', 'Version="30000"').replace('<PinJoint name="pin">', "<PinJoint>")
     text = text[:text.index("<ForceSet")] + text[text.index("</ForceSet>") + len("</ForceSet>"):]
+    free = "".join(f"<Coordinate name=\"bob_{a}\"><default_value> 0 </default_value><range> -5 5 </range></Coordinate>"
+                   for a in ("rx", "ry", "rz", "tx", "ty", "tz"))
+    bob = f"""<Body name="bob"><mass> 1 </mass><mass_center> 0 0 0 </mass_center>
+          <inertia_xx> 0.01 </inertia_xx><inertia_yy> 0.01 </inertia_yy><inertia_zz> 0.01 </inertia_zz>
+          <inertia_xy> 0 </inertia_xy><inertia_xz> 0 </inertia_xz><inertia_yz> 0 </inertia_yz>
+          <Joint><FreeJoint name="bob_free"><parent_body> ground </parent_body>
+            <location_in_parent> 0 0 0 </location_in_parent><orientation_in_parent> 0 0 0 </orientation_in_parent>
+            <location> 0 0 0 </location><orientation> 0 0 0 </orientation>
+            <CoordinateSet name=""><objects>{free}</objects></CoordinateSet></FreeJoint></Joint></Body>"""
+    weld = """<ConstraintSet><objects><WeldConstraint><isDisabled> false </isDisabled>
+          <body_1> link </body_1><body_2> bob </body_2>
+          <location_body_1> 0 -0.5 0 </location_body_1><orientation_body_1> 0 0 0 </orientation_body_1>
+          <location_body_2> 0 0 0 </location_body_2><orientation_body_2> 0 0 0 </orientation_body_2>
+        </WeldConstraint></objects></ConstraintSet>"""
+    text = text.replace("</objects>\n    </BodySet>", bob + "</objects>\n    </BodySet>" + weld)
     path = tmp_path / "unnamed.osim"
     path.write_text(text)
     data, _ = read_osim(path)
     theirs = opensim.Model(str(path))
-    assert list(data["joints"]) == [theirs.getJointSet().get(0).getName()] == ["pinjoint"]
+    names = [theirs.getJointSet().get(k).getName() for k in range(theirs.getJointSet().getSize())]
+    assert "pinjoint" in names and theirs.getConstraintSet().get(0).getName() == "weldconstraint"
+    assert {"pinjoint", "bob_free", "weldconstraint"} <= set(data["joints"])
+    assert data["joints"]["weldconstraint"]["type"] == "weld"

@@ -1202,7 +1202,7 @@ class _Reader:
 
     # -- constraints and markers ------------------------------------------------------
     def read_constraint(self, c, legacy):
-        kind, name = c.tag, c.get("name") or ""
+        kind, name = c.tag, c.get("name") or c.tag.lower()     # unnamed: by type, as OpenSim names it
         if kind not in CONSTRAINT_TYPES:
             self.skip(c)
             return
