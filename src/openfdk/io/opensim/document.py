@@ -54,7 +54,8 @@ JOINT_TRANSFORMS = {
     "WeldJoint": (((_X, None), (_Y, None), (_Z, None)), ((_X, None), (_Y, None), (_Z, None))),
 }
 JOINT_TYPES = ("CustomJoint",) + tuple(JOINT_TRANSFORMS)
-CONSTRAINT_TYPES = ("CoordinateCouplerConstraint", "WeldConstraint", "PointConstraint")
+CONSTRAINT_TYPES = ("CoordinateCouplerConstraint", "WeldConstraint", "PointConstraint", "ConstantDistanceConstraint",
+                    "PointOnLineConstraint")
 #: elements that carry no physics or kinematics (display settings, metadata)
 _METADATA = {
     "credits", "publications", "length_units", "force_units", "assembly_accuracy", "defaults",
@@ -155,8 +156,11 @@ class OsimJoint:
 @dataclass
 class OsimConstraint:
     """A constraint: CoordinateCouplerConstraint (``independent``, ``dependent``,
-    ``function``), WeldConstraint (``frames``) or PointConstraint (``frames``: two
-    frames whose origins coincide)."""
+    ``function``), WeldConstraint (``frames``), PointConstraint (``frames``: two
+    frames whose origins coincide), ConstantDistanceConstraint (``frames``: two frames
+    whose origins stay ``value`` m apart) or PointOnLineConstraint (``frames``: a frame
+    on the line body at ``point_on_line`` whose x axis is the line's direction, and one
+    at the follower's point, which stays on that x axis)."""
 
     name: str
     type: str
@@ -165,6 +169,7 @@ class OsimConstraint:
     function: dict | None = None
     frames: tuple = ()
     line: int = 0
+    value: float = 0.0
 
 
 @dataclass
@@ -641,6 +646,16 @@ def _affine_in(axis, coordinate):
         return False
     line = affine(function_from_spec(axis.function, axis.name, lambda path, msg: OsimError(f"{path}: {msg}")))
     return line is not None and line[0] != 0.0
+
+
+def _basis_with_x(direction):
+    """(3, 3) rotation whose first column is ``direction`` normalised (the other two
+    complete a right-handed basis; which ones does not matter to a line)."""
+    x = np.asarray(direction, float) / np.linalg.norm(direction)
+    helper = np.eye(3)[int(np.argmin(np.abs(x)))]
+    y = np.cross(x, helper)
+    y /= np.linalg.norm(y)
+    return np.column_stack((x, y, np.cross(x, y)))
 
 
 def rotation_xyz(angles):
@@ -1244,7 +1259,20 @@ class _Reader:
                           self.resolve(self.child_text(c, "socket_frame2"), name)]
             self.constraints.append(OsimConstraint(name, kind, frames=tuple(frames), line=c.sourceline))
             return
-        # PointConstraint: body_1 + location_body_1, body_2 + location_body_2
+        if kind == "PointOnLineConstraint":
+            direction = self.child_numbers(c, "line_direction_vec", 3, [1, 0, 0])
+            if not np.linalg.norm(direction) > 0:
+                raise self.err(c, f"line_direction_vec {[float(v) for v in direction]} has no direction")
+            frames = []
+            for role, point, R in (("line", "point_on_line", _basis_with_x(direction)),
+                                   ("follower", "point_on_follower", np.eye(3))):
+                body = self.last(self.child_text(c, f"socket_{role}_body", "") or self.child_text(c, f"{role}_body"))
+                f = OsimFrame(f"{name}_{role}", body, self.child_numbers(c, point, 3, [0, 0, 0]), R, c.sourceline)
+                self.add_frame(f, c)
+                frames.append(f.name)
+            self.constraints.append(OsimConstraint(name, kind, frames=tuple(frames), line=c.sourceline))
+            return
+        # PointConstraint, ConstantDistanceConstraint: body_1 + location_body_1, body_2 + location_body_2
         frames = []
         for k in (1, 2):
             body = self.last(self.child_text(c, f"socket_body_{k}", "") or self.child_text(c, f"body_{k}"))
@@ -1252,7 +1280,12 @@ class _Reader:
                           np.eye(3), c.sourceline)
             self.add_frame(f, c)
             frames.append(f.name)
-        self.constraints.append(OsimConstraint(name, kind, frames=tuple(frames), line=c.sourceline))
+        distance = 0.0
+        if kind == "ConstantDistanceConstraint":
+            distance = float(self.child_numbers(c, "constant_distance", 1)[0])
+            if not distance > 0:
+                raise self.err(c, f"constant_distance {distance:g}: expected a positive distance (m)")
+        self.constraints.append(OsimConstraint(name, kind, frames=tuple(frames), line=c.sourceline, value=distance))
 
     def read_marker(self, m, legacy):
         if m.tag != "Marker":

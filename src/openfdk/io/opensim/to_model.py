@@ -9,7 +9,8 @@ docs/model-file.md, in SI units), so that an ``.osim`` and the file
   coordinates' default values.
 * Joints: ``type: custom`` with OpenSim's SpatialTransform (every joint type is one);
   coordinates under ``coordinates``; CoordinateCouplerConstraints under ``couplers``;
-  WeldConstraint and PointConstraint as weld and spherical joints.
+  WeldConstraint and PointConstraint as weld and spherical joints; ConstantDistanceConstraint
+  and PointOnLineConstraint as constraints on a distance and on a vector's two components.
 * Markers: OpenSim names may hold characters openfdk names may not ('.', spaces): the
   name is made safe and the trial label stays the OpenSim name.
 * Muscles: a Thelen2003Muscle becomes a Hill muscle of the ``muscles`` section
@@ -110,7 +111,7 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         frames[fname] = _pose(p - com[root], R)
         return f"{'ground' if root == tree.ground else safe_name(root)}.{fname}"
 
-    coordinates, joints, couplers = {}, {}, {}
+    coordinates, joints, couplers, constraints = {}, {}, {}, {}
     for j in tree.order:
         parent = frame_of(j.parent, f"{j.name}_parent")
         child = frame_of(j.child, f"{j.name}_child")
@@ -151,9 +152,17 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
             f1 = frame_of(c.frames[0], f"{c.name}_1")
             f2 = frame_of(c.frames[1], f"{c.name}_2")
             if f1.split(".")[0] == f2.split(".")[0]:
+                _check_within_one_body(doc, tree, c)
                 continue  # both frames on one (merged) body: the constraint holds by construction
-            joints[unique("joint", c.name)] = {
-                "type": "weld" if c.type == "WeldConstraint" else "spherical", "parent": f1, "child": f2}
+            if c.type == "ConstantDistanceConstraint":       # |p2 − p1| = d: one row
+                constraints[unique("constraint", c.name)] = {
+                    "measure": {"type": "distance", "from": f1, "to": f2}, "value": c.value}
+            elif c.type == "PointOnLineConstraint":          # p2 − p1 ⊥ the line's normals: two rows
+                constraints[unique("constraint", c.name)] = {
+                    "measure": {"type": "vector", "from": f1, "to": f2, "expressed_in": f1}, "components": [1, 2]}
+            else:
+                joints[unique("joint", c.name)] = {
+                    "type": "weld" if c.type == "WeldConstraint" else "spherical", "parent": f1, "child": f2}
     for m in doc.markers:
         root, p, _ = tree.frame_in_root(m.frame)
         body = "ground" if root == tree.ground else safe_name(root)
@@ -302,6 +311,8 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
     out["joints"] = joints
     if couplers:
         out["couplers"] = couplers
+    if constraints:
+        out["constraints"] = constraints
     if wrapping:
         out["wrapping"] = wrapping
     if muscles:
@@ -602,3 +613,18 @@ def find_mesh(doc, geometry, mesh_dirs=(), ignore_missing=False, kind="Mesh", mi
              f"the contacts out with --ignore {kind} --ignore Smith2018ArticularContactForce")
     raise OsimError(f"{doc.source}: line {geometry.line}: {kind} {shown!r} not found (looked in "
                     f"{', '.join(f[:200] for f in folders)}); give its folder with --geometry DIR, or leave {leave}")
+
+
+def _check_within_one_body(doc, tree, c):
+    """A constraint between two frames of one (merged) body holds by construction, or
+    never: a weld or point constraint is taken as holding (OpenSim's welds), a distance
+    or a point on a line that the body's geometry violates is OsimError."""
+    if c.type not in ("ConstantDistanceConstraint", "PointOnLineConstraint"):
+        return
+    (_, p1, R1), (_, p2, _) = (tree.frame_in_root(f) for f in c.frames)
+    d = p2 - p1
+    error = (abs(np.linalg.norm(d) - c.value) if c.type == "ConstantDistanceConstraint"
+             else float(np.linalg.norm(d - (d @ R1[:, 0]) * R1[:, 0])))
+    if error > 1e-9:
+        raise OsimError(f"{doc.source}: line {c.line}: {c.type} {c.name!r}: both points are on one body (welded), "
+                        f"and its geometry misses the constraint by {error:.3g} m")
