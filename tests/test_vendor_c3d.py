@@ -75,3 +75,28 @@ def test_uninitialised_plates_left_out_and_files_without_markers():
     with pytest.raises(C3DError, match="contains no 3D points"):
         read_c3d(FOLDER / "Kistler.c3d")
     assert read_c3d(FOLDER / "Qualisys.c3d").positions.shape == (340, 55, 3)
+
+
+@pytest.mark.parametrize("trial", ["walking2", "walking5"])
+def test_opensim_s_reference_ground_reactions(trial):
+    """opensim-core's own walking trials (OpenSim/Tests/shared/walkingN.c3d, Vicon) and
+    the ground reactions OpenSim's C3DFileAdapter gives for them at the centre of pressure
+    (OpenSim/Common/Test/std_cop_walkingN_grfs.sto: force N, point mm, free moment N·mm,
+    every 0.05 s): both plates hold the force on the subject, and openfdk's reading
+    equals OpenSim's."""
+    from openfdk.io.storage import read_storage
+
+    if not (FOLDER / f"std_cop_{trial}_grfs.sto").is_file():
+        pytest.skip(f"std_cop_{trial}_grfs.sto is not in OPENFDK_C3D_SAMPLES")
+    plates, caught = _read(f"{trial}.c3d")
+    assert not caught and len(plates) == 2
+    t, columns, _ = read_storage(FOLDER / f"std_cop_{trial}_grfs.sto")
+    rows = np.round(t * plates[0].rate).astype(int)
+    for i, plate in enumerate(plates, start=1):
+        assert any("force on the subject" in n for n in plate.notes)
+        force, point, torque = (np.column_stack([columns[f"{c}{i}_{j}"] for j in (1, 2, 3)]) for c in "fpm")
+        on = plate.loaded[rows]
+        assert on.sum() >= 10
+        np.testing.assert_allclose(plate.force[rows], force, rtol=0, atol=1e-6)
+        np.testing.assert_allclose(plate.cop[rows][on], point[on] * 1e-3, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(plate.free_moment[rows][on], torque[on] * 1e-3, rtol=0, atol=1e-8)
