@@ -23,7 +23,7 @@ from .errors import OsimError
 #: the oldest OpenSimDocument Version openfdk reads itself (OpenSim 3.0)
 OLDEST_READ = 30000
 #: seconds OpenSim may take to load and write a model
-TIMEOUT_S = 300
+TIMEOUT_S = 120
 
 _CHILD = """
 import sys
