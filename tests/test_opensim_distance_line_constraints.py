@@ -138,3 +138,34 @@ def test_a_direction_of_zero_is_one_line(tmp_path, rod_and_rail):
     with pytest.raises(OsimError, match=r"bad.osim: line \d+: PointOnLineConstraint 'rail': line_direction_vec "
                                         r"\[0.0, 0.0, 0.0\] has no direction"):
         read_osim(bad)
+
+
+@pytest.mark.parametrize("extra", [0.0, 0.01])
+def test_both_points_on_one_welded_body(tmp_path, extra):
+    """The block welded to the arm: openfdk merges the two bodies, so a rod between them
+    holds by the geometry, or never. The rod's true length (0.35 m from the weld's
+    offsets) is read; 1 cm more is refused by name."""
+    from openfdk.io.opensim import OsimError
+
+    m = osim.Model()
+    arm = osim.Body("arm", 1.5, osim.Vec3(0, -0.2, 0), osim.Inertia(0.02, 0.004, 0.02))
+    block = osim.Body("block", 0.8, osim.Vec3(0), osim.Inertia(0.003, 0.004, 0.005))
+    m.addBody(arm)
+    m.addBody(block)
+    m.addJoint(osim.PinJoint("shoulder", m.getGround(), osim.Vec3(0, 1, 0), osim.Vec3(0), arm, osim.Vec3(0),
+                             osim.Vec3(0)))
+    m.addJoint(osim.WeldJoint("glue", arm, osim.Vec3(0, -0.3, 0), osim.Vec3(0), block, osim.Vec3(0), osim.Vec3(0)))
+    # arm point (0, 0, 0), block point (0, -0.05, 0): 0.35 m apart
+    rod = osim.ConstantDistanceConstraint(arm, osim.Vec3(0), block, osim.Vec3(0, -0.05, 0), 0.35 + extra)
+    rod.setName("rod")
+    m.addConstraint(rod)
+    m.finalizeConnections()
+    path = tmp_path / "welded.osim"
+    assert m.printToXML(str(path))
+    if extra == 0.0:
+        data, _ = read_osim(path)
+        assert "rod" not in (data.get("constraints") or {})
+        return
+    with pytest.raises(OsimError, match=r"welded.osim: line \d+: ConstantDistanceConstraint 'rod': both points are on "
+                                        r"one body \(welded\), and its geometry misses the constraint by 0.01 m"):
+        read_osim(path)
