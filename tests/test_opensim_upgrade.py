@@ -222,3 +222,39 @@ def test_unnamed_3x_joints_and_constraints_are_named_by_type_as_opensim_names_th
     assert "pinjoint" in names and theirs.getConstraintSet().get(0).getName() == "weldconstraint"
     assert {"pinjoint", "bob_free", "weldconstraint"} <= set(data["joints"])
     assert data["joints"]["weldconstraint"]["type"] == "weld"
+
+
+def test_thelen_properties_left_in_a_millard_muscle_are_ignored_as_opensim_ignores_them(tmp_path):
+    """OpenSim's walk_gait1018_subject01.osim (a Moco test model) has Millard muscles that
+    still carry the Thelen2003Muscle properties FmaxTendonStrain, KshapeActive … OpenSim
+    4.6 has no such property on the Millard muscle: the tendon curve keeps its default
+    strain 0.049. openfdk reads the muscle as without them, with one warning."""
+    opensim = pytest.importorskip("opensim")
+    m = opensim.Model()
+    body = opensim.Body("link", 1.0, opensim.Vec3(0, -0.2, 0), opensim.Inertia(0.01))
+    m.addBody(body)
+    m.addJoint(opensim.PinJoint("pin", m.getGround(), opensim.Vec3(0), opensim.Vec3(0), body, opensim.Vec3(0),
+                                opensim.Vec3(0)))
+    muscle = opensim.Millard2012EquilibriumMuscle("flexor", 400.0, 0.1, 0.2, 0.0)
+    muscle.addNewPathPoint("o", m.getGround(), opensim.Vec3(0.05, 0.1, 0))
+    muscle.addNewPathPoint("i", body, opensim.Vec3(0.04, -0.3, 0))
+    m.addForce(muscle)
+    m.finalizeConnections()
+    clean = tmp_path / "clean.osim"
+    assert m.printToXML(str(clean))
+    text = clean.read_text()
+    leftover = text.replace("<tendon_slack_length>", "<FmaxTendonStrain>0.033</FmaxTendonStrain>"
+                            "<KshapeActive>0.5</KshapeActive><Af>0.3</Af><tendon_slack_length>", 1)
+    assert leftover != text
+    path = tmp_path / "leftover.osim"
+    path.write_text(leftover)
+    model = opensim.Model(str(path))
+    model.initSystem()
+    theirs = opensim.Millard2012EquilibriumMuscle.safeDownCast(model.getMuscles().get(0))
+    assert theirs.getTendonForceLengthCurve().getStrainAtOneNormForce() == 0.049
+    with pytest.warns(PlausibilityWarning, match=r"leftover.osim: Thelen2003Muscle properties in "
+                                                 r"Millard2012EquilibriumMuscles, which have no such property: OpenSim "
+                                                 r"ignores them, and so does openfdk: <FmaxTendonStrain> in 1 muscle "
+                                                 r"\(flexor\); <KshapeActive>"):
+        data, _ = read_osim(path)
+    assert data["muscles"] == read_osim(clean)[0]["muscles"]

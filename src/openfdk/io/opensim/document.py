@@ -263,6 +263,12 @@ MILLARD_CURVES = {
 }
 #: OpenSim 3.x Millard curves that OpenSim 4.x no longer has (it drops them on reading)
 MILLARD_DROPPED = {"FiberCompressiveForceLengthCurve", "FiberCompressiveForceCosPennationCurve"}
+#: Thelen2003Muscle's own properties, left in a Millard2012EquilibriumMuscle when a model's
+#: muscles were retyped (OpenSim's walk_gait1018_subject01.osim): OpenSim 4.6 has no such
+#: property on the Millard muscle and ignores them (its tendon strain stays 0.049 under
+#: <FmaxTendonStrain>0.033</FmaxTendonStrain>); openfdk too, with a warning
+THELEN_ONLY = {"FmaxTendonStrain", "FmaxMuscleStrain", "KshapeActive", "KshapePassive", "Af", "Flen",
+               "fv_linear_extrap_threshold"}
 #: children of a curve object that carry no physics
 _CURVE_METADATA = {"components"}
 #: boolean properties of a muscle, read and reported
@@ -685,6 +691,7 @@ class _Reader:
         self.contact_forces = {}
         self.wrap_objects = {}
         self.unsupported, self.ignored = [], []
+        self.inert = {}  # {property: [muscle]}: properties OpenSim has not on that muscle and ignores
         self.pending = []  # (frame key, socket path, scope): frames whose parent is resolved after reading
         self.joint_sockets = []  # (joint, parent path, child path, scope)
         self.seen = set()  # (kind, name) of the joints, constraints and markers: each name once
@@ -878,6 +885,16 @@ class _Reader:
                 if f not in self.frames and f != "ground":
                     raise OsimError(f"{self.source}: line {c.line}: {c.type} {c.name!r}: frame {f!r} is neither a "
                                     "body nor a frame of the model")
+        if self.inert:
+            import warnings
+
+            from ...model.plausibility import PlausibilityWarning
+
+            listed = "; ".join(f"<{tag}> in {len(muscles)} muscle{'s' * (len(muscles) > 1)} ({muscles[0]}"
+                               f"{', …' if len(muscles) > 1 else ''})" for tag, muscles in self.inert.items())
+            warnings.warn(f"{self.source}: Thelen2003Muscle properties in Millard2012EquilibriumMuscles, which "
+                          f"have no such property: OpenSim ignores them, and so does openfdk: {listed}",
+                          PlausibilityWarning, stacklevel=3)
         return OsimDocument(self.source, self.path, name, version, gravity, self.bodies, self.frames, self.joints,
                             self.coordinates, self.constraints, self.markers, self.geometry, self.unsupported,
                             self.ignored, self.muscles, self.actuators, self.wrap_objects, self.springs,
@@ -1388,6 +1405,8 @@ class _Reader:
                 params[tag] = function_spec(e, self.source) if tag != e.tag else self.read_function(e, label)
             elif kind == "Millard2012EquilibriumMuscle" and e.tag in MILLARD_DROPPED:
                 continue  # not a property of OpenSim 4.x's muscle: it has no effect there either
+            elif kind == "Millard2012EquilibriumMuscle" and e.tag in THELEN_ONLY:
+                self.inert.setdefault(e.tag, []).append(name)     # OpenSim ignores it: warned once
             elif e.tag == "components" and len(e):
                 for comp in e:
                     if isinstance(comp.tag, str):
