@@ -145,3 +145,40 @@ def test_check_with_a_coordinate_file_that_starts_late_and_a_model_without_marke
     out = capsys.readouterr()
     assert code == 0, out.err
     assert "kinematics: determinate" in out.out
+
+
+@pytest.mark.slow
+def test_a_states_file_labelled_by_state_paths_drives_the_same_motion(tmp_path, capsys):
+    """OpenSim 4 and Moco write coordinates as state variables, /jointset/<joint>/<coordinate>/value
+    (Moco's example3DWalking coordinates.sto), next to their /speed columns. The same
+    samples so labelled give the IK .mot's generalised forces exactly; the speeds are not
+    used (the rates come from the spline, as OpenSim's tool takes them). OpenSim 4.6's
+    InverseDynamicsTool does not read such labels: it logs that the file "does not contain
+    coordinate 'pelvis_tilt'" and assumes every coordinate at its default value."""
+    rng = np.random.default_rng(11)
+    model = write_full_body_osim(tmp_path / "full_body.osim")
+    motion, loads = _files(tmp_path, rng)
+    times, columns, in_degrees = read_storage(motion)
+    osim_model = opensim.Model(str(model))
+    joint = {name: osim_model.getCoordinateSet().get(name).getJoint().getName() for name in columns}
+    states = {}
+    for name, values in columns.items():
+        states[f"/jointset/{joint[name]}/{name}/value"] = values
+        states[f"/jointset/{joint[name]}/{name}/speed"] = np.full_like(values, 1e6)
+    write_storage(tmp_path / "states.sto", times, states, name="states", in_degrees=in_degrees)
+    assert opensim.TimeSeriesTable(str(tmp_path / "states.sto")).getNumColumns() == 2 * len(columns)
+    results = {}
+    for label, path in (("mot", motion), ("states", tmp_path / "states.sto")):
+        code = main(["run", str(model), "--motion", str(path), "--external-loads", str(loads), "--out",
+                     str(tmp_path / label), "--no-plots", "-q"])
+        assert code == 0, capsys.readouterr().err
+        results[label] = read_storage(tmp_path / label / "generalized_forces.sto")[1]
+    assert results["mot"].keys() == results["states"].keys()
+    for key, values in results["mot"].items():
+        np.testing.assert_array_equal(results["states"][key], values, err_msg=key)
+    both = {**{f"/jointset/{joint['knee_angle_r']}/knee_angle_r/value": columns["knee_angle_r"]}, **columns}
+    write_storage(tmp_path / "both.sto", times, both, name="both", in_degrees=in_degrees)
+    code = main(["run", str(model), "--motion", str(tmp_path / "both.sto"), "--out", str(tmp_path / "b"), "-q"])
+    err = capsys.readouterr().err
+    assert code == 2 and (f"both.sto: coordinate 'knee_angle_r' is given twice, by columns "
+                          f"'/jointset/{joint['knee_angle_r']}/knee_angle_r/value' and 'knee_angle_r'") in err, err

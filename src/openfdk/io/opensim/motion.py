@@ -21,9 +21,16 @@ computes from its ``coordinates_file``.
 * Every free coordinate must be in the file (locked and prescribed ones follow their
   own rows, couplers' dependent coordinates follow the coupler and are not driven);
   a column naming no coordinate is ignored, as OpenSim ignores it.
+* A column is named by the coordinate (``knee_angle_r``, an IK ``.mot``) or by its state
+  variable's path (``/jointset/knee_r/knee_angle_r/value``, the states and coordinates
+  files OpenSim 4 and Moco write; their ``/speed`` columns are not used: the rates come
+  from the spline, as in OpenSim's InverseDynamicsTool). A coordinate given by two
+  columns is refused by name.
 """
 
 from __future__ import annotations
+
+import re
 
 from pathlib import Path
 
@@ -46,6 +53,7 @@ def motion_drivers(path, data, cutoff_hz=None):
         times, columns, in_degrees = read_storage(path)
     except ValueError as exc:
         raise OsimError(f"--motion: {exc}") from None
+    columns = _by_coordinate(columns, source)
     if len(times) > 2:  # times printed rounded (OpenSim's IK keeps the TRC's 1 ms times at 60 Hz): the grid
         grid = times[0] + np.arange(len(times)) * (times[-1] - times[0]) / (len(times) - 1)
         if np.max(np.abs(times - grid)) < 0.05 * (grid[1] - grid[0]):
@@ -69,7 +77,8 @@ def motion_drivers(path, data, cutoff_hz=None):
         twice = [name for name in missing if name in columns.twice]
         if twice:
             raise OsimError(f"{source}: {columns.absent(twice[0])}; a motion file drives every free coordinate")
-        raise OsimError(f"{source}: no column for the coordinates {missing}; a motion file drives every free coordinate")
+        raise OsimError(f"{source}: no column for the coordinates {missing}; a motion file drives every free coordinate "
+                        f"(OpenSim's InverseDynamicsTool would hold them at their default values: give them columns)")
     if len(times) < 6:
         raise OsimError(f"{source}: {len(times)} sample(s); a motion file needs at least 6 (OpenSim's quintic spline)")
     if cutoff_hz:
@@ -94,4 +103,26 @@ def motion_drivers(path, data, cutoff_hz=None):
     if not any(k in analysis for k in ("start", "end", "frames", "rate_hz")):  # the file's samples
         analysis.update(start=float(times[0]), end=float(times[-1]), rate_hz=float(rate))
     out["analysis"] = analysis
+    return out
+
+
+#: a coordinate's value in an OpenSim 4 states file: /jointset/<joint>/<coordinate>/value
+_STATE_VALUE = re.compile(r"/jointset/[^/]+/([^/]+)/value")
+
+
+def _by_coordinate(columns, source):
+    """{coordinate name: (n,) values} of a storage file's ``columns``, their labels the
+    coordinate's name or its value's state path (module docstring)."""
+    out, label_of = {}, {}
+    for label, values in columns.items():
+        m = _STATE_VALUE.fullmatch(label)
+        name = m.group(1) if m else label
+        if name in out:
+            raise OsimError(f"{source}: coordinate {name!r} is given twice, by columns {label_of[name]!r} and "
+                            f"{label!r}")
+        out[name], label_of[name] = values, label
+    from ..storage import StorageColumns
+
+    out = StorageColumns(out)
+    out.twice = getattr(columns, "twice", frozenset())
     return out
