@@ -236,3 +236,29 @@ def test_a_coordinate_task_from_a_file_of_five_rows_is_refused(tmp_path):
     with pytest.raises(OsimError, match=r"column 'lumbar_rotation' of coords.mot: 5 rows; a coordinate task from a "
                                         r"file needs at least 6"):
         apply_ik_tasks(data, tmp_path / "Setup_IK.xml", {"lumbar_rotation": {"default": 0.0, "motion": "rotational"}})
+
+
+def test_a_coordinate_task_reads_a_states_file_labelled_by_state_paths(tmp_path):
+    """The coordinate file of a from_file task may label its column by the state path
+    (/jointset/back/lumbar_rotation/value), as --motion reads it: the task's values are
+    those of the column labelled by name."""
+    from openfdk.io.opensim import read_osim
+    from openfdk.io.opensim.ik_tasks import apply_ik_tasks
+
+    model = write_full_body_osim(tmp_path / "full_body.osim")
+    data, _ = read_osim(model)
+    t = np.arange(8) * 0.01
+    values = 10.0 * np.sin(3 * t)
+    setup = ("<OpenSimDocument Version='40000'><InverseKinematicsTool><coordinate_file>{}</coordinate_file>"
+             "<IKTaskSet><objects><IKCoordinateTask name='lumbar_rotation'><apply>true</apply><weight>3</weight>"
+             "<value_type>from_file</value_type></IKCoordinateTask></objects></IKTaskSet></InverseKinematicsTool>"
+             "</OpenSimDocument>")
+    coords = {"lumbar_rotation": {"default": 0.0, "motion": "rotational"}}
+    out = {}
+    for label, column in (("name", "lumbar_rotation"), ("path", "/jointset/back/lumbar_rotation/value")):
+        write_storage(tmp_path / f"{label}.mot", t, {column: values}, name="coords", in_degrees=True)
+        (tmp_path / f"{label}.xml").write_text(setup.format(f"{label}.mot"))
+        out[label] = apply_ik_tasks(data, tmp_path / f"{label}.xml", coords)
+    assert out["path"] == out["name"]
+    spline = out["path"]["tasks"]["lumbar_rotation"]["value"]
+    np.testing.assert_allclose(spline["values"], np.radians(values), rtol=0, atol=1e-15)   # the file's, in rad

@@ -100,6 +100,7 @@ def apply_ik_tasks(data, path, doc_coordinates, dropped=()):
     dropped elements ({type, name, line}); a marker task of a dropped marker (one fixed to
     the ground: a constant term of OpenSim's IK) is accepted and has nothing to weight."""
     from ..storage import read_storage
+    from .motion import by_coordinate
 
     source = Path(path).name
     weights, tasks = read_ik_tasks(path)
@@ -132,9 +133,11 @@ def apply_ik_tasks(data, path, doc_coordinates, dropped=()):
             f = t["file"]
             if f not in files:
                 try:
-                    files[f] = read_storage(f)
+                    times, columns, in_degrees = read_storage(f)
                 except ValueError as exc:
                     raise OsimError(f"{source}: coordinate_file: {exc}") from None
+                # by name or by state path (/jointset/<joint>/<name>/value), as --motion reads them
+                files[f] = (times, by_coordinate(columns, Path(f).name), in_degrees)
             times, columns, in_degrees = files[f]
             if name not in columns:
                 raise OsimError(f"{source}: line {t['line']}: IKCoordinateTask {name!r}: {columns.absent(name)} in "

@@ -53,7 +53,7 @@ def motion_drivers(path, data, cutoff_hz=None):
         times, columns, in_degrees = read_storage(path)
     except ValueError as exc:
         raise OsimError(f"--motion: {exc}") from None
-    columns = _by_coordinate(columns, source)
+    columns = by_coordinate(columns, source)
     if len(times) > 2:  # times printed rounded (OpenSim's IK keeps the TRC's 1 ms times at 60 Hz): the grid
         grid = times[0] + np.arange(len(times)) * (times[-1] - times[0]) / (len(times) - 1)
         if np.max(np.abs(times - grid)) < 0.05 * (grid[1] - grid[0]):
@@ -110,7 +110,7 @@ def motion_drivers(path, data, cutoff_hz=None):
 _STATE_VALUE = re.compile(r"/jointset/[^/]+/([^/]+)/value")
 
 
-def _by_coordinate(columns, source):
+def by_coordinate(columns, source):
     """{coordinate name: (n,) values} of a storage file's ``columns``, their labels the
     coordinate's name or its value's state path (module docstring)."""
     out, label_of = {}, {}
