@@ -251,7 +251,7 @@ LAUGHS = ('<?xml version="1.0"?>\n<!DOCTYPE VTKFile [<!ENTITY a "aaaaaaaaaa">'
           "</Piece></PolyData></VTKFile>")
 
 VTP_BAD = {
-    "empty": ("", "not a well-formed XML"),
+    "empty": ("", "the file is empty"),
     "not-xml": ("solid stl\n", "not a well-formed XML"),
     "truncated-xml": (_good()[:400], "not a well-formed XML"),
     "entity-expansion": (LAUGHS, "entity"),   # libxml2 refuses the amplification while parsing
@@ -483,3 +483,22 @@ def test_unreadable_visual_mesh_is_a_view_error(tmp_path):
         build_scene(model)
     msg = str(err.value)
     assert "\n" not in msg and "bodies.arm.visual.mesh" in msg and "pyramid.vtp" in msg and "expected 18" in msg
+
+
+@pytest.mark.parametrize("suffix", [".stl", ".vtp", ".obj"])
+def test_an_empty_file_and_a_git_lfs_pointer_are_named_as_such(tmp_path, suffix):
+    """A repository cloned without Git LFS (jam-resources stores its meshes there) leaves
+    small text pointers where the meshes were, and a failed download leaves empty files:
+    each is one line saying so, not a parse error of the format."""
+    from openfdk.io.meshfiles import read_display_mesh
+
+    empty, pointer = tmp_path / f"empty{suffix}", tmp_path / f"pointer{suffix}"
+    empty.write_bytes(b"")
+    pointer.write_text("version https://git-lfs.github.com/spec/v1\noid sha256:4d7a2146\nsize 1961899\n")
+    with pytest.raises(ValueError) as info:
+        read_display_mesh(empty)
+    assert str(info.value) == f"{empty}: the file is empty"
+    with pytest.raises(ValueError) as info:
+        read_display_mesh(pointer)
+    assert str(info.value) == (f"{pointer}: is a Git LFS pointer, not the mesh: its repository was cloned without "
+                               f"its large files (run 'git lfs pull' there)")
