@@ -500,5 +500,5 @@ def test_an_empty_file_and_a_git_lfs_pointer_are_named_as_such(tmp_path, suffix)
     assert str(info.value) == f"{empty}: the file is empty"
     with pytest.raises(ValueError) as info:
         read_display_mesh(pointer)
-    assert str(info.value) == (f"{pointer}: is a Git LFS pointer, not the mesh: its repository was cloned without "
-                               f"its large files (run 'git lfs pull' there)")
+    assert str(info.value) == (f"{pointer}: is a Git LFS pointer, not the file's content: its repository was cloned "
+                               f"without its large files (run 'git lfs pull' there)")

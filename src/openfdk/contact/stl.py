@@ -103,7 +103,7 @@ def _checked_size(f) -> int:
 
 def _ascii_corners(data: bytes) -> np.ndarray:
     """Corner coordinates ``(3 n_faces, 3)`` of an ASCII STL file's bytes."""
-    from ..io.polygons import placeholder
+    from ..io.placeholders import placeholder
 
     if (why := placeholder(data)) is not None:
         raise StlError(why)

@@ -366,6 +366,10 @@ def inspect_c3d(path: str | os.PathLike) -> C3DLayout:
     file_size = os.path.getsize(name)
     if file_size == 0:
         raise C3DError(f"{name}: the file is empty")
+    from .placeholders import placeholder_of_file
+
+    if (why := placeholder_of_file(name)) is not None:
+        raise C3DError(f"{name}: {why}")
     if file_size < BLOCK_BYTES:
         raise C3DError(f"{name}: not a C3D file: only {file_size} bytes, a C3D header "
                        f"alone is {BLOCK_BYTES} bytes")

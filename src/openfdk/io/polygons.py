@@ -67,21 +67,6 @@ def strip_triangles(connectivity, ends, what="strip") -> np.ndarray:
     return np.stack([np.where(odd, b, a), np.where(odd, a, b), connectivity[at + 2]], axis=1)
 
 
-#: how a Git LFS pointer file begins: what a repository cloned without its large files holds
-LFS_POINTER = b"version https://git-lfs.github.com/spec/"
-
-
-def placeholder(data: bytes) -> str | None:
-    """Why the bytes ``data`` of a mesh file hold no mesh at all, or None: an empty file,
-    or a Git LFS pointer (jam-resources' meshes are stored in Git LFS)."""
-    if not data.strip():
-        return "the file is empty"
-    if data.startswith(LFS_POINTER):
-        return ("is a Git LFS pointer, not the mesh: its repository was cloned without its large files "
-                "(run 'git lfs pull' there)")
-    return None
-
-
 def parse_mesh_file(path, parse, errors=()):
     """``parse(bytes)`` of the file ``path``, every failure as one line
     ``ValueError("<path>: <what is wrong>")``: the file cannot be read, or ``parse``
@@ -97,6 +82,8 @@ def parse_mesh_file(path, parse, errors=()):
         data = path.read_bytes()
     except OSError as exc:
         raise ValueError(f"{path}: cannot read the file ({exc.strerror or exc})") from None
+    from .placeholders import placeholder
+
     if (why := placeholder(data)) is not None:
         raise ValueError(f"{path}: {why}")
     try:

@@ -135,6 +135,10 @@ def read_storage(path):
         lines = path.read_text(errors="replace").splitlines()
     except OSError as exc:
         raise ValueError(f"{path.name}: cannot read the file ({exc.strerror or exc})") from None
+    from .placeholders import placeholder
+
+    if (why := placeholder("\n".join(lines[:3]).encode())) is not None:
+        raise ValueError(f"{path.name}: {why}")
     try:
         end = next(i for i, line in enumerate(lines) if line.strip().lower() == "endheader")
     except StopIteration:

@@ -140,6 +140,10 @@ def read_trc(path: str | os.PathLike) -> MarkerTrial:
             lines = fh.readlines()
     except OSError as exc:
         raise TRCError(f"{name}: cannot read the file: {exc.strerror or exc}") from None
+    from .placeholders import placeholder
+
+    if (why := placeholder("".join(lines[:3]).encode())) is not None:
+        raise TRCError(f"{name}: {why}")
     if len(lines) < 5:
         raise TRCError(f"{name}: a TRC file has at least 5 header lines, this one has {len(lines)} lines")
     if not lines[0].startswith("PathFileType"):

@@ -473,6 +473,10 @@ def parse_xml(path, source):
         tree = _parse_as_opensim(path, source, SimpleNamespace(msg="bytes that are not UTF-8",
                                                                lineno=bad[0] if bad else 1))
     except etree.XMLSyntaxError as exc:
+        from ..placeholders import placeholder_of_file
+
+        if (why := placeholder_of_file(path)) is not None:
+            raise OsimError(f"{source}: {why}") from None
         tree = _parse_as_opensim(path, source, exc)
     if tree.docinfo.doctype:
         raise OsimError(f"{source}: has a DOCTYPE declaration ({_clip(tree.docinfo.doctype)}); OpenSim files have "
