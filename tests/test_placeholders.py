@@ -12,12 +12,14 @@ from openfdk.io.meshfiles import read_display_mesh
 from openfdk.io.opensim import read_osim
 from openfdk.io.storage import read_storage
 from openfdk.io.trc import read_trc
+from openfdk.io.yamlfile import read_yaml
 
 POINTER = "version https://git-lfs.github.com/spec/v1\noid sha256:4d7a214614ab2935c943f9e0ff69d22eadbb8f32b1258daaa5e2ca24d17e2393\nsize 1961899\n"
 LFS = "is a Git LFS pointer, not the file's content: its repository was cloned without its large files " \
       "(run 'git lfs pull' there)"
 READERS = [(read_c3d, ".c3d"), (read_force_plates, ".c3d"), (read_trc, ".trc"), (read_storage, ".mot"),
-           (read_osim, ".osim"), (read_display_mesh, ".stl"), (read_display_mesh, ".vtp"), (read_display_mesh, ".obj")]
+           (read_osim, ".osim"), (read_display_mesh, ".stl"), (read_display_mesh, ".vtp"), (read_display_mesh, ".obj"),
+           (read_yaml, ".yaml")]
 
 
 @pytest.mark.parametrize("content, words", [(POINTER, LFS), ("", "the file is empty")], ids=["lfs", "empty"])

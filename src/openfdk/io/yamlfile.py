@@ -130,6 +130,10 @@ def read_yaml(path, error=ValueError, what="file", source=None):
         raise error(f"{source}: not a YAML text file (byte {exc.start} is not UTF-8)") from None
     except OSError as exc:
         raise error(f"{source}: cannot be read: {exc.strerror or exc}") from None
+    from .placeholders import placeholder
+
+    if (why := placeholder(text[:200].encode())) is not None:
+        raise error(f"{source}: {why}")
     return parse_yaml(text, source, error)
 
 
