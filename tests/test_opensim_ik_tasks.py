@@ -262,3 +262,27 @@ def test_a_coordinate_task_reads_a_states_file_labelled_by_state_paths(tmp_path)
     assert out["path"] == out["name"]
     spline = out["path"]["tasks"]["lumbar_rotation"]["value"]
     np.testing.assert_allclose(spline["values"], np.radians(values), rtol=0, atol=1e-15)   # the file's, in rad
+
+
+def test_model_markers_missing_from_the_trial_are_named_with_the_way_to_track_a_subset(tmp_path, capsys):
+    """A generic model often has markers a lab's trial lacks. They are named, with the
+    way to track the trial's subset: weight 0, for an .osim OpenSim's IK tasks; with the
+    tasks applying only the trial's markers the run goes through."""
+    from openfdk.fixtures.full_body_osim import write_trc
+    from openfdk.io.trc import read_trc
+
+    model = write_full_body_osim(tmp_path / "full_body.osim")
+    trc, *_ = write_full_body_trial(model, tmp_path / "walk.trc", n_frames=5)
+    trial = read_trc(trc)
+    kept = [k for k, label in enumerate(trial.labels) if label not in ("R_THI_A", "L_TIB")]
+    assert len(kept) == len(trial.labels) - 2
+    subset = write_trc(tmp_path / "subset.trc", [trial.labels[k] for k in kept], trial.time,
+                       trial.positions[:, kept], trial.rate, digits=8)
+    code = main(["kinematics", str(model), str(subset), "--out", str(tmp_path / "o"), "-q"])
+    err = capsys.readouterr().err
+    assert code == 2 and "2 marker(s) missing from" in err and "'R_THI_A'" in err, err
+    assert err.strip().endswith("(a model marker of weight 0 is not tracked and need not be in the trial: give "
+                                "those weights, for an .osim with OpenSim's IK tasks, --ik-tasks FILE)"), err
+    tasks = _marker_tasks(tmp_path / "tasks.xml", [trial.labels[k] for k in kept if trial.labels[k] != "R_HEEL"])
+    code = main(["kinematics", str(model), str(subset), "--ik-tasks", str(tasks), "--out", str(tmp_path / "p"), "-q"])
+    assert code == 0, capsys.readouterr().err

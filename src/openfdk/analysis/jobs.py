@@ -68,7 +68,14 @@ def load_trajectories(model, trial_path, cutoff_hz=None, settings=None):
     if model.markers.size == 0:
         raise ValueError(f"model {model.name!r} has no markers; a trial cannot be tracked")
     untracked = [lab for lab, w in zip(model.markers.labels, model.markers.weight) if w == 0]
-    trial = trial.select(list(model.markers.labels), optional=untracked)
+    from ..io.c3d import MissingMarkerError
+
+    try:
+        trial = trial.select(list(model.markers.labels), optional=untracked)
+    except MissingMarkerError as exc:     # how to track a subset, as OpenSim's IK tasks do
+        raise MissingMarkerError(f"{exc} (a model marker of weight 0 is not tracked and need not be in the "
+                                 f"trial: give those weights, for an .osim with OpenSim's IK tasks, --ik-tasks "
+                                 f"FILE)", exc.missing, exc.source, exc.available) from None
     if cutoff_hz is None:
         cutoff_hz = (settings or AnalysisSettings()).kinematics.get("marker_cutoff_hz", DEFAULT_CUTOFF_HZ)
     cutoff = None if (cutoff_hz is None or float(cutoff_hz) <= 0) else float(cutoff_hz)
