@@ -330,7 +330,7 @@ def test_errors_of_files_and_cycle(bad_case, capsys, tmp_path):
     ("knee_sup_r: {coordinate: knee_ty, unit: m}\n", "map.yaml: knee_sup_r.coordinate: 'knee_ty' is not in the run"),
     ("knee_sup_r: {coordinate: knee_flex_r, unit: m}\n", "map.yaml: knee_sup_r: unit m (a length) but 'knee_flex_r' "
                                                          "in coordinates.csv is an angle"),
-    ("", "map.yaml: empty"),
+    ("", "map.yaml: the file is empty"),
     ("{}\n", "map.yaml: no entries"),
     ("- knee_sup_r\n", "map.yaml: (top level): expected a mapping"),
     ("knee_sup_r: knee_ty_r\n", "map.yaml: knee_sup_r: expected a mapping"),

@@ -79,7 +79,7 @@ def test_uninitialised_plates_left_out_and_files_without_markers():
 
 @pytest.mark.parametrize("trial", ["walking2", "walking5"])
 def test_opensim_s_reference_ground_reactions(trial):
-    """opensim-core's own walking trials (OpenSim/Tests/shared/walkingN.c3d, Vicon) and
+    """opensim-core's own walking trials (OpenSim/Tests/shared/walkingN.c3d) and
     the ground reactions OpenSim's C3DFileAdapter gives for them at the centre of pressure
     (OpenSim/Common/Test/std_cop_walkingN_grfs.sto: force N, point mm, free moment N·mm,
     every 0.05 s): both plates hold the force on the subject, and openfdk's reading
