@@ -77,7 +77,10 @@ def test_uninitialised_plates_left_out_and_files_without_markers():
     assert read_c3d(FOLDER / "Qualisys.c3d").positions.shape == (340, 55, 3)
 
 
-@pytest.mark.parametrize("trial", ["walking2", "walking5"])
+@pytest.mark.parametrize("trial", [
+    pytest.param(t, marks=pytest.mark.skipif(not (FOLDER / f"std_cop_{t}_grfs.sto").is_file(),
+                                             reason=f"std_cop_{t}_grfs.sto is not in OPENFDK_C3D_SAMPLES"))
+    for t in ("walking2", "walking5")])
 def test_opensim_s_reference_ground_reactions(trial):
     """opensim-core's own walking trials (OpenSim/Tests/shared/walkingN.c3d) and
     the ground reactions OpenSim's C3DFileAdapter gives for them at the centre of pressure
@@ -86,8 +89,6 @@ def test_opensim_s_reference_ground_reactions(trial):
     equals OpenSim's."""
     from openfdk.io.storage import read_storage
 
-    if not (FOLDER / f"std_cop_{trial}_grfs.sto").is_file():
-        pytest.skip(f"std_cop_{trial}_grfs.sto is not in OPENFDK_C3D_SAMPLES")
     plates, caught = _read(f"{trial}.c3d")
     assert not caught and len(plates) == 2
     t, columns, _ = read_storage(FOLDER / f"std_cop_{trial}_grfs.sto")

@@ -50,8 +50,7 @@ def _columns(ctx, spec, key, path, columns, required):
         raise ctx.error(f"{path}.{key}", f"expected three column names, got {names!r}")
     missing = [x for x in names if x not in columns]
     if missing:
-        why = columns.absent(missing[0]) if hasattr(columns, "absent") else f"no column {missing[0]!r}"
-        raise ctx.error(f"{path}.{key}", f"{why} in {spec['file']}")
+        raise ctx.error(f"{path}.{key}", f"{columns.absent(missing[0])} in {spec['file']}")   # StorageColumns
     return np.column_stack([columns[x] for x in names])
 
 

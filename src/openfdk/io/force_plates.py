@@ -69,8 +69,8 @@ low-pass of F and M_C → resampling → centre of pressure and free moment → 
   a lag of (samples − 1) / (2 × analog rate) (4.5 ms at 1000/100 Hz) against the markers,
   and a box-car is a poor low-pass.  ``rate='analog'`` keeps every sample.
 * Threshold: a frame is loaded when the plate-normal action Fz (the vertical push on a
-  floor plate, after the sign above) exceeds ``threshold_n``; elsewhere the centre of pressure and free moment
-  are NaN (force and moment are kept as measured).
+  floor plate, after the sign above) exceeds ``threshold_n``; elsewhere the centre of
+  pressure and free moment are NaN (force and moment are kept as measured).
 * NaN analog data: the frames concerned are flagged (``invalid``, ``loaded`` False, a
   note); runs of finite samples are filtered separately (runs not longer than the
   filter's padding are left unfiltered).  Never an exception.
