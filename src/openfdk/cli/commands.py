@@ -298,6 +298,23 @@ def _write_generalized_forces(out_dir, model_path, dyn, model=None):
     write_json(path, data)
 
 
+def _write_joint_loads(out_dir, kin, dyn, model):
+    """joint_loads.csv/.sto (the load each joint transmits to its child body, as OpenSim's
+    JointReaction reports it) and their peaks in summary.json's ``joint_loads``."""
+    from pathlib import Path
+
+    from ..io.joint_load_outputs import write_joint_loads
+    from ..io.results import write_json
+
+    summary = write_joint_loads(out_dir, model, kin, dyn)
+    if summary is None:
+        return
+    path = Path(out_dir) / "summary.json"
+    data = json.loads(path.read_text())
+    data["joint_loads"] = summary
+    write_json(path, data)
+
+
 def _rim_check(model, kin):
     """The run's contact-rim check (:func:`~openfdk.contact.rim.contact_rim_frames`, its
     warnings by :func:`~openfdk.contact.rim.report_contact_rims`) as a
@@ -352,6 +369,7 @@ def _cmd_run(args):
     model, settings, _ = loaded
     _write_measures(args.out, args.model, kin, model)
     _write_generalized_forces(args.out, args.model, dyn, model)
+    _write_joint_loads(args.out, kin, dyn, model)
     _write_grf(args, info, dyn, settings)
     fdk = info.get("fdk")
     _say(args,

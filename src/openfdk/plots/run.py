@@ -15,6 +15,9 @@ One PNG per topic, each only when the run has something to show:
 * ``contact.png`` — contact force (world components and magnitude), centre of pressure
   (world) and contact area;
 * ``reactions.png`` — joint and constraint reactions, grouped by unit;
+* ``joint_loads.png`` — for a model with joint coordinates, the magnitude of the force
+  and of the moment each joint transmits to its child body (OpenSim's JointReaction;
+  the force in body weights when summary.json gives the body weight);
 * ``convergence.png`` — per-frame iterations and residuals of each stage.
 
 Failed frames are shaded red in every figure (and marked × in the convergence figure).
@@ -594,6 +597,36 @@ def _reactions(results, t, failed):
     return _finish(fig, axes, t, failed, caption)
 
 
+def _joint_loads(results, t, failed):
+    f = results.joint_loads
+    joints = [c[:-len("_fx")] for c in f.columns if c.endswith("_fx")]
+    weight = (results.summary.get("joint_loads") or {}).get("body_weight_N")
+    weight = float(weight) if isinstance(weight, (int, float)) and weight > 0 else None
+    title = f"{_name(results)}: joint loads"
+    if len(joints) > MAX_LEGEND:
+        title += f" ({len(joints)} joints; legends: the {MAX_LEGEND} largest)"
+    fig, axes = _figure(2, title)
+    for ax, kind in zip(axes, "fm"):
+        size = {j: np.linalg.norm(np.column_stack([_col(f, f"{j}_{kind}{c}") for c in "xyz"]), axis=1)
+                for j in joints}
+        order = sorted(joints, key=lambda j: -np.nanmax(size[j], initial=0.0))[:MAX_LEGEND]
+        rest = [j for j in joints if j not in order]
+        for j in rest:  # drawn, grey and unnamed: small loads
+            ax.plot(t, size[j] / (weight if kind == "f" and weight else 1.0), lw=0.6, color="0.7")
+        for j, (colour, ls) in zip(order, line_styles(len(order))):
+            values = size[j] / (weight if kind == "f" and weight else 1.0)
+            peak = np.nanmax(values, initial=0.0)
+            label = j.split("_on_")[0] + f" (peak {peak:.2f}{' BW' if kind == 'f' and weight else ''})"
+            ax.plot(t, values, lw=1, color=colour, ls=ls, label=label)
+    axes[0].set_ylabel("joint force |F|\n" + (f"(BW; 1 BW = {weight:.0f} N)" if weight else "(N)"), fontsize=8)
+    axes[1].set_ylabel("joint moment |M|\n(N·m, about the joint centre)", fontsize=8)
+    caption = ("The load each joint transmits to its child body, as OpenSim's JointReaction reports it: its "
+               "constraint reactions, the drivers' generalised forces on its coordinates and the coordinate "
+               "actuators on them (muscles, ligaments and contacts act on the bodies, not through the joint). "
+               "Moments about the origin of the joint's child frame. Components in joint_loads.csv (ground frame).")
+    return _finish(fig, axes, t, failed, caption)
+
+
 def _convergence(results, t, failed):
     """Per-frame iterations (integer ticks) and residuals of each stage, one panel each;
     a panel whose values are all zero (a stage without iterations) is not drawn and
@@ -688,6 +721,8 @@ def figure_plan(results, measures=None):
                             ("contact", results.contacts, _contact), ("reactions", results.reactions, _reactions)):
         if has():
             plan.append((name, lambda draw=draw: draw(results, t, failed), FIGURE_WEIGHT))
+    if getattr(results, "joint_loads", None) is not None and len(results.joint_loads.columns):
+        plan.append(("joint_loads", lambda: _joint_loads(results, t, failed), FIGURE_WEIGHT))
     plan.append(("convergence", lambda: _convergence(results, t, failed), FIGURE_WEIGHT))
     return plan
 

@@ -18,6 +18,7 @@ __all__ = ["RunResults", "read_results", "read_summary", "conjugate_unit", "meas
 KINEMATICS_CSV, FORCES_CSV, MEASURES_CSV, SUMMARY_JSON = "kinematics.csv", "forces.csv", "measures.csv", "summary.json"
 #: the joint coordinates of a model that has them (OpenSim's; io/coordinate_outputs.py)
 COORDINATES_CSV = "coordinates.csv"
+JOINT_LOADS_CSV = "joint_loads.csv"
 #: per-frame text columns
 TEXT_COLUMNS = ("message", "status", "fdk_reason")
 _SI = {"length": "m", "angle": "rad", "1": "1"}
@@ -165,16 +166,22 @@ class RunResults:
         coordinates: DataFrame indexed by time (s), the model's joint coordinates per
             frame (coordinates.csv: ``name_rad`` / ``name_m``, SI; NaN where the
             kinematics failed), None for a model without coordinates.
+        joint_loads: DataFrame indexed by time (s), the load each joint transmits to its
+            child body (joint_loads.csv, OpenSim's JointReaction columns
+            ``{joint}_on_{child}_in_ground_fx`` … ``_pz``: N, N m, m;
+            :mod:`openfdk.io.joint_load_outputs`), None for a model without coordinates
+            or a kinematics-only run.
         summary: dict, the content of summary.json.
         directory: the folder the run was saved to or read from (None if not saved).
     """
 
     def __init__(self, kinematics, forces, summary: dict, model=None, directory=None, measures=None,
-                 coordinates=None):
+                 coordinates=None, joint_loads=None):
         self.kinematics = kinematics
         self.forces = forces
         self.measures = measures
         self.coordinates = coordinates
+        self.joint_loads = joint_loads
         self.summary = summary
         self._model = model
         self.directory = None if directory is None else Path(directory)
@@ -199,13 +206,20 @@ class RunResults:
             from ..io.measure_outputs import measure_columns
 
             measures = _frame(measure_columns(model, kin))
-        coordinates = None
+        coordinates = joint_loads = None
         if model is not None and getattr(model, "coordinates", None):
             from ..io.coordinate_outputs import coordinate_columns
 
             coordinates = _frame(coordinate_columns(model, kin))
+            if dyn is not None and len(dyn.time):
+                from ..io.joint_load_outputs import joint_load_columns, joint_load_summary
+
+                columns = joint_load_columns(model, kin, dyn)
+                if columns:
+                    joint_loads = _frame({"time": np.asarray(dyn.time, float), **columns})
+                    summary["joint_loads"] = joint_load_summary(model, dyn.time, columns)
         return cls(_frame(kinematics_columns(kin)), forces, summary, model, measures=measures,
-                   coordinates=coordinates)
+                   coordinates=coordinates, joint_loads=joint_loads)
 
     @classmethod
     def read(cls, directory, model=None):
@@ -219,21 +233,25 @@ class RunResults:
         forces = _read_csv(d / FORCES_CSV, ("time", "converged")) if (d / FORCES_CSV).is_file() else None
         measures = _read_csv(d / MEASURES_CSV) if (d / MEASURES_CSV).is_file() else None
         coordinates = _read_csv(d / COORDINATES_CSV) if (d / COORDINATES_CSV).is_file() else None
+        joint_loads = _read_csv(d / JOINT_LOADS_CSV) if (d / JOINT_LOADS_CSV).is_file() else None
         kinematics = _read_csv(d / KINEMATICS_CSV, ("time", "converged"))
-        _check_tables(d, kinematics, {FORCES_CSV: forces, MEASURES_CSV: measures, COORDINATES_CSV: coordinates})
-        return cls(kinematics, forces, summary, model, d, measures, coordinates)
+        _check_tables(d, kinematics, {FORCES_CSV: forces, MEASURES_CSV: measures, COORDINATES_CSV: coordinates,
+                                      JOINT_LOADS_CSV: joint_loads})
+        return cls(kinematics, forces, summary, model, d, measures, coordinates, joint_loads)
 
     def save(self, directory, sto: bool = True):
-        """Write kinematics.csv, forces.csv, measures.csv, coordinates.csv, summary.json
-        (and the ``.sto`` twins of the first three unless ``sto=False``) into
-        ``directory`` (created). Returns the folder."""
+        """Write kinematics.csv, forces.csv, measures.csv, coordinates.csv,
+        joint_loads.csv, summary.json (and the ``.sto`` twins of the CSV files but
+        coordinates.csv unless ``sto=False``) into ``directory`` (created). Returns the
+        folder."""
         from ..io.results import write_json, write_table
         from ..io.storage import csv_to_sto
 
         d = Path(directory)
         d.mkdir(parents=True, exist_ok=True)
         for name, df in ((KINEMATICS_CSV, self.kinematics), (FORCES_CSV, self.forces),
-                         (MEASURES_CSV, self.measures), (COORDINATES_CSV, self.coordinates)):
+                         (MEASURES_CSV, self.measures), (COORDINATES_CSV, self.coordinates),
+                         (JOINT_LOADS_CSV, self.joint_loads)):
             if df is None:
                 continue
             cols = {"time": df.index.to_numpy()}

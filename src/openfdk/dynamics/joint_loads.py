@@ -1,0 +1,128 @@
+"""The load each joint transmits to its child body: OpenSim's ``JointReaction`` analysis.
+
+A joint J between parent P and child C carries, on C, the sum of the loads of every row
+that acts across it (paper Eq. 12: the rows' load is C^R λ = Φ_q̂ᵀ λ):
+
+* J's own constraint rows (the directions the joint does not allow), λ their reactions;
+* the rows on J's coordinates: a driver (``--motion``: the coordinate's generalised
+  force), a locked or prescribed coordinate, an FDK DOF (its residual: zero once
+  converged);
+* the coordinate actuators on J's coordinates (reserves, OpenSim's CoordinateActuators),
+  τ ∂m/∂q̂ with m the coordinate's measure and τ the recruited force.
+
+Forces applied at points of the bodies (muscles, ligaments, contacts, point and torque
+actuators, the ground reactions) are not transmitted by the joint: they are loads on
+the bodies, as in OpenSim, whose JointReaction reports Simbody's mobilizer reaction
+(everything the mobilizer carries, its mobility forces included). Other constraints
+(a CoordinateCouplerConstraint, a distance constraint) belong to no joint.
+
+With the generalised velocity of a body [ṙ_W; ω'_B] (centre of mass, body frame), the
+child's six columns of Σ Φ_q̂ᵀ λ are the force F_W (3,) N at the centre of mass in the
+world frame and the moment M_B (3,) N m about it in the body frame. The load is
+reported as OpenSim does by default: on the child, at the origin P of the joint's child
+frame, force and moment about P in the ground frame, M_P = R_WB M_B + (p_WB − p_WP) × F_W.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..model.constraints import DRIVER
+
+
+@dataclass(frozen=True)
+class JointLoadRows:
+    """What acts across one joint. name : the joint; child : its child body's name;
+    frame : the child frame (qualified ``body.frame``); rows : indices into the
+    ConstraintSystem's rows; row_columns : for each row, its column in the forces (the
+    row's reaction); actuators : [(column, coordinate measure)] of the coordinate
+    actuators on its coordinates."""
+
+    name: str
+    child: str
+    frame: str
+    rows: tuple
+    row_columns: tuple
+    actuators: tuple
+
+
+def joint_load_rows(model, system, column_names):
+    """[JointLoadRows] of the joints of ``model`` that have a moving child body, in model
+    order; ``system`` the model's ConstraintSystem (FDK rows included), ``column_names``
+    the InverseDynamicsResult's. A row without a reaction column (a driver that carries
+    none) adds nothing."""
+    index = {name: k for k, name in enumerate(column_names)}
+    joint_of = {c.name: c.joint for c in model.coordinates}  # a coordinate's rows measure it by name
+    records = [j for j in model.joints if j.type not in ("coupler",) and j.child]
+    by_name = {j.name: j for j in records}
+    rows = {j.name: [] for j in records}
+    actuators = {j.name: [] for j in records}
+    r = 0
+    for c in model.constraints:
+        owner = c.name if c.name in by_name and c.kind != DRIVER else joint_of.get(getattr(c.measure, "name", ""))
+        if owner in rows:
+            for k, row in enumerate(c.row_names):
+                col = index.get(row)
+                if col is not None:
+                    rows[owner].append((r + k, col))
+        r += c.size
+    for d in getattr(system, "fdk", ()):
+        owner = joint_of.get(d.name)
+        col = index.get(f"fdk.{d.name}")
+        if owner in rows and col is not None:
+            rows[owner].append((r, col))
+        r += 1
+    coords = {c.name: c for c in model.coordinates}
+    for a in getattr(model, "actuators", ()):
+        c = coords.get(getattr(a, "coordinate", None))
+        if c is not None and c.joint in actuators and a.name in index:
+            actuators[c.joint].append((index[a.name], c.measure))
+    out = []
+    for j in records:
+        child = model.frame(j.child).body
+        if model.body(child).column < 0:
+            continue
+        out.append(JointLoadRows(j.name, child, j.child, tuple(r for r, _ in rows[j.name]),
+                                 tuple(c for _, c in rows[j.name]), tuple(actuators[j.name])))
+    return out
+
+
+def joint_loads(model, q, forces, column_names):
+    """{joint name: (F_W (nf, 3) N, M_WP (nf, 3) N m, p_WP (nf, 3) m)}: the load each
+    joint transmits to its child body at every frame (module docstring), the moment
+    about the child frame's origin P, all in the ground frame. ``q`` (nf, 7 n_moving)
+    the frames' poses (KinematicsResult.q), ``forces`` (nf, n_columns) and
+    ``column_names`` an InverseDynamicsResult's. A frame whose pose or forces are not
+    finite gives NaN."""
+    from ..kinematics.system import ConstraintSystem
+
+    system = ConstraintSystem(model)
+    loads = joint_load_rows(model, system, column_names)
+    q = np.asarray(q, float)
+    forces = np.asarray(forces, float)
+    nf = len(q)
+    out = {j.name: tuple(np.full((nf, 3), np.nan) for _ in range(3)) for j in loads}
+    state = model.initial_state()
+    for k in range(nf):
+        if not (np.isfinite(q[k]).all() and np.isfinite(forces[k]).all()):
+            continue
+        state.set_q(q[k])
+        A = system.jacobian(state)
+        for j in loads:
+            b = model.body(j.child)
+            cols = slice(b.column, b.column + 6)
+            g = A[list(j.rows), cols].T @ forces[k, list(j.row_columns)] if j.rows else np.zeros(6)
+            for col, measure in j.actuators:
+                g = g + forces[k, col] * np.asarray(measure.evaluate(state, 1)[1])[0, cols]
+            i = b.index
+            R_WB, p_WB = state.R_WB[i], state.p_WB[i]
+            p_WP = p_WB + R_WB @ model.frame(j.frame).p_BF
+            F_W = g[:3]
+            M_WP = R_WB @ g[3:] + np.cross(p_WB - p_WP, F_W)
+            out[j.name][0][k], out[j.name][1][k], out[j.name][2][k] = F_W, M_WP, p_WP
+    return out
+
+
+__all__ = ["JointLoadRows", "joint_load_rows", "joint_loads"]

@@ -1,0 +1,82 @@
+"""``joint_loads.csv`` and ``.sto``: the load each joint transmits to its child body
+(:mod:`openfdk.dynamics.joint_loads`), in the columns of OpenSim's ``JointReaction``
+analysis with its defaults (on the child body, expressed in the ground):
+``{joint}_on_{child}_in_ground_fx, _fy, _fz`` (N), ``_mx, _my, _mz`` (N m, about the
+joint's child frame origin) and ``_px, _py, _pz`` (m, that origin in the ground).
+
+``summary.json``'s ``joint_loads`` gives, per joint, the peak of the force's magnitude
+in N and in body weights (the model's total mass times g), and the time of the peak.
+Frames that failed are NaN in the CSV and left out of the ``.sto``, as in
+``generalized_forces.sto``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .results import write_table
+from .storage import write_storage
+
+COMPONENTS = ("fx", "fy", "fz", "mx", "my", "mz", "px", "py", "pz")
+
+
+def joint_load_columns(model, kin, dyn):
+    """{column: (nf,)} in OpenSim's JointReaction labels (module docstring), failed
+    frames NaN; {} when the model has no joint with a moving child body."""
+    from ..dynamics.joint_loads import joint_loads
+
+    loads = joint_loads(model, kin.q, dyn.forces, dyn.column_names)
+    failed = ~(np.asarray(dyn.converged, bool) & np.asarray(kin.converged, bool))
+    out = {}
+    for name, (F, M, P) in loads.items():
+        child = model.frame(next(j.child for j in model.joints if j.name == name)).body
+        values = np.hstack([F, M, P])
+        values[failed] = np.nan
+        for k, comp in enumerate(COMPONENTS):
+            out[f"{name}_on_{child}_in_ground_{comp}"] = values[:, k]
+    return out
+
+
+def joint_load_summary(model, time, columns):
+    """{joint: {peak_N, peak_BW, time_s}} of the force magnitudes in ``columns``
+    (:func:`joint_load_columns`), and the body weight (N) they are divided by."""
+    weight = float(sum(b.mass for b in model.moving_bodies) * np.linalg.norm(model.gravity_W))
+    out = {}
+    for key in columns:
+        if not key.endswith("_fx"):
+            continue
+        base = key[:-3]
+        F = np.column_stack([columns[f"{base}_f{c}"] for c in "xyz"])
+        norm = np.linalg.norm(F, axis=1)
+        if not np.isfinite(norm).any():
+            continue
+        k = int(np.nanargmax(norm))
+        joint = base.split("_on_")[0]
+        out[joint] = {"peak_N": float(norm[k]), "peak_BW": float(norm[k] / weight) if weight > 0 else None,
+                      "time_s": float(time[k])}
+    return {"joints": out, "body_weight_N": weight}
+
+
+def write_joint_loads(out_dir, model, kin, dyn):
+    """Write joint_loads.csv and .sto of a run of a model with joint coordinates (an
+    OpenSim model, or a model file with a ``coordinates:`` section: a joint carries the
+    rows on its own coordinates, :mod:`openfdk.dynamics.joint_loads`); returns the
+    summary, or None (no coordinates, no joint with a moving child body, no frame)."""
+    if not model.coordinates or not len(dyn.time):
+        return None
+    columns = joint_load_columns(model, kin, dyn)
+    if not columns:
+        return None
+    out_dir = Path(out_dir)
+    time = np.asarray(dyn.time, float)
+    write_table(out_dir / "joint_loads.csv", {"time": time, **columns})
+    ok = np.isfinite(np.column_stack(list(columns.values()))).all(axis=1)
+    write_storage(out_dir / "joint_loads.sto", time[ok], {k: v[ok] for k, v in columns.items()},
+                  name="Joint Reaction Loads (openfdk)",
+                  comments=[] if ok.all() else [f"openfdk: {int((~ok).sum())} failed frames left out"])
+    return joint_load_summary(model, time, columns)
+
+
+__all__ = ["COMPONENTS", "joint_load_columns", "joint_load_summary", "write_joint_loads"]

@@ -1,0 +1,201 @@
+"""joint_loads.csv/.sto (the load each joint transmits to its child body) against
+OpenSim 4.6's own joint reactions, and against Newton–Euler on each body.
+
+The project's full-body model (12 bodies, 23 coordinates, spline-coupled knees, oblique
+ankle axes) moves along the analytic trajectories of test_opensim_inverse_dynamics, with
+its two external forces. OpenSim gets q, q̇ at each sample time, its
+InverseDynamicsSolver's generalised forces τ applied by a CoordinateActuator on every
+coordinate (so that its forward dynamics reproduce q̈: checked), and
+``Joint::calcReactionOnChildExpressedInGround`` (what OpenSim's JointReaction analysis
+reports with its defaults) gives each joint's force and moment on the child at the
+child frame's origin, in the ground. openfdk runs the same motion two ways: the
+coordinates driven (inverse dynamics, the drivers carry τ), and with an OpenSim actuator
+file of one CoordinateActuator per coordinate (static optimisation: the actuators carry
+τ, the drivers nothing).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+opensim = pytest.importorskip("opensim")
+
+from openfdk.cli import main  # noqa: E402
+from openfdk.fixtures.full_body_osim import COORDINATES, write_full_body_osim  # noqa: E402
+from openfdk.io.results import read_table  # noqa: E402
+from test_opensim_inverse_dynamics import N, RATE, _loads, _motion, _overlay, _q  # noqa: E402
+
+COMPONENTS = ("fx", "fy", "fz", "mx", "my", "mz", "px", "py", "pz")
+
+
+def _opensim_reactions(model_path, loads_xml, motion, times):
+    """({joint: (n, 9) [F, M, p] on the child at its frame's origin, in the ground},
+    {joint: child body name}, largest |q̈_forward − q̈| (rad/s², m/s²))."""
+    model = opensim.Model(str(model_path))
+    ext = opensim.ExternalLoads(str(loads_xml), True)
+    data = opensim.Storage(str(loads_xml.parent / "loads.mot"))
+    for i in range(ext.getSize()):
+        force = ext.get(i).clone()
+        force.setDataSource(data)
+        model.addForce(force)
+    cs = model.getCoordinateSet()
+    names = [cs.get(i).getName() for i in range(cs.getSize())]
+    actuators = {}
+    for n in names:
+        a = opensim.CoordinateActuator(n)
+        a.setName(f"tau_{n}")
+        a.setOptimalForce(1.0)
+        model.addForce(a)
+        actuators[n] = a
+    state = model.initSystem()
+    coords = [cs.get(n) for n in names]
+    slot = {}  # each coordinate's entry of the mobility vector
+    for c in coords:
+        state.setU(opensim.Vector(state.getNU(), 0.0))
+        c.setSpeedValue(state, 1.0)
+        slot[c.getName()] = int(np.argmax(np.abs([state.getU().get(i) for i in range(state.getNU())])))
+    solver = opensim.InverseDynamicsSolver(model)
+    joints = model.getJointSet()
+    out = {joints.get(i).getName(): [] for i in range(joints.getSize())}
+    child = {joints.get(i).getName(): joints.get(i).getChildFrame().findBaseFrame().getName()
+             for i in range(joints.getSize())}
+    worst = 0.0
+    for t in times:
+        state.setTime(float(t))
+        for c, n in zip(coords, names):
+            c.setValue(state, _q(motion[n], t), False)
+        model.assemble(state)
+        for c, n in zip(coords, names):
+            c.setSpeedValue(state, _q(motion[n], t, 1))
+        for a in actuators.values():
+            a.overrideActuation(state, False)
+        model.realizeVelocity(state)
+        udot = opensim.Vector(len(names), 0.0)
+        for n in names:
+            udot.set(slot[n], _q(motion[n], t, 2))
+        tau = solver.solve(state, udot)  # the actuators' forces are not applied: control 0
+        for n, a in actuators.items():
+            a.overrideActuation(state, True)
+            a.setOverrideActuation(state, tau.get(slot[n]))
+        model.realizeAcceleration(state)
+        worst = max(worst, max(abs(state.getUDot().get(slot[n]) - _q(motion[n], t, 2)) for n in names))
+        for i in range(joints.getSize()):
+            j = joints.get(i)
+            load = j.calcReactionOnChildExpressedInGround(state)
+            p = j.getChildFrame().getPositionInGround(state)
+            out[j.getName()].append([load.get(1).get(k) for k in range(3)] + [load.get(0).get(k) for k in range(3)]
+                                    + [p.get(k) for k in range(3)])
+    return {k: np.array(v) for k, v in out.items()}, child, worst
+
+
+def _actuator_file(path):
+    """An OpenSim actuator file: one CoordinateActuator of optimal force 1 per coordinate."""
+    body = "".join(f'<CoordinateActuator name="tau_{n}"><coordinate>{n}</coordinate><optimal_force>1</optimal_force>'
+                   "<min_control>-Inf</min_control><max_control>Inf</max_control></CoordinateActuator>"
+                   for n in COORDINATES)
+    path.write_text('<?xml version="1.0"?>\n<OpenSimDocument Version="40000"><ForceSet name="tau"><objects>'
+                    f"{body}</objects></ForceSet></OpenSimDocument>\n")
+    return path
+
+
+@pytest.fixture(scope="module")
+def case(tmp_path_factory):
+    """The model, the motion's sample times and OpenSim's reactions."""
+    folder = tmp_path_factory.mktemp("joint_loads")
+    model = write_full_body_osim(folder / "full_body.osim")
+    times = np.arange(N) / RATE + 0.2
+    motion = _motion(np.random.default_rng(7))
+    loads = _loads(folder, times)
+    overlay = _overlay(folder, motion, times)
+    theirs, child, worst = _opensim_reactions(model, loads, motion, times)
+    assert worst < 1e-8, worst  # OpenSim's forward dynamics with τ reproduce the motion
+    return folder, model, overlay, loads, times, theirs, child
+
+
+def _compare(ours, theirs, child):
+    """Largest difference of the forces (N), moments (N m) and points (m), and the
+    largest force and moment magnitudes of OpenSim's (that the case has real loads)."""
+    worst = np.zeros(3)
+    for joint, values in theirs.items():
+        cols = np.column_stack([ours[f"{joint}_on_{child[joint]}_in_ground_{c}"] for c in COMPONENTS])
+        for k in range(3):
+            worst[k] = max(worst[k], float(np.max(np.abs(cols[:, 3 * k:3 * k + 3] - values[:, 3 * k:3 * k + 3]))))
+    peak_F = max(float(np.max(np.abs(v[:, :3]))) for v in theirs.values())
+    peak_M = max(float(np.max(np.abs(v[:, 3:6]))) for v in theirs.values())
+    return worst, peak_F, peak_M
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("how", ["drivers", "actuators"])
+def test_joint_loads_equal_opensims_joint_reactions(case, how, capsys):
+    folder, model, overlay, loads, times, theirs, child = case
+    out = folder / how
+    args = ["run", str(model), "--with", str(overlay), "--external-loads", str(loads), "--out", str(out),
+            "--no-plots", "-q"]
+    if how == "actuators":
+        args += ["--actuators", str(_actuator_file(folder / "tau.xml"))]
+    assert main(args) == 0, capsys.readouterr().err
+    ours = read_table(out / "joint_loads.csv")
+    np.testing.assert_allclose(ours["time"], times, atol=1e-12)
+    assert len(ours) == 1 + 9 * len(theirs)
+    (dF, dM, dp), peak_F, peak_M = _compare(ours, theirs, child)
+    print(how, "largest differences: force", dF, "N, moment", dM, "N m, point", dp, "m")
+    assert peak_F > 500.0 and peak_M > 100.0  # real loads
+    assert dF < 1e-6 * peak_F and dM < 1e-6 * peak_M and dp < 1e-9, (dF, dM, dp)
+
+    # the .sto reads in OpenSim with the same labels and numbers
+    table = opensim.TimeSeriesTable(str(out / "joint_loads.sto"))
+    labels = list(table.getColumnLabels())
+    assert labels == [k for k in ours if k != "time"]
+    col = table.getDependentColumn("knee_r_on_tibia_r_in_ground_fy").to_numpy()
+    np.testing.assert_allclose(col, ours["knee_r_on_tibia_r_in_ground_fy"], rtol=1e-8)  # both files print 10 digits or more
+
+    import json
+
+    summary = json.loads((out / "summary.json").read_text())["joint_loads"]
+    F = np.column_stack([theirs["knee_r"][:, k] for k in range(3)])
+    knee = np.linalg.norm(F, axis=1)
+    assert summary["joints"]["knee_r"]["peak_N"] == pytest.approx(knee.max(), rel=1e-6)
+    assert summary["joints"]["knee_r"]["peak_BW"] == pytest.approx(knee.max() / summary["body_weight_N"], rel=1e-12)
+    assert summary["joints"]["knee_r"]["time_s"] == pytest.approx(times[int(np.argmax(knee))])
+
+
+@pytest.mark.slow
+def test_joint_loads_balance_each_body(case, capsys):
+    """Newton on every body, openfdk alone: the load from its parent joint, minus the
+    loads it passes to its child joints, plus gravity and the external forces on it,
+    equals m a of its centre of mass, at every frame."""
+    folder, model, overlay, loads, times, _, _ = case
+    out = folder / "balance"
+    assert main(["run", str(model), "--with", str(overlay), "--external-loads", str(loads), "--out", str(out),
+                 "--no-plots", "-q"]) == 0, capsys.readouterr().err
+    from openfdk.io.modelfile import load_model
+    from openfdk.numerics.spatial import rotation_matrix
+
+    ours = read_table(out / "joint_loads.csv")
+    kin = read_table(out / "kinematics.csv")
+    fdk_model = load_model(model)
+    t = np.asarray(times)
+    external = {"calcn_r": np.column_stack([80 * np.sin(3 * t), 700 + 50 * np.cos(2 * t), -30 + 10 * t])}
+    quat = np.column_stack([kin[f"talus_l.e{k}"] for k in range(4)])
+    F_body = np.column_stack([20 + 5 * t, -40 * np.cos(t), 10 * np.sin(2 * t)])
+    external["talus_l"] = np.array([rotation_matrix(q) @ f for q, f in zip(quat, F_body)])
+    joints = {j.name: (fdk_model.frame(j.parent).body if j.parent else "ground", fdk_model.frame(j.child).body)
+              for j in fdk_model.joints}
+    worst, scale = 0.0, 0.0
+    for b in fdk_model.moving_bodies:
+        total = b.mass * fdk_model.gravity_W + external.get(b.name, 0.0)
+        for name, (parent, child) in joints.items():
+            F = np.column_stack([ours[f"{name}_on_{child}_in_ground_f{c}"] for c in "xyz"])
+            if child == b.name:
+                total = total + F
+            elif parent == b.name:
+                total = total - F
+            else:
+                continue
+            scale = max(scale, float(np.max(np.abs(F))))
+        ma = b.mass * np.column_stack([kin[f"{b.name}.a{c}_m_s2"] for c in "xyz"])
+        worst = max(worst, float(np.max(np.abs(total - ma))))
+    assert scale > 500.0  # the joints carry real loads
+    assert worst <= 1e-8 * scale, worst
