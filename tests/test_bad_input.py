@@ -147,6 +147,31 @@ def test_inertia_triangle_inequality_in_model_file(tmp_path, capsys):
     assert code == 2
     assert "model.yaml: bodies.jaw.inertia: principal moments" in _error_line(err)
     assert "triangle inequality" in err
+    # declared as given (an OpenSim import writes it for OpenSim's own such bodies): a warning
+    data["bodies"]["jaw"]["inertia_as_given"] = True
+    code, _, err = _run(capsys, "check", _write(tmp_path, data))
+    assert "model.yaml: bodies.jaw.inertia: principal moments" in err and "used as given" in err
+    assert "error" not in err
+
+
+def test_opensim_inertia_without_a_rigid_body_is_used_as_given(tmp_path, capsys):
+    """OpenSim's release builds take an inertia that breaks the triangle inequality (its
+    Gait2392 toes in the joint-reaction tutorial); the import takes it as given, with a
+    warning naming the body, and the model's inertia is the file's."""
+    from openfdk.fixtures.full_body_osim import write_full_body_osim
+    from openfdk.io.modelfile import load_model
+
+    path = write_full_body_osim(tmp_path / "body.osim")
+    text = path.read_text()
+    body = text.index('<Body name="toes_r">')
+    start = text.index("<inertia>", body)
+    end = text.index("</inertia>", start)
+    path.write_text(text[:start] + "<inertia>1e-4 2e-4 9e-4 0 0 0" + text[end:])
+    with pytest.warns(UserWarning, match=r"body\.osim: bodies\.toes_r\.inertia: principal moments .* used as given"):
+        model = load_model(path)
+    toes = model.body("toes_r")
+    assert toes.inertia_as_given and not model.body("toes_l").inertia_as_given
+    np.testing.assert_allclose(np.sort(np.linalg.eigvalsh(toes.inertia_B)), [1e-4, 2e-4, 9e-4], rtol=1e-12)
 
 
 def test_start_after_end_is_an_error_not_a_swap(files, tmp_path, capsys):

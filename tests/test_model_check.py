@@ -91,3 +91,28 @@ muscles:
     out = capsys.readouterr().out
     assert "muscles: 1 (m over drum)" in out
     assert "warning: muscle 'm' at the reference pose: path 'm': a path point lies inside the wrapping surface" in out
+
+
+def test_free_osim_coordinates_are_named_by_their_coordinates(tmp_path, capsys):
+    """An OpenSim model whose toe markers are gone (Gait2392's markers have none on the
+    toes): the message names the coordinate the markers leave free, mtp_angle_r, and the
+    overlay line that holds it; with that overlay the check passes."""
+    import xml.etree.ElementTree as ET
+
+    from openfdk.fixtures.full_body_osim import write_full_body_osim
+
+    path = write_full_body_osim(tmp_path / "body.osim")
+    tree = ET.parse(path)
+    for markerset in tree.iter("MarkerSet"):
+        objects = markerset.find("objects")
+        for m in list(objects):
+            if m.findtext("socket_parent_frame", "").endswith("toes_r"):
+                objects.remove(m)
+    tree.write(path)
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "body.osim" in err[0]
+    assert "['mtp_angle_r']" in err[0] and "'lock: [mtp_angle_r]'" in err[0]
+    assert "toes_r.rz" not in err[0]
+    (tmp_path / "lock.yaml").write_text("lock: [mtp_angle_r]\n")
+    assert main(["check", str(path), "--with", str(tmp_path / "lock.yaml")]) == 0, capsys.readouterr().err

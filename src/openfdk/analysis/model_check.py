@@ -130,6 +130,25 @@ def _check_absorbed_muscles(model, rep, state):
         rep.lines.append(f"  warning: {absorbed_message(names)}")
 
 
+def _free(model, state, A):
+    """Names of what the rows A (m, 6 n_moving) leave free at ``state``: a model's joint
+    coordinates that can move along A's null space (an OpenSim model's
+    ``mtp_angle_r``), else, or when no coordinate moves along all of it, the bodies'
+    components (``toes_r.rx``)."""
+    from ..kinematics.system import null_space
+
+    null = null_space(A)
+    if null.shape[1] == 0:
+        return []
+    if model.coordinates:
+        G = np.vstack([np.atleast_2d(c.measure.evaluate(state, 1)[1])[:1] for c in model.coordinates])
+        moved = np.linalg.norm(G @ null, axis=1) > 1e-6 * np.maximum(np.linalg.norm(G, axis=1), 1.0)
+        # every free direction must move some coordinate, else name the bodies
+        if moved.any() and np.linalg.matrix_rank(G[moved] @ null, tol=1e-9) == null.shape[1]:
+            return [c.name for c, m in zip(model.coordinates, moved) if m]
+    return undetermined_coordinates(A, model.coordinate_names())
+
+
 def check_model(model):
     """Inventory, row count and rank at the reference pose of ``model`` (CheckReport)."""
     rep = CheckReport()
@@ -177,15 +196,18 @@ def check_model(model):
         _, Psi_q, _ = model.markers.evaluate(state, 1)
         Psi_q = Psi_q[np.repeat(model.markers.weight > 0, 3)]  # a marker of weight 0 is not tracked
         tasks = [np.atleast_2d(t.measure.evaluate(state, 1)[1]) for t in model.tasks if t.weight > 0]
-        free = undetermined_coordinates(np.vstack([A, Psi_q, *tasks]), model.coordinate_names())
+        free = _free(model, state, np.vstack([A, Psi_q, *tasks]))
         what = "markers and coordinate tasks" if model.tasks else "markers"
         if free:
-            hint = " (give OpenSim's IK tasks with --ik-tasks, or lock the coordinates)" if model.coordinates else ""
+            named = model.coordinates and set(free) <= {c.name for c in model.coordinates}
+            hint = (f" (give OpenSim's IK tasks with --ik-tasks, or hold them with 'lock: [{', '.join(free)}]' in an "
+                    "overlay, --with FILE)" if named else
+                    " (give OpenSim's IK tasks with --ik-tasks, or lock the coordinates)" if model.coordinates else "")
             rep.errors.append(f"constraints and {what} leave coordinates free at the reference pose: {free}{hint}")
         else:
             rep.lines.append(f"  kinematics: marker tracking; constraints and {what} determine every coordinate")
     else:
-        free = undetermined_coordinates(A, model.coordinate_names())
+        free = _free(model, state, A)
         if free:
             fix = ("give a trial of the model's markers, or drive every coordinate from a coordinate file with "
                    "--motion FILE (as OpenSim's inverse dynamics does)" if model.coordinates else

@@ -281,15 +281,21 @@ def dependent_rows(A, row_names, tol=1e-9):
     return rank, [row_names[i] for i in np.flatnonzero(weight > 1e-6)]
 
 
-def undetermined_coordinates(A, coord_names, tol=1e-9):
-    """Names of q̂ components that A (m, n) leaves free (right null space)."""
+def null_space(A, tol=1e-9):
+    """(n, k) orthonormal basis of the right null space of A (m, n): the directions of
+    q̂ that A leaves free (singular values below ``tol`` times the largest are zero)."""
     if A.shape[0] == 0:
-        return list(coord_names)
+        return np.eye(A.shape[1])
     # the right null space needs all of Vt only when A has fewer rows than columns
     _, s, Vt = np.linalg.svd(A, full_matrices=A.shape[0] < A.shape[1])
     scale = s[0] if s.size and s[0] > 0 else 1.0
     rank = int(np.sum(s > tol * scale))
-    null = Vt[rank:].T
+    return Vt[rank:].T
+
+
+def undetermined_coordinates(A, coord_names, tol=1e-9):
+    """Names of q̂ components that A (m, n) leaves free (right null space)."""
+    null = null_space(A, tol)
     if null.shape[1] == 0:
         return []
     weight = np.sqrt(np.sum(null**2, axis=1))

@@ -82,22 +82,26 @@ class ModelBuilder:
         known = [b["name"] for b in self._bodies]
         raise ModelError(f"{what}: unknown body {name!r}; known bodies: {known}")
 
-    def _add_body_record(self, name, mass, inertia, position, orientation, fixed, equilibrium):
+    def _add_body_record(self, name, mass, inertia, position, orientation, fixed, equilibrium, as_given=False):
         self._bodies.append(
             dict(
                 name=name, mass=mass, inertia=inertia, position=position,
                 quat=_orientation(orientation, f"body {name!r}"), fixed=fixed, equilibrium=equilibrium,
+                inertia_as_given=as_given,
             )
         )
         self._frames[f"{name}.origin"] = Frame(f"{name}.origin", name, np.zeros(3), np.eye(3))
 
-    def add_body(self, name, mass, inertia, position=(0, 0, 0), orientation=None, fixed=False, equilibrium=True):
+    def add_body(self, name, mass, inertia, position=(0, 0, 0), orientation=None, fixed=False, equilibrium=True,
+                 inertia_as_given=False):
         """Add a rigid body.
 
         mass : kg (≥ 0 for a moving body: 0 for a massless link); inertia : (3,) principal moments or (3, 3)
         kg m² about the centre of mass in the body frame; position : (3,) m of the
         centre of mass (the body frame origin) in the reference pose; orientation :
-        quaternion (4,) or rotation matrix R_WB (3, 3); fixed : fixed to the world.
+        quaternion (4,) or rotation matrix R_WB (3, 3); fixed : fixed to the world;
+        inertia_as_given : an inertia no rigid body has (the triangle inequality) is used
+        with a warning instead of refused (:func:`~openfdk.model.plausibility.check_mass_properties`).
         """
         _check_name(name, "body")
         if any(b["name"] == name for b in self._bodies):
@@ -117,7 +121,8 @@ class ModelBuilder:
         position = np.asarray(position, dtype=float)
         if position.shape != (3,) or not np.all(np.isfinite(position)):
             raise ModelError(f"body {name!r}: position must be 3 finite numbers")
-        self._add_body_record(name, float(mass), inertia, position, orientation, bool(fixed), bool(equilibrium))
+        self._add_body_record(name, float(mass), inertia, position, orientation, bool(fixed), bool(equilibrium),
+                              bool(inertia_as_given))
         return name
 
     def add_frame(self, body, name, position, orientation=None):
@@ -413,7 +418,7 @@ class ModelBuilder:
             col += 0 if b["fixed"] else 6
             bodies.append(
                 Body(b["name"], b["mass"], b["inertia"], b["position"], b["quat"], b["fixed"],
-                     b["equilibrium"], i, column)
+                     b["equilibrium"], i, column, b["inertia_as_given"])
             )
         names = {b.name: i for i, b in enumerate(bodies)}
         markers = MarkerSet(

@@ -40,6 +40,8 @@ class Body:
         inverse dynamics (False for a body moved by the data whose loads are unknown)
     index : int, position in ``Model.bodies``
     column : int, first column of the body's 6 virtual displacements in q̂, or -1
+    inertia_as_given : bool, an inertia that violates the triangle inequality is used as
+        given, with a warning, instead of refused (an OpenSim model's: OpenSim takes it)
     """
 
     name: str
@@ -51,6 +53,7 @@ class Body:
     equilibrium: bool = True
     index: int = -1
     column: int = -1
+    inertia_as_given: bool = False
 
 
 @dataclass(frozen=True, eq=False)

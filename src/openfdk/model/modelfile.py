@@ -176,7 +176,7 @@ def _load_bodies(b, bodies, ctx):
     for name, spec in bodies.items():
         p = f"bodies.{name}"
         ctx.keys(spec, p, ["mass", "inertia", "position", "orientation", "fixed", "equilibrium", "frames", "points", "markers",
-                         "visual"])
+                         "visual", "inertia_as_given"])
         if name == GROUND:
             ctx.keys(spec, p, ["fixed", "frames", "points", "visual"])
             if spec.get("fixed", True) is not True:
@@ -194,7 +194,8 @@ def _load_bodies(b, bodies, ctx):
         if name != GROUND:
             _wrap(ctx, p, lambda: b.add_body(
                 name, mass, inertia, ctx.position(spec.get("position", [0, 0, 0]), f"{p}.position"), R,
-                fixed=fixed, equilibrium=ctx.boolean(spec.get("equilibrium", not fixed), f"{p}.equilibrium")))
+                fixed=fixed, equilibrium=ctx.boolean(spec.get("equilibrium", not fixed), f"{p}.equilibrium"),
+                inertia_as_given=ctx.boolean(spec.get("inertia_as_given", False), f"{p}.inertia_as_given")))
         for section in ("frames", "points"):
             for fname, fspec in (ctx.mapping(spec.get(section) or {}, f"{p}.{section}")).items():
                 fp = f"{p}.{section}.{fname}"

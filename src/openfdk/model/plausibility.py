@@ -89,8 +89,11 @@ def check_mass_properties(model, source=""):
             raise ModelError(f"{where}.inertia: principal moment {I[-1]:g} kg m² is not plausible "
                              f"(at most {MAX_INERTIA:g} kg m²)")
         if I[0] + I[1] < I[2] * (1 - 1e-9):
-            raise ModelError(f"{where}.inertia: principal moments {np.round(I, 12).tolist()} kg m² violate the "
-                             "triangle inequality I1 + I2 >= I3; no rigid body has this inertia")
+            text = (f"{where}.inertia: principal moments {np.round(I, 12).tolist()} kg m² violate the triangle "
+                    "inequality I1 + I2 >= I3; no rigid body has this inertia")
+            if not b.inertia_as_given:
+                raise ModelError(text)
+            _warn(f"{text}; used as given (inertia_as_given), as OpenSim uses it")
 
 
 def _reference_points(model):

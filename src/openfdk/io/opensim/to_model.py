@@ -46,6 +46,14 @@ _SAFE = re.compile(r"[^A-Za-z0-9_\-]")
 INERTIA_TOLERANCE = 1e-12
 
 
+def _violates_triangle(inertia):
+    """Whether the principal moments of ``inertia`` (3, 3) kg m² break I1 + I2 >= I3 (as
+    :func:`openfdk.model.plausibility.check_mass_properties` tests it)."""
+    scale = float(np.max(np.abs(inertia))) or 1.0
+    I = np.linalg.eigvalsh(0.5 * (inertia + inertia.T) / scale) * scale
+    return bool(I[0] + I[1] < I[2] * (1 - 1e-9))
+
+
 def _no_error(path, msg):  # the function dicts of the reader are checked already
     return OsimError(f"{path}: {msg}")
 
@@ -100,7 +108,10 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
                             f"mass {inertia.round(9).tolist()} has a negative principal moment")
         p_WB, R_WB = X[b]
         com[b] = c
-        bodies[unique("body", b)] = {"mass": mass, "inertia": inertia.tolist(), **_pose(p_WB + R_WB @ c, R_WB)}
+        key = unique("body", b)
+        bodies[key] = {"mass": mass, "inertia": inertia.tolist(), **_pose(p_WB + R_WB @ c, R_WB)}
+        if _violates_triangle(inertia):  # OpenSim's release builds take it (Simbody's check is compiled out)
+            bodies[key]["inertia_as_given"] = True
 
     def frame_of(frame_name, label, kind="frame"):
         """Add an openfdk frame for an OpenSim frame; returns "body.frame"."""

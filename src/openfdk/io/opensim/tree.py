@@ -197,7 +197,8 @@ def opensim_inertia(body):
     OsimBody as OpenSim's Body takes it (Body::getInertia): a massless body's inertia is
     zero, with a warning in OpenSim. (Simbody's check of the triangle inequality is
     compiled out of OpenSim's release builds, which take any other inertia as given;
-    openfdk refuses one that no rigid body has, model/plausibility.py.)"""
+    openfdk uses one that no rigid body has as given too, with a warning: the body's
+    ``inertia_as_given``, model/plausibility.py.)"""
     if abs(body.mass) > SIGNIFICANT_REAL:
         return body.inertia, ""
     I = body.inertia
