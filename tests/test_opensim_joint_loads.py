@@ -153,12 +153,34 @@ def test_joint_loads_equal_opensims_joint_reactions(case, how, capsys):
 
     import json
 
+    from openfdk.plots.run import figure_plan
+    from openfdk.results.run import read_results
+
+    results = read_results(out)  # Python reads the folder's joint loads, and draws them
+    np.testing.assert_array_equal(results.joint_loads["knee_r_on_tibia_r_in_ground_fx"].to_numpy(),
+                                  ours["knee_r_on_tibia_r_in_ground_fx"])
+    assert "joint_loads" in [name for name, _, _ in figure_plan(results)]
     summary = json.loads((out / "summary.json").read_text())["joint_loads"]
     F = np.column_stack([theirs["knee_r"][:, k] for k in range(3)])
     knee = np.linalg.norm(F, axis=1)
     assert summary["joints"]["knee_r"]["peak_N"] == pytest.approx(knee.max(), rel=1e-6)
     assert summary["joints"]["knee_r"]["peak_BW"] == pytest.approx(knee.max() / summary["body_weight_N"], rel=1e-12)
     assert summary["joints"]["knee_r"]["time_s"] == pytest.approx(times[int(np.argmax(knee))])
+
+
+def test_python_api_gives_the_same_joint_loads(case):
+    """openfdk.run (the Python API) computes the joint loads in memory: the same numbers
+    as OpenSim's, and the same summary."""
+    import openfdk
+    from openfdk.io.opensim.overlay import register
+
+    folder, model, overlay, loads, times, theirs, child = case
+    register(str(model), overlay=overlay, external_loads=loads)
+    result = openfdk.run(str(model))
+    ours = {"time": result.joint_loads.index.to_numpy(), **{k: v.to_numpy() for k, v in result.joint_loads.items()}}
+    (dF, dM, dp), peak_F, _ = _compare(ours, theirs, child)
+    assert dF < 1e-6 * peak_F and dp < 1e-9, (dF, dM, dp)
+    assert result.summary["joint_loads"]["joints"]["knee_r"]["peak_N"] > 100.0
 
 
 @pytest.mark.slow
