@@ -10,6 +10,11 @@ that acts across it (paper Eq. 12: the rows' load is C^R λ = Φ_q̂ᵀ λ):
 * the coordinate actuators on J's coordinates (reserves, OpenSim's CoordinateActuators),
   τ ∂m/∂q̂ with m the coordinate's measure and τ the recruited force.
 
+* the part of a muscle's load that comes from a path point moving with one of J's
+  coordinates u (OpenSim's MovingPathPoint: Gait2392's vasti over the knee),
+  −f (∂l/∂u)_p ∂u/∂q̂, with f the tension and (∂l/∂u)_p the change of the path's length
+  with u at fixed bodies. OpenSim applies it as a generalised force on u.
+
 Forces applied at points of the bodies (muscles, ligaments, contacts, point and torque
 actuators, the ground reactions) are not transmitted by the joint: they are loads on
 the bodies, as in OpenSim, whose JointReaction reports Simbody's mobilizer reaction
@@ -89,19 +94,50 @@ def joint_load_rows(model, system, column_names):
     return out
 
 
-def joint_loads(model, q, forces, column_names):
+def moving_point_muscles(model):
+    """[(muscle index, CoordinatePath)] of the muscles whose path has a point that moves
+    with a coordinate (OpenSim's MovingPathPoint)."""
+    from ..forces.coordinate_path import CoordinatePath
+
+    return [(i, m.path) for i, m in enumerate(model.muscles)
+            if isinstance(m.path, CoordinatePath) and any(n.moving is not None for n in m.path.nodes)]
+
+
+def moving_point_terms(path, state):
+    """[(coordinate name, (∂l/∂u)_p, ∂u/∂q̂ (n,))] of a CoordinatePath at ``state``: the
+    change of its length (m per m or rad) with each coordinate u its points move with,
+    the bodies held (the moving points' term of ∂l/∂q̂, split by coordinate)."""
+    kernel = path.kernel
+    _, U, _ = kernel.program.evaluate(state, 1)
+    rigid = kernel.evaluate(state, coordinate_rows=())[1][0]
+    out = []
+    for j, measure in enumerate(kernel.coordinates):
+        g = U[j]
+        gg = float(g @ g)
+        if gg == 0.0:
+            continue
+        part = kernel.evaluate(state, coordinate_rows=(j,))[1][0] - rigid  # = (∂l/∂u)_p ∂u/∂q̂
+        out.append((getattr(measure, "name", ""), float(part @ g) / gg, g))
+    return out
+
+
+def joint_loads(model, q, dyn):
     """{joint name: (F_W (nf, 3) N, M_WP (nf, 3) N m, p_WP (nf, 3) m)}: the load each
     joint transmits to its child body at every frame (module docstring), the moment
     about the child frame's origin P, all in the ground frame. ``q`` (nf, 7 n_moving)
-    the frames' poses (KinematicsResult.q), ``forces`` (nf, n_columns) and
-    ``column_names`` an InverseDynamicsResult's. A frame whose pose or forces are not
+    the frames' poses (KinematicsResult.q), ``dyn`` the InverseDynamicsResult (its
+    forces, columns and muscle passive forces). A frame whose pose or forces are not
     finite gives NaN."""
     from ..kinematics.system import ConstraintSystem
 
     system = ConstraintSystem(model)
-    loads = joint_load_rows(model, system, column_names)
+    loads = joint_load_rows(model, system, dyn.column_names)
     q = np.asarray(q, float)
-    forces = np.asarray(forces, float)
+    forces = np.asarray(dyn.forces, float)
+    passive = getattr(dyn, "muscle_passive", None)
+    moving = moving_point_muscles(model) if passive is not None else []
+    joint_of = {c.name: c.joint for c in model.coordinates}
+    by_name = {j.name: j for j in loads}
     nf = len(q)
     out = {j.name: tuple(np.full((nf, 3), np.nan) for _ in range(3)) for j in loads}
     state = model.initial_state()
@@ -110,12 +146,21 @@ def joint_loads(model, q, forces, column_names):
             continue
         state.set_q(q[k])
         A = system.jacobian(state)
+        extra = {}  # joint -> (n,) generalised load of the moving points' terms on its coordinates
+        for i, path in moving:
+            tension = forces[k, i] + passive[k, i]  # the muscle's columns come first
+            for coordinate, dl_du, g in moving_point_terms(path, state):
+                joint = joint_of.get(coordinate)
+                if joint in by_name:
+                    extra[joint] = extra.get(joint, 0.0) - tension * dl_du * g
         for j in loads:
             b = model.body(j.child)
             cols = slice(b.column, b.column + 6)
             g = A[list(j.rows), cols].T @ forces[k, list(j.row_columns)] if j.rows else np.zeros(6)
             for col, measure in j.actuators:
                 g = g + forces[k, col] * np.asarray(measure.evaluate(state, 1)[1])[0, cols]
+            if j.name in extra:
+                g = g + extra[j.name][cols]
             i = b.index
             R_WB, p_WB = state.R_WB[i], state.p_WB[i]
             p_WP = p_WB + R_WB @ model.frame(j.frame).p_BF
@@ -125,4 +170,4 @@ def joint_loads(model, q, forces, column_names):
     return out
 
 
-__all__ = ["JointLoadRows", "joint_load_rows", "joint_loads"]
+__all__ = ["JointLoadRows", "joint_load_rows", "joint_loads", "moving_point_muscles", "moving_point_terms"]

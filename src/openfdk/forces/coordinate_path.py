@@ -112,6 +112,7 @@ class CoordinatePathNodes:
             start.append(len(body))
         self.names = list(names)
         self.n_paths = len(self.names)
+        self.coordinates = tuple(coords)  # the program's scalar measures, in its row order
         self.program = CompiledMeasures(coords)
         self.body = np.array(body, np.int64)
         self.p = np.array(p_BF, float).reshape(-1, 6)  # [p_BF (3), constant p_F (3)]
@@ -124,10 +125,16 @@ class CoordinatePathNodes:
         self.fparams = np.array(fparams + [0.0], float)
         self.start = np.array(start, np.int64)
 
-    def evaluate(self, state):
+    def evaluate(self, state, coordinate_rows=None):
         """l (n_paths,) m and L (n_paths, n_coords); FloatingPointError naming the path
-        when two consecutive active points coincide (no direction)."""
+        when two consecutive active points coincide (no direction). ``coordinate_rows``
+        (k,) int: L with only those coordinates' gradients in the moving points' term
+        (none: the rigid part, the points held where the coordinates put them)."""
         u, U, _ = self.program.evaluate(state, 1)
+        if coordinate_rows is not None:
+            kept = np.zeros_like(U)
+            kept[list(coordinate_rows)] = U[list(coordinate_rows)]
+            U = kept
         l, L, bad = coordinate_path_lengths(
             state.p_WB, state.R_WB, state.column, u, U, self.body, self.p, self.R_BF, self.cond, self.cond_range,
             self.move, self.move_range, self.fn_start, self.fparams, self.start, state.n_coords)

@@ -27,7 +27,7 @@ def joint_load_columns(model, kin, dyn):
     frames NaN; {} when the model has no joint with a moving child body."""
     from ..dynamics.joint_loads import joint_loads
 
-    loads = joint_loads(model, kin.q, dyn.forces, dyn.column_names)
+    loads = joint_loads(model, kin.q, dyn)
     failed = ~(np.asarray(dyn.converged, bool) & np.asarray(kin.converged, bool))
     out = {}
     for name, (F, M, P) in loads.items():
