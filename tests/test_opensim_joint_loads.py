@@ -11,7 +11,9 @@ reports with its defaults) gives each joint's force and moment on the child at t
 child frame's origin, in the ground. openfdk runs the same motion two ways: the
 coordinates driven (inverse dynamics, the drivers carry τ), and with an OpenSim actuator
 file of one CoordinateActuator per coordinate (static optimisation: the actuators carry
-τ, the drivers nothing).
+τ, the drivers nothing). Then the loads OpenSim books as generalised forces on a
+coordinate: a muscle's moving path point (the project's 92-muscle model) and a coordinate
+coupler (a patella coupled to the knee), OpenSim given openfdk's forces.
 """
 
 from __future__ import annotations
@@ -313,3 +315,171 @@ def test_joint_loads_with_muscles_equal_opensims(tmp_path, capsys):
     quadriceps = max(float(np.max(forces[f"{m}_{s}.force_N"])) for m in ("vas_int", "rect_fem") for s in "rl")
     assert quadriceps > 100.0  # and the moving patella point's term acts
     assert worst_F < 1e-4 and worst_M < 1e-5, (worst_F, worst_M)
+
+
+def test_a_failed_frame_has_no_joint_loads(case, tmp_path):
+    """A frame whose recruitment failed keeps its row, NaN, in joint_loads.csv, is left out
+    of the .sto (which says so), and of the peaks in the summary."""
+    from openfdk.analysis.jobs import model_and_settings, run_job
+    from openfdk.io.joint_load_outputs import write_joint_loads
+    from openfdk.io.opensim.overlay import register
+    from openfdk.io.storage import read_storage
+
+    folder, model, overlay, loads, times, theirs, child = case
+    register(str(model), overlay=overlay, external_loads=loads)
+    loaded = model_and_settings(str(model))
+    kin, dyn, _ = run_job(str(model), None, progress=False, loaded=loaded, rim_check=False)
+    import dataclasses
+
+    converged = np.array(dyn.converged)
+    converged[3] = False
+    dyn = dataclasses.replace(dyn, converged=converged)
+    summary = write_joint_loads(tmp_path, loaded[0], kin, dyn)
+    ours = read_table(tmp_path / "joint_loads.csv")
+    assert len(ours["time"]) == len(times)
+    assert np.isnan(ours["knee_r_on_tibia_r_in_ground_fx"][3]) and np.isfinite(ours["knee_r_on_tibia_r_in_ground_fx"][2])
+    t, cols, header = read_storage(tmp_path / "joint_loads.sto")
+    assert len(t) == len(times) - 1 and times[3] not in t
+    assert "1 failed frames left out" in (tmp_path / "joint_loads.sto").read_text()
+    knee = np.linalg.norm(theirs["knee_r"][:, :3], axis=1)
+    knee[3] = 0.0
+    assert summary["joints"]["knee_r"]["peak_N"] == pytest.approx(knee.max(), rel=1e-6)
+
+
+def _spline(f):
+    """A SimmSpline through f at 41 points over [-3, 3] rad."""
+    fn = opensim.SimmSpline()
+    for x in np.linspace(-3.0, 3.0, 41):
+        fn.addPoint(float(x), float(f(x)))
+    return fn
+
+
+def _coupled_knee(path, splines=False):
+    """A leg written with OpenSim's API: ground -hip (pin)- thigh -knee (pin)- shank, and a
+    patella on the thigh whose CustomJoint coordinate beta rotates and slides it,
+    beta = 0.8 knee + 0.05 by a CoordinateCouplerConstraint (Rajagopal's patella).
+    ``splines``: beta moves the patella through SimmSplines only, as Rajagopal's does
+    (openfdk then places it by the knee angle: the coupler holds by construction)."""
+    model = opensim.Model()
+    model.setName("coupled_knee")
+    model.setGravity(opensim.Vec3(0, -9.81, 0))
+    thigh = opensim.Body("thigh", 7.0, opensim.Vec3(0, -0.2, 0), opensim.Inertia(0.1, 0.02, 0.1))
+    shank = opensim.Body("shank", 3.5, opensim.Vec3(0, -0.2, 0), opensim.Inertia(0.05, 0.006, 0.05))
+    patella = opensim.Body("patella", 0.3, opensim.Vec3(0.01, 0, 0), opensim.Inertia(1e-4, 1e-4, 1e-4))
+    for b in (thigh, shank, patella):
+        model.addBody(b)
+    hip = opensim.PinJoint("hip", model.getGround(), opensim.Vec3(0, 1, 0), opensim.Vec3(0, 0, 0),
+                           thigh, opensim.Vec3(0, 0, 0), opensim.Vec3(0, 0, 0))
+    knee = opensim.PinJoint("knee", thigh, opensim.Vec3(0, -0.42, 0), opensim.Vec3(0, 0, 0),
+                            shank, opensim.Vec3(0, 0, 0), opensim.Vec3(0, 0, 0))
+    st = opensim.SpatialTransform()
+    rotation = _spline(lambda x: x + 0.1 * x * x) if splines else opensim.LinearFunction(1.0, 0.0)
+    slide = _spline(lambda x: 0.04 + 0.02 * np.sin(x)) if splines else opensim.LinearFunction(0.02, 0.04)
+    axes = [((0, 0, 1), "beta", rotation), ((1, 0, 0), None, opensim.Constant(0.0)),
+            ((0, 1, 0), None, opensim.Constant(0.0)), ((1, 0, 0), "beta", slide),
+            ((0, 1, 0), None, opensim.Constant(0.0)), ((0, 0, 1), None, opensim.Constant(0.0))]
+    for k, (axis, coordinate, function) in enumerate(axes):
+        ta = st.updTransformAxis(k)
+        ta.setAxis(opensim.Vec3(*axis))
+        if coordinate is not None:
+            ta.setCoordinateNames(opensim.ArrayStr(coordinate, 1))
+        ta.set_function(function)
+    pf = opensim.CustomJoint("pf", thigh, opensim.Vec3(0, -0.38, 0), opensim.Vec3(0, 0, 0),
+                             patella, opensim.Vec3(0, 0, 0), opensim.Vec3(0, 0, 0), st)
+    for j in (hip, knee, pf):
+        model.addJoint(j)
+    hip.updCoordinate().setName("hip_q")
+    knee.updCoordinate().setName("knee_q")
+    coupler = opensim.CoordinateCouplerConstraint()
+    coupler.setName("pf_coupler")
+    coupler.setIndependentCoordinateNames(opensim.ArrayStr("knee_q", 1))
+    coupler.setDependentCoordinateName("beta")
+    coupler.setFunction(opensim.LinearFunction(0.8, 0.05))
+    model.addConstraint(coupler)
+    model.finalizeConnections()
+    model.printToXML(str(path))
+    return path
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("splines", [False, True], ids=["coupler_row", "placed_by_the_knee"])
+def test_joint_loads_with_a_coordinate_coupler_equal_opensims(tmp_path, capsys, splines):
+    """A patella placed by the knee angle through a CoordinateCouplerConstraint, pulled by
+    an external force (its tendon). openfdk drives the hip and the knee; OpenSim gets
+    openfdk's two generalised forces on CoordinateActuators and none on the patella's
+    coordinate, so that its coupler carries the patella, reproduces the motion's
+    accelerations, and its joint reactions equal openfdk's joint loads: the knee's
+    includes the coupler's generalised force on the knee angle (OpenSim's booking). With
+    splines the patella's rows are written through the knee angle and carry the coupler."""
+    model = _coupled_knee(tmp_path / "knee.osim", splines)
+    times = np.arange(N) / RATE + 0.2
+    motion = {"hip_q": (0.3, 0.4, 0.9, 0.2), "knee_q": (-0.7, 0.5, 1.1, 1.0)}
+    drivers = {}
+    for name, (a, b, f, phi) in motion.items():
+        drivers[f"{name}_motion"] = {"measure": name, "reaction": True, "function": {
+            "type": "fourier", "frequency": float(f), "a": [float(a), float(b * np.sin(phi))],
+            "b": [float(b * np.cos(phi))]}}
+    import yaml
+
+    (tmp_path / "overlay.yaml").write_text(yaml.safe_dump(
+        {"drivers": drivers, "analysis": {"start": float(times[0]), "end": float(times[-1]), "frames": len(times)}}))
+    write_storage = __import__("openfdk.io.storage", fromlist=["write_storage"]).write_storage
+    t = times
+    write_storage(tmp_path / "tendon.mot", t, {"p_vx": 300 + 50 * np.sin(3 * t), "p_vy": 500 + 0 * t,
+                                               "p_vz": 0 * t, "p_px": 0.02 + 0 * t, "p_py": 0.01 + 0 * t,
+                                               "p_pz": 0 * t}, name="tendon")
+    (tmp_path / "tendon.xml").write_text("""<?xml version="1.0" encoding="UTF-8" ?>
+<OpenSimDocument Version="40000"><ExternalLoads name="tendon"><objects>
+<ExternalForce name="tendon"><applied_to_body>patella</applied_to_body>
+<force_expressed_in_body>ground</force_expressed_in_body><point_expressed_in_body>patella</point_expressed_in_body>
+<force_identifier>p_v</force_identifier><point_identifier>p_p</point_identifier></ExternalForce>
+</objects><datafile>tendon.mot</datafile></ExternalLoads></OpenSimDocument>
+""")
+    out = tmp_path / "id"
+    assert main(["run", str(model), "--with", str(tmp_path / "overlay.yaml"), "--external-loads",
+                 str(tmp_path / "tendon.xml"), "--out", str(out), "--no-plots", "-q"]) == 0, capsys.readouterr().err
+    tau = read_table(out / "generalized_forces.csv")
+    ours = read_table(out / "joint_loads.csv")
+
+    osim = opensim.Model(str(model))
+    ext = opensim.ExternalLoads(str(tmp_path / "tendon.xml"), True)
+    data = opensim.Storage(str(tmp_path / "tendon.mot"))
+    force = ext.get(0).clone()
+    force.setDataSource(data)
+    osim.addForce(force)
+    actuators = {}
+    for n in motion:
+        a = opensim.CoordinateActuator(n)
+        a.setName(f"tau_{n}")
+        a.setOptimalForce(1.0)
+        osim.addForce(a)
+        actuators[n] = a
+    state = osim.initSystem()
+    cs = osim.getCoordinateSet()
+    worst_udot, worst_F, worst_M, knee_M = 0.0, 0.0, 0.0, 0.0
+    for k, tk in enumerate(times):
+        state.setTime(float(tk))
+        for n in motion:
+            cs.get(n).setValue(state, _q(motion[n], tk), False)
+        cs.get("beta").setValue(state, 0.8 * _q(motion["knee_q"], tk) + 0.05, False)
+        osim.assemble(state)
+        for n in motion:
+            cs.get(n).setSpeedValue(state, _q(motion[n], tk, 1))
+        cs.get("beta").setSpeedValue(state, 0.8 * _q(motion["knee_q"], tk, 1))
+        for n, a in actuators.items():
+            a.overrideActuation(state, True)
+            a.setOverrideActuation(state, float(tau[f"{n}_moment"][k]))
+        osim.realizeAcceleration(state)
+        worst_udot = max(worst_udot, max(abs(cs.get(n).getAccelerationValue(state) - _q(motion[n], tk, 2))
+                                         for n in motion))
+        for joint, child in (("hip", "thigh"), ("knee", "shank"), ("pf", "patella")):
+            load = osim.getJointSet().get(joint).calcReactionOnChildExpressedInGround(state)
+            base = f"{joint}_on_{child}_in_ground"
+            worst_F = max(worst_F, max(abs(ours[f"{base}_f{c}"][k] - load.get(1).get(i)) for i, c in enumerate("xyz")))
+            worst_M = max(worst_M, max(abs(ours[f"{base}_m{c}"][k] - load.get(0).get(i)) for i, c in enumerate("xyz")))
+            if joint == "knee":
+                knee_M = max(knee_M, abs(load.get(0).get(2)))
+    print("udot", worst_udot, "force", worst_F, "moment", worst_M, "knee moment up to", knee_M)
+    assert worst_udot < 1e-5, worst_udot
+    assert knee_M > 5.0
+    assert worst_F < 1e-5 and worst_M < 1e-5, (worst_F, worst_M)

@@ -15,11 +15,18 @@ that acts across it (paper Eq. 12: the rows' load is C^R λ = Φ_q̂ᵀ λ):
   −f (∂l/∂u)_p ∂u/∂q̂, with f the tension and (∂l/∂u)_p the change of the path's length
   with u at fixed bodies. OpenSim applies it as a generalised force on u.
 
+* a coordinate coupler's rows (OpenSim's CoordinateCouplerConstraint) on J's child, when
+  one of its coordinates is J's: OpenSim applies the coupler's force as generalised
+  forces on its coordinates, each carried by that coordinate's joint;
+* the rows of another joint K that move with one of J's coordinates, on J's child: a
+  patella placed by the knee angle (a coupler that openfdk's rows of K express through
+  the knee angle, as for Rajagopal's patella), the same generalised force.
+
 Forces applied at points of the bodies (muscles, ligaments, contacts, point and torque
 actuators, the ground reactions) are not transmitted by the joint: they are loads on
 the bodies, as in OpenSim, whose JointReaction reports Simbody's mobilizer reaction
 (everything the mobilizer carries, its mobility forces included). Other constraints
-(a CoordinateCouplerConstraint, a distance constraint) belong to no joint.
+(a distance constraint, a weld) belong to no joint.
 
 With the generalised velocity of a body [ṙ_W; ω'_B] (centre of mass, body frame), the
 child's six columns of Σ Φ_q̂ᵀ λ are the force F_W (3,) N at the centre of mass in the
@@ -61,17 +68,23 @@ def joint_load_rows(model, system, column_names):
     index = {name: k for k, name in enumerate(column_names)}
     joint_of = {c.name: c.joint for c in model.coordinates}  # a coordinate's rows measure it by name
     records = [j for j in model.joints if j.type not in ("coupler",) and j.child]
+    couplers = {j.name: [x for x in (j.independent, j.dependent) if x] for j in model.joints if j.type == "coupler"}
     by_name = {j.name: j for j in records}
     rows = {j.name: [] for j in records}
+    own = {}  # a joint's own rows: {joint: ([(row, column)], bodies its rows move)}
+    coupled = []  # the couplers' rows: ([(row, column)], bodies, the joints of their coordinates)
     actuators = {j.name: [] for j in records}
     r = 0
     for c in model.constraints:
-        owner = c.name if c.name in by_name and c.kind != DRIVER else joint_of.get(getattr(c.measure, "name", ""))
+        mine = c.name in by_name and c.kind != DRIVER
+        owner = c.name if mine else joint_of.get(getattr(c.measure, "name", ""))
+        found = [(r + k, index[row]) for k, row in enumerate(c.row_names) if row in index]
         if owner in rows:
-            for k, row in enumerate(c.row_names):
-                col = index.get(row)
-                if col is not None:
-                    rows[owner].append((r + k, col))
+            rows[owner] += found
+            if mine:
+                own[owner] = (found, c.measure.bodies())
+        elif c.name in couplers:  # OpenSim's CoordinateCouplerConstraint: each coordinate's joint carries its part
+            coupled.append((found, c.measure.bodies(), [joint_of.get(x) for x in couplers[c.name]]))
         r += c.size
     for d in getattr(system, "fdk", ()):
         owner = joint_of.get(d.name)
@@ -84,9 +97,28 @@ def joint_load_rows(model, system, column_names):
         c = coords.get(getattr(a, "coordinate", None))
         if c is not None and c.joint in actuators and a.name in index:
             actuators[c.joint].append((index[a.name], c.measure))
+    # a joint whose rows move with another joint's coordinate (a patella placed by the
+    # knee angle through OpenSim's CoordinateCouplerConstraint) loads that joint's child
+    # through the coordinate: OpenSim applies that part as a generalised force on the
+    # coordinate, carried by the other joint, so its rows' load on that child counts there
+    child_of = {j.name: model.frame(j.child).body for j in records}
+    parent_of = {j.name: model.frame(j.parent).body if j.parent else "ground" for j in records}
+    joint_with_child = {}
+    for j in records:
+        joint_with_child.setdefault(child_of[j.name], j.name)
+    names = [b.name for b in model.bodies]
+    for name, (found, bodies) in own.items():
+        for b in bodies:
+            other = joint_with_child.get(names[b])
+            if other is not None and names[b] not in (parent_of[name], child_of[name]):
+                rows[other] += [rc for rc in found if rc not in rows[other]]
+    for found, bodies, joints in coupled:
+        for joint in joints:
+            if joint in rows and model.body(child_of[joint]).index in bodies:
+                rows[joint] += [rc for rc in found if rc not in rows[joint]]
     out = []
     for j in records:
-        child = model.frame(j.child).body
+        child = child_of[j.name]
         if model.body(child).column < 0:
             continue
         out.append(JointLoadRows(j.name, child, j.child, tuple(r for r, _ in rows[j.name]),
