@@ -50,7 +50,11 @@ def _violates_triangle(inertia):
     """Whether the principal moments of ``inertia`` (3, 3) kg m² break I1 + I2 >= I3 (as
     :func:`openfdk.model.plausibility.check_mass_properties` tests it)."""
     scale = float(np.max(np.abs(inertia))) or 1.0
-    I = np.linalg.eigvalsh(0.5 * (inertia + inertia.T) / scale) * scale
+    unit = inertia / scale  # first: the sum of two moments near the float limit overflows
+    try:
+        I = np.linalg.eigvalsh(0.5 * (unit + unit.T))
+    except np.linalg.LinAlgError:  # not finite: the model's checks name it
+        return False
     return bool(I[0] + I[1] < I[2] * (1 - 1e-9))
 
 
