@@ -224,6 +224,21 @@ def test_joint_loads_balance_each_body(case, capsys):
     assert scale > 500.0  # the joints carry real loads
     assert worst <= 1e-8 * scale, worst
 
+    # the viewer draws them: an arrow per joint at its centre, the force on the child
+    from openfdk.viewer import view_data
+    from openfdk.viewer.pack import unpack
+
+    data, _ = view_data(out)
+    drawn = {j["name"]: j for j in data["frames"]["joint_loads"]}
+    assert set(drawn) == set(joints)
+    F = unpack(drawn["knee_r"]["force"]).astype(float).reshape(-1, 3)
+    P = unpack(drawn["knee_r"]["cop"]).astype(float).reshape(-1, 3)
+    np.testing.assert_allclose(F[:, 1], ours["knee_r_on_tibia_r_in_ground_fy"], rtol=1e-6)
+    np.testing.assert_allclose(P[:, 0], ours["knee_r_on_tibia_r_in_ground_px"], rtol=1e-6)
+    peak = max(float(np.max(np.linalg.norm(np.column_stack([ours[f"{n}_on_{c}_in_ground_f{a}"] for a in "xyz"]),
+                                           axis=1))) for n, (_, c) in joints.items())
+    assert data["frames"]["arrow_scale"]["joint_load"]["fmax"] == pytest.approx(peak, rel=1e-6)
+
 
 @pytest.mark.slow
 def test_joint_loads_with_muscles_equal_opensims(tmp_path, capsys):

@@ -137,6 +137,30 @@ def grf_frames(results):
     return out
 
 
+def joint_load_frames(results):
+    """Per joint of the run's ``joint_loads.csv`` (an OpenSim model's joints, as OpenSim's
+    JointReaction reports them): the force on the joint's child body (nf, 3) N, world, and
+    the joint's child frame origin (nf, 3) m, where the arrow starts; NaN on failed
+    frames. [] without joint_loads.csv or when its rows are not the run's."""
+    from pathlib import Path
+
+    from ..io.results import read_table
+
+    folder = getattr(results, "directory", None)
+    if folder is None or not (Path(folder) / "joint_loads.csv").is_file():
+        return []
+    data = read_table(Path(folder) / "joint_loads.csv")
+    if len(data["time"]) != results.n_frames:
+        return []
+    out = []
+    for key in (k for k in data if k.endswith("_fx")):
+        base = key[:-3]
+        F = np.stack([np.asarray(data[f"{base}_f{a}"], float) for a in "xyz"], axis=1)
+        P = np.stack([np.asarray(data[f"{base}_p{a}"], float) for a in "xyz"], axis=1)
+        out.append({"name": base.split("_on_")[0], "force": pack(F), "cop": pack(P)})
+    return out
+
+
 def reaction_frames(model, results, poses):
     """Per one-sided reaction on a point_on_plane joint (the POP model's TMJ contacts): the
     force on the child body (nf, 3) N, world, and its point of application (nf, 3) m, the
@@ -277,6 +301,7 @@ def build_frames(model, scene, results):
                 for j in range(forces.shape[1])]
     contacts, grf = contact_frames(model, scene, results, poses), grf_frames(results)
     reactions = reaction_frames(model, results, poses)
+    joint_loads = joint_load_frames(results)
     return {
         "time": pack(results.time),
         "poses": pack(poses),
@@ -284,9 +309,10 @@ def build_frames(model, scene, results):
         "path_force": pack(forces), "path_fmax": fmax,
         "wrap_points": pack(wrap),
         "bounds": motion_bounds(scene, poses, measured, wrap),
-        "contacts": contacts, "grf": grf, "reactions": reactions,
+        "contacts": contacts, "grf": grf, "reactions": reactions, "joint_loads": joint_loads,
         "arrow_scale": {"contact": arrow_scale(contacts, scene.scale), "grf": arrow_scale(grf, scene.scale),
-                        "reaction": arrow_scale(reactions, scene.scale)},
+                        "reaction": arrow_scale(reactions, scene.scale),
+                        "joint_load": arrow_scale(joint_loads, scene.scale)},
         "panel": panel_series(model, results, measured, scene.data["paths"]),
         "failed": failed_frames(results),
     }

@@ -274,6 +274,13 @@
     arrow: new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 1, 0x8a2be2),
   }));
   const fReactMax = forceArrows(reacts, 'reaction');
+  // joint loads (joint_loads.csv, an OpenSim model's joints): an orange arrow at each joint
+  // centre, the force the joint applies to its child body
+  const jloads = (F.joint_loads || []).map((g) => ({
+    name: g.name, force: arr(g.force), cop: arr(g.cop),
+    arrow: new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 1, 0xe07b00),
+  }));
+  const fJointMax = forceArrows(jloads, 'joint_load');
   // legend text of an arrow scale: "<length> mm = <force> N"
   const arrowText = (a) => `${(a.length_m * 1e3).toPrecision(3)} mm = ${a.fmax.toPrecision(3)} N`;
 
@@ -292,6 +299,7 @@
   if (contacts.length) legend.push(`contact pressure <span class="bar" style="background:${grad}"></span> 0–${(Math.max(...contacts.map((c) => c.p_max)) / 1e6).toPrecision(3)} MPa; <b style="color:#c00000">arrow</b>: force on the vertex body` +
     (fContactMax.fmax > 0 ? `, ${arrowText(fContactMax)}` : ''));
   if (reacts.length) legend.push(`<b style="color:#8a2be2">joint reaction</b> arrows (one-sided, on the child's point), ${arrowText(fReactMax)}`);
+  if (jloads.length) legend.push(`<b style="color:#e07b00">joint load</b> arrows at each joint centre, on the child body, ${arrowText(fJointMax)}`);
   if (grfs.length) legend.push(`<b style="color:#1a8c1a">ground reaction</b> arrows at the centre of pressure, ${arrowText(fGrfMax)}`);
   if (nm) legend.push('markers: <b style="color:#1f5fbf">model</b>, <b style="color:#f08c00">measured</b>, <b style="color:#d00000">residual</b>');
   $('legend').innerHTML = legend.join('<br>');
@@ -422,6 +430,7 @@
     }
     for (const g of grfs) placeArrow(g, fGrfMax);
     for (const g of reacts) placeArrow(g, fReactMax);
+    for (const g of jloads) placeArrow(g, fJointMax);
     // panel, clock, banner
     series.forEach((sr, j) => {
       const x = sr.v[frame], cell = $('s-' + j);
