@@ -216,17 +216,19 @@ def preflight(model, label, model_path):
 
 
 def _import_info(model_path):
-    """{"opensim_import": {dropped, merged_bodies}} for a model read from an .osim (the
-    elements left out with --ignore are listed in summary.json), else {}."""
+    """{"opensim_import": {dropped, merged_bodies, options?}} for a model read from an .osim
+    (the elements left out with --ignore are listed in summary.json, and the options it
+    was read with: :func:`openfdk.io.opensim.overlay.options_record`), else {}."""
     from ..io.opensim import is_osim
 
     if not isinstance(model_path, (str, bytes)) and not hasattr(model_path, "__fspath__"):
         return {}
     if not is_osim(model_path):
         return {}
-    from ..io.opensim.overlay import import_info
+    from ..io.opensim.overlay import import_info, options_record
 
-    return {"opensim_import": import_info(model_path)}
+    options = options_record(model_path)
+    return {"opensim_import": {**import_info(model_path), **({"options": options} if options else {})}}
 
 
 def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=None, end=None, alpha=None,

@@ -36,7 +36,7 @@ def _cmd_plot(args):
     if args.model:
         from ..io.modelfile import load_model_for_results
 
-        results._model = load_model_for_results(args.model)
+        results._model = load_model_for_results(args.model, results.summary)
     out = Path(args.out) if args.out else Path(args.result_dir) / "plots"
     paths = write_figures(results, out, measures=args.measures)
     _say(args, f"plot: {len(paths)} figures -> {out}/ ({', '.join(p.name for p in paths)})")

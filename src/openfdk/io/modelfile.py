@@ -85,20 +85,45 @@ def load_model(path) -> Model:
     return load_model_and_settings(path)[0]
 
 
-def load_model_for_results(path) -> Model:
+def load_model_for_results(path, summary=None) -> Model:
     """The Model of a model file read to draw, view or export a finished run's results
     (``openfdk plot``, ``view``, ``export-opensim``, :meth:`RunResults.model`). Its input
     checks' warnings (:class:`~openfdk.model.plausibility.PlausibilityWarning`: the
     model's plausibility, ground reactions that look unfiltered, ...) are not given
     again: they concern the analysis, which gave them when it ran. Errors are raised as
-    by :func:`load_model`."""
+    by :func:`load_model`. ``summary``: the run's summary.json; an ``.osim`` that is the
+    run's model is read with the options the run read it with (``--ignore``, ``--with``,
+    ``--motion`` …, ``input.opensim_import.options``)."""
     import warnings
 
     from ..model.plausibility import PlausibilityWarning
 
+    _register_run_options(path, summary)
+
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", PlausibilityWarning)
         return load_model(path)
+
+
+def _register_run_options(path, summary):
+    """The run's OpenSim import options (summary.json) registered for ``path`` when it is
+    the run's ``.osim``."""
+    from .opensim import is_osim
+    from .opensim.overlay import register_record
+
+    inp = summary.get("input") if isinstance(summary, dict) else None
+    if not isinstance(inp, dict) or not is_osim(path):
+        return
+    recorded = inp.get("model_file") or inp.get("model")
+    imported = inp.get("opensim_import")
+    if not isinstance(recorded, str) or not isinstance(imported, dict):
+        return
+    try:
+        same = Path(recorded).resolve() == Path(path).resolve()
+    except OSError:
+        return
+    if same:
+        register_record(path, imported.get("options"))
 
 
 def load_settings(path) -> AnalysisSettings:

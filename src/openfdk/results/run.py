@@ -396,7 +396,7 @@ class RunResults:
         from ..io.modelfile import load_model_for_results
 
         path = self.model_path()
-        return load_model_for_results(path) if path is not None else None
+        return load_model_for_results(path, self.summary) if path is not None else None
 
     def __repr__(self):
         s = self.summary.get("kinematics", {})

@@ -39,7 +39,7 @@ def view_data(result_dir, model=None, max_vertices=MAX_MESH_VERTICES):
         if path is None:
             raise ViewError(f"{results.directory / 'summary.json'}: names no model file (input.model); "
                             f"give it with --model")
-        model_obj, label = load_model_for_results(path), str(path)
+        model_obj, label = load_model_for_results(path, results.summary), str(path)
     else:
         model_obj, label = model, model.name
     scene = build_scene(model_obj, max_vertices)

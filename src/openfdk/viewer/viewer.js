@@ -274,11 +274,11 @@
     arrow: new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 1, 0x8a2be2),
   }));
   const fReactMax = forceArrows(reacts, 'reaction');
-  // joint loads (joint_loads.csv, an OpenSim model's joints): an orange arrow at each joint
+  // joint loads (joint_loads.csv, an OpenSim model's joints): a purple arrow at each joint
   // centre, the force the joint applies to its child body
   const jloads = (F.joint_loads || []).map((g) => ({
     name: g.name, force: arr(g.force), cop: arr(g.cop),
-    arrow: new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 1, 0xe07b00),
+    arrow: new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 1, 0x8a2be2),
   }));
   const fJointMax = forceArrows(jloads, 'joint_load');
   // legend text of an arrow scale: "<length> mm = <force> N"
@@ -299,7 +299,7 @@
   if (contacts.length) legend.push(`contact pressure <span class="bar" style="background:${grad}"></span> 0–${(Math.max(...contacts.map((c) => c.p_max)) / 1e6).toPrecision(3)} MPa; <b style="color:#c00000">arrow</b>: force on the vertex body` +
     (fContactMax.fmax > 0 ? `, ${arrowText(fContactMax)}` : ''));
   if (reacts.length) legend.push(`<b style="color:#8a2be2">joint reaction</b> arrows (one-sided, on the child's point), ${arrowText(fReactMax)}`);
-  if (jloads.length) legend.push(`<b style="color:#e07b00">joint load</b> arrows at each joint centre, on the child body, ${arrowText(fJointMax)}`);
+  if (jloads.length) legend.push(`<b style="color:#8a2be2">joint load</b> arrows at each joint centre, on the child body, ${arrowText(fJointMax)}`);
   if (grfs.length) legend.push(`<b style="color:#1a8c1a">ground reaction</b> arrows at the centre of pressure, ${arrowText(fGrfMax)}`);
   if (nm) legend.push('markers: <b style="color:#1f5fbf">model</b>, <b style="color:#f08c00">measured</b>, <b style="color:#d00000">residual</b>');
   $('legend').innerHTML = legend.join('<br>');

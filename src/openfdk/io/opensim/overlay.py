@@ -102,6 +102,53 @@ def register_options(path, options):
     _REGISTERED[_key(path)] = replace(options, info={})
 
 
+_PATH_OPTIONS = ("overlay", "ik_tasks", "external_loads", "motion", "actuators")
+_NUMBER_OPTIONS = ("motion_cutoff_hz", "external_loads_cutoff_hz")
+
+
+def options_record(path):
+    """The options the ``.osim`` at ``path`` was imported with in this process, as JSON
+    for summary.json (``input.opensim_import.options``: files as absolute paths, only the
+    options given), so that ``openfdk view``, ``plot`` and ``export-opensim`` read the
+    model as the run did (:func:`register_record`); {} without any."""
+    opts = _REGISTERED.get(_key(path))
+    if opts is None:
+        return {}
+    out = {}
+    if opts.ignore:
+        out["ignore"] = list(opts.ignore)
+    if opts.mesh_dirs:
+        out["mesh_dirs"] = [str(Path(d).resolve()) for d in opts.mesh_dirs]
+    for key in _PATH_OPTIONS:
+        value = getattr(opts, key)
+        if value is not None:
+            out[key] = str(Path(value).resolve())
+    for key in _NUMBER_OPTIONS:
+        if getattr(opts, key):
+            out[key] = float(getattr(opts, key))
+    return out
+
+
+def register_record(path, record):
+    """Register for the ``.osim`` at ``path`` the options of a finished run's record
+    (:func:`options_record`), unless options other than the defaults are registered for
+    it in this process already (a caller's own choice stands). A record that is not a
+    mapping of the known options is ignored: the model is then read without them."""
+    current = _REGISTERED.get(_key(path))
+    if current is not None and replace(current, info={}) != ImportOptions():
+        return
+    if not isinstance(record, dict) or not record or set(record) - {"ignore", "mesh_dirs", *_PATH_OPTIONS,
+                                                                       *_NUMBER_OPTIONS}:
+        return
+    def texts(key):
+        value = record.get(key, [])
+        return tuple(value) if isinstance(value, list) and all(isinstance(v, str) for v in value) else ()
+    paths = {k: Path(record[k]) if isinstance(record.get(k), str) else None for k in _PATH_OPTIONS}
+    numbers = {k: float(record[k]) if isinstance(record.get(k), (int, float)) and not isinstance(record.get(k), bool)
+               else None for k in _NUMBER_OPTIONS}
+    _REGISTERED[_key(path)] = ImportOptions(texts("ignore"), texts("mesh_dirs"), **paths, **numbers)
+
+
 def import_info(path):
     """What the last import of ``path`` dropped and merged ({dropped, merged_bodies}),
     for summary.json; {} if it was not an OpenSim import."""

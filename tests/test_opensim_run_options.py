@@ -1,0 +1,60 @@
+"""A run of an ``.osim`` read with options (``--ignore``, ``--with``, ``--external-loads``
+…) records them in summary.json, and the commands that read the run's model again in
+another process (``openfdk view``, ``plot``, ``export-opensim``, ``RunResults.model``)
+read it with them: the model they draw is the model that ran."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from openfdk.cli import main
+from openfdk.fixtures.full_body_osim import write_full_body_osim
+from test_opensim_inverse_dynamics import N, RATE, _motion, _overlay
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("run_options")
+    model = write_full_body_osim(folder / "muscles.osim", muscles=True)
+    times = np.arange(N) / RATE + 0.2
+    overlay = _overlay(folder, _motion(np.random.default_rng(7)), times)
+    out = folder / "id"
+    assert main(["run", str(model), "--with", str(overlay), "--ignore", "forces", "--out", str(out),
+                 "--no-plots", "-q"]) == 0
+    return folder, model, overlay, out
+
+
+def _forget(model):
+    """This process forgets the options registered for ``model`` (as a new process)."""
+    from openfdk.io.opensim import overlay
+
+    overlay._REGISTERED.pop(overlay._key(model), None)
+
+
+def test_the_run_records_its_import_options(run):
+    folder, model, overlay, out = run
+    options = json.loads((out / "summary.json").read_text())["input"]["opensim_import"]["options"]
+    assert options == {"ignore": ["forces"], "overlay": str(overlay.resolve())}
+
+
+def test_view_and_results_read_the_model_as_the_run_did(run):
+    from openfdk.results.run import read_results
+    from openfdk.viewer import view_data
+
+    folder, model, overlay, out = run
+    _forget(model)
+    assert read_results(out).model().muscles == ()  # --ignore forces, as in the run
+    assert {d.name for d in read_results(out).model().constraints if d.kind == "driver"} >= {"knee_angle_r_motion"}
+    _forget(model)
+    data, _ = view_data(out)
+    assert data["scene"]["paths"] == []  # no muscle drawn that the run did not have
+
+    # without the record (a summary from before it), the .osim is read plain: 92 muscles
+    summary = json.loads((out / "summary.json").read_text())
+    del summary["input"]["opensim_import"]["options"]
+    (out / "summary.json").write_text(json.dumps(summary))
+    _forget(model)
+    assert len(read_results(out).model().muscles) == 92
