@@ -27,6 +27,14 @@ def run(tmp_path_factory):
     return folder, model, overlay, out
 
 
+def _copy(out, tmp_path):
+    """A copy of the run's folder (its summary is then edited)."""
+    import shutil
+
+    shutil.copytree(out, tmp_path / "copy")
+    return tmp_path / "copy"
+
+
 def _forget(model):
     """This process forgets the options registered for ``model`` (as a new process)."""
     from openfdk.io.opensim import overlay
@@ -52,9 +60,31 @@ def test_view_and_results_read_the_model_as_the_run_did(run):
     data, _ = view_data(out)
     assert data["scene"]["paths"] == []  # no muscle drawn that the run did not have
 
-    # without the record (a summary from before it), the .osim is read plain: 92 muscles
-    summary = json.loads((out / "summary.json").read_text())
+
+def test_without_the_record_the_osim_is_read_plain(run, tmp_path):
+    """A summary from before the record: the .osim is read without options, 92 muscles."""
+    from openfdk.results.run import read_results
+
+    folder, model, overlay, out = run
+    copy = _copy(out, tmp_path)
+    summary = json.loads((copy / "summary.json").read_text())
     del summary["input"]["opensim_import"]["options"]
-    (out / "summary.json").write_text(json.dumps(summary))
+    (copy / "summary.json").write_text(json.dumps(summary))
     _forget(model)
-    assert len(read_results(out).model().muscles) == 92
+    assert len(read_results(copy).model().muscles) == 92
+
+
+def test_a_recorded_file_that_moved_is_named_and_left_out(run, tmp_path):
+    """The run's overlay deleted since: the model is read without it, with a warning
+    naming it, not refused (the view still shows the run)."""
+    from openfdk.results.run import read_results
+
+    folder, model, overlay, out = run
+    copy = _copy(out, tmp_path)
+    summary = json.loads((copy / "summary.json").read_text())
+    summary["input"]["opensim_import"]["options"]["overlay"] = str(tmp_path / "gone.yaml")
+    (copy / "summary.json").write_text(json.dumps(summary))
+    _forget(model)
+    with pytest.warns(UserWarning, match=r"muscles\.osim: the run read it with overlay '.*gone\.yaml', which no longer"):
+        loaded = read_results(copy).model()
+    assert loaded.muscles == ()  # --ignore forces still applies

@@ -144,6 +144,13 @@ def register_record(path, record):
         value = record.get(key, [])
         return tuple(value) if isinstance(value, list) and all(isinstance(v, str) for v in value) else ()
     paths = {k: Path(record[k]) if isinstance(record.get(k), str) else None for k in _PATH_OPTIONS}
+    for key, value in paths.items():
+        if value is not None and not value.is_file():  # the run's files moved: read without them
+            import warnings
+
+            warnings.warn(f"{Path(path).name}: the run read it with {key.replace('_', ' ')} {str(value)!r}, which no "
+                          "longer exists: the model is read without it", stacklevel=2)
+            paths[key] = None
     numbers = {k: float(record[k]) if isinstance(record.get(k), (int, float)) and not isinstance(record.get(k), bool)
                else None for k in _NUMBER_OPTIONS}
     _REGISTERED[_key(path)] = ImportOptions(texts("ignore"), texts("mesh_dirs"), **paths, **numbers)
