@@ -126,31 +126,46 @@ def joint_load_rows(model, system, column_names):
     return out
 
 
-def moving_point_muscles(model):
-    """[(muscle index, CoordinatePath)] of the muscles whose path has a point that moves
-    with a coordinate (OpenSim's MovingPathPoint)."""
-    from ..forces.coordinate_path import CoordinatePath
+class MovingPoints:
+    """The muscles whose path has a point that moves with a coordinate (OpenSim's
+    MovingPathPoint), all paths in one kernel (:class:`~openfdk.forces.coordinate_path.CoordinatePathNodes`).
 
-    return [(i, m.path) for i, m in enumerate(model.muscles)
-            if isinstance(m.path, CoordinatePath) and any(n.moving is not None for n in m.path.nodes)]
+    ``muscles``: their indices in ``model.muscles``; :meth:`generalized_forces` gives, at a
+    state, each such coordinate's generalised force from the moving points' term of the
+    muscles' loads."""
 
+    def __init__(self, model):
+        from ..forces.coordinate_path import CoordinatePath, CoordinatePathNodes
 
-def moving_point_terms(path, state):
-    """[(coordinate name, (∂l/∂u)_p, ∂u/∂q̂ (n,))] of a CoordinatePath at ``state``: the
-    change of its length (m per m or rad) with each coordinate u its points move with,
-    the bodies held (the moving points' term of ∂l/∂q̂, split by coordinate)."""
-    kernel = path.kernel
-    _, U, _ = kernel.program.evaluate(state, 1)
-    rigid = kernel.evaluate(state, coordinate_rows=())[1][0]
-    out = []
-    for j, measure in enumerate(kernel.coordinates):
-        g = U[j]
-        gg = float(g @ g)
-        if gg == 0.0:
-            continue
-        part = kernel.evaluate(state, coordinate_rows=(j,))[1][0] - rigid  # = (∂l/∂u)_p ∂u/∂q̂
-        out.append((getattr(measure, "name", ""), float(part @ g) / gg, g))
-    return out
+        picked = [(i, m) for i, m in enumerate(model.muscles)
+                  if isinstance(m.path, CoordinatePath) and any(n.moving is not None for n in m.path.nodes)]
+        self.muscles = np.asarray([i for i, _ in picked], int)
+        self.kernel = CoordinatePathNodes([m.path.nodes for _, m in picked], [m.name for _, m in picked]) \
+            if picked else None
+        self.moving = np.unique(self.kernel.move[self.kernel.move >= 0]) if picked else np.zeros(0, int)
+
+    def generalized_forces(self, state, tension):
+        """[(coordinate name, τ (n,))] at ``state`` for the muscles' tensions ``tension``
+        (n_muscles,) N (the model's muscle order): τ = −Σ f (∂l/∂u)_p ∂u/∂q̂ over the
+        muscles, with (∂l/∂u)_p the change of a path's length with the coordinate u its
+        points move with, the bodies held (the moving points' term of ∂l/∂q̂)."""
+        if self.kernel is None:
+            return []
+        u, U, _ = self.kernel.program.evaluate(state, 1)
+        held = np.zeros_like(U)
+        rigid = self.kernel.evaluate_with(state, u, held)[1]
+        f = np.asarray(tension, float)[self.muscles]
+        out = []
+        for j in self.moving:
+            g = U[j]
+            gg = float(g @ g)
+            if gg == 0.0:
+                continue
+            held[j] = g
+            part = self.kernel.evaluate_with(state, u, held)[1] - rigid  # (n_paths, n) = (∂l/∂u)_p ∂u/∂q̂
+            held[j] = 0.0
+            out.append((getattr(self.kernel.coordinates[j], "name", ""), -float(f @ (part @ g)) / gg * g))
+        return out
 
 
 def joint_loads(model, q, dyn):
@@ -167,39 +182,39 @@ def joint_loads(model, q, dyn):
     q = np.asarray(q, float)
     forces = np.asarray(dyn.forces, float)
     passive = getattr(dyn, "muscle_passive", None)
-    moving = moving_point_muscles(model) if passive is not None else []
-    joint_of = {c.name: c.joint for c in model.coordinates}
-    by_name = {j.name: j for j in loads}
-    nf = len(q)
-    out = {j.name: tuple(np.full((nf, 3), np.nan) for _ in range(3)) for j in loads}
+    moving = MovingPoints(model) if passive is not None else None
+    slot = {j.name: n for n, j in enumerate(loads)}
+    joint_of = {c.name: slot[c.joint] for c in model.coordinates if c.joint in slot}
+    bodies = [model.body(j.child) for j in loads]
+    cols = [slice(b.column, b.column + 6) for b in bodies]
+    rows = [np.asarray(j.rows, int) for j in loads]
+    row_columns = [np.asarray(j.row_columns, int) for j in loads]
+    index = np.asarray([b.index for b in bodies], int)
+    p_BP = np.asarray([model.frame(j.frame).p_BF for j in loads], float).reshape(-1, 3)
+    nf, nj = len(q), len(loads)
+    G = np.full((nf, nj, 6), np.nan)  # the generalised load on each child: [F_W; M_B] at its centre of mass
+    R_WB, p_WB = np.full((nf, nj, 3, 3), np.nan), np.full((nf, nj, 3), np.nan)
     state = model.initial_state()
     for k in range(nf):
         if not (np.isfinite(q[k]).all() and np.isfinite(forces[k]).all()):
             continue
         state.set_q(q[k])
         A = system.jacobian(state)
-        extra = {}  # joint -> (n,) generalised load of the moving points' terms on its coordinates
-        for i, path in moving:
-            tension = forces[k, i] + passive[k, i]  # the muscle's columns come first
-            for coordinate, dl_du, g in moving_point_terms(path, state):
-                joint = joint_of.get(coordinate)
-                if joint in by_name:
-                    extra[joint] = extra.get(joint, 0.0) - tension * dl_du * g
-        for j in loads:
-            b = model.body(j.child)
-            cols = slice(b.column, b.column + 6)
-            g = A[list(j.rows), cols].T @ forces[k, list(j.row_columns)] if j.rows else np.zeros(6)
+        for n, j in enumerate(loads):
+            G[k, n] = A[rows[n], cols[n]].T @ forces[k, row_columns[n]]
             for col, measure in j.actuators:
-                g = g + forces[k, col] * np.asarray(measure.evaluate(state, 1)[1])[0, cols]
-            if j.name in extra:
-                g = g + extra[j.name][cols]
-            i = b.index
-            R_WB, p_WB = state.R_WB[i], state.p_WB[i]
-            p_WP = p_WB + R_WB @ model.frame(j.frame).p_BF
-            F_W = g[:3]
-            M_WP = R_WB @ g[3:] + np.cross(p_WB - p_WP, F_W)
-            out[j.name][0][k], out[j.name][1][k], out[j.name][2][k] = F_W, M_WP, p_WP
-    return out
+                G[k, n] += forces[k, col] * np.asarray(measure.evaluate(state, 1)[1])[0, cols[n]]
+        if moving is not None and len(moving.muscles):  # the moving points' generalised forces
+            nm = len(model.muscles)
+            for coordinate, tau in moving.generalized_forces(state, forces[k, :nm] + passive[k]):
+                n = joint_of.get(coordinate)  # the muscles' columns come first
+                if n is not None:
+                    G[k, n] += tau[cols[n]]
+        R_WB[k], p_WB[k] = state.R_WB[index], state.p_WB[index]
+    F_W = G[..., :3]
+    p_WP = p_WB + np.einsum("knij,nj->kni", R_WB, p_BP)
+    M_WP = np.einsum("knij,knj->kni", R_WB, G[..., 3:]) + np.cross(p_WB - p_WP, F_W)
+    return {j.name: (F_W[:, n], M_WP[:, n], p_WP[:, n]) for n, j in enumerate(loads)}
 
 
-__all__ = ["JointLoadRows", "joint_load_rows", "joint_loads", "moving_point_muscles", "moving_point_terms"]
+__all__ = ["JointLoadRows", "MovingPoints", "joint_load_rows", "joint_loads"]

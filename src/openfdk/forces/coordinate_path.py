@@ -125,16 +125,16 @@ class CoordinatePathNodes:
         self.fparams = np.array(fparams + [0.0], float)
         self.start = np.array(start, np.int64)
 
-    def evaluate(self, state, coordinate_rows=None):
+    def evaluate(self, state):
         """l (n_paths,) m and L (n_paths, n_coords); FloatingPointError naming the path
-        when two consecutive active points coincide (no direction). ``coordinate_rows``
-        (k,) int: L with only those coordinates' gradients in the moving points' term
-        (none: the rigid part, the points held where the coordinates put them)."""
+        when two consecutive active points coincide (no direction)."""
         u, U, _ = self.program.evaluate(state, 1)
-        if coordinate_rows is not None:
-            kept = np.zeros_like(U)
-            kept[list(coordinate_rows)] = U[list(coordinate_rows)]
-            U = kept
+        return self.evaluate_with(state, u, U)
+
+    def evaluate_with(self, state, u, U):
+        """:meth:`evaluate` with the coordinates' values u (n_c,) and gradients U
+        (n_c, n_coords) given: a U with rows zeroed leaves those coordinates' term of the
+        moving points out of L (the points held where u puts them)."""
         l, L, bad = coordinate_path_lengths(
             state.p_WB, state.R_WB, state.column, u, U, self.body, self.p, self.R_BF, self.cond, self.cond_range,
             self.move, self.move_range, self.fn_start, self.fparams, self.start, state.n_coords)
