@@ -14,7 +14,8 @@ import pytest
 from openfdk.fixtures.full_body_muscles import muscle_table
 from openfdk.fixtures.full_body_osim import full_body_coordinates, write_full_body_osim
 
-FIGURES = {"full_body_paths_us", "full_body_recruitment_ms", "full_body_so_vs_opensim", "view_full_body_60s_build_s"}
+FIGURES = {"full_body_paths_us", "full_body_recruitment_ms", "full_body_joint_loads_ms", "full_body_so_vs_opensim",
+           "view_full_body_60s_build_s"}
 POSE_TIMES = (0.25, 0.8)  # s of the walk; no conditional point is within 0.02 rad of its range's end there
 #: (muscle, coordinate): a plain, a conditional, a wrapped and a trunk muscle
 MOMENT_ARMS = [("glut_med1_r", "hip_adduction_r"), ("semimem_r", "knee_angle_r"), ("semimem_r", "hip_flexion_r"),
@@ -157,6 +158,7 @@ def test_bench_quick_json_prints_the_figures(capsys):
                                       if x.startswith("{"))}
     assert set(records) == FIGURES
     assert records["full_body_paths_us"]["value"] > 0 and records["full_body_recruitment_ms"]["value"] > 0
+    assert records["full_body_joint_loads_ms"]["value"] > 0
     view = records["view_full_body_60s_build_s"]
     assert view["value"] > 0 and view["file_mb"] > 0.1 and view["frames"] == 500
     try:

@@ -26,6 +26,10 @@ Records:
   coordinate splines, then per frame the paths, strengths, equilibrium and recruitment
   (92 muscles + 23 actuators as 46 one-sided columns, 49 free joint reactions, 72 rows).
   Median of 5 runs (``--quick``: 2).
+* ``full_body_joint_loads_ms``: the joint loads of that run (``joint_loads.csv``: the 12
+  joints' reactions, the actuators on their coordinates and the quadriceps' moving
+  patella points; :mod:`openfdk.dynamics.joint_loads`), CPU ms per frame, median of as
+  many runs.
 * ``full_body_so_vs_opensim``: that time divided by OpenSim's per frame (below),
   alternated run by run in the same process; median of the per-pair ratios. Target
   ≤ 0.1. The record's ``max_muscle_diff_n`` (and its ``detail``) gives the largest
@@ -388,6 +392,24 @@ def view_timing(directory, seconds, repeats):
     return builds, walls, page.stat().st_size / 1e6, int(round(seconds * RATE_HZ))
 
 
+def joint_loads_record(model, kin, dyn, repeats):
+    """``full_body_joint_loads_ms``: CPU ms per frame of the joint loads
+    (:func:`openfdk.io.joint_load_outputs.joint_load_columns`: the 12 joints' reactions,
+    the 23 actuators on their coordinates, the quadriceps' moving patella points) of the
+    recruitment's run, the median of ``repeats`` runs."""
+    from ..io.joint_load_outputs import joint_load_columns
+
+    cpu = []
+    for _ in range(repeats):
+        c0 = time.process_time()
+        columns = joint_load_columns(model, kin, dyn)
+        cpu.append(1e3 * (time.process_time() - c0) / len(dyn.time))
+    knee = np.linalg.norm(np.column_stack([columns[f"knee_r_on_tibia_r_in_ground_f{c}"] for c in "xyz"]), axis=1)
+    return {"name": "full_body_joint_loads_ms", "value": statistics.median(cpu), "unit": "ms/frame", "runs": repeats,
+            "detail": (f"{len(dyn.time)} frames, {len(columns) // 9} joints; CPU ms/frame "
+                       f"{[round(x, 3) for x in cpu]}; the right knee's force peaks at {np.nanmax(knee):.0f} N")}
+
+
 # -- the measurement (child process) ------------------------------------------------
 def measure(directory, quick=False):
     """Every figure, measured in this process on the inputs in ``directory`` (written by
@@ -411,9 +433,9 @@ def measure(directory, quick=False):
         osim.Logger.setLevelString("warn")
         theirs = OpensimStaticOptimization(model_path, motion)
     ours_cpu, ours_wall, o_cpu, o_wall, ratios = [], [], [], [], []
-    dyn = their_run = None
+    dyn = kin = their_run = None
     for _ in range(repeats):
-        cpu, wall, _, dyn = fdk.run()
+        cpu, wall, kin, dyn = fdk.run()
         ours_cpu.append(cpu)
         ours_wall.append(wall)
         if have_opensim:
@@ -428,6 +450,7 @@ def measure(directory, quick=False):
                    f"{OVERLAY_TEXT.strip()}: 92 muscles, 23 actuators, {np.mean(dyn.iterations):.1f} iterations per "
                    f"frame; CPU ms/frame of {repeats} runs {[round(x, 2) for x in ours_cpu]}, wall "
                    f"{[round(x, 2) for x in ours_wall]}; one BLAS thread")})
+    records.append(joint_loads_record(fdk.model, kin, dyn, repeats))
     if not have_opensim:
         records.append({"name": "full_body_so_vs_opensim", "value": float("nan"), "unit": "ratio", "target": 0.1,
                         "note": SKIP_NOTE})
