@@ -1,20 +1,18 @@
 """The load each joint transmits to its child body: OpenSim's ``JointReaction`` analysis.
 
-A joint J between parent P and child C carries, on C, the sum of the loads of every row
-that acts across it (paper Eq. 12: the rows' load is C^R λ = Φ_q̂ᵀ λ):
+A joint J between a parent body and a child body C carries, on C, the sum of the loads of
+every row that acts across it (paper Eq. 12: the rows' load is C^R λ = Φ_q̂ᵀ λ):
 
 * J's own constraint rows (the directions the joint does not allow), λ their reactions;
 * the rows on J's coordinates: a driver (``--motion``: the coordinate's generalised
   force), a locked or prescribed coordinate, an FDK DOF (its residual: zero once
   converged);
 * the coordinate actuators on J's coordinates (reserves, OpenSim's CoordinateActuators),
-  τ ∂m/∂q̂ with m the coordinate's measure and τ the recruited force.
-
+  τ ∂m/∂q̂ with m the coordinate's measure and τ the recruited force;
 * the part of a muscle's load that comes from a path point moving with one of J's
   coordinates u (OpenSim's MovingPathPoint: Gait2392's vasti over the knee),
   −f (∂l/∂u)_p ∂u/∂q̂, with f the tension and (∂l/∂u)_p the change of the path's length
-  with u at fixed bodies. OpenSim applies it as a generalised force on u.
-
+  with u at fixed bodies. OpenSim applies it as a generalised force on u;
 * a coordinate coupler's rows (OpenSim's CoordinateCouplerConstraint) on J's child, when
   one of its coordinates is J's: OpenSim applies the coupler's force as generalised
   forces on its coordinates, each carried by that coordinate's joint;
