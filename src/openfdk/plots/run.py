@@ -621,8 +621,9 @@ def _joint_loads(results, t, failed):
     axes[0].set_ylabel("joint force |F|\n" + (f"(BW; 1 BW = {weight:.0f} N)" if weight else "(N)"), fontsize=8)
     axes[1].set_ylabel("joint moment |M|\n(N·m, about the joint centre)", fontsize=8)
     caption = ("The load each joint transmits to its child body, as OpenSim's JointReaction reports it: its "
-               "constraint reactions, the drivers' generalised forces on its coordinates and the coordinate "
-               "actuators on them (muscles, ligaments and contacts act on the bodies, not through the joint). "
+               "constraint reactions, the drivers' generalised forces on its coordinates, the coordinate actuators "
+               "on them, and what OpenSim applies as generalised forces on them (moving path points, coordinate "
+               "couplers); muscles, ligaments and contacts otherwise act on the bodies, not through the joint. "
                "Moments about the origin of the joint's child frame. Components in joint_loads.csv (ground frame).")
     return _finish(fig, axes, t, failed, caption)
 
