@@ -44,17 +44,16 @@ def joint_load_summary(model, time, columns):
     (:func:`joint_load_columns`), and the body weight (N) they are divided by."""
     weight = float(sum(b.mass for b in model.moving_bodies) * np.linalg.norm(model.gravity_W))
     out = {}
-    for key in columns:
-        if not key.endswith("_fx"):
+    for j in model.joints:
+        base = f"{j.name}_on_{model.frame(j.child).body}_in_ground" if j.child else ""
+        if f"{base}_fx" not in columns:
             continue
-        base = key[:-3]
         F = np.column_stack([columns[f"{base}_f{c}"] for c in "xyz"])
         norm = np.linalg.norm(F, axis=1)
         if not np.isfinite(norm).any():
             continue
         k = int(np.nanargmax(norm))
-        joint = base.split("_on_")[0]
-        out[joint] = {"peak_N": float(norm[k]), "peak_BW": float(norm[k] / weight) if weight > 0 else None,
+        out[j.name] = {"peak_N": float(norm[k]), "peak_BW": float(norm[k] / weight) if weight > 0 else None,
                       "time_s": float(time[k])}
     return {"joints": out, "body_weight_N": weight}
 

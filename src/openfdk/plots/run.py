@@ -616,7 +616,7 @@ def _joint_loads(results, t, failed):
         for j, (colour, ls) in zip(order, line_styles(len(order))):
             values = size[j] / (weight if kind == "f" and weight else 1.0)
             peak = np.nanmax(values, initial=0.0)
-            label = j.split("_on_")[0] + f" (peak {peak:.2f}{' BW' if kind == 'f' and weight else ''})"
+            label = j.rsplit("_on_", 1)[0] + f" (peak {peak:.2f}{' BW' if kind == 'f' and weight else ''})"
             ax.plot(t, values, lw=1, color=colour, ls=ls, label=label)
     axes[0].set_ylabel("joint force |F|\n" + (f"(BW; 1 BW = {weight:.0f} N)" if weight else "(N)"), fontsize=8)
     axes[1].set_ylabel("joint moment |M|\n(N·m, about the joint centre)", fontsize=8)

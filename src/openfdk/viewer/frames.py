@@ -157,7 +157,7 @@ def joint_load_frames(results):
         base = key[:-3]
         F = np.stack([np.asarray(data[f"{base}_f{a}"], float) for a in "xyz"], axis=1)
         P = np.stack([np.asarray(data[f"{base}_p{a}"], float) for a in "xyz"], axis=1)
-        out.append({"name": base.split("_on_")[0], "force": pack(F), "cop": pack(P)})
+        out.append({"name": base.rsplit("_on_", 1)[0], "force": pack(F), "cop": pack(P)})
     return out
 
 
