@@ -141,7 +141,10 @@ def _free(model, state, A):
     if null.shape[1] == 0:
         return []
     if model.coordinates:
-        G = np.vstack([np.atleast_2d(c.measure.evaluate(state, 1)[1])[:1] for c in model.coordinates])
+        try:
+            G = np.vstack([np.atleast_2d(c.measure.evaluate(state, 1)[1])[:1] for c in model.coordinates])
+        except (FloatingPointError, ValueError, np.linalg.LinAlgError):  # a coordinate undefined here: the bodies
+            return undetermined_coordinates(A, model.coordinate_names())
         moved = np.linalg.norm(G @ null, axis=1) > 1e-6 * np.maximum(np.linalg.norm(G, axis=1), 1.0)
         # every free direction must move some coordinate, else name the bodies
         if moved.any() and np.linalg.matrix_rank(G[moved] @ null, tol=1e-9) == null.shape[1]:
