@@ -99,6 +99,16 @@ def spline_points(fn, x, y):
     return fn
 
 
+def coupler(name, independent, dependent, function):
+    """A CoordinateCouplerConstraint ``dependent`` = function(``independent``)."""
+    c = osim.CoordinateCouplerConstraint()
+    c.setName(name)
+    c.setIndependentCoordinateNames(osim.ArrayStr(independent, 1))
+    c.setDependentCoordinateName(dependent)
+    c.setFunction(function)
+    return c
+
+
 def r6(values):
     """Values rounded to 6 significant digits (what OpenSim writes number lists with)."""
     return [float(f"{v:.6g}") for v in np.ravel(values)]
@@ -375,18 +385,8 @@ def constraints_model(path, seed=3):
     m.addJoint(fixed_joint(osim.FreeJoint, "jp", g, B["p"], rng, BALL_RANGES + [(-2.0, 2.0)] * 3))
     x = np.linspace(-1.6, 1.6, 7)
     spline = spline_points(osim.SimmSpline(), r6(x), r6(0.8 * np.sin(1.2 * x) + 0.3))
-    c1 = osim.CoordinateCouplerConstraint()
-    c1.setName("couple_b")
-    c1.setIndependentCoordinateNames(osim.ArrayStr("j1_coord_0", 1))
-    c1.setDependentCoordinateName("j2_coord_0")
-    c1.setFunction(spline)
-    m.addConstraint(c1)
-    c2 = osim.CoordinateCouplerConstraint()
-    c2.setName("couple_s")
-    c2.setIndependentCoordinateNames(osim.ArrayStr("j1_coord_0", 1))
-    c2.setDependentCoordinateName("js_coord_0")
-    c2.setFunction(osim.LinearFunction(0.2, 0.05))
-    m.addConstraint(c2)
+    m.addConstraint(coupler("couple_b", "j1_coord_0", "j2_coord_0", spline))
+    m.addConstraint(coupler("couple_s", "j1_coord_0", "js_coord_0", osim.LinearFunction(0.2, 0.05)))
     # defaults on the couplers, then w's defaults on the weld
     m.finalizeFromProperties()
     cs = m.updCoordinateSet()

@@ -92,8 +92,10 @@ def _loads(folder, times):
     return folder / "loads.xml"
 
 
-def _opensim_id(model_path, loads_xml, motion, times):
-    """OpenSim's generalised forces {coordinate: (n,)} at the sample times."""
+def opensim_model_with_loads(model_path, loads_xml):
+    """(the OpenSim Model of ``model_path`` with the ExternalForces of ``loads_xml`` added,
+    not yet initialised; their data, ``loads.mot`` beside it, which the caller keeps
+    alive while the model is used: the forces hold it by reference)."""
     model = opensim.Model(str(model_path))
     ext = opensim.ExternalLoads(str(loads_xml), True)
     data = opensim.Storage(str(loads_xml.parent / "loads.mot"))
@@ -101,17 +103,28 @@ def _opensim_id(model_path, loads_xml, motion, times):
         force = ext.get(i).clone()
         force.setDataSource(data)
         model.addForce(force)
-    state = model.initSystem()
-    cs = model.getCoordinateSet()
-    coords = [cs.get(i) for i in range(cs.getSize())]
-    names = [c.getName() for c in coords]
-    # each coordinate's entry of the state's u (mobility) vector: set its speed alone
+    return model, data
+
+
+def mobility_slots(state, coords):
+    """{coordinate name: its entry of the state's u (mobility) vector}: each found by
+    setting that coordinate's speed alone."""
     slot = {}
     for c in coords:
         state.setU(opensim.Vector(state.getNU(), 0.0))
         c.setSpeedValue(state, 1.0)
-        u = [state.getU().get(i) for i in range(state.getNU())]
-        slot[c.getName()] = int(np.argmax(np.abs(u)))
+        slot[c.getName()] = int(np.argmax(np.abs([state.getU().get(i) for i in range(state.getNU())])))
+    return slot
+
+
+def _opensim_id(model_path, loads_xml, motion, times):
+    """OpenSim's generalised forces {coordinate: (n,)} at the sample times."""
+    model, _data = opensim_model_with_loads(model_path, loads_xml)
+    state = model.initSystem()
+    cs = model.getCoordinateSet()
+    coords = [cs.get(i) for i in range(cs.getSize())]
+    names = [c.getName() for c in coords]
+    slot = mobility_slots(state, coords)
     assert sorted(slot.values()) == list(range(len(coords)))
     solver = opensim.InverseDynamicsSolver(model)
     out = {n: [] for n in names}

@@ -26,7 +26,8 @@ opensim = pytest.importorskip("opensim")
 from openfdk.cli import main  # noqa: E402
 from openfdk.fixtures.full_body_osim import COORDINATES, write_full_body_osim  # noqa: E402
 from openfdk.io.results import read_table  # noqa: E402
-from test_opensim_inverse_dynamics import N, RATE, _loads, _motion, _overlay, _q  # noqa: E402
+from test_opensim_inverse_dynamics import (N, RATE, _loads, _motion, _overlay, _q,  # noqa: E402
+                                           mobility_slots, opensim_model_with_loads)
 
 COMPONENTS = ("fx", "fy", "fz", "mx", "my", "mz", "px", "py", "pz")
 
@@ -34,13 +35,7 @@ COMPONENTS = ("fx", "fy", "fz", "mx", "my", "mz", "px", "py", "pz")
 def _opensim_reactions(model_path, loads_xml, motion, times):
     """({joint: (n, 9) [F, M, p] on the child at its frame's origin, in the ground},
     {joint: child body name}, largest |q̈_forward − q̈| (rad/s², m/s²))."""
-    model = opensim.Model(str(model_path))
-    ext = opensim.ExternalLoads(str(loads_xml), True)
-    data = opensim.Storage(str(loads_xml.parent / "loads.mot"))
-    for i in range(ext.getSize()):
-        force = ext.get(i).clone()
-        force.setDataSource(data)
-        model.addForce(force)
+    model, _data = opensim_model_with_loads(model_path, loads_xml)
     cs = model.getCoordinateSet()
     names = [cs.get(i).getName() for i in range(cs.getSize())]
     actuators = {}
@@ -52,11 +47,7 @@ def _opensim_reactions(model_path, loads_xml, motion, times):
         actuators[n] = a
     state = model.initSystem()
     coords = [cs.get(n) for n in names]
-    slot = {}  # each coordinate's entry of the mobility vector
-    for c in coords:
-        state.setU(opensim.Vector(state.getNU(), 0.0))
-        c.setSpeedValue(state, 1.0)
-        slot[c.getName()] = int(np.argmax(np.abs([state.getU().get(i) for i in range(state.getNU())])))
+    slot = mobility_slots(state, coords)
     solver = opensim.InverseDynamicsSolver(model)
     joints = model.getJointSet()
     out = {joints.get(i).getName(): [] for i in range(joints.getSize())}
@@ -272,22 +263,12 @@ def test_joint_loads_with_muscles_equal_opensims(tmp_path, capsys):
     ours = read_table(out / "joint_loads.csv")
     assert np.all(forces["converged"] == 1)
 
-    osim = opensim.Model(str(model))
-    ext = opensim.ExternalLoads(str(loads), True)
-    data = opensim.Storage(str(loads.parent / "loads.mot"))
-    for i in range(ext.getSize()):
-        force = ext.get(i).clone()
-        force.setDataSource(data)
-        osim.addForce(force)
+    osim, _data = opensim_model_with_loads(model, loads)
     state = osim.initSystem()
     cs = osim.getCoordinateSet()
     names = [cs.get(i).getName() for i in range(cs.getSize())]
     coords = [cs.get(n) for n in names]
-    slot = {}
-    for c in coords:
-        state.setU(opensim.Vector(state.getNU(), 0.0))
-        c.setSpeedValue(state, 1.0)
-        slot[c.getName()] = int(np.argmax(np.abs([state.getU().get(i) for i in range(state.getNU())])))
+    slot = mobility_slots(state, coords)
     actuators = osim.getActuators()
     overridden = []
     for i in range(actuators.getSize()):
@@ -363,10 +344,10 @@ def test_a_failed_frame_has_no_joint_loads(case, tmp_path):
 
 def _spline(f):
     """A SimmSpline through f at 41 points over [-3, 3] rad."""
-    fn = opensim.SimmSpline()
-    for x in np.linspace(-3.0, 3.0, 41):
-        fn.addPoint(float(x), float(f(x)))
-    return fn
+    from opensim_models import spline_points
+
+    x = np.linspace(-3.0, 3.0, 41)
+    return spline_points(opensim.SimmSpline(), x, f(x))
 
 
 def _coupled_knee(path, splines=False):
@@ -405,12 +386,9 @@ def _coupled_knee(path, splines=False):
         model.addJoint(j)
     hip.updCoordinate().setName("hip_q")
     knee.updCoordinate().setName("knee_q")
-    coupler = opensim.CoordinateCouplerConstraint()
-    coupler.setName("pf_coupler")
-    coupler.setIndependentCoordinateNames(opensim.ArrayStr("knee_q", 1))
-    coupler.setDependentCoordinateName("beta")
-    coupler.setFunction(opensim.LinearFunction(0.8, 0.05))
-    model.addConstraint(coupler)
+    from opensim_models import coupler
+
+    model.addConstraint(coupler("pf_coupler", "knee_q", "beta", opensim.LinearFunction(0.8, 0.05)))
     model.finalizeConnections()
     model.printToXML(str(path))
     return path

@@ -283,36 +283,33 @@ def _write_generalized_forces(out_dir, model_path, dyn, model=None):
     """generalized_forces.csv/.sto of a run whose coordinates are driven (--motion), and
     the residuals in summary.json (``model``: the Model of ``model_path`` if already
     loaded)."""
-    from pathlib import Path
-
     from ..io.generalized_forces import write_generalized_forces
     from ..io.modelfile import load_model
+
+    _add_to_summary(out_dir, "residuals",
+                    write_generalized_forces(out_dir, model if model is not None else load_model(model_path), dyn))
+
+
+def _add_to_summary(out_dir, key, value):
+    """summary.json in ``out_dir`` with ``key``: ``value`` added (nothing when value is None)."""
+    from pathlib import Path
+
     from ..io.results import write_json
 
-    summary = write_generalized_forces(out_dir, model if model is not None else load_model(model_path), dyn)
-    if summary is None:
+    if value is None:
         return
     path = Path(out_dir) / "summary.json"
     data = json.loads(path.read_text())
-    data["residuals"] = summary
+    data[key] = value
     write_json(path, data)
 
 
 def _write_joint_loads(out_dir, kin, dyn, model):
     """joint_loads.csv/.sto (the load each joint transmits to its child body, as OpenSim's
     JointReaction reports it) and their peaks in summary.json's ``joint_loads``."""
-    from pathlib import Path
-
     from ..io.joint_load_outputs import write_joint_loads
-    from ..io.results import write_json
 
-    summary = write_joint_loads(out_dir, model, kin, dyn)
-    if summary is None:
-        return
-    path = Path(out_dir) / "summary.json"
-    data = json.loads(path.read_text())
-    data["joint_loads"] = summary
-    write_json(path, data)
+    _add_to_summary(out_dir, "joint_loads", write_joint_loads(out_dir, model, kin, dyn))
 
 
 def _rim_check(model, kin):

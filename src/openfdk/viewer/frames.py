@@ -115,19 +115,26 @@ def contact_frames(model, scene, results, poses):
     return out
 
 
-def grf_frames(results):
-    """Per force plate of the run's ``grf.csv`` (ground reactions applied to the model):
-    the force on the subject (nf, 3) N and its centre of pressure (nf, 3) m, world; NaN
-    where the plate is unloaded. [] without grf.csv or when its rows are not the run's."""
+def _run_table(results, name):
+    """The columns of the run folder's table ``name`` (grf.csv, joint_loads.csv), or None
+    without it or when its rows are not the run's frames."""
     from pathlib import Path
 
     from ..io.results import read_table
 
     folder = getattr(results, "directory", None)
-    if folder is None or not (Path(folder) / "grf.csv").is_file():
-        return []
-    data = read_table(Path(folder) / "grf.csv")
-    if len(data["time"]) != results.n_frames:
+    if folder is None or not (Path(folder) / name).is_file():
+        return None
+    data = read_table(Path(folder) / name)
+    return data if len(data["time"]) == results.n_frames else None
+
+
+def grf_frames(results):
+    """Per force plate of the run's ``grf.csv`` (ground reactions applied to the model):
+    the force on the subject (nf, 3) N and its centre of pressure (nf, 3) m, world; NaN
+    where the plate is unloaded. [] without grf.csv or when its rows are not the run's."""
+    data = _run_table(results, "grf.csv")
+    if data is None:
         return []
     out = []
     for name in sorted({k.split(".")[0] for k in data if k.endswith("_N") and ".F" in k}):
@@ -142,15 +149,8 @@ def joint_load_frames(results):
     JointReaction reports them): the force on the joint's child body (nf, 3) N, world, and
     the joint's child frame origin (nf, 3) m, where the arrow starts; NaN on failed
     frames. [] without joint_loads.csv or when its rows are not the run's."""
-    from pathlib import Path
-
-    from ..io.results import read_table
-
-    folder = getattr(results, "directory", None)
-    if folder is None or not (Path(folder) / "joint_loads.csv").is_file():
-        return []
-    data = read_table(Path(folder) / "joint_loads.csv")
-    if len(data["time"]) != results.n_frames:
+    data = _run_table(results, "joint_loads.csv")
+    if data is None:
         return []
     out = []
     for key in (k for k in data if k.endswith("_fx")):
