@@ -75,6 +75,20 @@ def _where(source, path):
     return f"{source}: {path}" if source else path
 
 
+def principal_moments(inertia):
+    """(3,) kg m², ascending: the principal moments of the symmetric part of ``inertia``
+    (3, 3) kg m² (scaled first: eigvalsh fails on entries near the float limit)."""
+    inertia = np.asarray(inertia, float)
+    scale = float(np.max(np.abs(inertia))) or 1.0
+    unit = inertia / scale
+    return np.linalg.eigvalsh(0.5 * (unit + unit.T)) * scale
+
+
+def breaks_triangle_inequality(moments):
+    """Whether principal moments (3,) ascending break I1 + I2 >= I3: no rigid body has them."""
+    return bool(moments[0] + moments[1] < moments[2] * (1 - 1e-9))
+
+
 def check_mass_properties(model, source=""):
     """Masses and inertias physically possible (module docstring); raises ModelError."""
     for b in model.bodies:
@@ -83,12 +97,11 @@ def check_mass_properties(model, source=""):
         where = _where(source, f"bodies.{b.name}")
         if b.mass > MAX_MASS:
             raise ModelError(f"{where}.mass: {b.mass:g} kg is not a plausible body mass (at most {MAX_MASS:g} kg)")
-        scale = float(np.max(np.abs(b.inertia_B))) or 1.0  # eigvalsh fails on entries near the float limit
-        I = np.linalg.eigvalsh(0.5 * (b.inertia_B / scale + b.inertia_B.T / scale)) * scale
+        I = principal_moments(b.inertia_B)
         if I[-1] > MAX_INERTIA:
             raise ModelError(f"{where}.inertia: principal moment {I[-1]:g} kg m² is not plausible "
                              f"(at most {MAX_INERTIA:g} kg m²)")
-        if I[0] + I[1] < I[2] * (1 - 1e-9):
+        if breaks_triangle_inequality(I):
             text = (f"{where}.inertia: principal moments {np.round(I, 12).tolist()} kg m² violate the triangle "
                     "inequality I1 + I2 >= I3; no rigid body has this inertia")
             if not b.inertia_as_given:
