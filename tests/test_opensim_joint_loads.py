@@ -32,9 +32,12 @@ from test_opensim_inverse_dynamics import (N, RATE, _loads, _motion, _overlay, _
 COMPONENTS = ("fx", "fy", "fz", "mx", "my", "mz", "px", "py", "pz")
 
 
-def _opensim_reactions(model_path, loads_xml, motion, times):
+def _opensim_reactions(model_path, loads_xml, motion, times, reports=()):
     """({joint: (n, 9) [F, M, p] on the child at its frame's origin, in the ground},
-    {joint: child body name}, largest |q̈_forward − q̈| (rad/s², m/s²))."""
+    {joint: child body name}, largest |q̈_forward − q̈| (rad/s², m/s²)); with ``reports``
+    [(joint, "child" or "parent", frame: "ground", "child", "parent" or a body)], instead
+    of the first {OpenSim's column label base: (n, 9)} of each, computed as OpenSim's
+    JointReaction analysis does with those options."""
     model, _data = opensim_model_with_loads(model_path, loads_xml)
     cs = model.getCoordinateSet()
     names = [cs.get(i).getName() for i in range(cs.getSize())]
@@ -79,7 +82,42 @@ def _opensim_reactions(model_path, loads_xml, motion, times):
             p = j.getChildFrame().getPositionInGround(state)
             out[j.getName()].append([load.get(1).get(k) for k in range(3)] + [load.get(0).get(k) for k in range(3)]
                                     + [p.get(k) for k in range(3)])
-    return {k: np.array(v) for k, v in out.items()}, child, worst
+        for name, on, frame in reports:
+            out.setdefault(_opensim_label(model, name, on, frame), []).append(
+                _opensim_report(model, state, joints.get(name), on, frame))
+    out = {k: np.array(v) for k, v in out.items()}
+    if reports:
+        out = {_opensim_label(model, *r): out[_opensim_label(model, *r)] for r in reports}
+    return out, child, worst
+
+
+def _opensim_frame(model, joint, frame):
+    """The OpenSim Frame a report is expressed in (JointReaction's express_in_frame)."""
+    if frame == "child":
+        return joint.getChildFrame().findBaseFrame()
+    if frame == "parent":
+        return joint.getParentFrame().findBaseFrame()
+    return model.getGround() if frame == "ground" else model.getBodySet().get(frame)
+
+
+def _opensim_label(model, name, on, frame):
+    joint = model.getJointSet().get(name)
+    body = (joint.getChildFrame() if on == "child" else joint.getParentFrame()).findBaseFrame().getName()
+    return f"{name}_on_{body}_in_{_opensim_frame(model, joint, frame).getName()}"
+
+
+def _opensim_report(model, state, joint, on, frame):
+    """[F, M, p] (9,) of one joint as JointReaction reports it: OpenSim's reaction on the
+    body, about that side's joint frame origin, the three vectors in ``frame``."""
+    ground, target = model.getGround(), _opensim_frame(model, joint, frame)
+    if on == "child":
+        load, origin = joint.calcReactionOnChildExpressedInGround(state), joint.getChildFrame()
+    else:
+        load, origin = joint.calcReactionOnParentExpressedInGround(state), joint.getParentFrame()
+    F = ground.expressVectorInAnotherFrame(state, load.get(1), target)
+    M = ground.expressVectorInAnotherFrame(state, load.get(0), target)
+    p = ground.findStationLocationInAnotherFrame(state, origin.getPositionInGround(state), target)
+    return [v.get(k) for v in (F, M, p) for k in range(3)]
 
 
 def _actuator_file(path):
@@ -313,6 +351,115 @@ def test_joint_loads_with_muscles_equal_opensims(tmp_path, capsys):
     assert worst_F < 1e-4 and worst_M < 1e-5, (worst_F, worst_M)
 
 
+#: (joint, apply_on_bodies, express_in_frame): both sides, the keywords, other bodies, a
+#: pin joint whose frames are turned
+REPORTS = [("hip_r", "parent", "child"), ("knee_r", "child", "parent"), ("ankle_l", "parent", "tibia_r"),
+           ("back", "child", "ground"), ("subtalar_r", "child", "child"), ("mtp_l", "parent", "pelvis")]
+
+
+def _setup_file(path, reports):
+    """An OpenSim AnalyzeTool setup whose JointReaction asks for ``reports``."""
+    names, on, frames = (" ".join(r[k] for r in reports) for k in range(3))
+    path.write_text('<?xml version="1.0"?>\n<OpenSimDocument Version="40000"><AnalyzeTool name="jr">'
+                    "<model_file>full_body.osim</model_file><AnalysisSet><objects><JointReaction name=\"JointReaction\">"
+                    f"<on>true</on><forces_file>forces.sto</forces_file><joint_names>{names}</joint_names>"
+                    f"<apply_on_bodies>{on}</apply_on_bodies><express_in_frame>{frames}</express_in_frame>"
+                    "</JointReaction></objects></AnalysisSet></AnalyzeTool></OpenSimDocument>\n")
+    return path
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("given", ["overlay", "setup_file"])
+def test_joint_reaction_options_equal_opensims(case, given, capsys):
+    """OpenSim's JointReaction options (apply_on_bodies, express_in_frame), given in the
+    overlay's joint_reaction section or as OpenSim's own setup file: joint_loads.sto holds
+    the same columns as OpenSim's, with the same numbers; joint_loads.csv keeps the
+    ground columns besides."""
+    import yaml
+
+    from openfdk.io.storage import read_storage
+    from test_opensim_inverse_dynamics import _motion
+
+    folder, model, overlay, loads, times, theirs, child = case
+    reports, _, _ = _opensim_reactions(model, loads, _motion(np.random.default_rng(7)), times, REPORTS)
+    data = yaml.safe_load(overlay.read_text())
+    if given == "overlay":
+        data["joint_reaction"] = {"joint_names": [r[0] for r in REPORTS],
+                                  "apply_on_bodies": [r[1] for r in REPORTS],
+                                  "express_in_frame": [r[2] for r in REPORTS]}
+    else:
+        data["joint_reaction"] = _setup_file(folder / "setup_JointReaction.xml", REPORTS).name
+    (folder / f"jr_{given}.yaml").write_text(yaml.safe_dump(data))
+    out = folder / f"jr_{given}"
+    assert main(["run", str(model), "--with", str(folder / f"jr_{given}.yaml"), "--external-loads", str(loads),
+                 "--out", str(out), "--no-plots", "-q"]) == 0, capsys.readouterr().err
+    t, ours, _ = read_storage(out / "joint_loads.sto")
+    np.testing.assert_allclose(t, times, atol=1e-12)
+    assert list(ours) == [f"{base}_{c}" for base in reports for c in COMPONENTS]  # OpenSim's labels, its order
+    assert "ankle_l_on_tibia_l_in_tibia_r_fx" in ours and "mtp_l_on_calcn_l_in_pelvis_fx" in ours
+    for base, values in reports.items():
+        mine = np.column_stack([ours[f"{base}_{c}"] for c in COMPONENTS])
+        scale = [max(float(np.max(np.abs(values[:, k:k + 3]))), 1.0) for k in (0, 3)]
+        print(base, [float(np.max(np.abs(mine[:, k:k + 3] - values[:, k:k + 3]))) for k in (0, 3, 6)], scale)
+        assert np.max(np.abs(mine[:, :3] - values[:, :3])) < 1e-6 * scale[0], base
+        assert np.max(np.abs(mine[:, 3:6] - values[:, 3:6])) < 1e-6 * scale[1], base
+        assert np.max(np.abs(mine[:, 6:] - values[:, 6:])) < 1e-9, base
+    assert max(float(np.max(np.abs(v[:, :3]))) for v in reports.values()) > 500.0  # real loads
+    csv = read_table(out / "joint_loads.csv")
+    (dF, dM, dp), peak_F, peak_M = _compare(csv, theirs, child)  # the ground columns stay
+    assert dF < 1e-6 * peak_F and dM < 1e-6 * peak_M and dp < 1e-9
+    assert all(f"{base}_fx" in csv for base in reports)
+    if given == "setup_file":
+        _imported_yaml_reports_the_same(folder, model, folder / f"jr_{given}.yaml", loads, ours, capsys)
+    else:  # the Python API adds the same columns
+        import openfdk
+        from openfdk.io.opensim.overlay import register
+
+        register(str(model), overlay=folder / f"jr_{given}.yaml", external_loads=loads)
+        api = openfdk.run(str(model)).joint_loads
+        for base in reports:
+            np.testing.assert_allclose(api[f"{base}_fy"].to_numpy(), ours[f"{base}_fy"], rtol=1e-8, atol=1e-8)
+
+
+def _imported_yaml_reports_the_same(folder, model, overlay, loads, ours, capsys):
+    """The model file import-opensim writes keeps the OpenSim bodies' frames of the
+    section: the same .sto. With the keywords and body names instead, the frames are the
+    YAML bodies' (the OpenSim axes, the origin at the centre of mass): the same forces and
+    moments, the points moved by the OpenSim frame's position p_BF in the body."""
+    import yaml
+
+    from openfdk.io.storage import read_storage
+
+    assert main(["import-opensim", str(model), "--with", str(overlay), "--external-loads", str(loads),
+                 "--out", str(folder / "imported"), "-q"]) == 0, capsys.readouterr().err
+    path = folder / "imported" / "full_body.yaml"
+    assert main(["run", str(path), "--out", str(folder / "imported_run"), "--no-plots", "-q"]) == 0
+    _, same, _ = read_storage(folder / "imported_run" / "joint_loads.sto")
+    assert list(same) == list(ours)
+    np.testing.assert_allclose(np.column_stack(list(same.values())), np.column_stack(list(ours.values())),
+                               rtol=1e-9, atol=1e-9)
+    data = yaml.safe_load(path.read_text())
+    frames = data["joint_reaction"]["express_in_frame"]
+    assert [f if isinstance(f, str) else f["name"] for f in frames] == ["femur_r", "femur_r", "tibia_r", "ground",
+                                                                        "calcn_r", "pelvis"]
+    data["joint_reaction"]["express_in_frame"] = [r[2] for r in REPORTS]  # child, parent, tibia_r, ground, …
+    path.write_text(yaml.safe_dump(data))
+    assert main(["run", str(path), "--out", str(folder / "keywords_run"), "--no-plots", "-q"]) == 0
+    _, mine, _ = read_storage(folder / "keywords_run" / "joint_loads.sto")
+    assert list(mine) == list(ours)
+    moved = 0.0
+    for (joint, _, _), frame in zip(REPORTS, frames):
+        base = next(k[:-3] for k in ours if k.startswith(f"{joint}_on_") and k.endswith("_fx"))
+        p_BF = np.zeros(3) if isinstance(frame, str) else np.asarray(frame["position"])
+        assert np.allclose(frame["orientation"]["matrix"] if not isinstance(frame, str) else np.eye(3), np.eye(3))
+        for k, c in enumerate("xyz"):
+            for kind in "fm":
+                np.testing.assert_allclose(mine[f"{base}_{kind}{c}"], ours[f"{base}_{kind}{c}"], rtol=1e-9, atol=1e-8)
+            np.testing.assert_allclose(mine[f"{base}_p{c}"], ours[f"{base}_p{c}"] + p_BF[k], atol=1e-12)
+        moved = max(moved, float(np.max(np.abs(p_BF))))
+    assert moved > 0.05  # the OpenSim frames are not the centres of mass
+
+
 def test_a_failed_frame_has_no_joint_loads(case, tmp_path):
     """A frame whose recruitment failed keeps its row, NaN, in joint_loads.csv, is left out
     of the .sto (which says so), and of the peaks in the summary."""
@@ -476,3 +623,36 @@ def test_joint_loads_with_a_coordinate_coupler_equal_opensims(tmp_path, capsys, 
     assert worst_udot < 1e-5, worst_udot
     assert knee_M > 5.0
     assert worst_F < 1e-5 and worst_M < 1e-5, (worst_F, worst_M)
+
+
+@pytest.mark.parametrize("section, message", [
+    ({"joint_names": ["knee_q"]}, "joint_reaction.joint_names[0]: no joint 'knee_q' with a child body in the model; "
+                                  "did you mean 'knee_r'?"),
+    ({"express_in_frame": "femur_q"}, "joint_reaction.express_in_frame: 'femur_q': expected ground, child, parent or "
+                                      "a body of the OpenSim model; did you mean 'femur_r'?"),
+    ({"joint_names": ["knee_r", "hip_r"], "apply_on_bodies": ["child", "parent", "child"]},
+     "joint_reaction.apply_on_bodies: give one entry or one per joint (2), got 3"),
+    ({"apply_on_bodies": "middle"}, "joint_reaction.apply_on_bodies: unknown body side 'middle'; expected one of "
+                                    "['child', 'parent']"),
+    ({"joints": "all"}, "joint_reaction.joints: unknown key; did you mean 'joint_names'?"),
+    ("missing.xml", "joint_reaction: "),
+    ("<JointReaction><on>false</on></JointReaction>", "<on> is false: this JointReaction is switched off"),
+    ("<AnalyzeTool/>", "no <JointReaction>"),
+])
+def test_joint_reaction_section_errors_name_the_entry(case, tmp_path, capsys, section, message):
+    """Every mistake in the section or the setup file ends in one line naming the file
+    and the entry."""
+    import yaml
+
+    folder, model, overlay, loads, *_ = case
+    data = yaml.safe_load(overlay.read_text())
+    if isinstance(section, str) and section.startswith("<"):
+        (tmp_path / "setup.xml").write_text(f'<?xml version="1.0"?>\n<OpenSimDocument>{section}</OpenSimDocument>\n')
+        section = "setup.xml"
+    data["joint_reaction"] = section
+    (tmp_path / "overlay.yaml").write_text(yaml.safe_dump(data))
+    code = main(["check", str(model), "--with", str(tmp_path / "overlay.yaml"), "--external-loads", str(loads)])
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if line.startswith("openfdk: error")]
+    assert code != 0 and len(lines) == 1 and "Traceback" not in err, err
+    assert message in lines[0] and ("overlay.yaml" in lines[0] or "setup.xml" in lines[0]), lines[0]

@@ -101,7 +101,7 @@ def run(model, trial=None, settings=None, **options):
                                  start=options.get("start"), end=options.get("end"), settings=settings)
     if model_file:
         info["model_file"] = model_file
-    return Result.from_analysis(kin, dyn, info, model)
+    return Result.from_analysis(kin, dyn, info, model, reports=getattr(settings, "joint_reaction", ()))
 
 
 def read_results(directory):

@@ -132,7 +132,7 @@ class Bases:
         if "trc" in kinds:
             self.texts["trc"] = _trc_text()
             self.paths["trc"] = self.dir / "trial.trc"
-        if {"osim", "ik", "external_loads", "grf_mot", "sto"} & set(kinds):
+        if {"osim", "ik", "external_loads", "grf_mot", "sto", "joint_reaction"} & set(kinds):
             self.texts["osim"] = OSIM_TEXT
             self.paths["osim"] = self.dir / "leg.osim"
             self.paths["osim"].write_text(OSIM_TEXT)

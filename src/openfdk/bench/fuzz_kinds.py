@@ -43,7 +43,10 @@ Kinds:
   mutations -> ``StudyError`` (or the stale lock taken over);
 - ``validation_map``, ``validation_reference``: the map (YAML) and the measured reference
   (``.sto``, time in %) of ``openfdk validate-kinematics`` against a run folder in the
-  format ``openfdk run`` writes; YAML and text mutations -> ``ValidationError``.
+  format ``openfdk run`` writes; YAML and text mutations -> ``ValidationError``;
+- ``joint_reaction``: OpenSim's JointReaction setup (an AnalyzeTool setup with its
+  joints, bodies and frames) named by an overlay's ``joint_reaction`` on the fuzz
+  ``.osim``; XML mutations -> ``ModelError``.
 """
 
 from __future__ import annotations
@@ -59,7 +62,7 @@ import sys
 import numpy as np
 
 NEW_KINDS = ("external_loads", "grf_mot", "sto", "force_plates", "results", "checkpoint", "checkpoint_fdk",
-             "study_lock", "validation_map", "validation_reference")
+             "study_lock", "validation_map", "validation_reference", "joint_reaction")
 #: the kinds whose inputs are checkpoint parts, resumed
 CHECKPOINT_KINDS = ("checkpoint", "checkpoint_fdk")
 #: the FDK run's model file (in its run folder)
@@ -105,6 +108,30 @@ EXTERNAL_LOADS_TEXT = """<?xml version="1.0" encoding="UTF-8" ?>
  </ExternalLoads>
 </OpenSimDocument>
 """
+
+JOINT_REACTION_TEXT = """<?xml version="1.0" encoding="UTF-8" ?>
+<OpenSimDocument Version="40000">
+ <AnalyzeTool name="leg">
+  <model_file>leg.osim</model_file>
+  <AnalysisSet name="Analyses">
+   <objects>
+    <JointReaction name="JointReaction">
+     <on>true</on>
+     <forces_file>forces.sto</forces_file>
+     <joint_names>hip knee_j pat_j</joint_names>
+     <apply_on_bodies>parent child child</apply_on_bodies>
+     <express_in_frame>child shank ground</express_in_frame>
+    </JointReaction>
+   </objects>
+  </AnalysisSet>
+ </AnalyzeTool>
+</OpenSimDocument>
+"""
+_JR_VALUES = ("hip", "knee_j", "pat_j", "all", "All", "child", "parent", "ground", "shank", "thigh", "patella",
+              "/bodyset/shank", "hip knee_j", "child parent", "child child child child", "true", "false", "", " ",
+              "NaN", "1", "..", "/etc/passwd")
+_JR_TAGS = ("JointReaction", "joint_names", "apply_on_bodies", "express_in_frame", "on", "objects",
+            "AnalysisSet", "Foo")
 
 _EL_VALUES = ("shank", "thigh", "patella", "ground", "/bodyset/shank", "/ground", "hip", "unassigned", "grf.mot",
               "motion.sto", "../grf.mot", "/etc/passwd", "ground_force_v", "ground_force_p", "push_v", "true",
@@ -287,6 +314,10 @@ def build(bases, kinds):
         (d / "loads.xml").write_text(EXTERNAL_LOADS_TEXT)
         _write_grf(d / "grf.mot")
         bases.paths["external_loads"], bases.paths["grf_mot"] = d / "loads.xml", d / "grf.mot"
+    if "joint_reaction" in kinds:
+        (d / "jr.xml").write_text(JOINT_REACTION_TEXT)
+        (d / "jr.yaml").write_text("joint_reaction: jr.xml\n")
+        bases.paths["joint_reaction"] = d / "jr.xml"
     if "sto" in kinds:
         _write_motion(d / "motion.sto")
         bases.paths["sto"] = d / "motion.sto"
@@ -491,6 +522,8 @@ def mutate(kind, bases, rng):
     path = bases.paths[kind]
     if kind == "external_loads":
         path.write_text(mutate_xml(EXTERNAL_LOADS_TEXT, rng, values=_EL_VALUES, tags=_EL_TAGS), encoding="utf-8")
+    elif kind == "joint_reaction":
+        path.write_text(mutate_xml(JOINT_REACTION_TEXT, rng, values=_JR_VALUES, tags=_JR_TAGS), encoding="utf-8")
     elif kind in ("grf_mot", "sto", "validation_reference"):
         path.write_text(mutate_text(originals[path].decode(), rng), encoding="utf-8")
     elif kind == "validation_map":
@@ -551,7 +584,7 @@ def current_input(kind, bases):
 
 def documented_error(kind):
     """The exception class the loader of ``kind`` raises for bad input."""
-    if kind in ("external_loads", "grf_mot", "sto"):
+    if kind in ("external_loads", "grf_mot", "sto", "joint_reaction"):
         from ..model.errors import ModelError
 
         return ModelError
@@ -603,11 +636,14 @@ def _results_readers(folder, readers=RESULT_READERS):
 def load(kind, path, reader=None):
     """Load the mutated input of ``kind`` at ``path`` as the command line does
     (``reader``: the result-folder reader :func:`mutate` chose; None: all of them)."""
-    if kind in ("external_loads", "grf_mot", "sto"):
-        from ..io.modelfile import load_model
+    if kind in ("external_loads", "grf_mot", "sto", "joint_reaction"):
+        from ..io.modelfile import load_model, load_model_and_settings
         from ..io.opensim.overlay import register
 
         model = path.parent / "leg.osim"
+        if kind == "joint_reaction":
+            register(model, overlay=path.parent / "jr.yaml")
+            return load_model_and_settings(model)
         if kind == "sto":
             register(model, motion=path)
         else:

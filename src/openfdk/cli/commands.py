@@ -304,12 +304,13 @@ def _add_to_summary(out_dir, key, value):
     write_json(path, data)
 
 
-def _write_joint_loads(out_dir, kin, dyn, model):
+def _write_joint_loads(out_dir, kin, dyn, model, settings):
     """joint_loads.csv/.sto (the load each joint transmits to its child body, as OpenSim's
-    JointReaction reports it) and their peaks in summary.json's ``joint_loads``."""
+    JointReaction reports it, and the reports of the settings' ``joint_reaction``) and
+    their peaks in summary.json's ``joint_loads``."""
     from ..io.joint_load_outputs import write_joint_loads
 
-    _add_to_summary(out_dir, "joint_loads", write_joint_loads(out_dir, model, kin, dyn))
+    _add_to_summary(out_dir, "joint_loads", write_joint_loads(out_dir, model, kin, dyn, settings.joint_reaction))
 
 
 def _rim_check(model, kin):
@@ -366,7 +367,7 @@ def _cmd_run(args):
     model, settings, _ = loaded
     _write_measures(args.out, args.model, kin, model)
     _write_generalized_forces(args.out, args.model, dyn, model)
-    _write_joint_loads(args.out, kin, dyn, model)
+    _write_joint_loads(args.out, kin, dyn, model, settings)
     _write_grf(args, info, dyn, settings)
     fdk = info.get("fdk")
     _say(args,

@@ -4,6 +4,13 @@ analysis with its defaults (on the child body, expressed in the ground):
 ``{joint}_on_{child}_in_ground_fx, _fy, _fz`` (N), ``_mx, _my, _mz`` (N m, about the
 joint's child frame origin) and ``_px, _py, _pz`` (m, that origin in the ground).
 
+The model file's ``joint_reaction`` section (:mod:`openfdk.dynamics.joint_reaction_settings`,
+OpenSim's ``apply_on_bodies`` and ``express_in_frame``) adds its reports' columns,
+``{joint}_on_{body}_in_{frame}_…`` (:mod:`openfdk.dynamics.joint_reports`), to the CSV;
+the ``.sto`` then holds those reports only, the columns OpenSim's JointReaction writes
+with the same options. The CSV keeps the ground columns, which the viewer, the plots and
+the summary read.
+
 ``summary.json``'s ``joint_loads`` gives, per joint, the peak of the force's magnitude
 in N and in body weights (the model's total mass times g), and the time of the peak.
 Frames that failed are NaN in the CSV and left out of the ``.sto``, as in
@@ -22,20 +29,25 @@ from .storage import write_storage
 COMPONENTS = ("fx", "fy", "fz", "mx", "my", "mz", "px", "py", "pz")
 
 
-def joint_load_columns(model, kin, dyn):
-    """{column: (nf,)} in OpenSim's JointReaction labels (module docstring), failed
-    frames NaN; {} when the model has no joint with a moving child body."""
+def joint_load_columns(model, kin, dyn, reports=()):
+    """{column: (nf,)} in OpenSim's JointReaction labels (module docstring): every joint's
+    load on its child in the ground, then the columns of ``reports`` (JointReports, the
+    settings' ``joint_reaction``) not among them; failed frames NaN. {} when the model
+    has no joint with a moving child body."""
     from ..dynamics.joint_loads import joint_loads
+    from ..dynamics.joint_reaction_settings import default_reports
+    from ..dynamics.joint_reports import reported_loads
 
     loads = joint_loads(model, kin.q, dyn)
     failed = ~(np.asarray(dyn.converged, bool) & np.asarray(kin.converged, bool))
+    wanted = [r for r in default_reports(model) if r.joint in loads]
+    defaults = {r.base for r in wanted}
+    wanted += [r for r in reports if r.joint in loads and r.base not in defaults]
     out = {}
-    for name, (F, M, P) in loads.items():
-        child = model.frame(next(j.child for j in model.joints if j.name == name)).body
-        values = np.hstack([F, M, P])
+    for base, values in reported_loads(model, kin.q, loads, wanted).items():
         values[failed] = np.nan
         for k, comp in enumerate(COMPONENTS):
-            out[f"{name}_on_{child}_in_ground_{comp}"] = values[:, k]
+            out[f"{base}_{comp}"] = values[:, k]
     return out
 
 
@@ -58,20 +70,24 @@ def joint_load_summary(model, time, columns):
     return {"joints": out, "body_weight_N": weight}
 
 
-def write_joint_loads(out_dir, model, kin, dyn):
+def write_joint_loads(out_dir, model, kin, dyn, reports=()):
     """Write joint_loads.csv and .sto of a run of a model with joint coordinates (an
     OpenSim model, or a model file with a ``coordinates:`` section: a joint carries the
-    rows on its own coordinates, :mod:`openfdk.dynamics.joint_loads`); returns the
-    summary, or None (no coordinates, no joint with a moving child body, no frame)."""
+    rows on its own coordinates, :mod:`openfdk.dynamics.joint_loads`), the ``.sto`` with
+    the columns of ``reports`` when given (module docstring); returns the summary, or
+    None (no coordinates, no joint with a moving child body, no frame)."""
     if not model.coordinates or not len(dyn.time):
         return None
-    columns = joint_load_columns(model, kin, dyn)
+    columns = joint_load_columns(model, kin, dyn, reports)
     if not columns:
         return None
     out_dir = Path(out_dir)
     time = np.asarray(dyn.time, float)
     write_table(out_dir / "joint_loads.csv", {"time": time, **columns})
     ok = np.isfinite(np.column_stack(list(columns.values()))).all(axis=1)
+    if reports:
+        columns = {f"{r.base}_{c}": columns[f"{r.base}_{c}"] for r in reports if f"{r.base}_fx" in columns
+                   for c in COMPONENTS}
     write_storage(out_dir / "joint_loads.sto", time[ok], {k: v[ok] for k, v in columns.items()},
                   name="Joint Reaction Loads (openfdk)",
                   comments=[] if ok.all() else [f"openfdk: {int((~ok).sum())} failed frames left out"])

@@ -20,6 +20,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..contact.sections import load_contacts
+from ..dynamics.joint_reaction_settings import load_joint_reaction
 from ..fdk.settings import load_fdk
 from ..forces.actuator_section import load_actuators, load_reserves
 from ..forces.data_load_section import load_external_loads
@@ -48,6 +49,7 @@ SECTIONS = (
     ("recruitment", load_recruitment),
     ("contacts", load_contacts),
     ("fdk", load_fdk),
+    ("joint_reaction", load_joint_reaction),
 )
 
 

@@ -445,7 +445,7 @@ class ModelBuilder:
     ELEMENT_FIELDS = ("muscles", "ligaments", "springs", "contacts", "loads", "unilateral_reactions", "visuals",
                       "coordinates", "tasks", "external_loads", "actuators", "joints")
     SETTING_FIELDS = {"analysis": "kinematics", "recruitment": "recruitment", "fdk": "fdk", "units": "units",
-                      "ground_reactions": "ground_reactions"}
+                      "ground_reactions": "ground_reactions", "joint_reaction": "joint_reaction"}
 
     def _check_all_names(self):
         """Every name the model will carry — also of items put into the builder without

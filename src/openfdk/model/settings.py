@@ -45,13 +45,16 @@ class AnalysisSettings:
     dict of its fields is converted, an unknown key refused with a did-you-mean); units : the file's declared
     units {"length": …, "angle": …}; ground_reactions : the force plates' assignment
     to bodies (:mod:`openfdk.io.ground_reactions`), {} when the trial's plates are not
-    used."""
+    used; joint_reaction : the joint loads reported as OpenSim's JointReaction reports
+    them, :class:`~openfdk.dynamics.joint_reaction_settings.JointReport` each (the model
+    file's ``joint_reaction`` section), () for OpenSim's defaults."""
 
     kinematics: dict = field(default_factory=dict)
     recruitment: object = None
     fdk: object = None
     units: dict = field(default_factory=dict)
     ground_reactions: dict = field(default_factory=dict)
+    joint_reaction: tuple = ()
 
     def __post_init__(self):
         from ..fdk.settings import FDKSettings

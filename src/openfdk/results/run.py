@@ -188,9 +188,10 @@ class RunResults:
 
     # ------------------------------------------------------------------ construction
     @classmethod
-    def from_analysis(cls, kin, dyn, info: dict, model=None):
+    def from_analysis(cls, kin, dyn, info: dict, model=None, reports=()):
         """From a KinematicsResult, an InverseDynamicsResult (or None) and the job info
-        (as returned by :func:`openfdk.analysis.jobs.run_job`)."""
+        (as returned by :func:`openfdk.analysis.jobs.run_job`); ``reports``: the joint
+        loads asked for besides the defaults (the settings' ``joint_reaction``)."""
         from ..io.results import forces_columns, kinematics_columns
 
         info = dict(info)
@@ -214,7 +215,7 @@ class RunResults:
             if dyn is not None and len(dyn.time):
                 from ..io.joint_load_outputs import joint_load_columns, joint_load_summary
 
-                columns = joint_load_columns(model, kin, dyn)
+                columns = joint_load_columns(model, kin, dyn, reports)
                 if columns:
                     joint_loads = _frame({"time": np.asarray(dyn.time, float), **columns})
                     summary["joint_loads"] = joint_load_summary(model, dyn.time, columns)

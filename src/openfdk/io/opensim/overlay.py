@@ -414,6 +414,16 @@ def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None
             raise ModelError(f"{source}: actuators: {str(xml)!r} does not exist")
         data = read_actuator_file(xml, data, info)
     data = _overlay_frames(overlay.pop("frames", None), data, source, info)
+    if "joint_reaction" in overlay:
+        from .joint_reaction import read_setup, resolved
+
+        spec = overlay["joint_reaction"]
+        if isinstance(spec, str):
+            xml = base_dir / spec
+            if not xml.is_file():
+                raise ModelError(f"{source}: joint_reaction: {str(xml)!r} does not exist")
+            spec = read_setup(xml)
+        overlay["joint_reaction"] = resolved(spec, data, info, source)
     overlay = _expand_shorthands(overlay, data, source)
     data = _contact_regions(overlay.pop("contact_regions", None), data, source)
     known = [k for k in CORE_SECTIONS + tuple(name for name, _ in SECTIONS) if k not in MODEL_SECTIONS]
