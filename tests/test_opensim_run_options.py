@@ -88,3 +88,52 @@ def test_a_recorded_file_that_moved_is_named_and_left_out(run, tmp_path):
     with pytest.warns(UserWarning, match=r"muscles\.osim: the run read it with overlay '.*gone\.yaml', which no longer"):
         loaded = read_results(copy).model()
     assert loaded.muscles == ()  # --ignore forces still applies
+
+
+def test_the_python_api_takes_the_import_options(run, tmp_path):
+    """openfdk.load_model takes the command line's import options as keywords; the run
+    gives the command line's numbers, and a saved run is read again with the options."""
+    import openfdk
+    from openfdk.io.results import read_table
+    from openfdk.results.run import read_results
+
+    folder, model, overlay, out = run
+    _forget(model)
+    fdk_model = openfdk.load_model(str(model), overlay=overlay, ignore="forces")
+    assert fdk_model.muscles == ()
+    result = openfdk.run(fdk_model)
+    cli = read_table(out / "joint_loads.csv")
+    np.testing.assert_allclose(result.joint_loads["knee_r_on_tibia_r_in_ground_fy"].to_numpy(),
+                               cli["knee_r_on_tibia_r_in_ground_fy"], rtol=1e-8, atol=1e-8)
+    assert float(np.max(np.abs(cli["knee_r_on_tibia_r_in_ground_fy"]))) > 50.0  # the leg's weight and motion
+    result.save(tmp_path / "saved")
+    options = json.loads((tmp_path / "saved" / "summary.json").read_text())["input"]["opensim_import"]["options"]
+    assert options == {"ignore": ["forces"], "overlay": str(overlay.resolve())}
+    _forget(model)
+    assert read_results(tmp_path / "saved").model().muscles == ()  # read again with --ignore forces
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda openfdk, model: openfdk.load_model(model, overlays="x.yaml"), "unknown option(s) ['overlays']; did you "
+                                                                          "mean 'overlay'?"),
+    (lambda openfdk, model: openfdk.load_settings(model, motion_cutoff=6), "did you mean 'motion_cutoff_hz'?"),
+])
+def test_the_python_api_names_an_unknown_option(run, call, message):
+    import openfdk
+
+    import re
+
+    with pytest.raises(TypeError, match=re.escape(message)):
+        call(openfdk, str(run[1]))
+
+
+def test_import_options_of_a_model_file_that_is_not_osim(tmp_path):
+    import yaml
+
+    import openfdk
+    from openfdk.fixtures.synthetic import two_body_model_dict
+
+    path = tmp_path / "model.yaml"
+    path.write_text(yaml.safe_dump(two_body_model_dict(), sort_keys=False))
+    with pytest.raises(TypeError, match=r"\['motion'\] are options of an OpenSim model \(\.osim\); model\.yaml is not"):
+        openfdk.load_model(path, motion="walk.mot")

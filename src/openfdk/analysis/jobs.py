@@ -212,10 +212,10 @@ def preflight(model, label, model_path):
     Returns their records for summary.json's ``input``: {opensim_import?, contact_meshes?}."""
     _refuse_redundant_rows(model, label)
     meshes = contact_mesh_checks(model, label)
-    return {**_import_info(model_path), **({"contact_meshes": meshes} if meshes else {})}
+    return {**import_record(model_path), **({"contact_meshes": meshes} if meshes else {})}
 
 
-def _import_info(model_path):
+def import_record(model_path):
     """{"opensim_import": {dropped, merged_bodies, options?}} for a model read from an .osim
     (the elements left out with --ignore are listed in summary.json, and the options it
     was read with: :func:`openfdk.io.opensim.overlay.options_record`), else {}."""
@@ -245,7 +245,7 @@ def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, s
 
     model, settings, label = loaded if loaded is not None else model_and_settings(model_path, settings)
     _refuse_redundant_rows(model, label)
-    info = {"model": label, **_import_info(model_path)}
+    info = {"model": label, **import_record(model_path)}
     traj, times, more = analysis_inputs(model, trial_path, cutoff_hz, start, end, settings)
     info.update(more)
     model = _with_ground_reactions(model, settings, trial_path, traj, cutoff_hz, info)

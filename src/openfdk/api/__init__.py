@@ -28,23 +28,71 @@ _MODEL_FILES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _MODEL_SETTINGS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def load_model(path):
-    """Read and validate a model file (YAML, docs/model-file.md) into a Model (purely
-    physical; the file's analysis settings: :func:`load_settings`, used by :func:`run`
-    by default). Raises ModelError (a ValueError) naming the file and the entry."""
+#: the import options of an OpenSim model as keywords of :func:`load_model` and
+#: :func:`load_settings`: {keyword: (the command line's flag, register's parameter)}
+OPENSIM_OPTIONS = {"overlay": ("--with", "overlay"), "ignore": ("--ignore", "ignore"),
+                   "geometry": ("--geometry", "mesh_dirs"), "ik_tasks": ("--ik-tasks", "ik_tasks"),
+                   "external_loads": ("--external-loads", "external_loads"),
+                   "external_loads_cutoff_hz": ("--external-loads-cutoff", "external_loads_cutoff_hz"),
+                   "motion": ("--motion", "motion"), "motion_cutoff_hz": ("--motion-cutoff", "motion_cutoff_hz"),
+                   "actuators": ("--actuators", "actuators")}
+
+
+def _register_opensim_options(path, options):
+    """Register the keywords ``options`` (:data:`OPENSIM_OPTIONS`) for the ``.osim`` at
+    ``path``, as the command line's flags do; none for another file."""
+    if not options:
+        return
+    unknown = sorted(set(options) - set(OPENSIM_OPTIONS))
+    if unknown:
+        import difflib
+
+        hints = [h for k in unknown for h in difflib.get_close_matches(k, list(OPENSIM_OPTIONS), n=1)]
+        raise TypeError(f"openfdk.load_model: unknown option(s) {unknown}"
+                        + (f"; did you mean {', '.join(map(repr, hints))}?" if hints else "")
+                        + f" (options: {list(OPENSIM_OPTIONS)})")
+    from ..io.opensim import is_osim
+    from ..io.opensim.overlay import register
+
+    if not is_osim(path):
+        raise TypeError(f"openfdk.load_model: {sorted(options)} are options of an OpenSim model (.osim); "
+                        f"{Path(path).name} is not one (give them in the model file)")
+    kwargs = {OPENSIM_OPTIONS[k][1]: v for k, v in options.items() if v is not None}
+    for key in ("ignore", "mesh_dirs"):
+        if isinstance(kwargs.get(key), (str, os.PathLike)):
+            kwargs[key] = (kwargs[key],)
+    register(path, **kwargs)
+
+
+def load_model(path, **opensim_options):
+    """Read and validate a model file (YAML, docs/model-file.md, or an OpenSim ``.osim``)
+    into a Model (purely physical; the file's analysis settings: :func:`load_settings`,
+    used by :func:`run` by default). Raises ModelError (a ValueError) naming the file and
+    the entry.
+
+    An ``.osim`` takes the command line's import options as keywords: ``overlay`` (a
+    YAML of model-file sections, ``--with``), ``ignore`` (element types, ``--ignore``),
+    ``geometry`` (mesh folders), ``ik_tasks``, ``external_loads`` (OpenSim's
+    ExternalLoads .xml), ``external_loads_cutoff_hz`` (Hz), ``motion`` (a .mot/.sto of
+    coordinates), ``motion_cutoff_hz`` (Hz) and ``actuators`` (an OpenSim actuator
+    file); e.g. ``load_model("subject.osim", motion="ik.mot", external_loads="grf.xml",
+    actuators="reserves.xml")``."""
     from ..io.modelfile import load_model_and_settings
 
+    _register_opensim_options(path, opensim_options)
     model, settings = load_model_and_settings(path)
     _MODEL_FILES[model] = str(Path(path).resolve())
     _MODEL_SETTINGS[model] = settings
     return model
 
 
-def load_settings(path):
+def load_settings(path, **opensim_options):
     """The analysis settings of a model file (sections ``analysis``, ``recruitment``,
-    ``fdk``): an :class:`~openfdk.model.settings.AnalysisSettings`."""
+    ``fdk``, ``joint_reaction``): an :class:`~openfdk.model.settings.AnalysisSettings`;
+    an ``.osim`` with the import options of :func:`load_model`."""
     from ..io.modelfile import load_settings as _load
 
+    _register_opensim_options(path, opensim_options)
     return _load(path)
 
 
@@ -100,7 +148,10 @@ def run(model, trial=None, settings=None, **options):
                                  progress=bool(options.get("progress", False)),
                                  start=options.get("start"), end=options.get("end"), settings=settings)
     if model_file:
+        from ..analysis.jobs import import_record
+
         info["model_file"] = model_file
+        info.update(import_record(model_file))  # an .osim's import options: a saved run reads it again with them
     return Result.from_analysis(kin, dyn, info, model, reports=getattr(settings, "joint_reaction", ()))
 
 
