@@ -369,12 +369,12 @@ def _setup_file(path, reports):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("given", ["overlay", "setup_file"])
+@pytest.mark.parametrize("given", ["overlay", "setup_file", "flag"])
 def test_joint_reaction_options_equal_opensims(case, given, capsys):
     """OpenSim's JointReaction options (apply_on_bodies, express_in_frame), given in the
-    overlay's joint_reaction section or as OpenSim's own setup file: joint_loads.sto holds
-    the same columns as OpenSim's, with the same numbers; joint_loads.csv keeps the
-    ground columns besides."""
+    overlay's joint_reaction section, as OpenSim's own setup file named there, or with
+    --joint-reaction: joint_loads.sto holds the same columns as OpenSim's, with the same
+    numbers; joint_loads.csv keeps the ground columns besides."""
     import yaml
 
     from openfdk.io.storage import read_storage
@@ -387,12 +387,13 @@ def test_joint_reaction_options_equal_opensims(case, given, capsys):
         data["joint_reaction"] = {"joint_names": [r[0] for r in REPORTS],
                                   "apply_on_bodies": [r[1] for r in REPORTS],
                                   "express_in_frame": [r[2] for r in REPORTS]}
-    else:
+    elif given == "setup_file":
         data["joint_reaction"] = _setup_file(folder / "setup_JointReaction.xml", REPORTS).name
+    flag = ["--joint-reaction", str(_setup_file(folder / "setup_flag.xml", REPORTS))] if given == "flag" else []
     (folder / f"jr_{given}.yaml").write_text(yaml.safe_dump(data))
     out = folder / f"jr_{given}"
     assert main(["run", str(model), "--with", str(folder / f"jr_{given}.yaml"), "--external-loads", str(loads),
-                 "--out", str(out), "--no-plots", "-q"]) == 0, capsys.readouterr().err
+                 "--out", str(out), "--no-plots", "-q", *flag]) == 0, capsys.readouterr().err
     t, ours, _ = read_storage(out / "joint_loads.sto")
     np.testing.assert_allclose(t, times, atol=1e-12)
     assert list(ours) == [f"{base}_{c}" for base in reports for c in COMPONENTS]  # OpenSim's labels, its order
@@ -411,6 +412,15 @@ def test_joint_reaction_options_equal_opensims(case, given, capsys):
     assert all(f"{base}_fx" in csv for base in reports)
     if given == "setup_file":
         _imported_yaml_reports_the_same(folder, model, folder / f"jr_{given}.yaml", loads, ours, capsys)
+    elif given == "flag":  # recorded with the run's options; the overlay may not name another
+        import json
+
+        options = json.loads((out / "summary.json").read_text())["input"]["opensim_import"]["options"]
+        assert options["joint_reaction"] == str((folder / "setup_flag.xml").resolve())
+        data["joint_reaction"] = "setup_flag.xml"
+        (folder / "jr_both.yaml").write_text(yaml.safe_dump(data))
+        assert main(["check", str(model), "--with", str(folder / "jr_both.yaml"), *flag]) == 2  # a bad input
+        assert "jr_both.yaml: joint_reaction: given by --joint-reaction too" in capsys.readouterr().err
     else:  # the Python API adds the same columns
         import openfdk
         from openfdk.io.opensim.overlay import register

@@ -35,7 +35,7 @@ OPENSIM_OPTIONS = {"overlay": ("--with", "overlay"), "ignore": ("--ignore", "ign
                    "external_loads": ("--external-loads", "external_loads"),
                    "external_loads_cutoff_hz": ("--external-loads-cutoff", "external_loads_cutoff_hz"),
                    "motion": ("--motion", "motion"), "motion_cutoff_hz": ("--motion-cutoff", "motion_cutoff_hz"),
-                   "actuators": ("--actuators", "actuators")}
+                   "actuators": ("--actuators", "actuators"), "joint_reaction": ("--joint-reaction", "joint_reaction")}
 
 
 def _register_opensim_options(path, options):

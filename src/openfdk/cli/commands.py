@@ -590,6 +590,9 @@ def _import_arguments(p):
     g.add_argument("--actuators", default=None, metavar="ACTUATORS.xml",
                    help="OpenSim actuator file (reserve and residual CoordinateActuators): recruited beside the "
                         "muscles, weighted by their optimal force, as in OpenSim's static optimisation")
+    g.add_argument("--joint-reaction", default=None, metavar="SETUP.xml",
+                   help="OpenSim JointReaction setup (setup_JointReaction.xml): joint_loads.sto reports its joints on "
+                        "its bodies (apply_on_bodies) in its frames (express_in_frame), as OpenSim's JointReaction")
 
 
 def _register_import(args):
@@ -601,15 +604,16 @@ def _register_import(args):
 
     if not is_osim(model):
         if args.overlay or args.ignore or args.geometry or args.ik_tasks or args.external_loads or args.motion \
-                or args.actuators or args.external_loads_cutoff:
-            raise UserError(f"{model}: --with, --ignore, --geometry, --ik-tasks, --external-loads, --motion and "
-                            "--actuators apply to OpenSim models (.osim) only")
+                or args.actuators or args.external_loads_cutoff or args.joint_reaction:
+            raise UserError(f"{model}: --with, --ignore, --geometry, --ik-tasks, --external-loads, --motion, "
+                            "--actuators and --joint-reaction apply to OpenSim models (.osim) only (a model file "
+                            "takes joint_reaction: SETUP.xml)")
         return
     from pathlib import Path
 
     for option, value in (("--with", args.overlay), ("--ik-tasks", args.ik_tasks),
                           ("--external-loads", args.external_loads), ("--motion", args.motion),
-                          ("--actuators", args.actuators)):
+                          ("--actuators", args.actuators), ("--joint-reaction", args.joint_reaction)):
         if value is not None and not Path(value).is_file():
             raise UserError(f"{option}: {value!r} does not exist or is not a regular file")
     from ..io.opensim.overlay import register
@@ -617,7 +621,7 @@ def _register_import(args):
     if args.external_loads_cutoff and args.external_loads is None:
         raise UserError("--external-loads-cutoff: filters the loads of --external-loads, which is not given")
     register(model, args.ignore, args.geometry, args.overlay, args.ik_tasks, args.external_loads, args.motion,
-             args.motion_cutoff or None, args.actuators, args.external_loads_cutoff or None)
+             args.motion_cutoff or None, args.actuators, args.external_loads_cutoff or None, args.joint_reaction)
 
 
 

@@ -59,6 +59,7 @@ class ImportOptions:
     motion_cutoff_hz: float | None = None
     actuators: Path | None = None
     external_loads_cutoff_hz: float | None = None
+    joint_reaction: Path | None = None
     info: dict = field(default_factory=dict)
 
 
@@ -72,10 +73,10 @@ def _key(path):
 
 
 def register(path, ignore=(), mesh_dirs=(), overlay=None, ik_tasks=None, external_loads=None, motion=None,
-             motion_cutoff_hz=None, actuators=None, external_loads_cutoff_hz=None):
+             motion_cutoff_hz=None, actuators=None, external_loads_cutoff_hz=None, joint_reaction=None):
     """Options for the ``.osim`` at ``path`` in this process (the command line's
-    ``--ignore``, ``--geometry``, ``--with``, ``--ik-tasks``, ``--external-loads`` and
-    ``--external-loads-cutoff`` …)."""
+    ``--ignore``, ``--geometry``, ``--with``, ``--ik-tasks``, ``--external-loads``,
+    ``--external-loads-cutoff``, ``--joint-reaction`` …)."""
     for d in mesh_dirs:
         if not Path(d).is_dir():
             raise ModelError(f"--geometry: folder {str(d)!r} does not exist")
@@ -84,7 +85,8 @@ def register(path, ignore=(), mesh_dirs=(), overlay=None, ik_tasks=None, externa
                                             None if external_loads is None else Path(external_loads),
                                             None if motion is None else Path(motion), motion_cutoff_hz,
                                             None if actuators is None else Path(actuators),
-                                            external_loads_cutoff_hz or None)
+                                            external_loads_cutoff_hz or None,
+                                            None if joint_reaction is None else Path(joint_reaction))
 
 
 def registered_options(path):
@@ -102,7 +104,7 @@ def register_options(path, options):
     _REGISTERED[_key(path)] = replace(options, info={})
 
 
-_PATH_OPTIONS = ("overlay", "ik_tasks", "external_loads", "motion", "actuators")
+_PATH_OPTIONS = ("overlay", "ik_tasks", "external_loads", "motion", "actuators", "joint_reaction")
 _NUMBER_OPTIONS = ("motion_cutoff_hz", "external_loads_cutoff_hz")
 
 
@@ -196,6 +198,11 @@ def imported_model_data(path):
 
         data = read_actuator_file(opts.actuators, data, info)
         info["actuators"] = str(opts.actuators)
+    if opts.joint_reaction is not None:
+        from .joint_reaction import read_setup, resolved
+
+        data = {**data, "joint_reaction": resolved(read_setup(opts.joint_reaction), data, info, Path(path).name)}
+        info["joint_reaction"] = str(opts.joint_reaction)
     if opts.overlay is not None:
         overlay = read_yaml(opts.overlay, ModelError, "overlay file")
         data = merge_overlay(data, overlay, Path(opts.overlay).name, allow_options=False,
@@ -416,6 +423,9 @@ def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None
     data = _overlay_frames(overlay.pop("frames", None), data, source, info)
     if "joint_reaction" in overlay:
         from .joint_reaction import read_setup, resolved
+
+        if "joint_reaction" in data:
+            raise ModelError(f"{source}: joint_reaction: given by --joint-reaction too; give one of them")
 
         spec = overlay["joint_reaction"]
         if isinstance(spec, str):
