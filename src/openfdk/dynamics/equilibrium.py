@@ -73,8 +73,24 @@ class EquilibriumLayout:
         return len(self.column_names)
 
 
+_LAYOUTS = weakref.WeakKeyDictionary()
+
+
 def equilibrium_layout(model, system):
-    """Build the layout from the model and its ConstraintSystem (with FDK rows)."""
+    """The layout of the model and its ConstraintSystem (with FDK rows), built once per
+    model and system rows (a trial's solver is built per run: a study's cases, a bench's
+    repeats)."""
+    key = tuple(system.row_names)
+    cached = _LAYOUTS.get(model)
+    if cached is not None and cached[0] == key:
+        return cached[1]
+    layout = _build_layout(model, system)
+    _LAYOUTS[model] = (key, layout)
+    return layout
+
+
+def _build_layout(model, system):
+    """The layout (:func:`equilibrium_layout`), built."""
     eq_coords, row_names = [], []
     for b in model.moving_bodies:
         if b.equilibrium:

@@ -62,8 +62,14 @@ class SplineColumns:
         return p, dp, 2.0 * half_ddp
 
     def values(self, times):
-        """s at every entry of ``times (nf,)``: ``(nf, k)`` in units of y."""
-        return self.derivatives_over(times)[0]
+        """s at every entry of ``times (nf,)``: ``(nf, k)`` in units of y (the value's
+        Horner pass of :meth:`derivatives_over` alone)."""
+        i, tau = pieces_at(self.x, times)
+        c = self.coef[i]  # (nf, w, k)
+        p = c[:, -1].copy()
+        for j in range(c.shape[1] - 2, -1, -1):
+            p = p * tau + c[:, j]
+        return p
 
 
 @njit(cache=True)
