@@ -18,6 +18,8 @@ One PNG per topic, each only when the run has something to show:
 * ``joint_loads.png`` — for a model with joint coordinates, the magnitude of the force
   and of the moment each joint transmits to its child body (OpenSim's JointReaction;
   the force in body weights when summary.json gives the body weight);
+* ``joint_reaction.png`` — with the model file's ``joint_reaction`` section, each
+  report's force components in its frame (the knee's force along the tibia);
 * ``convergence.png`` — per-frame iterations and residuals of each stage.
 
 Failed frames are shaded red in every figure (and marked × in the convergence figure).
@@ -597,11 +599,35 @@ def _reactions(results, t, failed):
     return _finish(fig, axes, t, failed, caption)
 
 
+def joint_load_bases(columns):
+    """(each joint's load on its child in the ground, the other reports): the column
+    bases ``{joint}_on_{body}_in_{frame}`` of joint_loads.csv's ``columns``. The CSV
+    gives every joint's ground columns first, then the model file's ``joint_reaction``
+    reports (:mod:`openfdk.io.joint_load_outputs`)."""
+    defaults, reports, seen = [], [], set()
+    for c in columns:
+        if not c.endswith("_fx"):
+            continue
+        base = c[:-len("_fx")]
+        joint = base.rsplit("_on_", 1)[0]
+        if joint not in seen and base.endswith("_in_ground"):
+            seen.add(joint)
+            defaults.append(base)
+        else:
+            reports.append(base)
+    return defaults, reports
+
+
+def _body_weight(results):
+    """The body weight (N) summary.json's joint loads give, or None."""
+    weight = (results.summary.get("joint_loads") or {}).get("body_weight_N")
+    return float(weight) if isinstance(weight, (int, float)) and weight > 0 else None
+
+
 def _joint_loads(results, t, failed):
     f = results.joint_loads
-    joints = [c[:-len("_fx")] for c in f.columns if c.endswith("_fx")]
-    weight = (results.summary.get("joint_loads") or {}).get("body_weight_N")
-    weight = float(weight) if isinstance(weight, (int, float)) and weight > 0 else None
+    joints = joint_load_bases(f.columns)[0]
+    weight = _body_weight(results)
     title = f"{_name(results)}: joint loads"
     if len(joints) > MAX_LEGEND:
         title += f" ({len(joints)} joints; legends: the {MAX_LEGEND} largest)"
@@ -625,6 +651,33 @@ def _joint_loads(results, t, failed):
                "on them, and what OpenSim applies as generalised forces on them (moving path points, coordinate "
                "couplers); muscles, ligaments and contacts otherwise act on the bodies, not through the joint. "
                "Moments about the origin of the joint's child frame. Components in joint_loads.csv (ground frame).")
+    return _finish(fig, axes, t, failed, caption)
+
+
+def _joint_reaction(results, t, failed):
+    """The force components of the model file's ``joint_reaction`` reports, one panel per
+    report (at most MAX_LEGEND), in body weights in the report's frame."""
+    f = results.joint_loads
+    reports = joint_load_bases(f.columns)[1]
+    weight = _body_weight(results)
+    shown = reports[:MAX_LEGEND]
+    title = f"{_name(results)}: joint reactions as asked (joint_reaction)"
+    if len(reports) > len(shown):
+        title += f" (the first {len(shown)} of {len(reports)})"
+    fig, axes = _figure(len(shown), title)
+    scale = weight or 1.0
+    for ax, base in zip(axes, shown):
+        joint, rest = base.rsplit("_on_", 1)
+        body, frame = rest.rsplit("_in_", 1)
+        for c, (colour, ls) in zip("xyz", line_styles(3)):
+            values = _col(f, f"{base}_f{c}") / scale
+            ax.plot(t, values, lw=1, color=colour, ls=ls,
+                    label=f"F{c} (range {np.nanmin(values, initial=0.0):.2f} to {np.nanmax(values, initial=0.0):.2f})")
+        ax.set_ylabel(f"{joint} on {body}\nin {frame} " + (f"(BW; 1 BW = {weight:.0f} N)" if weight else "(N)"),
+                      fontsize=8)
+    caption = ("Each requested report of the joint_reaction section (OpenSim's JointReaction options): the force "
+               "the joint applies to the named body, its components along the axes of the named frame (for an "
+               "OpenSim model, the OpenSim body's axes). Moments and points in joint_loads.csv and .sto.")
     return _finish(fig, axes, t, failed, caption)
 
 
@@ -724,6 +777,10 @@ def figure_plan(results, measures=None):
             plan.append((name, lambda draw=draw: draw(results, t, failed), FIGURE_WEIGHT))
     if getattr(results, "joint_loads", None) is not None and len(results.joint_loads.columns):
         plan.append(("joint_loads", lambda: _joint_loads(results, t, failed), FIGURE_WEIGHT))
+        reports = joint_load_bases(results.joint_loads.columns)[1]
+        if reports:
+            plan.append(("joint_reaction", lambda: _joint_reaction(results, t, failed),
+                         min(len(reports), MAX_LEGEND)))
     plan.append(("convergence", lambda: _convergence(results, t, failed), FIGURE_WEIGHT))
     return plan
 
