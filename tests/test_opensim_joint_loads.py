@@ -673,3 +673,21 @@ def test_joint_reaction_section_errors_name_the_entry(case, tmp_path, capsys, se
     lines = [line for line in err.splitlines() if line.startswith("openfdk: error")]
     assert code != 0 and len(lines) == 1 and "Traceback" not in err, err
     assert message in lines[0] and ("overlay.yaml" in lines[0] or "setup.xml" in lines[0]), lines[0]
+
+
+def test_the_setup_reader_skips_the_tools_defaults(tmp_path):
+    """An AnalyzeTool's <defaults> holds template objects, not analyses: the JointReaction
+    read is the one in its AnalysisSet (as in opensim-models' Gait2392 setups, whose
+    JointReaction names a joint twice, once on each side)."""
+    from openfdk.io.opensim.joint_reaction import read_setup
+
+    template = ("<JointReaction name='default'><joint_names>all</joint_names><apply_on_bodies>child"
+                "</apply_on_bodies></JointReaction>")
+    (tmp_path / "setup.xml").write_text(
+        f"<OpenSimDocument><AnalyzeTool><defaults>{template}</defaults><AnalysisSet><objects>"
+        "<JointReaction name='JointReaction'><on> true </on><joint_names> hip_r knee_r knee_r </joint_names>"
+        "<apply_on_bodies> child child parent </apply_on_bodies><express_in_frame> ground child child "
+        "</express_in_frame></JointReaction></objects></AnalysisSet></AnalyzeTool></OpenSimDocument>")
+    assert read_setup(tmp_path / "setup.xml") == {
+        "joint_names": ["hip_r", "knee_r", "knee_r"], "apply_on_bodies": ["child", "child", "parent"],
+        "express_in_frame": ["ground", "child", "child"], "from_file": "setup.xml"}

@@ -32,7 +32,9 @@ def read_setup(path):
     ModelError naming the file and line."""
     source = path.name
     root = parse_xml(path, source)
-    found = next(iter(root.iter("JointReaction")), None)
+    # an AnalyzeTool's <defaults> holds templates, not analyses
+    found = next((e for e in root.iter("JointReaction") if not any(a.tag == "defaults" for a in e.iterancestors())),
+                 None)
     if found is None:
         raise ModelError(f"{source}: no <JointReaction> (give OpenSim's JointReaction setup, or the joint_reaction "
                          "section's keys joint_names, apply_on_bodies, express_in_frame)")
