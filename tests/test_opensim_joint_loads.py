@@ -410,13 +410,22 @@ def test_joint_reaction_options_equal_opensims(case, given, capsys):
     (dF, dM, dp), peak_F, peak_M = _compare(csv, theirs, child)  # the ground columns stay
     assert dF < 1e-6 * peak_F and dM < 1e-6 * peak_M and dp < 1e-9
     assert all(f"{base}_fx" in csv for base in reports)
-    from openfdk.plots.run import figure_plan, joint_load_bases
+    from openfdk.io.joint_load_outputs import joint_load_bases
+    from openfdk.plots.run import figure_plan
     from openfdk.results.run import read_results
 
     defaults, asked = joint_load_bases([k for k in csv if k != "time"])  # the figures' split of the columns
     assert sorted(defaults) == sorted(f"{j}_on_{child[j]}_in_ground" for j in theirs)
     assert asked == [b for b in reports if b not in defaults]  # back on torso in ground is a default report
     assert {"joint_loads", "joint_reaction"} <= {name for name, _, _ in figure_plan(read_results(out))}
+    from openfdk.viewer import view_data
+    from openfdk.viewer.pack import unpack
+
+    drawn = view_data(out)[0]["frames"]["joint_loads"]  # the viewer's arrows: the ground reports, once per joint
+    assert sorted(j["name"] for j in drawn) == sorted(theirs)
+    knee = next(j for j in drawn if j["name"] == "knee_r")
+    np.testing.assert_allclose(unpack(knee["force"]).astype(float).reshape(-1, 3)[:, 1],
+                               csv["knee_r_on_tibia_r_in_ground_fy"], rtol=1e-6)
     if given == "setup_file":
         _imported_yaml_reports_the_same(folder, model, folder / f"jr_{given}.yaml", loads, ours, capsys)
     elif given == "flag":  # recorded with the run's options; the overlay may not name another

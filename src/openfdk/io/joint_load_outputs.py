@@ -51,6 +51,25 @@ def joint_load_columns(model, kin, dyn, reports=()):
     return out
 
 
+def joint_load_bases(columns):
+    """(each joint's load on its child in the ground, the other reports): the column
+    bases ``{joint}_on_{body}_in_{frame}`` of joint_loads.csv's ``columns``. The CSV
+    gives every joint's ground columns first, then the model file's ``joint_reaction``
+    reports (:func:`joint_load_columns`)."""
+    defaults, reports, seen = [], [], set()
+    for c in columns:
+        if not c.endswith("_fx"):
+            continue
+        base = c[:-len("_fx")]
+        joint = base.rsplit("_on_", 1)[0]
+        if joint not in seen and base.endswith("_in_ground"):
+            seen.add(joint)
+            defaults.append(base)
+        else:
+            reports.append(base)
+    return defaults, reports
+
+
 def joint_load_summary(model, time, columns):
     """{joint: {peak_N, peak_BW, time_s}} of the force magnitudes in ``columns``
     (:func:`joint_load_columns`), and the body weight (N) they are divided by."""
@@ -94,4 +113,4 @@ def write_joint_loads(out_dir, model, kin, dyn, reports=()):
     return joint_load_summary(model, time, columns)
 
 
-__all__ = ["COMPONENTS", "joint_load_columns", "joint_load_summary", "write_joint_loads"]
+__all__ = ["COMPONENTS", "joint_load_bases", "joint_load_columns", "joint_load_summary", "write_joint_loads"]

@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io.joint_load_outputs import joint_load_bases
 from ..results.run import conjugate_unit, measure_unit
 from .layout import stack_layout
 
@@ -597,25 +598,6 @@ def _reactions(results, t, failed):
                "(child origin − parent origin, in the parent joint frame) λ is the force on the child body along "
                "that axis of the parent frame, −λ on the parent; rotational rows are moments (N·m).")
     return _finish(fig, axes, t, failed, caption)
-
-
-def joint_load_bases(columns):
-    """(each joint's load on its child in the ground, the other reports): the column
-    bases ``{joint}_on_{body}_in_{frame}`` of joint_loads.csv's ``columns``. The CSV
-    gives every joint's ground columns first, then the model file's ``joint_reaction``
-    reports (:mod:`openfdk.io.joint_load_outputs`)."""
-    defaults, reports, seen = [], [], set()
-    for c in columns:
-        if not c.endswith("_fx"):
-            continue
-        base = c[:-len("_fx")]
-        joint = base.rsplit("_on_", 1)[0]
-        if joint not in seen and base.endswith("_in_ground"):
-            seen.add(joint)
-            defaults.append(base)
-        else:
-            reports.append(base)
-    return defaults, reports
 
 
 def _body_weight(results):

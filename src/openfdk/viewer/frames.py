@@ -149,12 +149,13 @@ def joint_load_frames(results):
     JointReaction reports them): the force on the joint's child body (nf, 3) N, world, and
     the joint's child frame origin (nf, 3) m, where the arrow starts; NaN on failed
     frames. [] without joint_loads.csv or when its rows are not the run's."""
+    from ..io.joint_load_outputs import joint_load_bases
+
     data = _run_table(results, "joint_loads.csv")
     if data is None:
         return []
     out = []
-    for key in (k for k in data if k.endswith("_fx")):
-        base = key[:-3]
+    for base in joint_load_bases(list(data))[0]:  # in the ground, not the joint_reaction reports
         F = np.stack([np.asarray(data[f"{base}_f{a}"], float) for a in "xyz"], axis=1)
         P = np.stack([np.asarray(data[f"{base}_p{a}"], float) for a in "xyz"], axis=1)
         out.append({"name": base.rsplit("_on_", 1)[0], "force": pack(F), "cop": pack(P)})
