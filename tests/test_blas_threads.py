@@ -77,7 +77,7 @@ def test_the_python_api_runs_with_one_blas_thread_and_restores_the_setting(monke
 
     monkeypatch.delenv("OPENFDK_BLAS_THREADS", raising=False)
     monkeypatch.setattr(jobs, "run_job", run_job)
-    monkeypatch.setattr(result.Result, "from_analysis", classmethod(lambda cls, *a: "result"))
+    monkeypatch.setattr(result.Result, "from_analysis", classmethod(lambda cls, *a, **k: "result"))
     import scipy.linalg  # noqa: F401  (both BLAS libraries loaded, so that both are seen)
 
     from threadpoolctl import threadpool_limits

@@ -38,7 +38,7 @@ def _opensim_reactions(model_path, loads_xml, motion, times, reports=()):
     [(joint, "child" or "parent", frame: "ground", "child", "parent" or a body)], instead
     of the first {OpenSim's column label base: (n, 9)} of each, computed as OpenSim's
     JointReaction analysis does with those options."""
-    model, _data = opensim_model_with_loads(model_path, loads_xml)
+    model, _data = opensim_model_with_loads(model_path, loads_xml) if loads_xml else (opensim.Model(str(model_path)), 0)
     cs = model.getCoordinateSet()
     names = [cs.get(i).getName() for i in range(cs.getSize())]
     actuators = {}
@@ -700,3 +700,73 @@ def test_the_setup_reader_skips_the_tools_defaults(tmp_path):
     assert read_setup(tmp_path / "setup.xml") == {
         "joint_names": ["hip_r", "knee_r", "knee_r"], "apply_on_bodies": ["child", "child", "parent"],
         "express_in_frame": ["ground", "child", "child"], "from_file": "setup.xml"}
+
+
+def _welded_model(path):
+    """ground -Pin- a -Weld- c -Gimbal- e, and a -Pin- d: c is merged into a; every joint's
+    frames offset and turned (tests/opensim_models.py)."""
+    from opensim_models import BALL_RANGES, add_markers, fixed_joint, random_body, write
+
+    rng = np.random.default_rng(11)
+    m = opensim.Model()
+    m.setName("welded")
+    B = {n: random_body(n, rng) for n in ("a", "c", "d", "e")}
+    for b in B.values():
+        m.addBody(b)
+    m.addJoint(fixed_joint(opensim.PinJoint, "ja", m.getGround(), B["a"], rng, [(-2.0, 2.0)]))
+    m.addJoint(fixed_joint(opensim.WeldJoint, "jc", B["a"], B["c"], rng))
+    m.addJoint(fixed_joint(opensim.GimbalJoint, "je", B["c"], B["e"], rng, BALL_RANGES))  # u = q̇, as the oracle sets
+    m.addJoint(fixed_joint(opensim.PinJoint, "jd", B["a"], B["d"], rng, [(-2.0, 2.0)]))
+    for b in B.values():
+        add_markers(m, b, rng)
+    m.finalizeFromProperties()
+    return write(m, path)
+
+
+@pytest.mark.slow
+def test_joint_reaction_on_a_merged_body_equals_opensims(tmp_path, capsys):
+    """A body welded to another is merged into it, with its frame turned and offset in
+    that body: loads on it and in its frame, named as OpenSim names them (``je_on_c_in_c``),
+    equal OpenSim's JointReaction. Naming the weld is refused with the reason; ``all``
+    leaves it out with a warning."""
+    import yaml
+
+    from openfdk.io.storage import read_storage
+    from test_opensim_inverse_dynamics import _overlay
+
+    model = _welded_model(tmp_path / "welded.osim")
+    names = ["ja_coord_0", "je_coord_0", "je_coord_1", "je_coord_2", "jd_coord_0"]
+    rng = np.random.default_rng(3)
+    motion = {n: (rng.uniform(-0.3, 0.3), rng.uniform(0.2, 0.5), rng.uniform(0.6, 1.4), rng.uniform(0, 6.3))
+              for n in names}
+    times = np.arange(N) / RATE + 0.2
+    reports = [("je", "parent", "parent"), ("je", "child", "c"), ("jd", "parent", "child"), ("ja", "child", "c"),
+               ("je", "parent", "ground")]
+    theirs, _, worst = _opensim_reactions(model, None, motion, times, reports)
+    assert worst < 1e-8, worst
+    data = yaml.safe_load(_overlay(tmp_path, motion, times).read_text())
+    data["joint_reaction"] = {"joint_names": [r[0] for r in reports], "apply_on_bodies": [r[1] for r in reports],
+                              "express_in_frame": [r[2] for r in reports]}
+    (tmp_path / "jr.yaml").write_text(yaml.safe_dump(data))
+    assert main(["run", str(model), "--with", str(tmp_path / "jr.yaml"), "--out", str(tmp_path / "out"),
+                 "--no-plots", "-q"]) == 0, capsys.readouterr().err
+    _, ours, _ = read_storage(tmp_path / "out" / "joint_loads.sto")
+    assert list(ours) == [f"{base}_{c}" for base in theirs for c in COMPONENTS]
+    assert "je_on_c_in_c_fx" in ours and "ja_on_a_in_c_fx" in ours  # the merged body keeps its OpenSim name
+    for base, values in theirs.items():
+        mine = np.column_stack([ours[f"{base}_{c}"] for c in COMPONENTS])
+        print(base, [float(np.max(np.abs(mine[:, k:k + 3] - values[:, k:k + 3]))) for k in (0, 3, 6)])
+        scale = max(float(np.max(np.abs(values[:, :6]))), 1.0)
+        assert np.max(np.abs(mine[:, :6] - values[:, :6])) < 1e-7 * scale, base
+        assert np.max(np.abs(mine[:, 6:] - values[:, 6:])) < 1e-9, base
+    assert max(float(np.max(np.abs(v[:, :3]))) for v in theirs.values()) > 5.0  # real loads
+
+    data["joint_reaction"] = {"joint_names": ["je", "jc"]}
+    (tmp_path / "weld.yaml").write_text(yaml.safe_dump(data))
+    assert main(["check", str(model), "--with", str(tmp_path / "weld.yaml")]) == 2
+    assert ("joint_reaction.joint_names[1]: 'jc' is a WeldJoint: openfdk merges its child 'c' into 'a'"
+            in capsys.readouterr().err)
+    data["joint_reaction"] = {"joint_names": "all", "express_in_frame": "child"}
+    (tmp_path / "all.yaml").write_text(yaml.safe_dump(data))
+    assert main(["check", str(model), "--with", str(tmp_path / "all.yaml")]) == 0
+    assert "the WeldJoints ['jc'] are not reported" in capsys.readouterr().err

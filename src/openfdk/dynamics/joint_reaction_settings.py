@@ -22,7 +22,9 @@ A body's frame is the model's body frame. For an OpenSim model, whose bodies ope
 places at their centres of mass, the overlay reader gives each ``express_in_frame``
 entry as the OpenSim body's frame, ``{name, body, position, orientation}`` (name: the
 OpenSim body; body: the openfdk body it lies on; position (3,) m and orientation of its
-frame in that body), so that the numbers are OpenSim's.
+frame in that body), and each ``apply_on_bodies`` entry as ``{side, name}`` with the
+OpenSim body's name (a body merged into another by a weld keeps its own), so that the
+numbers and the labels are OpenSim's.
 """
 
 from __future__ import annotations
@@ -103,11 +105,23 @@ def load_joint_reaction(b, data, ctx):
     reports = []
     for name, (side, sp), (frame, fp) in zip(names, sides, frames):
         j = records[name]
-        side = ctx.choice(side.lower() if isinstance(side, str) else side, sp, SIDES, "body side")
         ends = {"child": j.child.split(".", 1)[0], "parent": j.parent.split(".", 1)[0] if j.parent else "ground"}
+        side, on_body = _side(ctx, side, sp, ends)
         label, body, p, R = _frame(ctx, frame, fp, ends, bodies)
-        reports.append(JointReport(name, side, ends[side], label, body, p, R))
+        reports.append(JointReport(name, side, on_body, label, body, p, R))
     b.elements["joint_reaction"] = tuple(reports)
+
+
+def _side(ctx, side, path, ends):
+    """(side, the name of the body on it) of one ``apply_on_bodies`` entry: child or
+    parent, or ``{side, name}`` (an OpenSim body's name, :mod:`openfdk.io.opensim.joint_reaction`)."""
+    name = None
+    if isinstance(side, dict):
+        ctx.keys(side, path, ["side", "name"], required=("side", "name"))
+        side, name = side["side"], ctx.string(side["name"], f"{path}.name")
+        path = f"{path}.side"
+    side = ctx.choice(side.lower() if isinstance(side, str) else side, path, SIDES, "body side")
+    return side, name or ends[side]
 
 
 def _frame(ctx, frame, path, ends, bodies):

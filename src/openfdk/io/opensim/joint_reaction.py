@@ -58,53 +58,71 @@ def section_label(spec):
     return f"joint_reaction (from {origin})" if isinstance(origin, str) and origin else "joint_reaction"
 
 
-def _opensim_bodies(body_frames):
-    """{openfdk body: the OpenSim body whose frame it keeps the axes of} (merged bodies
-    map to their root)."""
-    from .to_model import safe_name
-
-    return {v[0]: k for k, v in body_frames.items() if safe_name(k) == v[0]}
-
-
 def resolved(spec, data, info, source):
-    """The ``joint_reaction`` mapping ``spec`` (OpenSim names) with every ``express_in_frame`` entry
-    given as the OpenSim body's frame (module docstring); ModelError naming ``source``
-    and the entry for a frame the model has not."""
+    """The ``joint_reaction`` mapping ``spec`` (OpenSim names) with every
+    ``apply_on_bodies`` entry naming its OpenSim body (``{side, name}``: a body merged
+    into another keeps its name in the columns, as in OpenSim's) and every
+    ``express_in_frame`` entry given as the OpenSim body's frame (module docstring);
+    ModelError naming ``source`` and the entry for a weld or a frame the model has not."""
     if not isinstance(spec, dict):
         return spec
     body_frames = info.get("body_frames", {})
     if not body_frames:
         return spec
-    names = _opensim_bodies(body_frames)
     joints = data.get("joints", {}) if isinstance(data.get("joints"), dict) else {}
+    ends = info.get("joint_bodies", {})  # {joint: [OpenSim parent body, OpenSim child body]}
     chosen = spec.get("joint_names", "all")
+    welds = info.get("welds", {})
     if isinstance(chosen, str) and chosen.lower() == "all":
         chosen = [n for n, j in joints.items() if isinstance(j, dict) and j.get("child")]
+        if welds:
+            import warnings
+
+            from ...model.plausibility import PlausibilityWarning
+
+            warnings.warn(f"{source}: {section_label(spec)}.joint_names: all: the WeldJoints {sorted(welds)} are not "
+                          "reported: openfdk merges the bodies a weld joins into one, so it has no load to report",
+                          PlausibilityWarning, stacklevel=2)
     chosen = chosen if isinstance(chosen, list) else [chosen]
-    frames = spec.get("express_in_frame", "ground")
-    many = isinstance(frames, list) and len(frames) > 1
-    entries = frames if many else [frames[0] if isinstance(frames, list) and frames else frames] * len(chosen)
-    if many and len(frames) != len(chosen):
-        return spec  # the section's reader names the lengths
-    out = []
-    for k, (joint, frame) in enumerate(zip(chosen, entries)):
-        path = f"{section_label(spec)}.express_in_frame" + (f"[{k}]" if many else "")
-        out.append(_osim_frame(frame, joints.get(joint), names, body_frames, source, path))
-    return {**spec, "joint_names": chosen, "express_in_frame": out}
+    for k, name in enumerate(chosen):
+        if isinstance(name, str) and name in welds:
+            child, root = welds[name]
+            raise ModelError(f"{source}: {section_label(spec)}.joint_names[{k}]: {name!r} is a WeldJoint: openfdk "
+                             f"merges its child {child!r} into {root!r}, one rigid body, so it has no load to report "
+                             "(OpenSim's JointReaction gives one); leave it out")
+    out = dict(spec, joint_names=chosen)
+    for key, default, each in (("apply_on_bodies", "child", _osim_side), ("express_in_frame", "ground", _osim_frame)):
+        given = spec.get(key, default)
+        many = isinstance(given, list) and len(given) > 1
+        if many and len(given) != len(chosen):
+            return spec  # the section's reader names the lengths
+        entries = given if many else [given[0] if isinstance(given, list) and given else given] * len(chosen)
+        done = [each(entry, ends.get(joint) if joint in joints else None, body_frames, source,
+                     f"{section_label(spec)}.{key}" + (f"[{k}]" if many else ""))
+                for k, (joint, entry) in enumerate(zip(chosen, entries))]
+        # an entry left as given is a mistake the section's reader names, in the form the file gives
+        out[key] = done if all(isinstance(d, dict) or d == "ground" for d in done) else given
+    return out
 
 
-def _osim_frame(frame, joint, names, body_frames, source, path):
-    """One ``express_in_frame`` entry as an OpenSim body's frame (or as given: ground, a mapping, a
-    joint the model has not, which the section's reader names)."""
-    if not isinstance(frame, str) or frame.lower() == "ground" or not isinstance(joint, dict):
+def _osim_side(side, ends, body_frames, source, path):
+    """One ``apply_on_bodies`` entry with the OpenSim body it names, ``{side, name}`` (or as
+    given, which the section's reader checks)."""
+    if not isinstance(side, str) or side.lower() not in ("child", "parent") or ends is None:
+        return side
+    return {"side": side.lower(), "name": ends[1] if side.lower() == "child" else ends[0]}
+
+
+def _osim_frame(frame, ends, body_frames, source, path):
+    """One ``express_in_frame`` entry as an OpenSim body's frame (or as given: ground, a
+    mapping, a joint the model has not, which the section's reader names); ``ends`` the
+    joint's OpenSim [parent, child] bodies."""
+    if not isinstance(frame, str) or frame.lower() == "ground" or ends is None:
         return frame
-    side = frame.lower()
-    if side in ("child", "parent"):
-        end = joint.get(side) or "ground."
-        body = str(end).split(".", 1)[0]
-        if body == "ground":
+    if frame.lower() in ("child", "parent"):
+        frame = ends[1] if frame.lower() == "child" else ends[0]
+        if frame == "ground":
             return "ground"
-        frame = names.get(body, body)
     if frame not in body_frames:
         hint = difflib.get_close_matches(frame, list(body_frames), n=1)
         extra = f"; did you mean {hint[0]!r}?" if hint else ""

@@ -350,7 +350,12 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
         from .actuators import add_actuators
 
         out = add_actuators(out, doc.actuators, body_frames, doc.source)
-    return out, {"merged_bodies": merged, "body_frames": body_frames, "muscle_settings": settings}
+    welds = {tree.joint_of[b].name: [b, tree.root[b]] for b in merged}  # WeldJoint: [its child, the body it is in]
+    # each kept joint's OpenSim parent and child bodies (its frames' base bodies: a merged body keeps its name)
+    joint_bodies = {safe_name(j.name): [tree.frame_body(j.parent)[0], tree.frame_body(j.child)[0]]
+                    for j in tree.order}
+    return out, {"merged_bodies": merged, "welds": welds, "joint_bodies": joint_bodies, "body_frames": body_frames,
+                 "muscle_settings": settings}
 
 
 def _wrapped_path(doc, tree, mu, path, wrap_surface):
