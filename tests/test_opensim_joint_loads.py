@@ -703,19 +703,21 @@ def test_the_setup_reader_skips_the_tools_defaults(tmp_path):
 
 
 def _welded_model(path):
-    """ground -Pin- a -Weld- c -Gimbal- e, and a -Pin- d: c is merged into a; every joint's
-    frames offset and turned (tests/opensim_models.py)."""
+    """ground -Pin- a -Weld(jc)- c -Gimbal- e, a -Weld(jb)- b -Pin- f, and a -Pin- d;
+    every joint's frames offset and turned (tests/opensim_models.py)."""
     from opensim_models import BALL_RANGES, add_markers, fixed_joint, random_body, write
 
     rng = np.random.default_rng(11)
     m = opensim.Model()
     m.setName("welded")
-    B = {n: random_body(n, rng) for n in ("a", "c", "d", "e")}
+    B = {n: random_body(n, rng) for n in ("a", "b", "c", "d", "e", "f")}
     for b in B.values():
         m.addBody(b)
     m.addJoint(fixed_joint(opensim.PinJoint, "ja", m.getGround(), B["a"], rng, [(-2.0, 2.0)]))
     m.addJoint(fixed_joint(opensim.WeldJoint, "jc", B["a"], B["c"], rng))
     m.addJoint(fixed_joint(opensim.GimbalJoint, "je", B["c"], B["e"], rng, BALL_RANGES))  # u = q̇, as the oracle sets
+    m.addJoint(fixed_joint(opensim.WeldJoint, "jb", B["a"], B["b"], rng))
+    m.addJoint(fixed_joint(opensim.PinJoint, "jf", B["b"], B["f"], rng, [(-2.0, 2.0)]))
     m.addJoint(fixed_joint(opensim.PinJoint, "jd", B["a"], B["d"], rng, [(-2.0, 2.0)]))
     for b in B.values():
         add_markers(m, b, rng)
@@ -723,50 +725,60 @@ def _welded_model(path):
     return write(m, path)
 
 
-@pytest.mark.slow
-def test_joint_reaction_on_a_merged_body_equals_opensims(tmp_path, capsys):
-    """A body welded to another is merged into it, with its frame turned and offset in
-    that body: loads on it and in its frame, named as OpenSim names them (``je_on_c_in_c``),
-    equal OpenSim's JointReaction. Naming the weld is refused with the reason; ``all``
-    leaves it out with a warning."""
+def _welded_run(tmp_path, model, motion, times, reports, name, capsys):
+    """openfdk's joint_loads.sto of the welded model driven along ``motion`` with the
+    ``reports`` [(joint, side, frame)] asked for."""
     import yaml
 
     from openfdk.io.storage import read_storage
     from test_opensim_inverse_dynamics import _overlay
 
-    model = _welded_model(tmp_path / "welded.osim")
-    names = ["ja_coord_0", "je_coord_0", "je_coord_1", "je_coord_2", "jd_coord_0"]
-    rng = np.random.default_rng(3)
-    motion = {n: (rng.uniform(-0.3, 0.3), rng.uniform(0.2, 0.5), rng.uniform(0.6, 1.4), rng.uniform(0, 6.3))
-              for n in names}
-    times = np.arange(N) / RATE + 0.2
-    reports = [("je", "parent", "parent"), ("je", "child", "c"), ("jd", "parent", "child"), ("ja", "child", "c"),
-               ("je", "parent", "ground")]
-    theirs, _, worst = _opensim_reactions(model, None, motion, times, reports)
-    assert worst < 1e-8, worst
     data = yaml.safe_load(_overlay(tmp_path, motion, times).read_text())
     data["joint_reaction"] = {"joint_names": [r[0] for r in reports], "apply_on_bodies": [r[1] for r in reports],
-                              "express_in_frame": [r[2] for r in reports]}
-    (tmp_path / "jr.yaml").write_text(yaml.safe_dump(data))
-    assert main(["run", str(model), "--with", str(tmp_path / "jr.yaml"), "--out", str(tmp_path / "out"),
+                              "express_in_frame": [r[2] for r in reports]} if reports != "all" else {}
+    (tmp_path / f"{name}.yaml").write_text(yaml.safe_dump(data))
+    assert main(["run", str(model), "--with", str(tmp_path / f"{name}.yaml"), "--out", str(tmp_path / name),
                  "--no-plots", "-q"]) == 0, capsys.readouterr().err
-    _, ours, _ = read_storage(tmp_path / "out" / "joint_loads.sto")
-    assert list(ours) == [f"{base}_{c}" for base in theirs for c in COMPONENTS]
-    assert "je_on_c_in_c_fx" in ours and "ja_on_a_in_c_fx" in ours  # the merged body keeps its OpenSim name
+    return read_storage(tmp_path / name / "joint_loads.sto")[1]
+
+
+def _assert_equal_reports(ours, theirs):
+    assert list(ours) == [f"{base}_{c}" for base in theirs for c in COMPONENTS]  # OpenSim's labels, its order
     for base, values in theirs.items():
         mine = np.column_stack([ours[f"{base}_{c}"] for c in COMPONENTS])
-        print(base, [float(np.max(np.abs(mine[:, k:k + 3] - values[:, k:k + 3]))) for k in (0, 3, 6)])
         scale = max(float(np.max(np.abs(values[:, :6]))), 1.0)
         assert np.max(np.abs(mine[:, :6] - values[:, :6])) < 1e-7 * scale, base
         assert np.max(np.abs(mine[:, 6:] - values[:, 6:])) < 1e-9, base
     assert max(float(np.max(np.abs(v[:, :3]))) for v in theirs.values()) > 5.0  # real loads
 
-    data["joint_reaction"] = {"joint_names": ["je", "jc"]}
-    (tmp_path / "weld.yaml").write_text(yaml.safe_dump(data))
-    assert main(["check", str(model), "--with", str(tmp_path / "weld.yaml")]) == 2
-    assert ("joint_reaction.joint_names[1]: 'jc' is a WeldJoint: openfdk merges its child 'c' into 'a'"
-            in capsys.readouterr().err)
-    data["joint_reaction"] = {"joint_names": "all", "express_in_frame": "child"}
-    (tmp_path / "all.yaml").write_text(yaml.safe_dump(data))
-    assert main(["check", str(model), "--with", str(tmp_path / "all.yaml")]) == 0
-    assert "the WeldJoints ['jc'] are not reported" in capsys.readouterr().err
+
+@pytest.mark.slow
+def test_joint_reaction_with_welded_bodies_equals_opensims(tmp_path, capsys):
+    """openfdk merges a body welded to another into it, its frame turned and offset there;
+    a weld the JointReaction names is kept apart instead, joined by its six rows, so that
+    its load is known. Loads on welded bodies and in their frames, with their OpenSim
+    names (``jf_on_b_in_b``: b merged into a), and the named weld's, equal OpenSim's
+    JointReaction; ``all`` keeps every weld and reports it, as OpenSim does."""
+    names = ["ja_coord_0", "je_coord_0", "je_coord_1", "je_coord_2", "jf_coord_0", "jd_coord_0"]
+    model = _welded_model(tmp_path / "welded.osim")
+    rng = np.random.default_rng(3)
+    motion = {n: (rng.uniform(-0.3, 0.3), rng.uniform(0.2, 0.5), rng.uniform(0.6, 1.4), rng.uniform(0, 6.3))
+              for n in names}
+    times = np.arange(N) / RATE + 0.2
+    reports = [("je", "parent", "parent"), ("je", "child", "c"), ("jd", "parent", "child"), ("ja", "child", "b"),
+               ("je", "parent", "ground"), ("jf", "parent", "parent"), ("jf", "child", "b"), ("jc", "child", "c"),
+               ("jc", "parent", "parent")]
+    theirs, _, worst = _opensim_reactions(model, None, motion, times, reports)
+    assert worst < 1e-8, worst
+    ours = _welded_run(tmp_path, model, motion, times, reports, "named", capsys)
+    assert "jf_on_b_in_b_fx" in ours and "jc_on_c_in_c_fx" in ours  # b merged into a keeps its name
+    _assert_equal_reports(ours, theirs)
+    import json
+
+    imported = json.loads((tmp_path / "named" / "summary.json").read_text())["input"]["opensim_import"]
+    assert imported["merged_bodies"] == {"b": "a"} and imported["welds"] == {"jb": ["b", "a"]}
+
+    # joint_names: all (the section's defaults), every joint in the JointSet's order, the welds too
+    everything = [(j, "child", "ground") for j in ("ja", "jc", "je", "jb", "jf", "jd")]
+    theirs, _, _ = _opensim_reactions(model, None, motion, times, everything)
+    _assert_equal_reports(_welded_run(tmp_path, model, motion, times, "all", "all", capsys), theirs)

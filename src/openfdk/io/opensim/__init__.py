@@ -19,13 +19,14 @@ def is_osim(path) -> bool:
     return str(path).lower().endswith(".osim")
 
 
-def read_osim(path, ignore=(), mesh_dirs=()):
+def read_osim(path, ignore=(), mesh_dirs=(), keep_welds=()):
     """(model mapping, info) of an ``.osim``: the mapping is in openfdk's model-file
     format (SI units); info has ``dropped`` (type, name, line) of the elements left out
     on request (``ignore``: element types such as ``Thelen2003Muscle``, ``Mesh`` or
     ``forces``) and ``merged_bodies`` {welded body: body it is part of}. Any element
     openfdk does not read and that is not ignored raises OsimError naming its type, name
-    and line."""
+    and line. ``keep_welds``: WeldJoints (names, or True for all) whose bodies stay
+    apart, joined by the weld's rows (their loads are then reported)."""
     from .document import read_document
     from .to_model import model_dict
 
@@ -40,7 +41,7 @@ def read_osim(path, ignore=(), mesh_dirs=()):
                  + (f" (and {len(kinds) - 8} more types)" if len(kinds) > 8 else ""))
         raise OsimError(f"{doc.source}: line {line}: {label} is not supported by openfdk's OpenSim import{more}; "
                         f"{leave}")
-    data, info = model_dict(doc, mesh_dirs, ignore)
+    data, info = model_dict(doc, mesh_dirs, ignore, keep_welds)
     info["dropped"] = [{"type": k, "name": n, "line": line} for k, n, line in doc.ignored]
     _warn_unmatched(doc, ignore)
     return data, info

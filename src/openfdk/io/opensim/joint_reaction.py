@@ -13,6 +13,7 @@ points are OpenSim's numbers with OpenSim's labels.
 from __future__ import annotations
 
 import difflib
+from pathlib import Path
 
 import numpy as np
 
@@ -51,6 +52,24 @@ def read_setup(path):
     return out
 
 
+def requested_joints(spec, base_dir="."):
+    """The joints a ``joint_reaction`` spec (a mapping, or a setup file's path relative to
+    ``base_dir``) asks for: a tuple of names, True for all, () when it cannot tell (its
+    reader then names the mistake). The import keeps the WeldJoints among them apart
+    (:class:`~.tree.Tree`), so that their loads can be reported."""
+    if isinstance(spec, str):
+        try:
+            spec = read_setup(Path(base_dir) / spec)
+        except (ModelError, OSError):
+            return ()
+    if not isinstance(spec, dict):
+        return ()
+    names = spec.get("joint_names", "all")
+    if isinstance(names, str):
+        return True if names.lower() == "all" else (names,)
+    return tuple(n for n in names if isinstance(n, str)) if isinstance(names, list) else ()
+
+
 def section_label(spec):
     """``joint_reaction``, with the setup file the entries came from: the start of the
     section's error paths."""
@@ -73,8 +92,9 @@ def resolved(spec, data, info, source):
     ends = info.get("joint_bodies", {})  # {joint: [OpenSim parent body, OpenSim child body]}
     chosen = spec.get("joint_names", "all")
     welds = info.get("welds", {})
-    if isinstance(chosen, str) and chosen.lower() == "all":
-        chosen = [n for n, j in joints.items() if isinstance(j, dict) and j.get("child")]
+    if isinstance(chosen, str) and chosen.lower() == "all":  # in OpenSim's order, the JointSet's
+        chosen = [n for n in ends if isinstance(joints.get(n), dict)] or \
+            [n for n, j in joints.items() if isinstance(j, dict) and j.get("child")]
         if welds:
             import warnings
 
@@ -135,4 +155,4 @@ def _osim_frame(frame, ends, body_frames, source, path):
             "orientation": {"matrix": np.asarray(R, float).tolist()}}
 
 
-__all__ = ["read_setup", "resolved", "section_label"]
+__all__ = ["read_setup", "requested_joints", "resolved", "section_label"]

@@ -165,16 +165,42 @@ def import_info(path):
     return {k: v for k, v in opts.info.items() if k != "body_frames"} if opts else {}
 
 
-def imported_model_data(path):
+def _welds_to_keep(opts, extra=None):
+    """The WeldJoints (names, or True for all) whose bodies the import keeps apart: the
+    joints the run's JointReaction asks for (``--joint-reaction``, the ``--with``
+    overlay's ``joint_reaction``, and ``extra``: (spec, folder) of an overlay run as the
+    model), so that a weld among them has a load to report."""
+    from ..yamlfile import read_yaml
+    from .joint_reaction import requested_joints
+
+    asked = []
+    if opts.joint_reaction is not None:
+        asked.append(requested_joints(str(opts.joint_reaction)))
+    if opts.overlay is not None:
+        try:
+            overlay = read_yaml(opts.overlay, ModelError, "overlay file")
+        except (ModelError, OSError):
+            overlay = None  # read again below, which names the mistake
+        if isinstance(overlay, dict) and "joint_reaction" in overlay:
+            asked.append(requested_joints(overlay["joint_reaction"], Path(opts.overlay).parent))
+    if extra is not None:
+        asked.append(requested_joints(*extra))
+    if any(a is True for a in asked):
+        return True
+    return tuple(n for a in asked for n in a)
+
+
+def imported_model_data(path, extra_joint_reaction=None):
     """The model mapping of an ``.osim`` with its registered options, or None when
-    ``path`` is not an ``.osim``."""
+    ``path`` is not an ``.osim``; ``extra_joint_reaction``: (spec, folder) of the
+    ``joint_reaction`` of an overlay run as the model (:func:`_welds_to_keep`)."""
     from . import is_osim, read_osim
     from ..yamlfile import read_yaml
 
     if not is_osim(path):
         return None
     opts = _REGISTERED.setdefault(_key(path), ImportOptions())
-    data, info = read_osim(path, opts.ignore, opts.mesh_dirs)
+    data, info = read_osim(path, opts.ignore, opts.mesh_dirs, _welds_to_keep(opts, extra_joint_reaction))
     opts.info = info
     if opts.ik_tasks is not None:
         from .ik_tasks import apply_ik_tasks
@@ -245,7 +271,7 @@ def overlay_model_data(path, data):
              ik_tasks=None if tasks is None else Path(path).parent / tasks)
     if not osim.is_file():
         raise ModelError(f"{source}: opensim: {target!r} does not exist")
-    base = imported_model_data(osim)
+    base = imported_model_data(osim, (data["joint_reaction"], Path(path).parent) if "joint_reaction" in data else None)
     return merge_overlay(base, data, source, allow_options=True, base_dir=Path(path).parent,
                          info=_REGISTERED[_key(osim)].info)
 

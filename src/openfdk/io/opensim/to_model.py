@@ -70,10 +70,12 @@ def _pose(p, R):
     return {"position": [float(x) for x in p], "orientation": {"matrix": np.asarray(R, float).tolist()}}
 
 
-def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
+def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=(), keep_welds=()):
     """The openfdk model mapping of ``doc`` (SI units; module docstring). Returns
-    (mapping, info) where info lists the merged bodies and the dropped elements."""
-    tree = Tree(doc)
+    (mapping, info) where info lists the merged bodies and the dropped elements.
+    ``keep_welds``: WeldJoints (names, or True for all) whose bodies are not merged
+    (:class:`~.tree.Tree`)."""
+    tree = Tree(doc, keep_welds)
     X = tree.poses()
     names = {}
 
@@ -351,9 +353,11 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=()):
 
         out = add_actuators(out, doc.actuators, body_frames, doc.source)
     welds = {tree.joint_of[b].name: [b, tree.root[b]] for b in merged}  # WeldJoint: [its child, the body it is in]
-    # each kept joint's OpenSim parent and child bodies (its frames' base bodies: a merged body keeps its name)
+    # each kept joint's OpenSim parent and child bodies (its frames' base bodies: a merged body keeps its name),
+    # in the JointSet's order (OpenSim's JointReaction reports "all" joints in it)
+    kept = {id(j) for j in tree.order}
     joint_bodies = {safe_name(j.name): [tree.frame_body(j.parent)[0], tree.frame_body(j.child)[0]]
-                    for j in tree.order}
+                    for j in doc.joints if id(j) in kept}
     return out, {"merged_bodies": merged, "welds": welds, "joint_bodies": joint_bodies, "body_frames": body_frames,
                  "muscle_settings": settings}
 

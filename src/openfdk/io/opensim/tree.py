@@ -32,9 +32,12 @@ class Tree:
     ``ground``: the ground's name; ``order``: the non-weld joints, parents before
     children; ``root[b]``: the body (or ground) that body b is merged into and
     ``X_root[b] = (p (3,) m, R (3, 3))``, body b's OpenSim frame in its root's frame;
-    ``functions[joint][slot]``: PiecewisePolynomial of each TransformAxis (SI)."""
+    ``functions[joint][slot]``: PiecewisePolynomial of each TransformAxis (SI). A weld kept
+    (``keep_welds``) is a joint of ``order`` with six constant axes."""
 
-    def __init__(self, doc: OsimDocument):
+    def __init__(self, doc: OsimDocument, keep_welds=()):
+        """``keep_welds``: the WeldJoints whose child stays a body of its own (joined by the
+        weld's six rows, so that the weld's load is known), by name, or True for all."""
         from ...model.coordinate_functions import function_from_spec
 
         self.doc = doc
@@ -87,7 +90,7 @@ class Tree:
             j = joints_by_child[b]
             parent, p_PF, R_PF = self.frame_body(j.parent)
             _, p_CM, R_CM = self.frame_body(j.child)
-            if j.type == "WeldJoint":
+            if j.type == "WeldJoint" and not (keep_welds is True or j.name in keep_welds):
                 # X_PC = X_PF · X_CM⁻¹, then into the parent's root
                 R_PC = R_PF @ R_CM.T
                 p_PC = p_PF - R_PC @ p_CM
