@@ -82,7 +82,8 @@ def resolved(spec, data, info, source):
     ``apply_on_bodies`` entry naming its OpenSim body (``{side, name}``: a body merged
     into another keeps its name in the columns, as in OpenSim's) and every
     ``express_in_frame`` entry given as the OpenSim body's frame (module docstring);
-    ModelError naming ``source`` and the entry for a weld or a frame the model has not."""
+    ModelError naming ``source`` and the entry for a frame the model has not. The welds
+    it names are not merged (:func:`requested_joints`): they are joints here."""
     if not isinstance(spec, dict):
         return spec
     body_frames = info.get("body_frames", {})
@@ -91,25 +92,10 @@ def resolved(spec, data, info, source):
     joints = data.get("joints", {}) if isinstance(data.get("joints"), dict) else {}
     ends = info.get("joint_bodies", {})  # {joint: [OpenSim parent body, OpenSim child body]}
     chosen = spec.get("joint_names", "all")
-    welds = info.get("welds", {})
     if isinstance(chosen, str) and chosen.lower() == "all":  # in OpenSim's order, the JointSet's
         chosen = [n for n in ends if isinstance(joints.get(n), dict)] or \
             [n for n, j in joints.items() if isinstance(j, dict) and j.get("child")]
-        if welds:
-            import warnings
-
-            from ...model.plausibility import PlausibilityWarning
-
-            warnings.warn(f"{source}: {section_label(spec)}.joint_names: all: the WeldJoints {sorted(welds)} are not "
-                          "reported: openfdk merges the bodies a weld joins into one, so it has no load to report",
-                          PlausibilityWarning, stacklevel=2)
     chosen = chosen if isinstance(chosen, list) else [chosen]
-    for k, name in enumerate(chosen):
-        if isinstance(name, str) and name in welds:
-            child, root = welds[name]
-            raise ModelError(f"{source}: {section_label(spec)}.joint_names[{k}]: {name!r} is a WeldJoint: openfdk "
-                             f"merges its child {child!r} into {root!r}, one rigid body, so it has no load to report "
-                             "(OpenSim's JointReaction gives one); leave it out")
     out = dict(spec, joint_names=chosen)
     for key, default, each in (("apply_on_bodies", "child", _osim_side), ("express_in_frame", "ground", _osim_frame)):
         given = spec.get(key, default)
