@@ -63,7 +63,8 @@ _VALUES = (None, True, False, 0, -1, 1, 2, 5, 1.5, -2.5, 1e300, -1e300, 1e-300, 
 def base_model_dict():
     """A valid model file mapping exercising most sections: two bodies, a joint, markers,
     points, a measure, a driver-free FDK DOF, Hill and constant muscles, a ligament, a
-    spring, a load, recruitment and FDK settings (lengths in mm, angles in deg)."""
+    spring, a load, recruitment and FDK settings, a joint_reaction report (lengths in mm,
+    angles in deg)."""
     from ..fixtures.synthetic import two_body_model_dict
 
     d = two_body_model_dict()
@@ -82,6 +83,9 @@ def base_model_dict():
     d["recruitment"] = {"criterion": "polynomial", "power": 3}
     d["fdk"] = {"tolerance": 1.0e-3, "max_iterations": 20, "jacobian": "analytic"}
     d["analysis"] = {"marker_cutoff_hz": 8.0, "start": 0.0, "end": 0.5, "frames": 11}
+    d["joint_reaction"] = {"joint_names": ["tmj"], "apply_on_bodies": [{"side": "parent", "name": "skull"}],
+                           "express_in_frame": [{"name": "jaw_frame", "body": "jaw", "position": [1.0, 2.0, 3.0],
+                                                 "orientation": [10.0, 20.0, 30.0]}]}
     return d
 
 
