@@ -290,6 +290,14 @@ def _write_generalized_forces(out_dir, model_path, dyn, model=None):
                     write_generalized_forces(out_dir, model if model is not None else load_model(model_path), dyn))
 
 
+def _write_moment_arms(out_dir, kin, model):
+    """moment_arms.csv/.sto (``--moment-arms``: OpenSim's MuscleAnalysis moment arms) and
+    their count in summary.json's ``moment_arms``."""
+    from ..io.moment_arm_outputs import write_moment_arms
+
+    _add_to_summary(out_dir, "moment_arms", write_moment_arms(out_dir, model, kin))
+
+
 def _add_to_summary(out_dir, key, value):
     """summary.json in ``out_dir`` with ``key``: ``value`` added (nothing when value is None)."""
     from pathlib import Path
@@ -368,6 +376,8 @@ def _cmd_run(args):
     _write_measures(args.out, args.model, kin, model)
     _write_generalized_forces(args.out, args.model, dyn, model)
     _write_joint_loads(args.out, kin, dyn, model, settings)
+    if args.moment_arms:
+        _write_moment_arms(args.out, kin, model)
     _write_grf(args, info, dyn, settings)
     fdk = info.get("fdk")
     _say(args,
@@ -745,6 +755,9 @@ def build_parser():
                    help=f"write finished frames to --out at least every N frames (default {DEFAULT_EVERY_FRAMES})")
     r.add_argument("--checkpoint-seconds", type=float, default=DEFAULT_EVERY_SECONDS, metavar="S",
                    help=f"... and at least every S seconds (default {DEFAULT_EVERY_SECONDS:g})")
+    r.add_argument("--moment-arms", action="store_true",
+                   help="also write moment_arms.csv/.sto: each muscle's moment arm about each coordinate it spans "
+                        "(OpenSim's MuscleAnalysis MomentArm), for a model with muscles and joint coordinates")
     add_study_parser(sub)
     from .outputs import add_output_parsers, add_run_output_arguments
     from ..viewer.cli import add_view_parser

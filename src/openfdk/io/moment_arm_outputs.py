@@ -1,0 +1,60 @@
+"""``moment_arms.csv`` and ``.sto`` (``openfdk run --moment-arms``): each muscle's moment
+arm about each independent coordinate it spans (:mod:`openfdk.dynamics.moment_arms`),
+what OpenSim's MuscleAnalysis writes in its ``MomentArm_<coordinate>`` files.
+
+Columns ``{muscle}.{coordinate}``: r = −dl/dq in m per rad (rotational coordinate) or
+m per m (translational), one per pair whose moment arm exceeds :data:`SPANS` at some
+frame (the muscle spans the coordinate). Failed frames are NaN in the CSV and left out of
+the ``.sto``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .results import write_table
+from .storage import write_storage
+
+#: a muscle spans a coordinate when |r| exceeds this somewhere (m, or m/m): a whole-body
+#: motion of the root's coordinates changes no path by more than rounding
+SPANS = 1e-9
+
+
+def moment_arm_columns(model, kin):
+    """{``muscle.coordinate``: (nf,)} of the spanning pairs (module docstring), failed
+    frames NaN; {} without muscles or coordinates."""
+    from ..dynamics.moment_arms import moment_arms
+
+    r, coords = moment_arms(model, kin.q)
+    r[~np.asarray(kin.converged, bool)] = np.nan
+    out = {}
+    for i, m in enumerate(model.muscles):
+        for j, c in enumerate(coords):
+            column = r[:, i, j]
+            if np.nanmax(np.abs(column), initial=0.0) > SPANS:
+                out[f"{m.name}.{c.name}"] = column
+    return out
+
+
+def write_moment_arms(out_dir, model, kin):
+    """Write moment_arms.csv and .sto of a run; returns {muscles, coordinates, pairs}
+    for summary.json, or None (no muscle, no coordinate, no frame)."""
+    if not model.muscles or not model.coordinates or not len(kin.time):
+        return None
+    columns = moment_arm_columns(model, kin)
+    if not columns:
+        return None
+    out_dir = Path(out_dir)
+    time = np.asarray(kin.time, float)
+    write_table(out_dir / "moment_arms.csv", {"time": time, **columns})
+    ok = np.isfinite(np.column_stack(list(columns.values()))).all(axis=1)
+    write_storage(out_dir / "moment_arms.sto", time[ok], {k: v[ok] for k, v in columns.items()},
+                  name="Muscle moment arms (openfdk)",
+                  comments=[] if ok.all() else [f"openfdk: {int((~ok).sum())} failed frames left out"])
+    return {"muscles": len(model.muscles), "coordinates": len({k.split(".", 1)[1] for k in columns}),
+            "pairs": len(columns)}
+
+
+__all__ = ["SPANS", "moment_arm_columns", "write_moment_arms"]
