@@ -83,6 +83,19 @@ def test_moment_arms_equal_opensims_on_the_92_muscle_model(tmp_path, capsys):
     print("largest difference: computeMomentArm", worst_api, "m, its length's derivative", worst_fd, "m;",
           "computeMomentArm off its own derivative:", sorted(inconsistent))
     assert len(spanned) > 200 and max(abs(float(np.max(np.abs(ours[c])))) for c in ours if c != "time") > 0.05
+    from openfdk.plots.run import figure_plan, moment_arm_panels
+    from openfdk.results.run import read_results
+
+    results = read_results(out)  # Python reads the table; the figure draws the coordinates most muscles span
+    np.testing.assert_array_equal(results.moment_arms["rect_fem_r.knee_angle_r"].to_numpy(),
+                                  ours["rect_fem_r.knee_angle_r"])
+    panels, total = moment_arm_panels(results)
+    counts = {}
+    for muscle, coordinate in spanned:
+        counts[coordinate] = counts.get(coordinate, 0) + 1
+    assert total == len(counts) and len(panels) == 8
+    assert min(len(p[3]) for p in panels) >= sorted(counts.values())[-8]
+    assert "moment_arms" in [name for name, _, _ in figure_plan(results)]
     assert worst_api < 1e-8, worst_api
     assert worst_fd < 1e-5, worst_fd  # the wrapped psoas paths: the two lengths differ by a few µm
     # the iliopsoas wrapped over the pelvis about the hip, where OpenSim's lengthening speed

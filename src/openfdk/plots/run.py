@@ -20,6 +20,8 @@ One PNG per topic, each only when the run has something to show:
   the force in body weights when summary.json gives the body weight);
 * ``joint_reaction.png`` — with the model file's ``joint_reaction`` section, each
   report's force components in its frame (the knee's force along the tibia);
+* ``moment_arms.png`` — with ``--moment-arms``, each muscle's moment arm against the
+  value of each coordinate it spans (the coordinates most muscles span);
 * ``convergence.png`` — per-frame iterations and residuals of each stage.
 
 Failed frames are shaded red in every figure (and marked × in the convergence figure).
@@ -663,6 +665,64 @@ def _joint_reaction(results, t, failed):
     return _finish(fig, axes, t, failed, caption)
 
 
+#: at most this many coordinates in the moment arms' figure (those most muscles span)
+MOMENT_ARM_PANELS = 8
+
+
+def moment_arm_panels(results):
+    """[(coordinate, coordinates.csv column, unit "deg" or "mm", [muscles])] of the moment
+    arms' figure: the coordinates the most muscles span (moment_arms.csv), at most
+    MOMENT_ARM_PANELS, each with its muscles in the table's order; and the number of
+    coordinates in the table."""
+    table, coords = results.moment_arms, results.coordinates
+    if table is None or coords is None:
+        return [], 0
+    spans = {}
+    for col in table.columns:
+        muscle, _, coordinate = col.partition(".")
+        spans.setdefault(coordinate, []).append(muscle)
+    found = []
+    for coordinate, muscles in spans.items():
+        for suffix, (_, unit) in _COORDINATE_UNITS.items():
+            if f"{coordinate}_{suffix}" in coords.columns:
+                found.append((coordinate, f"{coordinate}_{suffix}", unit, muscles))
+    order = sorted(found, key=lambda p: -len(p[3]))[:MOMENT_ARM_PANELS]
+    return [p for p in found if p in order], len(spans)
+
+
+def _moment_arms(results, t, failed):
+    """Each muscle's moment arm (mm) against the coordinate's value (deg or mm) over the
+    trial, one panel per coordinate (:func:`moment_arm_panels`): the classic moment-arm
+    curves, traced as the trial moves the joint."""
+    from matplotlib.figure import Figure
+
+    panels, total = moment_arm_panels(results)
+    title = f"{_name(results)}: muscle moment arms"
+    if total > len(panels):
+        title += f" (the {len(panels)} coordinates most muscles span, of {total})"
+    height = 0.9 + 2.6 * len(panels)
+    fig = Figure(figsize=(11.0, height))
+    axes = list(fig.subplots(len(panels), 1, squeeze=False)[:, 0])
+    fig.suptitle(title, fontsize=11, y=1.0 - TITLE_TOP_IN / height)
+    table, coords = results.moment_arms, results.coordinates
+    for ax, (coordinate, column, unit, muscles) in zip(axes, panels):
+        x = _col(coords, column) * (np.degrees(1.0) if unit == "deg" else 1e3)
+        order = sorted(muscles, key=lambda m: -np.nanmax(np.abs(_col(table, f"{m}.{coordinate}")), initial=0.0))
+        shown = order[:MAX_LEGEND]
+        for m in order[MAX_LEGEND:]:
+            ax.plot(x, 1e3 * _col(table, f"{m}.{coordinate}"), lw=0.6, color="0.7")
+        for m, (colour, ls) in zip(shown, line_styles(len(shown))):
+            ax.plot(x, 1e3 * _col(table, f"{m}.{coordinate}"), lw=1, color=colour, ls=ls, label=m)
+        ax.axhline(0.0, color="0.5", lw=0.5)
+        ax.set_xlabel(f"{coordinate} ({unit})", fontsize=8)
+        ax.set_ylabel(f"moment arm\n(mm{'' if unit == 'deg' else ' per m'})", fontsize=8)
+    caption = ("Moment arm r = -dl/dq of each muscle about each coordinate it spans (moment_arms.csv, OpenSim's "
+               "computeMomentArm), the other coordinates held, couplers followed; against the coordinate's value "
+               "over the trial. Positive: the muscle's tension turns the coordinate positive. Grey: beyond the "
+               f"{MAX_LEGEND} largest.")
+    return _finish(fig, axes, np.zeros(0), np.zeros(0, bool), caption)
+
+
 def _convergence(results, t, failed):
     """Per-frame iterations (integer ticks) and residuals of each stage, one panel each;
     a panel whose values are all zero (a stage without iterations) is not drawn and
@@ -763,6 +823,8 @@ def figure_plan(results, measures=None):
         if reports:
             plan.append(("joint_reaction", lambda: _joint_reaction(results, t, failed),
                          min(len(reports), MAX_LEGEND)))
+    if moment_arm_panels(results)[0]:
+        plan.append(("moment_arms", lambda: _moment_arms(results, t, failed), len(moment_arm_panels(results)[0])))
     plan.append(("convergence", lambda: _convergence(results, t, failed), FIGURE_WEIGHT))
     return plan
 

@@ -19,6 +19,7 @@ KINEMATICS_CSV, FORCES_CSV, MEASURES_CSV, SUMMARY_JSON = "kinematics.csv", "forc
 #: the joint coordinates of a model that has them (OpenSim's; io/coordinate_outputs.py)
 COORDINATES_CSV = "coordinates.csv"
 JOINT_LOADS_CSV = "joint_loads.csv"
+MOMENT_ARMS_CSV = "moment_arms.csv"
 #: per-frame text columns
 TEXT_COLUMNS = ("message", "status", "fdk_reason")
 _SI = {"length": "m", "angle": "rad", "1": "1"}
@@ -171,17 +172,22 @@ class RunResults:
             ``{joint}_on_{child}_in_ground_fx`` … ``_pz``: N, N m, m;
             :mod:`openfdk.io.joint_load_outputs`), None for a model without coordinates
             or a kinematics-only run.
+        moment_arms: DataFrame indexed by time (s), each muscle's moment arm about each
+            coordinate it spans (moment_arms.csv, ``{muscle}.{coordinate}``: m per rad or
+            m per m; ``openfdk run --moment-arms``, :mod:`openfdk.io.moment_arm_outputs`),
+            None when not asked for.
         summary: dict, the content of summary.json.
         directory: the folder the run was saved to or read from (None if not saved).
     """
 
     def __init__(self, kinematics, forces, summary: dict, model=None, directory=None, measures=None,
-                 coordinates=None, joint_loads=None):
+                 coordinates=None, joint_loads=None, moment_arms=None):
         self.kinematics = kinematics
         self.forces = forces
         self.measures = measures
         self.coordinates = coordinates
         self.joint_loads = joint_loads
+        self.moment_arms = moment_arms
         self.summary = summary
         self._model = model
         self.directory = None if directory is None else Path(directory)
@@ -235,14 +241,15 @@ class RunResults:
         measures = _read_csv(d / MEASURES_CSV) if (d / MEASURES_CSV).is_file() else None
         coordinates = _read_csv(d / COORDINATES_CSV) if (d / COORDINATES_CSV).is_file() else None
         joint_loads = _read_csv(d / JOINT_LOADS_CSV) if (d / JOINT_LOADS_CSV).is_file() else None
+        moment_arms = _read_csv(d / MOMENT_ARMS_CSV) if (d / MOMENT_ARMS_CSV).is_file() else None
         kinematics = _read_csv(d / KINEMATICS_CSV, ("time", "converged"))
         _check_tables(d, kinematics, {FORCES_CSV: forces, MEASURES_CSV: measures, COORDINATES_CSV: coordinates,
-                                      JOINT_LOADS_CSV: joint_loads})
-        return cls(kinematics, forces, summary, model, d, measures, coordinates, joint_loads)
+                                      JOINT_LOADS_CSV: joint_loads, MOMENT_ARMS_CSV: moment_arms})
+        return cls(kinematics, forces, summary, model, d, measures, coordinates, joint_loads, moment_arms)
 
     def save(self, directory, sto: bool = True):
         """Write kinematics.csv, forces.csv, measures.csv, coordinates.csv,
-        joint_loads.csv, summary.json (and the ``.sto`` twins of the CSV files but
+        joint_loads.csv, moment_arms.csv, summary.json (and the ``.sto`` twins of the CSV files but
         coordinates.csv unless ``sto=False``) into ``directory`` (created). Returns the
         folder."""
         from ..io.results import write_json, write_table
@@ -252,7 +259,7 @@ class RunResults:
         d.mkdir(parents=True, exist_ok=True)
         for name, df in ((KINEMATICS_CSV, self.kinematics), (FORCES_CSV, self.forces),
                          (MEASURES_CSV, self.measures), (COORDINATES_CSV, self.coordinates),
-                         (JOINT_LOADS_CSV, self.joint_loads)):
+                         (JOINT_LOADS_CSV, self.joint_loads), (MOMENT_ARMS_CSV, self.moment_arms)):
             if df is None:
                 continue
             cols = {"time": df.index.to_numpy()}
