@@ -3,11 +3,13 @@
 setup file (an AnalyzeTool setup, ``joint_reaction: setup_JointReaction.xml``).
 
 OpenSim expresses a load in a body's own frame, whose origin openfdk moves to the body's
-centre of mass (:mod:`.to_model`). :func:`resolved` therefore gives each
-``express_in_frame`` entry as
-that OpenSim body's frame in its openfdk body, ``{name, body, position, orientation}``
+centre of mass (:mod:`.to_model`), and a body welded to another is merged into it.
+:func:`resolved` therefore gives each ``express_in_frame`` entry as that OpenSim body's
+frame in its openfdk body, ``{name, body, position, orientation}``, and each
+``apply_on_bodies`` entry with the OpenSim body's name
 (:mod:`openfdk.dynamics.joint_reaction_settings`), so that the forces, moments and
-points are OpenSim's numbers with OpenSim's labels.
+points are OpenSim's numbers with OpenSim's labels. The welds a section names are kept
+apart by the import (:func:`requested_joints`).
 """
 
 from __future__ import annotations
@@ -17,13 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ...dynamics.joint_reaction_settings import KEYS
 from ...model.model import ModelError
 from .document import parse_xml
 from .errors import where
 
-#: the setup's properties openfdk reads (the others — forces_file, start_time, … — belong
-#: to the AnalyzeTool, whose inputs the run gives with its own options)
-_KEYS = ("joint_names", "apply_on_bodies", "express_in_frame")
 
 
 def read_setup(path):
@@ -43,7 +43,7 @@ def read_setup(path):
     if on is not None and (on.text or "").strip().lower() == "false":
         raise ModelError(f"{where(source, found)}: <on> is false: this JointReaction is switched off")
     out = {}
-    for tag in _KEYS:
+    for tag in KEYS:  # the others (forces_file, start_time, …) are the AnalyzeTool's, whose inputs the run has
         e = found.find(tag)
         words = (e.text or "").split() if e is not None else []
         if words:
