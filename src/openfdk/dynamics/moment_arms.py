@@ -45,11 +45,12 @@ def _kept_rows(model):
 
 
 def moment_arms(model, q):
-    """(r (nf, n_m, n_i) m or m/rad… per unit of q_c: m per rad for a rotational
-    coordinate, m/m for a translational one; the independent coordinates (list)) of
-    every muscle about every independent coordinate at the poses ``q`` (nf, 7 n_moving)
-    (module docstring). A frame whose pose is not finite, or where the rows do not fix
-    the bodies' velocities (a rank-deficient system), gives NaN."""
+    """(r (nf, n_m, n_i): m per rad about a rotational coordinate, m per m about a
+    translational one; the independent coordinates (list); the frames (list of indices)
+    whose pose is finite but where the rows do not fix the bodies' velocities) of every
+    muscle about every independent coordinate at the poses ``q`` (nf, 7 n_moving)
+    (module docstring). A frame whose pose is not finite, or one of those frames (a
+    rank-deficient system: a mobility no coordinate measures), gives NaN."""
     from ..forces.pathset import PathSet
     from ..kinematics.system import ConstraintSystem
 
@@ -57,8 +58,9 @@ def moment_arms(model, q):
     q = np.asarray(q, float)
     nf, nm, ni = len(q), len(model.muscles), len(coords)
     out = np.full((nf, nm, ni), np.nan)
+    singular = []
     if not nm or not ni:
-        return out, coords
+        return out, coords, singular
     system = ConstraintSystem(model)
     paths = PathSet(model.muscles)
     rows = _kept_rows(model)
@@ -75,15 +77,17 @@ def moment_arms(model, q):
         if A.shape[0] != n:
             U, _, rank, _ = np.linalg.lstsq(A, rhs, rcond=None)
             if rank < n:
+                singular.append(k)
                 continue
         else:
             try:
                 U = np.linalg.solve(A, rhs)
             except np.linalg.LinAlgError:
+                singular.append(k)
                 continue
         _, L = paths.evaluate(state)
         out[k] = -(L @ U)
-    return out, coords
+    return out, coords, singular
 
 
 __all__ = ["moment_arms", "independent_coordinates"]

@@ -27,7 +27,16 @@ def moment_arm_columns(model, kin):
     frames NaN; {} without muscles or coordinates."""
     from ..dynamics.moment_arms import moment_arms
 
-    r, coords = moment_arms(model, kin.q)
+    r, coords, singular = moment_arms(model, kin.q)
+    if singular:
+        import warnings
+
+        from ..model.plausibility import PlausibilityWarning
+
+        times = np.asarray(kin.time, float)[singular]
+        warnings.warn(f"moment arms: at {len(singular)} of {len(kin.time)} frames (the first at t = {times[0]:.4f} s) "
+                      "the joints and the coordinates do not fix the bodies' velocities (a mobility no coordinate "
+                      "measures): their moment arms are NaN", PlausibilityWarning, stacklevel=2)
     r[~np.asarray(kin.converged, bool)] = np.nan
     out = {}
     for i, m in enumerate(model.muscles):

@@ -314,8 +314,8 @@ class ModelBuilder:
             if label in fdk_settings and on:
                 raise ModelError(f"joint {name!r}: row {label!r} is an FDK DOF and cannot carry a reaction")
         self._register_joint_measures(name, type, parent, child, rel_Fa)
-        record_joint(self, JointRecord(name, type, parent, child, None if type != "point_on_plane" else n,
-                                       tuple(fdk_settings)))
+        record_joint(self, JointRecord(name, type, self.frame(parent).name, self.frame(child).name,  # qualified
+                                       None if type != "point_on_plane" else n, tuple(fdk_settings)))
         for label in fdk_settings:
             C, m = next((C, m) for lab, C, m in rows if lab == label)
             settings = dict(fdk_settings[label] or {})

@@ -294,7 +294,7 @@ def add_coordinate_joint(b, name, parent, child, rotations, translations, coordi
         fq = FunctionOf(ax.function, defined[ax.coordinate], unit)
         rows.append((ax.name, Linear([(np.ones((1, 1)), slot_measure[(kind, k)]), (-np.ones((1, 1)), fq)])))
     rows += free_rows
-    record_joint(b, JointRecord(name, "custom", parent, child, rotations=tuple(rotations),
+    record_joint(b, JointRecord(name, "custom", fa.name, fb.name, rotations=tuple(rotations),  # qualified frames
                                 translations=tuple(translations)))
     for cname, m in defined.items():
         b.add_measure(cname, m)
