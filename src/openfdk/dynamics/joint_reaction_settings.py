@@ -33,10 +33,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..io.opensim.joint_reaction import KEYS, read_setup, section_label
 from ..model.orientation_entry import _orientation
 
-#: the section's keys: OpenSim's JointReaction properties
-KEYS = ("joint_names", "apply_on_bodies", "express_in_frame")
 SIDES = ("child", "parent")
 
 
@@ -77,14 +76,10 @@ def load_joint_reaction(b, data, ctx):
     and bodies: its JointReports, kept with the analysis settings. ``data`` may also name
     an OpenSim setup file with a ``<JointReaction>`` (relative to the model file)."""
     if isinstance(data, str):
-        from ..io.opensim.joint_reaction import read_setup
-
         xml = ctx.base_dir / data
         if not xml.is_file():
             raise ctx.error("joint_reaction", f"{str(xml)!r} does not exist")
         data = read_setup(xml)
-    from ..io.opensim.joint_reaction import section_label
-
     ctx.keys(data, "joint_reaction", KEYS + ("from_file",))
     label = section_label(data)
     records = {j.name: j for j in b.elements.get("joints", ()) if j.child}

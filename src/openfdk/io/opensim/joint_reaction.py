@@ -19,10 +19,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ...dynamics.joint_reaction_settings import KEYS
 from ...model.model import ModelError
 from .document import parse_xml
 from .errors import where
+
+#: OpenSim's JointReaction properties: the keys of the model file's ``joint_reaction``
+#: section (:mod:`openfdk.dynamics.joint_reaction_settings`) and what a setup gives
+KEYS = ("joint_names", "apply_on_bodies", "express_in_frame")
 
 
 
@@ -141,4 +144,4 @@ def _osim_frame(frame, ends, body_frames, source, path):
             "orientation": {"matrix": np.asarray(R, float).tolist()}}
 
 
-__all__ = ["read_setup", "requested_joints", "resolved", "section_label"]
+__all__ = ["KEYS", "read_setup", "requested_joints", "resolved", "section_label"]
