@@ -97,6 +97,8 @@ def _opensim_frame(model, joint, frame):
         return joint.getChildFrame().findBaseFrame()
     if frame == "parent":
         return joint.getParentFrame().findBaseFrame()
+    if "/" in frame:  # a joint's frame, by its path in the JointSet
+        return opensim.Frame.safeDownCast(model.getComponent(f"/jointset/{frame}"))
     return model.getGround() if frame == "ground" else model.getBodySet().get(frame)
 
 
@@ -352,9 +354,10 @@ def test_joint_loads_with_muscles_equal_opensims(tmp_path, capsys):
 
 
 #: (joint, apply_on_bodies, express_in_frame): both sides, the keywords, other bodies, a
-#: pin joint whose frames are turned
+#: pin joint whose frames are turned, joints' own frames (by their paths in the JointSet)
 REPORTS = [("hip_r", "parent", "child"), ("knee_r", "child", "parent"), ("ankle_l", "parent", "tibia_r"),
-           ("back", "child", "ground"), ("subtalar_r", "child", "child"), ("mtp_l", "parent", "pelvis")]
+           ("back", "child", "ground"), ("subtalar_r", "child", "child"), ("mtp_l", "parent", "pelvis"),
+           ("ankle_r", "child", "ankle_r/talus_r_offset"), ("mtp_r", "parent", "mtp_r/calcn_r_offset")]
 
 
 def _setup_file(path, reports):
@@ -467,14 +470,18 @@ def _imported_yaml_reports_the_same(folder, model, overlay, loads, ours, capsys)
     data = yaml.safe_load(path.read_text())
     frames = data["joint_reaction"]["express_in_frame"]
     assert [f if isinstance(f, str) else f["name"] for f in frames] == ["femur_r", "femur_r", "tibia_r", "ground",
-                                                                        "calcn_r", "pelvis"]
-    data["joint_reaction"]["express_in_frame"] = [r[2] for r in REPORTS]  # child, parent, tibia_r, ground, …
+                                                                        "calcn_r", "pelvis", "talus_r_offset",
+                                                                        "calcn_r_offset"]
+    # the keywords and body names (child, parent, tibia_r, ground, …); the joints' frames stay as written
+    data["joint_reaction"]["express_in_frame"] = [f if "/" in r[2] else r[2] for r, f in zip(REPORTS, frames)]
     path.write_text(yaml.safe_dump(data))
     assert main(["run", str(path), "--out", str(folder / "keywords_run"), "--no-plots", "-q"]) == 0
     _, mine, _ = read_storage(folder / "keywords_run" / "joint_loads.sto")
     assert list(mine) == list(ours)
     moved = 0.0
-    for (joint, _, _), frame in zip(REPORTS, frames):
+    for (joint, _, target), frame in zip(REPORTS, frames):
+        if "/" in target:
+            continue
         base = next(k[:-3] for k in ours if k.startswith(f"{joint}_on_") and k.endswith("_fx"))
         p_BF = np.zeros(3) if isinstance(frame, str) else np.asarray(frame["position"])
         assert np.allclose(frame["orientation"]["matrix"] if not isinstance(frame, str) else np.eye(3), np.eye(3))
@@ -654,8 +661,9 @@ def test_joint_loads_with_a_coordinate_coupler_equal_opensims(tmp_path, capsys, 
 @pytest.mark.parametrize("section, message", [
     ({"joint_names": ["knee_q"]}, "joint_reaction.joint_names[0]: no joint 'knee_q' with a child body in the model; "
                                   "did you mean 'knee_r'?"),
-    ({"express_in_frame": "femur_q"}, "joint_reaction.express_in_frame: 'femur_q': expected ground, child, parent or "
-                                      "a body of the OpenSim model; did you mean 'femur_r'?"),
+    ({"express_in_frame": "femur_q"}, "joint_reaction.express_in_frame: 'femur_q': expected ground, child, parent, "
+                                      "a body of the OpenSim model or a joint's frame (joint/frame); did you mean "
+                                      "'femur_r'?"),
     ({"joint_names": ["knee_r", "hip_r"], "apply_on_bodies": ["child", "parent", "child"]},
      "joint_reaction.apply_on_bodies: give one entry or one per joint (2), got 3"),
     ({"apply_on_bodies": "middle"}, "joint_reaction.apply_on_bodies: unknown body side 'middle'; expected one of "

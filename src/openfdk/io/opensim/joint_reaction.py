@@ -92,6 +92,7 @@ def resolved(spec, data, info, source):
     body_frames = info.get("body_frames", {})
     if not body_frames:
         return spec
+    frames = {**info.get("offset_frames", {}), **body_frames}  # the JointSet's frames by path: "knee_r/tibia_r_offset"
     joints = data.get("joints", {}) if isinstance(data.get("joints"), dict) else {}
     ends = info.get("joint_bodies", {})  # {joint: [OpenSim parent body, OpenSim child body]}
     chosen = spec.get("joint_names", "all")
@@ -106,7 +107,7 @@ def resolved(spec, data, info, source):
         if many and len(given) != len(chosen):
             return spec  # the section's reader names the lengths
         entries = given if many else [given[0] if isinstance(given, list) and given else given] * len(chosen)
-        done = [each(entry, ends.get(joint) if joint in joints else None, body_frames, source,
+        done = [each(entry, ends.get(joint) if joint in joints else None, frames, source,
                      f"{section_label(spec)}.{key}" + (f"[{k}]" if many else ""))
                 for k, (joint, entry) in enumerate(zip(chosen, entries))]
         # an entry left as given is a mistake the section's reader names, in the form the file gives
@@ -123,9 +124,11 @@ def _osim_side(side, ends, body_frames, source, path):
 
 
 def _osim_frame(frame, ends, body_frames, source, path):
-    """One ``express_in_frame`` entry as an OpenSim body's frame (or as given: ground, a
-    mapping, a joint the model has not, which the section's reader names); ``ends`` the
-    joint's OpenSim [parent, child] bodies."""
+    """One ``express_in_frame`` entry as an OpenSim body's frame, or another OpenSim frame
+    by its path in the JointSet (``walker_knee_r/tibia_r_offset``), as OpenSim's
+    JointReaction finds it (or as given: ground, a mapping, a joint the model has not,
+    which the section's reader names); ``ends`` the joint's OpenSim [parent, child]
+    bodies; ``body_frames`` {OpenSim frame: (openfdk body, p (3,) m, R (3, 3))}."""
     if not isinstance(frame, str) or frame.lower() == "ground" or ends is None:
         return frame
     if frame.lower() in ("child", "parent"):
@@ -135,12 +138,13 @@ def _osim_frame(frame, ends, body_frames, source, path):
     if frame not in body_frames:
         hint = difflib.get_close_matches(frame, list(body_frames), n=1)
         extra = f"; did you mean {hint[0]!r}?" if hint else ""
-        raise ModelError(f"{source}: {path}: {frame!r}: expected ground, child, parent or a body of the OpenSim "
-                         f"model{extra}")
+        raise ModelError(f"{source}: {path}: {frame!r}: expected ground, child, parent, a body of the OpenSim "
+                         f"model or a joint's frame (joint/frame){extra}")
     body, p, R = body_frames[frame]
     if body == "ground":
         return "ground"
-    return {"name": frame, "body": body, "position": np.asarray(p, float).tolist(),
+    # labelled by the frame's name, as OpenSim's columns are (a joint's frame without its joint's path)
+    return {"name": frame.rsplit("/", 1)[-1], "body": body, "position": np.asarray(p, float).tolist(),
             "orientation": {"matrix": np.asarray(R, float).tolist()}}
 
 

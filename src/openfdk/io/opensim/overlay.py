@@ -162,7 +162,7 @@ def import_info(path):
     """What the last import of ``path`` dropped and merged ({dropped, merged_bodies}),
     for summary.json; {} if it was not an OpenSim import."""
     opts = _REGISTERED.get(_key(path))
-    return {k: v for k, v in opts.info.items() if k != "body_frames"} if opts else {}
+    return {k: v for k, v in opts.info.items() if k not in ("body_frames", "offset_frames")} if opts else {}
 
 
 def _welds_to_keep(opts, extra=None):

@@ -352,6 +352,16 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=(), keep_welds=()):
         from .actuators import add_actuators
 
         out = add_actuators(out, doc.actuators, body_frames, doc.source)
+    # every other OpenSim frame (PhysicalOffsetFrames: a joint's "knee_r/tibia_r_offset") in its openfdk body
+    offset_frames = {}
+    for name, f in doc.frames.items():
+        if name in body_frames:
+            continue
+        body, p_BF, R_BF = tree.frame_body(name)
+        root = tree.root[body]
+        p, R = tree.X_root[body]
+        offset_frames[name] = ("ground" if root == tree.ground else safe_name(root),
+                               (p + R @ p_BF - com[root]).tolist(), (R @ R_BF).tolist())
     welds = {tree.joint_of[b].name: [b, tree.root[b]] for b in merged}  # WeldJoint: [its child, the body it is in]
     # each kept joint's OpenSim parent and child bodies (its frames' base bodies: a merged body keeps its name),
     # in the JointSet's order (OpenSim's JointReaction reports "all" joints in it)
@@ -359,7 +369,7 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=(), keep_welds=()):
     joint_bodies = {safe_name(j.name): [tree.frame_body(j.parent)[0], tree.frame_body(j.child)[0]]
                     for j in doc.joints if id(j) in kept}
     return out, {"merged_bodies": merged, "welds": welds, "joint_bodies": joint_bodies, "body_frames": body_frames,
-                 "muscle_settings": settings}
+                 "offset_frames": offset_frames, "muscle_settings": settings}
 
 
 def _wrapped_path(doc, tree, mu, path, wrap_surface):
