@@ -357,7 +357,10 @@ def model_dict(doc: OsimDocument, mesh_dirs=(), ignore=(), keep_welds=()):
     for name, f in doc.frames.items():
         if name in body_frames:
             continue
-        body, p_BF, R_BF = tree.frame_body(name)
+        try:
+            body, p_BF, R_BF = tree.frame_body(name)
+        except OsimError:  # a frame nothing uses whose chain does not resolve: OpenSim's reader names it if used
+            continue
         root = tree.root[body]
         p, R = tree.X_root[body]
         offset_frames[name] = ("ground" if root == tree.ground else safe_name(root),
