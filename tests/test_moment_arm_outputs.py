@@ -76,3 +76,13 @@ def test_an_unmeasured_mobility_leaves_the_moment_arms_unknown(tmp_path, capsys)
     assert ("moment arms: at 6 of 6 frames (the first at t = 0.0000 s) the joints and the coordinates do not fix "
             "the bodies' velocities") in err
     assert not (tmp_path / "out" / "moment_arms.csv").exists()
+    assert "--moment-arms: the model has no converged frame where a muscle spans a coordinate" in err
+
+
+def test_moment_arms_of_a_model_without_muscles_say_so(tmp_path, capsys):
+    path = _pendulum(tmp_path)
+    data = yaml.safe_load(path.read_text())
+    del data["muscles"]
+    path.write_text(yaml.safe_dump(data))
+    assert main(["run", str(path), "--out", str(tmp_path / "out"), "--no-plots", "--moment-arms"]) == 0
+    assert "--moment-arms: the model has no muscles: no moment_arms.csv written" in capsys.readouterr().err

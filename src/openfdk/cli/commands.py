@@ -293,9 +293,18 @@ def _write_generalized_forces(out_dir, model_path, dyn, model=None):
 def _write_moment_arms(out_dir, kin, model):
     """moment_arms.csv/.sto (``--moment-arms``: OpenSim's MuscleAnalysis moment arms) and
     their count in summary.json's ``moment_arms``."""
-    from ..io.moment_arm_outputs import write_moment_arms
+    import warnings
 
-    _add_to_summary(out_dir, "moment_arms", write_moment_arms(out_dir, model, kin))
+    from ..io.moment_arm_outputs import write_moment_arms
+    from ..model.plausibility import PlausibilityWarning
+
+    written = write_moment_arms(out_dir, model, kin)
+    if written is None:
+        what = ("muscles" if not model.muscles else "joint coordinates" if not model.coordinates
+                else "converged frame where a muscle spans a coordinate")
+        warnings.warn(f"--moment-arms: the model has no {what}: no moment_arms.csv written", PlausibilityWarning,
+                      stacklevel=2)
+    _add_to_summary(out_dir, "moment_arms", written)
 
 
 def _add_to_summary(out_dir, key, value):
