@@ -86,3 +86,26 @@ def test_moment_arms_of_a_model_without_muscles_say_so(tmp_path, capsys):
     path.write_text(yaml.safe_dump(data))
     assert main(["run", str(path), "--out", str(tmp_path / "out"), "--no-plots", "--moment-arms"]) == 0
     assert "--moment-arms: the model has no muscles: no moment_arms.csv written" in capsys.readouterr().err
+
+
+def test_a_joint_with_one_rotation_exports_to_a_model_opensim_loads(tmp_path, capsys):
+    """A custom joint that names one rotation (about z): the axes the file leaves out are
+    completed to independent ones (constant 0: they move nothing), so that the exported
+    CustomJoint loads in OpenSim; its coordinate there turns the link as openfdk's does."""
+    opensim = __import__("pytest").importorskip("opensim")
+    from openfdk.numerics.spatial import rotation_matrix
+
+    assert main(["run", str(_pendulum(tmp_path)), "--out", str(tmp_path / "out"), "--no-plots", "-q"]) == 0
+    assert main(["export-opensim", str(tmp_path / "out"), "--out", str(tmp_path / "osim"), "-q"]) == 0
+    model = opensim.Model(str(tmp_path / "osim" / "pendulum_yaml.osim"))
+    state = model.initSystem()
+    kin = read_table(tmp_path / "out" / "kinematics.csv")
+    q = read_table(tmp_path / "out" / "coordinates.csv")["q_rad"]
+    link = model.getBodySet().get("link")
+    for k in (0, len(q) - 1):
+        model.getCoordinateSet().get("q").setValue(state, float(q[k]))
+        R = link.getTransformInGround(state).R()
+        theirs = np.array([[R.get(i, j) for j in range(3)] for i in range(3)])
+        ours = rotation_matrix(np.array([kin[f"link.e{i}"][k] for i in range(4)]))
+        np.testing.assert_allclose(theirs, ours, atol=1e-9)
+    assert abs(q[0] - q[len(q) - 1]) > 0.3

@@ -75,6 +75,24 @@ def read_coordinates(spec, ctx):
     return out
 
 
+def _missing_axis(given, k):
+    """The axis (3,) of a joint's k-th rotation or translation that the file leaves out (a
+    constant 0: it moves nothing): the unit axis e_k, unless that lies in the span of the
+    axes before it (a single rotation about z would leave y, z), then the first unit axis
+    that does not, so that the three axes are independent, as OpenSim requires of a
+    CustomJoint's (the joint exported by ``openfdk export-opensim`` loads there)."""
+    E = np.eye(3)
+    basis = np.zeros((3, 0))
+    for a in given:
+        r = a - basis @ (basis.T @ a)
+        if np.linalg.norm(r) > 1e-9:
+            basis = np.column_stack([basis, r / np.linalg.norm(r)])
+    for e in [E[k]] + [E[i] for i in range(3) if i != k]:
+        if np.linalg.norm(e - basis @ (basis.T @ e)) > 0.5:
+            return e
+    return E[k]
+
+
 def _scales(ctx, unit):
     return ctx.angle if unit == "angle" else ctx.length
 
@@ -120,11 +138,12 @@ def load_custom_joint(b, name, spec, coordinates, ctx, wrap, couplers=None, last
         items = spec.get(kind) or []
         if not isinstance(items, list) or len(items) > 3:
             raise ctx.error(f"{p}.{kind}", "expected a list of at most 3 axes")
-        defaults = np.eye(3)
         out = []
         for k in range(3):
             ap = f"{p}.{kind}[{k}]"
-            a = ctx.keys(items[k], ap, AXIS_KEYS) if k < len(items) else {"axis": defaults[k].tolist(), "value": 0.0}
+            a = ctx.keys(items[k], ap, AXIS_KEYS) if k < len(items) else \
+                {"axis": _missing_axis([ax.axis for ax in out], k).tolist(), "value": 0.0}
+            defaults = np.eye(3)
             axis = ctx.vector(a.get("axis", defaults[k].tolist()), f"{ap}.axis", n=3)
             norm = float(np.linalg.norm(axis))
             if not np.isfinite(norm):  # components near the float limit: scale down first
