@@ -117,6 +117,30 @@ def mobility_slots(state, coords):
     return slot
 
 
+def coordinate_actuators(model, names):
+    """{coordinate: the CoordinateActuator ``tau_<coordinate>`` of optimal force 1 added to
+    the OpenSim ``model`` (not yet initialised)} for each of ``names``."""
+    out = {}
+    for n in names:
+        a = opensim.CoordinateActuator(n)
+        a.setName(f"tau_{n}")
+        a.setOptimalForce(1.0)
+        model.addForce(a)
+        out[n] = a
+    return out
+
+
+def set_motion(model, state, coords, names, motion, t):
+    """The OpenSim ``state`` at time ``t`` of the motion {name: (a, b, f, φ)}: the
+    coordinates ``coords`` (named ``names``) set, the model assembled, then their speeds."""
+    state.setTime(float(t))
+    for c, n in zip(coords, names):
+        c.setValue(state, _q(motion[n], t), False)
+    model.assemble(state)
+    for c, n in zip(coords, names):
+        c.setSpeedValue(state, _q(motion[n], t, 1))
+
+
 def _opensim_id(model_path, loads_xml, motion, times):
     """OpenSim's generalised forces {coordinate: (n,)} at the sample times."""
     model, _data = opensim_model_with_loads(model_path, loads_xml)
@@ -129,12 +153,7 @@ def _opensim_id(model_path, loads_xml, motion, times):
     solver = opensim.InverseDynamicsSolver(model)
     out = {n: [] for n in names}
     for t in times:
-        state.setTime(float(t))
-        for c, n in zip(coords, names):
-            c.setValue(state, _q(motion[n], t), False)
-        model.assemble(state)
-        for c, n in zip(coords, names):
-            c.setSpeedValue(state, _q(motion[n], t, 1))
+        set_motion(model, state, coords, names, motion, t)
         model.realizeVelocity(state)
         udot = opensim.Vector(len(names), 0.0)
         for n in names:

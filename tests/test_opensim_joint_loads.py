@@ -27,7 +27,8 @@ from openfdk.cli import main  # noqa: E402
 from openfdk.fixtures.full_body_osim import COORDINATES, write_full_body_osim  # noqa: E402
 from openfdk.io.results import read_table  # noqa: E402
 from test_opensim_inverse_dynamics import (N, RATE, _loads, _motion, _overlay, _q,  # noqa: E402
-                                           mobility_slots, opensim_model_with_loads)
+                                           coordinate_actuators, mobility_slots, opensim_model_with_loads,
+                                           set_motion)
 
 COMPONENTS = ("fx", "fy", "fz", "mx", "my", "mz", "px", "py", "pz")
 
@@ -41,13 +42,7 @@ def _opensim_reactions(model_path, loads_xml, motion, times, reports=()):
     model, _data = opensim_model_with_loads(model_path, loads_xml) if loads_xml else (opensim.Model(str(model_path)), 0)
     cs = model.getCoordinateSet()
     names = [cs.get(i).getName() for i in range(cs.getSize())]
-    actuators = {}
-    for n in names:
-        a = opensim.CoordinateActuator(n)
-        a.setName(f"tau_{n}")
-        a.setOptimalForce(1.0)
-        model.addForce(a)
-        actuators[n] = a
+    actuators = coordinate_actuators(model, names)
     state = model.initSystem()
     coords = [cs.get(n) for n in names]
     slot = mobility_slots(state, coords)
@@ -58,12 +53,7 @@ def _opensim_reactions(model_path, loads_xml, motion, times, reports=()):
              for i in range(joints.getSize())}
     worst = 0.0
     for t in times:
-        state.setTime(float(t))
-        for c, n in zip(coords, names):
-            c.setValue(state, _q(motion[n], t), False)
-        model.assemble(state)
-        for c, n in zip(coords, names):
-            c.setSpeedValue(state, _q(motion[n], t, 1))
+        set_motion(model, state, coords, names, motion, t)
         for a in actuators.values():
             a.overrideActuation(state, False)
         model.realizeVelocity(state)
@@ -323,12 +313,7 @@ def test_joint_loads_with_muscles_equal_opensims(tmp_path, capsys):
     joints = osim.getJointSet()
     worst_udot, worst_F, worst_M, peak_M_knee = 0.0, 0.0, 0.0, 0.0
     for k, t in enumerate(times):
-        state.setTime(float(t))
-        for c, n in zip(coords, names):
-            c.setValue(state, _q(motion[n], t), False)
-        osim.assemble(state)
-        for c, n in zip(coords, names):
-            c.setSpeedValue(state, _q(motion[n], t, 1))
+        set_motion(osim, state, coords, names, motion, t)
         for a, value in overridden:
             a.setOverrideActuation(state, float(value[k]))
         osim.realizeAcceleration(state)
@@ -413,6 +398,12 @@ def test_joint_reaction_options_equal_opensims(case, given, capsys):
     (dF, dM, dp), peak_F, peak_M = _compare(csv, theirs, child)  # the ground columns stay
     assert dF < 1e-6 * peak_F and dM < 1e-6 * peak_M and dp < 1e-9
     assert all(f"{base}_fx" in csv for base in reports)
+    import json
+
+    peaks = json.loads((out / "summary.json").read_text())["joint_loads"]["joints"]  # every joint's, as without
+    assert set(peaks) == set(theirs)
+    assert peaks["knee_r"]["peak_N"] == pytest.approx(float(np.max(np.linalg.norm(theirs["knee_r"][:, :3], axis=1))),
+                                                      rel=1e-6)
     from openfdk.io.joint_load_outputs import joint_load_bases
     from openfdk.plots.run import figure_plan
     from openfdk.results.run import read_results
@@ -432,8 +423,6 @@ def test_joint_reaction_options_equal_opensims(case, given, capsys):
     if given == "setup_file":
         _imported_yaml_reports_the_same(folder, model, folder / f"jr_{given}.yaml", loads, ours, capsys)
     elif given == "flag":  # recorded with the run's options; the overlay may not name another
-        import json
-
         options = json.loads((out / "summary.json").read_text())["input"]["opensim_import"]["options"]
         assert options["joint_reaction"] == str((folder / "setup_flag.xml").resolve())
         data["joint_reaction"] = "setup_flag.xml"
@@ -620,13 +609,7 @@ def test_joint_loads_with_a_coordinate_coupler_equal_opensims(tmp_path, capsys, 
     force = ext.get(0).clone()
     force.setDataSource(data)
     osim.addForce(force)
-    actuators = {}
-    for n in motion:
-        a = opensim.CoordinateActuator(n)
-        a.setName(f"tau_{n}")
-        a.setOptimalForce(1.0)
-        osim.addForce(a)
-        actuators[n] = a
+    actuators = coordinate_actuators(osim, motion)
     state = osim.initSystem()
     cs = osim.getCoordinateSet()
     worst_udot, worst_F, worst_M, knee_M = 0.0, 0.0, 0.0, 0.0

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from .results import write_table
-from .storage import write_storage
+from .storage import write_converged_storage
 
 SUFFIX = "_motion"
 RESIDUAL_FORCE_FRACTION = 0.05
@@ -116,10 +116,8 @@ def write_generalized_forces(out_dir, model, dyn):
     time = np.asarray(dyn.time, float)
     if columns:
         write_table(out_dir / "generalized_forces.csv", {"time": time, **columns})
-        ok = np.asarray(dyn.converged, bool)
-        write_storage(out_dir / "generalized_forces.sto", time[ok], {k: v[ok] for k, v in columns.items()},
-                      name="Inverse Dynamics (openfdk)",
-                      comments=[] if ok.all() else [f"openfdk: {int((~ok).sum())} failed frames left out"])
+        write_converged_storage(out_dir / "generalized_forces.sto", time, columns, dyn.converged,
+                                "Inverse Dynamics (openfdk)")
     summary = residual_summary(model, {**actuated, **columns})
     threshold = summary["force_threshold_N"]
     for key, stats in summary["columns"].items():

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from .results import write_table
-from .storage import write_storage
+from .storage import write_converged_storage
 
 COMPONENTS = ("fx", "fy", "fz", "mx", "my", "mz", "px", "py", "pz")
 
@@ -104,13 +104,10 @@ def write_joint_loads(out_dir, model, kin, dyn, reports=()):
     time = np.asarray(dyn.time, float)
     write_table(out_dir / "joint_loads.csv", {"time": time, **columns})
     ok = np.isfinite(np.column_stack(list(columns.values()))).all(axis=1)
-    if reports:
-        columns = {f"{r.base}_{c}": columns[f"{r.base}_{c}"] for r in reports if f"{r.base}_fx" in columns
-                   for c in COMPONENTS}
-    write_storage(out_dir / "joint_loads.sto", time[ok], {k: v[ok] for k, v in columns.items()},
-                  name="Joint Reaction Loads (openfdk)",
-                  comments=[] if ok.all() else [f"openfdk: {int((~ok).sum())} failed frames left out"])
-    return joint_load_summary(model, time, columns)
+    asked = {f"{r.base}_{c}": columns[f"{r.base}_{c}"] for r in reports if f"{r.base}_fx" in columns
+             for c in COMPONENTS} if reports else columns
+    write_converged_storage(out_dir / "joint_loads.sto", time, asked, ok, "Joint Reaction Loads (openfdk)")
+    return joint_load_summary(model, time, columns)  # the peaks of every joint, from its ground columns
 
 
 __all__ = ["COMPONENTS", "joint_load_bases", "joint_load_columns", "joint_load_summary", "write_joint_loads"]

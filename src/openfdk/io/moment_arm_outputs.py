@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .results import write_table
-from .storage import write_storage
+from .storage import write_converged_storage
 
 #: a muscle spans a coordinate when |r| exceeds this somewhere (m, or m/m): a whole-body
 #: motion of the root's coordinates changes no path by more than rounding
@@ -59,9 +59,7 @@ def write_moment_arms(out_dir, model, kin):
     time = np.asarray(kin.time, float)
     write_table(out_dir / "moment_arms.csv", {"time": time, **columns})
     ok = np.isfinite(np.column_stack(list(columns.values()))).all(axis=1)
-    write_storage(out_dir / "moment_arms.sto", time[ok], {k: v[ok] for k, v in columns.items()},
-                  name="Muscle moment arms (openfdk)",
-                  comments=[] if ok.all() else [f"openfdk: {int((~ok).sum())} failed frames left out"])
+    write_converged_storage(out_dir / "moment_arms.sto", time, columns, ok, "Muscle moment arms (openfdk)")
     return {"muscles": len(model.muscles), "coordinates": len({k.split(".", 1)[1] for k in columns}),
             "pairs": len(columns)}
 

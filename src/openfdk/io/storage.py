@@ -82,6 +82,15 @@ def write_storage(path, time, columns: dict, name: str = "openfdk", in_degrees: 
     return path
 
 
+
+def write_converged_storage(path, time, columns: dict, ok, name: str) -> Path:
+    """:func:`write_storage` of the rows ``ok`` (nf,) bool of a run's table (time (nf,) s,
+    columns label -> (nf,)): failed frames are left out of the ``.sto``, which says how
+    many in its header (the CSV twin keeps them, NaN)."""
+    ok = np.asarray(ok, bool)
+    return write_storage(path, np.asarray(time, float)[ok], {k: np.asarray(v)[ok] for k, v in columns.items()},
+                         name=name, comments=[] if ok.all() else [f"openfdk: {int((~ok).sum())} failed frames left out"])
+
 def csv_to_sto(csv_path, sto_path=None, name=None) -> Path | None:
     """Convert an openfdk result table (``kinematics.csv``, ``forces.csv``: first column
     ``time``, SI units) to ``.sto`` beside it (or at ``sto_path``).  Numeric columns are
