@@ -223,10 +223,11 @@ def import_record(model_path):
 
     if not isinstance(model_path, (str, bytes)) and not hasattr(model_path, "__fspath__"):
         return {}
-    if not is_osim(model_path):
-        return {}
-    from ..io.opensim.overlay import import_info, options_record
+    from ..io.opensim.overlay import import_info, options_record, osim_of
 
+    if not is_osim(model_path):  # an overlay's options are its own keys: its import alone
+        info = import_info(model_path) if osim_of(model_path) is not None else {}
+        return {"opensim_import": info} if info else {}
     options = options_record(model_path)
     return {"opensim_import": {**import_info(model_path), **({"options": options} if options else {})}}
 

@@ -64,14 +64,21 @@ def _reference_time(model):
     return float(max(starts)) if starts and max(starts) > 0.0 else 0.0
 
 
-def _reference_rank(model, state=None):
-    """(Φ_q̂, its rank, the names of the rows in a linear dependency) at the reference
-    pose, FDK DOFs at their initial α (at :func:`_reference_time`)."""
+def reference_jacobian(model, state=None):
+    """(Φ_q̂ (m, n), its m row names) at the reference pose, FDK DOFs at their initial α
+    (at :func:`_reference_time`)."""
     system = ConstraintSystem(model)
     alpha = np.array([d.initial for d in model.fdk_dofs], dtype=float)
     _, A, _, _ = system.evaluate(model.initial_state() if state is None else state, _reference_time(model), alpha,
                                  order=1)
-    rank, redundant = dependent_rows(A, system.row_names)
+    return A, system.row_names
+
+
+def _reference_rank(model, state=None):
+    """(Φ_q̂, its rank, the names of the rows in a linear dependency) at the reference
+    pose (:func:`reference_jacobian`)."""
+    A, row_names = reference_jacobian(model, state)
+    rank, redundant = dependent_rows(A, row_names)
     return A, rank, redundant
 
 

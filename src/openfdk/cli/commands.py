@@ -625,8 +625,9 @@ def _register_import(args):
         if args.overlay or args.ignore or args.geometry or args.ik_tasks or args.external_loads or args.motion \
                 or args.actuators or args.external_loads_cutoff or args.joint_reaction:
             raise UserError(f"{model}: --with, --ignore, --geometry, --ik-tasks, --external-loads, --motion, "
-                            "--actuators and --joint-reaction apply to OpenSim models (.osim) only (a model file "
-                            "takes joint_reaction: SETUP.xml)")
+                            "--actuators and --joint-reaction apply to OpenSim models (.osim) only; an overlay "
+                            "(opensim: MODEL.osim) takes them as its keys ignore, geometry, ik_tasks, external_loads, "
+                            "motion, actuators and joint_reaction, a model file joint_reaction: SETUP.xml")
         return
     from pathlib import Path
 

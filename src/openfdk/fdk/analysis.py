@@ -264,6 +264,10 @@ class FDKStep:
             # from the last converged α and the initial values (no frames lead to it)
             sub_steps = warm_frame and self.approach is not None and lead is None
             approached = self.approach(self, k) if sub_steps else None
+            if approach and lead is None and k == 0 and self.approach.trajectories is None:
+                # determinate kinematics (drivers, a --motion file) have no lead-in: the
+                # transient start from the initial values (fdk/approach.py)
+                approached = self.approach.transient_start(self, k)
             later = [approached] if approached is not None else []
             if not any(s.converged for s in later):
                 # (after a failed lead-in the initial values get the cold limit the first start had)

@@ -285,6 +285,17 @@ class Approach:
         return replace(sol, iterations=sol.iterations + int(spent[0]), evaluations=sol.evaluations + int(spent[1]),
                        jacobians=sol.jacobians + int(spent[2]))
 
+    def transient_start(self, step, k):
+        """Frame k of ``step`` by the transient start (module docstring) from the DOFs'
+        initial values with the cold iteration limit: for determinate kinematics after the
+        first cold start failed (no lead-in: the drivers need not reach before the window;
+        a DM gait cycle driven by a tracking pass's ``coordinates.mot`` stalls at 0.45 N at
+        its heel strike, 2.408 s, and converges so)."""
+        sol = self._transient(step, k, step.a_init, step.settings.cold())
+        if sol.converged:
+            self.transient_frame = k
+        return sol
+
     def _transient(self, step, k, alpha0, settings):
         """Frame k of ``step`` by pseudo-transient continuation (:func:`~.transient.solve_transient`)
         from alpha0 (n_fdk,) with ``settings``, the poses from the step's last state."""

@@ -76,10 +76,72 @@ def load_model_and_settings(path) -> tuple[Model, AnalysisSettings]:
     from .opensim.overlay import model_source
 
     data = model_file_data(path)
-    model, settings = model_and_settings_from_dict(data, source=model_source(path), base_dir=path.parent,
-                                                   label=path.name)
+    model, settings = _built(data, path, model_source(path))
     check_model(model, path.name, settings.units["length"])  # plausibility warnings
     return model, settings
+
+
+def _built(data, path, source):
+    """(Model, AnalysisSettings) of the model mapping ``data`` of the file ``path``. With a
+    motion file's drivers, those of coordinates the model's own rows determine are left
+    out (:func:`_determined_motion`), the model built again without them, and the first
+    build's warnings given only when it is the one kept."""
+    import warnings
+
+    from .opensim.motion import is_motion_driver
+
+    def build_from(mapping):
+        return model_and_settings_from_dict(mapping, source=source, base_dir=path.parent, label=path.name)
+
+    if not any(is_motion_driver(name, entry) for name, entry in (data.get("drivers") or {}).items()):
+        return build_from(data)
+    error, built = None, None
+    with warnings.catch_warnings(record=True) as given:
+        warnings.simplefilter("always")
+        try:
+            built = build_from(data)
+        except Exception as exc:  # raised below, after its warnings
+            error = exc
+    undriven = None if error is not None else _determined_motion(built[0], data, path)
+    if undriven is not None:
+        return build_from(undriven)
+    for w in given:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    if error is not None:
+        raise error
+    return built
+
+
+def _determined_motion(model, data, path):
+    """``data`` without the motion drivers (``--motion``, an overlay's ``motion:``) of the
+    coordinates ``model``'s own rows already determine
+    (:func:`openfdk.io.opensim.motion.determined_motion_drivers`), with a warning naming
+    them; None when there are none."""
+    drivers = data.get("drivers") or {}
+    from ..analysis.model_check import reference_jacobian
+    from .opensim.motion import SUFFIX, determined_motion_drivers
+
+    try:
+        A, row_names = reference_jacobian(model)
+    except (FloatingPointError, ValueError):  # left to the run, whose frames report why
+        return None
+    determined = determined_motion_drivers(model, A, row_names)
+    if not determined:
+        return None
+    import warnings
+
+    from ..model.plausibility import PlausibilityWarning
+
+    names = [name[:-len(SUFFIX)] for name in determined]
+    from .opensim.overlay import record_import
+
+    record_import(path, "motion_not_driven", {name: "constraints" for name in names})
+    warnings.warn(PlausibilityWarning(
+        f"{path.name}: the motion file's {', '.join(names)} {'is' if len(names) == 1 else 'are'} not driven: the "
+        "model's constraints, with its other coordinates, already determine "
+        f"{'it' if len(names) == 1 else 'them'} (the file's {'column is' if len(names) == 1 else 'columns are'} not used)"),
+        stacklevel=3)
+    return {**data, "drivers": {name: entry for name, entry in drivers.items() if name not in determined}}
 
 
 def load_model(path) -> Model:

@@ -126,3 +126,79 @@ def by_coordinate(columns, source):
     out = StorageColumns(out)
     out.twice = getattr(columns, "twice", frozenset())
     return out
+
+
+def is_motion_driver(name, entry):
+    """Whether the drivers entry ``name`` is a coordinate's driver made by
+    :func:`motion_drivers` (``{coordinate}_motion`` on that coordinate)."""
+    return (isinstance(entry, dict) and isinstance(entry.get("measure"), str)
+            and name == f"{entry['measure']}{SUFFIX}")
+
+
+def undriven_by_overlay(data, info=None):
+    """``data`` without the motion drivers of the coordinates an overlay gives otherwise:
+    an FDK DOF is solved by FDK (paper Eqs. 15–17), not driven, and a coordinate held by a
+    constraint on it alone (``lock: [...]``) keeps that value. Their columns in the motion
+    file are not used; ``info['motion_not_driven']`` ({coordinate: the entry that gives
+    it}) says so. This is the two-stage pipeline of the commercial FDK tool's MoCap models
+    and of COMAK: the primary coordinates from a first tracking or IK pass, the secondary
+    ones from FDK."""
+    drivers = data.get("drivers") or {}
+    motion = {name: entry["measure"] for name, entry in drivers.items() if is_motion_driver(name, entry)}
+    if not motion:
+        return data
+    given = {}
+    for name, entry in (data.get("fdk_dofs") or {}).items():
+        if isinstance(entry, dict) and isinstance(entry.get("measure"), str):
+            given[entry["measure"]] = f"fdk_dofs.{name}"
+    for name, entry in (data.get("constraints") or {}).items():
+        if isinstance(entry, dict) and isinstance(entry.get("measure"), str) and entry["measure"] in motion.values():
+            given.setdefault(entry["measure"], f"constraints.{name}")
+    dropped = {coordinate: given[coordinate] for coordinate in motion.values() if coordinate in given}
+    if not dropped:
+        return data
+    if info is not None:
+        info["motion_not_driven"] = {**info.get("motion_not_driven", {}), **dropped}
+    return {**data, "drivers": {name: entry for name, entry in drivers.items()
+                                if not (name in motion and motion[name] in dropped)}}
+
+
+def determined_motion_drivers(model, A, row_names):
+    """The motion drivers (:func:`is_motion_driver`) of ``model`` whose rows the other rows
+    already determine: with Φ_q̂ ``A`` (m, n) at the reference pose and its ``row_names``,
+    the model's own rows (joints, constraints, FDK DOFs) first, then the motion's in the
+    model's coordinate order, each kept when it adds to the rank. A constraint of an
+    overlay that fixes a coordinate's combination with others (an inextensible patellar
+    tendon across the patella's coordinates) leaves one coordinate of the combination to
+    the constraint. [] when the model's own rows are dependent already (that is the
+    model's error, reported as such) or the motion adds no dependency."""
+    drivers = {row for c in model.constraints if c.kind == "driver" and c.size == 1
+               and c.name == f"{getattr(c.measure, 'name', None)}{SUFFIX}" for row in c.row_names}
+    if not drivers:
+        return []
+    own = [i for i, name in enumerate(row_names) if name not in drivers]
+    basis = _row_basis(A[own])
+    if basis is None:
+        return []
+    determined = []
+    for i, name in enumerate(row_names):
+        if name not in drivers:
+            continue
+        row = A[i] - basis.T @ (basis @ A[i])
+        size = float(np.linalg.norm(row))
+        if size <= 1e-9 * max(float(np.linalg.norm(A[i])), 1.0):
+            determined.append(name)
+        else:
+            basis = np.vstack([basis, row / size])
+    return determined
+
+
+def _row_basis(A, tol=1e-9):
+    """(r, n) orthonormal basis of the row space of ``A`` (m, n), or None when its rows are
+    dependent (r < m)."""
+    if A.shape[0] == 0:
+        return np.zeros((0, A.shape[1]))
+    _, s, Vt = np.linalg.svd(A, full_matrices=False)
+    scale = s[0] if s.size and s[0] > 0 else 1.0
+    rank = int(np.sum(s > tol * scale))
+    return Vt[:rank] if rank == A.shape[0] else None

@@ -159,10 +159,36 @@ def register_record(path, record):
 
 
 def import_info(path):
-    """What the last import of ``path`` dropped and merged ({dropped, merged_bodies}),
-    for summary.json; {} if it was not an OpenSim import."""
-    opts = _REGISTERED.get(_key(path))
+    """What the last import of ``path`` dropped and merged ({dropped, merged_bodies,
+    motion_not_driven, …}), for summary.json; for an overlay file, that of the ``.osim``
+    it names; {} if it was not an OpenSim import."""
+    opts = _REGISTERED.get(_key(osim_of(path) or path))
     return {k: v for k, v in opts.info.items() if k not in ("body_frames", "offset_frames")} if opts else {}
+
+
+def record_import(path, key, entries):
+    """Add ``entries`` (a mapping) to the import record ``key`` of the model file ``path``
+    (an ``.osim``, or an overlay naming one), read in this process; nothing otherwise."""
+    opts = _REGISTERED.get(_key(osim_of(path) or path))
+    if opts is not None:
+        opts.info[key] = {**opts.info.get(key, {}), **entries}
+
+
+def osim_of(path):
+    """The ``.osim`` an overlay file ``path`` names (its ``opensim:`` key, relative to the
+    overlay), or None for any other file (an ``.osim`` itself, a model file, one that
+    cannot be read)."""
+    from . import is_osim
+    from ..yamlfile import read_yaml
+
+    if is_osim(path) or Path(path).suffix.lower() not in (".yaml", ".yml"):
+        return None
+    try:
+        data = read_yaml(path, ModelError, "model file")
+    except ModelError:
+        return None
+    target = data.get("opensim") if isinstance(data, dict) else None
+    return Path(path).parent / target if isinstance(target, str) and is_osim(target) else None
 
 
 def _welds_to_keep(opts, extra=None):
@@ -491,4 +517,6 @@ def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None
                 raise ModelError(f"{source}: {key}.{name}: already defined by the OpenSim model")
             merged[name] = entry
         out[key] = merged
-    return out
+    from .motion import undriven_by_overlay
+
+    return undriven_by_overlay(out, info)

@@ -1,0 +1,127 @@
+"""FDK on a coordinate file (``motion: ik.mot`` with ``fdk_dofs``): the two-stage pipeline of
+the commercial FDK tool's MoCap models and of COMAK, the primary coordinates from a first
+tracking or IK pass, the secondary ones solved by FDK (issue 27).
+
+The knee of :mod:`test_knee_jam_fdk` (OpenSim-JAM format, two condyle caps on a plateau,
+four Blankevoort strands, a known load on the tibia):
+
+* with the motion file driving flexion, the five FDK DOFs reach the independent force
+  balance of that test (closed-form elastic foundation) whatever the file's columns for
+  them say: the FDK DOFs are solved, not driven;
+* a constraint of the overlay that fixes a combination of coordinates (a distance between
+  a femur point and a tibia point) leaves the last coordinate of the combination to it,
+  with a warning that names it: the determinate kinematics then hold the distance, to the
+  root of that one equation found here by bisection, and follow the file elsewhere.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("opensim")
+
+from test_knee_jam_fdk import (COORDINATES, FLEXION, LOAD_FORCE, LOAD_MOMENT, SECONDARY,  # noqa: E402
+                               _closed_form_contact, _knee_model, _overlay, _solve, tibia_pose)
+
+from openfdk.io.storage import write_storage  # noqa: E402
+
+TIMES = np.linspace(0.0, 0.5, 11)  # s: the motion file's samples
+
+
+def _write_motion(folder, columns):
+    write_storage(folder / "knee.mot", TIMES, {name: np.asarray(columns[name], float) for name in COORDINATES},
+                  name="knee motion")
+    return folder / "knee.mot"
+
+
+@pytest.fixture(scope="module")
+def knee(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("motion_knee")
+    _knee_model(folder)
+    return folder
+
+
+@pytest.mark.slow
+def test_fdk_dofs_of_a_motion_file_are_solved_not_driven(knee):
+    from openfdk.fdk.analysis import run_fdk
+    from openfdk.io.modelfile import load_model_and_settings
+    from openfdk.io.opensim.overlay import import_info
+
+    # flexion held by the file; the secondary columns a first pass would give (far off)
+    columns = {name: np.full(TIMES.size, 0.02) for name in SECONDARY}
+    columns["knee_flex"] = np.full(TIMES.size, FLEXION)
+    _write_motion(knee, columns)
+    overlay = _overlay(knee, f"""\
+motion: knee.mot
+fdk_dofs: [knee_add, knee_rot, knee_tx, {{knee_ty: 0.0005}}, knee_tz]
+fdk: {{tolerance: 1.0e-9, max_iterations: 60}}
+loads:
+  tibia_load: {{point: tibia.knee_child, force: {LOAD_FORCE.tolist()}, moment: {LOAD_MOMENT.tolist()}, frame: world}}
+""", "motion_fdk.yaml")
+    model, settings = load_model_and_settings(overlay)
+    assert import_info(knee / "knee.osim")["motion_not_driven"] == {name: f"fdk_dofs.{name}" for name in SECONDARY}
+    assert [c.name for c in model.constraints if c.kind == "driver"] == ["knee_flex_motion"]
+    res = run_fdk(model, None, np.array([0.2]), settings)
+    assert res.converged.all(), res.messages
+    ours = dict(zip(res.dof_names, res.alpha[0]))
+    ours = np.array([ours[name] for name in SECONDARY])
+    closed = _solve(_closed_form_contact, np.r_[0, 0, 0, 5e-4, 0])
+    assert np.all(np.abs(closed - 0.02) > 1e-3)  # the file's columns are far from the equilibrium
+    # the same equilibrium as the locked flexion of test_knee_jam_fdk: 1e-6 m and rad
+    # against the closed form (its caps' discretisation, measured there 1e-8 m, 3e-7 rad)
+    np.testing.assert_allclose(ours, closed, rtol=0, atol=1e-6)
+
+
+def _hub_distance(q, a_F, b_T):
+    """|a_F − p_T(q) b_T| (m): the distance of a femur point ``a_F`` from a tibia point
+    ``b_T`` (the tibia's frame) at the six coordinates ``q``."""
+    R, p = tibia_pose(q)
+    return float(np.linalg.norm(a_F - (p + R @ b_T)))
+
+
+def test_a_constraint_leaves_its_coordinate_undriven(knee, tmp_path, monkeypatch, capsys):
+    from scipy.optimize import brentq
+
+    from openfdk.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    columns = {"knee_flex": 0.2 + 0.4 * TIMES, "knee_add": 0.02 * np.sin(4 * TIMES), "knee_rot": -0.03 * TIMES,
+               "knee_tx": 0.001 * TIMES, "knee_ty": np.full(TIMES.size, 0.004), "knee_tz": 0.0005 - 0.002 * TIMES}
+    _write_motion(knee, columns)
+    a_F, b_T = np.array([0.03, 0.02, 0.01]), np.array([0.02, -0.04, 0.0])
+    length = 0.09
+    overlay = _overlay(knee, f"""\
+motion: knee.mot
+frames:
+  femur: {{hub: {a_F.tolist()}}}
+  tibia: {{hub: {b_T.tolist()}}}
+measures:
+  reach: {{type: distance, from: ground.hub, to: tibia.hub}}  # the femur is welded to the ground
+constraints:
+  reach_held: {{measure: reach, value: {length}}}
+""", "motion_reach.yaml")
+    code = main(["kinematics", str(overlay), "--out", str(tmp_path / "kin")])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "the motion file's knee_tz is not driven" in err
+    summary = json.loads((tmp_path / "kin" / "summary.json").read_text())
+    assert summary["input"]["opensim_import"]["motion_not_driven"] == {"knee_tz": "constraints"}
+    table = np.genfromtxt(tmp_path / "kin" / "coordinates.csv", delimiter=",", names=True)
+    assert table.size == TIMES.size
+    for i, t in enumerate(table["time"]):
+        k = int(np.argmin(np.abs(TIMES - t)))
+        assert abs(TIMES[k] - t) < 1e-9
+        given = np.array([columns[name][k] for name in COORDINATES])
+        ours = np.array([table[f"{name}_{'rad' if name in COORDINATES[:3] else 'm'}"][i] for name in COORDINATES])
+        # the five driven coordinates are the file's samples (the spline passes through them)
+        np.testing.assert_allclose(ours[:5], given[:5], rtol=0, atol=1e-10)
+
+        def reach(tz):
+            return _hub_distance(np.r_[given[:5], tz], a_F, b_T) - length
+
+        root = brentq(reach, -0.05, 0.05, xtol=1e-14)
+        assert abs(root - given[5]) > 1e-3  # the file's knee_tz does not hold the distance
+        assert ours[5] == pytest.approx(root, abs=1e-9)
