@@ -125,3 +125,23 @@ constraints:
         root = brentq(reach, -0.05, 0.05, xtol=1e-14)
         assert abs(root - given[5]) > 1e-3  # the file's knee_tz does not hold the distance
         assert ours[5] == pytest.approx(root, abs=1e-9)
+
+
+def test_a_trial_whose_markers_move_nothing_is_named(tmp_path, monkeypatch, capsys):
+    """A trial given with a motion file that drives every coordinate: the markers have
+    nothing to fit, and the run says so (the model alone leaves coordinates to them)."""
+    from openfdk.analysis.model_check import markers_move_nothing
+    from openfdk.cli import main
+    from openfdk.fixtures.full_body_osim import write_full_body_motion, write_full_body_osim, write_full_body_trial
+    from openfdk.io.modelfile import load_model
+
+    monkeypatch.chdir(tmp_path)
+    model = write_full_body_osim(tmp_path / "body.osim")
+    trc, times, _, _ = write_full_body_trial(model, tmp_path / "walk.trc", n_frames=12)
+    motion = write_full_body_motion(tmp_path, times)
+    assert not markers_move_nothing(load_model(model))  # tracked: the markers set the coordinates
+    code = main(["kinematics", str(model), str(trc), "--motion", str(motion), "--cutoff", "0", "--out",
+                 str(tmp_path / "kin")])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "walk.trc: the markers move nothing: the model's rows" in err

@@ -162,6 +162,17 @@ def trial_window(model, trial_path, cutoff_hz=None, start=None, end=None, settin
     all_times = np.asarray(trial.time, dtype=float)
     times = analysis_window(model, _within_load_data(model, all_times, start, end, settings), start, end, settings)
     check_trial_markers(model, trial, times)
+    from .model_check import markers_move_nothing
+
+    if markers_move_nothing(model):
+        import warnings
+
+        from ..model.plausibility import PlausibilityWarning
+
+        warnings.warn(PlausibilityWarning(
+            f"{trial.source}: the markers move nothing: the model's rows (its drivers, a motion file's) determine "
+            "every coordinate; the run follows them, and the markers' residuals are only reported (run without the "
+            "trial, or without the motion)"), stacklevel=2)
     return trial, traj, times, {"trial": _trial_label(trial), "rate_hz": trial.rate, "markers": list(trial.labels)}
 
 
@@ -218,7 +229,8 @@ def preflight(model, label, model_path):
 def import_record(model_path):
     """{"opensim_import": {dropped, merged_bodies, options?}} for a model read from an .osim
     (the elements left out with --ignore are listed in summary.json, and the options it
-    was read with: :func:`openfdk.io.opensim.overlay.options_record`), else {}."""
+    was read with: :func:`openfdk.io.opensim.overlay.options_record`), for an overlay file
+    the import of the .osim it names (its options are its own keys), else {}."""
     from ..io.opensim import is_osim
 
     if not isinstance(model_path, (str, bytes)) and not hasattr(model_path, "__fspath__"):

@@ -82,6 +82,21 @@ def _reference_rank(model, state=None):
     return A, rank, redundant
 
 
+def markers_move_nothing(model):
+    """Whether the model's own rows (joints, constraints, drivers such as a motion
+    file's, FDK DOFs) determine every coordinate at the reference pose: marker tracking
+    then has nothing to fit, and the markers of a trial move nothing. False when the rows
+    cannot be evaluated there (the run reports why)."""
+    try:
+        A, _ = reference_jacobian(model)
+    except (FloatingPointError, ValueError):
+        return False
+    if A.shape[0] < A.shape[1] or A.shape[1] == 0:
+        return False
+    s = np.linalg.svd(A, compute_uv=False)
+    return bool(s[-1] > 1e-9 * s[0])
+
+
 def _redundant_message(rank, rows, redundant):
     return (f"constraint Jacobian is singular at the reference pose (rank {rank} of {rows} rows): "
             f"redundant or inconsistent rows {redundant}")
