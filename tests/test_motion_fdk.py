@@ -31,10 +31,10 @@ from openfdk.io.storage import write_storage  # noqa: E402
 TIMES = np.linspace(0.0, 0.5, 11)  # s: the motion file's samples
 
 
-def _write_motion(folder, columns):
-    write_storage(folder / "knee.mot", TIMES, {name: np.asarray(columns[name], float) for name in COORDINATES},
+def _write_motion(folder, columns, name="knee.mot"):
+    write_storage(folder / name, TIMES, {c: np.asarray(columns[c], float) for c in COORDINATES if c in columns},
                   name="knee motion")
-    return folder / "knee.mot"
+    return folder / name
 
 
 @pytest.fixture(scope="module")
@@ -73,6 +73,14 @@ loads:
     # the same equilibrium as the locked flexion of test_knee_jam_fdk: 1e-6 m and rad
     # against the closed form (its caps' discretisation, measured there 1e-8 m, 3e-7 rad)
     np.testing.assert_allclose(ours, closed, rtol=0, atol=1e-6)
+    # a file with flexion alone (the FDK DOFs' columns may be absent): the same run
+    _write_motion(knee, {"knee_flex": columns["knee_flex"]}, "flexion.mot")
+    alone = knee / "flexion_fdk.yaml"
+    alone.write_text(overlay.read_text().replace("motion: knee.mot", "motion: flexion.mot"))
+    model, settings = load_model_and_settings(alone)
+    again = run_fdk(model, None, np.array([0.2]), settings)
+    assert again.converged.all(), again.messages
+    np.testing.assert_array_equal(again.alpha, res.alpha)
 
 
 def _hub_distance(q, a_F, b_T):
@@ -145,3 +153,18 @@ def test_a_trial_whose_markers_move_nothing_is_named(tmp_path, monkeypatch, caps
     err = capsys.readouterr().err
     assert code == 0, err
     assert "walk.trc: the markers move nothing: the model's rows" in err
+
+
+def test_a_motion_given_twice_is_refused(knee, tmp_path, monkeypatch, capsys):
+    """``--motion`` and an overlay's ``motion:`` at once: one line naming both."""
+    from openfdk.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    motion = _write_motion(knee, {name: np.zeros(TIMES.size) for name in COORDINATES})
+    (knee / "with_motion.yaml").write_text("motion: knee.mot\n")
+    code = main(["kinematics", str(knee / "knee.osim"), "--with", str(knee / "with_motion.yaml"), "--motion",
+                 str(motion), "--out", str(tmp_path / "kin")])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "knee.osim: --motion: the overlay with_motion.yaml gives motion: knee.mot too; give one of them" in err
+    assert "Traceback" not in err

@@ -136,7 +136,7 @@ class Bases:
         if "trc" in kinds:
             self.texts["trc"] = _trc_text()
             self.paths["trc"] = self.dir / "trial.trc"
-        if {"osim", "ik", "external_loads", "grf_mot", "sto", "joint_reaction"} & set(kinds):
+        if {"osim", "ik", "external_loads", "grf_mot", "sto", "joint_reaction", "overlay"} & set(kinds):
             self.texts["osim"] = OSIM_TEXT
             self.paths["osim"] = self.dir / "leg.osim"
             self.paths["osim"].write_text(OSIM_TEXT)

@@ -18,6 +18,9 @@ Kinds:
   ``ModelError`` (the ``external_loads`` entry and the file named);
 - ``sto``: a coordinate ``.sto`` driving the ``.osim`` (``--motion``), text mutations ->
   ``ModelError``;
+- ``overlay``: an overlay file run as the model (``opensim: leg.osim``) with a motion
+  file, an FDK DOF, a frame, a measure and a constraint that determines a coordinate the
+  motion would drive (the two-stage pipeline), YAML mutations -> ``ModelError``;
 - ``force_plates``: a C3D with four plates of types 1–4 (26 analog channels) read by
   :func:`openfdk.io.force_plates.read_force_plates`; byte mutations and mutations of the
   FORCE_PLATFORM, ANALOG and POINT:UNITS parameter records themselves (a value set to an
@@ -62,7 +65,7 @@ import sys
 import numpy as np
 
 NEW_KINDS = ("external_loads", "grf_mot", "sto", "force_plates", "results", "checkpoint", "checkpoint_fdk",
-             "study_lock", "validation_map", "validation_reference", "joint_reaction")
+             "study_lock", "validation_map", "validation_reference", "joint_reaction", "overlay")
 #: the kinds whose inputs are checkpoint parts, resumed
 CHECKPOINT_KINDS = ("checkpoint", "checkpoint_fdk")
 #: the FDK run's model file (in its run folder)
@@ -107,6 +110,21 @@ EXTERNAL_LOADS_TEXT = """<?xml version="1.0" encoding="UTF-8" ?>
   <datafile>grf.mot</datafile>
  </ExternalLoads>
 </OpenSimDocument>
+"""
+
+#: the ``overlay`` kind's base: the fuzz ``.osim`` driven by a motion file, its knee an FDK
+#: DOF, with a constraint that leaves the motion's hip column out (docs/gait.md, two stages)
+OVERLAY_TEXT = """opensim: leg.osim
+motion: overlay_motion.sto
+fdk: [knee]
+frames:
+  ground: {a: [0.3, 0.2, 0.0]}
+  shank: {b: [0.03, -0.05, 0.0]}
+measures:
+  reach: {type: distance, from: ground.a, to: shank.b}
+constraints:
+  reach_held: {measure: reach, value: 0.3}
+analysis: {start: 0.05, end: 0.15}
 """
 
 JOINT_REACTION_TEXT = """<?xml version="1.0" encoding="UTF-8" ?>
@@ -321,6 +339,10 @@ def build(bases, kinds):
     if "sto" in kinds:
         _write_motion(d / "motion.sto")
         bases.paths["sto"] = d / "motion.sto"
+    if "overlay" in kinds:
+        _write_motion(d / "overlay_motion.sto")
+        (d / "overlay.yaml").write_text(OVERLAY_TEXT)
+        bases.paths["overlay"] = d / "overlay.yaml"
     if "force_plates" in kinds:
         _write_plates(d / "plates.c3d")
         bases.paths["force_plates"] = d / "plates.c3d"
@@ -526,7 +548,7 @@ def mutate(kind, bases, rng):
         path.write_text(mutate_xml(JOINT_REACTION_TEXT, rng, values=_JR_VALUES, tags=_JR_TAGS), encoding="utf-8")
     elif kind in ("grf_mot", "sto", "validation_reference"):
         path.write_text(mutate_text(originals[path].decode(), rng), encoding="utf-8")
-    elif kind == "validation_map":
+    elif kind in ("validation_map", "overlay"):
         path.write_text(mutate_yaml(originals[path].decode(), rng), encoding="utf-8")
     elif kind == "force_plates":
         data = originals[path]
@@ -584,7 +606,7 @@ def current_input(kind, bases):
 
 def documented_error(kind):
     """The exception class the loader of ``kind`` raises for bad input."""
-    if kind in ("external_loads", "grf_mot", "sto", "joint_reaction"):
+    if kind in ("external_loads", "grf_mot", "sto", "joint_reaction", "overlay"):
         from ..model.errors import ModelError
 
         return ModelError
@@ -636,6 +658,10 @@ def _results_readers(folder, readers=RESULT_READERS):
 def load(kind, path, reader=None):
     """Load the mutated input of ``kind`` at ``path`` as the command line does
     (``reader``: the result-folder reader :func:`mutate` chose; None: all of them)."""
+    if kind == "overlay":
+        from ..io.modelfile import load_model_and_settings
+
+        return load_model_and_settings(path)
     if kind in ("external_loads", "grf_mot", "sto", "joint_reaction"):
         from ..io.modelfile import load_model, load_model_and_settings
         from ..io.opensim.overlay import register

@@ -93,7 +93,8 @@ def _built(data, path, source):
     def build_from(mapping):
         return model_and_settings_from_dict(mapping, source=source, base_dir=path.parent, label=path.name)
 
-    if not any(is_motion_driver(name, entry) for name, entry in (data.get("drivers") or {}).items()):
+    drivers = data.get("drivers") if isinstance(data, dict) else None
+    if not isinstance(drivers, dict) or not any(is_motion_driver(name, entry) for name, entry in drivers.items()):
         return build_from(data)
     error, built = None, None
     with warnings.catch_warnings(record=True) as given:

@@ -20,7 +20,9 @@ computes from its ``coordinates_file``.
   the model or overlay gives its own window; ``--start``/``--end`` keep the file's grid.
 * Every free coordinate must be in the file (locked and prescribed ones follow their
   own rows, couplers' dependent coordinates follow the coupler and are not driven);
-  a column naming no coordinate is ignored, as OpenSim ignores it.
+  a column naming no coordinate is ignored, as OpenSim ignores it. So are the FDK DOFs
+  and the coordinates an overlay locks (:func:`given_otherwise`): a motion file with
+  FDK DOFs is the two-stage pipeline, its columns for them may be absent.
 * A column is named by the coordinate (``knee_angle_r``, an IK ``.mot``) or by its state
   variable's path (``/jointset/knee_r/knee_angle_r/value``, the states and coordinates
   files OpenSim 4 and Moco write; their ``/speed`` columns are not used: the rates come
@@ -42,9 +44,10 @@ from .errors import OsimError
 SUFFIX = "_motion"
 
 
-def motion_drivers(path, data, cutoff_hz=None):
+def motion_drivers(path, data, cutoff_hz=None, info=None):
     """The model mapping ``data`` with a driver per coordinate from the motion file
-    ``path`` (module docstring)."""
+    ``path`` (module docstring); ``info['motion_not_driven']`` records the coordinates
+    ``data`` gives otherwise (:func:`given_otherwise`)."""
     from ..storage import read_storage
     from .coordinate_filter import lowpass_iir3, pad_odd
 
@@ -60,11 +63,14 @@ def motion_drivers(path, data, cutoff_hz=None):
             times = grid
     coords = data.get("coordinates") or {}
     dependent = {c["dependent"] for c in (data.get("couplers") or {}).values()}
+    given = given_otherwise(data)
+    if given and info is not None:
+        info["motion_not_driven"] = {**info.get("motion_not_driven", {}), **given}
     drivers = dict(data.get("drivers") or {})
     rate = (len(times) - 1) / (times[-1] - times[0]) if len(times) > 1 else 0.0
     driven, missing = [], []
     for name, c in coords.items():
-        if c.get("locked") or c.get("prescribed") is not None or name in dependent:
+        if c.get("locked") or c.get("prescribed") is not None or name in dependent or name in given:
             continue
         if name not in columns:
             missing.append(name)
@@ -78,7 +84,8 @@ def motion_drivers(path, data, cutoff_hz=None):
         if twice:
             raise OsimError(f"{source}: {columns.absent(twice[0])}; a motion file drives every free coordinate")
         raise OsimError(f"{source}: no column for the coordinates {missing}; a motion file drives every free coordinate "
-                        f"(OpenSim's InverseDynamicsTool would hold them at their default values: give them columns)")
+                        "but the FDK DOFs and the locked ones (OpenSim's InverseDynamicsTool would hold them at their "
+                        "default values: give them columns)")
     if len(times) < 6:
         raise OsimError(f"{source}: {len(times)} sample(s); a motion file needs at least 6 (OpenSim's quintic spline)")
     if cutoff_hz:
@@ -135,32 +142,23 @@ def is_motion_driver(name, entry):
             and name == f"{entry['measure']}{SUFFIX}")
 
 
-def undriven_by_overlay(data, info=None):
-    """``data`` without the motion drivers of the coordinates an overlay gives otherwise:
-    an FDK DOF is solved by FDK (paper Eqs. 15–17), not driven, and a coordinate held by a
-    constraint on it alone (``lock: [...]``) keeps that value. Their columns in the motion
-    file are not used; ``info['motion_not_driven']`` ({coordinate: the entry that gives
-    it}) says so. This is the two-stage pipeline of the commercial FDK tool's MoCap models
-    and of COMAK: the primary coordinates from a first tracking or IK pass, the secondary
-    ones from FDK."""
-    drivers = data.get("drivers") or {}
-    motion = {name: entry["measure"] for name, entry in drivers.items() if is_motion_driver(name, entry)}
-    if not motion:
-        return data
+def given_otherwise(data):
+    """{coordinate: the entry that gives it} of the coordinates a motion file does not
+    drive although they are free in the ``.osim``: an FDK DOF is solved by FDK (paper
+    Eqs. 15–17), and a coordinate held by a constraint on it alone (an overlay's
+    ``lock: [...]``) keeps that value. Their columns may be absent and are not used. This
+    is the two-stage pipeline of the commercial FDK tool's MoCap models and of COMAK:
+    the primary coordinates from a first tracking or IK pass, the secondary ones from
+    FDK."""
     given = {}
     for name, entry in (data.get("fdk_dofs") or {}).items():
         if isinstance(entry, dict) and isinstance(entry.get("measure"), str):
             given[entry["measure"]] = f"fdk_dofs.{name}"
+    coordinates = data.get("coordinates") or {}
     for name, entry in (data.get("constraints") or {}).items():
-        if isinstance(entry, dict) and isinstance(entry.get("measure"), str) and entry["measure"] in motion.values():
+        if isinstance(entry, dict) and isinstance(entry.get("measure"), str) and entry["measure"] in coordinates:
             given.setdefault(entry["measure"], f"constraints.{name}")
-    dropped = {coordinate: given[coordinate] for coordinate in motion.values() if coordinate in given}
-    if not dropped:
-        return data
-    if info is not None:
-        info["motion_not_driven"] = {**info.get("motion_not_driven", {}), **dropped}
-    return {**data, "drivers": {name: entry for name, entry in drivers.items()
-                                if not (name in motion and motion[name] in dropped)}}
+    return given
 
 
 def determined_motion_drivers(model, A, row_names):

@@ -33,6 +33,7 @@ already defines is an error naming the overlay's entry. Overlay values are in SI
 from __future__ import annotations
 
 import difflib
+import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -66,6 +67,34 @@ class ImportOptions:
 _REGISTERED: dict = {}
 
 
+def _is_file(path):
+    """Whether ``path`` is an existing regular file; False where the system cannot even
+    look (a name too long, a NUL byte): the caller's message names the entry."""
+    try:
+        return Path(path).is_file()
+    except (OSError, ValueError):
+        return False
+
+
+def _is_dir(path):
+    """Whether ``path`` is an existing folder (:func:`_is_file`'s caveat)."""
+    try:
+        return Path(path).is_dir()
+    except (OSError, ValueError):
+        return False
+
+
+def _finite_number(v):
+    """Whether the YAML value ``v`` is a finite number (not a bool; an integer beyond the
+    float range is not)."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return False
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:
+        return False
+
+
 def _key(path):
     import os
 
@@ -78,7 +107,7 @@ def register(path, ignore=(), mesh_dirs=(), overlay=None, ik_tasks=None, externa
     ``--ignore``, ``--geometry``, ``--with``, ``--ik-tasks``, ``--external-loads``,
     ``--external-loads-cutoff``, ``--joint-reaction`` …)."""
     for d in mesh_dirs:
-        if not Path(d).is_dir():
+        if not _is_dir(d):
             raise ModelError(f"--geometry: folder {str(d)!r} does not exist")
     _REGISTERED[_key(path)] = ImportOptions(tuple(ignore), tuple(mesh_dirs), None if overlay is None else Path(overlay),
                                             None if ik_tasks is None else Path(ik_tasks),
@@ -147,7 +176,7 @@ def register_record(path, record):
         return tuple(value) if isinstance(value, list) and all(isinstance(v, str) for v in value) else ()
     paths = {k: Path(record[k]) if isinstance(record.get(k), str) else None for k in _PATH_OPTIONS}
     for key, value in paths.items():
-        if value is not None and not value.is_file():  # the run's files moved: read without them
+        if value is not None and not _is_file(value):  # the run's files moved: read without them
             import warnings
 
             warnings.warn(f"{Path(path).name}: the run read it with {key.replace('_', ' ')} {str(value)!r}, which no "
@@ -240,11 +269,6 @@ def imported_model_data(path, extra_joint_reaction=None):
         info["external_loads"] = str(opts.external_loads)
         if opts.external_loads_cutoff_hz:
             info["external_loads_cutoff_hz"] = float(opts.external_loads_cutoff_hz)
-    if opts.motion is not None:
-        from .motion import motion_drivers
-
-        data = motion_drivers(opts.motion, data, opts.motion_cutoff_hz)
-        info["motion"] = str(opts.motion)
     if opts.actuators is not None:
         from .actuators import read_actuator_file
 
@@ -259,6 +283,15 @@ def imported_model_data(path, extra_joint_reaction=None):
         overlay = read_yaml(opts.overlay, ModelError, "overlay file")
         data = merge_overlay(data, overlay, Path(opts.overlay).name, allow_options=False,
                              base_dir=Path(opts.overlay).parent, info=info)
+    if opts.motion is not None:  # last, when the overlay's FDK DOFs and locks are known
+        from .motion import motion_drivers
+
+        if "motion" in info:
+            raise ModelError(f"{Path(path).name}: --motion: the overlay {Path(opts.overlay).name} gives motion: "
+                             f"{Path(info['motion']).name} too; give one of them")
+
+        data = motion_drivers(opts.motion, data, opts.motion_cutoff_hz, info)
+        info["motion"] = str(opts.motion)
     return data
 
 
@@ -288,14 +321,14 @@ def overlay_model_data(path, data):
         if not isinstance(value, list) or not all(isinstance(v, str) and v for v in value):
             raise ModelError(f"{source}: {key}: expected a list of names, got {value!r}")
     for d in data.get("geometry", []):
-        if not (Path(path).parent / d).is_dir():
+        if not _is_dir(Path(path).parent / d):
             raise ModelError(f"{source}: geometry: folder {d!r} does not exist")
     tasks = data.get("ik_tasks")
-    if tasks is not None and (not isinstance(tasks, str) or not (Path(path).parent / tasks).is_file()):
+    if tasks is not None and (not isinstance(tasks, str) or not _is_file(Path(path).parent / tasks)):
         raise ModelError(f"{source}: ik_tasks: expected the path of an existing IK setup or tasks file, got {tasks!r}")
     register(osim, data.get("ignore", []), [str(Path(path).parent / d) for d in data.get("geometry", [])],
              ik_tasks=None if tasks is None else Path(path).parent / tasks)
-    if not osim.is_file():
+    if not _is_file(osim):
         raise ModelError(f"{source}: opensim: {target!r} does not exist")
     base = imported_model_data(osim, (data["joint_reaction"], Path(path).parent) if "joint_reaction" in data else None)
     return merge_overlay(base, data, source, allow_options=True, base_dir=Path(path).parent,
@@ -371,8 +404,7 @@ def _overlay_frames(frames, data, source, info):
         entry = bodies.setdefault(body, {})
         own = dict(entry.get("frames", {}))
         for name, xyz in points.items():
-            ok = isinstance(xyz, list) and len(xyz) == 3 and all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) for v in xyz)
+            ok = isinstance(xyz, list) and len(xyz) == 3 and all(_finite_number(v) for v in xyz)
             if not ok:
                 raise ModelError(f"{source}: frames.{osim_body}.{name}: expected [x, y, z] in m, got {xyz!r}")
             if name in own:
@@ -442,7 +474,7 @@ def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None
         from .external_loads import read_external_loads
 
         xml = base_dir / overlay.pop("external_loads")
-        if not xml.is_file():
+        if not _is_file(xml):
             raise ModelError(f"{source}: external_loads: {str(xml)!r} does not exist")
         data = read_external_loads(xml, data, info, loads_cutoff)
     elif loads_cutoff:
@@ -458,18 +490,14 @@ def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None
     cutoff = overlay.pop("motion_cutoff_hz", None)
     if cutoff is not None and (isinstance(cutoff, bool) or not isinstance(cutoff, (int, float)) or not cutoff > 0):
         raise ModelError(f"{source}: motion_cutoff_hz: expected a positive number (Hz), got {cutoff!r}")
-    if "motion" in overlay:
-        from .motion import motion_drivers
-
-        motion = overlay.pop("motion")
-        if not isinstance(motion, str) or not (base_dir / motion).is_file():
-            raise ModelError(f"{source}: motion: expected an existing .mot/.sto file, got {motion!r}")
-        data = motion_drivers(base_dir / motion, data, cutoff)
+    motion = overlay.pop("motion", None)  # read last, when the FDK DOFs and locks are known
+    if motion is not None and (not isinstance(motion, str) or not _is_file(base_dir / motion)):
+        raise ModelError(f"{source}: motion: expected an existing .mot/.sto file, got {motion!r}")
     if isinstance(overlay.get("actuators"), str):
         from .actuators import read_actuator_file
 
         xml = base_dir / overlay.pop("actuators")
-        if not xml.is_file():
+        if not _is_file(xml):
             raise ModelError(f"{source}: actuators: {str(xml)!r} does not exist")
         data = read_actuator_file(xml, data, info)
     data = _overlay_frames(overlay.pop("frames", None), data, source, info)
@@ -482,7 +510,7 @@ def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None
         spec = overlay["joint_reaction"]
         if isinstance(spec, str):
             xml = base_dir / spec
-            if not xml.is_file():
+            if not _is_file(xml):
                 raise ModelError(f"{source}: joint_reaction: {str(xml)!r} does not exist")
             spec = read_setup(xml)
         overlay["joint_reaction"] = resolved(spec, data, info, source)
@@ -517,6 +545,9 @@ def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None
                 raise ModelError(f"{source}: {key}.{name}: already defined by the OpenSim model")
             merged[name] = entry
         out[key] = merged
-    from .motion import undriven_by_overlay
+    if motion is not None:
+        from .motion import motion_drivers
 
-    return undriven_by_overlay(out, info)
+        out = motion_drivers(base_dir / motion, out, cutoff, info)
+        info["motion"] = str(base_dir / motion)
+    return out
