@@ -153,6 +153,12 @@ def test_a_trial_whose_markers_move_nothing_is_named(tmp_path, monkeypatch, caps
     err = capsys.readouterr().err
     assert code == 0, err
     assert "walk.trc: the markers move nothing: the model's rows" in err
+    # openfdk check says the same of the model and its motion, and tracking of the model alone
+    assert main(["check", str(model), "--motion", str(motion)]) == 0
+    assert "kinematics: determinate (drivers and FDK DOFs fix every coordinate; a trial's markers would move " \
+           "nothing)" in capsys.readouterr().out
+    main(["check", str(model)])
+    assert "kinematics: marker tracking" in capsys.readouterr().out
 
 
 def test_a_motion_given_twice_is_refused(knee, tmp_path, monkeypatch, capsys):

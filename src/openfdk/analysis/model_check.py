@@ -217,7 +217,11 @@ def check_model(model):
     rep.lines.append(f"  rank of the constraint Jacobian at the reference pose: {rank} of {rows} rows")
     if redundant:
         rep.errors.append(_redundant_message(rank, rows, redundant))
-    if model.markers.size:
+    determined = not redundant and rows >= n and rank == n
+    if model.markers.size and determined:  # a motion file drives a model with markers: they move nothing
+        rep.lines.append("  kinematics: determinate (drivers and FDK DOFs fix every coordinate; a trial's markers "
+                         "would move nothing)")
+    elif model.markers.size:
         _, Psi_q, _ = model.markers.evaluate(state, 1)
         Psi_q = Psi_q[np.repeat(model.markers.weight > 0, 3)]  # a marker of weight 0 is not tracked
         tasks = [np.atleast_2d(t.measure.evaluate(state, 1)[1]) for t in model.tasks if t.weight > 0]
