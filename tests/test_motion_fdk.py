@@ -117,6 +117,14 @@ constraints:
     assert "the motion file's knee_tz is not driven" in err
     summary = json.loads((tmp_path / "kin" / "summary.json").read_text())
     assert summary["input"]["opensim_import"]["motion_not_driven"] == {"knee_tz": "constraints"}
+    # the same overlay without its motion: key, the motion given on the command line
+    bare = knee / "reach.yaml"
+    bare.write_text(overlay.read_text().replace("motion: knee.mot\n", ""))
+    code = main(["kinematics", str(bare), "--motion", str(knee / "knee.mot"), "--out", str(tmp_path / "cli")])
+    assert code == 0, capsys.readouterr().err
+    summary = json.loads((tmp_path / "cli" / "summary.json").read_text())
+    assert summary["input"]["opensim_import"]["options"] == {"motion": str((knee / "knee.mot").resolve())}
+    assert (tmp_path / "cli" / "coordinates.csv").read_text() == (tmp_path / "kin" / "coordinates.csv").read_text()
     table = np.genfromtxt(tmp_path / "kin" / "coordinates.csv", delimiter=",", names=True)
     assert table.size == TIMES.size
     for i, t in enumerate(table["time"]):
@@ -174,3 +182,8 @@ def test_a_motion_given_twice_is_refused(knee, tmp_path, monkeypatch, capsys):
     assert code == 2
     assert "knee.osim: --motion: the overlay with_motion.yaml gives motion: knee.mot too; give one of them" in err
     assert "Traceback" not in err
+    # an overlay run as the model, with a motion: key and --motion
+    (knee / "run_motion.yaml").write_text("opensim: knee.osim\nmotion: knee.mot\n")
+    code = main(["kinematics", str(knee / "run_motion.yaml"), "--motion", str(motion), "--out", str(tmp_path / "k2")])
+    err = capsys.readouterr().err
+    assert code == 2 and "run_motion.yaml: motion: given by --motion knee.mot too; give one of them" in err, err

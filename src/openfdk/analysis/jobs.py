@@ -230,17 +230,16 @@ def import_record(model_path):
     """{"opensim_import": {dropped, merged_bodies, options?}} for a model read from an .osim
     (the elements left out with --ignore are listed in summary.json, and the options it
     was read with: :func:`openfdk.io.opensim.overlay.options_record`), for an overlay file
-    the import of the .osim it names (its options are its own keys), else {}."""
+    the import of the .osim it names and its own ``--motion``, else {}."""
     from ..io.opensim import is_osim
 
     if not isinstance(model_path, (str, bytes)) and not hasattr(model_path, "__fspath__"):
         return {}
     from ..io.opensim.overlay import import_info, options_record, osim_of
 
-    if not is_osim(model_path):  # an overlay's options are its own keys: its import alone
-        info = import_info(model_path) if osim_of(model_path) is not None else {}
-        return {"opensim_import": info} if info else {}
-    options = options_record(model_path)
+    if not is_osim(model_path) and osim_of(model_path) is None:
+        return {}
+    options = options_record(model_path)  # an overlay's: --motion only (the rest are its own keys)
     return {"opensim_import": {**import_info(model_path), **({"options": options} if options else {})}}
 
 

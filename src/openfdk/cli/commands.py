@@ -603,7 +603,8 @@ def _import_arguments(p):
                         "runs), as the markers are (e.g. their 6 Hz); default: as given, as OpenSim applies them")
     g.add_argument("--motion", default=None, metavar="FILE.mot",
                    help="drive every coordinate from this coordinate file (an IK .mot): inverse dynamics then gives "
-                        "each coordinate's generalised force (generalized_forces.csv), as OpenSim's ID")
+                        "each coordinate's generalised force (generalized_forces.csv), as OpenSim's ID; with FDK DOFs "
+                        "(also on an overlay file) FDK solves them on the file's other coordinates: two stages")
     g.add_argument("--motion-cutoff", type=argtypes.nonnegative, default=None, metavar="HZ",
                    help="low-pass filter the --motion coordinates (OpenSim's lowpass_cutoff_frequency_for_coordinates)")
     g.add_argument("--actuators", default=None, metavar="ACTUATORS.xml",
@@ -622,12 +623,26 @@ def _register_import(args):
     from ..io.opensim import is_osim
 
     if not is_osim(model):
-        if args.overlay or args.ignore or args.geometry or args.ik_tasks or args.external_loads or args.motion \
-                or args.actuators or args.external_loads_cutoff or args.joint_reaction:
+        from ..io.opensim.overlay import osim_of
+
+        overlay = osim_of(model) is not None
+        if args.overlay or args.ignore or args.geometry or args.ik_tasks or args.external_loads or args.actuators \
+                or args.external_loads_cutoff or args.joint_reaction or (args.motion and not overlay):
             raise UserError(f"{model}: --with, --ignore, --geometry, --ik-tasks, --external-loads, --motion, "
-                            "--actuators and --joint-reaction apply to OpenSim models (.osim) only; an overlay "
-                            "(opensim: MODEL.osim) takes them as its keys ignore, geometry, ik_tasks, external_loads, "
-                            "motion, actuators and joint_reaction, a model file joint_reaction: SETUP.xml")
+                            "--actuators and --joint-reaction apply to OpenSim models (.osim); an overlay "
+                            "(opensim: MODEL.osim) takes --motion, and the others as its keys ignore, geometry, "
+                            "ik_tasks, external_loads, actuators and joint_reaction; a model file takes "
+                            "joint_reaction: SETUP.xml")
+        if args.motion_cutoff and not args.motion:
+            raise UserError("--motion-cutoff: filters the coordinates of --motion, which is not given")
+        if overlay:  # --motion: the two stages on an overlay's model (docs/gait.md); none: none
+            from pathlib import Path
+
+            from ..io.opensim.overlay import register
+
+            if args.motion and not Path(args.motion).is_file():
+                raise UserError(f"--motion: {args.motion!r} does not exist or is not a regular file")
+            register(model, motion=args.motion or None, motion_cutoff_hz=args.motion_cutoff or None)
         return
     from pathlib import Path
 

@@ -172,12 +172,12 @@ def load_model_for_results(path, summary=None) -> Model:
 
 def _register_run_options(path, summary):
     """The run's OpenSim import options (summary.json) registered for ``path`` when it is
-    the run's ``.osim``."""
+    the run's ``.osim``, or its overlay file (whose ``--motion`` the run read)."""
     from .opensim import is_osim
-    from .opensim.overlay import register_record
+    from .opensim.overlay import osim_of, register_record
 
     inp = summary.get("input") if isinstance(summary, dict) else None
-    if not isinstance(inp, dict) or not is_osim(path):
+    if not isinstance(inp, dict) or not (is_osim(path) or osim_of(path) is not None):
         return
     recorded = inp.get("model_file") or inp.get("model")
     imported = inp.get("opensim_import")

@@ -105,7 +105,8 @@ def register(path, ignore=(), mesh_dirs=(), overlay=None, ik_tasks=None, externa
              motion_cutoff_hz=None, actuators=None, external_loads_cutoff_hz=None, joint_reaction=None):
     """Options for the ``.osim`` at ``path`` in this process (the command line's
     ``--ignore``, ``--geometry``, ``--with``, ``--ik-tasks``, ``--external-loads``,
-    ``--external-loads-cutoff``, ``--joint-reaction`` …)."""
+    ``--external-loads-cutoff``, ``--joint-reaction`` …), or for the overlay file at
+    ``path`` its ``--motion`` and ``--motion-cutoff`` (:func:`overlay_model_data`)."""
     for d in mesh_dirs:
         if not _is_dir(d):
             raise ModelError(f"--geometry: folder {str(d)!r} does not exist")
@@ -306,7 +307,8 @@ def model_source(path):
 
 def overlay_model_data(path, data):
     """``data`` itself, or for an overlay file (an ``opensim:`` key) the imported model
-    with the overlay merged in."""
+    with the overlay merged in, and the motion file registered for the overlay itself
+    (``openfdk run overlay.yaml --motion ik.mot``: the two stages) read last."""
     if not isinstance(data, dict) or "opensim" not in data:
         return data
     source = Path(path).name
@@ -330,9 +332,19 @@ def overlay_model_data(path, data):
              ik_tasks=None if tasks is None else Path(path).parent / tasks)
     if not _is_file(osim):
         raise ModelError(f"{source}: opensim: {target!r} does not exist")
+    own = _REGISTERED.get(_key(path))
+    motion = own.motion if own is not None else None
+    if motion is not None and "motion" in data:
+        raise ModelError(f"{source}: motion: given by --motion {Path(motion).name} too; give one of them")
     base = imported_model_data(osim, (data["joint_reaction"], Path(path).parent) if "joint_reaction" in data else None)
-    return merge_overlay(base, data, source, allow_options=True, base_dir=Path(path).parent,
-                         info=_REGISTERED[_key(osim)].info)
+    info = _REGISTERED[_key(osim)].info
+    out = merge_overlay(base, data, source, allow_options=True, base_dir=Path(path).parent, info=info)
+    if motion is not None:
+        from .motion import motion_drivers
+
+        out = motion_drivers(motion, out, own.motion_cutoff_hz, info)
+        info["motion"] = str(motion)
+    return out
 
 
 def _coordinate_list(value, data, source, key):
