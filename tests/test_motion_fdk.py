@@ -125,6 +125,13 @@ constraints:
     summary = json.loads((tmp_path / "cli" / "summary.json").read_text())
     assert summary["input"]["opensim_import"]["options"] == {"motion": str((knee / "knee.mot").resolve())}
     assert (tmp_path / "cli" / "coordinates.csv").read_text() == (tmp_path / "kin" / "coordinates.csv").read_text()
+    # and in Python: an overlay takes motion=, not the .osim's other options
+    import openfdk
+
+    driven = [c.name for c in openfdk.load_model(bare, motion=knee / "knee.mot").constraints if c.kind == "driver"]
+    assert driven == [f"{name}_motion" for name in COORDINATES[:5]]
+    with pytest.raises(TypeError, match=r"reach\.yaml is not one .*an overlay takes \['motion', 'motion_cutoff_hz'\]"):
+        openfdk.load_model(bare, ignore=["Mesh"])
     table = np.genfromtxt(tmp_path / "kin" / "coordinates.csv", delimiter=",", names=True)
     assert table.size == TIMES.size
     for i, t in enumerate(table["time"]):

@@ -52,11 +52,13 @@ def _register_opensim_options(path, options):
                         + (f"; did you mean {', '.join(map(repr, hints))}?" if hints else "")
                         + f" (options: {list(OPENSIM_OPTIONS)})")
     from ..io.opensim import is_osim
-    from ..io.opensim.overlay import register
+    from ..io.opensim.overlay import osim_of, register
 
-    if not is_osim(path):
+    overlay_options = {"motion", "motion_cutoff_hz"}  # an overlay's two stages; the rest are its keys
+    if not is_osim(path) and not (osim_of(path) is not None and set(options) <= overlay_options):
         raise TypeError(f"openfdk.load_model: {sorted(options)} are options of an OpenSim model (.osim); "
-                        f"{Path(path).name} is not one (give them in the model file)")
+                        f"{Path(path).name} is not one (give them in the model file; an overlay takes "
+                        f"{sorted(overlay_options)})")
     kwargs = {OPENSIM_OPTIONS[k][1]: v for k, v in options.items() if v is not None}
     for key in ("ignore", "mesh_dirs"):
         if isinstance(kwargs.get(key), (str, os.PathLike)):
@@ -76,7 +78,8 @@ def load_model(path, **opensim_options):
     ExternalLoads .xml), ``external_loads_cutoff_hz`` (Hz), ``motion`` (a .mot/.sto of
     coordinates), ``motion_cutoff_hz`` (Hz) and ``actuators`` (an OpenSim actuator
     file); e.g. ``load_model("subject.osim", motion="ik.mot", external_loads="grf.xml",
-    actuators="reserves.xml")``."""
+    actuators="reserves.xml")``. An overlay file (``opensim: MODEL.osim``) takes
+    ``motion`` and ``motion_cutoff_hz``: with FDK DOFs, the two stages (docs/gait.md)."""
     from ..io.modelfile import load_model_and_settings
 
     _register_opensim_options(path, opensim_options)
