@@ -84,11 +84,11 @@ def load_model_and_settings(path) -> tuple[Model, AnalysisSettings]:
 def _built(data, path, source):
     """(Model, AnalysisSettings) of the model mapping ``data`` of the file ``path``. With a
     motion file's drivers, those of coordinates the model's own rows determine are left
-    out (:func:`_determined_motion`), the model built again without them, and the first
-    build's warnings given only when it is the one kept."""
+    out (:func:`openfdk.io.opensim.motion.without_determined`), the model built again
+    without them, and the first build's warnings given only when it is the one kept."""
     import warnings
 
-    from .opensim.motion import is_motion_driver
+    from .opensim.motion import is_motion_driver, without_determined
 
     def build_from(mapping):
         return model_and_settings_from_dict(mapping, source=source, base_dir=path.parent, label=path.name)
@@ -103,7 +103,7 @@ def _built(data, path, source):
             built = build_from(data)
         except Exception as exc:  # raised below, after its warnings
             error = exc
-    undriven = None if error is not None else _determined_motion(built[0], data, path)
+    undriven = None if error is not None else without_determined(built[0], data, path)
     if undriven is not None:
         return build_from(undriven)
     for w in given:
@@ -111,38 +111,6 @@ def _built(data, path, source):
     if error is not None:
         raise error
     return built
-
-
-def _determined_motion(model, data, path):
-    """``data`` without the motion drivers (``--motion``, an overlay's ``motion:``) of the
-    coordinates ``model``'s own rows already determine
-    (:func:`openfdk.io.opensim.motion.determined_motion_drivers`), with a warning naming
-    them; None when there are none."""
-    drivers = data.get("drivers") or {}
-    from ..analysis.model_check import reference_jacobian
-    from .opensim.motion import SUFFIX, determined_motion_drivers
-
-    try:
-        A, row_names = reference_jacobian(model)
-    except (FloatingPointError, ValueError):  # left to the run, whose frames report why
-        return None
-    determined = determined_motion_drivers(model, A, row_names)
-    if not determined:
-        return None
-    import warnings
-
-    from ..model.plausibility import PlausibilityWarning
-
-    names = [name[:-len(SUFFIX)] for name in determined]
-    from .opensim.overlay import record_import
-
-    record_import(path, "motion_not_driven", {name: "constraints" for name in names})
-    warnings.warn(PlausibilityWarning(
-        f"{path.name}: the motion file's {', '.join(names)} {'is' if len(names) == 1 else 'are'} not driven: the "
-        "model's constraints, with its other coordinates, already determine "
-        f"{'it' if len(names) == 1 else 'them'} (the file's {'column is' if len(names) == 1 else 'columns are'} not used)"),
-        stacklevel=3)
-    return {**data, "drivers": {name: entry for name, entry in drivers.items() if name not in determined}}
 
 
 def load_model(path) -> Model:

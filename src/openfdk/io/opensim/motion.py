@@ -161,6 +161,35 @@ def given_otherwise(data):
     return given
 
 
+def without_determined(model, data, path):
+    """``data`` (the mapping ``model`` was built from, of the model file ``path``) without
+    the motion drivers of the coordinates ``model``'s own rows already determine
+    (:func:`determined_motion_drivers`), with a warning naming them, recorded in the
+    import's ``motion_not_driven``; None when there are none."""
+    import warnings
+
+    from ...analysis.model_check import reference_jacobian
+    from ...model.plausibility import PlausibilityWarning
+    from .overlay import record_import
+
+    try:
+        A, row_names = reference_jacobian(model)
+    except (FloatingPointError, ValueError):  # left to the run, whose frames report why
+        return None
+    determined = determined_motion_drivers(model, A, row_names)
+    if not determined:
+        return None
+    names = [name[:-len(SUFFIX)] for name in determined]
+    record_import(path, "motion_not_driven", {name: "constraints" for name in names})
+    one = len(names) == 1
+    warnings.warn(PlausibilityWarning(
+        f"{Path(path).name}: the motion file's {', '.join(names)} {'is' if one else 'are'} not driven: the model's "
+        f"constraints, with its other coordinates, already determine {'it' if one else 'them'} (the file's "
+        f"{'column is' if one else 'columns are'} not used)"), stacklevel=4)
+    drivers = data.get("drivers") or {}
+    return {**data, "drivers": {name: entry for name, entry in drivers.items() if name not in determined}}
+
+
 def determined_motion_drivers(model, A, row_names):
     """The motion drivers (:func:`is_motion_driver`) of ``model`` whose rows the other rows
     already determine: with Φ_q̂ ``A`` (m, n) at the reference pose and its ``row_names``,
