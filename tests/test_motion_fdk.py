@@ -125,6 +125,13 @@ constraints:
     summary = json.loads((tmp_path / "cli" / "summary.json").read_text())
     assert summary["input"]["opensim_import"]["options"] == {"motion": str((knee / "knee.mot").resolve())}
     assert (tmp_path / "cli" / "coordinates.csv").read_text() == (tmp_path / "kin" / "coordinates.csv").read_text()
+    # plot, view and export read the model as the run did: the summary's --motion
+    from openfdk.io.modelfile import load_model_for_results
+    from openfdk.io.opensim.overlay import register
+
+    register(bare)  # as in a new process: nothing registered
+    replay = load_model_for_results(bare, summary)
+    assert [c.name for c in replay.constraints if c.kind == "driver"] == [f"{n}_motion" for n in COORDINATES[:5]]
     # and in Python: an overlay takes motion=, not the .osim's other options
     import openfdk
 
