@@ -84,8 +84,9 @@ def load_model_and_settings(path) -> tuple[Model, AnalysisSettings]:
 def _built(data, path, source):
     """(Model, AnalysisSettings) of the model mapping ``data`` of the file ``path``. With a
     motion file's drivers, those of coordinates the model's own rows determine are left
-    out (:func:`openfdk.io.opensim.motion.without_determined`), the model built again
-    without them, and the first build's warnings given only when it is the one kept."""
+    out (:func:`openfdk.io.opensim.motion.without_determined`) and recorded in the
+    import's ``motion_not_driven``, the model built again without them, and the first
+    build's warnings given only when it is the one kept."""
     import warnings
 
     from .opensim.motion import is_motion_driver, without_determined
@@ -105,6 +106,10 @@ def _built(data, path, source):
             error = exc
     undriven = None if error is not None else without_determined(built[0], data, path)
     if undriven is not None:
+        from .opensim.overlay import record_import
+
+        undriven, names = undriven
+        record_import(path, "motion_not_driven", {name: "constraints" for name in names})
         return build_from(undriven)
     for w in given:
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)

@@ -162,15 +162,14 @@ def given_otherwise(data):
 
 
 def without_determined(model, data, path):
-    """``data`` (the mapping ``model`` was built from, of the model file ``path``) without
+    """(``data`` (the mapping ``model`` was built from, of the model file ``path``) without
     the motion drivers of the coordinates ``model``'s own rows already determine
-    (:func:`determined_motion_drivers`), with a warning naming them, recorded in the
-    import's ``motion_not_driven``; None when there are none."""
+    (:func:`determined_motion_drivers`), those coordinates), with a warning naming them;
+    None when there are none."""
     import warnings
 
     from ...analysis.model_check import reference_jacobian
     from ...model.plausibility import PlausibilityWarning
-    from .overlay import record_import
 
     try:
         A, row_names = reference_jacobian(model)
@@ -180,14 +179,13 @@ def without_determined(model, data, path):
     if not determined:
         return None
     names = [name[:-len(SUFFIX)] for name in determined]
-    record_import(path, "motion_not_driven", {name: "constraints" for name in names})
     one = len(names) == 1
     warnings.warn(PlausibilityWarning(
         f"{Path(path).name}: the motion file's {', '.join(names)} {'is' if one else 'are'} not driven: the model's "
         f"constraints, with its other coordinates, already determine {'it' if one else 'them'} (the file's "
         f"{'column is' if one else 'columns are'} not used)"), stacklevel=4)
     drivers = data.get("drivers") or {}
-    return {**data, "drivers": {name: entry for name, entry in drivers.items() if name not in determined}}
+    return {**data, "drivers": {name: entry for name, entry in drivers.items() if name not in determined}}, names
 
 
 def determined_motion_drivers(model, A, row_names):
