@@ -23,12 +23,9 @@ for a dynamically consistent gait trial.
 from __future__ import annotations
 
 import warnings
-from pathlib import Path
-
 import numpy as np
 
-from .results import write_table
-from .storage import write_converged_storage
+from .storage import write_run_table
 
 SUFFIX = "_motion"
 RESIDUAL_FORCE_FRACTION = 0.05
@@ -112,12 +109,9 @@ def write_generalized_forces(out_dir, model, dyn):
     actuated = actuator_forces(model, dyn)
     if not columns and not actuated:
         return None
-    out_dir = Path(out_dir)
-    time = np.asarray(dyn.time, float)
     if columns:
-        write_table(out_dir / "generalized_forces.csv", {"time": time, **columns})
-        write_converged_storage(out_dir / "generalized_forces.sto", time, columns, dyn.converged,
-                                "Inverse Dynamics (openfdk)")
+        write_run_table(out_dir, "generalized_forces", dyn.time, columns, "Inverse Dynamics (openfdk)",
+                        ok=dyn.converged)
     summary = residual_summary(model, {**actuated, **columns})
     threshold = summary["force_threshold_N"]
     for key, stats in summary["columns"].items():

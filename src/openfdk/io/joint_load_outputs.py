@@ -19,12 +19,9 @@ Frames that failed are NaN in the CSV and left out of the ``.sto``, as in
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
-from .results import write_table
-from .storage import write_converged_storage
+from .storage import write_run_table
 
 COMPONENTS = ("fx", "fy", "fz", "mx", "my", "mz", "px", "py", "pz")
 
@@ -100,14 +97,10 @@ def write_joint_loads(out_dir, model, kin, dyn, reports=()):
     columns = joint_load_columns(model, kin, dyn, reports)
     if not columns:
         return None
-    out_dir = Path(out_dir)
-    time = np.asarray(dyn.time, float)
-    write_table(out_dir / "joint_loads.csv", {"time": time, **columns})
-    ok = np.isfinite(np.column_stack(list(columns.values()))).all(axis=1)
     asked = {f"{r.base}_{c}": columns[f"{r.base}_{c}"] for r in reports if f"{r.base}_fx" in columns
              for c in COMPONENTS} if reports else columns
-    write_converged_storage(out_dir / "joint_loads.sto", time, asked, ok, "Joint Reaction Loads (openfdk)")
-    return joint_load_summary(model, time, columns)  # the peaks of every joint, from its ground columns
+    write_run_table(out_dir, "joint_loads", dyn.time, columns, "Joint Reaction Loads (openfdk)", sto_columns=asked)
+    return joint_load_summary(model, np.asarray(dyn.time, float), columns)  # the peaks of every joint, from its ground columns
 
 
 __all__ = ["COMPONENTS", "joint_load_bases", "joint_load_columns", "joint_load_summary", "write_joint_loads"]

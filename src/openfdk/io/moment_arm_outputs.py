@@ -10,12 +10,9 @@ the ``.sto``.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
-from .results import write_table
-from .storage import write_converged_storage
+from .storage import write_run_table
 
 #: a muscle spans a coordinate when |r| exceeds this somewhere (m, or m/m): a whole-body
 #: motion of the root's coordinates changes no path by more than rounding
@@ -55,11 +52,7 @@ def write_moment_arms(out_dir, model, kin):
     columns = moment_arm_columns(model, kin)
     if not columns:
         return None
-    out_dir = Path(out_dir)
-    time = np.asarray(kin.time, float)
-    write_table(out_dir / "moment_arms.csv", {"time": time, **columns})
-    ok = np.isfinite(np.column_stack(list(columns.values()))).all(axis=1)
-    write_converged_storage(out_dir / "moment_arms.sto", time, columns, ok, "Muscle moment arms (openfdk)")
+    write_run_table(out_dir, "moment_arms", kin.time, columns, "Muscle moment arms (openfdk)")
     return {"muscles": len(model.muscles), "coordinates": len({k.split(".", 1)[1] for k in columns}),
             "pairs": len(columns)}
 

@@ -91,6 +91,20 @@ def write_converged_storage(path, time, columns: dict, ok, name: str) -> Path:
     return write_storage(path, np.asarray(time, float)[ok], {k: np.asarray(v)[ok] for k, v in columns.items()},
                          name=name, comments=[] if ok.all() else [f"openfdk: {int((~ok).sum())} failed frames left out"])
 
+def write_run_table(out_dir, stem, time, columns: dict, name: str, ok=None, sto_columns=None):
+    """``stem``.csv with every frame of a run's table (time (nf,) s, columns label ->
+    (nf,)) and its ``.sto`` twin with the frames ``ok`` (nf,) bool (default: those whose
+    columns are all finite; :func:`write_converged_storage`), of ``sto_columns``
+    (default: all of them)."""
+    from .results import write_table
+
+    out_dir, time = Path(out_dir), np.asarray(time, float)
+    write_table(out_dir / f"{stem}.csv", {"time": time, **columns})
+    if ok is None:
+        ok = np.isfinite(np.column_stack(list(columns.values()))).all(axis=1)
+    write_converged_storage(out_dir / f"{stem}.sto", time, columns if sto_columns is None else sto_columns, ok, name)
+
+
 def csv_to_sto(csv_path, sto_path=None, name=None) -> Path | None:
     """Convert an openfdk result table (``kinematics.csv``, ``forces.csv``: first column
     ``time``, SI units) to ``.sto`` beside it (or at ``sto_path``).  Numeric columns are
