@@ -268,3 +268,71 @@ def test_samples_that_overflow_the_filter_are_refused():
     P[50, 0] = 1e308
     with pytest.raises(ValueError, match="overflows the filter"):
         filter_load(t, F, P, None, True, FC)
+
+
+# -- one overlay for every trial: the command line's loads replace the overlay's ----------
+
+def _other_trial(folder, seconds=2.0):
+    """Another trial's loads (loads_b.xml, grf_b.mot): a different force, point and torque."""
+    t = np.arange(int(seconds * RATE)) / RATE
+    cols = {"g_vx": -30 + 5 * t, "g_vy": 900 + 40 * np.sin(5 * t), "g_vz": 15 * t, "g_px": 0.5 - 0.2 * t,
+            "g_py": 0.01 + 0 * t, "g_pz": 0.1 * np.cos(t), "g_tx": 0 * t, "g_ty": 2 * t, "g_tz": 0 * t}
+    write_storage(folder / "grf_b.mot", t, cols, name="grf")
+    (folder / "loads_b.xml").write_text(LOADS_XML.replace("grf.mot", "grf_b.mot"))
+    return folder / "loads_b.xml", t, cols
+
+
+def test_one_overlay_for_every_trial_the_command_lines_loads_replace_its_own(osim, tmp_path, capsys):
+    import openfdk
+    from openfdk.io.opensim.overlay import options_record, register, register_record
+
+    own = _grf(tmp_path, noisy=True)
+    other, t, cols = _other_trial(tmp_path)
+    overlay = tmp_path / "o.yaml"
+    overlay.write_text(f"opensim: {osim}\nignore: [Mesh]\nexternal_loads: {own.name}\n")
+    # the command line: the overlay's loads replaced, with a warning naming both files
+    code = main(["check", str(overlay), "--external-loads", str(other), "-q"])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "o.yaml: external_loads: loads.xml replaced by --external-loads loads_b.xml" in err
+    assert options_record(overlay) == {"external_loads": str(other.resolve())}
+    # in Python: the model's load is the other trial's, sample for sample (the spline
+    # passes through the samples), and not the overlay's own
+    with pytest.warns(UserWarning, match="replaced by --external-loads loads_b.xml"):
+        model = openfdk.load_model(overlay, external_loads=other)
+    (load,) = model.external_loads
+    k = np.arange(200, 2200, 250)
+    F = np.array([load.force.derivatives(t[i])[0] for i in k])
+    P = np.array([load.point.derivatives(t[i])[0] for i in k])
+    T = np.array([load.torque.derivatives(t[i])[0] for i in k])
+    np.testing.assert_allclose(F, np.column_stack([cols[f"g_v{a}"][k] for a in "xyz"]), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(P, np.column_stack([cols[f"g_p{a}"][k] for a in "xyz"]), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(T, np.column_stack([cols[f"g_t{a}"][k] for a in "xyz"]), rtol=0, atol=1e-9)
+    assert np.all(F[:, 1] > 850)  # the overlay's own trial pushes at 700 ± 55 N
+    # a finished run's record reads the model again with the other trial's loads
+    register(overlay)
+    register_record(overlay, {"external_loads": str(other.resolve())})
+    (again,) = _reloaded(overlay).external_loads
+    assert again.force.derivatives(t[k[3]])[0][1] == pytest.approx(cols["g_vy"][k[3]], abs=1e-9)
+    # --external-loads-cutoff alone filters the overlay's own loads: within 3 N of the
+    # smooth load its noise was added to (5 N white noise at 1 200 Hz, 6 Hz low-pass)
+    register(overlay, external_loads_cutoff_hz=6.0)
+    (filtered,) = _reloaded(overlay).external_loads
+    times = np.linspace(0.5, 1.5, 11)
+    smooth = np.column_stack((20 * np.sin(2 * times), 700 + 50 * np.cos(3 * times), -10 + 0 * times))
+    F_f = np.array([filtered.force.derivatives(x)[0] for x in times])
+    assert np.max(np.abs(F_f - smooth)) < 3.0
+    # and a cutoff without loads anywhere: one line naming the option
+    bare = tmp_path / "bare.yaml"
+    bare.write_text(f"opensim: {osim}\nignore: [Mesh]\n")
+    code = main(["check", str(bare), "--external-loads-cutoff", "6", "-q"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1, err
+    assert "bare.yaml: --external-loads-cutoff: filters the loads of external loads" in err[0]
+
+
+def _reloaded(path):
+    """The model of ``path`` read with the options registered for it (no new ones)."""
+    from openfdk.io.modelfile import load_model
+
+    return load_model(path)

@@ -132,13 +132,13 @@ constraints:
     register(bare)  # as in a new process: nothing registered
     replay = load_model_for_results(bare, summary)
     assert [c.name for c in replay.constraints if c.kind == "driver"] == [f"{n}_motion" for n in COORDINATES[:5]]
-    # and in Python: an overlay takes motion=, not the .osim's other options
+    # and in Python: an overlay takes motion= (and the .osim's other options but overlay=)
     import openfdk
 
     driven = [c.name for c in openfdk.load_model(bare, motion=knee / "knee.mot").constraints if c.kind == "driver"]
     assert driven == [f"{name}_motion" for name in COORDINATES[:5]]
-    with pytest.raises(TypeError, match=r"reach\.yaml is not one .*an overlay takes \['motion', 'motion_cutoff_hz'\]"):
-        openfdk.load_model(bare, ignore=["Mesh"])
+    with pytest.raises(TypeError, match=r"reach\.yaml is not one .*an overlay takes all but 'overlay'"):
+        openfdk.load_model(bare, overlay=overlay)
     table = np.genfromtxt(tmp_path / "kin" / "coordinates.csv", delimiter=",", names=True)
     assert table.size == TIMES.size
     for i, t in enumerate(table["time"]):
@@ -183,8 +183,10 @@ def test_a_trial_whose_markers_move_nothing_is_named(tmp_path, monkeypatch, caps
     assert "kinematics: marker tracking" in capsys.readouterr().out
 
 
-def test_a_motion_given_twice_is_refused(knee, tmp_path, monkeypatch, capsys):
-    """``--motion`` and an overlay's ``motion:`` at once: one line naming both."""
+def test_a_motion_given_twice(knee, tmp_path, monkeypatch, capsys):
+    """``--motion`` and the ``motion:`` of a ``--with`` overlay at once: one line naming
+    both. An overlay run as the model: ``--motion`` replaces its ``motion:``, with a
+    warning naming both, and the coordinates follow the command line's file."""
     from openfdk.cli import main
 
     monkeypatch.chdir(tmp_path)
@@ -196,8 +198,23 @@ def test_a_motion_given_twice_is_refused(knee, tmp_path, monkeypatch, capsys):
     assert code == 2
     assert "knee.osim: --motion: the overlay with_motion.yaml gives motion: knee.mot too; give one of them" in err
     assert "Traceback" not in err
-    # an overlay run as the model, with a motion: key and --motion
+    # an overlay run as the model, with a motion: key and --motion: the command line's file
+    flexed = {name: np.zeros(TIMES.size) for name in COORDINATES}
+    flexed["knee_flex"] = 0.3 + 0.5 * TIMES
+    other = _write_motion(knee, flexed, "flexed.mot")
     (knee / "run_motion.yaml").write_text("opensim: knee.osim\nmotion: knee.mot\n")
-    code = main(["kinematics", str(knee / "run_motion.yaml"), "--motion", str(motion), "--out", str(tmp_path / "k2")])
+    code = main(["kinematics", str(knee / "run_motion.yaml"), "--motion", str(other), "--out", str(tmp_path / "k2")])
     err = capsys.readouterr().err
-    assert code == 2 and "run_motion.yaml: motion: given by --motion knee.mot too; give one of them" in err, err
+    assert code == 0, err
+    assert "run_motion.yaml: motion: knee.mot replaced by --motion flexed.mot" in err
+    table = np.genfromtxt(tmp_path / "k2" / "coordinates.csv", delimiter=",", names=True)
+    np.testing.assert_allclose(table["knee_flex_rad"], 0.3 + 0.5 * table["time"], rtol=0, atol=1e-10)
+    # a cutoff for a motion that nobody gives: one line naming the option
+    code = main(["kinematics", str(knee / "knee.osim"), "--motion-cutoff", "6",
+                 "--out", str(tmp_path / "k3")])
+    err = capsys.readouterr().err
+    assert code == 2 and "--motion-cutoff: filters the coordinates of --motion, which is not given" in err, err
+    (knee / "no_motion.yaml").write_text("opensim: knee.osim\n")
+    code = main(["kinematics", str(knee / "no_motion.yaml"), "--motion-cutoff", "6", "--out", str(tmp_path / "k4")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "no_motion.yaml: --motion-cutoff: filters the coordinates of motion" in err[0]

@@ -54,11 +54,11 @@ def _register_opensim_options(path, options):
     from ..io.opensim import is_osim
     from ..io.opensim.overlay import osim_of, register
 
-    overlay_options = {"motion", "motion_cutoff_hz"}  # an overlay's two stages; the rest are its keys
+    overlay_options = set(OPENSIM_OPTIONS) - {"overlay"}  # they replace an overlay's keys (or add to its lists)
     if not is_osim(path) and not (osim_of(path) is not None and set(options) <= overlay_options):
         raise TypeError(f"openfdk.load_model: {sorted(options)} are options of an OpenSim model (.osim); "
-                        f"{Path(path).name} is not one (give them in the model file; an overlay takes "
-                        f"{sorted(overlay_options)})")
+                        f"{Path(path).name} is not one (give them in the model file; an overlay takes all but "
+                        "'overlay')")
     kwargs = {OPENSIM_OPTIONS[k][1]: v for k, v in options.items() if v is not None}
     for key in ("ignore", "mesh_dirs"):
         if isinstance(kwargs.get(key), (str, os.PathLike)):
@@ -78,8 +78,10 @@ def load_model(path, **opensim_options):
     ExternalLoads .xml), ``external_loads_cutoff_hz`` (Hz), ``motion`` (a .mot/.sto of
     coordinates), ``motion_cutoff_hz`` (Hz) and ``actuators`` (an OpenSim actuator
     file); e.g. ``load_model("subject.osim", motion="ik.mot", external_loads="grf.xml",
-    actuators="reserves.xml")``. An overlay file (``opensim: MODEL.osim``) takes
-    ``motion`` and ``motion_cutoff_hz``: with FDK DOFs, the two stages (docs/gait.md)."""
+    actuators="reserves.xml")``. An overlay file (``opensim: MODEL.osim``) takes them all
+    but ``overlay``: they replace its keys (``ignore`` and ``geometry`` add to its lists),
+    e.g. ``load_model("dm_pt.yaml", external_loads="og3_loads.xml")`` for another trial,
+    or ``motion``: with FDK DOFs, the two stages (docs/gait.md)."""
     from ..io.modelfile import load_model_and_settings
 
     _register_opensim_options(path, opensim_options)

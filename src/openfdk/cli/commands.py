@@ -626,24 +626,17 @@ def _register_import(args):
         from ..io.opensim.overlay import osim_of
 
         overlay = osim_of(model) is not None
-        if args.overlay or args.ignore or args.geometry or args.ik_tasks or args.external_loads or args.actuators \
-                or args.external_loads_cutoff or args.joint_reaction or (args.motion and not overlay):
+        if args.overlay or (not overlay and (args.ignore or args.geometry or args.ik_tasks or args.external_loads
+                                             or args.actuators or args.external_loads_cutoff or args.joint_reaction
+                                             or args.motion)):
             raise UserError(f"{model}: --with, --ignore, --geometry, --ik-tasks, --external-loads, --motion, "
                             "--actuators and --joint-reaction apply to OpenSim models (.osim); an overlay "
-                            "(opensim: MODEL.osim) takes --motion, and the others as its keys ignore, geometry, "
-                            "ik_tasks, external_loads, actuators and joint_reaction; a model file takes "
-                            "joint_reaction: SETUP.xml")
-        if args.motion_cutoff and not args.motion:
-            raise UserError("--motion-cutoff: filters the coordinates of --motion, which is not given")
-        if overlay:  # --motion: the two stages on an overlay's model (docs/gait.md); none: none
-            from pathlib import Path
-
-            from ..io.opensim.overlay import register
-
-            if args.motion and not Path(args.motion).is_file():
-                raise UserError(f"--motion: {args.motion!r} does not exist or is not a regular file")
-            register(model, motion=args.motion or None, motion_cutoff_hz=args.motion_cutoff or None)
-        return
+                            "(opensim: MODEL.osim) takes all but --with, and they replace its keys; a model file "
+                            "takes joint_reaction: SETUP.xml")
+        if not overlay:
+            if args.motion_cutoff:
+                raise UserError("--motion-cutoff: filters the coordinates of --motion, which is not given")
+            return
     from pathlib import Path
 
     for option, value in (("--with", args.overlay), ("--ik-tasks", args.ik_tasks),
@@ -653,8 +646,11 @@ def _register_import(args):
             raise UserError(f"{option}: {value!r} does not exist or is not a regular file")
     from ..io.opensim.overlay import register
 
-    if args.external_loads_cutoff and args.external_loads is None:
-        raise UserError("--external-loads-cutoff: filters the loads of --external-loads, which is not given")
+    if is_osim(model):  # an overlay's own keys may give what the cutoffs filter
+        if args.external_loads_cutoff and args.external_loads is None:
+            raise UserError("--external-loads-cutoff: filters the loads of --external-loads, which is not given")
+        if args.motion_cutoff and not args.motion:
+            raise UserError("--motion-cutoff: filters the coordinates of --motion, which is not given")
     register(model, args.ignore, args.geometry, args.overlay, args.ik_tasks, args.external_loads, args.motion,
              args.motion_cutoff or None, args.actuators, args.external_loads_cutoff or None, args.joint_reaction)
 

@@ -106,7 +106,8 @@ def register(path, ignore=(), mesh_dirs=(), overlay=None, ik_tasks=None, externa
     """Options for the ``.osim`` at ``path`` in this process (the command line's
     ``--ignore``, ``--geometry``, ``--with``, ``--ik-tasks``, ``--external-loads``,
     ``--external-loads-cutoff``, ``--joint-reaction`` …), or for the overlay file at
-    ``path`` its ``--motion`` and ``--motion-cutoff`` (:func:`overlay_model_data`)."""
+    ``path`` the same but ``overlay`` (``--with``): they replace the overlay's keys, and
+    ``--ignore`` and ``--geometry`` add to its lists (:func:`overlay_model_data`)."""
     for d in mesh_dirs:
         if not _is_dir(d):
             raise ModelError(f"--geometry: folder {str(d)!r} does not exist")
@@ -307,8 +308,9 @@ def model_source(path):
 
 def overlay_model_data(path, data):
     """``data`` itself, or for an overlay file (an ``opensim:`` key) the imported model
-    with the overlay merged in, and the motion file registered for the overlay itself
-    (``openfdk run overlay.yaml --motion ik.mot``: the two stages) read last."""
+    with the overlay merged in; the options registered for the overlay file itself (the
+    command line's, e.g. ``openfdk run overlay.yaml og3.trc --external-loads og3.xml``
+    or ``--motion ik.mot``: the two stages) replace its keys (:func:`_command_line_keys`)."""
     if not isinstance(data, dict) or "opensim" not in data:
         return data
     source = Path(path).name
@@ -325,6 +327,7 @@ def overlay_model_data(path, data):
     for d in data.get("geometry", []):
         if not _is_dir(Path(path).parent / d):
             raise ModelError(f"{source}: geometry: folder {d!r} does not exist")
+    data = _command_line_keys(data, _REGISTERED.get(_key(path)), source)
     tasks = data.get("ik_tasks")
     if tasks is not None and (not isinstance(tasks, str) or not _is_file(Path(path).parent / tasks)):
         raise ModelError(f"{source}: ik_tasks: expected the path of an existing IK setup or tasks file, got {tasks!r}")
@@ -332,18 +335,51 @@ def overlay_model_data(path, data):
              ik_tasks=None if tasks is None else Path(path).parent / tasks)
     if not _is_file(osim):
         raise ModelError(f"{source}: opensim: {target!r} does not exist")
-    own = _REGISTERED.get(_key(path))
-    motion = own.motion if own is not None else None
-    if motion is not None and "motion" in data:
-        raise ModelError(f"{source}: motion: given by --motion {Path(motion).name} too; give one of them")
     base = imported_model_data(osim, (data["joint_reaction"], Path(path).parent) if "joint_reaction" in data else None)
     info = _REGISTERED[_key(osim)].info
-    out = merge_overlay(base, data, source, allow_options=True, base_dir=Path(path).parent, info=info)
-    if motion is not None:
-        from .motion import motion_drivers
+    return merge_overlay(base, data, source, allow_options=True, base_dir=Path(path).parent, info=info)
 
-        out = motion_drivers(motion, out, own.motion_cutoff_hz, info)
-        info["motion"] = str(motion)
+
+#: an overlay's keys that the command line's options (registered for the overlay file
+#: itself) replace: {key: (option's attribute of ImportOptions, the command line's flag)}
+_REPLACED_KEYS = {"ik_tasks": ("ik_tasks", "--ik-tasks"), "external_loads": ("external_loads", "--external-loads"),
+                  "external_loads_cutoff_hz": ("external_loads_cutoff_hz", "--external-loads-cutoff"),
+                  "motion": ("motion", "--motion"), "motion_cutoff_hz": ("motion_cutoff_hz", "--motion-cutoff"),
+                  "actuators": ("actuators", "--actuators"), "joint_reaction": ("joint_reaction", "--joint-reaction")}
+
+
+def _command_line_keys(data, own, source):
+    """The overlay mapping ``data`` with the options given for the overlay file itself
+    (``openfdk run dm_pt.yaml og3.trc --external-loads og3_loads.xml``: one overlay for
+    every trial): each of :data:`_REPLACED_KEYS` given replaces the overlay's key (files
+    as absolute paths), with a warning naming both when the overlay gives it too (an
+    input check's: not given again when a finished run's model is read);
+    ``--ignore`` and ``--geometry`` add to the overlay's lists."""
+    if own is None:
+        return data
+    from ...model.plausibility import warn_plausibility
+
+    out = dict(data)
+    for key, (attribute, flag) in _REPLACED_KEYS.items():
+        value = getattr(own, attribute)
+        if value is None or value == 0:
+            continue
+        given = value if key.endswith("_hz") else str(Path(value).resolve())
+        if key in out:
+            old = out[key]
+            old = Path(old).name if isinstance(old, str) else old if isinstance(old, (int, float)) else "its own"
+            shown = value if key.endswith("_hz") else Path(value).name
+            warn_plausibility(f"{source}: {key}: {old} replaced by {flag} {shown}")
+        out[key] = given
+    for key, flag, what in (("external_loads", "--external-loads-cutoff", "loads"),
+                            ("motion", "--motion-cutoff", "coordinates")):
+        if getattr(own, f"{key}_cutoff_hz") and key not in out:
+            raise ModelError(f"{source}: {flag}: filters the {what} of {key.replace('_', ' ')}, which neither "
+                             f"{flag.rsplit('-', 1)[0]} nor the overlay's {key}: gives")
+    for key, values in (("ignore", list(own.ignore)), ("geometry", [str(Path(d).resolve()) for d in own.mesh_dirs])):
+        if values:
+            listed = out.get(key, [])
+            out[key] = (listed + [v for v in values if v not in listed]) if isinstance(listed, list) else listed
     return out
 
 
@@ -505,6 +541,9 @@ def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None
     motion = overlay.pop("motion", None)  # read last, when the FDK DOFs and locks are known
     if motion is not None and (not isinstance(motion, str) or not _is_file(base_dir / motion)):
         raise ModelError(f"{source}: motion: expected an existing .mot/.sto file, got {motion!r}")
+    if cutoff and motion is None:
+        raise ModelError(f"{source}: motion_cutoff_hz: filters the coordinates of a motion file, and none is given "
+                         "(motion: FILE.mot here or --motion)")
     if isinstance(overlay.get("actuators"), str):
         from .actuators import read_actuator_file
 
