@@ -610,12 +610,20 @@ def reproduce(kind, seed, index, bases):
 def main(argv=None):
     """``python -m openfdk.bench.fuzz_inputs [N] [SEED] [KIND ...]``: the long fuzz run;
     prints one line of counts per kind and exits 1 on any unexpected exception."""
-    import sys
+    import argparse
 
-    args = list(sys.argv[1:] if argv is None else argv)
-    n = int(args.pop(0)) if args else 10_000
-    seed = int(args.pop(0)) if args else 0
-    kinds = args or list(KINDS)
+    parser = argparse.ArgumentParser(prog="python -m openfdk.bench.fuzz_inputs",
+                                     description="Mutate valid input files and read each mutant as openfdk "
+                                                 "would: every one must load or be refused with its kind's "
+                                                 "documented error (docs/input-checks.md).")
+    parser.add_argument("n", nargs="?", type=int, default=10_000, help="mutated inputs per kind (default 10000)")
+    parser.add_argument("seed", nargs="?", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("kinds", nargs="*", metavar="KIND", help=f"kinds to fuzz (default all: {' '.join(KINDS)})")
+    args = parser.parse_args(argv)
+    unknown = [k for k in args.kinds if k not in KINDS]
+    if unknown:
+        parser.error(f"unknown kind(s) {', '.join(unknown)} (kinds: {' '.join(KINDS)})")
+    n, seed, kinds = args.n, args.seed, args.kinds or list(KINDS)
     bad = 0
     bases = Bases(kinds)
     try:
