@@ -157,6 +157,19 @@ def test_tampered_summary_json_is_refused(result, tmp_path, capsys, command, tam
     assert expected in _error_line(err)
 
 
+def test_a_null_input_in_summary_json_is_no_input(result, tmp_path, capsys):
+    """Found by the fuzz (seed 70): ``"input": null`` raised an AttributeError. It is read
+    as no input: ``plot`` draws without the model, ``export-opensim`` needs it and says so."""
+    path = result / "summary.json"
+    path.write_text(json.dumps({**json.loads(path.read_text()), "input": None}))
+    code, _, err = _run(capsys, "plot", result, "--out", tmp_path / "plots")
+    assert code == 0 and "Traceback" not in err, err
+    assert sorted(p.name for p in (tmp_path / "plots").glob("*.png"))
+    code, _, err = _run(capsys, "export-opensim", result, "--out", tmp_path / "out")
+    assert code == 2
+    assert "the model file of this run cannot be found" in _error_line(err)
+
+
 @pytest.mark.parametrize("command", ["plot", "export-opensim"])
 def test_a_foreign_kinematics_csv_is_refused(result, tmp_path, capsys, command):
     (result / "kinematics.csv").write_text("time,x,y\n0,1,2\n0.01,1,2\n")

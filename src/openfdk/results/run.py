@@ -113,7 +113,8 @@ def check_time_and_status(path, time, converged=None):
 
 def read_summary(path):
     """summary.json checked against its schema: an object whose ``input``,
-    ``kinematics``, ``inverse_dynamics`` and ``fdk`` entries are objects and whose input
+    ``kinematics``, ``inverse_dynamics`` and ``fdk`` entries are objects (a JSON null is
+    read as the entry left out) and whose input
     file names (``input.model``, ``model_file``, ``trial``, ``trial_file``) are text."""
     try:
         summary = json.loads(path.read_text(encoding="utf-8"))
@@ -122,7 +123,9 @@ def read_summary(path):
     if not isinstance(summary, dict):
         raise ValueError(f"{path}: must be a JSON object, got {type(summary).__name__}")
     for key in ("input", "kinematics", "inverse_dynamics", "fdk"):
-        if key in summary and summary[key] is not None and not isinstance(summary[key], dict):
+        if key in summary and summary[key] is None:  # JSON null: the section is absent
+            del summary[key]
+        if key in summary and not isinstance(summary[key], dict):
             raise ValueError(f"{path}: {key}: must be a JSON object, got {type(summary[key]).__name__}")
     for key in ("model", "model_file", "trial", "trial_file"):
         value = (summary.get("input") or {}).get(key)
