@@ -152,15 +152,59 @@ def determinate_times(model, start=None, end=None, settings=None):
     return analysis_times(t0, t1, int(a.get("frames", 101)))
 
 
-def trial_window(model, trial_path, cutoff_hz=None, start=None, end=None, settings=None):
+def driver_time_range(model):
+    """(first, last) s over which every sampled (spline, not extrapolated) driver of
+    ``model`` has data (a motion file's coordinates), or (−inf, inf) when none is."""
+    from ..model.timefunctions import SplineThroughData
+
+    lo, hi = -np.inf, np.inf
+    for c in model.constraints:
+        function = getattr(c, "function", None)
+        if isinstance(function, SplineThroughData) and not function.extrapolate:
+            lo, hi = max(lo, float(function.t_range[0])), min(hi, float(function.t_range[1]))
+    return lo, hi
+
+
+def _within_driver_and_load_data(model, times, loads=True):
+    """The determinate frames ``times`` (nf,) s without those outside the data of the
+    model's sampled drivers (a motion file's coordinates) and, with ``loads``, of its
+    measured loads: they cannot be evaluated there, and the run would stop at the first
+    such frame. Says so (one PlausibilityWarning) when it drops frames; ValueError when
+    none is left."""
+    from ..forces.data_loads import data_time_range
+    from ..model.plausibility import warn_plausibility
+
+    limits = [("drivers' samples (a motion file's coordinates: {:g}–{:g} s)", *driver_time_range(model))]
+    if loads:
+        limits.append(("measured loads' data ({:g}–{:g} s)", *data_time_range(getattr(model, "external_loads", ()))))
+    keep = np.ones(len(times), dtype=bool)
+    for _, lo, hi in limits:
+        keep &= (times >= lo - 1e-9) & (times <= hi + 1e-9)
+    if keep.all():
+        return times
+    what = " and the ".join(name.format(lo, hi) for name, lo, hi in limits
+                            if np.any((times < lo - 1e-9) | (times > hi + 1e-9)))
+    if not keep.any():
+        raise ValueError(f"analysis window {times[0]:g}–{times[-1]:g} s: no frame within the {what}; give --start "
+                         "and --end within it")
+    warn_plausibility(f"analysis window {times[0]:g}–{times[-1]:g} s: the {np.count_nonzero(~keep)} frame(s) outside "
+                      f"the {what} are left out")
+    return times[keep]
+
+
+def trial_window(model, trial_path, cutoff_hz=None, start=None, end=None, settings=None, loads=True):
     """The C3D trial, its filtered trajectories and the analysed times (nf,) s; warns
     (PlausibilityWarning) about markers never visible in the window or far from the
-    model at its first frame. Returns (trial, trajectories, times, info dict)."""
+    model at its first frame. ``loads``: whether the run uses the model's measured loads
+    (not ``openfdk kinematics``): its window is then kept within their data. Returns
+    (trial, trajectories, times, info dict)."""
     from ..model.plausibility import check_trial_markers
 
     trial, traj = load_trajectories(model, trial_path, cutoff_hz, settings)
     all_times = np.asarray(trial.time, dtype=float)
-    times = analysis_window(model, _within_load_data(model, all_times, start, end, settings), start, end, settings)
+    if loads:
+        all_times = _within_load_data(model, all_times, start, end, settings)
+    times = analysis_window(model, all_times, start, end, settings)
     check_trial_markers(model, trial, times)
     from .model_check import markers_move_nothing
 
@@ -176,19 +220,21 @@ def trial_window(model, trial_path, cutoff_hz=None, start=None, end=None, settin
     return trial, traj, times, {"trial": _trial_label(trial), "rate_hz": trial.rate, "markers": list(trial.labels)}
 
 
-def analysis_inputs(model, trial_path=None, cutoff_hz=None, start=None, end=None, settings=None):
+def analysis_inputs(model, trial_path=None, cutoff_hz=None, start=None, end=None, settings=None, loads=True):
     """(trajectories or None, times (nf,) s, info): the trial's samples within the
     analysis window (:func:`trial_window`), or for determinate kinematics the model
-    file's ``analysis`` start/end/frames (:func:`determinate_times`); settings : the
-    model file's AnalysisSettings. Once the inputs are read, a cold kernel cache is
-    announced if the CLI asked for it (:func:`openfdk.analysis.kernel_cache.arm`)."""
+    file's ``analysis`` start/end/frames (:func:`determinate_times`) within its drivers'
+    data; settings : the model file's AnalysisSettings; loads : whether the run uses
+    the model's measured loads (then the frames are kept within their data too). Once
+    the inputs are read, a cold kernel cache is announced if the CLI asked for it
+    (:func:`openfdk.analysis.kernel_cache.arm`)."""
     from .kernel_cache import announce_armed
 
     if trial_path is None:
-        times = determinate_times(model, start, end, settings)
+        times = _within_driver_and_load_data(model, determinate_times(model, start, end, settings), loads)
         announce_armed()
         return None, times, {}
-    _, traj, times, info = trial_window(model, trial_path, cutoff_hz, start, end, settings)
+    _, traj, times, info = trial_window(model, trial_path, cutoff_hz, start, end, settings, loads)
     announce_armed()
     return traj, times, info
 
@@ -258,7 +304,8 @@ def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, s
     model, settings, label = loaded if loaded is not None else model_and_settings(model_path, settings)
     _refuse_redundant_rows(model, label)
     info = {"model": label, **import_record(model_path)}
-    traj, times, more = analysis_inputs(model, trial_path, cutoff_hz, start, end, settings)
+    # (kinematics use no loads: a trial's window is not cut to another trial's load data)
+    traj, times, more = analysis_inputs(model, trial_path, cutoff_hz, start, end, settings, loads=False)
     info.update(more)
     model = _with_ground_reactions(model, settings, trial_path, traj, cutoff_hz, info)
     if traj is None:
