@@ -449,3 +449,76 @@ def test_a_trc_header_with_empty_cells_between_its_values_reads_as_opensim_reads
     short.write_text("\n".join(lines[:2] + ["\t".join(lines[2].split("\t")[:2])] + lines[3:]))
     with pytest.raises(TRCError, match=r"short\.trc: line 2/3: header field 'NumMarkers' is missing"):
         read_trc(short)
+
+
+def _tampered_resume(bases, kind, edit):
+    """Resume the fuzz run of ``kind`` with its last checkpoint part's carry changed by
+    ``edit(carry)``, the part re-encoded and its sidecar's hash made to match (what an
+    attacker who knows the format would do). Returns the CheckpointError's text, or None
+    when the run resumed."""
+    from openfdk.bench.fuzz_kinds import _write_part, load, restore
+    from openfdk.trial.checkpoint import CheckpointError
+    from openfdk.trial.checkpoint_format import decode, encode
+
+    restore(kind, bases)
+    last = sorted(bases.paths[kind].parent.glob("part-*.npz"))[-1]
+    payload = decode(last.read_bytes())
+    payload["carry"] = edit(payload["carry"])
+    _write_part(last, encode(payload), rehash=True)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            load(kind, bases.paths[kind])
+        return None
+    except CheckpointError as exc:
+        return str(exc)
+    finally:
+        restore(kind, bases)
+
+
+def _pending_with_data(carry):
+    """The first pending frame of a kinematics-and-dynamics carry that holds its data."""
+    pending = carry[0][4]
+    return next(f for f in pending.values() if f.get("data") is not None)
+
+
+def _kkt_2_by_0(carry):
+    _pending_with_data(carry)["data"].kkt = np.zeros((2, 0))
+    return carry
+
+
+def _residuals_of_one_marker(carry):
+    _pending_with_data(carry)["delta"] = np.zeros(1)
+    return carry
+
+
+def _columns_shifted(carry):
+    carry[0][0].column = carry[0][0].column + 1
+    return carry
+
+
+def _split_columns_shifted(carry):
+    carry[3].cols = carry[3].cols + 6
+    return carry
+
+
+def _alpha_too_short(carry):
+    carry[1][-1] = (carry[1][-1][0], carry[1][-1][1][:-1])
+    return carry
+
+
+@pytest.mark.parametrize("kind, edit, expected", [
+    ("checkpoint", _kkt_2_by_0, "data: KKT matrix: expected an array of shape ("),
+    ("checkpoint", _residuals_of_one_marker, "marker residuals: expected an array of shape (8, 3), got (1,)"),
+    ("checkpoint", _columns_shifted, "the solver state has another structure"),  # the driver's template check
+    ("checkpoint_fdk", _split_columns_shifted, "the contacts' split names other coordinates than the model's"),
+    ("checkpoint_fdk", _alpha_too_short, "FDK history: α of frame"),
+])
+def test_a_checkpoint_carry_of_other_shapes_is_refused_not_a_crash(bases, kind, edit, expected):
+    """Found by the fuzz (seed 70, input 1033 of the checkpoint kind): a pending frame's
+    KKT matrix of shape (2, 0) went into the compiled velocity solve, which does not check
+    bounds, and the process died of a segmentation fault. Every array of a restored carry
+    that the kernels index is now checked against the model (trial/restored.py)."""
+    error = _tampered_resume(bases, kind, edit)
+    assert error is not None and expected in error, error
+    assert "resuming from the checkpoint failed" not in error  # refused before any frame

@@ -65,9 +65,10 @@ from ..dynamics.results import forces_failure, forces_fields, forces_result, for
 from ..kinematics.analysis import KinematicsResult, kinematics_fields, kinematics_result
 from ..kinematics.system import ConstraintSystem
 from ..kinematics.tracking import KKTFactors, MarkerTracker, TrackingSettings, window_spacing
-from ..trial import drive
+from ..trial import drive, restored
 from ..trial.status import FrameReport, Reason, frame_messages
 from ..model.plausibility import warn_plausibility
+from .contact_step import ContactSplit, checked_split
 from .absorbed import absorbed_message, fdk_absorbed_muscles
 from .approach import approach_for
 from .newton import combined, solve_frame, solve_restarts
@@ -413,22 +414,48 @@ class FDKStep:
         return (k, {j: state.copy() for j, state in ws.states.items()}, {j: f.saved() for j, f in ws.factors.items()})
 
     def restore(self, carry):
-        last_state, history, self.warm, self.J_carry, self.last_failed, *sensitivity = carry
+        """The carry of a checkpoint (untrusted: every array the kernels index is checked
+        against the model, :mod:`openfdk.trial.restored`)."""
+        last_state, history, warm, J_carry, last_failed, *sensitivity = carry
+        reference = self.model.initial_state()
+        n, n_fdk = reference.n_coords, len(self.model.fdk_dofs)
         # (a checkpoint of an earlier version has no sensitivity, or no curvature)
-        self.dq_dalpha = sensitivity[0] if sensitivity else None
-        self.ctx.tracking_curvature = sensitivity[1] if len(sensitivity) > 1 else None
+        dq_dalpha = sensitivity[0] if sensitivity else None
+        curvature = sensitivity[1] if len(sensitivity) > 1 else None
+        if isinstance(J_carry, ContactSplit):
+            checked_split(J_carry, self.ctx.solver.forces.by_kind.get("contacts"), reference, n_fdk)
+        else:
+            restored.optional(J_carry, (n_fdk, n_fdk), "FDK Jacobian")
+        restored.optional(dq_dalpha, (n, n_fdk), "kinematic sensitivity")
+        if curvature is not None:
+            if not isinstance(curvature, (tuple, list)) or len(curvature) != 2:
+                raise ValueError("tracking curvature: expected (S, t)")
+            restored.array(curvature[0], (n, n), "tracking curvature")
+            curvature = (curvature[0], restored.number(curvature[1], "tracking curvature: time"))
+        if not isinstance(history, (list, tuple)) or not all(isinstance(h, (list, tuple)) and len(h) == 2
+                                                             for h in history):
+            raise ValueError("FDK history: expected (frame, α) pairs")
+        history = [(int(k), restored.array(a, (n_fdk,), f"FDK history: α of frame {k}")) for k, a in history]
+        if last_failed is not None:
+            if not isinstance(last_failed, (list, tuple)) or len(last_failed) != 2:
+                raise ValueError("last failed frame: expected (frame, α)")
+            last_failed = (int(last_failed[0]), restored.array(last_failed[1], (n_fdk,), "last failed frame: α"))
+        self.warm, self.J_carry, self.last_failed, self.dq_dalpha = warm, J_carry, last_failed, dq_dalpha
+        self.ctx.tracking_curvature = curvature
         self.unswept = [tuple(int(x) for x in u) for u in sensitivity[2]] if len(sensitivity) > 2 else []
-        self.last_state, self.history = last_state.copy(), list(history)
+        self.last_state, self.history = restored.states(last_state, reference, "state").copy(), history
         saved = sensitivity[3] if len(sensitivity) > 3 else None
-        self.solved = None if saved is None else _solved_from(saved, self.ctx.system)
+        self.solved = None if saved is None else _solved_from(saved, self.ctx.system, reference)
 
 
-def _solved_from(saved, system):
+def _solved_from(saved, system, reference):
     """(frame, FrameWorkspace) from :meth:`FDKStep._solved_carry`'s data (a checkpoint's:
-    the factors checked against the tracking's KKT size n + m of ``system``, ValueError)."""
+    the poses checked against the model's initial state ``reference``, the factors
+    against the tracking's KKT size n + m of ``system``, ValueError)."""
     k, states, factors = saved
     size = system.n_coords + system.n_rows
-    return int(k), FrameWorkspace({int(j): state for j, state in states.items()},
+    return int(k), FrameWorkspace({int(j): restored.states(state, reference, f"solved pose of frame {j}")
+                                   for j, state in states.items()},
                                   factors={int(j): KKTFactors.from_saved(f, size, system.n_rows)
                                            for j, f in factors.items()})
 

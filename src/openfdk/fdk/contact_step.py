@@ -216,6 +216,42 @@ def _fraction_inside(x, d, box):
     return max(tau, 0.0)
 
 
+def contact_columns(contacts, column):
+    """(cols (n_c,), blocks (n_contacts, 2)) of a ContactSplit: the q̂ indices of the
+    contact bodies' coordinates (6 per moving body, in body order) and where each
+    contact's bodies a and b start in cols (−1: a fixed body). contacts : the model's
+    ContactForces; column (n_bodies,) : the bodies' first q̂ column (−1: fixed)."""
+    bodies = sorted({b for e in contacts.contacts for b in (e.body_a, e.body_b) if column[b] >= 0})
+    cols = np.array([column[b] + i for b in bodies for i in range(6)], dtype=np.int64)
+    blocks = np.array([[6 * bodies.index(b) if column[b] >= 0 else -1 for b in (e.body_a, e.body_b)]
+                       for e in contacts.contacts], dtype=np.int64).reshape(-1, 2)
+    return cols, blocks
+
+
+def checked_split(split, contacts, reference, n_fdk):
+    """A checkpoint's ContactSplit ``split`` (untrusted) checked against the model:
+    ``cols`` and ``blocks`` those of :func:`contact_columns` for the model's initial
+    state ``reference`` (they index the kernels' arrays), U (n, n_fdk), R (n_fdk, n_c),
+    J_s and J_whole (n_fdk, n_fdk) or None; ValueError otherwise."""
+    from ..trial import restored
+
+    if contacts is None:
+        raise ValueError("FDK Jacobian: a contacts' split, and the model has no contacts")
+    cols, blocks = contact_columns(contacts, reference.column)
+    if not (isinstance(split.cols, np.ndarray) and isinstance(split.blocks, np.ndarray)
+            and np.array_equal(split.cols, cols) and np.array_equal(split.blocks, blocks)):
+        raise ValueError("FDK Jacobian: the contacts' split names other coordinates than the model's")
+    restored.array(split.U, (reference.n_coords, n_fdk), "FDK Jacobian: U")
+    restored.array(split.R, (n_fdk, len(cols)), "FDK Jacobian: R")
+    restored.optional(split.J_s, (n_fdk, n_fdk), "FDK Jacobian: J_s")
+    restored.optional(split.J_whole, (n_fdk, n_fdk), "FDK Jacobian: J_whole")
+    if not isinstance(split.gain, (int, float, np.floating)) or isinstance(split.gain, bool):
+        raise ValueError("FDK Jacobian: gain: expected a number")
+    if not isinstance(split.sleep, (int, np.integer)) or isinstance(split.sleep, bool):
+        raise ValueError("FDK Jacobian: sleep: expected a whole number")
+    return split
+
+
 def contact_split(ctx, ev, U, p, sensitivity=None):
     """The ContactSplit (without J_s) at an evaluation's pose, or None when the model has
     no contacts or their K is not exact (exact mode: the curvature of B is left out).
@@ -227,11 +263,8 @@ def contact_split(ctx, ev, U, p, sensitivity=None):
     contacts = ctx.solver.forces.by_kind.get("contacts")
     if contacts is None or not contacts.exact_stiffness:
         return None
-    column, fr = ev.state.column, ev.frame
-    bodies = sorted({b for e in contacts.contacts for b in (e.body_a, e.body_b) if column[b] >= 0})
-    cols = np.array([column[b] + i for b in bodies for i in range(6)], dtype=np.int64)
-    blocks = np.array([[6 * bodies.index(b) if column[b] >= 0 else -1 for b in (e.body_a, e.body_b)]
-                       for e in contacts.contacts], dtype=np.int64)
+    fr = ev.frame
+    cols, blocks = contact_columns(contacts, ev.state.column)
     rows = np.asarray(ctx.solver.layout.eq_coords)
     where = {int(c): i for i, c in enumerate(rows)}
     inside = [j for j, c in enumerate(cols) if int(c) in where]
@@ -247,5 +280,5 @@ def contact_split(ctx, ev, U, p, sensitivity=None):
     return ContactSplit(U, R, cols, blocks)
 
 
-__all__ = ["ContactSplit", "contact_split", "GAIN_FLOOR", "GAIN_RELATIVE", "GAIN_SIGNAL", "GAIN_LIMIT", "GAIN_WEIGHT", "GAIN_PRIOR",
+__all__ = ["ContactSplit", "contact_split", "contact_columns", "checked_split", "GAIN_FLOOR", "GAIN_RELATIVE", "GAIN_SIGNAL", "GAIN_LIMIT", "GAIN_WEIGHT", "GAIN_PRIOR",
            "SLEEP_FRAMES", "INNER_REACH", "INNER_ITERATIONS", "INNER_HALVINGS", "INNER_RELATIVE", "INNER_SOLVED"]

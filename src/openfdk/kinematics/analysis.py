@@ -29,7 +29,7 @@ import numpy as np
 
 from ..model.framedata import FrameData
 from ..model.kernels import displace_by_rates, extrapolate_poses
-from ..trial import drive
+from ..trial import drive, restored
 from ..trial.status import Reason, frame_messages
 from .coordinate_bounds import CoordinateBounds, solve_bounded
 from .curvature import HessianPattern, lagrangian_hessian, second_order_terms
@@ -227,9 +227,20 @@ class DeterminateStep:
         return self.state.copy(), self.last_good.copy(), self.rates
 
     def restore(self, carry):
-        self.state, self.last_good = carry[0].copy(), carry[1].copy()
+        """The carry of a checkpoint (untrusted: the poses and the rates checked against
+        the model, :mod:`openfdk.trial.restored`)."""
+        reference = self.model.initial_state()
+        self.state = restored.states(carry[0], reference, "state").copy()
+        self.last_good = restored.states(carry[1], reference, "last good state").copy()
         rates = carry[2] if len(carry) > 2 else None
-        self.rates = None if rates is None else (tuple(rates) + (None,))[:4]  # (a checkpoint without the jerk)
+        if rates is not None:
+            rates = (tuple(rates) + (None,))[:4]  # (a checkpoint without the jerk)
+            n = reference.n_coords
+            restored.number(rates[0], "rates: time")
+            for a, name in zip(rates[1:], ("velocities", "accelerations", "jerk")):
+                if a is not None or name != "jerk":
+                    restored.array(a, (n,), f"rates: {name}")
+        self.rates = rates
 
 
 class TrackingStep:
@@ -385,14 +396,46 @@ class TrackingStep:
         return self.state.copy(), self.last_good.copy(), self.q_prev, self.guessed, dict(self.pending)
 
     def restore(self, carry):
+        """The carry of a checkpoint (untrusted: every array the kernels index is checked
+        against the model, :mod:`openfdk.trial.restored`)."""
         state, last_good, q_prev, self.guessed, pending = carry
-        if q_prev is not None and np.shape(q_prev) != np.shape(self.state.get_q()):
-            raise ValueError(f"previous pose of shape {np.shape(q_prev)}, the model's {np.shape(self.state.get_q())}")
+        reference = self.model.initial_state()
+        nq = np.shape(reference.get_q())
+        if q_prev is not None and np.shape(q_prev) != nq:
+            raise ValueError(f"previous pose of shape {np.shape(q_prev)}, the model's {nq}")
+        restored.optional(q_prev, nq, "previous pose")
+        if not isinstance(pending, dict):
+            raise ValueError(f"pending frames: expected a mapping, got {type(pending).__name__}")
         self.q_prev = q_prev
-        self.state, self.last_good, self.pending = state.copy(), last_good.copy(), dict(pending)
+        self.state = restored.states(state, reference, "state").copy()
+        self.last_good = restored.states(last_good, reference, "last good state").copy()
+        self.pending = {j: self._checked_pending(j, f, reference) for j, f in pending.items()}
         # the next frame starts from the last solved frame's active bounds (checked)
-        last = [f for _, f in sorted(self.pending.items()) if isinstance(f, dict) and f.get("state") is not None]
+        last = [f for _, f in sorted(self.pending.items()) if f.get("state") is not None]
         self.active = self.bounds.check_active(last[-1].get("active", ())) if last and self.bounds else ()
+
+    def _checked_pending(self, j, frame, reference):
+        """A restored pending frame ``frame`` (see :meth:`step`), its arrays checked."""
+        what = f"pending frame {j}"
+        if not isinstance(j, (int, np.integer)) or isinstance(j, bool) or not isinstance(frame, dict):
+            raise ValueError(f"{what}: expected a frame number and a mapping")
+        nm, n = self.model.markers.size, reference.n_coords
+        restored.array(frame.get("delta"), (nm, 3), f"{what}: marker residuals", finite=False)
+        if "res" not in frame:  # a window's edge neighbour: its residuals only
+            return frame
+        meas = frame.get("meas")
+        if not isinstance(meas, (tuple, list)) or len(meas) != 2:
+            raise ValueError(f"{what}: expected the markers' velocities and accelerations")
+        for a, name in zip(meas, ("velocities", "accelerations")):
+            restored.array(a, (nm, 3), f"{what}: marker {name}", finite=False)
+        restored.optional(frame.get("q"), np.shape(reference.get_q()), f"{what}: pose")
+        if frame.get("state") is not None:
+            restored.states(frame["state"], reference, f"{what}: state")
+            active = self.bounds.check_active(frame.get("active", ())) if self.bounds else ()
+            tracker = self.bounds.tracker_for(active) if active else self.tracker
+            restored.frame_data_tracking(frame.get("data"), n, tracker.system.n_rows, nm, len(self.model.fdk_dofs),
+                                         f"{what}: data")
+        return frame
 
 
 def run_determinate(model, times, alpha=None, progress=False):
