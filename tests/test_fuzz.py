@@ -303,8 +303,20 @@ def resumable(bases, tmp_path):
     return argv, ck
 
 
+def _report_with_text_reason():
+    """A frame report whose reason is text, not a Reason (the fuzz, seed 70, input 5 of
+    checkpoint_fdk: an AttributeError in the FDK result's columns after the resume)."""
+    from openfdk.trial.status import FrameReport, FrameStatus
+
+    report = FrameReport(FrameStatus.CONVERGED)
+    object.__setattr__(report, "reason", "converged")
+    return report
+
+
 @pytest.mark.parametrize("records, carry, next_frame, expected", [
     ([(0, {"kin.q": np.zeros(3)})], None, 1, "frame 0: 'kin.q' is not an array (14,)"),
+    ([(0, {"kin.report": _report_with_text_reason()})], None, 1,
+     "frame 0: 'kin.report' is a frame report with fields of other types"),
     ([(0, {"kin.q": np.r_[0, 0, 0, 1e300, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0]})], None, 1,
      "frame 0: 'kin.q': the quaternion of moving body 0 cannot be normalised"),
     ([(0, {"kin.q": np.r_[np.nan, 0, 0, 1, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0]})], None, 1,

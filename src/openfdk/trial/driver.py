@@ -212,6 +212,8 @@ def _restore_saved(saved, rec, step, folder):
             if dtype is object or (shape is None and (isinstance(value, (str, FrameReport)) or value is None)):
                 if not (isinstance(value, (str, FrameReport)) or value is None):
                     raise refuse(f"frame {j}: {str(name)[:60]!r} is a {type(value).__name__}")
+                if isinstance(value, FrameReport) and not value.well_typed():
+                    raise refuse(f"frame {j}: {str(name)[:60]!r} is a frame report with fields of other types")
             elif not isinstance(value, (int, float, np.number, np.ndarray)) or isinstance(value, bool) \
                     or (shape is not None and np.shape(value) != tuple(shape)) \
                     or not np.issubdtype(np.asarray(value).dtype, np.number):

@@ -55,6 +55,14 @@ class FrameReport:
     def converged(self) -> bool:
         return self.status is FrameStatus.CONVERGED
 
+    def well_typed(self) -> bool:
+        """Whether every field has its type (a checkpoint's report is rebuilt field by
+        field, untrusted: trial/checkpoint_format.py)."""
+        return (isinstance(self.status, FrameStatus) and isinstance(self.reason, Reason)
+                and isinstance(self.iterations, (int, np.integer)) and not isinstance(self.iterations, bool)
+                and isinstance(self.residual, (int, float, np.floating)) and not isinstance(self.residual, bool)
+                and isinstance(self.message, str))
+
     @classmethod
     def ok(cls, iterations=0, residual=float("nan")):
         return cls(FrameStatus.CONVERGED, Reason.CONVERGED, int(iterations), float(residual), "")
