@@ -155,14 +155,9 @@ def determinate_times(model, start=None, end=None, settings=None):
 def driver_time_range(model):
     """(first, last) s over which every sampled (spline, not extrapolated) driver of
     ``model`` has data (a motion file's coordinates), or (−inf, inf) when none is."""
-    from ..model.timefunctions import SplineThroughData
+    from ..model.timefunctions import sampled_time_range
 
-    lo, hi = -np.inf, np.inf
-    for c in model.constraints:
-        function = getattr(c, "function", None)
-        if isinstance(function, SplineThroughData) and not function.extrapolate:
-            lo, hi = max(lo, float(function.t_range[0])), min(hi, float(function.t_range[1]))
-    return lo, hi
+    return sampled_time_range(getattr(c, "function", None) for c in model.constraints)
 
 
 def _within_driver_and_load_data(model, times, loads=True):

@@ -58,10 +58,10 @@ def _reference_time(model):
     """A time (s) at which every driver is defined: 0, or the latest start of a driver
     that follows data and is not extrapolated (a ``--motion`` file starting at 0.5 s).
     Φ_q̂ does not depend on it; the drivers' targets are evaluated with it."""
-    starts = [c.function.t_range[0] for c in model.constraints
-              if c.kind == DRIVER and hasattr(getattr(c, "function", None), "t_range")
-              and not getattr(c.function, "extrapolate", True)]
-    return float(max(starts)) if starts and max(starts) > 0.0 else 0.0
+    from ..model.timefunctions import sampled_time_range
+
+    start, _ = sampled_time_range(c.function for c in model.constraints if c.kind == DRIVER)
+    return float(start) if start > 0.0 else 0.0
 
 
 def reference_jacobian(model, state=None):

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from ..model.timefunctions import Constant, SplineThroughData, TimeFunction
+from ..model.timefunctions import Constant, SplineThroughData, TimeFunction, sampled_time_range
 from ..numerics.spatial import skew
 
 
@@ -76,13 +76,7 @@ def invalid_reason(loads, t):
 def data_time_range(loads):
     """(first, last) s over which every sampled (spline, not extrapolated) time function
     of ``loads`` (DataLoad) has data, or (−inf, inf) when none is sampled."""
-    lo, hi = -np.inf, np.inf
-    for load in loads:
-        for function in (load.force, load.point, load.torque):
-            if isinstance(function, SplineThroughData) and not function.extrapolate:
-                t0, t1 = function.t_range
-                lo, hi = max(lo, float(t0)), min(hi, float(t1))
-    return lo, hi
+    return sampled_time_range(f for load in loads for f in (load.force, load.point, load.torque))
 
 
 def sample(function, times):

@@ -141,3 +141,14 @@ class SplineThroughData(TimeFunction):
     def derivatives(self, t):
         self.derivatives_range_check(t)
         return self._s.derivatives(t)
+
+
+def sampled_time_range(functions):
+    """(first, last) s over which every sampled, not extrapolated time function among
+    ``functions`` (:class:`SplineThroughData`; others and None are skipped) has data, or
+    (−inf, inf) when none is sampled."""
+    lo, hi = -np.inf, np.inf
+    for function in functions:
+        if isinstance(function, SplineThroughData) and not function.extrapolate:
+            lo, hi = max(lo, float(function.t_range[0])), min(hi, float(function.t_range[1]))
+    return lo, hi
