@@ -586,7 +586,7 @@ def _trial_arguments(p):
 
 def _import_arguments(p):
     """--with, --ignore and --geometry: the options of a model read from an OpenSim .osim."""
-    g = p.add_argument_group("OpenSim models (.osim)")
+    g = p.add_argument_group("OpenSim models (.osim, or an overlay naming one: all but --with, replacing its keys)")
     g.add_argument("--with", dest="overlay", default=None, metavar="OVERLAY.yaml",
                    help="overlay file adding drivers, FDK DOFs and analysis settings to the .osim (SI units)")
     g.add_argument("--ignore", action="append", default=[], metavar="TYPE",
