@@ -241,3 +241,54 @@ def test_kinematics_asks_only_for_the_kernels_it_calls(tmp_path, monkeypatch):
     asked.clear()
     main(["run", str(model), str(tmp_path / "t.c3d"), "--out", str(tmp_path / "r"), "--no-progress"])
     assert asked == [kernel_cache.FRAME_KERNEL_MODULES]  # (whatever the run's frames do)
+
+
+@pytest.mark.parametrize("quiet", [False, True])
+def test_a_long_compilation_while_the_inputs_are_read_is_announced_then(monkeypatch, quiet):
+    """Found on DM at a cold cache: its model's own kernels (contacts, paths, grids)
+    compiled for about 2 min while the model was built, in silence, before the
+    announcement after the inputs. A compilation while armed that lasts ANNOUNCE_AFTER_S
+    prints the line then, once: the announcement after the inputs does not repeat it."""
+    import io
+    import threading
+
+    import numba
+
+    stream = io.StringIO()
+    monkeypatch.setattr(kernel_cache.sys, "stderr", stream)
+    monkeypatch.setattr(kernel_cache, "ANNOUNCE_AFTER_S", 0.0)
+    monkeypatch.setattr(kernel_cache, "cache_is_cold", lambda modules: True)
+    kernel_cache.arm(quiet=quiet)
+    try:
+        @numba.njit(cache=False)
+        def fresh(x):  # a new function: numba compiles it at the first call
+            return x * 2.0 + 1.0
+
+        assert fresh(1.5) == 4.0
+        watch = kernel_cache._WATCH
+        assert watch is not None and (watch.timer is None) == quiet
+        if watch.timer is not None:
+            watch.timer.join(5.0)
+        assert stream.getvalue().count(kernel_cache.MESSAGE) == (0 if quiet else 1)
+        kernel_cache.announce_armed()
+        assert stream.getvalue().count(kernel_cache.MESSAGE) == (0 if quiet else 1)
+        assert kernel_cache._WATCH is None  # the watch ends with the inputs read
+        assert all(t.daemon for t in threading.enumerate() if isinstance(t, threading.Timer))
+    finally:
+        kernel_cache.disarm()
+
+
+def test_no_announcement_without_a_compilation(monkeypatch):
+    """Armed, with every kernel loaded from the cache (no numba:compile event), nothing is
+    printed until the announcement after the inputs asks whether the cache is cold."""
+    import io
+
+    stream = io.StringIO()
+    monkeypatch.setattr(kernel_cache.sys, "stderr", stream)
+    monkeypatch.setattr(kernel_cache, "ANNOUNCE_AFTER_S", 0.0)
+    kernel_cache.arm()
+    try:
+        assert kernel_cache._WATCH is not None and kernel_cache._WATCH.timer is None
+        assert stream.getvalue() == ""
+    finally:
+        kernel_cache.disarm()

@@ -6,13 +6,16 @@ under ``NUMBA_CACHE_DIR``) that records the source stamp (for openfdk's kernels:
 function's file and all numba-using openfdk sources, :mod:`openfdk.numerics.jit_cache`) and
 the compiled signatures. When that index is missing, or its stamp no longer matches the
 sources (an upgrade rewrote one), the first call compiles — 1–2 min for all the kernels of a
-run — and nothing is shown while it does.
+run — and nothing would be shown while it does.
 
 :func:`cache_is_cold` reads those index files (a few kB of pickles, milliseconds) through
 each dispatcher's own cache object, so it sees the same folder and staleness rule numba
 applies, and :func:`announce_cold_cache` prints one informational line before the first
 kernel call of a CLI command (``check`` after reading the model; the analyses after reading
-the model and the trial, through :func:`arm` and :func:`announce_armed`).
+the model and the trial, through :func:`arm` and :func:`announce_armed`). While the inputs
+are read, a model's own kernels may compile (DM's contacts and paths: about 2 min): a
+compilation that lasts :data:`ANNOUNCE_AFTER_S` prints the line then (numba's
+``numba:compile`` event, :class:`_CompileWatch`).
 """
 
 from __future__ import annotations
@@ -96,10 +99,11 @@ def cache_is_cold(modules=FRAME_KERNEL_MODULES):
     return n_total > 0 and 2 * n_cold >= n_total
 
 
-def announce_cold_cache(quiet=False, stream=None, modules=None):
+def announce_cold_cache(quiet=False, stream=None, modules=None, said=False):
     """Print :data:`MESSAGE` to ``stream`` (stderr) when the kernel cache of ``modules``
     (default :data:`FRAME_KERNEL_MODULES`) is cold and not ``quiet``; tell the progress
     displays to start their clocks after their first step (the one that compiles).
+    ``said``: the line was printed already (the compile watch), only the clocks are set.
     Returns whether the cache was cold."""
     from ..trial.progress import set_warmup
 
@@ -108,33 +112,115 @@ def announce_cold_cache(quiet=False, stream=None, modules=None):
     except Exception:  # numba missing or its internals changed: say nothing, run as usual
         return False
     set_warmup(cold)
-    if cold and not quiet:
-        stream = sys.stderr if stream is None else stream
-        print(MESSAGE, file=stream)
-        stream.flush()
+    if cold and not quiet and not said:
+        _say(stream)
     return cold
 
 
 _ARMED = None  # (quiet, modules) set by the CLI, used once the inputs are read
 
 
+#: seconds a kernel compilation must have run, while the inputs are still being read,
+#: before :data:`MESSAGE` is printed (a model's own kernels — DM's contacts, paths and
+#: grids — compile while it is built: about 2 min of silence on a cold cache before the
+#: announcement after the inputs; bad input fails in less, with its one line only)
+ANNOUNCE_AFTER_S = 2.0
+_ANNOUNCED = False  # MESSAGE printed by this command already
+_WATCH = None  # the armed command's compile watch (:class:`_CompileWatch`), or None
+
+
+class _CompileWatch:
+    """A numba ``numba:compile`` event listener, registered from :func:`arm` until the
+    inputs are read (:func:`announce_armed`): at the first compilation it starts a timer
+    that prints :data:`MESSAGE` after :data:`ANNOUNCE_AFTER_S` unless the inputs are read
+    first (numba fires the event only when it compiles, not when it loads a cached
+    kernel)."""
+
+    def __init__(self, quiet):
+        self.quiet, self.timer = quiet, None
+
+    def on_start(self, event):
+        import threading
+
+        if self.timer is None and not self.quiet:
+            self.timer = threading.Timer(ANNOUNCE_AFTER_S, _say_once)
+            self.timer.daemon = True
+            self.timer.start()
+
+    def on_end(self, event):
+        pass
+
+    def stop(self):
+        if self.timer is not None:
+            self.timer.cancel()
+
+
+def _say(stream=None):
+    """Print :data:`MESSAGE` (stderr)."""
+    stream = sys.stderr if stream is None else stream
+    print(MESSAGE, file=stream)
+    stream.flush()
+
+
+def _say_once():
+    """:func:`_say` unless the armed command said it already (the compile watch's timer)."""
+    global _ANNOUNCED
+    if not _ANNOUNCED:
+        _ANNOUNCED = True
+        _say()
+
+
+def _watch(quiet):
+    """Register a :class:`_CompileWatch` (nothing when numba's event API is missing)."""
+    global _WATCH
+    try:
+        from numba.core import event
+
+        listener = type("CompileWatch", (_CompileWatch, event.Listener), {})(quiet)
+        event.register("numba:compile", listener)
+    except Exception:  # numba missing or its internals changed: the announcement after the inputs only
+        return
+    _WATCH = listener
+
+
+def _unwatch():
+    global _WATCH
+    if _WATCH is None:
+        return
+    _WATCH.stop()
+    try:
+        from numba.core import event
+
+        event.unregister("numba:compile", _WATCH)
+    except Exception:  # noqa: BLE001 - already gone
+        pass
+    _WATCH = None
+
+
 def arm(quiet=False, modules=None):
     """Ask for :func:`announce_cold_cache` at the next :func:`announce_armed` (the analysis
-    calls it after reading the model and trial, so bad input still gives one line)."""
-    global _ARMED
-    _ARMED = (bool(quiet), modules)
+    calls it after reading the model and trial, so bad input still gives one line); and
+    meanwhile, should a kernel compile for longer than :data:`ANNOUNCE_AFTER_S` while the
+    inputs are read (the model's own kernels), print :data:`MESSAGE` then."""
+    global _ARMED, _ANNOUNCED
+    _ARMED, _ANNOUNCED = (bool(quiet), modules), False
+    _unwatch()
+    _watch(bool(quiet))
 
 
 def disarm():
-    global _ARMED
-    _ARMED = None
+    """Forget :func:`arm` (the CLI, when a command ends)."""
+    global _ARMED, _ANNOUNCED
+    _ARMED, _ANNOUNCED = None, False
+    _unwatch()
 
 
 def announce_armed(stream=None):
     """:func:`announce_cold_cache` once if :func:`arm` was called; else nothing."""
     global _ARMED
+    _unwatch()
     if _ARMED is None:
         return False
     quiet, modules = _ARMED
     _ARMED = None
-    return announce_cold_cache(quiet=quiet, stream=stream, modules=modules)
+    return announce_cold_cache(quiet=quiet, stream=stream, modules=modules, said=_ANNOUNCED)
