@@ -40,7 +40,7 @@ FRAME_KERNEL_MODULES = CHECK_KERNEL_MODULES + (
     "openfdk.recruitment.interior_point",
 )
 
-MESSAGE = ("openfdk: compiling numerical kernels (first run after install, about 1–2 min; "
+MESSAGE = ("openfdk: compiling numerical kernels (first run after install, about 1–3 min; "
            "cached afterwards)")
 
 
