@@ -341,11 +341,10 @@ def overlay_model_data(path, data):
 
 
 #: an overlay's keys that the command line's options (registered for the overlay file
-#: itself) replace: {key: (option's attribute of ImportOptions, the command line's flag)}
-_REPLACED_KEYS = {"ik_tasks": ("ik_tasks", "--ik-tasks"), "external_loads": ("external_loads", "--external-loads"),
-                  "external_loads_cutoff_hz": ("external_loads_cutoff_hz", "--external-loads-cutoff"),
-                  "motion": ("motion", "--motion"), "motion_cutoff_hz": ("motion_cutoff_hz", "--motion-cutoff"),
-                  "actuators": ("actuators", "--actuators"), "joint_reaction": ("joint_reaction", "--joint-reaction")}
+#: itself, ImportOptions' attributes of the same names) replace: {key: the option's flag}
+_REPLACED_KEYS = {"ik_tasks": "--ik-tasks", "external_loads": "--external-loads",
+                  "external_loads_cutoff_hz": "--external-loads-cutoff", "motion": "--motion",
+                  "motion_cutoff_hz": "--motion-cutoff", "actuators": "--actuators", "joint_reaction": "--joint-reaction"}
 
 
 def _command_line_keys(data, own, source):
@@ -360,8 +359,8 @@ def _command_line_keys(data, own, source):
     from ...model.plausibility import warn_plausibility
 
     out = dict(data)
-    for key, (attribute, flag) in _REPLACED_KEYS.items():
-        value = getattr(own, attribute)
+    for key, flag in _REPLACED_KEYS.items():
+        value = getattr(own, key)
         if value is None or value == 0:
             continue
         given = value if key.endswith("_hz") else str(Path(value).resolve())
