@@ -20,14 +20,7 @@ from openfdk.fixtures.full_body_osim import (
     write_full_body_trial,
 )
 from openfdk.io.storage import write_storage
-
-LOADS_XML = """<OpenSimDocument Version="40000"><ExternalLoads><objects>
-<ExternalForce name="grf_r"><applied_to_body>calcn_r</applied_to_body>
-<force_expressed_in_body>ground</force_expressed_in_body><point_expressed_in_body>ground</point_expressed_in_body>
-<force_identifier>g_v</force_identifier><point_identifier>g_p</point_identifier>
-<torque_identifier>g_t</torque_identifier></ExternalForce>
-</objects><datafile>grf.mot</datafile></ExternalLoads></OpenSimDocument>"""
-
+from test_load_filter import LOADS_XML  # the ExternalLoads of one ground reaction on calcn_r
 
 @pytest.fixture(scope="module")
 def body(tmp_path_factory):
