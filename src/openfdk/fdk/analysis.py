@@ -63,6 +63,7 @@ import numpy as np
 from ..dynamics.inverse import InverseDynamics
 from ..dynamics.results import forces_failure, forces_fields, forces_result, forces_values
 from ..kinematics.analysis import KinematicsResult, kinematics_fields, kinematics_result
+from ..kinematics.seeded_start import seed_start
 from ..kinematics.system import ConstraintSystem
 from ..kinematics.tracking import KKTFactors, MarkerTracker, TrackingSettings, window_spacing
 from ..trial import drive, restored
@@ -208,8 +209,12 @@ class FDKStep:
             nf = len(ctx.times)
             first = next((j for j in range(nf) if np.any(ctx.meas[j][3])), 0)
             ctx.tracker.initial_guess(state0, ctx.meas[first][0], ctx.meas[first][3])
-        self.last_state = state0
         self.a_init = np.array([d.initial for d in model.fdk_dofs])
+        if ctx.tracker is None and len(ctx.times):
+            # determinate kinematics: the first pose with the driven coordinates and the
+            # DOFs at their targets, a closed loop's on its near root (kinematics/seeded_start.py)
+            seed_start(self.system, state0, ctx.times[0], self.a_init)
+        self.last_state = state0
         self.history = []  # (frame, α) of the most recent converged frames
         self.warm = None
         self.J_carry = None  # the last converged frame's FDK Jacobian (settings.reuse_jacobian)

@@ -35,6 +35,7 @@ from .coordinate_bounds import CoordinateBounds, solve_bounded
 from .curvature import HessianPattern, lagrangian_hessian, second_order_terms
 from .determinate import FrameSolve, check_square, solve_positions, solve_velocities_accelerations
 from .stages import marker_stage, velocity_stage_tracking
+from .seeded_start import seed_start
 from .system import ConstraintSystem
 from .tracking import MarkerTracker, TrackingSettings, residual_rates, window_spacing
 
@@ -189,6 +190,8 @@ class DeterminateStep:
         self.system = ConstraintSystem(model)
         check_square(self.system)
         self.state = model.initial_state()
+        if len(times):  # the first pose, a closed loop's on its near root (kinematics/seeded_start.py)
+            seed_start(self.system, self.state, times[0], alpha)
         self.last_good = self.state.copy()
         self.rates = None  # (t, v, v̇, j or None) of the previous converged frame: the warm start's Taylor step
         self.frame_data = {}  # frame -> FrameData of the frame just finished (for the dynamics)

@@ -69,6 +69,9 @@ class TreePlan:
     value: np.ndarray
     fstart: np.ndarray
     fparams: np.ndarray
+    #: a partial plan's coordinates without a row of their own (:func:`partial_tree_plan`):
+    #: their measures, whose values are the targets of pseudo rows n_rows, n_rows + 1, …
+    free: tuple = ()
 
     @property
     def args(self):
@@ -90,10 +93,27 @@ def tree_plan(model, system):
     return cached
 
 
-def _build_plan(model, system):
-    if model.fdk_dofs:
+_PARTIAL_PLANS = weakref.WeakKeyDictionary()
+
+
+def partial_tree_plan(model, system):
+    """(TreePlan, "") of the tree pass that sets every coordinate with a row of its own
+    (a driver, a lock, an FDK DOF's row Φ^FDK = α) to its target and every other
+    coordinate to a given value (``TreePlan.free``, in the order of pseudo rows after
+    ``system``'s), skipping the rows of no coordinate (closed loops, distance
+    constraints); (None, the reason) when the model is not a tree of custom joints.
+    Built once per model and FDK rows (:mod:`.seeded_start` uses it)."""
+    plans = _PARTIAL_PLANS.setdefault(model, {})
+    key = bool(system.fdk)
+    if key not in plans:
+        plans[key] = _build_plan(model, system, partial=True)
+    return plans[key]
+
+
+def _build_plan(model, system, partial=False):
+    if model.fdk_dofs and not partial:
         return None, "the model has FDK DOFs"
-    if system.n_rows != system.n_coords:
+    if system.n_rows != system.n_coords and not partial:
         return None, f"{system.n_rows} constraint rows for {system.n_coords} coordinates"
     joints = [j for j in getattr(model, "joints", ()) if j.type == _JOINT_TYPE]
     others = [j.name for j in getattr(model, "joints", ()) if j.type != _JOINT_TYPE]
@@ -107,9 +127,15 @@ def _build_plan(model, system):
             pass
         elif c.size == 1 and id(c.measure) in coordinate and coordinate[id(c.measure)] not in driving:
             driving[coordinate[id(c.measure)]] = r
-        else:
+        elif not partial:
             return None, f"constraint {c.name!r} is neither an OpenSim joint nor its coordinate's only driver"
         r += c.size
+    for d in system.fdk if partial else ():  # the FDK rows follow the constraints' (system.py)
+        if id(d.measure) in coordinate and coordinate[id(d.measure)] not in driving:
+            driving[coordinate[id(d.measure)]] = r
+        r += 1
+    by_measure = {c.name: c.measure for c in model.coordinates}
+    free = []
     by_child, bodies = {}, model.bodies
     for j in joints:
         a, b = model.frame(j.parent), model.frame(j.child)
@@ -137,7 +163,10 @@ def _build_plan(model, system):
             if ax.coordinate is None:
                 value[k, s] = float(ax.function)
                 continue
-            if ax.coordinate not in driving:
+            if ax.coordinate not in driving and partial:
+                driving[ax.coordinate] = system.n_rows + len(free)
+                free.append(by_measure[ax.coordinate])
+            elif ax.coordinate not in driving:
                 return None, f"coordinate {ax.coordinate!r} is not set by a driver or a lock of its own"
             row[k, s] = driving[ax.coordinate]
             fstart[k, s] = len(fparams)
@@ -149,7 +178,7 @@ def _build_plan(model, system):
         np.array([a.p_BF for _, a, _, _ in order], float).reshape(nj, 3),
         np.array([b.R_BF for _, _, b, _ in order], float).reshape(nj, 3, 3),
         np.array([b.p_BF for _, _, b, _ in order], float).reshape(nj, 3),
-        axis, row, value, fstart, np.array(fparams, float))
+        axis, row, value, fstart, np.array(fparams, float), tuple(free))
     return plan, ""
 
 
