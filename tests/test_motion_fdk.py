@@ -157,6 +157,42 @@ constraints:
         assert ours[5] == pytest.approx(root, abs=1e-9)
 
 
+def test_a_kinematics_pass_names_a_loop_through_held_fdk_dofs(knee, tmp_path, monkeypatch, capsys):
+    """A kinematics pass holds the FDK DOFs at their initial values; a constraint that
+    closes a loop through their bodies (the reach to the tibia, whose knee_add is an FDK
+    DOF) is named in a warning, the first pass's pitfall of docs/gait.md. Without FDK
+    DOFs, or for the locks (a coordinate's own row), nothing is said."""
+    from openfdk.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    columns = {name: np.zeros(TIMES.size) for name in COORDINATES}
+    columns["knee_flex"] = 0.2 + 0.4 * TIMES
+    _write_motion(knee, columns)
+    loop = """\
+motion: knee.mot
+frames:
+  femur: {hub: [0.03, 0.02, 0.01]}
+  tibia: {hub: [0.02, -0.04, 0.0]}
+measures:
+  reach: {type: distance, from: ground.hub, to: tibia.hub}
+constraints:
+  reach_held: {measure: reach, value: 0.09}
+lock: [knee_rot]
+"""
+    for fdk, warned in (("fdk_dofs: [knee_add]\n", True), ("", False)):
+        overlay = _overlay(knee, loop + fdk, "held_loop.yaml")
+        code = main(["kinematics", str(overlay), "--out", str(tmp_path / f"kin{int(warned)}")])
+        err = capsys.readouterr().err
+        assert code == 0, err
+        said = [line for line in err.splitlines() if "closes a loop" in line]
+        if warned:
+            assert len(said) == 1 and said[0].startswith(
+                f"openfdk: warning: {overlay}: constraints.reach_held: a kinematics pass holds the FDK DOFs at their "
+                "initial values (knee_add)"), err
+        else:
+            assert said == [], err
+
+
 def test_a_trial_whose_markers_move_nothing_is_named(tmp_path, monkeypatch, capsys):
     """A trial given with a motion file that drives every coordinate: the markers have
     nothing to fit, and the run says so (the model alone leaves coordinates to them)."""

@@ -294,10 +294,12 @@ def kinematics_job(model_path, trial_path=None, cutoff_hz=None, progress=True, s
     the file and its measured loads are read, and warned about, once).
     Returns (KinematicsResult, info dict for the summary)."""
     from ..kinematics.analysis import run_determinate, run_tracking
-    from ..model.plausibility import warn_outlier_markers
+    from ..model.plausibility import warn_held_fdk_loops, warn_outlier_markers
 
     model, settings, label = loaded if loaded is not None else model_and_settings(model_path, settings)
     _refuse_redundant_rows(model, label)
+    if alpha is None:  # the FDK DOFs held at their initial values
+        warn_held_fdk_loops(model, label)
     info = {"model": label, **import_record(model_path)}
     # (kinematics use no loads: a trial's window is not cut to another trial's load data)
     traj, times, more = analysis_inputs(model, trial_path, cutoff_hz, start, end, settings, loads=False)

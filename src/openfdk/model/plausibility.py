@@ -154,6 +154,36 @@ def check_fdk_held(model, source=""):
               "(the paper uses 0.1 N/m), ligaments or contact")
 
 
+def held_fdk_loops(model):
+    """[(constraint name, [FDK DOF names])]: the model's loop rows (a constraint of no
+    OpenSim joint and no coordinate of its own, e.g. an inextensible patellar tendon)
+    that share a body with FDK DOFs. A kinematics pass holds the FDK DOFs at their
+    initial values, and such a row then closes a loop those held values shape: DM's
+    ``dm_pt.yaml`` stops the knee at 30° of flexion in og1's swing, and on the crouch
+    cycle with a motion file 110 of 152 frames fail at the tendon's row."""
+    coordinates = {id(c.measure) for c in model.coordinates}
+    out = []
+    for c in model.constraints:
+        if c.kind != "joint" or c.joint_type != "generic" or id(c.measure) in coordinates:
+            continue
+        bodies = set(c.measure.bodies())
+        shared = [d.name for d in model.fdk_dofs if bodies & set(d.measure.bodies())]
+        if shared:
+            out.append((c.name, shared))
+    return out
+
+
+def warn_held_fdk_loops(model, source=""):
+    """Warn, for a kinematics pass, about each row of :func:`held_fdk_loops`."""
+    for name, dofs in held_fdk_loops(model):
+        more = f" and {len(dofs) - 3} more" if len(dofs) > 3 else ""
+        _warn(f"{_where(source, f'constraints.{name}')}: a kinematics pass holds the FDK DOFs at their initial "
+              f"values ({', '.join(dofs[:3])}{more}), and this constraint closes a loop through their bodies: "
+              f"the coordinates it couples may stop short of the markers or the motion (a knee's flexion). For the "
+              f"first pass of two stages, use the model without it (docs/gait.md, 'The first pass must leave the "
+              f"primary coordinates free')")
+
+
 def check_passive_muscles(model, source="", length_unit="m"):
     """Warn for each Hill or Millard muscle whose passive force at the reference pose exceeds
     PASSIVE_FRACTION of its maximum isometric force F0. When Lf0 + Lt0 is under 1 % of
