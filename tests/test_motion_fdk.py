@@ -157,6 +157,41 @@ constraints:
         assert ours[5] == pytest.approx(root, abs=1e-9)
 
 
+def test_a_chunked_run_leaves_the_determined_coordinate_undriven(knee, tmp_path, monkeypatch, capsys):
+    """``openfdk run --chunks``: each segment's model is built from the case's mapping
+    (openfdk.study.case.build_case_model) as the file is on its own, so the motion's
+    column of the coordinate the constraint determines is left out there too. Until stop
+    71 the segments drove it as well (one row too many: every frame singular, DM's two
+    stages with --chunks). The chunks equal the serial run, whose knee_tz holds the
+    distance (test_a_constraint_leaves_its_coordinate_undriven)."""
+    from openfdk.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    columns = {"knee_flex": 0.2 + 0.4 * TIMES, "knee_add": 0.02 * np.sin(4 * TIMES), "knee_rot": -0.03 * TIMES,
+               "knee_tx": 0.001 * TIMES, "knee_ty": np.full(TIMES.size, 0.004), "knee_tz": 0.0005 - 0.002 * TIMES}
+    _write_motion(knee, columns)
+    overlay = _overlay(knee, """\
+motion: knee.mot
+frames:
+  femur: {hub: [0.03, 0.02, 0.01]}
+  tibia: {hub: [0.02, -0.04, 0.0]}
+measures:
+  reach: {type: distance, from: ground.hub, to: tibia.hub}
+constraints:
+  reach_held: {measure: reach, value: 0.09}
+""", "chunked_reach.yaml")
+    tables = {}
+    for name, extra in (("serial", []), ("chunked", ["--chunks", "2", "--workers", "0", "--overlap", "1"])):
+        code = main(["run", str(overlay), "--out", str(tmp_path / name), "--no-plots", *extra])
+        assert code == 0, capsys.readouterr().err
+        tables[name] = np.genfromtxt(tmp_path / name / "coordinates.csv", delimiter=",", names=True)
+    serial, chunked = tables["serial"], tables["chunked"]
+    assert chunked.size == serial.size == TIMES.size
+    for field in serial.dtype.names:
+        np.testing.assert_allclose(chunked[field], serial[field], rtol=0, atol=1e-9)
+    assert np.max(np.abs(serial["knee_tz_m"] - columns["knee_tz"])) > 1e-3  # the file's column is not used
+
+
 def test_a_kinematics_pass_names_a_loop_through_held_fdk_dofs(knee, tmp_path, monkeypatch, capsys):
     """A kinematics pass holds the FDK DOFs at their initial values; a constraint that
     closes a loop through their bodies (the reach to the tibia, whose knee_add is an FDK

@@ -76,23 +76,33 @@ def load_model_and_settings(path) -> tuple[Model, AnalysisSettings]:
     from .opensim.overlay import model_source
 
     data = model_file_data(path)
-    model, settings = _built(data, path, model_source(path))
+    model, settings = built_from_data(data, path, model_source(path))
     check_model(model, path.name, settings.units["length"])  # plausibility warnings
     return model, settings
 
 
-def _built(data, path, source):
-    """(Model, AnalysisSettings) of the model mapping ``data`` of the file ``path``. With a
+_FILE_NAME = object()  # built_from_data's default label: the file's name
+
+
+def built_from_data(data, path, source, base_dir=None, label=_FILE_NAME):
+    """(Model, AnalysisSettings) of the model mapping ``data`` of the file ``path``
+    (relative paths from ``base_dir``, default the file's folder; ``label`` names it in
+    the ground reactions' errors, default the file's name, None: ``source``). With a
     motion file's drivers, those of coordinates the model's own rows determine are left
     out (:func:`openfdk.io.opensim.motion.without_determined`) and recorded in the
     import's ``motion_not_driven``, the model built again without them, and the first
-    build's warnings given only when it is the one kept."""
+    build's warnings given only when it is the one kept. Every path from a model file
+    to a Model goes through here: ``openfdk run --chunks``' workers build the case's
+    mapping too (:func:`openfdk.study.case.build_case_model`)."""
     import warnings
 
     from .opensim.motion import is_motion_driver, without_determined
 
+    base_dir = path.parent if base_dir is None else base_dir
+    label = path.name if label is _FILE_NAME else label
+
     def build_from(mapping):
-        return model_and_settings_from_dict(mapping, source=source, base_dir=path.parent, label=path.name)
+        return model_and_settings_from_dict(mapping, source=source, base_dir=base_dir, label=label)
 
     drivers = data.get("drivers") if isinstance(data, dict) else None
     if not isinstance(drivers, dict) or not any(is_motion_driver(name, entry) for name, entry in drivers.items()):

@@ -55,12 +55,15 @@ def build_case_model(case):
     """(model, its AnalysisSettings, trial path or None, model label) of a case: the
     kind's prepare, then the overrides applied to the model mapping (settings sections
     included), then the model and its settings built."""
-    from ..io.modelfile import model_and_settings_from_dict
+    from ..io.modelfile import built_from_data
 
     prepared = import_callable(case.prepare)(case)
     data = apply_overrides(prepared.model_data, case.overrides, source=prepared.source)
-    model, settings = model_and_settings_from_dict(data, source=f"{prepared.source} [case {case.case_id}]",
-                                                   base_dir=prepared.base_dir)
+    # as the file is built on its own: a motion file's drivers that the model's rows
+    # determine are left out (a chunked run's workers drove pf_ty_r against DM's tendon)
+    model, settings = built_from_data(data, Path(prepared.base_dir or ".") / prepared.source,
+                                      f"{prepared.source} [case {case.case_id}]", base_dir=prepared.base_dir,
+                                      label=None)
     return model, settings, prepared.trial, str(Path(prepared.base_dir) / prepared.source)
 
 
