@@ -6,10 +6,10 @@ than one root, and a long first step can land on the far one. The DM knee's pate
 tendon is such a row: an inextensible distance |p_P − p_T| = L between the patella and
 the tibial tuberosity, the only row that sets ``pf_ty_r``. The squared distance is a
 quadratic in ``pf_ty_r``, with two roots: the patella above the tuberosity, and the
-patella pulled down through the tibia. From the extended reference pose to a crouch
-frame's 60° of flexion, Newton's first step took ``pf_ty_r`` from +8 mm to −124 mm,
-the far root (docs/gait.md, "Where the two stages fail"); the tracked FDK has it at
-−13 mm.
+patella pulled down through the tibia. From the extended reference pose to the first
+frame of a crouch cycle (28° of flexion), Newton's first step took ``pf_ty_r`` from
++8 mm to −124 mm, the far root; the tracked FDK has it at −13 mm (docs/gait.md, "Every
+one of DM's 17 cycles in two stages").
 
 The seeded start removes the long step: a tree pass from the root
 (:func:`.tree_kinematics.tree_forward`) sets every coordinate that has a row of its own
