@@ -652,6 +652,9 @@ def test_joint_loads_with_a_coordinate_coupler_equal_opensims(tmp_path, capsys, 
     ({"apply_on_bodies": "middle"}, "joint_reaction.apply_on_bodies: unknown body side 'middle'; expected one of "
                                     "['child', 'parent']"),
     ({"joints": "all"}, "joint_reaction.joints: unknown key; did you mean 'joint_names'?"),
+    # a mapping where a name belongs (hypothesis' fuzzing, stop 71: a TypeError before)
+    ({"joint_names": ["knee_r", {"side": "parent", "name": "femur_r"}]},
+     "joint_reaction.joint_names[1]: expected a non-empty name, got {'name': 'femur_r', 'side': 'parent'}"),
     ("missing.xml", "joint_reaction: "),
     ("<JointReaction><on>false</on></JointReaction>", "<on> is false: this JointReaction is switched off"),
     ("<AnalyzeTool/>", "no <JointReaction>"),

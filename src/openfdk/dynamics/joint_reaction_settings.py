@@ -90,6 +90,7 @@ def load_joint_reaction(b, data, ctx):
     if not isinstance(names, list) or not names:
         raise ctx.error(f"{label}.joint_names", f"expected all or a list of joint names, got {names!r}")
     for k, name in enumerate(names):
+        name = ctx.string(name, f"{label}.joint_names[{k}]")  # a mapping or a list is no name (and no key)
         if name not in records:
             from ..io.yamlfile import did_you_mean
 

@@ -100,6 +100,8 @@ def resolved(spec, data, info, source):
         chosen = [n for n in ends if isinstance(joints.get(n), dict)] or \
             [n for n, j in joints.items() if isinstance(j, dict) and j.get("child")]
     chosen = chosen if isinstance(chosen, list) else [chosen]
+    if not all(isinstance(name, str) for name in chosen):
+        return spec  # the section's reader names the entry that is no name
     out = dict(spec, joint_names=chosen)
     for key, default, each in (("apply_on_bodies", "child", _osim_side), ("express_in_frame", "ground", _osim_frame)):
         given = spec.get(key, default)
