@@ -210,6 +210,27 @@ def test_unfiltered_ground_reactions_are_named_in_a_warning(osim, tmp_path, caps
     assert "look unfiltered" not in capsys.readouterr().err
 
 
+def test_a_kinematics_pass_does_not_warn_about_loads_it_does_not_apply(osim, tmp_path, capsys):
+    """``openfdk kinematics`` applies no loads: the raw ground reactions of the model (an
+    overlay naming another trial's, DM's first pass) are not warned about there, where
+    ``check`` (above) and ``run`` warn."""
+    import openfdk
+    from openfdk.io.storage import write_storage
+
+    xml = _grf(tmp_path, noisy=True)
+    model = openfdk.load_model(osim, ignore=["Mesh"])
+    t = np.arange(0.0, 1.0, 0.05)
+    free = [c.name for c in model.coordinates if not (c.locked or c.prescribed)]
+    write_storage(tmp_path / "still.mot", t, {name: np.zeros(t.size) for name in free}, name="still")
+    code = main(["kinematics", str(osim), "--ignore", "Mesh", "--motion", str(tmp_path / "still.mot"),
+                 "--external-loads", str(xml), "--out", str(tmp_path / "kin"), "-q"])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "look unfiltered" not in err
+    assert _check(osim, xml) == 0  # the same model and loads, checked: warned
+    assert "look unfiltered" in capsys.readouterr().err
+
+
 def test_the_overlay_key_and_the_option_filter_the_loads_alike(osim, tmp_path):
     from openfdk.io.modelfile import load_model_and_settings
     from openfdk.io.opensim.overlay import register

@@ -211,7 +211,15 @@ def _cmd_kinematics(args):
     from ..analysis.kernel_cache import KINEMATICS_KERNEL_MODULES
 
     _announce_kernels(args, modules=KINEMATICS_KERNEL_MODULES)
-    loaded = model_and_settings(args.model)  # read once, for the run and its measures
+    import warnings
+
+    from ..model.plausibility import RawGroundReactionWarning
+
+    with warnings.catch_warnings():
+        # the model's measured loads are not applied in a kinematics pass (a first pass
+        # with an overlay that names another trial's loads warned about those)
+        warnings.simplefilter("ignore", RawGroundReactionWarning)
+        loaded = model_and_settings(args.model)  # read once, for the run and its measures
     result, info = kinematics_job(
         args.model, args.trial, cutoff_hz=args.cutoff, progress=_progress_on(args),
         start=args.start, end=args.end, loaded=loaded,

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..model.plausibility import warn_plausibility
+from ..model.plausibility import RawGroundReactionWarning, warn_plausibility
 from ..model.timefunctions import Constant, SplineThroughData
 from .data_loads import DataLoad
 from .load_filter import NOISY_RATIO, filter_load, noise_ratio
@@ -120,5 +120,5 @@ def load_external_loads(b, data, ctx):
             f"{Path(file).name}: the ground reaction(s) {names} look unfiltered (the RMS of their samples' second "
             f"differences over that of their first, in brackets: smooth data give far less than 1, white noise "
             f"1.7) while the markers are low-pass filtered: filter them alike with cutoff_hz (an overlay's "
-            f"external_loads_cutoff_hz, or --external-loads-cutoff), e.g. the markers' 6 Hz")
+            f"external_loads_cutoff_hz, or --external-loads-cutoff), e.g. the markers' 6 Hz", RawGroundReactionWarning)
     b.elements["external_loads"] = out

@@ -51,13 +51,19 @@ class PlausibilityWarning(UserWarning):
     """Input that is possible but probably wrong (units, orientation, parameters)."""
 
 
+class RawGroundReactionWarning(PlausibilityWarning):
+    """Ground reactions whose samples look unfiltered (:mod:`openfdk.forces.data_load_section`):
+    a matter for the runs that apply them, not for a kinematics pass."""
+
+
 def _warn(msg):
     warnings.warn(msg, PlausibilityWarning, stacklevel=3)
 
 
-def warn_plausibility(msg):
-    """Issue one plausibility warning (printed by the CLI as ``openfdk: warning: msg``)."""
-    warnings.warn(msg, PlausibilityWarning, stacklevel=3)
+def warn_plausibility(msg, category=PlausibilityWarning):
+    """Issue one plausibility warning (printed by the CLI as ``openfdk: warning: msg``);
+    ``category``: PlausibilityWarning or a subclass."""
+    warnings.warn(msg, category, stacklevel=3)
 
 
 # -- model ------------------------------------------------------------------------------
