@@ -193,7 +193,7 @@ constraints:
 
 
 def test_a_kinematics_pass_names_a_loop_through_held_fdk_dofs(knee, tmp_path, monkeypatch, capsys):
-    """A kinematics pass holds the FDK DOFs at their initial values; a constraint that
+    """A kinematics pass holds the FDK DOFs at their initial values; a held distance that
     closes a loop through their bodies (the reach to the tibia, whose knee_add is an FDK
     DOF) is named in a warning, the first pass's pitfall of docs/gait.md. Without FDK
     DOFs, or for the locks (a coordinate's own row), nothing is said."""
@@ -226,6 +226,28 @@ lock: [knee_rot]
                 "initial values (knee_add)"), err
         else:
             assert said == [], err
+
+
+def test_a_constraint_without_a_reach_is_not_named(tmp_path):
+    """The mandible model's hyoid follows the mandible by a position and an orientation
+    constraint (three rows each) that share the mandible with the TMJ's FDK DOFs. They
+    set the hyoid's whole pose and have no reach, so a kinematics pass is not warned
+    about them (held_fdk_loops names held distances only)."""
+    from openfdk.io.modelfile import load_model_and_settings
+    from openfdk.mandible.generator import create_subject
+    from openfdk.mandible.models import write_models
+    from openfdk.mandible.registration import register_from_braces
+    from openfdk.mandible.subject import load_subject
+    from openfdk.model.plausibility import held_fdk_loops
+
+    subject = load_subject(create_subject(tmp_path / "subject", resolution="coarse"))
+    paths = write_models(subject, register_from_braces(subject), tmp_path / "models")
+    model, _ = load_model_and_settings(paths["fdk"])
+    fdk_bodies = {b for d in model.fdk_dofs for b in d.measure.bodies()}
+    sharing = [c.name for c in model.constraints if c.joint_type == "generic"
+               and fdk_bodies & set(c.measure.bodies())]
+    assert {"hyoid_follows_mandible", "hyoid_orientation"} <= set(sharing)  # they do share the mandible
+    assert held_fdk_loops(model) == []
 
 
 def test_a_trial_whose_markers_move_nothing_is_named(tmp_path, monkeypatch, capsys):

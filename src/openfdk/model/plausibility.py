@@ -161,16 +161,19 @@ def check_fdk_held(model, source=""):
 
 
 def held_fdk_loops(model):
-    """[(constraint name, [FDK DOF names])]: the model's loop rows (a constraint of no
-    OpenSim joint and no coordinate of its own, e.g. an inextensible patellar tendon)
-    that share a body with FDK DOFs. A kinematics pass holds the FDK DOFs at their
-    initial values, and such a row then closes a loop those held values shape: DM's
-    ``dm_pt.yaml`` stops the knee at 30° of flexion in og1's swing, and on the crouch
-    cycle with a motion file 110 of 152 frames fail at the tendon's row."""
-    coordinates = {id(c.measure) for c in model.coordinates}
+    """[(constraint name, [FDK DOF names])]: the model's held distances (a constraint of
+    a distance measure, e.g. an inextensible patellar tendon) that share a body with FDK
+    DOFs. A kinematics pass holds the FDK DOFs at their initial values, and such a row
+    then closes a loop those held values shape, with a reach: DM's ``dm_pt.yaml`` stops
+    the knee at 30° of flexion in og1's swing, and on the crouch cycle with a motion file
+    110 of 152 frames fail at the tendon's row. Constraints that set a body's whole
+    position or orientation (the mandible model's hyoid following the mandible) have no
+    reach and are not named."""
+    from .measures import Distance
+
     out = []
     for c in model.constraints:
-        if c.kind != "joint" or c.joint_type != "generic" or id(c.measure) in coordinates:
+        if c.kind != "joint" or c.joint_type != "generic" or not isinstance(c.measure, Distance):
             continue
         bodies = set(c.measure.bodies())
         shared = [d.name for d in model.fdk_dofs if bodies & set(d.measure.bodies())]
@@ -184,7 +187,7 @@ def warn_held_fdk_loops(model, source=""):
     for name, dofs in held_fdk_loops(model):
         more = f" and {len(dofs) - 3} more" if len(dofs) > 3 else ""
         _warn(f"{_where(source, f'constraints.{name}')}: a kinematics pass holds the FDK DOFs at their initial "
-              f"values ({', '.join(dofs[:3])}{more}), and this constraint closes a loop through their bodies: "
+              f"values ({', '.join(dofs[:3])}{more}), and this held distance closes a loop through their bodies: "
               f"the coordinates it couples may stop short of the markers or the motion (a knee's flexion). For the "
               f"first pass of two stages, use the model without it (docs/gait.md, 'The first pass must leave the "
               f"primary coordinates free')")
