@@ -37,6 +37,26 @@ def _write_motion(folder, columns, name="knee.mot"):
     return folder / name
 
 
+#: the loop of the tests below: a femur point a_F (m) and a tibia point b_T (m) held at a
+#: distance (m), the only row that sets knee_tz (the femur is welded to the ground)
+REACH_A_F, REACH_B_T, REACH_LENGTH = np.array([0.03, 0.02, 0.01]), np.array([0.02, -0.04, 0.0]), 0.09
+
+
+def _reach_overlay(folder, name, extra="", a_F=REACH_A_F, b_T=REACH_B_T, length=REACH_LENGTH):
+    """An overlay of the knee driven by knee.mot with the distance |a_F − b_T| held at
+    ``length`` (constraint ``reach_held``), and the lines ``extra``."""
+    return _overlay(folder, f"""\
+motion: knee.mot
+frames:
+  femur: {{hub: {np.asarray(a_F).tolist()}}}
+  tibia: {{hub: {np.asarray(b_T).tolist()}}}
+measures:
+  reach: {{type: distance, from: ground.hub, to: tibia.hub}}
+constraints:
+  reach_held: {{measure: reach, value: {length}}}
+{extra}""", name)
+
+
 @pytest.fixture(scope="module")
 def knee(tmp_path_factory):
     folder = tmp_path_factory.mktemp("motion_knee")
@@ -99,18 +119,8 @@ def test_a_constraint_leaves_its_coordinate_undriven(knee, tmp_path, monkeypatch
     columns = {"knee_flex": 0.2 + 0.4 * TIMES, "knee_add": 0.02 * np.sin(4 * TIMES), "knee_rot": -0.03 * TIMES,
                "knee_tx": 0.001 * TIMES, "knee_ty": np.full(TIMES.size, 0.004), "knee_tz": 0.0005 - 0.002 * TIMES}
     _write_motion(knee, columns)
-    a_F, b_T = np.array([0.03, 0.02, 0.01]), np.array([0.02, -0.04, 0.0])
-    length = 0.09
-    overlay = _overlay(knee, f"""\
-motion: knee.mot
-frames:
-  femur: {{hub: {a_F.tolist()}}}
-  tibia: {{hub: {b_T.tolist()}}}
-measures:
-  reach: {{type: distance, from: ground.hub, to: tibia.hub}}  # the femur is welded to the ground
-constraints:
-  reach_held: {{measure: reach, value: {length}}}
-""", "motion_reach.yaml")
+    a_F, b_T, length = REACH_A_F, REACH_B_T, REACH_LENGTH
+    overlay = _reach_overlay(knee, "motion_reach.yaml")
     code = main(["kinematics", str(overlay), "--out", str(tmp_path / "kin")])
     err = capsys.readouterr().err
     assert code == 0, err
@@ -170,16 +180,7 @@ def test_a_chunked_run_leaves_the_determined_coordinate_undriven(knee, tmp_path,
     columns = {"knee_flex": 0.2 + 0.4 * TIMES, "knee_add": 0.02 * np.sin(4 * TIMES), "knee_rot": -0.03 * TIMES,
                "knee_tx": 0.001 * TIMES, "knee_ty": np.full(TIMES.size, 0.004), "knee_tz": 0.0005 - 0.002 * TIMES}
     _write_motion(knee, columns)
-    overlay = _overlay(knee, """\
-motion: knee.mot
-frames:
-  femur: {hub: [0.03, 0.02, 0.01]}
-  tibia: {hub: [0.02, -0.04, 0.0]}
-measures:
-  reach: {type: distance, from: ground.hub, to: tibia.hub}
-constraints:
-  reach_held: {measure: reach, value: 0.09}
-""", "chunked_reach.yaml")
+    overlay = _reach_overlay(knee, "chunked_reach.yaml")
     tables = {}
     for name, extra in (("serial", []), ("chunked", ["--chunks", "2", "--workers", "0", "--overlap", "1"])):
         code = main(["run", str(overlay), "--out", str(tmp_path / name), "--no-plots", *extra])
@@ -203,19 +204,8 @@ def test_a_kinematics_pass_names_a_loop_through_held_fdk_dofs(knee, tmp_path, mo
     columns = {name: np.zeros(TIMES.size) for name in COORDINATES}
     columns["knee_flex"] = 0.2 + 0.4 * TIMES
     _write_motion(knee, columns)
-    loop = """\
-motion: knee.mot
-frames:
-  femur: {hub: [0.03, 0.02, 0.01]}
-  tibia: {hub: [0.02, -0.04, 0.0]}
-measures:
-  reach: {type: distance, from: ground.hub, to: tibia.hub}
-constraints:
-  reach_held: {measure: reach, value: 0.09}
-lock: [knee_rot]
-"""
     for fdk, warned in (("fdk_dofs: [knee_add]\n", True), ("", False)):
-        overlay = _overlay(knee, loop + fdk, "held_loop.yaml")
+        overlay = _reach_overlay(knee, "held_loop.yaml", "lock: [knee_rot]\n" + fdk)
         code = main(["kinematics", str(overlay), "--out", str(tmp_path / f"kin{int(warned)}")])
         err = capsys.readouterr().err
         assert code == 0, err

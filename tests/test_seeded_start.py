@@ -24,8 +24,8 @@ import pytest
 
 pytest.importorskip("opensim")
 
-from test_knee_jam_fdk import _knee_model, _overlay, tibia_pose  # noqa: E402
-from test_motion_fdk import TIMES, _write_motion  # noqa: E402
+from test_knee_jam_fdk import _knee_model, tibia_pose  # noqa: E402
+from test_motion_fdk import TIMES, _reach_overlay, _write_motion  # noqa: E402
 
 import openfdk.kinematics.analysis as kinematics_analysis  # noqa: E402
 from openfdk.io.modelfile import load_model_and_settings  # noqa: E402
@@ -45,16 +45,7 @@ def _loop_overlay(folder, fdk=""):
     _knee_model(folder)
     _write_motion(folder, {"knee_flex": FLEXION, "knee_add": ADDUCTION, "knee_rot": ROTATION, "knee_tx": TX,
                            "knee_ty": TY, "knee_tz": np.zeros(TIMES.size)})
-    return _overlay(folder, f"""\
-motion: knee.mot
-{fdk}frames:
-  femur: {{hub: {A_F.tolist()}}}
-  tibia: {{hub: {B_T.tolist()}}}
-measures:
-  reach: {{type: distance, from: ground.hub, to: tibia.hub}}
-constraints:
-  reach_held: {{measure: reach, value: {LENGTH}}}
-""", "loop.yaml")
+    return _reach_overlay(folder, "loop.yaml", fdk, A_F, B_T, LENGTH)
 
 
 def _roots(q5):
