@@ -598,3 +598,71 @@ def test_the_checkpoint_format_round_trips_what_a_checkpoint_holds():
     assert isinstance(split2, ContactSplit) and split2.J_whole is None
     for name in ("U", "R", "cols", "blocks", "J_s"):
         assert np.array_equal(getattr(split2, name), getattr(split, name))
+
+
+# -- the command line's own options (stop 72's sweep) -------------------------------------
+
+@pytest.mark.parametrize("address", ["not a url", "", "localhost", "inproc://x", "tcp://127.0.0.1:0",
+                                     "tcp://host:99999", "tcp://:8786", "tcp://a b:8786"])
+def test_a_malformed_scheduler_address_is_a_usage_error(finished, tmp_path, capsys, address):
+    """distributed's parse error came after its client had started: a traceback from the
+    client's clean-up after a two-minute wait (exit 2 only then). Now argparse refuses it
+    at once, naming the option, and nothing is written."""
+    t0 = time.perf_counter()
+    with pytest.raises(SystemExit) as exc:
+        main(["run", str(finished[0]), str(finished[1]), "--chunks", "2", "--scheduler", address,
+              "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and time.perf_counter() - t0 < 10.0
+    assert "argument --scheduler: expected a scheduler address" in err and repr(address) in err
+    assert "Traceback" not in err and not (tmp_path / "o").exists()
+
+
+def test_a_well_formed_scheduler_address_is_taken_as_given():
+    from openfdk.cli.argtypes import scheduler_address
+
+    for address in ("tcp://10.0.0.5:8786", "10.0.0.5:8786", "tls://[::1]:8786", " ucx://node7:1 "):
+        assert scheduler_address(address) == address.strip()
+
+
+@pytest.mark.parametrize("options", [["--scheduler", "tcp://127.0.0.1:8786"], ["--workers", "2"]])
+def test_cluster_options_of_a_serial_run_are_refused(finished, tmp_path, capsys, options):
+    """--scheduler and --workers were accepted and ignored by a run without --chunks."""
+    code, _, err = _run(capsys, "run", finished[0], finished[1], *options, "--out", tmp_path / "o")
+    assert code == 2
+    assert f"{options[0]} is used only with --chunks K >= 2" in _error_line(err)
+    assert not (tmp_path / "o").exists()
+
+
+def test_an_out_through_dot_dot_creates_only_that_folder(finished, tmp_path, monkeypatch, capsys):
+    """``--out sub/../../res`` made an empty ``sub/`` in the working folder on its way."""
+    work = tmp_path / "a" / "b"
+    work.mkdir(parents=True)
+    monkeypatch.chdir(work)
+    code, _, err = _run(capsys, "kinematics", finished[0], finished[1], "--out", "sub/../../res", "--no-progress")
+    assert code == 0, err
+    assert sorted(p.name for p in work.iterdir()) == []
+    assert (tmp_path / "a" / "res" / "kinematics.csv").is_file()
+
+
+def test_force_clears_the_earlier_runs_other_tables(finished, result, capsys):
+    """A table the new run does not write (``joint_loads.csv`` of an earlier run, or one
+    left by hand) stayed beside the new results and was read and plotted as theirs.
+    A folder holding only such a table is a result folder too."""
+    from openfdk.results.run import read_results
+
+    (result / "joint_loads.csv").write_text((result / "forces.csv").read_text())
+    (result / "plots").mkdir(exist_ok=True)
+    (result / "plots" / "joint_loads.png").write_bytes(b"\x89PNG stale")
+    assert read_results(result).joint_loads is not None  # read as the run's, before
+    code, _, err = _run(capsys, "kinematics", finished[0], finished[1], "--out", result, "--force", "--no-progress")
+    assert code == 0, err
+    assert not (result / "joint_loads.csv").exists() and not (result / "plots" / "joint_loads.png").exists()
+    assert not (result / "forces.csv").exists()  # the earlier run's forces: kinematics writes none
+    assert read_results(result).joint_loads is None
+    lone = result.parent / "lone"
+    lone.mkdir()
+    (lone / "moment_arms.csv").write_text("time,m.q\n0,0.01\n")
+    code, _, err = _run(capsys, "kinematics", finished[0], finished[1], "--out", lone, "--no-progress")
+    assert code == 2 and "already holds results (moment_arms.csv)" in _error_line(err)
+    assert (lone / "moment_arms.csv").read_text() == "time,m.q\n0,0.01\n"

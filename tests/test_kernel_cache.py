@@ -292,3 +292,42 @@ def test_no_announcement_without_a_compilation(monkeypatch):
         assert stream.getvalue() == ""
     finally:
         kernel_cache.disarm()
+
+
+def test_check_announces_a_compilation_while_the_model_is_read(tmp_path, capsys, monkeypatch):
+    """Found walking the knee tutorial on a fresh clone: after ``make demo`` the check's own
+    kernels were cached, but DM's model compiled its contact and path kernels for 69 s
+    while ``openfdk check dm.yaml`` read it, in silence (check announced only after the
+    model was read, and only for the check's kernels). A compilation while check reads the
+    model now prints the line, once, although the check's kernels are warm."""
+    import numba
+    import yaml
+
+    from openfdk.cli import main
+    from openfdk.fixtures.synthetic import two_body_model_dict
+    from openfdk.io import modelfile
+
+    path = tmp_path / "model.yaml"
+    path.write_text(yaml.safe_dump(two_body_model_dict(), sort_keys=False))
+    monkeypatch.setattr(kernel_cache, "ANNOUNCE_AFTER_S", 0.0)
+    monkeypatch.setattr(kernel_cache, "cache_is_cold", lambda modules: False)
+    read = modelfile.load_model
+
+    def compiling_read(*args, **kwargs):
+        @numba.njit(cache=False)
+        def fresh(x):  # a new function: numba compiles it at the first call
+            return 3.0 * x
+
+        assert fresh(2.0) == 6.0
+        if kernel_cache._WATCH is not None and kernel_cache._WATCH.timer is not None:
+            kernel_cache._WATCH.timer.join(5.0)
+        return read(*args, **kwargs)
+
+    monkeypatch.setattr(modelfile, "load_model", compiling_read)
+    code = main(["check", str(path)])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert err.count(kernel_cache.MESSAGE) == 1
+    monkeypatch.setattr(modelfile, "load_model", read)
+    code = main(["check", str(path)])  # no compilation, warm cache: no line
+    assert code == 0 and kernel_cache.MESSAGE not in capsys.readouterr().err

@@ -301,3 +301,33 @@ def test_a_motion_given_twice(knee, tmp_path, monkeypatch, capsys):
     code = main(["kinematics", str(knee / "no_motion.yaml"), "--motion-cutoff", "6", "--out", str(tmp_path / "k4")])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "no_motion.yaml: --motion-cutoff: filters the coordinates of motion" in err[0]
+
+
+def test_a_run_never_writes_over_its_own_motion(knee, tmp_path, capsys):
+    """The two stages of docs/gait.md read a first pass's ``coordinates.mot``, the name
+    every run writes. With ``--out`` at that folder the run replaced its own input (exit 0,
+    no warning); now it is refused before anything is written, whether the motion comes
+    from ``--motion`` or from an overlay's ``motion:``, and the file keeps its bytes."""
+    from openfdk.cli import main
+
+    first = tmp_path / "first"
+    first.mkdir()
+    flexed = {name: np.zeros(TIMES.size) for name in COORDINATES}
+    flexed["knee_flex"] = 0.3 + 0.5 * TIMES
+    motion = _write_motion(first, flexed, "coordinates.mot")
+    before = motion.read_bytes()
+    code = main(["kinematics", str(knee / "knee.osim"), "--motion", str(motion), "--out", str(first)])
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err
+    assert (f"{str(motion)!r} (--motion) is inside the output folder {str(first)!r}, where the run writes its "
+            "results; choose another --out") in err
+    (tmp_path / "over.yaml").write_text(f"opensim: {knee / 'knee.osim'}\nmotion: first/coordinates.mot\n")
+    code = main(["kinematics", str(tmp_path / "over.yaml"), "--out", str(tmp_path / "first" / ".")])
+    err = capsys.readouterr().err
+    assert code == 2 and "(over.yaml: first/coordinates.mot) is inside the output folder" in err, err
+    assert motion.read_bytes() == before and sorted(p.name for p in first.iterdir()) == ["coordinates.mot"]
+    # the same motion read from beside the output folder runs, and its flexion is the file's
+    code = main(["kinematics", str(knee / "knee.osim"), "--motion", str(motion), "--out", str(tmp_path / "k")])
+    assert code == 0, capsys.readouterr().err
+    table = np.genfromtxt(tmp_path / "k" / "coordinates.csv", delimiter=",", names=True)
+    np.testing.assert_allclose(table["knee_flex_rad"], 0.3 + 0.5 * table["time"], rtol=0, atol=1e-10)

@@ -52,6 +52,29 @@ def count(minimum):
     parse.__name__ = f"integer >= {minimum}"
     return parse
 
+#: the transports a Dask scheduler is reached over from another process (``inproc://``
+#: names a scheduler in this same process, which a command line cannot have)
+SCHEDULER_PROTOCOLS = ("tcp", "tls", "ws", "wss", "ucx")
+
+
+def scheduler_address(text):
+    """A Dask scheduler's address, ``[PROTOCOL://]HOST:PORT`` with PROTOCOL one of
+    :data:`SCHEDULER_PROTOCOLS` (default tcp) and PORT 1–65535, returned as given. Checked
+    here because distributed's own parse error comes after its client has started, whose
+    clean-up then waits out its connect timeout (two minutes) and prints a traceback."""
+    protocol, sep, rest = str(text).strip().partition("://")
+    if not sep:
+        protocol, rest = "tcp", protocol
+    host, colon, port = rest.rpartition(":")
+    if protocol not in SCHEDULER_PROTOCOLS:
+        raise argparse.ArgumentTypeError(
+            f"expected a scheduler address PROTOCOL://HOST:PORT with PROTOCOL one of "
+            f"{', '.join(SCHEDULER_PROTOCOLS)}, got {text!r}")
+    if not (colon and host.strip("[]") and port.isdigit() and 1 <= int(port) <= 65535) or any(c.isspace() for c in rest):
+        raise argparse.ArgumentTypeError(f"expected a scheduler address HOST:PORT (e.g. tcp://10.0.0.5:8786), got {text!r}")
+    return str(text).strip()
+
+
 def _display_arguments(p, top=False, progress=True):
     """--no-progress and --quiet (on the main parser and on every subcommand; ``progress``
     False: --quiet only, for a command without a progress display)."""

@@ -32,6 +32,7 @@ import re
 import sys
 import time
 import warnings
+from pathlib import Path
 from collections import Counter
 
 from . import argtypes
@@ -50,8 +51,11 @@ def _cmd_check(args):
     from ..io.modelfile import load_model
     from ..analysis.model_check import check_model
 
+    _announce_kernels(args, check=True)  # armed: a model whose own kernels compile while it is read says so
     model = load_model(args.model)
-    _announce_kernels(args, check=True)
+    from ..analysis.kernel_cache import announce_armed
+
+    announce_armed()  # the check's kernels (CHECK_KERNEL_MODULES) cold: the line now, once
     report = check_model(model)
     _say(args, "\n".join(report.lines))
     if not report.ok:
@@ -67,7 +71,7 @@ def _cmd_import_opensim(args):
     from ..io.opensim.write_yaml import write_imported
     from ..io.outdir import check_output_dir
 
-    check_output_dir(args.out, force=args.force)
+    args.out = str(check_output_dir(args.out, force=args.force))
     data = imported_model_data(args.model)
     if data is None:
         raise UserError(f"{args.model}: not an OpenSim model (.osim)")
@@ -108,16 +112,14 @@ def _cmd_cache(args):
 def _announce_kernels(args, check=False, modules=None):
     """One line on stderr when numba's kernel cache is cold (first run after install or
     upgrade), unless --quiet, once the inputs are read and before the first kernel call:
-    now for ``check`` (model read), else when the analysis has read the model and trial
-    (:func:`openfdk.analysis.jobs.analysis_inputs`). The progress displays then start after each
+    when ``check`` has read the model, or when the analysis has read the model and trial
+    (:func:`openfdk.analysis.jobs.analysis_inputs`); and 2 s into a compilation while the
+    model is read (a model's own kernels, :func:`~openfdk.analysis.kernel_cache.arm`). The progress displays then start after each
     stage's first (compiling) frame. ``modules``: the kernel modules the command calls
     (default: a frame's kinematics, equilibrium and recruitment)."""
-    from ..analysis.kernel_cache import CHECK_KERNEL_MODULES, announce_cold_cache, arm
+    from ..analysis.kernel_cache import CHECK_KERNEL_MODULES, arm
 
-    if check:
-        announce_cold_cache(quiet=getattr(args, "quiet", False), modules=CHECK_KERNEL_MODULES)
-    else:
-        arm(quiet=getattr(args, "quiet", False), modules=modules)
+    arm(quiet=getattr(args, "quiet", False), modules=CHECK_KERNEL_MODULES if check else modules)
 
 
 def _rate(frames_per_second):
@@ -159,9 +161,38 @@ def _check_window(args):
 
 def _prepare_out(args):
     """Output folder checked before any computation (writable; results only with --force)."""
-    from ..io.outdir import check_output_dir
+    from ..io.outdir import check_output_dir, refuse_inputs_inside
 
-    check_output_dir(args.out, force=args.force, resume=getattr(args, "resume", False))
+    refuse_inputs_inside(args.out, _input_files(args))  # first: --force clears the folder's results
+    args.out = str(check_output_dir(args.out, force=args.force, resume=getattr(args, "resume", False)))
+
+
+#: the command line's options that name an input file (argparse dest, option)
+_FILE_OPTIONS = (("overlay", "--with"), ("ik_tasks", "--ik-tasks"), ("external_loads", "--external-loads"),
+                 ("motion", "--motion"), ("actuators", "--actuators"), ("joint_reaction", "--joint-reaction"))
+
+
+def _input_files(args):
+    """(label, path) of the files a run reads: the model, the trial, the files the command
+    line's options name, those the model file names (an overlay's keys), and the data
+    file of each ExternalLoads file among them (its ``<datafile>``, relative to it)."""
+    from ..io.fingerprint import referenced_files
+
+    files = [("model", args.model)] + ([("trial", args.trial)] if getattr(args, "trial", None) else [])
+    files += [(flag, getattr(args, dest)) for dest, flag in _FILE_OPTIONS if getattr(args, dest, None)]
+    try:
+        files += [(f"{Path(args.model).name}: {name}", path) for name, path in referenced_files(args.model)]
+    except Exception:  # noqa: BLE001 -- an unreadable model file: its own one-line error comes when it is read
+        pass
+    for label, path in list(files):
+        if str(path).lower().endswith(".xml") and Path(path).is_file():
+            try:
+                text = Path(path).read_text(encoding="utf-8", errors="replace")[:1_000_000]
+            except OSError:
+                continue
+            files += [(f"{Path(path).name}: datafile", Path(path).parent / m.strip())
+                      for m in re.findall(r"<datafile>([^<]*)</datafile>", text) if m.strip()]
+    return files
 
 
 def _read_trial_first(args):
@@ -356,6 +387,9 @@ def _rim_check(model, kin):
 def _cmd_run(args):
     if args.checkpoint_frames < 1 or not args.checkpoint_seconds > 0:
         raise UserError("--checkpoint-frames must be >= 1 and --checkpoint-seconds > 0")
+    unused = [o for o, v in (("--scheduler", args.scheduler), ("--workers", args.workers)) if v is not None]
+    if args.chunks == 1 and unused:  # a serial run starts no cluster: the option would be ignored
+        raise UserError(f"{' and '.join(unused)} {'is' if len(unused) == 1 else 'are'} used only with --chunks K >= 2")
     _check_window(args)
     _prepare_out(args)
     _read_trial_first(args)
@@ -467,7 +501,7 @@ def _cmd_demo(args):
     from ..mandible.demo import run_demo
 
     # before any computation: the demo folder (subject reused) and its study results
-    check_output_dir(args.out)
+    args.out = str(check_output_dir(args.out))
     check_output_dir(Path(args.out) / "study", force=args.force)
     _announce_kernels(args)
     result = run_demo(args.out, quick=args.quick, progress=_progress_on(args), workers=args.workers, log=_log(args))
@@ -510,7 +544,7 @@ def _cmd_subject(args):
         from ..io.outdir import check_output_dir
 
         out = args.out or f"{args.directory.rstrip('/')}-study"
-        check_output_dir(out, force=args.force)  # before any computation
+        out = str(check_output_dir(out, force=args.force))  # before any computation
         _announce_kernels(args)
         cycles = 5 if args.cycles is None else (None if args.cycles == "all" else args.cycles)
         result = run_study(args.directory, out, n_cycles=cycles, quick=args.quick, progress=_progress_on(args),
@@ -713,7 +747,7 @@ def _subject_parser(sub):
                    help="cycles analysed per task, a number or 'all' (default 5; a task's own count in trials: wins)")
     t.add_argument("--workers", type=argtypes.count(0), default=None,
                    help="parameter-study worker processes (default one per CPU, 0 = this process)")
-    t.add_argument("--scheduler", default=None, help="address of a running Dask scheduler")
+    t.add_argument("--scheduler", type=argtypes.scheduler_address, default=None, help="address of a running Dask scheduler")
     t.add_argument("--quick", action="store_true",
                    help="a 2-model parameter study on open-close only (as openfdk demo --quick)")
     t.add_argument("--no-parameter-study", action="store_true", help="skip the ligament parameter study")
@@ -721,8 +755,17 @@ def _subject_parser(sub):
     s.set_defaults(func=_cmd_subject)
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser with a one-line usage error: ``openfdk run: error: MESSAGE (see
+    openfdk run --help)``, exit 2, without the usage block argparse prints first (the
+    subcommands' parsers are of this class too)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser():
-    p = argparse.ArgumentParser(prog="openfdk", description="Force-dependent kinematics and musculoskeletal analysis",
+    p = _Parser(prog="openfdk", description="Force-dependent kinematics and musculoskeletal analysis",
                                 epilog="Exit codes: 0 success; 2 bad input; 3 more frames failed than --max-failed; "
                                        "130 interrupted.")
     p.add_argument("--version", action="version", version=f"openfdk {_version()}", help="print the version and exit")

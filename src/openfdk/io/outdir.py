@@ -20,10 +20,34 @@ class OutputDirError(ValueError):
     """The output folder cannot be used; the message names it and says what to do."""
 
 
-def holds_results(path) -> list:
-    """Names of the result files (:data:`RESULT_FILES`) present in folder ``path``."""
+#: the other tables a run may write (each with its OpenSim twin), read beside the
+#: results when present (:meth:`openfdk.results.run.RunResults.read`, the viewer)
+OPTIONAL_RESULT_FILES = tuple(f"{name}.{ext}" for name in ("measures", "coordinates", "joint_loads", "moment_arms",
+                                                           "generalized_forces", "grf")
+                              for ext in ("csv", "sto")) + ("coordinates.mot", "kinematics.sto", "forces.sto")
+
+
+def holds_results(path, optional=False) -> list:
+    """Names of the result files (:data:`RESULT_FILES`; with ``optional`` also
+    :data:`OPTIONAL_RESULT_FILES`) present in folder ``path``."""
     p = Path(path)
-    return [f for f in RESULT_FILES if (p / f).is_file()] if p.is_dir() else []
+    names = (*RESULT_FILES, *OPTIONAL_RESULT_FILES) if optional else RESULT_FILES
+    return [f for f in names if (p / f).is_file()] if p.is_dir() else []
+
+
+def clear_results(path):
+    """Remove an earlier run's results from folder ``path`` before ``--force`` writes
+    new ones: every file :func:`holds_results` names, ``view.html`` and the figures in
+    ``plots/``. A table or figure the new run does not write would otherwise stay and be
+    read and shown as this run's (a ``moment_arms.csv`` of a run with ``--moment-arms``,
+    plotted after a run without it)."""
+    p = Path(path)
+    stale = [p / f for f in (*holds_results(p, optional=True), "view.html") if (p / f).is_file()]
+    plots = p / "plots"
+    if plots.is_dir() and not plots.is_symlink():
+        stale += [f for f in plots.iterdir() if f.suffix.lower() in (".png", ".svg", ".pdf") and f.is_file()]
+    for f in stale:
+        f.unlink()
 
 
 #: entries of an output folder that openfdk writes (a planted symbolic link there is refused)
@@ -67,6 +91,28 @@ def write_new_file(path, data: bytes):
         fh.write(data)
 
 
+#: suffixes of the files a run writes (tables, OpenSim storage and motion files, the
+#: summary, the viewer, the figures): an input file with one of them inside the output
+#: folder could be overwritten by the run that reads it
+WRITTEN_SUFFIXES = (".csv", ".sto", ".mot", ".json", ".html", ".png")
+
+
+def refuse_inputs_inside(path, inputs):
+    """OutputDirError when one of ``inputs`` ((label, path) pairs: the option that named
+    the file, and the file) lies inside the output folder ``path`` (at any depth, links
+    resolved) with a suffix a run writes (:data:`WRITTEN_SUFFIXES`): the two-stage runs
+    of docs/gait.md read ``coordinates.mot``, the very name a run writes, and a run with
+    ``--out`` at its motion's folder replaced its own input."""
+    if not str(path).strip():
+        return  # no folder: check_output_dir's own error
+    out = Path(os.path.realpath(path))
+    for label, name in inputs:
+        real = Path(os.path.realpath(name))
+        if real.suffix.lower() in WRITTEN_SUFFIXES and real.is_file() and out in real.parents:
+            raise OutputDirError(f"{str(name)!r} ({label}) is inside the output folder {str(path)!r}, where "
+                                 "the run writes its results; choose another --out")
+
+
 def _partial(p):
     """True when ``p/summary.json`` marks an interrupted run (``"partial": true``)."""
     import json
@@ -79,7 +125,8 @@ def _partial(p):
 
 
 def check_output_dir(path, force=False, resume=False) -> Path:
-    """Check the output folder ``path`` before a run and return it as a Path.
+    """Check the output folder ``path`` before a run and return it as a Path (resolved
+    when ``path`` goes through "..").
 
     Raises :class:`OutputDirError` when ``path`` is a file, cannot be created or written,
     or holds results of an earlier run while neither ``force`` (overwrite them) nor
@@ -90,11 +137,13 @@ def check_output_dir(path, force=False, resume=False) -> Path:
     """
     if not str(path).strip():
         raise OutputDirError("the output folder is empty (--out ''); give a folder name")
-    p = Path(path)
+    # a path through "..": the folder it names, links resolved (created parent by parent,
+    # "sub/../../res" left an empty sub/ where nothing was asked for); use the returned path
+    p = Path(os.path.realpath(path)) if ".." in Path(path).parts else Path(path)
     if p.exists() and not p.is_dir():
         raise OutputDirError(f"output folder {str(p)!r} is a file, not a folder")
     refuse_links(p)
-    found = holds_results(p)
+    found = holds_results(p) or holds_results(p, optional=True)  # named: the main results, else the others
     if found and resume and not force and not (p / ".checkpoint").is_dir() and not _partial(p):
         raise OutputDirError(f"output folder {str(p)!r} already holds results ({', '.join(found)}) and no "
                              "checkpoint to resume (.checkpoint); use --force to overwrite them or choose "
@@ -102,6 +151,8 @@ def check_output_dir(path, force=False, resume=False) -> Path:
     if found and not (force or resume):
         raise OutputDirError(f"output folder {str(p)!r} already holds results ({', '.join(found)}); "
                              "use --force to overwrite them or choose another --out")
+    if found and force:
+        clear_results(p)
     try:
         p.mkdir(parents=True, exist_ok=True)
         probe = p / f".openfdk-write-test-{uuid.uuid4().hex}"

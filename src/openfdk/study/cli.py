@@ -30,7 +30,7 @@ def add_study_parser(subparsers):
     )
     p.add_argument("study", help="study file (YAML)")
     p.add_argument("--out", required=True, help="output directory (one folder per case, summary.csv)")
-    p.add_argument("--scheduler", default=None,
+    p.add_argument("--scheduler", type=argtypes.scheduler_address, default=None,
                    help="address of a running Dask scheduler (default: a LocalCluster here)")
     p.add_argument("--workers", type=argtypes.count(0), default=None,
                    help="LocalCluster worker processes (default: CPU count); 0 = run the cases in this process")
@@ -52,7 +52,7 @@ def add_chunk_arguments(parser):
                         help="split the trial into K frame segments solved in parallel, then stitched (default 1)")
     parser.add_argument("--overlap", type=argtypes.count(0), default=DEFAULT_OVERLAP,
                         help=f"warm-up frames solved before each chunk and dropped (default {DEFAULT_OVERLAP})")
-    parser.add_argument("--scheduler", default=None,
+    parser.add_argument("--scheduler", type=argtypes.scheduler_address, default=None,
                         help="address of a running Dask scheduler (default: a LocalCluster)")
     parser.add_argument("--workers", type=argtypes.count(0), default=None,
                         help="LocalCluster worker processes (default: min(chunks, CPUs)); 0 = in this process")
