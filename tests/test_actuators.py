@@ -302,10 +302,11 @@ def test_actuator_files_of_opensim(tmp_path, monkeypatch, capsys):
             ('<CoordinateActuator name="x"><coordinate>elbow</coordinate></CoordinateActuator>',
              "unknown coordinate 'elbow'"),
             ('<CoordinateActuator name="x"><coordinate>hip_flexion_r</coordinate><optimal_force>-1</optimal_force>'
-             "</CoordinateActuator>", "optimal_force must be a positive number")):
+             "</CoordinateActuator>", "line 2: CoordinateActuator 'x': optimal_force must be a positive number")):
         code = main(["check", str(model), "--actuators", file(body)])
         err = capsys.readouterr().err.strip().splitlines()
         assert code == 2 and len(err) == 1 and "act.xml" in err[0] and expected in err[0], err
+        assert err[0].count("Actuator '") == 1, err  # the actuator named once (stop 72's sweep: twice)
 
 
 @pytest.mark.parametrize("p", [2.0, 3.0])

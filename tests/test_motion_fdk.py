@@ -331,3 +331,25 @@ def test_a_run_never_writes_over_its_own_motion(knee, tmp_path, capsys):
     assert code == 0, capsys.readouterr().err
     table = np.genfromtxt(tmp_path / "k" / "coordinates.csv", delimiter=",", names=True)
     np.testing.assert_allclose(table["knee_flex_rad"], 0.3 + 0.5 * table["time"], rtol=0, atol=1e-10)
+
+
+def test_an_overlays_file_keys_name_the_overlay_in_their_errors(knee, tmp_path, capsys):
+    """A bad file named by an overlay's ``motion:`` or ``external_loads:`` was reported as
+    if from the command line (``--motion: passwd: …``, ``passwd: not well-formed XML``),
+    without the overlay; ``motion: null`` was read as no motion, and the run failed later
+    for want of drivers. Each now names the overlay and the key."""
+    from openfdk.cli import main
+
+    (tmp_path / "not_a_motion.txt").write_text("root:x:0:0:root:/root:/bin/bash\n")
+    cases = {"motion: not_a_motion.txt": "over.yaml: motion: not_a_motion.txt: no 'endheader' line",
+             "motion: null": "over.yaml: motion: expected an existing .mot/.sto file, got None",
+             "motion: knee.mot\nexternal_loads: not_a_motion.txt":
+                 "over.yaml: external_loads: not_a_motion.txt: not well-formed XML"}
+    _write_motion(tmp_path, {name: np.zeros(TIMES.size) for name in COORDINATES})
+    for text, expected in cases.items():
+        (tmp_path / "over.yaml").write_text(f"opensim: {knee / 'knee.osim'}\n{text}\n")
+        code = main(["check", str(tmp_path / "over.yaml")])
+        err = capsys.readouterr().err
+        lines = [ln for ln in err.splitlines() if ln.startswith("openfdk: error:")]
+        assert code == 2 and len(lines) == 1 and "Traceback" not in err, err
+        assert lines[0].startswith(f"openfdk: error: {expected}"), lines

@@ -52,7 +52,7 @@ def _vector(element, tag, source, label, default=None):
     text = _text(element, tag)
     if not text:
         if default is None:
-            raise OsimError(f"{where(source, element)}: {label}: no <{tag}>")
+            raise OsimError(f"{where(source, element)}: no <{tag}>")
         return list(default)
     try:
         v = [float(x) for x in text.split()]
@@ -76,7 +76,7 @@ def _flag(element, tag, source, label, default):
 def _body_name(element, tag, source, label, default=None):
     text = _text(element, tag) or default
     if not text:
-        raise OsimError(f"{where(source, element)}: {label}: no <{tag}>")
+        raise OsimError(f"{where(source, element)}: no <{tag}>")
     return text.rstrip("/").split("/")[-1]  # a 4.x path '/bodyset/pelvis' or a name
 
 
@@ -96,11 +96,11 @@ def read_actuator(element, source):
         return name, None
     force = _number(element, "optimal_force", source, label, 1.0)
     if not (0.0 < force < math.inf):
-        raise OsimError(f"{where(source, element)}: {label}: optimal_force must be a positive number, got {force:g}")
+        raise OsimError(f"{where(source, element)}: optimal_force must be a positive number, got {force:g}")
     low = _number(element, "min_control", source, label, -math.inf)
     high = _number(element, "max_control", source, label, math.inf)
     if low > 0.0 or high < 0.0 or low >= high:
-        raise OsimError(f"{where(source, element)}: {label}: controls [{low:g}, {high:g}] must contain 0 and be an "
+        raise OsimError(f"{where(source, element)}: controls [{low:g}, {high:g}] must contain 0 and be an "
                         "interval (openfdk recruits an actuator from rest)")
     entry = {"optimal_force": force}
     if math.isfinite(low):
@@ -110,7 +110,7 @@ def read_actuator(element, source):
     if kind == "CoordinateActuator":
         coordinate = _text(element, "coordinate")
         if not coordinate:
-            raise OsimError(f"{where(source, element)}: {label}: no <coordinate>")
+            raise OsimError(f"{where(source, element)}: no <coordinate>")
         entry["coordinate"] = coordinate
     elif kind == "PointActuator":
         entry.update(type="point", body=_body_name(element, "body", source, label),
@@ -124,7 +124,7 @@ def read_actuator(element, source):
                      axis=_vector(element, "axis", source, label),
                      axis_frame="world" if _flag(element, "torque_is_global", source, label, True) else "body")
     if "direction" in entry and not any(entry["direction"]) or "axis" in entry and not any(entry["axis"]):
-        raise OsimError(f"{where(source, element)}: {label}: a zero direction")
+        raise OsimError(f"{where(source, element)}: a zero direction")
     entry["line"] = element.sourceline
     return name, entry
 

@@ -499,6 +499,20 @@ def _expand_shorthands(overlay, data, source):
     return overlay
 
 
+def _named(source, key, read, *args):
+    """``read(*args)``, its one-line error (ModelError) prefixed with the overlay file and
+    the key that named the file read (``dm.yaml: external_loads: passwd: not well-formed
+    XML …``): the file's own message names the file but not where it was given. A
+    message that names the command-line option (``--motion: …``) names the key instead."""
+    try:
+        return read(*args)
+    except ModelError as exc:
+        message = str(exc)
+        for flag in ("--motion: ", "--external-loads: ", "--actuators: ", "--joint-reaction: "):
+            message = message.removeprefix(flag)
+        raise type(exc)(f"{source}: {key}: {message}") from None
+
+
 def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None):
     """The imported mapping ``data`` with the sections of ``overlay`` added (module
     docstring); errors name the overlay file and the entry. ``external_loads: FILE.xml``
@@ -523,7 +537,7 @@ def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None
         xml = base_dir / overlay.pop("external_loads")
         if not _is_file(xml):
             raise ModelError(f"{source}: external_loads: {str(xml)!r} does not exist")
-        data = read_external_loads(xml, data, info, loads_cutoff)
+        data = _named(source, "external_loads", read_external_loads, xml, data, info, loads_cutoff)
     elif loads_cutoff:
         # the loads of --external-loads (read before the overlay): the same low-pass
         if not data.get("external_loads"):
@@ -537,8 +551,9 @@ def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None
     cutoff = overlay.pop("motion_cutoff_hz", None)
     if cutoff is not None and (isinstance(cutoff, bool) or not isinstance(cutoff, (int, float)) or not cutoff > 0):
         raise ModelError(f"{source}: motion_cutoff_hz: expected a positive number (Hz), got {cutoff!r}")
+    given_motion = "motion" in overlay
     motion = overlay.pop("motion", None)  # read last, when the FDK DOFs and locks are known
-    if motion is not None and (not isinstance(motion, str) or not _is_file(base_dir / motion)):
+    if given_motion and (not isinstance(motion, str) or not _is_file(base_dir / motion)):
         raise ModelError(f"{source}: motion: expected an existing .mot/.sto file, got {motion!r}")
     if cutoff and motion is None:
         raise ModelError(f"{source}: motion_cutoff_hz: filters the coordinates of a motion file, and none is given "
@@ -549,7 +564,7 @@ def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None
         xml = base_dir / overlay.pop("actuators")
         if not _is_file(xml):
             raise ModelError(f"{source}: actuators: {str(xml)!r} does not exist")
-        data = read_actuator_file(xml, data, info)
+        data = _named(source, "actuators", read_actuator_file, xml, data, info)
     data = _overlay_frames(overlay.pop("frames", None), data, source, info)
     if "joint_reaction" in overlay:
         from .joint_reaction import read_setup, resolved
@@ -562,7 +577,7 @@ def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None
             xml = base_dir / spec
             if not _is_file(xml):
                 raise ModelError(f"{source}: joint_reaction: {str(xml)!r} does not exist")
-            spec = read_setup(xml)
+            spec = _named(source, "joint_reaction", read_setup, xml)
         overlay["joint_reaction"] = resolved(spec, data, info, source)
     overlay = _expand_shorthands(overlay, data, source)
     data = _contact_regions(overlay.pop("contact_regions", None), data, source)
@@ -598,6 +613,6 @@ def merge_overlay(data, overlay, source, allow_options, base_dir=None, info=None
     if motion is not None:
         from .motion import motion_drivers
 
-        out = motion_drivers(base_dir / motion, out, cutoff, info)
+        out = _named(source, "motion", motion_drivers, base_dir / motion, out, cutoff, info)
         info["motion"] = str(base_dir / motion)
     return out
