@@ -345,3 +345,22 @@ def test_dm_overground_ground_reactions_are_raw_and_the_filter_makes_them_smooth
     loaded = np.linalg.norm(F_f, axis=1) > 100.0
     np.testing.assert_allclose(P_f[loaded, 1], np.median(P[np.linalg.norm(F, axis=1) >= 20.0, 1]), atol=1e-12)
     np.testing.assert_allclose(T_f[loaded][:, [0, 2]], 0.0, atol=1e-6)
+
+
+def test_a_named_dm_folder_without_the_overlay_is_an_error(tmp_path, monkeypatch):
+    """OPENFDK_DM_OVERLAY=dm_pt_og1.yaml, a name the tutorial used but never defined, ran
+    the synthetic knee in silence (found walking the tutorial at stop 72). A DM folder
+    named without the overlay or the trial is now one line naming the missing file."""
+    from openfdk.bench import tka_knee_gait as tk
+
+    monkeypatch.delenv("OPENFDK_DM_DIR", raising=False)
+    assert tk.dm_overlay() is None
+    monkeypatch.setenv("OPENFDK_DM_DIR", str(tmp_path))
+    monkeypatch.setenv("OPENFDK_DM_OVERLAY", "dm_pt_og1.yaml")
+    with pytest.raises(FileNotFoundError, match=r"no dm_pt_og1\.yaml \(OPENFDK_DM_OVERLAY\) there"):
+        tk.dm_overlay()
+    (tmp_path / "dm_pt_og1.yaml").write_text("opensim: DM.osim\n")
+    with pytest.raises(FileNotFoundError, match=rf"no {tk.DM_TRIAL} \(the trial\) there"):
+        tk.dm_overlay()
+    (tmp_path / tk.DM_TRIAL).write_text("")
+    assert tk.dm_overlay() == tmp_path / "dm_pt_og1.yaml"

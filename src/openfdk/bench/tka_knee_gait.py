@@ -52,12 +52,18 @@ TARGETS = {"tka_knee_gait_fdk_fps": 50.0, "tka_knee_gait_fdk_evaluations_per_fra
 
 def dm_overlay():
     """The DM overlay file named by ``OPENFDK_DM_DIR`` (and ``OPENFDK_DM_OVERLAY``, default
-    ``dm.yaml``) if it and the trial exist, else None."""
+    ``dm.yaml``), or None without ``OPENFDK_DM_DIR``. FileNotFoundError, one line, when
+    the folder is named but the overlay or the trial is not in it: the bench ran the
+    synthetic knee instead, and said so only in its records' ``model``."""
     folder = os.environ.get("OPENFDK_DM_DIR")
     if not folder:
         return None
     overlay = Path(folder) / os.environ.get("OPENFDK_DM_OVERLAY", "dm.yaml")
-    return overlay if overlay.is_file() and (Path(folder) / DM_TRIAL).is_file() else None
+    for path, name in ((overlay, "OPENFDK_DM_OVERLAY"), (Path(folder) / DM_TRIAL, "the trial")):
+        if not path.is_file():
+            raise FileNotFoundError(f"OPENFDK_DM_DIR={folder}: no {path.name} ({name}) there "
+                                    "(docs/tutorial-knee-gait.md, section 8); unset OPENFDK_DM_DIR for the bench's own knee")
+    return overlay
 
 
 def synthetic_inputs(directory, quick=False):
