@@ -54,6 +54,49 @@ def _columns(ctx, spec, key, path, columns, required):
     return np.column_stack([columns[x] for x in names])
 
 
+#: the largest magnitude of a measured force (N), torque (N·m) and point coordinate (m),
+#: and of the force's moment |p| |F| about the origin (N·m), beyond which a sample is no
+#: measurement. Force plates saturate at ~40 kN (the largest Kistler/AMTI ranges); real
+#: data stay far inside: walking and running ~0.7–3 kN, 0.1 kN·m free moments; a raw
+#: OpenSim example GRF (Rajagopal 2016's walk) puts the unloaded point 526 m away (0 N).
+#: The bounds also keep every product of the solver's equations far from overflow.
+MAX_FORCE_N = 1e6
+MAX_TORQUE_N_M = 1e6
+MAX_POINT_M = 1e5
+MAX_MOMENT_N_M = 1e6
+_LIMITS = {"force": (MAX_FORCE_N, "N", "force"), "torque": (MAX_TORQUE_N_M, "N m", "torque"),
+           "point": (MAX_POINT_M, "m", "point")}
+
+
+def _impossible(values, names, label, file, times):
+    """The message for the first sample of ``values`` (n, 3) (columns ``names`` of
+    ``file``, times ``times`` (n,) s) beyond its physical limit (``_LIMITS[label]``), or ''."""
+    limit, unit, what = _LIMITS[label]
+    bad = np.abs(values) > limit
+    if not bad.any():
+        return ""
+    k, j = np.argwhere(bad)[0]
+    return (f"{names[j]} = {values[k, j]:.4g} {unit} in {file} at t = {times[k]:g} s: beyond {limit:.0e} {unit}, "
+            f"not a measured {what}")
+
+
+def _impossible_moment(F, P, force_names, point_names, file, times):
+    """The message for the first sample whose force F (n, 3) N at the point P (n, 3) m
+    has a moment about the origin, bounded by |P| |F|, above MAX_MOMENT_N_M, or ''.
+    A point far away is possible only while the force is (nearly) zero: at a centre of
+    pressure |P| |F| is about the moment the plate measured (a few hundred N m) plus the
+    plate's offset from the origin times the force."""
+    moment = np.linalg.norm(P, axis=1) * np.linalg.norm(F, axis=1)
+    bad = np.flatnonzero(moment > MAX_MOMENT_N_M)
+    if not bad.size:
+        return ""
+    k = int(bad[0])
+    j, i = int(np.argmax(np.abs(P[k]))), int(np.argmax(np.abs(F[k])))
+    return (f"{point_names[j]} = {P[k, j]:.4g} m with {force_names[i]} = {F[k, i]:.4g} N in {file} at "
+            f"t = {times[k]:g} s: a moment of {moment[k]:.3g} N m about the origin, beyond {MAX_MOMENT_N_M:.0e} N m, "
+            f"not a measured point of application")
+
+
 def load_external_loads(b, data, ctx):
     """The ``external_loads`` section into ``b.elements["external_loads"]``."""
     from ..io.storage import read_storage
@@ -96,6 +139,10 @@ def load_external_loads(b, data, ctx):
             if arr is not None and not np.all(np.isfinite(arr)):
                 k = int(np.flatnonzero(~np.all(np.isfinite(arr), axis=1))[0])
                 raise ctx.error(f"{p}.{label}", f"non-finite value in {file} at t = {times[k]:g} s")
+            if arr is not None and (problem := _impossible(arr, spec[label], label, file, times)):
+                raise ctx.error(f"{p}.{label}", problem)
+        if P is not None and (problem := _impossible_moment(F, P, spec["force"], spec["point"], file, times)):
+            raise ctx.error(f"{p}.point", problem)
         if P is None and frames["point_frame"] == "world":
             raise ctx.error(f"{p}.point", "a load without a point acts at the frame's origin: set point_frame: body")
         ground_reaction = P is not None and frames["force_frame"] == frames["point_frame"] == "world"

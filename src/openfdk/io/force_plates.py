@@ -74,6 +74,9 @@ low-pass of F and M_C → resampling → centre of pressure and free moment → 
 * NaN analog data: the frames concerned are flagged (``invalid``, ``loaded`` False, a
   note); runs of finite samples are filtered separately (runs not longer than the
   filter's padding are left unfiltered).  Never an exception.
+* A sample whose force exceeds ``MAX_FORCE_N`` or whose moment about the surface centre
+  exceeds ``MAX_MOMENT_N_M`` (in SI, before the filter) is no measurement (plates
+  saturate at ~40 kN and a few kN·m): C3DError naming the file, the plate and the time.
 
 * A plate whose CORNERS are no plate (zero area, not finite, or beyond
   ``MAX_LAB_COORDINATE_M`` of the lab origin: some writers leave unused plates'
@@ -104,6 +107,10 @@ __all__ = ["DEFAULT_CUTOFF_HZ", "DEFAULT_THRESHOLD_N", "ForcePlateData", "read_f
 DEFAULT_CUTOFF_HZ = 6.0            # = openfdk.analysis.jobs.DEFAULT_CUTOFF_HZ (markers)
 DEFAULT_THRESHOLD_N = 20.0
 FILTER_ORDER = 2
+#: the largest force (N) and moment (N·m) a plate sample may hold: beyond, no measurement
+#: (the bounds of an ExternalLoads' data, :mod:`openfdk.forces.data_load_section`)
+MAX_FORCE_N = 1e6
+MAX_MOMENT_N_M = 1e6
 
 CHANNEL_NAMES = {
     1: ("Fx", "Fy", "Fz", "COPx", "COPy", "Tz"),
@@ -381,6 +388,20 @@ def _lowpass(x: np.ndarray, cutoff_hz: float | None, rate: float) -> np.ndarray:
     return out
 
 
+def _check_magnitudes(analog: AnalogData, plate: _Plate, f: np.ndarray, m_c: np.ndarray) -> None:
+    """C3DError at the first analog sample whose force ``f (n, 3)`` N or moment about the
+    surface centre ``m_c (n, 3)`` N·m is beyond MAX_FORCE_N or MAX_MOMENT_N_M (NaN
+    samples are flagged elsewhere)."""
+    for what, values, limit, unit in (("force", f, MAX_FORCE_N, "N"), ("moment", m_c, MAX_MOMENT_N_M, "N m")):
+        size = np.linalg.norm(values, axis=1)
+        bad = np.flatnonzero(size > limit)
+        if bad.size:
+            k = int(bad[0])
+            raise C3DError(f"{analog.source}: force plate FP{plate.index + 1}: a {what} of {size[k]:.3g} {unit} at "
+                           f"t = {analog.time()[k]:g} s (analog sample {k + 1}): beyond {limit:.0e} {unit}, not a "
+                           f"measurement (check the channels' ANALOG:SCALE, GEN_SCALE and units)")
+
+
 def _cutoff(cutoff_hz, rate: str, analog: AnalogData) -> float | None:
     if rate not in ("point", "analog"):
         raise ValueError(f"rate must be 'point' or 'analog', got {rate!r}")
@@ -443,6 +464,7 @@ def read_force_plates(path: str | os.PathLike, threshold_n: float = DEFAULT_THRE
                 warnings.warn(f"{plate.notes[0]}; FP{plate.index + 1} never carries more than "
                               f"{peak:.3g} N, so it is left out")
                 continue
+            _check_magnitudes(analog, plate, f, m_c)
             if sign < 0:
                 plate.notes.append(
                     f"the channels hold the force on the subject (plate-normal force to "

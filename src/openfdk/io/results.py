@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import os
 from pathlib import Path
 
@@ -99,16 +100,29 @@ def read_table(path, empty_is_nan=False) -> dict:
 
 
 def write_json(path, data):
-    atomic_write_text(path, json.dumps(data, indent=2, default=_json_default) + "\n")
+    """Write ``data`` (dicts, lists, tuples, numbers, str, None, numpy arrays and scalars)
+    to ``path`` as strict JSON (RFC 8259), atomically: a non-finite number (NaN, ±inf)
+    is written as ``null``, never as the ``NaN``/``Infinity`` that strict parsers refuse."""
+    text = json.dumps(_finite_or_null(data), indent=2, allow_nan=False)
+    atomic_write_text(path, text + "\n")
 
 
-def _json_default(o):
+def _finite_or_null(o):
+    """``o`` with numpy values as Python ones and every non-finite float as None."""
+    if isinstance(o, dict):
+        return {k: _finite_or_null(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_finite_or_null(v) for v in o]
     if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, (np.floating, np.integer)):
-        return o.item()
+        return _finite_or_null(o.tolist())
     if isinstance(o, np.bool_):
         return bool(o)
+    if isinstance(o, (np.floating, np.integer)):
+        o = o.item()
+    if isinstance(o, float) and not math.isfinite(o):
+        return None
+    if o is None or isinstance(o, (str, int, float)):
+        return o
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 

@@ -128,6 +128,22 @@ def column_label(j: int, column_names) -> str:
     return f"column {j}"
 
 
+def _non_finite_entry(C, d, row_names, column_names) -> str:
+    """The message naming the first non-finite entry of d (n_eq,) or C (n_eq, n_var):
+    its equation (row) and, for C, its column."""
+    def row(i):
+        return f"row '{row_names[i]}'" if row_names is not None and i < len(row_names) else f"row {i}"
+
+    bad_d = np.flatnonzero(~np.isfinite(d))
+    if bad_d.size:
+        i = int(bad_d[0])
+        return (f"C and d must be finite: d of {row(i)} (the load the equation balances, N or N·m) is {float(d[i])}, "
+                f"from a non-finite or overflowing input")
+    i, j = (int(k) for k in np.argwhere(~np.isfinite(C))[0])
+    return (f"C and d must be finite: C of {row(i)}, {column_label(j, column_names)} is {float(C[i, j])}, "
+            f"from a non-finite or overflowing input")
+
+
 def check_problem(C, d, n_bounded, s, row_names=None, column_names=None):
     """Validate and convert the arrays of a recruitment problem.
 
@@ -159,7 +175,7 @@ def check_problem(C, d, n_bounded, s, row_names=None, column_names=None):
         )
     cd_finite, s_ok = _value_checks(C, d, s)
     if not cd_finite:
-        raise RecruitmentInputError("C and d must be finite (found NaN or inf)")
+        raise RecruitmentInputError(_non_finite_entry(C, d, row_names, column_names))
     if not s_ok:
         j = int(np.flatnonzero(~(np.isfinite(s) & (s >= 0.0)))[0])
         raise RecruitmentInputError(

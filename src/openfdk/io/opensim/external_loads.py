@@ -15,7 +15,16 @@ applied exactly as OpenSim applies it:
   read while importing: a file that cannot be read, or an identifier without its three
   columns, is an error naming the XML file, the line and the force.
 
-Disabled forces (``isDisabled`` true, ``appliesForce`` false) are left out and listed.
+Disabled forces (``isDisabled`` true, ``appliesForce`` false) are left out and listed;
+these booleans read as the .osim reader reads them: ``true`` or ``false`` (any case), an
+empty element the default, anything else an error naming the file, the line and the force.
+
+Also refused, in one line naming the file, the line and the object: an ExternalForce
+without a name (OpenSim refers to forces by name), and OpenSim's ``file="…"`` attribute
+on any object of the file (OpenSim would read the object from that other file; openfdk
+does not follow it: copy the object in). An element that is no property of the
+ExternalLoads or of an ExternalForce in OpenSim 4.x (e.g. ``<units>``), which OpenSim
+ignores without a word, is ignored with one warning naming the file and the elements.
 """
 
 from __future__ import annotations
@@ -27,9 +36,54 @@ from .document import parse_xml
 from .errors import OsimError, where
 
 
+#: the properties of an ExternalLoads (OpenSim 4.6: Component, ModelComponentSet) and
+#: those OpenSim 3.x wrote (a Set's defaults, the load kinematics), which OpenSim 4.x
+#: reads and ignores
+EXTERNAL_LOADS_TAGS = frozenset({"components", "objects", "groups", "datafile", "defaults",
+                                 "external_loads_model_kinematics_file", "lowpass_cutoff_frequency_for_load_kinematics"})
+#: the properties of an ExternalForce (OpenSim 4.6), with the older isDisabled and the
+#: socket spelling of applied_to_body, both read
+EXTERNAL_FORCE_TAGS = frozenset({"components", "appliesForce", "isDisabled", "applied_to_body", "socket_applied_to_body",
+                                 "force_expressed_in_body", "point_expressed_in_body", "force_identifier",
+                                 "point_identifier", "torque_identifier", "data_source_name"})
+
+
 def _text(element, tag):
     e = element.find(tag)
     return "" if e is None or e.text is None else e.text.strip()
+
+
+def _bool(source, force, tag, default):
+    """The boolean property ``tag`` of ``force``: ``true``/``false`` in any case (as the
+    .osim reader reads them), ``default`` when absent or empty; OsimError otherwise."""
+    text = _text(force, tag)
+    if not text:
+        return default
+    if text.lower() not in ("true", "false"):
+        raise OsimError(f"{where(source, force)}: <{tag}> must be true or false, got {text!r}")
+    return text.lower() == "true"
+
+
+def _check_structure(source, loads):
+    """OsimError for a ``file`` attribute on any object of ``loads`` (the <ExternalLoads>
+    element); one warning listing the elements that are no property of the ExternalLoads
+    or of its ExternalForces (module docstring)."""
+    for element in loads.iter():
+        if isinstance(element.tag, str) and element.get("file") is not None:
+            raise OsimError(f"{where(source, element)}: file={element.get('file')!r}: openfdk does not read objects "
+                            f"from other files (OpenSim's file attribute); copy the object into {source}")
+    unknown = [f"<{e.tag}> (line {e.sourceline})" for e in loads if isinstance(e.tag, str)
+               and e.tag not in EXTERNAL_LOADS_TAGS]
+    objects = loads.find("objects")
+    for force in (objects if objects is not None else []):
+        if isinstance(force.tag, str) and force.tag == "ExternalForce":
+            unknown += [f"<{e.tag}> of ExternalForce {force.get('name')!r} (line {e.sourceline})" for e in force
+                        if isinstance(e.tag, str) and e.tag not in EXTERNAL_FORCE_TAGS]
+    if unknown:
+        import warnings
+
+        warnings.warn(f"{source}: {', '.join(unknown)}: not an OpenSim ExternalLoads or ExternalForce property, "
+                      f"ignored (as OpenSim ignores it)")
 
 
 def _data_columns(path, file, source, force, cache):
@@ -58,6 +112,7 @@ def read_external_loads(path, data, info, cutoff_hz=None):
     loads = root if root.tag == "ExternalLoads" else root.find(".//ExternalLoads")
     if loads is None:
         raise OsimError(f"{source}: line {root.sourceline}: no <ExternalLoads>: not an OpenSim external loads file")
+    _check_structure(source, loads)
     datafile = _text(loads, "datafile")
     objects = loads.find("objects")
     body_frames = info.get("body_frames", {})
@@ -71,7 +126,10 @@ def read_external_loads(path, data, info, cutoff_hz=None):
         name = force.get("name") or ""
         if force.tag != "ExternalForce":
             raise OsimError(f"{where(source, force)}: not supported in an ExternalLoads file (ExternalForce only)")
-        disabled = _text(force, "isDisabled").lower() == "true" or _text(force, "appliesForce").lower() == "false"
+        if not name.strip():
+            raise OsimError(f"{where(source, force)}: no name (name=\"…\"): OpenSim refers to each ExternalForce "
+                            f"by its name")
+        disabled = _bool(source, force, "isDisabled", False) or not _bool(source, force, "appliesForce", True)
         if disabled:
             dropped.append({"type": "ExternalForce", "name": name, "line": force.sourceline})
             continue
@@ -115,12 +173,11 @@ def read_external_loads(path, data, info, cutoff_hz=None):
             entry["point_frame"] = "body"
         if cutoff_hz:
             entry["cutoff_hz"] = float(cutoff_hz)
-        key = name or f"ExternalForce_{len(section) + 1}"
-        if name_problem(key):
-            raise OsimError(f"{where(source, force)}: {name_problem(key)}")
-        if key in section:
-            raise OsimError(f"{where(source, force)}: a second external force named {key!r}")
-        section[key] = entry
+        if name_problem(name):
+            raise OsimError(f"{where(source, force)}: {name_problem(name)}")
+        if name in section:
+            raise OsimError(f"{where(source, force)}: a second external force named {name!r}")
+        section[name] = entry
     if not section:
         raise OsimError(f"{source}: no ExternalForce applied")
     out = dict(data)
