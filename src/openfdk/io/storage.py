@@ -135,9 +135,20 @@ def csv_to_sto(csv_path, sto_path=None, name=None) -> Path | None:
 
 class StorageColumns(dict):
     """{label: (n,) values} of a storage file (:func:`read_storage`); ``twice``: the
-    labels given twice with different values, left out."""
+    labels given twice with different values, left out; ``header``: {field name in lower
+    case: (line number, value as written)} of the header's ``key=value`` lines
+    (``nrows``, ``ncolumns``, ``indegrees``, …); ``labels``: {key: the file's label}
+    where a reader keys the columns otherwise (:func:`openfdk.io.opensim.motion.by_coordinate`);
+    ``n_labels``: the number of labels on the file's label line, time included."""
 
     twice: frozenset = frozenset()
+    header: dict = {}
+    labels: dict = {}
+    n_labels: int = 0
+
+    def label(self, key) -> str:
+        """The file's label of the column ``key``."""
+        return self.labels.get(key, key)
 
     def absent(self, label) -> str:
         """Why ``label`` is not a column, for a message: "no column 'x'" or "column 'x' is
@@ -147,10 +158,14 @@ class StorageColumns(dict):
         return f"no column {label!r}"
 
 
-def read_storage(path):
+def read_storage(path, warn_counts=False):
     """Read an OpenSim ``.sto``/``.mot`` file: (time (n,) s, StorageColumns {label: (n,)
     values}, in_degrees bool). Values are as in the file (angles in degrees when ``inDegrees=yes``).
-    Errors are one line naming the file and the line."""
+    Errors are one line naming the file and the line. With ``warn_counts``, a header's
+    ``nRows``/``nColumns`` other than the data's rows/columns (time included) is one
+    warning naming the file and the line (:func:`count_mismatch`), and the data are read
+    as they are (OpenSim's own tutorial files disagree so: crouch2.mot declares 120 rows
+    and has 101, Moco's example3DWalking coordinates.sto 40 columns and has 32)."""
     path = Path(path)
     try:
         if not stat.S_ISREG(os.stat(path).st_mode):  # a FIFO or a device would block or never end
@@ -167,8 +182,11 @@ def read_storage(path):
     except StopIteration:
         raise ValueError(f"{path.name}: no 'endheader' line: not an OpenSim storage file") from None
     in_degrees = False
+    header = {}
     for k, line in enumerate(lines[:end], start=1):
-        key, _, value = "".join(line.split()).lower().partition("=")
+        key, sep, value = "".join(line.split()).lower().partition("=")
+        if sep and key not in header:
+            header[key] = (k, value)
         if key == "indegrees":
             if value not in ("yes", "no"):
                 raise ValueError(f"{path.name}: line {k}: inDegrees must be yes or no, got {line.strip()[:40]!r}")
@@ -215,6 +233,30 @@ def read_storage(path):
         # under the same labels: the coordinates are read, those columns are not
         warnings.warn(f"{path.name}: line {end + 2}: columns {twice} are given twice with different "
                       f"values; they are not read")
+    if warn_counts and (note := count_mismatch(path.name, header, len(rows), len(labels))):
+        warnings.warn(note, stacklevel=2)
     out = StorageColumns((label, v) for label, v in columns.items() if v is not None)
     out.twice = frozenset(twice)
+    out.header = header
+    out.n_labels = len(labels)
     return data[:, 0], out, in_degrees
+
+
+def count_mismatch(name, header, n_rows, n_columns):
+    """The warning (one line) when the header's ``nRows``/``nColumns`` (``header``: {key:
+    (line, value)}, :attr:`StorageColumns.header`) contradict the ``n_rows`` data rows
+    and ``n_columns`` labels (time included, :attr:`StorageColumns.n_labels`) of the
+    file ``name``; None when they agree or are not given."""
+    found = []
+    for key, spelt, actual, what in (("nrows", "nRows", n_rows, "data rows"),
+                                      ("ncolumns", "nColumns", n_columns, "columns (time included)")):
+        if key not in header:
+            continue
+        line, value = header[key]
+        try:
+            declared = int(value)
+        except ValueError:
+            declared = None
+        if declared != actual:
+            found.append(f"line {line}: {spelt}={value[:20]}, the file has {actual} {what}")
+    return f"{name}: {'; '.join(found)}; the data are read as they are" if found else None

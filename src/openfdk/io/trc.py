@@ -14,10 +14,23 @@ Layout (OpenSim documentation, "Marker (.trc) Files"), tab separated:
 * an optional blank line, then one row per frame: frame number, time (s), then x y z of
   every marker.  A missing sample is an empty cell or not-a-number in any spelling C
   runtimes print (``NaN``, ``-nan(ind)``, ``1.#QNAN``: :mod:`openfdk.io.numbers`), or
-  infinite; a row may stop early,
-  which leaves its last markers missing.  A sample whose three coordinates are all
+  infinite.  A sample whose three coordinates are all
   exactly zero is missing too: many exporters write gaps so (as C3D readers do, see
   :func:`openfdk.io.c3d.read_c3d`), and no real marker sits exactly on the lab origin.
+
+Rows shorter than the header's 2 + 3·NumMarkers cells: a row may stop after a marker's
+z (and a separator after it), which leaves its last markers missing (writers that drop
+trailing empty cells), and is read so with one warning per file naming the first such
+lines and their count (a row cut short reads the same: the warning is how it is
+noticed). A row that stops inside a marker's x y z is refused naming the line and the
+marker: no writer leaves a marker incomplete, so the row was cut (a file copied in
+part, a line cut mid-number).
+
+A coordinate farther than :data:`MAX_MARKER_DISTANCE` (1 km, after the unit conversion)
+from the lab origin is refused naming the line, the time and the marker: no capture
+volume is that large, so the number is corrupt or ``Units`` is wrong (mm written under
+``m`` put a 2 m walkway 2 km away); such numbers overflow the checks and fits that
+follow (an RMS residual of ``inf mm``).
 
 A ``NumFrames`` other than the number of data rows is a warning, and the rows are read.
 What is used: ``DataRate`` (Hz) is the trial's rate, ``Units`` (mm, cm or m) converts the
@@ -39,6 +52,12 @@ from .c3d import UNIT_TO_METRE, MarkerTrial
 from .numbers import parse_number
 
 __all__ = ["TRCError", "read_trc"]
+
+#: the largest distance (m) of a marker coordinate from the lab origin: no motion-capture
+#: volume or walkway reaches 1 km; beyond it a number is corrupt (or Units is wrong)
+MAX_MARKER_DISTANCE = 1e3
+#: how many lines a warning names before it counts the rest
+LISTED_LINES = 3
 
 #: spellings of the Units field accepted besides mm / cm / m
 UNIT_ALIASES = {"millimeters": "mm", "millimetres": "mm", "centimeters": "cm", "centimetres": "cm",
@@ -186,7 +205,7 @@ def read_trc(path: str | os.PathLike) -> MarkerTrial:
 
     n_markers = len(labels)
     n_values = 2 + 3 * n_markers
-    times, rows, time_cells = [], [], []
+    times, rows, time_cells, row_lines, short = [], [], [], [], []
     for line_no, line in enumerate(lines[5:], start=6):
         if not line.strip():
             continue
@@ -194,6 +213,16 @@ def read_trc(path: str | os.PathLike) -> MarkerTrial:
         if len(cells) > n_values and any(c for c in cells[n_values:]):
             raise TRCError(f"{name}: line {line_no}: {len(cells)} values, expected at most {n_values} "
                            f"(frame, time and x y z of {n_markers} markers)")
+        if len(cells) < n_values:
+            given = len(cells)
+            while given > 2 and (given - 2) % 3 and cells[given - 1] == "":
+                given -= 1          # a separator after the last value (writers that end every cell with a tab)
+            if given > 2 and (given - 2) % 3:
+                m = (given - 2) // 3
+                raise TRCError(f"{name}: line {line_no}: the row stops inside marker {labels[m]!r} "
+                               f"({(given - 2) % 3} of its x y z): {len(cells)} values, expected {n_values} "
+                               f"(frame, time and x y z of {n_markers} markers); a row cut short?")
+            short.append(line_no)
         cells = cells + [""] * (n_values - len(cells))
         times.append(_number(cells[1], name, line_no, "the time"))
         if not math.isfinite(times[-1]):
@@ -204,8 +233,16 @@ def read_trc(path: str | os.PathLike) -> MarkerTrial:
             if cell != "":
                 row[j] = _number(cell, name, line_no, f"column {j + 3}")
         rows.append(row)
+        row_lines.append(line_no)
     if not rows:
         raise TRCError(f"{name}: contains no data rows")
+    if short:
+        import warnings
+
+        more = f" and {len(short) - LISTED_LINES} more" if len(short) > LISTED_LINES else ""
+        warnings.warn(f"{name}: {len(short)} row(s) stop before the last marker (line(s) "
+                      f"{', '.join(map(str, short[:LISTED_LINES]))}{more}; {n_values} values expected: frame, time "
+                      f"and x y z of {n_markers} markers): their last markers are read as missing; a row cut short?")
     if "NumFrames" in header and header["NumFrames"] != "":
         declared = _count(header["NumFrames"], name, 3, "NumFrames")
         if declared != len(rows):
@@ -218,6 +255,12 @@ def read_trc(path: str | os.PathLike) -> MarkerTrial:
 
     times = _uniform_times(np.array(times), rate, time_cells)
     p = np.array(rows).reshape(len(rows), n_markers, 3) * UNIT_TO_METRE[units]
+    far = np.isfinite(p) & (np.abs(p) > MAX_MARKER_DISTANCE)
+    if far.any():
+        k, m, axis = (int(i) for i in np.argwhere(far)[0])
+        raise TRCError(f"{name}: line {row_lines[k]}: marker {labels[m]!r} at time {times[k]:g} s: "
+                       f"{'xyz'[axis]} = {rows[k][3 * m + axis]:g} {units} is beyond {MAX_MARKER_DISTANCE:g} m from "
+                       f"the origin, farther than any capture volume (a corrupt number, or the wrong Units on line 3?)")
     # a sample is missing when any coordinate is: the marker is seen or not as a whole;
     # (0, 0, 0) exactly is how many exporters write a gap
     p[~np.all(np.isfinite(p), axis=2) | np.all(p == 0.0, axis=2)] = np.nan

@@ -44,15 +44,34 @@ def _read_trial(path, key):
     (real path, hash of the bytes) makes the same file's next read a cache hit."""
     suffix = Path(path).suffix.lower()
     if suffix == ".c3d":
-        from .c3d import read_c3d
+        from .c3d import C3DError, read_c3d
 
-        return read_c3d(path)
+        trial = read_c3d(path)
+        _check_distances(trial, C3DError)
+        return trial
     if suffix == ".trc":
         from .trc import read_trc
 
         return read_trc(path)
     raise ValueError(f"{os.fspath(path)}: unknown marker file type {suffix or '(no extension)'!r}; "
                      f"expected one of {', '.join(TRIAL_FORMATS)}")
+
+
+def _check_distances(trial, error):
+    """Raise ``error`` naming the frame, the time and the marker when a coordinate of
+    ``trial`` (positions (n_frames, n_markers, 3) m) is farther than
+    :data:`~openfdk.io.trc.MAX_MARKER_DISTANCE` from the origin (a TRC file is checked
+    by its reader, which names the line)."""
+    import numpy as np
+
+    from .trc import MAX_MARKER_DISTANCE
+
+    far = np.isfinite(trial.positions) & (np.abs(trial.positions) > MAX_MARKER_DISTANCE)
+    if far.any():
+        k, m, axis = (int(i) for i in np.argwhere(far)[0])
+        raise error(f"{trial.source}: frame {k + 1} (time {trial.time[k]:g} s): marker {trial.labels[m]!r}: "
+                    f"{'xyz'[axis]} = {trial.positions[k, m, axis]:g} m is beyond {MAX_MARKER_DISTANCE:g} m from the "
+                    "origin, farther than any capture volume (a corrupt number, or the wrong POINT:UNITS?)")
 
 
 def recorded_duration_s(path: str | os.PathLike) -> float | None:

@@ -250,18 +250,35 @@ def check_trial_markers(model, trial, times):
     state = model.initial_state()
     M = model.markers.positions(state)
     M, X = M[ok], first[ok]
-    s_model = float(np.sqrt(np.mean(np.sum((M - M.mean(0)) ** 2, axis=1))))
-    s_trial = float(np.sqrt(np.mean(np.sum((X - X.mean(0)) ** 2, axis=1))))
-    gap = float(np.linalg.norm(X.mean(0) - M.mean(0)))
-    if s_model > 0 and s_trial > 0 and not (1 / 30 < s_trial / s_model < 30):
-        ratio = s_trial / s_model
-        factor = 10 ** round(np.log10(ratio))
+    s_model, c_model = _spread(M)
+    s_trial, c_trial = _spread(X)
+    with np.errstate(over="ignore", invalid="ignore"):
+        gap = float(np.linalg.norm(c_trial - c_model))
+    ratio = s_trial / s_model if s_model > 0 else np.nan
+    if s_model > 0 and s_trial > 0 and not (1 / 30 < ratio < 30):
+        # the nearest power of ten; a ratio beyond a double's range (1e200 mm) has none
+        exponent = round(float(np.log10(ratio))) if np.isfinite(ratio) and 0 < ratio else None
+        factor = f"a factor {10.0 ** exponent:g}" if exponent is not None and abs(exponent) <= 300 else "no unit factor"
         _warn(f"{trial.source}: at the first frame (t = {times[0]:g} s) the markers spread {s_trial:.4g} m around "
               f"their centroid, {ratio:.3g}x the model's markers ({s_model:.4g} m): likely the wrong units "
-              f"(a factor {factor:g}; check {_units_field(trial.source)})")
+              f"({factor}; check {_units_field(trial.source)})")
     elif gap > max(FAR_FROM_MODEL, 20 * s_model):
         _warn(f"{trial.source}: at the first frame (t = {times[0]:g} s) the markers' centroid is {gap:.3g} m from "
               "the model's markers at the reference pose; check the units and the lab frame")
+
+
+def _spread(points):
+    """(RMS distance (m) of ``points`` (n, 3) m from their centroid, the centroid (3,) m),
+    computed scaled so that coordinates up to a double's limit give a finite spread (inf
+    only when the spread itself is beyond it), without overflow warnings."""
+    points = np.asarray(points, float)
+    scale = float(np.max(np.abs(points))) if points.size else 0.0
+    if not (np.isfinite(scale) and scale > 0):
+        return (0.0 if scale == 0 else float("inf")), np.zeros(3)
+    unit = points / scale
+    centroid = unit.mean(0)
+    with np.errstate(over="ignore"):
+        return float(np.sqrt(np.mean(np.sum((unit - centroid) ** 2, axis=1))) * scale), centroid * scale
 
 
 def _units_field(source):

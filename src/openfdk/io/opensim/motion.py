@@ -16,18 +16,40 @@ computes from its ``coordinates_file``.
   are the residuals.
 * Sample times within 5 % of a sample interval of a uniform grid are put on it (files
   that print times rounded, such as OpenSim's IK output of a 60 Hz TRC timed to 1 ms).
+  Times beyond 1e10 s (317 years), and times whose spacing cannot be resolved, are
+  refused naming the file and the times: samples less than 1 µs apart (above the 1 MHz
+  limit of ``analysis.rate_hz``), or less than 1e-9 of the times' magnitude apart (the
+  outputs print times to 10 significant digits; a clock's offset such as Unix time,
+  1.7e9 s, with samples 0.01 s apart: subtract the start time) (:func:`check_times`).
 * The run's frames are the file's samples (``analysis`` start, end and ``rate_hz``), unless
   the model or overlay gives its own window; ``--start``/``--end`` keep the file's grid.
 * Every free coordinate must be in the file (locked and prescribed ones follow their
   own rows, couplers' dependent coordinates follow the coupler and are not driven);
-  a column naming no coordinate is ignored, as OpenSim ignores it. So are the FDK DOFs
-  and the coordinates an overlay locks (:func:`given_otherwise`): a motion file with
-  FDK DOFs is the two-stage pipeline, its columns for them may be absent.
+  a column naming no coordinate is ignored, as OpenSim ignores it (with a warning,
+  below). So are the FDK DOFs and the coordinates an overlay locks
+  (:func:`given_otherwise`): a motion file with FDK DOFs is the two-stage pipeline, its
+  columns for them may be absent.
 * A column is named by the coordinate (``knee_angle_r``, an IK ``.mot``) or by its state
   variable's path (``/jointset/knee_r/knee_angle_r/value``, the states and coordinates
   files OpenSim 4 and Moco write; their ``/speed`` columns are not used: the rates come
   from the spline, as in OpenSim's InverseDynamicsTool). A coordinate given by two
   columns is refused by name.
+* What is read is checked against the model, each problem one line naming the file
+  (:func:`check_columns`, :func:`check_values`): columns naming no coordinate of the
+  model are a warning listing the first few and their count (a coordinate's ``/speed``
+  column is not named: it is documented as unused, and so are the columns of locked,
+  prescribed and FDK coordinates, which an IK file holds for every coordinate); a state
+  path whose joint is not the coordinate's joint in the model is a warning naming the
+  column and both joints (the file was written for another model?); a coupled
+  coordinate's column that differs from what its coupler gives by more than 1e-4 (rad or
+  m) is a warning (the coupler sets it, the column is not used). A driven value beyond
+  1e5 rad (16 000 turns: a crank turning three times a second for 1.5 hours) or 1e4 m
+  (ten kilometres, far beyond any capture volume or treadmill record) is refused naming
+  the column and the time: no motion reaches it, and the spline and the Newton iteration
+  break down on such numbers. A rotational coordinate whose samples leave its range (OpenSim's
+  default [-10, 10] rad when the ``.osim`` gives none) by more than 1 rad is a warning
+  (once per file) asking whether ``inDegrees`` is right: OpenSim drives an unclamped
+  coordinate outside its range too, so it is not refused.
 """
 
 from __future__ import annotations
@@ -43,12 +65,39 @@ from .errors import OsimError
 
 SUFFIX = "_motion"
 
+#: the largest |value| of a driven coordinate (rad for rotational ones, else m): 1e5 rad
+#: is 16 000 turns (a wheel or crank turning three times a second for 1.5 hours, where a
+#: joint turns less than one); 1e4 m is ten kilometres, beyond any capture volume or
+#: treadmill record. Beyond them a number is corrupt, and the quintic spline and the
+#: kinematics' Newton iteration break down on it ("SVD did not converge" at 1e150 deg).
+MAX_ROTATION, MAX_TRANSLATION = 1e5, 1e4
+#: a rotational coordinate's samples this far (rad) outside its range are warned about:
+#: degrees read as radians leave a joint's range by much more (30 deg read as 30 rad)
+RANGE_MARGIN = 1.0
+#: OpenSim's Coordinate range when the .osim gives none (Coordinate.cpp, rad or m)
+OPENSIM_DEFAULT_RANGE = (-10.0, 10.0)
+#: the highest sampling rate a run takes (the model file's bound on analysis.rate_hz, Hz)
+MAX_RATE_HZ = 1e6
+#: the largest |time| (s): 317 years, longer than any recording lasts; Unix time in
+#: seconds (1.7e9) is below it, and then refused by TIME_RESOLUTION unless resolved
+MAX_TIME = 1e10
+#: the smallest spacing of two samples relative to the times' magnitude: the outputs
+#: print times to 10 significant digits, so closer samples print (nearly) alike
+TIME_RESOLUTION = 1e-9
+#: a coupled coordinate's column farther than this (rad or m) from its coupler's value is
+#: warned about: well above the round-off of printed values (OpenSim prints 8 digits)
+COUPLER_TOLERANCE = 1e-4
+#: how many ignored columns a warning names before it counts the rest
+LISTED = 5
+
 
 def motion_drivers(path, data, cutoff_hz=None, info=None):
     """The model mapping ``data`` with a driver per coordinate from the motion file
     ``path`` (module docstring); ``info['motion_not_driven']`` records the coordinates
     ``data`` gives otherwise (:func:`given_otherwise`)."""
-    from ..storage import read_storage
+    import warnings
+
+    from ..storage import count_mismatch, read_storage
     from .coordinate_filter import lowpass_iir3, pad_odd
 
     source = Path(path).name
@@ -56,7 +105,11 @@ def motion_drivers(path, data, cutoff_hz=None, info=None):
         times, columns, in_degrees = read_storage(path)
     except ValueError as exc:
         raise OsimError(f"--motion: {exc}") from None
+    check_times(times, source)
+    # the warnings are given once nothing is refused: a refused file gets one line
+    notes = [count_mismatch(source, columns.header, len(times), columns.n_labels)]
     columns = by_coordinate(columns, source)
+    notes += check_columns(columns, data, source)
     if len(times) > 2:  # times printed rounded (OpenSim's IK keeps the TRC's 1 ms times at 60 Hz): the grid
         grid = times[0] + np.arange(len(times)) * (times[-1] - times[0]) / (len(times) - 1)
         if np.max(np.abs(times - grid)) < 0.05 * (grid[1] - grid[0]):
@@ -77,15 +130,18 @@ def motion_drivers(path, data, cutoff_hz=None, info=None):
             continue
         values = np.asarray(columns[name], float)
         if not np.all(np.isfinite(values)):
-            raise OsimError(f"{source}: column {name!r} has non-finite values")
+            raise OsimError(f"{source}: column {columns.label(name)!r} has non-finite values")
         driven.append((name, np.radians(values) if in_degrees and opensim_in_degrees(c) else values))
+    notes += check_values(dict(driven), times, columns, in_degrees, data, source)
     if missing:
         twice = [name for name in missing if name in columns.twice]
         if twice:
             raise OsimError(f"{source}: {columns.absent(twice[0])}; a motion file drives every free coordinate")
+        unknown = unknown_columns(columns, coords)
+        also = f" (its columns that name no coordinate: {_listed(unknown)})" if unknown else ""
         raise OsimError(f"{source}: no column for the coordinates {missing}; a motion file drives every free coordinate "
                         "but the FDK DOFs and the locked ones (OpenSim's InverseDynamicsTool would hold them at their "
-                        "default values: give them columns)")
+                        f"default values: give them columns){also}")
     if len(times) < 6:
         raise OsimError(f"{source}: {len(times)} sample(s); a motion file needs at least 6 (OpenSim's quintic spline)")
     if cutoff_hz:
@@ -94,6 +150,8 @@ def motion_drivers(path, data, cutoff_hz=None, info=None):
                             f"{rate / 2:g} Hz of {source}")
         if np.max(np.abs(np.diff(times) * rate - 1.0)) > 1e-6:
             raise OsimError(f"{source}: filtering needs uniformly spaced samples")
+    for note in filter(None, notes):
+        warnings.warn(note, stacklevel=2)
     knots = times
     if driven:
         block = np.column_stack([v for _, v in driven])
@@ -114,16 +172,19 @@ def motion_drivers(path, data, cutoff_hz=None, info=None):
 
 
 #: a coordinate's value in an OpenSim 4 states file: /jointset/<joint>/<coordinate>/value
-_STATE_VALUE = re.compile(r"/jointset/[^/]+/([^/]+)/value")
+_STATE_VALUE = re.compile(r"/jointset/([^/]+)/([^/]+)/value")
+#: its speed: /jointset/<joint>/<coordinate>/speed (not used, module docstring)
+_STATE_SPEED = re.compile(r"/jointset/([^/]+)/([^/]+)/speed")
 
 
 def by_coordinate(columns, source):
     """{coordinate name: (n,) values} of a storage file's ``columns``, their labels the
-    coordinate's name or its value's state path (module docstring)."""
+    coordinate's name or its value's state path (module docstring); ``labels`` gives
+    each name's label in the file."""
     out, label_of = {}, {}
     for label, values in columns.items():
         m = _STATE_VALUE.fullmatch(label)
-        name = m.group(1) if m else label
+        name = m.group(2) if m else label
         if name in out:
             raise OsimError(f"{source}: coordinate {name!r} is given twice, by columns {label_of[name]!r} and "
                             f"{label!r}")
@@ -132,7 +193,179 @@ def by_coordinate(columns, source):
 
     out = StorageColumns(out)
     out.twice = getattr(columns, "twice", frozenset())
+    out.header = getattr(columns, "header", {})
+    out.n_labels = getattr(columns, "n_labels", 0)
+    out.labels = label_of
     return out
+
+
+def _listed(labels):
+    """``'a', 'b', 'c'`` of the first :data:`LISTED` labels, ``and N more`` for the rest."""
+    shown = ", ".join(repr(label) for label in labels[:LISTED])
+    return shown + (f" and {len(labels) - LISTED} more" if len(labels) > LISTED else "")
+
+
+def check_times(times, source):
+    """Refuse the motion file ``source``'s times (n,) s (finite, increasing) beyond
+    MAX_TIME, or when two samples are too close to be resolved (module docstring): less
+    than 1/MAX_RATE_HZ s apart, or less than TIME_RESOLUTION of the times' magnitude (an
+    offset clock)."""
+    if len(times) == 0:
+        return
+    k = int(np.argmax(np.abs(times)))
+    magnitude = abs(float(times[k]))
+    if magnitude > MAX_TIME:
+        raise OsimError(f"{source}: time {float(times[k])!r} s (sample {k + 1}) is beyond {MAX_TIME:g} s (317 years), "
+                        "longer than any recording")
+    if len(times) < 2:
+        return
+    gaps = np.diff(times)
+    k = int(np.argmin(gaps))
+    pair = f"times {float(times[k])!r} and {float(times[k + 1])!r} s are {gaps[k]:.3g} s apart"
+    if gaps[k] < 1.0 / MAX_RATE_HZ:
+        raise OsimError(f"{source}: {pair}: a sampling rate above {MAX_RATE_HZ:g} Hz, the highest a run takes "
+                        "(analysis.rate_hz)")
+    if gaps[k] < TIME_RESOLUTION * magnitude:
+        raise OsimError(f"{source}: {pair}, less than {TIME_RESOLUTION:g} of their magnitude: the results print "
+                        "times to 10 significant digits, too few to tell the samples apart (a clock's offset, such "
+                        "as Unix time? subtract the start time)")
+
+
+def unknown_columns(columns, coords):
+    """The labels of the motion file's ``columns`` (:func:`by_coordinate`) that name no
+    coordinate of ``coords`` (the model's ``coordinates``), a known coordinate's
+    ``/speed`` column left out (documented as not used)."""
+    unknown = []
+    for name in columns:
+        if name in coords:
+            continue
+        speed = _STATE_SPEED.fullmatch(columns.label(name))
+        if speed is None or speed.group(2) not in coords:
+            unknown.append(columns.label(name))
+    return unknown
+
+
+def check_columns(columns, data, source):
+    """The warnings (one line each) about the motion file ``source``'s columns
+    (:func:`by_coordinate`) that name no coordinate of the model mapping ``data``, and
+    about state paths whose joint is not the coordinate's joint there (module
+    docstring)."""
+    notes = []
+    unknown = unknown_columns(columns, data.get("coordinates") or {})
+    if unknown:
+        notes.append(f"{source}: {len(unknown)} column(s) name no coordinate of the model and are not used: "
+                     f"{_listed(unknown)}")
+    joints_of = {}
+    for joint, spec in (data.get("joints") or {}).items():
+        for axis in ((spec.get("rotations") or []) + (spec.get("translations") or []) if isinstance(spec, dict)
+                     else []):
+            if isinstance(axis, dict) and isinstance(axis.get("coordinate"), str):
+                joints_of.setdefault(axis["coordinate"], set()).add(joint)
+    elsewhere = []
+    for name in columns:
+        m = _STATE_VALUE.fullmatch(columns.label(name))
+        if m and name in joints_of and m.group(1) not in joints_of[name]:
+            elsewhere.append(f"{m.group(0)!r} (the model's {name!r} is in joint "
+                             f"{' or '.join(repr(j) for j in sorted(joints_of[name]))})")
+    if elsewhere:
+        more = f" and {len(elsewhere) - LISTED} more" if len(elsewhere) > LISTED else ""
+        notes.append(f"{source}: column(s) naming another joint than the model's: {', '.join(elsewhere[:LISTED])}"
+                     f"{more}; they are read by the coordinate's name: was the file written for another model?")
+    return notes
+
+
+def check_values(driven, times, columns, in_degrees, data, source):
+    """Check the values of the motion file ``source`` (module docstring): ``driven``
+    {coordinate: (n,) values, rad or m} of the driven coordinates at ``times`` (n,) s,
+    ``columns`` the file's (:func:`by_coordinate`, as written), ``in_degrees`` its
+    ``inDegrees``. Refuses (OsimError) a value beyond MAX_ROTATION / MAX_TRANSLATION;
+    returns the warnings (one line each): one about the rotational coordinates that leave
+    their range by RANGE_MARGIN, one about coupled coordinates' columns that their
+    couplers contradict."""
+    notes = []
+    if len(times) == 0:  # no samples: refused as too few (motion_drivers)
+        return notes
+    coords = data.get("coordinates") or {}
+    for name, values in driven.items():
+        rotational = coords[name].get("motion", "rotational") != "translational"
+        bound, unit = (MAX_ROTATION, "rad") if rotational else (MAX_TRANSLATION, "m")
+        k = int(np.argmax(np.abs(values)))
+        if abs(values[k]) > bound:
+            as_written = f"{columns[name][k]:g} deg, " if in_degrees and opensim_in_degrees(coords[name]) else ""
+            raise OsimError(f"{source}: column {columns.label(name)!r} at time {times[k]:.10g} s: {as_written}"
+                            f"{values[k]:g} {unit}, beyond the {bound:g} {unit} a "
+                            f"{'rotational' if rotational else 'translational'} coordinate can reach")
+    outside = []
+    for name, values in driven.items():
+        c = coords[name]
+        if c.get("motion", "rotational") != "rotational":
+            continue
+        low, high = c.get("range") or OPENSIM_DEFAULT_RANGE
+        k = int(np.argmax(np.maximum(low - values, values - high)))
+        if values[k] < low - RANGE_MARGIN or values[k] > high + RANGE_MARGIN:
+            default = "" if c.get("range") else ", OpenSim's default"
+            outside.append(f"{columns.label(name)!r} {values[k]:.4g} rad at {times[k]:.10g} s "
+                           f"(range [{low:g}, {high:g}]{default})")
+    if outside:
+        line = (columns.header or {}).get("indegrees")
+        said = (f"inDegrees={'yes' if in_degrees else 'no'} on line {line[0]}" if line
+                else "no inDegrees line: read as radians")
+        more = f" and {len(outside) - LISTED} more" if len(outside) > LISTED else ""
+        notes.append(f"{source}: rotational column(s) more than {RANGE_MARGIN:g} rad outside the coordinate's range: "
+                     f"{', '.join(outside[:LISTED])}{more}; {said}: is that right? (the motion is followed as given, "
+                     "as OpenSim follows an unclamped coordinate)")
+    contradicted = _contradicted_couplers(driven, times, columns, in_degrees, data)
+    if contradicted:
+        more = f" and {len(contradicted) - LISTED} more" if len(contradicted) > LISTED else ""
+        notes.append(f"{source}: column(s) of coupled coordinates that their couplers contradict, not used (the "
+                     f"coupler sets them): {', '.join(contradicted[:LISTED])}{more}")
+    return notes
+
+
+def _contradicted_couplers(driven, times, columns, in_degrees, data):
+    """["'column' (coupler 'name' from 'independent': X rad off at t s)"] of the
+    columns of coupled (dependent) coordinates farther than COUPLER_TOLERANCE from what
+    their couplers give from ``driven`` {coordinate: (n,) rad or m} (and the locked
+    coordinates' defaults); couplers whose inputs are not known (an FDK DOF's) are left
+    out. ``data`` is the model mapping (SI, as :mod:`.to_model` writes it)."""
+    from ...model.coordinate_functions import function_from_spec
+
+    units = data.get("units") or {}
+    if units.get("length", "m") != "m" or units.get("angle", "rad") != "rad":
+        return []
+    coords = data.get("coordinates") or {}
+    known = dict(driven)
+    for name, c in coords.items():
+        if c.get("locked") and isinstance(c.get("default"), (int, float)):
+            known.setdefault(name, np.full(len(times), float(c["default"])))
+    couplers = {n: c for n, c in (data.get("couplers") or {}).items() if isinstance(c, dict)}
+    found, done = [], set()
+    for _ in range(len(couplers)):  # chains: a coupler's independent coordinate may be another's dependent
+        for cname, c in couplers.items():
+            dep, ind = c.get("dependent"), c.get("independent")
+            if cname in done or ind not in known or dep in driven:
+                continue
+            try:
+                fn = function_from_spec(c.get("function"), f"couplers.{cname}", lambda path, msg: ValueError(msg))
+                value = np.asarray(fn.evaluate(np.asarray(known[ind], float))[0], float).reshape(-1)
+            except (ValueError, TypeError):
+                done.add(cname)
+                continue
+            done.add(cname)
+            known[dep] = value
+            if dep not in columns or dep not in coords:
+                continue
+            written = np.asarray(columns[dep], float)
+            column = np.radians(written) if in_degrees and opensim_in_degrees(coords[dep]) else written
+            with np.errstate(invalid="ignore", over="ignore"):
+                off = np.abs(column - value)
+            off = np.where(np.isfinite(off), off, np.inf)
+            k = int(np.argmax(off))
+            if off[k] > COUPLER_TOLERANCE:
+                unit = "m" if coords[dep].get("motion") == "translational" else "rad"
+                found.append(f"{columns.label(dep)!r} (coupler {cname!r} from {ind!r}: {off[k]:.3g} {unit} off at "
+                             f"{times[k]:.10g} s)")
+    return found
 
 
 def is_motion_driver(name, entry):
