@@ -20,11 +20,12 @@ Layout (OpenSim documentation, "Marker (.trc) Files"), tab separated:
 
 Rows shorter than the header's 2 + 3·NumMarkers cells: a row may stop after a marker's
 z (and a separator after it), which leaves its last markers missing (writers that drop
-trailing empty cells), and is read so with one warning per file naming the first such
-lines and their count (a row cut short reads the same: the warning is how it is
-noticed). A row that stops inside a marker's x y z is refused naming the line and the
-marker: no writer leaves a marker incomplete, so the row was cut (a file copied in
-part, a line cut mid-number).
+trailing empty cells), and is read so. When the last row alone is short, every other
+row complete, the file was most likely cut short, and one warning names that line (a
+writer that drops empty cells leaves short rows wherever its last markers are missing,
+and is read without a warning). A row that stops inside a marker's x y z is refused
+naming the line and the marker: no writer leaves a marker incomplete, so the row was cut
+(a file copied in part, a line cut mid-number).
 
 A coordinate farther than :data:`MAX_MARKER_DISTANCE` (1 km, after the unit conversion)
 from the lab origin is refused naming the line, the time and the marker: no capture
@@ -236,13 +237,15 @@ def read_trc(path: str | os.PathLike) -> MarkerTrial:
         row_lines.append(line_no)
     if not rows:
         raise TRCError(f"{name}: contains no data rows")
-    if short:
+    if short == row_lines[-1:]:
+        # only the last row is short: a file cut short (copied in part, a writer stopped)
+        # ends so; a writer that drops trailing empty cells leaves short rows wherever the
+        # last markers are missing, and is read without a word
         import warnings
 
-        more = f" and {len(short) - LISTED_LINES} more" if len(short) > LISTED_LINES else ""
-        warnings.warn(f"{name}: {len(short)} row(s) stop before the last marker (line(s) "
-                      f"{', '.join(map(str, short[:LISTED_LINES]))}{more}; {n_values} values expected: frame, time "
-                      f"and x y z of {n_markers} markers): their last markers are read as missing; a row cut short?")
+        warnings.warn(f"{name}: line {short[0]}, the last row, stops before the last marker ({n_values} values "
+                      f"expected: frame, time and x y z of {n_markers} markers) where every other row is complete: "
+                      "its last markers are read as missing; was the file cut short?")
     if "NumFrames" in header and header["NumFrames"] != "":
         declared = _count(header["NumFrames"], name, 3, "NumFrames")
         if declared != len(rows):
