@@ -80,3 +80,22 @@ def test_the_ct_incisal_point_splits_that_protrusion(resting_open):
     assert len(ct.cycles) > CYCLES
     rest = rest_incisor(subject, condyles, incisor)
     assert len(find_cycles(time, opening_signal(subject, incisor, rest)).cycles) == CYCLES
+
+
+def test_a_subjects_trial_with_a_marker_beyond_the_lab_is_refused(resting_open, tmp_path, monkeypatch):
+    """The study's marker-only series read a subject's C3D with read_c3d directly, past
+    the check every other trial gets (stop 72's sweep): a coordinate beyond 1 km is a
+    corrupt number, refused in one line naming the frame, the time and the marker.
+    openfdk's writer refuses such a file itself: its bound is lifted to write it."""
+    from openfdk.io.c3d import C3DError, read_c3d
+
+    subject, _ = resting_open
+    good = read_c3d(subject.protocol.trial("protrusion").file)
+    far = good.positions.copy()
+    far[3, 2, 1] = 2.0e3  # m
+    path = tmp_path / "far.c3d"
+    monkeypatch.setattr("openfdk.io.c3d.MAX_LAB_COORDINATE_M", 1e9)
+    write_c3d(path, good.labels, far, good.rate, units="mm")
+    with pytest.raises(C3DError, match=rf"far\.c3d: frame 4 \(time 0\.03 s\): marker '{good.labels[2]}': "
+                                       r"y = 2000 m is beyond 1000 m from the origin"):
+        measured_series(subject, register_from_braces(subject), path)

@@ -36,7 +36,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from ..io.c3d import MarkerTrial, read_c3d
+from ..io.c3d import MarkerTrial
+from ..io.trials import read_trial
 from ..io.markers import MarkerTrajectories
 from ..io.results import write_forces, write_json, write_kinematics
 from ..analysis.jobs import run_job
@@ -133,10 +134,12 @@ def measured_series(subject, registration, trial, cutoff_hz=MARKER_CUTOFF_HZ):
     (zero-lag 2nd-order Butterworth at ``cutoff_hz``, Hz; None = raw; gaps stay gaps,
     :class:`openfdk.io.markers.MarkerTrajectories`), then each brace is fitted rigidly.
 
-    Args: subject; registration (:func:`register_subject`); trial: C3D path or MarkerTrial.
+    Args: subject; registration (:func:`register_subject`); trial: C3D (or TRC) path or
+    MarkerTrial, read by :func:`openfdk.io.trials.read_trial` (its checks: a coordinate
+    beyond 1 km is refused).
     Returns: time (n,) s, condyle points {side: (n, 3) m} (positions in the skull frame,
     NaN where a brace has < 3 markers) and the incisal point (n, 3) m."""
-    trial = trial if isinstance(trial, MarkerTrial) else read_c3d(trial)
+    trial = trial if isinstance(trial, MarkerTrial) else read_trial(trial)  # checked as every trial is
     labels = registration["skull"][0] + registration["mandible"][0]
     trial = trial.select(labels)
     if cutoff_hz is not None:
