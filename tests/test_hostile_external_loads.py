@@ -224,3 +224,38 @@ def test_booleans_read_in_any_case_and_opensim_3_elements_without_warning(leg, c
     (leg / "loads.xml").write_text(xml)
     code, _, err = _run(capsys, leg)
     assert code == 0 and "loads.xml" not in err, err
+
+
+def _set_times(path, times):
+    """Replace the time column of the .mot at ``path`` by ``times`` (one per row, s)."""
+    lines = path.read_text().splitlines()
+    header = next(i for i, line in enumerate(lines) if line.startswith("time"))
+    rows = lines[header + 1:]
+    assert len(rows) == len(times)
+    lines[header + 1:] = ["\t".join([repr(float(t))] + row.split("\t")[1:]) for row, t in zip(rows, times)]
+    path.write_text("\n".join(lines) + "\n")
+
+
+@pytest.mark.parametrize("times, words", [
+    (lambda n: np.arange(n) * 1e-300, "times 1.2e-299 and 1.3e-299 s are 1e-300 s apart: a sampling rate above 1e+06 Hz"),
+    (lambda n: 1e300 + np.arange(n) * 1e290, "(sample 21) is beyond 1e+10 s (317 years)")])
+def test_load_samples_a_run_cannot_resolve_are_refused(leg, capsys, times, words):
+    """Samples 1e-300 s apart reached the recruitment as NaN loads ("C and d must be
+    finite", naming no file); times of 1e300 s were refused only as outside the window.
+    Both are now refused naming the data file, as a motion file's are."""
+    n = len([ln for ln in (leg / "grf.mot").read_text().splitlines()[7:] if ln.strip()])
+    _set_times(leg / "grf.mot", times(n))
+    code, _, err = _run(capsys, leg)
+    line = error_line(err)
+    assert code == 2 and f"external_loads.right.file: {leg / 'grf.mot'}: " in line and words in line, line
+
+
+def test_load_samples_on_an_offset_clock_are_read(leg, capsys):
+    """A plate's clock offset (Unix time, 1.7e9 s at 100 Hz) is interpolated at the
+    trial's frames in float64 to 0.4 µs, and never printed: read, unlike a motion file's
+    (whose times are the frames')."""
+    from openfdk.io.storage import sample_times_problem
+
+    offset = 1.7e9 + np.arange(21) * 0.01
+    assert "less than 1e-09 of their magnitude" in sample_times_problem(offset, "m.mot")
+    assert sample_times_problem(offset, "grf.mot", printed=False) == ""

@@ -99,7 +99,7 @@ def _impossible_moment(F, P, force_names, point_names, file, times):
 
 def load_external_loads(b, data, ctx):
     """The ``external_loads`` section into ``b.elements["external_loads"]``."""
-    from ..io.storage import read_storage
+    from ..io.storage import read_storage, sample_times_problem
 
     files = {}
     out = []
@@ -132,6 +132,8 @@ def load_external_loads(b, data, ctx):
         times, columns, _ = files[path]
         if len(times) < 2:
             raise ctx.error(f"{p}.file", f"{file} has fewer than 2 samples")
+        if problem := sample_times_problem(times, file, printed=False):
+            raise ctx.error(f"{p}.file", problem)
         F = _columns(ctx, spec, "force", p, columns, True)
         P = _columns(ctx, spec, "point", p, columns, False)
         T = _columns(ctx, spec, "torque", p, columns, False)

@@ -260,3 +260,47 @@ def count_mismatch(name, header, n_rows, n_columns):
         if declared != actual:
             found.append(f"line {line}: {spelt}={value[:20]}, the file has {actual} {what}")
     return f"{name}: {'; '.join(found)}; the data are read as they are" if found else None
+
+
+#: the highest sampling rate a run takes (the model file's bound on analysis.rate_hz, Hz)
+MAX_RATE_HZ = 1e6
+#: the largest |time| (s): 317 years, longer than any recording lasts; Unix time in
+#: seconds (1.7e9) is below it, and then refused by TIME_RESOLUTION unless resolved
+MAX_TIME = 1e10
+#: the smallest spacing of two samples relative to the times' magnitude: the outputs
+#: print times to 10 significant digits, so closer samples print (nearly) alike
+TIME_RESOLUTION = 1e-9
+
+
+def sample_times_problem(times, source, printed=True):
+    """The one-line refusal of a storage file's times (n,) s (finite, increasing) that a
+    run cannot resolve, or '': beyond MAX_TIME; less than 1/MAX_RATE_HZ s apart; with
+    ``printed`` (times the results print: a motion file's are the frames'), less than
+    TIME_RESOLUTION of the times' magnitude apart (an offset clock). ``source`` names the
+    file. Used for motion files (:func:`openfdk.io.opensim.motion.check_times`) and
+    ExternalLoads data (:mod:`openfdk.forces.data_load_section`, ``printed`` False: they
+    are interpolated at the trial's frames), whose samples at 1e-300 s spacing gave NaN
+    loads."""
+    import numpy as np
+
+    times = np.asarray(times, dtype=float)
+    if len(times) == 0:
+        return ""
+    k = int(np.argmax(np.abs(times)))
+    magnitude = abs(float(times[k]))
+    if magnitude > MAX_TIME:
+        return (f"{source}: time {float(times[k])!r} s (sample {k + 1}) is beyond {MAX_TIME:g} s (317 years), "
+                "longer than any recording")
+    if len(times) < 2:
+        return ""
+    gaps = np.diff(times)
+    k = int(np.argmin(gaps))
+    pair = f"times {float(times[k])!r} and {float(times[k + 1])!r} s are {gaps[k]:.3g} s apart"
+    if gaps[k] < 1.0 / MAX_RATE_HZ:
+        return (f"{source}: {pair}: a sampling rate above {MAX_RATE_HZ:g} Hz, the highest a run takes "
+                "(analysis.rate_hz)")
+    if printed and gaps[k] < TIME_RESOLUTION * magnitude:
+        return (f"{source}: {pair}, less than {TIME_RESOLUTION:g} of their magnitude: the results print "
+                "times to 10 significant digits, too few to tell the samples apart (a clock's offset, such "
+                "as Unix time? subtract the start time)")
+    return ""

@@ -76,14 +76,6 @@ MAX_ROTATION, MAX_TRANSLATION = 1e5, 1e4
 RANGE_MARGIN = 1.0
 #: OpenSim's Coordinate range when the .osim gives none (Coordinate.cpp, rad or m)
 OPENSIM_DEFAULT_RANGE = (-10.0, 10.0)
-#: the highest sampling rate a run takes (the model file's bound on analysis.rate_hz, Hz)
-MAX_RATE_HZ = 1e6
-#: the largest |time| (s): 317 years, longer than any recording lasts; Unix time in
-#: seconds (1.7e9) is below it, and then refused by TIME_RESOLUTION unless resolved
-MAX_TIME = 1e10
-#: the smallest spacing of two samples relative to the times' magnitude: the outputs
-#: print times to 10 significant digits, so closer samples print (nearly) alike
-TIME_RESOLUTION = 1e-9
 #: a coupled coordinate's column farther than this (rad or m) from its coupler's value is
 #: warned about: well above the round-off of printed values (OpenSim prints 8 digits)
 COUPLER_TOLERANCE = 1e-4
@@ -206,29 +198,13 @@ def _listed(labels):
 
 
 def check_times(times, source):
-    """Refuse the motion file ``source``'s times (n,) s (finite, increasing) beyond
-    MAX_TIME, or when two samples are too close to be resolved (module docstring): less
-    than 1/MAX_RATE_HZ s apart, or less than TIME_RESOLUTION of the times' magnitude (an
-    offset clock)."""
-    if len(times) == 0:
-        return
-    k = int(np.argmax(np.abs(times)))
-    magnitude = abs(float(times[k]))
-    if magnitude > MAX_TIME:
-        raise OsimError(f"{source}: time {float(times[k])!r} s (sample {k + 1}) is beyond {MAX_TIME:g} s (317 years), "
-                        "longer than any recording")
-    if len(times) < 2:
-        return
-    gaps = np.diff(times)
-    k = int(np.argmin(gaps))
-    pair = f"times {float(times[k])!r} and {float(times[k + 1])!r} s are {gaps[k]:.3g} s apart"
-    if gaps[k] < 1.0 / MAX_RATE_HZ:
-        raise OsimError(f"{source}: {pair}: a sampling rate above {MAX_RATE_HZ:g} Hz, the highest a run takes "
-                        "(analysis.rate_hz)")
-    if gaps[k] < TIME_RESOLUTION * magnitude:
-        raise OsimError(f"{source}: {pair}, less than {TIME_RESOLUTION:g} of their magnitude: the results print "
-                        "times to 10 significant digits, too few to tell the samples apart (a clock's offset, such "
-                        "as Unix time? subtract the start time)")
+    """Refuse the motion file ``source``'s times (n,) s (finite, increasing) that a run
+    cannot resolve (:func:`openfdk.io.storage.sample_times_problem`)."""
+    from ..storage import sample_times_problem
+
+    problem = sample_times_problem(times, source)
+    if problem:
+        raise OsimError(problem)
 
 
 def unknown_columns(columns, coords):
