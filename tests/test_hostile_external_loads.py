@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from cli_helpers import error_line, run_cli
-from openfdk.bench.fuzz_inputs import OSIM_TEXT
+from openfdk.bench.fuzz_inputs import write_leg
 from openfdk.bench.fuzz_kinds import EXTERNAL_LOADS_TEXT, _write_grf, _write_motion
 
 #: the row of the GRF file the cells below are written into (t = 0.05 s at 100 Hz)
@@ -24,10 +24,7 @@ ROW_TIME = 0.05
 @pytest.fixture
 def leg(tmp_path):
     """A folder with leg.osim (and its mesh), motion.sto, loads.xml and grf.mot."""
-    (tmp_path / "leg.osim").write_text(OSIM_TEXT)
-    (tmp_path / "Geometry").mkdir()
-    (tmp_path / "Geometry" / "thigh.obj").write_text("v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\n"
-                                                     "f 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n")
+    write_leg(tmp_path)
     (tmp_path / "loads.xml").write_text(EXTERNAL_LOADS_TEXT)
     _write_grf(tmp_path / "grf.mot")
     _write_motion(tmp_path / "motion.sto")

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from cli_helpers import error_line, run_cli
-from openfdk.bench.fuzz_inputs import OSIM_TEXT, _dump, _trc_text
+from openfdk.bench.fuzz_inputs import _dump, _trc_text, write_leg
 from openfdk.fixtures.synthetic import two_body_model_dict
 
 #: the TRC's first data line (1-based; 5 header lines and a blank one before it)
@@ -40,10 +40,7 @@ def jaw(tmp_path):
 @pytest.fixture
 def leg(tmp_path):
     """A folder with leg.osim and its mesh."""
-    (tmp_path / "leg.osim").write_text(OSIM_TEXT)
-    (tmp_path / "Geometry").mkdir()
-    (tmp_path / "Geometry" / "thigh.obj").write_text("v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\n"
-                                                     "f 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n")
+    write_leg(tmp_path)
     return tmp_path
 
 

@@ -138,11 +138,7 @@ class Bases:
             self.paths["trc"] = self.dir / "trial.trc"
         if {"osim", "ik", "external_loads", "grf_mot", "sto", "joint_reaction", "overlay"} & set(kinds):
             self.texts["osim"] = OSIM_TEXT
-            self.paths["osim"] = self.dir / "leg.osim"
-            self.paths["osim"].write_text(OSIM_TEXT)
-            (self.dir / "Geometry").mkdir()
-            (self.dir / "Geometry" / "thigh.obj").write_text("v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\n"
-                                                             "f 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n")
+            self.paths["osim"] = write_leg(self.dir)
         if "ik" in kinds:
             self.texts["ik"] = IK_SETUP_TEXT
             self.paths["ik"] = self.dir / "Setup_IK.xml"
@@ -268,6 +264,17 @@ OSIM_TEXT = """<?xml version="1.0" encoding="UTF-8" ?>
  </Model>
 </OpenSimDocument>
 """
+
+
+def write_leg(folder):
+    """Write the leg model (:data:`OSIM_TEXT`) as ``folder/leg.osim`` with its mesh
+    ``Geometry/thigh.obj`` (a tetrahedron); returns the .osim's path."""
+    folder = Path(folder)
+    (folder / "leg.osim").write_text(OSIM_TEXT)
+    (folder / "Geometry").mkdir(exist_ok=True)
+    (folder / "Geometry" / "thigh.obj").write_text("v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0 0 0.1\n"
+                                                   "f 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n")
+    return folder / "leg.osim"
 
 #: an OpenSim IK setup for :data:`OSIM_TEXT`: marker weights and coordinate tasks of all
 #: three value types (``from_file``: coords.mot beside it, in degrees)
