@@ -691,11 +691,11 @@ def test_a_checkpoint_s_carried_factors_of_another_model_are_refused(tmj_model, 
     step = FDKStep(tmj_model, ctx, fdk_settings(tmj_model, tmj_settings), approach=None)
     size = ctx.system.n_coords + ctx.system.n_rows
     carry = step.carry()
-    assert carry[-1] is None  # nothing solved yet
+    assert carry[8] is None  # nothing solved yet (carry[9]: the held wrap ways, forces/wrap_ways.py)
     state = tmj_model.initial_state()
     fits = KKTFactors(size).saved()
-    step.restore(carry[:-1] + ((0, {0: state}, {0: fits}),))
+    step.restore(carry[:8] + ((0, {0: state}, {0: fits}),) + carry[9:])
     assert step.solved[0] == 0 and step.solved[1].factors[0].LU.shape == (size, size)
     other = KKTFactors(size + 6).saved()
     with pytest.raises(ValueError, match="another size"):
-        step.restore(carry[:-1] + ((0, {0: state}, {0: other}),))
+        step.restore(carry[:8] + ((0, {0: state}, {0: other}),) + carry[9:])

@@ -71,6 +71,7 @@ from ..trial.status import FrameReport, Reason, frame_messages
 from ..model.plausibility import warn_plausibility
 from .contact_step import ContactSplit, checked_split
 from .absorbed import absorbed_message, fdk_absorbed_muscles
+from ..forces.wrap_ways import held_ways, hold_ways, release_ways, restore_ways
 from .approach import approach_for
 from .newton import combined, solve_frame, solve_restarts
 from .residual import FDKContext, FrameWorkspace, window_measurements
@@ -299,6 +300,8 @@ class FDKStep:
             self.last_state = ev.state
         out = [(k, values)]
         if sol.converged:
+            # each wrapped path stays on its way round into the next frame (forces/wrap_ways.py)
+            hold_ways(ctx.solver.forces)
             history.append((k, ev.alpha.copy()))
             self.history = history[-HISTORY:]
             self.warm = ev.frame.recruitment
@@ -407,7 +410,8 @@ class FDKStep:
 
     def carry(self):
         return (self.last_state.copy(), list(self.history), self.warm, self.J_carry, self.last_failed, self.dq_dalpha,
-                self.ctx.tracking_curvature, [tuple(u) for u in self.unswept], self._solved_carry())
+                self.ctx.tracking_curvature, [tuple(u) for u in self.unswept], self._solved_carry(),
+                held_ways(self.ctx.solver.forces))
 
     def _solved_carry(self):
         """``self.solved`` as plain data for a checkpoint, or None: (frame, {j: BodyStates},
@@ -451,6 +455,8 @@ class FDKStep:
         self.last_state, self.history = restored.states(last_state, reference, "state").copy(), history
         saved = sensitivity[3] if len(sensitivity) > 3 else None
         self.solved = None if saved is None else _solved_from(saved, self.ctx.system, reference)
+        if len(sensitivity) > 4:  # the wrapped paths' held ways round (forces/wrap_ways.py)
+            restore_ways(self.ctx.solver.forces, sensitivity[4])
 
 
 def _solved_from(saved, system, reference):
@@ -505,6 +511,7 @@ def fdk_step(model, trajectories, times, settings=None, tracking=None, **overrid
     solver_settings = fdk_settings(model, settings, **overrides)
     ctx = fdk_context(model, trajectories, times, tracking, settings)
     absorbed = fdk_absorbed_muscles(ctx.solver, model.initial_state())
+    release_ways(ctx.solver.forces)  # the first frame's paths take the shorter way round
     if absorbed:
         warn_plausibility(absorbed_message(absorbed))
     return FDKStep(model, ctx, solver_settings, approach_for(model, trajectories))

@@ -250,7 +250,10 @@ def _plane_fan(P1, Q1, axes, side):
     the line (2-D tangents, :func:`circle_wrap`) and maps back to a planar path on the
     ellipsoid (tangency is kept by the affine map). With a ``side`` only paths whose arc
     midpoint lies on that side count. Returns (length m, T1 (3,) mapped, arc length m,
-    arc angle rad) of the shortest, length inf when none qualifies.
+    arc angle rad) of the shortest, length inf when none qualifies; then the same four
+    of the shortest other local minimum of the length over the fan (cyclic in the
+    planes' angle; length inf when there is none): the start of the geodesic the other
+    way round (:func:`ellipsoid_wrap_from`).
 
     Planes through the centre alone (the sphere's great circle) miss the shortest path
     when the line passes near the centre of an elongated ellipsoid: the path then goes
@@ -262,7 +265,10 @@ def _plane_fan(P1, Q1, axes, side):
     ea = ea / np.sqrt(ea @ ea)
     eb = np.array([d[1] * ea[2] - d[2] * ea[1], d[2] * ea[0] - d[0] * ea[2], d[0] * ea[1] - d[1] * ea[0]])
     has_side = side @ side > 0.0
-    best, T1b, sb, thb = np.inf, np.zeros(3), 0.0, 0.0
+    lengths = np.full(FAN_PLANES, np.inf)
+    T1s = np.zeros((FAN_PLANES, 3))
+    arcs = np.zeros(FAN_PLANES)
+    thetas = np.zeros(FAN_PLANES)
     P = axes * P1
     Q = axes * Q1
     for k in range(FAN_PLANES):
@@ -302,10 +308,26 @@ def _plane_fan(P1, Q1, axes, side):
             continue
         w1 = axes * T1 - P
         w2 = Q - np.array([p0, p1, p2])
-        length = np.sqrt(w1 @ w1) + arc + np.sqrt(w2 @ w2)
-        if length < best:
-            best, T1b, sb, thb = length, T1, arc, th
-    return best, T1b, sb, thb
+        lengths[k] = np.sqrt(w1 @ w1) + arc + np.sqrt(w2 @ w2)
+        T1s[k] = T1
+        arcs[k], thetas[k] = arc, th
+    # the two shortest local minima over the fan (cyclic; a plateau counts once)
+    i1, i2 = -1, -1
+    for k in range(FAN_PLANES):
+        lk = lengths[k]
+        if lk == np.inf or lk > lengths[k - 1] or lk >= lengths[(k + 1) % FAN_PLANES]:
+            continue
+        if i1 < 0 or lk < lengths[i1]:
+            i1, i2 = k, i1
+        elif i2 < 0 or lk < lengths[i2]:
+            i2 = k
+    if i1 < 0:  # (every plane the same length: the first)
+        i1 = int(np.argmin(lengths))
+    if lengths[i1] == np.inf:
+        return np.inf, np.zeros(3), 0.0, 0.0, np.inf, np.zeros(3), 0.0, 0.0
+    if i2 < 0:
+        return lengths[i1], T1s[i1], arcs[i1], thetas[i1], np.inf, np.zeros(3), 0.0, 0.0
+    return lengths[i1], T1s[i1], arcs[i1], thetas[i1], lengths[i2], T1s[i2], arcs[i2], thetas[i2]
 
 
 @njit(cache=True)
@@ -319,16 +341,42 @@ def ellipsoid_wrap(P, Q, axes, side, tol):
 #: a node's row of the path kernel's ``warm``: a geodesic's warm start of
 #: :func:`ellipsoid_wrap_from` [T1 (3,) m in S and arc length s m of the last solve, the
 #: integrator's step count and the anchors P, Q (3,) m in S of the last cold solve, the
-#: shooting residual's derivatives D (4,), the last solve's shots] in its first 16, or an
+#: shooting residual's derivatives D (4,), the last solve's shots, the warm start's reach
+#: m (at REACH), the held way round (HOLD: 3, HELD: 1 when held, :mod:`.wrap_ways`) and
+#: the last solve's way round (WAY: 3, :func:`way_round`)] in its first 24, or an
 #: OpenSim-rule ellipsoid's last core and gradient model
 #: (:data:`~openfdk.forces.wrap_ellipsoid_plane.PLANE_ROW`)
-WARM_SIZE = max(16, PLANE_ROW)
+REACH, HOLD, HELD, WAY = 16, 17, 20, 21
+WARM_SIZE = max(24, PLANE_ROW)
 #: a chord step (:func:`_shoot_newton` with a kept derivative) is accepted when it cuts
 #: the end residual at least this much; else the derivative is differenced again
 CHORD_RATE = 0.1
 #: a warm start is used only while both anchors lie within this fraction of the smallest
-#: semi-axis of where it was solved (farther, the geodesic may have changed branch)
+#: semi-axis of where it was solved (farther, the geodesic may have changed branch), and
+#: within a quarter of the margin by which the other way round was longer there. Without
+#: that second bound the path depended on the poses evaluated before: where the two
+#: ways round are nearly as long, a warm start kept the way the last cold solve took.
+#: On DM's lateral patellofemoral ligament (lPFL5 over the ellipsoid lPFL_r, quadrant
+#: ``all``; tm_med1 at 2.708 s) the two ways round differed by 7 µm, the same pose gave
+#: a residual 1 N apart along pf_tx_r depending on the pose evaluated before it, and
+#: Newton stalled there (docs/knee-gait-solver-history.md, stop 73)
 WARM_REACH = 0.05
+#: two geodesics whose first tangent points are closer than this fraction of the
+#: anchors' distances from the centre are the same (the fan's two minima found one path)
+SAME_GEODESIC = 1e-6
+
+
+@njit(cache=True)
+def way_round(P, Q, T1):
+    """The way round of a path P→Q (3,) m over a surface, its first tangent point T1
+    (3,) m: the unit vector from the line P Q to T1, normal to the line (zero when T1 is
+    on it). Two geodesics the two ways round an ellipsoid have opposite ones."""
+    d = Q - P
+    d = d / np.sqrt(d @ d)
+    w = T1 - P
+    w = w - (w @ d) * d
+    n = np.sqrt(w @ w)
+    return w / n if n > 0.0 else w
 
 
 @njit(cache=True)
@@ -336,16 +384,22 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     """:func:`ellipsoid_wrap` with a warm start ``warm`` (WARM_SIZE,), read and written:
     the tangent point T1 (m, S) and arc length s (m) of the last solve, the integrator step
     count and anchors of the last cold solve (s = 0: none), the shooting's derivatives.
-    When s > 0 and both anchors lie within WARM_REACH × the smallest semi-axis of the
-    last cold solve's, Newton starts from the last geodesic, with the same step count
+    When s > 0 and both anchors lie within the last cold solve's reach of its anchors
+    (WARM_REACH × the smallest semi-axis, or a quarter of the margin by which the other
+    way round was longer), Newton starts from the last geodesic, with the same step count
     and chord steps (:func:`_shoot_newton`), and the cold starts (the plane fan, the
     great circle) are used only if it does not converge. Between nearby poses (the
     Newton iterations and finite differences of a frame, successive frames) this is the
     same geodesic as the cold solve, to the Newton tolerance, at a fraction of the cost;
     the step count is kept so the discretisation is the same along a finite difference,
     and the reach is measured from the cold solve, so that drifting anchors are decided
-    cold again (the shorter way round may have changed sides). warm[15]: the shots of
-    this solve (a diagnostic)."""
+    cold again (the shorter way round may have changed sides). A cold solve shoots the
+    geodesic from each of the plane fan's two shortest local minima (the two ways round)
+    and takes the shorter, so the path is a function of the anchors alone, whatever was
+    evaluated before; with a held way (warm[HELD] = 1, :mod:`.wrap_ways`: FDK holds each
+    path's way round from one converged frame to the next) it takes the way nearer the
+    held one instead. warm[15]: the shots of this solve (a diagnostic); warm[WAY:WAY+3]:
+    its way round (:func:`way_round`)."""
     T1 = np.empty(3)
     T2 = np.empty(3)
     warm[15] = 0.0
@@ -362,7 +416,7 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     A = 1.0 / (axes * axes)
     scale = np.sqrt(P @ P) + np.sqrt(Q @ Q)
     tol = max(tol, 1e-13 * scale)  # (round-off of the residual of far anchors)
-    reach = WARM_REACH * min(axes[0], min(axes[1], axes[2]))
+    reach = warm[REACH]  # (WARM_REACH, or less where the other way round is nearly as short)
     if warm[3] > 0.0 and _within(P, warm[5:8], reach) and _within(Q, warm[8:11], reach):
         g = warm[:3] / Dinv - c0
         converged, phi, s, T1c, x, shots = _shoot_newton(np.arctan2(g @ u2, g @ u1), warm[3], P, Q, c0, rho, u1,
@@ -371,6 +425,7 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
         if converged:
             warm[:3] = T1c
             warm[3] = s
+            warm[WAY:WAY + 3] = way_round(P, Q, T1c)
             T1[:] = T1c
             T2[:] = x
             a1 = T1c - P
@@ -393,50 +448,85 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     # starts (horizon angle, arc length): the shortest planar path of the fan of planes
     # through P and Q on the side, the great circle, the shortest planar path on any side
     # (when no geodesic on the side is found near the first two)
-    starts = np.zeros((3, 2))
+    starts = np.zeros((4, 2))
     n_starts = 0
+    n_fan = 0  # the first n_fan starts: the fan's local minima (one per way round)
     if crosses(P, Q, axes):
-        best, T1f, s_f, theta_f = _plane_fan(P1, Q1, Dinv, side)
+        best, T1f, s_f, theta_f, best2, T1g, s_g, theta_g = _plane_fan(P1, Q1, Dinv, side)
         if best < np.inf:
             starts[n_starts, 0] = np.arctan2((T1f - c0) @ u2, (T1f - c0) @ u1)
             starts[n_starts, 1] = s_f
             n_starts += 1
             theta = max(theta, theta_f)
+            if best2 < np.inf:
+                starts[n_starts, 0] = np.arctan2((T1g - c0) @ u2, (T1g - c0) @ u1)
+                starts[n_starts, 1] = s_g
+                n_starts += 1
+                theta = max(theta, theta_g)
+        n_fan = n_starts
     starts[n_starts, 1] = s
     n_starts += 1
     if crosses(P, Q, axes) and side @ side > 0.0:
-        best, T1f, s_f, theta_f = _plane_fan(P1, Q1, Dinv, np.zeros(3))
+        best, T1f, s_f, theta_f, _, _, _, _ = _plane_fan(P1, Q1, Dinv, np.zeros(3))
         if best < np.inf:
             starts[n_starts, 0] = np.arctan2((T1f - c0) @ u2, (T1f - c0) @ u1)
             starts[n_starts, 1] = s_f
             n_starts += 1
             theta = max(theta, theta_f)
     n_steps = 12 + int(75.0 * theta / np.pi)  # (a quarter of RK4's 48 + 300 θ/π: shoot_geodesic)
+    # the geodesic from each start until one converges, and from both of the fan's
+    # minima: the shorter way round is the path, and the two lengths' margin bounds the
+    # warm start's reach (WARM_REACH); with a held way (HELD), the way nearer it
+    held = warm[HELD] > 0.0
     converged = False
+    length, margin = np.inf, np.inf
+    s_c = 0.0
+    T1c = np.zeros(3)
+    xc = np.zeros(3)
+    Dc = np.zeros(4)
     for k in range(n_starts):
-        phi, s = starts[k, 0], starts[k, 1]
+        if converged and (k >= n_fan or (held and way_round(P, Q, T1c) @ warm[HOLD:HOLD + 3] > 0.0)):
+            break  # (held: the first minimum is on the held way already)
         D = np.zeros(4)
-        converged, phi, s, T1c, x, shots = _shoot_newton(phi, s, P, Q, c0, rho, u1, u2, Dinv, A, n_steps, scale, tol,
-                                                         D)
+        ok, _, s_k, T1k, xk, shots = _shoot_newton(starts[k, 0], starts[k, 1], P, Q, c0, rho, u1, u2, Dinv, A,
+                                                   n_steps, scale, tol, D)
         warm[15] += shots
+        if not ok:
+            continue
+        a1 = T1k - P
+        a2 = Q - xk
+        l_k = np.sqrt(a1 @ a1) + s_k + np.sqrt(a2 @ a2)
         if converged:
-            break
+            e = T1k - T1c
+            if e @ e < (SAME_GEODESIC * scale) ** 2:
+                continue  # both starts found the same geodesic
+            if held:
+                if way_round(P, Q, T1k) @ warm[HOLD:HOLD + 3] <= way_round(P, Q, T1c) @ warm[HOLD:HOLD + 3]:
+                    continue
+            else:
+                margin = abs(l_k - length)
+                if l_k >= length:
+                    continue
+        converged = True
+        length, s_c, T1c, xc, Dc = l_k, s_k, T1k, xk, D
     if not converged:
         warm[3] = 0.0
         T1[:] = P
         T2[:] = Q
         return -2, np.nan, T1, T2, 0.0
     warm[:3] = T1c
-    warm[3] = s
+    warm[3] = s_c
     warm[4] = n_steps
     warm[5:8] = P
     warm[8:11] = Q
-    warm[11:15] = D
+    warm[11:15] = Dc
+    # each way round's length moves by at most |ΔP| + |ΔQ|: within a quarter of the
+    # margin the shorter one stays the shorter
+    warm[REACH] = min(WARM_REACH * min(axes[0], min(axes[1], axes[2])), 0.25 * margin)
+    warm[WAY:WAY + 3] = way_round(P, Q, T1c)
     T1[:] = T1c
-    T2[:] = x
-    a1 = T1c - P
-    a2 = Q - x
-    return 1, np.sqrt(a1 @ a1) + s + np.sqrt(a2 @ a2), T1, T2, s
+    T2[:] = xc
+    return 1, length, T1, T2, s_c
 
 
 @njit(cache=True)
