@@ -71,7 +71,7 @@ from ..trial.status import FrameReport, Reason, frame_messages
 from ..model.plausibility import warn_plausibility
 from .contact_step import ContactSplit, checked_split
 from .absorbed import absorbed_message, fdk_absorbed_muscles
-from ..forces.wrap_ways import held_ways, hold_ways, release_ways, restore_ways
+from ..forces.wrap_ways import any_held, held_ways, hold_ways, release_ways, restore_ways
 from .approach import approach_for
 from .newton import combined, solve_frame, solve_restarts
 from .residual import FDKContext, FrameWorkspace, window_measurements
@@ -265,30 +265,15 @@ class FDKStep:
         first = lead or solve_frame(ctx, k, a0, ws, cold or settings, self.warm, self.J_carry, not warm_frame)
         later = []
         if not first.converged and settings.restart:
-            tried = [] if lead else [a0]
-            # after a converged frame: through sub-steps first (fdk/approach.py), then from
-            # α_{k−1} and the initial values; after a failed one (or a failed lead-in),
-            # from the last converged α and the initial values (no frames lead to it)
-            sub_steps = warm_frame and self.approach is not None and lead is None
-            approached = self.approach(self, k) if sub_steps else None
-            if approach and lead is None and k == 0 and self.approach.trajectories is None:
-                # determinate kinematics (drivers, a --motion file) have no lead-in: the
-                # transient start from the initial values (fdk/approach.py)
-                approached = self.approach.transient_start(self, k)
-            later = [approached] if approached is not None else []
-            if not any(s.converged for s in later):
-                # (after a failed lead-in the initial values get the cold limit the first start had)
-                later += solve_restarts(ctx, k, ([history[-1][1]] if history else []) + [self.a_init], ws0,
-                                        (cold or settings) if lead else settings, self.warm, tried, not warm_frame)
-            if not any(s.converged for s in later) and history and self.scan:
-                later += solve_restarts(ctx, k, scan_starts(history[-1][1], settings.max_step), ws0, settings,
-                                        self.warm, tried, not warm_frame)
-            stalled = min([first] + later, key=lambda s: s.best.norm).best
-            if (not any(s.converged for s in later) and self.scan and stalled.ok
-                    and stalled.norm < NEAR_SCAN_RANGE * settings.tolerance):
-                # a stall next to the root, at a kink of f^FDK: from the stall moved a little
-                later += solve_restarts(ctx, k, near_starts(stalled.alpha, settings.max_step), ws0, settings,
-                                        self.warm, tried, not warm_frame)
+            later = self._restarted(k, first, lead, approach, a0, ws0, cold, warm_frame)
+            if not any(s.converged for s in later) and any_held(ctx.solver.forces):
+                # no equilibrium with each wrapped path on the way round it was held on:
+                # the ways decided again, the shorter at each pose (forces/wrap_ways.py),
+                # and the frame solved again from its warm start and the restarts
+                release_ways(ctx.solver.forces)
+                again = solve_frame(ctx, k, a0, ws0.copy(), cold or settings, self.warm, None, not warm_frame)
+                later += [again] + ([] if again.converged else
+                                    self._restarted(k, again, None, approach, a0, ws0, cold, warm_frame))
         sol = combined(first, later)
         self.J_carry = sol.jacobian if sol.converged else None
         self.dq_dalpha = sol.workspace.dq_dalpha if sol.converged and sol.workspace is not None else None
@@ -311,6 +296,39 @@ class FDKStep:
         else:
             self.unswept.append((k, sol.iterations, sol.evaluations, sol.jacobians, sol.restarts))
         return out
+
+    def _restarted(self, k, first, lead, approach, a0, ws0, cold, warm_frame):
+        """The further solves of frame k after its first one, ``first``, failed (the
+        module docstring's order): [FrameSolution]. ``lead``: the lead-in's solution when
+        the first solve was one; ``approach``: the frame is the window's first or has no
+        velocity; a0, ws0: the warm start and its poses; cold: the cold settings or None;
+        warm_frame: frame k − 1 converged."""
+        ctx, settings, history = self.ctx, self.settings, self.history
+        tried = [] if lead else [a0]
+        # after a converged frame: through sub-steps first (fdk/approach.py), then from
+        # α_{k−1} and the initial values; after a failed one (or a failed lead-in),
+        # from the last converged α and the initial values (no frames lead to it)
+        sub_steps = warm_frame and self.approach is not None and lead is None
+        approached = self.approach(self, k) if sub_steps else None
+        if approach and lead is None and k == 0 and self.approach.trajectories is None:
+            # determinate kinematics (drivers, a --motion file) have no lead-in: the
+            # transient start from the initial values (fdk/approach.py)
+            approached = self.approach.transient_start(self, k)
+        later = [approached] if approached is not None else []
+        if not any(s.converged for s in later):
+            # (after a failed lead-in the initial values get the cold limit the first start had)
+            later += solve_restarts(ctx, k, ([history[-1][1]] if history else []) + [self.a_init], ws0,
+                                    (cold or settings) if lead else settings, self.warm, tried, not warm_frame)
+        if not any(s.converged for s in later) and history and self.scan:
+            later += solve_restarts(ctx, k, scan_starts(history[-1][1], settings.max_step), ws0, settings,
+                                    self.warm, tried, not warm_frame)
+        stalled = min([first] + later, key=lambda s: s.best.norm).best
+        if (not any(s.converged for s in later) and self.scan and stalled.ok
+                and stalled.norm < NEAR_SCAN_RANGE * settings.tolerance):
+            # a stall next to the root, at a kink of f^FDK: from the stall moved a little
+            later += solve_restarts(ctx, k, near_starts(stalled.alpha, settings.max_step), ws0, settings,
+                                    self.warm, tried, not warm_frame)
+        return later
 
     def _values(self, sol, spent=(0, 0, 0, 0), backward=False):
         """The recorded values of a frame's FrameSolution ``sol``; ``spent``: the

@@ -485,8 +485,8 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     xc = np.zeros(3)
     Dc = np.zeros(4)
     for k in range(n_starts):
-        if converged and (k >= n_fan or (held and way_round(P, Q, T1c) @ warm[HOLD:HOLD + 3] > 0.0)):
-            break  # (held: the first minimum is on the held way already)
+        if converged and k >= n_fan:
+            break
         D = np.zeros(4)
         ok, _, s_k, T1k, xk, shots = _shoot_newton(starts[k, 0], starts[k, 1], P, Q, c0, rho, u1, u2, Dinv, A,
                                                    n_steps, scale, tol, D)

@@ -14,7 +14,10 @@ evaluations take the geodesic on the held way (the nearer of the two), whatever 
 they are at. f^FDK is then one function of α within a frame, and its root is the
 equilibrium of the strand on the side it was on. A path that stopped wrapping is
 released: when its line crosses the ellipsoid again, the shorter way is taken, as
-outside FDK (inverse dynamics, kinematics, OpenSim's own paths) always.
+outside FDK (inverse dynamics, kinematics, OpenSim's own paths) always. When a frame
+finds no equilibrium with the ways held (every restart failed), the ways are released
+and the frame is solved again, each path taking the shorter way at each pose: the strand
+slips over to the other side where it cannot stay (fdk/analysis.py).
 
 Only the force elements' paths (ligaments, muscles) are held; a measure's path
 (``measures:`` of type path) is evaluated alone.
@@ -59,6 +62,11 @@ def hold_ways(forces):
         w[rows, HELD] = (w[rows, 3] > 0.0).astype(float)
 
 
+def any_held(forces):
+    """Whether any path of ``forces`` has a held way round."""
+    return any(np.any(nodes.warm[geodesic_rows(nodes), HELD] > 0.0) for nodes in wrap_nodes(forces))
+
+
 def release_ways(forces):
     """Release every held way and drop the warm starts, so that the next solve of each
     geodesic is cold and takes the shorter way (a run's start)."""
@@ -89,4 +97,4 @@ def restore_ways(forces, saved):
         nodes.warm[rows, 3] = 0.0
 
 
-__all__ = ["wrap_nodes", "geodesic_rows", "hold_ways", "release_ways", "held_ways", "restore_ways"]
+__all__ = ["wrap_nodes", "geodesic_rows", "any_held", "hold_ways", "release_ways", "held_ways", "restore_ways"]
