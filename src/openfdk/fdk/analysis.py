@@ -25,6 +25,11 @@ of f^FDK(α) next to the root, not a far branch (DM og4 3.117 s: Newton stalls a
 where the patella engages the trochlear groove, pf_tx's slope growing 400-fold within a
 twentieth of the Newton step; from the stall moved by 0.1 max_step, 3 of the 20 starts
 converge, from α_{k−1} moved by 2 max_steps none).
+The wrapped paths keep the way round an ellipsoid they took at the last converged frame
+(:mod:`openfdk.forces.wrap_ways`); when every start above fails with the ways held, they
+are released and the frame is solved again from its warm start and through the same
+restarts (DM as published, og1 at 2.692 s: no equilibrium with the ways held on their
+side; 2 167 evaluations in all).
 A *cold* frame — one whose previous frame did not converge, the first frame among them —
 starts from the previous frame's best iterate (when that frame failed) or from the DOFs'
 initial values, far from its root, and its first start gets ``cold_max_iterations``
