@@ -371,12 +371,15 @@ def way_round(P, Q, T1):
     """The way round of a path P→Q (3,) m over a surface, its first tangent point T1
     (3,) m: the unit vector from the line P Q to T1, normal to the line (zero when T1 is
     on it). Two geodesics the two ways round an ellipsoid have opposite ones."""
-    d = Q - P
-    d = d / np.sqrt(d @ d)
-    w = T1 - P
-    w = w - (w @ d) * d
-    n = np.sqrt(w @ w)
-    return w / n if n > 0.0 else w
+    d0, d1, d2 = Q[0] - P[0], Q[1] - P[1], Q[2] - P[2]
+    w0, w1, w2 = T1[0] - P[0], T1[1] - P[1], T1[2] - P[2]
+    c = (w0 * d0 + w1 * d1 + w2 * d2) / (d0 * d0 + d1 * d1 + d2 * d2)  # (scalars: no BLAS call)
+    w0, w1, w2 = w0 - c * d0, w1 - c * d1, w2 - c * d2
+    n = np.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+    out = np.zeros(3)
+    if n > 0.0:
+        out[0], out[1], out[2] = w0 / n, w1 / n, w2 / n
+    return out
 
 
 @njit(cache=True)
@@ -397,8 +400,8 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     geodesic from each of the plane fan's two shortest local minima (the two ways round)
     and takes the shorter, so the path is a function of the anchors alone, whatever was
     evaluated before; with a held way (warm[HELD] = 1, :mod:`.wrap_ways`: FDK holds each
-    path's way round from one converged frame to the next) it takes the way nearer the
-    held one instead. warm[15]: the shots of this solve (a diagnostic); warm[WAY:WAY+3]:
+    path's way round from one converged frame to the next) it shoots only the fan's
+    minimum on the way nearer the held one. warm[15]: the shots of this solve (a diagnostic); warm[WAY:WAY+3]:
     its way round (:func:`way_round`)."""
     T1 = np.empty(3)
     T2 = np.empty(3)
@@ -448,9 +451,12 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     # starts (horizon angle, arc length): the shortest planar path of the fan of planes
     # through P and Q on the side, the great circle, the shortest planar path on any side
     # (when no geodesic on the side is found near the first two)
-    starts = np.zeros((4, 2))
+    held = warm[HELD] > 0.0
+    # starts (horizon angle, arc length, the arc angle its integrator steps cover)
+    starts = np.zeros((4, 3))
     n_starts = 0
     n_fan = 0  # the first n_fan starts: the fan's local minima (one per way round)
+    other = -1  # the start of the fan's other minimum (the other way round)
     if crosses(P, Q, axes):
         best, T1f, s_f, theta_f, best2, T1g, s_g, theta_g = _plane_fan(P1, Q1, Dinv, side)
         if best < np.inf:
@@ -461,8 +467,9 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
             if best2 < np.inf:
                 starts[n_starts, 0] = np.arctan2((T1g - c0) @ u2, (T1g - c0) @ u1)
                 starts[n_starts, 1] = s_g
+                starts[n_starts, 2] = theta_g
+                other = n_starts
                 n_starts += 1
-                theta = max(theta, theta_g)
         n_fan = n_starts
     starts[n_starts, 1] = s
     n_starts += 1
@@ -473,14 +480,26 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
             starts[n_starts, 1] = s_f
             n_starts += 1
             theta = max(theta, theta_f)
-    n_steps = 12 + int(75.0 * theta / np.pi)  # (a quarter of RK4's 48 + 300 θ/π: shoot_geodesic)
+    # integrator steps: a quarter of RK4's 48 + 300 θ/π (shoot_geodesic) for the arc of
+    # the great circle and the fan's shortest path, and of the other way round's for it
+    for k in range(n_starts):
+        starts[k, 2] = 12 + int(75.0 * max(theta, starts[k, 2] if k == other else 0.0) / np.pi)
+    if held and n_fan == 2:
+        # the minimum on the way nearer the held one first, and only it decides
+        hold = warm[HOLD:HOLD + 3]
+        if way_round(P, Q, Dinv * T1g) @ hold > way_round(P, Q, Dinv * T1f) @ hold:
+            first = starts[0].copy()
+            starts[0] = starts[1]
+            starts[1] = first
+        n_fan = 1
     # the geodesic from each start until one converges, and from both of the fan's
     # minima: the shorter way round is the path, and the two lengths' margin bounds the
-    # warm start's reach (WARM_REACH); with a held way (HELD), the way nearer it
-    held = warm[HELD] > 0.0
+    # warm start's reach (WARM_REACH); with a held way (HELD) the fan's minimum on the
+    # way nearer it alone (above)
     converged = False
     length, margin = np.inf, np.inf
     s_c = 0.0
+    n_steps = 0
     T1c = np.zeros(3)
     xc = np.zeros(3)
     Dc = np.zeros(4)
@@ -488,8 +507,9 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
         if converged and k >= n_fan:
             break
         D = np.zeros(4)
+        steps = int(starts[k, 2])
         ok, _, s_k, T1k, xk, shots = _shoot_newton(starts[k, 0], starts[k, 1], P, Q, c0, rho, u1, u2, Dinv, A,
-                                                   n_steps, scale, tol, D)
+                                                   steps, scale, tol, D)
         warm[15] += shots
         if not ok:
             continue
@@ -500,15 +520,11 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
             e = T1k - T1c
             if e @ e < (SAME_GEODESIC * scale) ** 2:
                 continue  # both starts found the same geodesic
-            if held:
-                if way_round(P, Q, T1k) @ warm[HOLD:HOLD + 3] <= way_round(P, Q, T1c) @ warm[HOLD:HOLD + 3]:
-                    continue
-            else:
-                margin = abs(l_k - length)
-                if l_k >= length:
-                    continue
+            margin = abs(l_k - length)
+            if l_k >= length:
+                continue
         converged = True
-        length, s_c, T1c, xc, Dc = l_k, s_k, T1k, xk, D
+        length, s_c, T1c, xc, Dc, n_steps = l_k, s_k, T1k, xk, D, steps
     if not converged:
         warm[3] = 0.0
         T1[:] = P
