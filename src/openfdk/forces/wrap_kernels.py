@@ -400,8 +400,8 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     geodesic from each of the plane fan's two shortest local minima (the two ways round)
     and takes the shorter, so the path is a function of the anchors alone, whatever was
     evaluated before; with a held way (warm[HELD] = 1, :mod:`.wrap_ways`: FDK holds each
-    path's way round from one converged frame to the next) it shoots only the fan's
-    minimum on the way nearer the held one. warm[15]: the shots of this solve (a diagnostic); warm[WAY:WAY+3]:
+    path's way round from one converged frame to the next) it takes the geodesic whose
+    way is nearer the held one. warm[15]: the shots of this solve (a diagnostic); warm[WAY:WAY+3]:
     its way round (:func:`way_round`)."""
     T1 = np.empty(3)
     T2 = np.empty(3)
@@ -484,18 +484,10 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     # the great circle and the fan's shortest path, and of the other way round's for it
     for k in range(n_starts):
         starts[k, 2] = 12 + int(75.0 * max(theta, starts[k, 2] if k == other else 0.0) / np.pi)
-    if held and n_fan == 2:
-        # the minimum on the way nearer the held one first, and only it decides
-        hold = warm[HOLD:HOLD + 3]
-        if way_round(P, Q, Dinv * T1g) @ hold > way_round(P, Q, Dinv * T1f) @ hold:
-            first = starts[0].copy()
-            starts[0] = starts[1]
-            starts[1] = first
-        n_fan = 1
     # the geodesic from each start until one converges, and from both of the fan's
     # minima: the shorter way round is the path, and the two lengths' margin bounds the
-    # warm start's reach (WARM_REACH); with a held way (HELD) the fan's minimum on the
-    # way nearer it alone (above)
+    # warm start's reach (WARM_REACH); with a held way (HELD) the geodesic whose way is
+    # nearer it (a start's way is not its geodesic's: both are shot)
     converged = False
     length, margin = np.inf, np.inf
     s_c = 0.0
@@ -520,9 +512,14 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
             e = T1k - T1c
             if e @ e < (SAME_GEODESIC * scale) ** 2:
                 continue  # both starts found the same geodesic
-            margin = abs(l_k - length)
-            if l_k >= length:
-                continue
+            if held:
+                hold = warm[HOLD:HOLD + 3]
+                if way_round(P, Q, T1k) @ hold <= way_round(P, Q, T1c) @ hold:
+                    continue
+            else:
+                margin = abs(l_k - length)
+                if l_k >= length:
+                    continue
         converged = True
         length, s_c, T1c, xc, Dc, n_steps = l_k, s_k, T1k, xk, D, steps
     if not converged:
