@@ -691,7 +691,7 @@ def test_a_checkpoint_s_carried_factors_of_another_model_are_refused(tmj_model, 
     step = FDKStep(tmj_model, ctx, fdk_settings(tmj_model, tmj_settings), approach=None)
     size = ctx.system.n_coords + ctx.system.n_rows
     carry = step.carry()
-    assert carry[8] is None  # nothing solved yet (carry[9]: the held wrap ways, forces/wrap_ways.py)
+    assert carry[8] is None  # nothing solved yet
     state = tmj_model.initial_state()
     fits = KKTFactors(size).saved()
     step.restore(carry[:8] + ((0, {0: state}, {0: fits}),) + carry[9:])

@@ -545,33 +545,6 @@ def test_ellipsoid_path_is_the_shorter_way_round_whatever_was_solved_before():
         assert abs(l - l_c) < 1e-12
 
 
-def test_ellipsoid_held_way_round_is_kept_where_the_other_is_shorter():
-    """With a held way round (forces/wrap_ways.py: FDK holds it from one converged frame
-    to the next), a cold solve takes the geodesic on the held way even where the other
-    way is shorter: the same path as the one-sided geodesic (side +z) solved alone, not
-    the shorter −z one; released, the shorter way again."""
-    from openfdk.forces.wrap_kernels import (ELLIPSOID_TOL, HELD, HOLD, WARM_SIZE, WAY, ellipsoid_wrap,
-                                             ellipsoid_wrap_from, way_round)
-
-    axes = np.array([0.02, 0.035, 0.013])
-    up, down, none = np.array([0.0, 0.0, 1.0]), np.array([0.0, 0.0, -1.0]), np.zeros(3)
-    warm = np.zeros(WARM_SIZE)
-    P, Q = np.array([-0.05, 0.0, 1e-4]), np.array([0.05, 0.003, 1e-4])
-    ellipsoid_wrap_from(P, Q, axes, none, ELLIPSOID_TOL, warm)
-    assert warm[WAY + 2] > 0.99  # the +z way (the shorter here), unit and normal to P Q
-    assert abs(np.linalg.norm(warm[WAY:WAY + 3]) - 1.0) < 1e-12 and abs(warm[WAY:WAY + 3] @ (Q - P)) < 1e-15
-    warm[HOLD:HOLD + 3], warm[HELD] = warm[WAY:WAY + 3], 1.0
-    P, Q = np.array([-0.05, 0.0, -2e-3]), np.array([0.05, 0.003, -2e-3])  # −z much shorter, beyond the reach
-    held = ellipsoid_wrap_from(P, Q, axes, none, ELLIPSOID_TOL, warm)
-    plus, minus = ellipsoid_wrap(P, Q, axes, up, ELLIPSOID_TOL), ellipsoid_wrap(P, Q, axes, down, ELLIPSOID_TOL)
-    assert minus[1] < plus[1] - 1e-3
-    assert held[0] == 1 and abs(held[1] - plus[1]) < 1e-11 and np.max(np.abs(held[2] - plus[2])) < 1e-8
-    assert np.allclose(way_round(P, Q, held[2]), warm[WAY:WAY + 3], atol=0.0)
-    warm[HELD], warm[3] = 0.0, 0.0  # released
-    free = ellipsoid_wrap_from(P, Q, axes, none, ELLIPSOID_TOL, warm)
-    assert abs(free[1] - minus[1]) < 1e-11
-
-
 def test_ellipsoid_warm_solve_takes_chord_steps_with_the_kept_derivative():
     """A warm solve a finite-difference step (1e-6 m) from the last geodesic reuses the
     shooting residual's derivative kept in the warm row (chord Newton): it converges in

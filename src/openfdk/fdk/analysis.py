@@ -25,11 +25,6 @@ of f^FDK(α) next to the root, not a far branch (DM og4 3.117 s: Newton stalls a
 where the patella engages the trochlear groove, pf_tx's slope growing 400-fold within a
 twentieth of the Newton step; from the stall moved by 0.1 max_step, 3 of the 20 starts
 converge, from α_{k−1} moved by 2 max_steps none).
-The wrapped paths keep the way round an ellipsoid they took at the last converged frame
-(:mod:`openfdk.forces.wrap_ways`); when every start above fails with the ways held, they
-are released and the frame is solved again from its warm start and through the same
-restarts (DM as published, og1 at 2.692 s: no equilibrium with the ways held on their
-side; 2 167 evaluations in all).
 A *cold* frame — one whose previous frame did not converge, the first frame among them —
 starts from the previous frame's best iterate (when that frame failed) or from the DOFs'
 initial values, far from its root, and its first start gets ``cold_max_iterations``
@@ -76,7 +71,6 @@ from ..trial.status import FrameReport, Reason, frame_messages
 from ..model.plausibility import warn_plausibility
 from .contact_step import ContactSplit, checked_split
 from .absorbed import absorbed_message, fdk_absorbed_muscles
-from ..forces.wrap_ways import any_held, held_ways, hold_ways, release_ways, restore_ways
 from .approach import approach_for
 from .newton import combined, solve_frame, solve_restarts
 from .residual import FDKContext, FrameWorkspace, window_measurements
@@ -271,14 +265,6 @@ class FDKStep:
         later = []
         if not first.converged and settings.restart:
             later = self._restarted(k, first, lead, approach, a0, ws0, cold, warm_frame)
-            if not any(s.converged for s in later) and any_held(ctx.solver.forces):
-                # no equilibrium with each wrapped path on the way round it was held on:
-                # the ways decided again, the shorter at each pose (forces/wrap_ways.py),
-                # and the frame solved again from its warm start and the restarts
-                release_ways(ctx.solver.forces)
-                again = solve_frame(ctx, k, a0, ws0.copy(), cold or settings, self.warm, None, not warm_frame)
-                later += [again] + ([] if again.converged else
-                                    self._restarted(k, again, None, approach, a0, ws0, cold, warm_frame))
         sol = combined(first, later)
         self.J_carry = sol.jacobian if sol.converged else None
         self.dq_dalpha = sol.workspace.dq_dalpha if sol.converged and sol.workspace is not None else None
@@ -290,8 +276,6 @@ class FDKStep:
             self.last_state = ev.state
         out = [(k, values)]
         if sol.converged:
-            # each wrapped path stays on its way round into the next frame (forces/wrap_ways.py)
-            hold_ways(ctx.solver.forces)
             history.append((k, ev.alpha.copy()))
             self.history = history[-HISTORY:]
             self.warm = ev.frame.recruitment
@@ -433,8 +417,7 @@ class FDKStep:
 
     def carry(self):
         return (self.last_state.copy(), list(self.history), self.warm, self.J_carry, self.last_failed, self.dq_dalpha,
-                self.ctx.tracking_curvature, [tuple(u) for u in self.unswept], self._solved_carry(),
-                held_ways(self.ctx.solver.forces))
+                self.ctx.tracking_curvature, [tuple(u) for u in self.unswept], self._solved_carry())
 
     def _solved_carry(self):
         """``self.solved`` as plain data for a checkpoint, or None: (frame, {j: BodyStates},
@@ -478,8 +461,6 @@ class FDKStep:
         self.last_state, self.history = restored.states(last_state, reference, "state").copy(), history
         saved = sensitivity[3] if len(sensitivity) > 3 else None
         self.solved = None if saved is None else _solved_from(saved, self.ctx.system, reference)
-        if len(sensitivity) > 4:  # the wrapped paths' held ways round (forces/wrap_ways.py)
-            restore_ways(self.ctx.solver.forces, sensitivity[4])
 
 
 def _solved_from(saved, system, reference):
@@ -534,7 +515,6 @@ def fdk_step(model, trajectories, times, settings=None, tracking=None, **overrid
     solver_settings = fdk_settings(model, settings, **overrides)
     ctx = fdk_context(model, trajectories, times, tracking, settings)
     absorbed = fdk_absorbed_muscles(ctx.solver, model.initial_state())
-    release_ways(ctx.solver.forces)  # the first frame's paths take the shorter way round
     if absorbed:
         warn_plausibility(absorbed_message(absorbed))
     return FDKStep(model, ctx, solver_settings, approach_for(model, trajectories))

@@ -342,12 +342,10 @@ def ellipsoid_wrap(P, Q, axes, side, tol):
 #: :func:`ellipsoid_wrap_from` [T1 (3,) m in S and arc length s m of the last solve, the
 #: integrator's step count and the anchors P, Q (3,) m in S of the last cold solve, the
 #: shooting residual's derivatives D (4,), the last solve's shots, the warm start's reach
-#: m (at REACH), the held way round (HOLD: 3, HELD: 1 when held, :mod:`.wrap_ways`) and
-#: the last solve's way round (WAY: 3, :func:`way_round`)] in its first 24, or an
-#: OpenSim-rule ellipsoid's last core and gradient model
-#: (:data:`~openfdk.forces.wrap_ellipsoid_plane.PLANE_ROW`)
-REACH, HOLD, HELD, WAY = 16, 17, 20, 21
-WARM_SIZE = max(24, PLANE_ROW)
+#: m (at REACH)] in its first 17, or an OpenSim-rule ellipsoid's last core and gradient
+#: model (:data:`~openfdk.forces.wrap_ellipsoid_plane.PLANE_ROW`)
+REACH = 16
+WARM_SIZE = max(17, PLANE_ROW)
 #: a chord step (:func:`_shoot_newton` with a kept derivative) is accepted when it cuts
 #: the end residual at least this much; else the derivative is differenced again
 CHORD_RATE = 0.1
@@ -367,22 +365,6 @@ SAME_GEODESIC = 1e-6
 
 
 @njit(cache=True)
-def way_round(P, Q, T1):
-    """The way round of a path P→Q (3,) m over a surface, its first tangent point T1
-    (3,) m: the unit vector from the line P Q to T1, normal to the line (zero when T1 is
-    on it). Two geodesics the two ways round an ellipsoid have opposite ones."""
-    d0, d1, d2 = Q[0] - P[0], Q[1] - P[1], Q[2] - P[2]
-    w0, w1, w2 = T1[0] - P[0], T1[1] - P[1], T1[2] - P[2]
-    c = (w0 * d0 + w1 * d1 + w2 * d2) / (d0 * d0 + d1 * d1 + d2 * d2)  # (scalars: no BLAS call)
-    w0, w1, w2 = w0 - c * d0, w1 - c * d1, w2 - c * d2
-    n = np.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-    out = np.zeros(3)
-    if n > 0.0:
-        out[0], out[1], out[2] = w0 / n, w1 / n, w2 / n
-    return out
-
-
-@njit(cache=True)
 def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     """:func:`ellipsoid_wrap` with a warm start ``warm`` (WARM_SIZE,), read and written:
     the tangent point T1 (m, S) and arc length s (m) of the last solve, the integrator step
@@ -399,10 +381,7 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     cold again (the shorter way round may have changed sides). A cold solve shoots the
     geodesic from each of the plane fan's two shortest local minima (the two ways round)
     and takes the shorter, so the path is a function of the anchors alone, whatever was
-    evaluated before; with a held way (warm[HELD] = 1, :mod:`.wrap_ways`: FDK holds each
-    path's way round from one converged frame to the next) it takes the geodesic whose
-    way is nearer the held one. warm[15]: the shots of this solve (a diagnostic); warm[WAY:WAY+3]:
-    its way round (:func:`way_round`)."""
+    evaluated before. warm[15]: the shots of this solve (a diagnostic)."""
     T1 = np.empty(3)
     T2 = np.empty(3)
     warm[15] = 0.0
@@ -428,7 +407,6 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
         if converged:
             warm[:3] = T1c
             warm[3] = s
-            warm[WAY:WAY + 3] = way_round(P, Q, T1c)
             T1[:] = T1c
             T2[:] = x
             a1 = T1c - P
@@ -451,7 +429,6 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     # starts (horizon angle, arc length): the shortest planar path of the fan of planes
     # through P and Q on the side, the great circle, the shortest planar path on any side
     # (when no geodesic on the side is found near the first two)
-    held = warm[HELD] > 0.0
     # starts (horizon angle, arc length, the arc angle its integrator steps cover)
     starts = np.zeros((4, 3))
     n_starts = 0
@@ -486,8 +463,7 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
         starts[k, 2] = 12 + int(75.0 * max(theta, starts[k, 2] if k == other else 0.0) / np.pi)
     # the geodesic from each start until one converges, and from both of the fan's
     # minima: the shorter way round is the path, and the two lengths' margin bounds the
-    # warm start's reach (WARM_REACH); with a held way (HELD) the geodesic whose way is
-    # nearer it (a start's way is not its geodesic's: both are shot)
+    # warm start's reach (WARM_REACH)
     converged = False
     length, margin = np.inf, np.inf
     s_c = 0.0
@@ -512,14 +488,9 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
             e = T1k - T1c
             if e @ e < (SAME_GEODESIC * scale) ** 2:
                 continue  # both starts found the same geodesic
-            if held:
-                hold = warm[HOLD:HOLD + 3]
-                if way_round(P, Q, T1k) @ hold <= way_round(P, Q, T1c) @ hold:
-                    continue
-            else:
-                margin = abs(l_k - length)
-                if l_k >= length:
-                    continue
+            margin = abs(l_k - length)
+            if l_k >= length:
+                continue
         converged = True
         length, s_c, T1c, xc, Dc, n_steps = l_k, s_k, T1k, xk, D, steps
     if not converged:
@@ -536,7 +507,6 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     # each way round's length moves by at most |ΔP| + |ΔQ|: within a quarter of the
     # margin the shorter one stays the shorter
     warm[REACH] = min(WARM_REACH * min(axes[0], min(axes[1], axes[2])), 0.25 * margin)
-    warm[WAY:WAY + 3] = way_round(P, Q, T1c)
     T1[:] = T1c
     T2[:] = xc
     return 1, length, T1, T2, s_c
