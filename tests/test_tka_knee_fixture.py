@@ -117,6 +117,19 @@ def test_first_stance_frame_converges_at_default_settings(knee):
 DM_DIR = os.environ.get("OPENFDK_DM_DIR")
 
 
+def _dm_as_published():
+    """(model, settings, the og1 trial's times (nf,) s, trajectories) of ``dm.yaml``, the
+    model as OpenSim-JAM publishes it (docs/tutorial-knee-gait.md, section 2)."""
+    from openfdk.analysis.jobs import load_trajectories, model_and_settings
+
+    folder = Path(DM_DIR)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model, settings, _ = model_and_settings(str(folder / "dm.yaml"))
+        trial, traj = load_trajectories(model, str(folder / "DM_ngait_og1_new.trc"), settings=settings)
+    return model, settings, np.asarray(trial.time, float), traj
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(not (DM_DIR and (Path(DM_DIR) / "dm.yaml").is_file()),
                     reason="the DM files are not part of openfdk: set OPENFDK_DM_DIR (docs/tutorial-knee-gait.md)")
@@ -124,15 +137,9 @@ def test_dm_stance_frames_converge_with_a_plausible_knee_force():
     """Three frames of DM's right stance from t = 2.55 s converge at the tolerance the
     tutorial uses (20 N, N m; 100 iterations), and the tibiofemoral contact force is
     0.5–3 body weights (BW from the model's own masses)."""
-    from openfdk.analysis.jobs import load_trajectories, model_and_settings
     from openfdk.fdk.analysis import run_fdk
 
-    folder = Path(DM_DIR)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        model, settings, _ = model_and_settings(str(folder / "dm.yaml"))
-        trial, traj = load_trajectories(model, str(folder / "DM_ngait_og1_new.trc"), settings=settings)
-    times = np.asarray(trial.time, float)
+    model, settings, times, traj = _dm_as_published()
     first = int(np.searchsorted(times, 2.55 - 1e-9))
     res = run_fdk(model, traj, times[first:first + 3], settings, tolerance=20.0, max_iterations=100)
     assert res.converged.all(), res.messages
@@ -266,15 +273,9 @@ def test_dm_as_published_converges_from_heel_strike_through_loading_response():
     heel strike (2.406 s) to 2.80 s, at the default settings: every frame converges,
     2.692 s among them, where the patella's branch ends and the frame converges on
     another after its restarts (docs/knee-gait-records.md)."""
-    from openfdk.analysis.jobs import load_trajectories, model_and_settings
     from openfdk.fdk.analysis import run_fdk
 
-    folder = Path(DM_DIR)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        model, settings, _ = model_and_settings(str(folder / "dm.yaml"))
-        trial, traj = load_trajectories(model, str(folder / "DM_ngait_og1_new.trc"), settings=settings)
-    times = np.asarray(trial.time, float)
+    model, settings, times, traj = _dm_as_published()
     times = times[(times >= 2.406 - 1e-9) & (times <= 2.80 + 1e-9)]
     res = run_fdk(model, traj, times, settings)
     assert len(times) == 48 and res.converged.all(), res.messages
