@@ -620,3 +620,63 @@ def test_the_transient_start_solves_the_first_frame_before_any_lead_in(monkeypat
     assert not approach.without_velocity(step, 1)
     step.history = [(0, np.zeros(1)), (1, np.ones(1))]
     assert not approach.without_velocity(step, 2)
+
+
+R_PIN = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])  # the pin's z axis along world +y
+L_ARM = 0.5  # m: the bob's centre of mass below the pivot
+T_TIP = 0.3375  # s: the moment reaches m g L here (between the sub-steps at 0.325 and 0.35 s)
+
+
+class _Twist(TimeFunction):
+    """A moment (3,) N m about world y rising at m g L / T_TIP per second."""
+
+    size = 3
+
+    def derivatives(self, t):
+        rate = M * G * L_ARM / T_TIP
+        return np.array([0.0, rate * t, 0.0]), np.array([0.0, rate, 0.0]), np.zeros(3)
+
+
+def _tipping():
+    """A bob on a pin (the swing angle θ its FDK DOF) twisted by a rising moment M(t):
+    its equilibrium is M = m g L sin θ, which exists only while M ≤ m g L, i.e. until
+    t = T_TIP (a fold at θ = 90°, then no root at all)."""
+    b = ModelBuilder("tipping", gravity=(0, 0, -G))
+    b.add_body("bob", M, [1e-3] * 3, position=[0, 0, -L_ARM])
+    b.add_frame("ground", "pin", [0, 0, 0], orientation=R_PIN)
+    b.add_frame("bob", "pin", [0, 0, L_ARM], orientation=R_PIN)
+    b.add_joint("pin", "revolute", parent="ground.pin", child="bob.pin")
+    b.add_fdk_dof("swing", b.angles("ground.pin", "bob.pin"), component=2, initial=0.0, max_step=0.05)
+    add_external_load(b, "twist", "bob.origin", moment=_Twist())
+    return b.build()
+
+
+def test_a_frame_past_a_fold_says_where_its_sub_steps_lost_the_equilibrium():
+    """Frames 0.1 s apart: the equilibrium sin θ = t / T_TIP exists at 0–0.3 s and at no
+    α from 0.4 s on. Frame 0.4 s fails after the converged 0.3 s; its sub-steps (0.325,
+    0.35, 0.375 s) follow the equilibrium to 0.325 s (sin θ = 0.963) and lose it at
+    0.35 s, which brackets the fold at T_TIP. The message says so; the frames after it,
+    whose previous frame failed, are not marched and say nothing of it."""
+    from openfdk.fdk.approach import lost_between
+
+    model = _tipping()
+    times = np.arange(7) * DT
+    res = run_fdk(model, None, times)
+    converged = times < T_TIP
+    assert res.converged.tolist() == converged.tolist(), res.messages
+    np.testing.assert_allclose(np.abs(np.sin(res.alpha[converged, 0])), times[converged] / T_TIP, atol=1e-4)
+    k = int(np.flatnonzero(~converged)[0])
+    message = res.messages[k]
+    assert "the equilibrium followed from the converged frame at 0.3000 s is found in sub-steps up to 0.3250 s " \
+           "and not at 0.3500 s" in message, message
+    assert 0.325 < T_TIP < 0.35
+    assert all("sub-steps" not in res.messages[j] for j in range(k + 1, len(times)))
+    # no root: the best iterate of each failed frame is the tipped bob (|sin θ| = 1), where
+    # the residual moment is smallest, M(t) − m g L
+    for j in np.flatnonzero(~converged):
+        assert abs(res.f_fdk[j, 0]) == pytest.approx(M * G * L_ARM * (times[j] / T_TIP - 1.0), rel=1e-3)
+    # lost_between: the unbroken run of converged sub-steps, whatever converged after it
+    sub = np.array([0.1, 0.2, 0.3])
+    assert lost_between(0.0, sub, 0.4, [(-1, 0), (0, 0), (2, 0)]) == (0.1, 0.2)
+    assert lost_between(0.0, sub, 0.4, [(-1, 0)]) == (0.0, 0.1)
+    assert lost_between(0.0, sub, 0.4, [(-1, 0), (0, 0), (1, 0), (2, 0)]) == (0.3, 0.4)

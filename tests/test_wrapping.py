@@ -648,3 +648,71 @@ def test_opensim_plane_gradient_model_agrees_with_differences_near_its_reference
     Hv = np.asarray(row[32:68]).reshape(6, 6) @ v
     assert abs(d2) > 1.0  # the path bends: a second derivative of order 1/(semi-axis)
     assert abs(v @ Hv - d2) < 1e-4 * abs(d2)
+
+
+def _tie_model():
+    """A ligament from ground to an arm over an ellipsoid (any side) whose two ways round
+    are as long when the arm sits at z = 0: both anchors lie in the ellipsoid's x–y plane
+    (semi-axes 20, 35, 13 mm; anchors at x = ∓50 mm), so the path over +z mirrors the
+    path over −z. Moving the arm by dz makes the +z way shorter for dz > 0."""
+    b = ModelBuilder("tie", gravity=(0, 0, 0))
+    b.add_body("arm", 1.0, [1, 1, 1])
+    b.add_frame("ground", "o", [-0.05, 0.0, 0.0])
+    b.add_frame("arm", "i", [0.05, 0.003, 0.0])
+    add_wrap_surface(b, "egg", "ellipsoid", "ground", [0.02, 0.035, 0.013], None)
+    add_ligament(b, "lig", ["ground.o", "egg", "arm.i"], stiffness=2000.0, reference_strain=0.05)
+    model = b.build()
+    return model, model.ligaments[0].path
+
+
+def test_two_ways_round_as_long_blend_into_a_smooth_soft_minimum():
+    """Where an ellipsoid's two ways round are nearly as long, the path is their soft
+    minimum l = −δ ln(e^(−l₊/δ) + e^(−l₋/δ)) (δ = BLEND), with l₊, l₋ the one-sided
+    geodesics (each solved cold with its side): the length is continuous where the
+    shorter way changes sides, and its Jacobian is the weighted sum of the ways'. At the
+    tie (arm at z = 0) the mirror symmetry makes the arm's z moment arm zero, where
+    either way alone has |∂l/∂z| > 0.1; the Jacobian agrees with central differences
+    of the length (step 10 nm, inside the 2 µm blend) across the band; and the
+    ligament's stiffness, which falls back to differences for a blend, agrees with
+    differences of its generalised forces."""
+    from openfdk.forces.wrap_kernels import BLEND, ELLIPSOID_TOL, ellipsoid_wrap
+
+    model, path = _tie_model()
+    up, down = np.array([0.0, 0.0, 1.0]), np.array([0.0, 0.0, -1.0])
+    P = np.array([-0.05, 0.0, 0.0])
+    arm_z = 2  # the arm's z translation column
+    for dz in (-1e-4, -3e-6, -1e-6, 0.0, 1e-6, 3e-6, 1e-4):
+        state = model.initial_state()
+        _set_pose(model, state, "arm", [0.0, 0.0, dz], [0.0, 0.0, 0.0])
+        Q = np.array([0.05, 0.003, dz])
+        l_up, l_down = (ellipsoid_wrap(P, Q, np.array([0.02, 0.035, 0.013]), side, ELLIPSOID_TOL)[1]
+                        for side in (up, down))
+        soft = -BLEND * np.logaddexp(-l_up / BLEND, -l_down / BLEND)
+        l, L, _ = path.evaluate(state, 1)
+        assert l[0] == pytest.approx(soft, abs=1e-12), dz
+        fd = manifold_jacobian(lambda s: path.evaluate(s, 0)[0], state, 1e-8)
+        np.testing.assert_allclose(L, fd, atol=2e-5)
+        if dz == 0.0:
+            assert abs(l_up - l_down) < 1e-12 and l[0] == pytest.approx(l_up - BLEND * np.log(2.0), abs=1e-12)
+            assert abs(L[0, arm_z]) < 1e-9
+        else:
+            assert abs(L[0, arm_z]) > 0.1 or abs(dz) < 1e-5
+    # the shorter way alone jumps: its z moment arm changes sign across the tie
+    L_lo = path.evaluate(_posed(model, -1e-4), 1)[1][0, arm_z]
+    L_hi = path.evaluate(_posed(model, 1e-4), 1)[1][0, arm_z]
+    assert L_lo * L_hi < 0.0 and min(abs(L_lo), abs(L_hi)) > 0.1
+    # the ligament's stiffness in the blend (its closed form is left for differences)
+    passive = ForceElements(model)
+    state = _posed(model, 1e-6)
+    Q_f, out, K = passive.generalized_forces(state, 0.0, want_stiffness=True)
+    assert out["ligaments"].force[0] > 1.0
+    K_fd = manifold_jacobian(lambda s: passive.generalized_forces(s, 0.0)[0], state, 1e-8)
+    # (the stiffness's forward difference, step 0.1 µm, against the blend's 2 µm: 0.2 %)
+    np.testing.assert_allclose(K, K_fd, atol=3e-3 * np.abs(K_fd).max())
+    assert np.abs(K_fd[arm_z, arm_z]) > 50 * np.abs(K_fd[0, 0])  # the blend's steep stiffness across the tie
+
+
+def _posed(model, dz):
+    state = model.initial_state()
+    _set_pose(model, state, "arm", [0.0, 0.0, dz], [0.0, 0.0, 0.0])
+    return state

@@ -56,7 +56,7 @@ The loop is the trial driver's (:mod:`openfdk.trial`); :class:`FDKStep` is one f
 from __future__ import annotations
 
 import time as _time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -266,6 +266,8 @@ class FDKStep:
         if not first.converged and settings.restart:
             later = self._restarted(k, first, lead, approach, a0, ws0, cold, warm_frame)
         sol = combined(first, later)
+        if not sol.converged:
+            sol = replace(sol, message=sol.message + self._lost(k))
         self.J_carry = sol.jacobian if sol.converged else None
         self.dq_dalpha = sol.workspace.dq_dalpha if sol.converged and sol.workspace is not None else None
         self.solved = (k, sol.workspace) if sol.converged and sol.workspace is not None else None
@@ -318,6 +320,20 @@ class FDKStep:
             later += solve_restarts(ctx, k, near_starts(stalled.alpha, settings.max_step), ws0, settings,
                                     self.warm, tried, not warm_frame)
         return later
+
+    def _lost(self, k):
+        """'' or the failed frame k's account of its sub-step march
+        (:func:`~.approach.lost_between`): where the equilibrium followed from the
+        converged frame k − 1 was found last and where not. Past such a time the FDK
+        DOFs' equilibrium has folded away or jumped, and FDK's assumption of small, slow
+        movements of its DOFs does not hold there (docs/fdk.md, "A wrapped path's way
+        round")."""
+        lost = None if self.approach is None else self.approach.lost
+        if lost is None or lost[0] != k:
+            return ""
+        t_a, t_b = lost[1]
+        return (f"; the equilibrium followed from the converged frame at {self.ctx.times[k - 1]:.4f} s "
+                f"is found in sub-steps up to {t_a:.4f} s and not at {t_b:.4f} s")
 
     def _values(self, sol, spent=(0, 0, 0, 0), backward=False):
         """The recorded values of a frame's FrameSolution ``sol``; ``spent``: the

@@ -199,6 +199,9 @@ class Approach:
         self.trajectories = trajectories
         self.sample_interval = None  # the lead-in's spacing for a one-frame window
         self.transient_frame = None  # the frame the transient start solved, without a lead-in
+        #: (k, (t_a, t_b) s): where the last sub-step march towards frame k lost the
+        #: equilibrium followed from frame k − 1 (:func:`lost_between`), or None
+        self.lost = None
         if trajectories is None:
             self.first_time = np.inf  # no lead-in
         else:
@@ -215,6 +218,7 @@ class Approach:
         history = step.history
         previous = bool(history) and history[-1][0] == k - 1
         lengths = (LEAD_IN_FRAMES,) if previous else LEAD_IN_LENGTHS
+        self.lost = None
         spent = np.zeros(3, dtype=int)  # the earlier, failed attempts' counts
         transient = None  # the transient start's failed solution
         if previous:
@@ -249,6 +253,8 @@ class Approach:
             marched = len(times)
             if sol.converged:
                 break
+            if previous:
+                self.lost = (k, lost_between(ctx.times[k - 1], times, ctx.times[k], h))
             gap = len(times) - h[-1][0] if h else 0  # frame intervals from its last converged frame to k
             if not previous and gap in (1, 2):
                 # the lead-in reached the frame before the window's first (or the one
@@ -366,6 +372,19 @@ class Approach:
                        jacobians=sol.jacobians + int(totals[2])), h, march
 
 
+def lost_between(t_previous, times, t_k, history):
+    """Where a march through the sub-step ``times`` (m,) s from a converged frame at
+    ``t_previous`` towards the frame at ``t_k`` lost the equilibrium it followed:
+    (t_a, t_b) s, the last time of its unbroken run of converged frames (t_previous when
+    the first sub-step failed) and the next time, a sub-step's or t_k. ``history``: the
+    march's [(j, α)] of converged frames (j = −1 the frame it starts from)."""
+    done = {j for j, _ in history}
+    f = 0
+    while f < len(times) and f in done:
+        f += 1
+    return (float(t_previous) if f == 0 else float(times[f - 1])), float(times[f] if f < len(times) else t_k)
+
+
 def approach_for(model, trajectories):
     """The Approach of a trial of ``model`` (the measured loads' data bound the lead-in;
     ``trajectories`` None: determinate kinematics, sub-steps only)."""
@@ -374,6 +393,6 @@ def approach_for(model, trajectories):
     return Approach(trajectories, data_time_range(getattr(model, "external_loads", ()))[0])
 
 
-__all__ = ["Approach", "approach_for", "approach_times", "sub_step_times", "seated_length", "SUBSTEPS", "LEAD_IN_FRAMES",
+__all__ = ["Approach", "approach_for", "approach_times", "lost_between", "sub_step_times", "seated_length", "SUBSTEPS", "LEAD_IN_FRAMES",
            "LEAD_IN_LENGTHS", "LAST_LEAD_IN_FRAMES", "SEATED_FACTOR",
            "MARCH_TOLERANCE"]

@@ -345,7 +345,27 @@ def ellipsoid_wrap(P, Q, axes, side, tol):
 #: m (at REACH)] in its first 17, or an OpenSim-rule ellipsoid's last core and gradient
 #: model (:data:`~openfdk.forces.wrap_ellipsoid_plane.PLANE_ROW`)
 REACH = 16
-WARM_SIZE = max(17, PLANE_ROW)
+#: the other way round's warm start while both ways are followed (the ways' lengths
+#: within BLEND_SPAN at the last cold solve): T1 (3,) m, s m, step count, D (4,)
+OTHER = 17
+#: 1 while both ways round are followed (their warm starts at 0 and OTHER)
+BOTH = 26
+#: the blend's outputs of the last solve: the other way's tangent points T1, T2 (3,) m in
+#: S and arc m, its weight w (0: no blend) and the soft-min length minus the shorter
+#: way's (m, ≤ 0)
+BLEND_T1, BLEND_T2, BLEND_ARC, BLEND_W, BLEND_DL = 27, 30, 33, 34, 35
+WARM_SIZE = max(36, PLANE_ROW)
+#: the length scale δ (m) of the soft minimum of the two ways round,
+#: l = −δ ln(exp(−l₁/δ) + exp(−l₂/δ)): where the two ways' lengths are within a few δ,
+#: the path is both, weighted w_i = exp(−l_i/δ)/Σ, so its length and its Jacobian
+#: w₁ L₁ + w₂ L₂ (the gradient of l) are continuous where the shorter way changes sides.
+#: With the plain minimum, f^FDK jumps there and Newton may have no root to find (DM's
+#: lPFL5 over lPFL_r, tm_med1 at 2.708 s: docs/fdk.md, "A wrapped path's way round").
+#: At a tie the length is δ ln 2 = 1.4 µm shorter than either way
+BLEND = 2e-6
+#: beyond this difference of the two ways' lengths (40 δ) the weight, exp(−40) ≈ 4e−18,
+#: is taken as zero and only the shorter way is followed
+BLEND_SPAN = 40.0 * BLEND
 #: a chord step (:func:`_shoot_newton` with a kept derivative) is accepted when it cuts
 #: the end residual at least this much; else the derivative is differenced again
 CHORD_RATE = 0.1
@@ -362,6 +382,47 @@ WARM_REACH = 0.05
 #: two geodesics whose first tangent points are closer than this fraction of the
 #: anchors' distances from the centre are the same (the fan's two minima found one path)
 SAME_GEODESIC = 1e-6
+
+
+@njit(cache=True)
+def _horizon_angle(T1, Dinv, c0, u1, u2):
+    """The horizon angle φ (rad) of a geodesic's start T1 (3,) m in S on P's horizon
+    circle (centre c0, unit vectors u1, u2, on the unit sphere: :func:`_horizon`)."""
+    g = T1 / Dinv - c0
+    return np.arctan2(g @ u2, g @ u1)
+
+
+@njit(cache=True)
+def _way_length(P, Q, T1, x, s):
+    """|T1 − P| + s + |Q − x| (m): the length of P→Q (3,) m over the geodesic from T1 to
+    x (3,) m of arc s m."""
+    a1 = T1 - P
+    a2 = Q - x
+    return np.sqrt(a1 @ a1) + s + np.sqrt(a2 @ a2)
+
+
+@njit(cache=True)
+def _blended(P, Q, T1a, xa, sa, T1b, xb, sb, warm):
+    """The wrap of P→Q (3,) m in S over two ways round, geodesics (T1, end x (3,) m,
+    arc s m) a and b: returns the shorter way as :func:`ellipsoid_wrap_from` does, and
+    writes the other way's tangent points and arc, its weight w = exp(−l_o/δ)/Σ (0 when
+    the lengths differ by BLEND_SPAN or more) and the soft minimum's length minus the
+    shorter way's, −δ ln(1 + exp(−|l_a − l_b|/δ)), to warm (BLEND_*; δ = BLEND)."""
+    la = _way_length(P, Q, T1a, xa, sa)
+    lb = _way_length(P, Q, T1b, xb, sb)
+    if lb < la:
+        T1a, xa, sa, la, T1b, xb, sb, lb = T1b, xb, sb, lb, T1a, xa, sa, la
+    gap = lb - la
+    if gap < BLEND_SPAN:
+        e = np.exp(-gap / BLEND)
+        warm[BLEND_W] = e / (1.0 + e)
+        warm[BLEND_DL] = -BLEND * np.log1p(e)
+        warm[BLEND_T1:BLEND_T1 + 3] = T1b
+        warm[BLEND_T2:BLEND_T2 + 3] = xb
+        warm[BLEND_ARC] = sb
+    T1 = T1a.copy()
+    T2 = xa.copy()
+    return 1, la + warm[BLEND_DL], T1, T2, sa
 
 
 @njit(cache=True)
@@ -385,6 +446,8 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     T1 = np.empty(3)
     T2 = np.empty(3)
     warm[15] = 0.0
+    warm[BLEND_W] = 0.0
+    warm[BLEND_DL] = 0.0
     Dinv = axes
     P1 = P / Dinv
     Q1 = Q / Dinv
@@ -399,10 +462,36 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     scale = np.sqrt(P @ P) + np.sqrt(Q @ Q)
     tol = max(tol, 1e-13 * scale)  # (round-off of the residual of far anchors)
     reach = warm[REACH]  # (WARM_REACH, or less where the other way round is nearly as short)
-    if warm[3] > 0.0 and _within(P, warm[5:8], reach) and _within(Q, warm[8:11], reach):
-        g = warm[:3] / Dinv - c0
-        converged, phi, s, T1c, x, shots = _shoot_newton(np.arctan2(g @ u2, g @ u1), warm[3], P, Q, c0, rho, u1,
-                                                         u2, Dinv, A, int(warm[4]), scale, tol, warm[11:15])
+    if warm[3] > 0.0 and warm[BOTH] > 0.0 and _within(P, warm[5:8], reach) and _within(Q, warm[8:11], reach):
+        # both ways round are followed: each from its own warm start
+        okA, _, sA, T1A, xA, shots = _shoot_newton(_horizon_angle(warm[:3], Dinv, c0, u1, u2), warm[3], P, Q, c0,
+                                                   rho, u1, u2, Dinv, A, int(warm[4]), scale, tol, warm[11:15])
+        warm[15] += shots
+        okB = False
+        if okA:
+            okB, _, sB, T1B, xB, shots = _shoot_newton(_horizon_angle(warm[OTHER:OTHER + 3], Dinv, c0, u1, u2),
+                                                       warm[OTHER + 3], P, Q, c0, rho, u1, u2, Dinv, A,
+                                                       int(warm[OTHER + 4]), scale, tol, warm[OTHER + 5:OTHER + 9])
+            warm[15] += shots
+        if okB:
+            eAB = T1A - T1B
+            if eAB @ eAB >= (SAME_GEODESIC * scale) ** 2:
+                warm[:3] = T1A
+                warm[3] = sA
+                warm[OTHER:OTHER + 3] = T1B
+                warm[OTHER + 3] = sB
+                if _way_length(P, Q, T1B, xB, sB) < _way_length(P, Q, T1A, xA, sA):
+                    # the shorter way's warm start is kept first (read by ellipsoid_tangent_moves)
+                    for i in range(5):
+                        warm[i], warm[OTHER + i] = warm[OTHER + i], warm[i]
+                    for i in range(4):
+                        warm[11 + i], warm[OTHER + 5 + i] = warm[OTHER + 5 + i], warm[11 + i]
+                return _blended(P, Q, T1A, xA, sA, T1B, xB, sB, warm)
+        warm[3] = 0.0  # a way was lost or the two met: solved cold below
+    elif warm[3] > 0.0 and _within(P, warm[5:8], reach) and _within(Q, warm[8:11], reach):
+        converged, phi, s, T1c, x, shots = _shoot_newton(_horizon_angle(warm[:3], Dinv, c0, u1, u2), warm[3], P, Q,
+                                                         c0, rho, u1, u2, Dinv, A, int(warm[4]), scale, tol,
+                                                         warm[11:15])
         warm[15] += shots
         if converged:
             warm[:3] = T1c
@@ -412,6 +501,7 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
             a1 = T1c - P
             a2 = Q - x
             return 1, np.sqrt(a1 @ a1) + s + np.sqrt(a2 @ a2), T1, T2, s
+    warm[BOTH] = 0.0
     # initial arc length: the mapped great-circle arc T1s→T2s sampled in 64 chords
     theta = np.arccos(min(1.0, max(-1.0, T1s @ T2s)))
     e2 = T2s - (T2s @ T1s) * T1s
@@ -471,6 +561,11 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     T1c = np.zeros(3)
     xc = np.zeros(3)
     Dc = np.zeros(4)
+    # the other way round's geodesic (l_o = inf: none found)
+    l_o, s_o, steps_o = np.inf, 0.0, 0
+    T1o = np.zeros(3)
+    xo = np.zeros(3)
+    Do = np.zeros(4)
     for k in range(n_starts):
         if converged and k >= n_fan:
             break
@@ -490,7 +585,9 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
                 continue  # both starts found the same geodesic
             margin = abs(l_k - length)
             if l_k >= length:
+                l_o, s_o, T1o, xo, Do, steps_o = l_k, s_k, T1k, xk, D, steps
                 continue
+            l_o, s_o, T1o, xo, Do, steps_o = length, s_c, T1c, xc, Dc, n_steps
         converged = True
         length, s_c, T1c, xc, Dc, n_steps = l_k, s_k, T1k, xk, D, steps
     if not converged:
@@ -504,9 +601,19 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
     warm[5:8] = P
     warm[8:11] = Q
     warm[11:15] = Dc
+    reach = WARM_REACH * min(axes[0], min(axes[1], axes[2]))
+    if margin < BLEND_SPAN:
+        # both ways round are followed from here, each from its own warm start
+        warm[BOTH] = 1.0
+        warm[OTHER:OTHER + 3] = T1o
+        warm[OTHER + 3] = s_o
+        warm[OTHER + 4] = steps_o
+        warm[OTHER + 5:OTHER + 9] = Do
+        warm[REACH] = reach
+        return _blended(P, Q, T1c, xc, s_c, T1o, xo, s_o, warm)
     # each way round's length moves by at most |ΔP| + |ΔQ|: within a quarter of the
     # margin the shorter one stays the shorter
-    warm[REACH] = min(WARM_REACH * min(axes[0], min(axes[1], axes[2])), 0.25 * margin)
+    warm[REACH] = min(reach, 0.25 * (margin - BLEND_SPAN))
     T1[:] = T1c
     T2[:] = xc
     return 1, length, T1, T2, s_c
@@ -964,8 +1071,8 @@ def _add_placement(L, p, j, kinds, present, column, p_WB, R_WB, bodies, X_W, R_W
 
 
 @njit(cache=True)
-def _add_segment(L, p, column, p_WB, R_WB, ia, xa, ib, xb):
-    """L[p] += eᵀ (M_B − M_A) for the segment from xa (fixed in body ia) to xb (in ib);
+def _add_segment(L, p, column, p_WB, R_WB, ia, xa, ib, xb, w):
+    """L[p] += w eᵀ (M_B − M_A) for the segment from xa (fixed in body ia) to xb (in ib);
     returns its length (m)."""
     u = xb - xa
     length = np.sqrt(u @ u)
@@ -977,7 +1084,7 @@ def _add_segment(L, p, column, p_WB, R_WB, ia, xa, ib, xb):
         c = column[i]
         if c < 0:
             continue
-        sign = -1.0 if side == 0 else 1.0
+        sign = -w if side == 0 else w
         sW = (xa if side == 0 else xb) - p_WB[i]
         x0 = sW[1] * e[2] - sW[2] * e[1]
         x1 = sW[2] * e[0] - sW[0] * e[2]
@@ -987,6 +1094,34 @@ def _add_segment(L, p, column, p_WB, R_WB, ia, xa, ib, xb):
             L[p, c + r] += sign * e[r]
             L[p, c + 3 + r] += sign * (R[0, r] * x0 + R[1, r] * x1 + R[2, r] * x2)
     return length
+
+
+@njit(cache=True)
+def _add_leg(L, p, column, p_WB, R_WB, ia, xa, na, ib, xb, nb, move, dX_W, U, w):
+    """L[p] += w (eᵀ (M_B − M_A) + the moving points' terms) for the segment from xa
+    (3,) m, fixed in body ia or a moving point's node na (−1: none), to xb in ib (node
+    nb); returns its length (m). w: the way round's weight (1 but for a blended wrap)."""
+    d = _add_segment(L, p, column, p_WB, R_WB, ia, xa, ib, xb, w)
+    if d > 0.0:
+        e = (xb - xa) / d
+        _add_moving(L, p, e, nb, move, dX_W, U, w)
+        _add_moving(L, p, e, na, move, dX_W, U, -w)
+    return d
+
+
+@njit(cache=True)
+def _blend_of(j, j1, kinds, limits, active, present, last_node, warm):
+    """The weight (0–1) of surface node j's other way round (:func:`_blended`) when it
+    applies: j a geodesic ellipsoid whose anchors are path points (the last node a point,
+    the next node the path touches a point), else 0."""
+    if kinds[j] != ELLIPSOID or int(limits[j, 1]) & OPENSIM_PLANE or last_node < 0:
+        return 0.0
+    k = j + 1
+    while k < j1 - 1 and ((kinds[k] == POINT and not present[k]) or (kinds[k] != POINT and not active[k])):
+        k += 1
+    if kinds[k] != POINT:
+        return 0.0
+    return warm[j, BLEND_W]
 
 
 @njit(cache=True)
@@ -1159,24 +1294,34 @@ def wrapped_moving_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, di
         # l = Σ segments + Σ arcs;  L = Σ eᵀ (M_B − M_A), tangent points fixed in their bodies
         # a moving point's segments add eᵀ dX_W ∂u/∂q̂ (last_node: the point the segment starts at, −1: a
         # tangent point)
+        # a blended wrap (both ways round, :func:`_blended`) adds each way's legs with its
+        # weight (the soft minimum's gradient) and the soft minimum's length: w_b the
+        # weight of the surface just passed, T2b its other way's T2 (world)
         last_body, last_x, last_node = bodies[j0], X_W[j0], j0
         total = 0.0
+        w_b = 0.0
+        T2b = np.zeros(3)
         for j in range(j0 + 1, j1):
             if kinds[j] == POINT:
                 if not present[j]:
                     continue
-                d = _add_segment(L, p, column, p_WB, R_WB, last_body, last_x, bodies[j], X_W[j])
-                if d > 0.0:
-                    e = (X_W[j] - last_x) / d
-                    _add_moving(L, p, e, j, move, dX_W, U, 1.0)
-                    _add_moving(L, p, e, last_node, move, dX_W, U, -1.0)
-                total += d
+                total += _add_leg(L, p, column, p_WB, R_WB, last_body, last_x, last_node, bodies[j], X_W[j], j, move,
+                                  dX_W, U, 1.0 - w_b)
+                if w_b > 0.0:
+                    _add_leg(L, p, column, p_WB, R_WB, last_body, T2b, -1, bodies[j], X_W[j], j, move, dX_W, U, w_b)
+                    w_b = 0.0
                 last_body, last_x, last_node = bodies[j], X_W[j], j
             elif active[j]:
-                d = _add_segment(L, p, column, p_WB, R_WB, last_body, last_x, bodies[j], T1_W[j])
-                if d > 0.0:
-                    _add_moving(L, p, (T1_W[j] - last_x) / d, last_node, move, dX_W, U, -1.0)
-                total += d + arc[j]
+                w = _blend_of(j, j1, kinds, limits, active, present, last_node, warm)
+                total += _add_leg(L, p, column, p_WB, R_WB, last_body, last_x, last_node, bodies[j], T1_W[j], -1,
+                                  move, dX_W, U, 1.0 - w) + arc[j]
+                if w > 0.0:
+                    R = R_WS[j]
+                    _add_leg(L, p, column, p_WB, R_WB, last_body, last_x, last_node, bodies[j],
+                             X_W[j] + R @ warm[j, BLEND_T1:BLEND_T1 + 3], -1, move, dX_W, U, w)
+                    T2b = X_W[j] + R @ warm[j, BLEND_T2:BLEND_T2 + 3]
+                    total += warm[j, BLEND_DL]
+                    w_b = w
                 if kinds[j] == TORUS or (kinds[j] == ELLIPSOID and int(limits[j, 1]) & OPENSIM_PLANE):
                     _add_placement(L, p, j, kinds, present, column, p_WB, R_WB, bodies, X_W, R_WS, dims, sides, move,
                                    dX_W, U, warm)

@@ -43,8 +43,8 @@ import numpy as np
 from numba import njit
 
 from .path_stiffness import add_path_geometric_stiffness
-from .wrap_kernels import CROSSING_ONLY, CYLINDER, ELLIPSOID, OPENSIM_PLANE, POINT, SPHERE, _wrap_one, crosses, \
-    ellipsoid_tangent_moves
+from .wrap_kernels import (BLEND_W, CROSSING_ONLY, CYLINDER, ELLIPSOID, OPENSIM_PLANE, POINT, SPHERE, _wrap_one,
+                           crosses, ellipsoid_tangent_moves)
 
 #: forward-difference step of the tangent points' derivatives, times |P_S| + |Q_S|
 TANGENT_STEP = 1e-6
@@ -128,7 +128,8 @@ def single_wrap_stiffness_along(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, di
     ``paths`` (k,) (:func:`single_surface_paths`) under tensions T (k,) N, directions U
     (n, m) [m, rad]; the node arrays as :func:`~.wrap_kernels.wrapped_path_lengths`
     (``warm`` read only: each solve starts from a copy of its node's row). status
-    CONTACT_CHANGED when a difference's wrap left the surface or failed (KU is then not
+    CONTACT_CHANGED when a difference's wrap left the surface or failed, or a path is a
+    blend of its two ways round (:func:`~.wrap_kernels._blended`; KU is then not
     complete)."""
     n, m = U.shape
     k = paths.shape[0]
@@ -153,8 +154,8 @@ def single_wrap_stiffness_along(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, di
         flags = int(limits[j, 1])
         row = warm[j].copy()
         st, _, T1, T2, _ = _wrap_one(kinds[j], P_S, Q_S, dims[j], sides[j], limits[j, 0], flags, row)
-        if st < 0:
-            return CONTACT_CHANGED, KU
+        if st < 0 or (kinds[j] == ELLIPSOID and not flags & OPENSIM_PLANE and row[BLEND_W] > 0.0):
+            return CONTACT_CHANGED, KU  # (a blend of two ways round: differenced instead)
         if st != 1:  # straight: one segment P → Q, closed form only
             seg_a[n_seg], s_a[n_seg], seg_b[n_seg], s_b[n_seg], seg_path[n_seg] = a, p_B[j0], b, p_B[j0 + 2], q
             n_seg += 1
