@@ -1308,17 +1308,17 @@ def wrapped_moving_path_lengths(p_WB, R_WB, column, kinds, bodies, p_B, R_BS, di
                 total += _add_leg(L, p, column, p_WB, R_WB, last_body, last_x, last_node, bodies[j], X_W[j], j, move,
                                   dX_W, U, 1.0 - w_b)
                 if w_b > 0.0:
-                    _add_leg(L, p, column, p_WB, R_WB, last_body, T2b, -1, bodies[j], X_W[j], j, move, dX_W, U, w_b)
+                    _add_leg(L, p, column, p_WB, R_WB, last_body, T2b, np.int64(-1), bodies[j], X_W[j], j, move, dX_W, U, w_b)
                     w_b = 0.0
                 last_body, last_x, last_node = bodies[j], X_W[j], j
             elif active[j]:
                 w = _blend_of(j, j1, kinds, limits, active, present, last_node, warm)
-                total += _add_leg(L, p, column, p_WB, R_WB, last_body, last_x, last_node, bodies[j], T1_W[j], -1,
-                                  move, dX_W, U, 1.0 - w) + arc[j]
+                total += _add_leg(L, p, column, p_WB, R_WB, last_body, last_x, last_node, bodies[j], T1_W[j],
+                                  np.int64(-1), move, dX_W, U, 1.0 - w) + arc[j]
                 if w > 0.0:
                     R = R_WS[j]
                     _add_leg(L, p, column, p_WB, R_WB, last_body, last_x, last_node, bodies[j],
-                             X_W[j] + R @ warm[j, BLEND_T1:BLEND_T1 + 3], -1, move, dX_W, U, w)
+                             X_W[j] + R @ warm[j, BLEND_T1:BLEND_T1 + 3], np.int64(-1), move, dX_W, U, w)
                     T2b = X_W[j] + R @ warm[j, BLEND_T2:BLEND_T2 + 3]
                     total += warm[j, BLEND_DL]
                     w_b = w
