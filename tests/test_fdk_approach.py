@@ -637,7 +637,7 @@ class _Twist(TimeFunction):
         return np.array([0.0, rate * t, 0.0]), np.array([0.0, rate, 0.0]), np.zeros(3)
 
 
-def _tipping():
+def _tipping(moment=None):
     """A bob on a pin (the swing angle θ its FDK DOF) twisted by a rising moment M(t):
     its equilibrium is M = m g L sin θ, which exists only while M ≤ m g L, i.e. until
     t = T_TIP (a fold at θ = 90°, then no root at all)."""
@@ -647,7 +647,7 @@ def _tipping():
     b.add_frame("bob", "pin", [0, 0, L_ARM], orientation=R_PIN)
     b.add_joint("pin", "revolute", parent="ground.pin", child="bob.pin")
     b.add_fdk_dof("swing", b.angles("ground.pin", "bob.pin"), component=2, initial=0.0, max_step=0.05)
-    add_external_load(b, "twist", "bob.origin", moment=_Twist())
+    add_external_load(b, "twist", "bob.origin", moment=_Twist() if moment is None else moment)
     return b.build()
 
 
@@ -680,3 +680,56 @@ def test_a_frame_past_a_fold_says_where_its_sub_steps_lost_the_equilibrium():
     assert lost_between(0.0, sub, 0.4, [(-1, 0), (0, 0), (2, 0)]) == (0.1, 0.2)
     assert lost_between(0.0, sub, 0.4, [(-1, 0)]) == (0.0, 0.1)
     assert lost_between(0.0, sub, 0.4, [(-1, 0), (0, 0), (1, 0), (2, 0)]) == (0.3, 0.4)
+
+
+class _Tent(TimeFunction):
+    """The moment of :class:`_Twist` rising until T_PEAK, then falling back as fast."""
+
+    size = 3
+
+    def derivatives(self, t):
+        rate = M * G * L_ARM / T_TIP
+        up = t <= T_PEAK
+        value = rate * (t if up else 2.0 * T_PEAK - t)
+        return np.array([0.0, value, 0.0]), np.array([0.0, rate if up else -rate, 0.0]), np.zeros(3)
+
+
+T_PEAK = 0.45  # s: the tent's moment exceeds m g L from T_TIP to 2 T_PEAK − T_TIP = 0.5625 s
+
+
+def test_a_failed_frame_the_sweep_back_cannot_solve_says_so():
+    """The bob twisted by a moment that rises past m g L and falls back: no equilibrium
+    at 0.4 and 0.5 s, one again at 0.6 s (sin θ = 0.889), which converges after the
+    failed frames. The sweep back from it tries 0.5 s, which has no root, and stops
+    there: frame 0.5 s is recorded again with its message ending in the sweep's
+    account and its counts including the sweep's solve; frame 0.4 s keeps its sub-step
+    account and is not tried backward."""
+    model = _tipping(_Tent())
+    times = np.arange(8) * DT
+    moment = np.array([_Tent().derivatives(t)[0][1] for t in times])
+    converged = moment <= M * G * L_ARM
+    assert converged.tolist() == [True, True, True, True, False, False, True, True]
+    recorded = []
+    step = FDKStep(model, fdk_context(model, None, times), fdk_settings(model, None),
+                   approach=approach_module.approach_for(model, None))
+    original = step.step
+
+    def logged(j):
+        out = original(j)
+        recorded.append([(i, v["fdk.evaluations"], v["fdk.report"]) for i, v in out])
+        return out
+
+    step.step = logged
+    rec = drive(step, len(times), lambda rec: rec)
+    reports = rec.objects("fdk.report")
+    assert [r.converged for r in reports] == converged.tolist()
+    np.testing.assert_allclose(np.abs(np.sin(rec.array("fdk.alpha")[converged, 0])), moment[converged] / (M * G * L_ARM),
+                               atol=1e-4)
+    assert "solved backward from the converged frame at 0.6000 s, not converged either" in reports[5].message
+    assert "sub-steps up to" not in reports[5].message
+    assert "sub-steps up to" in reports[4].message and "solved backward" not in reports[4].message
+    # frame 0.6 s gave frame 0.5 s again, its counts the forward solve's and the sweep's
+    (first_5,), (now_6, again_5) = recorded[5], recorded[6]
+    assert now_6[0] == 6 and now_6[2].converged and again_5[0] == 5 and not again_5[2].converged
+    assert again_5[1] > first_5[1] and rec.array("fdk.evaluations")[5] == again_5[1]
+    assert rec.array("fdk.backward")[5] == 0  # not solved backward

@@ -45,7 +45,11 @@ in all; og3 in 2 chunks (its second segment starting there) converges 250 of 250
 instead of 246, and the 4 frames solved backward equal the serial run's, solved forward,
 to 1.3e-8 rad and 2.9e-10 m (contact forces 6 µN). A frame solved backward is recorded
 again (``fdk.backward``, the driver keeps the later record), its counts the failed
-solve's plus the sweep's, one more restart.
+solve's plus the sweep's, one more restart. The first failed frame the sweep cannot
+solve is recorded again too, its forward best iterate kept, its message ending "solved
+backward from the converged frame at t s, not converged either" and its counts
+including the sweep's (not after a resume from a checkpoint, which keeps no failed
+frame's values).
 Every frame reports converged, Newton iterations, residual evaluations (each a
 recruitment solve), final max |f^FDK| and α; a frame that does not converge keeps its
 best iterate, is flagged with the reason, and the run goes on.
@@ -224,6 +228,9 @@ class FDKStep:
         #: the failed frames since the last converged one, (frame, iterations, evaluations,
         #: Jacobians, restarts) each: a sweep back from the next converged frame solves them
         self.unswept = []
+        #: their recorded values by frame, for the sweep's account of the first it cannot
+        #: solve (not carried over a checkpoint: a resumed run's sweep re-records none)
+        self.failed_values = {}
 
     def fields(self):
         n_fdk = len(self.model.fdk_dofs)
@@ -284,8 +291,10 @@ class FDKStep:
             if self.unswept and self.sweep_back and settings.restart:
                 out += self._swept_back(k, sol)
             self.unswept = []
+            self.failed_values = {}
         else:
             self.unswept.append((k, sol.iterations, sol.evaluations, sol.jacobians, sol.restarts))
+            self.failed_values[k] = values
         return out
 
     def _restarted(self, k, first, lead, approach, a0, ws0, cold, warm_frame):
@@ -420,6 +429,8 @@ class FDKStep:
             ws = FrameWorkspace({i: state for i in ctx.frames_needed(j)}, back[-1][1], dq)
             s = solve_frame(ctx, j, back[-1][1].copy() if a0 is None else a0, ws, settings, warm, J, False)
             if not s.converged:
+                if j in self.failed_values:
+                    out.append((j, self._unswept_account(j, s, ctx.times[-back[-1][0]])))
                 break
             out.append((j, self._values(s, spent, backward=True)))
             back = (back + [(-j, s.best.alpha.copy())])[-HISTORY:]
@@ -427,6 +438,22 @@ class FDKStep:
             dq = s.workspace.dq_dalpha if s.workspace is not None else None
         ctx.tracking_curvature = curvature
         return out
+
+    def _unswept_account(self, j, s, t_from):
+        """The recorded values of failed frame j again, its report's message ending with
+        the sweep's account (solved backward from the converged frame at ``t_from`` s,
+        the FrameSolution ``s``, not converged either) and its counts including the
+        sweep's; its best iterate stays the forward solve's."""
+        values = dict(self.failed_values[j])
+        note = f"; solved backward from the converged frame at {t_from:.4f} s, not converged either " \
+               f"(max |f^FDK| = {s.best.norm:.4g})"
+        for key in ("fdk.report", "dyn.report"):
+            if key in values:
+                values[key] = replace(values[key], message=values[key].message + note)
+        for key, extra in (("fdk.iterations", s.iterations), ("fdk.evaluations", s.evaluations),
+                           ("fdk.jacobians", s.jacobians), ("fdk.restarts", 1)):
+            values[key] = values[key] + extra
+        return values
 
     def finish(self):
         return []
@@ -474,6 +501,7 @@ class FDKStep:
         self.warm, self.J_carry, self.last_failed, self.dq_dalpha = warm, J_carry, last_failed, dq_dalpha
         self.ctx.tracking_curvature = curvature
         self.unswept = [tuple(int(x) for x in u) for u in sensitivity[2]] if len(sensitivity) > 2 else []
+        self.failed_values = {}  # (their values are the checkpoint's records, not carried)
         self.last_state, self.history = restored.states(last_state, reference, "state").copy(), history
         saved = sensitivity[3] if len(sensitivity) > 3 else None
         self.solved = None if saved is None else _solved_from(saved, self.ctx.system, reference)
