@@ -682,8 +682,7 @@ def test_two_ways_round_as_long_blend_into_a_smooth_soft_minimum():
     P = np.array([-0.05, 0.0, 0.0])
     arm_z = 2  # the arm's z translation column
     for dz in (-1e-4, -3e-6, -1e-6, 0.0, 1e-6, 3e-6, 1e-4):
-        state = model.initial_state()
-        _set_pose(model, state, "arm", [0.0, 0.0, dz], [0.0, 0.0, 0.0])
+        state = _posed(model, dz)
         Q = np.array([0.05, 0.003, dz])
         l_up, l_down = (ellipsoid_wrap(P, Q, np.array([0.02, 0.035, 0.013]), side, ELLIPSOID_TOL)[1]
                         for side in (up, down))

@@ -498,9 +498,7 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
             warm[3] = s
             T1[:] = T1c
             T2[:] = x
-            a1 = T1c - P
-            a2 = Q - x
-            return 1, np.sqrt(a1 @ a1) + s + np.sqrt(a2 @ a2), T1, T2, s
+            return 1, _way_length(P, Q, T1c, x, s), T1, T2, s
     warm[BOTH] = 0.0
     # initial arc length: the mapped great-circle arc T1s→T2s sampled in 64 chords
     theta = np.arccos(min(1.0, max(-1.0, T1s @ T2s)))
@@ -576,9 +574,7 @@ def ellipsoid_wrap_from(P, Q, axes, side, tol, warm):
         warm[15] += shots
         if not ok:
             continue
-        a1 = T1k - P
-        a2 = Q - xk
-        l_k = np.sqrt(a1 @ a1) + s_k + np.sqrt(a2 @ a2)
+        l_k = _way_length(P, Q, T1k, xk, s_k)
         if converged:
             e = T1k - T1c
             if e @ e < (SAME_GEODESIC * scale) ** 2:
