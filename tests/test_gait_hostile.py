@@ -75,7 +75,8 @@ def test_a_whole_trial_leaves_out_the_samples_before_and_after_the_load_data():
     """A force-plate file that starts one plate sample after the markers (the Grand
     Challenge's: markers from 0.75 s, loads from 0.750833 s): with no start or end given,
     the trial's samples outside the loads' data are left out with one warning, instead of
-    the run stopping at its first frame; a start or end the user gives is kept as given."""
+    the run stopping at its first frame with the loads' spline's message; the same with a
+    start or end the user gives outside the data, which the warning names."""
     import warnings
     from types import SimpleNamespace
 
@@ -98,6 +99,13 @@ def test_a_whole_trial_leaves_out_the_samples_before_and_after_the_load_data():
     assert len(kept) == len(times) - 2
     (w,) = [c for c in caught if issubclass(c.category, PlausibilityWarning)]
     assert "2 trial sample(s) outside the measured loads' data" in str(w.message)
-    # a window the user gives is theirs: nothing is dropped at that end
-    assert _within_load_data(model, times, start=0.75)[0] == 0.75
-    assert _within_load_data(model, times, end=3.925)[-1] == times[-1]
+    # a window the user gives that reaches outside the data: the same samples are left
+    # out, and the warning names the end the user gave (the run cannot evaluate the loads there)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        given = _within_load_data(model, times, start=0.75, end=3.925)
+    np.testing.assert_array_equal(given, kept)
+    (w,) = [c for c in caught if issubclass(c.category, PlausibilityWarning)]
+    assert "(the window's start (0.75 s) and the window's end (3.925 s) outside it)" in str(w.message), w.message
+    inside = times[(times > 1.0) & (times < 2.0)]
+    np.testing.assert_array_equal(_within_load_data(model, inside, start=1.0, end=2.0), inside)

@@ -107,23 +107,26 @@ def analysis_window(model, times, start=None, end=None, settings=None):
 def _within_load_data(model, times, start=None, end=None, settings=None):
     """The trial's sample times (nf,) s, without those before or after the data of the
     model's measured loads (force-plate files usually start and end a sample off the
-    markers') when the window's start or end is not given: the loads cannot be evaluated
-    there, and a whole-trial run would otherwise stop at its first frame. Says so (one
-    PlausibilityWarning) when it drops samples."""
+    markers'): the loads cannot be evaluated there, and the run would otherwise stop at
+    its first such frame. Says so (one PlausibilityWarning) when it drops samples, and
+    names the window's start or end (``start``, ``end`` s, or the settings') that lies
+    outside the data."""
     from ..forces.data_loads import data_time_range
     from ..model.plausibility import warn_plausibility
 
     window = (settings or AnalysisSettings()).kinematics
     lo, hi = data_time_range(getattr(model, "external_loads", ()))
-    keep = np.ones(len(times), dtype=bool)
-    if start is None and window.get("start") is None:
-        keep &= times >= lo - 1e-9
-    if end is None and window.get("end") is None:
-        keep &= times <= hi + 1e-9
+    keep = (times >= lo - 1e-9) & (times <= hi + 1e-9)
     if keep.all() or not keep.any():
         return times  # nothing to drop, or nothing left: analysis_window / the loads say why
+    start = window.get("start") if start is None else start
+    end = window.get("end") if end is None else end
+    given = [f"the window's {name} ({float(t):g} s)" for name, t, out in
+             (("start", start, start is not None and float(start) < lo - 1e-9),
+              ("end", end, end is not None and float(end) > hi + 1e-9)) if out]
+    where = f" ({' and '.join(given)} outside it)" if given else ""
     warn_plausibility(f"analysis window {times[keep][0]:g}–{times[keep][-1]:g} s: the {np.count_nonzero(~keep)} "
-                      f"trial sample(s) outside the measured loads' data ({lo:g}–{hi:g} s) are left out")
+                      f"trial sample(s) outside the measured loads' data ({lo:g}–{hi:g} s){where} are left out")
     return times[keep]
 
 
