@@ -79,3 +79,16 @@ def test_a_kinematics_pass_is_not_cut_to_the_loads_data(body, tmp_path, monkeypa
     assert "the 39 trial sample(s) outside the measured loads' data (0.2–0.4 s) are left out" in err, err
     np.testing.assert_allclose(_table(tmp_path / "r" / "kinematics.csv")["time"], np.arange(20, 41) / 100.0,
                                rtol=0, atol=1e-9)
+    # the loads as applied are recorded per frame (world, N and m), and summary.json says
+    # which body each acts on and which way gravity points (openfdk cycles reads them)
+    import json
+
+    forces = _table(tmp_path / "r" / "forces.csv")
+    ok = forces["converged"] == 1
+    assert ok.sum() == 21
+    np.testing.assert_allclose(forces["grf_rexternal_Fy_N"][ok], 300.0, rtol=0, atol=1e-9)
+    for c in ("Fx_N", "Fz_N", "px_m", "py_m", "pz_m"):
+        np.testing.assert_allclose(forces[f"grf_rexternal_{c}"][ok], 0.0, rtol=0, atol=1e-9)
+    summary = json.loads((tmp_path / "r" / "summary.json").read_text())
+    assert summary["input"]["external_loads"] == {"grf_r": {"body": "calcn_r"}}
+    np.testing.assert_allclose(summary["input"]["gravity_W_m_s2"], [0.0, -9.80665, 0.0], rtol=0, atol=1e-12)

@@ -330,6 +330,7 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
     (``openfdk run`` checks the rims while its figures are drawn)."""
     from .run import run_trial
     from ..contact.rim import warn_contact_rims
+    from ..forces.data_loads import load_record
     from ..model.plausibility import warn_outlier_markers, warn_pulling_contacts
     from ..trial import TrialInterrupted
 
@@ -338,6 +339,7 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
     traj, times, info = analysis_inputs(model, trial_path, cutoff_hz, start, end, settings)
     info = {"model": label, **info, **checked}
     model = _with_ground_reactions(model, settings, trial_path, traj, cutoff_hz, info)
+    info.update(load_record(model))
 
     def with_info(kin, dyn, fdk):
         out = dict(info)

@@ -10,6 +10,7 @@
     openfdk cache info|clear                            the distance-grid cache on disk
     openfdk view RESULT_DIR [--out view.html]           3D viewer of a run (one HTML file)
     openfdk validate-kinematics RUN_DIR REF.sto --map MAP.yaml --cycle T0 T1   a run against measured kinematics
+    openfdk cycles RUN_DIR --foot calcn_r               contact forces, FDK DOFs over the gait cycles
     openfdk demo [--out DIR] [--quick]                  the mandible study on the virtual subject
     openfdk subject create|record DIR [--realistic]     virtual subject and experiment
     openfdk subject study DIR [--out OUT] [--cycles N|all]   the mandible study on a subject folder
@@ -840,6 +841,9 @@ def build_parser():
     from .validate import add_validate_parser
 
     add_validate_parser(sub)
+    from .cycles import add_cycles_parser
+
+    add_cycles_parser(sub)
 
     d = sub.add_parser("demo", help="the mandible study on the virtual subject, end to end",
                        description="The paper's application end to end: a virtual mandible subject and its recorded "

@@ -18,6 +18,10 @@ from ..trial.status import FrameReport, Reason, frame_messages
 _ARRAYS = ("f", "muscle_length", "muscle_speed", "muscle_strength", "muscle_passive", "ligament_length",
            "ligament_strain", "ligament_force", "spring_force")
 COLUMN = "col."  # prefix of the extra per-frame columns (contacts) within the forces fields
+#: the forces.csv columns of a measured external load (``<load>.<key>``): its force and the
+#: point where it acts, in the world (N, m), as applied at the frame's pose
+EXTERNAL_LOAD_KEYS = ("external_Fx_N", "external_Fy_N", "external_Fz_N", "external_px_m", "external_py_m",
+                      "external_pz_m")
 
 
 @dataclass(frozen=True)
@@ -113,6 +117,10 @@ def forces_values(fr, prefix="dyn.", report=None, status=None):
             values[f"{COLUMN}{name}.{key}"] = float(v)
         for region, F in (c.region_force_W or {}).items():  # |force| of each region (N)
             values[f"{COLUMN}{name}.{region}_N"] = float(np.linalg.norm(F))
+    for name, (F_W, p_WP, _) in fr.forces.get("external_loads", {}).items():
+        # a measured load (a ground reaction) as applied: force (world, N) and its point (world, m)
+        for key, v in zip(EXTERNAL_LOAD_KEYS, (*F_W, *p_WP)):
+            values[f"{COLUMN}{name}.{key}"] = float(v)
     return {prefix + k: v for k, v in values.items()}
 
 

@@ -73,6 +73,18 @@ def invalid_reason(loads, t):
     return ""
 
 
+def load_record(model):
+    """For summary.json's ``input``: ``external_loads`` {load name: {"body": its body's
+    name}} and ``gravity_W_m_s2`` (3,) m/s², which say which foot each measured load acts
+    on and which way is up (``openfdk cycles`` finds heel strikes from them); {} without
+    measured loads."""
+    loads = getattr(model, "external_loads", ())
+    if not loads:
+        return {}
+    return {"external_loads": {load.name: {"body": model.bodies[load.body].name} for load in loads},
+            "gravity_W_m_s2": [float(g) for g in model.gravity_W]}
+
+
 def data_time_range(loads):
     """(first, last) s over which every sampled (spline, not extrapolated) time function
     of ``loads`` (DataLoad) has data, or (−inf, inf) when none is sampled."""

@@ -1,0 +1,196 @@
+"""`openfdk cycles`: a run's gait cycles from its measured loads, and its results as mean ±
+SD over them (openfdk.analysis.gait_cycles).
+
+The run is written by the test: frames at 100 Hz over 6 s, a foot whose vertical load
+ramps linearly (8 000 N/s) up at known times S_k and down 0.6 s later, so the heel
+strikes, where the load rises through 20 N, are T_k = S_k + 20 / 8 000 s in closed form
+(between two frames, where linear interpolation is exact). The quantities are linear in
+t (y = a + b t) or, within a cycle, in % (then mean and SD over the cycles are closed
+forms of the T_k).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from openfdk.analysis.gait_cycles import CycleError, gait_cycles, heel_strikes
+from openfdk.cli.commands import main
+from openfdk.results.run import RunResults, read_results
+
+RATE = 100.0
+RAMP = 8000.0  # N/s
+STANCE = 0.6  # s from the start of a ramp up to the start of the ramp down
+# S_k (s), 0.1 ms before a frame, so that the frames either side of a rise through 20 N
+# (2.5 ms after S_k) both lie on the ramp: cycles of 1.12–1.14 s
+STARTS = np.array([0.41, 1.53, 2.65, 3.79, 4.90]) - 1e-4
+WEIGHT = 700.0  # N
+UP = np.array([0.0, 0.0, 1.0])  # gravity along −z
+
+
+def _load(t):
+    """The foot's vertical load (N) at t (s): ramps of RAMP up from each S_k to 800 N, held,
+    down from S_k + STANCE."""
+    v = np.zeros_like(t)
+    for s in STARTS:
+        up = np.clip(RAMP * (t - s), 0.0, 800.0)
+        down = np.clip(RAMP * (t - s - STANCE), 0.0, 800.0)
+        v += up - down
+    return v
+
+
+def _run(folder, failed=(), blip=None):
+    """A result folder: frames 0–6 s at RATE; the load on calcn_r split over two plates
+    (the vertical along +z, gravity along −z), one knee contact whose |F| is 1 + 0.5 t
+    body weights, an FDK angle 0.01 t rad and length 0.001 t m; ``failed`` frame indices
+    not converged; ``blip`` (t, N): one frame of load in a swing."""
+    t = np.arange(int(6 * RATE) + 1) / RATE
+    v = _load(t)
+    if blip is not None:
+        v[int(round(blip[0] * RATE))] = blip[1]
+    converged = np.ones(len(t), int)
+    converged[list(failed)] = 0
+    F = WEIGHT * (1.0 + 0.5 * t)
+    forces = {"time": t, "converged": converged, "status": ["ok"] * len(t),
+              # the contact's force along (3, 4, 0)/5: |F| = F
+              "knee.Fx_N": 0.6 * F, "knee.Fy_N": 0.8 * F, "knee.Fz_N": 0 * t, "knee.medial_N": 0.7 * F,
+              # two loads on the foot, a third on the other foot; horizontal components that cycles ignore
+              "p1.external_Fx_N": 50 + 0 * t, "p1.external_Fy_N": 0 * t, "p1.external_Fz_N": 0.25 * v,
+              "p2.external_Fx_N": -20 + 0 * t, "p2.external_Fy_N": 3 + 0 * t, "p2.external_Fz_N": 0.75 * v,
+              "p3.external_Fx_N": 0 * t, "p3.external_Fy_N": 0 * t, "p3.external_Fz_N": 900 + 0 * t,
+              "fdk.rot.alpha": 0.01 * t, "fdk.rot.residual": 0 * t,
+              "fdk.tx.alpha": 0.001 * t, "fdk.tx.residual": 0 * t}
+    for name in ("p1", "p2", "p3"):
+        for c in "xyz":
+            forces[f"{name}.external_p{c}_m"] = 0 * t
+    forces["fdk_converged"] = converged
+    forces["message"] = [""] * len(t)
+    kinematics = pd.DataFrame({"time": t, "converged": 1, "message": ""}).set_index("time")
+    coordinates = pd.DataFrame({"time": t, "rot_rad": 0.01 * t, "tx_m": 0.001 * t}).set_index("time")
+    summary = {"input": {"model": "m.yaml",
+                         "external_loads": {"p1": {"body": "calcn_r"}, "p2": {"body": "calcn_r"},
+                                            "p3": {"body": "calcn_l"}},
+                         "gravity_W_m_s2": [0.0, 0.0, -9.81]},
+               "residuals": {"body_weight_N": WEIGHT}}
+    RunResults(kinematics, pd.DataFrame(forces).set_index("time"), summary, coordinates=coordinates).save(folder)
+    return t
+
+
+def test_heel_strikes_are_where_the_foot_load_rises_through_the_threshold(tmp_path):
+    t = _run(tmp_path)
+    results = read_results(tmp_path)
+    cycles = gait_cycles(results, "calcn_r")
+    T = STARTS + 20.0 / RAMP
+    np.testing.assert_allclose(cycles.strikes, T, rtol=0, atol=1e-12)
+    assert cycles.n_cycles == len(STARTS) - 1
+    # the foot's load is the two plates' vertical components (the third is on the other foot)
+    np.testing.assert_allclose(cycles.load, _load(t), rtol=0, atol=1e-9)
+    # a higher threshold moves each strike by (v* − 20) / RAMP
+    np.testing.assert_allclose(gait_cycles(results, "calcn_r", threshold=100.0).strikes, STARTS + 100.0 / RAMP,
+                               rtol=0, atol=1e-12)
+
+
+def test_a_quantity_over_the_cycles_has_the_closed_form_mean_and_sd(tmp_path):
+    _run(tmp_path)
+    cycles = gait_cycles(read_results(tmp_path), "calcn_r")
+    T = STARTS + 20.0 / RAMP
+    p = np.arange(101) / 100.0
+    at = T[:-1, None] + p[None, :] * np.diff(T)[:, None]  # (cycles, 101) s
+    # y = a + b t is linear within each cycle: its mean and SD over the cycles at p are those of y(T_k + p D_k)
+    for name, a, b in (("knee.|F|_N", WEIGHT, 0.5 * WEIGHT), ("knee.medial_N", 0.7 * WEIGHT, 0.35 * WEIGHT),
+                       ("rot_rad", 0.0, 0.01), ("tx_m", 0.0, 0.001)):
+        y = a + b * at
+        np.testing.assert_allclose(cycles.per_cycle[name], y, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(cycles.mean(name), y.mean(axis=0), rtol=1e-12)
+        np.testing.assert_allclose(cycles.sd(name), y.std(axis=0, ddof=1), rtol=1e-9)
+        assert np.all(cycles.sd(name) > 0)
+        assert np.all(cycles.count(name) == 4)
+    assert cycles.kinds["rot_rad"] == "angle" and cycles.kinds["tx_m"] == "length"
+    assert cycles.kinds["knee.|F|_N"] == "force"
+    # the foot's load over the cycle: 20 N at 0 %, 800 N in stance, 0 at the end of swing
+    load = cycles.per_cycle["calcn_r.vertical_load_N"]
+    np.testing.assert_allclose(load[:, 0], 20.0, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(load[:, 30], 800.0, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(load[:, 100], 20.0, rtol=0, atol=1e-9)  # the next heel strike
+
+
+def test_failed_frames_leave_their_cycle_out_there_and_nothing_is_interpolated_across_them(tmp_path):
+    T = STARTS + 20.0 / RAMP
+    k = int(np.ceil((T[1] + 0.5 * (T[2] - T[1])) * RATE))  # a frame half-way through cycle 2
+    t = _run(tmp_path, failed=(k,))
+    cycles = gait_cycles(read_results(tmp_path), "calcn_r")
+    assert list(cycles.failed) == [0, 1, 0, 0]
+    gap = (T[1] + np.arange(101) / 100.0 * (T[2] - T[1]) > t[k - 1]) & (
+        T[1] + np.arange(101) / 100.0 * (T[2] - T[1]) < t[k + 1])
+    assert gap.sum() >= 1
+    row = cycles.per_cycle["knee.|F|_N"][1]
+    assert np.all(np.isnan(row[gap])) and np.all(np.isfinite(row[~gap]))
+    count = cycles.count("knee.|F|_N")
+    assert np.all(count[gap] == 3) and np.all(count[~gap] == 4)
+    # the mean there is the other three cycles'
+    others = cycles.per_cycle["knee.|F|_N"][[0, 2, 3]][:, gap]
+    np.testing.assert_allclose(cycles.mean("knee.|F|_N")[gap], others.mean(axis=0), rtol=1e-12)
+
+
+def test_a_blip_of_load_in_swing_is_no_heel_strike():
+    t = np.arange(601) / RATE
+    v = _load(t)
+    v[int(round(1.2 * RATE))] = 40.0  # one frame above 20 N, 0.7 s after the first stance began
+    strikes = heel_strikes(t, v, 20.0, 0.2, 0.2)
+    np.testing.assert_allclose(strikes, STARTS + 20.0 / RAMP, rtol=0, atol=1e-12)
+    # a load not known before a rise: no heel strike there
+    v2 = _load(t)
+    v2[int(round((STARTS[2] - 0.1) * RATE))] = np.nan
+    strikes = heel_strikes(t, v2, 20.0, 0.2, 0.2)
+    np.testing.assert_allclose(strikes, np.delete(STARTS, 2) + 20.0 / RAMP, rtol=0, atol=1e-12)
+
+
+def test_the_command_writes_the_table_the_list_and_the_figure(tmp_path, capsys):
+    _run(tmp_path / "run")
+    assert main(["cycles", str(tmp_path / "run"), "--foot", "calcn_r"]) == 0
+    out = capsys.readouterr().out
+    assert "4 cycle(s)" in out and "knee: mean peak" in out
+    folder = tmp_path / "run" / "cycles"
+    table = pd.read_csv(folder / "cycles.csv")
+    assert list(table["percent"]) == list(range(101))
+    cycles = gait_cycles(read_results(tmp_path / "run"), "calcn_r")
+    np.testing.assert_allclose(table["knee.|F|_N.mean"], cycles.mean("knee.|F|_N"), rtol=1e-15)
+    np.testing.assert_allclose(table["rot_rad.sd"], cycles.sd("rot_rad"), rtol=1e-15)
+    listed = pd.read_csv(folder / "cycles_list.csv")
+    np.testing.assert_allclose(listed["start_s"], (STARTS + 20.0 / RAMP)[:-1], rtol=0, atol=1e-6)
+    np.testing.assert_allclose(listed["duration_s"], np.diff(STARTS), rtol=0, atol=2e-6)
+    png = (folder / "cycles.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20_000
+
+
+@pytest.mark.parametrize("change, args, words", [
+    (None, ["--foot", "toes_r"], "--foot 'toes_r': no measured load acts on it; the loads act on calcn_l, calcn_r"),
+    ("no_loads", ["--foot", "calcn_r"], "no measured loads in summary.json (input.external_loads)"),
+    ("gravity", ["--foot", "calcn_r"], "input.gravity_W_m_s2 must be 3 finite numbers"),
+    (None, ["--foot", "calcn_l"], "--foot 'calcn_l': 0 heel strike(s)"),
+    (None, ["--foot", "calcn_r", "--threshold", "-1"], "--threshold: must be a positive force in N"),
+    # 800 N is the stance's plateau: no rise reaches 900 N
+    (None, ["--foot", "calcn_r", "--threshold", "900"], "0 heel strike(s)"),
+])
+def test_a_run_without_cycles_is_one_line(tmp_path, capsys, change, args, words):
+    _run(tmp_path / "run")
+    path = tmp_path / "run" / "summary.json"
+    summary = json.loads(path.read_text())
+    if change == "no_loads":
+        del summary["input"]["external_loads"]
+    if change == "gravity":
+        summary["input"]["gravity_W_m_s2"] = [0, 0]
+    path.write_text(json.dumps(summary))
+    code = main(["cycles", str(tmp_path / "run"), *args])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and words in err[0], err
+    assert not (tmp_path / "run" / "cycles" / "cycles.csv").exists()
+
+
+def test_a_folder_that_is_no_run_is_one_line(tmp_path, capsys):
+    code = main(["cycles", str(tmp_path), "--foot", "calcn_r"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "no kinematics.csv" in err[0], err
