@@ -17,70 +17,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from openfdk.analysis.gait_cycles import CycleError, gait_cycles, heel_strikes
+from openfdk.analysis.gait_cycles import gait_cycles, heel_strikes
 from openfdk.cli.commands import main
-from openfdk.results.run import RunResults, read_results
-
-RATE = 100.0
-RAMP = 8000.0  # N/s
-STANCE = 0.6  # s from the start of a ramp up to the start of the ramp down
-# S_k (s), 0.1 ms before a frame, so that the frames either side of a rise through 20 N
-# (2.5 ms after S_k) both lie on the ramp: cycles of 1.12–1.14 s
-STARTS = np.array([0.41, 1.53, 2.65, 3.79, 4.90]) - 1e-4
-WEIGHT = 700.0  # N
-UP = np.array([0.0, 0.0, 1.0])  # gravity along −z
-
-
-def _load(t):
-    """The foot's vertical load (N) at t (s): ramps of RAMP up from each S_k to 800 N, held,
-    down from S_k + STANCE."""
-    v = np.zeros_like(t)
-    for s in STARTS:
-        up = np.clip(RAMP * (t - s), 0.0, 800.0)
-        down = np.clip(RAMP * (t - s - STANCE), 0.0, 800.0)
-        v += up - down
-    return v
-
-
-def _run(folder, failed=(), blip=None):
-    """A result folder: frames 0–6 s at RATE; the load on calcn_r split over two plates
-    (the vertical along +z, gravity along −z), one knee contact whose |F| is 1 + 0.5 t
-    body weights, an FDK angle 0.01 t rad and length 0.001 t m; ``failed`` frame indices
-    not converged; ``blip`` (t, N): one frame of load in a swing."""
-    t = np.arange(int(6 * RATE) + 1) / RATE
-    v = _load(t)
-    if blip is not None:
-        v[int(round(blip[0] * RATE))] = blip[1]
-    converged = np.ones(len(t), int)
-    converged[list(failed)] = 0
-    F = WEIGHT * (1.0 + 0.5 * t)
-    forces = {"time": t, "converged": converged, "status": ["ok"] * len(t),
-              # the contact's force along (3, 4, 0)/5: |F| = F
-              "knee.Fx_N": 0.6 * F, "knee.Fy_N": 0.8 * F, "knee.Fz_N": 0 * t, "knee.medial_N": 0.7 * F,
-              # two loads on the foot, a third on the other foot; horizontal components that cycles ignore
-              "p1.external_Fx_N": 50 + 0 * t, "p1.external_Fy_N": 0 * t, "p1.external_Fz_N": 0.25 * v,
-              "p2.external_Fx_N": -20 + 0 * t, "p2.external_Fy_N": 3 + 0 * t, "p2.external_Fz_N": 0.75 * v,
-              "p3.external_Fx_N": 0 * t, "p3.external_Fy_N": 0 * t, "p3.external_Fz_N": 900 + 0 * t,
-              "fdk.rot.alpha": 0.01 * t, "fdk.rot.residual": 0 * t,
-              "fdk.tx.alpha": 0.001 * t, "fdk.tx.residual": 0 * t}
-    for name in ("p1", "p2", "p3"):
-        for c in "xyz":
-            forces[f"{name}.external_p{c}_m"] = 0 * t
-    forces["fdk_converged"] = converged
-    forces["message"] = [""] * len(t)
-    kinematics = pd.DataFrame({"time": t, "converged": 1, "message": ""}).set_index("time")
-    coordinates = pd.DataFrame({"time": t, "rot_rad": 0.01 * t, "tx_m": 0.001 * t}).set_index("time")
-    summary = {"input": {"model": "m.yaml",
-                         "external_loads": {"p1": {"body": "calcn_r"}, "p2": {"body": "calcn_r"},
-                                            "p3": {"body": "calcn_l"}},
-                         "gravity_W_m_s2": [0.0, 0.0, -9.81]},
-               "residuals": {"body_weight_N": WEIGHT}}
-    RunResults(kinematics, pd.DataFrame(forces).set_index("time"), summary, coordinates=coordinates).save(folder)
-    return t
+from openfdk.fixtures.gait_cycles_run import RAMP, RATE, STARTS, WEIGHT, foot_load as _load, write_cycles_run
+from openfdk.results.run import read_results
 
 
 def test_heel_strikes_are_where_the_foot_load_rises_through_the_threshold(tmp_path):
-    t = _run(tmp_path)
+    t = write_cycles_run(tmp_path)
     results = read_results(tmp_path)
     cycles = gait_cycles(results, "calcn_r")
     T = STARTS + 20.0 / RAMP
@@ -94,7 +38,7 @@ def test_heel_strikes_are_where_the_foot_load_rises_through_the_threshold(tmp_pa
 
 
 def test_a_quantity_over_the_cycles_has_the_closed_form_mean_and_sd(tmp_path):
-    _run(tmp_path)
+    write_cycles_run(tmp_path)
     cycles = gait_cycles(read_results(tmp_path), "calcn_r")
     T = STARTS + 20.0 / RAMP
     p = np.arange(101) / 100.0
@@ -120,7 +64,7 @@ def test_a_quantity_over_the_cycles_has_the_closed_form_mean_and_sd(tmp_path):
 def test_failed_frames_leave_their_cycle_out_there_and_nothing_is_interpolated_across_them(tmp_path):
     T = STARTS + 20.0 / RAMP
     k = int(np.ceil((T[1] + 0.5 * (T[2] - T[1])) * RATE))  # a frame half-way through cycle 2
-    t = _run(tmp_path, failed=(k,))
+    t = write_cycles_run(tmp_path, failed=(k,))
     cycles = gait_cycles(read_results(tmp_path), "calcn_r")
     assert list(cycles.failed) == [0, 1, 0, 0]
     gap = (T[1] + np.arange(101) / 100.0 * (T[2] - T[1]) > t[k - 1]) & (
@@ -149,7 +93,7 @@ def test_a_blip_of_load_in_swing_is_no_heel_strike():
 
 
 def test_the_command_writes_the_table_the_list_and_the_figure(tmp_path, capsys):
-    _run(tmp_path / "run")
+    write_cycles_run(tmp_path / "run")
     assert main(["cycles", str(tmp_path / "run"), "--foot", "calcn_r"]) == 0
     out = capsys.readouterr().out
     assert "4 cycle(s)" in out and "knee: mean peak" in out
@@ -176,7 +120,7 @@ def test_the_command_writes_the_table_the_list_and_the_figure(tmp_path, capsys):
     (None, ["--foot", "calcn_r", "--threshold", "900"], "0 heel strike(s)"),
 ])
 def test_a_run_without_cycles_is_one_line(tmp_path, capsys, change, args, words):
-    _run(tmp_path / "run")
+    write_cycles_run(tmp_path / "run")
     path = tmp_path / "run" / "summary.json"
     summary = json.loads(path.read_text())
     if change == "no_loads":

@@ -131,7 +131,10 @@ def foot_load(results, foot):
     names = [k for k, v in loads.items() if isinstance(v, dict) and v.get("body") == foot]
     if not names:
         raise CycleError(f"{where}: --foot {foot!r}: no measured load acts on it; the loads act on {', '.join(bodies)}")
-    g = np.asarray(gravity if gravity is not None else [], float).reshape(-1)
+    try:
+        g = np.asarray(gravity if gravity is not None else [], float).reshape(-1)
+    except (TypeError, ValueError):
+        g = np.zeros(0)
     if g.shape != (3,) or not np.all(np.isfinite(g)) or np.linalg.norm(g) == 0:
         raise CycleError(f"{where}: summary.json: input.gravity_W_m_s2 must be 3 finite numbers, not all zero, "
                          f"got {gravity!r}")
@@ -174,18 +177,24 @@ def quantities(results):
     converged = f["converged"].to_numpy() == 1
     out = []
 
+    def columns(*names):
+        missing = [n for n in names if n not in f.columns]
+        if missing:
+            raise CycleError(f"{results.directory or 'the run'}: forces.csv: no column {missing[0]!r}")
+        return f[list(names)].to_numpy(float)
+
     def add(name, kind, values):
         values = np.asarray(values, float)
         out.append(Quantity(name, kind, values, converged & np.isfinite(values)))
 
     for contact in results.contacts():
-        F = f[[f"{contact}.F{c}_N" for c in "xyz"]].to_numpy(float)
+        F = columns(*(f"{contact}.F{c}_N" for c in "xyz"))
         add(f"{contact}.|F|_N", "force", np.linalg.norm(F, axis=1))
         prefix = f"{contact}."
         for column in f.columns:
             region = column[len(prefix):-2] if column.startswith(prefix) and column.endswith("_N") else None
             if region and region not in ("Fx", "Fy", "Fz"):
-                add(column, "force", f[column].to_numpy(float))
+                add(column, "force", columns(column)[:, 0])
     coordinates = results.coordinates
     for dof in results.fdk_dofs():
         for suffix, kind in (("_m", "length"), ("_rad", "angle")):
@@ -193,7 +202,7 @@ def quantities(results):
                 add(f"{dof}{suffix}", kind, coordinates[f"{dof}{suffix}"].to_numpy(float))
                 break
         else:
-            add(f"fdk.{dof}.alpha", "1", f[f"fdk.{dof}.alpha"].to_numpy(float))
+            add(f"fdk.{dof}.alpha", "1", columns(f"fdk.{dof}.alpha")[:, 0])
     return out
 
 

@@ -65,7 +65,7 @@ import sys
 import numpy as np
 
 NEW_KINDS = ("external_loads", "grf_mot", "sto", "force_plates", "results", "checkpoint", "checkpoint_fdk",
-             "study_lock", "validation_map", "validation_reference", "joint_reaction", "overlay")
+             "study_lock", "validation_map", "validation_reference", "joint_reaction", "overlay", "cycles")
 #: the kinds whose inputs are checkpoint parts, resumed
 CHECKPOINT_KINDS = ("checkpoint", "checkpoint_fdk")
 #: the FDK run's model file (in its run folder)
@@ -364,6 +364,14 @@ def build(bases, kinds):
         _checkpoint_base(bases, "checkpoint_fdk", d / "fdkrun" / "ckpt" / ".checkpoint")
     if {"validation_map", "validation_reference"} & set(kinds):
         bases.paths["validation_map"], bases.paths["validation_reference"] = _write_validation_inputs(d)
+    if "cycles" in kinds:  # a walk's result folder with measured loads (openfdk cycles)
+        from ..fixtures.gait_cycles_run import write_cycles_run
+
+        res = d / "cycrun"
+        write_cycles_run(res)
+        bases.paths["cycles"] = res / "summary.json"
+        bases.originals["cycles"] = {p: p.read_bytes() for p in (res / "summary.json", res / "kinematics.csv",
+                                                                 res / "forces.csv", res / "coordinates.csv")}
     for kind in kinds:
         if kind not in bases.originals:
             bases.originals[kind] = {bases.paths[kind]: bases.paths[kind].read_bytes()}
@@ -553,13 +561,13 @@ def mutate(kind, bases, rng):
     elif kind == "force_plates":
         data = originals[path]
         path.write_bytes(mutate_plate_parameters(data, rng) if rng.random() < 0.6 else mutate_bytes(data, rng))
-    elif kind == "results":
+    elif kind in ("results", "cycles"):
         files = list(originals)
         target = files[int(rng.choice(len(files), p=[0.4, 0.25, 0.2, 0.15]))]
         text = originals[target].decode()
         target.write_text(mutate_json(text, rng) if target.suffix == ".json" else _mutate_csv(text, rng),
                           encoding="utf-8")
-        return RESULT_READERS[int(rng.integers(len(RESULT_READERS)))]
+        return RESULT_READERS[int(rng.integers(len(RESULT_READERS)))] if kind == "results" else None
     elif kind in CHECKPOINT_KINDS:
         parts = sorted(p for p in originals if p.suffix == ".npz")
         part = parts[int(rng.integers(len(parts)))]
@@ -626,7 +634,8 @@ def documented_error(kind):
         from ..analysis.kinematics_validation import ValidationError
 
         return ValidationError
-    return ValueError  # results: the plot, export-opensim and view readers' ValueError (ViewError) naming the file
+    return ValueError  # results: the plot, export-opensim and view readers' ValueError (ViewError) naming the
+    # file; cycles: the result folder's readers' ValueError, or CycleError (a ValueError)
 
 
 def _results_readers(folder, readers=RESULT_READERS):
@@ -705,4 +714,10 @@ def load(kind, path, reader=None):
         result = validate_kinematics(files.parent / "kvrun", files / "reference.sto", files / "map.yaml",
                                      VALIDATION_CYCLE, VALIDATION_TOE_OFF)
         return csv_text(result), markdown_table(result), text_table(result)  # the figure is left out (~1 s)
+    if kind == "cycles":
+        from ..analysis.gait_cycles import csv_text, gait_cycles, strikes_text
+        from ..results.run import read_results
+
+        cycles = gait_cycles(read_results(path.parent), "calcn_r")
+        return csv_text(cycles), strikes_text(cycles)  # the figure is left out (~1 s)
     raise ValueError(f"not a new fuzz kind: {kind!r}")
