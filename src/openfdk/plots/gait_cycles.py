@@ -38,6 +38,16 @@ def _panels(cycles, body_weight):
     return panels
 
 
+def _label(name):
+    """A legend's name: the quantity without its unit suffix (the axis gives the unit)."""
+    if name.startswith("fdk.") and name.endswith(".alpha"):
+        return name[4:-6]
+    for suffix in (".|F|_N", "_N", "_rad", "_m"):
+        if name.endswith(suffix):
+            return name[: -len(suffix)] + (" |F|" if suffix == ".|F|_N" else "")
+    return name
+
+
 def cycles_figure(cycles, body_weight=None, title="", width=11.0, row_height=2.6):
     """cycles.png: one panel per group (contact forces in BW when ``body_weight`` (N) is
     given, else N; FDK rotations in degrees; FDK translations in mm; the foot's vertical
@@ -60,7 +70,7 @@ def cycles_figure(cycles, body_weight=None, title="", width=11.0, row_height=2.6
                 for row in table:
                     ax.plot(p, row, color=colour, lw=0.4, alpha=0.35)
             mean, sd = cycles.mean(q) * factor, cycles.sd(q) * factor
-            ax.plot(p, mean, color=colour, lw=1.6, label=q)
+            ax.plot(p, mean, color=colour, lw=1.6, label=_label(q))
             ax.fill_between(p, mean - sd, mean + sd, color=colour, alpha=0.18, lw=0)
         ax.set_ylabel(f"{name}\n({unit})" if unit else name, fontsize=8)
     axes[-1].set_xlim(0, 100)
