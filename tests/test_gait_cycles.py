@@ -138,3 +138,23 @@ def test_a_folder_that_is_no_run_is_one_line(tmp_path, capsys):
     code = main(["cycles", str(tmp_path), "--foot", "calcn_r"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "no kinematics.csv" in err[0], err
+
+
+def test_the_viewer_draws_the_measured_loads_where_they_carry_20_N(tmp_path):
+    """Without grf.csv (an ExternalLoads run), the viewer's ground-reaction arrows are the
+    measured loads as forces.csv records them, hidden below 20 N."""
+    from openfdk.viewer.frames import grf_frames
+    from openfdk.viewer.pack import unpack
+    from openfdk.viewer.results import read_results as read_tables
+
+    t = write_cycles_run(tmp_path)
+    arrows = {a["name"]: a for a in grf_frames(read_tables(tmp_path))}
+    assert sorted(arrows) == ["p1", "p2", "p3"]
+    v = _load(t)
+    for name, F_expected in (("p1", np.stack([5 + 0 * t, 0 * t, 0.25 * v], axis=1)),
+                             ("p2", np.stack([-4 + 0 * t, 3 + 0 * t, 0.75 * v], axis=1))):
+        F = unpack(arrows[name]["force"]).astype(float).reshape(-1, 3)
+        shown = np.linalg.norm(F_expected, axis=1) >= 20.0
+        assert 0 < shown.sum() < len(t)  # hidden in swing (5 N)
+        np.testing.assert_allclose(F[shown], F_expected[shown], rtol=1e-6, atol=1e-3)
+        assert np.all(np.isnan(F[~shown]))

@@ -129,13 +129,39 @@ def _run_table(results, name):
     return data if len(data["time"]) == results.n_frames else None
 
 
+#: a measured load below this force (N) is drawn as unloaded (the plates' threshold_n)
+UNLOADED_N = 20.0
+
+
+def external_load_frames(results):
+    """Per measured load of the run (forces.csv ``<load>.external_F?_N`` and
+    ``_p?_m``, as applied: an ExternalLoads file's forces): the force (nf, 3) N and its
+    point (nf, 3) m, world; NaN where it is below :data:`UNLOADED_N` or the frame has
+    none. [] without such columns."""
+    forces = getattr(results, "forces", None) or {}
+    suffix = ".external_Fx_N"
+    out = []
+    for name in sorted(c[: -len(suffix)] for c in forces if c.endswith(suffix)):
+        columns = [f"{name}.external_F{a}_N" for a in "xyz"] + [f"{name}.external_p{a}_m" for a in "xyz"]
+        if not all(c in forces for c in columns):
+            continue
+        values = np.stack([np.asarray(forces[c], float) for c in columns], axis=1)
+        F, P = values[:, :3].copy(), values[:, 3:].copy()
+        with np.errstate(invalid="ignore"):
+            off = ~(np.linalg.norm(F, axis=1) >= UNLOADED_N)
+        F[off], P[off] = np.nan, np.nan
+        out.append({"name": name, "force": pack(F), "cop": pack(P)})
+    return out
+
+
 def grf_frames(results):
     """Per force plate of the run's ``grf.csv`` (ground reactions applied to the model):
     the force on the subject (nf, 3) N and its centre of pressure (nf, 3) m, world; NaN
-    where the plate is unloaded. [] without grf.csv or when its rows are not the run's."""
+    where the plate is unloaded. Without grf.csv (or when its rows are not the run's),
+    the measured loads of forces.csv (:func:`external_load_frames`)."""
     data = _run_table(results, "grf.csv")
     if data is None:
-        return []
+        return external_load_frames(results)
     out = []
     for name in sorted({k.split(".")[0] for k in data if k.endswith("_N") and ".F" in k}):
         F = np.stack([np.asarray(data[f"{name}.F{a}_N"], float) for a in "xyz"], axis=1)
