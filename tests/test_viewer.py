@@ -324,6 +324,26 @@ def test_view_data_rebuilds_markers_paths_and_panel(jaw_result):
     assert np.isnan(rms[3])
 
 
+def test_a_window_of_the_run_holds_its_frames_and_nothing_else(jaw_result, capsys):
+    """`openfdk view --start --end`: one cycle of a long trial. The window's frames are the
+    whole run's, value for value, and a window with no frame is one line."""
+    out, _ = jaw_result
+    whole, _ = view_data(out)
+    part, _ = view_data(out, start=0.02, end=0.065)
+    t_all, t = unpack(whole["frames"]["time"]), unpack(part["frames"]["time"])
+    keep = (t_all >= 0.02 - 1e-9) & (t_all <= 0.065 + 1e-9)
+    assert keep.sum() == 5 and len(t) == 5
+    np.testing.assert_array_equal(t, t_all[keep])
+    np.testing.assert_array_equal(unpack(part["frames"]["poses"]), unpack(whole["frames"]["poses"])[keep])
+    # the failed frame 3 (0.03 s) is the window's second
+    assert part["frames"]["failed"] == [(1, "frame 3 (t = 0.0300 s): test failure")]
+    assert "5 frames, t = 0.020 … 0.060 s" in part["meta"]["lines"]
+    code = main(["view", str(out), "--start", "5", "--end", "6", "--out", str(out / "w.html")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "no frame within [5, 6] s (the run covers 0–0.11 s)" in err[0], err
+    assert not (out / "w.html").exists()
+
+
 @needs_browser
 def test_browser_shows_the_fdk_jaw_without_errors(jaw_result, tmp_path):
     out, _ = jaw_result

@@ -40,10 +40,29 @@ class RunTables:
     summary: dict
     kinematics: dict
     forces: dict = field(default_factory=dict)
+    #: (start, end) s of :meth:`window`, None for the whole run
+    span: tuple = None
 
     @property
     def time(self):
         return self.kinematics["time"]
+
+    def window(self, start=None, end=None):
+        """The run's frames with start ≤ t ≤ end (s; None: the run's first or last), as
+        RunTables whose ``span`` other tables of the folder are cut to. ResultsError when
+        no frame lies within."""
+        t = np.asarray(self.time, float)
+        lo = -np.inf if start is None else float(start)
+        hi = np.inf if end is None else float(end)
+        if np.isnan(lo) or np.isnan(hi) or lo > hi:
+            raise ResultsError(f"--start/--end: [{lo:g}, {hi:g}] s is not a time window")
+        keep = (t >= lo - 1e-9) & (t <= hi + 1e-9)
+        if not keep.any():
+            span = f"{t[0]:g}–{t[-1]:g} s" if len(t) else "no frame"
+            raise ResultsError(f"{self.directory / 'kinematics.csv'}: no frame within [{lo:g}, {hi:g}] s "
+                               f"(the run covers {span})")
+        return RunTables(self.directory, self.summary, self.kinematics.rows(keep),
+                         self.forces.rows(keep) if self.forces else self.forces, (lo, hi))
 
     @property
     def n_frames(self):
@@ -74,6 +93,12 @@ class TableColumns(Mapping):
                 column = list(cells)
             self._columns[name] = column
         return column
+
+    def rows(self, keep):
+        """The table with only the rows where ``keep`` (nf,) bool is True."""
+        keep = np.asarray(keep, bool)
+        return TableColumns(self._path, list(self._cells), [[c for c, k in zip(cells, keep) if k]
+                                                           for cells in self._cells.values()])
 
     def __iter__(self):
         return iter(self._cells)

@@ -26,14 +26,18 @@ __all__ = ["write_view", "view_data", "ViewError"]
 MIN_MESH_VERTICES = 3
 
 
-def view_data(result_dir, model=None, max_vertices=MAX_MESH_VERTICES):
+def view_data(result_dir, model=None, max_vertices=MAX_MESH_VERTICES, start=None, end=None):
     """(data dict {meta, scene, frames}, title) of a result folder. ``model``: a model
-    file path (default: the one named in summary.json) or a loaded Model."""
+    file path (default: the one named in summary.json) or a loaded Model; ``start``,
+    ``end`` (s): only the frames within (a cycle of a long trial; None: the run's first
+    or last)."""
     if isinstance(max_vertices, bool) or not isinstance(max_vertices, int) or max_vertices < MIN_MESH_VERTICES:
         raise ValueError(f"max_vertices must be a whole number >= {MIN_MESH_VERTICES}, got {max_vertices!r}")
     from ..io.modelfile import load_model_for_results
 
     results = read_results(result_dir)
+    if start is not None or end is not None:
+        results = results.window(start, end)
     if model is None or not hasattr(model, "bodies"):
         path = resolve_input(results, "model", model)
         if path is None:
@@ -58,10 +62,11 @@ def view_data(result_dir, model=None, max_vertices=MAX_MESH_VERTICES):
     return data, title
 
 
-def write_view(result_dir, out=None, model=None, max_vertices=MAX_MESH_VERTICES):
-    """Write the viewer of ``result_dir`` to ``out`` (default RESULT_DIR/view.html);
-    returns its Path. Raises ViewError naming the file/entry on bad input."""
-    data, title = view_data(result_dir, model, max_vertices)
+def write_view(result_dir, out=None, model=None, max_vertices=MAX_MESH_VERTICES, start=None, end=None):
+    """Write the viewer of ``result_dir`` (its frames within ``start``–``end`` s, when
+    given) to ``out`` (default RESULT_DIR/view.html); returns its Path. Raises ViewError
+    naming the file/entry on bad input."""
+    data, title = view_data(result_dir, model, max_vertices, start, end)
     out = Path(out) if out is not None else Path(result_dir) / "view.html"
     from ..io.outdir import refuse_link, write_new_file
 

@@ -8,7 +8,8 @@ def _cmd_view(args):
     from . import write_view
 
     refuse_empty_out(args)
-    out = write_view(args.result_dir, args.out, model=args.model, max_vertices=args.max_vertices)
+    out = write_view(args.result_dir, args.out, model=args.model, max_vertices=args.max_vertices, start=args.start,
+                     end=args.end)
     size = out.stat().st_size / 1e6
     if not getattr(args, "quiet", False):
         print(f"view: {out} ({size:.1f} MB); open it in a web browser (works offline)")
@@ -31,6 +32,11 @@ def add_view_parser(sub):
     v.add_argument("--max-vertices", type=count(MIN_MESH_VERTICES), default=4000,
                    help=f"meshes with more vertices are decimated for display (default 4000, at least "
                         f"{MIN_MESH_VERTICES})")
+    from ..cli.argtypes import finite
+
+    v.add_argument("--start", type=finite, default=None, metavar="T",
+                   help="show only the frames from T s on (e.g. one gait cycle of a long trial)")
+    v.add_argument("--end", type=finite, default=None, metavar="T", help="show only the frames up to T s")
     _display_arguments(v, progress=False)
     v.set_defaults(func=_cmd_view)
     return v
