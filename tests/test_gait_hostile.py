@@ -106,6 +106,7 @@ def test_a_whole_trial_leaves_out_the_samples_before_and_after_the_load_data():
         given = _within_load_data(model, times, start=0.75, end=3.925)
     np.testing.assert_array_equal(given, kept)
     (w,) = [c for c in caught if issubclass(c.category, PlausibilityWarning)]
-    assert "(the window's start (0.75 s) and the window's end (3.925 s) outside it)" in str(w.message), w.message
+    assert ("outside the measured loads' data (0.750833–3.92417 s), where the window's start (0.75 s) and the "
+            "window's end (3.925 s) lie, are left out") in str(w.message), w.message
     inside = times[(times > 1.0) & (times < 2.0)]
     np.testing.assert_array_equal(_within_load_data(model, inside, start=1.0, end=2.0), inside)

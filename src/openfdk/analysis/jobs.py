@@ -124,7 +124,7 @@ def _within_load_data(model, times, start=None, end=None, settings=None):
     given = [f"the window's {name} ({float(t):g} s)" for name, t, out in
              (("start", start, start is not None and float(start) < lo - 1e-9),
               ("end", end, end is not None and float(end) > hi + 1e-9)) if out]
-    where = f" ({' and '.join(given)} outside it)" if given else ""
+    where = f", where {' and '.join(given)} {'lies' if len(given) == 1 else 'lie'}," if given else ""
     warn_plausibility(f"analysis window {times[keep][0]:g}–{times[keep][-1]:g} s: the {np.count_nonzero(~keep)} "
                       f"trial sample(s) outside the measured loads' data ({lo:g}–{hi:g} s){where} are left out")
     return times[keep]
