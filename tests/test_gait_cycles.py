@@ -96,7 +96,10 @@ def test_the_command_writes_the_table_the_list_and_the_figure(tmp_path, capsys):
     write_cycles_run(tmp_path / "run")
     assert main(["cycles", str(tmp_path / "run"), "--foot", "calcn_r"]) == 0
     out = capsys.readouterr().out
-    assert "4 cycle(s)" in out and "knee: mean peak" in out
+    assert "4 cycle(s)" in out
+    # |F| = 1 + 0.5 t BW rises through each cycle: its mean peaks at 100 %, 1 + 0.5 mean(T_2..T_5)
+    peak = 1.0 + 0.5 * np.mean(STARTS[1:] + 20.0 / RAMP)
+    assert f"knee: mean peak {peak:.2f} BW at 100 %" in out, out
     folder = tmp_path / "run" / "cycles"
     table = pd.read_csv(folder / "cycles.csv")
     assert list(table["percent"]) == list(range(101))

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from . import argtypes
 from .argtypes import _display_arguments
 
@@ -44,9 +46,9 @@ def _cmd_cycles(args):
               f"{cycles.strikes[0]:.4f} to {cycles.strikes[-1]:.4f} s, {durations.min():.3f}–{durations.max():.3f} s "
               f"long; {int(cycles.failed.sum())} failed frame(s) within them")
         for name in cycles.per_cycle:
-            if name.endswith(".|F|_N"):
-                mean = cycles.mean(name)
-                i = int(mean.argmax()) if mean.size and mean[mean == mean].size else 0
+            mean = cycles.mean(name)
+            if name.endswith(".|F|_N") and np.any(np.isfinite(mean)):
+                i = int(np.nanargmax(mean))
                 scale, unit = (1.0 / weight, "BW") if weight else (1.0, "N")
                 print(f"  {name[:-len('.|F|_N')]}: mean peak {mean[i] * scale:.2f} {unit} at {i} % "
                       f"(SD {cycles.sd(name)[i] * scale:.2f} {unit})")
