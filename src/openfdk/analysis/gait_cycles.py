@@ -277,30 +277,9 @@ def write_cycles(cycles: Cycles, out_dir, figure=None) -> list:
     """Write cycles.csv, cycles_list.csv and, given a matplotlib ``figure``, cycles.png
     into ``out_dir`` (created; a symbolic link at one of these names is refused, an
     earlier file replaced). Returns the paths written."""
-    import io
-    from pathlib import Path
+    from ..io.outdir import png_bytes, write_files
 
-    from ..io.outdir import OutputDirError, write_new_file
-
-    out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise CycleError(f"--out: cannot create {str(out)!r} ({exc.strerror or exc})") from None
-    if not out.is_dir():
-        raise CycleError(f"--out: {str(out)!r} is not a folder")
     files = [("cycles.csv", csv_text(cycles).encode("utf-8")), ("cycles_list.csv", strikes_text(cycles).encode("utf-8"))]
     if figure is not None:
-        buf = io.BytesIO()
-        figure.savefig(buf, format="png", dpi=110)
-        files.append(("cycles.png", buf.getvalue()))
-    paths = []
-    try:
-        for name, data in files:
-            write_new_file(out / name, data)
-            paths.append(out / name)
-    except OutputDirError as exc:
-        raise CycleError(str(exc)) from None
-    except OSError as exc:
-        raise CycleError(f"--out: cannot write into {str(out)!r} ({exc.strerror or exc})") from None
-    return paths
+        files.append(("cycles.png", png_bytes(figure)))
+    return write_files(out_dir, files, CycleError)

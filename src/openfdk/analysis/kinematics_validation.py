@@ -573,28 +573,10 @@ def write_validation(result: ValidationResult, out_dir, figure=None) -> list:
     :func:`openfdk.plots.kinematics_validation.validation_figure`), validation.png into
     ``out_dir`` (created; a symbolic link at one of these names is refused, an earlier
     file replaced). Returns the paths written."""
-    from ..io.outdir import OutputDirError, write_new_file
+    from ..io.outdir import png_bytes, write_files
 
-    out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ValidationError(f"--out: cannot create {str(out)!r} ({exc.strerror or exc})") from None
-    if not out.is_dir():
-        raise ValidationError(f"--out: {str(out)!r} is not a folder")
     files = [("validation.csv", csv_text(result).encode("utf-8")),
              ("validation.md", markdown_table(result).encode("utf-8"))]
     if figure is not None:
-        buf = io.BytesIO()
-        figure.savefig(buf, format="png", dpi=110)
-        files.append(("validation.png", buf.getvalue()))
-    paths = []
-    try:
-        for name, data in files:
-            write_new_file(out / name, data)
-            paths.append(out / name)
-    except OutputDirError as exc:
-        raise ValidationError(str(exc)) from None
-    except OSError as exc:
-        raise ValidationError(f"--out: cannot write into {str(out)!r} ({exc.strerror or exc})") from None
-    return paths
+        files.append(("validation.png", png_bytes(figure)))
+    return write_files(out_dir, files, ValidationError)

@@ -97,6 +97,39 @@ def write_new_file(path, data: bytes):
 WRITTEN_SUFFIXES = (".csv", ".sto", ".mot", ".json", ".html", ".png")
 
 
+def write_files(out_dir, files, error=ValueError) -> list:
+    """Write ``files`` [(name, bytes)] into the folder ``out_dir`` (created; a symbolic
+    link at one of the names is refused, an earlier file replaced: :func:`write_new_file`).
+    Returns the paths written; a folder that cannot be made or written raises ``error``
+    (a ValueError class) with one line naming it (``--out``)."""
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise error(f"--out: cannot create {str(out)!r} ({exc.strerror or exc})") from None
+    if not out.is_dir():
+        raise error(f"--out: {str(out)!r} is not a folder")
+    paths = []
+    try:
+        for name, data in files:
+            write_new_file(out / name, data)
+            paths.append(out / name)
+    except OutputDirError as exc:
+        raise error(str(exc)) from None
+    except OSError as exc:
+        raise error(f"--out: cannot write into {str(out)!r} ({exc.strerror or exc})") from None
+    return paths
+
+
+def png_bytes(figure, dpi=110) -> bytes:
+    """A matplotlib ``figure`` as PNG bytes (``dpi`` dots per inch)."""
+    import io
+
+    buf = io.BytesIO()
+    figure.savefig(buf, format="png", dpi=dpi)
+    return buf.getvalue()
+
+
 def refuse_inputs_inside(path, inputs):
     """OutputDirError when one of ``inputs`` ((label, path) pairs: the option that named
     the file, and the file) lies inside the output folder ``path`` (at any depth, links
