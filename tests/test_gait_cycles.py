@@ -92,6 +92,18 @@ def test_a_blip_of_load_in_swing_is_no_heel_strike():
     np.testing.assert_allclose(strikes, np.delete(STARTS, 2) + 20.0 / RAMP, rtol=0, atol=1e-12)
 
 
+def test_a_foot_that_touches_before_it_loads_strikes_at_its_first_touch():
+    """A load that rises through 20 N, dips back below it for 30 ms and then loads the
+    foot (DM's tm_set1 at 15.4 s): the heel strike is the first crossing."""
+    t = np.arange(601) / RATE
+    v = _load(t)
+    for s in STARTS[1:3]:
+        touch = (t > s + 0.02) & (t < s + 0.05)  # the 3 frames after the crossing, back to 15 N
+        v[touch] = 15.0
+    strikes = heel_strikes(t, v, 20.0, 0.2, 0.2)
+    np.testing.assert_allclose(strikes, STARTS + 20.0 / RAMP, rtol=0, atol=1e-12)
+
+
 def test_the_command_writes_the_table_the_list_and_the_figure(tmp_path, capsys):
     write_cycles_run(tmp_path / "run")
     assert main(["cycles", str(tmp_path / "run"), "--foot", "calcn_r"]) == 0

@@ -9,13 +9,15 @@ One algorithm:
    ``<load>.external_F{x,y,z}_N``, world), and projected on the up direction
    u = −g/|g| (``input.gravity_W_m_s2``): v(t) = Σ F_W · u (N). A frame without
    the value (a failed frame, a load not known there) has none.
-2. **Heel strikes.** Where v rises through the threshold v* (default 20 N): the time
-   between frames i and i + 1 with v_i < v* ≤ v_{i+1}, by linear interpolation,
-   t* = t_i + (v* − v_i) / (v_{i+1} − v_i) (t_{i+1} − t_i). A rise counts when v stays
-   below v* for at least ``min_off`` s before it (the swing; default 0.2 s) and at or
-   above it for at least ``min_on`` s after it (the stance; default 0.2 s), every frame
-   of both stretches with a value: a plate's noise at the threshold and a foot whose
-   load is not known are no heel strikes.
+2. **Heel strikes.** Where v rises through the threshold v* (default 20 N) at the end
+   of a swing: the time between frames i and i + 1 with v_i < v* ≤ v_{i+1}, by linear
+   interpolation, t* = t_i + (v* − v_i) / (v_{i+1} − v_i) (t_{i+1} − t_i), where the
+   frames up to i are known and below v* for at least ``min_off`` s (the swing; default
+   0.2 s), and the foot then stands: at or above v* for at least ``min_on`` s (default
+   0.2 s) in one stretch, before the next swing. Between the crossing and the stance v
+   may dip below v* (a foot touching the belt before it loads it); a plate's noise in
+   swing, too short for a stance, and a foot whose load is not known are no heel
+   strikes.
 3. **Cycles.** Consecutive heel strikes [T_k, T_{k+1}]; a frame's % of cycle k is
    p = 100 (t − T_k) / (T_{k+1} − T_k).
 4. **The ensemble.** Each quantity of each cycle at p = 0, 1, …, 100 %, interpolated
@@ -151,20 +153,32 @@ def foot_load(results, foot):
     return np.where(converged & np.isfinite(v), v, np.nan)
 
 
+def _runs(mask):
+    """[(first, last)] frame indices of each stretch of consecutive True in ``mask``."""
+    m = np.concatenate([[False], np.asarray(mask, bool), [False]]).astype(np.int8)
+    d = np.diff(m)
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1) - 1))
+
+
 def heel_strikes(time, load, threshold=DEFAULT_THRESHOLD_N, min_off=DEFAULT_MIN_OFF_S, min_on=DEFAULT_MIN_ON_S):
     """(k,) s: the heel strikes of a foot whose vertical load is ``load`` (nf,) N at
-    ``time`` (nf,) s, NaN where not known (module docstring, step 2)."""
+    ``time`` (nf,) s, NaN where not known (module docstring, step 2): the crossing at the
+    end of each swing (frames known and below the threshold for at least ``min_off`` s)
+    whose foot then stands (at or above it for at least ``min_on`` s in one stretch)
+    before the next swing. The load may chatter about the threshold between the two: a
+    foot that touches the belt lightly before it loads it (DM's ``tm_set1``, 15.4 s)."""
     t, v = np.asarray(time, float), np.asarray(load, float)
     known = np.isfinite(v)
     on = known & (v >= threshold)
     off = known & (v < threshold)
+    swings = [(a, b) for a, b in _runs(off) if t[b] - t[a] >= min_off - 1e-9]
+    stances = [a for a, b in _runs(on) if t[b] - t[a] >= min_on - 1e-9]
     out = []
-    for i in np.flatnonzero(off[:-1] & on[1:]):
-        before = (t >= t[i] - min_off - 1e-9) & (t <= t[i])
-        after = (t >= t[i + 1]) & (t <= t[i + 1] + min_on + 1e-9)
-        if t[i] - t[0] < min_off - 1e-9 or t[-1] - t[i + 1] < min_on - 1e-9:
+    for k, (_, i) in enumerate(swings):
+        if i + 1 >= len(t) or not on[i + 1]:  # the swing ends at the trial's end or in a frame not known
             continue
-        if not (np.all(off[before]) and np.all(on[after])):
+        next_swing = swings[k + 1][0] if k + 1 < len(swings) else len(t)
+        if not any(i + 1 <= a < next_swing for a in stances):
             continue
         out.append(t[i] + (threshold - v[i]) / (v[i + 1] - v[i]) * (t[i + 1] - t[i]))
     return np.asarray(out, float)
