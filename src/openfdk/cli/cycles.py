@@ -50,8 +50,9 @@ def _cmd_cycles(args):
             if name.endswith(".|F|_N") and np.any(np.isfinite(mean)):
                 i = int(np.nanargmax(mean))
                 scale, unit = (1.0 / weight, "BW") if weight else (1.0, "N")
-                print(f"  {name[:-len('.|F|_N')]}: mean peak {mean[i] * scale:.2f} {unit} at {i} % "
-                      f"(SD {cycles.sd(name)[i] * scale:.2f} {unit})")
+                sd = cycles.sd(name)[i]
+                spread = f" (SD {sd * scale:.2f} {unit})" if np.isfinite(sd) else ""  # one cycle: none
+                print(f"  {name[:-len('.|F|_N')]}: mean peak {mean[i] * scale:.2f} {unit} at {i} %{spread}")
         print(f"  -> {', '.join(str(p) for p in paths)}")
     return 0
 
