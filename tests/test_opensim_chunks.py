@@ -83,3 +83,31 @@ def test_run_chunks_of_an_osim_with_an_overlay_on_the_command_line(files, tmp_pa
     scale = max(np.max(np.abs(v)) for v in a.values())
     for key in a:
         np.testing.assert_allclose(b[key], a[key], atol=1e-6 * scale, err_msg=key)
+
+
+def test_a_chunked_run_records_its_measured_loads_as_the_serial_one(files, tmp_path):
+    """A run in chunks records the measured loads as applied (forces.csv's
+    ``<load>.external_F?_N``) and their bodies and the gravity (summary.json's input),
+    as the serial run does: ``openfdk cycles`` reads them (DM's tm_med1 in two chunks
+    had lost them until stop 75)."""
+    from openfdk.io.storage import write_storage
+    from test_load_filter import LOADS_XML  # one ground reaction on calcn_r
+
+    t = np.linspace(0.0, 1.0, 201)
+    cols = {"g_vx": 10 + 0 * t, "g_vy": 300 + 100 * t, "g_vz": 0 * t, "g_px": 0 * t, "g_py": 0 * t, "g_pz": 0 * t,
+            "g_tx": 0 * t, "g_ty": 0 * t, "g_tz": 0 * t}
+    write_storage(tmp_path / "grf.mot", t, cols, name="grf")
+    (tmp_path / "loads.xml").write_text(LOADS_XML)
+    data = yaml.safe_load((files / "overlay.yaml").read_text())
+    data["opensim"] = str(files / "full_body.osim")
+    data["external_loads"] = "loads.xml"
+    (tmp_path / "loaded.yaml").write_text(yaml.safe_dump(data))
+    kin, dyn, info = run_job(tmp_path / "loaded.yaml", None, progress=False)
+    kc, dc, ic = run_chunked_job(tmp_path / "loaded.yaml", None, 2, workers=0, progress=False, overlap=1)
+    for record in (info, ic):
+        assert record["external_loads"] == {"grf_r": {"body": "calcn_r"}}
+        np.testing.assert_allclose(record["gravity_W_m_s2"], [0.0, -9.80665, 0.0], rtol=0, atol=1e-12)
+    for res in (dyn, dc):
+        columns = res.extra["columns"]
+        np.testing.assert_allclose(columns["grf_r.external_Fy_N"], 300 + 100 * kin.time, rtol=1e-9)
+        np.testing.assert_allclose(columns["grf_r.external_Fx_N"], 10.0, rtol=1e-9)

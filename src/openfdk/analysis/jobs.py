@@ -241,9 +241,15 @@ def _with_ground_reactions(model, settings, trial_path, traj, cutoff_hz, info):
     """The model with the trial's force plates as loads on its feet when the settings
     assign them (``ground_reactions``; :mod:`openfdk.io.ground_reactions`); the
     assignment of every stance goes to ``info["ground_reactions"]``, what the plates'
-    reading assumed (sign convention, ORIGIN, units) to ``info["force_plate_notes"]``."""
+    reading assumed (sign convention, ORIGIN, units) to ``info["force_plate_notes"]``,
+    and every measured load's body and the gravity (the ExternalLoads file's and the
+    plates': :func:`~openfdk.forces.data_loads.load_record`) to ``info``: the one place
+    every run (``run_job``, a study's case and its chunks) takes its loads from."""
+    from ..forces.data_loads import load_record
+
     spec = getattr(settings, "ground_reactions", None)
     if not spec:
+        info.update(load_record(model))
         return model
     if traj is None or not str(trial_path).lower().endswith(".c3d"):
         raise ValueError(f"ground_reactions: the force plates come from a C3D trial; {trial_path!r} is not one")
@@ -257,7 +263,9 @@ def _with_ground_reactions(model, settings, trial_path, traj, cutoff_hz, info):
     info["ground_reactions"] = report
     if notes:
         info["force_plate_notes"] = notes
-    return replace(model, external_loads=tuple(model.external_loads) + loads)
+    model = replace(model, external_loads=tuple(model.external_loads) + loads)
+    info.update(load_record(model))
+    return model
 
 
 def preflight(model, label, model_path):
@@ -330,7 +338,6 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
     (``openfdk run`` checks the rims while its figures are drawn)."""
     from .run import run_trial
     from ..contact.rim import warn_contact_rims
-    from ..forces.data_loads import load_record
     from ..model.plausibility import warn_outlier_markers, warn_pulling_contacts
     from ..trial import TrialInterrupted
 
@@ -339,7 +346,6 @@ def run_job(model_path, trial_path=None, cutoff_hz=None, progress=True, start=No
     traj, times, info = analysis_inputs(model, trial_path, cutoff_hz, start, end, settings)
     info = {"model": label, **info, **checked}
     model = _with_ground_reactions(model, settings, trial_path, traj, cutoff_hz, info)
-    info.update(load_record(model))
 
     def with_info(kin, dyn, fdk):
         out = dict(info)

@@ -45,12 +45,13 @@ from numba import njit
 
 from ..kinematics.block_triangular import block_solve, lu_factor_range
 from ..dynamics.equilibrium import _body_arrays, _inertial_minus_gravity, _reaction_rows
-from ..dynamics.results import forces_fields, forces_result
+from ..dynamics.results import COLUMN, EXTERNAL_LOAD_KEYS, forces_fields, forces_result
 from ..forces.data_loads import apply_data_loads
 from ..kinematics.analysis import kinematics_fields, kinematics_result
 from ..kinematics.tree_kinematics import tree_forward, tree_plan
 from ..model.compiled import evaluate_program
 from ..model.kernels import get_poses, get_velocities
+from ..numerics.spatial import rotation_matrix
 from ..recruitment.result import STATUS_OPTIMAL
 from ..trial.driver import Recording, TrialInterrupted, _progress, _StopOnSigint
 from ..trial.status import FrameReport
@@ -75,6 +76,9 @@ class TreeTrial:
             if loads is None else loads.kernel_args
         self.samples = np.zeros((len(times), 0, 9)) if loads is None else loads.table(times)
         self.n_loads = nl
+        # [(k, name)]: the loads applied (their bodies move); forces.csv records each as applied
+        self.applied = [(k, load.name) for k, load in enumerate(model.external_loads)
+                        if model.bodies[load.body].column >= 0]
 
     def _kernel_args(self, state):
         lay, prog, form = self.solver.layout, self.system.program, self.solver._determinate
@@ -95,7 +99,7 @@ class TreeTrial:
         out_phi, out_f, out_res = np.empty(nf), np.empty((nf, self.solver.layout.n_columns)), np.empty(nf)
         status = np.zeros(nf, np.int64)
         args = self._kernel_args(model.initial_state())
-        rec = Recording(nf, {**kinematics_fields(model, 0), **forces_fields(self.solver)})
+        rec = Recording(nf, {**kinematics_fields(model, 0), **forces_fields(self.solver), **self._load_fields()})
         bar = _progress(nf, progress, "kinematics + inverse dynamics")
         stop = _StopOnSigint()
         done = 0
@@ -107,6 +111,8 @@ class TreeTrial:
                     if np.any(status[done:hi] != OK):
                         return None
                     self._record(rec, done, hi, out_q, out_v, out_vdot, out_phi, out_f, out_res)
+                    if self.n_loads:
+                        rec.record_block(done, self._load_columns(done, hi, out_q))
                     if bar is not None:
                         bar.update(hi - done)
                     done = hi
@@ -119,6 +125,36 @@ class TreeTrial:
             if bar is not None:
                 bar.close()
         return build(rec)
+
+    def _load_fields(self):
+        """The Recording's fields of the measured loads' columns (``dyn.col.<load>.<key>``)."""
+        return {f"dyn.{COLUMN}{name}.{key}": ((), float, np.nan)
+                for _, name in self.applied for key in EXTERNAL_LOAD_KEYS}
+
+    def _load_columns(self, lo, hi, q):
+        """{field: (hi − lo,)}: each applied load's force and point in the world (N, m) at
+        frames lo … hi − 1 from their poses ``q`` (nf, 7 n_moving), as the frame-by-frame
+        path records them (:func:`apply_data_loads`: x_W = R_WB R_BF x_F for components
+        given in the body, p_W = r_WB + R_WB p_BF + R_WB R_BF p_F), for all frames at once."""
+        _, in_body, p_BF, R_BF = self.loads
+        moving = self.model.moving_bodies
+        out = {}
+        for k, name in self.applied:
+            S = self.samples[lo:hi, k]
+            F, P = S[:, 0:3], S[:, 3:6]
+            if in_body[k].any():
+                body = self.model.bodies[self.model.external_loads[k].body]
+                j = next(m for m, b in enumerate(moving) if b is body)
+                pose = q[lo:hi, 7 * j : 7 * j + 7]
+                R_WB = np.moveaxis(rotation_matrix(pose[:, 3:].T), -1, 0)  # (frames, 3, 3)
+                R_WF = R_WB @ R_BF[k]
+                if in_body[k, 0]:
+                    F = np.einsum("fab,fb->fa", R_WF, F)
+                if in_body[k, 1]:
+                    P = pose[:, :3] + R_WB @ p_BF[k] + np.einsum("fab,fb->fa", R_WF, P)
+            for key, values in zip(EXTERNAL_LOAD_KEYS, (*F.T, *P.T)):
+                out[f"dyn.{COLUMN}{name}.{key}"] = values
+        return out
 
     @staticmethod
     def _record(rec, lo, hi, q, v, vdot, phi, f, res):
