@@ -173,3 +173,22 @@ def test_the_viewer_draws_the_measured_loads_where_they_carry_20_N(tmp_path):
         assert 0 < shown.sum() < len(t)  # hidden in swing (5 N)
         np.testing.assert_allclose(F[shown], F_expected[shown], rtol=1e-6, atol=1e-3)
         assert np.all(np.isnan(F[~shown]))
+
+
+def test_a_reader_that_leaves_early_ends_the_command_quietly(tmp_path, capsys, monkeypatch):
+    """`openfdk cycles RUN | head -1`: the pipe closes after the first line; the files are
+    written, and the command stops printing without an error."""
+    import sys
+
+    class Closed:
+        def write(self, text):
+            raise BrokenPipeError(32, "Broken pipe")
+
+        def flush(self):
+            pass
+
+    write_cycles_run(tmp_path / "run")
+    monkeypatch.setattr(sys, "stdout", Closed())
+    assert main(["cycles", str(tmp_path / "run"), "--foot", "calcn_r", "--no-plot"]) == 0
+    assert capsys.readouterr().err == ""
+    assert (tmp_path / "run" / "cycles" / "cycles.csv").is_file()

@@ -899,6 +899,18 @@ def _blas_threads():
         raise UserError(str(e)) from None
 
 
+def _silence_stdout():
+    """Point stdout at the null device (its reader has gone: the interpreter's last flush
+    would fail again)."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):  # a stdout without a file descriptor (tests)
+        pass
+
+
 def main(argv=None):
     import numpy as np
 
@@ -922,6 +934,11 @@ def main(argv=None):
             raise
         print("openfdk: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # the reader of the output left (``openfdk cycles RUN | head -3``): what the command
+        # writes to files is written; its printed summary stops there, without a word
+        _silence_stdout()
+        return 0
     except (UserError, ValueError, FileNotFoundError, OSError) as exc:
         # ModelError, SubjectError, StudyError, C3DError, MeshError, MissingMarkerError,
         # KinematicsError and OutputDirError are ValueErrors
