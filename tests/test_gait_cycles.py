@@ -177,7 +177,8 @@ def test_the_viewer_draws_the_measured_loads_where_they_carry_20_N(tmp_path):
 
 def test_a_reader_that_leaves_early_ends_the_command_quietly(tmp_path, capsys, monkeypatch):
     """`openfdk cycles RUN | head -1`: the pipe closes after the first line; the files are
-    written, and the command stops printing without an error."""
+    written, and the command stops printing without an error message, exit 141 (128 +
+    SIGPIPE, what a shell reports for a tool the closed pipe killed)."""
     import sys
 
     class Closed:
@@ -189,6 +190,6 @@ def test_a_reader_that_leaves_early_ends_the_command_quietly(tmp_path, capsys, m
 
     write_cycles_run(tmp_path / "run")
     monkeypatch.setattr(sys, "stdout", Closed())
-    assert main(["cycles", str(tmp_path / "run"), "--foot", "calcn_r", "--no-plot"]) == 0
+    assert main(["cycles", str(tmp_path / "run"), "--foot", "calcn_r", "--no-plot"]) == 141
     assert capsys.readouterr().err == ""
     assert (tmp_path / "run" / "cycles" / "cycles.csv").is_file()

@@ -19,7 +19,8 @@
 Exit codes: 0 success (every frame converged, or at most ``--max-failed`` of them
 failed); 2 bad input (a one-line reason on stderr naming the file and the entry);
 3 the run completed but more frames failed than ``--max-failed`` (a one-line summary
-on stderr with the most common failure reason); 130 interrupted (Ctrl-C).
+on stderr with the most common failure reason); 130 interrupted (Ctrl-C); 141 the reader of
+the printed output left (a closed pipe).
 Warnings are one line each (``openfdk: warning: ...``); numpy's floating-point and
 empty-slice warnings never reach the console.
 """
@@ -41,6 +42,8 @@ from .argtypes import _display_arguments
 
 #: exit codes (README "Exit codes")
 EXIT_OK, EXIT_BAD_INPUT, EXIT_FAILED_FRAMES, EXIT_INTERRUPTED = 0, 2, 3, 130
+#: the reader of stdout left (a pipe closed): 128 + SIGPIPE, as a shell reports a tool killed by it
+EXIT_BROKEN_PIPE = 141
 DEFAULT_MAX_FAILED = 0.01
 
 
@@ -768,7 +771,7 @@ class _Parser(argparse.ArgumentParser):
 def build_parser():
     p = _Parser(prog="openfdk", description="Force-dependent kinematics and musculoskeletal analysis",
                                 epilog="Exit codes: 0 success; 2 bad input; 3 more frames failed than --max-failed; "
-                                       "130 interrupted.")
+                                       "130 interrupted; 141 the printed output's reader left.")
     p.add_argument("--version", action="version", version=f"openfdk {_version()}", help="print the version and exit")
     _display_arguments(p, top=True)
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -935,10 +938,11 @@ def main(argv=None):
         print("openfdk: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except BrokenPipeError:
-        # the reader of the output left (``openfdk cycles RUN | head -3``): what the command
-        # writes to files is written; its printed summary stops there, without a word
+        # the reader of the output left (``openfdk cycles RUN | head -3``): the printed
+        # summary stops there, without a word, and the exit code is a Unix tool's killed by
+        # SIGPIPE (the command's own code, e.g. 3 for failed frames, is not known here)
         _silence_stdout()
-        return 0
+        return EXIT_BROKEN_PIPE
     except (UserError, ValueError, FileNotFoundError, OSError) as exc:
         # ModelError, SubjectError, StudyError, C3DError, MeshError, MissingMarkerError,
         # KinematicsError and OutputDirError are ValueErrors
