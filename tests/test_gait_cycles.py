@@ -11,13 +11,14 @@ forms of the T_k).
 
 from __future__ import annotations
 
+import io
 import json
 
 import numpy as np
 import pandas as pd
 import pytest
 
-from openfdk.analysis.gait_cycles import gait_cycles, heel_strikes
+from openfdk.analysis.gait_cycles import gait_cycles, heel_strikes, strikes_text
 from openfdk.cli.commands import main
 from openfdk.fixtures.gait_cycles_run import RAMP, RATE, STARTS, WEIGHT, foot_load as _load, write_cycles_run
 from openfdk.results.run import read_results
@@ -35,6 +36,20 @@ def test_heel_strikes_are_where_the_foot_load_rises_through_the_threshold(tmp_pa
     # a higher threshold moves each strike by (v* − 20) / RAMP
     np.testing.assert_allclose(gait_cycles(results, "calcn_r", threshold=100.0).strikes, STARTS + 100.0 / RAMP,
                                rtol=0, atol=1e-12)
+
+
+def test_toe_off_is_where_the_swing_begins(tmp_path):
+    """The load ramps down from S_k + 0.6 s at 8 000 N/s from 800 N: it falls through
+    100 N at S_k + 0.6875 s (both frames either side on the ramp), the toe-off; the
+    stance is its share of the cycle."""
+    write_cycles_run(tmp_path)
+    cycles = gait_cycles(read_results(tmp_path), "calcn_r", threshold=100.0)
+    T = STARTS + 100.0 / RAMP
+    np.testing.assert_allclose(cycles.toe_offs, STARTS[:-1] + 0.6 + 700.0 / RAMP, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(cycles.stance_percent, 100.0 * (0.6875 - 0.0125) / np.diff(T), rtol=1e-12)
+    listed = pd.read_csv(io.StringIO(strikes_text(cycles)))
+    np.testing.assert_allclose(listed["toe_off_s"], cycles.toe_offs, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(listed["stance_percent"], cycles.stance_percent, rtol=1e-12)
 
 
 def test_a_quantity_over_the_cycles_has_the_closed_form_mean_and_sd(tmp_path):

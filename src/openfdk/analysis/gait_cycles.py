@@ -19,7 +19,9 @@ One algorithm:
    swing, too short for a stance, and a foot whose load is not known are no heel
    strikes.
 3. **Cycles.** Consecutive heel strikes [T_k, T_{k+1}]; a frame's % of cycle k is
-   p = 100 (t − T_k) / (T_{k+1} − T_k).
+   p = 100 (t − T_k) / (T_{k+1} − T_k). The cycle's toe-off is where the swing that
+   ends at T_{k+1} began, v falling through v* (linear between the two frames): its %
+   is the stance's share of the cycle.
 4. **The ensemble.** Each quantity of each cycle at p = 0, 1, …, 100 %, interpolated
    linearly between two adjacent usable frames (converged, finite), never across a failed
    frame (:func:`openfdk.analysis.kinematics_validation.interpolate_usable`); at each p
@@ -45,7 +47,7 @@ import numpy as np
 from ..dynamics.results import EXTERNAL_LOAD_KEYS
 from .kinematics_validation import interpolate_usable
 
-__all__ = ["CycleError", "Quantity", "Cycles", "foot_load", "heel_strikes", "quantities", "ensemble",
+__all__ = ["CycleError", "Quantity", "Cycles", "foot_load", "gait_events", "heel_strikes", "quantities", "ensemble",
            "gait_cycles", "PERCENT", "DEFAULT_THRESHOLD_N", "DEFAULT_MIN_OFF_S", "DEFAULT_MIN_ON_S"]
 
 #: the cycle's sample points (%)
@@ -79,7 +81,8 @@ class Cycles:
     """The cycles of a run and the quantities over them.
 
     foot: the body B; threshold_N: v*; time (nf,) s and load (nf,) N: v at the frames
-    (NaN without a value); strikes (nc + 1,) s: the heel strikes T_k; per quantity name,
+    (NaN without a value); strikes (nc + 1,) s: the heel strikes T_k; toe_offs (nc,) s:
+    each cycle's toe-off, where its swing began (NaN where not known); per quantity name,
     ``per_cycle[name]`` (nc, 101) at PERCENT (NaN where a cycle has no value) and
     ``kinds[name]``; ``failed`` (nc,) int: the failed frames within each cycle."""
 
@@ -91,6 +94,13 @@ class Cycles:
     per_cycle: dict = field(default_factory=dict)
     kinds: dict = field(default_factory=dict)
     failed: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    toe_offs: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @property
+    def stance_percent(self):
+        """(nc,) %: each cycle's toe-off in % of the cycle (NaN where not known)."""
+        T = np.asarray(self.strikes, float)
+        return 100.0 * (np.asarray(self.toe_offs, float) - T[:-1]) / (T[1:] - T[:-1])
 
     @property
     def n_cycles(self) -> int:
@@ -160,28 +170,42 @@ def _runs(mask):
     return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1) - 1))
 
 
-def heel_strikes(time, load, threshold=DEFAULT_THRESHOLD_N, min_off=DEFAULT_MIN_OFF_S, min_on=DEFAULT_MIN_ON_S):
-    """(k,) s: the heel strikes of a foot whose vertical load is ``load`` (nf,) N at
-    ``time`` (nf,) s, NaN where not known (module docstring, step 2): the crossing at the
-    end of each swing (frames known and below the threshold for at least ``min_off`` s)
-    whose foot then stands (at or above it for at least ``min_on`` s in one stretch)
-    before the next swing. The load may chatter about the threshold between the two: a
-    foot that touches the belt lightly before it loads it (DM's ``tm_set1``, 15.4 s)."""
+def gait_events(time, load, threshold=DEFAULT_THRESHOLD_N, min_off=DEFAULT_MIN_OFF_S, min_on=DEFAULT_MIN_ON_S):
+    """(strikes (k,) s, toe_offs (k,) s) of a foot whose vertical load is ``load`` (nf,)
+    N at ``time`` (nf,) s, NaN where not known (module docstring, step 2). Each heel
+    strike is the crossing at the end of a swing (frames known and below the threshold
+    for at least ``min_off`` s) whose foot then stands (at or above it for at least
+    ``min_on`` s in one stretch) before the next swing. The load may chatter about the
+    threshold between the two: a foot that touches the belt lightly before it loads it
+    (DM's ``tm_set1``, 15.4 s). ``toe_offs[k]`` is the crossing where that swing began,
+    the load falling through the threshold (NaN where the swing began at the first
+    frame or after one not known)."""
     t, v = np.asarray(time, float), np.asarray(load, float)
     known = np.isfinite(v)
     on = known & (v >= threshold)
     off = known & (v < threshold)
     swings = [(a, b) for a, b in _runs(off) if t[b] - t[a] >= min_off - 1e-9]
     stances = [a for a, b in _runs(on) if t[b] - t[a] >= min_on - 1e-9]
-    out = []
-    for k, (_, i) in enumerate(swings):
+    strikes, toe_offs = [], []
+    for k, (a, i) in enumerate(swings):
         if i + 1 >= len(t) or not on[i + 1]:  # the swing ends at the trial's end or in a frame not known
             continue
         next_swing = swings[k + 1][0] if k + 1 < len(swings) else len(t)
-        if not any(i + 1 <= a < next_swing for a in stances):
+        if not any(i + 1 <= s < next_swing for s in stances):
             continue
-        out.append(t[i] + (threshold - v[i]) / (v[i + 1] - v[i]) * (t[i + 1] - t[i]))
-    return np.asarray(out, float)
+        strikes.append(_crossing(t, v, threshold, i))
+        toe_offs.append(_crossing(t, v, threshold, a - 1) if a > 0 and on[a - 1] else np.nan)
+    return np.asarray(strikes, float), np.asarray(toe_offs, float)
+
+
+def _crossing(t, v, threshold, i):
+    """The time (s) where v passes ``threshold`` between frames i and i + 1 (linear)."""
+    return t[i] + (threshold - v[i]) / (v[i + 1] - v[i]) * (t[i + 1] - t[i])
+
+
+def heel_strikes(time, load, threshold=DEFAULT_THRESHOLD_N, min_off=DEFAULT_MIN_OFF_S, min_on=DEFAULT_MIN_ON_S):
+    """(k,) s: the heel strikes of :func:`gait_events`."""
+    return gait_events(time, load, threshold, min_off, min_on)[0]
 
 
 def quantities(results):
@@ -243,12 +267,15 @@ def gait_cycles(results, foot, threshold=DEFAULT_THRESHOLD_N, min_off=DEFAULT_MI
             raise CycleError(f"{flag}: must be a time >= 0 s, got {value:g}")
     load = foot_load(results, foot)
     time = np.asarray(results.forces.index.to_numpy(), float)
-    strikes = heel_strikes(time, load, threshold, min_off, min_on)
+    strikes, toe_offs = gait_events(time, load, threshold, min_off, min_on)
     if len(strikes) < 2:
         peak = np.nanmax(load) if np.any(np.isfinite(load)) else float("nan")
         raise CycleError(f"{where}: --foot {foot!r}: {len(strikes)} heel strike(s) (its vertical load rising through "
                          f"{threshold:g} N after {min_off:g} s below it; its peak is {peak:.4g} N): a cycle needs two")
-    cycles = Cycles(foot, float(threshold), time, load, strikes)
+    # the toe-off of cycle k begins the swing that ends at heel strike k + 1
+    toe = toe_offs[1:]
+    toe = np.where((toe > strikes[:-1]) & (toe < strikes[1:]), toe, np.nan)
+    cycles = Cycles(foot, float(threshold), time, load, strikes, toe_offs=toe)
     converged = results.forces["converged"].to_numpy() == 1
     cycles.failed = np.array([int(np.sum(~converged & (time >= T0) & (time <= T1)))
                               for T0, T1 in zip(strikes[:-1], strikes[1:])], int)
@@ -276,10 +303,15 @@ def csv_text(cycles: Cycles) -> str:
 
 def strikes_text(cycles: Cycles) -> str:
     """cycles_list.csv: one row per cycle: ``cycle`` (1, 2, …), ``start_s``, ``end_s``
-    (the heel strikes), ``duration_s`` and ``failed_frames`` within it."""
-    lines = ["cycle,start_s,end_s,duration_s,failed_frames"]
+    (the heel strikes), ``duration_s``, ``toe_off_s`` and ``stance_percent`` (its
+    toe-off, in s and in % of the cycle; empty where not known) and ``failed_frames``
+    within it."""
+    lines = ["cycle,start_s,end_s,duration_s,toe_off_s,stance_percent,failed_frames"]
+    stance = cycles.stance_percent
     for k, (T0, T1) in enumerate(zip(cycles.strikes[:-1], cycles.strikes[1:])):
-        lines.append(f"{k + 1},{T0:.6f},{T1:.6f},{T1 - T0:.6f},{int(cycles.failed[k])}")
+        toe = "" if not np.isfinite(cycles.toe_offs[k]) else f"{cycles.toe_offs[k]:.6f}"
+        lines.append(f"{k + 1},{T0:.6f},{T1:.6f},{T1 - T0:.6f},{toe},{_number(stance[k])},"
+                     f"{int(cycles.failed[k])}")
     return "\n".join(lines) + "\n"
 
 

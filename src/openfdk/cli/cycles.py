@@ -45,6 +45,10 @@ def _cmd_cycles(args):
         print(f"cycles: {results.directory}, foot {args.foot}: {cycles.n_cycles} cycle(s) from "
               f"{cycles.strikes[0]:.4f} to {cycles.strikes[-1]:.4f} s, {durations.min():.3f}–{durations.max():.3f} s "
               f"long; {int(cycles.failed.sum())} failed frame(s) within them")
+        stance = cycles.stance_percent
+        if np.any(np.isfinite(stance)):
+            print(f"  stance: {np.nanmean(stance):.1f} % of the cycle (mean; toe-off where the load falls through "
+                  f"{cycles.threshold_N:g} N)")
         for name in cycles.per_cycle:
             mean = cycles.mean(name)
             if name.endswith(".|F|_N") and np.any(np.isfinite(mean)):

@@ -73,11 +73,22 @@ def cycles_figure(cycles, body_weight=None, title="", width=11.0, row_height=2.6
             ax.plot(p, mean, color=colour, lw=1.6, label=_label(q))
             ax.fill_between(p, mean - sd, mean + sd, color=colour, alpha=0.18, lw=0)
         ax.set_ylabel(f"{name}\n({unit})" if unit else name, fontsize=8)
+    stance = cycles.stance_percent
+    stance = float(np.mean(stance[np.isfinite(stance)])) if np.any(np.isfinite(stance)) else None
+    if stance is not None:  # the mean toe-off: stance | swing
+        for ax in axes:
+            ax.axvline(stance, color="grey", ls="--", lw=0.8)
+            ax.text(stance / 2, 0.97, "stance", transform=ax.get_xaxis_transform(), ha="center", va="top",
+                    fontsize=7, color="grey")
+            ax.text((stance + 100) / 2, 0.97, "swing", transform=ax.get_xaxis_transform(), ha="center", va="top",
+                    fontsize=7, color="grey")
     axes[-1].set_xlim(0, 100)
     axes[-1].set_xlabel("gait cycle (%)")
     failed = int(np.sum(cycles.failed))
     text = (f"Cycles from one heel strike of {cycles.foot} to the next: its vertical measured load rising through "
-            f"{cycles.threshold_N:g} N. Lines: the mean over the {n} cycles; bands: ± one standard deviation; thin "
+            f"{cycles.threshold_N:g} N"
+            + (f"; dashed: the mean toe-off, where it falls through that load ({stance:.1f} %)" if stance else "")
+            + f". Lines: the mean over the {n} cycles; bands: ± one standard deviation; thin "
             "lines: each cycle (the panel's first quantity). Failed frames are left out (no value is interpolated "
             f"across them): {failed} within the cycles."
             + (f" BW: the body weight, {body_weight:.1f} N." if body_weight else ""))
