@@ -56,7 +56,7 @@ class RunTables:
         hi = np.inf if end is None else float(end)
         if np.isnan(lo) or np.isnan(hi) or lo > hi:
             raise ResultsError(f"--start/--end: [{lo:g}, {hi:g}] s is not a time window")
-        keep = (t >= lo - 1e-9) & (t <= hi + 1e-9)
+        keep = _within(t, (lo, hi))
         if not keep.any():
             span = f"{t[0]:g}–{t[-1]:g} s" if len(t) else "no frame"
             raise ResultsError(f"{self.directory / 'kinematics.csv'}: no frame within [{lo:g}, {hi:g}] s "
@@ -67,6 +67,17 @@ class RunTables:
     @property
     def n_frames(self):
         return len(self.time)
+
+    def within_span(self, t):
+        """(k,) bool: which times ``t`` (k,) s lie in the run's :meth:`window` (all for the
+        whole run)."""
+        t = np.asarray(t, float)
+        return np.ones(t.shape, bool) if self.span is None else _within(t, self.span)
+
+
+def _within(t, span):
+    """(k,) bool: start − 1 ns ≤ t ≤ end + 1 ns for ``span`` (start, end) s."""
+    return (t >= span[0] - 1e-9) & (t <= span[1] + 1e-9)
 
 
 class TableColumns(Mapping):

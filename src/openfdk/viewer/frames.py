@@ -126,10 +126,8 @@ def _run_table(results, name):
     if folder is None or not (Path(folder) / name).is_file():
         return None
     data = read_table(Path(folder) / name)
-    span = getattr(results, "span", None)
-    if span is not None and "time" in data:  # a window of the run: the table's rows within it
-        t = np.asarray(data["time"], float)
-        keep = (t >= span[0] - 1e-9) & (t <= span[1] + 1e-9)
+    if getattr(results, "span", None) is not None and "time" in data:  # a window of the run: its rows within
+        keep = results.within_span(data["time"])
         data = {k: (np.asarray(v)[keep] if not isinstance(v, list) else [x for x, k2 in zip(v, keep) if k2])
                 for k, v in data.items()}
     return data if len(data["time"]) == results.n_frames else None
